@@ -1,0 +1,62 @@
+"""Command line: `netgen build STRUCTURE.toml -o DIR` and friends. Errors exit 2, never a traceback."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from . import __version__
+from .structure import StructureError
+
+
+def _build(args: argparse.Namespace) -> int:
+    from .emit import write_outputs
+    from .pipeline import build_model
+    from .structure import load_structure
+
+    start = time.perf_counter()
+    structure = load_structure(args.structure)
+    model = build_model(structure, progress=not args.quiet)
+    written = write_outputs(model, Path(args.output), args.format)
+    if not args.quiet:
+        for path in written:
+            print(f"wrote {path}")
+        worst = max(f.max_rel_error for f in model.capacitances)
+        print(f"{model.name}: {model.ncoords} coordinates, {len(model.electrodes)} electrodes, "
+              f"held-out max capacitance error {worst:.2e}, {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="netgen", description=__doc__)
+    p.add_argument("--version", action="version", version=f"netgen {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
+    b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
+    b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
+    b.add_argument("--format", choices=["ngspice", "all"], default="ngspice", help="netlist dialects to write")
+    b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    b.set_defaults(func=_build)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `netgen` console command."""
+    args = parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except StructureError as exc:
+        print(f"netgen: error in structure file {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("netgen: interrupted", file=sys.stderr)
+        return 130
+    except OSError as exc:
+        print(f"netgen: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

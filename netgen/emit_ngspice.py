@@ -1,0 +1,114 @@
+"""ngspice emitter: renders a MacroModel into a .subckt with Jinja2 (no physics here)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .fit import Polynomial
+from .model import MacroModel
+from .templating import render
+
+
+def num(value: float) -> str:
+    """Deterministic, round-trip-safe number text for netlists."""
+    if not math.isfinite(value):
+        raise ValueError(f"non-finite value {value} cannot be emitted")
+    return repr(float(value))
+
+
+def poly_expr(poly: Polynomial, names: list[str], drop: float = 0.0) -> str:
+    """Polynomial as explicit products of node voltages (ngspice's ^ and pow are |x|^y)."""
+    terms = []
+    for e, c in zip(poly.exponents, poly.coeffs):
+        if c == 0.0 or abs(c) < drop:
+            continue
+        factors = [f"v({names[v]})" for v in range(len(names)) for _ in range(int(e[v]))]
+        terms.append("*".join([num(c)] + factors))
+    if not terms:
+        return "0"
+    return " + ".join(terms).replace("+ -", "- ")
+
+
+def time_scale(model: MacroModel) -> float:
+    """Model time scale w_s (rad/s): the geometric mean of the modal frequencies, else 1e6."""
+    freqs = [c.frequency_hz for c in model.coordinates if c.frequency_hz > 0]
+    f = math.exp(float(np.mean(np.log(freqs)))) if freqs else 1e6 / (2 * math.pi)
+    return 2 * math.pi * f
+
+
+def _force_expr(model: MacroModel, v: int, ws: float, state: list[str]) -> str:
+    """Right-hand side current of the velocity integrator of coordinate v."""
+    c = model.coordinates[v]
+    a = 1.0 / (c.mass * c.scale * ws * ws)
+    parts = [f"{num(a * c.port_units[3])}*v(f_{c.name})"]
+    if c.stiffness:
+        parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))}*v({state[v]})")
+    if c.damping:
+        parts.append(f"{num(-c.damping / (c.mass * ws))}*v(u_{c.name})")
+    for f in model.capacitances:
+        dv = f"v({f.electrode},{model.plate})"
+        for k, poly in enumerate(f.polys):
+            dpoly = poly.derivative(v)
+            if not np.any(dpoly.coeffs):
+                continue
+            g = a * f.c_ref / (2.0 * c.scale)
+            if f.target == "direct":
+                parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*{dv}*{dv}")
+                continue
+            p = f"v({node(f.electrode, k)})"
+            if dpoly.exponents.sum() == 0:                      # affine P_k: constant derivative
+                parts.append(f"{num(-g * float(dpoly.coeffs.sum()))}/({p}*{p})*{dv}*{dv}")
+            else:
+                parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})/({p}*{p})*{dv}*{dv}")
+    return " + ".join(parts).replace("+ -", "- ")
+
+
+def node(electrode: str, k: int) -> str:
+    """Name of the node carrying term k of an electrode's capacitance polynomial(s)."""
+    return f"p_{electrode}_{k + 1}"
+
+
+def charge_expr(f, plate: str) -> str:
+    """Charge of one plate-electrode capacitor, Q = C(q) * (V_e - V_plate)."""
+    if f.target == "direct":
+        cap = f"{num(f.c_ref)}*v({node(f.electrode, 0)})"
+    else:
+        cap = f"{num(f.c_ref)}*(" + " + ".join(f"1/v({node(f.electrode, k)})" for k in range(len(f.polys))) + ")"
+    return f"{cap}*v({f.electrode},{plate})"
+
+
+def _si(value: float, unit: str) -> str:
+    return f"{value:.6g} {unit}".strip()
+
+
+def subcircuit(model: MacroModel) -> str:
+    """The complete .lib text of the model's subcircuit."""
+    ws = time_scale(model)
+    state = [f"xs_{c.name}" for c in model.coordinates]
+    coords = []
+    for v, c in enumerate(model.coordinates):
+        xu, xf, fu, _ = c.port_units
+        mass_unit = "kg" if c.unit == "m" else "kg*m^2"
+        stiff_unit = "N/m" if c.unit == "m" else "N*m/rad"
+        coords.append({
+            "name": c.name, "kind": c.kind + (f" {c.label}" if c.label else ""), "xunit": xu, "funit": fu,
+            "scale_text": _si(c.scale, c.unit), "mass_text": _si(c.mass, mass_unit),
+            "stiff_text": _si(c.stiffness, stiff_unit),
+            "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-",
+            "cint": num(1.0 / ws), "force_expr": _force_expr(model, v, ws, state),
+            "out_gain": num(c.scale / xf)})
+    fits = [{"electrode": f.electrode, "c_ref_text": f"{f.c_ref:.6e}", "max_text": f"{f.max_rel_error:.3e}",
+             "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys),
+             "nodes": [{"name": node(f.electrode, k), "expr": poly_expr(p, state)} for k, p in enumerate(f.polys)],
+             "charge_expr": charge_expr(f, model.plate)}
+            for f in model.capacitances]
+    names = [e.name for e in model.electrodes]
+    couplings = [{"a": names[i], "b": names[j], "value": num(model.coupling[i, j])}
+                 for i in range(len(names)) for j in range(i + 1, len(names)) if model.coupling[i, j]]
+    fit_form = {"plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
+                "inverse": "C = c_ref / P(xs): fit of 1/C", "direct": "C = c_ref * P(xs)"}[model.capacitances[0].target]
+    degree = max(f.degree for f in model.capacitances)
+    return render("ngspice_subckt.lib.j2", m=model, ports=model.ports(), coords=coords, fits=fits,
+                  couplings=couplings, ws_text=f"{ws:.6g}", fit_form=fit_form, degree=degree)

@@ -1,0 +1,218 @@
+"""The MacroModel: the one data object between the physics and the emitters.
+
+It holds everything an emitter or a simulation check needs (coordinates with their
+scaling, mass, stiffness, damping, fitted capacitances, constant couplings, ports) and
+evaluates the model equations in Python for independent checks. Saved as JSON next
+to the netlist so later steps never recompute physics.
+
+Units: x_v = q_v / scale_v is the scaled coordinate (1 = touching an electrode).
+Generalized forces are in SI (N for lengths, N*m for angles).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .fit import CapacitanceFit, Polynomial
+
+# port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
+#                                  display unit of generalized force, factor SI per display unit)
+PORT_UNITS = {
+    "m": ("um", 1e-6, "uN", 1e-6),
+    "rad": ("mrad", 1e-3, "nN*m", 1e-9),
+}
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """One generalized coordinate and its mechanics (diagonal: mass-orthogonal basis)."""
+    name: str
+    kind: str            # "translation", "rotation" or "mode"
+    unit: str            # "m" or "rad": SI unit of q
+    scale: float         # SI units of q per unit of the scaled state x (touching amplitude)
+    mass: float          # kg (translation, mode) or kg*m^2 (rotation)
+    stiffness: float     # N/m or N*m/rad (0 for rigid-body motions)
+    damping: float = 0.0  # N*s/m or N*m*s/rad (placeholder until damping models land)
+    frequency_hz: float = 0.0
+    label: str = ""      # (n,s) label of an eigenmode
+
+    @property
+    def port_units(self) -> tuple[str, float, str, float]:
+        return PORT_UNITS[self.unit]
+
+
+@dataclass(frozen=True)
+class Electrode:
+    """One fixed electrode facing the moving conductor."""
+    name: str
+    group: str
+    side: str
+    gap: float
+    area: float
+
+
+@dataclass
+class MacroModel:
+    """Coordinates, mechanics, fitted capacitances and ports of one structure."""
+    name: str
+    description: str
+    source: str
+    coordinates: list[Coordinate]
+    electrodes: list[Electrode]
+    capacitances: list[CapacitanceFit]          # plate-electrode, one per electrode, same order
+    coupling: np.ndarray                         # F, constant electrode-electrode capacitances (symmetric)
+    sampling: dict                               # levels, range, samples, grid point count
+    report: dict = field(default_factory=dict)   # mechanics/electrostatics facts for humans
+    plate: str = "plate"
+    generator: str = f"netgen {__version__}"
+
+    # ------------------------------------------------------------ evaluation
+    @property
+    def ncoords(self) -> int:
+        return len(self.coordinates)
+
+    @property
+    def scales(self) -> np.ndarray:
+        return np.array([c.scale for c in self.coordinates])
+
+    def capacitance(self, x: np.ndarray) -> np.ndarray:
+        """Plate-electrode capacitances (npoints, nelectrodes) in F at scaled coordinates x."""
+        x = np.atleast_2d(x)
+        return np.stack([f.value(x) for f in self.capacitances], axis=-1)
+
+    def capacitance_gradient(self, x: np.ndarray) -> np.ndarray:
+        """dC_i/dq_v in F per SI unit of q, shape (npoints, nelectrodes, ncoords)."""
+        x = np.atleast_2d(x)
+        g = np.stack([f.gradient(x) for f in self.capacitances], axis=1)
+        return g / self.scales[None, None, :]
+
+    def electrostatic_force(self, x: np.ndarray, v_el: np.ndarray, v_plate: float | np.ndarray = 0.0) -> np.ndarray:
+        """Generalized forces 1/2 sum_i dC_i/dq_v (V_i - V_p)^2, shape (npoints, ncoords), SI."""
+        dv = np.atleast_2d(v_el) - np.reshape(v_plate, (-1, 1))
+        return 0.5 * np.einsum("pi,piv->pv", dv * dv, self.capacitance_gradient(x))
+
+    def plate_charge(self, x: np.ndarray, v_el: np.ndarray, v_plate: float | np.ndarray) -> np.ndarray:
+        """Charge on the moving conductor, -sum_i C_i (V_i - V_p), per point."""
+        dv = np.atleast_2d(v_el) - np.reshape(v_plate, (-1, 1))
+        return -np.sum(self.capacitance(x) * dv, axis=1)
+
+    def electrode_charges(self, x: np.ndarray, v_el: np.ndarray, v_plate: float | np.ndarray) -> np.ndarray:
+        """Charges on the electrodes (plate coupling plus constant couplings), (npoints, nel)."""
+        v = np.atleast_2d(v_el)
+        dv = v - np.reshape(v_plate, (-1, 1))
+        mutual = v * self.coupling.sum(axis=1)[None, :] - v @ self.coupling.T
+        return self.capacitance(x) * dv + mutual
+
+    def accelerations(self, x: np.ndarray, xdot: np.ndarray, v_el: np.ndarray, v_plate: float,
+                      f_ext: np.ndarray | None = None) -> np.ndarray:
+        """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext (diagonal M, D, K)."""
+        c = self.coordinates
+        m = np.array([k.mass for k in c]); d = np.array([k.damping for k in c])
+        k = np.array([k.stiffness for k in c]); s = self.scales
+        force = self.electrostatic_force(x, v_el, v_plate)[0]
+        if f_ext is not None:
+            force = force + f_ext
+        return (force - d * s * xdot - k * s * x) / (m * s)
+
+    # ------------------------------------------------------------ JSON
+    def to_dict(self) -> dict:
+        """Plain, JSON-ready dict; floats are kept at full precision."""
+        return {
+            "generator": self.generator,
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "plate": self.plate,
+            "coordinates": [asdict(c) | {"port_units": _port_dict(c)} for c in self.coordinates],
+            "modes": [{"name": c.name, "label": c.label, "frequency_hz": c.frequency_hz,
+                       "modal_mass": c.mass, "modal_stiffness": c.stiffness}
+                      for c in self.coordinates if c.kind == "mode"],
+            "electrodes": [asdict(e) for e in self.electrodes],
+            "capacitances": [_fit_dict(f, self.plate) for f in self.capacitances],
+            "coupling": [{"pair": [self.electrodes[i].name, self.electrodes[j].name],
+                          "capacitance": float(self.coupling[i, j])}
+                         for i in range(len(self.electrodes)) for j in range(i + 1, len(self.electrodes))
+                         if self.coupling[i, j] != 0.0],
+            "ports": self.ports(),
+            "sampling": self.sampling,
+            "report": self.report,
+        }
+
+    def ports(self) -> list[dict]:
+        """Subcircuit port list in order, with meaning and units."""
+        ports = [{"name": e.name, "kind": "electrode", "unit": "V"} for e in self.electrodes]
+        ports.append({"name": self.plate, "kind": "conductor", "unit": "V"})
+        for c in self.coordinates:
+            xu, _, fu, _ = c.port_units
+            ports.append({"name": f"f_{c.name}", "kind": "force_in", "unit": fu, "coordinate": c.name})
+            ports.append({"name": f"x_{c.name}", "kind": "displacement_out", "unit": xu, "coordinate": c.name})
+        return ports
+
+    def save_json(self, path: str | Path) -> None:
+        """Write the model JSON atomically (temp file + rename), byte-reproducibly."""
+        write_atomic(path, json.dumps(self.to_dict(), indent=1, sort_keys=False, allow_nan=False) + "\n")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MacroModel":
+        """Rebuild a model from its JSON dict (the emitters' input)."""
+        coords = [Coordinate(**{k: v for k, v in c.items() if k != "port_units"}) for c in d["coordinates"]]
+        electrodes = [Electrode(**e) for e in d["electrodes"]]
+        fits = [CapacitanceFit(f["electrode"], f["c_ref"], f["target"],
+                               tuple(Polynomial(np.array(t["exponents"], dtype=int).reshape(-1, len(coords)),
+                                                np.array(t["coeffs"], dtype=float)) for t in f["terms"]),
+                               f["max_rel_error"], f["rms_rel_error"], f["grid_max_rel_error"])
+                for f in d["capacitances"]]
+        names = [e.name for e in electrodes]
+        coupling = np.zeros((len(names), len(names)))
+        for c in d["coupling"]:
+            i, j = names.index(c["pair"][0]), names.index(c["pair"][1])
+            coupling[i, j] = coupling[j, i] = c["capacitance"]
+        return cls(d["name"], d["description"], d["source"], coords, electrodes, fits, coupling,
+                   d["sampling"], d["report"], d["plate"], d["generator"])
+
+    @classmethod
+    def load_json(cls, path: str | Path) -> "MacroModel":
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def _port_dict(c: Coordinate) -> dict:
+    xu, xf, fu, ff = c.port_units
+    return {"displacement": xu, "displacement_si_per_volt": xf, "force": fu, "force_si_per_volt": ff}
+
+
+def _fit_dict(f: CapacitanceFit, plate: str) -> dict:
+    return {"pair": [plate, f.electrode], "electrode": f.electrode, "c_ref": f.c_ref, "target": f.target,
+            "max_rel_error": f.max_rel_error, "rms_rel_error": f.rms_rel_error,
+            "grid_max_rel_error": f.grid_max_rel_error,
+            "terms": [{"exponents": p.exponents.tolist(), "coeffs": [float(c) for c in p.coeffs]}
+                      for p in f.polys]}
+
+
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write text to `path` via a temp file in the same folder and an atomic rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def finite(value: float) -> float:
+    """Guard against NaN/inf reaching a netlist or JSON."""
+    if not math.isfinite(value):
+        raise ValueError(f"non-finite model value {value}")
+    return value

@@ -1,0 +1,242 @@
+"""The build pipeline: structure -> mechanics -> electrostatics -> fit -> MacroModel.
+
+Data flows one way; each stage is a function of the previous stage's output.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from . import electrostatics as es
+from . import mechanics as mech
+from .fit import CapacitanceFit, fit_capacitance, fit_plates, holdout_points, sampling_grid
+from .model import Coordinate, Electrode, MacroModel
+from .structure import Structure
+
+EPS0 = 8.8541878128e-12
+
+
+@dataclass
+class Mechanics:
+    """Stage output: coordinates (without scales yet) and the vertical displacement basis."""
+    names: list[str]
+    kinds: list[str]
+    units: list[str]
+    labels: list[str]
+    masses: np.ndarray
+    stiffnesses: np.ndarray
+    frequencies: np.ndarray
+    basis: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    report: dict
+
+
+def mechanics(s: Structure) -> Mechanics:
+    """Rigid-body masses and FEM eigenmodes of the conductor, as generalized coordinates."""
+    d = s.conductor
+    body = mech.rigid_disk(d.radius, d.thickness, d.density)
+    rigid_mass = {"z": body.mass, "tilt_x": body.inertia[0, 0], "tilt_y": body.inertia[1, 1]}
+    modes = None
+    if s.coordinates.modes:
+        modes = mech.free_disk_modes(d.radius, d.thickness, d.youngs_modulus, d.poisson_ratio, d.density,
+                                     list(s.coordinates.modes) if not isinstance(s.coordinates.modes, int)
+                                     else s.coordinates.modes, refine=s.fem.refine,
+                                     reference_amplitude=s.sampling.range * min(e.gap for e in s.electrode_sets))
+    rigid = list(s.coordinates.rigid)
+    labels = list(modes.labels) if modes else []
+    names = rigid + [f"m{lab.replace(',', '_')}" for lab in labels]
+    kinds = ["translation" if r == "z" else "rotation" for r in rigid] + ["mode"] * len(labels)
+    units = ["m" if r == "z" else "rad" for r in rigid] + ["m"] * len(labels)
+    masses = np.array([rigid_mass[r] for r in rigid] + (list(modes.modal_mass) if modes else []))
+    stiff = np.array([0.0] * len(rigid) + (list(modes.modal_stiffness) if modes else []))
+    freqs = np.array([0.0] * len(rigid) + (list(modes.frequencies_hz) if modes else []))
+
+    def basis(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Vertical displacement per unit of each coordinate at points (x, y)."""
+        cols = {"z": np.ones_like(x), "tilt_x": y, "tilt_y": -x}
+        out = [cols[r] for r in rigid]
+        if modes is not None:
+            shapes = modes.shape(x, y)
+            out += [shapes[:, k] for k in range(shapes.shape[1])]
+        return np.stack(out, axis=-1)
+
+    report = {"mass_kg": body.mass, "inertia_kg_m2": np.asarray(body.inertia).tolist()}
+    if modes is not None:
+        report.update({"fem_refine": s.fem.refine, "lambda2": [float(v) for v in modes.lambda2],
+                       "side_conditions": _floats(modes.orthogonality), "rotation_mode_coupling": _floats(modes.coupling)})
+    return Mechanics(names, kinds, units, [""] * len(rigid) + labels, masses, stiff, freqs, basis, report)
+
+
+def _floats(d: dict) -> dict:
+    return {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in d.items()}
+
+
+def electrodes(s: Structure) -> tuple[list[es.Electrode], list[Electrode]]:
+    """Extractor electrodes and their model descriptions, in port order."""
+    out, described = [], []
+    for eset in s.electrode_sets:
+        names = iter(eset.electrode_names())
+        for r_in, r_out in eset.rings:
+            for k in range(eset.sectors):
+                width = 2 * math.pi / eset.sectors
+                start = eset.sector_start + k * width
+                slot = eset.slot if eset.sectors > 1 else 0.0
+                shape = es.AnnularSector(next(names), r_in, r_out, start, start + width, slot)
+                out.append(es.Electrode(shape, eset.side, eset.gap))
+    plate = plate_outline(s)
+    for e in out:
+        x, y, w = e.shape.quadrature(plate)
+        described.append(Electrode(e.shape.name, e.shape.name.split("_")[0], e.side, e.gap, float(np.sum(w))))
+    return out, described
+
+
+def plate_outline(s: Structure) -> es.DiskPlate:
+    return es.DiskPlate(s.conductor.radius)
+
+
+def extractor(s: Structure) -> es.ParallelPlateExtractor:
+    """The capacitance extractor chosen by the structure's electrostatics options."""
+    o = s.electrostatics
+    eps = EPS0 * o.relative_permittivity
+    if o.fringe == "none":
+        fringe = None
+    elif o.fringe == "palmer":
+        fringe = es.EdgeFringe.palmer(2 * s.conductor.radius)
+    else:
+        fringe = es.EdgeFringe(o.fringe_a, o.fringe_b, s.conductor.radius)
+    return es.ParallelPlateExtractor(eps=eps, fringe=fringe, coupling_per_length=o.coupling_per_length)
+
+
+def touch_amplitudes(prepared, ncoords: int, gaps: np.ndarray) -> np.ndarray:
+    """Amplitude of each coordinate alone at which the plate first touches an electrode."""
+    probe = 1e-3 * float(np.min(gaps))
+    amps = np.full(ncoords, np.inf)
+    for v in range(ncoords):
+        for sign in (1.0, -1.0):
+            q = np.zeros((1, ncoords))
+            q[0, v] = sign * probe
+            closing = (gaps - prepared.min_gap(q)[0]) / probe     # gap closed per unit amplitude
+            with np.errstate(divide="ignore"):
+                reach = np.where(closing > 1e-12, gaps / closing, np.inf)
+            amps[v] = min(amps[v], float(reach.min()))
+    return amps
+
+
+def sample(prepared, q: np.ndarray, progress: bool, desc: str, chunk: int = 256) -> np.ndarray:
+    """Capacitances at many coordinate points, in chunks, with a progress bar on stderr."""
+    out = []
+    with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
+        for k in range(0, len(q), chunk):
+            out.append(prepared.capacitance(q[k:k + chunk]))
+            bar.update(min(chunk, len(q) - k))
+    return np.concatenate(out, axis=0)
+
+
+def build_model(s: Structure, progress: bool = False) -> MacroModel:
+    """Run the whole pipeline for one structure."""
+    _say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
+    m = mechanics(s)
+    ext_electrodes, described = electrodes(s)
+    prepared = extractor(s).prepare(ext_electrodes, plate_outline(s), m.basis)
+    gaps = np.array([e.gap for e in ext_electrodes])
+    scales = touch_amplitudes(prepared, len(m.names), gaps)
+    if not np.all(np.isfinite(scales)):
+        bad = [n for n, a in zip(m.names, scales) if not math.isfinite(a)]
+        raise ValueError(f"coordinates {bad} never move the plate towards an electrode; they cannot be sampled")
+    half = s.sampling.range
+    x = sampling_grid(len(m.names), s.sampling.levels, half)
+    x_check = holdout_points(len(m.names), s.fit.holdout, half, s.fit.seed)
+    c = sample(prepared, x * scales, progress, "capacitance samples")
+    c_check = sample(prepared, x_check * scales, progress, "held-out samples")
+    touching = np.isnan(c).any(axis=1)          # grid corners where the combined motion closes a gap
+    x, c = x[~touching], c[~touching]
+    touching_check = np.isnan(c_check).any(axis=1)
+    x_check, c_check = x_check[~touching_check], c_check[~touching_check]
+    _say(progress, f"{s.name}: fitting {c.shape[1]} capacitances to {len(x)} samples ({s.fit.target})")
+    fits, start = [], {}
+    for i, e in enumerate(tqdm(ext_electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr,
+                               leave=False)):
+        ring = described[i].name.rsplit("s", 1)[0]            # electrodes of one ring share a patch grid
+        fit, start[ring] = fit_electrode(s, e, described[i].name, m.basis, scales, x, c[:, i], x_check,
+                                         c_check[:, i], start.get(ring, 0))
+        fits.append(fit)
+    coupling = extractor(s).coupling(ext_electrodes, plate_outline(s))
+    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), 0.0, float(f), lab)
+              for n, k, u, L, ms, ks, f, lab in zip(m.names, m.kinds, m.units, scales, m.masses,
+                                                   m.stiffnesses, m.frequencies, m.labels)]
+    sampling = {"levels": s.sampling.levels, "range": half, "samples": int(len(x)),
+                "excluded_touching": int(touching.sum()), "holdout": int(len(x_check)),
+                "holdout_excluded_touching": int(touching_check.sum()), "seed": int(s.fit.seed),
+                "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
+    report = {"mechanics": m.report, "electrostatics": {
+        "extractor": "parallel-plate over the local gap + edge fringe",
+        "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
+    return MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
+                      sampling, report)
+
+
+PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5)]
+
+
+def fit_electrode(s: Structure, e: es.Electrode, name: str, basis, scales: np.ndarray, x: np.ndarray,
+                  c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray,
+                  first: int = 0) -> tuple[CapacitanceFit, int]:
+    """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
+    starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
+    term limit is reached). Returns the fit and the index of the grid used."""
+    o = s.fit
+    if o.target != "plates":
+        return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
+    best, used = None, first
+    for k in range(first, len(PATCH_GRIDS)):
+        grid = PATCH_GRIDS[k]
+        if grid[0] * grid[1] > o.max_terms:
+            break
+        init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
+        fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)
+        if best is None or fit.max_rel_error < best.max_rel_error:
+            best, used = fit, k
+        if fit.max_rel_error <= o.tolerance:
+            break
+    return best, used
+
+
+def patch_guess(s: Structure, e: es.Electrode, basis, scales: np.ndarray, grid: tuple[int, int],
+                c_ref: float) -> np.ndarray:
+    """Affine first guesses P_k(x) for K = nr x nt patches of the electrode (equal-area bins in
+    r and theta): each patch a parallel plate at its mean local displacement."""
+    px, py, w = e.shape.quadrature(plate_outline(s))
+    r, theta = np.hypot(px, py), np.unwrap(np.arctan2(py, px))
+    phi = basis(px, py) * scales[None, :] * e.sign          # gap closed per unit x
+    ids = _bins(r, w, grid[0]) * grid[1] + _bins(theta, w, grid[1])
+    eps = EPS0 * s.electrostatics.relative_permittivity
+    rows, caps = [], []
+    for k in range(grid[0] * grid[1]):
+        sel = ids == k
+        area = float(np.sum(w[sel]))
+        if area <= 0:
+            continue
+        mean_phi = np.sum(w[sel, None] * phi[sel], axis=0) / area
+        rows.append(np.concatenate([[e.gap], -mean_phi]) / (eps * area))
+        caps.append(eps * area / e.gap)
+    lam = c_ref / sum(caps)                                  # absorbs the edge fringe
+    return np.array(rows) * c_ref / lam
+
+
+def _bins(values: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
+    """Bin index of each point so that the n bins hold equal total weight."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order]) / np.sum(weights)
+    ids = np.empty(len(values), dtype=int)
+    ids[order] = np.minimum((cum * n - 1e-12).astype(int), n - 1)
+    return ids
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(text, file=sys.stderr)

@@ -1,0 +1,54 @@
+"""Physical quantities in structure files: plain SI numbers or strings such as "473 um"."""
+
+from __future__ import annotations
+
+import math
+import re
+
+# quantity kind -> {unit spelling: factor to SI}
+UNITS: dict[str, dict[str, float]] = {
+    "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9},
+    "modulus": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9},
+    "density": {"kg/m^3": 1.0, "kg/m3": 1.0, "g/cm^3": 1e3, "g/cm3": 1e3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0},
+    "voltage": {"V": 1.0, "mV": 1e-3},
+    "frequency": {"Hz": 1.0, "kHz": 1e3, "MHz": 1e6},
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9},
+    "dimensionless": {"": 1.0},
+}
+
+SI_NAME = {"length": "m", "modulus": "Pa", "density": "kg/m^3", "angle": "rad",
+           "voltage": "V", "frequency": "Hz", "time": "s", "dimensionless": ""}
+
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
+
+
+class UnitError(ValueError):
+    """A quantity that cannot be read as the expected kind; the message says what is accepted."""
+
+
+def parse_quantity(value: object, kind: str) -> float:
+    """Return `value` in SI units; numbers are taken as SI, strings carry a unit of `kind`."""
+    if isinstance(value, bool):
+        raise UnitError(f"expected a number or a quantity string, got {value!r}")
+    if isinstance(value, (int, float)):
+        return float(value)
+    if not isinstance(value, str):
+        raise UnitError(f"expected a number or a quantity string such as "
+                        f"'{example(kind)}', got {type(value).__name__} {value!r}")
+    match = _QUANTITY.match(value)
+    if not match:
+        raise UnitError(f"cannot read {value!r} as a number with a unit (e.g. '{example(kind)}')")
+    number, unit = match.groups()
+    table = UNITS[kind]
+    if unit not in table:
+        accepted = ", ".join(u for u in table if u) or "no unit"
+        raise UnitError(f"unit {unit!r} is not a {kind} unit (accepted: {accepted})")
+    return float(number) * table[unit]
+
+
+def example(kind: str) -> str:
+    """A short example quantity string for error messages."""
+    return {"length": "473 um", "modulus": "160 GPa", "density": "2330 kg/m^3",
+            "angle": "45 deg", "voltage": "5 V", "frequency": "100 kHz",
+            "time": "1 us", "dimensionless": "0.22"}[kind]
