@@ -5,17 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 
 from .emit_ngspice import subcircuit
-from .model import MacroModel, write_atomic
+from .model import MacroModel, write_files_atomic
 
 EMITTERS = {"ngspice": (".lib", subcircuit)}
 
 
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
-    """Emit the requested dialects and the model JSON into `folder`; return the paths written."""
+    """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written."""
     chosen = list(EMITTERS) if fmt == "all" else [fmt]
+    # render everything before writing anything: a failing emitter or model leaves no output
     texts = {folder / f"{model.name}{EMITTERS[f][0]}": EMITTERS[f][1](model) for f in chosen}
-    json_path = folder / f"{model.name}.json"
-    for path, text in texts.items():
-        write_atomic(path, text)
-    model.save_json(json_path)
-    return [*texts, json_path]
+    texts[folder / f"{model.name}.json"] = model.json_text()
+    write_files_atomic(texts)
+    return list(texts)

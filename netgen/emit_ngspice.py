@@ -38,36 +38,44 @@ def time_scale(model: MacroModel) -> float:
     return 2 * math.pi * f
 
 
-def _force_expr(model: MacroModel, v: int, ws: float, state: list[str]) -> str:
-    """Right-hand side current of the velocity integrator of coordinate v."""
+def _force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple[str, list[tuple[str, str]]]:
+    """Right-hand side current of the velocity integrator of coordinate v: a behavioural
+    expression, and (node, gain) pairs of forces linear in a y node (emitted as cheap VCCS)."""
     c = model.coordinates[v]
     a = 1.0 / (c.mass * c.scale * ws * ws)
-    parts = [f"{num(a * c.port_units[3])}*v(f_{c.name})"]
+    parts, linear = [f"{num(a * c.port_units[3])}*v(f_{c.name})"], []
     if c.stiffness:
         parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))}*v({state[v]})")
     if c.damping:
         parts.append(f"{num(-c.damping / (c.mass * ws))}*v(u_{c.name})")
     for f in model.capacitances:
-        dv = f"v({f.electrode},{model.plate})"
         for k, poly in enumerate(f.polys):
             dpoly = poly.derivative(v)
             if not np.any(dpoly.coeffs):
                 continue
             g = a * f.c_ref / (2.0 * c.scale)
-            if f.target == "direct":
-                parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*{dv}*{dv}")
-                continue
-            p = f"v({node(f.electrode, k)})"
-            if dpoly.exponents.sum() == 0:                      # affine P_k: constant derivative
-                parts.append(f"{num(-g * float(dpoly.coeffs.sum()))}/({p}*{p})*{dv}*{dv}")
+            if f.target == "direct":                            # F = g dP/dx dV^2
+                parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*v({dv2_node(f.electrode)})")
+            elif dpoly.exponents.sum() == 0:                     # affine P_k: F linear in y_k
+                linear.append((y_node(f.electrode, k), num(-g * float(dpoly.coeffs.sum()))))
             else:
-                parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})/({p}*{p})*{dv}*{dv}")
-    return " + ".join(parts).replace("+ -", "- ")
+                parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})*v({y_node(f.electrode, k)})")
+    return " + ".join(parts).replace("+ -", "- "), linear
 
 
 def node(electrode: str, k: int) -> str:
     """Name of the node carrying term k of an electrode's capacitance polynomial(s)."""
     return f"p_{electrode}_{k + 1}"
+
+
+def dv2_node(electrode: str) -> str:
+    """Node carrying (V_electrode - V_plate)^2, shared by the force terms of one electrode."""
+    return f"dv2_{electrode}"
+
+
+def y_node(electrode: str, k: int) -> str:
+    """Node carrying (V_e - V_plate)^2 / P_k^2: the force terms are linear in it."""
+    return f"y_{electrode}_{k + 1}"
 
 
 def charge_expr(f, plate: str) -> str:
@@ -97,11 +105,15 @@ def subcircuit(model: MacroModel) -> str:
             "scale_text": _si(c.scale, c.unit), "mass_text": _si(c.mass, mass_unit),
             "stiff_text": _si(c.stiffness, stiff_unit),
             "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-",
-            "cint": num(1.0 / ws), "force_expr": _force_expr(model, v, ws, state),
+            "cint": num(1.0 / ws), **dict(zip(("force_expr", "linear"), _force_terms(model, v, ws, state))),
             "out_gain": num(c.scale / xf)})
     fits = [{"electrode": f.electrode, "c_ref_text": f"{f.c_ref:.6e}", "max_text": f"{f.max_rel_error:.3e}",
              "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys),
              "nodes": [{"name": node(f.electrode, k), "expr": poly_expr(p, state)} for k, p in enumerate(f.polys)],
+             "dv2": {"name": dv2_node(f.electrode), "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})"},
+             "ys": [] if f.target == "direct" else
+                   [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
+                    for k in range(len(f.polys))],
              "charge_expr": charge_expr(f, model.plate)}
             for f in model.capacitances]
     names = [e.name for e in model.electrodes]

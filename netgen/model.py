@@ -156,9 +156,13 @@ class MacroModel:
             ports.append({"name": f"x_{c.name}", "kind": "displacement_out", "unit": xu, "coordinate": c.name})
         return ports
 
+    def json_text(self) -> str:
+        """The model JSON text, byte-reproducible (full-precision floats, no NaN)."""
+        return json.dumps(self.to_dict(), indent=1, sort_keys=False, allow_nan=False) + "\n"
+
     def save_json(self, path: str | Path) -> None:
         """Write the model JSON atomically (temp file + rename), byte-reproducibly."""
-        write_atomic(path, json.dumps(self.to_dict(), indent=1, sort_keys=False, allow_nan=False) + "\n")
+        write_atomic(path, self.json_text())
 
     @classmethod
     def from_dict(cls, d: dict) -> "MacroModel":
@@ -198,17 +202,37 @@ def _fit_dict(f: CapacitanceFit, plate: str) -> dict:
 
 def write_atomic(path: str | Path, text: str) -> None:
     """Write text to `path` via a temp file in the same folder and an atomic rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    write_files_atomic({path: text})
+
+
+def write_files_atomic(files: dict[str | Path, str]) -> None:
+    """Write several files all-or-nothing: every text goes to a temp file next to its target
+    first; the renames happen only once all temp files are complete, and a failure removes
+    the temp files. Files get the usual permissions (0666 minus the umask)."""
+    mode = 0o666 & ~_umask()
+    staged: list[tuple[str, Path]] = []
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
+        for path, text in files.items():
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            staged.append((tmp, path))
+            with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(text)
+            os.chmod(tmp, mode)
+        for tmp, path in staged:
+            os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for tmp, _ in staged:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def finite(value: float) -> float:

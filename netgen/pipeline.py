@@ -137,47 +137,110 @@ def sample(prepared, q: np.ndarray, progress: bool, desc: str, chunk: int = 256)
     return np.concatenate(out, axis=0)
 
 
-def build_model(s: Structure, progress: bool = False) -> MacroModel:
-    """Run the whole pipeline for one structure."""
-    _say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
-    m = mechanics(s)
+@dataclass
+class Samples:
+    """Stage output: scaled sample points and extractor capacitances, touching points removed."""
+    x: np.ndarray                   # (n, ncoords) grid points kept
+    c: np.ndarray                   # (n, nelectrodes) F
+    excluded: int                   # grid points dropped because the plate touches an electrode
+
+
+@dataclass
+class Build:
+    """Every stage's output of one pipeline run; `model` is what build_model returns."""
+    structure: Structure
+    mechanics: Mechanics
+    electrodes: list[es.Electrode]
+    prepared: es.PreparedExtractor
+    scales: np.ndarray
+    grid: Samples
+    holdout: Samples
+    fits: list[CapacitanceFit]
+    model: MacroModel
+
+
+def prepare(s: Structure, m: Mechanics) -> tuple[list[es.Electrode], list[Electrode], es.PreparedExtractor]:
+    """Electrodes (extractor and model descriptions) and the extractor bound to the basis."""
     ext_electrodes, described = electrodes(s)
-    prepared = extractor(s).prepare(ext_electrodes, plate_outline(s), m.basis)
-    gaps = np.array([e.gap for e in ext_electrodes])
-    scales = touch_amplitudes(prepared, len(m.names), gaps)
+    return ext_electrodes, described, extractor(s).prepare(ext_electrodes, plate_outline(s), m.basis)
+
+
+def coordinate_scales(prepared, m: Mechanics, ext_electrodes: list[es.Electrode]) -> np.ndarray:
+    """Touching amplitude of each coordinate (the scale of its sampled state x = q / L)."""
+    scales = touch_amplitudes(prepared, len(m.names), np.array([e.gap for e in ext_electrodes]))
     if not np.all(np.isfinite(scales)):
         bad = [n for n, a in zip(m.names, scales) if not math.isfinite(a)]
         raise ValueError(f"coordinates {bad} never move the plate towards an electrode; they cannot be sampled")
-    half = s.sampling.range
-    x = sampling_grid(len(m.names), s.sampling.levels, half)
-    x_check = holdout_points(len(m.names), s.fit.holdout, half, s.fit.seed)
-    c = sample(prepared, x * scales, progress, "capacitance samples")
-    c_check = sample(prepared, x_check * scales, progress, "held-out samples")
-    touching = np.isnan(c).any(axis=1)          # grid corners where the combined motion closes a gap
-    x, c = x[~touching], c[~touching]
-    touching_check = np.isnan(c_check).any(axis=1)
-    x_check, c_check = x_check[~touching_check], c_check[~touching_check]
-    _say(progress, f"{s.name}: fitting {c.shape[1]} capacitances to {len(x)} samples ({s.fit.target})")
+    return scales
+
+
+def sample_points(prepared, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str) -> Samples:
+    """Extractor capacitances at scaled points x; points where the plate touches are dropped."""
+    c = sample(prepared, x * scales, progress, desc)
+    touching = np.isnan(c).any(axis=1)     # e.g. grid corners where the combined motion closes a gap
+    return Samples(x[~touching], c[~touching], int(touching.sum()))
+
+
+def sample_grid(s: Structure, prepared, scales: np.ndarray, progress: bool = False) -> Samples:
+    """The fit's samples: levels^ncoords tensor grid over +-range of the touching amplitudes."""
+    x = sampling_grid(len(scales), s.sampling.levels, s.sampling.range)
+    return sample_points(prepared, x, scales, progress, "capacitance samples")
+
+
+def sample_holdout(s: Structure, prepared, scales: np.ndarray, progress: bool = False) -> Samples:
+    """Held-out check samples: uniform random points (seeded) inside the sampled box."""
+    x = holdout_points(len(scales), s.fit.holdout, s.sampling.range, s.fit.seed)
+    return sample_points(prepared, x, scales, progress, "held-out samples")
+
+
+def fit_all(s: Structure, ext_electrodes: list[es.Electrode], described: list[Electrode], basis,
+            scales: np.ndarray, grid: Samples, holdout: Samples, progress: bool = False) -> list[CapacitanceFit]:
+    """One capacitance fit per electrode, in port order."""
     fits, start = [], {}
     for i, e in enumerate(tqdm(ext_electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr,
                                leave=False)):
         ring = described[i].name.rsplit("s", 1)[0]            # electrodes of one ring share a patch grid
-        fit, start[ring] = fit_electrode(s, e, described[i].name, m.basis, scales, x, c[:, i], x_check,
-                                         c_check[:, i], start.get(ring, 0))
+        fit, start[ring] = fit_electrode(s, e, described[i].name, basis, scales, grid.x, grid.c[:, i],
+                                         holdout.x, holdout.c[:, i], start.get(ring, 0))
         fits.append(fit)
+    return fits
+
+
+def assemble(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], described: list[Electrode],
+             scales: np.ndarray, grid: Samples, holdout: Samples, fits: list[CapacitanceFit]) -> MacroModel:
+    """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
     coupling = extractor(s).coupling(ext_electrodes, plate_outline(s))
     coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), 0.0, float(f), lab)
               for n, k, u, L, ms, ks, f, lab in zip(m.names, m.kinds, m.units, scales, m.masses,
                                                    m.stiffnesses, m.frequencies, m.labels)]
-    sampling = {"levels": s.sampling.levels, "range": half, "samples": int(len(x)),
-                "excluded_touching": int(touching.sum()), "holdout": int(len(x_check)),
-                "holdout_excluded_touching": int(touching_check.sum()), "seed": int(s.fit.seed),
+    sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
+                "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
+                "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
                 "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
     report = {"mechanics": m.report, "electrostatics": {
         "extractor": "parallel-plate over the local gap + edge fringe",
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
     return MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
                       sampling, report)
+
+
+def build(s: Structure, progress: bool = False) -> Build:
+    """Run the whole pipeline for one structure, keeping every stage's output."""
+    _say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
+    m = mechanics(s)
+    ext_electrodes, described, prepared = prepare(s, m)
+    scales = coordinate_scales(prepared, m, ext_electrodes)
+    grid = sample_grid(s, prepared, scales, progress)
+    holdout = sample_holdout(s, prepared, scales, progress)
+    _say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
+    fits = fit_all(s, ext_electrodes, described, m.basis, scales, grid, holdout, progress)
+    model = assemble(s, m, ext_electrodes, described, scales, grid, holdout, fits)
+    return Build(s, m, ext_electrodes, prepared, scales, grid, holdout, fits, model)
+
+
+def build_model(s: Structure, progress: bool = False) -> MacroModel:
+    """Run the whole pipeline for one structure."""
+    return build(s, progress).model
 
 
 PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5)]

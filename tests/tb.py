@@ -1,0 +1,81 @@
+"""Testbench helpers for ngspice runs of an emitted macromodel (used by the simulator tests)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from netgen.emit_ngspice import time_scale
+from netgen.model import MacroModel
+
+
+@dataclass
+class Pulse:
+    """ngspice PULSE(v1 v2 td tr tf pw per), also evaluable in Python for reference solvers."""
+    v1: float
+    v2: float
+    td: float
+    tr: float
+    tf: float
+    pw: float
+    per: float
+
+    def spice(self) -> str:
+        return f"PULSE({self.v1!r} {self.v2!r} {self.td!r} {self.tr!r} {self.tf!r} {self.pw!r} {self.per!r})"
+
+    def __call__(self, t: float) -> float:
+        if t <= self.td:
+            return self.v1
+        tau = (t - self.td) % self.per
+        if tau < self.tr:
+            return self.v1 + (self.v2 - self.v1) * tau / self.tr
+        if tau < self.tr + self.pw:
+            return self.v2
+        if tau < self.tr + self.pw + self.tf:
+            return self.v2 + (self.v1 - self.v2) * (tau - self.tr - self.pw) / self.tf
+        return self.v1
+
+    def breakpoints(self, stop: float) -> list[float]:
+        out, start = [self.td], self.td
+        while start < stop:
+            out += [start + self.tr, start + self.tr + self.pw, start + self.tr + self.pw + self.tf, start + self.per]
+            start += self.per
+        return [t for t in out if 0 < t < stop]
+
+
+@dataclass
+class Bench:
+    """A testbench around one instance X1 of the model: sources per port, analyses, options."""
+    model: MacroModel
+    lib: Path
+    sources: dict[str, str] = field(default_factory=dict)     # port -> source text (DC value or PULSE/SIN)
+    extra: list[str] = field(default_factory=list)
+    options: str = ""
+
+    def netlist(self, analysis: str) -> str:
+        ports = [p["name"] for p in self.model.ports()]
+        lines = [f"* netgen test bench for {self.model.name}", f".include {self.lib}",
+                 "X1 " + " ".join(ports) + f" {self.model.name}"]
+        for p in self.model.ports():
+            name = p["name"]
+            if name in self.sources:
+                lines.append(f"V{name} {name} 0 {self.sources[name]}")
+            elif p["kind"] == "force_in":
+                lines.append(f"V{name} {name} 0 0")
+            elif p["kind"] == "electrode" and name not in self.sources:
+                lines.append(f"V{name} {name} 0 0")
+        lines += self.extra
+        if self.options:
+            lines.append(f".options {self.options}")
+        lines += [analysis, ".end", ""]
+        return "\n".join(lines)
+
+
+def states(plot, model: MacroModel, instance: str = "x1") -> tuple[np.ndarray, np.ndarray]:
+    """Scaled coordinates x and their time derivatives (1/s) from an ngspice plot."""
+    ws = time_scale(model)
+    x = np.stack([plot[f"v({instance}.xs_{c.name})"] for c in model.coordinates], axis=-1)
+    u = np.stack([plot[f"v({instance}.u_{c.name})"] for c in model.coordinates], axis=-1)
+    return x, u * ws
