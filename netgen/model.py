@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .fit import CapacitanceFit, Polynomial
+from .fit import CapacitanceFit, Polynomial, monomial_exponents, monomials
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
 #                                  display unit of generalized force, factor SI per display unit)
@@ -86,13 +86,48 @@ class MacroModel:
     def capacitance(self, x: np.ndarray) -> np.ndarray:
         """Plate-electrode capacitances (npoints, nelectrodes) in F at scaled coordinates x."""
         x = np.atleast_2d(x)
-        return np.stack([f.value(x) for f in self.capacitances], axis=-1)
+        if self._stacked() is None:
+            return np.stack([f.value(x) for f in self.capacitances], axis=-1)
+        exps, coef, _, owner = self._stacked()
+        return (1.0 / (monomials(x, exps) @ coef.T)) @ owner.T
 
     def capacitance_gradient(self, x: np.ndarray) -> np.ndarray:
         """dC_i/dq_v in F per SI unit of q, shape (npoints, nelectrodes, ncoords)."""
         x = np.atleast_2d(x)
-        g = np.stack([f.gradient(x) for f in self.capacitances], axis=1)
+        if self._stacked() is None:
+            g = np.stack([f.gradient(x) for f in self.capacitances], axis=1)
+        else:
+            exps, coef, dcoef, owner = self._stacked()
+            mono = monomials(x, exps)
+            p = mono @ coef.T                                          # (npts, nterms)
+            dp = np.einsum("pm,vtm->ptv", mono, dcoef)                 # (npts, nterms, ncoords)
+            g = np.einsum("et,ptv->pev", owner, -dp / (p * p)[:, :, None])
         return g / self.scales[None, None, :]
+
+    def _stacked(self):
+        """All 1/P terms in one coefficient matrix over a shared monomial basis (fast evaluation);
+        None for 'direct' fits. owner[e, t] = c_ref of electrode e for its terms t."""
+        if "_stack" not in self.__dict__:
+            fits = self.capacitances
+            if any(f.target == "direct" for f in fits):
+                self.__dict__["_stack"] = None
+            else:
+                exps = monomial_exponents(self.ncoords, max(f.degree for f in fits))
+                index = {tuple(e): i for i, e in enumerate(exps)}
+                terms = [(e, p) for e, f in enumerate(fits) for p in f.polys]
+                coef = np.zeros((len(terms), len(exps)))
+                dcoef = np.zeros((self.ncoords, len(terms), len(exps)))
+                owner = np.zeros((len(fits), len(terms)))
+                for t, (e, p) in enumerate(terms):
+                    owner[e, t] = fits[e].c_ref
+                    for ex, c in zip(p.exponents, p.coeffs):
+                        coef[t, index[tuple(ex)]] += c
+                    for v in range(self.ncoords):
+                        d = p.derivative(v)
+                        for ex, c in zip(d.exponents, d.coeffs):
+                            dcoef[v, t, index[tuple(ex)]] += c
+                self.__dict__["_stack"] = (exps, coef, dcoef, owner)
+        return self.__dict__["_stack"]
 
     def electrostatic_force(self, x: np.ndarray, v_el: np.ndarray, v_plate: float | np.ndarray = 0.0) -> np.ndarray:
         """Generalized forces 1/2 sum_i dC_i/dq_v (V_i - V_p)^2, shape (npoints, ncoords), SI."""
@@ -120,7 +155,7 @@ class MacroModel:
         force = self.electrostatic_force(x, v_el, v_plate)[0]
         if f_ext is not None:
             force = force + f_ext
-        return (force - d * s * xdot - k * s * x) / (m * s)
+        return (force - d * s * np.ravel(xdot) - k * s * np.ravel(x)) / (m * s)
 
     # ------------------------------------------------------------ JSON
     def to_dict(self) -> dict:

@@ -170,11 +170,14 @@ def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeou
     text = proc.stdout + proc.stderr
     log.write_text(text)
     problem = diagnose(text)
-    if proc.returncode != 0 or not raw.exists() or (problem and _fatal(problem)):
+    aborted = re.search(r"simulation\(s\) aborted|analysis .*failed|no convergence", text, re.I)
+    if proc.returncode != 0 or not raw.exists() or aborted or (problem and _fatal(problem)):
         raise SimulationError(f"ngspice failed: {problem or f'exit code {proc.returncode}'}; "
                               f"log {log}; reproduce with: ngspice -b {cir}")
     return read_raw(raw)
 
 
 def _fatal(problem: str) -> bool:
-    return problem.startswith(("timestep too small", "singular matrix", "no DC convergence"))
+    """Warnings ngspice recovers from (a singular first Newton step fixed by gmin stepping)
+    are not failures; an aborted analysis is, even when a partial raw file exists."""
+    return problem.startswith("timestep too small")

@@ -53,6 +53,7 @@ class Bench:
     sources: dict[str, str] = field(default_factory=dict)     # port -> source text (DC value or PULSE/SIN)
     extra: list[str] = field(default_factory=list)
     options: str = ""
+    driven_elsewhere: set[str] = field(default_factory=set)   # ports the `extra` lines drive
 
     def netlist(self, analysis: str) -> str:
         ports = [p["name"] for p in self.model.ports()]
@@ -62,10 +63,8 @@ class Bench:
             name = p["name"]
             if name in self.sources:
                 lines.append(f"V{name} {name} 0 {self.sources[name]}")
-            elif p["kind"] == "force_in":
-                lines.append(f"V{name} {name} 0 0")
-            elif p["kind"] == "electrode" and name not in self.sources:
-                lines.append(f"V{name} {name} 0 0")
+            elif p["kind"] in ("force_in", "electrode") and name not in self.driven_elsewhere:
+                lines.append(f"V{name} {name} 0 0")          # grounded; the plate floats unless given
         lines += self.extra
         if self.options:
             lines.append(f".options {self.options}")

@@ -1,0 +1,86 @@
+"""Time each pipeline stage of the reference example build, in one process.
+
+    .venv/bin/python bench/build.py [--repeat N] [STRUCTURE.toml]
+
+Runs the same stage functions as `netgen build` (netgen.pipeline.build calls them in this
+order) N times (default 3) and prints the median and spread of each stage, the total, and its
+ratio to the budgets: 60 s for the whole build (the issue's acceptance) and 20 s (the later
+performance goal). Stage 1 includes the FEM eigenmodes; nothing is cached between repeats
+except Python imports (the first repeat may include one-time library warm-up).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+
+from netgen import pipeline  # noqa: E402
+from netgen.emit_ngspice import subcircuit  # noqa: E402
+from netgen.structure import load_structure  # noqa: E402
+
+BUDGET_S = 60.0          # the issue: a reference build within a minute
+GOAL_S = 20.0            # the performance issue's later target
+
+
+def run_once(path: Path) -> dict[str, float]:
+    """One build, stage by stage (same calls as pipeline.build); seconds per stage."""
+    times: dict[str, float] = {}
+    clock = time.perf_counter
+
+    def timed(label, fn, *args):
+        t = clock()
+        out = fn(*args)
+        times[label] = clock() - t
+        return out
+
+    s = timed("read structure", load_structure, path)
+    m = timed("mechanics (rigid body + FEM eigenmodes)", pipeline.mechanics, s)
+    ext, described, prepared = timed("electrodes + extractor quadrature", pipeline.prepare, s, m)
+    scales = timed("touching amplitudes", pipeline.coordinate_scales, prepared, m, ext)
+    grid = timed(f"grid samples ({s.sampling.levels}^{len(scales)})", pipeline.sample_grid, s, prepared, scales)
+    held = timed(f"held-out samples ({s.fit.holdout})", pipeline.sample_holdout, s, prepared, scales)
+    fits = timed(f"fits ({len(ext)} electrodes, {s.fit.target})", pipeline.fit_all, s, ext, described,
+                 m.basis, scales, grid, held)
+    model = timed("assemble MacroModel", pipeline.assemble, s, m, ext, described, scales, grid, held, fits)
+    timed("emit ngspice .lib", subcircuit, model)
+    timed("JSON text", model.json_text)
+    return times
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("structure", nargs="?", default=str(ROOT / "examples" / "levitated_disk.toml"))
+    p.add_argument("--repeat", type=int, default=3, help="number of builds (default 3)")
+    args = p.parse_args(argv)
+    if args.repeat < 1:
+        p.error("--repeat must be at least 1")
+
+    runs = []
+    for k in range(args.repeat):
+        t = time.perf_counter()
+        runs.append(run_once(Path(args.structure)))
+        print(f"run {k + 1}/{args.repeat}: {time.perf_counter() - t:.2f} s", file=sys.stderr)
+
+    totals = [sum(r.values()) for r in runs]
+    width = max(len(k) for k in runs[0])
+    print(f"{Path(args.structure).name}: median of {args.repeat} build(s), one process")
+    print(f"{'stage':<{width}}  {'median s':>9}  {'min s':>8}  {'max s':>8}  {'share':>6}")
+    total_median = statistics.median(totals)
+    for stage in runs[0]:
+        v = [r[stage] for r in runs]
+        med = statistics.median(v)
+        print(f"{stage:<{width}}  {med:9.3f}  {min(v):8.3f}  {max(v):8.3f}  {med / total_median:6.1%}")
+    print(f"{'total':<{width}}  {total_median:9.3f}  {min(totals):8.3f}  {max(totals):8.3f}")
+    print(f"budget {BUDGET_S:.0f} s: {total_median / BUDGET_S:.2f} of it;  "
+          f"goal {GOAL_S:.0f} s: {total_median / GOAL_S:.2f} of it")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

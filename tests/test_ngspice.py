@@ -1,0 +1,152 @@
+"""The emitted subcircuit in the real ngspice, against independent references.
+
+- motional current: I = V dC/dt, with dC/dt from the Python model's gradient and ngspice's
+  own velocity states (the chain rule, not ngspice's charge differentiation);
+- transient: every coordinate against scipy's solve_ivp of the same equations;
+- DC operating point: against scipy's fsolve of the static equilibrium;
+- floating plate: total plate charge conserved over 10^4 switching events.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import fsolve
+
+from netgen.model import MacroModel
+from netgen.simulate import run_ngspice
+from tb import Bench, Pulse, states
+
+ROOT = Path(__file__).resolve().parents[1]
+LIB = ROOT / "netlists" / "levitated_disk.lib"
+
+
+@pytest.fixture(scope="module")
+def model() -> MacroModel:
+    return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
+
+
+def _names(model: MacroModel) -> list[str]:
+    return [e.name for e in model.electrodes]
+
+
+def test_motional_current_is_v_dc_dt(model, tmp_path):
+    """Electrode at constant 2 V, tilt driven by a 50 kHz torque: I = V sum_v dC/dq_v dq_v/dt."""
+    electrode, volts = "top_r2s1", 2.0
+    bench = Bench(model, LIB, sources={electrode: f"DC {volts}", "plate": "0",
+                                       "f_tilt_y": "SIN(0 28.5 50k 0 0 90)"},   # nN*m
+                  options="reltol=1e-5 chgtol=1e-18")
+    plot = run_ngspice(bench.netlist(".tran 10n 60u 0 10n uic"), tmp_path)[0]
+    x, xdot = states(plot, model)
+    grad = model.capacitance_gradient(x)[:, _names(model).index(electrode), :]
+    expected = volts * np.einsum("pv,pv->p", grad, xdot * model.scales)
+    current = -plot[f"i(v{electrode})"]                      # into the electrode terminal
+    settled = plot["time"] > 20e-6                           # past the first period of the drive
+    peak = np.abs(expected[settled]).max()
+    assert np.abs(x[:, 2]).max() > 0.05                      # the tilt really moved (5 % of touch)
+    assert np.abs(current - expected)[settled].max() < 5e-3 * peak
+
+
+def _reference_transient(model, drive, f_ext, times, stop):
+    """solve_ivp of M q'' + K q = F_el(q, V(t)) + F_ext, segment by segment between the
+    corners of the piecewise-linear voltages (tight tolerances), sampled at `times`."""
+    idx = [_names(model).index(k) for k in drive]
+
+    def rhs(t, y):
+        v = np.zeros(len(model.electrodes))
+        for k, i in zip(drive, idx):
+            v[i] = drive[k](t)
+        n = model.ncoords
+        return np.concatenate([y[n:], model.accelerations(y[:n], y[n:], v, 0.0, f_ext)])
+
+    corners = sorted({0.0, stop, *[t for d in drive.values() for t in d.breakpoints(stop)]})
+    y, out = np.zeros(2 * model.ncoords), np.zeros((len(times), model.ncoords))
+    for a, b in zip(corners[:-1], corners[1:]):
+        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-10, atol=1e-13, dense_output=True)
+        y = sol.y[:, -1]
+        sel = (times >= a) & (times < b)
+        if sel.any():
+            out[sel] = sol.sol(times[sel]).T[:, : model.ncoords]
+    return out
+
+
+def test_transient_matches_scipy_integration(model, tmp_path):
+    """Steps and 1 MHz pulses on four electrodes plus gravity, 105 us (> 10 periods of the
+    97.6 kHz mode): every coordinate within 1 % of its peak of the scipy solution."""
+    drive = {"top_r2s1": Pulse(0, 3, 0, 10e-9, 10e-9, 0.49e-6, 1e-6),
+             "top_r1s2": Pulse(0, 2, 0.25e-6, 10e-9, 10e-9, 0.3e-6, 1e-6),
+             "bot_r2s2": Pulse(0, 3, 0, 10e-9, 10e-9, 0.99e-6, 2e-6),
+             "bot_r1s3": Pulse(0, 2, 20e-6, 10e-9, 10e-9, 1.0, 2.0)}          # a step at 20 us
+    gravity = -model.coordinates[0].mass * 9.81                              # N on z
+    stop = 105e-6
+    sources = {k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity / 1e-6)}
+    bench = Bench(model, LIB, sources=sources, options="reltol=1e-5 chgtol=1e-18")
+    plot = run_ngspice(bench.netlist(f".tran 10n {stop} 0 10n uic"), tmp_path)[0]
+    x, _ = states(plot, model)
+    f_ext = np.zeros(model.ncoords)
+    f_ext[0] = gravity
+    ref = _reference_transient(model, drive, f_ext, plot["time"], stop)
+    for v, c in enumerate(model.coordinates):
+        peak = np.abs(ref[:, v]).max()
+        assert peak > 0, c.name
+        assert np.abs(x[:, v] - ref[:, v]).max() < 0.01 * peak, c.name
+    assert np.abs(ref).max() < model.sampling["range"]                      # stayed in the fitted box
+
+
+def test_dc_operating_point_is_the_static_equilibrium(model, tmp_path):
+    """Bias 15..25 V on all electrodes and small external loads: ngspice .op equals scipy's
+    root of F_el(q) + F_ext - K q = 0 (electrostatic spring softening included)."""
+    names = _names(model)
+    volts = np.round(np.random.default_rng(3).uniform(15, 25, len(names)), 2)
+    loads = {"f_z": 0.5, "f_tilt_x": -0.3, "f_tilt_y": 0.2}                  # uN, nN*m, nN*m
+    f_ext = np.zeros(model.ncoords)
+    for v, c in enumerate(model.coordinates):
+        f_ext[v] = loads.get(f"f_{c.name}", 0.0) * c.port_units[3]
+    sources = {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | \
+        {k: repr(v) for k, v in loads.items()}
+    bench = Bench(model, LIB, sources=sources, options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+    plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
+    x_spice = np.array([plot[f"v(x1.xs_{c.name})"][0] for c in model.coordinates])
+
+    mass = np.array([c.mass for c in model.coordinates])
+    stiffness = np.array([c.stiffness for c in model.coordinates])
+
+    def residual(x):
+        return model.accelerations(x, np.zeros_like(x), volts, 0.0, f_ext) * mass * model.scales
+
+    x_ref = fsolve(residual, np.zeros(model.ncoords), xtol=1e-13)
+    assert np.abs(residual(x_ref)).max() < 1e-12 * np.abs(f_ext).max() + 1e-18
+    assert np.abs(x_spice - x_ref).max() < 1e-6                             # scaled units (1 = contact)
+    assert 0.01 < np.abs(x_ref[:3]).max() < model.sampling["range"]        # a real, in-range deflection
+    # softening matters: the stiffness-only estimate of the driven modes is off by > 5 %
+    modes = stiffness > 0
+    force0 = model.electrostatic_force(np.zeros(model.ncoords), volts, 0.0)[0] + f_ext
+    linear = force0[modes] / stiffness[modes] / model.scales[modes]
+    driven = np.abs(linear) > 1e-4
+    assert np.any(np.abs(x_ref[modes][driven] / linear[driven] - 1) > 0.05)
+
+
+def test_floating_plate_conserves_charge(model, tmp_path):
+    """All 16 electrodes switch 0/5 V at 5 MHz in two phase groups (10^4 switching events);
+    the plate floats, its rigid motion held by testbench springs on the force ports. The plate
+    potential equals the charge-conservation value sum C_i V_i / sum C_i (zero total charge)."""
+    names, amp, period = _names(model), 5.0, 200e-9
+    events, per_period = 10_000, 2 * len(names)
+    stop = events / per_period * period
+    drive = {n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
+             for i, n in enumerate(names)}
+    springs = [f"Bspring_{c.name} f_{c.name} 0 V=-100*v(x_{c.name})" for c in model.coordinates[:3]]
+    bench = Bench(model, LIB, sources={k: p.spice() for k, p in drive.items()}, extra=springs,
+                  options="reltol=1e-4 chgtol=1e-20",
+                  driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]})
+    plot = run_ngspice(bench.netlist(f".tran 20n {stop} 0 20n uic"), tmp_path)[0]
+    x, _ = states(plot, model)
+    v_el = np.stack([plot[f"v({n})"] for n in names], axis=-1)
+    caps = model.capacitance(x)
+    expected = np.sum(caps * v_el, axis=1) / np.sum(caps, axis=1)
+    assert np.abs(x).max() > 1e-4                                           # the plate moved
+    assert abs(plot["v(plate)"][-1] - expected[-1]) < 1e-4 * amp
+    assert np.abs(plot["v(plate)"] - expected).max() < 1e-4 * amp
