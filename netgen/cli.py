@@ -13,13 +13,16 @@ from .structure import StructureError
 
 def _build(args: argparse.Namespace) -> int:
     from .emit import write_outputs
-    from .pipeline import build_model
+    from .pipeline import build, write_figures
     from .structure import load_structure
 
     start = time.perf_counter()
     structure = load_structure(args.structure)
-    model = build_model(structure, progress=not args.quiet)
+    result = build(structure, progress=not args.quiet)
+    model = result.model
     written = write_outputs(model, Path(args.output), args.format)
+    if not args.no_plots:
+        written += write_figures(result, Path(args.output))
     if not args.quiet:
         for path in written:
             print(f"wrote {path}")
@@ -36,8 +39,9 @@ def parser() -> argparse.ArgumentParser:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
     b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", choices=["ngspice", "all"], default="ngspice", help="netlist dialects to write")
+    b.add_argument("--format", choices=["ngspice", "veriloga", "all"], default="ngspice", help="netlist dialects to write")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
     b.set_defaults(func=_build)
     return p
 

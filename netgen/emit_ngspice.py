@@ -18,13 +18,13 @@ def num(value: float) -> str:
     return repr(float(value))
 
 
-def poly_expr(poly: Polynomial, names: list[str], drop: float = 0.0) -> str:
-    """Polynomial as explicit products of node voltages (ngspice's ^ and pow are |x|^y)."""
+def poly_expr(poly: Polynomial, names: list[str], drop: float = 0.0, access: str = "v({})") -> str:
+    """Polynomial as explicit products of node voltages, `access` formatting each (ngspice's ^ is |x|^y)."""
     terms = []
     for e, c in zip(poly.exponents, poly.coeffs):
         if c == 0.0 or abs(c) < drop:
             continue
-        factors = [f"v({names[v]})" for v in range(len(names)) for _ in range(int(e[v]))]
+        factors = [access.format(names[v]) for v in range(len(names)) for _ in range(int(e[v]))]
         terms.append("*".join([num(c)] + factors))
     if not terms:
         return "0"
@@ -91,36 +91,44 @@ def _si(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}".strip()
 
 
-def subcircuit(model: MacroModel) -> str:
-    """The complete .lib text of the model's subcircuit."""
-    ws = time_scale(model)
-    state = [f"xs_{c.name}" for c in model.coordinates]
+def header_context(model: MacroModel) -> dict:
+    """Template context shared by the dialects: header tables, time scale, fit form, ports, couplings."""
     coords = []
-    for v, c in enumerate(model.coordinates):
-        xu, xf, fu, _ = c.port_units
+    for c in model.coordinates:
+        xu, _, fu, _ = c.port_units
         mass_unit = "kg" if c.unit == "m" else "kg*m^2"
         stiff_unit = "N/m" if c.unit == "m" else "N*m/rad"
         coords.append({
             "name": c.name, "kind": c.kind + (f" {c.label}" if c.label else ""), "xunit": xu, "funit": fu,
             "scale_text": _si(c.scale, c.unit), "mass_text": _si(c.mass, mass_unit),
             "stiff_text": _si(c.stiffness, stiff_unit),
-            "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-",
-            "cint": num(1.0 / ws), **dict(zip(("force_expr", "linear"), _force_terms(model, v, ws, state))),
-            "out_gain": num(c.scale / xf)})
+            "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-"})
     fits = [{"electrode": f.electrode, "c_ref_text": f"{f.c_ref:.6e}", "max_text": f"{f.max_rel_error:.3e}",
-             "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys),
-             "nodes": [{"name": node(f.electrode, k), "expr": poly_expr(p, state)} for k, p in enumerate(f.polys)],
-             "dv2": {"name": dv2_node(f.electrode), "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})"},
-             "ys": [] if f.target == "direct" else
-                   [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
-                    for k in range(len(f.polys))],
-             "charge_expr": charge_expr(f, model.plate)}
-            for f in model.capacitances]
-    names = [e.name for e in model.electrodes]
-    couplings = [{"a": names[i], "b": names[j], "value": num(model.coupling[i, j])}
-                 for i in range(len(names)) for j in range(i + 1, len(names)) if model.coupling[i, j]]
+             "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys)} for f in model.capacitances]
     fit_form = {"plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
                 "inverse": "C = c_ref / P(xs): fit of 1/C", "direct": "C = c_ref * P(xs)"}[model.capacitances[0].target]
     degree = max(f.degree for f in model.capacitances)
-    return render("ngspice_subckt.lib.j2", m=model, ports=model.ports(), coords=coords, fits=fits,
-                  couplings=couplings, ws_text=f"{ws:.6g}", fit_form=fit_form, degree=degree)
+    names = [e.name for e in model.electrodes]
+    couplings = [{"a": names[i], "b": names[j], "value": num(model.coupling[i, j])}
+                 for i in range(len(names)) for j in range(i + 1, len(names)) if model.coupling[i, j]]
+    return {"m": model, "ports": model.ports(), "coords": coords, "fits": fits, "couplings": couplings,
+            "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree}
+
+
+def subcircuit(model: MacroModel) -> str:
+    """The complete .lib text of the model's subcircuit."""
+    ws = time_scale(model)
+    state = [f"xs_{c.name}" for c in model.coordinates]
+    ctx = header_context(model)
+    for v, (row, c) in enumerate(zip(ctx["coords"], model.coordinates)):
+        row.update({"cint": num(1.0 / ws), **dict(zip(("force_expr", "linear"), _force_terms(model, v, ws, state))),
+                    "out_gain": num(c.scale / c.port_units[1])})
+    for row, f in zip(ctx["fits"], model.capacitances):
+        row.update({
+            "nodes": [{"name": node(f.electrode, k), "expr": poly_expr(p, state)} for k, p in enumerate(f.polys)],
+            "dv2": {"name": dv2_node(f.electrode), "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})"},
+            "ys": [] if f.target == "direct" else
+                  [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
+                   for k in range(len(f.polys))],
+            "charge_expr": charge_expr(f, model.plate)})
+    return render("ngspice_subckt.lib.j2", **ctx)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -239,7 +240,7 @@ def build(s: Structure, progress: bool = False) -> Build:
 
 
 def build_model(s: Structure, progress: bool = False) -> MacroModel:
-    """Run the whole pipeline for one structure."""
+    """Run the whole pipeline for one structure and return its MacroModel."""
     return build(s, progress).model
 
 
@@ -303,3 +304,34 @@ def _bins(values: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
 def _say(progress: bool, text: str) -> None:
     if progress:
         print(text, file=sys.stderr)
+
+
+def electrode_outlines(s: Structure, points: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Closed outline (x, y) of every electrode, clipped to the plate, for plots."""
+    out = []
+    for eset in s.electrode_sets:
+        width = 2 * math.pi / eset.sectors
+        for r_in, r_out in eset.rings:
+            r_out = min(r_out, s.conductor.radius)
+            for k in range(eset.sectors):
+                t0 = eset.sector_start + k * width
+                half = (lambda r: math.asin(min(1.0, eset.slot / (2 * r))) if eset.sectors > 1 and r > 0 else 0.0)
+                lo_o, hi_o = t0 + half(r_out), t0 + width - half(r_out)
+                r_lo = max(r_in, eset.slot / 2 + 1e-12) if eset.sectors > 1 else r_in
+                lo_i, hi_i = t0 + half(r_lo), t0 + width - half(r_lo)
+                ta, tb = np.linspace(lo_o, hi_o, points), np.linspace(hi_i, lo_i, points)
+                x = np.concatenate([r_out * np.cos(ta), r_lo * np.cos(tb), [r_out * math.cos(lo_o)]])
+                y = np.concatenate([r_out * np.sin(ta), r_lo * np.sin(tb), [r_out * math.sin(lo_o)]])
+                out.append((x, y))
+    return out
+
+
+def write_figures(b: Build, folder: Path) -> list[Path]:
+    """Mode-shape and fit-error PNGs next to the netlist (from the build's stage outputs)."""
+    from . import plots
+    model = b.model
+    out = [plots.fit_errors(folder / f"{model.name}_fit_errors.png", model)]
+    if any(c.kind == "mode" for c in model.coordinates):
+        out.append(plots.mode_shapes(folder / f"{model.name}_modes.png", model, b.mechanics.basis,
+                                     b.structure.conductor.radius, electrode_outlines(b.structure)))
+    return out

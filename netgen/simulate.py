@@ -153,20 +153,29 @@ def diagnose(log: str) -> str | None:
     return None
 
 
+def run_batch(argv: list[str], workdir: Path, netlist_path: Path, netlist: str, raw: Path,
+              timeout: float, reproduce: str) -> subprocess.CompletedProcess:
+    """Write the netlist, clear a stale raw file, run a batch simulator in `workdir`; a hang
+    past `timeout` becomes a SimulationError naming the command that reproduces it."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    netlist_path.write_text(netlist)
+    if raw.exists():
+        raw.unlink()
+    try:
+        return subprocess.run(argv, cwd=workdir, capture_output=True, text=True, timeout=timeout,
+                              stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise SimulationError(f"{Path(argv[0]).name} did not finish within {timeout:.0f} s; "
+                              f"reproduce with: {reproduce}") from None
+
+
 def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeout: float = 3600.0) -> list[Plot]:
     """Write `netlist` to workdir/name.cir, run ngspice -b, return the plots of name.raw."""
     exe = ngspice_path()
     workdir = Path(workdir)
-    workdir.mkdir(parents=True, exist_ok=True)
     cir, raw, log = workdir / f"{name}.cir", workdir / f"{name}.raw", workdir / f"{name}.log"
-    cir.write_text(netlist)
-    if raw.exists():
-        raw.unlink()
-    try:
-        proc = subprocess.run([exe, "-b", "-r", str(raw), str(cir)], cwd=workdir, capture_output=True,
-                              text=True, timeout=timeout, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        raise SimulationError(f"ngspice did not finish within {timeout:.0f} s; reproduce with: ngspice -b {cir}")
+    proc = run_batch([exe, "-b", "-r", str(raw), str(cir)], workdir, cir, netlist, raw, timeout,
+                     f"ngspice -b {cir}")
     text = proc.stdout + proc.stderr
     log.write_text(text)
     problem = diagnose(text)

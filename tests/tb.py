@@ -25,6 +25,11 @@ class Pulse:
     def spice(self) -> str:
         return f"PULSE({self.v1!r} {self.v2!r} {self.td!r} {self.tr!r} {self.tf!r} {self.pw!r} {self.per!r})"
 
+    def vacask(self) -> str:
+        """The same waveform as VACASK vsource parameters."""
+        return (f'type="pulse" val0={self.v1!r} val1={self.v2!r} delay={self.td!r} rise={self.tr!r} '
+                f'fall={self.tf!r} width={self.pw!r} period={self.per!r}')
+
     def __call__(self, t: float) -> float:
         if t <= self.td:
             return self.v1
@@ -43,6 +48,14 @@ class Pulse:
             out += [start + self.tr, start + self.tr + self.pw, start + self.tr + self.pw + self.tf, start + self.per]
             start += self.per
         return [t for t in out if 0 < t < stop]
+
+
+def transient_drive() -> dict[str, Pulse]:
+    """The transient cross-checks' drive: 1 MHz pulses on three electrodes, a step at 20 us on a fourth."""
+    return {"top_r2s1": Pulse(0, 3, 0, 10e-9, 10e-9, 0.49e-6, 1e-6),
+            "top_r1s2": Pulse(0, 2, 0.25e-6, 10e-9, 10e-9, 0.3e-6, 1e-6),
+            "bot_r2s2": Pulse(0, 3, 0, 10e-9, 10e-9, 0.99e-6, 2e-6),
+            "bot_r1s3": Pulse(0, 2, 20e-6, 10e-9, 10e-9, 1.0, 2.0)}          # a step at 20 us
 
 
 @dataclass

@@ -18,7 +18,7 @@ from scipy.optimize import fsolve
 
 from netgen.model import MacroModel
 from netgen.simulate import run_ngspice
-from tb import Bench, Pulse, states
+from tb import Bench, Pulse, states, transient_drive
 
 ROOT = Path(__file__).resolve().parents[1]
 LIB = ROOT / "netlists" / "levitated_disk.lib"
@@ -76,10 +76,7 @@ def _reference_transient(model, drive, f_ext, times, stop):
 def test_transient_matches_scipy_integration(model, tmp_path):
     """Steps and 1 MHz pulses on four electrodes plus gravity, 105 us (> 10 periods of the
     97.6 kHz mode): every coordinate within 1 % of its peak of the scipy solution."""
-    drive = {"top_r2s1": Pulse(0, 3, 0, 10e-9, 10e-9, 0.49e-6, 1e-6),
-             "top_r1s2": Pulse(0, 2, 0.25e-6, 10e-9, 10e-9, 0.3e-6, 1e-6),
-             "bot_r2s2": Pulse(0, 3, 0, 10e-9, 10e-9, 0.99e-6, 2e-6),
-             "bot_r1s3": Pulse(0, 2, 20e-6, 10e-9, 10e-9, 1.0, 2.0)}          # a step at 20 us
+    drive = transient_drive()
     gravity = -model.coordinates[0].mass * 9.81                              # N on z
     stop = 105e-6
     sources = {k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity / 1e-6)}

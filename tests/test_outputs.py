@@ -26,7 +26,7 @@ from conftest import REFERENCE, ROOT
 
 NETLISTS = ROOT / "netlists"
 NAME = "levitated_disk"
-REGENERATE = ".venv/bin/netgen build examples/levitated_disk.toml -o netlists"
+REGENERATE = ".venv/bin/netgen build examples/levitated_disk.toml -o netlists --format all"
 RTOL = 1e-9
 
 # Standalone numbers (not digits inside names such as top_r1s1 or p_top_r1s1_2).
@@ -169,7 +169,7 @@ def fresh_builds(tmp_path_factory):
 def test_builds_in_separate_processes_are_byte_identical(fresh_builds, reference_model):
     for out, rc, _, err in fresh_builds:
         assert rc == 0, err[-2000:]
-        assert sorted(p.name for p in out.iterdir()) == [f"{NAME}.json", f"{NAME}.lib"]   # no temp files
+        _assert_clean_outputs(out)
         assert (out / f"{NAME}.json").read_bytes() == reference_model.json_text().encode("utf-8")
         assert (out / f"{NAME}.lib").read_bytes() == subcircuit(reference_model).encode("utf-8")
     first = fresh_builds[0][0]
@@ -185,12 +185,14 @@ def test_cli_shows_progress_and_files_written(fresh_builds):
     for desc in ("capacitance samples", "held-out samples", "fits"):
         assert re.search(rf"{desc}:\s+\d+%\|", stderr), f"no progress bar for {desc!r}"
     assert "eigenmodes" in stderr
-    # stdout: the files written, then a summary line
+    # stdout: the files written (netlist and JSON first, each of them exists), then a summary line
     lines = stdout.splitlines()
     assert lines[:2] == [f"wrote {out / (NAME + '.lib')}", f"wrote {out / (NAME + '.json')}"]
+    for line in lines[:-1]:
+        assert line.startswith("wrote ") and Path(line[len("wrote "):]).is_file(), line
     worst = max(f["max_rel_error"] for f in json.loads((out / f"{NAME}.json").read_text())["capacitances"])
     assert re.fullmatch(rf"{NAME}: 7 coordinates, 16 electrodes, held-out max capacitance error "
-                        rf"{worst:.2e}, \d+\.\d s", lines[2]), lines[2]
+                        rf"{worst:.2e}, \d+\.\d s", lines[-1]), lines[-1]
     assert "%|" not in stdout                             # progress stays off stdout
 
 
@@ -265,14 +267,21 @@ def test_model_round_trips_through_json(reference_model):
 
 
 @pytest.fixture
-def cli_with_model(reference_model, monkeypatch):
-    """`netgen build` on the reference file, with the 10 s pipeline replaced by the session model."""
-    monkeypatch.setattr("netgen.pipeline.build_model", lambda s, progress=False: reference_model)
+def cli_with_model(reference_build, monkeypatch):
+    """`netgen build` on the reference file, with the 10 s pipeline run replaced by the session's."""
+    monkeypatch.setattr("netgen.pipeline.build", lambda s, *args, **kwargs: reference_build)
     return lambda out: cli.main(["build", str(ROOT / REFERENCE), "-o", str(out), "-q"])
 
 
 def _leftovers(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir()) if folder.exists() else []
+
+
+def _assert_clean_outputs(folder: Path) -> None:
+    """Both outputs written, no temp or hidden files left next to them."""
+    names = _leftovers(folder)
+    assert {f"{NAME}.json", f"{NAME}.lib"} <= set(names), names
+    assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], names
 
 
 def test_failing_emitter_leaves_nothing(cli_with_model, monkeypatch, tmp_path):
@@ -320,7 +329,7 @@ def test_failing_write_leaves_no_temp_files_and_keeps_old_outputs(cli_with_model
 def test_successful_write_replaces_outputs_with_normal_permissions(cli_with_model, tmp_path):
     out = tmp_path / "out"
     assert cli_with_model(out) == 0
-    assert _leftovers(out) == [f"{NAME}.json", f"{NAME}.lib"]
+    _assert_clean_outputs(out)
     umask = os.umask(0)
     os.umask(umask)
     assert (out / f"{NAME}.lib").stat().st_mode & 0o777 == 0o666 & ~umask
