@@ -11,7 +11,9 @@ import re
 
 import numpy as np
 
-from .emit_ngspice import dv2_node, header_context, node, num, poly_expr, time_scale, y_node
+from .emit_ngspice import (clamp_expr, contact_terms, dv2_node, header_context, node, num, poly_expr, slope_expr,
+                           time_scale, y_node)
+from .emit_ngspice import K_B, noise_enabled
 from .fit import CapacitanceFit
 from .model import Coordinate, MacroModel
 from .templating import render
@@ -76,7 +78,7 @@ def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
     return _sum(terms)
 
 
-def _rhs(c: Coordinate, ws: float) -> str:
+def _rhs(c: Coordinate, ws: float, contact: bool = False) -> str:
     """Right-hand side of (1/w_s) du/dt: (F_ext + F_el - K L xs - D L w_s u) / (M L w_s^2)."""
     a = 1.0 / (c.mass * c.scale * ws * ws)
     parts = [f"{num(a * c.port_units[3])} * V(f_{c.name})"]
@@ -84,29 +86,40 @@ def _rhs(c: Coordinate, ws: float) -> str:
         parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))} * V(xs_{c.name})")
     parts += [f"-d_{c.name} * {num(1.0 / (c.mass * ws))} * V(u_{c.name})",
               f"fel_scale * {num(a)} * fel_{c.name}"]
+    if contact:
+        parts.append(f"{num(a)} * fcon_{c.name}")
     return " + ".join(parts).replace("+ -", "- ")
 
 
 def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list[str]) -> None:
     """Add the Verilog-A fields of each coordinate to its header row."""
+    _, per_coord = contact_terms(model, access=VA, var="{}")
+    has_contact = bool(model.contact.get("points"))
     for v, (row, c) in enumerate(zip(rows, model.coordinates)):
+        row["fcon"] = f"fcon_{c.name}" if has_contact else ""
+        row["fcon_sum"] = _sum([f"{num(g)} * {n}" for n, g in per_coord[v]])
         row.update({"f": f"f_{c.name}", "x": f"x_{c.name}", "xs": f"xs_{c.name}", "u": f"u_{c.name}",
                     "d": f"d_{c.name}", "fel": f"fel_{c.name}", "damping": num(c.damping),
                     "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
-                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws),
+                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws, has_contact),
                     "out_gain": num(c.scale / c.port_units[1])})
 
 
 def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
     """Add the Verilog-A fields of each capacitance fit to its header row."""
-    for row, f in zip(rows, model.capacitances):
+    clamps = model.term_clamps()
+    for i, (row, f) in enumerate(zip(rows, model.capacitances)):
         dv2 = dv2_node(f.electrode)
+        cl = clamps[i] if clamps else [None] * len(f.polys)
         row.update({
-            "polys": [{"name": node(f.electrode, k), "expr": poly_expr(p, state, access=VA)}
+            "polys": [{"name": node(f.electrode, k),
+                       "expr": clamp_expr(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
                       for k, p in enumerate(f.polys)],
             "dv2": dv2, "charge": charge(f, model.plate),
             "ys": [] if f.target == "direct" else
-                  [{"name": y_node(f.electrode, k), "expr": f"{dv2} / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
+                  [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
+                    + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
+                    + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
                    for k in range(len(f.polys))]})
 
 
@@ -121,8 +134,14 @@ def check_identifiers(names: list[str]) -> None:
         raise ValueError(f"Verilog-A names clash: {', '.join(dup)}; rename the electrodes/coordinates")
 
 
-def module(model: MacroModel) -> str:
-    """The complete .va text of the model's Verilog-A module."""
+def noise_rows(model: MacroModel, rows: list[dict], ws: float) -> None:
+    """Add each coordinate's white_noise factor: 4 k_B (force-to-velocity-node gain)^2."""
+    for row, c in zip(rows, model.coordinates):
+        row["noise_gain"] = num(4.0 * K_B / (c.mass * c.scale * ws * ws) ** 2)
+
+
+def module(model: MacroModel, noise: bool | None = None) -> str:
+    """The complete .va text of the model's Verilog-A module (thermal noise per `noise_enabled`)."""
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]
     ctx = header_context(model)
@@ -132,8 +151,13 @@ def module(model: MacroModel) -> str:
     p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
     y_vars = [y["name"] for f in ctx["fits"] for y in f["ys"]]
+    ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
+    stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
     check_identifiers([model.name] + [p["name"] for p in ctx["ports"]] + states + p_vars + dv2_vars + y_vars
-                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"])
+                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"] + stop_vars)
+    if noise_enabled(model, noise):
+        noise_rows(model, ctx["coords"], ws)
+        ctx["noise"] = True
     return render_module(ctx, states, p_vars, dv2_vars, y_vars, ws)
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from . import __version__, contact
 from .fit import CapacitanceFit, Polynomial, monomial_exponents, monomials
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
@@ -73,6 +73,7 @@ class MacroModel:
     report: dict = field(default_factory=dict)   # mechanics/electrostatics facts for humans
     plate: str = "plate"
     generator: str = f"netgen {__version__}"
+    contact: dict = field(default_factory=dict)  # pull-in/contact model (netgen.contact), {} = none
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -89,7 +90,8 @@ class MacroModel:
         if self._stacked() is None:
             return np.stack([f.value(x) for f in self.capacitances], axis=-1)
         exps, coef, _, owner = self._stacked()
-        return (1.0 / (monomials(x, exps) @ coef.T)) @ owner.T
+        p, _ = self._clamped(monomials(x, exps) @ coef.T)
+        return (1.0 / p) @ owner.T
 
     def capacitance_gradient(self, x: np.ndarray) -> np.ndarray:
         """dC_i/dq_v in F per SI unit of q, shape (npoints, nelectrodes, ncoords)."""
@@ -99,10 +101,37 @@ class MacroModel:
         else:
             exps, coef, dcoef, owner = self._stacked()
             mono = monomials(x, exps)
-            p = mono @ coef.T                                          # (npts, nterms)
-            dp = np.einsum("pm,vtm->ptv", mono, dcoef)                 # (npts, nterms, ncoords)
+            p, slope = self._clamped(mono @ coef.T)                    # (npts, nterms)
+            dp = np.einsum("pm,vtm->ptv", mono, dcoef) * slope[:, :, None]   # (npts, nterms, ncoords)
             g = np.einsum("et,ptv->pev", owner, -dp / (p * p)[:, :, None])
         return g / self.scales[None, None, :]
+
+    def term_clamps(self) -> list[list[tuple[float, float]]]:
+        """(knee, floor) of every 1/P term, per electrode (netgen.contact); [] without a contact model."""
+        if not self.contact or any(f.target == "direct" for f in self.capacitances):
+            return []
+        zero = np.zeros((1, self.ncoords))
+        return [[(self.contact["knee"] * float(p(zero)[0]), self.contact["floor"] * float(p(zero)[0]))
+                 for p in f.polys] for f in self.capacitances]
+
+    def _clamped(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Clamped plate terms and dP_eff/dP (netgen.contact); unchanged without a contact model."""
+        if "_clamp" not in self.__dict__:
+            clamps = self.term_clamps()
+            self.__dict__["_clamp"] = np.array([c for row in clamps for c in row]).T if clamps else None
+        if self.__dict__["_clamp"] is None:
+            return p, np.ones_like(p)
+        return contact.clamp(p, *self.__dict__["_clamp"])
+
+    def contact_force(self, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """Generalized penalty forces of the stop points (SI), x and xdot (1/s) scaled, 1-D."""
+        if not self.contact.get("points"):
+            return np.zeros(self.ncoords)
+        a = np.array([pt["a"] for pt in self.contact["points"]])
+        gap = np.array([pt["gap"] for pt in self.contact["points"]])
+        pen, w = contact.penetration(a @ np.ravel(x) - 1.0, self.contact["smoothing"])
+        f = gap * (self.contact["stiffness"] * pen + self.contact["damping"] * w * (a @ np.ravel(xdot)))
+        return -(f * gap) @ a / self.scales
 
     def _stacked(self):
         """All 1/P terms in one coefficient matrix over a shared monomial basis (fast evaluation);
@@ -152,7 +181,7 @@ class MacroModel:
         c = self.coordinates
         m = np.array([k.mass for k in c]); d = np.array([k.damping for k in c])
         k = np.array([k.stiffness for k in c]); s = self.scales
-        force = self.electrostatic_force(x, v_el, v_plate)[0]
+        force = self.electrostatic_force(x, v_el, v_plate)[0] + self.contact_force(x, xdot)
         if f_ext is not None:
             force = force + f_ext
         return (force - d * s * np.ravel(xdot) - k * s * np.ravel(x)) / (m * s)
@@ -178,6 +207,11 @@ class MacroModel:
                          if self.coupling[i, j] != 0.0],
             "ports": self.ports(),
             "sampling": self.sampling,
+            "validity": {"warning": f"the capacitance fits are accurate only inside the sampled box |xs| <= "
+                                    f"{self.sampling.get('range')} (xs = q / touching amplitude); outside it "
+                                    "they extrapolate, and near contact the clamped terms and stop points of "
+                                    "'contact' take over"},
+            "contact": self.contact,
             "report": self.report,
         }
 
@@ -215,7 +249,7 @@ class MacroModel:
             i, j = names.index(c["pair"][0]), names.index(c["pair"][1])
             coupling[i, j] = coupling[j, i] = c["capacitance"]
         return cls(d["name"], d["description"], d["source"], coords, electrodes, fits, coupling,
-                   d["sampling"], d["report"], d["plate"], d["generator"])
+                   d["sampling"], d["report"], d["plate"], d["generator"], d.get("contact", {}))
 
     @classmethod
     def load_json(cls, path: str | Path) -> "MacroModel":

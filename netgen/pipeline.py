@@ -211,9 +211,10 @@ def assemble(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], des
              scales: np.ndarray, grid: Samples, holdout: Samples, fits: list[CapacitanceFit]) -> MacroModel:
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
     coupling = extractor(s).coupling(ext_electrodes, plate_outline(s))
-    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), 0.0, float(f), lab)
-              for n, k, u, L, ms, ks, f, lab in zip(m.names, m.kinds, m.units, scales, m.masses,
-                                                   m.stiffnesses, m.frequencies, m.labels)]
+    damp, damp_report = damping(s, m)
+    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab)
+              for n, k, u, L, ms, ks, d, f, lab in zip(m.names, m.kinds, m.units, scales, m.masses,
+                                                      m.stiffnesses, damp, m.frequencies, m.labels)]
     sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
                 "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
                 "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
@@ -221,8 +222,103 @@ def assemble(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], des
     report = {"mechanics": m.report, "electrostatics": {
         "extractor": "parallel-plate over the local gap + edge fringe",
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
+    if damp_report:
+        report["damping"] = damp_report
     return MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
-                      sampling, report)
+                      sampling, report, contact=stops(s, m, ext_electrodes, scales))
+
+
+def stops(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], scales: np.ndarray) -> dict:
+    """The contact model (netgen.contact): stop points from the extractor's probe points."""
+    from . import contact
+    ext = extractor(s).prepare(ext_electrodes, plate_outline(s), m.basis)
+    probe = ext.probe
+    owner = [e.shape.name for e, sl in zip(ext_electrodes, probe.slices) for _ in range(sl.stop - sl.start)]
+    freqs = m.frequencies[m.frequencies > 0]
+    ws = 2 * math.pi * (math.exp(float(np.mean(np.log(freqs)))) if len(freqs) else 1e6 / (2 * math.pi))
+    return contact.contact_model(probe.gap, probe.phi, owner, scales, s.conductor.mass, ws)
+
+
+def damping(s: Structure, m: Mechanics) -> tuple[np.ndarray, dict]:
+    """Damping per coordinate (SI) and its report: Q / damping ratio (a per-coordinate entry
+    overrides the eigenmode default), plus Rayleigh alpha M + beta K, plus squeeze film."""
+    n = len(m.names)
+    d = s.damping
+    if d is None:
+        return np.zeros(n), {}
+    omega = 2 * np.pi * m.frequencies
+    out = d.rayleigh_alpha * m.masses + d.rayleigh_beta * m.stiffnesses
+    zeta = _modal_ratios(s, m.names, m.kinds)
+    out = out + 2.0 * zeta * m.masses * omega
+    film = squeeze_film_damping(s, m) if d.squeeze_film else {}
+    if film:
+        out = out + film["diagonal"]
+    return out, _damping_report(s, out, film)
+
+
+def _modal_ratios(s: Structure, names: list[str], kinds: list[str]) -> np.ndarray:
+    """Damping ratio zeta per coordinate from q_factor / damping_ratio entries (0 if none)."""
+    d = s.damping
+    ratios = {k: 1 / (2 * v) for k, v in d.q_factor} | dict(d.damping_ratio)     # Q = 1 / (2 zeta)
+    default = ratios.pop("*", 0.0)
+    given = ratios
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        from .structure import StructureError
+        raise StructureError(s.source, "damping", f"damping given for unknown coordinate(s) {unknown}",
+                             f"use the coordinate names {names} (modes = <count> names them only after the FEM)")
+    return np.array([given.get(nm, default if kind == "mode" else 0.0) for nm, kind in zip(names, kinds)])
+
+
+def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
+    """Reynolds squeeze-film damping of both sides' gaps (the plate disk, p = 0 at its rim)."""
+    from . import squeeze_film as sf
+    d, radius = s.damping, s.conductor.radius
+    gas = sf.GASES[d.gas]
+    mesh = sf.disk_mesh(radius, d.fem_refine)
+    reynolds = sf.reynolds_matrix(mesh, m.basis)                  # shared by all gaps
+    gaps = {}
+    for e in s.electrode_sets:
+        gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
+    total, sides = np.zeros_like(reynolds), {}
+    for side, gap in sorted(gaps.items()):
+        mu = sf.effective_viscosity(gas, d.pressure, gap)
+        total += 12.0 * mu / gap**3 * reynolds
+        sigma = [sf.squeeze_number(mu, 2 * np.pi * f, radius, d.pressure, gap) for f in m.frequencies]
+        sides[side] = {"gap_m": gap, "knudsen": sf.knudsen(gas, d.pressure, gap), "mu_eff_Pa_s": mu,
+                       "squeeze_number_at_f0": [float(v) for v in sigma],
+                       "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)}
+    worst = max(v for side in sides.values() for v in side["squeeze_number_at_f0"])
+    note = ("incompressible model valid (squeeze number < 1 at every modal frequency)" if worst < 1 else
+            f"squeeze number up to {worst:.3g} > 1: the film also stiffens and the incompressible "
+            "damping overestimates the real one at those modes (compressible model not implemented)")
+    return {"diagonal": np.diag(total).copy(), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
+            "validity": note}
+
+
+def _compressible_at_f0(mesh, m: Mechanics, gap: float, mu: float, pressure: float) -> dict:
+    """Compressible-film damping b and gas-spring stiffness k of each mode at its own frequency
+    (complex Reynolds solve; informational, the model keeps the incompressible b)."""
+    from . import squeeze_film as sf
+    b, k = [], []
+    for v, f in enumerate(m.frequencies):
+        y = sf.compressible_admittance(mesh, m.basis, v, gap, mu, pressure, 2 * np.pi * f) if f > 0 else None
+        b.append(float(y.real) if y is not None else None)
+        k.append(float(-2 * np.pi * f * y.imag) if y is not None else None)
+    return {"damping_N_s_per_m": b, "spring_N_per_m": k}
+
+
+def _damping_report(s: Structure, out: np.ndarray, film: dict) -> dict:
+    """What the damping stage did, for the JSON report and the emitters (noise switch)."""
+    d = s.damping
+    rep = {"temperature_K": d.temperature, "noise": d.noise, "per_coordinate": [float(v) for v in out]}
+    if film:
+        rep["squeeze_film"] = {"gas": d.gas, "pressure_Pa": d.pressure, "fem_refine": d.fem_refine,
+                               "diagonal": [float(v) for v in film["diagonal"]],
+                               "off_diagonal_ratio": film["off_diagonal_ratio"], "sides": film["sides"],
+                               "validity": film["validity"],
+                               "model": "incompressible linearised Reynolds, Veijola mu_eff, p = 0 at the plate rim"}
+    return rep
 
 
 def build(s: Structure, progress: bool = False) -> Build:
@@ -259,8 +355,8 @@ def fit_electrode(s: Structure, e: es.Electrode, name: str, basis, scales: np.nd
     best, used = None, first
     for k in range(first, len(PATCH_GRIDS)):
         grid = PATCH_GRIDS[k]
-        if grid[0] * grid[1] > o.max_terms:
-            break
+        if grid[0] * grid[1] > o.max_terms or grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) > len(x):
+            break                              # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
         fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)
         if best is None or fit.max_rel_error < best.max_rel_error:

@@ -112,6 +112,27 @@ class FemOptions:
 
 
 @dataclass(frozen=True)
+class Damping:
+    """Mechanical damping: per-coordinate Q or damping ratio (a number applies to every eigenmode),
+    Rayleigh D = alpha M + beta K, squeeze-film gas damping, and thermal force noise."""
+    q_factor: tuple[tuple[str, float], ...] = ()         # (coordinate, Q); "*" = every eigenmode
+    damping_ratio: tuple[tuple[str, float], ...] = ()    # (coordinate, zeta); "*" = every eigenmode
+    rayleigh_alpha: float = 0.0                          # 1/s
+    rayleigh_beta: float = 0.0                           # s
+    squeeze_film: bool = False
+    pressure: float = 101325.0                           # Pa
+    gas: str = "air"
+    temperature: float = 300.0                           # K, of the gas and of the thermal noise
+    noise: bool = False                                  # emit thermal force noise sources
+    fem_refine: int = 5                                  # Reynolds mesh refinement
+
+    def enabled(self) -> bool:
+        """True when any damping contribution is requested."""
+        return bool(self.q_factor or self.damping_ratio or self.rayleigh_alpha or self.rayleigh_beta
+                    or self.squeeze_film)
+
+
+@dataclass(frozen=True)
 class Structure:
     """A validated structure description; `source` is the file it came from."""
     name: str
@@ -124,6 +145,7 @@ class Structure:
     fit: FitOptions = field(default_factory=FitOptions)
     electrostatics: ElectrostaticsOptions = field(default_factory=ElectrostaticsOptions)
     fem: FemOptions = field(default_factory=FemOptions)
+    damping: Damping | None = None
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]
@@ -410,6 +432,127 @@ def _fem(rd: _Reader, doc: dict) -> FemOptions:
     return FemOptions(refine=_integer(rd, t, "fem", "refine", 6, 3, 8, "mesh refinement level"))
 
 
+DAMPING_KEYS = ["q_factor", "damping_ratio", "rayleigh", "squeeze_film", "pressure", "gas", "temperature",
+                "noise", "fem_refine"]
+
+
+def coordinate_names(c: Coordinates) -> list[str] | None:
+    """Names the pipeline gives the coordinates (None while modes are only a count)."""
+    if isinstance(c.modes, int):
+        return None if c.modes else list(c.rigid)
+    return list(c.rigid) + [f"m{m.replace(',', '_')}" for m in c.modes]
+
+
+def _per_coordinate(rd: _Reader, t: dict, key: str, names: list[str] | None,
+                    check: Callable[[float], str | None], what: str) -> tuple[tuple[str, float], ...]:
+    """A number (every eigenmode: key '*') or a table {coordinate = number} of positive values."""
+    loc = f"damping.{key}"
+    if key not in t:
+        return ()
+    raw = t[key]
+    table = raw if isinstance(raw, dict) else {"*": raw}
+    out = []
+    for name, value in table.items():
+        if name != "*" and names is not None and name not in names:
+            raise rd.fail(loc, f"unknown coordinate {name!r}", f"{_did_you_mean(name, names)}use one of {names}")
+        if name in RIGID_COORDINATES:
+            raise rd.fail(loc, f"{key} of the rigid coordinate {name!r} is undefined (no stiffness, no resonance)",
+                          "damp rigid-body motions with squeeze_film or rayleigh alpha instead")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise rd.fail(loc, f"{key} for {name!r} must be a number, got {value!r}",
+                          f"write {key} = 1e4 (all eigenmodes) or {key} = {{m2_0c = 1e4}}")
+        problem = check(float(value))
+        if problem:
+            raise rd.fail(loc, f"{key} = {value!r} for {name!r} {problem}", f"give a physical {what}")
+        out.append((name, float(value)))
+    return tuple(out)
+
+
+def _rayleigh(rd: _Reader, t: dict) -> tuple[float, float]:
+    """Rayleigh coefficients (alpha in 1/s, beta in s) from rayleigh = {alpha = .., beta = ..}."""
+    raw = t.get("rayleigh", {})
+    if not isinstance(raw, dict):
+        raise rd.fail("damping.rayleigh", f"rayleigh must be a table, got {raw!r}",
+                      "write rayleigh = {alpha = 10.0, beta = 1e-9}  (D = alpha M + beta K; 1/s and s)")
+    _check_keys(rd, "damping.rayleigh", raw, ["alpha", "beta"])
+    nonneg = lambda v: None if v >= 0 else "must not be negative"
+    return (_quantity(rd, raw, "damping.rayleigh", "alpha", "dimensionless", 0.0, nonneg, "mass-proportional 1/s"),
+            _quantity(rd, raw, "damping.rayleigh", "beta", "dimensionless", 0.0, nonneg, "stiffness-proportional s"))
+
+
+def _flag(rd: _Reader, t: dict, key: str, default: bool) -> bool:
+    """A true/false key of the [damping] table."""
+    value = t.get(key, default)
+    if not isinstance(value, bool):
+        raise rd.fail(f"damping.{key}", f"{key} must be true or false, got {value!r}", f"write {key} = true")
+    return value
+
+
+def _damping(rd: _Reader, doc: dict, coords: Coordinates) -> Damping | None:
+    """The optional [damping] table."""
+    if "damping" not in doc:
+        return None
+    t = _table(rd, doc, "damping", required=False)
+    _check_keys(rd, "damping", t, DAMPING_KEYS)
+    names = coordinate_names(coords)
+    q = _per_coordinate(rd, t, "q_factor", names, lambda v: None if v > 0.5 else "must exceed 0.5",
+                        "quality factor (> 0.5, underdamped)")
+    zeta = _per_coordinate(rd, t, "damping_ratio", names, lambda v: None if 0 < v < 1 else "must lie in (0, 1)",
+                           "damping ratio")
+    both = sorted({n for n, _ in q} & {n for n, _ in zeta})
+    if both:
+        raise rd.fail("damping.damping_ratio", f"coordinate(s) {both} given both q_factor and damping_ratio",
+                      "give each coordinate one of them (Q = 1 / (2 zeta))")
+    alpha, beta = _rayleigh(rd, t)
+    from .squeeze_film import GASES
+    return Damping(q, zeta, alpha, beta, _flag(rd, t, "squeeze_film", False),
+                   _quantity(rd, t, "damping", "pressure", "pressure", 101325.0, _positive, "gas pressure"),
+                   _choice(rd, t, "damping", "gas", sorted(GASES), "air"),
+                   _quantity(rd, t, "damping", "temperature", "temperature", 300.0, _positive, "temperature"),
+                   _flag(rd, t, "noise", False),
+                   _integer(rd, t, "damping", "fem_refine", 5, 2, 8, "Reynolds mesh refinement level"))
+
+
+MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
+
+
+def _boundary_edges(refine: int) -> int:
+    """Edges on the rim of scikit-fem's MeshTri.init_circle(refine) (32 at refine 3, doubling per level)."""
+    return 32 * 2 ** (refine - 3)
+
+
+def _cross_checks(rd: _Reader, sets: tuple[ElectrodeSet, ...], coords: Coordinates,
+                  sampling: Sampling, fem: FemOptions) -> None:
+    """Checks that need several tables: overlapping sets, modes the mesh resolves, grid size."""
+    for j, b in enumerate(sets):
+        for i, a in enumerate(sets[:j]):
+            if a.side != b.side:
+                continue
+            for ra in a.rings:
+                for rb in b.rings:
+                    if ra[0] < rb[1] and rb[0] < ra[1]:
+                        raise rd.fail(f"electrodes[{j}].rings",
+                                      f"set {b.name!r} overlaps set {a.name!r} on the same side ({b.side}): rings "
+                                      f"[{rb[0]:g}, {rb[1]:g}] m and [{ra[0]:g}, {ra[1]:g}] m",
+                                      "merge the sets into one [[electrodes]] table or make their rings disjoint")
+    edges = _boundary_edges(fem.refine)
+    if isinstance(coords.modes, int) and coords.modes > edges // 4:
+        raise rd.fail("coordinates.modes", f"{coords.modes} modes need a finer mesh than fem.refine = {fem.refine} "
+                      f"(at most {edges // 4}: 8 rim edges per wavelength)",
+                      f"raise fem.refine or request at most {edges // 4} modes")
+    if not isinstance(coords.modes, int):
+        for m in coords.modes:
+            n, s_ = (int(v) for v in MODE_LABEL.match(m).groups()[:2])
+            if n > edges // 8 or s_ > edges // 32:
+                raise rd.fail("coordinates.modes", f"mode {m!r} is not resolved by the mesh of fem.refine = "
+                              f"{fem.refine} (n <= {edges // 8}, s <= {edges // 32})",
+                              "raise fem.refine or drop the mode")
+    ncoords = len(coords.rigid) + (coords.modes if isinstance(coords.modes, int) else len(coords.modes))
+    if sampling.levels ** ncoords > MAX_GRID_POINTS:
+        raise rd.fail("sampling.levels", f"{sampling.levels}^{ncoords} = {sampling.levels ** ncoords} capacitance "
+                      f"samples exceed {MAX_GRID_POINTS}", "lower sampling.levels or use fewer coordinates")
+
+
 def parse_structure(text: str, path: str = "<string>") -> Structure:
     """Validate TOML text into a Structure; raises StructureError on any mistake."""
     rd = _Reader(path, text)
@@ -421,7 +564,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
                              "(strings need quotes, tables [name], arrays [a, b])",
                              int(line.group(1)) if line else None)
     top = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
-           "electrostatics", "fem"]
+           "electrostatics", "fem", "damping"]
     _check_keys(rd, "", doc, top)
     name = doc.get("name")
     if not isinstance(name, str) or not NAME.match(name) or "error" in name.lower():
@@ -434,13 +577,16 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     conductor = _conductor(rd, doc)
     sets = _electrode_sets(rd, doc, conductor.radius)
     coords, sampling, fit = _coordinates(rd, doc), _sampling(rd, doc), _fit(rd, doc)
-    if fit.target != "plates" and fit.degree >= sampling.levels:
+    if fit.degree >= sampling.levels:
         raise rd.fail("fit.degree", f"degree {fit.degree} needs at least {fit.degree + 1} sampling levels "
                       f"per coordinate (have {sampling.levels})",
                       f"lower fit.degree or raise sampling.levels to {fit.degree + 1}")
+    fem = _fem(rd, doc)
+    _cross_checks(rd, sets, coords, sampling, fem)
     return Structure(name=name, description=description, source=path, conductor=conductor,
                      electrode_sets=sets, coordinates=coords, sampling=sampling,
-                     fit=fit, electrostatics=_electrostatics(rd, doc), fem=_fem(rd, doc))
+                     fit=fit, electrostatics=_electrostatics(rd, doc), fem=fem,
+                     damping=_damping(rd, doc, coords))
 
 
 def load_structure(path: str | Path) -> Structure:

@@ -14,11 +14,14 @@ UNITS: dict[str, dict[str, float]] = {
     "voltage": {"V": 1.0, "mV": 1e-3},
     "frequency": {"Hz": 1.0, "kHz": 1e3, "MHz": 1e6},
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "mbar": 100.0, "bar": 1e5, "mTorr": 101325.0 / 760e3,
+                 "Torr": 101325.0 / 760, "atm": 101325.0},
+    "temperature": {"K": 1.0},
     "dimensionless": {"": 1.0},
 }
 
 SI_NAME = {"length": "m", "modulus": "Pa", "density": "kg/m^3", "angle": "rad",
-           "voltage": "V", "frequency": "Hz", "time": "s", "dimensionless": ""}
+           "voltage": "V", "frequency": "Hz", "time": "s", "pressure": "Pa", "temperature": "K", "dimensionless": ""}
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
 
@@ -51,4 +54,4 @@ def example(kind: str) -> str:
     """A short example quantity string for error messages."""
     return {"length": "473 um", "modulus": "160 GPa", "density": "2330 kg/m^3",
             "angle": "45 deg", "voltage": "5 V", "frequency": "100 kHz",
-            "time": "1 us", "dimensionless": "0.22"}[kind]
+            "time": "1 us", "pressure": "1 Pa", "temperature": "300 K", "dimensionless": "0.22"}[kind]
