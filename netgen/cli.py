@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from . import __version__
+from .simulate import SimulationError, SimulatorNotFound
 from .structure import StructureError
 
 
@@ -32,6 +33,17 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate(args: argparse.Namespace) -> int:
+    from .simulate import run_ngspice
+
+    netlist = Path(args.netlist).read_text(encoding="utf-8")
+    plots = run_ngspice(netlist, Path(args.output), Path(args.netlist).stem, timeout=args.timeout)
+    if not args.quiet:
+        for plot in plots:
+            print(f"{plot.name}: {len(plot.vectors)} vectors, {len(next(iter(plot.vectors.values())))} points")
+    return 0
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="netgen", description=__doc__)
     p.add_argument("--version", action="version", version=f"netgen {__version__}")
@@ -43,6 +55,14 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
     b.set_defaults(func=_build)
+    r = sub.add_parser("simulate", help="run a netlist in ngspice (batch) and report failures clearly")
+    r.add_argument("netlist", help="ngspice netlist (.cir) with its analyses")
+    r.add_argument("-o", "--output", required=True, help="run folder: the saved netlist, raw file and log")
+    r.add_argument("--timeout", type=float, default=3600.0, help="seconds before the run is stopped")
+    r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
+    r.set_defaults(func=_simulate)
+    from .sigma_delta import add_parser as add_sigma_delta
+    add_sigma_delta(sub)
     return p
 
 
@@ -54,6 +74,12 @@ def main(argv: list[str] | None = None) -> int:
     except StructureError as exc:
         print(f"netgen: error in structure file {exc}", file=sys.stderr)
         return 2
+    except SimulatorNotFound as exc:
+        print(f"netgen: {exc}", file=sys.stderr)
+        return 3
+    except SimulationError as exc:
+        print(f"netgen: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("netgen: interrupted", file=sys.stderr)
         return 130

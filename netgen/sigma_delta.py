@@ -1,0 +1,488 @@
+"""The paper's sigma-delta levitation loop (section 3, Fig. 3) around an emitted macromodel.
+
+design() derives the loop from the MacroModel (electrode groups from the signs of dC_i/dq at
+the centre, feedback pattern, voltages, charge-amplifier capacitors), testbench() renders
+templates/sigma_delta_tb.cir.j2, simulate() runs ngspice with progress, and analyse() turns
+the bitstreams into Welch spectra normalised to the fed-back force/torque (the paper's
+normalisation), noise floors, SNR, notches and peaks.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+from . import __version__
+from .model import MacroModel
+from .simulate import SimulationError, diagnose, ngspice_path, read_raw
+from .templating import render
+
+CHANNELS = ("z", "tilt_x", "tilt_y")
+G = 9.81
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Event times within one period, as fractions of T_s (see the template header)."""
+    edge: float = 0.02
+    sense_on: float = 0.02
+    prev: float = 0.27
+    cur: float = 0.34
+    sample: float = 0.06
+    clk: float = 0.41
+    sense_off: float = 0.47
+    fb_on: float = 0.50
+    fb_off: float = 0.97
+    rst_on: float = 0.48
+    rst_off: float = 0.01
+
+
+@dataclass
+class Tone:
+    """A sinusoidal generalized force on one coordinate (amplitude in the f_ port unit)."""
+    coord: str
+    amplitude: float
+    freq: float
+    unit: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> "Tone":
+        """Parse COORD:AMPLITUDE:FREQ, e.g. z:0.02:1e3 (uN on z at 1 kHz)."""
+        parts = text.split(":")
+        if len(parts) != 3:
+            raise ValueError(f"tone {text!r} is not COORD:AMPLITUDE:FREQ (e.g. z:0.02:1000)")
+        try:
+            return cls(parts[0], float(parts[1]), float(parts[2]))
+        except ValueError:
+            raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers") from None
+
+
+@dataclass
+class Design:
+    """Everything the testbench needs; all derived from the model and the few choices here."""
+    ts: float
+    vs: float
+    vfb: float
+    lead: float
+    full_scale: float
+    electrodes: list[dict]
+    channels: list[dict]
+    table: list[dict]
+    mass: float
+    g: float
+    gravity_un: float
+    duty: float
+    sense_force: list[float]
+    t: Timing = field(default_factory=Timing)
+    cs: float = 1e-12
+    reltol: float = 1e-3
+    tmax: float = 0.05
+    settle: float = 5.0
+    vcmp: float = 1e-6
+
+    @property
+    def g_switch(self) -> float:
+        """Sampling-switch conductance: C_s settles `settle` time constants within a sample pulse."""
+        return self.settle * self.cs / (self.t.sample * self.ts)
+
+    def g_reset(self, cf: float) -> float:
+        """Reset-switch conductance: C_f discharges `settle` time constants within 10 % of T_s."""
+        return self.settle * cf / (0.1 * self.ts)
+
+    def level(self, channel: str) -> float:
+        """Mean |fed-back force or torque| of a channel over a period (SI), for normalisation."""
+        key = {"z": "fz", "tilt_x": "tx", "tilt_y": "ty"}[channel]
+        unit = 1e-6 if channel == "z" else 1e-9
+        return float(np.mean([abs(r[key]) for r in self.table])) * unit * self.duty
+
+
+def _coord_index(model: MacroModel, name: str) -> int:
+    """Index of a coordinate, or a clear error."""
+    names = [c.name for c in model.coordinates]
+    if name not in names:
+        raise ValueError(f"model {model.name} has no coordinate {name!r} (has {names}); "
+                         "the sigma-delta loop needs z, tilt_x and tilt_y")
+    return names.index(name)
+
+
+def window(p: np.ndarray, a: float, b: float, t: Timing) -> np.ndarray:
+    """The template's smooth clock window W(a, b) at period phase p."""
+    w = t.edge / 8
+    return 0.5 * (np.tanh((p - a) / w) - np.tanh((p - b) / w))
+
+
+def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
+    """Mean of the squared PULSE phase (linear edges of t.edge centred on a and b) over a period
+    (feedback phase by default)."""
+    a, b = (t.fb_on if a is None else a), (t.fb_off if b is None else b)
+    return (b - a - t.edge) + 2 * t.edge / 3
+
+
+def groups(model: MacroModel) -> list[dict]:
+    """Per electrode: side (+1 pulls z up), sensed tilt axis and its sign, sense weights."""
+    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0]
+    iz, ix, iy = (_coord_index(model, c) for c in CHANNELS)
+    out = []
+    for k, e in enumerate(model.electrodes):
+        side = int(np.sign(grad[k, iz]))
+        axis = "tilt_x" if abs(grad[k, ix]) >= abs(grad[k, iy]) else "tilt_y"
+        sign = int(np.sign(grad[k, ix if axis == "tilt_x" else iy]))
+        w = [side, sign if axis == "tilt_x" else 0, sign if axis == "tilt_y" else 0]
+        bz = "bit(v(b_z))" if side > 0 else "(1-bit(v(b_z)))"
+        bt = f"bit(v(b_{axis}))" if sign > 0 else f"(1-bit(v(b_{axis})))"
+        out.append({"name": e.name, "side": side, "axis": axis, "sign": sign, "w": w, "select": f"{bz}*{bt}"})
+    return out
+
+
+def selected(electrodes: list[dict], bits: tuple[int, int, int]) -> np.ndarray:
+    """0/1 per electrode: energised for the bit pattern (bz, bx, by), each +-1."""
+    bz, bx, by = bits
+    return np.array([float(e["side"] == bz and e["sign"] == (bx if e["axis"] == "tilt_x" else by))
+                     for e in electrodes])
+
+
+def force_table(model: MacroModel, electrodes: list[dict], vfb: float) -> list[dict]:
+    """Generalized forces at the centre for each of the 8 bit patterns (uN, nN*m)."""
+    iz, ix, iy = (_coord_index(model, c) for c in CHANNELS)
+    rows = []
+    for bits in itertools.product((1, -1), repeat=3):
+        f = model.electrostatic_force(np.zeros(model.ncoords), vfb * selected(electrodes, bits))[0]
+        rows.append({"bits": "".join("+" if b > 0 else "-" for b in bits), "pattern": list(bits),
+                     "fz": f[iz] * 1e6, "tx": f[ix] * 1e9, "ty": f[iy] * 1e9, "all": f.tolist()})
+    return rows
+
+
+def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: float = 0.25,
+           lead: float = 0.8, full_scale: float = 0.01, g: float = G, timing: Timing | None = None) -> Design:
+    """Loop design from the model: V_fb so that gravity needs a mean z-bit of `density`,
+    V_s = sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V."""
+    t = timing or Timing()
+    iz = _coord_index(model, "z")
+    electrodes = groups(model)
+    unit = force_table(model, electrodes, 1.0)
+    fz_per_v2 = float(np.mean([abs(r["fz"]) for r in unit])) * 1e-6
+    mass = model.coordinates[iz].mass
+    vfb = round(float(np.sqrt(mass * g / (density * duty(t) * fz_per_v2))), 3)
+    vs = round(sense_ratio * vfb, 3)
+    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+    channels = []
+    for k, name in enumerate(CHANNELS):
+        sens = vs * float(sum(e["w"][k] * grad[i, _coord_index(model, name)] for i, e in enumerate(electrodes)))
+        channels.append({"name": name, "index": k, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}")})
+    sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
+    return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, force_table(model, electrodes, vfb),
+                  mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t)
+
+
+def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
+    """Source text per force port: gravity on z, the optional tone, 0 elsewhere."""
+    out = []
+    for c in model.coordinates:
+        dc = d.gravity_un if c.name == "z" else 0.0
+        src = f"DC {dc!r}"
+        if tone and tone.coord == c.name:
+            src = f"SIN({dc!r} {tone.amplitude!r} {tone.freq!r})"
+        out.append({"port": f"f_{c.name}", "source": src})
+    return out
+
+
+def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
+              tone: Tone | None = None, chunks: int = 50) -> str:
+    """The ngspice netlist of the loop (templates/sigma_delta_tb.cir.j2)."""
+    if tone:
+        _coord_index(model, tone.coord)
+        tone.unit = model.coordinates[_coord_index(model, tone.coord)].port_units[2]
+    saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(y_{c})" for c in CHANNELS] + \
+        [f"v(x_{c.name})" for c in model.coordinates]
+    stop = d.ts * cycles
+    progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
+    return render("sigma_delta_tb.cir.j2", bench="sigma_delta", version=__version__, model=model, d=d,
+                  lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
+                  forces=force_sources(model, d, tone), tone=tone, saves=saves, raw=raw, progress=progress)
+
+
+def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0):
+    """Run ngspice -b on the bench, report simulated/wall time from its progress lines; return the plot."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    cir, raw, log = workdir / "sigma_delta.cir", workdir / "sigma_delta.raw", workdir / "sigma_delta.log"
+    cir.write_text(netlist)
+    raw.unlink(missing_ok=True)
+    start, lines = time.perf_counter(), []
+    stdbuf = shutil.which("stdbuf")
+    argv = ([stdbuf, "-oL", "-eL"] if stdbuf else []) + [ngspice_path(), "-b", cir.name]
+    shown = 0.0
+    proc = subprocess.Popen(argv, cwd=workdir, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, stdin=subprocess.DEVNULL)
+    for line in proc.stdout:
+        lines.append(line)
+        m = re.match(r"netgen-progress\s+([0-9.eE+-]+)", line)
+        wall = time.perf_counter() - start
+        if m and progress and wall - shown > 2.0 and float(m.group(1)) > 0:
+            t, shown = float(m.group(1)), wall
+            print(f"sigma-delta: simulated {t * 1e3:.3f} / {stop * 1e3:.3f} ms, wall {wall:.1f} s, "
+                  f"eta {wall * (stop / t - 1):.0f} s", file=sys.stderr, flush=True)
+        if time.perf_counter() - start > timeout:
+            proc.kill()
+            raise SimulationError(f"ngspice exceeded {timeout:.0f} s; reproduce with: ngspice -b {cir}")
+    proc.wait()
+    text = "".join(lines)
+    log.write_text(text)
+    # ngspice exits 1 after a paused-and-resumed run; success is a complete raw file (checked by the caller)
+    if not raw.exists() or re.search(r"simulation\(s\) aborted|timestep too small", text, re.I):
+        raise SimulationError(f"ngspice failed: {diagnose(text) or f'exit code {proc.returncode}'}; "
+                              f"log {log}; reproduce with: cd {workdir} && ngspice -b {cir.name}")
+    return read_raw(raw)[0]
+
+
+def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
+    """Bits (+-1) and coordinates sampled once per period, in the feedback phase."""
+    t = np.asarray(plot["time"])
+    if t[-1] < 0.999 * cycles * d.ts:
+        raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
+    at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
+    out = {f"bits_{c}": np.where(np.interp(at, t, plot[f"v(b_{c})"]) > 0.5, 1, -1).astype(np.int8)
+           for c in CHANNELS}
+    for c in model.coordinates:
+        out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
+    out["time"] = at
+    return out
+
+
+def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Welch PSD of a +-1 bitstream (Hann, 50 % overlap): the spectrum normalised to the square
+    of the fed-back force/torque, one-sided, in 1/Hz."""
+    n = nperseg or min(len(bits), max(256, len(bits) // 8))
+    return signal.welch(bits.astype(float), fs=1.0 / ts, window="hann", nperseg=n, detrend="constant")
+
+
+def features(f: np.ndarray, p: np.ndarray, min_db: float = 6.0) -> tuple[list[dict], list[dict]]:
+    """Notches and peaks of a PSD: deviations of > min_db from its running median (log f window)."""
+    db = 10 * np.log10(p[1:] + 1e-300)
+    ff = f[1:]
+    width = max(5, len(db) // 40) | 1
+    base = signal.medfilt(db, width)
+    out = []
+    for sign in (-1, 1):
+        idx, props = signal.find_peaks(sign * (db - base), height=min_db, distance=width)
+        out.append([{"freq_hz": float(ff[i]), "depth_db": float(sign * (db[i] - base[i]))} for i in idx])
+    notches = sorted(out[0], key=lambda r: -r["depth_db"])[:10]
+    peaks = sorted(out[1], key=lambda r: -r["depth_db"])[:10]
+    return notches, peaks
+
+
+def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone | None) -> dict:
+    """In-band noise floor (median, dB re F_fb^2/Hz), SNR of the tone, noise-shaping slope."""
+    fb = 0.5 / ts / osr
+    band = (f > 0) & (f <= fb)
+    df = f[1] - f[0]
+    mask = band.copy()
+    out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
+    if tone:
+        near = band & (np.abs(f - tone.freq) <= 3 * df)
+        mask &= ~near
+        sig = float(np.sum(p[near]) * df)
+        out["tone_power"] = sig
+        out["tone_level_db"] = 10 * np.log10(sig + 1e-300)
+    if mask.sum() < 2:                             # run too short to resolve the band
+        out.update({"noise_floor_db_per_hz": None, "inband_noise_db": None, "note": "band has < 2 bins"})
+        return out
+    noise = float(np.sum(p[mask]) * df)
+    out["noise_floor_db_per_hz"] = float(10 * np.log10(np.median(p[mask])))
+    out["inband_noise_db"] = float(10 * np.log10(noise))
+    if tone:
+        out["snr_db"] = float(out["tone_level_db"] - out["inband_noise_db"])
+    lo, hi = fb / 10, fb
+    sel = (f >= lo) & (f <= hi) & mask
+    if sel.sum() > 3:
+        out["slope_db_per_decade"] = float(np.polyfit(np.log10(f[sel]), 10 * np.log10(p[sel]), 1)[0])
+    return out
+
+
+def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, skip: int = 0) -> dict:
+    """Summary per channel: spectra features, noise floor, SNR, bit mean and force balance."""
+    summary: dict = {"ts": d.ts, "fs_hz": 1 / d.ts, "osr": osr, "cycles": int(len(clock["time"])), "skip": skip,
+                     "vfb": d.vfb, "vs": d.vs, "lead": d.lead, "channels": {}, "spectra": {}}
+    for c in CHANNELS:
+        bits = clock[f"bits_{c}"][skip:]
+        f, p = psd(bits, d.ts)
+        notches, peaks = features(f, p)
+        m = band_metrics(f, p, d.ts, osr, tone)
+        summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
+                                  **m, "notches": notches, "peaks": peaks}
+        summary["spectra"][c] = (f, p)
+    summary["gravity_balance"] = gravity_balance(clock, d, skip)
+    summary["coordinates"] = {k[2:]: {"mean": float(v[skip:].mean()), "min": float(v[skip:].min()),
+                                      "max": float(v[skip:].max())}
+                              for k, v in clock.items() if k.startswith("x_")}
+    return summary
+
+
+def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
+    """Momentum balance on z between the clock samples a = skip and b = N - 2: the mean
+    electrostatic force implied by the bits (the model's centre force of each bit pattern x the
+    feedback duty, plus the sense-phase force) against m g + m (v_b - v_a) / (t_b - t_a), with
+    v from central differences of x_z. Samples sit mid-feedback, so the end periods count half.
+    An applied tone force is not included (it averages out only over whole tone periods)."""
+    pats = np.stack([clock[f"bits_{c}"] for c in CHANNELS], axis=1)
+    lookup = {tuple(r["pattern"]): r["fz"] * 1e-6 for r in d.table}
+    fz = np.array([lookup[tuple(p)] for p in pats.tolist()])
+    a, b = skip, len(fz) - 2
+    if b - a < 8:
+        raise ValueError(f"too few clock samples after skipping {skip} for a force balance")
+    weights = np.ones(b - a + 1)
+    weights[[0, -1]] = 0.5
+    sense = d.sense_force[0] * duty(d.t, d.t.sense_on, d.t.sense_off)
+    mean = float(np.dot(weights, fz[a:b + 1]) / (b - a) * d.duty + sense)
+    x = clock["x_z"] * 1e-6                       # x_z port: 1 V = 1 um
+    v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
+    inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
+    need = d.mass * d.g + inertia
+    return {"mean_force_n": mean, "weight_n": d.mass * d.g, "inertial_n": float(inertia),
+            "ratio": float(mean / need), "window": [a, b]}
+
+
+def plot_spectra(summary: dict, path: Path, title: str) -> Path:
+    """PNG of the three normalised spectra (dB re F_fb^2/Hz against log frequency)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)
+    for ax, c in zip(axes, CHANNELS):
+        f, p = summary["spectra"][c]
+        ax.semilogx(f[1:], 10 * np.log10(p[1:]), lw=0.7)
+        ax.axvline(summary["fs_hz"] / 2 / summary["osr"], color="k", ls=":", lw=0.7)
+        ax.set_ylabel(f"{c}: dB re F_fb^2/Hz")
+        ax.grid(True, which="both", lw=0.3)
+    axes[0].set_title(title)
+    axes[-1].set_xlabel("frequency (Hz)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_states(clock: dict, path: Path) -> Path:
+    """PNG of the coordinates per clock (port units) over the run."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    keys = [k for k in clock if k.startswith("x_")]
+    fig, axes = plt.subplots(len(keys), 1, figsize=(8, 1.4 * len(keys) + 1), sharex=True)
+    for ax, k in zip(np.atleast_1d(axes), keys):
+        ax.plot(clock["time"] * 1e3, clock[k], lw=0.5)
+        ax.set_ylabel(k, fontsize=8)
+    np.atleast_1d(axes)[-1].set_xlabel("time (ms)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
+        progress: bool = True, plots: bool = True, skip: int | None = None, **choices) -> dict:
+    """Design, render, simulate and analyse; write bits .npz, PNGs and summary.json into `out`."""
+    out.mkdir(parents=True, exist_ok=True)
+    d = design(model, ts, **choices)
+    bench = testbench(model, d, lib.resolve(), cycles, "sigma_delta.raw", tone)
+    start = time.perf_counter()
+    plot = simulate(bench, out, ts * cycles, progress)
+    wall = time.perf_counter() - start
+    clock = per_clock(plot, d, cycles, model)
+    (out / "sigma_delta.raw").unlink(missing_ok=True)
+    np.savez_compressed(out / "bitstreams.npz", **clock)
+    skip = cycles // 8 if skip is None else skip
+    summary = analyse(clock, d, tone, skip=skip)
+    spectra = summary.pop("spectra")
+    np.savez_compressed(out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items()
+                                                for k, v in (("f", fr), ("psd", p))})
+    summary.update({"model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
+                    "wall_s": wall, "tone": asdict(tone) if tone else None,
+                    "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
+                               "timing": asdict(d.t), "duty": d.duty}})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if plots:
+        plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",
+                     f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles")
+        plot_states(clock, out / "coordinates.png")
+    return summary | {"spectra": spectra, "clock": clock}
+
+
+def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False, rebuild: bool = False,
+              progress: bool = True) -> tuple[MacroModel, Path]:
+    """Build the structure's model into `folder` (rigid-body only: modes = 0), or reuse the
+    .json/.lib there when they are newer than the structure file."""
+    from dataclasses import replace
+
+    from .emit import write_outputs
+    from .pipeline import build_model
+    from .structure import load_structure
+
+    structure = load_structure(structure_path)
+    if rigid_only:
+        structure = replace(structure, coordinates=replace(structure.coordinates, modes=0))
+    js, lib = folder / f"{structure.name}.json", folder / f"{structure.name}.lib"
+    fresh = js.exists() and lib.exists() and js.stat().st_mtime > Path(structure_path).stat().st_mtime
+    if fresh and not rebuild:
+        return MacroModel.load_json(js), lib
+    model = build_model(structure, progress=progress)
+    write_outputs(model, folder, "ngspice")
+    return model, lib
+
+
+def cli(args) -> int:
+    """`netgen sigma-delta`: build or reuse the model, run the loop, write DIR/summary.json etc."""
+    out = Path(args.output)
+    try:
+        tone = Tone.parse(args.tone) if args.tone else None
+        if args.ts <= 0 or args.cycles < 64:
+            raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+    except ValueError as exc:
+        print(f"netgen: {exc}", file=sys.stderr)
+        return 2
+    if args.model:
+        model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
+        if args.rigid_only:
+            raise ValueError("--rigid-only rebuilds from the structure file; drop --model")
+    else:
+        model, lib = model_for(args.structure, out / ("model_rigid" if args.rigid_only else "model"),
+                               args.rigid_only, args.rebuild, not args.quiet)
+    s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
+            lead=args.lead)
+    if not args.quiet:
+        for c in CHANNELS:
+            ch = s["channels"][c]
+            snr = f", SNR {ch['snr_db']:.1f} dB" if "snr_db" in ch else ""
+            floor = ch["noise_floor_db_per_hz"]
+            floor = "n/a (run too short)" if floor is None else f"{floor:.1f} dB/Hz"
+            print(f"{c}: bit mean {ch['bit_mean']:+.4f}, in-band floor {floor}"
+                  f"{snr}, {len(ch['notches'])} notches, {len(ch['peaks'])} peaks")
+        gb = s["gravity_balance"]
+        print(f"mean feedback force / weight = {gb['ratio']:.4f}; wrote {out / 'summary.json'} ({s['wall_s']:.0f} s)")
+    return 0
+
+
+def add_parser(sub) -> None:
+    """The `sigma-delta` subcommand's arguments."""
+    p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice, with spectra")
+    p.add_argument("structure", help="structure description (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output folder (bitstreams.npz, spectra, summary.json)")
+    p.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
+    p.add_argument("--cycles", type=int, default=4096, help="number of sampling periods (default 4096)")
+    p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m)")
+    p.add_argument("--rigid-only", action="store_true", help="drop the eigenmodes (model built with modes = 0)")
+    p.add_argument("--model", help="use this model .json (with the .lib next to it) instead of building")
+    p.add_argument("--rebuild", action="store_true", help="rebuild the model even if DIR/model is up to date")
+    p.add_argument("--lead", type=float, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    p.set_defaults(func=cli)

@@ -1,0 +1,84 @@
+"""The sigma-delta levitation loop (netgen.sigma_delta, templates/sigma_delta_tb.cir.j2) in ngspice.
+
+One short run of the reference model (T_s = 1 us, gravity on f_z) checked against physics that
+the loop does not compute itself:
+- levitation: every coordinate stays bounded near the centre (x_ ports of the macromodel);
+- momentum balance: the mean electrostatic z force implied by the bitstream (the Python model's
+  forces of each bit pattern x the feedback duty, plus the sense-phase force) equals m g;
+- noise shaping: the z bitstream's spectrum is low in the baseband and rises with frequency.
+Long runs (2^16 cycles, T_s = 3.2 us, eigenmode notch, tone cross-coupling): examples/sigma_delta_paper.py.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from netgen import sigma_delta as sd
+from netgen.model import MacroModel
+
+ROOT = Path(__file__).resolve().parents[1]
+CYCLES, SKIP, TS = 160, 32, 1e-6
+
+
+@pytest.fixture(scope="module")
+def model() -> MacroModel:
+    return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
+
+
+@pytest.fixture(scope="module")
+def loop(model, tmp_path_factory) -> dict:
+    """One ngspice run of the loop, analysed; about 1 min on an idle core."""
+    out = tmp_path_factory.mktemp("sigma_delta")
+    return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
+                  plots=False, skip=SKIP)
+
+
+def test_design_follows_the_model(model):
+    """Electrode groups from dC/dq: 8 top (+z) and 8 bottom, 8 per tilt axis; every bit pattern
+    gives +-F on z and +-T on both tilts, with the signs of the bits and equal magnitudes (1 %)."""
+    d = sd.design(model, TS)
+    assert sorted(e["side"] for e in d.electrodes) == [-1] * 8 + [1] * 8
+    assert sum(e["axis"] == "tilt_x" for e in d.electrodes) == 8
+    for row in d.table:
+        bz, bx, by = row["pattern"]
+        assert np.sign(row["fz"]) == bz and np.sign(row["tx"]) == bx and np.sign(row["ty"]) == by
+    for key in ("fz", "tx", "ty"):
+        mags = np.abs([r[key] for r in d.table])
+        assert mags.max() / mags.min() < 1.01
+    # V_fb chosen so that gravity needs a mean z bit of 0.5
+    fz = np.mean(np.abs([r["fz"] for r in d.table])) * 1e-6
+    assert fz * d.duty * 0.5 == pytest.approx(d.mass * 9.81, rel=2e-3)
+
+
+def test_plate_stays_levitated(loop, model):
+    """After settling, z within 0.3 % of the gap and the tilts and modes within 1 % of their
+    touching amplitudes; mean z within 0.1 % of the gap of the centre."""
+    coords = loop["coordinates"]
+    for c in model.coordinates:
+        _, xf, _, _ = c.port_units
+        touch = c.scale / xf                              # touching amplitude in port units
+        limit = 0.003 if c.name == "z" else 0.01
+        assert max(abs(coords[c.name]["min"]), abs(coords[c.name]["max"])) < limit * touch, c.name
+    assert abs(coords["z"]["mean"]) < 1e-3 * model.coordinates[0].scale / 1e-6
+
+
+def test_bitstream_balances_gravity(loop):
+    """Momentum conservation on z: the mean feedback force implied by the bits (the Python
+    model's force of each bit pattern x duty) = m g + m dv/dt over the window, within 1 %
+    (one bit flip in the window is 3 %)."""
+    assert loop["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    assert 0.3 < loop["channels"]["z"]["bit_mean"] < 0.7        # the designed density is 0.5
+
+
+def test_vertical_spectrum_is_noise_shaped(loop):
+    """Bitstreams: below f_s/32 the power density is at least 15 dB under its mean over the top
+    half of the band (f_s/4..f_s/2); an unshaped 1-bit quantizer would be white."""
+    fs = 1 / TS
+    for channel in sd.CHANNELS:
+        f, p = loop["spectra"][channel]
+        low = p[(f > 0) & (f <= fs / 32)].mean()
+        high = p[f >= fs / 4].mean()
+        assert 10 * np.log10(high / low) > 15, channel
