@@ -74,7 +74,11 @@ def cover_miss(a: np.ndarray, chosen: list[int]) -> float:
     d = np.random.default_rng(SEED).normal(size=(DIRECTIONS, a.shape[1]))
     m = a @ d.T
     best = m.max(axis=0)
-    return float(np.max(1.0 - m[chosen].max(axis=0) / best))
+    touching = best > 0                    # directions that reach an electrode at all (one-sided: not all do)
+    if not touching.any():
+        return 0.0
+    # a direction that no stop point approaches counts as 1 (never stopped), not as more
+    return float(np.max(1.0 - np.maximum(m[chosen][:, touching].max(axis=0), 0.0) / best[touching]))
 
 
 def contact_model(gap: np.ndarray, phi: np.ndarray, owner: list[str], scales: np.ndarray,

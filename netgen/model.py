@@ -31,6 +31,9 @@ PORT_UNITS = {
 }
 
 
+ACCEL_PORT = "a_in"       # the inertial-load port (MacroModel.acceleration)
+
+
 @dataclass(frozen=True)
 class Coordinate:
     """One generalized coordinate and its mechanics (diagonal: mass-orthogonal basis)."""
@@ -43,10 +46,19 @@ class Coordinate:
     damping: float = 0.0  # N*s/m or N*m*s/rad (placeholder until damping models land)
     frequency_hz: float = 0.0
     label: str = ""      # (n,s) label of an eigenmode
+    # compressible squeeze film: Maxwell branches (damping N*s/m, corner rad/s), each a damper in
+    # series with a gas spring damping*corner, in parallel with `damping` (netgen.squeeze_film)
+    film: tuple[tuple[float, float], ...] = ()
 
     @property
     def port_units(self) -> tuple[str, float, str, float]:
         return PORT_UNITS[self.unit]
+
+    def admittance(self, omega: float | np.ndarray) -> np.ndarray:
+        """Complex damping B(omega) = damping + sum r / (1 + i omega / corner): the force per
+        unit velocity; Re B is the damping, -omega Im B the gas-spring stiffness."""
+        w = np.asarray(omega, dtype=float)
+        return self.damping + sum(r / (1.0 + 1j * w / c) for r, c in self.film)
 
 
 @dataclass(frozen=True)
@@ -74,6 +86,13 @@ class MacroModel:
     plate: str = "plate"
     generator: str = f"netgen {__version__}"
     contact: dict = field(default_factory=dict)  # pull-in/contact model (netgen.contact), {} = none
+    # nonlinear stiffness (netgen.suspended): {"energy_J": {"exponents", "coeffs"}, ...}, the strain
+    # energy beyond 1/2 K q^2 as a polynomial U(xs) of the scaled coordinates; {} = linear springs only
+    nonlinear: dict = field(default_factory=dict)
+    # inertial load: participation factors G_v = int rho h phi_v dA (kg, or kg*m for rotations);
+    # non-empty = the model has the port a_in (frame acceleration along +z, 1 V = 1 m/s^2)
+    # and each coordinate feels -G_v a_in
+    acceleration: list[float] = field(default_factory=list)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -176,26 +195,56 @@ class MacroModel:
         return self.capacitance(x) * dv + mutual
 
     def accelerations(self, x: np.ndarray, xdot: np.ndarray, v_el: np.ndarray, v_plate: float,
-                      f_ext: np.ndarray | None = None) -> np.ndarray:
-        """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext (diagonal M, D, K)."""
+                      f_ext: np.ndarray | None = None, a_frame: float = 0.0) -> np.ndarray:
+        """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext - G a_frame (diagonal M, D, K)."""
         c = self.coordinates
         m = np.array([k.mass for k in c]); d = np.array([k.damping for k in c])
         k = np.array([k.stiffness for k in c]); s = self.scales
         force = self.electrostatic_force(x, v_el, v_plate)[0] + self.contact_force(x, xdot)
+        if self.nonlinear:
+            force = force + self.nonlinear_force(x)[0]
         if f_ext is not None:
             force = force + f_ext
+        if self.acceleration and a_frame:
+            force = force - np.array(self.acceleration) * a_frame
         return (force - d * s * np.ravel(xdot) - k * s * np.ravel(x)) / (m * s)
+
+    def nonlinear_energy_polynomial(self) -> Polynomial | None:
+        """The nonlinear strain energy U(xs) in J (None without a nonlinear stiffness)."""
+        if not self.nonlinear:
+            return None
+        e = self.nonlinear["energy_J"]
+        return Polynomial(np.array(e["exponents"], dtype=int).reshape(-1, self.ncoords),
+                          np.array(e["coeffs"], dtype=float))
+
+    def nonlinear_force(self, x: np.ndarray) -> np.ndarray:
+        """Nonlinear restoring forces -dU/dq (SI), shape (npoints, ncoords), at scaled coordinates x."""
+        x = np.atleast_2d(x)
+        poly = self.nonlinear_energy_polynomial()
+        if poly is None:
+            return np.zeros_like(x)
+        return -np.stack([poly.derivative(v)(x) for v in range(self.ncoords)], axis=-1) / self.scales
 
     # ------------------------------------------------------------ JSON
     def to_dict(self) -> dict:
         """Plain, JSON-ready dict; floats are kept at full precision."""
+        out = self._to_dict()
+        if self.nonlinear:
+            out["nonlinear_stiffness"] = self.nonlinear
+        if self.acceleration:
+            out["acceleration_port"] = {"port": ACCEL_PORT, "unit": "m/s^2", "meaning": "frame acceleration along "
+                                        "+z; coordinate v feels -participation_v * a_in (a_in = 9.81: gravity)",
+                                        "participation": list(self.acceleration)}
+        return out
+
+    def _to_dict(self) -> dict:
         return {
             "generator": self.generator,
             "name": self.name,
             "description": self.description,
             "source": self.source,
             "plate": self.plate,
-            "coordinates": [asdict(c) | {"port_units": _port_dict(c)} for c in self.coordinates],
+            "coordinates": [_coordinate_dict(c) for c in self.coordinates],
             "modes": [{"name": c.name, "label": c.label, "frequency_hz": c.frequency_hz,
                        "modal_mass": c.mass, "modal_stiffness": c.stiffness}
                       for c in self.coordinates if c.kind == "mode"],
@@ -223,6 +272,8 @@ class MacroModel:
             xu, _, fu, _ = c.port_units
             ports.append({"name": f"f_{c.name}", "kind": "force_in", "unit": fu, "coordinate": c.name})
             ports.append({"name": f"x_{c.name}", "kind": "displacement_out", "unit": xu, "coordinate": c.name})
+        if self.acceleration:
+            ports.append({"name": ACCEL_PORT, "kind": "acceleration_in", "unit": "m/s^2"})
         return ports
 
     def json_text(self) -> str:
@@ -236,7 +287,8 @@ class MacroModel:
     @classmethod
     def from_dict(cls, d: dict) -> "MacroModel":
         """Rebuild a model from its JSON dict (the emitters' input)."""
-        coords = [Coordinate(**{k: v for k, v in c.items() if k != "port_units"}) for c in d["coordinates"]]
+        coords = [Coordinate(**{k: v for k, v in c.items() if k not in ("port_units", "film")},
+                             film=tuple(tuple(b) for b in c.get("film", ()))) for c in d["coordinates"]]
         electrodes = [Electrode(**e) for e in d["electrodes"]]
         fits = [CapacitanceFit(f["electrode"], f["c_ref"], f["target"],
                                tuple(Polynomial(np.array(t["exponents"], dtype=int).reshape(-1, len(coords)),
@@ -249,11 +301,22 @@ class MacroModel:
             i, j = names.index(c["pair"][0]), names.index(c["pair"][1])
             coupling[i, j] = coupling[j, i] = c["capacitance"]
         return cls(d["name"], d["description"], d["source"], coords, electrodes, fits, coupling,
-                   d["sampling"], d["report"], d["plate"], d["generator"], d.get("contact", {}))
+                   d["sampling"], d["report"], d["plate"], d["generator"], d.get("contact", {}),
+                   d.get("nonlinear_stiffness", {}), d.get("acceleration_port", {}).get("participation", []))
 
     @classmethod
     def load_json(cls, path: str | Path) -> "MacroModel":
         return cls.from_dict(json.loads(Path(path).read_text()))
+
+
+def _coordinate_dict(c: Coordinate) -> dict:
+    """A coordinate's JSON entry (the film branches only when there are any)."""
+    out = asdict(c) | {"port_units": _port_dict(c)}
+    if not c.film:
+        out.pop("film")
+    else:
+        out["film"] = [list(b) for b in c.film]
+    return out
 
 
 def _port_dict(c: Coordinate) -> dict:

@@ -70,6 +70,7 @@ class Coordinates:
     """Generalized coordinates: rigid-body motions then eigenmodes (count or (n,s) labels)."""
     rigid: tuple[str, ...]
     modes: int | tuple[str, ...]
+    acceleration_port: bool = False    # an a_in port: frame acceleration along +z (inertial load)
 
 
 @dataclass(frozen=True)
@@ -125,6 +126,8 @@ class Damping:
     temperature: float = 300.0                           # K, of the gas and of the thermal noise
     noise: bool = False                                  # emit thermal force noise sources
     fem_refine: int = 5                                  # Reynolds mesh refinement
+    film_model: str = "incompressible"                   # or "compressible": Maxwell branches (pole-residue)
+    film_max_frequency: float = 0.0                      # Hz the compressible network must cover (0: auto)
 
     def enabled(self) -> bool:
         """True when any damping contribution is requested."""
@@ -146,6 +149,7 @@ class Structure:
     electrostatics: ElectrostaticsOptions = field(default_factory=ElectrostaticsOptions)
     fem: FemOptions = field(default_factory=FemOptions)
     damping: Damping | None = None
+    imports: "Imports | None" = None     # [import]: mechanics and/or capacitances from external tools
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]
@@ -274,7 +278,9 @@ def _choice(rd: _Reader, table: dict, where: str, key: str, choices: list[str], 
 
 def _conductor(rd: _Reader, doc: dict) -> FreeDisk:
     t = _table(rd, doc, "conductor", required=True)
-    kind = _choice(rd, t, "conductor", "kind", ["free_disk"], default="free_disk")
+    kind = _choice(rd, t, "conductor", "kind", list(CONDUCTOR_KINDS), default="free_disk")
+    if kind != "free_disk":
+        return _suspended_conductor(rd, t, kind)
     _check_keys(rd, "conductor", t, ["kind", "radius", "thickness", "youngs_modulus", "poisson_ratio", "density"])
     radius = _quantity(rd, t, "conductor", "radius", "length", check=_positive, what="disk radius")
     thickness = _quantity(rd, t, "conductor", "thickness", "length", check=_positive, what="plate thickness")
@@ -354,7 +360,7 @@ def _electrode_sets(rd: _Reader, doc: dict, radius: float) -> tuple[ElectrodeSet
 
 def _coordinates(rd: _Reader, doc: dict) -> Coordinates:
     t = _table(rd, doc, "coordinates", required=True)
-    _check_keys(rd, "coordinates", t, ["rigid", "modes"])
+    _check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port"])
     rigid = t.get("rigid", list(RIGID_COORDINATES))
     if not isinstance(rigid, list) or not all(isinstance(r, str) for r in rigid):
         raise rd.fail("coordinates.rigid", "rigid must be a list of names", f'write rigid = {list(RIGID_COORDINATES)}')
@@ -383,7 +389,16 @@ def _coordinates(rd: _Reader, doc: dict) -> Coordinates:
         modes = tuple(modes)
     if not rigid and not modes:
         raise rd.fail("coordinates", "no generalized coordinates", "list rigid coordinates and/or modes")
-    return Coordinates(tuple(rigid), modes)
+    return Coordinates(tuple(rigid), modes, _acceleration_port(rd, t))
+
+
+def _acceleration_port(rd: _Reader, t: dict) -> bool:
+    """coordinates.acceleration_port: emit the a_in port (frame acceleration along +z)."""
+    accel = t.get("acceleration_port", False)
+    if not isinstance(accel, bool):
+        raise rd.fail("coordinates.acceleration_port", f"acceleration_port must be true or false, got {accel!r}",
+                      "write acceleration_port = true (adds the port a_in: frame acceleration, 1 V = 1 m/s^2)")
+    return accel
 
 
 def _sampling(rd: _Reader, doc: dict) -> Sampling:
@@ -433,7 +448,7 @@ def _fem(rd: _Reader, doc: dict) -> FemOptions:
 
 
 DAMPING_KEYS = ["q_factor", "damping_ratio", "rayleigh", "squeeze_film", "pressure", "gas", "temperature",
-                "noise", "fem_refine"]
+                "noise", "fem_refine", "film_model", "film_max_frequency"]
 
 
 def coordinate_names(c: Coordinates) -> list[str] | None:
@@ -510,7 +525,11 @@ def _damping(rd: _Reader, doc: dict, coords: Coordinates) -> Damping | None:
                    _choice(rd, t, "damping", "gas", sorted(GASES), "air"),
                    _quantity(rd, t, "damping", "temperature", "temperature", 300.0, _positive, "temperature"),
                    _flag(rd, t, "noise", False),
-                   _integer(rd, t, "damping", "fem_refine", 5, 2, 8, "Reynolds mesh refinement level"))
+                   _integer(rd, t, "damping", "fem_refine", 5, 2, 8, "Reynolds mesh refinement level"),
+                   _choice(rd, t, "damping", "film_model", ["incompressible", "compressible"], "incompressible"),
+                   _quantity(rd, t, "damping", "film_max_frequency", "frequency", 0.0,
+                             lambda v: None if v >= 0 else "must not be negative",
+                             "highest frequency the compressible film network must reproduce (0: auto)"))
 
 
 MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
@@ -564,7 +583,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
                              "(strings need quotes, tables [name], arrays [a, b])",
                              int(line.group(1)) if line else None)
     top = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
-           "electrostatics", "fem", "damping"]
+           "electrostatics", "fem", "damping", "import"]
     _check_keys(rd, "", doc, top)
     name = doc.get("name")
     if not isinstance(name, str) or not NAME.match(name) or "error" in name.lower():
@@ -575,6 +594,8 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     if not isinstance(description, str):
         raise rd.fail("description", "description must be a string", 'write description = "..."')
     conductor = _conductor(rd, doc)
+    if conductor.kind in SUSPENDED_KINDS:
+        return _parse_suspended(rd, doc, name, description, path, conductor)
     sets = _electrode_sets(rd, doc, conductor.radius)
     coords, sampling, fit = _coordinates(rd, doc), _sampling(rd, doc), _fit(rd, doc)
     if fit.degree >= sampling.levels:
@@ -586,7 +607,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     return Structure(name=name, description=description, source=path, conductor=conductor,
                      electrode_sets=sets, coordinates=coords, sampling=sampling,
                      fit=fit, electrostatics=_electrostatics(rd, doc), fem=fem,
-                     damping=_damping(rd, doc, coords))
+                     damping=_damping(rd, doc, coords), imports=_imports(rd, doc))
 
 
 def load_structure(path: str | Path) -> Structure:
@@ -600,3 +621,278 @@ def load_structure(path: str | Path) -> Structure:
         raise StructureError(str(path), "file", f"cannot read: {exc}", "give a readable UTF-8 TOML file")
     return parse_structure(text, str(path))
 
+
+
+# ---------------------------------------------------------------- suspended structures (issue 7)
+#
+# A rigid plate on linear springs ("piston") and Euler-Bernoulli beams ("clamped_clamped_beam",
+# "cantilever") over rectangular electrodes. The conductor lies in the x-y plane: beams from the
+# clamp at x = 0 to x = length, centred on y = 0; the piston plate centred at the origin.
+
+SUSPENDED_KINDS = ("piston", "clamped_clamped_beam", "cantilever")
+CONDUCTOR_KINDS = ("free_disk",) + SUSPENDED_KINDS
+
+
+@dataclass(frozen=True)
+class Piston:
+    """A rigid rectangular plate on linear springs: vertical stiffness and (optional) tilt stiffness."""
+    length: float                  # m, along x
+    width: float                   # m, along y
+    thickness: float
+    density: float
+    stiffness: float               # N/m, vertical spring
+    tilt_stiffness: float          # N*m/rad, about x and about y (0: tilts not allowed as coordinates)
+    kind: str = "piston"
+
+    @property
+    def mass(self) -> float:
+        return self.length * self.width * self.thickness * self.density
+
+    def outline(self) -> tuple[float, float, float, float]:
+        """(x0, x1, y0, y1) of the plate."""
+        return -self.length / 2, self.length / 2, -self.width / 2, self.width / 2
+
+
+@dataclass(frozen=True)
+class Beam:
+    """A prismatic Euler-Bernoulli beam, clamped at x = 0 (and at x = length if clamped-clamped).
+
+    residual_stress: axial stress (Pa, tensile > 0) of a clamped-clamped beam; it enters the
+    linear stiffness (stress-stiffened modes). stretching: add the large-deflection strain energy
+    of the mid-plane stretching (clamped-clamped only) as a fitted polynomial nonlinear stiffness.
+    """
+    kind: str
+    length: float
+    width: float
+    thickness: float
+    youngs_modulus: float
+    density: float
+    residual_stress: float = 0.0
+    stretching: bool = True
+    elements: int = 60
+
+    @property
+    def mass(self) -> float:
+        return self.length * self.width * self.thickness * self.density
+
+    def outline(self) -> tuple[float, float, float, float]:
+        return 0.0, self.length, -self.width / 2, self.width / 2
+
+
+@dataclass(frozen=True)
+class RectElectrode:
+    """One fixed rectangular electrode [x0, x1] x [y0, y1] on one side of a suspended conductor."""
+    name: str
+    side: str
+    gap: float
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+
+    def electrode_names(self) -> list[str]:
+        return [self.name]
+
+
+def _suspended_conductor(rd: _Reader, t: dict, kind: str) -> Piston | Beam:
+    """[conductor] of a piston or a beam."""
+    pos = _positive
+    if kind == "piston":
+        _check_keys(rd, "conductor", t, ["kind", "length", "width", "thickness", "density", "stiffness",
+                                         "tilt_stiffness"])
+        length = _quantity(rd, t, "conductor", "length", "length", check=pos, what="plate length (along x)")
+        width = _quantity(rd, t, "conductor", "width", "length", default=length, check=pos, what="plate width (along y)")
+        thickness = _quantity(rd, t, "conductor", "thickness", "length", check=pos, what="plate thickness")
+        density = _quantity(rd, t, "conductor", "density", "density", check=pos,
+                            what="mass density (polysilicon: 2330 kg/m^3)")
+        k = _quantity(rd, t, "conductor", "stiffness", "dimensionless", check=pos,
+                      what="vertical spring stiffness in N/m")
+        kt = _quantity(rd, t, "conductor", "tilt_stiffness", "dimensionless", default=0.0,
+                       check=lambda v: None if v >= 0 else "must not be negative",
+                       what="tilt spring stiffness in N*m/rad")
+        return Piston(length, width, thickness, density, k, kt)
+    _check_keys(rd, "conductor", t, ["kind", "length", "width", "thickness", "youngs_modulus", "density",
+                                     "residual_stress", "stretching", "elements"])
+    length = _quantity(rd, t, "conductor", "length", "length", check=pos, what="beam length (clamp to clamp/tip)")
+    width = _quantity(rd, t, "conductor", "width", "length", check=pos, what="beam width")
+    thickness = _quantity(rd, t, "conductor", "thickness", "length", check=pos, what="beam thickness")
+    modulus = _quantity(rd, t, "conductor", "youngs_modulus", "modulus", check=pos,
+                        what="Young's modulus (use E/(1-nu^2) for a wide beam)")
+    density = _quantity(rd, t, "conductor", "density", "density", check=pos, what="mass density")
+    stress = _quantity(rd, t, "conductor", "residual_stress", "modulus", default=0.0,
+                       what="axial residual stress (tensile > 0)")
+    stretching = t.get("stretching", kind == "clamped_clamped_beam")
+    if not isinstance(stretching, bool):
+        raise rd.fail("conductor.stretching", f"stretching must be true or false, got {stretching!r}",
+                      "write stretching = true (large-deflection stress stiffening) or false")
+    if kind == "cantilever" and (stress != 0.0 or stretching):
+        key = "residual_stress" if stress != 0.0 else "stretching"
+        raise rd.fail(f"conductor.{key}", "a cantilever has a free end: residual axial stress relaxes and the "
+                      "mid-plane does not stretch", f"remove {key} (or use kind = \"clamped_clamped_beam\")")
+    if stress < 0:
+        # Euler buckling: sigma_cr = pi^2 E t^2 / (3 L^2) for clamped-clamped ends
+        critical = math.pi**2 * modulus * thickness**2 / (3 * length**2)
+        if -stress >= critical:
+            raise rd.fail("conductor.residual_stress", f"compressive stress {stress:g} Pa buckles the beam "
+                          f"(critical {-critical:g} Pa)", "give a smaller compressive stress")
+    elements = _integer(rd, t, "conductor", "elements", 60, 8, 2000, "beam finite elements")
+    return Beam(kind, length, width, thickness, modulus, density, stress, stretching, elements)
+
+
+def _span(rd: _Reader, t: dict, where: str, key: str, lo: float, hi: float) -> tuple[float, float]:
+    """[start, end] of a rectangular electrode along one axis (default: the conductor's extent)."""
+    if key not in t:
+        return lo, hi
+    raw = t[key]
+    fix = f'write {key} = ["{lo * 1e6:g} um", "{hi * 1e6:g} um"] (start, end within the conductor)'
+    if not isinstance(raw, list) or len(raw) != 2:
+        raise rd.fail(f"{where}.{key}", f"{key} must be a [start, end] pair", fix)
+    try:
+        a, b = parse_quantity(raw[0], "length"), parse_quantity(raw[1], "length")
+    except UnitError as exc:
+        raise rd.fail(f"{where}.{key}", str(exc), fix)
+    if not a < b:
+        raise rd.fail(f"{where}.{key}", f"need start < end, got {raw}", fix)
+    if b <= lo or a >= hi:
+        raise rd.fail(f"{where}.{key}", f"[{a:g}, {b:g}] m lies outside the conductor ([{lo:g}, {hi:g}] m)", fix)
+    return a, b
+
+
+def _rect_electrodes(rd: _Reader, doc: dict, conductor: Piston | Beam) -> tuple[RectElectrode, ...]:
+    """[[electrodes]] of a suspended conductor: one rectangle each (default: under the whole conductor)."""
+    raw = doc.get("electrodes")
+    if raw is None:
+        raise rd.fail("[[electrodes]]", "missing electrodes",
+                      "add an [[electrodes]] table (see examples/cc_beam.toml)")
+    if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
+        raise rd.fail("electrodes", "electrodes must be an array of tables", "write each electrode as [[electrodes]]")
+    x0, x1, y0, y1 = conductor.outline()
+    out, names = [], set()
+    for i, t in enumerate(raw):
+        where = f"electrodes[{i}]"
+        _check_keys(rd, where, t, ["name", "side", "gap", "x", "y"])
+        name = t.get("name")
+        if not isinstance(name, str) or not NAME.match(name) or "error" in name.lower() or name == "plate":
+            raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier",
+                          "use letters, digits and _ (starting with a letter), e.g. name = \"drive\"; "
+                          "avoid 'plate' and the word 'error'")
+        if name in names:
+            raise rd.fail(f"{where}.name", f"electrode name {name!r} used twice", "give each electrode its own name")
+        names.add(name)
+        side = _choice(rd, t, where, "side", ["above", "below"], default="below")
+        gap = _quantity(rd, t, where, "gap", "length", check=_positive, what="gap between conductor and electrode")
+        a, b = _span(rd, t, where, "x", x0, x1)
+        c, d = _span(rd, t, where, "y", y0, y1)
+        for prev in out:
+            if prev.side == side and a < prev.x1 and prev.x0 < b and c < prev.y1 and prev.y0 < d:
+                raise rd.fail(f"{where}.x", f"electrode {name!r} overlaps {prev.name!r} on the same side ({side})",
+                              "make the rectangles disjoint or merge them")
+        out.append(RectElectrode(name, side, gap, a, b, c, d))
+    if not out:
+        raise rd.fail("[[electrodes]]", "no electrodes", "add at least one [[electrodes]] table")
+    return tuple(out)
+
+
+def _suspended_coordinates(rd: _Reader, doc: dict, conductor: Piston | Beam) -> Coordinates:
+    """Coordinates of a piston (rigid z and tilts) or a beam (the first N bending modes)."""
+    t = _table(rd, doc, "coordinates", required=False)
+    accel = _acceleration_port(rd, t)
+    if conductor.kind == "piston":
+        _check_keys(rd, "coordinates", t, ["rigid", "acceleration_port"])
+        rigid = t.get("rigid", ["z"])
+        if not isinstance(rigid, list) or not rigid or not all(isinstance(r, str) for r in rigid) \
+                or len(set(rigid)) != len(rigid) or not set(rigid) <= set(RIGID_COORDINATES):
+            raise rd.fail("coordinates.rigid", f"rigid = {rigid!r} is not a list of distinct names from "
+                          f"{list(RIGID_COORDINATES)}", 'write rigid = ["z"] or rigid = ["z", "tilt_x", "tilt_y"]')
+        if any(r != "z" for r in rigid) and conductor.tilt_stiffness <= 0:
+            raise rd.fail("conductor.tilt_stiffness", "tilt coordinates need a tilt spring",
+                          "add tilt_stiffness = <N*m/rad> to [conductor] or use rigid = [\"z\"]")
+        return Coordinates(tuple(rigid), 0, accel)
+    _check_keys(rd, "coordinates", t, ["modes", "acceleration_port"])
+    modes = t.get("modes", 3)
+    if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= 12:
+        raise rd.fail("coordinates.modes", f"modes = {modes!r} must be a count 1..12 of bending modes",
+                      "write modes = 3 (the first three bending modes, named m1, m2, m3)")
+    if modes > conductor.elements // 4:
+        raise rd.fail("coordinates.modes", f"{modes} modes need more than conductor.elements = {conductor.elements}",
+                      f"raise conductor.elements to at least {4 * modes}")
+    return Coordinates((), modes, accel)
+
+
+def _suspended_checks(rd: _Reader, doc: dict, conductor, coords: Coordinates, sampling: Sampling) -> None:
+    """Checks across tables for suspended structures."""
+    ncoords = len(coords.rigid) + coords.modes
+    if sampling.levels ** ncoords > MAX_GRID_POINTS:
+        raise rd.fail("sampling.levels", f"{sampling.levels}^{ncoords} = {sampling.levels ** ncoords} capacitance "
+                      f"samples exceed {MAX_GRID_POINTS}", "lower sampling.levels or use fewer coordinates")
+    if "fem" in doc:
+        raise rd.fail("[fem]", "[fem] sets the free-disk plate mesh; a suspended structure has none",
+                      "remove [fem] (beams: conductor.elements sets the beam mesh)")
+    damp = doc.get("damping")
+    if isinstance(damp, dict) and damp.get("squeeze_film"):
+        raise rd.fail("damping.squeeze_film", "the squeeze-film model is solved on the free disk only",
+                      "remove squeeze_film and give q_factor / damping_ratio / rayleigh instead")
+
+
+def _parse_suspended(rd: _Reader, doc: dict, name: str, description: str, path: str,
+                     conductor: Piston | Beam) -> Structure:
+    """The rest of parse_structure for a suspended conductor (rectangular electrodes, no FEM mesh)."""
+    sets = _rect_electrodes(rd, doc, conductor)
+    coords, sampling, fit = _suspended_coordinates(rd, doc, conductor), _sampling(rd, doc), _fit(rd, doc)
+    if fit.degree >= sampling.levels:
+        raise rd.fail("fit.degree", f"degree {fit.degree} needs at least {fit.degree + 1} sampling levels "
+                      f"per coordinate (have {sampling.levels})",
+                      f"lower fit.degree or raise sampling.levels to {fit.degree + 1}")
+    _suspended_checks(rd, doc, conductor, coords, sampling)
+    if coords.modes:
+        coords_named = Coordinates((), tuple(str(k + 1) for k in range(coords.modes)))   # names m1, m2, ...
+    else:
+        coords_named = coords
+    return Structure(name=name, description=description, source=path, conductor=conductor,
+                     electrode_sets=sets, coordinates=coords, sampling=sampling, fit=fit,
+                     electrostatics=_electrostatics(rd, doc), fem=FemOptions(),
+                     damping=_damping(rd, doc, coords_named) if "damping" in doc else None,
+                     imports=_imports(rd, doc))
+
+
+# ---------------------------------------------------------------- imported data (issue 7)
+
+@dataclass(frozen=True)
+class Imports:
+    """[import]: data from an external FEM and/or field solver (netgen.importers), paths resolved
+    against the structure file's folder. Mechanics needs all three of mass_matrix,
+    stiffness_matrix and modes; capacitance alone replaces the extractor's samples."""
+    mass_matrix: str | None = None         # Matrix Market (.mtx): M, full (with modes) or modal
+    stiffness_matrix: str | None = None    # Matrix Market (.mtx): K, same size as M
+    modes: str | None = None               # .npz or .csv: node coordinates + eigenvectors (vertical)
+    capacitance: str | None = None         # .npz or .csv: coordinates q -> plate-electrode capacitances
+
+
+def _imports(rd: _Reader, doc: dict) -> Imports | None:
+    """The optional [import] table."""
+    if "import" not in doc:
+        return None
+    t = _table(rd, doc, "import", required=False)
+    keys = ["mass_matrix", "stiffness_matrix", "modes", "capacitance"]
+    _check_keys(rd, "import", t, keys)
+    base = Path(rd.path).parent
+    out = {}
+    for key, suffixes in zip(keys, [(".mtx",), (".mtx",), (".npz", ".csv"), (".npz", ".csv")]):
+        if key not in t:
+            continue
+        value = t[key]
+        if not isinstance(value, str) or not value.endswith(suffixes):
+            raise rd.fail(f"import.{key}", f"{key} = {value!r} is not a {' or '.join(suffixes)} file name",
+                          f'write {key} = "data/{key}{suffixes[0]}" (relative to the structure file)')
+        path = base / value
+        if not path.is_file():
+            raise rd.fail(f"import.{key}", f"no such file: {path}", "check the path (relative to the structure file)")
+        out[key] = str(path)
+    mech = [k for k in keys[:3] if k in out]
+    if mech and len(mech) != 3:
+        missing = [k for k in keys[:3] if k not in out]
+        raise rd.fail("import", f"imported mechanics needs mass_matrix, stiffness_matrix and modes (missing {missing})",
+                      "give all three files, or none to use netgen's own mechanics")
+    if not out:
+        raise rd.fail("import", "empty [import] table", "give mass_matrix + stiffness_matrix + modes and/or capacitance")
+    return Imports(**out)
