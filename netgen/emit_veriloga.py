@@ -7,13 +7,14 @@ polynomials (taken from the MacroModel exactly as emit_ngspice takes them).
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
 
 from .emit_ngspice import (clamp_expr, contact_terms, dv2_node, header_context, node, num, poly_expr, slope_expr,
                            time_scale, y_node)
-from .emit_ngspice import K_B, noise_enabled
+from .emit_ngspice import K_B, noise_enabled, nonlinear_forces
 from .fit import CapacitanceFit
 from .model import Coordinate, MacroModel
 from .templating import render
@@ -146,15 +147,22 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     state = [f"xs_{c.name}" for c in model.coordinates]
     ctx = header_context(model)
     _coordinate_rows(model, ctx["coords"], ws, state)
+    nonlinear_rows(model, ctx, ws, state)
     _fit_rows(model, ctx["fits"], state)
-    states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])]
+    ctx["film"] = film_rows(model, ws)
+    ctx["accel_port"] = "a_in" if model.acceleration else ""
+    for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
+        if g != 0.0:                                    # inertial load -G a_in (netgen.pipeline.participation)
+            row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
+    states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
     y_vars = [y["name"] for f in ctx["fits"] for y in f["ys"]]
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
     check_identifiers([model.name] + [p["name"] for p in ctx["ports"]] + states + p_vars + dv2_vars + y_vars
-                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"] + stop_vars)
+                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"] + stop_vars
+                      + [n["var"] for n in ctx["nonlinear"]])
     if noise_enabled(model, noise):
         noise_rows(model, ctx["coords"], ws)
         ctx["noise"] = True
@@ -167,3 +175,29 @@ def render_module(ctx: dict, states: list[str], p_vars: list[str],
     terminals = [p["name"] for p in ctx["ports"] if p["kind"] in ("electrode", "conductor")]
     return render("veriloga_module.va.j2", terminals=terminals, states=states,
                   p_vars=p_vars, dv2_vars=dv2_vars, y_vars=y_vars, cint=num(1.0 / ws), **ctx)
+
+
+def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) -> None:
+    """Nonlinear restoring forces of the fitted strain energy (netgen.suspended): a variable
+    fnl_<q> (SI) per coordinate, added to that coordinate's right-hand side like F_el."""
+    ctx["nonlinear"] = []
+    for row, c, expr in zip(ctx["coords"], model.coordinates, nonlinear_forces(model, state, access=VA)):
+        if expr == "0":
+            continue
+        var = f"fnl_{c.name}"
+        ctx["nonlinear"].append({"var": var, "expr": expr})
+        row["rhs"] = f"{row['rhs']} + {num(1.0 / (c.mass * c.scale * ws * ws))} * {var}"
+
+
+def film_rows(model: MacroModel, ws: float) -> list[dict]:
+    """Compressible squeeze-film branches (Coordinate.film) as internal nodes w (units of u):
+    (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
+    enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
+    rows = []
+    for c in model.coordinates:
+        for j, (r, corner) in enumerate(c.film):
+            rows.append({"coord": c.name, "u": f"u_{c.name}", "node": f"w_{c.name}_{j + 1}",
+                         "g_in": num(corner / ws), "g_force": num(r / (c.mass * ws)),
+                         "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                         "corner_hz": f"{corner / (2 * math.pi):.6g}", "damping": f"{r:.6g}"})
+    return rows

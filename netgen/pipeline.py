@@ -39,6 +39,9 @@ class Mechanics:
 
 def mechanics(s: Structure) -> Mechanics:
     """Rigid-body masses and FEM eigenmodes of the conductor, as generalized coordinates."""
+    if s.conductor.kind != "free_disk":                   # piston, beams (netgen.suspended)
+        from . import suspended
+        return suspended.mechanics(s)
     d = s.conductor
     body = mech.rigid_disk(d.radius, d.thickness, d.density)
     rigid_mass = {"z": body.mass, "tilt_x": body.inertia[0, 0], "tilt_y": body.inertia[1, 1]}
@@ -79,6 +82,9 @@ def _floats(d: dict) -> dict:
 
 def electrodes(s: Structure) -> tuple[list[es.Electrode], list[Electrode]]:
     """Extractor electrodes and their model descriptions, in port order."""
+    if s.conductor.kind != "free_disk":
+        from . import suspended
+        return suspended.electrodes(s)
     out, described = [], []
     for eset in s.electrode_sets:
         names = iter(eset.electrode_names())
@@ -96,7 +102,10 @@ def electrodes(s: Structure) -> tuple[list[es.Electrode], list[Electrode]]:
     return out, described
 
 
-def plate_outline(s: Structure) -> es.DiskPlate:
+def plate_outline(s: Structure) -> es.DiskPlate | es.RectPlate:
+    if s.conductor.kind != "free_disk":
+        from . import suspended
+        return suspended.plate_outline(s)
     return es.DiskPlate(s.conductor.radius)
 
 
@@ -107,9 +116,10 @@ def extractor(s: Structure) -> es.ParallelPlateExtractor:
     if o.fringe == "none":
         fringe = None
     elif o.fringe == "palmer":
-        fringe = es.EdgeFringe.palmer(2 * s.conductor.radius)
+        fringe = es.EdgeFringe.palmer(2 * s.conductor.radius if s.conductor.kind == "free_disk"
+                                      else plate_outline(s).size)
     else:
-        fringe = es.EdgeFringe(o.fringe_a, o.fringe_b, s.conductor.radius)
+        fringe = es.EdgeFringe(o.fringe_a, o.fringe_b, plate_outline(s).size)
     return es.ParallelPlateExtractor(eps=eps, fringe=fringe, coupling_per_length=o.coupling_per_length)
 
 
@@ -128,8 +138,14 @@ def touch_amplitudes(prepared, ncoords: int, gaps: np.ndarray) -> np.ndarray:
     return amps
 
 
-def sample(prepared, q: np.ndarray, progress: bool, desc: str, chunk: int = 256) -> np.ndarray:
-    """Capacitances at many coordinate points, in chunks, with a progress bar on stderr."""
+def sample(prepared, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
+           executor=None, store=None) -> np.ndarray:
+    """Capacitances at many coordinate points, in chunks, with a progress bar on stderr.
+    With an executor (netgen.executor) the chunks run there, and with a store (a folder) each
+    finished chunk is saved and a re-run reuses it; the values are the serial ones bit for bit."""
+    if executor is not None or store is not None:
+        from .executor import sample_chunks
+        return sample_chunks(prepared, q, progress, desc, chunk, executor, store)
     out = []
     with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
         for k in range(0, len(q), chunk):
@@ -175,23 +191,25 @@ def coordinate_scales(prepared, m: Mechanics, ext_electrodes: list[es.Electrode]
     return scales
 
 
-def sample_points(prepared, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str) -> Samples:
-    """Extractor capacitances at scaled points x; points where the plate touches are dropped."""
-    c = sample(prepared, x * scales, progress, desc)
+def sample_points(prepared, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str,
+                  **parallel) -> Samples:
+    """Extractor capacitances at scaled points x; points where the plate touches are dropped.
+    `parallel`: executor= and store= of sample()."""
+    c = sample(prepared, x * scales, progress, desc, **parallel)
     touching = np.isnan(c).any(axis=1)     # e.g. grid corners where the combined motion closes a gap
     return Samples(x[~touching], c[~touching], int(touching.sum()))
 
 
-def sample_grid(s: Structure, prepared, scales: np.ndarray, progress: bool = False) -> Samples:
+def sample_grid(s: Structure, prepared, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
     """The fit's samples: levels^ncoords tensor grid over +-range of the touching amplitudes."""
     x = sampling_grid(len(scales), s.sampling.levels, s.sampling.range)
-    return sample_points(prepared, x, scales, progress, "capacitance samples")
+    return sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
 
 
-def sample_holdout(s: Structure, prepared, scales: np.ndarray, progress: bool = False) -> Samples:
+def sample_holdout(s: Structure, prepared, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
     """Held-out check samples: uniform random points (seeded) inside the sampled box."""
     x = holdout_points(len(scales), s.fit.holdout, s.sampling.range, s.fit.seed)
-    return sample_points(prepared, x, scales, progress, "held-out samples")
+    return sample_points(prepared, x, scales, progress, "held-out samples", **parallel)
 
 
 def fit_all(s: Structure, ext_electrodes: list[es.Electrode], described: list[Electrode], basis,
@@ -212,9 +230,10 @@ def assemble(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], des
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
     coupling = extractor(s).coupling(ext_electrodes, plate_outline(s))
     damp, damp_report = damping(s, m)
-    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab)
-              for n, k, u, L, ms, ks, d, f, lab in zip(m.names, m.kinds, m.units, scales, m.masses,
-                                                      m.stiffnesses, damp, m.frequencies, m.labels)]
+    film = damp_report.pop("branches", [()] * len(m.names))
+    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab, br)
+              for n, k, u, L, ms, ks, d, f, lab, br in zip(m.names, m.kinds, m.units, scales, m.masses,
+                                                          m.stiffnesses, damp, m.frequencies, m.labels, film)]
     sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
                 "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
                 "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
@@ -224,8 +243,37 @@ def assemble(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], des
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
     if damp_report:
         report["damping"] = damp_report
-    return MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
-                      sampling, report, contact=stops(s, m, ext_electrodes, scales))
+    model = MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
+                       sampling, report, contact=stops(s, m, ext_electrodes, scales))
+    if s.coordinates.acceleration_port:
+        model.acceleration = participation(s, m)
+    if s.conductor.kind != "free_disk":                   # stress stiffening (netgen.suspended)
+        from . import suspended
+        model.nonlinear = suspended.nonlinear_stiffness(s, m, scales)
+    return model
+
+
+def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
+    """Inertial participation G_v = rho h int phi_v dA over the plate (Gauss quadrature): the
+    generalized force per unit frame acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate
+    modes and tilts about the centre, zero by symmetry up to round-off) are set to exactly 0."""
+    plate = plate_outline(s)
+    g, w = np.polynomial.legendre.leggauss(order)
+    if isinstance(plate, es.DiskPlate):
+        r = 0.5 * plate.radius * (g + 1)
+        theta = 2 * np.pi * np.arange(2 * order) / (2 * order)
+        rr, tt = np.meshgrid(r, theta, indexing="ij")
+        weights = (0.5 * plate.radius * w * r)[:, None] * np.full(theta.shape, 2 * np.pi / theta.size)[None, :]
+        x, y = rr * np.cos(tt), rr * np.sin(tt)
+    else:                                                   # rectangle: order x 8 points (phi is at most linear in y)
+        gy, wy = np.polynomial.legendre.leggauss(8)
+        hx, hy = 0.5 * (plate.x1 - plate.x0), 0.5 * (plate.y1 - plate.y0)
+        x, y = np.meshgrid(hx * (g + 1) + plate.x0, hy * (gy + 1) + plate.y0, indexing="ij")
+        weights = (hx * w)[:, None] * (hy * wy)[None, :]
+    phi = m.basis(x.ravel(), y.ravel())                                  # (points, ncoords)
+    gam = s.conductor.density * s.conductor.thickness * (weights.ravel() @ phi)
+    total = s.conductor.density * s.conductor.thickness * plate.area()
+    return [0.0 if abs(v) < 1e-6 * math.sqrt(mv * total) else float(v) for v, mv in zip(gam, m.masses)]
 
 
 def stops(s: Structure, m: Mechanics, ext_electrodes: list[es.Electrode], scales: np.ndarray) -> dict:
@@ -253,7 +301,10 @@ def damping(s: Structure, m: Mechanics) -> tuple[np.ndarray, dict]:
     film = squeeze_film_damping(s, m) if d.squeeze_film else {}
     if film:
         out = out + film["diagonal"]
-    return out, _damping_report(s, out, film)
+    report = _damping_report(s, out, film)
+    if film.get("branches"):
+        report["branches"] = film["branches"]        # popped by assemble() into Coordinate.film
+    return out, report
 
 
 def _modal_ratios(s: Structure, names: list[str], kinds: list[str]) -> np.ndarray:
@@ -289,11 +340,51 @@ def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
                        "squeeze_number_at_f0": [float(v) for v in sigma],
                        "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)}
     worst = max(v for side in sides.values() for v in side["squeeze_number_at_f0"])
+    if d.film_model == "compressible":
+        return compressible_film(s, m, mesh, gaps, total, sides)
     note = ("incompressible model valid (squeeze number < 1 at every modal frequency)" if worst < 1 else
             f"squeeze number up to {worst:.3g} > 1: the film also stiffens and the incompressible "
             "damping overestimates the real one at those modes (compressible model not implemented)")
     return {"diagonal": np.diag(total).copy(), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
             "validity": note}
+
+
+FILM_POLES = 60          # Dirichlet eigenpairs of the gap region behind the compressible network
+
+
+def film_max_frequency(s: Structure, m: Mechanics) -> float:
+    """Highest frequency (Hz) the compressible network must reproduce: the structure's
+    film_max_frequency, else 1.5x the highest modal frequency (at least 100 kHz)."""
+    given = s.damping.film_max_frequency
+    return given if given > 0 else max(1.5 * float(np.max(m.frequencies, initial=0.0)), 1e5)
+
+
+def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.ndarray, sides: dict) -> dict:
+    """Compressible squeeze film: per coordinate the exact pole-residue expansion of both gaps,
+    reduced to the fewest Maxwell branches (damper in series with a gas spring) that match it
+    within 1 % up to film_max_frequency; the dropped fast poles join the plain damper."""
+    from . import squeeze_film as sf
+    d = s.damping
+    gas = sf.GASES[d.gas]
+    solved = {gap: sf.pole_residues(mesh, m.basis, gap, sf.effective_viscosity(gas, d.pressure, gap), d.pressure,
+                                    FILM_POLES) for gap in sorted(set(gaps.values()))}   # equal gaps: one solve
+    per_side = [solved[gap] for _, gap in sorted(gaps.items())]
+    omega_max = 2 * np.pi * film_max_frequency(s, m)
+    remainders, branches, errors = [], [], []
+    for k in range(len(m.names)):
+        full = sf.combine([side[k] for side in per_side])
+        reduced, err = sf.maxwell_network(full, omega_max)
+        remainders.append(reduced.remainder)
+        branches.append(tuple((float(r), float(w)) for r, w in zip(reduced.residues, reduced.poles)))
+        errors.append(err)
+    note = (f"compressible film: Maxwell branches (damper r in series with a gas spring r*omega_p) per "
+            f"coordinate, within {max(errors):.2%} of the {FILM_POLES}-pole expansion up to "
+            f"{omega_max / (2 * np.pi):.4g} Hz")
+    return {"diagonal": np.array(remainders), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
+            "validity": note, "branches": branches,
+            "network": {"max_frequency_hz": omega_max / (2 * np.pi), "poles_solved": FILM_POLES,
+                        "max_rel_error": errors,
+                        "branches": [[{"damping": r, "corner_hz": w / (2 * np.pi)} for r, w in b] for b in branches]}}
 
 
 def _compressible_at_f0(mesh, m: Mechanics, gap: float, mu: float, pressure: float) -> dict:
@@ -316,19 +407,23 @@ def _damping_report(s: Structure, out: np.ndarray, film: dict) -> dict:
         rep["squeeze_film"] = {"gas": d.gas, "pressure_Pa": d.pressure, "fem_refine": d.fem_refine,
                                "diagonal": [float(v) for v in film["diagonal"]],
                                "off_diagonal_ratio": film["off_diagonal_ratio"], "sides": film["sides"],
-                               "validity": film["validity"],
+                               "validity": film["validity"], **({"network": film["network"]} if "network" in film else {}),
                                "model": "incompressible linearised Reynolds, Veijola mu_eff, p = 0 at the plate rim"}
     return rep
 
 
-def build(s: Structure, progress: bool = False) -> Build:
-    """Run the whole pipeline for one structure, keeping every stage's output."""
+def build(s: Structure, progress: bool = False, **parallel) -> Build:
+    """Run the whole pipeline for one structure, keeping every stage's output.
+    `parallel`: executor= and store= for the capacitance sampling (see sample())."""
+    if getattr(s, "imports", None) is not None:          # [import]: external FEM / field-solver data
+        from . import importers
+        return importers.build(s, progress, **parallel)
     _say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
     m = mechanics(s)
     ext_electrodes, described, prepared = prepare(s, m)
     scales = coordinate_scales(prepared, m, ext_electrodes)
-    grid = sample_grid(s, prepared, scales, progress)
-    holdout = sample_holdout(s, prepared, scales, progress)
+    grid = sample_grid(s, prepared, scales, progress, **parallel)
+    holdout = sample_holdout(s, prepared, scales, progress, **parallel)
     _say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
     fits = fit_all(s, ext_electrodes, described, m.basis, scales, grid, holdout, progress)
     model = assemble(s, m, ext_electrodes, described, scales, grid, holdout, fits)
@@ -374,6 +469,8 @@ def patch_guess(s: Structure, e: es.Electrode, basis, scales: np.ndarray, grid: 
     r, theta = np.hypot(px, py), np.unwrap(np.arctan2(py, px))
     phi = basis(px, py) * scales[None, :] * e.sign          # gap closed per unit x
     ids = _bins(r, w, grid[0]) * grid[1] + _bins(theta, w, grid[1])
+    if s.conductor.kind in ("clamped_clamped_beam", "cantilever"):
+        ids = _bins(px, w, grid[0] * grid[1])              # beams: all patches along the beam axis
     eps = EPS0 * s.electrostatics.relative_permittivity
     rows, caps = [], []
     for k in range(grid[0] * grid[1]):
@@ -427,7 +524,7 @@ def write_figures(b: Build, folder: Path) -> list[Path]:
     from . import plots
     model = b.model
     out = [plots.fit_errors(folder / f"{model.name}_fit_errors.png", model)]
-    if any(c.kind == "mode" for c in model.coordinates):
+    if any(c.kind == "mode" for c in model.coordinates) and b.structure.conductor.kind == "free_disk":
         out.append(plots.mode_shapes(folder / f"{model.name}_modes.png", model, b.mechanics.basis,
                                      b.structure.conductor.radius, electrode_outlines(b.structure)))
     return out

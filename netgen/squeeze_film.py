@@ -202,3 +202,67 @@ def rectangular_plate_blech_complex(mu: float, length: float, width: float, gap:
     kappa = 12.0 * mu * omega / (gap**2 * pressure)
     s = np.sum(64.0 * length * width / (math.pi**4 * m**2 * n**2 * (lam + 1j * kappa)))
     return complex(12.0 * mu / gap**3 * s)
+
+
+def pole_residues(mesh: MeshTri, shapes: Shapes, gap: float, mu_eff: float, pressure: float,
+                  poles: int = 40) -> list[PoleResidue]:
+    """`pole_residue` of every coordinate of `shapes`, sharing one Dirichlet eigen-solve."""
+    from scipy.sparse.linalg import eigsh, splu
+    basis, stiffness, mass, interior = _p2_matrices(mesh)
+    kk = stiffness.tocsr()[interior][:, interior].tocsc()
+    mm = mass.tocsr()[interior][:, interior].tocsc()
+    v0 = np.ones(kk.shape[0])                              # seeded: same input, same output
+    lam, psi = eigsh(kk, k=poles, M=mm, sigma=0.0, which="LM", v0=v0)
+    lu = splu(kk)
+    c = 12.0 * mu_eff / gap**3
+    out = []
+    for k in range(shapes(np.zeros(1), np.zeros(1)).shape[-1]):
+        load = _load(basis, shapes, k)[interior]
+        residues = c * (psi.T @ load) ** 2 / lam
+        static = c * float(load @ lu.solve(load))
+        out.append(PoleResidue(residues, lam * gap**2 * pressure / (12.0 * mu_eff), static - float(residues.sum())))
+    return out
+
+
+def combine(models: list[PoleResidue], rel: float = 1e-6) -> PoleResidue:
+    """The sum of parallel films (both sides of the plate); equal poles (same gap on both sides,
+    degenerate cos/sin eigenpairs) within `rel` merge into one branch with the summed residue."""
+    poles = np.concatenate([m.poles for m in models])
+    residues = np.concatenate([m.residues for m in models])
+    order = np.argsort(poles, kind="stable")
+    merged_p, merged_r = [], []
+    for w, r in zip(poles[order], residues[order]):
+        if merged_p and abs(w - merged_p[-1]) <= rel * merged_p[-1]:
+            merged_r[-1] += r
+        else:
+            merged_p.append(float(w))
+            merged_r.append(float(r))
+    return PoleResidue(np.array(merged_r), np.array(merged_p), float(sum(m.remainder for m in models)))
+
+
+def max_relative_error(model: PoleResidue, reference: PoleResidue, omega_max: float, points: int = 200) -> float:
+    """max |B - B_ref| / |B_ref| over a log grid from 1e-3 of the slowest pole to omega_max."""
+    start = min(float(reference.poles.min()) * 1e-3, omega_max / 10)
+    w = np.geomspace(start, omega_max, points)
+    ref = reference.admittance(w)
+    return float(np.max(np.abs(model.admittance(w) - ref) / np.abs(ref)))
+
+
+def maxwell_network(full: PoleResidue, omega_max: float, tol: float = 0.01,
+                    max_branches: int = 8) -> tuple[PoleResidue, float]:
+    """The fewest Maxwell branches (largest residues first) that reproduce `full` within `tol`
+    up to omega_max; the dropped poles join the plain damper (exact at omega << their pole).
+    Returns the reduced network and its error (the last tried if `max_branches` is not enough)."""
+    order = np.argsort(-full.residues, kind="stable")
+    total = float(full.residues.sum())
+    best = None
+    for n in range(0, min(max_branches, len(order)) + 1):
+        keep = np.sort(order[:n])
+        drop = np.setdiff1d(np.arange(len(order)), keep)
+        reduced = PoleResidue(full.residues[keep], full.poles[keep],
+                              full.remainder + float(full.residues[drop].sum()))
+        err = max_relative_error(reduced, full, omega_max)
+        best = (reduced, err)
+        if err <= tol or total <= 0:
+            break
+    return best

@@ -30,6 +30,7 @@ from netgen.structure import StructureError, parse_structure
 from tb import Bench
 
 K_B = 1.380649e-23
+ROOT = Path(__file__).resolve().parents[1]
 MU_AIR = 1.85e-5
 
 SMALL = """
@@ -118,6 +119,122 @@ def test_pole_residue_model_vs_blech():
         omega = sigma * pa * gap**2 / (12 * MU_AIR * width**2)
         ref = sf.rectangular_plate_blech_complex(MU_AIR, length, width, gap, pa, omega)
         assert abs(model.admittance(omega) - ref) < 0.02 * abs(ref)
+
+
+def circular_plate_compressible(mu: float, radius: float, gap: float, pressure: float, omega: float) -> complex:
+    """Rigid disk, compressible isothermal film, p = 0 at the rim (closed form, modified Bessel):
+    -lap p + i k p = 12 mu / g^3 gives B = (12 mu / (i k g^3)) pi a^2 (1 - 2 I1(s a) / (s a I0(s a))),
+    s = sqrt(i k), k = 12 mu omega / (g^2 p_a); its k -> 0 limit is 3 pi mu a^4 / (2 g^3)."""
+    from scipy.special import iv
+    kappa = 12.0 * mu * omega / (gap**2 * pressure)
+    x = np.sqrt(1j * kappa) * radius
+    return complex(12.0 * mu / (1j * kappa * gap**3) * math.pi * radius**2 * (1 - 2 * iv(1, x) / (x * iv(0, x))))
+
+
+COMPRESSIBLE = 'squeeze_film = true\nfilm_model = "compressible"\nfilm_max_frequency = "300 kHz"\n'
+
+
+@pytest.fixture(scope="module")
+def film_model() -> MacroModel:
+    """The small disk in air at 1 atm (squeeze number ~40 at the mode) with the compressible film."""
+    return small_model(COMPRESSIBLE)
+
+
+def test_compressible_circular_plate_limit():
+    """The closed form's incompressible limit is b = 3 pi mu a^4 / (2 g^3) (checks the formula)."""
+    b = circular_plate_compressible(MU_AIR, 473e-6, 3e-6, 101325.0, 1e-3)
+    assert b.real == pytest.approx(sf.circular_plate_closed_form(MU_AIR, 473e-6, 3e-6), rel=1e-6)
+
+
+@pytest.mark.parametrize("freq", [2e3, 20e3, 100e3, 300e3])
+def test_compressible_network_z_vs_bessel_closed_form(film_model, freq):
+    """z: the emitted Maxwell network (damper + branches) vs the closed form for both gaps, 2 %,
+    from nearly incompressible (2 kHz) to a film that is mostly a gas spring (300 kHz)."""
+    z = film_model.coordinates[0]
+    mu = sf.effective_viscosity(sf.GASES["air"], 101325.0, 3e-6)
+    ref = 2 * circular_plate_compressible(mu, 473e-6, 3e-6, 101325.0, 2 * math.pi * freq)
+    assert abs(z.admittance(2 * math.pi * freq) - ref) < 0.02 * abs(ref)
+    assert 1 <= len(z.film) <= 8
+
+
+def test_compressible_network_mode_vs_direct_solve(film_model):
+    """Mode 2,0c: the reduced network vs the direct complex Reynolds solve (no eigen-expansion,
+    no reduction) at 20 kHz to 300 kHz, both gaps, within 2 %. At its frequency the film's gas
+    spring (2.8 kN/m) exceeds the plate's modal stiffness (1.2 kN/m): the incompressible model
+    would be badly wrong there."""
+    from netgen.pipeline import mechanics
+    s = parse_structure(SMALL + "[damping]\n" + COMPRESSIBLE, "damped_disk.toml")
+    m = mechanics(s)
+    mesh = sf.disk_mesh(473e-6, 5)
+    mu = sf.effective_viscosity(sf.GASES["air"], 101325.0, 3e-6)
+    mode = film_model.coordinates[1]
+    for freq in (20e3, mode.frequency_hz, 300e3):
+        w = 2 * math.pi * freq
+        ref = 2 * sf.compressible_admittance(mesh, m.basis, 1, 3e-6, mu, 101325.0, w)
+        assert abs(mode.admittance(w) - ref) < 0.02 * abs(ref), freq
+    w0 = 2 * math.pi * mode.frequency_hz
+    assert -w0 * mode.admittance(w0).imag > mode.stiffness      # at 1 atm the gas spring outweighs the plate's
+
+
+def test_compressible_network_round_trips_json(film_model):
+    """The branches survive the JSON (the emitters' input); incompressible models carry none."""
+    again = MacroModel.from_dict(film_model.to_dict())
+    assert again.coordinates == film_model.coordinates
+    assert all(not c.film for c in small_model('squeeze_film = true\n').coordinates)
+
+
+def test_compressible_network_in_ngspice_ac(film_model, tmp_path):
+    """The emitted branches in ngspice: AC compliance of z held by a soft external spring
+    (f_z = -k x_z through the ports, 1 kHz resonance) against 1 / (k - M w^2 + i w B(w)) with
+    B from the Bessel closed form (both gaps), within 2 % from 5 kHz to 300 kHz, where the
+    film goes from damper to gas spring."""
+    z = film_model.coordinates[0]
+    xu, xf, fu, ff = z.port_units
+    k = z.mass * (2 * math.pi * 1e3) ** 2
+    lib = tmp_path / "film.lib"
+    lib.write_text(subcircuit(film_model, noise=False))
+    freqs = [5e3, 20e3, 100e3, 300e3]
+    bench = Bench(film_model, lib, sources={"plate": "0"}, driven_elsewhere={"f_z"},
+                  extra=["Vac f_z fsp DC 0 AC 1", f"Bsp fsp 0 V={-k * xf / ff!r}*v(x_z)"])
+    plot = run_ngspice(bench.netlist(".ac dec 40 1k 400k"), tmp_path)[0]
+    f = np.real(plot["frequency"])
+    h = plot["v(x_z)"] * xf / ff                                   # m per N
+    mu = sf.effective_viscosity(sf.GASES["air"], 101325.0, 3e-6)
+    for freq in freqs:
+        w = 2 * math.pi * freq
+        ref = 1 / (k - z.mass * w**2 + 1j * w * 2 * circular_plate_compressible(mu, 473e-6, 3e-6, 101325.0, w))
+        got = np.interp(freq, f, h.real) + 1j * np.interp(freq, f, h.imag)
+        assert abs(got - ref) < 0.02 * abs(ref), freq
+
+
+def test_compressible_network_veriloga_matches_ngspice(film_model, tmp_path):
+    """The same branches in Verilog-A (openvaf-r, warnings denied) run in VACASK: the step response
+    of mode 2,0c (a 1 uN force step; film damper and gas spring both act) follows ngspice's
+    within 1 % of its peak over 40 us (four periods)."""
+    from netgen.emit_veriloga import module
+    from netgen.vacask import VacaskBench, compile_va, run_vacask
+
+    va = tmp_path / "film.va"
+    va.write_text(module(film_model, noise=False))
+    assert va.read_text().count("Maxwell") == 1
+    osdi, _ = compile_va(va)
+    noisy = tmp_path / "film_noise.va"
+    noisy.write_text(module(film_model, noise=True))
+    assert noisy.read_text().count('"thermal_w_') == sum(len(c.film) for c in film_model.coordinates)
+    compile_va(noisy)
+    lib = tmp_path / "film.lib"
+    lib.write_text(subcircuit(film_model, noise=False))
+    step = "PULSE(0 1 1u 10n 10n 1 2)"
+    spice = run_ngspice(Bench(film_model, lib, sources={"plate": "0", "f_m2_0c": step}, options="reltol=1e-5")
+                        .netlist(".tran 20n 40u 0 20n uic"), tmp_path)[0]
+    vsrc = 'type="pulse" val0=0 val1=1 delay=1u rise=10n fall=10n width=1 period=2'
+    vac = run_vacask(VacaskBench(film_model, osdi, sources={"plate": "dc=0", "f_m2_0c": vsrc})
+                     .netlist('analysis tran1 tran step=20n stop=40u maxstep=20n icmode="uic"'), tmp_path)
+    t = np.linspace(0, 40e-6, 801)
+    a = np.interp(t, spice["time"], spice["v(x1.xs_m2_0c)"])
+    b = np.interp(t, vac["time"], vac["x1:xs_m2_0c"])
+    assert np.abs(a).max() > 0
+    assert np.abs(a - b).max() < 0.01 * np.abs(a).max()
 
 
 def test_pipeline_squeeze_film_z():
@@ -214,6 +331,29 @@ def test_thermal_noise_equipartition(tmp_path):
     assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10)
 
 
+def test_compressible_film_noise_equipartition(film_model, tmp_path):
+    """Fluctuation-dissipation per Maxwell branch: noise on, no drive, air at 1 atm. The gas springs
+    act only above their corners (damper in series), so the static stiffness is the plate's and
+    the variance of mode 2,0c is k_B T / k, within 10 %, although at its frequency the film more
+    than doubles the stiffness; a noise model that left out the branches' dampers would miss it."""
+    mode = film_model.coordinates[1]
+    lib = tmp_path / "film_noise.lib"
+    lib.write_text(subcircuit(film_model, noise=True))
+    dt = float(noise_dt(lib.read_text()))
+    bench = Bench(film_model, lib, sources={"plate": "0"}, options="vntol=1e-15 abstol=1e-20 seed=3")
+    plot = run_ngspice(bench.netlist(f".tran {dt} 2m 0 {dt} uic"), tmp_path)[0]
+    t, q = plot["time"], plot["v(x1.xs_m2_0c)"] * mode.scale
+    settled = np.arange(50e-6, t[-1], 2 * dt)
+    variance = np.var(np.interp(settled, t, q))
+    assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10)
+
+
+def noise_dt(lib_text: str) -> str:
+    """The noise sample interval the emitter chose (subcircuit parameter noise_dt)."""
+    import re
+    return re.search(r"noise_dt=([0-9.eE+-]+)", lib_text).group(1)
+
+
 def test_noise_sources_follow_damping():
     """One trnoise source per damped coordinate, rms sqrt(2 k_B T b / dt); none when switched off."""
     model = small_model("q_factor = 2\nnoise = true\n")
@@ -234,3 +374,47 @@ def test_veriloga_white_noise_compiles(tmp_path):
     assert va.read_text().count("white_noise(") == model.ncoords
     compile_va(va)
     assert "white_noise(" not in module(model, noise=False)
+
+
+# ------------------------------------------------------------------ sigma-delta options (gas, noise)
+
+def test_sigma_delta_gas_and_noise_options(tmp_path):
+    """`netgen sigma-delta --pressure --noise` rebuilds the model with the film at that pressure
+    and trnoise sources, runs the loop (rigid-only, 128 cycles), and summary.json gives the
+    Brownian force floor of z: 4 k_B T b / F_fb^2 with b of both gaps from the closed form
+    3 pi mu_eff a^4 / (2 g^3) (independent of the Reynolds FEM), within 1 dB."""
+    import json
+
+    from netgen import cli
+    from netgen import sigma_delta as sd
+
+    out = tmp_path / "sd"
+    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--rigid-only",
+                     "--pressure", "100 Pa", "--noise", "--cycles", "128", "-o", str(out), "-q", "--no-plots"])
+    assert code == 0
+    folder = sd.model_folder(out, True, 100.0, None, True)
+    assert "TRNOISE(" in (folder / "levitated_disk.lib").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    th = summary["thermal_noise"]
+    assert th["noise_sources_emitted"] and th["pressure_Pa"] == 100.0
+    mu = sf.effective_viscosity(sf.GASES["air"], 100.0, 3e-6)
+    b = 2 * sf.circular_plate_closed_form(mu, 473e-6, 3e-6)
+    model = MacroModel.load_json(folder / "levitated_disk.json")
+    level = sd.design(model, 1e-6).level("z")
+    expected = 10 * math.log10(4 * K_B * 300.0 * b / level**2)
+    assert th["channels"]["z"]["thermal_floor_db_per_hz"] == pytest.approx(expected, abs=1.0)
+    assert summary["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.05)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--noise", "--simulator", "vacask"], "--noise needs --simulator ngspice"),
+    (["--pressure", "1 psi"], "not a pressure unit"),
+    (["--pressure", "-5"], "must be positive"),
+])
+def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
+    """Bad gas/noise options: exit 2 with the reason, no traceback, nothing built."""
+    from netgen import cli
+    out = tmp_path / "sd"
+    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "-o", str(out), *args])
+    assert code == 2 and message in capsys.readouterr().err
+    assert not out.exists()
