@@ -30,7 +30,7 @@ def model() -> MacroModel:
 
 @pytest.fixture(scope="module")
 def loop(model, tmp_path_factory) -> dict:
-    """One ngspice run of the loop, analysed; about 1 min on an idle core."""
+    """One ngspice run of the loop, analysed; about 15 s (README "Performance")."""
     out = tmp_path_factory.mktemp("sigma_delta")
     return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
                   plots=False, skip=SKIP)

@@ -1,0 +1,215 @@
+"""Cost of the sigma-delta levitation testbench in ngspice: the model against its floor and baseline.
+
+    .venv/bin/python bench/sigma_delta.py [--cycles 4096] [--repeat 3] [--naive-cycles 64]
+                                          [--variants fast,floor,linear,naive] [--ts 1e-6]
+
+Runs the testbench of `netgen sigma-delta` (netgen.sigma_delta.testbench, templates/
+sigma_delta_tb.cir.j2) around the reference model (netlists/levitated_disk.json) with
+different subcircuits in place of the macromodel, each `--repeat` times in this process, and
+prints per variant the medians of:
+
+  ms/cycle   wall time of the ngspice run per clock period (parse + transient)
+  pts/cycle  accepted ngspice time points per period (`rusage all`), and with rejected ones
+  it/pt      Newton iterations per time point (accepted + rejected)
+  peak MB    maximum resident memory of the ngspice process (/usr/bin/time)
+  z bit      mean of the +-1 z bits (the design aims at 0.5) and F/mg, the momentum balance (mean
+             feedback force / weight), the loop check
+
+Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit differs):
+
+  fast    the emitted .lib (netgen.emit_ngspice.subcircuit, style "fast": the default)
+  nodes   the previous shared-node emission (style "nodes"), for what the fast form bought
+  naive   the baseline: every charge and force written out inline (style "naive", no shared
+          nodes, no contact); slow, so it runs --naive-cycles periods
+  floor   the floor of this circuitry in ngspice: constant capacitors C_i(0) between electrodes
+          and plate, and the same linear mass/spring/damper integrators per coordinate, with no
+          electrostatic force (the plate falls freely under gravity; the loop is open, the bits
+          are constant). This is the issue's "constant capacitors, linear springs".
+  linear  the linearisation that still closes the loop: C_i(q) = C_i(0) + grad C_i(0) . q (a
+          charge Q = C_i(q) (V_i - V_p), motional current included) and the constant-gradient
+          force 1/2 sum_i dC_i/dq (V_i - V_p)^2 (no electrostatic spring, no contact)
+
+and the ratios fast / floor, fast / linear and naive / fast (per time point and per period).
+Timings on a shared machine are noisy: the figures are medians of --repeat runs, interleaved
+(variant order rotates per repeat), and the load average is printed with them. Point and
+iteration counts are deterministic.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+
+import numpy as np  # noqa: E402
+
+from netgen import sigma_delta as sd  # noqa: E402
+from netgen.emit_ngspice import num, subcircuit, time_scale  # noqa: E402
+from netgen.model import MacroModel  # noqa: E402
+from netgen.simulate import ngspice_path, read_raw  # noqa: E402
+
+MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
+VARIANTS = ("fast", "nodes", "naive", "floor", "linear")
+STATS = {"accepted": r"Accepted timepoints\s*=\s*(\d+)", "rejected": r"Rejected timepoints\s*=\s*(\d+)",
+         "iterations": r"Transient iterations\s*=\s*(\d+)",
+         "analysis_s": r"Total analysis time \(seconds\)\s*=\s*([0-9.]+)",
+         "load_s": r"Transient load time\s*=\s*([0-9.]+)", "equations": r"Circuit Equations\s*=\s*(\d+)"}
+
+
+def linearised_subcircuit(model: MacroModel, kind: str) -> str:
+    """A subcircuit with the model's ports and mechanics but linear electrostatics (see module doc):
+    kind "floor" (constant C_i(0), no force) or "linear" (C_i(0) + grad . xs, constant-gradient force)."""
+    ws = time_scale(model)
+    x0 = np.zeros(model.ncoords)
+    c0 = model.capacitance(x0)[0]
+    grad = model.capacitance_gradient(x0)[0] * model.scales[None, :]       # F per unit xs
+    plate = model.plate
+    lines = [f"* {model.name}: linearised benchmark floor ({kind}), bench/sigma_delta.py",
+             f".subckt {model.name} " + " ".join(p["name"] for p in model.ports())]
+    for v, c in enumerate(model.coordinates):
+        a = 1.0 / (c.mass * c.scale * ws * ws)
+        n = c.name
+        lines += [f"Cx_{n} xs_{n} 0 {num(1 / ws)}", f"Gx_{n} 0 xs_{n} u_{n} 0 1", f"Cu_{n} u_{n} 0 {num(1 / ws)}",
+                  f"Gf_{n} 0 u_{n} f_{n} 0 {num(a * c.port_units[3])}",
+                  f"Ex_{n} x_{n} 0 xs_{n} 0 {num(c.scale / c.port_units[1])}"]
+        if c.stiffness:
+            lines.append(f"Gk_{n} 0 u_{n} xs_{n} 0 {num(-c.stiffness / (c.mass * ws * ws))}")
+        if c.damping:
+            lines.append(f"Gd_{n} 0 u_{n} u_{n} 0 {num(-c.damping / (c.mass * ws))}")
+        if kind == "linear":      # F_v = 1/2 sum_i dC_i/dq_v dv_i^2, scaled like every force of the u node
+            terms = [f"{num(0.5 * a * grad[i, v] / c.scale)}*v({e.name},{plate})*v({e.name},{plate})"
+                     for i, e in enumerate(model.electrodes) if grad[i, v]]
+            lines.append(f"Be_{n} 0 u_{n} I=" + " + ".join(terms).replace("+ -", "- "))
+    for i, e in enumerate(model.electrodes):
+        if kind == "linear":
+            cap = num(c0[i]) + "".join(f" + {num(grad[i, v])}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
+            lines.append(f"Cq_{e.name} {e.name} {plate} Q='({cap.replace('+ -', '- ')})*v({e.name},{plate})'")
+        else:
+            lines.append(f"Cq_{e.name} {e.name} {plate} {num(c0[i])}")
+    lines.append(f".ends {model.name}")
+    return "\n".join(lines) + "\n"
+
+
+def library(model: MacroModel, variant: str) -> str:
+    if variant in ("floor", "linear"):
+        return linearised_subcircuit(model, variant)
+    return subcircuit(model, noise=False, style=variant)
+
+
+def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool) -> dict:
+    """One ngspice -b run of the testbench with `lib_text` as the model; stats from `rusage all`."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    lib = workdir / "model.lib"
+    lib.write_text(lib_text)
+    d = sd.design(model, ts)
+    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1)
+    net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
+    (workdir / "bench.cir").write_text(net)
+    (workdir / "bench.raw").unlink(missing_ok=True)
+    # /usr/bin/time reports the peak resident memory of ngspice itself (the rusage of a child forked
+    # from this Python process would include the Python image copied before the exec)
+    timer = ["/usr/bin/time", "-f", "netgen-maxrss-kb %M"] if Path("/usr/bin/time").exists() else []
+    start = time.perf_counter()
+    proc = subprocess.Popen(timer + [ngspice_path(), "-b", "bench.cir"], cwd=workdir, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, stdin=subprocess.DEVNULL)
+    text = proc.stdout.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.perf_counter() - start
+    (workdir / "bench.log").write_text(text)
+    rss = re.search(r"netgen-maxrss-kb (\d+)", text) or re.search(r"Maximum ngspice program size =\s*([0-9.]+)", text)
+    peak = float(rss.group(1)) / 1024 if timer else float(rss.group(1))
+    out = {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "peak_mb": peak}
+    for key, pattern in STATS.items():
+        m = re.search(pattern, text)
+        if not m:
+            raise RuntimeError(f"ngspice run failed or printed no {key}; see {workdir / 'bench.log'}")
+        out[key] = float(m.group(1))
+    if check and cycles >= 32:
+        clock = sd.per_clock(read_raw(workdir / "bench.raw")[0], d, cycles, model)
+        skip = cycles // 8
+        out["bit_mean_z"] = float(clock["bits_z"][skip:].mean())          # +-1 bits; the design aims at 0.5
+        out["balance"] = sd.gravity_balance(clock, d, skip)["ratio"]
+    (workdir / "bench.raw").unlink(missing_ok=True)
+    return out
+
+
+def summarise(runs: list[dict], cycles: int) -> dict:
+    med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+    pts = med["accepted"] + med["rejected"]
+    return {"cycles": cycles, "ms_per_cycle": 1e3 * med["wall_s"] / cycles,
+            "cpu_ms_per_cycle": 1e3 * med["cpu_s"] / cycles,
+            "pts_per_cycle": med["accepted"] / cycles, "all_pts_per_cycle": pts / cycles,
+            "it_per_pt": med["iterations"] / pts, "us_per_it": 1e6 * med["wall_s"] / med["iterations"],
+            "peak_mb": med["peak_mb"], "equations": med["equations"],
+            "bit_mean_z": med.get("bit_mean_z"), "balance": med.get("balance"),
+            "spread_ms": 1e3 * (max(r["wall_s"] for r in runs) - min(r["wall_s"] for r in runs)) / cycles}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cycles", type=int, default=4096, help="clock periods per run (default 2^12; 65536 for 2^16)")
+    ap.add_argument("--naive-cycles", type=int, default=64, help="periods for the slow naive baseline (default 64)")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per variant; figures are medians (default 3)")
+    ap.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
+    ap.add_argument("--variants", default="fast,floor,linear,naive",
+                    help=f"comma-separated subset of {','.join(VARIANTS)} (default fast,floor,linear,naive)")
+    ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
+    ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
+    args = ap.parse_args(argv)
+    variants = [v for v in args.variants.split(",") if v]
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or args.cycles < 64 or args.repeat < 1:
+        ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 64 and --repeat >= 1")
+    model = MacroModel.load_json(args.model)
+    libs = {v: library(model, v) for v in variants}
+    cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
+    load0 = os.getloadavg()
+    runs: dict[str, list[dict]] = {v: [] for v in variants}
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(args.keep or tmp)
+        for r in range(args.repeat):
+            order = variants[r % len(variants):] + variants[:r % len(variants)]
+            for v in order:
+                res = run_once(model, libs[v], base / v, args.ts, cycles[v], check=v not in ("floor",))
+                runs[v].append(res)
+                print(f"  run {r + 1}/{args.repeat} {v}: {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
+                      file=sys.stderr, flush=True)
+    load1 = os.getloadavg()
+    table = {v: summarise(runs[v], cycles[v]) for v in variants}
+    print(f"sigma-delta testbench, T_s = {args.ts:g} s, model {model.name}, median of {args.repeat} runs; "
+          f"ngspice {ngspice_path()}; load average {load0[0]:.1f} -> {load1[0]:.1f} on {os.cpu_count()} CPUs")
+    print(f"{'variant':8s} {'cycles':>7s} {'ms/cycle':>9s} {'cpu ms':>7s} {'pts/cyc':>8s} {'all pts':>8s} "
+          f"{'it/pt':>6s} {'us/it':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}")
+    for v, s in table.items():
+        bit = "-" if s["bit_mean_z"] is None else f"{s['bit_mean_z']:.3f}"
+        bal = "-" if s["balance"] is None else f"{s['balance']:.4f}"
+        print(f"{v:8s} {s['cycles']:7d} {s['ms_per_cycle']:9.2f} {s['cpu_ms_per_cycle']:7.2f} "
+              f"{s['pts_per_cycle']:8.1f} {s['all_pts_per_cycle']:8.1f} {s['it_per_pt']:6.2f} {s['us_per_it']:6.0f} "
+              f"{s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}")
+    if "fast" in table:
+        f = table["fast"]
+        for ref in ("floor", "linear", "nodes", "naive"):
+            if ref in table:
+                a, b = ("fast", ref) if ref in ("floor", "linear") else (ref, "fast")
+                x, y = table[a], table[b]
+                print(f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
+                      f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration")
+        goal = 65536 * f["ms_per_cycle"] / 1e3
+        print(f"2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
+              f"peak memory {f['peak_mb']:.0f} MB at {f['cycles']} periods (grows ~27 kB per period; "
+              f"goal < 2 GB at 2^16)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
