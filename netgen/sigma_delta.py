@@ -29,22 +29,30 @@ from .templating import render
 
 CHANNELS = ("z", "tilt_x", "tilt_y")
 G = 9.81
+K_B = 1.380649e-23          # J/K
 
 
 @dataclass(frozen=True)
 class Timing:
-    """Event times within one period, as fractions of T_s (see the template header)."""
+    """Event times within one period, as fractions of T_s (see the template header).
+
+    Chosen for few ngspice time points (README "Performance"): the three electrode ramps (sense
+    on, sense off, feedback on/off) are PULSE edges whose 8 corners are breakpoints at least
+    2 % of T_s apart (each corner costs ngspice ~8 time points: it restarts the step at 1/10 of
+    the previous one); the reset switches inside the gaps where every electrode is static and the
+    charge amplifier is near 0 (sense off -> feedback on, feedback off -> next sense on), so it
+    is a smooth window without breakpoints. The samplers and the latch sit in the sense phase."""
     edge: float = 0.02
-    sense_on: float = 0.02
-    prev: float = 0.27
-    cur: float = 0.34
+    sense_on: float = 0.01
+    prev: float = 0.20
+    cur: float = 0.28
     sample: float = 0.06
-    clk: float = 0.41
-    sense_off: float = 0.47
+    clk: float = 0.36
+    sense_off: float = 0.46
     fb_on: float = 0.50
-    fb_off: float = 0.97
+    fb_off: float = 0.94
     rst_on: float = 0.48
-    rst_off: float = 0.01
+    rst_off: float = -0.04
 
 
 @dataclass
@@ -202,13 +210,29 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     if tone:
         _coord_index(model, tone.coord)
         tone.unit = model.coordinates[_coord_index(model, tone.coord)].port_units[2]
-    saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(y_{c})" for c in CHANNELS] + \
-        [f"v(x_{c.name})" for c in model.coordinates]
+    # only what per_clock() reads: ngspice holds every saved vector in memory (measured 27 kB per
+    # period with these 11, 1.8 GB for 2^16 periods; with the 3 lead-filter outputs too, over 2 GB)
+    saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(x_{c.name})" for c in model.coordinates]
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render("sigma_delta_tb.cir.j2", bench="sigma_delta", version=__version__, model=model, d=d,
                   lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
-                  forces=force_sources(model, d, tone), tone=tone, saves=saves, raw=raw, progress=progress)
+                  forces=force_sources(model, d, tone), tone=tone, saves=saves, raw=raw, progress=progress,
+                  selects=selection_nodes(d.electrodes))
+
+
+def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
+    """Per electrode the name of its feedback-selection node, and per node its expression in the
+    restored bits bz, bx, by (e.g. sel_zp_tilt_xn = v(bz)*(1-v(bx))): the electrodes share the 8
+    products, so the drivers are cheap 3-variable B-sources (README "Performance")."""
+    nodes, of = {}, {}
+    for e in electrodes:
+        name = f"sel_z{'p' if e['side'] > 0 else 'n'}_{e['axis']}{'p' if e['sign'] > 0 else 'n'}"
+        bt = "bx" if e["axis"] == "tilt_x" else "by"
+        nodes[name] = (("v(bz)" if e["side"] > 0 else "(1-v(bz))") + "*"
+                       + (f"v({bt})" if e["sign"] > 0 else f"(1-v({bt}))"))
+        of[e["name"]] = name
+    return {"nodes": nodes, "of": of}
 
 
 def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0):
@@ -286,6 +310,9 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone |
     band = (f > 0) & (f <= fb)
     df = f[1] - f[0]
     mask = band.copy()
+    if not band.any():                             # run too short: no PSD bin inside the band
+        return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
+                "note": "band has no PSD bins: run more cycles"}
     out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
     if tone:
         near = band & (np.abs(f - tone.freq) <= 3 * df)
@@ -389,16 +416,37 @@ def plot_states(clock: dict, path: Path) -> Path:
 
 
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
-        progress: bool = True, plots: bool = True, skip: int | None = None, **choices) -> dict:
-    """Design, render, simulate and analyse; write bits .npz, PNGs and summary.json into `out`."""
+        progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
+        **choices) -> dict:
+    """Design, render, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
+    simulator "ngspice" runs the .lib `lib`; "vacask" the compiled Verilog-A module (the .va next
+    to `lib`, else the module emitted from `model`) in the same loop (netgen.sigma_delta_vacask)."""
+    if simulator not in ("ngspice", "vacask"):
+        raise ValueError(f"unknown simulator {simulator!r}; choose ngspice or vacask")
     out.mkdir(parents=True, exist_ok=True)
     d = design(model, ts, **choices)
-    bench = testbench(model, d, lib.resolve(), cycles, "sigma_delta.raw", tone)
+    extra = {}
+    if simulator == "vacask":
+        from . import sigma_delta_vacask as sdv
+        va = Path(lib).with_suffix(".va")
+        va = va if va.exists() else None
+        start = time.perf_counter()                   # compile (cached in out/osdi) outside wall_s
+        sdv.compile_model(model, out / "osdi", va)
+        sdv.compile_blocks(out / "osdi")
+        extra["compile_s"] = time.perf_counter() - start
     start = time.perf_counter()
-    plot = simulate(bench, out, ts * cycles, progress)
+    if simulator == "vacask":
+        plot = sdv.run_bench(model, d, out, cycles, tone, progress, va=va)
+        raw = out / "tran1.raw"
+        extra["vacask"] = sdv.stats(out)
+    else:
+        bench = testbench(model, d, lib.resolve(), cycles, "sigma_delta.raw", tone)
+        plot = simulate(bench, out, ts * cycles, progress)
+        raw = out / "sigma_delta.raw"
     wall = time.perf_counter() - start
     clock = per_clock(plot, d, cycles, model)
-    (out / "sigma_delta.raw").unlink(missing_ok=True)
+    del plot
+    raw.unlink(missing_ok=True)
     np.savez_compressed(out / "bitstreams.npz", **clock)
     skip = cycles // 8 if skip is None else skip
     summary = analyse(clock, d, tone, skip=skip)
@@ -406,28 +454,79 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     np.savez_compressed(out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items()
                                                 for k, v in (("f", fr), ("psd", p))})
     summary.update({"model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
-                    "wall_s": wall, "tone": asdict(tone) if tone else None,
+                    "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
                     "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
                                "timing": asdict(d.t), "duty": d.duty}})
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if plots:
         plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",
-                     f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles")
+                     f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})")
         plot_states(clock, out / "coordinates.png")
     return summary | {"spectra": spectra, "clock": clock}
 
 
+def parse_pressure(text: str) -> float:
+    """A pressure option: a number in Pa or a quantity string ('100 Pa', '1 mbar', '1 atm')."""
+    from .units import parse_quantity
+    try:
+        value = float(text)
+    except ValueError:
+        value = parse_quantity(text, "pressure")
+    if not value > 0:
+        raise ValueError(f"--pressure {text!r} must be positive")
+    return value
+
+
+def thermal_floor(model: MacroModel, d: Design) -> dict:
+    """The gas film's Brownian force floor per channel, in the spectra's normalisation:
+    S_F = 4 k_B T Re B(0) (damper plus film branches, in band) over the fed-back level squared,
+    dB re F_fb^2/Hz; with the model's noise switch (noise sources in the netlist or not)."""
+    damping = model.report.get("damping", {})
+    temp = float(damping.get("temperature_K", 300.0))
+    out = {"noise_sources_emitted": bool(damping.get("noise", False)), "temperature_K": temp,
+           "pressure_Pa": damping.get("squeeze_film", {}).get("pressure_Pa"), "channels": {}}
+    for c in CHANNELS:
+        b = float(model.coordinates[_coord_index(model, c)].admittance(0.0).real)
+        floor = 10 * np.log10(4 * K_B * temp * b / d.level(c) ** 2) if b > 0 else None
+        out["channels"][c] = {"damping_si": b, "thermal_floor_db_per_hz": floor}
+    return out
+
+
+def with_damping(structure, pressure: float | None, film: str | None, noise: bool):
+    """The structure with the sigma-delta command's gas and noise options applied to [damping]."""
+    from dataclasses import replace
+
+    from .structure import Damping
+    if pressure is None and film is None and not noise:
+        return structure
+    d = structure.damping or Damping()
+    if pressure is not None:
+        d = replace(d, squeeze_film=True, pressure=pressure)
+    if film is not None:
+        d = replace(d, squeeze_film=True, film_model=film)
+    return replace(structure, damping=replace(d, noise=noise or d.noise))
+
+
+def model_folder(out: Path, rigid_only: bool, pressure: float | None, film: str | None, noise: bool) -> Path:
+    """DIR/model..., one folder per option set, so a cached model never answers for other options."""
+    tags = ["model"] + (["rigid"] if rigid_only else []) + ([f"p{pressure:g}Pa"] if pressure is not None else []) \
+        + ([film] if film else []) + (["noise"] if noise else [])
+    return out / "_".join(tags)
+
+
 def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False, rebuild: bool = False,
-              progress: bool = True) -> tuple[MacroModel, Path]:
-    """Build the structure's model into `folder` (rigid-body only: modes = 0), or reuse the
-    .json/.lib there when they are newer than the structure file."""
+              progress: bool = True, pressure: float | None = None, film: str | None = None,
+              noise: bool = False) -> tuple[MacroModel, Path]:
+    """Build the structure's model into `folder` (rigid-body only: modes = 0; gas film at
+    `pressure`, thermal noise sources with `noise`), or reuse the .json/.lib (and .va) there
+    when they are newer than the structure file."""
     from dataclasses import replace
 
     from .emit import write_outputs
     from .pipeline import build_model
     from .structure import load_structure
 
-    structure = load_structure(structure_path)
+    structure = with_damping(load_structure(structure_path), pressure, film, noise)
     if rigid_only:
         structure = replace(structure, coordinates=replace(structure.coordinates, modes=0))
     js, lib = folder / f"{structure.name}.json", folder / f"{structure.name}.lib"
@@ -435,7 +534,7 @@ def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False
     if fresh and not rebuild:
         return MacroModel.load_json(js), lib
     model = build_model(structure, progress=progress)
-    write_outputs(model, folder, "ngspice")
+    write_outputs(model, folder, "all")              # .lib for ngspice, .va for the VACASK path
     return model, lib
 
 
@@ -446,18 +545,23 @@ def cli(args) -> int:
         tone = Tone.parse(args.tone) if args.tone else None
         if args.ts <= 0 or args.cycles < 64:
             raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+        pressure = parse_pressure(args.pressure) if args.pressure is not None else None
+        if args.model and (args.rigid_only or pressure is not None or args.film or args.noise):
+            raise ValueError("--rigid-only, --pressure, --film and --noise rebuild the model from the structure "
+                             "file; drop --model")
+        if args.noise and args.simulator == "vacask":
+            raise ValueError("--noise needs --simulator ngspice: VACASK has no transient noise sources "
+                             "(the .va's white_noise acts in noise analyses only)")
     except ValueError as exc:
         print(f"netgen: {exc}", file=sys.stderr)
         return 2
     if args.model:
         model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
-        if args.rigid_only:
-            raise ValueError("--rigid-only rebuilds from the structure file; drop --model")
     else:
-        model, lib = model_for(args.structure, out / ("model_rigid" if args.rigid_only else "model"),
-                               args.rigid_only, args.rebuild, not args.quiet)
+        model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
+                               args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
     s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
-            lead=args.lead)
+            simulator=args.simulator, lead=args.lead)
     if not args.quiet:
         for c in CHANNELS:
             ch = s["channels"][c]
@@ -467,21 +571,36 @@ def cli(args) -> int:
             print(f"{c}: bit mean {ch['bit_mean']:+.4f}, in-band floor {floor}"
                   f"{snr}, {len(ch['notches'])} notches, {len(ch['peaks'])} peaks")
         gb = s["gravity_balance"]
+        th = s["thermal_noise"]["channels"]
+        if any(v["thermal_floor_db_per_hz"] is not None for v in th.values()):
+            print("gas-film Brownian force floor (dB re F_fb^2/Hz): " + ", ".join(
+                f"{c} {v['thermal_floor_db_per_hz']:.1f}" for c, v in th.items() if v["thermal_floor_db_per_hz"]))
         print(f"mean feedback force / weight = {gb['ratio']:.4f}; wrote {out / 'summary.json'} ({s['wall_s']:.0f} s)")
     return 0
 
 
 def add_parser(sub) -> None:
     """The `sigma-delta` subcommand's arguments."""
-    p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice, with spectra")
+    p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice or VACASK, "
+                       "with spectra")
     p.add_argument("structure", help="structure description (TOML)")
     p.add_argument("-o", "--output", required=True, help="output folder (bitstreams.npz, spectra, summary.json)")
     p.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
     p.add_argument("--cycles", type=int, default=4096, help="number of sampling periods (default 4096)")
     p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m)")
     p.add_argument("--rigid-only", action="store_true", help="drop the eigenmodes (model built with modes = 0)")
-    p.add_argument("--model", help="use this model .json (with the .lib next to it) instead of building")
+    p.add_argument("--model", help="use this model .json (with the .lib, and for VACASK the .va, next to it) "
+                   "instead of building")
+    p.add_argument("--simulator", choices=("ngspice", "vacask"), default="ngspice",
+                   help="ngspice with the .lib (default), or VACASK with the compiled Verilog-A module: the "
+                   "same loop, several times faster, for spectra-length runs")
     p.add_argument("--rebuild", action="store_true", help="rebuild the model even if DIR/model is up to date")
+    p.add_argument("--pressure", help="gas pressure of the squeeze film in both gaps, e.g. '100 Pa', '1 mbar', "
+                   "'1 atm' (turns squeeze-film damping on; gas and temperature from [damping])")
+    p.add_argument("--film", choices=("incompressible", "compressible"),
+                   help="squeeze-film model (compressible: Maxwell branches, for squeeze numbers above about 1)")
+    p.add_argument("--noise", action="store_true", help="thermal force noise of the damping (ngspice trnoise); "
+                   "summary.json gives the resulting Brownian floor per channel")
     p.add_argument("--lead", type=float, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")

@@ -1,0 +1,126 @@
+"""The sigma-delta levitation loop in VACASK against ngspice: cost per clock period, same loop.
+
+    .venv/bin/python bench/sigma_delta_vacask.py [--cycles 1024] [--ngspice-cycles 256] [--repeat 3]
+                                                 [--variants vacask,vacask-fast,ngspice] [--ts 1e-6]
+
+Runs the loop of `netgen sigma-delta` (netgen.sigma_delta.design) around the reference model
+(netlists/levitated_disk.json) in
+
+  vacask       netgen.sigma_delta_vacask: the compiled Verilog-A model (netlists/levitated_disk.va)
+               and the loop blocks of templates/sigma_delta_blocks.va, default options
+               (sigma_delta_vacask.OPTIONS: tran_fbr=0.1, mechanics as accurate as the ngspice bench)
+  vacask-fast  the same with VACASK's default corner steps (tran_fbr=0.25): 35 % fewer points,
+               feedback impulses 0.45 % short (shifts the momentum balance, not the spectra)
+  ngspice      the ngspice bench (templates/sigma_delta_tb.cir.j2 with netlists/levitated_disk.lib)
+
+each --repeat times in this process (variant order rotates per repeat), and prints per variant
+the medians of:
+
+  ms/cycle   wall time of the simulator run per clock period (VACASK: compile excluded, cached)
+  pts/cycle  accepted time points per period (VACASK: its `print stats`; ngspice: raw file rows)
+  it/pt      Newton iterations per accepted time point (VACASK only)
+  peak MB    maximum resident memory of any simulator child process so far (getrusage)
+  z bits     mean z bit and the momentum balance (mean feedback force / weight): the loop check
+
+and the ratio ngspice / VACASK per period and the projected wall time of 2^16 periods. The
+per-period cost is stationary after the first few periods, so ngspice runs fewer periods by
+default (it costs ~0.1-0.4 s per period). Timings on a shared machine are noisy: the load
+average is printed with them; point and iteration counts are deterministic.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+
+from netgen import sigma_delta as sd  # noqa: E402
+from netgen import sigma_delta_vacask as sdv  # noqa: E402
+from netgen.model import MacroModel  # noqa: E402
+
+JSON = ROOT / "netlists" / "levitated_disk.json"
+LIB = ROOT / "netlists" / "levitated_disk.lib"
+VA = ROOT / "netlists" / "levitated_disk.va"
+VARIANTS = {"vacask": "", "vacask-fast": "tran_fbr=0.25", "ngspice": None}
+
+
+def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path, cache: Path) -> dict:
+    """One loop run; wall time of the simulator, counts, and the loop check."""
+    d = sd.design(model, ts)
+    out = work / variant
+    start = time.perf_counter()
+    if VARIANTS[variant] is None:
+        bench = sd.testbench(model, d, LIB.resolve(), cycles, "sigma_delta.raw")
+        plot = sd.simulate(bench, out, ts * cycles, progress=False)
+        wall = time.perf_counter() - start
+        pts, its = len(plot["time"]) - 1, None
+    else:
+        plot = sdv.run_bench(model, d, out, cycles, progress=False, va=VA, cache=cache, options=VARIANTS[variant])
+        wall = time.perf_counter() - start
+        st = sdv.stats(out)
+        pts, its = st["accepted"], st["nr_iterations"] / st["accepted"]
+    clock = sd.per_clock(plot, d, cycles, model)
+    del plot
+    for raw in out.glob("*.raw"):
+        raw.unlink()
+    skip = cycles // 8
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return {"ms_per_cycle": 1e3 * wall / cycles, "pts_per_cycle": pts / cycles, "it_per_pt": its, "peak_mb": peak,
+            "z_bit": float(clock["bits_z"][skip:].mean()), "balance": sd.gravity_balance(clock, d, skip)["ratio"]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cycles", type=int, default=1024, help="VACASK periods per run (default 1024)")
+    p.add_argument("--ngspice-cycles", type=int, default=256, help="ngspice periods per run (default 256)")
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--variants", default=",".join(VARIANTS))
+    p.add_argument("--ts", type=float, default=1e-6)
+    a = p.parse_args(argv)
+    variants = [v for v in a.variants.split(",") if v]
+    unknown = sorted(set(variants) - set(VARIANTS))
+    if unknown:
+        p.error(f"unknown variants {unknown}; choose from {list(VARIANTS)}")
+    model = MacroModel.load_json(JSON)
+    results: dict[str, list[dict]] = {v: [] for v in variants}
+    with tempfile.TemporaryDirectory(prefix="bench_sd_vacask_") as tmp:
+        work, cache = Path(tmp), Path(tmp) / "osdi"
+        sdv.compile_model(model, cache, VA)                  # compile once, outside the timings
+        sdv.compile_blocks(cache)
+        for r in range(a.repeat):
+            order = variants[r % len(variants):] + variants[:r % len(variants)]
+            for v in order:
+                cycles = a.ngspice_cycles if VARIANTS[v] is None else a.cycles
+                res = run_one(model, v, a.ts, cycles, work, cache)
+                results[v].append(res)
+                print(f"  repeat {r + 1}: {v:12s} {cycles} periods, {res['ms_per_cycle']:.2f} ms/period", file=sys.stderr)
+    load = os.getloadavg()
+    print(f"sigma-delta loop, {model.name}, T_s = {a.ts * 1e6:g} us; VACASK {a.cycles} / ngspice {a.ngspice_cycles} "
+          f"periods, median of {a.repeat}; load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} CPUs")
+    print(f"{'variant':12s} {'ms/cycle':>9s} {'pts/cycle':>10s} {'it/pt':>6s} {'peak MB':>8s} {'z bits':>7s} "
+          f"{'balance':>8s} {'2^16 periods':>13s}")
+    med = {}
+    for v in variants:
+        rs = results[v]
+        m = {k: statistics.median(r[k] for r in rs) if rs[0][k] is not None else None for k in rs[0]}
+        med[v] = m
+        its = f"{m['it_per_pt']:6.2f}" if m["it_per_pt"] is not None else f"{'-':>6s}"
+        print(f"{v:12s} {m['ms_per_cycle']:9.2f} {m['pts_per_cycle']:10.1f} {its} {m['peak_mb']:8.0f} "
+              f"{m['z_bit']:7.3f} {m['balance']:8.4f} {m['ms_per_cycle'] * 65536 / 6e4:10.1f} min")
+    if "ngspice" in med:
+        for v in variants:
+            if v != "ngspice":
+                print(f"ngspice / {v}: {med['ngspice']['ms_per_cycle'] / med[v]['ms_per_cycle']:.1f}x per period")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
