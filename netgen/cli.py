@@ -19,7 +19,9 @@ def _build(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     structure = load_structure(args.structure)
-    result = build(structure, progress=not args.quiet)
+    from .executor import sampling
+    with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.executor)
+        result = build(structure, progress=not args.quiet, **parallel)
     model = result.model
     written = write_outputs(model, Path(args.output), args.format)
     if not args.no_plots:
@@ -54,6 +56,8 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("--format", choices=["ngspice", "veriloga", "all"], default="ngspice", help="netlist dialects to write")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
+    from .executor import add_build_options
+    add_build_options(b)
     b.set_defaults(func=_build)
     r = sub.add_parser("simulate", help="run a netlist in ngspice (batch) and report failures clearly")
     r.add_argument("netlist", help="ngspice netlist (.cir) with its analyses")
@@ -63,6 +67,8 @@ def parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_simulate)
     from .sigma_delta import add_parser as add_sigma_delta
     add_sigma_delta(sub)
+    from .sweep import add_parser as add_sweep
+    add_sweep(sub)
     return p
 
 

@@ -1,0 +1,498 @@
+"""One execution seam for embarrassingly parallel work: capacitance sampling and sweeps.
+
+`executor(spec)` returns a concurrent.futures-style executor chosen by the user:
+
+    None, "processes", "processes:N"   local worker processes (ProcessPoolExecutor; no Dask needed)
+    "serial"                           in this process, one task after the other
+    "local:N"                          Dask LocalCluster of N worker processes, 1 thread each
+    "tcp://host:port" (tls://, ...)    an existing Dask scheduler (`dask scheduler` + `dask worker`)
+
+Every executor has `submit(fn, *args)` (a Future with .result()), `scatter(obj)` (a handle to a
+large shared input, shipped to each worker once, not per task) and `imap_unordered(fn, items,
+shared, retries)`, which both users call: it yields (index, Outcome) as tasks finish. Work units
+are module-level functions of small picklable items, called as fn(shared, item). An exception
+inside a task is an Outcome with its error (it is not retried: it would fail again); a worker
+lost mid-task (killed, out of memory, machine gone) is retried up to `retries` times.
+
+`sample_chunks` (used by pipeline.sample when given an executor or a store) splits the points
+into the same chunks as the serial path and runs each with the caller's BLAS thread count
+(OpenBLAS rounds differently with 1 and 2 threads), so each chunk is the same extractor call and
+the result is bit for bit the serial one; a ChunkStore streams finished chunks to disk (one .npy
+per chunk, written atomically, under a folder named by a hash of the extractor and the points),
+so a re-run with the same inputs computes only the missing chunks.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import sys
+import tempfile
+import traceback
+import uuid
+from concurrent import futures as cf
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Iterator
+
+import numpy as np
+
+DASK_INSTALL = "pip install 'netgen[dask]'  (or: pip install 'dask[distributed]')"
+SCHEDULER_HELP = ("'processes[:N]' (local worker processes), 'serial', 'local:N' (a Dask LocalCluster "
+                  "of N workers) or a Dask scheduler address tcp://host:port")
+
+
+class ExecutorError(OSError):
+    """A scheduler that cannot be used (bad spec, Dask missing, scheduler unreachable); an
+    OSError so that the command line reports it in one line with exit code 2."""
+
+
+@dataclass
+class Outcome:
+    """What one task gave: its value, or the error it raised (type: message) and traceback."""
+    value: Any = None
+    error: str | None = None
+    traceback: str = ""
+    attempts: int = 1               # times the task was started (> 1: its worker was lost)
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+def _call(fn: Callable, shared: Any, item: Any) -> tuple[str, Any, str]:
+    """Run one task inside a worker; exceptions come back as data (never retried)."""
+    try:
+        return "ok", (fn(item) if shared is _NOTHING else fn(_resolve(shared), item)), ""
+    except Exception as exc:                          # noqa: BLE001 - isolate every task failure
+        return "error", f"{type(exc).__name__}: {exc}", traceback.format_exc()
+
+
+class _Nothing:
+    """Marker: the task has no shared input."""
+
+    def __reduce__(self):
+        return (_nothing, ())
+
+
+def _nothing() -> "_Nothing":
+    return _NOTHING
+
+
+_NOTHING = _Nothing()
+
+
+# ----------------------------------------------------------------------------- shared inputs
+
+
+@dataclass(frozen=True)
+class _SharedFile:
+    """Local processes: a large input pickled once to a file; each worker loads it once."""
+    token: str
+    path: str
+
+
+_LOADED: dict[str, Any] = {}                           # per worker process: token -> object
+
+
+def _resolve(handle: Any) -> Any:
+    if isinstance(handle, _SharedFile):
+        if handle.token not in _LOADED:
+            with open(handle.path, "rb") as fh:
+                _LOADED.clear()                        # keep one shared input per worker
+                _LOADED[handle.token] = pickle.load(fh)
+        return _LOADED[handle.token]
+    return handle                                      # serial: the object; Dask: already resolved
+
+
+# ----------------------------------------------------------------------------- executors
+
+
+class Executor:
+    """Common interface; see the module docstring."""
+    name = "executor"
+    workers = 1
+
+    def submit(self, fn: Callable, *args: Any) -> Any:
+        raise NotImplementedError
+
+    def scatter(self, obj: Any) -> Any:
+        return obj
+
+    def imap_unordered(self, fn: Callable, items: Iterable[Any], shared: Any = _NOTHING,
+                       retries: int = 2) -> Iterator[tuple[int, Outcome]]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "Executor":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{self.name} executor, {self.workers} worker(s)>"
+
+
+class SerialExecutor(Executor):
+    """Runs every task in this process, in order (debugging, tiny jobs)."""
+    name = "serial"
+
+    def submit(self, fn: Callable, *args: Any) -> cf.Future:
+        f: cf.Future = cf.Future()
+        try:
+            f.set_result(fn(*args))
+        except Exception as exc:                      # noqa: BLE001
+            f.set_exception(exc)
+        return f
+
+    def imap_unordered(self, fn, items, shared=_NOTHING, retries=2):
+        for i, item in enumerate(items):
+            status, value, tb = _call(fn, shared, item)
+            yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb)
+
+
+class ProcessExecutor(Executor):
+    """Local worker processes (concurrent.futures.ProcessPoolExecutor). A pool whose worker
+    died is replaced and the tasks it lost are submitted again (up to `retries` times)."""
+    name = "processes"
+
+    def __init__(self, workers: int | None = None):
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self._pool: cf.ProcessPoolExecutor | None = None
+        self._files: list[str] = []
+        self._scattered: dict[int, tuple[Any, _SharedFile]] = {}
+
+    def pool(self) -> cf.ProcessPoolExecutor:
+        if self._pool is None:
+            import multiprocessing
+            ctx = multiprocessing.get_context("forkserver" if sys.platform.startswith("linux") else None)
+            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=ctx)
+        return self._pool
+
+    def submit(self, fn, *args):
+        return self.pool().submit(fn, *args)
+
+    def scatter(self, obj):
+        """Pickle `obj` once into a temporary file; workers load it on first use."""
+        if id(obj) in self._scattered and self._scattered[id(obj)][0] is obj:
+            return self._scattered[id(obj)][1]
+        fd, path = tempfile.mkstemp(prefix="netgen-shared-", suffix=".pkl")
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        self._files.append(path)
+        handle = _SharedFile(uuid.uuid4().hex, path)
+        self._scattered[id(obj)] = (obj, handle)
+        return handle
+
+    def imap_unordered(self, fn, items, shared=_NOTHING, retries=2):
+        items = list(items)
+        if shared is not _NOTHING and not isinstance(shared, _SharedFile):
+            shared = self.scatter(shared)
+        pending = set(range(len(items)))
+        attempts = dict.fromkeys(pending, 0)
+        while pending:
+            pool = self.pool()
+            futs = {}
+            for i in sorted(pending):
+                attempts[i] += 1
+                futs[pool.submit(_call, fn, shared, items[i])] = i
+            lost = []
+            for f in cf.as_completed(futs):
+                i = futs[f]
+                try:
+                    status, value, tb = f.result()
+                except BrokenProcessPool:
+                    lost.append(i)
+                    continue
+                pending.discard(i)
+                yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
+                                 attempts[i])
+            if lost:                                   # a worker died: new pool, resubmit its tasks
+                self._pool.shutdown(wait=False, cancel_futures=True)
+                self._pool = None
+                for i in lost:
+                    if attempts[i] > retries:
+                        pending.discard(i)
+                        yield i, Outcome(None, f"WorkerLost: the worker process died {attempts[i]} times "
+                                         "running this task", "", attempts[i])
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        for path in self._files:
+            Path(path).unlink(missing_ok=True)
+        self._files.clear()
+        self._scattered.clear()
+
+
+class DaskExecutor(Executor):
+    """A dask.distributed Client: a LocalCluster ('local:N') or an existing scheduler address."""
+    name = "dask"
+
+    def __init__(self, address: str | None = None, workers: int | None = None, client: Any = None):
+        distributed = _import_distributed()
+        self._cluster = None
+        if client is not None:
+            self.client = client
+        elif address is None:
+            import logging
+            self._cluster = distributed.LocalCluster(n_workers=workers or 2, threads_per_worker=1, processes=True,
+                                                     dashboard_address=None, silence_logs=logging.ERROR)
+            self.client = distributed.Client(self._cluster)
+        else:
+            try:
+                self.client = distributed.Client(address, timeout="20s")
+            except OSError as exc:
+                raise ExecutorError(f"cannot reach the Dask scheduler at {address}: {exc}; start one with "
+                                    "`dask scheduler` and workers with `dask worker ADDRESS`") from None
+        self._own_client = client is None
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        self.name = f"dask ({self.client.scheduler.address})"
+        self._scattered: dict[int, tuple[Any, Any]] = {}
+
+    def submit(self, fn, *args):
+        return self.client.submit(fn, *args, pure=False)
+
+    def scatter(self, obj):
+        """client.scatter once per object (the tasks get the future; Dask ships it per worker once)."""
+        if id(obj) in self._scattered and self._scattered[id(obj)][0] is obj:
+            return self._scattered[id(obj)][1]
+        fut = self.client.scatter([obj], hash=False)[0]    # a list: a dict would be scattered per value
+        self._scattered[id(obj)] = (obj, fut)
+        return fut
+
+    def imap_unordered(self, fn, items, shared=_NOTHING, retries=2):
+        distributed = _import_distributed()
+        items = list(items)
+        if shared is not _NOTHING and not isinstance(shared, distributed.Future):
+            shared = self.scatter(shared)
+        attempts = dict.fromkeys(range(len(items)), 0)
+        tag = uuid.uuid4().hex[:8]
+
+        def start(i: int):
+            attempts[i] += 1
+            key = f"{getattr(fn, '__name__', 'task')}-{tag}-{i}-{attempts[i]}"
+            return self.client.submit(_call, fn, shared, items[i], key=key, pure=False, retries=retries)
+
+        futs = {start(i): i for i in attempts}
+        done = distributed.as_completed(list(futs))
+        for f in done:
+            i = futs.pop(f)
+            try:
+                status, value, tb = f.result()
+            except Exception as exc:                  # noqa: BLE001 - KilledWorker, lost connection, ...
+                if attempts[i] <= retries:            # the scheduler gave up on it: submit it again
+                    g = start(i)
+                    futs[g] = i
+                    done.add(g)
+                    continue
+                status, value, tb = "error", f"WorkerLost: {type(exc).__name__}: {exc}", ""
+            yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
+                             attempts[i])
+            f.release()
+
+    def close(self):
+        for _, fut in self._scattered.values():
+            fut.release()
+        self._scattered.clear()
+        if self._own_client:
+            self.client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise ExecutorError(f"Dask is not installed; install it with: {DASK_INSTALL}") from None
+    return distributed
+
+
+def executor(spec: str | None = None) -> Executor:
+    """The executor a --scheduler value names (see the module docstring)."""
+    text = (spec or "processes").strip()
+    kind, _, count = text.partition(":")
+    if "://" in text:
+        return DaskExecutor(text)
+    if kind in ("processes", "local", "serial"):
+        n = None
+        if count:
+            try:
+                n = int(count)
+            except ValueError:
+                n = 0
+            if n < 1:
+                raise ExecutorError(f"--scheduler {text!r}: the worker count must be a positive integer "
+                                    f"(e.g. {kind}:4)")
+        if kind == "serial":
+            return SerialExecutor()
+        if kind == "processes":
+            return ProcessExecutor(n)
+        return DaskExecutor(None, n or os.cpu_count() or 2)
+    raise ExecutorError(f"--scheduler {text!r} is not understood; use {SCHEDULER_HELP}")
+
+
+def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:
+    """The shared --scheduler option of the build and sweep commands."""
+    parser.add_argument("--scheduler", metavar="SPEC", help=f"where {what}: {SCHEDULER_HELP}")
+
+
+def add_build_options(parser: Any) -> None:
+    """`netgen build` options of the capacitance sampling (default: serial, in this process)."""
+    add_scheduler_option(parser, what="the capacitance samples are computed (default: serially in this process)")
+    parser.add_argument("--sample-store", metavar="DIR",
+                        help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")
+
+
+@contextmanager
+def sampling(args: Any) -> Iterator[dict]:
+    """The executor= / store= keywords of pipeline.build from the build options ({} = serial)."""
+    spec, store = getattr(args, "scheduler", None), getattr(args, "sample_store", None)
+    if spec is None and store is None:
+        yield {}
+        return
+    ex = executor(spec) if spec is not None else None
+    try:
+        yield {"executor": ex, "store": store}
+    finally:
+        if ex is not None:
+            ex.close()
+
+
+# ----------------------------------------------------------------------------- sampling store
+
+
+def fingerprint(*parts: Any) -> str:
+    """sha256 (16 hex digits) of the pickled parts: same inputs, same folder name."""
+    h = hashlib.sha256()
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            h.update(repr((p.dtype.str, p.shape)).encode())
+            h.update(np.ascontiguousarray(p).tobytes())
+        else:
+            h.update(pickle.dumps(p, protocol=4))
+    return h.hexdigest()[:16]
+
+
+@dataclass
+class ChunkStore:
+    """A folder of finished sample chunks (one .npy each); `log` records per call which chunk
+    indices were computed and which reused from disk."""
+    root: Path
+    log: list[dict] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.root = Path(self.root)
+
+    def folder(self, key: str, meta: dict) -> Path:
+        d = self.root / key
+        d.mkdir(parents=True, exist_ok=True)
+        info = d / "inputs.txt"
+        if not info.exists():
+            _write_atomic(info, "".join(f"{k} = {v}\n" for k, v in meta.items()).encode())
+        return d
+
+    @staticmethod
+    def path(folder: Path, k: int) -> Path:
+        return folder / f"chunk_{k:06d}.npy"
+
+    def load(self, folder: Path, k: int, rows: int) -> np.ndarray | None:
+        p = self.path(folder, k)
+        if not p.exists():
+            return None
+        try:
+            a = np.load(p, allow_pickle=False)
+        except (OSError, ValueError):
+            return None                                # unreadable: compute it again
+        return a if a.shape[0] == rows else None
+
+    def save(self, folder: Path, k: int, a: np.ndarray) -> None:
+        import io
+        buf = io.BytesIO()
+        np.save(buf, a, allow_pickle=False)
+        _write_atomic(self.path(folder, k), buf.getvalue())
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def blas_threads() -> int | None:
+    """Threads of this process's BLAS (threadpoolctl), None if unknown. OpenBLAS rounds
+    matrix products differently with 1 and 2 threads, so a work unit runs with the caller's
+    count: that is what makes parallel samples equal the serial ones bit for bit."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return None
+    counts = [i["num_threads"] for i in threadpool_info() if i.get("user_api") == "blas"]
+    return counts[0] if counts else None
+
+
+def _capacitance_chunk(prepared: Any, item: tuple[np.ndarray, int | None]) -> np.ndarray:
+    """One work unit of the sampling: the extractor at a chunk of points, with the caller's
+    number of BLAS threads (a pure function of its inputs)."""
+    q, threads = item
+    if threads is None or threads == blas_threads():
+        return prepared.capacitance(q)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=threads, user_api="blas"):
+        return prepared.capacitance(q)
+
+
+def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
+                  executor: Executor | None = None, store: ChunkStore | str | Path | None = None) -> np.ndarray:
+    """pipeline.sample through an executor (None: in this process), chunks streamed to `store`."""
+    from tqdm import tqdm
+
+    q = np.ascontiguousarray(q, dtype=float)
+    starts = list(range(0, len(q), chunk))
+    if store is not None and not isinstance(store, ChunkStore):
+        store = ChunkStore(Path(store))
+    folder = None
+    results: dict[int, np.ndarray] = {}
+    if store is not None:
+        key = "capacitance-" + fingerprint(type(prepared).__qualname__, prepared, q, chunk)
+        folder = store.folder(key, {"what": desc, "points": len(q), "coordinates": q.shape[1], "chunk": chunk,
+                                    "chunks": len(starts), "extractor": type(prepared).__qualname__})
+        for k, s in enumerate(starts):
+            a = store.load(folder, k, min(chunk, len(q) - s))
+            if a is not None:
+                results[k] = a
+    todo = [k for k in range(len(starts)) if k not in results]
+    ex = executor or SerialExecutor()
+    with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
+        bar.update(sum(len(a) for a in results.values()))
+        if todo:
+            threads = blas_threads()
+            items = [(q[starts[k]:starts[k] + chunk], threads) for k in todo]
+            for j, out in ex.imap_unordered(_capacitance_chunk, items, shared=prepared):
+                k = todo[j]
+                if not out.ok:
+                    raise RuntimeError(f"{desc}: chunk {k} (points {starts[k]}..{starts[k] + len(items[j][0]) - 1}) "
+                                       f"failed: {out.error}\n{out.traceback}")
+                results[k] = out.value
+                if folder is not None:
+                    store.save(folder, k, out.value)
+                bar.update(len(items[j][0]))
+    if store is not None:
+        store.log.append({"folder": folder, "computed": sorted(todo),
+                          "reused": sorted(set(range(len(starts))) - set(todo))})
+    if not starts:
+        return prepared.capacitance(q)
+    return np.concatenate([results[k] for k in range(len(starts))], axis=0)

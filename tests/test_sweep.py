@@ -1,0 +1,272 @@
+"""Sweeps at scale (issue 9): netgen.executor, capacitance sampling through it, `netgen sweep`.
+
+Everything runs on a Dask LocalCluster of 2 worker processes (1 thread each) started here, with
+the real extractor and real ngspice runs; the references are independent serial computations:
+- capacitance samples computed through Dask equal pipeline's serial ones bit for bit;
+- a resumed sampling run recomputes only the chunks missing on disk;
+- a 4-point T_s sweep through Dask gives the same summary.json as 4 direct sigma_delta.run calls,
+  although one worker is killed in the middle of a run (the run is retried, nothing is lost),
+  and a deliberately failing fifth run is reported with its error while the others complete.
+The sigma-delta runs use the rigid-body model and 128 cycles (skip 0): the shortest runs whose
+spectra the analysis accepts (about 10 s each in ngspice on an idle core).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import logging
+import os
+import signal
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from netgen import cli, pipeline
+from netgen import sigma_delta as sd
+from netgen import sweep as sw
+from netgen.executor import ChunkStore, DaskExecutor, executor
+from netgen.structure import parse_structure
+
+distributed = pytest.importorskip("distributed")
+
+ROOT = Path(__file__).resolve().parents[1]
+STRUCTURE = ROOT / "examples" / "levitated_disk.toml"
+TS = [1.0e-6, 1.3e-6, 1.6e-6, 2.0e-6]
+CYCLES = 128
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A LocalCluster of 2 worker processes with 1 thread each, and a client of the test's own."""
+    c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                 silence_logs=logging.ERROR)
+    client = distributed.Client(c)
+    yield c, client
+    client.close()
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def extractor():
+    """The reference disk's prepared extractor (7 coordinates; FEM at refine 4 to save time)."""
+    text = STRUCTURE.read_text(encoding="utf-8").replace("refine = 6", "refine = 4")
+    s = parse_structure(text, str(STRUCTURE))
+    m = pipeline.mechanics(s)
+    ext, _, prepared = pipeline.prepare(s, m)
+    return s, prepared, pipeline.coordinate_scales(prepared, m, ext)
+
+
+# ----------------------------------------------------------------------------- sampling
+
+
+def test_dask_samples_equal_serial_bit_for_bit(cluster, extractor, tmp_path):
+    s, prepared, scales = extractor
+    serial = [pipeline.sample_grid(s, prepared, scales), pipeline.sample_holdout(s, prepared, scales)]
+    with DaskExecutor(client=cluster[1]) as ex:
+        store = ChunkStore(tmp_path / "store")
+        dask = [pipeline.sample_grid(s, prepared, scales, executor=ex, store=store),
+                pipeline.sample_holdout(s, prepared, scales, executor=ex, store=store)]
+    for a, b in zip(serial, dask):
+        assert a.c.shape == b.c.shape and a.excluded == b.excluded
+        assert a.c.tobytes() == b.c.tobytes() and a.x.tobytes() == b.x.tobytes()
+    assert len(serial[0].x) == 3**7 - serial[0].excluded
+    # 2187 grid points in chunks of 256 -> 9 chunk files, 500 held-out points -> 2, all computed
+    assert [len(e["computed"]) for e in store.log] == [9, 2] and all(not e["reused"] for e in store.log)
+
+
+def test_resumed_sampling_computes_only_missing_chunks(cluster, extractor, tmp_path):
+    s, prepared, scales = extractor
+    reference = pipeline.sample_grid(s, prepared, scales)
+    store = ChunkStore(tmp_path / "store")
+    with DaskExecutor(client=cluster[1]) as ex:
+        pipeline.sample_grid(s, prepared, scales, executor=ex, store=store)
+        folder = store.log[0]["folder"]
+        files = sorted(folder.glob("chunk_*.npy"))
+        assert len(files) == 9
+        lost = [2, 5, 8]                              # as if the first run stopped before these finished
+        for k in lost:
+            files[k].unlink()
+        kept = {f.name: (f.stat().st_ino, f.stat().st_mtime_ns) for f in folder.glob("chunk_*.npy")}
+        again = pipeline.sample_grid(s, prepared, scales, executor=ex, store=store)
+    assert store.log[1]["folder"] == folder
+    assert store.log[1]["computed"] == lost and store.log[1]["reused"] == [0, 1, 3, 4, 6, 7]
+    for f in folder.glob("chunk_*.npy"):             # finished chunks were read, not rewritten
+        if f.name in kept:
+            assert (f.stat().st_ino, f.stat().st_mtime_ns) == kept[f.name]
+    assert again.c.tobytes() == reference.c.tobytes()
+    # other inputs (another chunk size) get their own folder: nothing stale is reused
+    with executor("serial") as ex:
+        c = pipeline.sample(prepared, reference.x[:300] * scales, False, "x", chunk=100, executor=ex, store=store)
+    assert store.log[2]["folder"] != folder and store.log[2]["computed"] == [0, 1, 2]
+    assert c.tobytes() == pipeline.sample(prepared, reference.x[:300] * scales, False, "x", chunk=100).tobytes()
+
+
+# ----------------------------------------------------------------------------- sweeps
+
+
+SWEEP = f"""
+[sweep]
+figure = "gravity_balance.ratio"
+x = "ts"
+mode = "zip"
+[fixed]
+cycles = {CYCLES}
+skip = 0
+rigid_only = true
+[[parameters]]
+name = "ts"
+values = [{", ".join(repr(t) for t in TS)}, 1e-6]
+[[parameters]]
+name = "tone"                   # the fifth run asks for a tone on a coordinate the model lacks
+values = ["", "", "", "", "nope:1:1000"]
+"""
+
+
+def _summary(path: Path) -> dict:
+    d = json.loads(path.read_text())
+    d.pop("wall_s")
+    return d
+
+
+@pytest.fixture(scope="module")
+def serial_runs(tmp_path_factory):
+    """The reference: direct sigma_delta.run calls (no executor, no sweep code), two at a time."""
+    out = tmp_path_factory.mktemp("serial")
+    model, lib = sd.model_for(STRUCTURE, out / "model_rigid", rigid_only=True, progress=False)
+
+    def one(ts):
+        sd.run(model, lib, out / f"ts_{ts:g}", ts, CYCLES, progress=False, plots=False, skip=0)
+        return _summary(out / f"ts_{ts:g}" / "summary.json")
+    with ThreadPoolExecutor(2) as pool:
+        return dict(zip(TS, pool.map(one, TS)))
+
+
+@pytest.fixture(scope="module")
+def dask_sweep(cluster, tmp_path_factory):
+    """`netgen sweep` on the cluster; one worker is killed while it runs ngspice for a run."""
+    c, client = cluster
+    tmp = tmp_path_factory.mktemp("sweep")
+    (tmp / "sweep.toml").write_text(SWEEP)
+    out = tmp / "out"
+    result = {}
+
+    def go():
+        result["rc"] = cli.main(["sweep", str(STRUCTURE), str(tmp / "sweep.toml"), "-o", str(out),
+                                 "--scheduler", c.scheduler_address, "-q"])
+    t = threading.Thread(target=go)
+    t.start()
+    killed = None
+    deadline = time.monotonic() + 120
+    while t.is_alive() and killed is None and time.monotonic() < deadline:
+        if list(out.glob("runs/run_*/sigma_delta.cir")):           # ngspice is running
+            busy = [w for w, keys in client.processing().items() if any("run_one" in k for k in keys)]
+            if busy:
+                pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+                os.kill(pid, signal.SIGKILL)
+                killed = pid
+        time.sleep(0.2)
+    t.join(timeout=300)
+    assert not t.is_alive()
+    with open(out / "results.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return {"rc": result.get("rc"), "out": out, "rows": rows, "killed": killed}
+
+
+def test_dask_sweep_gives_the_serial_summaries(dask_sweep, serial_runs):
+    rows = dask_sweep["rows"][:4]
+    assert [float(r["ts"]) for r in rows] == TS
+    for r, ts in zip(rows, TS):
+        assert r["status"] == "ok", r["error"]
+        assert _summary(Path(r["dir"]) / "summary.json") == serial_runs[ts]
+        assert float(r["gravity_balance.ratio"]) == serial_runs[ts]["gravity_balance"]["ratio"]
+    assert (dask_sweep["out"] / "gravity_balance_ratio_vs_ts.png").stat().st_size > 10_000
+
+
+def test_killed_worker_loses_no_run(dask_sweep):
+    rows = dask_sweep["rows"]
+    assert dask_sweep["killed"] is not None, "no worker was killed: the sweep finished first"
+    assert len(rows) == 5 and sum(r["status"] == "ok" for r in rows) == 4
+    assert [int(r["attempts"]) for r in rows[:4]].count(2) == 1     # the killed run started again, once
+
+
+def test_failing_run_is_reported_and_the_others_complete(dask_sweep):
+    rows = dask_sweep["rows"]
+    bad = rows[4]
+    assert bad["status"] == "failed" and "no coordinate 'nope'" in bad["error"]
+    assert "no coordinate 'nope'" in (Path(bad["dir"]) / "error.txt").read_text()
+    assert all(r["status"] == "ok" and (Path(r["dir"]) / "summary.json").is_file() for r in rows[:4])
+    assert dask_sweep["rc"] == 1                                    # some run failed
+    record = json.loads((dask_sweep["out"] / "sweep.json").read_text())
+    assert [r["status"] for r in record["runs"]] == ["ok"] * 4 + ["failed"]
+
+
+# ----------------------------------------------------------------------------- sweep files
+
+
+def test_sweep_file_errors_name_file_line_key_and_fix(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[sweep]\nfigure = "z.noise_flor"\n[[parameters]]\nname = "ts"\nvalues = ["1 us"]\n')
+    assert cli.main(["sweep", str(STRUCTURE), str(bad), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:2: sweep.figure" in err and "z.noise_floor_db_per_hz" in err and "\n  fix: " in err
+    for text, where, words in [
+        ('[[parameters]]\nname = "tss"\nvalues = [1e-6]\n', "parameters[0].name", "did you mean 'ts'"),
+        ('[[parameters]]\nname = "ts"\nvalues = ["1 uV"]\n', "parameters[0].values", "time unit"),
+        ('[[parameters]]\nname = "cycles"\nvalues = [32]\n', "parameters[0].values", "must be >= 64"),
+        ('[[parameters]]\nname = "structure.electrodes.gapp"\nvalues = ["3 um"]\n', "structure.electrodes.gapp",
+         "did you mean 'gap'"),
+    ]:
+        bad.write_text(text)
+        assert cli.main(["sweep", str(STRUCTURE), str(bad), "-o", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err
+        assert where in err and words in err and "fix:" in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_structure_parameters_and_monte_carlo_plan(tmp_path):
+    text = """
+[sweep]
+samples = 3
+seed = 7
+[[parameters]]
+name = "ts"
+values = ["1 us", "2 us"]
+[[parameters]]
+name = "structure.electrodes[1].gap"
+distribution = "normal"
+mean = "3 um"
+std = "30 nm"
+"""
+    sweep = sw.parse_sweep(text, "mc.toml")
+    runs = sw.plan(sweep, STRUCTURE, tmp_path)
+    assert [r.testbench["ts"] for r in runs] == [1e-6] * 3 + [2e-6] * 3
+    gaps = [r.params["structure.electrodes[1].gap"] for r in runs]
+    assert gaps == list(np.random.default_rng(7).normal(3e-6, 30e-9, 6))      # seeded draws in run order
+    assert [g.name for g in runs] == [f"run_{k}" for k in range(6)]
+    s = parse_structure(runs[0].structure_text, "run.toml")          # a valid structure file
+    with contextlib.chdir(ROOT):
+        base = parse_structure(STRUCTURE.read_text(), "base.toml")
+    assert s.electrode_sets[0] == base.electrode_sets[0]
+    assert s.electrode_sets[1].gap == gaps[0] and s.conductor == base.conductor
+
+
+def test_scheduler_errors_are_one_line_with_the_fix(monkeypatch, tmp_path, capsys):
+    from netgen.executor import ExecutorError
+    with pytest.raises(ExecutorError, match="positive integer"):
+        executor("local:zero")
+    with pytest.raises(ExecutorError, match="not understood"):
+        executor("cluster")
+    monkeypatch.setitem(__import__("sys").modules, "distributed", None)      # as if Dask were not installed
+    with pytest.raises(ExecutorError, match=r"pip install 'netgen\[dask\]'"):
+        executor("local:2")
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[[parameters]]\nname = "ts"\nvalues = ["1 us"]\n')
+    assert cli.main(["sweep", str(STRUCTURE), str(sweep), "-o", str(tmp_path / "o"), "--scheduler", "local:2"]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'netgen[dask]'" in err and "Traceback" not in err
