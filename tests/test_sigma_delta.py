@@ -82,3 +82,16 @@ def test_vertical_spectrum_is_noise_shaped(loop):
         low = p[(f > 0) & (f <= fs / 32)].mean()
         high = p[f >= fs / 4].mean()
         assert 10 * np.log10(high / low) > 15, channel
+
+
+def test_levitation_check_reports_the_first_period_past_the_limit(model, loop):
+    """The run's own check agrees with the bounds above, and a plate that leaves 2 % of its
+    touching amplitude is reported at the first such period (the CLI then exits 1)."""
+    assert loop["levitation"]["held"]
+    z = model.coordinates[0]
+    touch = z.scale / z.port_units[1]
+    clock = {f"x_{c.name}": np.zeros(20) for c in model.coordinates} | {"time": np.arange(20) * TS}
+    clock["x_z"][7:] = -0.03 * touch
+    clock["x_z"][3] = 0.015 * touch                              # inside the limit
+    lost = sd.levitation(clock, model)
+    assert not lost["held"] and lost["lost_at_period"] == 7 and lost["coordinate"] == "z"
