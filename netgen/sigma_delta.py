@@ -195,16 +195,21 @@ def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: floa
                   mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t)
 
 
+def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
+    """(port, DC value, tone or None) per input port of the model: gravity on f_z, the optional
+    tone on its coordinate, 0 on the other force ports and on any other input (e.g. a_in).
+    Both benches format these in their own source syntax."""
+    out = [(f"f_{c.name}", d.gravity_un if c.name == "z" else 0.0, tone if tone and tone.coord == c.name else None)
+           for c in model.coordinates]
+    driven = {port for port, _, _ in out}
+    return out + [(p["name"], 0.0, None) for p in model.ports()
+                  if p["kind"].endswith("_in") and p["name"] not in driven]
+
+
 def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
-    """Source text per force port: gravity on z, the optional tone, 0 elsewhere."""
-    out = []
-    for c in model.coordinates:
-        dc = d.gravity_un if c.name == "z" else 0.0
-        src = f"DC {dc!r}"
-        if tone and tone.coord == c.name:
-            src = f"SIN({dc!r} {tone.amplitude!r} {tone.freq!r})"
-        out.append({"port": f"f_{c.name}", "source": src})
-    return out
+    """ngspice source text per input port (`mechanical_inputs`)."""
+    return [{"port": port, "source": f"SIN({dc!r} {t.amplitude!r} {t.freq!r})" if t else f"DC {dc!r}"}
+            for port, dc, t in mechanical_inputs(model, d, tone)]
 
 
 def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import __version__
 from .model import MacroModel
-from .sigma_delta import CHANNELS, Design, Tone, _coord_index
+from .sigma_delta import CHANNELS, Design, Tone, _coord_index, mechanical_inputs
 from .simulate import Plot, SimulationError, _read_header
 from .templating import render
 from .vacask import ANSI, compile_va, tools
@@ -85,20 +85,10 @@ def compile_blocks(cache: Path) -> Path:
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
-    """VACASK vsource parameters per input port: gravity on f_z, the optional tone, 0 elsewhere
-    (the ngspice bench's netgen.sigma_delta.force_sources)."""
-    out = []
-    for c in model.coordinates:
-        dc = d.gravity_un if c.name == "z" else 0.0
-        src = f"dc={dc!r}"
-        if tone and tone.coord == c.name:
-            src = f'type="sine" sinedc={dc!r} ampl={tone.amplitude!r} freq={tone.freq!r}'
-        out.append({"port": f"f_{c.name}", "source": src})
-    driven = {f["port"] for f in out}
-    for p in model.ports():                         # other inputs (e.g. a frame acceleration port): 0
-        if p["kind"].endswith("_in") and p["name"] not in driven:
-            out.append({"port": p["name"], "source": "dc=0"})
-    return out
+    """VACASK vsource parameters per input port (netgen.sigma_delta.mechanical_inputs)."""
+    return [{"port": port, "source": (f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t
+                                      else f"dc={dc!r}")}
+            for port, dc, t in mechanical_inputs(model, d, tone)]
 
 
 def merge_options(*texts: str) -> str:
