@@ -179,18 +179,9 @@ def compressible_admittance(mesh: MeshTri, shapes: Shapes, k: int, gap: float, m
 
 def pole_residue(mesh: MeshTri, shapes: Shapes, k: int, gap: float, mu_eff: float, pressure: float,
                  poles: int = 40) -> PoleResidue:
-    """The `poles` slowest terms of the exact eigen-expansion of B(omega) for coordinate k."""
-    from scipy.sparse.linalg import eigsh, spsolve
-    basis, stiffness, mass, interior = _p2_matrices(mesh)
-    load = _load(basis, shapes, k)[interior]
-    kk = stiffness.tocsr()[interior][:, interior]
-    mm = mass.tocsr()[interior][:, interior]
-    lam, psi = eigsh(kk.tocsc(), k=poles, M=mm.tocsc(), sigma=0.0, which="LM")
-    proj = psi.T @ load                                   # (phi, psi_j), psi M-orthonormal
-    c = 12.0 * mu_eff / gap**3
-    static = c * float(load @ spsolve(kk.tocsc(), load))
-    residues = c * proj**2 / lam
-    return PoleResidue(residues, lam * gap**2 * pressure / (12.0 * mu_eff), static - float(residues.sum()))
+    """The `poles` slowest terms of the exact eigen-expansion of B(omega) for coordinate k
+    (`pole_residues` of all coordinates, this one taken)."""
+    return pole_residues(mesh, shapes, gap, mu_eff, pressure, poles)[k]
 
 
 def rectangular_plate_blech_complex(mu: float, length: float, width: float, gap: float, pressure: float,
