@@ -261,25 +261,38 @@ class DaskExecutor(Executor):
         return self.client.submit(fn, *args, pure=False)
 
     def scatter(self, obj):
-        """client.scatter once per object (the tasks get the future; Dask ships it per worker once)."""
+        """client.scatter once per object, to every worker (broadcast), so that losing one worker
+        does not lose the only copy; `_shared` scatters it again if all copies are gone."""
         if id(obj) in self._scattered and self._scattered[id(obj)][0] is obj:
-            return self._scattered[id(obj)][1]
-        fut = self.client.scatter([obj], hash=False)[0]    # a list: a dict would be scattered per value
+            fut = self._scattered[id(obj)][1]
+            if fut.status == "finished":
+                return fut
+        fut = self.client.scatter([obj], hash=False, broadcast=True)[0]   # a list: a dict is per value
         self._scattered[id(obj)] = (obj, fut)
         return fut
+
+    def _shared(self, obj: Any, handle: Any) -> Any:
+        """The live handle of a shared input: `handle`, or a fresh scatter of `obj` if the
+        cluster lost it (a killed worker held the last copy; its dependants are cancelled)."""
+        if obj is _NOTHING or handle.status == "finished":
+            return handle
+        return self.scatter(obj)
 
     def imap_unordered(self, fn, items, shared=_NOTHING, retries=2):
         distributed = _import_distributed()
         items = list(items)
+        obj = _NOTHING
         if shared is not _NOTHING and not isinstance(shared, distributed.Future):
-            shared = self.scatter(shared)
+            obj, shared = shared, self.scatter(shared)
+        handle = [shared]
         attempts = dict.fromkeys(range(len(items)), 0)
         tag = uuid.uuid4().hex[:8]
 
         def start(i: int):
             attempts[i] += 1
+            handle[0] = self._shared(obj, handle[0])
             key = f"{getattr(fn, '__name__', 'task')}-{tag}-{i}-{attempts[i]}"
-            return self.client.submit(_call, fn, shared, items[i], key=key, pure=False, retries=retries)
+            return self.client.submit(_call, fn, handle[0], items[i], key=key, pure=False, retries=retries)
 
         futs = {start(i): i for i in attempts}
         done = distributed.as_completed(list(futs))

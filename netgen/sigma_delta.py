@@ -100,6 +100,8 @@ class Design:
     # bitstream records +-1; at 1e-6 V that happened in ~22 of 65536 periods and set a flat in-band
     # floor near -99 dB/Hz (an exact-sign model of the loop gives -134); 1e-9 V brings it back
     vcmp: float = 1e-9
+    # z damping at DC, B(0) (N*s/m, dashpot plus film branches): its impulse enters the force balance
+    damping: float = 0.0
 
     @property
     def g_switch(self) -> float:
@@ -192,7 +194,8 @@ def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: floa
         channels.append({"name": name, "index": k, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}")})
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
     return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, force_table(model, electrodes, vfb),
-                  mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t)
+                  mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t,
+                  damping=float(model.coordinates[iz].admittance(0.0).real))
 
 
 def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
@@ -380,8 +383,11 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     """Momentum balance on z between the clock samples a = skip and b = N - 2: the mean
     electrostatic force implied by the bits (the model's centre force of each bit pattern x the
     feedback duty, plus the sense-phase force) against m g + m (v_b - v_a) / (t_b - t_a), with
-    v from central differences of x_z. Samples sit mid-feedback, so the end periods count half.
-    An applied tone force is not included (it averages out only over whole tone periods)."""
+    v from central differences of x_z, + the damping impulse B(0) (x_b - x_a) / (t_b - t_a) (exact
+    for a dashpot; a film branch adds its force change / corner, negligible for corners far above
+    the loop's motion). Samples sit mid-feedback, so the end periods count half. An applied tone
+    force and the thermal noise force are not included (the first averages out only over whole
+    tone periods; the second's impulse is ~1e-3 of m g T at 100 Pa over 128 periods)."""
     pats = np.stack([clock[f"bits_{c}"] for c in CHANNELS], axis=1)
     lookup = {tuple(r["pattern"]): r["fz"] * 1e-6 for r in d.table}
     fz = np.array([lookup[tuple(p)] for p in pats.tolist()])
@@ -395,9 +401,10 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     x = clock["x_z"] * 1e-6                       # x_z port: 1 V = 1 um
     v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
     inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
-    need = d.mass * d.g + inertia
+    damping = d.damping * (x[b] - x[a]) / ((b - a) * d.ts)
+    need = d.mass * d.g + inertia + damping
     return {"mean_force_n": mean, "weight_n": d.mass * d.g, "inertial_n": float(inertia),
-            "ratio": float(mean / need), "window": [a, b]}
+            "damping_n": float(damping), "ratio": float(mean / need), "window": [a, b]}
 
 
 def plot_spectra(summary: dict, path: Path, title: str) -> Path:
@@ -506,8 +513,12 @@ def thermal_floor(model: MacroModel, d: Design) -> dict:
     dB re F_fb^2/Hz; with the model's noise switch (noise sources in the netlist or not)."""
     damping = model.report.get("damping", {})
     temp = float(damping.get("temperature_K", 300.0))
-    out = {"noise_sources_emitted": bool(damping.get("noise", False)), "temperature_K": temp,
+    noise = bool(damping.get("noise", False))
+    out = {"noise_sources_emitted": noise, "temperature_K": temp,
            "pressure_Pa": damping.get("squeeze_film", {}).get("pressure_Pa"), "channels": {}}
+    if noise:   # measured: `setseed`, `set rndseed` and `.options seed` all leave TRNOISE unseeded
+        out["reproducibility"] = ("statistical only: ngspice 39 fills the Gaussian pool of TRNOISE from its "
+                                  "process id (trannoise/wallace.c initw) and no seed option reaches it")
     for c in CHANNELS:
         b = float(model.coordinates[_coord_index(model, c)].admittance(0.0).real)
         floor = 10 * np.log10(4 * K_B * temp * b / d.level(c) ** 2) if b > 0 else None

@@ -270,3 +270,34 @@ def test_scheduler_errors_are_one_line_with_the_fix(monkeypatch, tmp_path, capsy
     assert cli.main(["sweep", str(STRUCTURE), str(sweep), "-o", str(tmp_path / "o"), "--scheduler", "local:2"]) == 2
     err = capsys.readouterr().err
     assert "pip install 'netgen[dask]'" in err and "Traceback" not in err
+
+
+
+def _scaled_sum(shared: dict, item: float) -> float:
+    """A task of the shared-input test: uses the scattered dict on the worker (slowly)."""
+    time.sleep(0.5)
+    return float(np.sum(shared["v"]) * item)
+
+
+def test_lost_shared_input_is_scattered_again(cluster):
+    """The CI failure of stop 11: a killed worker held the only copy of the scattered MacroModel
+    and every queued task was cancelled ("lost dependencies"). Now the shared input is broadcast
+    to all workers, and if every copy is lost mid-run (here: all workers restarted after the first
+    result) the cancelled tasks are submitted again with a fresh scatter, and all give the serial
+    values. Runs last in this module: it restarts the cluster."""
+    _, client = cluster
+    shared = {"v": np.arange(1000.0)}
+    items = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    ex = DaskExecutor(client=client)
+    handle = ex.scatter(shared)
+    assert len(client.who_has(handle)[handle.key]) == len(client.scheduler_info()["workers"]) == 2
+    out = {}
+    for i, outcome in ex.imap_unordered(_scaled_sum, items, shared=shared):
+        out[i] = outcome
+        if len(out) == 1:
+            client.restart()                       # every copy of the shared input is gone
+    assert sorted(out) == list(range(len(items)))
+    assert all(o.ok for o in out.values()), [o.error for o in out.values()]
+    assert [out[i].value for i in range(len(items))] == [_scaled_sum(shared, x) for x in items]
+    assert max(o.attempts for o in out.values()) >= 2          # some tasks did start again
+    ex.close()
