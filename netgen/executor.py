@@ -243,9 +243,11 @@ class DaskExecutor(Executor):
             self.client = client
         elif address is None:
             import logging
+            self._environ = dict(os.environ)
             self._cluster = distributed.LocalCluster(n_workers=workers or 2, threads_per_worker=1, processes=True,
                                                      dashboard_address=None, silence_logs=logging.ERROR)
             self.client = distributed.Client(self._cluster)
+            restore_environ(self._environ)
         else:
             try:
                 self.client = distributed.Client(address, timeout="20s")
@@ -319,6 +321,17 @@ class DaskExecutor(Executor):
             self.client.close()
         if self._cluster is not None:
             self._cluster.close()
+            restore_environ(self._environ)             # also after nannies respawned lost workers
+
+
+def restore_environ(saved: dict[str, str]) -> None:
+    """Put os.environ back as it was before a LocalCluster: its nannies write their workers'
+    settings (OPENBLAS_NUM_THREADS=1, OMP_NUM_THREADS=1, PYTHONHASHSEED, ...) into this process's
+    environment at every worker (re)spawn, and every later subprocess (a `netgen build`, say)
+    inherited them; OpenBLAS with 1 thread rounds differently from 2, so such a build was no
+    longer byte-identical to one from a clean environment."""
+    os.environ.clear()
+    os.environ.update(saved)
 
 
 def _import_distributed():

@@ -30,7 +30,7 @@ import pytest
 from netgen import cli, pipeline
 from netgen import sigma_delta as sd
 from netgen import sweep as sw
-from netgen.executor import ChunkStore, DaskExecutor, executor
+from netgen.executor import ChunkStore, DaskExecutor, executor, restore_environ
 from netgen.structure import parse_structure
 
 distributed = pytest.importorskip("distributed")
@@ -44,12 +44,15 @@ CYCLES = 128
 @pytest.fixture(scope="module")
 def cluster():
     """A LocalCluster of 2 worker processes with 1 thread each, and a client of the test's own."""
+    environ = dict(os.environ)     # the nannies' worker settings must not leak into later tests
     c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                                  silence_logs=logging.ERROR)
     client = distributed.Client(c)
+    restore_environ(environ)
     yield c, client
     client.close()
     c.close()
+    restore_environ(environ)
 
 
 @pytest.fixture(scope="module")
@@ -301,3 +304,14 @@ def test_lost_shared_input_is_scattered_again(cluster):
     assert [out[i].value for i in range(len(items))] == [_scaled_sum(shared, x) for x in items]
     assert max(o.attempts for o in out.values()) >= 2          # some tasks did start again
     ex.close()
+
+
+def test_local_cluster_leaves_the_environment_as_it_was():
+    """`--scheduler local:N` must not change this process's environment: a LocalCluster's nannies
+    set OPENBLAS_NUM_THREADS=1 etc. here, and a later `netgen build` subprocess inherited them
+    (1-thread OpenBLAS rounds differently: its model was no longer byte-identical)."""
+    before = dict(os.environ)
+    with executor("local:1") as ex:
+        assert dict(ex.imap_unordered(_scaled_sum, [1.0], shared={"v": np.ones(3)}))[0].value == 3.0
+        assert dict(os.environ) == before
+    assert dict(os.environ) == before
