@@ -55,6 +55,11 @@ class Timing:
     rst_off: float = -0.04
 
 
+# per channel (z, tilt_x, tilt_y): the dither sits at f_s (1/2 - delta), a different delta per
+# channel so that the three dithers are uncorrelated
+DITHER_DELTA = (0.0218, 0.0274, 0.0331)
+
+
 @dataclass
 class Tone:
     """A sinusoidal generalized force on one coordinate (amplitude in the f_ port unit)."""
@@ -102,6 +107,28 @@ class Design:
     vcmp: float = 1e-9
     # z damping at DC, B(0) (N*s/m, dashpot plus film branches): its impulse enters the force balance
     damping: float = 0.0
+    # comparator dither: a sine near f_s/2 added to the lead-filter output, amplitude `dither` x the
+    # channel's one-period feedback displacement a_fb T_s^2 (in readout volts), held constant within
+    # each period (its value at the period start: a dither that moved during the latch window left
+    # 275 of 28672 latches up to 0.45 off 0/1 in a VACASK run, i.e. partial forces). Without it the z
+    # loop, whose DC input (gravity) sits at a rational bit density (3/4 ones), locks into idle
+    # patterns near f_s/4 and its in-band shaping depends erratically on the operating point
+    # (exact-kinematics model, bench/sigma_delta_ideal_loop.py: 32-55 dB/decade over
+    # f_s/640..f_s/64 for bit means 0.39-0.54; 38-41 with this dither). Deterministic (same run,
+    # same bits) and out of band: sampled once per period it sits at f_s (1/2 - delta).
+    dither: float = 0.2
+
+    # latch: settles only latch_settle time constants (to e^-2 = 13 %; the electrode drive's bit()
+    # restores 0.87 to a full 1), so its time constant (0.03 T_s) exceeds half of every ngspice
+    # step (maxstep 0.05 T_s) and the trapezoidal rule cannot ring on it. At settle = 5 (0.012 T_s)
+    # it rang: held levels up to 0.53 off 0/1 in 16 % of the periods, i.e. partial feedback forces
+    # while the bitstream recorded +-1 (measured in a 160-period window of a 2300-period run).
+    latch_settle: float = 2.0
+
+    @property
+    def g_latch(self) -> float:
+        """Latch-switch conductance: C_s settles `latch_settle` time constants within the clock pulse."""
+        return self.latch_settle * self.cs / (self.t.sample * self.ts)
 
     @property
     def g_switch(self) -> float:
@@ -176,7 +203,8 @@ def force_table(model: MacroModel, electrodes: list[dict], vfb: float) -> list[d
 
 
 def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: float = 0.25,
-           lead: float = 0.8, full_scale: float = 0.01, g: float = G, timing: Timing | None = None) -> Design:
+           lead: float = 0.8, full_scale: float = 0.01, g: float = G, timing: Timing | None = None,
+           dither: float = 0.2) -> Design:
     """Loop design from the model: V_fb so that gravity needs a mean z-bit of `density`,
     V_s = sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V."""
     t = timing or Timing()
@@ -189,13 +217,25 @@ def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: floa
     vs = round(sense_ratio * vfb, 3)
     grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
     channels = []
+    table = force_table(model, electrodes, vfb)
     for k, name in enumerate(CHANNELS):
         sens = vs * float(sum(e["w"][k] * grad[i, _coord_index(model, name)] for i, e in enumerate(electrodes)))
-        channels.append({"name": name, "index": k, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}")})
+        channels.append({"name": name, "index": k, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}"),
+                         "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
+                         "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k])})
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
-    return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, force_table(model, electrodes, vfb),
+    return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, table,
                   mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t,
-                  damping=float(model.coordinates[iz].admittance(0.0).real))
+                  damping=float(model.coordinates[iz].admittance(0.0).real), dither=dither)
+
+
+def step_volts(model: MacroModel, table: list[dict], channel: str, ts: float, full_scale: float) -> float:
+    """The channel's one-period feedback displacement a_fb T_s^2 (a_fb: mean |fed-back force or
+    torque| while on, over the mass or inertia) in readout volts (1 V = full_scale x touch)."""
+    c = model.coordinates[_coord_index(model, channel)]
+    key, unit = {"z": ("fz", 1e-6), "tilt_x": ("tx", 1e-9), "tilt_y": ("ty", 1e-9)}[channel]
+    force = float(np.mean([abs(r[key]) for r in table])) * unit
+    return force / c.mass * ts**2 / (c.scale * full_scale)
 
 
 def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
@@ -285,8 +325,11 @@ def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.n
     if t[-1] < 0.999 * cycles * d.ts:
         raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
     at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
-    out = {f"bits_{c}": np.where(np.interp(at, t, plot[f"v(b_{c})"]) > 0.5, 1, -1).astype(np.int8)
-           for c in CHANNELS}
+    out: dict[str, np.ndarray] = {}
+    for c in CHANNELS:
+        level = np.interp(at, t, plot[f"v(b_{c})"])
+        out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
+        out[f"latch_{c}"] = level           # the held latch level (ideally 0 or 1): soft decisions
     for c in model.coordinates:
         out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
     out["time"] = at
@@ -356,13 +399,26 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
         notches, peaks = features(f, p)
         m = band_metrics(f, p, d.ts, osr, tone)
         summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
-                                  **m, "notches": notches, "peaks": peaks}
+                                  **m, "notches": notches, "peaks": peaks, **latch_quality(clock, c, skip)}
         summary["spectra"][c] = (f, p)
     summary["gravity_balance"] = gravity_balance(clock, d, skip)
     summary["coordinates"] = {k[2:]: {"mean": float(v[skip:].mean()), "min": float(v[skip:].min()),
                                       "max": float(v[skip:].max())}
                               for k, v in clock.items() if k.startswith("x_")}
     return summary
+
+
+def latch_quality(clock: dict, channel: str, skip: int = 0) -> dict:
+    """How cleanly the latch held its decision: the worst distance of the held level from 0 or 1,
+    and the periods where the electrode drive's restoring bit(x) = (1 + tanh(40 (x - 1/2))) / 2
+    is more than 1e-3 off 0/1 (distance > 0.41): a partial feedback force while the bitstream
+    records +-1. Empty for clocks without latch levels (older bitstream files)."""
+    level = clock.get(f"latch_{channel}")
+    if level is None:
+        return {}
+    err = np.minimum(np.abs(level[skip:]), np.abs(level[skip:] - 1.0))
+    restored = 0.5 - 0.5 * np.tanh(40.0 * (0.5 - err))          # drive error of bit() at that level
+    return {"partial_latches": int(np.sum(restored > 1e-3)), "max_latch_error": float(err.max(initial=0.0))}
 
 
 def levitation(clock: dict, model: MacroModel, limit: float = 0.02) -> dict:
@@ -595,7 +651,7 @@ def cli(args) -> int:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
     s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
-            simulator=args.simulator, lead=args.lead)
+            simulator=args.simulator, lead=args.lead, dither=args.dither)
     if not args.quiet:
         for c in CHANNELS:
             ch = s["channels"][c]
@@ -643,6 +699,9 @@ def add_parser(sub) -> None:
     p.add_argument("--noise", action="store_true", help="thermal force noise of the damping (ngspice trnoise); "
                    "summary.json gives the resulting Brownian floor per channel")
     p.add_argument("--lead", type=float, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
+    p.add_argument("--dither", type=float, default=0.2,
+                   help="comparator dither amplitude, a fraction of the one-period feedback displacement "
+                        "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

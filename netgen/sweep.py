@@ -73,13 +73,15 @@ TESTBENCH: dict[str, tuple[str, Any, str]] = {
                 "mean z bit that balances gravity"),
     "sense_ratio": ("dimensionless", lambda v: None if v > 0 else "must be > 0", "V_s / V_fb"),
     "full_scale": ("dimensionless", lambda v: None if v > 0 else "must be > 0", "readout full scale"),
+    "dither": ("dimensionless", lambda v: None if v >= 0 else "must be >= 0",
+               "comparator dither, fraction of a_fb T_s^2"),
     "tone": ("tone", None, "test tone COORD:AMPLITUDE:FREQ"),
     "tone_amplitude": ("dimensionless", lambda v: None, "tone amplitude (f_ port unit)"),
     "tone_freq": ("frequency", lambda v: None if v > 0 else "must be > 0", "tone frequency"),
     "rigid_only": ("bool", None, "drop the eigenmodes"),
     "simulator": ("str", None, "circuit simulator of the run"),
 }
-DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale")
+DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither")
 
 
 class SweepError(Exception):
