@@ -113,8 +113,8 @@ class Design:
     # 275 of 28672 latches up to 0.45 off 0/1 in a VACASK run, i.e. partial forces). Without it the z
     # loop, whose DC input (gravity) sits at a rational bit density (3/4 ones), locks into idle
     # patterns near f_s/4 and its in-band shaping depends erratically on the operating point
-    # (exact-kinematics model, bench/sigma_delta_ideal_loop.py: 32-55 dB/decade over
-    # f_s/640..f_s/64 for bit means 0.39-0.54; 38-41 with this dither). Deterministic (same run,
+    # (exact-kinematics model, bench/sigma_delta_ideal_loop.py: 32-42 dB/decade over
+    # f_s/640..f_s/64 for bit means 0.42-0.54; 39-41 with this dither). Deterministic (same run,
     # same bits) and out of band: sampled once per period it sits at f_s (1/2 - delta).
     dither: float = 0.2
 
@@ -124,6 +124,24 @@ class Design:
     # it rang: held levels up to 0.53 off 0/1 in 16 % of the periods, i.e. partial feedback forces
     # while the bitstream recorded +-1 (measured in a 160-period window of a 2300-period run).
     latch_settle: float = 2.0
+
+    @property
+    def feedback_basis(self) -> dict:
+        """The feedback phase (0 -> 1 over [a, b], 1 until c, 1 -> 0 over [c, d]) as
+        k1 T1 - k2 T2 of two delay-free PULSE trapezoids, T1 rising over [0, b], T2 over [0, a],
+        both falling over [c, d]: on [0, a] the two ramps cancel (k1 / b = k2 / a), on [a, b]
+        the sum rises with slope 1 / (b - a), and k1 - k2 = 1 on [b, c]. Why: the template."""
+        t, ts = self.t, self.ts
+        a, b = t.fb_on - t.edge / 2, t.fb_on + t.edge / 2
+        c, e = t.fb_off - t.edge / 2, t.fb_off + t.edge / 2
+        return {"tr1": b * ts, "pw1": (c - b) * ts, "tr2": a * ts, "pw2": (c - a) * ts, "tf": (e - c) * ts,
+                "k1": b / (b - a), "k2": a / (b - a)}
+
+    def corners(self) -> list[float]:
+        """Period phases of the electrode-phase corners (the breakpoints the ramps need)."""
+        t, h = self.t, self.t.edge / 2
+        return sorted({t.sense_on - h, t.sense_on + h, t.sense_off - h, t.sense_off + h,
+                       t.fb_on - h, t.fb_on + h, t.fb_off - h, t.fb_off + h})
 
     @property
     def g_latch(self) -> float:
@@ -336,6 +354,19 @@ def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.n
     return out
 
 
+def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
+    """Did ngspice put a time point on every electrode-phase corner (its PULSE breakpoints)?
+    The periods where one is missing (none expected; a lost breakpoint chain lets the
+    trapezoidal electrode currents ring after each ramp, which the readout integrates)."""
+    tc = ((np.arange(cycles)[:, None] + np.array(d.corners())[None, :]) * d.ts).ravel()
+    tc = tc[(tc > 0) & (tc < t[-1])]                 # t = 0: the start, not a corner
+    j = np.clip(np.searchsorted(t, tc), 1, len(t) - 1)
+    gap = np.minimum(np.abs(t[j] - tc), np.abs(t[j - 1] - tc))
+    missed = np.unique((tc[gap > 1e-6 * d.ts * d.t.edge] / d.ts).astype(int))
+    return {"periods_with_a_missed_corner": int(len(missed)),
+            "first_period": int(missed[0]) if len(missed) else None}
+
+
 def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Welch PSD of a +-1 bitstream (Hann, 50 % overlap): the spectrum normalised to the square
     of the fed-back force/torque, one-sided, in 1/Hz."""
@@ -530,6 +561,8 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
         raw = out / "sigma_delta.raw"
     wall = time.perf_counter() - start
     clock = per_clock(plot, d, cycles, model)
+    if simulator == "ngspice":
+        extra["breakpoints"] = missed_corners(np.asarray(plot["time"]), d, cycles)
     del plot
     raw.unlink(missing_ok=True)
     np.savez_compressed(out / "bitstreams.npz", **clock)
@@ -670,10 +703,22 @@ def cli(args) -> int:
     if not lev["held"]:
         print(f"netgen: the loop lost the plate at period {lev['lost_at_period']} ({lev['coordinate']} = "
               f"{lev['value']:.4g}, beyond {lev['limit']:.3g} in port units); the spectra describe a plate at "
-              "the stop. Known for long ngspice runs (README 'Sigma-delta loop'): use --simulator vacask",
-              file=sys.stderr)
+              f"the stop.{_lost_hint(s)} Results in {out}", file=sys.stderr)
         return 1
     return 0
+
+
+def _lost_hint(s: dict) -> str:
+    """What the summary says about a lost plate: missed breakpoints, partial latch decisions."""
+    hints = []
+    bp = s.get("breakpoints") or {}
+    if bp.get("periods_with_a_missed_corner"):
+        hints.append(f"ngspice missed an electrode-phase corner in {bp['periods_with_a_missed_corner']} "
+                     f"period(s), first {bp['first_period']} (README 'Sigma-delta loop')")
+    partial = {c: v.get("partial_latches") for c, v in s["channels"].items() if v.get("partial_latches")}
+    if partial:
+        hints.append(f"partial latch decisions {partial}")
+    return (" Diagnostics: " + "; ".join(hints) + ".") if hints else ""
 
 
 def add_parser(sub) -> None:

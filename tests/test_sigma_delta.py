@@ -106,3 +106,27 @@ def test_latches_hold_clean_decisions(loop):
     for channel in sd.CHANNELS:
         ch = loop["channels"][channel]
         assert ch["partial_latches"] == 0 and ch["max_latch_error"] < 0.3, channel
+
+
+def _pulse(t: np.ndarray, tr: float, tf: float, pw: float, per: float) -> np.ndarray:
+    """SPICE PULSE(0 1 0 tr tf pw per) (delay 0), from its definition."""
+    p = np.mod(t, per)
+    return np.select([p < tr, p < tr + pw, p < tr + pw + tf], [p / tr, 1.0, 1.0 - (p - tr - pw) / tf], 0.0)
+
+
+def test_feedback_phase_is_rebuilt_from_delay_free_pulses(model):
+    """The template's feedback phase k1 T1 - k2 T2 (two PULSEs without delay, whose breakpoint
+    chains do not break in long ngspice runs) equals the phase it replaces: 0, a linear ramp over
+    fb_on -+ edge/2, 1, a linear ramp down over fb_off -+ edge/2, 0 (to 1e-12 over 3 periods)."""
+    d = sd.design(model, TS)
+    fb, t = d.feedback_basis, np.linspace(0, 3 * TS, 30001)
+    got = fb["k1"] * _pulse(t, fb["tr1"], fb["tf"], fb["pw1"], TS) - fb["k2"] * _pulse(t, fb["tr2"], fb["tf"], fb["pw2"], TS)
+    ph, h = np.mod(t / TS, 1.0), d.t.edge / 2
+    want = np.clip(np.minimum((ph - (d.t.fb_on - h)) / d.t.edge, ((d.t.fb_off + h) - ph) / d.t.edge), 0.0, 1.0)
+    assert np.abs(got - want).max() < 1e-12
+
+
+def test_every_electrode_corner_is_a_time_point(loop):
+    """ngspice put a time point on each of the 8 electrode-phase corners in every period (lost
+    breakpoints let the trapezoidal electrode currents ring after the ramps)."""
+    assert loop["breakpoints"]["periods_with_a_missed_corner"] == 0
