@@ -668,6 +668,8 @@ def cli(args) -> int:
         tone = Tone.parse(args.tone) if args.tone else None
         if args.ts <= 0 or args.cycles < 64:
             raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+        if not 0 <= args.dither <= 1:
+            raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
         pressure = parse_pressure(args.pressure) if args.pressure is not None else None
         if args.model and (args.rigid_only or pressure is not None or args.film or args.noise):
             raise ValueError("--rigid-only, --pressure, --film and --noise rebuild the model from the structure "

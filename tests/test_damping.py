@@ -410,9 +410,10 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     (["--noise", "--simulator", "vacask"], "--noise needs --simulator ngspice"),
     (["--pressure", "1 psi"], "not a pressure unit"),
     (["--pressure", "-5"], "must be positive"),
+    (["--dither", "-0.1"], "--dither -0.1 must be between 0"),
 ])
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
-    """Bad gas/noise options: exit 2 with the reason, no traceback, nothing built."""
+    """Bad gas, noise or dither options: exit 2 with the reason, no traceback, nothing built."""
     from netgen import cli
     out = tmp_path / "sd"
     code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "-o", str(out), *args])
