@@ -61,7 +61,8 @@ def ngspice(model, tmp_path_factory) -> dict:
 
 def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
     """Same design numbers in both benches: every electrode driven by one driver with the design's
-    V_s, V_fb, side and tilt sign; C_f, sampler and reset conductances and the lead coefficient."""
+    V_s, V_fb, side and tilt sign; C_f, sampler, latch and reset conductances, the lead
+    coefficient and the comparator dither."""
     d = sd.design(model, TS)
     text = sdv.testbench(model, d, tmp_path / "m.osdi", tmp_path / "b.osdi", 64)
     for e in d.electrodes:
@@ -70,7 +71,8 @@ def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
         assert f"vs={d.vs} vfb={d.vfb} side={e['side']} sign={e['sign']}" in line
     for ch in d.channels:
         assert f"cf={ch['cf']} grst={d.g_reset(ch['cf'])}" in text
-        assert f"lead={d.lead} vcmp={d.vcmp} cs={d.cs} g={d.g_switch}" in text
+        assert f"lead={d.lead} vcmp={d.vcmp} cs={d.cs} g={d.g_latch} dither={ch['dither_v']}" in text
+        assert f"(ca_{ch['name']} cur_{ch['name']} scur) smp cs={d.cs} g={d.g_switch}" in text
     assert f"stop={TS * 64}" in text and 'icmode="uic"' in text
 
 

@@ -150,6 +150,22 @@ def serial_runs(tmp_path_factory):
         return dict(zip(TS, pool.map(one, TS)))
 
 
+def _worker_running_ngspice(runs: Path, workers: set[int]) -> int | None:
+    """PID of a Dask worker whose child ngspice is running in a run folder under `runs`."""
+    for entry in Path("/proc").glob("[0-9]*"):
+        try:
+            if not os.readlink(entry / "cwd").startswith(str(runs.resolve())):
+                continue
+            if (entry / "comm").read_text().strip() != "ngspice":
+                continue
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        if ppid in workers:
+            return ppid
+    return None
+
+
 @pytest.fixture(scope="module")
 def dask_sweep(cluster, tmp_path_factory):
     """`netgen sweep` on the cluster; one worker is killed while it runs ngspice for a run."""
@@ -167,12 +183,10 @@ def dask_sweep(cluster, tmp_path_factory):
     killed = None
     deadline = time.monotonic() + 120
     while t.is_alive() and killed is None and time.monotonic() < deadline:
-        if list(out.glob("runs/run_*/sigma_delta.cir")):           # ngspice is running
-            busy = [w for w, keys in client.processing().items() if any("run_one" in k for k in keys)]
-            if busy:
-                pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
-                os.kill(pid, signal.SIGKILL)
-                killed = pid
+        worker = _worker_running_ngspice(out / "runs", set(client.run(os.getpid).values()))
+        if worker is not None:                     # a worker mid-run (its run folder is written)
+            os.kill(worker, signal.SIGKILL)
+            killed = worker
         time.sleep(0.2)
     t.join(timeout=300)
     assert not t.is_alive()
