@@ -321,13 +321,19 @@ def _rings(rd: _Reader, t: dict, where: str, radius: float) -> tuple[tuple[float
     return tuple(rings)
 
 
-def _electrode_sets(rd: _Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
+def _electrode_tables(rd: _Reader, doc: dict, missing: str, fix: str, each: str) -> list[dict]:
+    """The [[electrodes]] array of tables, or a clear error (missing, or not an array of tables)."""
     raw = doc.get("electrodes")
     if raw is None:
-        raise rd.fail("[[electrodes]]", "missing electrode sets",
-                      "add one [[electrodes]] table per side (see examples/levitated_disk.toml)")
+        raise rd.fail("[[electrodes]]", missing, fix)
     if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
-        raise rd.fail("electrodes", "electrodes must be an array of tables", "write each set as [[electrodes]]")
+        raise rd.fail("electrodes", "electrodes must be an array of tables", f"write each {each} as [[electrodes]]")
+    return raw
+
+
+def _electrode_sets(rd: _Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
+    raw = _electrode_tables(rd, doc, "missing electrode sets",
+                            "add one [[electrodes]] table per side (see examples/levitated_disk.toml)", "set")
     sets, names = [], set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
@@ -572,16 +578,22 @@ def _cross_checks(rd: _Reader, sets: tuple[ElectrodeSet, ...], coords: Coordinat
                       f"samples exceed {MAX_GRID_POINTS}", "lower sampling.levels or use fewer coordinates")
 
 
+def toml_document(text: str, path: str, error: type = None, fix: str = "correct the TOML syntax at that line "
+                  "(strings need quotes, tables [name], arrays [a, b])") -> dict:
+    """tomllib.loads, with a syntax error raised as `error` (default StructureError) naming the
+    file, the line and the fix; shared by the structure and sweep files."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        line = re.search(r"line (\d+)", str(exc))
+        raise (error or StructureError)(path, "TOML syntax", str(exc), fix,
+                                        int(line.group(1)) if line else None) from None
+
+
 def parse_structure(text: str, path: str = "<string>") -> Structure:
     """Validate TOML text into a Structure; raises StructureError on any mistake."""
     rd = _Reader(path, text)
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        line = re.search(r"line (\d+)", str(exc))
-        raise StructureError(path, "TOML syntax", str(exc), "correct the TOML syntax at that line "
-                             "(strings need quotes, tables [name], arrays [a, b])",
-                             int(line.group(1)) if line else None)
+    doc = toml_document(text, path)
     top = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
            "electrostatics", "fem", "damping", "import"]
     _check_keys(rd, "", doc, top)
@@ -760,12 +772,8 @@ def _span(rd: _Reader, t: dict, where: str, key: str, lo: float, hi: float) -> t
 
 def _rect_electrodes(rd: _Reader, doc: dict, conductor: Piston | Beam) -> tuple[RectElectrode, ...]:
     """[[electrodes]] of a suspended conductor: one rectangle each (default: under the whole conductor)."""
-    raw = doc.get("electrodes")
-    if raw is None:
-        raise rd.fail("[[electrodes]]", "missing electrodes",
-                      "add an [[electrodes]] table (see examples/cc_beam.toml)")
-    if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
-        raise rd.fail("electrodes", "electrodes must be an array of tables", "write each electrode as [[electrodes]]")
+    raw = _electrode_tables(rd, doc, "missing electrodes", "add an [[electrodes]] table (see examples/cc_beam.toml)",
+                            "electrode")
     x0, x1, y0, y1 = conductor.outline()
     out, names = [], set()
     for i, t in enumerate(raw):

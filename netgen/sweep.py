@@ -154,13 +154,9 @@ def load_sweep(path: str | Path) -> Sweep:
 
 
 def parse_sweep(text: str, path: str = "<string>") -> Sweep:
+    from .structure import toml_document
     rd = _Lines(path, text)
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        line = re.search(r"line (\d+)", str(exc))
-        raise SweepError(path, "TOML syntax", str(exc), "correct the TOML syntax at that line",
-                         int(line.group(1)) if line else None) from None
+    doc = toml_document(text, path, SweepError, "correct the TOML syntax at that line")
     for key in doc:
         if key not in ("sweep", "fixed", "parameters"):
             raise rd.fail(key, f"unknown key or table '{key}'",
@@ -775,7 +771,7 @@ UNITS_SI = {"time": "s", "frequency": "Hz", "length": "m"}
 
 def cli(args) -> int:
     """`netgen sweep`: validate, run, gather; exit 0 (all ran), 1 (some failed), 2 (bad input)."""
-    from .executor import ExecutorError, executor
+    from .executor import executor
     from .structure import load_structure
     start = time.perf_counter()
     try:
@@ -783,11 +779,8 @@ def cli(args) -> int:
         load_structure(args.structure)                          # its errors: exit 2 from cli.main
         plan(sweep, args.structure, Path(args.output))         # path errors before any work
         ex = executor(args.scheduler)
-    except SweepError as exc:
+    except SweepError as exc:                       # (ExecutorError is an OSError: cli.main, exit 2)
         print(f"netgen: error in sweep file {exc}", file=sys.stderr)
-        return 2
-    except ExecutorError as exc:
-        print(f"netgen: {exc}", file=sys.stderr)
         return 2
     with ex:
         rows = run_sweep(args.structure, sweep, Path(args.output), ex, progress=not args.quiet)
