@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -58,6 +59,8 @@ class Timing:
 # per channel (z, tilt_x, tilt_y): the dither sits at f_s (1/2 - delta), a different delta per
 # channel so that the three dithers are uncorrelated
 DITHER_DELTA = (0.0218, 0.0274, 0.0331)
+# ngspice runs longer than this many periods go in segments restarted at t = 0 (run_segments)
+SEGMENT = 2048
 
 
 @dataclass
@@ -267,27 +270,47 @@ def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[t
                   if p["kind"].endswith("_in") and p["name"] not in driven]
 
 
-def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
-    """ngspice source text per input port (`mechanical_inputs`)."""
-    return [{"port": port, "source": f"SIN({dc!r} {t.amplitude!r} {t.freq!r})" if t else f"DC {dc!r}"}
+def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
+    """ngspice source text per input port (`mechanical_inputs`); a tone continues from time t0
+    (a segment restarted at t = 0) through the SIN phase, in degrees."""
+    def sin(dc: float, t: Tone) -> str:
+        phase = 360.0 * math.fmod(t.freq * t0, 1.0)
+        return f"SIN({dc!r} {t.amplitude!r} {t.freq!r}" + (f" 0 0 {phase!r})" if phase else ")")
+    return [{"port": port, "source": sin(dc, t) if t else f"DC {dc!r}"}
             for port, dc, t in mechanical_inputs(model, d, tone)]
 
 
+def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -> list[str]:
+    """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
+    internal ones (position, velocity, film branches; read from the .lib) and the testbench's
+    charge amplifiers, samples and latches. A segment restarted from them continues the run."""
+    text = Path(lib).read_text().lower().replace("\n+", " ")
+    lines = text.split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0].splitlines()
+    ports = set(lines[0].split())
+    inner = sorted({n for line in lines[1:] if line.startswith("c")
+                    for n in line.split()[1:3] if n != "0" and n not in ports})
+    bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
+    return [f"{instance}.{n}" for n in inner] + bench
+
+
 def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
-              tone: Tone | None = None, chunks: int = 50) -> str:
-    """The ngspice netlist of the loop (templates/sigma_delta_tb.cir.j2)."""
+              tone: Tone | None = None, chunks: int = 50, start: int = 0,
+              ic: dict[str, float] | None = None, states: list[str] = ()) -> str:
+    """The ngspice netlist of the loop (templates/sigma_delta_tb.cir.j2); for a segment of a
+    long run, the periods from `start` on, from the node state `ic`, also saving `states`."""
     if tone:
         _coord_index(model, tone.coord)
         tone.unit = model.coordinates[_coord_index(model, tone.coord)].port_units[2]
     # only what per_clock() reads: ngspice holds every saved vector in memory (measured 27 kB per
     # period with these 11, 1.8 GB for 2^16 periods; with the 3 lead-filter outputs too, over 2 GB)
     saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(x_{c.name})" for c in model.coordinates]
+    saves += [f"v({n})" for n in states]
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render("sigma_delta_tb.cir.j2", bench="sigma_delta", version=__version__, model=model, d=d,
                   lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
-                  forces=force_sources(model, d, tone), tone=tone, saves=saves, raw=raw, progress=progress,
-                  selects=selection_nodes(d.electrodes))
+                  forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
+                  progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic or {})
 
 
 def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
@@ -304,8 +327,10 @@ def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
     return {"nodes": nodes, "of": of}
 
 
-def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0):
-    """Run ngspice -b on the bench, report simulated/wall time from its progress lines; return the plot."""
+def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0,
+             span: tuple[float, float, float] | None = None):
+    """Run ngspice -b on the bench, report simulated/wall time from its progress lines; return the plot.
+    span (t0, total, wall0): this run continues a segmented one at t0 of total, wall0 s after its start."""
     workdir.mkdir(parents=True, exist_ok=True)
     cir, raw, log = workdir / "sigma_delta.cir", workdir / "sigma_delta.raw", workdir / "sigma_delta.log"
     cir.write_text(netlist)
@@ -321,9 +346,11 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
         m = re.match(r"netgen-progress\s+([0-9.eE+-]+)", line)
         wall = time.perf_counter() - start
         if m and progress and wall - shown > 2.0 and float(m.group(1)) > 0:
-            t, shown = float(m.group(1)), wall
-            print(f"sigma-delta: simulated {t * 1e3:.3f} / {stop * 1e3:.3f} ms, wall {wall:.1f} s, "
-                  f"eta {wall * (stop / t - 1):.0f} s", file=sys.stderr, flush=True)
+            shown = wall
+            t0, total, wall0 = span or (0.0, stop, 0.0)
+            t, w = t0 + float(m.group(1)), wall0 + wall
+            print(f"sigma-delta: simulated {t * 1e3:.3f} / {total * 1e3:.3f} ms, wall {w:.1f} s, "
+                  f"eta {w * (total / t - 1):.0f} s", file=sys.stderr, flush=True)
         if time.perf_counter() - start > timeout:
             proc.kill()
             raise SimulationError(f"ngspice exceeded {timeout:.0f} s; reproduce with: ngspice -b {cir}")
@@ -533,7 +560,7 @@ def plot_states(clock: dict, path: Path) -> Path:
 
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
         progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        **choices) -> dict:
+        segment: int = SEGMENT, **choices) -> dict:
     """Design, render, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator "ngspice" runs the .lib `lib`; "vacask" the compiled Verilog-A module (the .va next
     to `lib`, else the module emitted from `model`) in the same loop (netgen.sigma_delta_vacask)."""
@@ -553,18 +580,14 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     start = time.perf_counter()
     if simulator == "vacask":
         plot = sdv.run_bench(model, d, out, cycles, tone, progress, va=va)
-        raw = out / "tran1.raw"
         extra["vacask"] = sdv.stats(out)
+        clock = per_clock(plot, d, cycles, model)
+        del plot
+        (out / "tran1.raw").unlink(missing_ok=True)
     else:
-        bench = testbench(model, d, lib.resolve(), cycles, "sigma_delta.raw", tone)
-        plot = simulate(bench, out, ts * cycles, progress)
-        raw = out / "sigma_delta.raw"
+        clock, extra["breakpoints"], extra["segments"] = run_segments(model, d, lib, out, cycles, tone, progress,
+                                                                      segment)
     wall = time.perf_counter() - start
-    clock = per_clock(plot, d, cycles, model)
-    if simulator == "ngspice":
-        extra["breakpoints"] = missed_corners(np.asarray(plot["time"]), d, cycles)
-    del plot
-    raw.unlink(missing_ok=True)
     np.savez_compressed(out / "bitstreams.npz", **clock)
     skip = cycles // 8 if skip is None else skip
     summary = analyse(clock, d, tone, skip=skip)
@@ -582,6 +605,40 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
                      f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})")
         plot_states(clock, out / "coordinates.png")
     return summary | {"spectra": spectra, "clock": clock}
+
+
+def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
+                 progress: bool, segment: int) -> tuple[dict, dict, dict]:
+    """Run the ngspice bench in segments of `segment` periods, each restarted at t = 0 from the
+    node state the previous one ended in: the per-clock samples, the missed corners, the plan.
+    Why: ngspice 39 chains a periodic PULSE's breakpoints, and the chain's corner test
+    (time - period start vs the ramp, to a few ULPs) loses precision as time grows; in one
+    2^16-period run the chains broke for good at period 9456 and the plate fell (README)."""
+    segment = segment if segment > 0 else cycles
+    starts = list(range(0, cycles, segment))
+    states = state_nodes(lib, model, d) if len(starts) > 1 else []
+    parts, missed, ic, wall0 = [], [], None, time.perf_counter()
+    for n0 in starts:
+        n = min(segment, cycles - n0)
+        last = n0 + n >= cycles
+        bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic,
+                          states=[] if last else states)
+        plot = simulate(bench, out, d.ts * n, progress,
+                        span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
+        part = per_clock(plot, d, n, model)
+        part["time"] = part["time"] + n0 * d.ts
+        parts.append(part)
+        bp = missed_corners(np.asarray(plot["time"]), d, n)
+        missed.append((n0, bp))
+        if not last:
+            ic = {node: float(plot[f"v({node})"][-1]) for node in states}
+        del plot
+        (out / "sigma_delta.raw").unlink(missing_ok=True)
+    clock = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    firsts = [n0 + bp["first_period"] for n0, bp in missed if bp["first_period"] is not None]
+    breakpoints = {"periods_with_a_missed_corner": sum(bp["periods_with_a_missed_corner"] for _, bp in missed),
+                   "first_period": firsts[0] if firsts else None}
+    return clock, breakpoints, {"periods": segment, "count": len(starts), "state_nodes": states}
 
 
 def parse_pressure(text: str) -> float:
@@ -668,6 +725,9 @@ def cli(args) -> int:
         tone = Tone.parse(args.tone) if args.tone else None
         if args.ts <= 0 or args.cycles < 64:
             raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+        if args.segment < 0 or 0 < args.segment < 16:
+            raise ValueError(f"--segment {args.segment}: give at least 16 periods per segment, or 0 for one run "
+                             f"(the default is {SEGMENT})")
         if not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
         pressure = parse_pressure(args.pressure) if args.pressure is not None else None
@@ -686,7 +746,7 @@ def cli(args) -> int:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
     s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
-            simulator=args.simulator, lead=args.lead, dither=args.dither)
+            simulator=args.simulator, segment=args.segment, lead=args.lead, dither=args.dither)
     if not args.quiet:
         for c in CHANNELS:
             ch = s["channels"][c]
@@ -749,6 +809,10 @@ def add_parser(sub) -> None:
     p.add_argument("--dither", type=float, default=0.2,
                    help="comparator dither amplitude, a fraction of the one-period feedback displacement "
                         "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
+    p.add_argument("--segment", type=int, default=SEGMENT,
+                   help=f"ngspice: run in segments of this many periods, each restarted at t = 0 from the "
+                        f"state the last one ended in (ngspice loses its PULSE breakpoints late in long "
+                        f"runs; 0 = one run; default {SEGMENT})")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

@@ -11,6 +11,7 @@ Long runs (2^16 cycles, T_s = 3.2 us, eigenmode notch, tone cross-coupling): exa
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +19,11 @@ import pytest
 
 from netgen import sigma_delta as sd
 from netgen.model import MacroModel
+from netgen.simulate import ngspice_path, read_raw
 
 ROOT = Path(__file__).resolve().parents[1]
 CYCLES, SKIP, TS = 160, 32, 1e-6
+SEGMENT = 64            # the run goes in 3 segments (64, 64, 32), as long runs do (sd.run_segments)
 
 
 @pytest.fixture(scope="module")
@@ -30,10 +33,12 @@ def model() -> MacroModel:
 
 @pytest.fixture(scope="module")
 def loop(model, tmp_path_factory) -> dict:
-    """One ngspice run of the loop, analysed; about 15 s (README "Performance")."""
+    """One ngspice run of the loop in 3 segments, each restarted at t = 0 from the state the
+    previous one ended in, analysed; about 15 s (README "Performance"). The checks below then
+    also hold across the restarts (the momentum balance would see an impulse at a restart)."""
     out = tmp_path_factory.mktemp("sigma_delta")
     return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
-                  plots=False, skip=SKIP)
+                  plots=False, skip=SKIP, segment=SEGMENT)
 
 
 def test_design_follows_the_model(model):
@@ -130,3 +135,44 @@ def test_every_electrode_corner_is_a_time_point(loop):
     """ngspice put a time point on each of the 8 electrode-phase corners in every period (lost
     breakpoints let the trapezoidal electrode currents ring after the ramps)."""
     assert loop["breakpoints"]["periods_with_a_missed_corner"] == 0
+
+
+def test_run_went_in_segments(loop):
+    """The fixture's run is the segmented one: 3 segments, restarted from the model's 14 states
+    (position and velocity of 7 coordinates) and the bench's 12 (4 per channel)."""
+    seg = loop["segments"]
+    assert seg["count"] == 3 and seg["periods"] == SEGMENT
+    assert sum(n.startswith("x1.") for n in seg["state_nodes"]) == 14 and len(seg["state_nodes"]) == 26
+
+
+def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_path):
+    """ngspice honours the restart state (.ic with uic, also on the subcircuit's internal nodes):
+    every state node starts the next segment where the previous one ended, up to the change of
+    its own first step (a node ngspice ignored would start at 0)."""
+    lib = (ROOT / "netlists" / "levitated_disk.lib").resolve()
+    d = sd.design(model, TS)
+    states = sd.state_nodes(lib, model, d)
+    first = sd.simulate(sd.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a",
+                        24 * TS, False)
+    ic = {n: float(first[f"v({n})"][-1]) for n in states}
+    assert max(abs(v) for v in ic.values()) > 1e-4             # a state worth restarting from
+    second = sd.simulate(sd.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
+                         tmp_path / "b", 2 * TS, False)
+    for n in states:
+        end, v = ic[n], second[f"v({n})"]
+        assert abs(v[0] - end) <= 1.5 * abs(v[1] - v[0]) + 1e-12 * abs(end) + 1e-18, n
+
+
+def test_tone_continues_across_a_restart(model, tmp_path):
+    """A segment starting at t0 drives the tone as dc + a sin(2 pi f (t + t0)): the SIN source
+    text, run in ngspice, against the formula (1e-9 of the amplitude)."""
+    d = sd.design(model, TS)
+    tone, t0 = sd.Tone("z", 0.02, 2000.0), 8191 * TS
+    src = next(s["source"] for s in sd.force_sources(model, d, tone, t0) if s["port"] == "f_z")
+    (tmp_path / "tone.cir").write_text(f"tone\nV1 a 0 {src}\nR1 a 0 1\n.control\ntran 1e-6 2e-4\n"
+                                       "write tone.raw v(a)\n.endc\n.end\n")
+    subprocess.run([ngspice_path(), "-b", "tone.cir"], cwd=tmp_path, capture_output=True, check=False)
+    plot = read_raw(tmp_path / "tone.raw")[0]
+    t, v = np.asarray(plot["time"]), np.asarray(plot["v(a)"])
+    want = d.gravity_un + 0.02 * np.sin(2 * np.pi * 2000.0 * (t + t0))
+    assert np.abs(v - want).max() < 1e-9 * 0.02
