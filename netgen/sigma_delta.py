@@ -589,7 +589,8 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
                                                                       segment)
     wall = time.perf_counter() - start
     np.savez_compressed(out / "bitstreams.npz", **clock)
-    skip = cycles // 8 if skip is None else skip
+    done = len(clock["time"])                         # fewer than `cycles` if a segment lost the plate
+    skip = done // 8 if skip is None else min(skip, done // 2)
     summary = analyse(clock, d, tone, skip=skip)
     summary["levitation"] = levitation(clock, model)
     spectra = summary.pop("spectra")
@@ -611,6 +612,7 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
                  progress: bool, segment: int) -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments of `segment` periods, each restarted at t = 0 from the
     node state the previous one ended in: the per-clock samples, the missed corners, the plan.
+    A segment that loses the plate is the last (its netlist, with its .ic, stays in `out`).
     Why: ngspice 39 chains a periodic PULSE's breakpoints, and the chain's corner test
     (time - period start vs the ramp, to a few ULPs) loses precision as time grows; in one
     2^16-period run the chains broke for good at period 9456 and the plate fell (README)."""
@@ -628,17 +630,20 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
         part = per_clock(plot, d, n, model)
         part["time"] = part["time"] + n0 * d.ts
         parts.append(part)
-        bp = missed_corners(np.asarray(plot["time"]), d, n)
-        missed.append((n0, bp))
+        missed.append((n0, missed_corners(np.asarray(plot["time"]), d, n)))
         if not last:
             ic = {node: float(plot[f"v({node})"][-1]) for node in states}
         del plot
         (out / "sigma_delta.raw").unlink(missing_ok=True)
+        if not levitation(part, model)["held"]:
+            break
     clock = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    firsts = [n0 + bp["first_period"] for n0, bp in missed if bp["first_period"] is not None]
-    breakpoints = {"periods_with_a_missed_corner": sum(bp["periods_with_a_missed_corner"] for _, bp in missed),
-                   "first_period": firsts[0] if firsts else None}
-    return clock, breakpoints, {"periods": segment, "count": len(starts), "state_nodes": states}
+    with_misses = [{"start": n0, "periods": bp["periods_with_a_missed_corner"], "first": n0 + bp["first_period"]}
+                   for n0, bp in missed if bp["first_period"] is not None]
+    breakpoints = {"periods_with_a_missed_corner": sum(m["periods"] for m in with_misses),
+                   "first_period": with_misses[0]["first"] if with_misses else None, "segments": with_misses}
+    plan = {"periods": segment, "count": len(starts), "run": len(parts), "state_nodes": states}
+    return clock, breakpoints, plan
 
 
 def parse_pressure(text: str) -> float:
@@ -777,6 +782,10 @@ def _lost_hint(s: dict) -> str:
     if bp.get("periods_with_a_missed_corner"):
         hints.append(f"ngspice missed an electrode-phase corner in {bp['periods_with_a_missed_corner']} "
                      f"period(s), first {bp['first_period']} (README 'Sigma-delta loop')")
+    seg = s.get("segments") or {}
+    if seg.get("run", 0) < seg.get("count", 0):
+        hints.append(f"ngspice stopped after that segment ({seg['run']} of {seg['count']}, {s['cycles']} periods; "
+                     f"its netlist with the restart state is DIR/sigma_delta.cir)")
     partial = {c: v.get("partial_latches") for c, v in s["channels"].items() if v.get("partial_latches")}
     if partial:
         hints.append(f"partial latch decisions {partial}")

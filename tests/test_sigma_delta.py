@@ -176,3 +176,19 @@ def test_tone_continues_across_a_restart(model, tmp_path):
     t, v = np.asarray(plot["time"]), np.asarray(plot["v(a)"])
     want = d.gravity_un + 0.02 * np.sin(2 * np.pi * 2000.0 * (t + t0))
     assert np.abs(v - want).max() < 1e-9 * 0.02
+
+
+def test_a_segmented_run_stops_after_the_segment_that_lost_the_plate(model, tmp_path):
+    """V_fb designed for a z bit density of 2 (impossible: all-up bits give m g / 2) lets the plate
+    fall at g / 2 from the start: it leaves 2 % of the gap after sqrt(4 * 0.02 gap / g) (156 us,
+    kinematics). The run stops after the segment in which that happens, and says so."""
+    s = sd.run(model, ROOT / "netlists" / "levitated_disk.lib", tmp_path, TS, 320, progress=False,
+               plots=False, segment=64, density=2.0)
+    lev, z = s["levitation"], model.coordinates[0]
+    fall = np.sqrt(4 * 0.02 * z.scale / 9.81) / TS
+    assert not lev["held"] and lev["coordinate"] == "z" and lev["value"] < 0
+    assert lev["lost_at_period"] == pytest.approx(fall, rel=0.05)
+    assert s["segments"]["run"] == lev["lost_at_period"] // 64 + 1 < s["segments"]["count"] == 5
+    assert s["cycles"] == 64 * s["segments"]["run"]
+    assert "stopped after that segment" in sd._lost_hint(s)
+    assert f"periods {64 * (s['segments']['run'] - 1)}.." in (tmp_path / "sigma_delta.cir").read_text()
