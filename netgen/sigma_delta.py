@@ -59,8 +59,9 @@ class Timing:
 # per channel (z, tilt_x, tilt_y): the dither sits at f_s (1/2 - delta), a different delta per
 # channel so that the three dithers are uncorrelated
 DITHER_DELTA = (0.0218, 0.0274, 0.0331)
-# ngspice runs longer than this many periods go in segments restarted at t = 0 (run_segments)
-SEGMENT = 2048
+# ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
+SEGMENT_S = 5e-4
+MIN_SEGMENT = 16
 
 
 @dataclass
@@ -389,7 +390,10 @@ def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
     tc = tc[(tc > 0) & (tc < t[-1])]                 # t = 0: the start, not a corner
     j = np.clip(np.searchsorted(t, tc), 1, len(t) - 1)
     gap = np.minimum(np.abs(t[j] - tc), np.abs(t[j - 1] - tc))
-    missed = np.unique((tc[gap > 1e-6 * d.ts * d.t.edge] / d.ts).astype(int))
+    # a point within 1e-3 of the ramp time counts as a hit: the kink then falls inside a step at a
+    # fraction gap/step of it, and so does the ringing it leaves (ngspice also lands points a few
+    # ps short of a corner and keeps its chains: measured, 1.2 ps short at 1 us, chains intact)
+    missed = np.unique((tc[gap > 1e-3 * d.ts * d.t.edge] / d.ts).astype(int))
     return {"periods_with_a_missed_corner": int(len(missed)),
             "first_period": int(missed[0]) if len(missed) else None}
 
@@ -560,7 +564,7 @@ def plot_states(clock: dict, path: Path) -> Path:
 
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
         progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        segment: int = SEGMENT, **choices) -> dict:
+        segment: int | None = None, **choices) -> dict:
     """Design, render, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator "ngspice" runs the .lib `lib`; "vacask" the compiled Verilog-A module (the .va next
     to `lib`, else the module emitted from `model`) in the same loop (netgen.sigma_delta_vacask)."""
@@ -596,7 +600,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     spectra = summary.pop("spectra")
     np.savez_compressed(out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items()
                                                 for k, v in (("f", fr), ("psd", p))})
-    summary.update({"model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
+    summary.update({"requested_cycles": cycles, "model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
                     "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
                     "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
                                "timing": asdict(d.t), "duty": d.duty}})
@@ -608,41 +612,56 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     return summary | {"spectra": spectra, "clock": clock}
 
 
+def segment_periods(ts: float, segment: int | None, cycles: int) -> int:
+    """Periods per ngspice segment: `segment` if given (0: the whole run in one), else
+    SEGMENT_S of simulated time (at least MIN_SEGMENT periods)."""
+    if segment == 0:
+        return cycles
+    return min(cycles, segment if segment else max(MIN_SEGMENT, round(SEGMENT_S / ts)))
+
+
 def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
-                 progress: bool, segment: int) -> tuple[dict, dict, dict]:
-    """Run the ngspice bench in segments of `segment` periods, each restarted at t = 0 from the
-    node state the previous one ended in: the per-clock samples, the missed corners, the plan.
-    A segment that loses the plate is the last (its netlist, with its .ic, stays in `out`).
-    Why: ngspice 39 chains a periodic PULSE's breakpoints, and the chain's corner test
-    (time - period start vs the ramp, to a few ULPs) loses precision as time grows; in one
-    2^16-period run the chains broke for good at period 9456 and the plate fell (README)."""
-    segment = segment if segment > 0 else cycles
-    starts = list(range(0, cycles, segment))
-    states = state_nodes(lib, model, d) if len(starts) > 1 else []
-    parts, missed, ic, wall0 = [], [], None, time.perf_counter()
-    for n0 in starts:
-        n = min(segment, cycles - n0)
-        last = n0 + n >= cycles
-        bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic,
-                          states=[] if last else states)
+                 progress: bool, segment: int | None) -> tuple[dict, dict, dict]:
+    """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
+    reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
+    missed an electrode-phase corner is cut at the start of that period, and the next segment
+    restarts there with fresh breakpoint chains. A segment that loses the plate is the last
+    (its netlist, with its .ic, stays in `out`).
+    Why: ngspice 39 chains a periodic PULSE's breakpoints; once a chain breaks the electrode
+    currents ring after every ramp, the readout integrates the ringing and the plate falls
+    (README "Sigma-delta loop"): restarting at the first missed corner never runs on a broken chain."""
+    length = segment_periods(d.ts, segment, cycles)
+    states = state_nodes(lib, model, d) if length < cycles else []
+    parts, accepted_misses, cuts, runs = [], [], [], 0
+    n0, ic, wall0 = 0, None, time.perf_counter()
+    while n0 < cycles:
+        n = min(length, cycles - n0)
+        bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states)
         plot = simulate(bench, out, d.ts * n, progress,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
-        part = per_clock(plot, d, n, model)
+        runs += 1
+        t = np.asarray(plot["time"])
+        first = missed_corners(t, d, n)["first_period"]
+        keep = n if first is None or not states else max(first, 1)
+        if keep < n:
+            cuts.append({"start": n0, "missed_at": n0 + first})
+        if first is not None and first < keep:          # a miss in the first period is kept: progress
+            accepted_misses.append(n0 + first)
+        part = per_clock(plot, d, keep, model)
         part["time"] = part["time"] + n0 * d.ts
         parts.append(part)
-        missed.append((n0, missed_corners(np.asarray(plot["time"]), d, n)))
-        if not last:
-            ic = {node: float(plot[f"v({node})"][-1]) for node in states}
+        if states:
+            ic = {node: float(np.interp(keep * d.ts, t, plot[f"v({node})"])) for node in states}
         del plot
         (out / "sigma_delta.raw").unlink(missing_ok=True)
+        n0 += keep
         if not levitation(part, model)["held"]:
             break
     clock = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    with_misses = [{"start": n0, "periods": bp["periods_with_a_missed_corner"], "first": n0 + bp["first_period"]}
-                   for n0, bp in missed if bp["first_period"] is not None]
-    breakpoints = {"periods_with_a_missed_corner": sum(m["periods"] for m in with_misses),
-                   "first_period": with_misses[0]["first"] if with_misses else None, "segments": with_misses}
-    plan = {"periods": segment, "count": len(starts), "run": len(parts), "state_nodes": states}
+    breakpoints = {"periods_with_a_missed_corner": len(accepted_misses),
+                   "first_period": accepted_misses[0] if accepted_misses else None,
+                   "segments_cut_at_a_missed_corner": cuts}
+    plan = {"periods": length, "ngspice_runs": runs, "periods_run": int(n0), "state_nodes": states}
     return clock, breakpoints, plan
 
 
@@ -730,9 +749,9 @@ def cli(args) -> int:
         tone = Tone.parse(args.tone) if args.tone else None
         if args.ts <= 0 or args.cycles < 64:
             raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
-        if args.segment < 0 or 0 < args.segment < 16:
-            raise ValueError(f"--segment {args.segment}: give at least 16 periods per segment, or 0 for one run "
-                             f"(the default is {SEGMENT})")
+        if args.segment is not None and (args.segment < 0 or 0 < args.segment < MIN_SEGMENT):
+            raise ValueError(f"--segment {args.segment}: give at least {MIN_SEGMENT} periods per segment, or 0 "
+                             f"for one run (the default is {SEGMENT_S * 1e3:g} ms of simulated time)")
         if not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
         pressure = parse_pressure(args.pressure) if args.pressure is not None else None
@@ -783,9 +802,9 @@ def _lost_hint(s: dict) -> str:
         hints.append(f"ngspice missed an electrode-phase corner in {bp['periods_with_a_missed_corner']} "
                      f"period(s), first {bp['first_period']} (README 'Sigma-delta loop')")
     seg = s.get("segments") or {}
-    if seg.get("run", 0) < seg.get("count", 0):
-        hints.append(f"ngspice stopped after that segment ({seg['run']} of {seg['count']}, {s['cycles']} periods; "
-                     f"its netlist with the restart state is DIR/sigma_delta.cir)")
+    if seg.get("state_nodes") and seg.get("periods_run", 0) < s.get("requested_cycles", 0):
+        hints.append(f"ngspice stopped after the segment that lost it ({seg['periods_run']} of "
+                     f"{s['requested_cycles']} periods; its netlist with the restart state is DIR/sigma_delta.cir)")
     partial = {c: v.get("partial_latches") for c, v in s["channels"].items() if v.get("partial_latches")}
     if partial:
         hints.append(f"partial latch decisions {partial}")
@@ -818,10 +837,10 @@ def add_parser(sub) -> None:
     p.add_argument("--dither", type=float, default=0.2,
                    help="comparator dither amplitude, a fraction of the one-period feedback displacement "
                         "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
-    p.add_argument("--segment", type=int, default=SEGMENT,
-                   help=f"ngspice: run in segments of this many periods, each restarted at t = 0 from the "
-                        f"state the last one ended in (ngspice loses its PULSE breakpoints late in long "
-                        f"runs; 0 = one run; default {SEGMENT})")
+    p.add_argument("--segment", type=int, default=None,
+                   help="ngspice: run in segments of this many periods, each restarted at t = 0 from the "
+                        "state the run reached (and cut at any missed breakpoint: README 'Sigma-delta loop'); "
+                        f"0 = one run; default {SEGMENT_S * 1e3:g} ms of simulated time")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)
