@@ -5,8 +5,9 @@ rigid-body-only model, and a tone on z. Prints the issue-4 acceptance figures.
 
 Runs go through VACASK by default (netgen.sigma_delta_vacask: the same loop with the compiled
 Verilog-A model, about 10 ms per period on one core, so a 2^16-period run takes ~10-15 min);
---simulator ngspice runs the ngspice bench instead (~0.1 s per period: hours). Runs go in
-parallel, one process each; a run whose summary.json exists is reused unless --rerun.
+--simulator ngspice runs the ngspice bench instead (~50-70 ms per period: over an hour per
+2^16-period run, in restarted segments). Runs go in parallel, one process each; a run whose
+summary.json exists is reused unless --rerun.
 """
 
 from __future__ import annotations
