@@ -285,10 +285,9 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -
     """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
     internal ones (position, velocity, film branches; read from the .lib) and the testbench's
     charge amplifiers, samples and latches. A segment restarted from them continues the run."""
-    text = Path(lib).read_text().lower().replace("\n+", " ")
-    lines = text.split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0].splitlines()
-    ports = set(lines[0].split())
-    inner = sorted({n for line in lines[1:] if line.startswith("c")
+    body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
+    ports = {p["name"].lower() for p in model.ports()}
+    inner = sorted({n for line in body.splitlines() if line.startswith("c")
                     for n in line.split()[1:3] if n != "0" and n not in ports})
     bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
     return [f"{instance}.{n}" for n in inner] + bench
