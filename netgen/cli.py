@@ -23,7 +23,11 @@ def _build(args: argparse.Namespace) -> int:
     with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.executor)
         result = build(structure, progress=not args.quiet, **parallel)
     model = result.model
-    written = write_outputs(model, Path(args.output), args.format)
+    try:
+        written = write_outputs(model, Path(args.output), args.format)
+    except ValueError as exc:                       # e.g. --format xspice on a model with direct fits
+        print(f"netgen: {args.structure}: {exc}", file=sys.stderr)
+        return 2
     if not args.no_plots:
         written += write_figures(result, Path(args.output))
     if not args.quiet:
@@ -53,7 +57,9 @@ def parser() -> argparse.ArgumentParser:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
     b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", choices=["ngspice", "veriloga", "all"], default="ngspice", help="netlist dialects to write")
+    b.add_argument("--format", choices=["ngspice", "veriloga", "xspice", "all"], default="ngspice",
+                   help="netlist dialects to write (xspice: the .lib with the plate terms in the compiled netgen_es "
+                        "code model, see `netgen codemodel`)")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
     from .executor import add_build_options
@@ -65,6 +71,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--timeout", type=float, default=3600.0, help="seconds before the run is stopped")
     r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
     r.set_defaults(func=_simulate)
+    from .codemodel import add_parser as add_codemodel
+    add_codemodel(sub)
     from .sigma_delta import add_parser as add_sigma_delta
     add_sigma_delta(sub)
     from .sweep import add_parser as add_sweep

@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 from .emit_ngspice import subcircuit
 from .emit_veriloga import module
 from .model import MacroModel, write_files_atomic
 
-EMITTERS = {"ngspice": (".lib", subcircuit), "veriloga": (".va", module)}
+# xspice: the ngspice .lib with the plate terms in the compiled netgen_es code model (netgen.codemodel)
+EMITTERS = {"ngspice": (".lib", subcircuit), "veriloga": (".va", module),
+            "xspice": ("_xspice.lib", partial(subcircuit, style="xspice"))}
 
 
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
-    """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written."""
-    chosen = list(EMITTERS) if fmt == "all" else [fmt]
+    """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written.
+    "all" is every dialect the model supports (xspice needs 1/P capacitance fits)."""
+    direct = any(f.target == "direct" for f in model.capacitances)
+    chosen = [f for f in EMITTERS if not (f == "xspice" and direct)] if fmt == "all" else [fmt]
     if fmt != "all" and fmt not in EMITTERS:
         raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join([*EMITTERS, 'all'])}")
     # render everything before writing anything: a failing emitter or model leaves no output

@@ -43,11 +43,7 @@ def _force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tupl
     expression, and (node, gain) pairs of forces linear in a y node (emitted as cheap VCCS)."""
     c = model.coordinates[v]
     a = 1.0 / (c.mass * c.scale * ws * ws)
-    parts, linear = [f"{num(a * c.port_units[3])}*v(f_{c.name})"], []
-    if c.stiffness:
-        parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))}*v({state[v]})")
-    if c.damping:
-        parts.append(f"{num(-c.damping / (c.mass * ws))}*v(u_{c.name})")
+    parts, linear = [f"{gain}*v({n})" for n, gain in _linear_force_terms(model, v, ws)], []
     for f in model.capacitances:
         for k, poly in enumerate(f.polys):
             dpoly = poly.derivative(v)
@@ -61,6 +57,19 @@ def _force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tupl
             else:
                 parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})*v({y_node(f.electrode, k)})")
     return " + ".join(parts).replace("+ -", "- "), linear
+
+
+def _linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, str]]:
+    """(node, gain) of the linear right-hand side of coordinate v's velocity integrator (the
+    external force port, spring, damper), i.e. `_force_terms` without the electrostatics, as VCCS."""
+    c = model.coordinates[v]
+    a = 1.0 / (c.mass * c.scale * ws * ws)
+    terms = [(f"f_{c.name}", num(a * c.port_units[3]))]
+    if c.stiffness:
+        terms.append((f"xs_{c.name}", num(-c.stiffness / (c.mass * ws * ws))))
+    if c.damping:
+        terms.append((f"u_{c.name}", num(-c.damping / (c.mass * ws))))
+    return terms
 
 
 def node(electrode: str, k: int) -> str:
@@ -143,7 +152,7 @@ def noise_context(model: MacroModel, ws: float) -> dict:
             "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else ""}
 
 
-STYLES = ("fast", "nodes", "naive")
+STYLES = ("fast", "nodes", "naive", "xspice")
 
 
 def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast") -> str:
@@ -154,7 +163,9 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
     force nodes y = dv2 g^2 slope, charges linear in the g nodes, stop forces gated by a ternary.
     "nodes": the previous shared-node form (P_k, clamped P_k and y = dv2 slope / P^2 as B-sources).
     "naive": the benchmark baseline, every charge and force written out inline (no shared nodes,
-    no contact model): see `naive_subcircuit`."""
+    no contact model): see `naive_subcircuit`.
+    "xspice": the plate terms, forces and stops in the compiled XSPICE code model netgen_es
+    (netgen.codemodel; the netlist must load it): see `xspice_context`."""
     if style not in STYLES:
         raise ValueError(f"unknown ngspice emission style {style!r}; choose one of {STYLES}")
     if style == "naive":
@@ -165,7 +176,10 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
     if noise_enabled(model, noise):
         ctx.update(noise_context(model, ws))
     for v, (row, c) in enumerate(zip(ctx["coords"], model.coordinates)):
-        row.update({"cint": num(1.0 / ws), **dict(zip(("force_expr", "linear"), _force_terms(model, v, ws, state))),
+        if style == "xspice":                   # every mechanical term is linear here: VCCS, no parse trees
+            row["force_g"] = _linear_force_terms(model, v, ws)
+        terms = ("", []) if style == "xspice" else _force_terms(model, v, ws, state)
+        row.update({"cint": num(1.0 / ws), **dict(zip(("force_expr", "linear"), terms)),
                     "out_gain": num(c.scale / c.port_units[1])})
     clamps = model.term_clamps()
     ctx["style"] = style
@@ -173,6 +187,9 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
         cl = clamps[i] if clamps else [None] * len(f.polys)
         if style == "fast":
             row.update(_fast_fit(model, f, cl, state))
+            continue
+        if style == "xspice":
+            row.update(_xspice_fit(model, f))
             continue
         row.update({
             "nodes": [n for k, p in enumerate(f.polys) for n in _term_nodes(f.electrode, k, poly_expr(p, state), cl[k])],
@@ -184,6 +201,9 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
                    for k in range(len(f.polys))],
             "charge_expr": charge_expr(f, model.plate)})
     stops, per_coord = contact_terms(model)
+    if style == "xspice":                       # the stops are evaluated inside the code model
+        ctx["xspice"] = xspice_context(model, ws, stops, per_coord)
+        stops, per_coord = [], [[] for _ in model.coordinates]
     for row, c, terms in zip(ctx["coords"], model.coordinates, per_coord):
         a = 1.0 / (c.mass * c.scale * ws * ws)
         row["stops"] = [(name, num(a * gain)) for name, gain in terms]
@@ -218,6 +238,12 @@ def g_node(electrode: str, k: int) -> str:
 def c_node(electrode: str) -> str:
     """Node carrying (C_i(q) - C_i(0)) / c_ref = sum_k g_k - sum_k 1/P_k(0)."""
     return f"c_{electrode}"
+
+
+def _rest_capacitance(f, ncoords: int) -> float:
+    """C_i(0) / c_ref = sum_k 1/P_k(0) of a plate fit (at rest no term is clamped)."""
+    zero = np.zeros((1, ncoords))
+    return float(sum(1.0 / poly(zero)[0] for poly in f.polys))
 
 
 def _affine(poly: Polynomial) -> bool:
@@ -266,12 +292,84 @@ def _fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     # C(0) as a linear capacitor and only the rest behavioural: the same charge, but the plate row of
     # the matrix is never empty (with uic every g node starts at 0: a floating plate was singular)
     # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
-    c0 = float(sum(1.0 / poly(np.zeros((1, len(state))))[0] for poly in f.polys))
+    c0 = _rest_capacitance(f, len(state))
     cs = c_node(e)
     sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + \
         [f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))]
     return {"nodes": nodes, "gs": gs, "ys": ys, "dv2": dv2, "sums": sums,
             "charge_expr": f"{num(f.c_ref)}*v({cs})*v({e},{plate})", "c0": num(f.c_ref * c0)}
+
+
+# ------------------------------------------------------------------ the XSPICE code model form
+#
+# One compiled netgen_es instance (netgen/xspice/netgen_es/cfunc.mod) evaluates every plate term
+# g_k = 1/P_eff,k, the generalized forces and the contact stops, with analytic partials; a second
+# instance of the same model drives the capacitance nodes c_i only (an XSPICE instance stamps every
+# output x input pair of its ports, so the charges' instance takes the coordinates alone). The
+# charges stay ngspice capacitors, so the electrode currents are ngspice's own dQ/dt.
+
+def _vector(values) -> str:
+    return "[" + " ".join(str(int(v)) if isinstance(v, (int, np.integer)) else num(float(v)) for v in values) + "]"
+
+
+def _xspice_fit(model: MacroModel, f) -> dict:
+    """Template rows of one electrode in the xspice form: node c_i (driven by the code model into
+    1 ohm), C_i(0) as a linear capacitor, the rest of the charge in Cq_i."""
+    if f.target == "direct":
+        raise ValueError(f"electrode {f.electrode}: the xspice emission needs 1/P fits (fit target 'plates'), "
+                         "not 'direct'; fix: emit with style 'fast'")
+    c0 = _rest_capacitance(f, model.ncoords)
+    cs = c_node(f.electrode)
+    return {"sums": [f"R{cs} {cs} 0 1"], "c0": num(f.c_ref * c0),
+            "charge_expr": f"{num(f.c_ref)}*v({cs})*v({f.electrode},{model.plate})"}
+
+
+def xspice_context(model: MacroModel, ws: float, stops: list[dict],
+                   per_coord: list[list[tuple[str, float]]]) -> dict:
+    """The netgen_es instances and their .model card: every plate term as monomials of its
+    polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form)."""
+    n = model.ncoords
+    clamps = model.term_clamps()
+    p = {k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")}
+    for i, f in enumerate(model.capacitances):
+        if f.target == "direct":
+            _xspice_fit(model, f)                                   # raises with the fix
+        p["cref"].append(f.c_ref)
+        p["c0"].append(_rest_capacitance(f, n))
+        for k, poly in enumerate(f.polys):
+            term = len(p["term_elec"])
+            p["term_elec"].append(i)
+            knee, floor = clamps[i][k] if clamps and clamps[i][k] else (0.0, 0.0)
+            p["knee"].append(knee)
+            p["floor"].append(floor)
+            for e, c in zip(poly.exponents, poly.coeffs):
+                if c != 0.0:
+                    p["mono_term"].append(term)
+                    p["mono_coef"].append(float(c))
+                    p["mono_exp"].extend(int(x) for x in e)
+    gains = [1.0 / (c.mass * c.scale * ws * ws) for c in model.coordinates]
+    p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
+    nstop = max(len(stops), 1)                          # the model card needs the vectors even without stops
+    sa, sr, sg = np.zeros((nstop, n)), np.zeros((nstop, n)), np.zeros((nstop, n))
+    delta, damp = 1e-3, 0.0
+    if stops:
+        c = model.contact
+        delta, damp = c["smoothing"], c["damping"] / c["stiffness"] / c["smoothing"] ** 2
+        for j, pt in enumerate(c["points"]):
+            sa[j] = pt["a"]
+            sr[j] = np.asarray(pt["a"], dtype=float) * ws
+        for v, terms in enumerate(per_coord):
+            for name, gain in terms:
+                sg[int(name.split("_")[1]) - 1, v] = gains[v] * gain
+    p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
+    xs = " ".join(f"xs_{c.name}" for c in model.coordinates)
+    us = " ".join(f"u_{c.name}" for c in model.coordinates)
+    ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
+    cs = " ".join(c_node(f.electrode) for f in model.capacitances)
+    return {"name": f"{model.name}_es", "c_instance": f"[{xs}] NULL NULL NULL [{cs}]",
+            "f_instance": f"[{xs}] [{ve}] [{us}] [{us}] NULL",
+            "params": [(k, _vector(v)) for k, v in p.items()] + [("stop_delta", num(delta)), ("stop_damp", num(damp))],
+            "terms": len(p["knee"]), "stops": len(stops)}
 
 
 # ------------------------------------------------------------------ the naive baseline (benchmarks only)

@@ -67,6 +67,7 @@ class Bench:
     extra: list[str] = field(default_factory=list)
     options: str = ""
     driven_elsewhere: set[str] = field(default_factory=set)   # ports the `extra` lines drive
+    control: list[str] = field(default_factory=list)          # .control lines (the code model of an xspice .lib)
 
     def netlist(self, analysis: str) -> str:
         ports = [p["name"] for p in self.model.ports()]
@@ -81,6 +82,8 @@ class Bench:
         lines += self.extra
         if self.options:
             lines.append(f".options {self.options}")
+        if self.control:
+            lines += [".control", *self.control, ".endc"]
         lines += [analysis, ".end", ""]
         return "\n".join(lines)
 
@@ -91,3 +94,15 @@ def states(plot, model: MacroModel, instance: str = "x1") -> tuple[np.ndarray, n
     x = np.stack([plot[f"v({instance}.xs_{c.name})"] for c in model.coordinates], axis=-1)
     u = np.stack([plot[f"v({instance}.u_{c.name})"] for c in model.coordinates], axis=-1)
     return x, u * ws
+
+
+def emitted_library(model: MacroModel, style: str, folder: Path, committed: Path) -> tuple[Path, list[str]]:
+    """The model's .lib in one ngspice emission style and the .control lines it needs: "fast" is the
+    committed netlist, "xspice" the plate terms in the compiled netgen_es code model (built once)."""
+    if style == "fast":
+        return committed, []
+    from netgen import codemodel
+    from netgen.emit_ngspice import subcircuit
+    lib = Path(folder) / f"{model.name}_{style}.lib"
+    lib.write_text(subcircuit(model, style=style))
+    return lib, codemodel.control_lines(codemodel.build(progress=lambda m: None))

@@ -20,7 +20,7 @@ from netgen import contact
 from netgen.model import MacroModel
 from netgen.simulate import run_ngspice
 from netgen.vacask import VacaskBench, compile_va, run_vacask
-from tb import Bench, states
+from tb import Bench, emitted_library, states
 
 ROOT = Path(__file__).resolve().parents[1]
 NETLISTS = ROOT / "netlists"
@@ -86,9 +86,12 @@ def _check_rest(model: MacroModel, time: np.ndarray, x: np.ndarray) -> None:
     assert np.abs(x[rest, 1:]).max() < 1e-2
 
 
-def test_ngspice_plate_pulled_in_rests_at_the_stop(model, tmp_path):
+@pytest.mark.parametrize("style", ["fast", "xspice"])
+def test_ngspice_plate_pulled_in_rests_at_the_stop(model, style, tmp_path):
+    """Both ngspice emissions: B-sources, and the clamp and stops inside the netgen_es code model."""
+    lib, control = emitted_library(model, style, tmp_path, NETLISTS / "levitated_disk.lib")
     sources = {e.name: f"DC {VOLTS}" for e in model.electrodes if e.name.startswith("top")} | {"plate": "0"}
-    bench = Bench(model, NETLISTS / "levitated_disk.lib", sources=sources, options="reltol=1e-4 chgtol=1e-18")
+    bench = Bench(model, lib, sources=sources, options="reltol=1e-4 chgtol=1e-18", control=control)
     plot = run_ngspice(bench.netlist(f".tran 100n {STOP} 0 100n uic"), tmp_path)[0]
     x, _ = states(plot, model)
     assert plot["time"][-1] == pytest.approx(STOP)                          # the run finished

@@ -116,6 +116,9 @@ def test_committed_netlists_are_current(reference_model):
     lib_old = (NETLISTS / f"{NAME}.lib").read_text(encoding="utf-8")
     json_old = (NETLISTS / f"{NAME}.json").read_text(encoding="utf-8")
     problems = _compare_text(lib_new, lib_old, f"{NAME}.lib", rounded_lines="*")
+    xspice_new = subcircuit(reference_model, style="xspice")
+    xspice_old = (NETLISTS / f"{NAME}_xspice.lib").read_text(encoding="utf-8")
+    problems += _compare_text(xspice_new, xspice_old, f"{NAME}_xspice.lib", rounded_lines="*")
     # the JSON: its text with numbers masked, then its numbers by key path (see NOISE)
     problems += _compare_text(json_new, json_old, f"{NAME}.json", numbers=False) if not problems else []
     problems += _compare_json(json.loads(json_new), json.loads(json_old)) if not problems else []
@@ -380,6 +383,9 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
     with zipfile.ZipFile(wheel) as z:
         names = set(z.namelist())
         assert "netgen/templates/ngspice_subckt.lib.j2" in names
+        # the code model's sources (netgen.codemodel builds them on the user's machine)
+        assert {"netgen/xspice/modpath.lst", "netgen/xspice/netgen_es/ifspec.ifs",
+                "netgen/xspice/netgen_es/cfunc.mod"} <= names
         entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
         assert "netgen = netgen.cli:main" in z.read(entry).decode()
         z.extractall(tmp_path / "site")
@@ -398,3 +404,20 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
     assert Path(where).is_relative_to(tmp_path / "site"), where       # the wheel's copy, not the repo's
     assert text == subcircuit(MacroModel.load_json(NETLISTS / f"{NAME}.json"))
     assert f".subckt {NAME} " in text and ".ends" in text
+
+
+def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path):
+    """The code model evaluates 1/P plate terms only: a 'direct' polynomial fit is refused with
+    the electrode and the fix, writing the xspice format alone writes nothing, and `all` leaves
+    the xspice .lib out for such a model (and writes the rest)."""
+    import dataclasses
+    model = MacroModel.load_json(NETLISTS / f"{NAME}.json")
+    fits = [dataclasses.replace(model.capacitances[0], target="direct"), *model.capacitances[1:]]
+    bad = dataclasses.replace(model, capacitances=fits)
+    with pytest.raises(ValueError, match=r"top_r1s1.*'direct'.*fix: emit with style 'fast'"):
+        subcircuit(bad, style="xspice")
+    with pytest.raises(ValueError):
+        emit.write_outputs(bad, tmp_path / "one", "xspice")
+    assert not (tmp_path / "one").exists() or not any((tmp_path / "one").iterdir())
+    written = {p.name for p in emit.write_outputs(bad, tmp_path / "all", "all")}
+    assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"}

@@ -1,0 +1,202 @@
+"""The netgen_es XSPICE code model: build it for the installed ngspice and say where it is.
+
+Debian's ngspice 39 cannot load compiled Verilog-A (no OSDI), but it loads XSPICE code models
+(`.cm` shared libraries, `codemodel` / `pre_codemodel`). netgen_es (netgen/xspice/netgen_es)
+evaluates all plate terms, forces and contact stops of a macromodel in one compiled instance,
+which replaces ~220 behavioural sources of the `.lib` (README "ngspice code model").
+
+Building needs what ngspice's own build of its code models needs: the ngspice source of the
+installed version (for cmpp, the code-model preprocessor, and the headers), flex, bison and gcc.
+The source comes from Debian's source package (`apt-get source`, with a deb-src list kept in the
+cache), unless NETGEN_NGSPICE_SOURCE names an unpacked tree. The result is cached per
+(code-model sources, ngspice version): `build()` is a no-op after the first call.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tarfile
+import tempfile
+from pathlib import Path
+
+from .simulate import SimulatorNotFound
+
+SOURCES = Path(__file__).resolve().parent / "xspice"
+MODEL = "netgen_es"
+# The configure switches of Debian's ngspice build (debian/rules: --enable-xspice --enable-cider
+# --enable-pss) that change the layout of the device tables a code model hands to ngspice.
+CONFIG_H = "#define XSPICE 1\n#define CIDER 1\n#define WITH_PSS 1\n#define SIMULATOR 1\n"
+# Members of the ngspice source tarball the build reads.
+NEEDED = ("src/include/", "src/xspice/cmpp/", "src/xspice/icm/dlmain.c", "src/misc/dstring.c")
+CFLAGS = ["-O3", "-fPIC", "-fvisibility=hidden", "-fno-math-errno", "-fno-trapping-math",
+          "-fassociative-math", "-fno-signed-zeros"]
+
+
+class CodeModelError(SimulatorNotFound):
+    """The code model could not be built; the message says what is missing and how to fix it
+    (`netgen` exits 3, as for a missing simulator)."""
+
+
+def cache_dir() -> Path:
+    """Where built code models and the ngspice source live (NETGEN_CACHE, else XDG cache)."""
+    base = os.environ.get("NETGEN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen")
+    return Path(base) / "codemodel"
+
+
+def ngspice_version() -> str:
+    """The installed Debian ngspice package version (e.g. 39.3+ds-1)."""
+    try:
+        out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "ngspice"], capture_output=True, text=True)
+    except FileNotFoundError as exc:
+        raise CodeModelError("dpkg-query not found: the code model is built against Debian's ngspice package") from exc
+    if out.returncode != 0 or not out.stdout.strip():
+        raise CodeModelError("ngspice is not installed as a Debian package; fix: apt-get install ngspice")
+    return out.stdout.strip()
+
+
+def sources_digest(version: str) -> str:
+    """Cache key: the code-model sources, the config and the ngspice version."""
+    h = hashlib.sha256(version.encode() + CONFIG_H.encode() + " ".join(CFLAGS).encode())
+    for f in sorted(SOURCES.rglob("*")):
+        if f.is_file() and f.suffix in (".ifs", ".mod", ".lst"):
+            h.update(f.relative_to(SOURCES).as_posix().encode() + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def path() -> Path:
+    """Where the code model for the installed ngspice is (or will be) cached."""
+    version = ngspice_version()
+    return cache_dir() / f"netgen-{sources_digest(version)}.cm"
+
+
+def _run(argv: list[str], cwd: Path, env: dict | None = None) -> None:
+    try:
+        out = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env)
+    except FileNotFoundError as exc:
+        raise CodeModelError(f"{argv[0]} not found; fix: apt-get install flex bison gcc") from exc
+    if out.returncode != 0:
+        raise CodeModelError(f"{' '.join(argv)} failed in {cwd}:\n{out.stderr[-2000:]}")
+
+
+def _fetch_source(version: str, dest: Path) -> Path:
+    """Download Debian's ngspice source package (orig tarball) into dest; return the tarball."""
+    upstream = version.split("-")[0]
+    have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
+    if have:
+        return have[0]
+    suites = subprocess.run(["sh", "-c", ". /etc/os-release && echo $VERSION_CODENAME"],
+                            capture_output=True, text=True).stdout.strip() or "bookworm"
+    lists = dest / "apt-lists"
+    (lists / "partial").mkdir(parents=True, exist_ok=True)
+    src = dest / "deb-src.list"
+    src.write_text(f"deb-src http://deb.debian.org/debian {suites} main\n")
+    opts = ["-o", f"Dir::Etc::sourcelist={src}", "-o", "Dir::Etc::sourceparts=-",
+            "-o", f"Dir::State::Lists={lists}", "-o", "APT::Get::List-Cleanup=0", "-qq"]
+    _run(["apt-get", *opts, "update"], dest)
+    _run(["apt-get", *opts, "source", "--download-only", f"ngspice={version}"], dest)
+    have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
+    if not have:
+        raise CodeModelError(f"apt-get source ngspice={version} gave no orig tarball in {dest}; fix: set "
+                             "NETGEN_NGSPICE_SOURCE to an unpacked ngspice source tree of that version")
+    return have[0]
+
+
+def _source_tree(version: str, work: Path) -> Path:
+    """An ngspice source tree holding NEEDED: NETGEN_NGSPICE_SOURCE, or the unpacked Debian source."""
+    given = os.environ.get("NETGEN_NGSPICE_SOURCE")
+    if given:
+        root = Path(given)
+        if not (root / "src/xspice/cmpp/main.c").exists():
+            raise CodeModelError(f"NETGEN_NGSPICE_SOURCE={given} is not an ngspice source tree "
+                                 "(no src/xspice/cmpp/main.c)")
+        return root
+    tarball = _fetch_source(version, cache_dir() / "ngspice-source")
+    with tarfile.open(tarball) as tar:
+        members = [m for m in tar.getmembers()
+                   if any(part in m.name for part in NEEDED) and ".." not in m.name and not m.issym()]
+        tar.extractall(work / "src", members=members, filter="data")
+    tops = {Path(m.name).parts[0] for m in members}
+    if len(tops) != 1:
+        raise CodeModelError(f"unexpected layout of {tarball}")
+    return work / "src" / tops.pop()
+
+
+def _cmpp(tree: Path, work: Path) -> Path:
+    """Build ngspice's code-model preprocessor from its sources."""
+    src, out = tree / "src/xspice/cmpp", work / "cmpp"
+    out.mkdir()
+    for f in src.iterdir():
+        shutil.copy(f, out / f.name)
+    for name in ("ifs", "mod"):
+        _run(["flex", "-o", f"{name}_lex.c", f"{name}_lex.l"], out)
+        _run(["bison", "-d", "-o", f"{name}_yacc.c", f"{name}_yacc.y"], out)
+    files = ["main.c", "file_buffer.c", "pp_ifs.c", "pp_lst.c", "pp_mod.c", "read_ifs.c", "writ_ifs.c", "util.c",
+             "ifs_lex.c", "ifs_yacc.c", "mod_lex.c", "mod_yacc.c"]
+    _run(["gcc", "-O2", "-I.", "-o", "cmpp", *files], out)
+    return out / "cmpp"
+
+
+def build(force: bool = False, progress=print) -> Path:
+    """Build (or find in the cache) the netgen_es code model for the installed ngspice; its path."""
+    target = path()
+    if target.exists() and not force:
+        return target
+    version = ngspice_version()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="netgen-cm-") as tmp:
+        work = Path(tmp)
+        progress(f"codemodel: building {MODEL} for ngspice {version} in {work}")
+        tree = _source_tree(version, work)
+        cmpp = _cmpp(tree, work)
+        gen = work / "gen"
+        (gen / MODEL).mkdir(parents=True)
+        (work / "cfg/ngspice").mkdir(parents=True)
+        (work / "cfg/ngspice/config.h").write_text(CONFIG_H)
+        env = dict(os.environ, CMPP_IDIR=str(SOURCES), CMPP_ODIR=str(gen))
+        _run([str(cmpp), "-lst"], gen, env)
+        env.update(CMPP_IDIR=str(SOURCES / MODEL), CMPP_ODIR=str(gen / MODEL))
+        _run([str(cmpp), "-ifs"], gen, env)
+        _run([str(cmpp), "-mod"], gen, env)
+        inc = ["-I", str(work / "cfg"), "-I", str(tree / "src/include"), "-I", str(gen), "-I", str(gen / MODEL)]
+        objs = []
+        for src in (tree / "src/xspice/icm/dlmain.c", gen / MODEL / "cfunc.c", gen / MODEL / "ifspec.c",
+                    tree / "src/misc/dstring.c"):
+            obj = gen / f"{src.parent.name}_{src.stem}.o"
+            _run(["gcc", *CFLAGS, *inc, "-c", str(src), "-o", str(obj)], gen)
+            objs.append(str(obj))
+        tmp_cm = target.with_suffix(f".{os.getpid()}.tmp")
+        _run(["gcc", "-shared", *CFLAGS, *objs, "-lm", "-o", str(tmp_cm)], gen)
+        os.replace(tmp_cm, target)
+    progress(f"codemodel: {target}")
+    return target
+
+
+def control_lines(cm: Path) -> list[str]:
+    """The .control lines a netlist using the code model needs: load it before the circuit is
+    parsed, and keep ngspice's trtol (an XSPICE 'A' device otherwise lowers it to 1 for the whole
+    circuit: several times the time points)."""
+    return [f"pre_codemodel {cm}", "pre_set xtrtol=7"]
+
+
+def add_parser(sub) -> None:
+    """`netgen codemodel`: build the code model for the installed ngspice (cached) and print its path."""
+    p = sub.add_parser("codemodel", help="build the netgen_es XSPICE code model for the installed ngspice "
+                       "(needed by the xspice .lib and --simulator ngspice-xspice) and print its path")
+    p.add_argument("--force", action="store_true", help="rebuild even if the cached build exists")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args) -> int:
+    import sys
+    try:
+        cm = build(force=args.force, progress=lambda m: print(m, file=sys.stderr))
+    except CodeModelError as exc:
+        print(f"netgen: code model: {exc}", file=sys.stderr)
+        return 3
+    print(cm)
+    print("load it with these .control lines:\n  " + "\n  ".join(control_lines(cm)), file=sys.stderr)
+    return 0
