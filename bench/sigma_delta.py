@@ -17,6 +17,9 @@ prints per variant the medians of:
 
 Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit differs):
 
+  xspice  the .lib with the plate terms, forces and stops in the compiled XSPICE code model
+          netgen_es (style "xspice", netgen.codemodel, built on first use); the netlist loads it
+          and keeps trtol at 7 (`set xtrtol=7`)
   fast    the emitted .lib (netgen.emit_ngspice.subcircuit, style "fast": the default)
   nodes   the previous shared-node emission (style "nodes"), for what the fast form bought
   naive   the baseline: every charge and force written out inline (style "naive", no shared
@@ -52,13 +55,14 @@ sys.path.insert(0, str(ROOT))          # run from a checkout without installing 
 
 import numpy as np  # noqa: E402
 
+from netgen import codemodel  # noqa: E402
 from netgen import sigma_delta as sd  # noqa: E402
 from netgen.emit_ngspice import num, subcircuit, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.simulate import ngspice_path, read_raw  # noqa: E402
 
 MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
-VARIANTS = ("fast", "nodes", "naive", "floor", "linear")
+VARIANTS = ("xspice", "fast", "nodes", "naive", "floor", "linear")
 STATS = {"accepted": r"Accepted timepoints\s*=\s*(\d+)", "rejected": r"Rejected timepoints\s*=\s*(\d+)",
          "iterations": r"Transient iterations\s*=\s*(\d+)",
          "analysis_s": r"Total analysis time \(seconds\)\s*=\s*([0-9.]+)",
@@ -105,13 +109,14 @@ def library(model: MacroModel, variant: str) -> str:
     return subcircuit(model, noise=False, style=variant)
 
 
-def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool) -> dict:
+def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool,
+             control: list[str] = ()) -> dict:
     """One ngspice -b run of the testbench with `lib_text` as the model; stats from `rusage all`."""
     workdir.mkdir(parents=True, exist_ok=True)
     lib = workdir / "model.lib"
     lib.write_text(lib_text)
     d = sd.design(model, ts)
-    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1)
+    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control)
     net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
     (workdir / "bench.cir").write_text(net)
     (workdir / "bench.raw").unlink(missing_ok=True)
@@ -161,8 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--naive-cycles", type=int, default=64, help="periods for the slow naive baseline (default 64)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per variant; figures are medians (default 3)")
     ap.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
-    ap.add_argument("--variants", default="fast,floor,linear,naive",
-                    help=f"comma-separated subset of {','.join(VARIANTS)} (default fast,floor,linear,naive)")
+    ap.add_argument("--variants", default="xspice,fast,floor,linear,naive",
+                    help=f"comma-separated subset of {','.join(VARIANTS)} (default xspice,fast,floor,linear,naive)")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
     args = ap.parse_args(argv)
@@ -172,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 64 and --repeat >= 1")
     model = MacroModel.load_json(args.model)
     libs = {v: library(model, v) for v in variants}
+    control = {v: [] for v in variants}
+    if "xspice" in variants:
+        control["xspice"] = codemodel.control_lines(codemodel.build(progress=lambda m: print(m, file=sys.stderr)))
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
     load0 = os.getloadavg()
     runs: dict[str, list[dict]] = {v: [] for v in variants}
@@ -180,7 +188,8 @@ def main(argv: list[str] | None = None) -> int:
         for r in range(args.repeat):
             order = variants[r % len(variants):] + variants[:r % len(variants)]
             for v in order:
-                res = run_once(model, libs[v], base / v, args.ts, cycles[v], check=v not in ("floor",))
+                res = run_once(model, libs[v], base / v, args.ts, cycles[v], check=v not in ("floor",),
+                               control=control[v])
                 runs[v].append(res)
                 print(f"  run {r + 1}/{args.repeat} {v}: {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
                       file=sys.stderr, flush=True)
@@ -196,16 +205,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{v:8s} {s['cycles']:7d} {s['ms_per_cycle']:9.2f} {s['cpu_ms_per_cycle']:7.2f} "
               f"{s['pts_per_cycle']:8.1f} {s['all_pts_per_cycle']:8.1f} {s['it_per_pt']:6.2f} {s['us_per_it']:6.0f} "
               f"{s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}")
-    if "fast" in table:
-        f = table["fast"]
-        for ref in ("floor", "linear", "nodes", "naive"):
-            if ref in table:
-                a, b = ("fast", ref) if ref in ("floor", "linear") else (ref, "fast")
-                x, y = table[a], table[b]
-                print(f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
-                      f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration")
+    for a, b in (("xspice", "floor"), ("xspice", "linear"), ("fast", "xspice"), ("fast", "floor"),
+                 ("fast", "linear"), ("nodes", "fast"), ("naive", "fast")):
+        if a in table and b in table:
+            x, y = table[a], table[b]
+            print(f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
+                  f"{x['cpu_ms_per_cycle'] / y['cpu_ms_per_cycle']:.2f} in CPU time, "
+                  f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration")
+    for v in ("xspice", "fast"):
+        if v not in table:
+            continue
+        f = table[v]
         goal = 65536 * f["ms_per_cycle"] / 1e3
-        print(f"2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
+        print(f"{v}: 2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
               f"peak memory {f['peak_mb']:.0f} MB at {f['cycles']} periods (grows ~27 kB per period; "
               f"goal < 2 GB at 2^16)")
     return 0

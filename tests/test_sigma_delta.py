@@ -31,14 +31,15 @@ def model() -> MacroModel:
     return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
 
 
-@pytest.fixture(scope="module")
-def loop(model, tmp_path_factory) -> dict:
+@pytest.fixture(scope="module", params=["ngspice", "ngspice-xspice"])
+def loop(model, tmp_path_factory, request) -> dict:
     """One ngspice run of the loop in 3 segments, each restarted at t = 0 from the state the
     previous one ended in, analysed; about 15 s (README "Performance"). The checks below then
-    also hold across the restarts (the momentum balance would see an impulse at a restart)."""
+    also hold across the restarts (the momentum balance would see an impulse at a restart).
+    Twice: with the B-source .lib, and with the plate terms in the netgen_es code model (~4 s)."""
     out = tmp_path_factory.mktemp("sigma_delta")
     return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
-                  plots=False, skip=SKIP, segment=SEGMENT)
+                  plots=False, skip=SKIP, segment=SEGMENT, simulator=request.param)
 
 
 def test_design_follows_the_model(model):
