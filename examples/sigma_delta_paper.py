@@ -5,6 +5,8 @@ rigid-body-only model, and a tone on z. Prints the issue-4 acceptance figures.
 
 Runs go through VACASK by default (netgen.sigma_delta_vacask: the same loop with the compiled
 Verilog-A model, about 10 ms per period on one core, so a 2^16-period run takes ~10-15 min);
+--simulator ngspice-xspice runs the ngspice bench with the model's code-model .lib (README "ngspice
+code model": ~15 ms per period, about 16 min per 2^16-period run);
 --simulator ngspice runs the ngspice bench instead (~50-70 ms per period: over an hour per
 2^16-period run, in restarted segments). Runs go in parallel, one process each; a run whose
 summary.json exists is reused unless --rerun.
@@ -85,7 +87,7 @@ def main() -> int:
     p.add_argument("--cycles", type=int, default=65536)
     p.add_argument("-o", "--output", default="out/sigma_delta")
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--simulator", choices=("vacask", "ngspice"), default="vacask")
+    p.add_argument("--simulator", choices=("vacask", "ngspice", "ngspice-xspice"), default="vacask")
     p.add_argument("--runs", default=",".join(RUNS), help=f"comma-separated subset of {', '.join(RUNS)}")
     p.add_argument("--rerun", action="store_true", help="rerun even if DIR/<run>/summary.json exists")
     p.add_argument("--vacask-options", default="", help='extra VACASK options, e.g. "tran_fbr=0.25" '

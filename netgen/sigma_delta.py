@@ -227,9 +227,10 @@ def force_table(model: MacroModel, electrodes: list[dict], vfb: float) -> list[d
 
 def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: float = 0.25,
            lead: float = 0.8, full_scale: float = 0.01, g: float = G, timing: Timing | None = None,
-           dither: float = 0.2) -> Design:
+           dither: float = 0.2, reltol: float = 1e-3) -> Design:
     """Loop design from the model: V_fb so that gravity needs a mean z-bit of `density`,
-    V_s = sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V."""
+    V_s = sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V;
+    `reltol` is the simulators' relative tolerance (README "Sigma-delta loop": spectra)."""
     t = timing or Timing()
     iz = _coord_index(model, "z")
     electrodes = groups(model)
@@ -249,7 +250,7 @@ def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: floa
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
     return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, table,
                   mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t,
-                  damping=float(model.coordinates[iz].admittance(0.0).real), dither=dither)
+                  damping=float(model.coordinates[iz].admittance(0.0).real), dither=dither, reltol=reltol)
 
 
 def step_volts(model: MacroModel, table: list[dict], channel: str, ts: float, full_scale: float) -> float:
@@ -778,6 +779,9 @@ def cli(args) -> int:
         if args.segment is not None and (args.segment < 0 or 0 < args.segment < MIN_SEGMENT):
             raise ValueError(f"--segment {args.segment}: give at least {MIN_SEGMENT} periods per segment, or 0 "
                              f"for one run (the default is {SEGMENT_S * 1e3:g} ms of simulated time)")
+        if not 1e-7 <= args.reltol <= 1e-2:
+            raise ValueError(f"--reltol {args.reltol} is outside 1e-7..1e-2 (default 1e-3; 1e-4 for spectra "
+                             "you quote: README 'Sigma-delta loop')")
         if not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
         pressure = parse_pressure(args.pressure) if args.pressure is not None else None
@@ -796,7 +800,8 @@ def cli(args) -> int:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
     s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
-            simulator=args.simulator, segment=args.segment, lead=args.lead, dither=args.dither)
+            simulator=args.simulator, segment=args.segment, lead=args.lead, dither=args.dither,
+            reltol=args.reltol)
     if not args.quiet:
         for c in CHANNELS:
             ch = s["channels"][c]
@@ -864,6 +869,9 @@ def add_parser(sub) -> None:
     p.add_argument("--dither", type=float, default=0.2,
                    help="comparator dither amplitude, a fraction of the one-period feedback displacement "
                         "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
+    p.add_argument("--reltol", type=float, default=1e-3,
+                   help="relative tolerance of the simulator (default 1e-3; README 'Sigma-delta loop' on how it "
+                        "moves the in-band floors: 1e-4 for spectra you quote)")
     p.add_argument("--segment", type=int, default=None,
                    help="ngspice: run in segments of this many periods, each restarted at t = 0 from the "
                         "state the run reached (and cut at any missed breakpoint: README 'Sigma-delta loop'); "

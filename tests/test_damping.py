@@ -412,9 +412,11 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     (["--pressure", "-5"], "must be positive"),
     (["--dither", "-0.1"], "--dither -0.1 must be between 0"),
     (["--segment", "8"], "--segment 8: give at least 16 periods"),
+    (["--reltol", "0.5"], "--reltol 0.5 is outside 1e-7..1e-2"),
 ])
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
-    """Bad gas, noise, dither or segment options: exit 2 with the reason, no traceback, nothing built."""
+    """Bad gas, noise, dither, segment or tolerance options: exit 2 with the reason, no traceback,
+    nothing built."""
     from netgen import cli
     out = tmp_path / "sd"
     code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "-o", str(out), *args])
