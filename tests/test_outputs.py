@@ -406,18 +406,21 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
     assert f".subckt {NAME} " in text and ".ends" in text
 
 
-def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path):
+def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path, monkeypatch, capsys):
     """The code model evaluates 1/P plate terms only: a 'direct' polynomial fit is refused with
-    the electrode and the fix, writing the xspice format alone writes nothing, and `all` leaves
-    the xspice .lib out for such a model (and writes the rest)."""
+    the electrode and the fix (emitter and `netgen build --format xspice`: exit 2, nothing
+    written), and `all` leaves the xspice .lib out for such a model (and writes the rest)."""
     import dataclasses
+    import types
     model = MacroModel.load_json(NETLISTS / f"{NAME}.json")
     fits = [dataclasses.replace(model.capacitances[0], target="direct"), *model.capacitances[1:]]
     bad = dataclasses.replace(model, capacitances=fits)
     with pytest.raises(ValueError, match=r"top_r1s1.*'direct'.*fix: emit with style 'fast'"):
         subcircuit(bad, style="xspice")
-    with pytest.raises(ValueError):
-        emit.write_outputs(bad, tmp_path / "one", "xspice")
-    assert not (tmp_path / "one").exists() or not any((tmp_path / "one").iterdir())
+    monkeypatch.setattr("netgen.pipeline.build", lambda s, *args, **kwargs: types.SimpleNamespace(model=bad))
+    out = tmp_path / "one"
+    code = cli.main(["build", str(ROOT / REFERENCE), "-o", str(out), "-q", "--no-plots", "--format", "xspice"])
+    assert code == 2 and "electrode top_r1s1 has a 'direct' one; fix:" in capsys.readouterr().err
+    assert _leftovers(out) == []
     written = {p.name for p in emit.write_outputs(bad, tmp_path / "all", "all")}
     assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"}
