@@ -79,9 +79,11 @@ TESTBENCH: dict[str, tuple[str, Any, str]] = {
     "tone_amplitude": ("dimensionless", lambda v: None, "tone amplitude (f_ port unit)"),
     "tone_freq": ("frequency", lambda v: None if v > 0 else "must be > 0", "tone frequency"),
     "rigid_only": ("bool", None, "drop the eigenmodes"),
-    "simulator": ("str", None, "circuit simulator of the run"),
+    "simulator": ("str", None, "circuit simulator of the run (ngspice, ngspice-xspice, vacask)"),
+    "reltol": ("dimensionless", lambda v: None if 1e-7 <= v <= 1e-2 else "must be between 1e-7 and 1e-2",
+               "relative tolerance of the simulator"),
 }
-DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither")
+DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
 
 
 class SweepError(Exception):
