@@ -611,7 +611,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     summary.update({"requested_cycles": cycles, "model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
                     "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
                     "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
-                               "timing": asdict(d.t), "duty": d.duty}})
+                               "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if plots:
         plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",

@@ -140,10 +140,12 @@ def test_every_electrode_corner_is_a_time_point(loop):
 
 def test_run_went_in_segments(loop):
     """The fixture's run is the segmented one: 3 segments, restarted from the model's 14 states
-    (position and velocity of 7 coordinates) and the bench's 12 (4 per channel)."""
+    (position and velocity of 7 coordinates) and the bench's 12 (4 per channel); the summary
+    records the simulator and its tolerance."""
     seg = loop["segments"]
     assert seg["ngspice_runs"] >= 3 and seg["periods"] == SEGMENT and seg["periods_run"] == CYCLES
     assert sum(n.startswith("x1.") for n in seg["state_nodes"]) == 14 and len(seg["state_nodes"]) == 26
+    assert loop["simulator"] in ("ngspice", "ngspice-xspice") and loop["design"]["reltol"] == 1e-3
 
 
 def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_path):
