@@ -14,6 +14,7 @@ cache), unless NETGEN_NGSPICE_SOURCE names an unpacked tree. The result is cache
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
 import shutil
@@ -145,8 +146,17 @@ def build(force: bool = False, progress=print) -> Path:
     target = path()
     if target.exists() and not force:
         return target
-    version = ngspice_version()
     target.parent.mkdir(parents=True, exist_ok=True)
+    with open(target.parent / "build.lock", "w") as lock:   # parallel test workers build it once
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if target.exists() and not force:
+            return target
+        return _build(target, progress)
+
+
+def _build(target: Path, progress) -> Path:
+    """Fetch, preprocess and compile into `target` (atomically)."""
+    version = ngspice_version()
     with tempfile.TemporaryDirectory(prefix="netgen-cm-") as tmp:
         work = Path(tmp)
         progress(f"codemodel: building {MODEL} for ngspice {version} in {work}")
