@@ -8,7 +8,9 @@ within 2 %, in-band noise floor within 2 dB). Reads two `netgen sigma-delta` out
     .venv/bin/python bench/compare_simulators.py out/ng out/va
 
 and prints, per channel, both in-band floors and their difference, the notch nearest the
-model's (3,0) eigenfrequency in each, and the wall time per period of each run.
+model's (3,0) eigenfrequency in each, and the wall time per period of each run; then each run's
+floor in the first and the second half of its record (same PSD bins): how far one run's floor
+moves by itself, against which a difference between the simulators has to be read.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
+from netgen import sigma_delta as sd
 from netgen.model import MacroModel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,6 +31,19 @@ def notch_near(channel: dict, f0: float, tol: float = 0.05) -> dict | None:
     """The deepest detected notch within tol of f0, or None."""
     hits = [n for n in channel["notches"] if abs(n["freq_hz"] / f0 - 1) < tol]
     return max(hits, key=lambda n: n["depth_db"]) if hits else None
+
+
+def half_floors(folder: Path, summary: dict, channel: str) -> tuple[float, float]:
+    """In-band floor (median PSD, dB re F_fb^2/Hz, as summary.json's) of each half of the analysed
+    record, with the whole record's Welch segment length so both use the same bins."""
+    bits = np.load(folder / "bitstreams.npz")[f"bits_{channel}"][summary["skip"]:].astype(float)
+    n = min(len(bits), max(256, len(bits) // 8))
+    fb = 0.5 / summary["ts"] / summary["osr"]
+    out = []
+    for part in (bits[: len(bits) // 2], bits[len(bits) // 2:]):
+        f, p = sd.psd(part, summary["ts"], nperseg=min(n, len(part)))
+        out.append(float(10 * np.log10(np.median(p[(f > 0) & (f <= fb)]))))
+    return out[0], out[1]
 
 
 def main() -> None:
@@ -50,6 +68,10 @@ def main() -> None:
             f"{na['freq_hz']:.0f} Hz ({na['depth_db']:.1f} dB) / {nb['freq_hz']:.0f} Hz ({nb['depth_db']:.1f} dB), "
             f"{(na['freq_hz'] / nb['freq_hz'] - 1) * 100:+.2f} %" if na and nb else f"only in one: {na or nb}")
         print(f"{c:<8} {fa:16.1f} {fb:16.1f} {fa - fb:8.1f}   {notch}")
+    print(f"{'channel':<8} {'halves ' + names[0]:>22} {'halves ' + names[1]:>22}")
+    for c in ("z", "tilt_x", "tilt_y"):
+        h = [half_floors(d, r, c) for d, r in zip((args.first, args.second), runs)]
+        print(f"{c:<8} {h[0][0]:11.1f} {h[0][1]:10.1f} {h[1][0]:11.1f} {h[1][1]:10.1f}")
 
 
 if __name__ == "__main__":
