@@ -23,11 +23,10 @@ def _build(args: argparse.Namespace) -> int:
     with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.executor)
         result = build(structure, progress=not args.quiet, **parallel)
     model = result.model
-    direct = [f.electrode for f in model.capacitances if f.target == "direct"]
-    if args.format == "xspice" and direct:
-        print(f"netgen: {args.structure}: --format xspice needs 1/P capacitance fits, and electrode {direct[0]} "
-              "has a 'direct' one; fix: set the fit target to 'plates' in the structure's [fit], or use "
-              "--format ngspice", file=sys.stderr)
+    from .emit_ngspice import xspice_refusal
+    if args.format == "xspice" and xspice_refusal(model):
+        print(f"netgen: {args.structure}: --format xspice: {xspice_refusal(model)}; fix: set target = \"plates\" "
+              "in the structure's [fit], or use --format ngspice", file=sys.stderr)
         return 2
     written = write_outputs(model, Path(args.output), args.format)
     if not args.no_plots:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
-from .emit_ngspice import subcircuit
+from .emit_ngspice import subcircuit, xspice_refusal
 from .emit_veriloga import module
 from .model import MacroModel, write_files_atomic
 
@@ -17,8 +17,7 @@ EMITTERS = {"ngspice": (".lib", subcircuit), "veriloga": (".va", module),
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
     """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written.
     "all" is every dialect the model supports (xspice needs 1/P capacitance fits)."""
-    direct = any(f.target == "direct" for f in model.capacitances)
-    chosen = [f for f in EMITTERS if not (f == "xspice" and direct)] if fmt == "all" else [fmt]
+    chosen = [f for f in EMITTERS if not (f == "xspice" and xspice_refusal(model))] if fmt == "all" else [fmt]
     if fmt != "all" and fmt not in EMITTERS:
         raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join([*EMITTERS, 'all'])}")
     # render everything before writing anything: a failing emitter or model leaves no output

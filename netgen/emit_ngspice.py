@@ -170,6 +170,8 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
         raise ValueError(f"unknown ngspice emission style {style!r}; choose one of {STYLES}")
     if style == "naive":
         return naive_subcircuit(model)
+    if style == "xspice" and xspice_refusal(model):
+        raise ValueError(f"{xspice_refusal(model)}; fix: emit with style 'fast'")
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]
     ctx = header_context(model)
@@ -200,10 +202,11 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
                     + f"/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
                    for k in range(len(f.polys))],
             "charge_expr": charge_expr(f, model.plate)})
-    stops, per_coord = contact_terms(model)
     if style == "xspice":                       # the stops are evaluated inside the code model
-        ctx["xspice"] = xspice_context(model, ws, stops, per_coord)
+        ctx["xspice"] = xspice_context(model, ws)
         stops, per_coord = [], [[] for _ in model.coordinates]
+    else:
+        stops, per_coord = contact_terms(model)
     for row, c, terms in zip(ctx["coords"], model.coordinates, per_coord):
         a = 1.0 / (c.mass * c.scale * ws * ws)
         row["stops"] = [(name, num(a * gain)) for name, gain in terms]
@@ -312,28 +315,29 @@ def _vector(values) -> str:
     return "[" + " ".join(str(int(v)) if isinstance(v, (int, np.integer)) else num(float(v)) for v in values) + "]"
 
 
+def xspice_refusal(model: MacroModel) -> str | None:
+    """Why the model has no xspice form, or None: the code model takes 1/P plate fits only."""
+    direct = [f.electrode for f in model.capacitances if f.target == "direct"]
+    return (f"electrode {direct[0]} has a 'direct' capacitance fit and the xspice emission needs 1/P fits "
+            "(fit target 'plates')") if direct else None
+
+
 def _xspice_fit(model: MacroModel, f) -> dict:
     """Template rows of one electrode in the xspice form: node c_i (driven by the code model into
     1 ohm), C_i(0) as a linear capacitor, the rest of the charge in Cq_i."""
-    if f.target == "direct":
-        raise ValueError(f"electrode {f.electrode}: the xspice emission needs 1/P fits (fit target 'plates'), "
-                         "not 'direct'; fix: emit with style 'fast'")
     c0 = _rest_capacitance(f, model.ncoords)
     cs = c_node(f.electrode)
     return {"sums": [f"R{cs} {cs} 0 1"], "c0": num(f.c_ref * c0),
             "charge_expr": f"{num(f.c_ref)}*v({cs})*v({f.electrode},{model.plate})"}
 
 
-def xspice_context(model: MacroModel, ws: float, stops: list[dict],
-                   per_coord: list[list[tuple[str, float]]]) -> dict:
+def xspice_context(model: MacroModel, ws: float) -> dict:
     """The netgen_es instances and their .model card: every plate term as monomials of its
     polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form)."""
     n = model.ncoords
     clamps = model.term_clamps()
     p = {k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")}
     for i, f in enumerate(model.capacitances):
-        if f.target == "direct":
-            _xspice_fit(model, f)                                   # raises with the fix
         p["cref"].append(f.c_ref)
         p["c0"].append(_rest_capacitance(f, n))
         for k, poly in enumerate(f.polys):
@@ -349,18 +353,14 @@ def xspice_context(model: MacroModel, ws: float, stops: list[dict],
                     p["mono_exp"].extend(int(x) for x in e)
     gains = [1.0 / (c.mass * c.scale * ws * ws) for c in model.coordinates]
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
-    nstop = max(len(stops), 1)                          # the model card needs the vectors even without stops
-    sa, sr, sg = np.zeros((nstop, n)), np.zeros((nstop, n)), np.zeros((nstop, n))
-    delta, damp = 1e-3, 0.0
+    stops = stop_constants(model)
+    nstop = len(stops["a"]) if stops else 1             # the model card needs the vectors even without stops
+    sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
+    delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
-        c = model.contact
-        delta, damp = c["smoothing"], c["damping"] / c["stiffness"] / c["smoothing"] ** 2
-        for j, pt in enumerate(c["points"]):
-            sa[j] = pt["a"]
-            sr[j] = np.asarray(pt["a"], dtype=float) * ws
-        for v, terms in enumerate(per_coord):
-            for name, gain in terms:
-                sg[int(name.split("_")[1]) - 1, v] = gains[v] * gain
+        sa[:] = stops["a"]
+        sg[:] = np.asarray(stops["gain"]) * np.asarray(gains)[None, :]
+    sr = sa * ws
     p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
     xs = " ".join(f"xs_{c.name}" for c in model.coordinates)
     us = " ".join(f"u_{c.name}" for c in model.coordinates)
@@ -369,7 +369,7 @@ def xspice_context(model: MacroModel, ws: float, stops: list[dict],
     return {"name": f"{model.name}_es", "c_instance": f"[{xs}] NULL NULL NULL [{cs}]",
             "f_instance": f"[{xs}] [{ve}] [{us}] [{us}] NULL",
             "params": [(k, _vector(v)) for k, v in p.items()] + [("stop_delta", num(delta)), ("stop_damp", num(damp))],
-            "terms": len(p["knee"]), "stops": len(stops)}
+            "terms": len(p["knee"]), "stops": len(stops["a"]) if stops else 0}
 
 
 # ------------------------------------------------------------------ the naive baseline (benchmarks only)
@@ -476,28 +476,42 @@ def stop_name(j: int) -> tuple[str, str]:
     return f"sg_{j + 1}", f"sf_{j + 1}"
 
 
+def stop_constants(model: MacroModel) -> dict | None:
+    """The contact stops' numbers (netgen.contact): smoothing delta, damping factor (c/k)/delta^2,
+    and per stop point its direction a_j (in xs) and the SI force per unit penalty on each
+    coordinate, gain_jv = -k gap^2 delta a_jv / L_v; None without stop points."""
+    c = model.contact
+    if not c.get("points"):
+        return None
+    delta = c["smoothing"]
+    gains = [[-c["stiffness"] * pt["gap"] ** 2 * delta * a / model.coordinates[v].scale if a != 0.0 else 0.0
+              for v, a in enumerate(pt["a"])] for pt in c["points"]]
+    return {"delta": delta, "damp": c["damping"] / c["stiffness"] / delta ** 2,
+            "a": [list(pt["a"]) for pt in c["points"]], "gain": gains}
+
+
 def contact_terms(model: MacroModel, access: str = "v({})",
                   var: str = "v({})") -> tuple[list[dict], list[list[tuple[str, float]]]]:
     """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
     per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta."""
-    c = model.contact
     points, per_coord = [], [[] for _ in model.coordinates]
-    if not c.get("points"):
+    k = stop_constants(model)
+    if k is None:
         return points, per_coord
-    ws, delta = time_scale(model), c["smoothing"]
-    xs = [access.format(f"xs_{k.name}") for k in model.coordinates]
-    us = [access.format(f"u_{k.name}") for k in model.coordinates]
-    for j, pt in enumerate(c["points"]):
+    ws, delta = time_scale(model), k["delta"]
+    xs = [access.format(f"xs_{c.name}") for c in model.coordinates]
+    us = [access.format(f"u_{c.name}") for c in model.coordinates]
+    for j, (pt, a_j, gain_j) in enumerate(zip(model.contact["points"], k["a"], k["gain"])):
         g, f = stop_name(j)
-        used = [(v, a) for v, a in enumerate(pt["a"]) if a != 0.0]
+        used = [(v, a) for v, a in enumerate(a_j) if a != 0.0]
         gap_expr = " + ".join(f"{num(a)}*{xs[v]}" for v, a in used).replace("+ -", "- ") + " - 1"
         r = f"min(max({var.format(g)}, 0), {num(delta)})"
         rate = " + ".join(f"{num(a * ws)}*{us[v]}" for v, a in used).replace("+ -", "- ")
         pen = (f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
-               f" + {num(c['damping'] / c['stiffness'] / delta ** 2)}*{r}*({rate})")
+               f" + {num(k['damp'])}*{r}*({rate})")
         points.append({"g": g, "g_expr": gap_expr, "f": f, "f_expr": pen, "electrode": pt["electrode"]})
-        for v, a in used:
-            per_coord[v].append((f, -c["stiffness"] * pt["gap"] ** 2 * delta * a / model.coordinates[v].scale))
+        for v, _ in used:
+            per_coord[v].append((f, gain_j[v]))
     return points, per_coord
 
 
