@@ -19,7 +19,7 @@ Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit d
 
   xspice  the .lib with the plate terms, forces and stops in the compiled XSPICE code model
           netgen_es (style "xspice", netgen.codemodel, built on first use); the netlist loads it
-          and keeps trtol at 7 (`set xtrtol=7`)
+          and keeps trtol at 7 (`pre_set xtrtol=7`)
   fast    the emitted .lib (netgen.emit_ngspice.subcircuit, style "fast": the default)
   nodes   the previous shared-node emission (style "nodes"), for what the fast form bought
   naive   the baseline: every charge and force written out inline (style "naive", no shared

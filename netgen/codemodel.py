@@ -197,16 +197,18 @@ def add_parser(sub) -> None:
     p = sub.add_parser("codemodel", help="build the netgen_es XSPICE code model for the installed ngspice "
                        "(needed by the xspice .lib and --simulator ngspice-xspice) and print its path")
     p.add_argument("--force", action="store_true", help="rebuild even if the cached build exists")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only errors (and the path)")
     p.set_defaults(func=_cli)
 
 
 def _cli(args) -> int:
     import sys
     try:
-        cm = build(force=args.force, progress=lambda m: print(m, file=sys.stderr))
+        cm = build(force=args.force, progress=(lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr)))
     except CodeModelError as exc:
         print(f"netgen: code model: {exc}", file=sys.stderr)
         return 3
     print(cm)
-    print("load it with these .control lines:\n  " + "\n  ".join(control_lines(cm)), file=sys.stderr)
+    if not args.quiet:
+        print("load it with these .control lines:\n  " + "\n  ".join(control_lines(cm)), file=sys.stderr)
     return 0

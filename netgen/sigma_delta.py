@@ -63,6 +63,9 @@ DITHER_DELTA = (0.0218, 0.0274, 0.0331)
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
 SEGMENT_S = 5e-4
 MIN_SEGMENT = 16
+# the simulators' relative tolerance: range accepted from the CLI and sweep files
+RELTOL_RANGE = (1e-7, 1e-2)
+RELTOL_TEXT = "1e-7..1e-2"
 
 
 @dataclass
@@ -639,10 +642,9 @@ def xspice_library(model: MacroModel, out: Path, cm: Path) -> tuple[Path, list[s
     to `out`, and the .control lines that load the code model."""
     from .codemodel import control_lines
     from .emit_ngspice import subcircuit
+    from .model import write_files_atomic
     lib = out / f"{model.name}_xspice.lib"
-    tmp = lib.with_suffix(".lib.tmp")
-    tmp.write_text(subcircuit(model, style="xspice"))
-    tmp.replace(lib)
+    write_files_atomic({lib: subcircuit(model, style="xspice")})
     return lib, control_lines(cm)
 
 
@@ -779,8 +781,8 @@ def cli(args) -> int:
         if args.segment is not None and (args.segment < 0 or 0 < args.segment < MIN_SEGMENT):
             raise ValueError(f"--segment {args.segment}: give at least {MIN_SEGMENT} periods per segment, or 0 "
                              f"for one run (the default is {SEGMENT_S * 1e3:g} ms of simulated time)")
-        if not 1e-7 <= args.reltol <= 1e-2:
-            raise ValueError(f"--reltol {args.reltol} is outside 1e-7..1e-2 (default 1e-3; 1e-4 for spectra "
+        if not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
+            raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT} (default 1e-3; 1e-4 for spectra "
                              "you quote: README 'Sigma-delta loop')")
         if not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")

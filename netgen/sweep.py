@@ -80,10 +80,16 @@ TESTBENCH: dict[str, tuple[str, Any, str]] = {
     "tone_freq": ("frequency", lambda v: None if v > 0 else "must be > 0", "tone frequency"),
     "rigid_only": ("bool", None, "drop the eigenmodes"),
     "simulator": ("str", None, "circuit simulator of the run (ngspice, ngspice-xspice, vacask)"),
-    "reltol": ("dimensionless", lambda v: None if 1e-7 <= v <= 1e-2 else "must be between 1e-7 and 1e-2",
-               "relative tolerance of the simulator"),
+    "reltol": ("dimensionless", lambda v: _reltol_problem(v), "relative tolerance of the simulator"),
 }
 DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
+
+
+def _reltol_problem(value: float) -> str | None:
+    """The range `netgen sigma-delta --reltol` accepts (netgen.sigma_delta.RELTOL_RANGE)."""
+    from .sigma_delta import RELTOL_RANGE, RELTOL_TEXT
+    lo, hi = RELTOL_RANGE
+    return None if lo <= value <= hi else f"must be between {RELTOL_TEXT.replace('..', ' and ')}"
 
 
 class SweepError(Exception):

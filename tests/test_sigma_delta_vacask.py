@@ -213,8 +213,8 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
 def test_xspice_mechanics_match_an_independent_integration(xspice, ngspice, model):
     """The code-model emission in the same ngspice loop: its mechanics equal the independent
     integration of its own bits as closely as the B-source bench's (48 clocks; tilts and modes
-    within 1.5 % of their peak, z within 6 %), it balances gravity within 1 %, and it runs at
-    least 2x faster per clock than the B-source bench (measured 3-4x)."""
+    within 1.5 % of their peak, z within 6 %) and it balances gravity within 1 %. Its speed is
+    measured in bench/sigma_delta.py (variant xspice), not asserted here; the run prints it."""
     clock = xspice["clock"]
     ref = replay(model, sd.design(model, TS), clock, REPLAY)
     for i, c in enumerate(model.coordinates):
@@ -224,7 +224,6 @@ def test_xspice_mechanics_match_an_independent_integration(xspice, ngspice, mode
     assert xspice["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
     fast, cm = ngspice["wall"] / NG_CYCLES, xspice["wall"] / NG_CYCLES
     print(f"wall per clock: B-sources {fast * 1e3:.1f} ms, code model {cm * 1e3:.1f} ms ({fast / cm:.1f}x)")
-    assert fast > 2 * cm
 
 
 def test_vacask_is_faster(vacask, ngspice):

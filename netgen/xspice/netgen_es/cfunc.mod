@@ -225,10 +225,10 @@ void cm_netgen_es(ARGS)
             const double *di = Dt + i * K;
             double gi = -w->fgain[i];
             w->F[i] = gi * dot2(w->tb, di, K);
-            for (l = i; l < N; l++) {
-                double v = gi * dot3(w->ta, di, Dt + l * K, K);
-                w->dFdx[i * N + l] = v;
-                w->dFdx[l * N + i] = v * w->fgain[l] / w->fgain[i];
+            for (l = i; l < N; l++) {                   /* the sum is symmetric in i, l */
+                double sum = dot3(w->ta, di, Dt + l * K, K);
+                w->dFdx[i * N + l] = gi * sum;
+                w->dFdx[l * N + i] = -w->fgain[l] * sum;
             }
             for (e = 0; e < E; e++) {
                 int k0 = w->kstart[e];
@@ -240,8 +240,7 @@ void cm_netgen_es(ARGS)
             for (i = 0; i < N; i++) for (l = 0; l < N; l++) w->dFdx[i * N + l] -= w->fgain[i] * w->tb[k] * h2[i * N + l];
         }
         memset(w->dFdu, 0, sizeof(double) * N * N);
-    }
-    if (want_f) {                                   /* contact stops: penalty spring-damper */
+        /* contact stops: penalty spring-damper */
         double delta = w->delta, damp = w->damp;
         for (j = 0; j < w->S; j++) {
             const double *a = w->sa + j * N, *r8 = w->sr + j * N, *sg8 = w->sgain + j * N;
