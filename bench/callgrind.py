@@ -1,0 +1,86 @@
+"""Instruction counts of the sigma-delta testbench under callgrind, per Newton iteration and per
+period, for the model variants of bench/sigma_delta.py (independent of the machine's load).
+
+    .venv/bin/python bench/callgrind.py [--cycles 16] [--variants xspice,fast,floor] [--keep DIR]
+
+Runs `valgrind --tool=callgrind ngspice -b bench.cir` on the bench netlist of each variant (the
+same testbench as bench/sigma_delta.py, `cycles` periods at T_s = 1 us) and prints the total,
+the Newton iterations, and every function above 2 % of the instructions per iteration. The
+ngspice binary is stripped: its functions show as addresses (the recursive parse-tree walk of
+the B-sources is the one marked '2; the sparse LU is called once per iteration). Needs valgrind
+(`apt-get install valgrind`; not part of .ci/setup, the suite does not use it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+from netgen import codemodel  # noqa: E402
+from netgen import sigma_delta as sd  # noqa: E402
+from netgen.model import MacroModel  # noqa: E402
+from netgen.simulate import ngspice_path  # noqa: E402
+from sigma_delta import MODEL_JSON, VARIANTS, library  # noqa: E402
+
+LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
+
+
+def profile(model: MacroModel, variant: str, cycles: int, folder: Path) -> None:
+    """One callgrind run of the bench around `variant`; prints its counts."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "model.lib").write_text(library(model, variant))
+    control = codemodel.control_lines(codemodel.build(progress=lambda m: None)) if variant == "xspice" else []
+    net = sd.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
+                       control=control)
+    (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
+    with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
+        subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=callgrind.out", ngspice_path(), "-b",
+                        "bench.cir"], cwd=folder, stdout=log, stderr=subprocess.STDOUT)
+    found = re.search(r"Transient iterations\s*=\s*(\d+)", (folder / "bench.log").read_text())
+    if not found:
+        raise SystemExit(f"bench/callgrind.py: the {variant} run did not finish; see {folder / 'bench.log'}")
+    iterations = int(found.group(1))
+    report = subprocess.run(["callgrind_annotate", "callgrind.out"], cwd=folder, capture_output=True, text=True,
+                            check=True).stdout
+    total = int(re.search(r"([\d,]+) \(100.0%\)\s+PROGRAM TOTALS", report).group(1).replace(",", ""))
+    print(f"{variant}: {total / 1e6:.0f}M instructions, {iterations} Newton iterations ({iterations / cycles:.0f} "
+          f"per period), {total / iterations / 1e3:.0f}k per iteration, {total / cycles / 1e6:.1f}M per period")
+    for line in report.splitlines():
+        m = LINE.match(line)
+        if m and float(m.group(2)) > 2.0 and "TOTALS" not in line:
+            count = int(m.group(1).replace(",", ""))
+            print(f"    {count / iterations / 1e3:7.1f}k per iteration {m.group(2):>6} %  {m.group(3)[:70]}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    if not shutil.which("valgrind") or not shutil.which("callgrind_annotate"):
+        raise SystemExit("bench/callgrind.py needs valgrind: apt-get install valgrind")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cycles", type=int, default=16, help="clock periods (default 16; ~1-4 min per variant)")
+    ap.add_argument("--variants", default="xspice,fast,floor", help=f"comma-separated subset of {','.join(VARIANTS)}")
+    ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
+    ap.add_argument("--keep", help="keep the run folders (netlists, callgrind.out) here")
+    args = ap.parse_args(argv)
+    variants = args.variants.split(",")
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or args.cycles < 1:
+        ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 1")
+    model = MacroModel.load_json(args.model)
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(args.keep or tmp)
+        for v in variants:
+            profile(model, v, args.cycles, base / v)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
