@@ -26,7 +26,9 @@ from pathlib import Path
 from .simulate import SimulatorNotFound
 
 SOURCES = Path(__file__).resolve().parent / "xspice"
-MODEL = "netgen_es"
+# the models of the library, in modpath.lst order: the macromodel's electrostatics and the
+# sigma-delta testbench's discrete-time loop
+MODELS = ("netgen_es", "netgen_sdloop")
 # The configure switches of Debian's ngspice build (debian/rules: --enable-xspice --enable-cider
 # --enable-pss) that change the layout of the device tables a code model hands to ngspice.
 CONFIG_H = "#define XSPICE 1\n#define CIDER 1\n#define WITH_PSS 1\n#define SIMULATOR 1\n"
@@ -159,24 +161,27 @@ def _build(target: Path, progress) -> Path:
     version = ngspice_version()
     with tempfile.TemporaryDirectory(prefix="netgen-cm-") as tmp:
         work = Path(tmp)
-        progress(f"codemodel: building {MODEL} for ngspice {version} in {work}")
+        progress(f"codemodel: building {', '.join(MODELS)} for ngspice {version} in {work}")
         tree = _source_tree(version, work)
         cmpp = _cmpp(tree, work)
         gen = work / "gen"
-        (gen / MODEL).mkdir(parents=True)
         (work / "cfg/ngspice").mkdir(parents=True)
         (work / "cfg/ngspice/config.h").write_text(CONFIG_H)
         env = dict(os.environ, CMPP_IDIR=str(SOURCES), CMPP_ODIR=str(gen))
+        gen.mkdir()
         _run([str(cmpp), "-lst"], gen, env)
-        env.update(CMPP_IDIR=str(SOURCES / MODEL), CMPP_ODIR=str(gen / MODEL))
-        _run([str(cmpp), "-ifs"], gen, env)
-        _run([str(cmpp), "-mod"], gen, env)
-        inc = ["-I", str(work / "cfg"), "-I", str(tree / "src/include"), "-I", str(gen), "-I", str(gen / MODEL)]
+        inc = ["-I", str(work / "cfg"), "-I", str(tree / "src/include"), "-I", str(gen)]
+        sources = [tree / "src/xspice/icm/dlmain.c", tree / "src/misc/dstring.c"]
+        for name in MODELS:
+            (gen / name).mkdir()
+            env.update(CMPP_IDIR=str(SOURCES / name), CMPP_ODIR=str(gen / name))
+            _run([str(cmpp), "-ifs"], gen, env)
+            _run([str(cmpp), "-mod"], gen, env)
+            sources += [gen / name / "cfunc.c", gen / name / "ifspec.c"]
         objs = []
-        for src in (tree / "src/xspice/icm/dlmain.c", gen / MODEL / "cfunc.c", gen / MODEL / "ifspec.c",
-                    tree / "src/misc/dstring.c"):
+        for src in sources:
             obj = gen / f"{src.parent.name}_{src.stem}.o"
-            _run(["gcc", *CFLAGS, *inc, "-c", str(src), "-o", str(obj)], gen)
+            _run(["gcc", *CFLAGS, *inc, "-I", str(src.parent), "-c", str(src), "-o", str(obj)], gen)
             objs.append(str(obj))
         tmp_cm = target.with_suffix(f".{os.getpid()}.tmp")
         _run(["gcc", "-shared", *CFLAGS, *objs, "-lm", "-o", str(tmp_cm)], gen)

@@ -384,8 +384,8 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
         names = set(z.namelist())
         assert "netgen/templates/ngspice_subckt.lib.j2" in names
         # the code model's sources (netgen.codemodel builds them on the user's machine)
-        assert {"netgen/xspice/modpath.lst", "netgen/xspice/netgen_es/ifspec.ifs",
-                "netgen/xspice/netgen_es/cfunc.mod"} <= names
+        assert {"netgen/xspice/modpath.lst", "netgen/xspice/netgen_es/ifspec.ifs", "netgen/xspice/netgen_es/cfunc.mod",
+                "netgen/xspice/netgen_sdloop/ifspec.ifs", "netgen/xspice/netgen_sdloop/cfunc.mod"} <= names
         entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
         assert "netgen = netgen.cli:main" in z.read(entry).decode()
         z.extractall(tmp_path / "site")
