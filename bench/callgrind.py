@@ -1,7 +1,8 @@
 """Instruction counts of the sigma-delta testbench under callgrind, per Newton iteration and per
 period, for the model variants of bench/sigma_delta.py (independent of the machine's load).
 
-    .venv/bin/python bench/callgrind.py [--cycles 16] [--variants xspice,fast,floor] [--keep DIR]
+    .venv/bin/python bench/callgrind.py [--cycles 16] [--variants xspice,fast,floor] [--loops analog,xspice]
+                                        [--keep DIR]
 
 Runs `valgrind --tool=callgrind ngspice -b bench.cir` on the bench netlist of each variant (the
 same testbench as bench/sigma_delta.py, `cycles` periods at T_s = 1 us) and prints the total,
@@ -34,13 +35,14 @@ from sigma_delta import MODEL_JSON, VARIANTS, library  # noqa: E402
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
 
-def profile(model: MacroModel, variant: str, cycles: int, folder: Path) -> None:
-    """One callgrind run of the bench around `variant`; prints its counts."""
+def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: str = "analog") -> None:
+    """One callgrind run of the bench around `variant` (testbench blocks `loop`); prints its counts."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.lib").write_text(library(model, variant))
-    control = codemodel.control_lines(codemodel.build(progress=lambda m: None)) if variant == "xspice" else []
+    cm = variant == "xspice" or loop == "xspice"
+    control = codemodel.control_lines(codemodel.build(progress=lambda m: None)) if cm else []
     net = sd.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
-                       control=control)
+                       control=control, loop=loop)
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
     with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
         subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=callgrind.out", ngspice_path(), "-b",
@@ -52,7 +54,7 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path) -> None:
     report = subprocess.run(["callgrind_annotate", "callgrind.out"], cwd=folder, capture_output=True, text=True,
                             check=True).stdout
     total = int(re.search(r"([\d,]+) \(100.0%\)\s+PROGRAM TOTALS", report).group(1).replace(",", ""))
-    print(f"{variant}: {total / 1e6:.0f}M instructions, {iterations} Newton iterations ({iterations / cycles:.0f} "
+    print(f"{variant} ({loop} loop): {total / 1e6:.0f}M instructions, {iterations} Newton iterations ({iterations / cycles:.0f} "
           f"per period), {total / iterations / 1e3:.0f}k per iteration, {total / cycles / 1e6:.1f}M per period")
     for line in report.splitlines():
         m = LINE.match(line)
@@ -68,17 +70,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cycles", type=int, default=16, help="clock periods (default 16; ~1-4 min per variant)")
     ap.add_argument("--variants", default="xspice,fast,floor", help=f"comma-separated subset of {','.join(VARIANTS)}")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
+    ap.add_argument("--loops", default="analog", help="comma-separated testbench loops: analog (behavioural "
+                    "sources) and/or xspice (the compiled netgen_sdloop); default analog")
     ap.add_argument("--keep", help="keep the run folders (netlists, callgrind.out) here")
     args = ap.parse_args(argv)
     variants = args.variants.split(",")
-    bad = [v for v in variants if v not in VARIANTS]
+    loops = args.loops.split(",")
+    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sd.LOOPS]
     if bad or args.cycles < 1:
         ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 1")
     model = MacroModel.load_json(args.model)
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.keep or tmp)
-        for v in variants:
-            profile(model, v, args.cycles, base / v)
+        for lp in loops:
+            for v in variants:
+                profile(model, v, args.cycles, base / f"{v}_{lp}", lp)
     return 0
 
 

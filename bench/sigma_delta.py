@@ -1,7 +1,8 @@
 """Cost of the sigma-delta levitation testbench in ngspice: the model against its floor and baseline.
 
     .venv/bin/python bench/sigma_delta.py [--cycles 4096] [--repeat 3] [--naive-cycles 64]
-                                          [--variants fast,floor,linear,naive] [--ts 1e-6]
+                                          [--variants xspice,fast,floor,linear,naive]
+                                          [--loops xspice,analog] [--ts 1e-6]
 
 Runs the testbench of `netgen sigma-delta` (netgen.sigma_delta.testbench, templates/
 sigma_delta_tb.cir.j2) around the reference model (netlists/levitated_disk.json) with
@@ -33,6 +34,16 @@ Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit d
           force 1/2 sum_i dC_i/dq (V_i - V_p)^2 (no electrostatic spring, no contact)
 
 and the ratios fast / floor, fast / linear and naive / fast (per time point and per period).
+
+Loops (the testbench around the subcircuit; each variant runs in each loop given, and the ratios
+compare variants within one loop):
+
+  xspice  the samplers, lead filters, quantizers, latches and electrode drivers in the compiled
+          code model netgen_sdloop (what `netgen sigma-delta --simulator ngspice-xspice` runs,
+          around the xspice .lib)
+  analog  the same blocks as behavioural sources (what `--simulator ngspice` runs, around the
+          fast .lib)
+
 Timings on a shared machine are noisy: the figures are medians of --repeat runs, interleaved
 (variant order rotates per repeat), and the load average is printed with them. Point and
 iteration counts are deterministic.
@@ -110,13 +121,13 @@ def library(model: MacroModel, variant: str) -> str:
 
 
 def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool,
-             control: list[str] = ()) -> dict:
+             control: list[str] = (), loop: str = "analog") -> dict:
     """One ngspice -b run of the testbench with `lib_text` as the model; stats from `rusage all`."""
     workdir.mkdir(parents=True, exist_ok=True)
     lib = workdir / "model.lib"
     lib.write_text(lib_text)
     d = sd.design(model, ts)
-    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control)
+    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control, loop=loop)
     net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
     (workdir / "bench.cir").write_text(net)
     (workdir / "bench.raw").unlink(missing_ok=True)
@@ -168,35 +179,50 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
     ap.add_argument("--variants", default="xspice,fast,floor,linear,naive",
                     help=f"comma-separated subset of {','.join(VARIANTS)} (default xspice,fast,floor,linear,naive)")
+    ap.add_argument("--loops", default="xspice,analog",
+                    help="comma-separated testbench loops: xspice (samplers, quantizers and drivers in the compiled "
+                         "netgen_sdloop, as --simulator ngspice-xspice runs it) and/or analog (behavioural sources, "
+                         "as --simulator ngspice); default both")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
-    bad = [v for v in variants if v not in VARIANTS]
-    if bad or args.cycles < 64 or args.repeat < 1:
-        ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 64 and --repeat >= 1")
+    loops = [lp for lp in args.loops.split(",") if lp]
+    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sd.LOOPS]
+    if bad or not loops or args.cycles < 64 or args.repeat < 1:
+        ap.error(f"unknown variants or loops {bad}" if bad else "need a loop, --cycles >= 64 and --repeat >= 1")
     model = MacroModel.load_json(args.model)
     libs = {v: library(model, v) for v in variants}
-    control = {v: [] for v in variants}
-    if "xspice" in variants:
-        control["xspice"] = codemodel.control_lines(codemodel.build(progress=lambda m: print(m, file=sys.stderr)))
+    cases = [(v, lp) for lp in loops for v in variants]
+    control = {}
+    if "xspice" in variants or "xspice" in loops:
+        control = codemodel.control_lines(codemodel.build(progress=lambda m: print(m, file=sys.stderr)))
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
     load0 = os.getloadavg()
-    runs: dict[str, list[dict]] = {v: [] for v in variants}
+    runs: dict[tuple[str, str], list[dict]] = {c: [] for c in cases}
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.keep or tmp)
         for r in range(args.repeat):
-            order = variants[r % len(variants):] + variants[:r % len(variants)]
-            for v in order:
-                res = run_once(model, libs[v], base / v, args.ts, cycles[v], check=v not in ("floor",),
-                               control=control[v])
-                runs[v].append(res)
-                print(f"  run {r + 1}/{args.repeat} {v}: {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
+            order = cases[r % len(cases):] + cases[:r % len(cases)]
+            for v, lp in order:
+                uses_cm = v == "xspice" or lp == "xspice"
+                res = run_once(model, libs[v], base / f"{v}_{lp}", args.ts, cycles[v], check=v not in ("floor",),
+                               control=control if uses_cm else [], loop=lp)
+                runs[(v, lp)].append(res)
+                print(f"  run {r + 1}/{args.repeat} {v} ({lp} loop): {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
                       file=sys.stderr, flush=True)
     load1 = os.getloadavg()
-    table = {v: summarise(runs[v], cycles[v]) for v in variants}
     print(f"sigma-delta testbench, T_s = {args.ts:g} s, model {model.name}, median of {args.repeat} runs; "
           f"ngspice {ngspice_path()}; load average {load0[0]:.1f} -> {load1[0]:.1f} on {os.cpu_count()} CPUs")
+    for lp in loops:
+        report(lp, {v: summarise(runs[(v, lp)], cycles[v]) for v in variants})
+    return 0
+
+
+def report(loop: str, table: dict[str, dict]) -> None:
+    """The table, ratios and 2^16 projection of the variants run in one testbench loop."""
+    print(f"\n{loop} loop ({'--simulator ngspice-xspice' if loop == 'xspice' else '--simulator ngspice'} "
+          f"runs {'xspice' if loop == 'xspice' else 'fast'} in it)")
     print(f"{'variant':8s} {'cycles':>7s} {'ms/cycle':>9s} {'cpu ms':>7s} {'pts/cyc':>8s} {'all pts':>8s} "
           f"{'it/pt':>6s} {'us/it':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}")
     for v, s in table.items():
@@ -220,7 +246,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{v}: 2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
               f"peak memory {f['peak_mb']:.0f} MB at {f['cycles']} periods (grows ~27 kB per period; "
               f"goal < 2 GB at 2^16)")
-    return 0
 
 
 if __name__ == "__main__":

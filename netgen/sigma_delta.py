@@ -30,6 +30,9 @@ from .templating import render
 
 CHANNELS = ("z", "tilt_x", "tilt_y")
 SIMULATORS = ("ngspice", "ngspice-xspice", "vacask")
+# the testbench's sampler/quantizer/driver blocks: behavioural sources, or the netgen_sdloop code model
+LOOPS = ("analog", "xspice")
+LOOP_OF = {"ngspice": "analog", "ngspice-xspice": "xspice", "vacask": None}
 G = 9.81
 K_B = 1.380649e-23          # J/K
 
@@ -108,6 +111,9 @@ class Design:
     cs: float = 1e-12
     reltol: float = 1e-3
     tmax: float = 0.05
+    # (the compiled loop, netgen_sdloop, needs no time point inside a window; there tmax is set by
+    # the plate modes: at 0.1 T_s the (3,0) modes drift 3 % of their peak from an independent
+    # integration in 48 periods, at 0.2 T_s 8 %; 66-68 points per period instead of 77)
     settle: float = 5.0
     # comparator tanh width: a decision with |y| inside it applies a partial feedback force while the
     # bitstream records +-1; at 1e-6 V that happened in ~22 of 65536 periods and set a flat in-band
@@ -300,10 +306,16 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -
 
 def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
               tone: Tone | None = None, chunks: int = 50, start: int = 0,
-              ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = ()) -> str:
+              ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = (),
+              loop: str = "analog") -> str:
     """The ngspice netlist of the loop (templates/sigma_delta_tb.cir.j2); for a segment of a
     long run, the periods from `start` on, from the node state `ic`, also saving `states`;
-    `control`: extra .control lines (loading the code model of an xspice .lib)."""
+    `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
+    quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop."""
+    if loop not in LOOPS:
+        raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
+    ic = dict(ic or {})
+    card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
         _coord_index(model, tone.coord)
         tone.unit = model.coordinates[_coord_index(model, tone.coord)].port_units[2]
@@ -316,8 +328,31 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     return render("sigma_delta_tb.cir.j2", bench="sigma_delta", version=__version__, model=model, d=d,
                   lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
-                  progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic or {},
-                  control=list(control))
+                  progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
+                  control=list(control), sdloop=card)
+
+
+def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
+    """The netgen_sdloop instance of the "xspice" loop: its nodes and .model parameters (the
+    same blocks, instants and dither as the analog loop; netgen/xspice/netgen_sdloop). The
+    loop's own state (cur, prev, b per channel) is popped from `ic` into its initial values."""
+    fb = d.feedback_basis
+    names = [c["name"] for c in d.channels]
+
+    def sel(e: dict) -> list[int]:
+        return [e["side"] if n == "z" else (e["sign"] if n == e["axis"] else 0) for n in names]
+
+    init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
+    params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, "lead": d.lead,
+              "start": float(start), "sel": [v for e in d.electrodes for v in sel(e)],
+              "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
+              "dither_amp": [c["dither_v"] for c in d.channels],
+              "dither_step": [float(c["dither_step"]) for c in d.channels],
+              "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"]}
+    text = [(k, f"[{' '.join(repr(x) for x in v)}]" if isinstance(v, list) else repr(v)) for k, v in params.items()]
+    nodes = [[f"ca_{n}" for n in names], ["phs", "fb1", "fb2"], [f"drv_{e['name']}" for e in d.electrodes],
+             *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev"))]
+    return {"params": params, "text": text, "instance": " ".join(f"[{' '.join(g)}]" for g in nodes)}
 
 
 def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
@@ -601,7 +636,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
         if cm is not None:
             lib, control = xspice_library(model, out, cm)
         clock, extra["breakpoints"], extra["segments"] = run_segments(model, d, lib, out, cycles, tone, progress,
-                                                                      segment, control)
+                                                                      segment, control, LOOP_OF[simulator])
     wall = time.perf_counter() - start
     np.savez_compressed(out / "bitstreams.npz", **clock)
     done = len(clock["time"])                         # fewer than `cycles` if a segment lost the plate
@@ -649,7 +684,8 @@ def xspice_library(model: MacroModel, out: Path, cm: Path) -> tuple[Path, list[s
 
 
 def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
-                 progress: bool, segment: int | None, control: list[str] = ()) -> tuple[dict, dict, dict]:
+                 progress: bool, segment: int | None, control: list[str] = (),
+                 loop: str = "analog") -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
     reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
     missed an electrode-phase corner is cut at the start of that period, and the next segment
@@ -665,7 +701,7 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     while n0 < cycles:
         n = min(length, cycles - n0)
         bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
-                          control=control)
+                          control=control, loop=loop)
         plot = simulate(bench, out, d.ts * n, progress,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
         runs += 1
