@@ -68,7 +68,7 @@ import numpy as np  # noqa: E402
 
 from netgen import codemodel  # noqa: E402
 from netgen import sigma_delta as sd  # noqa: E402
-from netgen.emit_ngspice import num, subcircuit, time_scale  # noqa: E402
+from netgen.emit_ngspice import charge_node, num, subcircuit, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.simulate import ngspice_path, read_raw  # noqa: E402
 
@@ -105,9 +105,13 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
                      for i, e in enumerate(model.electrodes) if grad[i, v]]
             lines.append(f"Be_{n} 0 u_{n} I=" + " + ".join(terms).replace("+ -", "- "))
     for i, e in enumerate(model.electrodes):
-        if kind == "linear":
-            cap = num(c0[i]) + "".join(f" + {num(grad[i, v])}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
-            lines.append(f"Cq_{e.name} {e.name} {plate} Q='({cap.replace('+ -', '- ')})*v({e.name},{plate})'")
+        if kind == "linear":      # C_i(0) linear, grad . xs on a charge node as the model's .lib does
+            cref = float(np.abs(grad[i]).max()) or 1.0
+            rest = "".join(f" + {num(grad[i, v] / cref)}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
+            q = charge_node(e.name, "unused", plate, cref)
+            lines += [f"Cl_{e.name} {e.name} {plate} {num(c0[i])}",
+                      q["b"].split(" V=")[0] + f" V=({rest[3:].replace('+ -', '- ')})*v({e.name},{plate})",
+                      q["v"], q["c"], q["f"]]
         else:
             lines.append(f"Cq_{e.name} {e.name} {plate} {num(c0[i])}")
     lines.append(f".ends {model.name}")

@@ -298,8 +298,11 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -
     charge amplifiers, samples and latches. A segment restarted from them continues the run."""
     body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
     ports = {p["name"].lower() for p in model.ports()}
+    # a capacitor node on a voltage source (the charge nodes qn_i behind their 0 V ammeters) is set
+    # by that source, not a state
+    driven = {n for line in body.splitlines() if line.startswith("v") for n in line.split()[1:3]}
     inner = sorted({n for line in body.splitlines() if line.startswith("c")
-                    for n in line.split()[1:3] if n != "0" and n not in ports})
+                    for n in line.split()[1:3] if n != "0" and n not in ports and n not in driven})
     bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
     return [f"{instance}.{n}" for n in inner] + bench
 
