@@ -36,7 +36,9 @@ def loop(model, tmp_path_factory, request) -> dict:
     """One ngspice run of the loop in 3 segments, each restarted at t = 0 from the state the
     previous one ended in, analysed; about 15 s (README "Performance"). The checks below then
     also hold across the restarts (the momentum balance would see an impulse at a restart).
-    Twice: with the B-source .lib, and with the plate terms in the netgen_es code model (~4 s)."""
+    Twice: the B-source .lib in the behavioural-source loop (`--simulator ngspice`), and the
+    compiled run (`ngspice-xspice`: the netgen_es code-model .lib in the compiled loop
+    netgen_sdloop, whose own state crosses the restarts as cur0/prev0/b0; ~3 s)."""
     out = tmp_path_factory.mktemp("sigma_delta")
     return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
                   plots=False, skip=SKIP, segment=SEGMENT, simulator=request.param)

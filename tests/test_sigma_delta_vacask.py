@@ -211,10 +211,11 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
 
 
 def test_xspice_mechanics_match_an_independent_integration(xspice, ngspice, model):
-    """The code-model emission in the same ngspice loop: its mechanics equal the independent
-    integration of its own bits as closely as the B-source bench's (48 clocks; tilts and modes
-    within 1.5 % of their peak, z within 6 %) and it balances gravity within 1 %. Its speed is
-    measured in bench/sigma_delta.py (variant xspice), not asserted here; the run prints it."""
+    """The compiled run (`--simulator ngspice-xspice`: the code-model emission in the compiled
+    loop netgen_sdloop): its mechanics equal the independent integration of its own bits as
+    closely as the B-source bench's (48 clocks; tilts and modes within 1.5 % of their peak, z
+    within 6 %) and it balances gravity within 1 %. Its speed is measured in
+    bench/sigma_delta.py (variant xspice, loop xspice), not asserted here; the run prints it."""
     clock = xspice["clock"]
     ref = replay(model, sd.design(model, TS), clock, REPLAY)
     for i, c in enumerate(model.coordinates):
