@@ -1,11 +1,14 @@
-"""The netgen_es XSPICE code model (netgen/codemodel.py, netgen/xspice/netgen_es) from its sources.
+"""The XSPICE code models (netgen/codemodel.py, netgen/xspice/netgen_es, netgen_sdloop) from their sources.
 
 - a cold build into an empty cache (the ngspice source package as `.ci/setup` fetched it):
   cmpp is built, the model preprocessed and compiled, and Debian's ngspice loads the result;
-- one electrode with two plate terms, one of them below its contact knee, at a DC point: the
-  capacitance node and the generalized force equal the closed forms with netgen.contact's
-  clamp (an independent Python implementation), and the force's AC gain equals dF/dx;
-- without the ngspice sources the build stops with the fix, and `netgen codemodel` exits 3.
+- one electrode with two plate terms, one of them below its contact knee, at a DC point with
+  the plate at 0.7 V: the capacitance node and the generalized force equal the closed forms with
+  netgen.contact's clamp (an independent Python implementation), the force's AC gain equals
+  dF/dx, and its gain from the plate voltage is -2F/(V_e - V_p);
+- without the ngspice sources the build stops with the fix, and `netgen codemodel` exits 3;
+- netgen_sdloop (the sigma-delta testbench's compiled loop) against the loop's definition in
+  numpy: samples at the exact instants, bits, drives, initial state and AC gain.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import pytest
 from netgen import cli, codemodel, contact
 from netgen.simulate import run_ngspice
 
-X, V, FGAIN, CREF, C0 = 0.2, 2.0, 0.7, 1.5, 0.25
+X, V, FGAIN, CREF, C0, VP = 0.2, 2.0, 0.7, 1.5, 0.25, 0.7     # VP: the plate's potential
 # P_1 = 1 + 0.5 x (above its knee), P_2 = 0.3 - 0.4 x + 0.1 x^2 (= 0.224 at x = 0.2, below its knee 0.25)
 TERMS = [([1.0, 0.5, 0.0], 0.1, 0.04), ([0.3, -0.4, 0.1], 0.25, 0.1)]
 
@@ -61,16 +64,20 @@ def test_cold_build_evaluates_clamped_plate_terms(cold_build, tmp_path):
             f"knee=[{TERMS[0][1]} {TERMS[1][1]}] floor=[{TERMS[0][2]} {TERMS[1][2]}] fgain=[{FGAIN}] "
             f"cref=[{CREF}] c0=[{C0}] stop_a=[0] stop_rate=[0] stop_gain=[0])")
     netlist = "\n".join([
-        "netgen_es: one electrode, two plate terms", f"Vx xs 0 DC {X} AC 1", "Vu us 0 0", f"Ve e 0 {V}",
-        "Rf f 0 1", "Rc c 0 1", "A1 [xs] [%vd(e 0)] [us] [f] NULL es", "A2 [xs] NULL NULL NULL [c] es", card,
+        "netgen_es: one electrode, two plate terms", f"Vx xs 0 DC {X} AC 1", "Vu us 0 0", f"Ve e 0 {V + VP}",
+        f"Vp p 0 {VP}", "Rf f 0 1", "Rc c 0 1", "A1 [xs] [%vd(e p)] [us] [f] NULL es", "A2 [xs] NULL NULL NULL [c] es",
+        card,
         ".control", *codemodel.control_lines(cold_build), ".endc", ".ac lin 1 1k 1k", ".end", ""])
     plot = run_ngspice(netlist, tmp_path)[0]
     op = run_ngspice(netlist.replace(".ac lin 1 1k 1k", ".op"), tmp_path, name="op")[0]
+    plate = run_ngspice(netlist.replace(f"DC {X} AC 1", f"DC {X}").replace(f"Vp p 0 {VP}", f"Vp p 0 DC {VP} AC 1"),
+                        tmp_path, name="plate")[0]
     c, f, dfdx = _reference()
     assert TERMS[1][0][0] - 0.4 * X + 0.1 * X * X < TERMS[1][1]           # the second term is clamped
     assert op["v(c)"][0] == pytest.approx(c, rel=1e-9)
-    assert op["v(f)"][0] == pytest.approx(f, rel=1e-9)
+    assert op["v(f)"][0] == pytest.approx(f, rel=1e-9)                     # with V = V_e - V_plate
     assert plot["v(f)"][0].real == pytest.approx(dfdx, rel=1e-5)              # AC gain = the partial
+    assert plate["v(f)"][0].real == pytest.approx(-2 * f / V, rel=1e-9)       # F ~ (V_e - V_p)^2
 
 
 def test_missing_sources_stop_with_the_fix(tmp_path, monkeypatch, capsys):
