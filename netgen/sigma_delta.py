@@ -332,7 +332,17 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
                   lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
-                  control=list(control), sdloop=card)
+                  control=list(control), sdloop=card, pulses=phase_pulses(d))
+
+
+def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
+    """PULSE(v1 v2 td tr tf pw per) of the three electrode-phase sources (seconds): phs, the
+    sense phase, and fb1, fb2, the feedback phase's basis (Design.feedback_basis)."""
+    t, ts, fb = d.t, d.ts, d.feedback_basis
+    return {"phs": (0, 1, ts * (t.sense_on - t.edge / 2), ts * t.edge, ts * t.edge,
+                    ts * (t.sense_off - t.sense_on - t.edge), ts),
+            "fb1": (0, 1, 0, fb["tr1"], fb["tf"], fb["pw1"], ts),
+            "fb2": (0, 1, 0, fb["tr2"], fb["tf"], fb["pw2"], ts)}
 
 
 def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
@@ -349,13 +359,15 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, "lead": d.lead,
               "start": float(start), "sel": [v for e in d.electrodes for v in sel(e)],
               "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
+              "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
               "dither_amp": [c["dither_v"] for c in d.channels],
               "dither_step": [float(c["dither_step"]) for c in d.channels],
               "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"]}
     text = [(k, f"[{' '.join(repr(x) for x in v)}]" if isinstance(v, list) else repr(v)) for k, v in params.items()]
-    nodes = [[f"ca_{n}" for n in names], ["phs", "fb1", "fb2"], [f"drv_{e['name']}" for e in d.electrodes],
+    nodes = [[f"ca_{n}" for n in names], None, [f"drv_{e['name']}" for e in d.electrodes],
              *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev"))]
-    return {"params": params, "text": text, "instance": " ".join(f"[{' '.join(g)}]" for g in nodes)}
+    return {"params": params, "text": text,
+            "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
 
 
 def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:

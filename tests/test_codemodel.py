@@ -116,7 +116,7 @@ def _loop_reference(periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _sdloop_netlist(cm, analysis: str) -> str:
     vec = lambda xs: "[" + " ".join(str(x) for x in xs) + "]"      # noqa: E731
     card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} lead={LEAD} start={START} "
-            f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] "
+            f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse=[0] "
             f"dither_amp={vec(a for a, _ in DITHER)} dither_step={vec(s for _, s in DITHER)} "
             + " ".join(f"{k}={vec(v)}" for k, v in INIT.items()) + ")")
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {f} 0 0 {np.degrees(p)})" for i, (a, f, p, o) in enumerate(CA)]
@@ -156,3 +156,28 @@ def test_sdloop_ac_gain_is_the_selected_drive(cold_build, tmp_path):
     the selected electrodes and 0 on the other."""
     plot = run_ngspice(_sdloop_netlist(cold_build, ".ac lin 1 1k 1k"), tmp_path)[0]
     assert [plot[f"v(d{e})"][0].real for e in range(3)] == pytest.approx([2.0, 0.0, 2.0], abs=1e-12)
+
+
+def _pulse(t: np.ndarray, v1, v2, td, tr, tf, pw, per) -> np.ndarray:
+    """PULSE as the ngspice manual defines it (linear ramps, periodic after td)."""
+    x = np.mod(t - td, per)
+    x = np.where(t < td, -1.0, x)
+    return np.select([x <= 0, x < tr, x <= tr + pw, x < tr + pw + tf],
+                     [v1, v1 + (v2 - v1) * x / tr, v2, v2 + (v1 - v2) * (x - tr - pw) / tf], v1)
+
+
+def test_sdloop_drives_from_its_own_pulse_phases(cold_build, tmp_path):
+    """Without ph inputs the instance evaluates the phases from ph_pulse: the drives follow
+    ph_sense.PULSE + selection * ph_fb.PULSE at every time point (the selection is constant here:
+    b0 = [1, 0] until the first latch at 0.42 us, so the run stops before it)."""
+    pulses = [(0, 1, 0.05e-6, 0.02e-6, 0.03e-6, 0.1e-6, 0.25e-6), (0, 2, 0.0, 0.04e-6, 0.01e-6, 0.05e-6, 0.2e-6)]
+    card = _sdloop_netlist(cold_build, ".tran 1e-9 0.4e-6 0 5e-9").replace(
+        "ph_pulse=[0]", "ph_pulse=[" + " ".join(str(float(v)) for p in pulses for v in p) + "]").replace(
+        "[phs phf]", "NULL")
+    plot = run_ngspice(card, tmp_path)[0]
+    t = np.asarray(plot["time"])
+    sense, fb = (_pulse(t, *p) for p in pulses)
+    expect = [0.5 * sense + 2 * fb, 0.5 * sense + 0 * fb, 0.5 * sense + 2 * fb]      # s = [1, 0, 1]
+    for e in range(3):
+        assert np.abs(np.asarray(plot[f"v(d{e})"]) - expect[e]).max() < 1e-12
+    assert fb.max() == 2 and sense.max() == 1                                 # the ramps were covered

@@ -8,6 +8,11 @@
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
      s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
+   ph[j] are inputs (ph_pulse is then ignored: give [0]), or (ph NULL) the instance's own PULSE
+   waveforms ph_pulse[7 j ..] of TIME,
+   evaluated as ngspice's PULSE source evaluates them: the drives then have no inputs to stamp
+   (an XSPICE instance stamps every output x input pair; the netlist keeps the PULSE sources for
+   their breakpoints).
    The state (time, ca, cur, prev, b of the last accepted time point) is XSPICE rotating analog
    state, so a rejected time point is recomputed from the accepted one. cur0, prev0 and b0 set it
    at t = 0: a segment restarted at t = 0 continues the run. */
@@ -18,12 +23,26 @@
 
 enum { ST_T, ST_HEAD };      /* state layout: t, then ca[C], cur[C], prev[C], b[C] */
 
+/* ngspice's PULSE(v1 v2 td tr tf pw per) at time t (src/spicelib/devices/vsrc/vsrcload.c) */
+static double sd_pulse(const double *p, double t)
+{
+    double v1 = p[0], v2 = p[1], td = p[2], tr = p[3], tf = p[4], pw = p[5], per = p[6];
+    t -= td;
+    if (per > 0.0 && t > per) t -= per * floor(t / per);
+    if (t <= 0.0 || t >= tr + pw + tf) return v1;
+    if (t >= tr && t <= tr + pw) return v2;
+    if (t > 0.0 && t < tr) return v1 + (v2 - v1) * t / tr;
+    return v2 + (v1 - v2) * (t - tr - pw) / tf;
+}
+
 static int sd_sizes_ok(ARGS, int C, int E, int J)
 {
     char msg[200];
     const char *bad = NULL;
     if (PARAM_SIZE(sel) != E * C) bad = "sel must have (drv size) x (ca size) entries";
-    else if (PARAM_SIZE(ph_sense) != J || PARAM_SIZE(ph_fb) != J) bad = "ph_sense and ph_fb need one entry per ph input";
+    else if (PARAM_SIZE(ph_sense) != J || PARAM_SIZE(ph_fb) != J) bad = "ph_sense and ph_fb need one entry per phase";
+    else if (PORT_NULL(ph) && PARAM_SIZE(ph_pulse) % 7 != 0)
+        bad = "without ph inputs, ph_pulse must give 7 numbers (v1 v2 td tr tf pw per) per phase";
     else if (PARAM_SIZE(dither_amp) != C || PARAM_SIZE(dither_step) != C || PARAM_SIZE(cur0) != C
              || PARAM_SIZE(prev0) != C || PARAM_SIZE(b0) != C)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
@@ -89,10 +108,19 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
 {
     const double *bit = s + ST_HEAD + 3 * C;
     double sense = 0.0, fb = 0.0;
-    int e, c, j;
+    int e, c, j, own = PORT_NULL(ph);
     for (j = 0; j < J; j++) {
-        sense += PARAM(ph_sense[j]) * INPUT(ph[j]);
-        fb += PARAM(ph_fb[j]) * INPUT(ph[j]);
+        double v;
+        if (own) {
+            double p[7];
+            int q;
+            for (q = 0; q < 7; q++) p[q] = PARAM(ph_pulse[7 * j + q]);
+            v = sd_pulse(p, ANALYSIS == MIF_TRAN ? TIME : 0.0);
+        } else {
+            v = INPUT(ph[j]);
+        }
+        sense += PARAM(ph_sense[j]) * v;
+        fb += PARAM(ph_fb[j]) * v;
     }
     for (e = 0; e < E; e++) {
         double g = 1.0;
@@ -102,7 +130,7 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
             else if (need < 0) g *= 1.0 - bit[c];
         }
         OUTPUT(drv[e]) = sense + g * fb;
-        for (j = 0; j < J; j++) {
+        for (j = 0; j < J && !own; j++) {
             double p = PARAM(ph_sense[j]) + g * PARAM(ph_fb[j]);
             if (ANALYSIS == MIF_AC) {
                 Mif_Complex_t gain = {p, 0.0};
@@ -138,7 +166,7 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
                 if (!PORT_NULL(prev)) PARTIAL(prev[c], ca[i]) = 0.0;
             }
         }
-        for (i = 0; i < J; i++) {
+        for (i = 0; i < J && !own; i++) {
             if (ANALYSIS == MIF_AC) {
                 Mif_Complex_t zero = {0.0, 0.0};
                 if (!PORT_NULL(b)) AC_GAIN(b[c], ph[i]) = zero;
@@ -155,7 +183,8 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
 
 void cm_netgen_sdloop(ARGS)
 {
-    int C = PORT_SIZE(ca), E = PORT_SIZE(drv), J = PORT_SIZE(ph);
+    int C = PORT_SIZE(ca), E = PORT_SIZE(drv);
+    int J = PORT_NULL(ph) ? PARAM_SIZE(ph_pulse) / 7 : PORT_SIZE(ph);
     double *s, *old, dcur[64];
     if (C > 64) {
         cm_message_send("netgen_sdloop: at most 64 channels");
