@@ -715,8 +715,9 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     n0, ic, wall0 = 0, None, time.perf_counter()
     while n0 < cycles:
         n = min(length, cycles - n0)
+        # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
         bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
-                          control=control, loop=loop)
+                          control=control, loop=loop, chunks=max(1, min(50, n // 100)))
         plot = simulate(bench, out, d.ts * n, progress,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
         runs += 1
