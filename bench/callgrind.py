@@ -8,7 +8,8 @@ Runs `valgrind --tool=callgrind ngspice -b bench.cir` on the bench netlist of ea
 same testbench as bench/sigma_delta.py, `cycles` periods at T_s = 1 us) and prints the total,
 the Newton iterations, and every function above 2 % of the instructions per iteration. The
 ngspice binary is stripped: its functions show as addresses (the recursive parse-tree walk of
-the B-sources is the one marked '2; the sparse LU is called once per iteration). Needs valgrind
+the B-sources is the one marked '2; the sparse LU is called once per iteration; XSPICE's load
+loop MIFload, 0x598db0 in Debian's 39.3 build, once per code-model type). Needs valgrind
 (`apt-get install valgrind`; not part of .ci/setup, the suite does not use it).
 """
 
