@@ -35,6 +35,8 @@ static double sd_pulse(const double *p, double t)
     return v2 + (v1 - v2) * (t - tr - pw) / tf;
 }
 
+/* the parameter and port sizes agree (checked at every call: a mismatch would index past an
+   array; the message is sent once, at INIT) */
 static int sd_sizes_ok(ARGS, int C, int E, int J)
 {
     char msg[200];
@@ -50,8 +52,10 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
              || (!PORT_NULL(prev) && PORT_SIZE(prev) != C))
         bad = "b, cur and prev need one node per ca input";
     if (!bad) return 1;
-    snprintf(msg, sizeof msg, "netgen_sdloop: %s", bad);
-    cm_message_send(msg);
+    if (INIT) {
+        snprintf(msg, sizeof msg, "netgen_sdloop: %s", bad);
+        cm_message_send(msg);
+    }
     return 0;
 }
 
@@ -190,10 +194,8 @@ void cm_netgen_sdloop(ARGS)
         cm_message_send("netgen_sdloop: at most 64 channels");
         return;
     }
-    if (INIT) {
-        cm_analog_alloc(0, (int) sizeof(double) * (ST_HEAD + 4 * C));
-        if (!sd_sizes_ok(mif_private, C, E, J)) return;
-    }
+    if (INIT) cm_analog_alloc(0, (int) sizeof(double) * (ST_HEAD + 4 * C));
+    if (!sd_sizes_ok(mif_private, C, E, J)) return;
     s = (double *) cm_analog_get_ptr(0, 0);
     old = (double *) cm_analog_get_ptr(0, 1);
     memset(dcur, 0, sizeof dcur);
