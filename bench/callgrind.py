@@ -31,7 +31,7 @@ from netgen import codemodel  # noqa: E402
 from netgen import sigma_delta as sd  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.simulate import ngspice_path  # noqa: E402
-from sigma_delta import MODEL_JSON, VARIANTS, library  # noqa: E402
+from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel  # noqa: E402
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
@@ -40,7 +40,7 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     """One callgrind run of the bench around `variant` (testbench blocks `loop`); prints its counts."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.lib").write_text(library(model, variant))
-    cm = variant == "xspice" or loop == "xspice"
+    cm = needs_codemodel(variant, loop)
     control = codemodel.control_lines(codemodel.build(progress=lambda m: None)) if cm else []
     net = sd.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
                        control=control, loop=loop)

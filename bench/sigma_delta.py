@@ -68,7 +68,7 @@ import numpy as np  # noqa: E402
 
 from netgen import codemodel  # noqa: E402
 from netgen import sigma_delta as sd  # noqa: E402
-from netgen.emit_ngspice import charge_node, num, subcircuit, time_scale  # noqa: E402
+from netgen.emit_ngspice import charge_node, force_gain, num, subcircuit, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.simulate import ngspice_path, read_raw  # noqa: E402
 
@@ -91,7 +91,7 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
     lines = [f"* {model.name}: linearised benchmark floor ({kind}), bench/sigma_delta.py",
              f".subckt {model.name} " + " ".join(p["name"] for p in model.ports())]
     for v, c in enumerate(model.coordinates):
-        a = 1.0 / (c.mass * c.scale * ws * ws)
+        a = force_gain(c, ws)
         n = c.name
         lines += [f"Cx_{n} xs_{n} 0 {num(1 / ws)}", f"Gx_{n} 0 xs_{n} u_{n} 0 1", f"Cu_{n} u_{n} 0 {num(1 / ws)}",
                   f"Gf_{n} 0 u_{n} f_{n} 0 {num(a * c.port_units[3])}",
@@ -108,14 +108,17 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
         if kind == "linear":      # C_i(0) linear, grad . xs on a charge node as the model's .lib does
             cref = float(np.abs(grad[i]).max()) or 1.0
             rest = "".join(f" + {num(grad[i, v] / cref)}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
-            q = charge_node(e.name, "unused", plate, cref)
-            lines += [f"Cl_{e.name} {e.name} {plate} {num(c0[i])}",
-                      q["b"].split(" V=")[0] + f" V=({rest[3:].replace('+ -', '- ')})*v({e.name},{plate})",
-                      q["v"], q["c"], q["f"]]
+            q = charge_node(e.name, f"({rest[3:].replace('+ -', '- ')})", plate, cref)
+            lines += [f"Cl_{e.name} {e.name} {plate} {num(c0[i])}", q["b"], q["v"], q["c"], q["f"]]
         else:
             lines.append(f"Cq_{e.name} {e.name} {plate} {num(c0[i])}")
     lines.append(f".ends {model.name}")
     return "\n".join(lines) + "\n"
+
+
+def needs_codemodel(variant: str, loop: str) -> bool:
+    """Does the bench netlist of this subcircuit variant and testbench loop load the code models?"""
+    return variant == "xspice" or loop == "xspice"
 
 
 def library(model: MacroModel, variant: str) -> str:
@@ -198,8 +201,8 @@ def main(argv: list[str] | None = None) -> int:
     model = MacroModel.load_json(args.model)
     libs = {v: library(model, v) for v in variants}
     cases = [(v, lp) for lp in loops for v in variants]
-    control = {}
-    if "xspice" in variants or "xspice" in loops:
+    control = []
+    if any(needs_codemodel(v, lp) for v, lp in cases):
         control = codemodel.control_lines(codemodel.build(progress=lambda m: print(m, file=sys.stderr)))
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
     load0 = os.getloadavg()
@@ -209,9 +212,8 @@ def main(argv: list[str] | None = None) -> int:
         for r in range(args.repeat):
             order = cases[r % len(cases):] + cases[:r % len(cases)]
             for v, lp in order:
-                uses_cm = v == "xspice" or lp == "xspice"
                 res = run_once(model, libs[v], base / f"{v}_{lp}", args.ts, cycles[v], check=v not in ("floor",),
-                               control=control if uses_cm else [], loop=lp)
+                               control=control if needs_codemodel(v, lp) else [], loop=lp)
                 runs[(v, lp)].append(res)
                 print(f"  run {r + 1}/{args.repeat} {v} ({lp} loop): {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
                       file=sys.stderr, flush=True)

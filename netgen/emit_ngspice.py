@@ -42,7 +42,7 @@ def _force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tupl
     """Right-hand side current of the velocity integrator of coordinate v: a behavioural
     expression, and (node, gain) pairs of forces linear in a y node (emitted as cheap VCCS)."""
     c = model.coordinates[v]
-    a = 1.0 / (c.mass * c.scale * ws * ws)
+    a = force_gain(c, ws)
     parts, linear = [f"{gain}*v({n})" for n, gain in _linear_force_terms(model, v, ws)], []
     for f in model.capacitances:
         for k, poly in enumerate(f.polys):
@@ -59,11 +59,17 @@ def _force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tupl
     return " + ".join(parts).replace("+ -", "- "), linear
 
 
+def force_gain(c, ws: float) -> float:
+    """Scaled velocity rate per newton (or N*m) of generalized force on coordinate c:
+    d u / d tau = F / (m L w_s^2), the factor every force term of its velocity integrator carries."""
+    return 1.0 / (c.mass * c.scale * ws * ws)
+
+
 def _linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, str]]:
     """(node, gain) of the linear right-hand side of coordinate v's velocity integrator (the
     external force port, spring, damper), i.e. `_force_terms` without the electrostatics, as VCCS."""
     c = model.coordinates[v]
-    a = 1.0 / (c.mass * c.scale * ws * ws)
+    a = force_gain(c, ws)
     terms = [(f"f_{c.name}", num(a * c.port_units[3]))]
     if c.stiffness:
         terms.append((f"xs_{c.name}", num(-c.stiffness / (c.mass * ws * ws))))
@@ -96,14 +102,15 @@ def charge_expr(f, plate: str) -> str:
     return f"{cap}*v({f.electrode},{plate})"
 
 
-def charge_node(electrode: str, cs: str, plate: str, c_ref: float) -> dict:
-    """The behavioural part of an electrode's charge, c_ref c_i (V_e - V_plate), as the node
-    qn_e = c_i (V_e - V_plate) (a 3-variable product) on a linear capacitor c_ref, whose current
-    the electrode draws through a CCCS. Why not `C ... Q=`: ngspice expands that into 3 equations
+def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
+    """The behavioural part of an electrode's charge, c_ref c_i (V_e - V_plate) with c_i the
+    expression `factor` (e.g. v(c_e)), as the node qn_e = c_i (V_e - V_plate) on a linear
+    capacitor c_ref, whose current the electrode draws through a CCCS. Why not `C ... Q=`:
+    ngspice expands that into 3 equations
     per electrode (G, L, B) whose coupling filled the sparse LU 2.4x more (723 against 297 fill-ins
     in the sigma-delta bench, 15 % of its instructions per Newton iteration; README "Performance");
     this form adds 2 and integrates the same charge with the same rule."""
-    return {"b": f"Bqn_{electrode} qs_{electrode} 0 V=v({cs})*v({electrode},{plate})",
+    return {"b": f"Bqn_{electrode} qs_{electrode} 0 V={factor}*v({electrode},{plate})",
             "v": f"Vqm_{electrode} qs_{electrode} qn_{electrode} 0",
             "c": f"Cqn_{electrode} qn_{electrode} 0 {num(c_ref)}",
             "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1"}
@@ -221,7 +228,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None, style: str = "fast"
     else:
         stops, per_coord = contact_terms(model)
     for row, c, terms in zip(ctx["coords"], model.coordinates, per_coord):
-        a = 1.0 / (c.mass * c.scale * ws * ws)
+        a = force_gain(c, ws)
         row["stops"] = [(name, num(a * gain)) for name, gain in terms]
     if style == "fast":                 # no penetration, no force: the ternary skips the penalty's derivative trees
         for pt in stops:
@@ -313,7 +320,7 @@ def _fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + \
         [f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))]
     return {"nodes": nodes, "gs": gs, "ys": ys, "dv2": dv2, "sums": sums, "c0": num(f.c_ref * c0),
-            "charge": charge_node(e, cs, plate, f.c_ref)}
+            "charge": charge_node(e, f"v({cs})", plate, f.c_ref)}
 
 
 # ------------------------------------------------------------------ the XSPICE code model form
@@ -341,7 +348,7 @@ def _xspice_fit(model: MacroModel, f) -> dict:
     c0 = _rest_capacitance(f, model.ncoords)
     cs = c_node(f.electrode)
     return {"sums": [f"R{cs} {cs} 0 1"], "c0": num(f.c_ref * c0),
-            "charge": charge_node(f.electrode, cs, model.plate, f.c_ref)}
+            "charge": charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref)}
 
 
 def xspice_context(model: MacroModel, ws: float) -> dict:
@@ -364,7 +371,7 @@ def xspice_context(model: MacroModel, ws: float) -> dict:
                     p["mono_term"].append(term)
                     p["mono_coef"].append(float(c))
                     p["mono_exp"].extend(int(x) for x in e)
-    gains = [1.0 / (c.mass * c.scale * ws * ws) for c in model.coordinates]
+    gains = [force_gain(c, ws) for c in model.coordinates]
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
     stops = stop_constants(model)
     nstop = len(stops["a"]) if stops else 1             # the model card needs the vectors even without stops
@@ -400,7 +407,7 @@ def naive_subcircuit(model: MacroModel) -> str:
              f".subckt {model.name} " + " ".join(p["name"] for p in model.ports())]
     dv = {f.electrode: f"v({f.electrode},{plate})" for f in model.capacitances}
     for v, c in enumerate(model.coordinates):
-        a = 1.0 / (c.mass * c.scale * ws * ws)
+        a = force_gain(c, ws)
         parts = [f"{num(a * c.port_units[3])}*v(f_{c.name})"]
         if c.stiffness:
             parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))}*v({state[v]})")
@@ -456,7 +463,7 @@ def nonlinear_forces(model: MacroModel, state: list[str], access: str = "v({})",
 def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[dict]:
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
-    gains = [1.0 / (c.mass * c.scale * ws * ws) for c in model.coordinates]
+    gains = [force_gain(c, ws) for c in model.coordinates]
     return [{"name": c.name, "expr": e} for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
             if e != "0"]
 

@@ -351,13 +351,11 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     loop's own state (cur, prev, b per channel) is popped from `ic` into its initial values."""
     fb = d.feedback_basis
     names = [c["name"] for c in d.channels]
-
-    def sel(e: dict) -> list[int]:
-        return [e["side"] if n == "z" else (e["sign"] if n == e["axis"] else 0) for n in names]
-
     init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
+    # an electrode is energised when each channel's bit equals its sense weight there (side for z,
+    # tilt sign for its axis; groups(), selected()): the weights are the selection pattern
     params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, "lead": d.lead,
-              "start": float(start), "sel": [v for e in d.electrodes for v in sel(e)],
+              "start": float(start), "sel": [w for e in d.electrodes for w in e["w"]],
               "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
               "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
               "dither_amp": [c["dither_v"] for c in d.channels],

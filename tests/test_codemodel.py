@@ -113,16 +113,19 @@ def _loop_reference(periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(curs), np.array(bits), np.array(ys)
 
 
-def _sdloop_netlist(cm, analysis: str) -> str:
+def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None) -> str:
+    """The instance with the phases as inputs from DC sources, or (pulses given) from its own
+    PULSE(v1 v2 td tr tf pw per) waveforms."""
     vec = lambda xs: "[" + " ".join(str(x) for x in xs) + "]"      # noqa: E731
+    ph_pulse = vec(float(v) for p in pulses for v in p) if pulses else "[0]"
     card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} lead={LEAD} start={START} "
-            f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse=[0] "
+            f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse={ph_pulse} "
             f"dither_amp={vec(a for a, _ in DITHER)} dither_step={vec(s for _, s in DITHER)} "
             + " ".join(f"{k}={vec(v)}" for k, v in INIT.items()) + ")")
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {f} 0 0 {np.degrees(p)})" for i, (a, f, p, o) in enumerate(CA)]
     return "\n".join([
         "netgen_sdloop: two channels, three electrodes", *sources, "Vphs phs 0 DC 1", "Vphf phf 0 DC 1 AC 1",
-        "A1 [ca0 ca1] [phs phf] [d0 d1 d2] [b0 b1] [cur0 cur1] [prev0 prev1] lp", card,
+        f"A1 [ca0 ca1] {'NULL' if pulses else '[phs phf]'} [d0 d1 d2] [b0 b1] [cur0 cur1] [prev0 prev1] lp", card,
         ".control", *codemodel.control_lines(cm), ".endc", analysis, ".end", ""])
 
 
@@ -171,10 +174,7 @@ def test_sdloop_drives_from_its_own_pulse_phases(cold_build, tmp_path):
     ph_sense.PULSE + selection * ph_fb.PULSE at every time point (the selection is constant here:
     b0 = [1, 0] until the first latch at 0.42 us, so the run stops before it)."""
     pulses = [(0, 1, 0.05e-6, 0.02e-6, 0.03e-6, 0.1e-6, 0.25e-6), (0, 2, 0.0, 0.04e-6, 0.01e-6, 0.05e-6, 0.2e-6)]
-    card = _sdloop_netlist(cold_build, ".tran 1e-9 0.4e-6 0 5e-9").replace(
-        "ph_pulse=[0]", "ph_pulse=[" + " ".join(str(float(v)) for p in pulses for v in p) + "]").replace(
-        "[phs phf]", "NULL")
-    plot = run_ngspice(card, tmp_path)[0]
+    plot = run_ngspice(_sdloop_netlist(cold_build, ".tran 1e-9 0.4e-6 0 5e-9", pulses), tmp_path)[0]
     t = np.asarray(plot["time"])
     sense, fb = (_pulse(t, *p) for p in pulses)
     expect = [0.5 * sense + 2 * fb, 0.5 * sense + 0 * fb, 0.5 * sense + 2 * fb]      # s = [1, 0, 1]
