@@ -43,14 +43,27 @@ def _display_ulp(token: str) -> float:
     return 10.0 ** (int(exp or 0) - decimals)
 
 
+def _logical_lines(text: str) -> list[str]:
+    """Lines with SPICE continuation lines ('+' first) appended to the line they continue."""
+    out: list[str] = []
+    for line in text.splitlines():
+        if line.startswith("+") and out:
+            out[-1] += " " + line[1:].strip()
+        else:
+            out.append(line)
+    return out
+
+
 def _compare_text(new: str, old: str, what: str, rounded_lines: str | None = None,
                   numbers: bool = True) -> list[str]:
     """Problems between two texts: text with every number masked must match exactly, and (if
     `numbers`) the numbers within RTOL. On `rounded_lines` (comments of a netlist: numbers printed with a few
     digits) a number may also flip its last printed digit (not more than 1e-3 relative), which a
-    1e-12 BLAS difference can do at a rounding boundary."""
+    1e-12 BLAS difference can do at a rounding boundary. SPICE continuation lines ("+ ...") are
+    joined to their line first: a long parameter vector wraps where its digits make it reach the
+    width, so a last-digit change can move a value to the next line."""
     problems = []
-    new_lines, old_lines = new.splitlines(), old.splitlines()
+    new_lines, old_lines = _logical_lines(new), _logical_lines(old)
     if len(new_lines) != len(old_lines):
         problems.append(f"{what}: {len(new_lines)} lines now, {len(old_lines)} committed")
     for k, (a, b) in enumerate(zip(new_lines, old_lines), start=1):
@@ -135,6 +148,9 @@ def test_staleness_check_sees_small_changes_and_tolerates_rounding():
     assert not _compare_text("* top_r1s1  2  1.669e-03", "* top_r1s1  2  1.670e-03", "t", rounded_lines="*")
     assert _compare_text("* top_r1s1  2  1.669e-03", "* top_r1s1  2  1.671e-03", "t", rounded_lines="*")
     assert _compare_text("* z  3e-06 m", "* z  4e-06 m", "t", rounded_lines="*")
+    wrapped = ".model m x (\n+ p=[1.25 2.5\n+ 3.75])"          # a vector wrapped at another value
+    assert not _compare_text(wrapped, ".model m x (\n+ p=[1.25\n+ 2.5 3.75])", "t")
+    assert _compare_text(wrapped, ".model m x (\n+ p=[1.25\n+ 2.5 3.76])", "t")
     assert _compare_json({"a": [1.0, 2]}, {"a": [1.0 + 1e-6, 2]})
     assert not _compare_json({"report": {"mechanics": {"side_conditions": {"phi": 3e-12}}}},
                              {"report": {"mechanics": {"side_conditions": {"phi": 8e-13}}}})
