@@ -32,24 +32,8 @@ import numpy as np
 from skfem import Basis, BilinearForm, ElementTriP2, LinearForm, MeshTri, condense, solve
 from skfem.helpers import dot, grad
 
-ATMOSPHERE = 101325.0        # Pa, reference pressure of the tabulated mean free paths
-K_B = 1.380649e-23           # J/K
+from .constants import ATMOSPHERE, GASES, K_B, Gas  # noqa: F401  (GASES: the gas table of this model)
 
-
-@dataclass(frozen=True)
-class Gas:
-    """Dynamic viscosity (Pa s) and mean free path at 1 atm (m), both near 300 K."""
-    name: str
-    viscosity: float
-    mean_free_path: float
-
-
-GASES = {   # viscosities: CRC handbook near 300 K; mean free paths at 1 atm (Veijola/Bao tables)
-    "air": Gas("air", 1.85e-5, 68e-9),
-    "nitrogen": Gas("nitrogen", 1.78e-5, 66e-9),
-    "argon": Gas("argon", 2.27e-5, 70e-9),
-    "helium": Gas("helium", 1.99e-5, 190e-9),
-}
 
 
 def knudsen(gas: Gas, pressure: float, gap: float) -> float:

@@ -137,11 +137,11 @@ class _Lines:
     """Line numbers of keys in the sweep file, for error messages (same rules as structure files)."""
 
     def __init__(self, path: str, text: str):
-        from .structure import _Reader
-        self.path, self.reader = path, _Reader(path, text)
+        from .structure.reader import Reader
+        self.path, self.reader = path, Reader(path, text)
 
     def fail(self, where: str, problem: str, fix: str) -> SweepError:
-        return SweepError(self.path, where, problem, fix, self.reader._line_of(where))
+        return SweepError(self.path, where, problem, fix, self.reader.line_of(where))
 
 
 def _close(word: str, options) -> str:
@@ -162,7 +162,7 @@ def load_sweep(path: str | Path) -> Sweep:
 
 
 def parse_sweep(text: str, path: str = "<string>") -> Sweep:
-    from .structure import toml_document
+    from .files import toml_document
     rd = _Lines(path, text)
     doc = toml_document(text, path, SweepError, "correct the TOML syntax at that line")
     for key in doc:

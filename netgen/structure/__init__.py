@@ -1,0 +1,14 @@
+"""The structure stage: the TOML file a user writes, validated into frozen dataclasses
+(netgen.structure.parse). Conductor kinds: netgen.structure.conductors.CONDUCTORS."""
+
+from ..errors import StructureError
+from .conductors import CONDUCTORS, Beam, FreeDisk, Piston
+from .electrodes import ElectrodeSet, RectElectrode
+from .parse import load_structure, parse_structure
+from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Coordinates, Damping, ElectrostaticsOptions,
+                     FemOptions, FitOptions, Imports, Sampling, Structure, mode_name)
+
+__all__ = ["CONDUCTORS", "MAX_GRID_POINTS", "RIGID_COORDINATES", "Beam", "Coordinates", "Damping",
+           "ElectrodeSet", "ElectrostaticsOptions", "FemOptions", "FitOptions", "FreeDisk", "Imports", "Piston",
+           "RectElectrode", "Sampling", "Structure", "StructureError", "load_structure", "mode_name",
+           "parse_structure"]

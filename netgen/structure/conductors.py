@@ -1,0 +1,286 @@
+"""Conductor kinds: one frozen dataclass per kind, each reading its own [conductor] table and the
+tables whose form depends on it ([[electrodes]], [coordinates], [fem]). CONDUCTORS is the
+registry the parser picks from (`kind = ...`); the mechanics stage has its own
+(netgen.mechanics.KINDS). The conductor lies in the x-y plane: the disk centred at the origin,
+the piston plate centred at the origin, beams from the clamp at x = 0 to x = length, centred
+on y = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+from .electrodes import check_ring_overlaps, rectangles, ring_sets
+from .reader import (Reader, check_keys, did_you_mean, flag, integer, positive, quantity,
+                     table)
+from .schema import MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
+
+
+def acceleration_port(rd: Reader, t: dict) -> bool:
+    """coordinates.acceleration_port: emit the a_in port (frame acceleration along +z)."""
+    return flag(rd, t, "coordinates", "acceleration_port", False,
+                "write acceleration_port = true (adds the port a_in: frame acceleration, 1 V = 1 m/s^2)")
+
+
+def boundary_edges(refine: int) -> int:
+    """Edges on the rim of scikit-fem's MeshTri.init_circle(refine) (32 at refine 3, doubling per level)."""
+    return 32 * 2 ** (refine - 3)
+
+
+@dataclass(frozen=True)
+class FreeDisk:
+    """A free-floating thin circular plate (the paper's levitated disk) between ring-sector sets."""
+    radius: float
+    thickness: float
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+    kind: str = "free_disk"
+    outline_shape: ClassVar[str] = "disk"
+    one_dimensional: ClassVar[bool] = False
+
+    @property
+    def mass(self) -> float:
+        return math.pi * self.radius**2 * self.thickness * self.density
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> "FreeDisk":
+        """The [conductor] table of a free disk."""
+        check_keys(rd, "conductor", t, ["kind", "radius", "thickness", "youngs_modulus", "poisson_ratio", "density"])
+        radius = quantity(rd, t, "conductor", "radius", "length", check=positive, what="disk radius")
+        thickness = quantity(rd, t, "conductor", "thickness", "length", check=positive, what="plate thickness")
+        modulus = quantity(rd, t, "conductor", "youngs_modulus", "modulus", check=positive,
+                           what="Young's modulus (polysilicon: 160 GPa)")
+        nu = quantity(rd, t, "conductor", "poisson_ratio", "dimensionless",
+                      check=lambda v: None if -1 < v < 0.5 else "must lie in (-1, 0.5)",
+                      what="Poisson's ratio (polysilicon: 0.22)")
+        density = quantity(rd, t, "conductor", "density", "density", check=positive,
+                           what="mass density (polysilicon: 2330 kg/m^3)")
+        return cls(radius, thickness, modulus, nu, density, kind)
+
+    def read_electrodes(self, rd: Reader, doc: dict) -> tuple:
+        return ring_sets(rd, doc, self.radius)
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
+        """Rigid z and tilts, and eigenmodes by count or (n,s) label."""
+        t = table(rd, doc, "coordinates", required=True)
+        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port"])
+        rigid = t.get("rigid", list(RIGID_COORDINATES))
+        if not isinstance(rigid, list) or not all(isinstance(r, str) for r in rigid):
+            raise rd.fail("coordinates.rigid", "rigid must be a list of names", f'write rigid = {list(RIGID_COORDINATES)}')
+        for r in rigid:
+            if r not in RIGID_COORDINATES:
+                raise rd.fail("coordinates.rigid", f"unknown rigid coordinate {r!r}",
+                              f"{did_you_mean(r, list(RIGID_COORDINATES))}use any of {list(RIGID_COORDINATES)}")
+        if len(set(rigid)) != len(rigid):
+            raise rd.fail("coordinates.rigid", "a rigid coordinate is listed twice", "list each once")
+        modes = t.get("modes", 0)
+        if isinstance(modes, bool) or not isinstance(modes, (int, list)):
+            raise rd.fail("coordinates.modes", f"modes must be a count or a list of labels, got {modes!r}",
+                          'write modes = 4 or modes = ["2,0c", "2,0s", "3,0c", "3,0s"]')
+        if isinstance(modes, int):
+            if not 0 <= modes <= 40:
+                raise rd.fail("coordinates.modes", f"modes = {modes} is outside 0..40", "choose 0 to 40 eigenmodes")
+        else:
+            for m in modes:
+                match = MODE_LABEL.match(m) if isinstance(m, str) else None
+                if not match or (match.group(1) == "0") != (match.group(3) == ""):
+                    raise rd.fail("coordinates.modes", f"mode label {m!r} is not of the form 'n,s' + c|s",
+                                  "label a mode by nodal diameters n and nodal circles s, with c or s for the "
+                                  "cos/sin orientation when n > 0: e.g. \"2,0c\", \"3,0s\", \"0,1\"")
+            if len(set(modes)) != len(modes):
+                raise rd.fail("coordinates.modes", "a mode label is listed twice", "list each mode once")
+            modes = tuple(modes)
+        if not rigid and not modes:
+            raise rd.fail("coordinates", "no generalized coordinates", "list rigid coordinates and/or modes")
+        return Coordinates(tuple(rigid), modes, acceleration_port(rd, t))
+
+    def read_fem(self, rd: Reader, doc: dict) -> FemOptions:
+        t = table(rd, doc, "fem", required=False)
+        check_keys(rd, "fem", t, ["refine"])
+        return FemOptions(refine=integer(rd, t, "fem", "refine", 6, 3, 8, "mesh refinement level"))
+
+    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None:
+        """Sets that overlap on one side; modes the FEM mesh does not resolve."""
+        check_ring_overlaps(rd, electrodes)
+        edges = boundary_edges(fem.refine)
+        if isinstance(coords.modes, int) and coords.modes > edges // 4:
+            raise rd.fail("coordinates.modes", f"{coords.modes} modes need a finer mesh than fem.refine = {fem.refine} "
+                          f"(at most {edges // 4}: 8 rim edges per wavelength)",
+                          f"raise fem.refine or request at most {edges // 4} modes")
+        if not isinstance(coords.modes, int):
+            for m in coords.modes:
+                n, s_ = (int(v) for v in MODE_LABEL.match(m).groups()[:2])
+                if n > edges // 8 or s_ > edges // 32:
+                    raise rd.fail("coordinates.modes", f"mode {m!r} is not resolved by the mesh of fem.refine = "
+                                  f"{fem.refine} (n <= {edges // 8}, s <= {edges // 32})",
+                                  "raise fem.refine or drop the mode")
+
+    def coordinate_names(self, coords: Coordinates) -> list[str] | None:
+        """Names the pipeline gives the coordinates (None while modes are only a count)."""
+        if isinstance(coords.modes, int):
+            return None if coords.modes else list(coords.rigid)
+        return list(coords.rigid) + [mode_name(m) for m in coords.modes]
+
+
+class Suspended:
+    """What the suspended kinds share: rectangular electrodes, no plate mesh, no squeeze film."""
+    outline_shape: ClassVar[str] = "rect"
+    one_dimensional: ClassVar[bool] = False
+
+    def read_electrodes(self, rd: Reader, doc: dict) -> tuple:
+        return rectangles(rd, doc, self.outline())
+
+    def read_fem(self, rd: Reader, doc: dict) -> FemOptions:
+        if "fem" in doc:
+            raise rd.fail("[fem]", "[fem] sets the free-disk plate mesh; a suspended structure has none",
+                          "remove [fem] (beams: conductor.elements sets the beam mesh)")
+        return FemOptions()
+
+    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None:
+        damp = doc.get("damping")
+        if isinstance(damp, dict) and damp.get("squeeze_film"):
+            raise rd.fail("damping.squeeze_film", "the squeeze-film model is solved on the free disk only",
+                          "remove squeeze_film and give q_factor / damping_ratio / rayleigh instead")
+
+
+@dataclass(frozen=True)
+class Piston(Suspended):
+    """A rigid rectangular plate on linear springs: vertical stiffness and (optional) tilt stiffness."""
+    length: float                  # m, along x
+    width: float                   # m, along y
+    thickness: float
+    density: float
+    stiffness: float               # N/m, vertical spring
+    tilt_stiffness: float          # N*m/rad, about x and about y (0: tilts not allowed as coordinates)
+    kind: str = "piston"
+
+    @property
+    def mass(self) -> float:
+        return self.length * self.width * self.thickness * self.density
+
+    def outline(self) -> tuple[float, float, float, float]:
+        """(x0, x1, y0, y1) of the plate."""
+        return -self.length / 2, self.length / 2, -self.width / 2, self.width / 2
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> "Piston":
+        check_keys(rd, "conductor", t, ["kind", "length", "width", "thickness", "density", "stiffness",
+                                        "tilt_stiffness"])
+        length = quantity(rd, t, "conductor", "length", "length", check=positive, what="plate length (along x)")
+        width = quantity(rd, t, "conductor", "width", "length", default=length, check=positive,
+                         what="plate width (along y)")
+        thickness = quantity(rd, t, "conductor", "thickness", "length", check=positive, what="plate thickness")
+        density = quantity(rd, t, "conductor", "density", "density", check=positive,
+                           what="mass density (polysilicon: 2330 kg/m^3)")
+        k = quantity(rd, t, "conductor", "stiffness", "dimensionless", check=positive,
+                     what="vertical spring stiffness in N/m")
+        kt = quantity(rd, t, "conductor", "tilt_stiffness", "dimensionless", default=0.0,
+                      check=lambda v: None if v >= 0 else "must not be negative",
+                      what="tilt spring stiffness in N*m/rad")
+        return cls(length, width, thickness, density, k, kt)
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
+        """Rigid z (and the tilts, with a tilt spring)."""
+        t = table(rd, doc, "coordinates", required=False)
+        accel = acceleration_port(rd, t)
+        check_keys(rd, "coordinates", t, ["rigid", "acceleration_port"])
+        rigid = t.get("rigid", ["z"])
+        if not isinstance(rigid, list) or not rigid or not all(isinstance(r, str) for r in rigid) \
+                or len(set(rigid)) != len(rigid) or not set(rigid) <= set(RIGID_COORDINATES):
+            raise rd.fail("coordinates.rigid", f"rigid = {rigid!r} is not a list of distinct names from "
+                          f"{list(RIGID_COORDINATES)}", 'write rigid = ["z"] or rigid = ["z", "tilt_x", "tilt_y"]')
+        if any(r != "z" for r in rigid) and self.tilt_stiffness <= 0:
+            raise rd.fail("conductor.tilt_stiffness", "tilt coordinates need a tilt spring",
+                          "add tilt_stiffness = <N*m/rad> to [conductor] or use rigid = [\"z\"]")
+        return Coordinates(tuple(rigid), 0, accel)
+
+    def coordinate_names(self, coords: Coordinates) -> list[str]:
+        return list(coords.rigid)
+
+
+@dataclass(frozen=True)
+class Beam(Suspended):
+    """A prismatic Euler-Bernoulli beam, clamped at x = 0 (and at x = length if clamped-clamped).
+
+    residual_stress: axial stress (Pa, tensile > 0) of a clamped-clamped beam; it enters the
+    linear stiffness (stress-stiffened modes). stretching: add the large-deflection strain energy
+    of the mid-plane stretching (clamped-clamped only) as a fitted polynomial nonlinear stiffness.
+    """
+    kind: str
+    length: float
+    width: float
+    thickness: float
+    youngs_modulus: float
+    density: float
+    residual_stress: float = 0.0
+    stretching: bool = True
+    elements: int = 60
+    one_dimensional: ClassVar[bool] = True
+
+    @property
+    def mass(self) -> float:
+        return self.length * self.width * self.thickness * self.density
+
+    def outline(self) -> tuple[float, float, float, float]:
+        return 0.0, self.length, -self.width / 2, self.width / 2
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> "Beam":
+        pos = positive
+        check_keys(rd, "conductor", t, ["kind", "length", "width", "thickness", "youngs_modulus", "density",
+                                        "residual_stress", "stretching", "elements"])
+        length = quantity(rd, t, "conductor", "length", "length", check=pos, what="beam length (clamp to clamp/tip)")
+        width = quantity(rd, t, "conductor", "width", "length", check=pos, what="beam width")
+        thickness = quantity(rd, t, "conductor", "thickness", "length", check=pos, what="beam thickness")
+        modulus = quantity(rd, t, "conductor", "youngs_modulus", "modulus", check=pos,
+                           what="Young's modulus (use E/(1-nu^2) for a wide beam)")
+        density = quantity(rd, t, "conductor", "density", "density", check=pos, what="mass density")
+        stress = quantity(rd, t, "conductor", "residual_stress", "modulus", default=0.0,
+                          what="axial residual stress (tensile > 0)")
+        stretching = t.get("stretching", kind == "clamped_clamped_beam")
+        if not isinstance(stretching, bool):
+            raise rd.fail("conductor.stretching", f"stretching must be true or false, got {stretching!r}",
+                          "write stretching = true (large-deflection stress stiffening) or false")
+        if kind == "cantilever" and (stress != 0.0 or stretching):
+            key = "residual_stress" if stress != 0.0 else "stretching"
+            raise rd.fail(f"conductor.{key}", "a cantilever has a free end: residual axial stress relaxes and the "
+                          "mid-plane does not stretch", f"remove {key} (or use kind = \"clamped_clamped_beam\")")
+        if stress < 0:
+            # Euler buckling: sigma_cr = pi^2 E t^2 / (3 L^2) for clamped-clamped ends
+            critical = math.pi**2 * modulus * thickness**2 / (3 * length**2)
+            if -stress >= critical:
+                raise rd.fail("conductor.residual_stress", f"compressive stress {stress:g} Pa buckles the beam "
+                              f"(critical {-critical:g} Pa)", "give a smaller compressive stress")
+        elements = integer(rd, t, "conductor", "elements", 60, 8, 2000, "beam finite elements")
+        return cls(kind, length, width, thickness, modulus, density, stress, stretching, elements)
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
+        """The first N bending modes (m1, m2, ...)."""
+        t = table(rd, doc, "coordinates", required=False)
+        accel = acceleration_port(rd, t)
+        check_keys(rd, "coordinates", t, ["modes", "acceleration_port"])
+        modes = t.get("modes", 3)
+        if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= 12:
+            raise rd.fail("coordinates.modes", f"modes = {modes!r} must be a count 1..12 of bending modes",
+                          "write modes = 3 (the first three bending modes, named m1, m2, m3)")
+        if modes > self.elements // 4:
+            raise rd.fail("coordinates.modes", f"{modes} modes need more than conductor.elements = {self.elements}",
+                          f"raise conductor.elements to at least {4 * modes}")
+        return Coordinates((), modes, accel)
+
+    def coordinate_names(self, coords: Coordinates) -> list[str]:
+        return [mode_name(str(k + 1)) for k in range(coords.modes)]
+
+
+# kind -> conductor class; a new kind is a dataclass with read / read_electrodes / read_coordinates /
+# read_fem / check / coordinate_names, one line here, and its mechanics (netgen.mechanics.KINDS)
+CONDUCTORS: dict[str, type] = {
+    "free_disk": FreeDisk,
+    "piston": Piston,
+    "clamped_clamped_beam": Beam,
+    "cantilever": Beam,
+}
+

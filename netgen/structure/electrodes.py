@@ -1,0 +1,182 @@
+"""Electrode kinds of the structure file: ring-sector sets facing a disk (ElectrodeSet) and
+rectangles facing a suspended conductor (RectElectrode), with their [[electrodes]] parsers."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..units import UnitError, parse_quantity
+from .reader import Reader, choice, check_keys, identifier, integer, positive, quantity
+
+
+@dataclass(frozen=True)
+class ElectrodeSet:
+    """Fixed electrodes on one side of the plate: rings x sectors of annular sectors."""
+    name: str
+    side: str                      # "above" or "below"
+    gap: float                     # m, undeformed plate surface to electrode
+    rings: tuple[tuple[float, float], ...]
+    sectors: int
+    sector_start: float            # rad, start angle of the first sector's centre line boundary
+    slot: float                    # m, width of the straight slots between sectors
+
+    def electrode_names(self) -> list[str]:
+        return [f"{self.name}_r{r + 1}s{s + 1}"
+                for r in range(len(self.rings)) for s in range(self.sectors)]
+
+
+@dataclass(frozen=True)
+class RectElectrode:
+    """One fixed rectangular electrode [x0, x1] x [y0, y1] on one side of a suspended conductor."""
+    name: str
+    side: str
+    gap: float
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+
+    def electrode_names(self) -> list[str]:
+        return [self.name]
+
+
+def electrode_tables(rd: Reader, doc: dict, missing: str, fix: str, each: str) -> list[dict]:
+    """The [[electrodes]] array of tables, or a clear error (missing, or not an array of tables)."""
+    raw = doc.get("electrodes")
+    if raw is None:
+        raise rd.fail("[[electrodes]]", missing, fix)
+    if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
+        raise rd.fail("electrodes", "electrodes must be an array of tables", f"write each {each} as [[electrodes]]")
+    return raw
+
+
+# ---------------------------------------------------------------- ring-sector sets (disk)
+
+def rings(rd: Reader, t: dict, where: str, radius: float) -> tuple[tuple[float, float], ...]:
+    """rings = [[inner, outer], ...]: disjoint, inside-out, each starting inside the plate."""
+    loc = f"{where}.rings"
+    fix = 'write rings = [["20 um", "230 um"], ["240 um", "473 um"]]: [inner, outer] radius per ring'
+    raw = t.get("rings")
+    if raw is None:
+        raise rd.fail(loc, "missing required key 'rings'", fix)
+    if not isinstance(raw, list) or not raw or not all(isinstance(r, list) and len(r) == 2 for r in raw):
+        raise rd.fail(loc, "rings must be a non-empty list of [inner, outer] radius pairs", fix)
+    out = []
+    for k, (a, b) in enumerate(raw):
+        try:
+            r_in, r_out = parse_quantity(a, "length"), parse_quantity(b, "length")
+        except UnitError as exc:
+            raise rd.fail(loc, f"ring {k + 1}: {exc}", fix)
+        if not 0 <= r_in < r_out:
+            raise rd.fail(loc, f"ring {k + 1}: need 0 <= inner < outer radius, got [{a}, {b}]", fix)
+        if r_in >= radius:
+            raise rd.fail(loc, f"ring {k + 1} starts at {r_in:g} m, outside the plate (radius {radius:g} m)",
+                          "move the ring inside the plate radius or remove it: it would sense nothing")
+        out.append((r_in, r_out))
+    for k in range(1, len(out)):
+        if out[k][0] < out[k - 1][1]:
+            raise rd.fail(loc, f"ring {k + 1} overlaps ring {k} (rings must be listed inside-out, disjoint)",
+                          "make each ring's inner radius at least the previous ring's outer radius")
+    return tuple(out)
+
+
+def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
+    """[[electrodes]] of a disk: one set of rings x sectors per table."""
+    raw = electrode_tables(rd, doc, "missing electrode sets",
+                           "add one [[electrodes]] table per side (see examples/levitated_disk.toml)", "set")
+    sets, names = [], set()
+    for i, t in enumerate(raw):
+        where = f"electrodes[{i}]"
+        check_keys(rd, where, t, ["name", "side", "gap", "rings", "sectors", "sector_start", "slot"])
+        name = t.get("name")
+        if not identifier(name):
+            raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier",
+                          "use letters, digits and _ (starting with a letter), e.g. name = \"top\"; "
+                          "avoid the word 'error' (PySpice treats it as a simulator error)")
+        if name in names:
+            raise rd.fail(f"{where}.name", f"electrode set name {name!r} used twice", "give each set its own name")
+        names.add(name)
+        side = choice(rd, t, where, "side", ["above", "below"], default=None)
+        gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between plate and electrode")
+        ring_list = rings(rd, t, where, radius)
+        sectors = integer(rd, t, where, "sectors", 1, 1, 64, "number of sectors per ring")
+        start = quantity(rd, t, where, "sector_start", "angle", default=-math.pi / 4, what="angle of the first sector edge")
+        slot = quantity(rd, t, where, "slot", "length", default=0.0,
+                        check=lambda v: None if v >= 0 else "must not be negative", what="slot width between sectors")
+        if sectors > 1 and slot >= 2 * ring_list[-1][1] * math.sin(math.pi / sectors):
+            raise rd.fail(f"{where}.slot", f"slot {slot:g} m leaves no electrode area",
+                          "use a slot much narrower than the sector width")
+        for r_in, r_out in ring_list:
+            if sectors > 1 and slot / 2 >= min(r_out, radius) * math.sin(math.pi / sectors):
+                raise rd.fail(f"{where}.slot", f"slot {slot:g} m swallows the ring [{r_in:g}, {r_out:g}] m",
+                              "narrow the slot or widen the ring")
+        sets.append(ElectrodeSet(name, side, gap, ring_list, sectors, start, slot))
+    return tuple(sets)
+
+
+def check_ring_overlaps(rd: Reader, sets: tuple[ElectrodeSet, ...]) -> None:
+    """Two sets on the same side must not share a radius."""
+    for j, b in enumerate(sets):
+        for a in sets[:j]:
+            if a.side != b.side:
+                continue
+            for ra in a.rings:
+                for rb in b.rings:
+                    if ra[0] < rb[1] and rb[0] < ra[1]:
+                        raise rd.fail(f"electrodes[{j}].rings",
+                                      f"set {b.name!r} overlaps set {a.name!r} on the same side ({b.side}): rings "
+                                      f"[{rb[0]:g}, {rb[1]:g}] m and [{ra[0]:g}, {ra[1]:g}] m",
+                                      "merge the sets into one [[electrodes]] table or make their rings disjoint")
+
+
+# ---------------------------------------------------------------- rectangles (suspended conductors)
+
+def span(rd: Reader, t: dict, where: str, key: str, lo: float, hi: float) -> tuple[float, float]:
+    """[start, end] of a rectangular electrode along one axis (default: the conductor's extent)."""
+    if key not in t:
+        return lo, hi
+    raw = t[key]
+    fix = f'write {key} = ["{lo * 1e6:g} um", "{hi * 1e6:g} um"] (start, end within the conductor)'
+    if not isinstance(raw, list) or len(raw) != 2:
+        raise rd.fail(f"{where}.{key}", f"{key} must be a [start, end] pair", fix)
+    try:
+        a, b = parse_quantity(raw[0], "length"), parse_quantity(raw[1], "length")
+    except UnitError as exc:
+        raise rd.fail(f"{where}.{key}", str(exc), fix)
+    if not a < b:
+        raise rd.fail(f"{where}.{key}", f"need start < end, got {raw}", fix)
+    if b <= lo or a >= hi:
+        raise rd.fail(f"{where}.{key}", f"[{a:g}, {b:g}] m lies outside the conductor ([{lo:g}, {hi:g}] m)", fix)
+    return a, b
+
+
+def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]) -> tuple[RectElectrode, ...]:
+    """[[electrodes]] of a suspended conductor: one rectangle each (default: under the whole conductor)."""
+    raw = electrode_tables(rd, doc, "missing electrodes", "add an [[electrodes]] table (see examples/cc_beam.toml)",
+                           "electrode")
+    x0, x1, y0, y1 = outline
+    out, names = [], set()
+    for i, t in enumerate(raw):
+        where = f"electrodes[{i}]"
+        check_keys(rd, where, t, ["name", "side", "gap", "x", "y"])
+        name = t.get("name")
+        if not identifier(name) or name == "plate":
+            raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier",
+                          "use letters, digits and _ (starting with a letter), e.g. name = \"drive\"; "
+                          "avoid 'plate' and the word 'error'")
+        if name in names:
+            raise rd.fail(f"{where}.name", f"electrode name {name!r} used twice", "give each electrode its own name")
+        names.add(name)
+        side = choice(rd, t, where, "side", ["above", "below"], default="below")
+        gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between conductor and electrode")
+        a, b = span(rd, t, where, "x", x0, x1)
+        c, d = span(rd, t, where, "y", y0, y1)
+        for prev in out:
+            if prev.side == side and a < prev.x1 and prev.x0 < b and c < prev.y1 and prev.y0 < d:
+                raise rd.fail(f"{where}.x", f"electrode {name!r} overlaps {prev.name!r} on the same side ({side})",
+                              "make the rectangles disjoint or merge them")
+        out.append(RectElectrode(name, side, gap, a, b, c, d))
+    if not out:
+        raise rd.fail("[[electrodes]]", "no electrodes", "add at least one [[electrodes]] table")
+    return tuple(out)

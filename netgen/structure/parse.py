@@ -1,0 +1,221 @@
+"""Structure files: the TOML a user writes, validated into a Structure.
+
+Every mistake becomes a StructureError naming the file, the line and key, the problem and the
+fix. The conductor kind (netgen.structure.conductors.CONDUCTORS) reads its own table and the
+tables whose form depends on it; this module reads the rest and the checks across tables.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Callable
+
+from ..constants import GASES
+from ..errors import StructureError
+from ..files import toml_document
+from .conductors import CONDUCTORS
+from .reader import (Reader, check_keys, choice, did_you_mean, flag, identifier, integer, positive,
+                     quantity, table)
+from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Damping, ElectrostaticsOptions, FitOptions,
+                     Imports, Sampling, Structure)
+
+TOP_KEYS = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
+            "electrostatics", "fem", "damping", "import"]
+DAMPING_KEYS = ["q_factor", "damping_ratio", "rayleigh", "squeeze_film", "pressure", "gas", "temperature",
+                "noise", "fem_refine", "film_model", "film_max_frequency"]
+
+
+def parse_structure(text: str, path: str = "<string>") -> Structure:
+    """Validate TOML text into a Structure; raises StructureError on any mistake."""
+    rd = Reader(path, text)
+    doc = toml_document(text, path)
+    check_keys(rd, "", doc, TOP_KEYS)
+    name = doc.get("name")
+    if not identifier(name):
+        raise rd.fail("name", f"name {name!r} is missing or not a simple identifier",
+                      'add name = "levitated_disk" (letters, digits, _; it names the output files '
+                      "and the subcircuit; avoid the word 'error')")
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        raise rd.fail("description", "description must be a string", 'write description = "..."')
+    t = table(rd, doc, "conductor", required=True)
+    kind = choice(rd, t, "conductor", "kind", list(CONDUCTORS), default="free_disk")
+    conductor = CONDUCTORS[kind].read(rd, t, kind)
+    sets = conductor.read_electrodes(rd, doc)
+    coords = conductor.read_coordinates(rd, doc)
+    sampling, fit = read_sampling(rd, doc), read_fit(rd, doc)
+    if fit.degree >= sampling.levels:
+        raise rd.fail("fit.degree", f"degree {fit.degree} needs at least {fit.degree + 1} sampling levels "
+                      f"per coordinate (have {sampling.levels})",
+                      f"lower fit.degree or raise sampling.levels to {fit.degree + 1}")
+    fem = conductor.read_fem(rd, doc)
+    conductor.check(rd, doc, sets, coords, fem)
+    if sampling.levels ** coords.count > MAX_GRID_POINTS:
+        raise rd.fail("sampling.levels", f"{sampling.levels}^{coords.count} = {sampling.levels ** coords.count} "
+                      f"capacitance samples exceed {MAX_GRID_POINTS}", "lower sampling.levels or use fewer coordinates")
+    return Structure(name=name, description=description, source=path, conductor=conductor,
+                     electrode_sets=sets, coordinates=coords, sampling=sampling,
+                     fit=fit, electrostatics=read_electrostatics(rd, doc), fem=fem,
+                     damping=read_damping(rd, doc, conductor.coordinate_names(coords)),
+                     imports=read_imports(rd, doc))
+
+
+def load_structure(path: str | Path) -> Structure:
+    """Read and validate a structure file; unreadable files become StructureError too."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise StructureError(str(path), "file", "no such file", "check the path to the structure file")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise StructureError(str(path), "file", f"cannot read: {exc}", "give a readable UTF-8 TOML file")
+    return parse_structure(text, str(path))
+
+
+# ---------------------------------------------------------------- sections of every kind
+
+def read_sampling(rd: Reader, doc: dict) -> Sampling:
+    t = table(rd, doc, "sampling", required=False)
+    check_keys(rd, "sampling", t, ["levels", "range"])
+    rng = quantity(rd, t, "sampling", "range", "dimensionless", default=0.2,
+                   check=lambda v: None if 0 < v < 0.9 else "must lie in (0, 0.9): it is a fraction of the "
+                   "amplitude at which the plate touches an electrode, and 1 means contact",
+                   what="sampling range as a fraction of the touching amplitude")
+    return Sampling(levels=integer(rd, t, "sampling", "levels", 3, 2, 9, "levels per coordinate"), range=rng)
+
+
+def read_fit(rd: Reader, doc: dict) -> FitOptions:
+    t = table(rd, doc, "fit", required=False)
+    check_keys(rd, "fit", t, ["degree", "target", "holdout", "seed", "tolerance", "max_terms"])
+    d = FitOptions()
+    return FitOptions(degree=integer(rd, t, "fit", "degree", d.degree, 1, 6, "polynomial total degree"),
+                      target=choice(rd, t, "fit", "target", ["plates", "inverse", "direct"], d.target),
+                      tolerance=quantity(rd, t, "fit", "tolerance", "dimensionless", d.tolerance,
+                                         check=lambda v: None if 0 < v < 1 else "must lie in (0, 1)",
+                                         what="held-out max relative error target"),
+                      max_terms=integer(rd, t, "fit", "max_terms", d.max_terms, 1, 25, "plate terms per electrode"),
+                      holdout=integer(rd, t, "fit", "holdout", 500, 10, 10**6, "held-out check points"),
+                      seed=integer(rd, t, "fit", "seed", 1, 0, 2**31 - 1, "random seed of the held-out points"))
+
+
+def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
+    t = table(rd, doc, "electrostatics", required=False)
+    keys = ["extractor", "fringe", "fringe_a", "fringe_b", "relative_permittivity", "coupling_per_length"]
+    check_keys(rd, "electrostatics", t, keys)
+    d = ElectrostaticsOptions()
+    extractor = t.get("extractor", d.extractor)
+    if not identifier(extractor):
+        raise rd.fail("electrostatics.extractor", f"extractor = {extractor!r} is not a name",
+                      'write extractor = "parallel_plate"')
+    return ElectrostaticsOptions(
+        fringe=choice(rd, t, "electrostatics", "fringe", ["plate_between", "palmer", "none"], d.fringe),
+        fringe_a=quantity(rd, t, "electrostatics", "fringe_a", "dimensionless", d.fringe_a),
+        fringe_b=quantity(rd, t, "electrostatics", "fringe_b", "dimensionless", d.fringe_b),
+        relative_permittivity=quantity(rd, t, "electrostatics", "relative_permittivity", "dimensionless",
+                                       d.relative_permittivity, check=lambda v: None if v >= 1 else "must be >= 1"),
+        coupling_per_length=quantity(rd, t, "electrostatics", "coupling_per_length", "dimensionless",
+                                     d.coupling_per_length, check=lambda v: None if v >= 0 else "must be >= 0",
+                                     what="electrode-electrode capacitance per slot length in F/m"),
+        extractor=extractor)
+
+
+# ---------------------------------------------------------------- [damping]
+
+def per_coordinate(rd: Reader, t: dict, key: str, names: list[str] | None,
+                   check: Callable[[float], str | None], what: str) -> tuple[tuple[str, float], ...]:
+    """A number (every eigenmode: key '*') or a table {coordinate = number} of positive values."""
+    loc = f"damping.{key}"
+    if key not in t:
+        return ()
+    raw = t[key]
+    entries = raw if isinstance(raw, dict) else {"*": raw}
+    out = []
+    for name, value in entries.items():
+        if name != "*" and names is not None and name not in names:
+            raise rd.fail(loc, f"unknown coordinate {name!r}", f"{did_you_mean(name, names)}use one of {names}")
+        if name in RIGID_COORDINATES:
+            raise rd.fail(loc, f"{key} of the rigid coordinate {name!r} is undefined (no stiffness, no resonance)",
+                          "damp rigid-body motions with squeeze_film or rayleigh alpha instead")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise rd.fail(loc, f"{key} for {name!r} must be a number, got {value!r}",
+                          f"write {key} = 1e4 (all eigenmodes) or {key} = {{m2_0c = 1e4}}")
+        problem = check(float(value))
+        if problem:
+            raise rd.fail(loc, f"{key} = {value!r} for {name!r} {problem}", f"give a physical {what}")
+        out.append((name, float(value)))
+    return tuple(out)
+
+
+def rayleigh(rd: Reader, t: dict) -> tuple[float, float]:
+    """Rayleigh coefficients (alpha in 1/s, beta in s) from rayleigh = {alpha = .., beta = ..}."""
+    raw = t.get("rayleigh", {})
+    if not isinstance(raw, dict):
+        raise rd.fail("damping.rayleigh", f"rayleigh must be a table, got {raw!r}",
+                      "write rayleigh = {alpha = 10.0, beta = 1e-9}  (D = alpha M + beta K; 1/s and s)")
+    check_keys(rd, "damping.rayleigh", raw, ["alpha", "beta"])
+    nonneg = lambda v: None if v >= 0 else "must not be negative"   # noqa: E731
+    return (quantity(rd, raw, "damping.rayleigh", "alpha", "dimensionless", 0.0, nonneg, "mass-proportional 1/s"),
+            quantity(rd, raw, "damping.rayleigh", "beta", "dimensionless", 0.0, nonneg, "stiffness-proportional s"))
+
+
+def read_damping(rd: Reader, doc: dict, names: list[str] | None) -> Damping | None:
+    """The optional [damping] table; `names`: the coordinate names (None while unknown)."""
+    if "damping" not in doc:
+        return None
+    t = table(rd, doc, "damping", required=False)
+    check_keys(rd, "damping", t, DAMPING_KEYS)
+    q = per_coordinate(rd, t, "q_factor", names, lambda v: None if v > 0.5 else "must exceed 0.5",
+                       "quality factor (> 0.5, underdamped)")
+    zeta = per_coordinate(rd, t, "damping_ratio", names, lambda v: None if 0 < v < 1 else "must lie in (0, 1)",
+                          "damping ratio")
+    both = sorted({n for n, _ in q} & {n for n, _ in zeta})
+    if both:
+        raise rd.fail("damping.damping_ratio", f"coordinate(s) {both} given both q_factor and damping_ratio",
+                      "give each coordinate one of them (Q = 1 / (2 zeta))")
+    alpha, beta = rayleigh(rd, t)
+    return Damping(q, zeta, alpha, beta, flag(rd, t, "damping", "squeeze_film", False),
+                   quantity(rd, t, "damping", "pressure", "pressure", 101325.0, positive, "gas pressure"),
+                   choice(rd, t, "damping", "gas", sorted(GASES), "air"),
+                   quantity(rd, t, "damping", "temperature", "temperature", 300.0, positive, "temperature"),
+                   flag(rd, t, "damping", "noise", False),
+                   integer(rd, t, "damping", "fem_refine", 5, 2, 8, "Reynolds mesh refinement level"),
+                   choice(rd, t, "damping", "film_model", ["incompressible", "compressible"], "incompressible"),
+                   quantity(rd, t, "damping", "film_max_frequency", "frequency", 0.0,
+                            lambda v: None if v >= 0 else "must not be negative",
+                            "highest frequency the compressible film network must reproduce (0: auto)"))
+
+
+# ---------------------------------------------------------------- [import]
+
+IMPORT_KEYS = ["mass_matrix", "stiffness_matrix", "modes", "capacitance"]
+IMPORT_SUFFIXES = [(".mtx",), (".mtx",), (".npz", ".csv"), (".npz", ".csv")]
+
+
+def read_imports(rd: Reader, doc: dict) -> Imports | None:
+    """The optional [import] table: files relative to the structure file's folder."""
+    if "import" not in doc:
+        return None
+    t = table(rd, doc, "import", required=False)
+    check_keys(rd, "import", t, IMPORT_KEYS)
+    base = Path(rd.path).parent
+    out = {}
+    for key, suffixes in zip(IMPORT_KEYS, IMPORT_SUFFIXES):
+        if key not in t:
+            continue
+        value = t[key]
+        if not isinstance(value, str) or not value.endswith(suffixes):
+            raise rd.fail(f"import.{key}", f"{key} = {value!r} is not a {' or '.join(suffixes)} file name",
+                          f'write {key} = "data/{key}{suffixes[0]}" (relative to the structure file)')
+        path = base / value
+        if not path.is_file():
+            raise rd.fail(f"import.{key}", f"no such file: {path}", "check the path (relative to the structure file)")
+        out[key] = str(path)
+    mech = [k for k in IMPORT_KEYS[:3] if k in out]
+    if mech and len(mech) != 3:
+        missing = [k for k in IMPORT_KEYS[:3] if k not in out]
+        raise rd.fail("import", f"imported mechanics needs mass_matrix, stiffness_matrix and modes (missing {missing})",
+                      "give all three files, or none to use netgen's own mechanics")
+    if not out:
+        raise rd.fail("import", "empty [import] table", "give mass_matrix + stiffness_matrix + modes and/or capacitance")
+    return Imports(**out)

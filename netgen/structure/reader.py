@@ -1,0 +1,152 @@
+"""Reading TOML tables with errors that point at the file, line and key, and say the fix."""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from typing import Callable
+
+from ..errors import StructureError
+from ..units import SI_NAME, UnitError, example, parse_quantity
+from .schema import NAME
+
+
+class Reader:
+    """Knows the file text so errors can point at a line; raises StructureError (or `error`)."""
+
+    def __init__(self, path: str, text: str, error: type[StructureError] = StructureError):
+        self.path, self.lines, self.error = path, text.splitlines(), error
+
+    def fail(self, where: str, problem: str, fix: str) -> StructureError:
+        return self.error(self.path, where, problem, fix, self.line_of(where))
+
+    def line_of(self, where: str) -> int | None:
+        """Best-effort line number of a dotted key such as 'electrodes[1].gap'."""
+        parts = re.findall(r"[A-Za-z_][A-Za-z0-9_]*|\[\d+\]", where)
+        table, index, key = None, 0, None
+        if parts:
+            table = parts[0]
+            if len(parts) > 1 and parts[1].startswith("["):
+                index = int(parts[1][1:-1])
+                key = parts[2] if len(parts) > 2 else None
+            else:
+                key = parts[1] if len(parts) > 1 else None
+        current, seen, header_line = None, -1, None
+        for no, raw in enumerate(self.lines, start=1):
+            line = raw.strip()
+            head = re.match(r"^\[\[?\s*([A-Za-z0-9_.]+)\s*\]\]?", line)
+            if head:
+                current = head.group(1)
+                if current == table:
+                    seen += 1
+                    if seen == index:
+                        header_line = no
+                continue
+            target_key = key if current == table and seen == index else (
+                table if current is None and key is None else None)
+            if target_key and re.match(rf"^{re.escape(target_key)}\s*=", line):
+                return no
+        return header_line
+
+
+def did_you_mean(word: str, options: list[str]) -> str:
+    """'did you mean 'x'? ' for the closest option, or ''."""
+    close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
+    return f"did you mean '{close[0]}'? " if close else ""
+
+
+def check_keys(rd: Reader, where: str, table: dict, allowed: list[str]) -> None:
+    """Refuse keys outside `allowed`, with the closest allowed key."""
+    for key in table:
+        if key not in allowed:
+            raise rd.fail(f"{where}.{key}" if where else key, f"unknown key '{key}'",
+                          f"{did_you_mean(key, allowed)}allowed keys here: {', '.join(allowed)}")
+
+
+def table(rd: Reader, doc: dict, key: str, required: bool) -> dict:
+    """A [key] table of the document ({} if absent and optional)."""
+    value = doc.get(key)
+    if value is None:
+        if required:
+            raise rd.fail(f"[{key}]", "missing table", f"add a [{key}] table (see examples/levitated_disk.toml)")
+        return {}
+    if not isinstance(value, dict):
+        raise rd.fail(key, f"'{key}' must be a table, got {type(value).__name__}",
+                      f"write it as a [{key}] section")
+    return value
+
+
+def quantity(rd: Reader, t: dict, where: str, key: str, kind: str,
+             default: float | None = None, check: Callable[[float], str | None] | None = None,
+             what: str = "") -> float:
+    """Read a physical quantity (SI number or unit string), apply a physical-range check."""
+    loc = f"{where}.{key}"
+    if key not in t:
+        if default is None:
+            raise rd.fail(loc, f"missing required key '{key}'",
+                          f"add {key} = \"{example(kind)}\"  ({what}, SI units if no unit is given)")
+        return default
+    try:
+        value = parse_quantity(t[key], kind)
+    except UnitError as exc:
+        raise rd.fail(loc, str(exc), f"write {key} = \"{example(kind)}\" or a number in {SI_NAME[kind] or 'plain units'}")
+    if not math.isfinite(value):
+        raise rd.fail(loc, f"{key} is not finite ({value})", f"give a finite {what or key}")
+    if check:
+        problem = check(value)
+        if problem:
+            raise rd.fail(loc, f"{key} = {t[key]!r} {problem}", f"give a physical {what or key}")
+    return value
+
+
+def positive(v: float) -> str | None:
+    return None if v > 0 else "must be greater than zero"
+
+
+def nonnegative(v: float) -> str | None:
+    return None if v >= 0 else "must not be negative"
+
+
+def integer(rd: Reader, t: dict, where: str, key: str, default: int | None,
+            lo: int, hi: int, what: str) -> int:
+    """An integer key within lo..hi."""
+    loc = f"{where}.{key}"
+    if key not in t:
+        if default is None:
+            raise rd.fail(loc, f"missing required key '{key}'", f"add {key} = <integer {lo}..{hi}> ({what})")
+        return default
+    value = t[key]
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise rd.fail(loc, f"{key} must be an integer, got {value!r}", f"write {key} = <integer {lo}..{hi}> ({what})")
+    if not lo <= value <= hi:
+        raise rd.fail(loc, f"{key} = {value} is outside {lo}..{hi}", f"choose {what} between {lo} and {hi}")
+    return value
+
+
+def choice(rd: Reader, t: dict, where: str, key: str, choices: list[str], default: str | None) -> str:
+    """A key whose value is one of `choices`."""
+    loc = f"{where}.{key}"
+    if key not in t:
+        if default is None:
+            raise rd.fail(loc, f"missing required key '{key}'", f"add {key} = one of {choices}")
+        return default
+    value = t[key]
+    if value not in choices:
+        hint = did_you_mean(str(value), choices)
+        raise rd.fail(loc, f"{key} = {value!r} is not one of {choices}", f"{hint}use one of {choices}")
+    return value
+
+
+def flag(rd: Reader, t: dict, where: str, key: str, default: bool, fix: str | None = None) -> bool:
+    """A true/false key."""
+    value = t.get(key, default)
+    if not isinstance(value, bool):
+        raise rd.fail(f"{where}.{key}", f"{key} must be true or false, got {value!r}", fix or f"write {key} = true")
+    return value
+
+
+def identifier(name: object) -> bool:
+    """A simple name for netlists: letters, digits and _ (starting with a letter), not 'error'
+    (PySpice treats any output line with that word as a simulator error)."""
+    return isinstance(name, str) and bool(NAME.match(name)) and "error" not in name.lower()

@@ -1,0 +1,139 @@
+"""The validated structure description: frozen dataclasses of every table but the conductor and
+its electrodes (netgen.structure.conductors, netgen.structure.electrodes)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Protocol
+
+RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")
+MODE_LABEL = re.compile(r"^(\d+),(\d+)([cs]?)$")
+NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
+
+
+def mode_name(label: str) -> str:
+    """The coordinate name of an eigenmode label: '2,0c' -> 'm2_0c', '1' -> 'm1'."""
+    return f"m{label.replace(',', '_')}"
+
+
+class Conductor(Protocol):
+    """What every conductor kind (netgen.structure.conductors) offers the later stages."""
+    kind: str
+    thickness: float
+    density: float
+    outline_shape: str           # "disk" (centred at the origin, `radius`) or "rect" (`outline()`)
+    one_dimensional: bool        # mode shapes vary along x only (beams)
+
+    @property
+    def mass(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class Coordinates:
+    """Generalized coordinates: rigid-body motions then eigenmodes (count or (n,s) labels)."""
+    rigid: tuple[str, ...]
+    modes: int | tuple[str, ...]
+    acceleration_port: bool = False    # an a_in port: frame acceleration along +z (inertial load)
+
+    @property
+    def count(self) -> int:
+        """Number of generalized coordinates."""
+        return len(self.rigid) + (self.modes if isinstance(self.modes, int) else len(self.modes))
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """Capacitance sampling grid: `levels` per coordinate over +-range x touching amplitude."""
+    levels: int = 3
+    range: float = 0.2
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Capacitance fit form and error budget.
+
+    target "plates": C = c_ref sum_k 1/P_k(x), K effective parallel plates (P_k of total
+    `degree`), K refined until the held-out max relative error <= `tolerance` or K > max_terms;
+    "inverse": one polynomial of 1/C; "direct": one polynomial of C.
+    """
+    degree: int = 1
+    target: str = "plates"
+    holdout: int = 500
+    seed: int = 1
+    tolerance: float = 2e-3
+    max_terms: int = 16
+
+
+@dataclass(frozen=True)
+class ElectrostaticsOptions:
+    """Extractor choice and settings: edge-fringe model and constant electrode-electrode coupling.
+    `extractor` names an entry of netgen.electrostatics.EXTRACTORS (checked when the model is built)."""
+    fringe: str = "plate_between"
+    fringe_a: float = 0.42
+    fringe_b: float = 0.06
+    relative_permittivity: float = 1.0
+    coupling_per_length: float = 0.0
+    extractor: str = "parallel_plate"
+
+
+@dataclass(frozen=True)
+class FemOptions:
+    """Eigenmode FEM settings (scikit-fem Morley plate on a refined circle mesh)."""
+    refine: int = 6
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Mechanical damping: per-coordinate Q or damping ratio (a number applies to every eigenmode),
+    Rayleigh D = alpha M + beta K, squeeze-film gas damping, and thermal force noise."""
+    q_factor: tuple[tuple[str, float], ...] = ()         # (coordinate, Q); "*" = every eigenmode
+    damping_ratio: tuple[tuple[str, float], ...] = ()    # (coordinate, zeta); "*" = every eigenmode
+    rayleigh_alpha: float = 0.0                          # 1/s
+    rayleigh_beta: float = 0.0                           # s
+    squeeze_film: bool = False
+    pressure: float = 101325.0                           # Pa
+    gas: str = "air"
+    temperature: float = 300.0                           # K, of the gas and of the thermal noise
+    noise: bool = False                                  # emit thermal force noise sources
+    fem_refine: int = 5                                  # Reynolds mesh refinement
+    film_model: str = "incompressible"                   # or "compressible": Maxwell branches (pole-residue)
+    film_max_frequency: float = 0.0                      # Hz the compressible network must cover (0: auto)
+
+    def enabled(self) -> bool:
+        """True when any damping contribution is requested."""
+        return bool(self.q_factor or self.damping_ratio or self.rayleigh_alpha or self.rayleigh_beta
+                    or self.squeeze_film)
+
+
+@dataclass(frozen=True)
+class Imports:
+    """[import]: data from an external FEM and/or field solver (netgen.mechanics.imported,
+    netgen.electrostatics.imported), paths resolved against the structure file's folder.
+    Mechanics needs all three of mass_matrix, stiffness_matrix and modes; capacitance alone
+    replaces the extractor's samples."""
+    mass_matrix: str | None = None         # Matrix Market (.mtx): M, full (with modes) or modal
+    stiffness_matrix: str | None = None    # Matrix Market (.mtx): K, same size as M
+    modes: str | None = None               # .npz or .csv: node coordinates + eigenvectors (vertical)
+    capacitance: str | None = None         # .npz or .csv: coordinates q -> plate-electrode capacitances
+
+
+@dataclass(frozen=True)
+class Structure:
+    """A validated structure description; `source` is the file it came from."""
+    name: str
+    description: str
+    source: str
+    conductor: Conductor
+    electrode_sets: tuple
+    coordinates: Coordinates
+    sampling: Sampling = field(default_factory=Sampling)
+    fit: FitOptions = field(default_factory=FitOptions)
+    electrostatics: ElectrostaticsOptions = field(default_factory=ElectrostaticsOptions)
+    fem: FemOptions = field(default_factory=FemOptions)
+    damping: Damping | None = None
+    imports: Imports | None = None     # [import]: mechanics and/or capacitances from external tools
+
+    def electrode_names(self) -> list[str]:
+        return [n for s in self.electrode_sets for n in s.electrode_names()]
