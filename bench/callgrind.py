@@ -27,10 +27,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from netgen import codemodel  # noqa: E402
-from netgen import sigma_delta as sd  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
-from netgen.simulate import ngspice_path  # noqa: E402
+from netgen.sim import codemodel  # noqa: E402
+from netgen.sim.ngspice import ngspice_path  # noqa: E402
+from netgen.testbench import sigma_delta as sd  # noqa: E402
+from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
 from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel  # noqa: E402
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
@@ -41,8 +42,8 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.lib").write_text(library(model, variant))
     cm = needs_codemodel(variant, loop)
-    control = codemodel.control_lines(codemodel.build(progress=lambda m: None)) if cm else []
-    net = sd.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
+    control = codemodel.control_lines(*sdn.code_models(progress=False)) if cm else []
+    net = sdn.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
                        control=control, loop=loop)
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
     with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     variants = args.variants.split(",")
     loops = args.loops.split(",")
-    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sd.LOOPS]
+    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sdn.LOOPS]
     if bad or args.cycles < 1:
         ap.error(f"unknown variants {bad}" if bad else "need --cycles >= 1")
     model = MacroModel.load_json(args.model)

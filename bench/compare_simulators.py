@@ -1,4 +1,4 @@
-"""Do the ngspice and VACASK sigma-delta runs give the same spectra? (issue 5: notch frequency
+"""Do the ngspice and VACASK sigma-delta runs give the same spectra? (targets: notch frequency
 within 2 %, in-band noise floor within 2 dB). Reads two `netgen sigma-delta` output folders:
 
     .venv/bin/netgen sigma-delta examples/levitated_disk.toml --model netlists/levitated_disk.json \\
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen import sigma_delta as sd
+from netgen.testbench import sigma_delta as sd
 from netgen.model import MacroModel
 
 ROOT = Path(__file__).resolve().parents[1]

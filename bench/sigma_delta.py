@@ -4,8 +4,8 @@
                                           [--variants xspice,fast,floor,linear,naive]
                                           [--loops xspice,analog] [--ts 1e-6]
 
-Runs the testbench of `netgen sigma-delta` (netgen.sigma_delta.testbench, templates/
-sigma_delta_tb.cir.j2) around the reference model (netlists/levitated_disk.json) with
+Runs the testbench of `netgen sigma-delta` (netgen.testbench.sigma_delta.ngspice.testbench, templates/
+sigma_delta/tb.cir.j2) around the reference model (netlists/levitated_disk.json) with
 different subcircuits in place of the macromodel, each `--repeat` times in this process, and
 prints per variant the medians of:
 
@@ -19,16 +19,16 @@ prints per variant the medians of:
 Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit differs):
 
   xspice  the .lib with the plate terms, forces and stops in the compiled XSPICE code model
-          netgen_es (style "xspice", netgen.codemodel, built on first use); the netlist loads it
+          netgen_es (netgen.emit.xspice, netgen.sim.codemodel, built on first use); the netlist loads it
           and keeps trtol at 7 (`pre_set xtrtol=7`)
-  fast    the emitted .lib (netgen.emit_ngspice.subcircuit, style "fast": the default)
-  nodes   the previous shared-node emission (style "nodes"), for what the fast form bought
-  naive   the baseline: every charge and force written out inline (style "naive", no shared
+  fast    the emitted .lib (netgen.emit.ngspice.subcircuit: the default)
+  nodes   the previous shared-node emission (bench/baselines.py), for what the fast form bought
+  naive   the baseline: every charge and force written out inline (bench/baselines.py, no shared
           nodes, no contact); slow, so it runs --naive-cycles periods
   floor   the floor of this circuitry in ngspice: constant capacitors C_i(0) between electrodes
           and plate, and the same linear mass/spring/damper integrators per coordinate, with no
           electrostatic force (the plate falls freely under gravity; the loop is open, the bits
-          are constant). This is the issue's "constant capacitors, linear springs".
+          are constant). This is the "constant capacitors, linear springs" floor.
   linear  the linearisation that still closes the loop: C_i(q) = C_i(0) + grad C_i(0) . q (a
           charge Q = C_i(q) (V_i - V_p), motional current included) and the constant-gradient
           force 1/2 sum_i dC_i/dq (V_i - V_p)^2 (no electrostatic spring, no contact)
@@ -66,11 +66,15 @@ sys.path.insert(0, str(ROOT))          # run from a checkout without installing 
 
 import numpy as np  # noqa: E402
 
-from netgen import codemodel  # noqa: E402
-from netgen import sigma_delta as sd  # noqa: E402
-from netgen.emit_ngspice import charge_node, force_gain, num, subcircuit, time_scale  # noqa: E402
+from baselines import BASELINES  # noqa: E402
+from netgen.emit import ngspice, xspice  # noqa: E402
+from netgen.emit.common import force_gain, num, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
-from netgen.simulate import ngspice_path, read_raw  # noqa: E402
+from netgen.sim import codemodel  # noqa: E402
+from netgen.sim.ngspice import ngspice_path  # noqa: E402
+from netgen.sim.rawfile import read_raw  # noqa: E402
+from netgen.testbench import sigma_delta as sd  # noqa: E402
+from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
 
 MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
 VARIANTS = ("xspice", "fast", "nodes", "naive", "floor", "linear")
@@ -108,7 +112,7 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
         if kind == "linear":      # C_i(0) linear, grad . xs on a charge node as the model's .lib does
             cref = float(np.abs(grad[i]).max()) or 1.0
             rest = "".join(f" + {num(grad[i, v] / cref)}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
-            q = charge_node(e.name, f"({rest[3:].replace('+ -', '- ')})", plate, cref)
+            q = ngspice.charge_node(e.name, f"({rest[3:].replace('+ -', '- ')})", plate, cref)
             lines += [f"Cl_{e.name} {e.name} {plate} {num(c0[i])}", q["b"], q["v"], q["c"], q["f"]]
         else:
             lines.append(f"Cq_{e.name} {e.name} {plate} {num(c0[i])}")
@@ -124,7 +128,9 @@ def needs_codemodel(variant: str, loop: str) -> bool:
 def library(model: MacroModel, variant: str) -> str:
     if variant in ("floor", "linear"):
         return linearised_subcircuit(model, variant)
-    return subcircuit(model, noise=False, style=variant)
+    if variant in BASELINES:
+        return BASELINES[variant](model, noise=False)
+    return (xspice if variant == "xspice" else ngspice).subcircuit(model, noise=False)
 
 
 def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool,
@@ -134,7 +140,7 @@ def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles:
     lib = workdir / "model.lib"
     lib.write_text(lib_text)
     d = sd.design(model, ts)
-    net = sd.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control, loop=loop)
+    net = sdn.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control, loop=loop)
     net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
     (workdir / "bench.cir").write_text(net)
     (workdir / "bench.raw").unlink(missing_ok=True)
@@ -195,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     loops = [lp for lp in args.loops.split(",") if lp]
-    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sd.LOOPS]
+    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sdn.LOOPS]
     if bad or not loops or args.cycles < 64 or args.repeat < 1:
         ap.error(f"unknown variants or loops {bad}" if bad else "need a loop, --cycles >= 64 and --repeat >= 1")
     model = MacroModel.load_json(args.model)
@@ -203,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     cases = [(v, lp) for lp in loops for v in variants]
     control = []
     if any(needs_codemodel(v, lp) for v, lp in cases):
-        control = codemodel.control_lines(codemodel.build(progress=lambda m: print(m, file=sys.stderr)))
+        control = codemodel.control_lines(*sdn.code_models(progress=True))
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
     load0 = os.getloadavg()
     runs: dict[tuple[str, str], list[dict]] = {c: [] for c in cases}

@@ -3,15 +3,15 @@
     .venv/bin/python bench/sigma_delta_vacask.py [--cycles 1024] [--ngspice-cycles 256] [--repeat 3]
                                                  [--variants vacask,vacask-fast,ngspice] [--ts 1e-6]
 
-Runs the loop of `netgen sigma-delta` (netgen.sigma_delta.design) around the reference model
+Runs the loop of `netgen sigma-delta` (netgen.testbench.sigma_delta.loop) around the reference model
 (netlists/levitated_disk.json) in
 
-  vacask       netgen.sigma_delta_vacask: the compiled Verilog-A model (netlists/levitated_disk.va)
-               and the loop blocks of templates/sigma_delta_blocks.va, default options
-               (sigma_delta_vacask.OPTIONS: tran_fbr=0.1, mechanics as accurate as the ngspice bench)
+  vacask       netgen.testbench.sigma_delta.vacask: the compiled Verilog-A model (netlists/levitated_disk.va)
+               and the loop blocks of netgen/testbench/sigma_delta/blocks.va, default options
+               (netgen.testbench.sigma_delta.vacask.OPTIONS: tran_fbr=0.1, mechanics as accurate as the ngspice bench)
   vacask-fast  the same with VACASK's default corner steps (tran_fbr=0.25): 35 % fewer points,
                feedback impulses 0.45 % short (shifts the momentum balance, not the spectra)
-  ngspice      the ngspice bench (templates/sigma_delta_tb.cir.j2 with netlists/levitated_disk.lib)
+  ngspice      the ngspice bench (templates/sigma_delta/tb.cir.j2 with netlists/levitated_disk.lib)
 
 each --repeat times in this process (variant order rotates per repeat), and prints per variant
 the medians of:
@@ -42,8 +42,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
 
-from netgen import sigma_delta as sd  # noqa: E402
-from netgen import sigma_delta_vacask as sdv  # noqa: E402
+from netgen.testbench import sigma_delta as sd  # noqa: E402
+from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
+from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 
 JSON = ROOT / "netlists" / "levitated_disk.json"
@@ -58,8 +59,8 @@ def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path,
     out = work / variant
     start = time.perf_counter()
     if VARIANTS[variant] is None:
-        bench = sd.testbench(model, d, LIB.resolve(), cycles, "sigma_delta.raw")
-        plot = sd.simulate(bench, out, ts * cycles, progress=False)
+        bench = sdn.testbench(model, d, LIB.resolve(), cycles, "sigma_delta.raw")
+        plot = sdn.simulate(bench, out, ts * cycles, progress=False)
         wall = time.perf_counter() - start
         pts, its = len(plot["time"]) - 1, None
     else:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen.sigma_delta import CHANNELS, psd
+from netgen.testbench.sigma_delta import CHANNELS, psd
 
 
 def main() -> None:

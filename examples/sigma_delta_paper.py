@@ -1,12 +1,12 @@
 """The paper's Fig. 3 runs (long): the sigma-delta levitation loop at T_s = 1 us and 3.2 us, the
-rigid-body-only model, and a tone on z. Prints the issue-4 acceptance figures.
+rigid-body-only model, and a tone on z. Prints the paper reproduction's figures (docs/sigma-delta.md).
 
     .venv/bin/python examples/sigma_delta_paper.py --cycles 65536 -o out/sigma_delta
 
-Runs go through VACASK by default (netgen.sigma_delta_vacask: the same loop with the compiled
+Runs go through VACASK by default (netgen.testbench.sigma_delta.vacask: the same loop with the compiled
 Verilog-A model, about 10 ms per period on one core, so a 2^16-period run takes ~10-15 min);
 --simulator ngspice-xspice runs the ngspice bench compiled (the model's code-model .lib and the
-loop's code model, README "Performance": ~7-9 ms per period, about 9 min per 2^16-period run);
+loop's code model, docs/performance.md: ~7-9 ms per period, about 9 min per 2^16-period run);
 --simulator ngspice runs the ngspice bench instead (~50-70 ms per period: over an hour per
 2^16-period run, in restarted segments). Runs go in parallel, one process each; a run whose
 summary.json exists is reused unless --rerun.
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen import sigma_delta as sd
-from netgen import sigma_delta_vacask as sdv
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import vacask as sdv
 from netgen.model import MacroModel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +91,7 @@ def main() -> int:
     p.add_argument("--runs", default=",".join(RUNS), help=f"comma-separated subset of {', '.join(RUNS)}")
     p.add_argument("--rerun", action="store_true", help="rerun even if DIR/<run>/summary.json exists")
     p.add_argument("--vacask-options", default="", help='extra VACASK options, e.g. "tran_fbr=0.25" '
-                   "(netgen.sigma_delta_vacask.EXTRA_OPTIONS)")
+                   "(netgen.testbench.sigma_delta.vacask.EXTRA_OPTIONS)")
     a = p.parse_args()
     sdv.EXTRA_OPTIONS = a.vacask_options                      # inherited by the forked workers
     out = Path(a.output)

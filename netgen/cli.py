@@ -1,32 +1,37 @@
-"""Command line: `netgen build STRUCTURE.toml -o DIR` and friends. Errors exit 2, never a traceback."""
+"""Command line: `netgen build STRUCTURE.toml -o DIR` and friends. Errors exit with the code of
+their class (netgen.errors: 2 bad input, 3 missing tool, 1 failed run), never a traceback."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, Iterator
 
 from . import __version__
-from .simulate import SimulationError, SimulatorNotFound
-from .structure import StructureError
+from .build import build, write_figures
+from .emit import EMITTERS, FORMATS, refusal, write_outputs
+from .errors import InputError, NetgenError
+from .executor import add_scheduler_option, executor
+from .sim import SIMULATORS, codemodel
+from .structure import load_structure
+from .sweep import cli as sweep_cli
+from .testbench import TESTBENCHES
+from .testbench.sigma_delta.ngspice import LOOP_LIBRARY
 
+
+# ----------------------------------------------------------------------------- netgen build
 
 def _build(args: argparse.Namespace) -> int:
-    from .emit import write_outputs
-    from .pipeline import build, write_figures
-    from .structure import load_structure
-
     start = time.perf_counter()
     structure = load_structure(args.structure)
-    from .executor import sampling
-    with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.executor)
+    with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.electrostatics.sampling)
         result = build(structure, progress=not args.quiet, **parallel)
     model = result.model
-    from .emit_ngspice import xspice_refusal
-    if args.format == "xspice" and xspice_refusal(model):
-        print(f"netgen: {args.structure}: --format xspice: {xspice_refusal(model)}; fix: set target = \"plates\" "
-              "in the structure's [fit], or use --format ngspice", file=sys.stderr)
+    if args.format != "all" and refusal(model, args.format):
+        print(f"netgen: {args.structure}: --format {args.format}: {refusal(model, args.format)}", file=sys.stderr)
         return 2
     written = write_outputs(model, Path(args.output), args.format)
     if not args.no_plots:
@@ -40,61 +45,106 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
-def _simulate(args: argparse.Namespace) -> int:
-    from .simulate import run_ngspice
+@contextmanager
+def sampling(args: Any) -> Iterator[dict]:
+    """The executor= / store= keywords of netgen.build.build from the build options ({} = serial)."""
+    spec, store = getattr(args, "scheduler", None), getattr(args, "sample_store", None)
+    if spec is None and store is None:
+        yield {}
+        return
+    ex = executor(spec) if spec is not None else None
+    try:
+        yield {"executor": ex, "store": store}
+    finally:
+        if ex is not None:
+            ex.close()
 
+
+def _add_build(sub) -> None:
+    b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
+    b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
+    b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
+    b.add_argument("--format", choices=FORMATS, default="ngspice",
+                   help="netlist dialects to write: " + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
+                   + "; all: every dialect the model has")
+    b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
+    add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")
+    b.add_argument("--sample-store", metavar="DIR",
+                   help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")
+    b.set_defaults(func=_build)
+
+
+# ----------------------------------------------------------------------------- netgen simulate
+
+def _simulate(args: argparse.Namespace) -> int:
     netlist = Path(args.netlist).read_text(encoding="utf-8")
-    plots = run_ngspice(netlist, Path(args.output), Path(args.netlist).stem, timeout=args.timeout)
+    plots = SIMULATORS[args.simulator].run(netlist, Path(args.output), Path(args.netlist).stem, args.timeout)
     if not args.quiet:
         for plot in plots:
             print(f"{plot.name}: {len(plot.vectors)} vectors, {len(next(iter(plot.vectors.values())))} points")
     return 0
 
 
+def _add_simulate(sub) -> None:
+    r = sub.add_parser("simulate", help="run a netlist in a simulator (batch) and report failures clearly")
+    r.add_argument("netlist", help="netlist with its analyses (ngspice .cir, or a VACASK .sim)")
+    r.add_argument("-o", "--output", required=True, help="run folder: the saved netlist, raw file and log")
+    r.add_argument("--simulator", choices=list(SIMULATORS), default="ngspice",
+                   help="; ".join(f"{k}: {s.help}" for k, s in SIMULATORS.items()))
+    r.add_argument("--timeout", type=float, default=3600.0, help="seconds before the run is stopped")
+    r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
+    r.set_defaults(func=_simulate)
+
+
+# ----------------------------------------------------------------------------- netgen codemodel
+
+def _codemodel(args: argparse.Namespace) -> int:
+    say = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
+    cm = codemodel.build(codemodel.MODEL, force=args.force, progress=say)
+    loop = codemodel.build(LOOP_LIBRARY, force=args.force, progress=say)     # the sigma-delta testbench's
+    print(cm)
+    if not args.quiet:
+        print("load it with these .control lines:\n  " + "\n  ".join(codemodel.control_lines(cm)), file=sys.stderr)
+        print(f"(the sigma-delta testbench's compiled loop: {loop})", file=sys.stderr)
+    return 0
+
+
+def _add_codemodel(sub) -> None:
+    p = sub.add_parser("codemodel", help="build the netgen_es XSPICE code model for the installed ngspice "
+                       "(needed by the xspice .lib and --simulator ngspice-xspice) and print its path")
+    p.add_argument("--force", action="store_true", help="rebuild even if the cached build exists")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only errors (and the path)")
+    p.set_defaults(func=_codemodel)
+
+
+# ----------------------------------------------------------------------------- the command
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="netgen", description=__doc__)
     p.add_argument("--version", action="version", version=f"netgen {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
-    b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
-    b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", choices=["ngspice", "veriloga", "xspice", "all"], default="ngspice",
-                   help="netlist dialects to write (xspice: the .lib with the plate terms in the compiled netgen_es "
-                        "code model, see `netgen codemodel`)")
-    b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
-    b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
-    from .executor import add_build_options
-    add_build_options(b)
-    b.set_defaults(func=_build)
-    r = sub.add_parser("simulate", help="run a netlist in ngspice (batch) and report failures clearly")
-    r.add_argument("netlist", help="ngspice netlist (.cir) with its analyses")
-    r.add_argument("-o", "--output", required=True, help="run folder: the saved netlist, raw file and log")
-    r.add_argument("--timeout", type=float, default=3600.0, help="seconds before the run is stopped")
-    r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
-    r.set_defaults(func=_simulate)
-    from .codemodel import add_parser as add_codemodel
-    add_codemodel(sub)
-    from .sigma_delta import add_parser as add_sigma_delta
-    add_sigma_delta(sub)
-    from .sweep import add_parser as add_sweep
-    add_sweep(sub)
+    _add_build(sub)
+    _add_simulate(sub)
+    _add_codemodel(sub)
+    for testbench in TESTBENCHES.values():
+        testbench.add_parser(sub)
+    sweep_cli.add_parser(sub)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `netgen` console command."""
+    """Entry point of the `netgen` console command: the one error boundary of every subcommand."""
     args = parser().parse_args(argv)
     try:
         return args.func(args)
-    except StructureError as exc:
-        print(f"netgen: error in structure file {exc}", file=sys.stderr)
-        return 2
-    except SimulatorNotFound as exc:
-        print(f"netgen: {exc}", file=sys.stderr)
-        return 3
-    except SimulationError as exc:
-        print(f"netgen: {exc}", file=sys.stderr)
-        return 1
+    except InputError as exc:
+        print(f"netgen: error in {exc.what} {exc}", file=sys.stderr)
+        return exc.exit_code
+    except NetgenError as exc:
+        prefix = "code model: " if isinstance(exc, codemodel.CodeModelError) else ""
+        print(f"netgen: {prefix}{exc}", file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
         print("netgen: interrupted", file=sys.stderr)
         return 130

@@ -14,17 +14,12 @@ are module-level functions of small picklable items, called as fn(shared, item).
 inside a task is an Outcome with its error (it is not retried: it would fail again); a worker
 lost mid-task (killed, out of memory, machine gone) is retried up to `retries` times.
 
-`sample_chunks` (used by pipeline.sample when given an executor or a store) splits the points
-into the same chunks as the serial path and runs each with the caller's BLAS thread count
-(OpenBLAS rounds differently with 1 and 2 threads), so each chunk is the same extractor call and
-the result is bit for bit the serial one; a ChunkStore streams finished chunks to disk (one .npy
-per chunk, written atomically, under a folder named by a hash of the extractor and the points),
-so a re-run with the same inputs computes only the missing chunks.
+Its users: the capacitance sampling (netgen.electrostatics.sampling.sample_chunks) and the
+sweeps (netgen.sweep.run).
 """
 
 from __future__ import annotations
 
-import hashlib
 import os
 import pickle
 import sys
@@ -33,21 +28,15 @@ import traceback
 import uuid
 from concurrent import futures as cf
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
-import numpy as np
+from .errors import ExecutorError
 
 DASK_INSTALL = "pip install 'netgen[dask]'  (or: pip install 'dask[distributed]')"
 SCHEDULER_HELP = ("'processes[:N]' (local worker processes), 'serial', 'local:N' (a Dask LocalCluster "
                   "of N workers) or a Dask scheduler address tcp://host:port")
-
-
-class ExecutorError(OSError):
-    """A scheduler that cannot be used (bad spec, Dask missing, scheduler unreachable); an
-    OSError so that the command line reports it in one line with exit code 2."""
 
 
 @dataclass
@@ -369,156 +358,3 @@ def executor(spec: str | None = None) -> Executor:
 def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:
     """The shared --scheduler option of the build and sweep commands."""
     parser.add_argument("--scheduler", metavar="SPEC", help=f"where {what}: {SCHEDULER_HELP}")
-
-
-def add_build_options(parser: Any) -> None:
-    """`netgen build` options of the capacitance sampling (default: serial, in this process)."""
-    add_scheduler_option(parser, what="the capacitance samples are computed (default: serially in this process)")
-    parser.add_argument("--sample-store", metavar="DIR",
-                        help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")
-
-
-@contextmanager
-def sampling(args: Any) -> Iterator[dict]:
-    """The executor= / store= keywords of pipeline.build from the build options ({} = serial)."""
-    spec, store = getattr(args, "scheduler", None), getattr(args, "sample_store", None)
-    if spec is None and store is None:
-        yield {}
-        return
-    ex = executor(spec) if spec is not None else None
-    try:
-        yield {"executor": ex, "store": store}
-    finally:
-        if ex is not None:
-            ex.close()
-
-
-# ----------------------------------------------------------------------------- sampling store
-
-
-def fingerprint(*parts: Any) -> str:
-    """sha256 (16 hex digits) of the pickled parts: same inputs, same folder name."""
-    h = hashlib.sha256()
-    for p in parts:
-        if isinstance(p, np.ndarray):
-            h.update(repr((p.dtype.str, p.shape)).encode())
-            h.update(np.ascontiguousarray(p).tobytes())
-        else:
-            h.update(pickle.dumps(p, protocol=4))
-    return h.hexdigest()[:16]
-
-
-@dataclass
-class ChunkStore:
-    """A folder of finished sample chunks (one .npy each); `log` records per call which chunk
-    indices were computed and which reused from disk."""
-    root: Path
-    log: list[dict] = field(default_factory=list)
-
-    def __post_init__(self):
-        self.root = Path(self.root)
-
-    def folder(self, key: str, meta: dict) -> Path:
-        d = self.root / key
-        d.mkdir(parents=True, exist_ok=True)
-        info = d / "inputs.txt"
-        if not info.exists():
-            _write_atomic(info, "".join(f"{k} = {v}\n" for k, v in meta.items()).encode())
-        return d
-
-    @staticmethod
-    def path(folder: Path, k: int) -> Path:
-        return folder / f"chunk_{k:06d}.npy"
-
-    def load(self, folder: Path, k: int, rows: int) -> np.ndarray | None:
-        p = self.path(folder, k)
-        if not p.exists():
-            return None
-        try:
-            a = np.load(p, allow_pickle=False)
-        except (OSError, ValueError):
-            return None                                # unreadable: compute it again
-        return a if a.shape[0] == rows else None
-
-    def save(self, folder: Path, k: int, a: np.ndarray) -> None:
-        import io
-        buf = io.BytesIO()
-        np.save(buf, a, allow_pickle=False)
-        _write_atomic(self.path(folder, k), buf.getvalue())
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def blas_threads() -> int | None:
-    """Threads of this process's BLAS (threadpoolctl), None if unknown. OpenBLAS rounds
-    matrix products differently with 1 and 2 threads, so a work unit runs with the caller's
-    count: that is what makes parallel samples equal the serial ones bit for bit."""
-    try:
-        from threadpoolctl import threadpool_info
-    except ImportError:
-        return None
-    counts = [i["num_threads"] for i in threadpool_info() if i.get("user_api") == "blas"]
-    return counts[0] if counts else None
-
-
-def _capacitance_chunk(prepared: Any, item: tuple[np.ndarray, int | None]) -> np.ndarray:
-    """One work unit of the sampling: the extractor at a chunk of points, with the caller's
-    number of BLAS threads (a pure function of its inputs)."""
-    q, threads = item
-    if threads is None or threads == blas_threads():
-        return prepared.capacitance(q)
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=threads, user_api="blas"):
-        return prepared.capacitance(q)
-
-
-def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
-                  executor: Executor | None = None, store: ChunkStore | str | Path | None = None) -> np.ndarray:
-    """pipeline.sample through an executor (None: in this process), chunks streamed to `store`."""
-    from tqdm import tqdm
-
-    q = np.ascontiguousarray(q, dtype=float)
-    starts = list(range(0, len(q), chunk))
-    if store is not None and not isinstance(store, ChunkStore):
-        store = ChunkStore(Path(store))
-    folder = None
-    results: dict[int, np.ndarray] = {}
-    if store is not None:
-        key = "capacitance-" + fingerprint(type(prepared).__qualname__, prepared, q, chunk)
-        folder = store.folder(key, {"what": desc, "points": len(q), "coordinates": q.shape[1], "chunk": chunk,
-                                    "chunks": len(starts), "extractor": type(prepared).__qualname__})
-        for k, s in enumerate(starts):
-            a = store.load(folder, k, min(chunk, len(q) - s))
-            if a is not None:
-                results[k] = a
-    todo = [k for k in range(len(starts)) if k not in results]
-    ex = executor or SerialExecutor()
-    with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
-        bar.update(sum(len(a) for a in results.values()))
-        if todo:
-            threads = blas_threads()
-            items = [(q[starts[k]:starts[k] + chunk], threads) for k in todo]
-            for j, out in ex.imap_unordered(_capacitance_chunk, items, shared=prepared):
-                k = todo[j]
-                if not out.ok:
-                    raise RuntimeError(f"{desc}: chunk {k} (points {starts[k]}..{starts[k] + len(items[j][0]) - 1}) "
-                                       f"failed: {out.error}\n{out.traceback}")
-                results[k] = out.value
-                if folder is not None:
-                    store.save(folder, k, out.value)
-                bar.update(len(items[j][0]))
-    if store is not None:
-        store.log.append({"folder": folder, "computed": sorted(todo),
-                          "reused": sorted(set(range(len(starts))) - set(todo))})
-    if not starts:
-        return prepared.capacitance(q)
-    return np.concatenate([results[k] for k in range(len(starts))], axis=0)

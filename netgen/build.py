@@ -1,0 +1,133 @@
+"""The build pipeline: structure -> mechanics -> electrostatics -> fit -> MacroModel.
+
+The one place that knows the order of the stages and picks each stage's source: the conductor
+kind's mechanics (netgen.mechanics.KINDS) or imported FEM data, the structure's extractor
+(netgen.electrostatics.EXTRACTORS) or an imported capacitance table. Data flows one way; each
+stage is a function of the previous stages' outputs.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .constants import EPS0
+from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
+from .electrostatics import imported as imported_capacitance
+from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout
+from .fit.capacitance import CapacitanceFit, fit_all
+from .fit.energy import energy_entry, fit_energy
+from .geometry.layout import electrode_outlines, electrodes, overlap_area, plate_outline
+from .geometry.shapes import Electrode as ShapeElectrode
+from .geometry.shapes import Plate
+from .mechanics import Mechanics, mechanics, participation
+from .mechanics import imported as imported_mechanics
+from .mechanics.damping import damping
+from .model import Coordinate, Electrode, MacroModel
+from .model import contact
+from .model import plots
+from .structure import Structure
+
+
+@dataclass
+class Build:
+    """Every stage's output of one pipeline run; `model` is what build_model returns."""
+    structure: Structure
+    mechanics: Mechanics
+    electrodes: list[ShapeElectrode]
+    prepared: PreparedExtractor
+    scales: np.ndarray
+    grid: Samples
+    holdout: Samples
+    fits: list[CapacitanceFit]
+    model: MacroModel
+
+
+def build(s: Structure, progress: bool = False, **parallel) -> Build:
+    """Run the whole pipeline for one structure, keeping every stage's output.
+    `parallel`: executor= and store= for the capacitance sampling (netgen.electrostatics.sampling)."""
+    imp = s.imports
+    say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
+    m = imported_mechanics.mechanics(s) if imp and imp.modes else mechanics(s)
+    plate, shapes = plate_outline(s), electrodes(s)
+    ext = extractor(s, plate)
+    prepared = ext.prepare(shapes, plate, m.basis)
+    scales = coordinate_scales(prepared, m.names, np.array([e.gap for e in shapes]))
+    if imp and imp.capacitance:
+        grid, holdout = imported_capacitance.samples(imp.capacitance, m.names, [e.name for e in shapes], scales)
+    else:
+        grid = sample_grid(s, prepared, scales, progress, **parallel)
+        holdout = sample_holdout(s, prepared, scales, progress, **parallel)
+    say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
+    fits = fit_all(s, shapes, m.basis, scales, grid, holdout, progress)
+    model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits)
+    if imp:
+        model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
+        if imp.capacitance:
+            model.report["electrostatics"] = {"extractor": f"imported table {Path(imp.capacitance).name}"}
+    return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model)
+
+
+def build_model(s: Structure, progress: bool = False) -> MacroModel:
+    """Run the whole pipeline for one structure and return its MacroModel."""
+    return build(s, progress).model
+
+
+def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectrode], ext: CapacitanceExtractor,
+             prepared: PreparedExtractor, scales: np.ndarray, grid: Samples, holdout: Samples,
+             fits: list[CapacitanceFit]) -> MacroModel:
+    """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
+    coupling = ext.coupling(shapes, plate)
+    damp, damp_report = damping(s, m)
+    film = damp_report.pop("branches", [()] * len(m.names))
+    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab, br)
+              for n, k, u, L, ms, ks, d, f, lab, br in zip(m.names, m.kinds, m.units, scales, m.masses,
+                                                          m.stiffnesses, damp, m.frequencies, m.labels, film)]
+    described = [Electrode(e.name, e.group, e.side, e.gap, overlap_area(e, plate)) for e in shapes]
+    sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
+                "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
+                "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
+                "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
+    report = {"mechanics": m.report, "electrostatics": {
+        "extractor": ext.description,
+        "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
+    if damp_report:
+        report["damping"] = damp_report
+    model = MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
+                       sampling, report, contact=stops(s, m, prepared, shapes, scales))
+    if s.coordinates.acceleration_port:
+        model.acceleration = participation(s, m)
+    if m.strain_energy is not None:                       # e.g. stress stiffening (netgen.mechanics.beam)
+        poly, fit_report = fit_energy(m.strain_energy.energy, scales)
+        model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
+    return model
+
+
+def stops(s: Structure, m: Mechanics, prepared: PreparedExtractor, shapes: list[ShapeElectrode],
+          scales: np.ndarray) -> dict:
+    """The contact model (netgen.model.contact): stop points from the extractor's probe points."""
+    probe = prepared.probe_points()
+    owner = [shapes[i].name for i in probe.electrode]
+    freqs = m.frequencies[m.frequencies > 0]
+    ws = 2 * math.pi * (math.exp(float(np.mean(np.log(freqs)))) if len(freqs) else 1e6 / (2 * math.pi))
+    return contact.contact_model(probe.gap, probe.phi, owner, scales, s.conductor.mass, ws)
+
+
+def say(progress: bool, text: str) -> None:
+    """A progress line on stderr."""
+    if progress:
+        print(text, file=sys.stderr)
+
+
+def write_figures(b: Build, folder: Path) -> list[Path]:
+    """Mode-shape and fit-error PNGs next to the netlist (from the build's stage outputs)."""
+    model = b.model
+    out = [plots.fit_errors(folder / f"{model.name}_fit_errors.png", model)]
+    if any(c.kind == "mode" for c in model.coordinates) and b.structure.conductor.outline_shape == "disk":
+        out.append(plots.mode_shapes(folder / f"{model.name}_modes.png", model, b.mechanics.basis,
+                                     b.structure.conductor.radius, electrode_outlines(b.structure)))
+    return out

@@ -1,0 +1,70 @@
+"""Closed forms of capacitances: the independent references of the extractors and their tests."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.integrate import quad
+
+from ..geometry.shapes import Array, corner_radius
+
+def parallel_plate(eps: float, area: float, gap: ArrayLike) -> Array:
+    """Ideal parallel-plate capacitance eps*A/g (no fringe): the zeroth-order reference."""
+    return eps * area / np.asarray(gap, dtype=float)
+
+
+def palmer_rectangle(eps: float, a: float, b: float, g: float) -> float:
+    """Palmer (1937) capacitance of two equal, aligned, thin a-by-b rectangles at distance g."""
+    fa = 1.0 + g / (math.pi * a) * (1.0 + math.log(2.0 * math.pi * a / g))
+    fb = 1.0 + g / (math.pi * b) * (1.0 + math.log(2.0 * math.pi * b / g))
+    return eps * a * b / g * fa * fb
+
+
+def kirchhoff_disk(eps: float, radius: float, g: float) -> float:
+    """Kirchhoff's capacitance of two thin coaxial disks of radius R at distance g << R."""
+    return eps * math.pi * radius**2 / g + eps * radius * (math.log(16.0 * math.pi * radius / g) - 1.0)
+
+
+def cos_antiderivative(x: float, a: float, b: float) -> float:
+    """Continuous antiderivative of 1/(a + b cos x) for a > |b| (Poisson-kernel form)."""
+    c = math.sqrt(a * a - b * b)
+    rho = b / (a + c)
+    return (x - 2.0 * math.atan2(rho * math.sin(x), 1.0 + rho * math.cos(x))) / c
+
+
+def tilted_sector_exact(
+    eps: float,
+    r_in: float,
+    r_out: float,
+    theta_start: float,
+    theta_end: float,
+    slot: float,
+    gap: float,
+    tilt: float,
+    radius: float = math.inf,
+) -> float:
+    """Reference value of eps * integral dA / (gap - tilt*y) over a slotted annular sector.
+
+    The angular integral is done in closed form, the radial one by adaptive scipy quad; the
+    sector is clipped to r <= radius (plate rim).  Independent of the Gauss rules in this module.
+    """
+    h = slot / 2.0
+    span = theta_end - theta_start
+    lo = max(r_in, corner_radius(slot, span))
+    hi = min(r_out, radius)
+    if hi <= lo:
+        return 0.0
+    if abs(tilt) * hi >= gap:
+        raise ValueError("need |tilt| * min(r_out, radius) < gap (plate must not touch)")
+
+    def ring(r: float) -> float:
+        d = math.asin(min(1.0, h / r)) if h > 0 else 0.0
+        b = -tilt * r  # gap - tilt r sin(phi) = gap + b cos(phi - pi/2)
+        x0, x1 = theta_start + d - math.pi / 2, theta_end - d - math.pi / 2
+        return r * (cos_antiderivative(x1, gap, b) - cos_antiderivative(x0, gap, b))
+
+    value, _ = quad(ring, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)
+    return eps * value
+

@@ -1,0 +1,228 @@
+"""Sampling the extractor: the coordinate scales (touching amplitudes), the sample designs
+(the paper's tensor grid, seeded held-out points) and the capacitances at those points, in
+chunks with a progress bar, serially or through an executor (netgen.executor), with finished
+chunks streamed to a store so a re-run computes only the missing ones.
+
+Parallel sampling splits the points into the same chunks as the serial path and runs each with
+the caller's BLAS thread count (OpenBLAS rounds differently with 1 and 2 threads), so each chunk
+is the same extractor call and the result is bit for bit the serial one. A ChunkStore keeps one
+.npy per chunk, written atomically, under a folder named by a hash of the extractor and the points.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import math
+import pickle
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from ..executor import Executor, SerialExecutor
+from ..files import write_bytes_atomic
+from .base import PreparedExtractor
+
+
+@dataclass
+class Samples:
+    """Scaled sample points and extractor capacitances, touching points removed."""
+    x: np.ndarray                   # (n, ncoords) grid points kept
+    c: np.ndarray                   # (n, nelectrodes) F
+    excluded: int                   # grid points dropped because the plate touches an electrode
+
+
+def sampling_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
+    """Full tensor grid of `levels` values in [-half_range, half_range] per coordinate."""
+    axis = np.linspace(-half_range, half_range, levels)
+    mesh = np.meshgrid(*([axis] * ncoords), indexing="ij")
+    return np.stack([m.ravel() for m in mesh], axis=-1)
+
+
+def holdout_points(ncoords: int, count: int, half_range: float, seed: int) -> np.ndarray:
+    """Uniform random points inside the sampled box (held out from the fit)."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-half_range, half_range, size=(count, ncoords))
+
+
+def touch_amplitudes(prepared: PreparedExtractor, ncoords: int, gaps: np.ndarray) -> np.ndarray:
+    """Amplitude of each coordinate alone at which the plate first touches an electrode."""
+    probe = 1e-3 * float(np.min(gaps))
+    amps = np.full(ncoords, np.inf)
+    for v in range(ncoords):
+        for sign in (1.0, -1.0):
+            q = np.zeros((1, ncoords))
+            q[0, v] = sign * probe
+            closing = (gaps - prepared.min_gap(q)[0]) / probe     # gap closed per unit amplitude
+            with np.errstate(divide="ignore"):
+                reach = np.where(closing > 1e-12, gaps / closing, np.inf)
+            amps[v] = min(amps[v], float(reach.min()))
+    return amps
+
+
+def coordinate_scales(prepared: PreparedExtractor, names: list[str], gaps: np.ndarray) -> np.ndarray:
+    """Touching amplitude of each coordinate (the scale of its sampled state x = q / L)."""
+    scales = touch_amplitudes(prepared, len(names), np.asarray(gaps, dtype=float))
+    if not np.all(np.isfinite(scales)):
+        bad = [n for n, a in zip(names, scales) if not math.isfinite(a)]
+        raise ValueError(f"coordinates {bad} never move the plate towards an electrode; they cannot be sampled")
+    return scales
+
+
+def sample(prepared: PreparedExtractor, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
+           executor: Executor | None = None, store: "ChunkStore | str | Path | None" = None) -> np.ndarray:
+    """Capacitances at many coordinate points, in chunks, with a progress bar on stderr.
+    With an executor the chunks run there, and with a store (a folder) each finished chunk is
+    saved and a re-run reuses it; the values are the serial ones bit for bit."""
+    if executor is not None or store is not None:
+        return sample_chunks(prepared, q, progress, desc, chunk, executor, store)
+    out = []
+    with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
+        for k in range(0, len(q), chunk):
+            out.append(prepared.capacitance(q[k:k + chunk]))
+            bar.update(min(chunk, len(q) - k))
+    return np.concatenate(out, axis=0)
+
+
+def sample_points(prepared: PreparedExtractor, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str,
+                  **parallel) -> Samples:
+    """Extractor capacitances at scaled points x; points where the plate touches are dropped.
+    `parallel`: executor= and store= of sample()."""
+    c = sample(prepared, x * scales, progress, desc, **parallel)
+    touching = np.isnan(c).any(axis=1)     # e.g. grid corners where the combined motion closes a gap
+    return Samples(x[~touching], c[~touching], int(touching.sum()))
+
+
+def sample_grid(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
+    """The fit's samples: levels^ncoords tensor grid over +-range of the touching amplitudes."""
+    x = sampling_grid(len(scales), s.sampling.levels, s.sampling.range)
+    return sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
+
+
+def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False,
+                   **parallel) -> Samples:
+    """Held-out check samples: uniform random points (seeded) inside the sampled box."""
+    x = holdout_points(len(scales), s.fit.holdout, s.sampling.range, s.fit.seed)
+    return sample_points(prepared, x, scales, progress, "held-out samples", **parallel)
+
+
+# ----------------------------------------------------------------------------- parallel and resumable
+
+
+def fingerprint(*parts: Any) -> str:
+    """sha256 (16 hex digits) of the pickled parts: same inputs, same folder name."""
+    h = hashlib.sha256()
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            h.update(repr((p.dtype.str, p.shape)).encode())
+            h.update(np.ascontiguousarray(p).tobytes())
+        else:
+            h.update(pickle.dumps(p, protocol=4))
+    return h.hexdigest()[:16]
+
+
+@dataclass
+class ChunkStore:
+    """A folder of finished sample chunks (one .npy each); `log` records per call which chunk
+    indices were computed and which reused from disk."""
+    root: Path
+    log: list[dict] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.root = Path(self.root)
+
+    def folder(self, key: str, meta: dict) -> Path:
+        d = self.root / key
+        d.mkdir(parents=True, exist_ok=True)
+        info = d / "inputs.txt"
+        if not info.exists():
+            write_bytes_atomic(info, "".join(f"{k} = {v}\n" for k, v in meta.items()).encode())
+        return d
+
+    @staticmethod
+    def path(folder: Path, k: int) -> Path:
+        return folder / f"chunk_{k:06d}.npy"
+
+    def load(self, folder: Path, k: int, rows: int) -> np.ndarray | None:
+        p = self.path(folder, k)
+        if not p.exists():
+            return None
+        try:
+            a = np.load(p, allow_pickle=False)
+        except (OSError, ValueError):
+            return None                                # unreadable: compute it again
+        return a if a.shape[0] == rows else None
+
+    def save(self, folder: Path, k: int, a: np.ndarray) -> None:
+        buf = io.BytesIO()
+        np.save(buf, a, allow_pickle=False)
+        write_bytes_atomic(self.path(folder, k), buf.getvalue())
+
+
+
+def blas_threads() -> int | None:
+    """Threads of this process's BLAS (threadpoolctl), None if unknown. OpenBLAS rounds
+    matrix products differently with 1 and 2 threads, so a work unit runs with the caller's
+    count: that is what makes parallel samples equal the serial ones bit for bit."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return None
+    counts = [i["num_threads"] for i in threadpool_info() if i.get("user_api") == "blas"]
+    return counts[0] if counts else None
+
+
+def _capacitance_chunk(prepared: Any, item: tuple[np.ndarray, int | None]) -> np.ndarray:
+    """One work unit of the sampling: the extractor at a chunk of points, with the caller's
+    number of BLAS threads (a pure function of its inputs)."""
+    q, threads = item
+    if threads is None or threads == blas_threads():
+        return prepared.capacitance(q)
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=threads, user_api="blas"):
+        return prepared.capacitance(q)
+
+
+def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
+                  executor: Executor | None = None, store: ChunkStore | str | Path | None = None) -> np.ndarray:
+    """sample() through an executor (None: in this process), chunks streamed to `store`."""
+    q = np.ascontiguousarray(q, dtype=float)
+    starts = list(range(0, len(q), chunk))
+    if store is not None and not isinstance(store, ChunkStore):
+        store = ChunkStore(Path(store))
+    folder = None
+    results: dict[int, np.ndarray] = {}
+    if store is not None:
+        key = "capacitance-" + fingerprint(type(prepared).__qualname__, prepared, q, chunk)
+        folder = store.folder(key, {"what": desc, "points": len(q), "coordinates": q.shape[1], "chunk": chunk,
+                                    "chunks": len(starts), "extractor": type(prepared).__qualname__})
+        for k, s in enumerate(starts):
+            a = store.load(folder, k, min(chunk, len(q) - s))
+            if a is not None:
+                results[k] = a
+    todo = [k for k in range(len(starts)) if k not in results]
+    ex = executor or SerialExecutor()
+    with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
+        bar.update(sum(len(a) for a in results.values()))
+        if todo:
+            threads = blas_threads()
+            items = [(q[starts[k]:starts[k] + chunk], threads) for k in todo]
+            for j, out in ex.imap_unordered(_capacitance_chunk, items, shared=prepared):
+                k = todo[j]
+                if not out.ok:
+                    raise RuntimeError(f"{desc}: chunk {k} (points {starts[k]}..{starts[k] + len(items[j][0]) - 1}) "
+                                       f"failed: {out.error}\n{out.traceback}")
+                results[k] = out.value
+                if folder is not None:
+                    store.save(folder, k, out.value)
+                bar.update(len(items[j][0]))
+    if store is not None:
+        store.log.append({"folder": folder, "computed": sorted(todo),
+                          "reused": sorted(set(range(len(starts))) - set(todo))})
+    if not starts:
+        return prepared.capacitance(q)
+    return np.concatenate([results[k] for k in range(len(starts))], axis=0)

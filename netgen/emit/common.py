@@ -1,0 +1,191 @@
+"""What every emitter shares: number and polynomial text, node names, the model time scale and
+force scaling, the header tables, the contact stops and the nonlinear restoring forces, all read
+from the MacroModel (no physics here)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..fit.polynomial import Polynomial
+from ..model import MacroModel
+
+
+def num(value: float) -> str:
+    """Deterministic, round-trip-safe number text for netlists."""
+    if not math.isfinite(value):
+        raise ValueError(f"non-finite value {value} cannot be emitted")
+    return repr(float(value))
+
+
+def poly_expr(poly: Polynomial, names: list[str], drop: float = 0.0, access: str = "v({})") -> str:
+    """Polynomial as explicit products of node voltages, `access` formatting each (ngspice's ^ is |x|^y)."""
+    terms = []
+    for e, c in zip(poly.exponents, poly.coeffs):
+        if c == 0.0 or abs(c) < drop:
+            continue
+        factors = [access.format(names[v]) for v in range(len(names)) for _ in range(int(e[v]))]
+        terms.append("*".join([num(c)] + factors))
+    if not terms:
+        return "0"
+    return " + ".join(terms).replace("+ -", "- ")
+
+
+def time_scale(model: MacroModel) -> float:
+    """Model time scale w_s (rad/s): the geometric mean of the modal frequencies, else 1e6."""
+    freqs = [c.frequency_hz for c in model.coordinates if c.frequency_hz > 0]
+    f = math.exp(float(np.mean(np.log(freqs)))) if freqs else 1e6 / (2 * math.pi)
+    return 2 * math.pi * f
+
+
+def force_gain(c, ws: float) -> float:
+    """Scaled velocity rate per newton (or N*m) of generalized force on coordinate c:
+    d u / d tau = F / (m L w_s^2), the factor every force term of its velocity integrator carries."""
+    return 1.0 / (c.mass * c.scale * ws * ws)
+
+
+def node(electrode: str, k: int) -> str:
+    """Name of the node carrying term k of an electrode's capacitance polynomial(s)."""
+    return f"p_{electrode}_{k + 1}"
+
+
+def dv2_node(electrode: str) -> str:
+    """Node carrying (V_electrode - V_plate)^2, shared by the force terms of one electrode."""
+    return f"dv2_{electrode}"
+
+
+def y_node(electrode: str, k: int) -> str:
+    """Node carrying (V_e - V_plate)^2 / P_k^2: the force terms are linear in it."""
+    return f"y_{electrode}_{k + 1}"
+
+
+
+def g_node(electrode: str, k: int) -> str:
+    """Node carrying 1/P_eff of plate term k (the term's capacitance over c_ref)."""
+    return f"g_{electrode}_{k + 1}"
+
+
+def c_node(electrode: str) -> str:
+    """Node carrying (C_i(q) - C_i(0)) / c_ref = sum_k g_k - sum_k 1/P_k(0)."""
+    return f"c_{electrode}"
+
+
+def rest_capacitance(f, ncoords: int) -> float:
+    """C_i(0) / c_ref = sum_k 1/P_k(0) of a plate fit (at rest no term is clamped)."""
+    zero = np.zeros((1, ncoords))
+    return float(sum(1.0 / poly(zero)[0] for poly in f.polys))
+
+
+
+def si(value: float, unit: str) -> str:
+    return f"{value:.6g} {unit}".strip()
+
+
+def header_context(model: MacroModel) -> dict:
+    """Template context shared by the dialects: header tables, time scale, fit form, ports, couplings."""
+    coords = []
+    for c in model.coordinates:
+        xu, _, fu, _ = c.port_units
+        mass_unit = "kg" if c.unit == "m" else "kg*m^2"
+        stiff_unit = "N/m" if c.unit == "m" else "N*m/rad"
+        coords.append({
+            "name": c.name, "kind": c.kind + (f" {c.label}" if c.label else ""), "xunit": xu, "funit": fu,
+            "scale_text": si(c.scale, c.unit), "mass_text": si(c.mass, mass_unit),
+            "stiff_text": si(c.stiffness, stiff_unit),
+            "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-"})
+    fits = [{"electrode": f.electrode, "c_ref_text": f"{f.c_ref:.6e}", "max_text": f"{f.max_rel_error:.3e}",
+             "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys)} for f in model.capacitances]
+    fit_form = {"plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
+                "inverse": "C = c_ref / P(xs): fit of 1/C", "direct": "C = c_ref * P(xs)"}[model.capacitances[0].target]
+    degree = max(f.degree for f in model.capacitances)
+    names = [e.name for e in model.electrodes]
+    couplings = [{"a": names[i], "b": names[j], "value": num(model.coupling[i, j])}
+                 for i in range(len(names)) for j in range(i + 1, len(names)) if model.coupling[i, j]]
+    c = model.contact
+    contact_text = "" if not c else (
+        f"Contact: below {c['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
+        f"{c['floor']:g}), and {len(c.get('points', []))} stop points carry a penalty spring "
+        f"{c['stiffness']:.4g} N/m with damping {c['damping']:.4g} N*s/m, engaged over {c['smoothing']:g} of the gap"
+        " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits).")
+    return {"m": model, "ports": model.ports(), "coords": coords, "fits": fits, "couplings": couplings,
+            "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
+            "contact_text": contact_text}
+
+
+def noise_enabled(model: MacroModel, noise: bool | None) -> bool:
+    """Emit thermal noise sources: the explicit option, else the structure's [damping] noise."""
+    return model.report.get("damping", {}).get("noise", False) if noise is None else noise
+
+
+
+def nonlinear_forces(model: MacroModel, state: list[str], access: str = "v({})",
+                     gain: list[float] | None = None) -> list[str]:
+    """Per coordinate v, the restoring force -(1/L_v) dU/dxs_v of the model's fitted strain energy
+    U(xs) (J) as an explicit polynomial of the states, times gain[v] (default 1: SI force)."""
+    poly = model.nonlinear_energy_polynomial()
+    if poly is None:
+        return []
+    out = []
+    for v, c in enumerate(model.coordinates):
+        d = poly.derivative(v)
+        factor = -(1.0 if gain is None else gain[v]) / c.scale
+        out.append(poly_expr(Polynomial(d.exponents, d.coeffs * factor), state, access=access))
+    return out
+
+
+
+def clamp_expr(expr: str, knee: float, floor: float) -> str:
+    """P clamped from below (C1 at the knee, never under the floor); the text is valid ngspice and Verilog-A."""
+    span = knee - floor
+    return f"max({expr}, {num(floor)} + {num(span)}*exp(min({expr} - {num(knee)}, 0)/{num(span)}))"
+
+
+def slope_expr(p: str, knee: float, floor: float) -> str:
+    """dP_eff/dP of the clamp, from the clamped value p."""
+    return f"min(1, ({p} - {num(floor)})/{num(knee - floor)})"
+
+
+
+def stop_name(j: int) -> tuple[str, str]:
+    """Nodes/variables of stop point j: penetration fraction and scaled penalty force."""
+    return f"sg_{j + 1}", f"sf_{j + 1}"
+
+
+def stop_constants(model: MacroModel) -> dict | None:
+    """The contact stops' numbers (netgen.model.contact): smoothing delta, damping factor (c/k)/delta^2,
+    and per stop point its direction a_j (in xs) and the SI force per unit penalty on each
+    coordinate, gain_jv = -k gap^2 delta a_jv / L_v; None without stop points."""
+    c = model.contact
+    if not c.get("points"):
+        return None
+    delta = c["smoothing"]
+    gains = [[-c["stiffness"] * pt["gap"] ** 2 * delta * a / model.coordinates[v].scale if a != 0.0 else 0.0
+              for v, a in enumerate(pt["a"])] for pt in c["points"]]
+    return {"delta": delta, "damp": c["damping"] / c["stiffness"] / delta ** 2,
+            "a": [list(pt["a"]) for pt in c["points"]], "gain": gains}
+
+
+def contact_terms(model: MacroModel, access: str = "v({})",
+                  var: str = "v({})") -> tuple[list[dict], list[list[tuple[str, float]]]]:
+    """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
+    per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta."""
+    points, per_coord = [], [[] for _ in model.coordinates]
+    k = stop_constants(model)
+    if k is None:
+        return points, per_coord
+    ws, delta = time_scale(model), k["delta"]
+    xs = [access.format(f"xs_{c.name}") for c in model.coordinates]
+    us = [access.format(f"u_{c.name}") for c in model.coordinates]
+    for j, (pt, a_j, gain_j) in enumerate(zip(model.contact["points"], k["a"], k["gain"])):
+        g, f = stop_name(j)
+        used = [(v, a) for v, a in enumerate(a_j) if a != 0.0]
+        gap_expr = " + ".join(f"{num(a)}*{xs[v]}" for v, a in used).replace("+ -", "- ") + " - 1"
+        r = f"min(max({var.format(g)}, 0), {num(delta)})"
+        rate = " + ".join(f"{num(a * ws)}*{us[v]}" for v, a in used).replace("+ -", "- ")
+        pen = (f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
+               f" + {num(k['damp'])}*{r}*({rate})")
+        points.append({"g": g, "g_expr": gap_expr, "f": f, "f_expr": pen, "electrode": pt["electrode"]})
+        for v, _ in used:
+            per_coord[v].append((f, gain_j[v]))
+    return points, per_coord

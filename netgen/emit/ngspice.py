@@ -1,0 +1,247 @@
+"""The ngspice emitter: a MacroModel as a .subckt of behavioural (B) sources and linear
+elements (templates/ngspice/subckt.lib.j2). The electrode currents are ngspice's own dQ/dt of
+charge-conserving charges; no physics here, everything is read from the MacroModel."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..constants import K_B
+from ..fit.polynomial import Polynomial
+from ..model import MacroModel
+from ..templating import render
+from .common import (c_node, contact_terms, dv2_node, force_gain, g_node, header_context, node, noise_enabled,
+                     nonlinear_forces, num, poly_expr, rest_capacitance, time_scale, y_node)
+
+
+def force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple[str, list[tuple[str, str]]]:
+    """Right-hand side current of the velocity integrator of coordinate v: a behavioural
+    expression, and (node, gain) pairs of forces linear in a y node (emitted as cheap VCCS)."""
+    c = model.coordinates[v]
+    a = force_gain(c, ws)
+    parts, linear = [f"{gain}*v({n})" for n, gain in linear_force_terms(model, v, ws)], []
+    for f in model.capacitances:
+        for k, poly in enumerate(f.polys):
+            dpoly = poly.derivative(v)
+            if not np.any(dpoly.coeffs):
+                continue
+            g = a * f.c_ref / (2.0 * c.scale)
+            if f.target == "direct":                            # F = g dP/dx dV^2
+                parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*v({dv2_node(f.electrode)})")
+            elif dpoly.exponents.sum() == 0:                     # affine P_k: F linear in y_k
+                linear.append((y_node(f.electrode, k), num(-g * float(dpoly.coeffs.sum()))))
+            else:
+                parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})*v({y_node(f.electrode, k)})")
+    return " + ".join(parts).replace("+ -", "- "), linear
+
+
+
+def linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, str]]:
+    """(node, gain) of the linear right-hand side of coordinate v's velocity integrator (the
+    external force port, spring, damper), i.e. `force_terms` without the electrostatics, as VCCS."""
+    c = model.coordinates[v]
+    a = force_gain(c, ws)
+    terms = [(f"f_{c.name}", num(a * c.port_units[3]))]
+    if c.stiffness:
+        terms.append((f"xs_{c.name}", num(-c.stiffness / (c.mass * ws * ws))))
+    if c.damping:
+        terms.append((f"u_{c.name}", num(-c.damping / (c.mass * ws))))
+    return terms
+
+
+
+def charge_expr(f, plate: str) -> str:
+    """Charge of one plate-electrode capacitor, Q = C(q) * (V_e - V_plate)."""
+    if f.target == "direct":
+        cap = f"{num(f.c_ref)}*v({node(f.electrode, 0)})"
+    else:
+        cap = f"{num(f.c_ref)}*(" + " + ".join(f"1/v({node(f.electrode, k)})" for k in range(len(f.polys))) + ")"
+    return f"{cap}*v({f.electrode},{plate})"
+
+
+def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
+    """The behavioural part of an electrode's charge, c_ref c_i (V_e - V_plate) with c_i the
+    expression `factor` (e.g. v(c_e)), as the node qn_e = c_i (V_e - V_plate) on a linear
+    capacitor c_ref, whose current the electrode draws through a CCCS. Why not `C ... Q=`:
+    ngspice expands that into 3 equations
+    per electrode (G, L, B) whose coupling filled the sparse LU 2.4x more (723 against 297 fill-ins
+    in the sigma-delta bench, 15 % of its instructions per Newton iteration; bench/callgrind.py);
+    this form adds 2 and integrates the same charge with the same rule."""
+    return {"b": f"Bqn_{electrode} qs_{electrode} 0 V={factor}*v({electrode},{plate})",
+            "v": f"Vqm_{electrode} qs_{electrode} qn_{electrode} 0",
+            "c": f"Cqn_{electrode} qn_{electrode} 0 {num(c_ref)}",
+            "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1"}
+
+
+
+def noise_context(model: MacroModel, ws: float) -> dict:
+    """Template fields of the thermal force noise sources (damped coordinates only)."""
+    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    f_max = max([c.frequency_hz for c in model.coordinates] + [ws / (2 * math.pi)]
+                + [w / (2 * math.pi) for c in model.coordinates for _, w in c.film])   # film branch corners
+    dt = float(f"{1.0 / (50.0 * f_max):.3g}")
+    sources = [{"name": c.name, "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3]),
+                "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws))}
+               for c in model.coordinates if c.damping > 0]
+    return {"noise_sources": sources, "noise_temperature": f"{temp:g}", "noise_dt": f"{dt:g}",
+            "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else ""}
+
+
+
+TEMPLATE = "ngspice/subckt.lib.j2"
+
+
+def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
+    """Template context of every part of the .lib but the electrostatics: the header tables, the
+    integrators of each coordinate, thermal noise, stress stiffening, film branches and inertial
+    loads (shared with netgen.emit.xspice)."""
+    ws = time_scale(model)
+    state = [f"xs_{c.name}" for c in model.coordinates]
+    ctx = header_context(model)
+    if noise_enabled(model, noise):
+        ctx.update(noise_context(model, ws))
+    for row, c in zip(ctx["coords"], model.coordinates):
+        row.update({"cint": num(1.0 / ws), "out_gain": num(c.scale / c.port_units[1])})
+    ctx["nonlinear"] = nonlinear_sources(model, ws, state)
+    ctx["film"] = film_branches(model, ws, noise_enabled(model, noise))
+    ctx["inertial"] = inertial_loads(model, ws)
+    if any("rms" in b for b in ctx["film"]) and not ctx.get("subckt_params"):
+        dt = noise_context(model, ws)["noise_dt"]            # the branches' noise needs the instance params
+        ctx.update({"noise_dt": dt, "subckt_params": f"\n+ params: noise=1 noise_dt={dt}"})
+    return ctx
+
+
+def add_stops(ctx: dict, model: MacroModel, stops: list[dict], per_coord: list[list[tuple[str, float]]]) -> None:
+    """The contact stops' rows (netgen.emit.common.contact_terms) and their force gains per coordinate."""
+    ws = time_scale(model)
+    for row, c, terms in zip(ctx["coords"], model.coordinates, per_coord):
+        a = force_gain(c, ws)
+        row["stops"] = [(name, num(a * gain)) for name, gain in terms]
+    ctx["stops"] = stops
+
+
+def context(model: MacroModel, noise: bool | None = None) -> dict:
+    """Template context of the B-source .lib: the form ngspice evaluates cheapest (measured,
+    bench/callgrind.py): affine P_k as linear VCCS networks, one clamped 1/P_k node per plate
+    term, force nodes y = dv2 g^2 slope, charges linear in the g nodes, stop forces gated by a ternary."""
+    ctx = mechanics_context(model, noise)
+    ws = time_scale(model)
+    state = [f"xs_{c.name}" for c in model.coordinates]
+    for v, row in enumerate(ctx["coords"]):
+        row["force_expr"], row["linear"] = force_terms(model, v, ws, state)
+    clamps = model.term_clamps()
+    for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
+        row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), state))
+    stops, per_coord = contact_terms(model)
+    for pt in stops:                # no penetration, no force: the ternary skips the penalty's derivative trees
+        pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
+    add_stops(ctx, model, stops, per_coord)
+    return ctx
+
+
+def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
+    """The complete .lib text of the model's subcircuit (thermal force noise per `noise_enabled`)."""
+    return render(TEMPLATE, **context(model, noise))
+
+# ------------------------------------------------------------------ the "fast" form (what ngspice evaluates cheapest)
+#
+# ngspice evaluates a B-source by walking its parse tree and one symbolic derivative tree per
+# variable, about 100 instructions per tree node, with no sharing between the trees. Measured
+# per evaluation (callgrind, ngspice 39.3): B-source with an affine expression in 7 nodes 3.9k
+# instructions, the same as 7 VCCS + R 1.4k; clamp of P as max(...exp(min(...))) 3.6k; y =
+# dv2 slope(P) / P^2 6.6k; 1/P with the clamp as a ternary 2.8k; y = dv2 g min(g, (1 - f g)/s) 5.0k,
+# the same as a ternary on g 3.4k; a Q= capacitor with 9 x 1/v(p) terms 15.5k, with 9 v(g) terms
+# 10.9k, with one v(c) node 3.5k (+ the linear network summing the g nodes into c, ~1.5k).
+
+def affine(poly: Polynomial) -> bool:
+    return bool(np.all(poly.exponents.sum(axis=1) <= 1))
+
+
+def linear_network(name: str, poly: Polynomial, state: list[str]) -> list[str]:
+    """Node `name` = affine P(xs) from linear elements: 1 ohm to ground fed by a constant current and
+    one VCCS per coordinate (no parse trees to evaluate)."""
+    lines = [f"R{name} {name} 0 1"]
+    for e, c in zip(poly.exponents, poly.coeffs):
+        if c == 0.0:
+            continue
+        if e.sum() == 0:
+            lines.append(f"I{name} 0 {name} {num(c)}")
+        else:
+            lines.append(f"G{name}_{int(np.argmax(e)) + 1} 0 {name} {state[int(np.argmax(e))]} 0 {num(c)}")
+    return lines
+
+
+def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
+    """Template rows of one electrode in the fast form (see the section comment above)."""
+    e, plate = f.electrode, model.plate
+    dv2 = {"name": dv2_node(e), "expr": f"v({e},{plate})*v({e},{plate})"}
+    if f.target == "direct":
+        return {"nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}], "dv2": dv2, "ys": [],
+                "gs": [], "charge_expr": charge_expr(f, plate)}
+    nodes, gs, ys = [], [], []
+    for k, poly in enumerate(f.polys):
+        p, g = f"v({node(e, k)})", f"v({g_node(e, k)})"
+        if affine(poly):
+            nodes.append({"name": node(e, k), "lines": linear_network(node(e, k), poly, state)})
+        else:
+            nodes.append({"name": node(e, k), "expr": poly_expr(poly, state)})
+        if clamp[k]:
+            knee, floor = clamp[k]
+            span = knee - floor
+            gs.append({"name": g_node(e, k), "expr": f"{p} > {num(knee)} ? 1/{p} : "
+                       f"1/({num(floor)} + {num(span)}*exp(({p} - {num(knee)})/{num(span)}))"})
+            # slope / P_eff^2 = g min(g, (1 - floor g) / span): g^2 above the knee (g < 1/knee), E g^2 below
+            ys.append({"name": y_node(e, k), "expr": f"{g} < {num(1 / knee)} ? v({dv2['name']})*{g}*{g} : "
+                       f"v({dv2['name']})*{g}*({num(1 / span)} - {num(floor / span)}*{g})"})
+        else:
+            gs.append({"name": g_node(e, k), "expr": f"1/{p}"})
+            ys.append({"name": y_node(e, k), "expr": f"v({dv2['name']})*{g}*{g}"})
+    # C(0) as a linear capacitor and only the rest behavioural: the same charge, but the plate row of
+    # the matrix is never empty (with uic every g node starts at 0: a floating plate was singular)
+    # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
+    c0 = rest_capacitance(f, len(state))
+    cs = c_node(e)
+    sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + \
+        [f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))]
+    return {"nodes": nodes, "gs": gs, "ys": ys, "dv2": dv2, "sums": sums, "c0": num(f.c_ref * c0),
+            "charge": charge_node(e, f"v({cs})", plate, f.c_ref)}
+
+
+
+def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[dict]:
+    """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
+    every other force of that node (1 / (M L w_s^2))."""
+    gains = [force_gain(c, ws) for c in model.coordinates]
+    return [{"name": c.name, "expr": e} for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
+            if e != "0"]
+
+
+
+# ------------------------------------------------------------------ compressible squeeze film (Maxwell branches)
+
+def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
+    """Template rows of the compressible-film branches (Coordinate.film): per branch j of q a state
+    w = F_j / (r_j L w_s) in the units of u obeying (1/w_s) w' = (corner/w_s)(u - w [+ noise]),
+    and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
+    S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
+    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    rows = []
+    for c in model.coordinates:
+        for j, (r, corner) in enumerate(c.film):
+            row = {"coord": c.name, "node": f"w_{c.name}_{j + 1}", "corner_hz": f"{corner / (2 * math.pi):.6g}",
+                   "damping": f"{r:.6g}", "g_in": num(corner / ws), "r_out": num(ws / corner),
+                   "g_force": num(r / (c.mass * ws))}
+            if noise:
+                row.update({"rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
+                            "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws))})
+            rows.append(row)
+    return rows
+
+
+def inertial_loads(model: MacroModel, ws: float) -> list[dict]:
+    """Per coordinate with a non-zero participation G_v: the gain from the a_in port (m/s^2) into
+    its velocity node, G_v / (M L w_s^2) (the inertial force -G_v a_in, like F_ext)."""
+    return [{"coord": c.name, "gain": num(g / (c.mass * c.scale * ws * ws)), "participation": f"{g:.6g}"}
+            for c, g in zip(model.coordinates, model.acceleration) if g != 0.0]

@@ -1,0 +1,204 @@
+"""Verilog-A emitter: renders a MacroModel into one module with Jinja2 (no physics here).
+
+The module is the ngspice subcircuit's twin: same ports in the same order, the same scaled
+states (xs = q / L, u = q' / (L w_s)), the same fitted polynomials and derivative
+polynomials (taken from the MacroModel exactly as netgen.emit.ngspice takes them).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..constants import K_B
+from ..fit.capacitance import CapacitanceFit
+from ..model import Coordinate, MacroModel
+from ..templating import render
+from .common import (clamp_expr, contact_terms, dv2_node, force_gain, header_context, node, noise_enabled,
+                     nonlinear_forces, num, poly_expr, slope_expr, time_scale, y_node)
+
+TEMPLATE = "veriloga/module.va.j2"
+VA = "V({})"                      # node voltage access in Verilog-A
+IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+KEYWORDS = frozenset("""
+    above abs absdelay absdelta abstol access acos acosh ac_stim aliasparam always analog analysis and
+    asin asinh assert assign atan atan2 atanh automatic begin branch buf bufif0 bufif1 case casex casez
+    ceil cell cmos config connect connectmodule connectrules continuous cos cosh cross ddt ddt_nature ddx
+    deassign default defparam design disable discipline discrete domain driver_update edge else end
+    endcase endconfig endconnectrules enddiscipline endfunction endgenerate endmodule endnature endparamset
+    endprimitive endspecify endtable endtask event exclude exp final_step flicker_noise floor flow for
+    force forever fork from function generate genvar ground highz0 highz1 hypot idt idtmod idt_nature if
+    ifnone incdir include inf initial initial_step inout input instance integer join laplace_nd laplace_np
+    laplace_zd laplace_zp large last_crossing liblist library limexp ln localparam log macromodule max
+    medium merged min module nand nature negedge net_resolution nmos noise_table noise_table_log nor
+    noshowcancelled not notif0 notif1 or output parameter paramset pmos posedge potential pow primitive
+    pull0 pull1 pulldown pullup pulsestyle_onevent pulsestyle_ondetect rcmos real realtime reg release
+    repeat resolveto rnmos rpmos rtran rtranif0 rtranif1 scalared sin sinh showcancelled signed slew small
+    specify specparam split sqrt string strong0 strong1 supply0 supply1 table tan tanh task time timer tran
+    tranif0 tranif1 transition tri tri0 tri1 triand trior trireg unsigned use uwire vectored wait wand
+    weak0 weak1 while white_noise wire wor wreal xnor xor zi_nd zi_np zi_zd zi_zp
+    electrical voltage current V I
+    """.split())
+
+
+def _sum(terms: list[str]) -> str:
+    """Terms joined by ' + ' (one per line when long), '+ -' folded into '- '."""
+    if not terms:
+        return "0.0"
+    sep = "\n            + " if len(terms) > 3 else " + "
+    return sep.join(terms).replace("+ -", "- ")
+
+
+def charge(f: CapacitanceFit, plate: str) -> str:
+    """Charge of one plate-electrode capacitor, C(q) * (V_e - V_plate), in C."""
+    if f.target == "direct":
+        cap = f"{num(f.c_ref)} * {node(f.electrode, 0)}"
+    else:
+        cap = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(f.electrode, k)}" for k in range(len(f.polys))) + ")"
+    return f"{cap} * V({f.electrode}, {plate})"
+
+
+def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
+    """Electrostatic generalized force on coordinate v (SI) from the derivative polynomials."""
+    # direct fits: c_ref / (2 L) * dP/dxs * dv2; 1/P terms: -c_ref / (2 L) * dP_k/dxs * y_k
+    scale, terms = model.coordinates[v].scale, []
+    for f in model.capacitances:
+        g = f.c_ref / (2.0 * scale)
+        for k, poly in enumerate(f.polys):
+            dpoly = poly.derivative(v)
+            if not np.any(dpoly.coeffs):
+                continue
+            dexpr = poly_expr(dpoly, state, access=VA)
+            if f.target == "direct":
+                terms.append(f"{num(g)} * ({dexpr}) * {dv2_node(f.electrode)}")
+            elif dpoly.exponents.sum() == 0:                      # affine P_k: constant slope
+                terms.append(f"{num(-g * float(dpoly.coeffs.sum()))} * {y_node(f.electrode, k)}")
+            else:
+                terms.append(f"{num(-g)} * ({dexpr}) * {y_node(f.electrode, k)}")
+    return _sum(terms)
+
+
+def _rhs(c: Coordinate, ws: float, contact: bool = False) -> str:
+    """Right-hand side of (1/w_s) du/dt: (F_ext + F_el - K L xs - D L w_s u) / (M L w_s^2)."""
+    a = force_gain(c, ws)
+    parts = [f"{num(a * c.port_units[3])} * V(f_{c.name})"]
+    if c.stiffness:
+        parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))} * V(xs_{c.name})")
+    parts += [f"-d_{c.name} * {num(1.0 / (c.mass * ws))} * V(u_{c.name})",
+              f"fel_scale * {num(a)} * fel_{c.name}"]
+    if contact:
+        parts.append(f"{num(a)} * fcon_{c.name}")
+    return " + ".join(parts).replace("+ -", "- ")
+
+
+def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list[str]) -> None:
+    """Add the Verilog-A fields of each coordinate to its header row."""
+    _, per_coord = contact_terms(model, access=VA, var="{}")
+    has_contact = bool(model.contact.get("points"))
+    for v, (row, c) in enumerate(zip(rows, model.coordinates)):
+        row["fcon"] = f"fcon_{c.name}" if has_contact else ""
+        row["fcon_sum"] = _sum([f"{num(g)} * {n}" for n, g in per_coord[v]])
+        row.update({"f": f"f_{c.name}", "x": f"x_{c.name}", "xs": f"xs_{c.name}", "u": f"u_{c.name}",
+                    "d": f"d_{c.name}", "fel": f"fel_{c.name}", "damping": num(c.damping),
+                    "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
+                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws, has_contact),
+                    "out_gain": num(c.scale / c.port_units[1])})
+
+
+def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
+    """Add the Verilog-A fields of each capacitance fit to its header row."""
+    clamps = model.term_clamps()
+    for i, (row, f) in enumerate(zip(rows, model.capacitances)):
+        dv2 = dv2_node(f.electrode)
+        cl = clamps[i] if clamps else [None] * len(f.polys)
+        row.update({
+            "polys": [{"name": node(f.electrode, k),
+                       "expr": clamp_expr(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
+                      for k, p in enumerate(f.polys)],
+            "dv2": dv2, "charge": charge(f, model.plate),
+            "ys": [] if f.target == "direct" else
+                  [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
+                    + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
+                    + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
+                   for k in range(len(f.polys))]})
+
+
+def check_identifiers(names: list[str]) -> None:
+    """Every port, state and variable name must be a distinct, legal Verilog-A identifier."""
+    bad = [n for n in names if not IDENT.match(n) or n in KEYWORDS]
+    if bad:
+        raise ValueError(f"names not usable as Verilog-A identifiers: {', '.join(sorted(set(bad)))}; "
+                         "rename the electrodes/coordinates (letters, digits, '_'; no keywords)")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"Verilog-A names clash: {', '.join(dup)}; rename the electrodes/coordinates")
+
+
+def noise_rows(model: MacroModel, rows: list[dict], ws: float) -> None:
+    """Add each coordinate's white_noise factor: 4 k_B (force-to-velocity-node gain)^2."""
+    for row, c in zip(rows, model.coordinates):
+        row["noise_gain"] = num(4.0 * K_B / (c.mass * c.scale * ws * ws) ** 2)
+
+
+def module(model: MacroModel, noise: bool | None = None) -> str:
+    """The complete .va text of the model's Verilog-A module (thermal noise per `noise_enabled`)."""
+    ws = time_scale(model)
+    state = [f"xs_{c.name}" for c in model.coordinates]
+    ctx = header_context(model)
+    _coordinate_rows(model, ctx["coords"], ws, state)
+    nonlinear_rows(model, ctx, ws, state)
+    _fit_rows(model, ctx["fits"], state)
+    ctx["film"] = film_rows(model, ws)
+    ctx["accel_port"] = "a_in" if model.acceleration else ""
+    for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
+        if g != 0.0:                                    # inertial load -G a_in (netgen.mechanics.participation)
+            row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
+    states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
+    p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
+    dv2_vars = [f["dv2"] for f in ctx["fits"]]
+    y_vars = [y["name"] for f in ctx["fits"] for y in f["ys"]]
+    ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
+    stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
+    check_identifiers([model.name] + [p["name"] for p in ctx["ports"]] + states + p_vars + dv2_vars + y_vars
+                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"] + stop_vars
+                      + [n["var"] for n in ctx["nonlinear"]])
+    if noise_enabled(model, noise):
+        noise_rows(model, ctx["coords"], ws)
+        ctx["noise"] = True
+    return render_module(ctx, states, p_vars, dv2_vars, y_vars, ws)
+
+
+def render_module(ctx: dict, states: list[str], p_vars: list[str],
+                  dv2_vars: list[str], y_vars: list[str], ws: float) -> str:
+    """Render the template with the prepared rows."""
+    terminals = [p["name"] for p in ctx["ports"] if p["kind"] in ("electrode", "conductor")]
+    return render(TEMPLATE, terminals=terminals, states=states,
+                  p_vars=p_vars, dv2_vars=dv2_vars, y_vars=y_vars, cint=num(1.0 / ws), **ctx)
+
+
+def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) -> None:
+    """Nonlinear restoring forces of the fitted strain energy (netgen.mechanics.beam): a variable
+    fnl_<q> (SI) per coordinate, added to that coordinate's right-hand side like F_el."""
+    ctx["nonlinear"] = []
+    for row, c, expr in zip(ctx["coords"], model.coordinates, nonlinear_forces(model, state, access=VA)):
+        if expr == "0":
+            continue
+        var = f"fnl_{c.name}"
+        ctx["nonlinear"].append({"var": var, "expr": expr})
+        row["rhs"] = f"{row['rhs']} + {num(force_gain(c, ws))} * {var}"
+
+
+def film_rows(model: MacroModel, ws: float) -> list[dict]:
+    """Compressible squeeze-film branches (Coordinate.film) as internal nodes w (units of u):
+    (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
+    enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
+    rows = []
+    for c in model.coordinates:
+        for j, (r, corner) in enumerate(c.film):
+            rows.append({"coord": c.name, "u": f"u_{c.name}", "node": f"w_{c.name}_{j + 1}",
+                         "g_in": num(corner / ws), "g_force": num(r / (c.mass * ws)),
+                         "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                         "corner_hz": f"{corner / (2 * math.pi):.6g}", "damping": f"{r:.6g}"})
+    return rows

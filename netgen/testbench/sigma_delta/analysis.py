@@ -1,0 +1,178 @@
+"""From a run's raw plot to its figures: bits and coordinates once per period, Welch spectra of
+the bitstreams normalised to the fed-back force/torque (the paper's normalisation), in-band
+noise floors, SNR, shaping slope, notches and peaks, latch quality, the levitation check, the
+momentum balance against gravity and the gas film's Brownian floor."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from ...constants import K_B
+from ...errors import SimulationError
+from ...model import MacroModel
+from .loop import CHANNELS, Design, Tone, coord_index, duty
+
+def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
+    """Bits (+-1) and coordinates sampled once per period, in the feedback phase."""
+    t = np.asarray(plot["time"])
+    if t[-1] < 0.999 * cycles * d.ts:
+        raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
+    at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
+    out: dict[str, np.ndarray] = {}
+    for c in CHANNELS:
+        level = np.interp(at, t, plot[f"v(b_{c})"])
+        out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
+        out[f"latch_{c}"] = level           # the held latch level (ideally 0 or 1): soft decisions
+    for c in model.coordinates:
+        out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
+    out["time"] = at
+    return out
+
+
+
+def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Welch PSD of a +-1 bitstream (Hann, 50 % overlap): the spectrum normalised to the square
+    of the fed-back force/torque, one-sided, in 1/Hz."""
+    n = nperseg or min(len(bits), max(256, len(bits) // 8))
+    return signal.welch(bits.astype(float), fs=1.0 / ts, window="hann", nperseg=n, detrend="constant")
+
+
+def features(f: np.ndarray, p: np.ndarray, min_db: float = 6.0) -> tuple[list[dict], list[dict]]:
+    """Notches and peaks of a PSD: deviations of > min_db from its running median (log f window)."""
+    db = 10 * np.log10(p[1:] + 1e-300)
+    ff = f[1:]
+    width = max(5, len(db) // 40) | 1
+    base = signal.medfilt(db, width)
+    out = []
+    for sign in (-1, 1):
+        idx, props = signal.find_peaks(sign * (db - base), height=min_db, distance=width)
+        out.append([{"freq_hz": float(ff[i]), "depth_db": float(sign * (db[i] - base[i]))} for i in idx])
+    notches = sorted(out[0], key=lambda r: -r["depth_db"])[:10]
+    peaks = sorted(out[1], key=lambda r: -r["depth_db"])[:10]
+    return notches, peaks
+
+
+def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone | None) -> dict:
+    """In-band noise floor (median, dB re F_fb^2/Hz), SNR of the tone, noise-shaping slope."""
+    fb = 0.5 / ts / osr
+    band = (f > 0) & (f <= fb)
+    df = f[1] - f[0]
+    mask = band.copy()
+    if not band.any():                             # run too short: no PSD bin inside the band
+        return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
+                "note": "band has no PSD bins: run more cycles"}
+    out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
+    if tone:
+        near = band & (np.abs(f - tone.freq) <= 3 * df)
+        mask &= ~near
+        sig = float(np.sum(p[near]) * df)
+        out["tone_power"] = sig
+        out["tone_level_db"] = 10 * np.log10(sig + 1e-300)
+    if mask.sum() < 2:                             # run too short to resolve the band
+        out.update({"noise_floor_db_per_hz": None, "inband_noise_db": None, "note": "band has < 2 bins"})
+        return out
+    noise = float(np.sum(p[mask]) * df)
+    out["noise_floor_db_per_hz"] = float(10 * np.log10(np.median(p[mask])))
+    out["inband_noise_db"] = float(10 * np.log10(noise))
+    if tone:
+        out["snr_db"] = float(out["tone_level_db"] - out["inband_noise_db"])
+    lo, hi = fb / 10, fb
+    sel = (f >= lo) & (f <= hi) & mask
+    if sel.sum() > 3:
+        out["slope_db_per_decade"] = float(np.polyfit(np.log10(f[sel]), 10 * np.log10(p[sel]), 1)[0])
+    return out
+
+
+def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, skip: int = 0) -> dict:
+    """Summary per channel: spectra features, noise floor, SNR, bit mean and force balance."""
+    summary: dict = {"ts": d.ts, "fs_hz": 1 / d.ts, "osr": osr, "cycles": int(len(clock["time"])), "skip": skip,
+                     "vfb": d.vfb, "vs": d.vs, "lead": d.lead, "channels": {}, "spectra": {}}
+    for c in CHANNELS:
+        bits = clock[f"bits_{c}"][skip:]
+        f, p = psd(bits, d.ts)
+        notches, peaks = features(f, p)
+        m = band_metrics(f, p, d.ts, osr, tone)
+        summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
+                                  **m, "notches": notches, "peaks": peaks, **latch_quality(clock, c, skip)}
+        summary["spectra"][c] = (f, p)
+    summary["gravity_balance"] = gravity_balance(clock, d, skip)
+    summary["coordinates"] = {k[2:]: {"mean": float(v[skip:].mean()), "min": float(v[skip:].min()),
+                                      "max": float(v[skip:].max())}
+                              for k, v in clock.items() if k.startswith("x_")}
+    return summary
+
+
+def latch_quality(clock: dict, channel: str, skip: int = 0) -> dict:
+    """How cleanly the latch held its decision: the worst distance of the held level from 0 or 1,
+    and the periods where the electrode drive's restoring bit(x) = (1 + tanh(40 (x - 1/2))) / 2
+    is more than 1e-3 off 0/1 (distance > 0.41): a partial feedback force while the bitstream
+    records +-1. Empty for clocks without latch levels (older bitstream files)."""
+    level = clock.get(f"latch_{channel}")
+    if level is None:
+        return {}
+    err = np.minimum(np.abs(level[skip:]), np.abs(level[skip:] - 1.0))
+    restored = 0.5 - 0.5 * np.tanh(40.0 * (0.5 - err))          # drive error of bit() at that level
+    return {"partial_latches": int(np.sum(restored > 1e-3)), "max_latch_error": float(err.max(initial=0.0))}
+
+
+def levitation(clock: dict, model: MacroModel, limit: float = 0.02) -> dict:
+    """Did the loop hold the plate? The first period where a coordinate leaves `limit` of its
+    touching amplitude (the reference loop keeps them within 0.02 % at T_s = 1 us and 0.25 % at
+    3.2 us, where the (3,0) modes overload it); a lost plate makes the spectra
+    those of a plate at the stop, so the command reports it instead of a silent result."""
+    for n in range(len(clock["time"])):
+        for c in model.coordinates:
+            touch = c.scale / c.port_units[1]
+            if abs(clock[f"x_{c.name}"][n]) > limit * touch:
+                return {"held": False, "lost_at_period": n, "coordinate": c.name,
+                        "value": float(clock[f"x_{c.name}"][n]), "limit": limit * touch}
+    return {"held": True, "limit_fraction_of_touch": limit}
+
+
+def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
+    """Momentum balance on z between the clock samples a = skip and b = N - 2: the mean
+    electrostatic force implied by the bits (the model's centre force of each bit pattern x the
+    feedback duty, plus the sense-phase force) against m g + m (v_b - v_a) / (t_b - t_a), with
+    v from central differences of x_z, + the damping impulse B(0) (x_b - x_a) / (t_b - t_a) (exact
+    for a dashpot; a film branch adds its force change / corner, negligible for corners far above
+    the loop's motion). Samples sit mid-feedback, so the end periods count half. An applied tone
+    force and the thermal noise force are not included (the first averages out only over whole
+    tone periods; the second's impulse is ~1e-3 of m g T at 100 Pa over 128 periods)."""
+    pats = np.stack([clock[f"bits_{c}"] for c in CHANNELS], axis=1)
+    lookup = {tuple(r["pattern"]): r["fz"] * 1e-6 for r in d.table}
+    fz = np.array([lookup[tuple(p)] for p in pats.tolist()])
+    a, b = skip, len(fz) - 2
+    if b - a < 8:
+        raise ValueError(f"too few clock samples after skipping {skip} for a force balance")
+    weights = np.ones(b - a + 1)
+    weights[[0, -1]] = 0.5
+    sense = d.sense_force[0] * duty(d.t, d.t.sense_on, d.t.sense_off)
+    mean = float(np.dot(weights, fz[a:b + 1]) / (b - a) * d.duty + sense)
+    x = clock["x_z"] * 1e-6                       # x_z port: 1 V = 1 um
+    v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
+    inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
+    damping = d.damping * (x[b] - x[a]) / ((b - a) * d.ts)
+    need = d.mass * d.g + inertia + damping
+    return {"mean_force_n": mean, "weight_n": d.mass * d.g, "inertial_n": float(inertia),
+            "damping_n": float(damping), "ratio": float(mean / need), "window": [a, b]}
+
+
+
+def thermal_floor(model: MacroModel, d: Design) -> dict:
+    """The gas film's Brownian force floor per channel, in the spectra's normalisation:
+    S_F = 4 k_B T Re B(0) (damper plus film branches, in band) over the fed-back level squared,
+    dB re F_fb^2/Hz; with the model's noise switch (noise sources in the netlist or not)."""
+    damping = model.report.get("damping", {})
+    temp = float(damping.get("temperature_K", 300.0))
+    noise = bool(damping.get("noise", False))
+    out = {"noise_sources_emitted": noise, "temperature_K": temp,
+           "pressure_Pa": damping.get("squeeze_film", {}).get("pressure_Pa"), "channels": {}}
+    if noise:   # measured: `setseed`, `set rndseed` and `.options seed` all leave TRNOISE unseeded
+        out["reproducibility"] = ("statistical only: ngspice 39 fills the Gaussian pool of TRNOISE from its "
+                                  "process id (trannoise/wallace.c initw) and no seed option reaches it")
+    for c in CHANNELS:
+        b = float(model.coordinates[coord_index(model, c)].admittance(0.0).real)
+        floor = 10 * np.log10(4 * K_B * temp * b / d.level(c) ** 2) if b > 0 else None
+        out["channels"][c] = {"damping_si": b, "thermal_floor_db_per_hz": floor}
+    return out

@@ -1,0 +1,136 @@
+"""`netgen sigma-delta STRUCTURE.toml -o DIR`: the paper's sigma-delta levitation loop around
+the structure's macromodel, with spectra (netgen.testbench.sigma_delta.runner)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ...model import MacroModel
+from ...units import parse_quantity
+from .loop import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, Tone
+from .ngspice import MIN_SEGMENT, SEGMENT_S
+from .runner import BACKENDS, model_folder, model_for, run
+
+
+def parse_pressure(text: str) -> float:
+    """A pressure option: a number in Pa or a quantity string ('100 Pa', '1 mbar', '1 atm')."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = parse_quantity(text, "pressure")
+    if not value > 0:
+        raise ValueError(f"--pressure {text!r} must be positive")
+    return value
+
+
+def cli(args) -> int:
+    """`netgen sigma-delta`: build or reuse the model, run the loop, write DIR/summary.json etc."""
+    out = Path(args.output)
+    try:
+        tone = Tone.parse(args.tone) if args.tone else None
+        if args.ts <= 0 or args.cycles < 64:
+            raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+        if args.segment is not None and (args.segment < 0 or 0 < args.segment < MIN_SEGMENT):
+            raise ValueError(f"--segment {args.segment}: give at least {MIN_SEGMENT} periods per segment, or 0 "
+                             f"for one run (the default is {SEGMENT_S * 1e3:g} ms of simulated time)")
+        if not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
+            raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT} (default 1e-3; 1e-4 for spectra "
+                             "you quote: docs/sigma-delta.md)")
+        if not 0 <= args.dither <= 1:
+            raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
+        pressure = parse_pressure(args.pressure) if args.pressure is not None else None
+        if args.model and (args.rigid_only or pressure is not None or args.film or args.noise):
+            raise ValueError("--rigid-only, --pressure, --film and --noise rebuild the model from the structure "
+                             "file; drop --model")
+        if args.noise and args.simulator == "vacask":
+            raise ValueError("--noise needs --simulator ngspice: VACASK has no transient noise sources "
+                             "(the .va's white_noise acts in noise analyses only)")
+    except ValueError as exc:
+        print(f"netgen: {exc}", file=sys.stderr)
+        return 2
+    if args.model:
+        model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
+    else:
+        model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
+                               args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
+    s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
+            simulator=args.simulator, segment=args.segment, lead=args.lead, dither=args.dither,
+            reltol=args.reltol)
+    if not args.quiet:
+        for c in CHANNELS:
+            ch = s["channels"][c]
+            snr = f", SNR {ch['snr_db']:.1f} dB" if "snr_db" in ch else ""
+            floor = ch["noise_floor_db_per_hz"]
+            floor = "n/a (run too short)" if floor is None else f"{floor:.1f} dB/Hz"
+            print(f"{c}: bit mean {ch['bit_mean']:+.4f}, in-band floor {floor}"
+                  f"{snr}, {len(ch['notches'])} notches, {len(ch['peaks'])} peaks")
+        gb = s["gravity_balance"]
+        th = s["thermal_noise"]["channels"]
+        if any(v["thermal_floor_db_per_hz"] is not None for v in th.values()):
+            print("gas-film Brownian force floor (dB re F_fb^2/Hz): " + ", ".join(
+                f"{c} {v['thermal_floor_db_per_hz']:.1f}" for c, v in th.items() if v["thermal_floor_db_per_hz"]))
+        print(f"mean feedback force / weight = {gb['ratio']:.4f}; wrote {out / 'summary.json'} ({s['wall_s']:.0f} s)")
+    lev = s["levitation"]
+    if not lev["held"]:
+        print(f"netgen: the loop lost the plate at period {lev['lost_at_period']} ({lev['coordinate']} = "
+              f"{lev['value']:.4g}, beyond {lev['limit']:.3g} in port units); the spectra describe a plate at "
+              f"the stop.{lost_hint(s)} Results in {out}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def lost_hint(s: dict) -> str:
+    """What the summary says about a lost plate: missed breakpoints, partial latch decisions."""
+    hints = []
+    bp = s.get("breakpoints") or {}
+    if bp.get("periods_with_a_missed_corner"):
+        hints.append(f"ngspice missed an electrode-phase corner in {bp['periods_with_a_missed_corner']} "
+                     f"period(s), first {bp['first_period']} (docs/sigma-delta.md)")
+    seg = s.get("segments") or {}
+    if seg.get("state_nodes") and seg.get("periods_run", 0) < s.get("requested_cycles", 0):
+        hints.append(f"ngspice stopped after the segment that lost it ({seg['periods_run']} of "
+                     f"{s['requested_cycles']} periods; its netlist with the restart state is DIR/sigma_delta.cir)")
+    partial = {c: v.get("partial_latches") for c, v in s["channels"].items() if v.get("partial_latches")}
+    if partial:
+        hints.append(f"partial latch decisions {partial}")
+    return (" Diagnostics: " + "; ".join(hints) + ".") if hints else ""
+
+
+def add_parser(sub) -> None:
+    """The `sigma-delta` subcommand's arguments."""
+    p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice or VACASK, "
+                       "with spectra")
+    p.add_argument("structure", help="structure description (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output folder (bitstreams.npz, spectra, summary.json)")
+    p.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
+    p.add_argument("--cycles", type=int, default=4096, help="number of sampling periods (default 4096)")
+    p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m)")
+    p.add_argument("--rigid-only", action="store_true", help="drop the eigenmodes (model built with modes = 0)")
+    p.add_argument("--model", help="use this model .json (with the .lib, and for VACASK the .va, next to it) "
+                   "instead of building")
+    p.add_argument("--simulator", choices=list(BACKENDS), default="ngspice",
+                   help="ngspice with the .lib (default); ngspice-xspice: ngspice with the model's plate terms in "
+                   "the compiled XSPICE code model (netgen codemodel; about 4x faster); or VACASK with the compiled "
+                   "Verilog-A module: the same loop, for spectra-length runs")
+    p.add_argument("--rebuild", action="store_true", help="rebuild the model even if DIR/model is up to date")
+    p.add_argument("--pressure", help="gas pressure of the squeeze film in both gaps, e.g. '100 Pa', '1 mbar', "
+                   "'1 atm' (turns squeeze-film damping on; gas and temperature from [damping])")
+    p.add_argument("--film", choices=("incompressible", "compressible"),
+                   help="squeeze-film model (compressible: Maxwell branches, for squeeze numbers above about 1)")
+    p.add_argument("--noise", action="store_true", help="thermal force noise of the damping (ngspice trnoise); "
+                   "summary.json gives the resulting Brownian floor per channel")
+    p.add_argument("--lead", type=float, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
+    p.add_argument("--dither", type=float, default=0.2,
+                   help="comparator dither amplitude, a fraction of the one-period feedback displacement "
+                        "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
+    p.add_argument("--reltol", type=float, default=1e-3,
+                   help="relative tolerance of the simulator (default 1e-3; docs/sigma-delta.md on how it "
+                        "moves the in-band floors: 1e-4 for spectra you quote)")
+    p.add_argument("--segment", type=int, default=None,
+                   help="ngspice: run in segments of this many periods, each restarted at t = 0 from the "
+                        "state the run reached (and cut at any missed breakpoint: docs/sigma-delta.md); "
+                        f"0 = one run; default {SEGMENT_S * 1e3:g} ms of simulated time")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    p.set_defaults(func=cli)

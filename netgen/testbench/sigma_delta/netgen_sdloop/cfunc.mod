@@ -1,0 +1,212 @@
+/* netgen sigma-delta loop (ifspec.ifs): the discrete-time blocks of the `netgen sigma-delta`
+   testbench (netgen/testbench/sigma_delta, templates/sigma_delta/tb.cir.j2) as one compiled instance.
+   Per channel c, once per period n (period index n + start, instants (n + phase) ts):
+     at t_sample:  prev[c] = cur[c];  cur[c] = ca[c](t)       (the charge amplifier, interpolated
+                   linearly between the accepted time points around the instant: exact timing
+                   without a breakpoint)
+     at t_latch:   b[c] = 1 if lead prev[c] - cur[c] + dither_amp[c] sin(dither_step[c] n) > 0 else 0
+   and per electrode e, at every time point,
+     drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
+     s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
+   ph[j] are inputs (ph_pulse is then ignored: give [0]), or (ph NULL) the instance's own PULSE
+   waveforms ph_pulse[7 j ..] of TIME,
+   evaluated as ngspice's PULSE source evaluates them: the drives then have no inputs to stamp
+   (an XSPICE instance stamps every output x input pair; the netlist keeps the PULSE sources for
+   their breakpoints).
+   The state (time, ca, cur, prev, b of the last accepted time point) is XSPICE rotating analog
+   state, so a rejected time point is recomputed from the accepted one. cur0, prev0 and b0 set it
+   at t = 0: a segment restarted at t = 0 continues the run. */
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+enum { ST_T, ST_HEAD };      /* state layout: t, then ca[C], cur[C], prev[C], b[C] */
+
+/* ngspice's PULSE(v1 v2 td tr tf pw per) at time t (src/spicelib/devices/vsrc/vsrcload.c) */
+static double sd_pulse(const double *p, double t)
+{
+    double v1 = p[0], v2 = p[1], td = p[2], tr = p[3], tf = p[4], pw = p[5], per = p[6];
+    t -= td;
+    if (per > 0.0 && t > per) t -= per * floor(t / per);
+    if (t <= 0.0 || t >= tr + pw + tf) return v1;
+    if (t >= tr && t <= tr + pw) return v2;
+    if (t > 0.0 && t < tr) return v1 + (v2 - v1) * t / tr;
+    return v2 + (v1 - v2) * (t - tr - pw) / tf;
+}
+
+/* the parameter and port sizes agree (checked at every call: a mismatch would index past an
+   array; the message is sent once, at INIT) */
+static int sd_sizes_ok(ARGS, int C, int E, int J)
+{
+    char msg[200];
+    const char *bad = NULL;
+    if (PARAM_SIZE(sel) != E * C) bad = "sel must have (drv size) x (ca size) entries";
+    else if (PARAM_SIZE(ph_sense) != J || PARAM_SIZE(ph_fb) != J) bad = "ph_sense and ph_fb need one entry per phase";
+    else if (PORT_NULL(ph) && PARAM_SIZE(ph_pulse) % 7 != 0)
+        bad = "without ph inputs, ph_pulse must give 7 numbers (v1 v2 td tr tf pw per) per phase";
+    else if (PARAM_SIZE(dither_amp) != C || PARAM_SIZE(dither_step) != C || PARAM_SIZE(cur0) != C
+             || PARAM_SIZE(prev0) != C || PARAM_SIZE(b0) != C)
+        bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
+    else if ((!PORT_NULL(b) && PORT_SIZE(b) != C) || (!PORT_NULL(cur) && PORT_SIZE(cur) != C)
+             || (!PORT_NULL(prev) && PORT_SIZE(prev) != C))
+        bad = "b, cur and prev need one node per ca input";
+    if (!bad) return 1;
+    if (INIT) {
+        snprintf(msg, sizeof msg, "netgen_sdloop: %s", bad);
+        cm_message_send(msg);
+    }
+    return 0;
+}
+
+static void sd_initial(ARGS, double *s, int C)
+{
+    int c;
+    s[ST_T] = TIME;
+    for (c = 0; c < C; c++) {
+        s[ST_HEAD + c] = INPUT(ca[c]);
+        s[ST_HEAD + C + c] = PARAM(cur0[c]);
+        s[ST_HEAD + 2 * C + c] = PARAM(prev0[c]);
+        s[ST_HEAD + 3 * C + c] = PARAM(b0[c]) > 0.5 ? 1.0 : 0.0;
+    }
+}
+
+/* the events of (old time, TIME] in order, applied to s (a copy of the accepted state); returns
+   per channel d cur / d ca(TIME) (the interpolation weight of a sample taken in this step) */
+static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
+{
+    double ts = PARAM(ts), t1 = old[ST_T], t0 = TIME, lead = PARAM_NULL(lead) ? 0.0 : PARAM(lead);
+    double start = PARAM_NULL(start) ? 0.0 : PARAM(start);
+    double ps = PARAM(t_sample), pl = PARAM(t_latch);
+    double first = ps < pl ? ps : pl, second = ps < pl ? pl : ps;
+    long k, k1 = (long) floor(t1 / ts), k0 = (long) floor(t0 / ts);
+    int c, j;
+    for (c = 0; c < C; c++) dcur[c] = 0.0;
+    for (k = k1; k <= k0; k++) {
+        for (j = 0; j < 2; j++) {
+            double ph = j ? second : first, te = (k + ph) * ts;
+            if (!(te > t1 && te <= t0)) continue;
+            if (ph == ps) {
+                double w = (te - t1) / (t0 - t1);
+                for (c = 0; c < C; c++) {
+                    s[ST_HEAD + 2 * C + c] = s[ST_HEAD + C + c];
+                    s[ST_HEAD + C + c] = old[ST_HEAD + c] + w * (INPUT(ca[c]) - old[ST_HEAD + c]);
+                    dcur[c] = w;
+                }
+            }
+            if (ph == pl) {
+                for (c = 0; c < C; c++) {
+                    double y = lead * s[ST_HEAD + 2 * C + c] - s[ST_HEAD + C + c]
+                               + PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
+                    s[ST_HEAD + 3 * C + c] = y > 0.0 ? 1.0 : 0.0;
+                    if (ph == ps) dcur[c] = 0.0;      /* a hard decision: no partial */
+                }
+            }
+        }
+    }
+    for (c = 0; c < C; c++) s[ST_HEAD + c] = INPUT(ca[c]);
+    s[ST_T] = t0;
+}
+
+static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, int J)
+{
+    const double *bit = s + ST_HEAD + 3 * C;
+    double sense = 0.0, fb = 0.0;
+    int e, c, j, own = PORT_NULL(ph);
+    for (j = 0; j < J; j++) {
+        double v;
+        if (own) {
+            double p[7];
+            int q;
+            for (q = 0; q < 7; q++) p[q] = PARAM(ph_pulse[7 * j + q]);
+            v = sd_pulse(p, ANALYSIS == MIF_TRAN ? TIME : 0.0);
+        } else {
+            v = INPUT(ph[j]);
+        }
+        sense += PARAM(ph_sense[j]) * v;
+        fb += PARAM(ph_fb[j]) * v;
+    }
+    for (e = 0; e < E; e++) {
+        double g = 1.0;
+        for (c = 0; c < C; c++) {
+            int need = PARAM(sel[e * C + c]);
+            if (need > 0) g *= bit[c];
+            else if (need < 0) g *= 1.0 - bit[c];
+        }
+        OUTPUT(drv[e]) = sense + g * fb;
+        for (j = 0; j < J && !own; j++) {
+            double p = PARAM(ph_sense[j]) + g * PARAM(ph_fb[j]);
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t gain = {p, 0.0};
+                AC_GAIN(drv[e], ph[j]) = gain;
+            } else {
+                PARTIAL(drv[e], ph[j]) = p;
+            }
+        }
+        for (c = 0; c < C; c++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                AC_GAIN(drv[e], ca[c]) = zero;
+            } else {
+                PARTIAL(drv[e], ca[c]) = 0.0;
+            }
+        }
+    }
+    for (c = 0; c < C; c++) {
+        int i;
+        if (!PORT_NULL(b)) OUTPUT(b[c]) = bit[c];
+        if (!PORT_NULL(cur)) OUTPUT(cur[c]) = s[ST_HEAD + C + c];
+        if (!PORT_NULL(prev)) OUTPUT(prev[c]) = s[ST_HEAD + 2 * C + c];
+        for (i = 0; i < C; i++) {
+            double dc = (i == c) ? dcur[c] : 0.0;
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                if (!PORT_NULL(b)) AC_GAIN(b[c], ca[i]) = zero;
+                if (!PORT_NULL(cur)) AC_GAIN(cur[c], ca[i]) = zero;
+                if (!PORT_NULL(prev)) AC_GAIN(prev[c], ca[i]) = zero;
+            } else {
+                if (!PORT_NULL(b)) PARTIAL(b[c], ca[i]) = 0.0;
+                if (!PORT_NULL(cur)) PARTIAL(cur[c], ca[i]) = dc;
+                if (!PORT_NULL(prev)) PARTIAL(prev[c], ca[i]) = 0.0;
+            }
+        }
+        for (i = 0; i < J && !own; i++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                if (!PORT_NULL(b)) AC_GAIN(b[c], ph[i]) = zero;
+                if (!PORT_NULL(cur)) AC_GAIN(cur[c], ph[i]) = zero;
+                if (!PORT_NULL(prev)) AC_GAIN(prev[c], ph[i]) = zero;
+            } else {
+                if (!PORT_NULL(b)) PARTIAL(b[c], ph[i]) = 0.0;
+                if (!PORT_NULL(cur)) PARTIAL(cur[c], ph[i]) = 0.0;
+                if (!PORT_NULL(prev)) PARTIAL(prev[c], ph[i]) = 0.0;
+            }
+        }
+    }
+}
+
+void cm_netgen_sdloop(ARGS)
+{
+    int C = PORT_SIZE(ca), E = PORT_SIZE(drv);
+    int J = PORT_NULL(ph) ? PARAM_SIZE(ph_pulse) / 7 : PORT_SIZE(ph);
+    double *s, *old, dcur[64];
+    if (C > 64) {
+        cm_message_send("netgen_sdloop: at most 64 channels");
+        return;
+    }
+    if (INIT) cm_analog_alloc(0, (int) sizeof(double) * (ST_HEAD + 4 * C));
+    if (!sd_sizes_ok(mif_private, C, E, J)) return;
+    s = (double *) cm_analog_get_ptr(0, 0);
+    old = (double *) cm_analog_get_ptr(0, 1);
+    memset(dcur, 0, sizeof dcur);
+    if (INIT || ANALYSIS != MIF_TRAN || TIME == 0.0) {
+        if (ANALYSIS != MIF_AC) {
+            sd_initial(mif_private, s, C);
+            memcpy(old, s, sizeof(double) * (ST_HEAD + 4 * C));
+        }
+    } else {
+        memcpy(s, old, sizeof(double) * (ST_HEAD + 4 * C));
+        sd_events(mif_private, old, s, C, dcur);
+    }
+    sd_outputs(mif_private, s, dcur, C, E, J);
+}

@@ -1,0 +1,242 @@
+"""The sigma-delta loop in ngspice: the netlist (templates/sigma_delta/tb.cir.j2, which
+`.include`s the model's .lib like any user testbench), its behavioural-source loop or the
+compiled loop (the code model netgen_sdloop beside this module), and long runs in segments
+restarted from their state (run_segments)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ... import __version__
+from ...emit import xspice
+from ...files import write_files_atomic
+from ...model import MacroModel
+from ...sim import codemodel
+from ...sim.ngspice import run_control
+from ...templating import render
+from .analysis import levitation, per_clock
+from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
+
+TEMPLATE = "sigma_delta/tb.cir.j2"
+# ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
+SEGMENT_S = 5e-4
+MIN_SEGMENT = 16
+# the testbench's sampler/quantizer/driver blocks: behavioural sources, or the netgen_sdloop code model
+LOOPS = ("analog", "xspice")
+
+
+def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
+    """ngspice source text per input port (`mechanical_inputs`); a tone continues from time t0
+    (a segment restarted at t = 0) through the SIN phase, in degrees."""
+    def sin(dc: float, t: Tone) -> str:
+        phase = 360.0 * math.fmod(t.freq * t0, 1.0)
+        return f"SIN({dc!r} {t.amplitude!r} {t.freq!r}" + (f" 0 0 {phase!r})" if phase else ")")
+    return [{"port": port, "source": sin(dc, t) if t else f"DC {dc!r}"}
+            for port, dc, t in mechanical_inputs(model, d, tone)]
+
+
+def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -> list[str]:
+    """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
+    internal ones (position, velocity, film branches; read from the .lib) and the testbench's
+    charge amplifiers, samples and latches. A segment restarted from them continues the run."""
+    body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
+    ports = {p["name"].lower() for p in model.ports()}
+    # a capacitor node on a voltage source (the charge nodes qn_i behind their 0 V ammeters) is set
+    # by that source, not a state
+    driven = {n for line in body.splitlines() if line.startswith("v") for n in line.split()[1:3]}
+    inner = sorted({n for line in body.splitlines() if line.startswith("c")
+                    for n in line.split()[1:3] if n != "0" and n not in ports and n not in driven})
+    bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
+    return [f"{instance}.{n}" for n in inner] + bench
+
+
+def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
+              tone: Tone | None = None, chunks: int = 50, start: int = 0,
+              ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = (),
+              loop: str = "analog") -> str:
+    """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
+    long run, the periods from `start` on, from the node state `ic`, also saving `states`;
+    `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
+    quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop."""
+    if loop not in LOOPS:
+        raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
+    ic = dict(ic or {})
+    card = loop_card(d, start, ic) if loop == "xspice" else None
+    if tone:
+        coord_index(model, tone.coord)
+        tone.unit = model.coordinates[coord_index(model, tone.coord)].port_units[2]
+    # only what per_clock() reads: ngspice holds every saved vector in memory (measured 27 kB per
+    # period with these 11, 1.8 GB for 2^16 periods; with the 3 lead-filter outputs too, over 2 GB)
+    saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(x_{c.name})" for c in model.coordinates]
+    saves += [f"v({n})" for n in states]
+    stop = d.ts * cycles
+    progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
+    return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
+                  lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
+                  forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
+                  progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
+                  control=list(control), sdloop=card, pulses=phase_pulses(d))
+
+
+def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
+    """PULSE(v1 v2 td tr tf pw per) of the three electrode-phase sources (seconds): phs, the
+    sense phase, and fb1, fb2, the feedback phase's basis (Design.feedback_basis)."""
+    t, ts, fb = d.t, d.ts, d.feedback_basis
+    return {"phs": (0, 1, ts * (t.sense_on - t.edge / 2), ts * t.edge, ts * t.edge,
+                    ts * (t.sense_off - t.sense_on - t.edge), ts),
+            "fb1": (0, 1, 0, fb["tr1"], fb["tf"], fb["pw1"], ts),
+            "fb2": (0, 1, 0, fb["tr2"], fb["tf"], fb["pw2"], ts)}
+
+
+def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
+    """The netgen_sdloop instance of the "xspice" loop: its nodes and .model parameters (the
+    same blocks, instants and dither as the analog loop; netgen/testbench/sigma_delta/netgen_sdloop). The
+    loop's own state (cur, prev, b per channel) is popped from `ic` into its initial values."""
+    fb = d.feedback_basis
+    names = [c["name"] for c in d.channels]
+    init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
+    # an electrode is energised when each channel's bit equals its sense weight there (side for z,
+    # tilt sign for its axis; groups(), selected()): the weights are the selection pattern
+    params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, "lead": d.lead,
+              "start": float(start), "sel": [w for e in d.electrodes for w in e["w"]],
+              "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
+              "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
+              "dither_amp": [c["dither_v"] for c in d.channels],
+              "dither_step": [float(c["dither_step"]) for c in d.channels],
+              "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"]}
+    text = [(k, f"[{' '.join(repr(x) for x in v)}]" if isinstance(v, list) else repr(v)) for k, v in params.items()]
+    nodes = [[f"ca_{n}" for n in names], None, [f"drv_{e['name']}" for e in d.electrodes],
+             *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev"))]
+    return {"params": params, "text": text,
+            "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
+
+
+def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
+    """Per electrode the name of its feedback-selection node, and per node its expression in the
+    restored bits bz, bx, by (e.g. sel_zp_tilt_xn = v(bz)*(1-v(bx))): the electrodes share the 8
+    products, so the drivers are cheap 3-variable B-sources (bench/callgrind.py)."""
+    nodes, of = {}, {}
+    for e in electrodes:
+        name = f"sel_z{'p' if e['side'] > 0 else 'n'}_{e['axis']}{'p' if e['sign'] > 0 else 'n'}"
+        bt = "bx" if e["axis"] == "tilt_x" else "by"
+        nodes[name] = (("v(bz)" if e["side"] > 0 else "(1-v(bz))") + "*"
+                       + (f"v({bt})" if e["sign"] > 0 else f"(1-v({bt}))"))
+        of[e["name"]] = name
+    return {"nodes": nodes, "of": of}
+
+
+
+def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0,
+             span: tuple[float, float, float] | None = None):
+    """Run ngspice on the bench, report simulated/wall time from its progress lines; return the plot.
+    span (t0, total, wall0): this run continues a segmented one at t0 of total, wall0 s after its start."""
+    shown = [0.0]
+    start = time.perf_counter()
+
+    def report(line: str) -> None:
+        m = re.match(r"netgen-progress\s+([0-9.eE+-]+)", line)
+        wall = time.perf_counter() - start
+        if m and progress and wall - shown[0] > 2.0 and float(m.group(1)) > 0:
+            shown[0] = wall
+            t0, total, wall0 = span or (0.0, stop, 0.0)
+            t, w = t0 + float(m.group(1)), wall0 + wall
+            print(f"sigma-delta: simulated {t * 1e3:.3f} / {total * 1e3:.3f} ms, wall {w:.1f} s, "
+                  f"eta {w * (total / t - 1):.0f} s", file=sys.stderr, flush=True)
+    return run_control(netlist, workdir, "sigma_delta", "sigma_delta.raw", timeout, on_line=report)
+
+def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
+    """Did ngspice put a time point on every electrode-phase corner (its PULSE breakpoints)?
+    The periods where one is missing (none expected; a lost breakpoint chain lets the
+    trapezoidal electrode currents ring after each ramp, which the readout integrates)."""
+    tc = ((np.arange(cycles)[:, None] + np.array(d.corners())[None, :]) * d.ts).ravel()
+    tc = tc[(tc > 0) & (tc < t[-1])]                 # t = 0: the start, not a corner
+    j = np.clip(np.searchsorted(t, tc), 1, len(t) - 1)
+    gap = np.minimum(np.abs(t[j] - tc), np.abs(t[j - 1] - tc))
+    # a point within 1e-3 of the ramp time counts as a hit: the kink then falls inside a step at a
+    # fraction gap/step of it, and so does the ringing it leaves (ngspice also lands points a few
+    # ps short of a corner and keeps its chains: measured, 1.2 ps short at 1 us, chains intact)
+    missed = np.unique((tc[gap > 1e-3 * d.ts * d.t.edge] / d.ts).astype(int))
+    return {"periods_with_a_missed_corner": int(len(missed)),
+            "first_period": int(missed[0]) if len(missed) else None}
+
+
+
+def segment_periods(ts: float, segment: int | None, cycles: int) -> int:
+    """Periods per ngspice segment: `segment` if given (0: the whole run in one), else
+    SEGMENT_S of simulated time (at least MIN_SEGMENT periods)."""
+    if segment == 0:
+        return cycles
+    return min(cycles, segment if segment else max(MIN_SEGMENT, round(SEGMENT_S / ts)))
+
+
+
+LOOP_LIBRARY = codemodel.Library("netgen_sdloop", Path(__file__).resolve().parent)
+
+
+def code_models(progress: bool) -> list[Path]:
+    """The code-model libraries the compiled loop loads: the model's (netgen_es, for the xspice
+    .lib) and the loop's own (netgen_sdloop); each built once (netgen.sim.codemodel)."""
+    say = (lambda m: print(m, file=sys.stderr)) if progress else (lambda m: None)
+    return [codemodel.build(codemodel.MODEL, progress=say), codemodel.build(LOOP_LIBRARY, progress=say)]
+
+
+def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path, list[str]]:
+    """The model's .lib in the xspice form (plate terms in the compiled code model), written
+    to `out`, and the .control lines that load the code-model libraries `cms`."""
+    lib = out / f"{model.name}_xspice.lib"
+    write_files_atomic({lib: xspice.subcircuit(model)})
+    return lib, codemodel.control_lines(*cms)
+
+def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
+                 progress: bool, segment: int | None, control: list[str] = (),
+                 loop: str = "analog") -> tuple[dict, dict, dict]:
+    """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
+    reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
+    missed an electrode-phase corner is cut at the start of that period, and the next segment
+    restarts there with fresh breakpoint chains. A segment that loses the plate is the last
+    (its netlist, with its .ic, stays in `out`).
+    Why: ngspice 39 chains a periodic PULSE's breakpoints; once a chain breaks the electrode
+    currents ring after every ramp, the readout integrates the ringing and the plate falls;
+    restarting at the first missed corner never runs on a broken chain."""
+    length = segment_periods(d.ts, segment, cycles)
+    states = state_nodes(lib, model, d) if length < cycles else []
+    parts, accepted_misses, cuts, runs = [], [], [], 0
+    n0, ic, wall0 = 0, None, time.perf_counter()
+    while n0 < cycles:
+        n = min(length, cycles - n0)
+        # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
+        bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
+                          control=control, loop=loop, chunks=max(1, min(50, n // 100)))
+        plot = simulate(bench, out, d.ts * n, progress,
+                        span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
+        runs += 1
+        t = np.asarray(plot["time"])
+        first = missed_corners(t, d, n)["first_period"]
+        keep = n if first is None or not states else max(first, 1)
+        if keep < n:
+            cuts.append({"start": n0, "missed_at": n0 + first})
+        if first is not None and first < keep:          # a miss in the first period is kept: progress
+            accepted_misses.append(n0 + first)
+        part = per_clock(plot, d, keep, model)
+        part["time"] = part["time"] + n0 * d.ts
+        parts.append(part)
+        if states:
+            ic = {node: float(np.interp(keep * d.ts, t, plot[f"v({node})"])) for node in states}
+        del plot
+        (out / "sigma_delta.raw").unlink(missing_ok=True)
+        n0 += keep
+        if not levitation(part, model)["held"]:
+            break
+    clock = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    breakpoints = {"periods_with_a_missed_corner": len(accepted_misses),
+                   "first_period": accepted_misses[0] if accepted_misses else None,
+                   "segments_cut_at_a_missed_corner": cuts}
+    plan = {"periods": length, "ngspice_runs": runs, "periods_run": int(n0), "state_nodes": states}
+    return clock, breakpoints, plan

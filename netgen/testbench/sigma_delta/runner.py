@@ -1,0 +1,165 @@
+"""A sigma-delta run from a model to its outputs: design, simulate on a back end, analyse, write
+bitstreams.npz, spectra.npz, summary.json and the PNGs; and the model a run uses, built or reused.
+
+BACKENDS maps `--simulator` to the back end that runs the loop: ngspice with the behavioural-
+source loop, ngspice with both code models (the model's electrostatics and the compiled loop),
+or VACASK with the compiled Verilog-A model. Adding one is a module beside ngspice.py and
+vacask.py and one line here.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ...build import build_model
+from ...emit import write_outputs
+from ...model import MacroModel
+from ...sim.vacask import stats as vacask_stats
+from ...structure import Damping, load_structure
+from . import ngspice, vacask
+from .analysis import analyse, levitation, per_clock, thermal_floor
+from .loop import Design, Tone, design
+from .plots import plot_spectra, plot_states
+
+
+@dataclass(frozen=True)
+class Backend:
+    """prepare(model, lib, out, progress) -> state: what must exist before the timed run (code
+    models built, Verilog-A compiled), failing before any output; run(model, design, lib, out,
+    cycles, tone, progress, segment, state) -> (clock, extra summary entries)."""
+    prepare: Callable[..., dict]
+    run: Callable[..., tuple[dict, dict]]
+    help: str
+
+
+def _no_preparation(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+    return {}
+
+
+def _code_models(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+    return {"cms": ngspice.code_models(progress)}
+
+
+def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
+                 progress: bool, segment: int | None, state: dict) -> tuple[dict, dict]:
+    """The behavioural-source loop around the .lib, or (with code models) the compiled loop around
+    the xspice .lib, in segments (ngspice.run_segments)."""
+    control, loop = [], "analog"
+    if "cms" in state:
+        lib, control = ngspice.xspice_library(model, out, state["cms"])
+        loop = "xspice"
+    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, segment,
+                                                        control, loop)
+    return clock, {"breakpoints": breakpoints, "segments": segments}
+
+
+def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+    """Compile the model (the .va next to `lib`, else the emitted module) and the loop blocks,
+    cached in out/osdi, outside the run's wall time."""
+    va = Path(lib).with_suffix(".va")
+    va = va if va.exists() else None
+    start = time.perf_counter()
+    vacask.compile_model(model, out / "osdi", va)
+    vacask.compile_blocks(out / "osdi")
+    return {"va": va, "compile_s": time.perf_counter() - start}
+
+
+def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
+                progress: bool, segment: int | None, state: dict) -> tuple[dict, dict]:
+    """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
+    plot = vacask.run_bench(model, d, out, cycles, tone, progress, va=state["va"])
+    extra = {"compile_s": state["compile_s"], "vacask": vacask_stats(out / vacask.LOG)}
+    clock = per_clock(plot, d, cycles, model)
+    del plot
+    (out / "tran1.raw").unlink(missing_ok=True)
+    return clock, extra
+
+
+BACKENDS: dict[str, Backend] = {
+    "ngspice": Backend(_no_preparation, _run_ngspice, "ngspice with the .lib (behavioural sources)"),
+    "ngspice-xspice": Backend(_code_models, _run_ngspice, "ngspice with the model's plate terms in the compiled "
+                              "XSPICE code model and the loop compiled too (netgen codemodel)"),
+    "vacask": Backend(_compile_vacask, _run_vacask, "VACASK with the compiled Verilog-A module"),
+}
+SIMULATORS = tuple(BACKENDS)
+
+
+def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
+        progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
+        segment: int | None = None, **choices) -> dict:
+    """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
+    simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
+    with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
+    .va next to `lib` or else the module emitted from `model`)."""
+    if simulator not in BACKENDS:
+        raise ValueError(f"unknown simulator {simulator!r}; choose one of {', '.join(BACKENDS)}")
+    backend = BACKENDS[simulator]
+    d = design(model, ts, **choices)
+    state = backend.prepare(model, lib, out, progress)      # fails before any output
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    clock, extra = backend.run(model, d, lib, out, cycles, tone, progress, segment, state)
+    wall = time.perf_counter() - start
+    np.savez_compressed(out / "bitstreams.npz", **clock)
+    done = len(clock["time"])                         # fewer than `cycles` if a segment lost the plate
+    skip = done // 8 if skip is None else min(skip, done // 2)
+    summary = analyse(clock, d, tone, skip=skip)
+    summary["levitation"] = levitation(clock, model)
+    spectra = summary.pop("spectra")
+    np.savez_compressed(out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items()
+                                                for k, v in (("f", fr), ("psd", p))})
+    summary.update({"requested_cycles": cycles, "model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
+                    "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
+                    "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
+                               "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if plots:
+        plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",
+                     f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})")
+        plot_states(clock, out / "coordinates.png")
+    return summary | {"spectra": spectra, "clock": clock}
+
+
+# ----------------------------------------------------------------------------- the run's model
+
+def with_damping(structure, pressure: float | None, film: str | None, noise: bool):
+    """The structure with the sigma-delta command's gas and noise options applied to [damping]."""
+    if pressure is None and film is None and not noise:
+        return structure
+    d = structure.damping or Damping()
+    if pressure is not None:
+        d = replace(d, squeeze_film=True, pressure=pressure)
+    if film is not None:
+        d = replace(d, squeeze_film=True, film_model=film)
+    return replace(structure, damping=replace(d, noise=noise or d.noise))
+
+
+def model_folder(out: Path, rigid_only: bool, pressure: float | None, film: str | None, noise: bool) -> Path:
+    """DIR/model..., one folder per option set, so a cached model never answers for other options."""
+    tags = ["model"] + (["rigid"] if rigid_only else []) + ([f"p{pressure:g}Pa"] if pressure is not None else []) \
+        + ([film] if film else []) + (["noise"] if noise else [])
+    return out / "_".join(tags)
+
+
+def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False, rebuild: bool = False,
+              progress: bool = True, pressure: float | None = None, film: str | None = None,
+              noise: bool = False) -> tuple[MacroModel, Path]:
+    """Build the structure's model into `folder` (rigid-body only: modes = 0; gas film at
+    `pressure`, thermal noise sources with `noise`), or reuse the .json/.lib (and .va) there
+    when they are newer than the structure file."""
+    structure = with_damping(load_structure(structure_path), pressure, film, noise)
+    if rigid_only:
+        structure = replace(structure, coordinates=replace(structure.coordinates, modes=0))
+    js, lib = folder / f"{structure.name}.json", folder / f"{structure.name}.lib"
+    fresh = js.exists() and lib.exists() and js.stat().st_mtime > Path(structure_path).stat().st_mtime
+    if fresh and not rebuild:
+        return MacroModel.load_json(js), lib
+    model = build_model(structure, progress=progress)
+    write_outputs(model, folder, "all")              # .lib for ngspice, .va for the VACASK path
+    return model, lib

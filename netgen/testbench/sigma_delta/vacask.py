@@ -1,0 +1,118 @@
+"""The sigma-delta levitation loop in VACASK: the fast path for spectra-length runs.
+
+The same circuit, loop design and timing as the ngspice bench (netgen.testbench.sigma_delta.loop,
+templates/sigma_delta/tb.vacask.j2), with the macromodel as its compiled Verilog-A module
+(netgen.emit.veriloga) and the loop circuitry as the small Verilog-A modules of blocks.va beside
+this module (VACASK has no behavioural sources): electrode drivers that also feed their
+currents into the charge amplifiers, integrators with reset, samplers, the lead filter +
+comparator + clocked latch, and the smooth sampler/latch/reset clock windows. The electrode
+phases are vsource pulses, as in the ngspice bench.
+
+simulate() returns a Plot whose node voltages answer to the ngspice bench's vector names (time,
+v(b_<channel>), v(y_<channel>), v(x_<coordinate>)), so analysis.per_clock()/analyse() and
+everything after them are the same code for both simulators. The raw file is read through a
+memory map (a 2^16-cycle run writes ~1 GB) and deleted by the caller after the per-clock sampling.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ... import __version__
+from ...emit import veriloga
+from ...model import MacroModel
+from ...sim.rawfile import Plot
+from ...sim.vacask import compiled, print_progress, run_vacask
+from ...templating import render
+from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
+
+BLOCKS = Path(__file__).resolve().parent / "blocks.va"
+TEMPLATE = "sigma_delta/tb.vacask.j2"
+LOG = "sigma_delta.vacask.log"
+# VACASK options: the ngspice bench's reltol and chgtol (maxstep is given on the analysis, design.md).
+# tran_fbr=0.1: after every pulse corner VACASK restarts with a backward-Euler step, by default up
+# to 0.25 of the distance to the next corner; at the bench's reltol and maxstep that made every
+# feedback impulse 0.45 % short (a pulse drive of the model alone against solve_ivp); 0.1 leaves
+# 0.09 % (ngspice, which restarts at 0.1 of the previous step: 0.05 % long), which brings the
+# mechanics to the ngspice bench's accuracy against an independent integration
+# (tests/testbench/test_sigma_delta_vacask.py). It costs time points (110 -> 171 per period);
+# tran_lteratio=10 took 15 % of them back without a measurable loss (the steps are set by the
+# corners, the clock windows and maxstep, not by the LTE of the smooth parts).
+OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.1 tran_lteratio=10"
+# Appended to OPTIONS in every bench (later settings win), e.g. "tran_fbr=0.25" for VACASK's
+# default corner steps: 35 % fewer time points, feedback impulses 0.45 % short (spectra unchanged).
+EXTRA_OPTIONS = ""
+
+
+def blocks_source() -> str:
+    """Text of blocks.va beside this module (the loop circuitry modules)."""
+    return BLOCKS.read_text(encoding="utf-8")
+
+
+def compile_model(model: MacroModel, cache: Path, va: Path | None = None) -> Path:
+    """OSDI of the macromodel: the given .va, or the module netgen.emit.veriloga renders from the
+    model (the same text the build writes; the Verilog-A tests keep the two identical)."""
+    if va is not None and Path(va).exists():
+        text = Path(va).read_text(encoding="utf-8")
+    else:
+        text = veriloga.module(model)
+    return compiled(text, model.name, cache)
+
+
+def compile_blocks(cache: Path) -> Path:
+    """OSDI of the loop-circuitry modules."""
+    return compiled(blocks_source(), "sigma_delta_blocks", cache)
+
+
+def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
+    """VACASK vsource parameters per input port (loop.mechanical_inputs)."""
+    return [{"port": port, "source": (f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t
+                                      else f"dc={dc!r}")}
+            for port, dc, t in mechanical_inputs(model, d, tone)]
+
+
+def merge_options(*texts: str) -> str:
+    """key=value option lists merged left to right (VACASK refuses a repeated option)."""
+    merged: dict[str, str] = {}
+    for text in texts:
+        for item in text.split():
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"VACASK option {item!r} is not key=value")
+            merged[key] = value
+    return " ".join(f"{k}={v}" for k, v in merged.items())
+
+
+def saves(model: MacroModel) -> list[str]:
+    """Node voltages per_clock() and the comparisons need: bits, lead-filter outputs, coordinates."""
+    names = [f"b_{c}" for c in CHANNELS] + [f"y_{c}" for c in CHANNELS] + [f"x_{c.name}" for c in model.coordinates]
+    return [f"v({n})" for n in names]               # bare node names would be ignored (all nodes saved)
+
+
+def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path, cycles: int,
+              tone: Tone | None = None, options: str = "") -> str:
+    """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2)."""
+    if tone:
+        tone.unit = model.coordinates[coord_index(model, tone.coord)].port_units[2]
+    ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
+    return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
+                  model_osdi=str(Path(model_osdi).resolve()), blocks_osdi=str(Path(blocks_osdi).resolve()),
+                  cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
+                  saves=saves(model), options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
+
+
+def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0) -> Plot:
+    """Run VACASK on the bench in workdir, report simulated/wall time (from the raw file VACASK
+    streams); return the memory-mapped plot of tran1.raw."""
+    return run_vacask(netlist, workdir, "tran1", "sigma_delta", timeout, LOG,
+                      print_progress("sigma-delta (vacask)", stop) if progress else None, mapped=True)
+
+
+def run_bench(model: MacroModel, d: Design, out: Path, cycles: int, tone: Tone | None = None,
+              progress: bool = True, va: Path | None = None, cache: Path | None = None, options: str = "") -> Plot:
+    """Compile (cached), render and run the VACASK bench in `out`; return its plot."""
+    cache = cache or out / "osdi"
+    model_osdi = compile_model(model, cache, va)
+    blocks_osdi = compile_blocks(cache)
+    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options)
+    return simulate(bench, out, d.ts * cycles, progress)

@@ -1,0 +1,91 @@
+"""Structure files: the reference example loads; every kind of mistake is named with its fix."""
+
+import math
+import subprocess
+import sys
+
+import pytest
+
+from netgen.structure import StructureError, load_structure, parse_structure
+
+from tests.fixtures import ROOT
+
+EXAMPLE = ROOT / "examples" / "levitated_disk.toml"
+
+
+def test_reference_example_matches_the_paper():
+    s = load_structure(EXAMPLE)
+    assert s.conductor.radius == pytest.approx(473e-6)
+    assert s.conductor.youngs_modulus == pytest.approx(160e9)
+    assert s.sampling.levels ** (len(s.coordinates.rigid) + len(s.coordinates.modes)) == 2187
+    assert s.sampling.range == 0.2
+    names = s.electrode_names()
+    assert len(names) == 16 and len(set(names)) == 16
+    assert {e.side for e in s.electrode_sets} == {"above", "below"}
+
+
+def _replace(old: str, new: str) -> str:
+    text = EXAMPLE.read_text()
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+BAD = [
+    # (edit, expected words in the message, expected line or None)
+    (("radius = \"473 um\"", "radius = \"-473 um\""), ["conductor.radius", "greater than zero"], True),
+    (("thickness = \"10 um\"", "thickness = 0"), ["conductor.thickness", "greater than zero"], True),
+    (("poisson_ratio = 0.22", "poisson_ratio = 0.7"), ["poisson_ratio", "(-1, 0.5)"], True),
+    (("radius = \"473 um\"", "radius = \"473 uF\""), ["radius", "not a length unit"], True),
+    (("radius = \"473 um\"", "radus = \"473 um\""), ["unknown key 'radus'", "did you mean 'radius'"], True),
+    (("gap = \"3 um\"", "gap = \"-3 um\""), ["electrodes[0].gap", "greater than zero"], True),
+    (("side = \"above\"", "side = \"abve\""), ["side", "did you mean 'above'"], True),
+    (("[[\"20 um\", \"230 um\"], [\"240 um\", \"473 um\"]]", "[[\"20 um\", \"250 um\"], [\"240 um\", \"473 um\"]]"),
+     ["overlaps"], None),
+    (("[[\"20 um\", \"230 um\"], [\"240 um\", \"473 um\"]]", "[[\"20 um\", \"230 um\"], [\"500 um\", \"600 um\"]]"),
+     ["outside the plate"], None),
+    (("range = 0.2", "range = 1.0"), ["sampling.range", "touch"], None),
+    (("modes = [\"2,0c\", \"2,0s\", \"3,0c\", \"3,0s\"]", "modes = [\"2,0\"]"), ["mode label"], None),
+    (("rigid = [\"z\", \"tilt_x\", \"tilt_y\"]", "rigid = [\"z\", \"tilt_xx\"]"), ["did you mean 'tilt_x'"], None),
+    (("degree = 1", "degree = \"two\""), ["fit.degree", "integer"], None),
+    (("name = \"levitated_disk\"", "name = \"levitated disk\""), ["name", "identifier"], None),
+    (("[conductor]", "[conductor"), ["TOML syntax"], None),
+    (("slot = \"10 um\"", "slot = \"900 um\""), ["slot"], None),
+]
+
+
+@pytest.mark.parametrize("edit,words,line", BAD)
+def test_bad_input_names_file_key_and_fix(edit, words, line):
+    with pytest.raises(StructureError) as info:
+        parse_structure(_replace(*edit), "bad.toml")
+    message = str(info.value)
+    assert message.startswith("bad.toml")
+    assert "fix:" in message
+    for w in words:
+        assert w in message, message
+    if line:  # the reported line is the one holding the edited text
+        text = _replace(*edit).splitlines()
+        expected = next(no for no, t in enumerate(text, 1) if edit[1].split(" =")[0] in t and edit[1] in t)
+        assert info.value.line == expected, message
+
+
+def test_units_are_converted_to_si():
+    s = parse_structure(_replace("sector_start = \"-45 deg\"", "sector_start = \"-0.25 rad\""), "x.toml")
+    assert s.electrode_sets[0].sector_start == pytest.approx(-0.25)
+    assert load_structure(EXAMPLE).electrode_sets[0].sector_start == pytest.approx(-math.pi / 4)
+
+
+def test_cli_reports_bad_file_with_exit_2_and_no_output(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(_replace("gap = \"3 um\"", "gap = \"0 um\""))
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert "gap" in proc.stderr and "fix:" in proc.stderr
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(StructureError, match="no such file"):
+        load_structure(tmp_path / "nope.toml")
