@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy.sparse.linalg import eigsh, splu, spsolve
 from skfem import Basis, BilinearForm, ElementTriP2, LinearForm, MeshTri, condense, solve
 from skfem.helpers import dot, grad
 
@@ -155,7 +156,6 @@ def compressible_admittance(mesh: MeshTri, shapes: Shapes, k: int, gap: float, m
     load = _load(basis, shapes, k)
     kappa = 12.0 * mu_eff * omega / (gap**2 * pressure)
     a = (stiffness + 1j * kappa * mass).tocsr()[interior][:, interior]
-    from scipy.sparse.linalg import spsolve
     p = spsolve(a.tocsc(), load[interior].astype(complex))
     return complex(12.0 * mu_eff / gap**3 * load[interior] @ p)
 
@@ -181,7 +181,6 @@ def rectangular_plate_blech_complex(mu: float, length: float, width: float, gap:
 def pole_residues(mesh: MeshTri, shapes: Shapes, gap: float, mu_eff: float, pressure: float,
                   poles: int = 40) -> list[PoleResidue]:
     """`pole_residue` of every coordinate of `shapes`, sharing one Dirichlet eigen-solve."""
-    from scipy.sparse.linalg import eigsh, splu
     basis, stiffness, mass, interior = _p2_matrices(mesh)
     kk = stiffness.tocsr()[interior][:, interior].tocsc()
     mm = mass.tocsr()[interior][:, interior].tocsc()
