@@ -54,23 +54,23 @@ def read_capacitance(path: str | Path) -> dict:
     return data
 
 
+def columns(path: str, wanted: list[str], have: list[str], what: str, fix: str) -> list[int]:
+    """The table's column of each wanted name, or a StructureError naming the missing one."""
+    for name in wanted:
+        if name not in have:
+            raise StructureError(str(path), "import.capacitance", f"no column for {what} {name!r} (table has {have})", fix)
+    return [have.index(name) for name in wanted]
+
+
 def samples(path: str, names: list[str], electrodes: list[str], scales: np.ndarray) -> tuple[Samples, Samples]:
     """Grid and held-out Samples from an imported capacitance table, its columns mapped to the
     model's coordinate `names` and `electrodes` by name."""
     t = read_capacitance(path)
     where = "import.capacitance"
-    cols = []
-    for nm in names:
-        if nm not in t["coordinates"]:
-            raise StructureError(str(path), where, f"no column for coordinate {nm!r} (table has {t['coordinates']})",
-                                 "give one q column per model coordinate, named like the coordinates")
-        cols.append(t["coordinates"].index(nm))
-    els = []
-    for e in electrodes:
-        if e not in t["electrodes"]:
-            raise StructureError(str(path), where, f"no column for electrode {e!r} (table has {t['electrodes']})",
-                                 "give one C column per electrode, named like the model's electrodes")
-        els.append(t["electrodes"].index(e))
+    cols = columns(path, names, t["coordinates"], "coordinate",
+                   "give one q column per model coordinate, named like the coordinates")
+    els = columns(path, electrodes, t["electrodes"], "electrode",
+                  "give one C column per electrode, named like the model's electrodes")
     q, c = t["q"][:, cols], t["c"][:, els]
     if "holdout_q" in t:
         hq, hc = t["holdout_q"][:, cols], t["holdout_c"][:, els]

@@ -51,6 +51,18 @@ def electrode_tables(rd: Reader, doc: dict, missing: str, fix: str, each: str) -
     return raw
 
 
+def unique_name(rd: Reader, t: dict, where: str, seen: set[str], what: str, each: str, fix: str,
+                forbidden: tuple[str, ...] = ()) -> str:
+    """An [[electrodes]] table's name: an identifier (not one of `forbidden`) not used before."""
+    name = t.get("name")
+    if not identifier(name) or name in forbidden:
+        raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier", fix)
+    if name in seen:
+        raise rd.fail(f"{where}.name", f"{what} name {name!r} used twice", f"give each {each} its own name")
+    seen.add(name)
+    return name
+
+
 # ---------------------------------------------------------------- ring-sector sets (disk)
 
 def rings(rd: Reader, t: dict, where: str, radius: float) -> tuple[tuple[float, float], ...]:
@@ -89,14 +101,9 @@ def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
         check_keys(rd, where, t, ["name", "side", "gap", "rings", "sectors", "sector_start", "slot"])
-        name = t.get("name")
-        if not identifier(name):
-            raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier",
-                          "use letters, digits and _ (starting with a letter), e.g. name = \"top\"; "
-                          "avoid the word 'error' (PySpice treats it as a simulator error)")
-        if name in names:
-            raise rd.fail(f"{where}.name", f"electrode set name {name!r} used twice", "give each set its own name")
-        names.add(name)
+        name = unique_name(rd, t, where, names, "electrode set", "set",
+                           "use letters, digits and _ (starting with a letter), e.g. name = \"top\"; "
+                           "avoid the word 'error' (PySpice treats it as a simulator error)")
         side = choice(rd, t, where, "side", ["above", "below"], default=None)
         gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between plate and electrode")
         ring_list = rings(rd, t, where, radius)
@@ -160,14 +167,9 @@ def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
         check_keys(rd, where, t, ["name", "side", "gap", "x", "y"])
-        name = t.get("name")
-        if not identifier(name) or name == "plate":
-            raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier",
-                          "use letters, digits and _ (starting with a letter), e.g. name = \"drive\"; "
-                          "avoid 'plate' and the word 'error'")
-        if name in names:
-            raise rd.fail(f"{where}.name", f"electrode name {name!r} used twice", "give each electrode its own name")
-        names.add(name)
+        name = unique_name(rd, t, where, names, "electrode", "electrode",
+                           "use letters, digits and _ (starting with a letter), e.g. name = \"drive\"; "
+                           "avoid 'plate' and the word 'error'", forbidden=("plate",))
         side = choice(rd, t, where, "side", ["above", "below"], default="below")
         gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between conductor and electrode")
         a, b = span(rd, t, where, "x", x0, x1)
