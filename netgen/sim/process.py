@@ -34,14 +34,15 @@ def line_buffered(argv: list[str]) -> list[str]:
 
 def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: str = "",
         on_line: Callable[[str], None] | None = None, on_tick: Callable[[float], None] | None = None,
-        tick: float = 2.0) -> Finished:
+        tick: float = 2.0, env: dict[str, str] | None = None) -> Finished:
     """Run argv in cwd with stdin closed; on_line(line) for each output line as it arrives,
     on_tick(wall seconds) every `tick` s while it runs. Past `timeout` s the process group is
     killed and a SimulationError names the program (`name`, default argv[0]) and the command
-    that reproduces the run; an interrupt of the caller kills it too."""
+    that reproduces the run; an interrupt of the caller kills it too. `env`: its environment
+    (default: this process's)."""
     late = SimulationError(f"{name or Path(argv[0]).name} did not finish within {timeout:.0f} s; "
                            f"reproduce with: {reproduce}")
-    proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+    proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
                             stdin=subprocess.DEVNULL, text=True, errors="replace", start_new_session=True)
     lines: queue.Queue = queue.Queue()
     reader = threading.Thread(target=_pump, args=(proc, lines), daemon=True)

@@ -27,7 +27,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...errors import CodeModelError
+from ...errors import CodeModelError, SimulationError
+from .. import process
 
 
 @dataclass(frozen=True)
@@ -85,13 +86,16 @@ def path(library: Library = MODEL) -> Path:
     return cache_dir() / f"{library.name}-{sources_digest(version, library)}.cm"
 
 
-def _run(argv: list[str], cwd: Path, env: dict | None = None) -> None:
+def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 900.0) -> None:
+    """One build step (netgen.sim.process: with a wall-clock limit); a failure is a CodeModelError."""
     try:
-        out = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, env=env)
+        done = process.run(argv, cwd, timeout, f"cd {cwd} && {' '.join(argv)}", env=env)
     except FileNotFoundError as exc:
         raise CodeModelError(f"{argv[0]} not found; fix: apt-get install flex bison gcc") from exc
-    if out.returncode != 0:
-        raise CodeModelError(f"{' '.join(argv)} failed in {cwd}:\n{out.stderr[-2000:]}")
+    except SimulationError as exc:
+        raise CodeModelError(str(exc)) from None
+    if done.returncode != 0:
+        raise CodeModelError(f"{' '.join(argv)} failed in {cwd}:\n{done.output[-2000:]}")
 
 
 def _fetch_source(version: str, dest: Path) -> Path:
