@@ -12,7 +12,7 @@ from typing import Any, Iterator
 
 from . import __version__
 from .build import build, write_figures
-from .emit import EMITTERS, FORMATS, refusal, write_outputs
+from .emit import EMITTERS, formats, refusal, write_outputs
 from .errors import InputError, NetgenError
 from .executor import add_scheduler_option, executor
 from .sim import SIMULATORS, codemodel
@@ -64,7 +64,7 @@ def _add_build(sub) -> None:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
     b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", choices=FORMATS, default="ngspice",
+    b.add_argument("--format", choices=formats(), default="ngspice",
                    help="netlist dialects to write: " + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
                    + "; all: every dialect the model has")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")

@@ -39,7 +39,11 @@ EMITTERS: dict[str, Emitter] = {
                       "set target = \"plates\" in the structure's [fit], or use --format ngspice",
                       "the .lib with the plate terms in the compiled netgen_es code model (`netgen codemodel`)"),
 }
-FORMATS = [*EMITTERS, "all"]
+
+
+def formats() -> list[str]:
+    """The --format choices: every registered dialect, and "all"."""
+    return [*EMITTERS, "all"]
 
 
 def refusal(model: MacroModel, fmt: str) -> str | None:
@@ -52,8 +56,8 @@ def refusal(model: MacroModel, fmt: str) -> str | None:
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
     """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written.
     "all" is every dialect the model supports (xspice needs 1/P capacitance fits)."""
-    if fmt not in FORMATS:
-        raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    if fmt not in formats():
+        raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join(formats())}")
     chosen = [f for f in EMITTERS if not EMITTERS[f].refusal(model)] if fmt == "all" else [fmt]
     # render everything before writing anything: a failing emitter or model leaves no output
     texts = {folder / f"{model.name}{EMITTERS[f].suffix}": EMITTERS[f].render(model) for f in chosen}
