@@ -34,10 +34,10 @@ def nodes_subcircuit(model: MacroModel, noise: bool | None = False) -> str:
             "dv2": {"name": dv2_node(f.electrode), "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})"},
             "gs": [],
             "ys": [] if f.target == "direct" else
-                  [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})"
-                    + (f"*{slope_expr(f'v({node(f.electrode, k)})', *cl[k])}" if cl[k] else "")
-                    + f"/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
-                   for k in range(len(f.polys))],
+            [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})"
+              + (f"*{slope_expr(f'v({node(f.electrode, k)})', *cl[k])}" if cl[k] else "")
+              + f"/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
+             for k in range(len(f.polys))],
             "charge_expr": ngspice.charge_expr(f, model.plate)})
     stops, per_coord = contact_terms(model)
     ngspice.add_stops(ctx, model, stops, per_coord)
@@ -96,7 +96,6 @@ def naive_subcircuit(model: MacroModel) -> str:
               if model.coupling[i, j]]
     lines.append(f".ends {model.name}")
     return "\n".join(lines) + "\n"
-
 
 
 def term_nodes(electrode: str, k: int, expr: str, clamp: tuple[float, float] | None) -> list[dict]:

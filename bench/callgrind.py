@@ -44,7 +44,7 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     cm = needs_codemodel(variant, loop)
     control = codemodel.control_lines(*sdn.code_models(progress=False)) if cm else []
     net = sdn.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
-                       control=control, loop=loop)
+                        control=control, loop=loop)
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
     with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
         subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=callgrind.out", ngspice_path(), "-b",

@@ -46,6 +46,7 @@ from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
 from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
+from netgen.sim.vacask import stats as vacask_stats  # noqa: E402
 
 JSON = ROOT / "netlists" / "levitated_disk.json"
 LIB = ROOT / "netlists" / "levitated_disk.lib"
@@ -66,7 +67,7 @@ def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path,
     else:
         plot = sdv.run_bench(model, d, out, cycles, progress=False, va=VA, cache=cache, options=VARIANTS[variant])
         wall = time.perf_counter() - start
-        st = sdv.stats(out)
+        st = vacask_stats(out / sdv.LOG)
         pts, its = st["accepted"], st["nr_iterations"] / st["accepted"]
     clock = sd.per_clock(plot, d, cycles, model)
     del plot

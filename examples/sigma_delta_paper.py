@@ -6,7 +6,7 @@ rigid-body-only model, and a tone on z. Prints the paper reproduction's figures 
 Runs go through VACASK by default (netgen.testbench.sigma_delta.vacask: the same loop with the compiled
 Verilog-A model, about 10 ms per period on one core, so a 2^16-period run takes ~10-15 min);
 --simulator ngspice-xspice runs the ngspice bench compiled (the model's code-model .lib and the
-loop's code model, docs/performance.md: ~7-9 ms per period, about 9 min per 2^16-period run);
+loop's code model, docs/performance.md: 3-9 ms per period depending on the machine, 4-9 min per 2^16-period run);
 --simulator ngspice runs the ngspice bench instead (~50-70 ms per period: over an hour per
 2^16-period run, in restarted segments). Runs go in parallel, one process each; a run whose
 summary.json exists is reused unless --rerun.

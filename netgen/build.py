@@ -86,7 +86,7 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
     film = damp_report.pop("branches", [()] * len(m.names))
     coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab, br)
               for n, k, u, L, ms, ks, d, f, lab, br in zip(m.names, m.kinds, m.units, scales, m.masses,
-                                                          m.stiffnesses, damp, m.frequencies, m.labels, film)]
+                                                           m.stiffnesses, damp, m.frequencies, m.labels, film)]
     described = [Electrode(e.name, e.group, e.side, e.gap, overlap_area(e, plate)) for e in shapes]
     sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
                 "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),

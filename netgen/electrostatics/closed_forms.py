@@ -10,6 +10,7 @@ from scipy.integrate import quad
 
 from ..geometry.shapes import Array, corner_radius
 
+
 def parallel_plate(eps: float, area: float, gap: ArrayLike) -> Array:
     """Ideal parallel-plate capacitance eps*A/g (no fringe): the zeroth-order reference."""
     return eps * area / np.asarray(gap, dtype=float)
@@ -67,4 +68,3 @@ def tilted_sector_exact(
 
     value, _ = quad(ring, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)
     return eps * value
-

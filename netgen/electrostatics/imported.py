@@ -27,7 +27,7 @@ def read_capacitance(path: str | Path) -> dict:
         ccols = [i for i, h in enumerate(header) if h.startswith("C:")]
         if not qcols or not ccols:
             raise StructureError(str(path), where, "no q:<coordinate> or C:<electrode> columns",
-                        "write a header like q:z,q:m1,C:top,C:bot[,set]")
+                                 "write a header like q:z,q:m1,C:top,C:bot[,set]")
         check = rows["set"] == "check" if "set" in header else None
         values = rows["values"]
         q, c = values[:, qcols], values[:, ccols]
@@ -49,8 +49,8 @@ def read_capacitance(path: str | Path) -> dict:
     if data["q"].shape[0] != data["c"].shape[0] or data["q"].shape[1] != len(data["coordinates"]) \
             or data["c"].shape[1] != len(data["electrodes"]):
         raise StructureError(str(path), where, f"q {data['q'].shape} and c {data['c'].shape} do not match "
-                    f"{len(data['coordinates'])} coordinates and {len(data['electrodes'])} electrodes",
-                    "one row per sample point, one column per coordinate / electrode")
+                             f"{len(data['coordinates'])} coordinates and {len(data['electrodes'])} electrodes",
+                             "one row per sample point, one column per coordinate / electrode")
     return data
 
 

@@ -74,7 +74,6 @@ class EdgeFringe:
         return -self.b / np.asarray(g, dtype=float)
 
 
-
 @dataclass(frozen=True)
 class _PointSet:
     """Points of all electrodes, concatenated electrode by electrode, with signed basis values.
@@ -280,7 +279,6 @@ class ParallelPlateExtractor:
                 gap = self.neighbour_gap if self.neighbour_gap is not None else max(ei.shape.slot, ej.shape.slot)
                 out[i, j] = out[j, i] = self.coupling_per_length * shared_edge_length(ei.shape, ej.shape, plate, gap)
         return out
-
 
 
 def from_structure(s, plate: Plate) -> ParallelPlateExtractor:

@@ -163,7 +163,6 @@ class ChunkStore:
         write_bytes_atomic(self.path(folder, k), buf.getvalue())
 
 
-
 def blas_threads() -> int | None:
     """Threads of this process's BLAS (threadpoolctl), None if unknown. OpenBLAS rounds
     matrix products differently with 1 and 2 threads, so a work unit runs with the caller's

@@ -60,7 +60,6 @@ def y_node(electrode: str, k: int) -> str:
     return f"y_{electrode}_{k + 1}"
 
 
-
 def g_node(electrode: str, k: int) -> str:
     """Node carrying 1/P_eff of plate term k (the term's capacitance over c_ref)."""
     return f"g_{electrode}_{k + 1}"
@@ -75,7 +74,6 @@ def rest_capacitance(f, ncoords: int) -> float:
     """C_i(0) / c_ref = sum_k 1/P_k(0) of a plate fit (at rest no term is clamped)."""
     zero = np.zeros((1, ncoords))
     return float(sum(1.0 / poly(zero)[0] for poly in f.polys))
-
 
 
 def si(value: float, unit: str) -> str:
@@ -118,7 +116,6 @@ def noise_enabled(model: MacroModel, noise: bool | None) -> bool:
     return model.report.get("damping", {}).get("noise", False) if noise is None else noise
 
 
-
 def nonlinear_forces(model: MacroModel, state: list[str], access: str = "v({})",
                      gain: list[float] | None = None) -> list[str]:
     """Per coordinate v, the restoring force -(1/L_v) dU/dxs_v of the model's fitted strain energy
@@ -134,7 +131,6 @@ def nonlinear_forces(model: MacroModel, state: list[str], access: str = "v({})",
     return out
 
 
-
 def clamp_expr(expr: str, knee: float, floor: float) -> str:
     """P clamped from below (C1 at the knee, never under the floor); the text is valid ngspice and Verilog-A."""
     span = knee - floor
@@ -144,7 +140,6 @@ def clamp_expr(expr: str, knee: float, floor: float) -> str:
 def slope_expr(p: str, knee: float, floor: float) -> str:
     """dP_eff/dP of the clamp, from the clamped value p."""
     return f"min(1, ({p} - {num(floor)})/{num(knee - floor)})"
-
 
 
 def stop_name(j: int) -> tuple[str, str]:

@@ -37,7 +37,6 @@ def force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple
     return " + ".join(parts).replace("+ -", "- "), linear
 
 
-
 def linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, str]]:
     """(node, gain) of the linear right-hand side of coordinate v's velocity integrator (the
     external force port, spring, damper), i.e. `force_terms` without the electrostatics, as VCCS."""
@@ -49,7 +48,6 @@ def linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, 
     if c.damping:
         terms.append((f"u_{c.name}", num(-c.damping / (c.mass * ws))))
     return terms
-
 
 
 def charge_expr(f, plate: str) -> str:
@@ -75,7 +73,6 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
             "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1"}
 
 
-
 def noise_context(model: MacroModel, ws: float) -> dict:
     """Template fields of the thermal force noise sources (damped coordinates only)."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
@@ -87,7 +84,6 @@ def noise_context(model: MacroModel, ws: float) -> dict:
                for c in model.coordinates if c.damping > 0]
     return {"noise_sources": sources, "noise_temperature": f"{temp:g}", "noise_dt": f"{dt:g}",
             "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else ""}
-
 
 
 TEMPLATE = "ngspice/subckt.lib.j2"
@@ -145,7 +141,8 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     """The complete .lib text of the model's subcircuit (thermal force noise per `noise_enabled`)."""
     return render(TEMPLATE, **context(model, noise))
 
-# ------------------------------------------------------------------ the "fast" form (what ngspice evaluates cheapest)
+
+# ------------------------------------------------------------------ the fast form (what ngspice evaluates cheapest)
 #
 # ngspice evaluates a B-source by walking its parse tree and one symbolic derivative tree per
 # variable, about 100 instructions per tree node, with no sharing between the trees. Measured
@@ -156,6 +153,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
 # 10.9k, with one v(c) node 3.5k (+ the linear network summing the g nodes into c, ~1.5k).
 
 def affine(poly: Polynomial) -> bool:
+    """Every term of degree <= 1."""
     return bool(np.all(poly.exponents.sum(axis=1) <= 1))
 
 
@@ -209,14 +207,12 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
             "charge": charge_node(e, f"v({cs})", plate, f.c_ref)}
 
 
-
 def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[dict]:
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
     gains = [force_gain(c, ws) for c in model.coordinates]
     return [{"name": c.name, "expr": e} for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
             if e != "0"]
-
 
 
 # ------------------------------------------------------------------ compressible squeeze film (Maxwell branches)

@@ -119,10 +119,10 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
                       for k, p in enumerate(f.polys)],
             "dv2": dv2, "charge": charge(f, model.plate),
             "ys": [] if f.target == "direct" else
-                  [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
-                    + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
-                    + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
-                   for k in range(len(f.polys))]})
+            [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
+              + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
+              + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
+             for k in range(len(f.polys))]})
 
 
 def check_identifiers(names: list[str]) -> None:

@@ -19,6 +19,7 @@ from .common import c_node, force_gain, num, rest_capacitance, stop_constants, t
 # output x input pair of its ports, so the charges' instance takes the coordinates alone). The
 # charges stay ngspice capacitors, so the electrode currents are ngspice's own dQ/dt.
 
+
 def vector(values) -> str:
     return "[" + " ".join(str(int(v)) if isinstance(v, (int, np.integer)) else num(float(v)) for v in values) + "]"
 

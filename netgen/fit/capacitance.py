@@ -66,7 +66,7 @@ def reference(x: np.ndarray, c: np.ndarray) -> float:
 
 
 def with_errors(fit: CapacitanceFit, x: np.ndarray, c: np.ndarray, x_check: np.ndarray,
-            c_check: np.ndarray) -> CapacitanceFit:
+                c_check: np.ndarray) -> CapacitanceFit:
     """The same fit with its held-out and grid errors filled in."""
     held = np.abs(fit.value(x_check) / c_check - 1.0)
     grid = np.abs(fit.value(x) / c - 1.0)
@@ -114,8 +114,6 @@ def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, deg
     scale = np.prod(sp[None, :] ** exps, axis=1)
     polys = tuple(Polynomial(exps, row / scale) for row in sol.x.reshape(k_terms, nterm))
     return with_errors(CapacitanceFit(name, c_ref, "plates", polys, 0.0, 0.0, 0.0), x, c, x_check, c_check)
-
-
 
 
 # ------------------------------------------------------------------ the stage: one fit per electrode

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from skfem import CellBasis, MeshTri
 
 P2_NODES = np.array([[0.0, 1.0, 0.0, 0.5, 0.5, 0.0],
-                      [0.0, 0.0, 1.0, 0.0, 0.5, 0.5]])
+                     [0.0, 0.0, 1.0, 0.0, 0.5, 0.5]])
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,7 @@ class P2Field:
     def combine(self, coefficients: np.ndarray) -> "P2Field":
         """Field of the linear combinations ``nodes @ coefficients`` (same mesh)."""
         return P2Field(self.origin, self.inverse, self.nodes @ coefficients, self.tree,
-                        self.rim_angles, self.rim_points)
+                       self.rim_angles, self.rim_points)
 
     def inside(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Project points radially onto the mesh polygon if they lie beyond its boundary."""
@@ -82,7 +82,7 @@ def p2_field(basis: CellBasis, vectors: np.ndarray) -> P2Field:
     a = np.stack([p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]], axis=-1)  # (2, ne, 2)
     inverse = np.linalg.inv(np.moveaxis(a, 0, 1))
     return P2Field(origin=p[:, t[0]].T, inverse=inverse, nodes=nodes,
-                    tree=cKDTree(p[:, t].mean(axis=1).T), **rim_polygon(mesh))
+                   tree=cKDTree(p[:, t].mean(axis=1).T), **rim_polygon(mesh))
 
 
 def rim_polygon(mesh: MeshTri) -> dict[str, np.ndarray]:

@@ -97,7 +97,7 @@ def unit_disk(nu: float, refine: int) -> UnitDisk:
                         for f in weights])
     norms = np.sqrt([Functional(lambda w, f=f: f(w) ** 2).assemble(basis) for f in weights])
     return UnitDisk(basis, _bending_form(nu).assemble(basis), _mass_form.assemble(basis),
-                     moments, norms)
+                    moments, norms)
 
 
 def _eigenpairs(disk: UnitDisk, count: int) -> tuple[np.ndarray, np.ndarray]:

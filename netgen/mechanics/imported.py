@@ -169,8 +169,8 @@ def _p2_disk(p: np.ndarray, w: np.ndarray, tri: np.ndarray, radius: float):
     angles = np.mod(np.arctan2(rim[:, 1], rim[:, 0]), 2 * np.pi)
     order = np.argsort(angles)
     field = P2Field(origin=v0, inverse=inverse, nodes=w[tri], tree=cKDTree(p[tri[:, :3]].mean(axis=1)),
-                     rim_angles=np.append(angles[order], angles[order[0]] + 2 * np.pi),
-                     rim_points=np.vstack([rim[order], rim[order][:1]]))
+                    rim_angles=np.append(angles[order], angles[order[0]] + 2 * np.pi),
+                    rim_points=np.vstack([rim[order], rim[order][:1]]))
     return lambda x, y: field(np.ravel(x) / radius, np.ravel(y) / radius)
 
 

@@ -26,7 +26,7 @@ def free_edge_determinant(lam: float | np.ndarray, n: int, nu: float) -> float |
 
 
 def free_edge_roots(n: int, nu: float, count: int | None = None,
-                     stop: float | None = None) -> list[float]:
+                    stop: float | None = None) -> list[float]:
     """Positive roots lambda of the free-edge equation: the first ``count``, or all below ``stop``.
 
     Scans lambda on a 0.02 grid (roots are ~pi apart) from 0.05, above the rigid-body root

@@ -283,4 +283,3 @@ CONDUCTORS: dict[str, type] = {
     "clamped_clamped_beam": Beam,
     "cantilever": Beam,
 }
-

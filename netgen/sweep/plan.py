@@ -21,6 +21,7 @@ from ..structure.reader import did_you_mean
 from ..units import parse_quantity
 from .spec import TESTBENCH, Sweep
 
+
 @dataclass
 class RunSpec:
     """One run: its folder, parameter values (as shown), testbench options and structure text."""

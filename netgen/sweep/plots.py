@@ -9,6 +9,7 @@ from ..plots import plt, save
 from ..units import UnitError, parse_quantity
 from .spec import TESTBENCH, Sweep, kind_of
 
+
 def _number(v: Any) -> float | None:
     if isinstance(v, bool):
         return float(v)

@@ -152,7 +152,7 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
         "mode": sweep.mode, "samples": sweep.samples, "seed": sweep.seed, "fixed": sweep.fixed,
         "parameters": [asdict(p) for p in sweep.parameters],
         "runs": [{**asdict(spec), "structure_text": None, **{k: v for k, v in records[spec.index].items()
-                                                           if k != "summary"}} for spec in runs]},
+                                                             if k != "summary"}} for spec in runs]},
         indent=1, default=str) + "\n")
     plot(figure_path(out, sweep), rows, sweep)
     return rows

@@ -83,7 +83,6 @@ def _reltol_problem(value: float) -> str | None:
     return None if lo <= value <= hi else f"must be between {RELTOL_TEXT.replace('..', ' and ')}"
 
 
-
 # ----------------------------------------------------------------------------- sweep file
 
 

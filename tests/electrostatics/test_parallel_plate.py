@@ -38,7 +38,6 @@ def tilt_x(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return y[:, None]
 
 
-
 # ----------------------------------------------------------------------------- parallel plate
 
 

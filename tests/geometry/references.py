@@ -50,5 +50,3 @@ def quadrants(r_in: float, r_out: float, offset: float = 0.0, slot: float = SLOT
     """Four slotted quadrant sectors."""
     return [AnnularSector(f"{tag}{k}", r_in, r_out, offset + k * math.pi / 2, offset + (k + 1) * math.pi / 2, slot)
             for k in range(4)]
-
-

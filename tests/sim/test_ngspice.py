@@ -47,7 +47,7 @@ def test_motional_current_is_v_dc_dt(model, lib, tmp_path):
     """Electrode at constant 2 V, tilt driven by a 50 kHz torque: I = V sum_v dC/dq_v dq_v/dt."""
     electrode, volts = "top_r2s1", 2.0
     bench = Bench(model, lib[0], control=lib[1], sources={electrode: f"DC {volts}", "plate": "0",
-                                       "f_tilt_y": "SIN(0 28.5 50k 0 0 90)"},   # nN*m
+                                                          "f_tilt_y": "SIN(0 28.5 50k 0 0 90)"},   # nN*m
                   options="reltol=1e-5 chgtol=1e-18")
     plot = run_ngspice(bench.netlist(".tran 10n 60u 0 10n uic"), tmp_path)[0]
     x, xdot = states(plot, model)

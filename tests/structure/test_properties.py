@@ -133,8 +133,8 @@ def invalid_docs(draw) -> str:
         table = draw(st.sampled_from(["conductor", "electrodes.0", "coordinates", "sampling", "fit", "fem"]))
         key = draw(st.from_regex(r"[a-z][a-z_]{0,10}", fullmatch=True))
         assume(key not in _get(doc, table) and key not in ("kind", "sector_start", "slot", "sectors", "modes",
-                                                            "rigid", "levels", "range", "degree", "target",
-                                                            "holdout", "seed", "tolerance", "max_terms", "refine"))
+                                                           "rigid", "levels", "range", "degree", "target",
+                                                           "holdout", "seed", "tolerance", "max_terms", "refine"))
         _get(doc, table)[key] = 1
     elif kind == "poisson":
         doc["conductor"]["poisson_ratio"] = draw(st.one_of(st.floats(0.5, 10), st.floats(-10, -1)))

@@ -297,7 +297,6 @@ def test_scheduler_errors_are_one_line_with_the_fix(monkeypatch, tmp_path, capsy
     assert "pip install 'netgen[dask]'" in err and "Traceback" not in err
 
 
-
 def _scaled_sum(shared: dict, item: float) -> float:
     """A task of the shared-input test: uses the scattered dict on the worker (slowly)."""
     time.sleep(0.5)

@@ -161,11 +161,11 @@ def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_pa
     d = sd.design(model, TS)
     states = sdn.state_nodes(lib, model, d)
     first = sdn.simulate(sdn.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a",
-                        24 * TS, False)
+                         24 * TS, False)
     ic = {n: float(first[f"v({n})"][-1]) for n in states}
     assert max(abs(v) for v in ic.values()) > 1e-4             # a state worth restarting from
     second = sdn.simulate(sdn.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
-                         tmp_path / "b", 2 * TS, False)
+                          tmp_path / "b", 2 * TS, False)
     for n in states:
         end, v = ic[n], second[f"v({n})"]
         assert abs(v[0] - end) <= 1.5 * abs(v[1] - v[0]) + 1e-12 * abs(end) + 1e-18, n

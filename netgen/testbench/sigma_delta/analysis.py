@@ -13,6 +13,7 @@ from ...errors import SimulationError
 from ...model import MacroModel
 from .loop import CHANNELS, Design, Tone, coord_index, duty
 
+
 def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
     """Bits (+-1) and coordinates sampled once per period, in the feedback phase."""
     t = np.asarray(plot["time"])
@@ -28,7 +29,6 @@ def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.n
         out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
     out["time"] = at
     return out
-
 
 
 def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +156,6 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     need = d.mass * d.g + inertia + damping
     return {"mean_force_n": mean, "weight_n": d.mass * d.g, "inertial_n": float(inertia),
             "damping_n": float(damping), "ratio": float(mean / need), "window": [a, b]}
-
 
 
 def thermal_floor(model: MacroModel, d: Design) -> dict:

@@ -257,5 +257,3 @@ def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[t
     driven = {port for port, _, _ in out}
     return out + [(p["name"], 0.0, None) for p in model.ports()
                   if p["kind"].endswith("_in") and p["name"] not in driven]
-
-

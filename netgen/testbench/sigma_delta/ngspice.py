@@ -132,7 +132,6 @@ def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
     return {"nodes": nodes, "of": of}
 
 
-
 def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0,
              span: tuple[float, float, float] | None = None):
     """Run ngspice on the bench, report simulated/wall time from its progress lines; return the plot.
@@ -151,6 +150,7 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
                   f"eta {w * (total / t - 1):.0f} s", file=sys.stderr, flush=True)
     return run_control(netlist, workdir, "sigma_delta", "sigma_delta.raw", timeout, on_line=report)
 
+
 def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
     """Did ngspice put a time point on every electrode-phase corner (its PULSE breakpoints)?
     The periods where one is missing (none expected; a lost breakpoint chain lets the
@@ -167,14 +167,12 @@ def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
             "first_period": int(missed[0]) if len(missed) else None}
 
 
-
 def segment_periods(ts: float, segment: int | None, cycles: int) -> int:
     """Periods per ngspice segment: `segment` if given (0: the whole run in one), else
     SEGMENT_S of simulated time (at least MIN_SEGMENT periods)."""
     if segment == 0:
         return cycles
     return min(cycles, segment if segment else max(MIN_SEGMENT, round(SEGMENT_S / ts)))
-
 
 
 LOOP_LIBRARY = codemodel.Library("netgen_sdloop", Path(__file__).resolve().parent)
@@ -193,6 +191,7 @@ def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path,
     lib = out / f"{model.name}_xspice.lib"
     write_files_atomic({lib: xspice.subcircuit(model)})
     return lib, codemodel.control_lines(*cms)
+
 
 def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
                  progress: bool, segment: int | None, control: list[str] = (),

@@ -9,6 +9,7 @@ import numpy as np
 from ...plots import plt, save
 from .loop import CHANNELS
 
+
 def plot_spectra(summary: dict, path: Path, title: str) -> Path:
     """PNG of the three normalised spectra (dB re F_fb^2/Hz against log frequency)."""
     fig, axes = plt.subplots(3, 1, figsize=(8, 9), sharex=True)

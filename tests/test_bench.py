@@ -1,0 +1,57 @@
+"""The benchmark scripts run: each in its smallest setting, printing the figure lines its
+documentation quotes (the long settings are docs/performance.md's). They call the package's
+public API, so a change of it that a script missed fails here, not in the next measurement."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import pytest
+
+from tests.fixtures import ROOT
+
+RUNS = {
+    "build": (["bench/build.py", "--repeat", "1"], ["median of 1 build(s)", "fits (16 electrodes, plates)", "budget 60 s"]),
+    "sigma_delta": (["bench/sigma_delta.py", "--cycles", "64", "--repeat", "1", "--naive-cycles", "1",
+                     "--variants", "xspice,fast,nodes,naive,floor,linear", "--loops", "xspice,analog"],
+                    ["ratio xspice/floor", "ratio nodes/fast", "ratio naive/fast", "analog loop"]),
+    "sigma_delta_vacask": (["bench/sigma_delta_vacask.py", "--cycles", "64", "--ngspice-cycles", "64", "--repeat", "1"],
+                           ["ngspice / vacask", "vacask "]),
+    "callgrind": (["bench/callgrind.py", "--cycles", "1", "--variants", "floor"], ["floor"]),
+    "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(RUNS))
+def test_bench_script_runs(name, tmp_path):
+    argv, expect = RUNS[name]
+    proc = subprocess.run([sys.executable, *argv], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for text in expect:
+        assert text in proc.stdout, f"{name}: no {text!r} in\n{proc.stdout[-2000:]}"
+
+
+@pytest.fixture(scope="module")
+def tone_run(tmp_path_factory):
+    """A short compiled sigma-delta run with a tone on z (the input of the two analysis scripts)."""
+    out = tmp_path_factory.mktemp("tone")
+    subprocess.run([str(ROOT / ".venv/bin/netgen"), "sigma-delta", "examples/levitated_disk.toml", "--model",
+                    "netlists/levitated_disk.json", "--simulator", "ngspice-xspice", "--cycles", "512", "--tone",
+                    "z:0.02:20000", "-o", str(out), "-q", "--no-plots"], cwd=ROOT, check=True, timeout=300)
+    return out
+
+
+def test_compare_simulators_and_tone_coupling_read_a_run(tone_run):
+    """compare_simulators.py on one run against itself: the same floors and notches (0 dB, 0 %);
+    tone_coupling.py finds the tone's line in the z bitstream."""
+    same = subprocess.run([sys.executable, "bench/compare_simulators.py", str(tone_run), str(tone_run)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert same.returncode == 0, same.stderr[-3000:]
+    for channel in ("z", "tilt_x", "tilt_y"):              # floor, floor, difference 0.0 dB
+        assert re.search(rf"^{channel}\s+-?[\d.]+\s+-?[\d.]+\s+0\.0\s", same.stdout, re.M), same.stdout
+    tone = subprocess.run([sys.executable, "bench/tone_coupling.py", str(tone_run), "--nperseg", "256"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert tone.returncode == 0, tone.stderr[-3000:]
+    assert "tilt_x" in tone.stdout and "dB" in tone.stdout, tone.stdout
