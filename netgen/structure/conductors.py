@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from .electrodes import check_ring_overlaps, rectangles, ring_sets
-from .reader import (Reader, check_keys, did_you_mean, flag, integer, positive, quantity,
+from .reader import (Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity,
                      table)
 from .schema import MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
 
@@ -178,7 +178,7 @@ class Piston(Suspended):
         k = quantity(rd, t, "conductor", "stiffness", "dimensionless", check=positive,
                      what="vertical spring stiffness in N/m")
         kt = quantity(rd, t, "conductor", "tilt_stiffness", "dimensionless", default=0.0,
-                      check=lambda v: None if v >= 0 else "must not be negative",
+                      check=nonnegative,
                       what="tilt spring stiffness in N*m/rad")
         return cls(length, width, thickness, density, k, kt)
 

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 
 from ..units import UnitError, parse_quantity
-from .reader import Reader, choice, check_keys, identifier, integer, positive, quantity
+from .reader import Reader, check_keys, choice, identifier, integer, nonnegative, positive, quantity
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
         sectors = integer(rd, t, where, "sectors", 1, 1, 64, "number of sectors per ring")
         start = quantity(rd, t, where, "sector_start", "angle", default=-math.pi / 4, what="angle of the first sector edge")
         slot = quantity(rd, t, where, "slot", "length", default=0.0,
-                        check=lambda v: None if v >= 0 else "must not be negative", what="slot width between sectors")
+                        check=nonnegative, what="slot width between sectors")
         if sectors > 1 and slot >= 2 * ring_list[-1][1] * math.sin(math.pi / sectors):
             raise rd.fail(f"{where}.slot", f"slot {slot:g} m leaves no electrode area",
                           "use a slot much narrower than the sector width")

@@ -15,8 +15,8 @@ from ..constants import GASES
 from ..errors import StructureError
 from ..files import toml_document
 from .conductors import CONDUCTORS
-from .reader import (Reader, check_keys, choice, did_you_mean, flag, identifier, integer, positive,
-                     quantity, table)
+from .reader import (Reader, check_keys, choice, did_you_mean, flag, identifier, integer, nonnegative,
+                     positive, quantity, table)
 from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Damping, ElectrostaticsOptions, FitOptions,
                      Imports, Sampling, Structure)
 
@@ -154,9 +154,8 @@ def rayleigh(rd: Reader, t: dict) -> tuple[float, float]:
         raise rd.fail("damping.rayleigh", f"rayleigh must be a table, got {raw!r}",
                       "write rayleigh = {alpha = 10.0, beta = 1e-9}  (D = alpha M + beta K; 1/s and s)")
     check_keys(rd, "damping.rayleigh", raw, ["alpha", "beta"])
-    nonneg = lambda v: None if v >= 0 else "must not be negative"   # noqa: E731
-    return (quantity(rd, raw, "damping.rayleigh", "alpha", "dimensionless", 0.0, nonneg, "mass-proportional 1/s"),
-            quantity(rd, raw, "damping.rayleigh", "beta", "dimensionless", 0.0, nonneg, "stiffness-proportional s"))
+    return (quantity(rd, raw, "damping.rayleigh", "alpha", "dimensionless", 0.0, nonnegative, "mass-proportional 1/s"),
+            quantity(rd, raw, "damping.rayleigh", "beta", "dimensionless", 0.0, nonnegative, "stiffness-proportional s"))
 
 
 def read_damping(rd: Reader, doc: dict, names: list[str] | None) -> Damping | None:
@@ -182,7 +181,7 @@ def read_damping(rd: Reader, doc: dict, names: list[str] | None) -> Damping | No
                    integer(rd, t, "damping", "fem_refine", 5, 2, 8, "Reynolds mesh refinement level"),
                    choice(rd, t, "damping", "film_model", ["incompressible", "compressible"], "incompressible"),
                    quantity(rd, t, "damping", "film_max_frequency", "frequency", 0.0,
-                            lambda v: None if v >= 0 else "must not be negative",
+                            nonnegative,
                             "highest frequency the compressible film network must reproduce (0: auto)"))
 
 
