@@ -20,6 +20,9 @@ from netgen.sim import codemodel
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = "examples/levitated_disk.toml"        # relative to ROOT: the path the netlist header names
 NETLISTS = ROOT / "netlists"
+# the two ngspice releases the suite runs: Debian 12's (on PATH) and bookworm-backports' 46, which
+# .ci/setup unpacks into a private prefix; netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
+NGSPICE = {"39": "ngspice", "46": str(Path.home() / ".cache/netgen/ngspice-46/bin/ngspice")}
 
 
 @pytest.fixture(scope="session")

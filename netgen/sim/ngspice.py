@@ -4,8 +4,12 @@ log and the saved netlist to reproduce the run."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import subprocess
+from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Callable
 
@@ -27,12 +31,67 @@ FAILED = re.compile(r"simulation\(s\) aborted|analysis .*failed|no convergence",
 ABORTED = re.compile(r"simulation\(s\) aborted|timestep too small", re.I)
 
 
+ENV = "NETGEN_NGSPICE"
+
+
 def ngspice_path() -> str:
-    """Path of the ngspice executable, or a clear error with the install command."""
+    """The ngspice netgen runs: $NETGEN_NGSPICE (a path, or a name on PATH) when set, else the
+    `ngspice` on PATH; a clear error with the fix when neither is an executable."""
+    chosen = os.environ.get(ENV, "").strip()
+    if chosen:
+        path = shutil.which(os.path.expanduser(chosen))
+        if not path:
+            raise SimulatorNotFound(f"{ENV}={chosen!r} is not an executable ngspice; point it at one "
+                                    f"(e.g. ~/.cache/netgen/ngspice-46/bin/ngspice) or unset it to use "
+                                    f"the ngspice on PATH")
+        return path
     path = shutil.which("ngspice")
     if not path:
         raise SimulatorNotFound(f"ngspice is not installed (not found on PATH); {INSTALL_HINT}")
     return path
+
+
+@dataclass(frozen=True)
+class Version:
+    """What one ngspice binary is: its release and the build options netgen's outputs depend on."""
+
+    path: str
+    major: int
+    minor: int
+    klu: bool
+
+    @property
+    def label(self) -> str:
+        return f"ngspice-{self.major}" + (f".{self.minor}" if self.minor else "")
+
+    @property
+    def osdi(self) -> bool:
+        """Loads OpenVAF-reloaded's OSDI 0.4/0.5 (openvaf-r's output): ngspice 44 and later."""
+        return self.major >= 44
+
+    @property
+    def osdi_node_limit(self) -> int | None:
+        """ngspice 44 caps an OSDI instance at 20 nodes; the cap is gone from 45 on."""
+        return 20 if self.major == 44 else None
+
+
+def version(path: str | None = None) -> Version:
+    """The version of `path` (default: ngspice_path()), from `ngspice --version`."""
+    path = path or ngspice_path()
+    return _version(path, os.stat(path).st_mtime_ns)
+
+
+@lru_cache(maxsize=8)
+def _version(path: str, mtime: int) -> Version:
+    try:
+        out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=30,
+                             stdin=subprocess.DEVNULL).stdout
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise SimulatorNotFound(f"{path} --version failed ({exc}); is it an ngspice?") from exc
+    match = re.search(r"ngspice-(\d+)(?:\.(\d+))?", out)
+    if not match:
+        raise SimulatorNotFound(f"{path} --version printed no ngspice release; point {ENV} at an ngspice")
+    return Version(path, int(match.group(1)), int(match.group(2) or 0), "Compiled with KLU" in out)
 
 
 def diagnose(log: str) -> str | None:
