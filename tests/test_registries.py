@@ -118,6 +118,7 @@ def test_a_refused_format_is_left_out_of_all():
 def test_netgen_simulate_runs_each_registered_simulator(tmp_path, capsys):
     """The same resistive divider in each simulator's netlist dialect: V(out) = 3/4 V(in)."""
     netlists = {"ngspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",
+                "pyspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",     # libngspice, in process
                 "vacask": 'divider\nground 0\nload "resistor.osdi"\nmodel r resistor\nmodel vsource vsource\n'
                           "v1 (in 0) vsource dc=1\nr1 (in out) r r=1k\nr2 (out 0) r r=3k\n"
                           "control\n  analysis op1 op\nendc\n"}

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from . import ngspice, vacask
+from . import ngspice, pyspice, vacask
 from .rawfile import Plot, read_raw
 
 
@@ -30,6 +30,8 @@ def run_vacask_netlist(netlist: str, workdir: Path, name: str, timeout: float) -
 
 SIMULATORS: dict[str, Simulator] = {
     "ngspice": Simulator(ngspice.run_ngspice, "ngspice in batch mode (a SPICE netlist with its analyses)"),
+    "pyspice": Simulator(pyspice.run_netlist, "ngspice's shared library through PySpice, in this process "
+                                              "(the libngspice of the selected ngspice, or $NETGEN_LIBNGSPICE)"),
     "vacask": Simulator(run_vacask_netlist, "VACASK (a Spectre-like netlist with a control block)"),
 }
 
