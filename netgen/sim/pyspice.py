@@ -52,7 +52,7 @@ class Library:
     """One libngspice and the folders it must read: its code models and its spinit."""
 
     path: str
-    lib_dir: str | None        # SPICE_LIB_DIR (holds ngspice/*.cm)
+    lib_dir: str | None        # SPICE_LIB_DIR (its folder of code models, *.cm)
     scripts: str | None        # SPICE_SCRIPTS (holds spinit)
     binary: str | None         # the ngspice it was found beside (None: given by NETGEN_LIBNGSPICE)
 
@@ -208,34 +208,40 @@ def run_text(netlist: str, workdir: str | Path | None = None, name: str = "circu
     """Load `netlist` into the shared ngspice, run its analyses (a .control block runs as it loads),
     and return the new plots, oldest first, named as in a raw file (v(node), i(source)). With
     `workdir` the netlist is saved there as name.cir and sourced (.include paths resolve from it,
-    as for `ngspice -b`) and the output is kept as name.log."""
+    as for `ngspice -b`) and the output is kept as name.log, also when the run fails."""
     ng = shared()
     command(ng, "destroy all")
     start = len(ng.lines)
-    cir = None
-    if workdir is not None:
-        workdir = Path(workdir)
-        workdir.mkdir(parents=True, exist_ok=True)
-        cir = workdir / f"{name}.cir"
-        cir.write_text(netlist)
-        if len(str(cir)) > 1000 or re.search(r"\s", str(cir)):
-            raise SimulationError(f"{cir}: ngspice's source command takes a path without spaces of under "
-                                  f"1000 characters; use a shorter run folder")
-        command(ng, f"source {cir}")
-    else:
-        load(ng, netlist)
-    where = f"{workdir / (name + '.log')}" if workdir is not None else "(pass workdir to keep it)"
-    check_load(ng.lines[start:], cir, where)
-    if not re.search(r"^\s*\.control\b", netlist, re.M | re.I):
-        background_run(ng, timeout, cir)
-    text = output(ng.lines, start)
-    if workdir is not None:
-        (workdir / f"{name}.log").write_text(text + "\n")
-    plots = [plot(ng, p) for p in reversed(ng.plot_names) if p != "const"]
-    check(text, plots, cir, where)
-    command(ng, "destroy all")
-    command(ng, "remcirc")
-    return plots
+    cir = save(netlist, Path(workdir), name) if workdir is not None else None
+    log = cir.with_suffix(".log") if cir is not None else None
+    where = str(log) if log is not None else "(pass workdir to keep it)"
+    try:
+        if cir is not None:
+            command(ng, f"source {cir}")
+        else:
+            load(ng, netlist)
+        check_load(ng.lines[start:], cir, where)
+        if not re.search(r"^\s*\.control\b", netlist, re.M | re.I):
+            background_run(ng, timeout, cir)
+        plots = [plot(ng, p) for p in reversed(ng.plot_names) if p != "const"]
+        check(output(ng.lines, start), plots, cir, where)
+        return plots
+    finally:
+        if log is not None:
+            log.write_text(output(ng.lines, start) + "\n")
+        command(ng, "destroy all")
+        command(ng, "remcirc")
+
+
+def save(netlist: str, workdir: Path, name: str) -> Path:
+    """workdir/name.cir with the netlist, for ngspice's `source` (a path without spaces)."""
+    cir = workdir / f"{name}.cir"
+    if len(str(cir)) > 1000 or re.search(r"\s", str(cir)):
+        raise SimulationError(f"{cir}: ngspice's source command takes a path without spaces of under "
+                              f"1000 characters; use another run folder")
+    workdir.mkdir(parents=True, exist_ok=True)
+    cir.write_text(netlist)
+    return cir
 
 
 def load(ng, netlist: str) -> None:

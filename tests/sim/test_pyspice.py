@@ -98,11 +98,13 @@ def test_example_transient_equals_the_batch_run(version, disk, tmp_path, monkeyp
 
 PISTON_RUN = """
 import json, sys
+from netgen.model import MacroModel
 from netgen.sim.pyspice import ModelCircuit
 lib, volts = sys.argv[1], float(sys.argv[2])
+model = MacroModel.load_json(lib.replace(".lib", ".json"))              # emitted afresh into a temporary folder
 op = ModelCircuit.build(lib, drive={"drive": volts}).operating_point()
 force = ModelCircuit.build(lib, drive={"f_z": "DC 0 AC 1"}).ac(1e3, 1e5, 5)
-admittance = ModelCircuit.build(lib, drive={"drive": "DC 0 AC 1"}).ac(1e3, 1e5, 5)
+admittance = ModelCircuit.build(model, drive={"drive": "DC 0 AC 1"}).ac(1e3, 1e5, 5)
 print(json.dumps({"z": float(op.q["z"][0]), "i_dc": float(op.current["drive"][0]),
                   "f": force.axis.tolist(), "x_re": force.q["z"].real.tolist(), "x_im": force.q["z"].imag.tolist(),
                   "i_re": admittance.current["drive"].real.tolist(),
@@ -180,35 +182,47 @@ ERROR_WORD = ("error budget: the word error in the title and a node name\n"
 
 
 RUNS = """
-import sys
+import json, sys
 from netgen.errors import SimulationError
 from netgen.sim import SIMULATORS
 for name in sys.argv[2:]:
     try:
-        plots = SIMULATORS["pyspice"].run(open(name + ".cir").read(), sys.argv[1], name, 60)
-        print(name, "ok", plots[0]["error_node"][0])
+        plot = SIMULATORS["pyspice"].run(open(name + ".cir").read(), sys.argv[1], name, 0.5)[-1]
+        print(name, "ok", plot.name, json.dumps({k: float(v[-1].real) for k, v in plot.vectors.items()}))
     except SimulationError as e:
         print(name, "failed", e)
 """
+SLOW = "* the disk, 200 us (several seconds)\n.include {lib}\nX1 {ports} levitated_disk\n{sources}\n.tran 10n 200u 0 10n uic\n.end\n"
 
 
 @pytest.mark.parametrize("version", VERSIONS)
-def test_runner_reports_failures_and_keeps_its_files(version, tmp_path):
+def test_runner_reports_failures_and_keeps_its_files(version, disk, tmp_path):
     """The `--simulator pyspice` runner: the word "error" in a title and a node is no failure (the
-    divider's 0.75 V), a blow-up names node and time (the analytic blow-up is at t = 1 s) with the
-    saved netlist and log, an unknown subcircuit is named; nothing of PySpice's log is printed."""
-    for name, text in (("w", ERROR_WORD), ("blow", BLOW_UP), ("bad", "* bad\nV1 a 0 1\nX1 a 0 nosuch\n.op\n.end\n")):
+    divider's 0.75 V); a .control block runs; a blow-up names node and time (the analytic blow-up
+    is at t = 1 s) with the saved netlist and log; an unknown subcircuit is named; a run past its
+    wall-clock limit is halted and the next run works; nothing of PySpice's log is printed."""
+    ports = [p["name"] for p in disk.ports()]
+    sources = "\n".join(f"V{p} {p} 0 0" for p in ports if not p.startswith("x_"))
+    cases = {"w": ERROR_WORD, "ctl": "* control\nV1 a 0 2\nR1 a 0 1k\n.control\nop\n.endc\n.end\n",
+             "blow": BLOW_UP, "bad": "* bad\nV1 a 0 1\nX1 a 0 nosuch\n.op\n.end\n",
+             "slow": SLOW.format(lib=LIB, ports=" ".join(ports), sources=sources)}
+    for name, text in cases.items():
         (tmp_path / f"{name}.cir").write_text(text)
-    proc = python(RUNS, "run", "w", "blow", "bad", env=env_for(version), cwd=tmp_path)
+    proc = python(RUNS, "run", "w", "ctl", "blow", "bad", "slow", "w", env=env_for(version), cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
-    word, blow, bad = proc.stdout.splitlines()
-    assert word.startswith("w ok ") and float(word.split()[2]) == pytest.approx(0.75, rel=1e-12)
+    word, ctl, blow, bad, slow, again = proc.stdout.splitlines()
+    assert word.startswith("w ok op1 ") and json.loads(word.split(" ", 3)[3]) == \
+        pytest.approx({"v(in)": 1.0, "v(error_node)": 0.75, "i(v1)": -1 / 4000}, rel=1e-12)
+    assert ctl.startswith("ctl ok op1 ") and json.loads(ctl.split(" ", 3)[3]) == \
+        pytest.approx({"v(a)": 2.0, "i(v1)": -2 / 1000}, rel=1e-12)
     assert "timestep too small" in blow and "node n" in blow
     assert 0.99 < float(blow.split("at t = ")[1].split()[0]) < 1.0
     assert "reproduce with: ngspice -b run/blow.cir" in blow and "log run/blow.log" in blow
     assert "Timestep too small" in (tmp_path / "run" / "blow.log").read_text()
     assert (tmp_path / "run" / "blow.cir").read_text() == BLOW_UP
-    assert "failed" in bad and "unknown subckt" in bad
+    assert "failed" in bad and "unknown subckt" in bad and "unknown subckt" in (tmp_path / "run" / "bad.log").read_text()
+    assert "failed" in slow and "did not finish within 0 s" in slow
+    assert again == word
 
 
 def test_simulate_cli_exit_code_of_a_failed_run(tmp_path):
