@@ -245,15 +245,16 @@ def test_one_library_per_process(tmp_path):
 
 
 def test_library_beside_each_ngspice():
-    """The libngspice, code models and spinit found from each release's binary (no loading)."""
-    for version, folder in (("39", "/usr/lib/x86_64-linux-gnu"),
-                            ("46", str(Path(NGSPICE["46"]).parent.parent / "usr/lib/x86_64-linux-gnu"))):
-        os.environ.pop(pyspice.ENV, None)
-        env = env_for(version)
-        code = "from netgen.sim import pyspice; l = pyspice.library(); print(l.path, l.lib_dir, l.scripts)"
-        path, lib_dir, scripts = python(code, env=env).stdout.split()
+    """The libngspice, code models and spinit found from each release's binary, and from a library
+    named by NETGEN_LIBNGSPICE (46's, with 39 selected as the binary): no loading, no release check."""
+    prefix46 = str(Path(NGSPICE["46"]).parent.parent / "usr/lib/x86_64-linux-gnu")
+    code = "from netgen.sim import pyspice; l = pyspice.library(); print(l.path, l.lib_dir, l.scripts, l.binary)"
+    for env, folder in ((env_for("39"), "/usr/lib/x86_64-linux-gnu"), (env_for("46"), prefix46),
+                        (env_for("39", NETGEN_LIBNGSPICE=f"{prefix46}/libngspice.so.0"), prefix46)):
+        path, lib_dir, scripts, binary = python(code, env=env).stdout.split()
         assert path == f"{folder}/libngspice.so.0" and lib_dir == f"{folder}/ngspice"
-        assert Path(scripts, "spinit").is_file() and scripts.startswith(str(Path(folder).parent.parent))
+        assert Path(scripts, "spinit").is_file() and scripts == str(Path(folder).parent.parent / "share/ngspice/scripts")
+        assert (binary == "None") == (pyspice.ENV in env)
 
 
 def test_drive_and_node_names_are_data(disk):
