@@ -4,16 +4,18 @@ log and the saved netlist to reproduce the run."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
 import subprocess
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
-from ..errors import SimulationError, SimulatorNotFound
+from ..errors import CodeModelError, SimulationError, SimulatorNotFound
 from . import process
 from .rawfile import Plot, read_raw
 
@@ -41,7 +43,7 @@ def ngspice_path() -> str:
     if chosen:
         path = shutil.which(os.path.expanduser(chosen))
         if not path:
-            raise SimulatorNotFound(f"{ENV}={chosen!r} is not an executable ngspice; point it at one "
+            raise SimulatorNotFound(f"{ENV}={chosen!r} (or --ngspice) is not an executable ngspice; point it at one "
                                     f"(e.g. ~/.cache/netgen/ngspice-46/bin/ngspice) or unset it to use "
                                     f"the ngspice on PATH")
         return path
@@ -94,6 +96,97 @@ def _version(path: str, mtime: int) -> Version:
     return Version(path, int(match.group(1)), int(match.group(2) or 0), "Compiled with KLU" in out)
 
 
+@contextmanager
+def selected(path: str | None) -> Iterator[None]:
+    """Run the block with NETGEN_NGSPICE = `path` (the `--ngspice` option; None: unchanged), as
+    an environment variable so that worker processes and child tools see the same ngspice."""
+    if not path:
+        yield
+        return
+    before = os.environ.get(ENV)
+    os.environ[ENV] = path
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(ENV, None)
+        else:
+            os.environ[ENV] = before
+
+
+def has_osdi(path: str) -> bool:
+    """Was this binary built with OSDI (the `osdi` command)? A build switch that changes the
+    device tables an XSPICE code model hands over, so the code model's build must know it."""
+    return _has_osdi(path, os.stat(path).st_mtime_ns)
+
+
+@lru_cache(maxsize=8)
+def _has_osdi(path: str, mtime: int) -> bool:
+    try:
+        done = subprocess.run([path, "-b"], input="osdi probe\n.control\nosdi\n.endc\n.end\n",
+                              capture_output=True, text=True, timeout=30)
+        out = done.stdout + done.stderr
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise SimulatorNotFound(f"{path} -b failed ({exc}); is it an ngspice?") from exc
+    return "no such command" not in out
+
+
+def identity(path: str | None = None) -> dict:
+    """What a run used, for the outputs that record it: the ngspice's path, release label and
+    the build switches (KLU, OSDI) that a compiled code model depends on."""
+    v = version(path)
+    return {"path": v.path, "version": v.label, "major": v.major, "minor": v.minor, "klu": v.klu,
+            "osdi": has_osdi(v.path)}
+
+
+def same_build(a: dict, b: dict) -> bool:
+    """Two identity() records describe ngspice builds that load the same code models."""
+    return all(a.get(k) == b.get(k) for k in ("major", "minor", "klu", "osdi"))
+
+
+def build_record(cm: str | Path) -> Path:
+    """Where netgen.sim.codemodel records the ngspice a code-model library was built for."""
+    return Path(cm).with_suffix(".json")
+
+
+CODEMODEL_LINE = re.compile(r"^\s*(?:pre_)?codemodel\s+(\S+)", re.I | re.M)
+
+
+def check_code_models(netlist: str, workdir: Path) -> None:
+    """Refuse, before ngspice starts, a netlist that loads a netgen code model built for another
+    ngspice (loading one crashes ngspice: the device tables differ between releases and build
+    switches). Code models without netgen's build record beside them are not netgen's to judge,
+    except netgen's own library names, whose record a build always writes."""
+    here = None
+    for text in CODEMODEL_LINE.findall(netlist):
+        cm = Path(os.path.expanduser(text))
+        cm = cm if cm.is_absolute() else Path(workdir) / cm
+        record = build_record(cm)
+        if not record.exists():
+            if cm.name.startswith("netgen_"):
+                raise CodeModelError(f"{cm} has no build record ({record.name}): netgen cannot tell which "
+                                     f"ngspice it was built for, and one built for another crashes ngspice; "
+                                     f"rebuild it with: netgen codemodel")
+            continue
+        built = json.loads(record.read_text()).get("ngspice", {})
+        here = here or identity()
+        if not same_build(built, here):
+            raise CodeModelError(refusal(cm, built, here))
+
+
+def refusal(cm: Path, built: dict, here: dict) -> str:
+    """Why a code model built for `built` is not loaded into `here`, and the alternatives."""
+    def name(r: dict) -> str:
+        return f"{r.get('version')} ({r.get('path')}" + (", KLU" if r.get("klu") else "") + \
+            (", OSDI" if r.get("osdi") else "") + ")"
+    fast = ("on it the compiled path is OSDI: netgen build --format osdi (the _osdi.lib)" if here.get("osdi")
+            else "on it use the B-source .lib")
+    return (f"{cm.name} was built for {name(built)} and this run uses {name(here)}: a code model built for "
+            f"another ngspice crashes it, so it is not loaded. Run it on the ngspice it was built for "
+            f"(--ngspice {built.get('path')} or NETGEN_NGSPICE), or rebuild it for this one with netgen codemodel "
+            f"where its sources are reachable; {fast}")
+
+
 def diagnose(log: str) -> str | None:
     """Summarise an ngspice failure from its log: cause, node and time when present."""
     for pattern, what in FAILURES:
@@ -125,13 +218,14 @@ def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeou
     """Write `netlist` to workdir/name.cir, run ngspice -b, return the plots of name.raw."""
     exe = ngspice_path()
     workdir = Path(workdir)
+    check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, f"{name}.raw")
     done = process.run([exe, "-b", "-r", str(raw), str(cir)], workdir, timeout, f"ngspice -b {cir}", "ngspice")
-    log.write_text(done.output)
+    log.write_text(log_header() + done.output)
     problem = diagnose(done.output)
     if done.returncode != 0 or not raw.exists() or FAILED.search(done.output) or (problem and fatal(problem)):
         raise SimulationError(f"ngspice failed: {problem or f'exit code {done.returncode}'}; "
-                              f"log {log}; reproduce with: ngspice -b {cir}")
+                              f"log {log}; reproduce with: {exe} -b {cir}")
     return read_raw(raw)
 
 
@@ -140,16 +234,24 @@ def run_control(netlist: str, workdir: str | Path, name: str, raw_name: str, tim
     """Run a netlist whose .control block runs its analyses and writes `raw_name` itself (e.g.
     pausing for progress lines, which `on_line` sees as they are printed); return that plot.
     ngspice exits 1 after a paused-and-resumed run: success is a complete raw file."""
-    workdir = Path(workdir)
+    exe, workdir = ngspice_path(), Path(workdir)
+    check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, raw_name)
-    reproduce = f"cd {workdir} && ngspice -b {cir.name}"
-    done = process.run(process.line_buffered([ngspice_path(), "-b", cir.name]), workdir, timeout, reproduce,
+    reproduce = f"cd {workdir} && {exe} -b {cir.name}"
+    done = process.run(process.line_buffered([exe, "-b", cir.name]), workdir, timeout, reproduce,
                        "ngspice", on_line=on_line)
-    log.write_text(done.output)
+    log.write_text(log_header() + done.output)
     if not raw.exists() or ABORTED.search(done.output):
         raise SimulationError(f"ngspice failed: {diagnose(done.output) or f'exit code {done.returncode}'}; "
                               f"log {log}; reproduce with: {reproduce}")
     return read_raw(raw)[0]
+
+
+def log_header() -> str:
+    """The first line of every ngspice log netgen writes: which ngspice ran (identity())."""
+    who = identity()
+    return f"netgen: ran {who['version']} ({who['path']}; KLU {'yes' if who['klu'] else 'no'}, " \
+           f"OSDI {'yes' if who['osdi'] else 'no'})\n"
 
 
 def _files(workdir: Path, name: str, netlist: str, raw_name: str) -> tuple[Path, Path, Path]:

@@ -1,4 +1,5 @@
-"""XSPICE code-model libraries: build one for the installed ngspice and say where it is.
+"""XSPICE code-model libraries: build one for the ngspice it will be loaded into, say where it is,
+and record that ngspice beside it.
 
 Debian's ngspice 39 cannot load compiled Verilog-A (no OSDI), but it loads XSPICE code models
 (`.cm` shared libraries, `codemodel` / `pre_codemodel`). A Library is a folder of model sources
@@ -8,27 +9,38 @@ all plate terms, forces and contact stops of a macromodel in one compiled instan
 replaces ~220 behavioural sources of the `.lib` (netgen.emit.xspice). The sigma-delta testbench
 builds its own library the same way (netgen.testbench.sigma_delta.ngspice.LOOP_LIBRARY).
 
-Building needs what ngspice's own build of its code models needs: the ngspice source of the
-installed version (for cmpp, the code-model preprocessor, and the headers), flex, bison and gcc.
-The source comes from Debian's source package (`apt-get source`, with a deb-src list kept in the
-cache), unless NETGEN_NGSPICE_SOURCE names an unpacked tree. The result is cached per
-(library sources, ngspice version): `build()` is a no-op after the first call.
+A code model is not portable across ngspice releases or build switches (ngspice checks nothing
+when it loads one, and a mismatched one crashes it: the device tables differ), so the target is
+the ngspice netgen runs (netgen.sim.ngspice.ngspice_path(): NETGEN_NGSPICE / --ngspice), and
+everything is keyed on that binary's own release and switches (KLU, OSDI; identity()). Building
+needs that release's source (cmpp, the code-model preprocessor, and the headers), flex, bison and
+gcc. The source is NETGEN_NGSPICE_SOURCE (an unpacked tree, refused unless its configure.ac is
+the target's release), or Debian's source package of the Debian package that installed the
+target binary (`apt-get source`, with a deb-src list kept in the cache). There is no other:
+without a matching source the build exits 3 (for ngspice 44 and later, with OSDI as the fast
+path). The compile defines the target's KLU and OSDI where the source's headers test them. The
+result is cached per (library sources, target build, source); the build record beside the .cm
+(netgen.sim.ngspice.build_record) names the target, and netgen.sim.ngspice refuses to load the
+.cm into another ngspice.
 """
 
 from __future__ import annotations
 
 import fcntl
 import hashlib
+import json
 import os
+import re
 import shutil
-import subprocess
-import tarfile
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from ... import __version__
 from ...errors import CodeModelError, SimulationError
 from .. import process
+from ..ngspice import build_record, identity
+from . import source
 
 
 @dataclass(frozen=True)
@@ -45,10 +57,9 @@ class Library:
 
 MODEL = Library("netgen_es", Path(__file__).resolve().parent)
 # The configure switches of Debian's ngspice build (debian/rules: --enable-xspice --enable-cider
-# --enable-pss) that change the layout of the device tables a code model hands to ngspice.
-CONFIG_H = "#define XSPICE 1\n#define CIDER 1\n#define WITH_PSS 1\n#define SIMULATOR 1\n"
-# Members of the ngspice source tarball the build reads.
-NEEDED = ("src/include/", "src/xspice/cmpp/", "src/xspice/icm/dlmain.c", "src/misc/dstring.c")
+# --enable-pss) that change the layout of the device tables a code model hands to ngspice; the
+# target's KLU and OSDI are added where its headers test them (defines()).
+BASE_DEFINES = ("XSPICE", "CIDER", "WITH_PSS", "SIMULATOR")
 CFLAGS = ["-O3", "-fPIC", "-fvisibility=hidden", "-fno-math-errno", "-fno-trapping-math",
           "-fassociative-math", "-fno-signed-zeros"]
 
@@ -60,20 +71,16 @@ def cache_dir() -> Path:
     return Path(base) / "codemodel"
 
 
-def ngspice_version() -> str:
-    """The installed Debian ngspice package version (e.g. 39.3+ds-1)."""
-    try:
-        out = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "ngspice"], capture_output=True, text=True)
-    except FileNotFoundError as exc:
-        raise CodeModelError("dpkg-query not found: the code model is built against Debian's ngspice package") from exc
-    if out.returncode != 0 or not out.stdout.strip():
-        raise CodeModelError("ngspice is not installed as a Debian package; fix: apt-get install ngspice")
-    return out.stdout.strip()
+def target() -> dict:
+    """The ngspice the code model will be loaded into (the one netgen runs) and its build switches."""
+    return identity()
 
 
-def sources_digest(version: str, library: Library = MODEL) -> str:
-    """Cache key: the library's sources, the config and the ngspice version."""
-    h = hashlib.sha256(version.encode() + CONFIG_H.encode() + " ".join(CFLAGS).encode())
+def sources_digest(tgt: dict, src: source.Source, library: Library = MODEL) -> str:
+    """Cache key: the library's sources, the target ngspice's release and switches, the source
+    it is built from and the compile flags."""
+    build = {k: tgt[k] for k in ("major", "minor", "klu", "osdi")}
+    h = hashlib.sha256(json.dumps([build, src.label, BASE_DEFINES, CFLAGS], sort_keys=True).encode())
     for f in sorted(library.sources.rglob("*")):
         if f.is_file() and f.suffix in (".ifs", ".mod", ".lst"):
             h.update(f.relative_to(library.sources).as_posix().encode() + f.read_bytes())
@@ -81,9 +88,20 @@ def sources_digest(version: str, library: Library = MODEL) -> str:
 
 
 def path(library: Library = MODEL) -> Path:
-    """Where the library for the installed ngspice is (or will be) cached."""
-    version = ngspice_version()
-    return cache_dir() / f"{library.name}-{sources_digest(version, library)}.cm"
+    """Where the library for the target ngspice is (or will be) cached; a CodeModelError when
+    no source of the target's release is reachable."""
+    tgt = target()
+    return cache_dir() / f"{library.name}-{sources_digest(tgt, source.find(tgt), library)}.cm"
+
+
+def defines(tree: Path, tgt: dict) -> list[str]:
+    """The preprocessor switches of the compile: Debian's configure switches, and the target's KLU
+    and OSDI where the source's headers test them (they add members to IFdevice and SPICEdev)."""
+    headers = [*(tree / "src/include/ngspice").glob("*.h"), tree / "src/xspice/icm/dlmain.c"]
+    text = "\n".join(f.read_text(errors="replace") for f in headers if f.is_file())
+    extra = [name for name in ("KLU", "OSDI") if tgt.get(name.lower())
+             and re.search(rf"^\s*#\s*if(?:def\s+{name}\b|.*defined\s*\(?\s*{name}\b)", text, re.M)]
+    return [*BASE_DEFINES, *extra]
 
 
 def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 900.0) -> None:
@@ -96,49 +114,6 @@ def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 9
         raise CodeModelError(str(exc)) from None
     if done.returncode != 0:
         raise CodeModelError(f"{' '.join(argv)} failed in {cwd}:\n{done.output[-2000:]}")
-
-
-def _fetch_source(version: str, dest: Path) -> Path:
-    """Download Debian's ngspice source package (orig tarball) into dest; return the tarball."""
-    upstream = version.split("-")[0]
-    have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
-    if have:
-        return have[0]
-    suites = subprocess.run(["sh", "-c", ". /etc/os-release && echo $VERSION_CODENAME"],
-                            capture_output=True, text=True).stdout.strip() or "bookworm"
-    lists = dest / "apt-lists"
-    (lists / "partial").mkdir(parents=True, exist_ok=True)
-    src = dest / "deb-src.list"
-    src.write_text(f"deb-src http://deb.debian.org/debian {suites} main\n")
-    opts = ["-o", f"Dir::Etc::sourcelist={src}", "-o", "Dir::Etc::sourceparts=-",
-            "-o", f"Dir::State::Lists={lists}", "-o", "APT::Get::List-Cleanup=0", "-qq"]
-    _run(["apt-get", *opts, "update"], dest)
-    _run(["apt-get", *opts, "source", "--download-only", f"ngspice={version}"], dest)
-    have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
-    if not have:
-        raise CodeModelError(f"apt-get source ngspice={version} gave no orig tarball in {dest}; fix: set "
-                             "NETGEN_NGSPICE_SOURCE to an unpacked ngspice source tree of that version")
-    return have[0]
-
-
-def _source_tree(version: str, work: Path) -> Path:
-    """An ngspice source tree holding NEEDED: NETGEN_NGSPICE_SOURCE, or the unpacked Debian source."""
-    given = os.environ.get("NETGEN_NGSPICE_SOURCE")
-    if given:
-        root = Path(given)
-        if not (root / "src/xspice/cmpp/main.c").exists():
-            raise CodeModelError(f"NETGEN_NGSPICE_SOURCE={given} is not an ngspice source tree "
-                                 "(no src/xspice/cmpp/main.c)")
-        return root
-    tarball = _fetch_source(version, cache_dir() / "ngspice-source")
-    with tarfile.open(tarball) as tar:
-        members = [m for m in tar.getmembers()
-                   if any(part in m.name for part in NEEDED) and ".." not in m.name and not m.issym()]
-        tar.extractall(work / "src", members=members, filter="data")
-    tops = {Path(m.name).parts[0] for m in members}
-    if len(tops) != 1:
-        raise CodeModelError(f"unexpected layout of {tarball}")
-    return work / "src" / tops.pop()
 
 
 def _cmpp(tree: Path, work: Path) -> Path:
@@ -157,29 +132,37 @@ def _cmpp(tree: Path, work: Path) -> Path:
 
 
 def build(library: Library = MODEL, force: bool = False, progress=print) -> Path:
-    """Build (or find in the cache) a code-model library for the installed ngspice; its path."""
-    target = path(library)
-    if target.exists() and not force:
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with open(target.parent / "build.lock", "w") as lock:   # parallel test workers build it once
+    """Build (or find in the cache) a code-model library for the target ngspice; its path. The
+    source is chosen (and a mismatched one refused) before the cache is looked at."""
+    tgt = target()
+    src = source.find(tgt)
+    cm = cache_dir() / f"{library.name}-{sources_digest(tgt, src, library)}.cm"
+    if _complete(cm) and not force:
+        return cm
+    cm.parent.mkdir(parents=True, exist_ok=True)
+    with open(cm.parent / "build.lock", "w") as lock:   # parallel test workers build it once
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if target.exists() and not force:
-            return target
-        return _build(target, library, progress)
+        if _complete(cm) and not force:
+            return cm
+        return _build(cm, library, tgt, src, progress)
 
 
-def _build(target: Path, library: Library, progress) -> Path:
-    """Fetch, preprocess and compile into `target` (atomically)."""
-    version = ngspice_version()
+def _complete(cm: Path) -> bool:
+    """A cached build: the .cm and its build record."""
+    return cm.exists() and build_record(cm).exists()
+
+
+def _build(cm: Path, library: Library, tgt: dict, src: source.Source, progress) -> Path:
+    """Fetch, preprocess and compile into `cm` (atomically), its build record beside it."""
     with tempfile.TemporaryDirectory(prefix="netgen-cm-") as tmp:
         work = Path(tmp)
-        progress(f"codemodel: building {', '.join(library.models)} for ngspice {version} in {work}")
-        tree = _source_tree(version, work)
+        progress(f"codemodel: building {', '.join(library.models)} for {tgt['version']} ({tgt['path']}) in {work}")
+        tree = source.unpack(src, tgt, work, cache_dir(), _run)
         cmpp = _cmpp(tree, work)
         gen = work / "gen"
+        switches = defines(tree, tgt)
         (work / "cfg/ngspice").mkdir(parents=True)
-        (work / "cfg/ngspice/config.h").write_text(CONFIG_H)
+        (work / "cfg/ngspice/config.h").write_text("".join(f"#define {d} 1\n" for d in switches))
         env = dict(os.environ, CMPP_IDIR=str(library.sources), CMPP_ODIR=str(gen))
         gen.mkdir()
         _run([str(cmpp), "-lst"], gen, env)
@@ -192,15 +175,38 @@ def _build(target: Path, library: Library, progress) -> Path:
             _run([str(cmpp), "-mod"], gen, env)
             sources += [gen / name / "cfunc.c", gen / name / "ifspec.c"]
         objs = []
-        for src in sources:
-            obj = gen / f"{src.parent.name}_{src.stem}.o"
-            _run(["gcc", *CFLAGS, *inc, "-I", str(src.parent), "-c", str(src), "-o", str(obj)], gen)
+        for c in sources:
+            obj = gen / f"{c.parent.name}_{c.stem}.o"
+            _run(["gcc", *CFLAGS, *inc, "-I", str(c.parent), "-c", str(c), "-o", str(obj)], gen)
             objs.append(str(obj))
-        tmp_cm = target.with_suffix(f".{os.getpid()}.tmp")
+        tmp_cm = cm.with_suffix(f".{os.getpid()}.tmp")
         _run(["gcc", "-shared", *CFLAGS, *objs, "-lm", "-o", str(tmp_cm)], gen)
-        os.replace(tmp_cm, target)
-    progress(f"codemodel: {target}")
-    return target
+        record = {"library": library.name, "models": list(library.models), "ngspice": tgt, "source": src.label,
+                  "defines": switches, "cflags": CFLAGS, "netgen": __version__}
+        tmp_record = build_record(cm).with_suffix(f".{os.getpid()}.json.tmp")
+        tmp_record.write_text(json.dumps(record, indent=1) + "\n")
+        os.replace(tmp_record, build_record(cm))      # the record first: a .cm never stands without one
+        os.replace(tmp_cm, cm)
+    progress(f"codemodel: {cm} (built for {tgt['version']}, {' '.join(switches)})")
+    return cm
+
+
+def built_for(library: Library = MODEL) -> list[dict]:
+    """The ngspice builds (identity() records) the cache holds a build of `library` for."""
+    found = []
+    for rec in sorted(cache_dir().glob(f"{library.name}-*.json")):
+        try:
+            who = json.loads(rec.read_text())["ngspice"]
+        except (OSError, ValueError, KeyError):
+            continue
+        if rec.with_suffix(".cm").exists() and who not in found:
+            found.append(who)
+    return found
+
+
+def record(cm: Path) -> dict:
+    """The build record of a code-model library (what it was built for and from)."""
+    return json.loads(build_record(cm).read_text())
 
 
 def control_lines(*cms: Path) -> list[str]:
