@@ -15,7 +15,7 @@ from .build import build, write_figures
 from .emit import EMITTERS, formats, refusal, write_outputs
 from .errors import InputError, NetgenError
 from .executor import add_scheduler_option, executor
-from .sim import SIMULATORS, codemodel
+from .sim import SIMULATORS, codemodel, ngspice
 from .structure import load_structure
 from .sweep import cli as sweep_cli
 from .testbench import TESTBENCHES
@@ -81,6 +81,8 @@ def _simulate(args: argparse.Namespace) -> int:
     netlist = Path(args.netlist).read_text(encoding="utf-8")
     plots = SIMULATORS[args.simulator].run(netlist, Path(args.output), Path(args.netlist).stem, args.timeout)
     if not args.quiet:
+        if args.simulator == "ngspice":                  # its log's first line records the same
+            print(f"ran {ngspice.version().label} ({ngspice.version().path})")
         for plot in plots:
             print(f"{plot.name}: {len(plot.vectors)} vectors, {len(next(iter(plot.vectors.values())))} points")
     return 0
@@ -106,7 +108,8 @@ def _codemodel(args: argparse.Namespace) -> int:
     print(cm)
     if not args.quiet:
         print("load it with these .control lines:\n  " + "\n  ".join(codemodel.control_lines(cm)), file=sys.stderr)
-        print(f"(the sigma-delta testbench's compiled loop: {loop})", file=sys.stderr)
+        print(f"(the sigma-delta testbench's compiled loop: {loop}); built for "
+              f"{codemodel.record(cm)['ngspice']['version']}, recorded in {ngspice.build_record(cm)}", file=sys.stderr)
     return 0
 
 
@@ -123,6 +126,8 @@ def _add_codemodel(sub) -> None:
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="netgen", description=__doc__)
     p.add_argument("--version", action="version", version=f"netgen {__version__}")
+    p.add_argument("--ngspice", metavar="PATH", help="the ngspice to run and build code models for (default: "
+                   f"${ngspice.ENV}, else the ngspice on PATH), e.g. ~/.cache/netgen/ngspice-46/bin/ngspice")
     sub = p.add_subparsers(dest="command", required=True)
     _add_build(sub)
     _add_simulate(sub)
@@ -137,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the `netgen` console command: the one error boundary of every subcommand."""
     args = parser().parse_args(argv)
     try:
-        return args.func(args)
+        with ngspice.selected(args.ngspice):        # --ngspice: the same setting as NETGEN_NGSPICE
+            return args.func(args)
     except InputError as exc:
         print(f"netgen: error in {exc.what} {exc}", file=sys.stderr)
         return exc.exit_code
