@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from ..build import build_model
 from ..emit import write_outputs
+from ..sim.ngspice import identity, same_build
 from ..structure import parse_structure
 from ..testbench import sigma_delta as sd
 from .plan import RunSpec, plan
@@ -87,6 +88,12 @@ def _attempts(folder: Path) -> int:
         return 1
 
 
+def _same_ngspice(summary: dict) -> bool:
+    """A finished run is reused only if it ran in the ngspice this sweep runs (or in none)."""
+    ran = summary.get("ngspice")
+    return not ran or same_build(ran, identity())
+
+
 def _row(spec: RunSpec, record: dict) -> dict:
     row: dict[str, Any] = {"run": spec.name, "status": record["status"], "attempts": record.get("attempts", 1)}
     for k, v in spec.params.items():
@@ -98,6 +105,7 @@ def _row(spec: RunSpec, record: dict) -> dict:
             row[f"{c}.{m}"] = ch.get(m)
     row["gravity_balance.ratio"] = (s.get("gravity_balance") or {}).get("ratio")
     row["wall_s"] = s.get("wall_s")
+    row["ngspice"] = (s.get("ngspice") or {}).get("version")        # the ngspice the run ran in (None: VACASK)
     row["error"] = record.get("error") or ""
     row["dir"] = spec.dir
     return row
@@ -116,7 +124,7 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
             summary = json.loads((folder / "summary.json").read_text())
         except (OSError, ValueError):
             continue
-        if old.get("key") == spec.key and not (folder / "error.txt").exists():
+        if old.get("key") == spec.key and not (folder / "error.txt").exists() and _same_ngspice(summary):
             records[spec.index] = {"status": "ok", "summary": summary, "attempts": _attempts(folder), "reused": True}
     todo = [r for r in runs if r.index not in records]
     models = {}

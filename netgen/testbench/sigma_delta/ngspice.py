@@ -19,7 +19,8 @@ from ...emit import xspice
 from ...files import write_files_atomic
 from ...model import MacroModel
 from ...sim import codemodel
-from ...sim.ngspice import run_control
+from ...errors import CodeModelError
+from ...sim.ngspice import run_control, same_build
 from ...templating import render
 from .analysis import levitation, per_clock
 from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
@@ -180,9 +181,21 @@ LOOP_LIBRARY = codemodel.Library("netgen_sdloop", Path(__file__).resolve().paren
 
 def code_models(progress: bool) -> list[Path]:
     """The code-model libraries the compiled loop loads: the model's (netgen_es, for the xspice
-    .lib) and the loop's own (netgen_sdloop); each built once (netgen.sim.codemodel)."""
+    .lib) and the loop's own (netgen_sdloop); each built once (netgen.sim.codemodel) for the
+    ngspice that runs. Where none can be built for it: a CodeModelError (exit 3) naming it, the
+    ngspice builds the code models exist for, and the alternatives, before anything runs."""
     say = (lambda m: print(m, file=sys.stderr)) if progress else (lambda m: None)
-    return [codemodel.build(codemodel.MODEL, progress=say), codemodel.build(LOOP_LIBRARY, progress=say)]
+    try:
+        return [codemodel.build(codemodel.MODEL, progress=say), codemodel.build(LOOP_LIBRARY, progress=say)]
+    except CodeModelError as exc:
+        here = codemodel.target()
+        there = [w for w in codemodel.built_for(LOOP_LIBRARY) if not same_build(w, here)]
+        where = ("; netgen's code models here are built for " + ", ".join(f"{w['version']} ({w['path']}): run on "
+                 f"it with --ngspice {w['path']}" for w in there)) if there else ""
+        osdi = " or --simulator ngspice-osdi (the compiled path of this ngspice)" if here["osdi"] else ""
+        raise CodeModelError(f"--simulator ngspice-xspice loads compiled code models into {here['version']} "
+                             f"({here['path']}) and none can be built for it{where}; or use --simulator ngspice "
+                             f"(the .lib){osdi}. Why: {exc}") from None
 
 
 def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path, list[str]]:

@@ -20,6 +20,7 @@ import numpy as np
 from ...build import build_model
 from ...emit import write_outputs
 from ...model import MacroModel
+from ...sim.ngspice import identity as ngspice_identity
 from ...sim.vacask import stats as vacask_stats
 from ...structure import Damping, load_structure
 from . import ngspice, vacask
@@ -56,7 +57,7 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
         loop = "xspice"
     clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, segment,
                                                         control, loop)
-    return clock, {"breakpoints": breakpoints, "segments": segments}
+    return clock, {"breakpoints": breakpoints, "segments": segments, "ngspice": ngspice_identity()}
 
 
 def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
