@@ -15,7 +15,7 @@ import pytest
 from netgen.emit import xspice
 from netgen.emit.common import time_scale
 from netgen.model import MacroModel
-from netgen.sim import codemodel
+from netgen.sim import codemodel, ngspice
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = "examples/levitated_disk.toml"        # relative to ROOT: the path the netlist header names
@@ -23,6 +23,31 @@ NETLISTS = ROOT / "netlists"
 # the two ngspice releases the suite runs: Debian 12's (on PATH) and bookworm-backports' 46, which
 # .ci/setup unpacks into a private prefix; netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
 NGSPICE = {"39": "ngspice", "46": str(Path.home() / ".cache/netgen/ngspice-46/bin/ngspice")}
+# the ngspice emissions the physics tests run, per release: the B-source .lib on both, the xspice
+# .lib (the netgen_es code model) on 39 only, where its source is reachable; on 46 the code model
+# is refused with exit 3 (tests/sim/test_codemodel.py, tests/testbench/test_sigma_delta.py)
+EMISSIONS = [("39", "fast"), ("39", "xspice"), ("46", "fast")]
+
+
+def emission_id(param: tuple[str, str]) -> str:
+    """Test ids such as 39-fast, 46-fast."""
+    return "-".join(param)
+
+
+@contextlib.contextmanager
+def using_ngspice(release: str):
+    """NETGEN_NGSPICE set to the NGSPICE release for the block: module-scoped fixtures that
+    simulate set it only around their own run, so it never leaks into other tests."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(ngspice.ENV, NGSPICE[release])
+        yield ngspice.version()
+
+
+@pytest.fixture(params=sorted(NGSPICE))
+def ngspice_version(request, monkeypatch) -> ngspice.Version:
+    """A test that takes it runs once per ngspice release of NGSPICE (NETGEN_NGSPICE set for it)."""
+    monkeypatch.setenv(ngspice.ENV, NGSPICE[request.param])
+    return ngspice.version()
 
 
 @pytest.fixture(scope="session")

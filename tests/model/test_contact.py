@@ -19,7 +19,8 @@ from netgen.model import contact
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
-from tests.fixtures import ROOT, Bench, emitted_library, states
+from netgen.sim.ngspice import ENV
+from tests.fixtures import EMISSIONS, NGSPICE, ROOT, Bench, emission_id, emitted_library, states
 
 NETLISTS = ROOT / "netlists"
 VOLTS = 20.0
@@ -84,9 +85,11 @@ def _check_rest(model: MacroModel, time: np.ndarray, x: np.ndarray) -> None:
     assert np.abs(x[rest, 1:]).max() < 1e-2
 
 
-@pytest.mark.parametrize("style", ["fast", "xspice"])
-def test_ngspice_plate_pulled_in_rests_at_the_stop(model, style, tmp_path):
-    """Both ngspice emissions: B-sources, and the clamp and stops inside the netgen_es code model."""
+@pytest.mark.parametrize("release, style", EMISSIONS, ids=[emission_id(e) for e in EMISSIONS])
+def test_ngspice_plate_pulled_in_rests_at_the_stop(model, release, style, tmp_path, monkeypatch):
+    """Both ngspice emissions: B-sources, and the clamp and stops inside the netgen_es code model;
+    the .lib in ngspice 39 and 46."""
+    monkeypatch.setenv(ENV, NGSPICE[release])
     lib, control = emitted_library(model, style, tmp_path, NETLISTS / "levitated_disk.lib")
     sources = {e.name: f"DC {VOLTS}" for e in model.electrodes if e.name.startswith("top")} | {"plate": "0"}
     bench = Bench(model, lib, sources=sources, options="reltol=1e-4 chgtol=1e-18", control=control)

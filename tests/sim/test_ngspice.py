@@ -7,7 +7,8 @@
 - floating plate: total plate charge conserved over 10^4 switching events.
 
 Each runs on both ngspice emissions: the B-source .lib (netlists/) and the xspice .lib whose plate
-terms, forces and stops are the compiled netgen_es code model (netgen.sim.codemodel).
+terms, forces and stops are the compiled netgen_es code model (netgen.sim.codemodel); the .lib in
+ngspice 39 and 46, the xspice .lib in 39 (fixtures.EMISSIONS).
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ from scipy.optimize import fsolve
 
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
-from tests.fixtures import ROOT, Bench, Pulse, emitted_library, states, transient_drive
+from netgen.sim.ngspice import ENV
+from tests.fixtures import (EMISSIONS, NGSPICE, ROOT, Bench, Pulse, emission_id, emitted_library, states,
+                            transient_drive)
 
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 
@@ -31,12 +34,15 @@ def model() -> MacroModel:
     return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
 
 
-@pytest.fixture(params=["fast", "xspice"])
-def lib(request, model, tmp_path) -> tuple[Path, list[str]]:
-    """Both ngspice emissions: B-sources (the committed .lib) and the compiled XSPICE code model."""
+@pytest.fixture(params=EMISSIONS, ids=emission_id)
+def lib(request, model, tmp_path, monkeypatch) -> tuple[Path, list[str]]:
+    """Both ngspice emissions: B-sources (the committed .lib) and the compiled XSPICE code model,
+    each in the ngspice releases it runs in (NETGEN_NGSPICE set for the test)."""
+    release, style = request.param
+    monkeypatch.setenv(ENV, NGSPICE[release])
     folder = tmp_path / "lib"
     folder.mkdir()
-    return emitted_library(model, request.param, folder, LIB)
+    return emitted_library(model, style, folder, LIB)
 
 
 def _names(model: MacroModel) -> list[str]:

@@ -11,8 +11,11 @@ import sys
 import numpy as np
 import pytest
 
+from netgen import cli
 from netgen.errors import SimulationError, SimulatorNotFound
-from netgen.sim.ngspice import run_ngspice
+from netgen.sim.ngspice import ENV, run_ngspice
+from netgen.sim.rawfile import read_raw
+from tests.fixtures import NGSPICE
 
 # dv/dt = v^2 with v(0) = 1 blows up at t = 1 s: ngspice aborts with "timestep too small" near t = 1
 BLOW_UP = """* finite-time blow-up
@@ -71,3 +74,18 @@ def test_cli_reports_a_failed_simulation_with_exit_1(tmp_path):
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1
     assert "timestep too small" in proc.stderr and "node n" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("release", sorted(NGSPICE))
+def test_ngspice_option_selects_the_ngspice_and_the_log_names_it(release, tmp_path, monkeypatch, capsys):
+    """`netgen --ngspice PATH simulate` runs that ngspice (NETGEN_NGSPICE unset): the divider's
+    0.75 V, the log's first line and the summary name the release, and the option does not
+    outlive the command."""
+    monkeypatch.delenv(ENV, raising=False)
+    cir = tmp_path / "div.cir"
+    cir.write_text("divider\nV1 in 0 1\nR1 in mid 1k\nR2 mid 0 3k\n.op\n.end\n")
+    assert cli.main(["--ngspice", NGSPICE[release], "simulate", str(cir), "-o", str(tmp_path / "run")]) == 0
+    assert np.isclose(read_raw(tmp_path / "run" / "div.raw")[0]["mid"][0], 0.75)
+    assert (tmp_path / "run" / "div.log").read_text().startswith(f"netgen: ran ngspice-{release} (")
+    assert f"ran ngspice-{release} (" in capsys.readouterr().out
+    assert ENV not in os.environ

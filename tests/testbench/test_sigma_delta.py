@@ -11,19 +11,24 @@ Long runs (2^16 cycles, T_s = 3.2 us, eigenmode notch, tone cross-coupling): exa
 
 from __future__ import annotations
 
+import json
+import shutil
 import subprocess
 
 import numpy as np
 import pytest
 
+from netgen import cli
+from netgen.sim import codemodel
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import cli as sd_cli
 from netgen.testbench.sigma_delta import ngspice as sdn
 from netgen.model import MacroModel
 from netgen.sim.ngspice import ngspice_path
 from netgen.sim.rawfile import read_raw
+from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY
 
-from tests.fixtures import ROOT
+from tests.fixtures import NGSPICE, ROOT, using_ngspice
 
 CYCLES, SKIP, TS = 160, 32, 1e-6
 SEGMENT = 64            # the run goes in 3 segments (64, 64, 32), as long runs do (sdn.run_segments)
@@ -34,17 +39,26 @@ def model() -> MacroModel:
     return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
 
 
-@pytest.fixture(scope="module", params=["ngspice", "ngspice-xspice"])
+# (ngspice release, --simulator): the behavioural loop in 39 and 46, the compiled one in 39 (on 46
+# it is refused: test_compiled_loop_is_refused_on_an_ngspice_without_its_code_model)
+LOOPS = [("39", "ngspice"), ("39", "ngspice-xspice"), ("46", "ngspice")]
+
+
+@pytest.fixture(scope="module", params=LOOPS, ids=lambda p: "-".join(p))
 def loop(model, tmp_path_factory, request) -> dict:
     """One ngspice run of the loop in 3 segments, each restarted at t = 0 from the state the
     previous one ended in, analysed; about 15 s. The checks below then
     also hold across the restarts (the momentum balance would see an impulse at a restart).
     Twice: the B-source .lib in the behavioural-source loop (`--simulator ngspice`), and the
     compiled run (`ngspice-xspice`: the netgen_es code-model .lib in the compiled loop
-    netgen_sdloop, whose own state crosses the restarts as cur0/prev0/b0; ~3 s)."""
+    netgen_sdloop, whose own state crosses the restarts as cur0/prev0/b0; ~3 s); the behavioural
+    loop also in ngspice 46 (NETGEN_NGSPICE set around the run only)."""
+    release, simulator = request.param
     out = tmp_path_factory.mktemp("sigma_delta")
-    return sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
-                  plots=False, skip=SKIP, segment=SEGMENT, simulator=request.param)
+    with using_ngspice(release):
+        s = sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
+                   plots=False, skip=SKIP, segment=SEGMENT, simulator=simulator)
+    return s | {"release": release, "written": json.loads((out / "summary.json").read_text())}
 
 
 def test_design_follows_the_model(model):
@@ -151,6 +165,23 @@ def test_run_went_in_segments(loop):
     assert seg["ngspice_runs"] >= 3 and seg["periods"] == SEGMENT and seg["periods_run"] == CYCLES
     assert sum(n.startswith("x1.") for n in seg["state_nodes"]) == 14 and len(seg["state_nodes"]) == 26
     assert loop["simulator"] in ("ngspice", "ngspice-xspice") and loop["design"]["reltol"] == 1e-3
+    ran = loop["written"]["ngspice"]                         # summary.json names the ngspice it ran in
+    assert ran["version"] == f"ngspice-{loop['release']}" and ran["path"] == shutil.which(NGSPICE[loop["release"]])
+
+
+def test_compiled_loop_is_refused_on_an_ngspice_without_its_code_model(model, tmp_path, capsys):
+    """`--simulator ngspice-xspice` in ngspice 46 (no source of 46 is reachable, so no code model
+    for it): exit 3 before ngspice starts and before any output, naming 46, the release the code
+    models are built for (39, as the other tests here built them) and the alternatives."""
+    assert codemodel.build(LOOP_LIBRARY, progress=lambda m: None).exists()          # the 39 build
+    out = tmp_path / "run"
+    code = cli.main(["--ngspice", NGSPICE["46"], "sigma-delta", "examples/levitated_disk.toml", "--model",
+                     str(ROOT / "netlists" / "levitated_disk.json"), "--simulator", "ngspice-xspice",
+                     "-o", str(out), "--cycles", "64", "-q"])
+    err = capsys.readouterr().err
+    assert code == 3 and not out.exists(), err
+    assert "ngspice-46" in err and "built for ngspice-39" in err and "--simulator ngspice-osdi" in err
+    assert "Traceback" not in err
 
 
 def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_path):

@@ -104,6 +104,29 @@ def defines(tree: Path, tgt: dict) -> list[str]:
     return [*BASE_DEFINES, *extra]
 
 
+def ifs_problems(ifs_text: str) -> list[str]:
+    """Parameters of an .ifs that some cmpp from 39 on rejects: a default value with
+    `Null_Allowed: no` (cmpp 43 and later: "Default value given for parameter ... but the user
+    must set instance value"; 39 accepts it). Empty when every cmpp takes the file."""
+    bad = []
+    for table in ifs_text.split("PARAMETER_TABLE:")[1:]:
+        rows = {m.group(1): m.group(2).split() for m in re.finditer(r"^(\w+):\s*(.*)$", table, re.M)}
+        names = rows.get("Parameter_Name", [])
+        bad += [n for n, d, null in zip(names, rows.get("Default_Value", []), rows.get("Null_Allowed", []))
+                if d != "-" and null == "no"]
+    return bad
+
+
+def _check_ifs(library: Library) -> None:
+    """Refuse a library whose .ifs a newer cmpp would reject, whatever cmpp this build uses."""
+    for name in library.models:
+        ifs = library.sources / name / "ifspec.ifs"
+        bad = ifs_problems(ifs.read_text())
+        if bad:
+            raise CodeModelError(f"{ifs}: parameters {', '.join(bad)} have a Default_Value and Null_Allowed: no, "
+                                 f"which cmpp 43 and later reject; give them Default_Value: - (or allow null)")
+
+
 def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 900.0) -> None:
     """One build step (netgen.sim.process: with a wall-clock limit); a failure is a CodeModelError."""
     try:
@@ -154,6 +177,7 @@ def _complete(cm: Path) -> bool:
 
 def _build(cm: Path, library: Library, tgt: dict, src: source.Source, progress) -> Path:
     """Fetch, preprocess and compile into `cm` (atomically), its build record beside it."""
+    _check_ifs(library)
     with tempfile.TemporaryDirectory(prefix="netgen-cm-") as tmp:
         work = Path(tmp)
         progress(f"codemodel: building {', '.join(library.models)} for {tgt['version']} ({tgt['path']}) in {work}")
