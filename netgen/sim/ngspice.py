@@ -220,7 +220,8 @@ def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeou
     workdir = Path(workdir)
     check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, f"{name}.raw")
-    done = process.run([exe, "-b", "-r", str(raw), str(cir)], workdir, timeout, f"ngspice -b {cir}", "ngspice")
+    # names relative to workdir, ngspice's working folder (a relative workdir would resolve twice)
+    done = process.run([exe, "-b", "-r", raw.name, cir.name], workdir, timeout, f"ngspice -b {cir}", "ngspice")
     log.write_text(log_header() + done.output)
     problem = diagnose(done.output)
     if done.returncode != 0 or not raw.exists() or FAILED.search(done.output) or (problem and fatal(problem)):
