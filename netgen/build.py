@@ -18,6 +18,7 @@ import numpy as np
 from .constants import EPS0
 from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
 from .electrostatics import imported as imported_capacitance
+from .errors import StructureError
 from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout
 from .fit.capacitance import CapacitanceFit, fit_all
 from .fit.energy import energy_entry, fit_energy
@@ -56,9 +57,10 @@ def build(s: Structure, progress: bool = False, **parallel) -> Build:
     plate, shapes = plate_outline(s), electrodes(s)
     ext = extractor(s, plate)
     prepared = ext.prepare(shapes, plate, m.basis)
-    scales = coordinate_scales(prepared, m.names, np.array([e.gap for e in shapes]))
+    scales = scales_of(s, prepared, m, shapes)
     if imp and imp.capacitance:
-        grid, holdout = imported_capacitance.samples(imp.capacitance, m.names, [e.name for e in shapes], scales)
+        grid, holdout = imported_capacitance.samples(imp.capacitance, m.names, [e.name for e in shapes], scales,
+                                                     plate_estimates(s, shapes, plate), s.fit.degree)
     else:
         grid = sample_grid(s, prepared, scales, progress, **parallel)
         holdout = sample_holdout(s, prepared, scales, progress, **parallel)
@@ -70,6 +72,23 @@ def build(s: Structure, progress: bool = False, **parallel) -> Build:
         if imp.capacitance:
             model.report["electrostatics"] = {"extractor": f"imported table {Path(imp.capacitance).name}"}
     return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model)
+
+
+def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode]) -> np.ndarray:
+    """The touching amplitudes; an imported mode that moves no electrode's gap is the modes file's fault."""
+    try:
+        return coordinate_scales(prepared, m.names, np.array([e.gap for e in shapes]))
+    except ValueError as exc:
+        if not (s.imports and s.imports.modes):
+            raise
+        raise StructureError(s.imports.modes, "import.modes", str(exc),
+                             "export the vertical displacement of each mode at the conductor's nodes") from None
+
+
+def plate_estimates(s: Structure, shapes: list[ShapeElectrode], plate: Plate) -> np.ndarray:
+    """eps A / g of each electrode at rest: the scale an imported capacitance table must be near."""
+    eps = EPS0 * s.electrostatics.relative_permittivity
+    return np.array([eps * overlap_area(e, plate) / e.gap for e in shapes])
 
 
 def build_model(s: Structure, progress: bool = False) -> MacroModel:

@@ -27,73 +27,121 @@ import math
 from pathlib import Path
 
 import numpy as np
-import scipy.io
 from scipy.interpolate import CloughTocher2DInterpolator, CubicSpline
 from scipy.spatial import ConvexHull, cKDTree
 
-from ..errors import StructureError
-from ..files import read_csv
+from ..files import load_npz, read_csv
 from ..structure import RIGID_COORDINATES, Structure
 from .base import RIGID, Mechanics, rigid_field
 from .fields import P2Field
+from .import_checks import (check_duplicate_nodes, check_full, check_nodes, fail, line_of, modal_values,
+                            read_matrix, where_row)
+
+WHERE = "import.modes"
 
 
-def _fail(path: str | Path, where: str, problem: str, fix: str) -> StructureError:
-    return StructureError(str(path), where, problem, fix)
-
-
-def read_matrix(path: str | Path, where: str) -> np.ndarray:
-    """A square, symmetric, finite Matrix Market matrix as a dense array."""
-    try:
-        a = scipy.io.mmread(str(path))
-    except Exception as exc:                       # noqa: BLE001 (any parse failure is the user's file)
-        raise _fail(path, where, f"not a Matrix Market file: {exc}",
-                    "export the matrix in Matrix Market coordinate format (.mtx, see docs/import.md)")
-    a = a.toarray() if hasattr(a, "toarray") else np.asarray(a)
-    a = np.asarray(a, dtype=float)
-    if a.ndim != 2 or a.shape[0] != a.shape[1] or a.shape[0] == 0:
-        raise _fail(path, where, f"matrix of shape {a.shape} is not square", "export the full square matrix")
-    if not np.all(np.isfinite(a)):
-        raise _fail(path, where, "matrix has non-finite entries", "check the export")
-    if np.abs(a - a.T).max() > 1e-9 * max(np.abs(a).max(), 1e-300):
-        raise _fail(path, where, "matrix is not symmetric", "export the symmetric mass/stiffness matrix")
-    return a
+MODES_ARRAYS = ("nodes", "vectors", "names", "labels", "length_scale", "triangles", "w_rows")
 
 
 def read_modes(path: str | Path) -> dict:
-    """Node coordinates, vertical displacements per coordinate, names (and optional triangles)."""
+    """Node coordinates, vertical displacements per coordinate, names (and optional triangles,
+    w_rows, length_scale, labels), each checked for type, shape, range and finiteness."""
     path = Path(path)
-    where = "import.modes"
     if path.suffix == ".csv":
-        header, rows = read_csv(path, where)
-        if header[:2] != ["x", "y"] or len(header) < 3:
-            raise _fail(path, where, f"header {header[:3]} does not start with x, y, <coordinate>",
-                        "write a header line: x,y,z,tilt_x,m1,... (one column per coordinate)")
-        data = {"nodes": rows[:, :2], "vectors": rows[:, 2:], "names": header[2:]}
+        t = read_csv(path, WHERE)
+        if t.header[:2] != ["x", "y"] or len(t.header) < 3:
+            raise fail(path, WHERE, f"header {t.header[:3]} does not start with x, y, <coordinate>",
+                       "write a header line: x,y,z,tilt_x,m1,... (one column per coordinate)", t.header_line)
+        data = {"nodes": t.values[:, :2], "vectors": t.values[:, 2:], "names": t.header[2:], "lines": t.lines}
     else:
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in ("nodes", "vectors", "names") if k not in z]
-            if missing:
-                raise _fail(path, where, f"missing arrays {missing}", "save nodes, vectors and names (np.savez)")
-            data = {k: z[k] for k in z.files}
-        data["names"] = [str(n) for n in data["names"]]
-    nodes, vectors = np.asarray(data["nodes"], float), np.asarray(data["vectors"], float)
-    if nodes.ndim != 2 or nodes.shape[1] != 2:
-        raise _fail(path, where, f"nodes has shape {nodes.shape}, expected (npts, 2)", "give x, y per node in m")
-    if vectors.ndim != 2 or vectors.shape[1] != len(data["names"]):
-        raise _fail(path, where, f"vectors has shape {vectors.shape} for {len(data['names'])} names",
-                    "one column per coordinate name")
-    if "w_rows" not in data and vectors.shape[0] != nodes.shape[0]:
-        raise _fail(path, where, f"{vectors.shape[0]} vector rows for {nodes.shape[0]} nodes",
-                    "give one row per node, or full eigenvectors with w_rows")
-    if not (np.all(np.isfinite(nodes)) and np.all(np.isfinite(vectors))):
-        raise _fail(path, where, "non-finite node coordinates or eigenvector entries", "check the export")
-    for n in data["names"]:
-        if not n.isidentifier() or "error" in n.lower():
-            raise _fail(path, where, f"coordinate name {n!r} is not a simple identifier",
-                        "use letters, digits and _ (e.g. m1, m2)")
-    data["nodes"], data["vectors"], data["path"] = nodes, vectors, str(path)
+        data = load_npz(path, WHERE, ("nodes", "vectors", "names"), MODES_ARRAYS)
+        data["names"] = text_array(path, data, "names")
+        data["lines"] = None
+    data["path"] = str(path)
+    check_arrays(path, data)
+    if "w_rows" not in data and "triangles" not in data:
+        keep = check_duplicate_nodes(str(path), data["nodes"], data["vectors"], data["lines"])
+        data["nodes"], data["vectors"] = data["nodes"][keep], data["vectors"][keep]
+        data["lines"] = None if data["lines"] is None else data["lines"][keep]
     return data
+
+
+def text_array(path: Path, data: dict, key: str) -> list[str]:
+    """A 1-D array of strings of an .npz (names, labels)."""
+    a = data[key]
+    if a.ndim != 1 or a.dtype.kind not in "US":
+        raise fail(path, WHERE, f"{key} is a {a.dtype} array of shape {a.shape}, not a list of strings",
+                   f"save {key}=np.array(['z', 'm1', ...]) (one string per coordinate)")
+    return [x.decode("utf-8", "replace") if isinstance(x, bytes) else str(x) for x in a]
+
+
+def numeric(path: Path, data: dict, key: str, kinds: str = "iuf") -> np.ndarray:
+    """An array of an .npz (or CSV) that must hold plain numbers."""
+    a = np.asarray(data[key])
+    if a.dtype.kind not in kinds:
+        raise fail(path, WHERE, f"{key} holds {a.dtype} values, not {'integers' if kinds == 'iu' else 'numbers'}",
+                   f"save {key} as a {'integer' if kinds == 'iu' else 'float'} array")
+    return a
+
+
+def check_arrays(path: Path, data: dict) -> None:
+    """Shapes, finiteness and index ranges of the modes arrays (rows named as in the file)."""
+    names, lines = data["names"], data["lines"]
+    nodes = numeric(path, data, "nodes").astype(float)
+    vectors = numeric(path, data, "vectors").astype(float)
+    if nodes.ndim != 2 or nodes.shape[1] != 2 or len(nodes) == 0:
+        raise fail(path, WHERE, f"nodes has shape {nodes.shape}, expected (npts, 2)", "give x, y per node in m")
+    if vectors.ndim != 2 or vectors.shape[1] != len(names):
+        raise fail(path, WHERE, f"vectors has shape {vectors.shape} for {len(names)} names",
+                   "one column per coordinate name")
+    for n in names:
+        if not n.isidentifier() or "error" in n.lower():
+            raise fail(path, WHERE, f"coordinate name {n!r} is not a simple identifier",
+                       "use letters, digits and _ (e.g. m1, m2)")
+        if names.count(n) > 1:
+            raise fail(path, WHERE, f"coordinate {n!r} is named twice", "give each coordinate one column")
+    if "labels" in data and len(np.ravel(data["labels"])) != len(names):
+        raise fail(path, WHERE, f"{len(np.ravel(data['labels']))} labels for {len(names)} coordinates",
+                   "give one label per coordinate (or none)")
+    for key, a in (("nodes", nodes), ("vectors", vectors)):
+        bad = np.argwhere(~np.isfinite(a))
+        if len(bad):
+            r, k = bad[0]
+            col = (["x", "y"] if key == "nodes" else names)[k]
+            raise fail(path, WHERE, f"{key} {where_row(int(r), lines)}, column {col!r}, is {a[r, k]}",
+                       "export finite node coordinates and displacements", line_of(int(r), lines))
+    data["nodes"], data["vectors"] = nodes, vectors
+    check_optional(path, data, len(nodes), len(vectors))
+    if "w_rows" not in data and len(vectors) != len(nodes):
+        raise fail(path, WHERE, f"{len(vectors)} vector rows for {len(nodes)} nodes",
+                   "give one row per node, or full eigenvectors with w_rows")
+    w = vectors[data["w_rows"]] if "w_rows" in data else vectors
+    for k, n in enumerate(names):
+        if not np.any(w[:, k]):
+            raise fail(path, WHERE, f"coordinate {n!r} has zero displacement at every node",
+                       "export the mode shape (vertical displacement per unit amplitude), or drop the column")
+
+
+def check_optional(path: Path, data: dict, npts: int, nrows: int) -> None:
+    """length_scale (positive), w_rows (one vector row per node), triangles (6 node indices each)."""
+    if "length_scale" in data:
+        unit = numeric(path, data, "length_scale")
+        if unit.size != 1 or not math.isfinite(float(unit.ravel()[0])) or not float(unit.ravel()[0]) > 0:
+            raise fail(path, WHERE, f"length_scale = {unit.tolist()} is not one positive number",
+                       "save length_scale = metres per unit of the node coordinates (1.0 for m)")
+        data["length_scale"] = float(unit.ravel()[0])
+    for key, shape, hi in (("w_rows", (npts,), nrows), ("triangles", (None, 6), npts)):
+        if key not in data:
+            continue
+        a = numeric(path, data, key, "iu")
+        if a.ndim != len(shape) or any(want is not None and got != want for got, want in zip(a.shape, shape)) \
+                or a.size == 0:
+            raise fail(path, WHERE, f"{key} has shape {a.shape}, expected {tuple('n' if d is None else d for d in shape)}",
+                       "w_rows: the vertical-DOF row of each node; triangles: 6 node indices per quadratic triangle")
+        if a.min() < 0 or a.max() >= hi:
+            raise fail(path, WHERE, f"{key} holds index {int(a.max() if a.max() >= hi else a.min())} outside 0..{hi - 1}",
+                       f"give 0-based indices below {hi}")
+        data[key] = a.astype(int)
 
 
 def shape_function(s: Structure, data: dict):
@@ -127,7 +175,7 @@ def _check_rigid(data: dict, nodes: np.ndarray, w: np.ndarray, rigid: list[int])
         name = data["names"][k]
         ref = exact[name]
         if np.abs(w[:, k] - ref).max() > 1e-6 * max(np.abs(ref).max(), 1e-300):
-            raise _fail(data.get("path", "modes"), "import.modes", f"column {name!r} is not the rigid-body field "
+            raise fail(data.get("path", "modes"), WHERE, f"column {name!r} is not the rigid-body field "
                         f"({'1' if name == 'z' else 'y' if name == 'tilt_x' else '-x'} per unit, x, y in m)",
                         "rename the column if it is an eigenmode, or export the rigid motion per unit amplitude")
 
@@ -177,35 +225,33 @@ def _p2_disk(p: np.ndarray, w: np.ndarray, tri: np.ndarray, radius: float):
 # ------------------------------------------------------------------ the stage
 
 def mechanics(s: Structure) -> Mechanics:
-    """The Mechanics stage from imported M, K and modes."""
+    """The Mechanics stage from imported M, K and modes, each checked before it is used."""
     imp = s.imports
     data = read_modes(imp.modes)
-    M = read_matrix(imp.mass_matrix, "import.mass_matrix")
-    K = read_matrix(imp.stiffness_matrix, "import.stiffness_matrix")
     names, n = data["names"], len(data["names"])
+    unit = float(data.get("length_scale", 1.0))
+    check_nodes(s, data["path"], data["nodes"] * unit, data["lines"])
+    full = data["vectors"].shape[0]
+    sizes = {n: f"modal, one per coordinate of {Path(imp.modes).name}"}
+    if full != n:
+        sizes[full] = "full, one per eigenvector row"
+    M = read_matrix(imp.mass_matrix, "import.mass_matrix", sizes)
+    K = read_matrix(imp.stiffness_matrix, "import.stiffness_matrix", sizes)
     if M.shape != K.shape:
-        raise _fail(imp.stiffness_matrix, "import.stiffness_matrix", f"K is {K.shape}, M is {M.shape}",
-                    "export M and K of the same model")
+        raise fail(imp.stiffness_matrix, "import.stiffness_matrix", f"K is {K.shape}, M is {M.shape}",
+                   "export M and K of the same model")
     if M.shape[0] == n:
         mr, kr, form = M, K, "modal"
-    elif M.shape[0] == data["vectors"].shape[0]:
+    else:
+        check_full(imp.mass_matrix, imp.stiffness_matrix, M, K)
         phi = data["vectors"]
         mr, kr, form = phi.T @ M @ phi, phi.T @ K @ phi, "full (projected on the eigenvectors)"
-    else:
-        raise _fail(imp.mass_matrix, "import.mass_matrix", f"M is {M.shape}: neither {n} x {n} (modal) nor "
-                    f"{data['vectors'].shape[0]} square (full, one row per eigenvector entry)",
-                    "export the modal matrices or the full matrices matching the eigenvectors")
     mass, stiff = np.diag(mr).copy(), np.diag(kr).copy()
-    off = max(_offdiag(mr), _offdiag(kr))
-    if off > 1e-6:
-        raise _fail(imp.modes, "import.modes", f"the modal matrices are not diagonal (largest relative "
-                    f"off-diagonal {off:.2e})", "export mass-orthogonal eigenvectors (both tools' default)")
-    if np.any(mass <= 0) or np.any(stiff < -1e-9 * np.abs(stiff).max()):
-        raise _fail(imp.mass_matrix, "import.mass_matrix", "modal masses must be positive and stiffnesses >= 0",
-                    "check the export")
-    stiff = np.maximum(stiff, 0.0)
+    off = max(diagonal(mr, imp.mass_matrix, "import.mass_matrix", form, imp.modes),
+              diagonal(kr, imp.stiffness_matrix, "import.stiffness_matrix", form, imp.modes))
+    stiff = modal_values(s, names, mass, stiff, imp.mass_matrix, imp.stiffness_matrix)
     kinds = [RIGID.get(nm, ("mode", "m")) for nm in names]
-    labels = [str(x) for x in data["labels"]] if "labels" in data else [
+    labels = [str(x) for x in np.ravel(data["labels"])] if "labels" in data else [
         "" if nm in RIGID_COORDINATES else nm for nm in names]
     freqs = np.sqrt(stiff / mass) / (2 * math.pi)
     basis = shape_function(s, data)
@@ -216,9 +262,21 @@ def mechanics(s: Structure) -> Mechanics:
                      basis, report)
 
 
-def _offdiag(a: np.ndarray) -> float:
+def diagonal(a: np.ndarray, path: str, where: str, form: str, modes: str) -> float:
+    """The largest relative off-diagonal entry |a_ij| / sqrt(a_ii a_jj) of a modal matrix; above
+    1e-6 the coordinates are coupled, refused naming the entry (the matrix file for modal
+    matrices, the modes file for projected full ones)."""
     d = np.sqrt(np.abs(np.outer(np.diag(a), np.diag(a))))
     off = np.abs(a - np.diag(np.diag(a)))
     with np.errstate(divide="ignore", invalid="ignore"):
         r = np.where(d > 0, off / d, np.where(off > 0, np.inf, 0.0))
-    return float(r.max()) if r.size else 0.0
+    worst = float(r.max()) if r.size else 0.0
+    if worst > 1e-6:
+        j, i = sorted(np.unravel_index(np.argmax(r), r.shape))          # the lower triangle, as stored
+        modal = form == "modal"
+        raise fail(path if modal else modes, where if modal else WHERE,
+                   f"the modal matrix is not diagonal: entry ({i + 1}, {j + 1}) = {a[i, j]:.4g} is {worst:.2e} "
+                   "of sqrt(a_ii a_jj)"
+                   + ("" if modal else " (after projection on the eigenvectors)"),
+                   "export mass-orthogonal eigenvectors and the diagonal modal matrices (both tools' default)")
+    return worst

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from typing import Callable
 
 from ..errors import StructureError
+from ..files import did_you_mean
 from ..units import SI_NAME, UnitError, example, parse_quantity
 from .schema import NAME
 
@@ -48,12 +48,6 @@ class Reader:
             if target_key and re.match(rf"^{re.escape(target_key)}\s*=", line):
                 return no
         return header_line
-
-
-def did_you_mean(word: str, options: list[str]) -> str:
-    """'did you mean 'x'? ' for the closest option, or ''."""
-    close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
-    return f"did you mean '{close[0]}'? " if close else ""
 
 
 def check_keys(rd: Reader, where: str, table: dict, allowed: list[str]) -> None:
