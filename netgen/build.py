@@ -55,12 +55,13 @@ def build(s: Structure, progress: bool = False, **parallel) -> Build:
     say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
     m = imported_mechanics.mechanics(s) if imp and imp.modes else mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
+    table = imported_capacitance.table(imp.capacitance, m.names, [e.name for e in shapes]) \
+        if imp and imp.capacitance else None
     ext = extractor(s, plate)
     prepared = ext.prepare(shapes, plate, m.basis)
     scales = scales_of(s, prepared, m, shapes)
-    if imp and imp.capacitance:
-        grid, holdout = imported_capacitance.samples(imp.capacitance, m.names, [e.name for e in shapes], scales,
-                                                     plate_estimates(s, shapes, plate), s.fit.degree)
+    if table is not None:
+        grid, holdout = imported_capacitance.samples(table, scales, plate_estimates(s, shapes, plate), s.fit.degree)
     else:
         grid = sample_grid(s, prepared, scales, progress, **parallel)
         holdout = sample_holdout(s, prepared, scales, progress, **parallel)

@@ -210,16 +210,21 @@ def check_independent(t: Table, x: np.ndarray, degree: int) -> None:
                      f"levels^{n} points), or lower fit.degree")
 
 
-def samples(path: str, names: list[str], electrodes: list[str], scales: np.ndarray,
-            estimates: np.ndarray, degree: int) -> tuple[Samples, Samples]:
-    """Grid and held-out Samples from an imported capacitance table, its columns mapped to the
-    model's coordinate `names` and `electrodes` by name; `estimates`: eps A / g per electrode
-    (the units check), `degree`: the fit's total degree (the count of independent points)."""
+def table(path: str, names: list[str], electrodes: list[str]) -> Table:
+    """An imported capacitance table with its columns mapped to the model's coordinate `names`
+    and `electrodes` by name (read before the extractor is prepared: a bad file stops early)."""
     t = read_capacitance(path)
     cols = columns(t, names, t.coordinates, "coordinate", "give one q column per model coordinate, named like the coordinates")
     els = columns(t, electrodes, t.electrodes, "electrode", "give one C column per electrode, named like the model's electrodes")
-    t.q, t.c = t.q[:, cols], t.c[:, els]
-    check_values(t, names, electrodes, scales, estimates)
+    t.q, t.c, t.coordinates, t.electrodes = t.q[:, cols], t.c[:, els], list(names), list(electrodes)
+    return t
+
+
+def samples(t: Table, scales: np.ndarray, estimates: np.ndarray, degree: int) -> tuple[Samples, Samples]:
+    """Grid and held-out Samples of a table (netgen.electrostatics.imported.table), checked
+    against the touching amplitudes `scales`, eps A / g per electrode (`estimates`, the units
+    check) and the fit's total degree (the count of independent points)."""
+    check_values(t, t.coordinates, t.electrodes, scales, estimates)
     check = t.check if t.check is not None else np.arange(len(t.q)) % 5 == 4
     keep = merge_duplicates(t)
     q, c, check = t.q[keep], t.c[keep], check[keep]

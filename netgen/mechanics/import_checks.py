@@ -164,7 +164,7 @@ def modal_values(s: Structure, names: list[str], mass: np.ndarray, stiff: np.nda
             raise fail(k_path, "import.stiffness_matrix", f"eigenmode {name!r} (entry ({k + 1}, {k + 1})) is at "
                        f"{freq[k]:.3g} Hz: an eigenmode has a nonzero frequency",
                        "rename the column z / tilt_x / tilt_y if it is a rigid-body motion, or drop the mode")
-    free = not hasattr(s.conductor, "stiffness")            # kinds with springs have a stiffness
+    free = getattr(s.conductor, "stiffness", None) is None  # kinds on springs (piston) carry their stiffness
     limit = ZERO_FREQUENCY * float(elastic_f.min()) if len(elastic_f) else FREE_RIGID_HZ
     for k in np.flatnonzero(rigid):
         if free and freq[k] > limit:
