@@ -92,7 +92,10 @@ class CsvTable:
 def read_text(path: str | Path, where: str, what: str, error: type[InputError] = StructureError) -> str:
     """A data file's text: binary data (NUL bytes) and non-UTF-8 bytes become `error` naming the
     file and the byte offset, instead of a UnicodeDecodeError."""
-    data = Path(path).read_bytes()
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise error(str(path), where, f"cannot read: {exc.strerror or exc}", "check that the file exists and is readable") from None
     nul = data.find(b"\0")
     if nul >= 0:
         raise error(str(path), where, f"binary data (a NUL byte at offset {nul}), not {what}",
@@ -149,8 +152,11 @@ def load_npz(path: str | Path, where: str, required: tuple[str, ...], allowed: t
     fix = f"save the arrays with numpy.savez(path, {', '.join(f'{k}=...' for k in required)})"
     try:
         z = np.load(path, allow_pickle=False)
+    except PermissionError as exc:
+        raise error(str(path), where, f"cannot read: {exc.strerror}", "check that the file is readable") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise error(str(path), where, f"not a readable .npz archive ({exc})", fix) from None
+        why = "it is no archive and would need unpickling, which netgen never does" if "pickle" in str(exc) else exc
+        raise error(str(path), where, f"not a readable .npz archive ({why})", fix) from None
     if not isinstance(z, np.lib.npyio.NpzFile):
         raise error(str(path), where, "a single .npy array, not an .npz archive", fix)
     with z:

@@ -202,7 +202,7 @@ def check_independent(t: Table, x: np.ndarray, degree: int) -> None:
         if len(x) else np.zeros((0, terms))
     rank = int(np.linalg.matrix_rank(design)) if len(x) else 0
     if len(x) < need or rank < terms:
-        still = [f"q:{k}" for k in range(n) if not span[k] > 0] if len(x) else []
+        still = [f"q:{t.coordinates[k]}" for k in range(n) if not span[k] > 0] if len(x) else []
         raise t.fail(None, f"the degree-{degree} fit in {n} coordinates has {terms} terms and needs at least "
                      f"{need} independent points; the table's fit rows give {len(x)} (rank {rank})"
                      + (f"; coordinates {still} never vary" if still else ""),
