@@ -1,5 +1,5 @@
-"""Files in and out: atomic writes (all or nothing), TOML documents and CSV tables with errors
-that name the file and line."""
+"""Files in and out: atomic writes (all or nothing), TOML documents, CSV tables and .npz archives
+with errors that name the file and line (binary, non-UTF-8, truncated or pickled data included)."""
 
 from __future__ import annotations
 
