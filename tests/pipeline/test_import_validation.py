@@ -88,6 +88,7 @@ class Case:
     suffix: str
     data: bytes
     expect: str | None = None
+    others: tuple[tuple[str, str, bytes], ...] = ()     # good replacements of other keys: (key, suffix, bytes)
 
 
 def make_bases(root: Path) -> dict[str, Base]:
@@ -443,6 +444,34 @@ def capacitance_npz_cases(b: Base) -> Iterator[Case]:
     yield Case("npz file", b.name, "capacitance", ".npz", garbage(11), "npz")
 
 
+def full_piston(b: Base, n: int = 21) -> dict[str, bytes]:
+    """The piston as full FE data: n x n nodes with the z field 1, M and K diagonal over the
+    nodes (each m / N, k / N), so that phi^T M phi, phi^T K phi are the native m and k."""
+    x, y = np.meshgrid(np.linspace(-100e-6, 100e-6, n), np.linspace(-100e-6, 100e-6, n))
+    nodes = np.column_stack([x.ravel(), y.ravel()])
+    c = b.native.model.coordinates[0]
+    eye = np.eye(len(nodes))
+    return {"modes": npz(nodes=nodes, vectors=np.ones((len(nodes), 1)), names=np.array(["z"])),
+            "mass_matrix": mtx(eye * c.mass / len(nodes)), "stiffness_matrix": mtx(eye * c.stiffness / len(nodes)),
+            "M": eye * c.mass / len(nodes), "K": eye * c.stiffness / len(nodes)}
+
+
+def full_matrix_cases(b: Base) -> Iterator[Case]:
+    """Full N x N matrices projected on full eigenvectors: M positive definite, K semidefinite."""
+    f = full_piston(b)
+    M, K, n = f["M"], f["K"], len(f["M"])
+    for k in (0, n // 2, n - 1):
+        for factor, expect in ((0.0, "positive definite"), (-1.0, "positive definite")):
+            a = M.copy()
+            a[k, k] *= factor
+            yield Case("mtx physics", b.name, "mass_matrix", ".mtx", mtx(a), expect,
+                       (("modes", ".npz", f["modes"]), ("stiffness_matrix", ".mtx", f["stiffness_matrix"])))
+        a = K.copy()
+        a[k, k] *= -1.0
+        yield Case("mtx physics", b.name, "stiffness_matrix", ".mtx", mtx(a), "semidefinite",
+                   (("modes", ".npz", f["modes"]), ("mass_matrix", ".mtx", f["mass_matrix"])))
+
+
 def cases(bases: dict[str, Base]) -> list[Case]:
     """Every bad file of the generator."""
     out: list[Case] = []
@@ -450,6 +479,8 @@ def cases(bases: dict[str, Base]) -> list[Case]:
         out += list(matrix_cases(b))
         out += list(modes_npz_cases(b))
         out += list(capacitance_npz_cases(b))
+        if b.name == "piston":
+            out += list(full_matrix_cases(b))
         if b.name != "disk":
             out += list(modes_csv_cases(b))
             out += list(capacitance_csv_cases(b))
@@ -473,8 +504,12 @@ def run(bases: dict[str, Base], k: int, c: Case) -> tuple[Outcome, Path]:
     bad.write_bytes(c.data)
     modes = "modes.csv" if c.key == "modes" and c.suffix == ".csv" else "modes.npz"
     cap = "capacitance.csv" if c.key == "capacitance" and c.suffix == ".csv" else "capacitance.npz"
+    replace = {c.key: bad.name}
+    for key, suffix, data in c.others:
+        (b.folder / f"case{k:03d}_{key}{suffix}").write_bytes(data)
+        replace[key] = f"case{k:03d}_{key}{suffix}"
     toml = b.folder / f"case{k:03d}.toml"
-    toml.write_text(structure_text(b, {c.key: bad.name}, modes, cap))
+    toml.write_text(structure_text(b, replace, modes, cap))
     out = b.folder / f"out{k:03d}"
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -561,6 +596,23 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     for p, q in zip(imported.model.coordinates, b.native.model.coordinates):
         assert (p.name, p.mass, p.stiffness) == (q.name, q.mass, q.stiffness)
     assert imported.model.capacitance(b.native.holdout.x) == pytest.approx(b.native.holdout.c, rel=1e-4)
+
+
+def test_full_matrices_build_the_native_piston(bases, tmp_path):
+    """Full N x N M and K with full eigenvectors (netgen.mechanics.import_checks.check_full passes
+    them) project to the native piston's mass and spring: the .lib numbers within 1e-9."""
+    b = bases["piston"]
+    f = full_piston(b)
+    for key, suffix in (("modes", ".npz"), ("mass_matrix", ".mtx"), ("stiffness_matrix", ".mtx")):
+        (b.folder / f"full_{key}{suffix}").write_bytes(f[key])
+    toml = b.folder / "full.toml"
+    toml.write_text(structure_text(b, {k: f"full_{k}{x}" for k, x in (("mass_matrix", ".mtx"), ("stiffness_matrix", ".mtx"))},
+                                   modes="full_modes.npz"))
+    (tmp_path / "native.toml").write_text(b.text)
+    assert main(["build", str(tmp_path / "native.toml"), "-o", str(tmp_path / "native"), "-q", "--no-plots"]) == 0
+    assert main(["build", str(toml), "-o", str(tmp_path / "full"), "-q", "--no-plots"]) == 0
+    got, want = lib_numbers(tmp_path / "full", "piston"), lib_numbers(tmp_path / "native", "piston")
+    assert len(got) == len(want) > 50 and np.all(np.abs(got - want) <= 1e-9 * np.abs(want))
 
 
 def table(tally: dict[str, dict[str, int]]) -> str:
