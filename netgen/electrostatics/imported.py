@@ -158,7 +158,8 @@ def check_values(t: Table, names: list[str], electrodes: list[str], scales: np.n
         r, k = bad[0]
         raise t.fail(int(r), f"q:{names[k]} = {t.q[r, k]:.6g} is beyond the touching amplitude {scales[k]:.4g} "
                      f"{'rad' if names[k].startswith('tilt') else 'm'} (the plate would pass the electrode)",
-                     "give coordinates in SI units (m, rad), or mark touching points with NaN capacitances")
+                     "give coordinates in SI units (m, rad), or mark touching points with NaN capacitances (the "
+                     "touching amplitude follows from the mode shapes: they must be the ones the table was computed with)")
     for k, (name, est) in enumerate(zip(electrodes, estimates)):
         if not est > 0:
             continue
