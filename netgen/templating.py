@@ -7,13 +7,19 @@ from importlib import resources
 
 import jinja2
 
+from .text import comment_lines, comment_text
+
 
 @lru_cache(maxsize=1)
 def environment() -> jinja2.Environment:
-    """Strict environment: an undefined template variable is an error, never an empty string."""
+    """Strict environment: an undefined template variable is an error, never an empty string.
+    Text from input files goes through the filters `comment(marker)` (comment lines) and
+    `comment_text(marker)` (inside a comment line): netgen.text."""
     loader = jinja2.FunctionLoader(_load)
-    return jinja2.Environment(loader=loader, undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
-                              autoescape=False)
+    env = jinja2.Environment(loader=loader, undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
+                             autoescape=False)
+    env.filters.update(comment=comment_lines, comment_text=comment_text)
+    return env
 
 
 def _load(name: str) -> str:

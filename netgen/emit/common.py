@@ -10,6 +10,7 @@ import numpy as np
 
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from ..text import comment_text, is_identifier
 
 
 def num(value: float) -> str:
@@ -80,8 +81,22 @@ def si(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}".strip()
 
 
+def check_names(model: MacroModel) -> None:
+    """Every name an emitter or testbench writes outside comments (model, plate, electrodes,
+    coordinates) is an identifier (netgen.text.is_identifier): the readers refuse anything else,
+    this is the emitters' own guard. Free text (description, source, labels) goes only through
+    the templates' `comment` / `comment_text` filters (netgen.text.comment_lines, comment_text)."""
+    names = [model.name, model.plate, *(e.name for e in model.electrodes), *(c.name for c in model.coordinates),
+             *(f.electrode for f in model.capacitances)]
+    bad = [n for n in names if not is_identifier(n)]
+    if bad:
+        raise ValueError(f"names not usable in a netlist: {', '.join(comment_text(repr(n)) for n in bad)}; "
+                         "rename the electrodes/coordinates (letters, digits, '_', starting with a letter)")
+
+
 def header_context(model: MacroModel) -> dict:
     """Template context shared by the dialects: header tables, time scale, fit form, ports, couplings."""
+    check_names(model)
     coords = []
     for c in model.coordinates:
         xu, _, fu, _ = c.port_units
