@@ -34,6 +34,12 @@ class SweepError(InputError):
     what = "sweep file"
 
 
+class ModelError(InputError):
+    """Invalid model JSON (netgen.model.validate): a name that is not an identifier, text with
+    control characters, a missing or malformed entry."""
+    what = "model file"
+
+
 class SimulationError(NetgenError, RuntimeError):
     """A simulator run failed; the message names the cause and the saved netlist."""
     exit_code = 1

@@ -36,7 +36,7 @@ from .base import RIGID, Mechanics, rigid_field
 from .fields import P2Field, p2_field
 from .kirchhoff import free_edge_roots, free_plate_lambda2_exact
 
-_LABEL = re.compile(r"^(\d+),(\d+)([cs]?)$")
+_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")
 _RIM_SAMPLES = 256          # angular samples on circles used to classify and align modes
 _RADIAL_SAMPLES = 200       # radial samples used to count nodal circles
 _OUTSIDE_TOL = 1e-6         # relative distance beyond the rim still accepted by shape()

@@ -19,10 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..errors import ModelError
 from ..files import write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
-from . import contact
+from . import contact, validate
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
 #                                  display unit of generalized force, factor SI per display unit)
@@ -286,8 +287,18 @@ class MacroModel:
         write_atomic(path, self.json_text())
 
     @classmethod
-    def from_dict(cls, d: dict) -> "MacroModel":
-        """Rebuild a model from its JSON dict (the emitters' input)."""
+    def from_dict(cls, d: dict, path: str = "<model>") -> "MacroModel":
+        """Rebuild a model from its JSON dict (the emitters' input), validated first
+        (netgen.model.validate: names, text, choices); ModelError names `path` and the entry."""
+        validate.check(d, path, tuple(PORT_UNITS))
+        try:
+            return cls._from_dict(d)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise ModelError(path, "(document)", f"the model JSON is incomplete or malformed ({type(exc).__name__}: "
+                             f"{exc})", validate.FIX) from None
+
+    @classmethod
+    def _from_dict(cls, d: dict) -> "MacroModel":
         coords = [Coordinate(**{k: v for k, v in c.items() if k not in ("port_units", "film")},
                              film=tuple(tuple(b) for b in c.get("film", ()))) for c in d["coordinates"]]
         electrodes = [Electrode(**e) for e in d["electrodes"]]
@@ -307,7 +318,15 @@ class MacroModel:
 
     @classmethod
     def load_json(cls, path: str | Path) -> "MacroModel":
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        """Read and validate a model JSON file; unreadable or invalid files are ModelError (exit 2)."""
+        where = validate.escape(str(path))
+        try:
+            d = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ModelError(where, "file", f"cannot read: {exc}", "give the .json a build wrote") from None
+        except json.JSONDecodeError as exc:
+            raise ModelError(where, "file", f"not JSON: {exc}", "give the .json a build wrote") from None
+        return cls.from_dict(d, where)
 
 
 def _coordinate_dict(c: Coordinate) -> dict:

@@ -14,9 +14,10 @@ from typing import Callable
 from ..constants import GASES
 from ..errors import StructureError
 from ..files import toml_document
+from ..text import escape, text_problem
 from .conductors import CONDUCTORS
-from .reader import (Reader, check_keys, choice, did_you_mean, flag, identifier, integer, nonnegative,
-                     positive, quantity, table)
+from .reader import (Reader, check_keys, choice, did_you_mean, flag, free_text, identifier, integer,
+                     nonnegative, positive, quantity, table)
 from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Damping, ElectrostaticsOptions, FitOptions,
                      Imports, Sampling, Structure)
 
@@ -28,6 +29,10 @@ DAMPING_KEYS = ["q_factor", "damping_ratio", "rayleigh", "squeeze_film", "pressu
 
 def parse_structure(text: str, path: str = "<string>") -> Structure:
     """Validate TOML text into a Structure; raises StructureError on any mistake."""
+    problem = text_problem(path)
+    if problem:
+        raise StructureError(escape(path), "file name", f"the structure file's path {problem}; the path is copied "
+                             "into the netlist headers", "rename the file (and its folders) to printable characters")
     rd = Reader(path, text)
     doc = toml_document(text, path)
     check_keys(rd, "", doc, TOP_KEYS)
@@ -39,6 +44,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise rd.fail("description", "description must be a string", 'write description = "..."')
+    free_text(rd, "description", description, "description")
     t = table(rd, doc, "conductor", required=True)
     kind = choice(rd, t, "conductor", "kind", list(CONDUCTORS), default="free_disk")
     conductor = CONDUCTORS[kind].read(rd, t, kind)
@@ -203,6 +209,8 @@ def read_imports(rd: Reader, doc: dict) -> Imports | None:
         if key not in t:
             continue
         value = t[key]
+        if isinstance(value, str):
+            free_text(rd, f"import.{key}", value, key)
         if not isinstance(value, str) or not value.endswith(suffixes):
             raise rd.fail(f"import.{key}", f"{key} = {value!r} is not a {' or '.join(suffixes)} file name",
                           f'write {key} = "data/{key}{suffixes[0]}" (relative to the structure file)')

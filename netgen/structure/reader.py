@@ -8,8 +8,8 @@ from typing import Callable
 
 from ..errors import StructureError
 from ..files import did_you_mean
+from ..text import is_identifier, text_problem
 from ..units import SI_NAME, UnitError, example, parse_quantity
-from .schema import NAME
 
 
 class Reader:
@@ -143,4 +143,14 @@ def flag(rd: Reader, t: dict, where: str, key: str, default: bool, fix: str | No
 def identifier(name: object) -> bool:
     """A simple name for netlists: letters, digits and _ (starting with a letter), not 'error'
     (PySpice treats any output line with that word as a simulator error)."""
-    return isinstance(name, str) and bool(NAME.match(name)) and "error" not in name.lower()
+    return is_identifier(name) and "error" not in name.lower()
+
+
+def free_text(rd: Reader, where: str, value: object, what: str) -> str:
+    """A string that is printable free text (netgen.text.text_problem: no line breaks or other
+    control characters), since it is written into netlist headers; else the error with the fix."""
+    problem = text_problem(value)
+    if problem:
+        raise rd.fail(where, f"{what} {problem}", f"write {what} as one line of printable text "
+                      "(no line breaks, tabs or other control characters): it is copied into the netlist headers")
+    return value

@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")
-MODE_LABEL = re.compile(r"^(\d+),(\d+)([cs]?)$")
-NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")      # \Z: "2,0c\n" is not a label
+NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
 
 

@@ -1,0 +1,119 @@
+"""A model JSON read back (MacroModel.load_json, from_dict) is an input file like any other: the
+emitters and testbenches write its names into netlists and its text into their headers, so
+before a MacroModel is built from it every string is printable one-line text (netgen.text),
+every name an emitter writes outside comments is an identifier, every choice is known and every
+number the headers print is a finite number. Errors are ModelError (exit 2), naming the file,
+the entry (e.g. coordinates[2].label) and the fix."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Iterator, NoReturn
+
+from ..errors import ModelError
+from ..text import escape, is_identifier, text_problem
+
+KINDS = ("translation", "rotation", "mode")
+TARGETS = ("plates", "inverse", "direct")
+REQUIRED = {"name": str, "description": str, "source": str, "plate": str, "generator": str, "coordinates": list,
+            "electrodes": list, "capacitances": list, "coupling": list, "sampling": dict, "report": dict}
+FIX = "rebuild the model with `netgen build STRUCTURE.toml -o DIR` rather than editing its JSON"
+
+
+def leaves(value: Any, where: str = "") -> Iterator[tuple[str, Any]]:
+    """(location, value) of every key and scalar of a JSON document, e.g. ('coordinates[1].label', 'x')."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            loc = f"{where}.{k}" if where else str(k)
+            yield f"{loc} (key)", k
+            yield from leaves(v, loc)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from leaves(v, f"{where}[{i}]")
+    else:
+        yield where, value
+
+
+class Checker:
+    """The checks of one document, failing with the file's path."""
+
+    def __init__(self, path: str, units: tuple[str, ...]):
+        self.path, self.units = escape(str(path)), units
+
+    def fail(self, where: str, problem: str, fix: str = FIX) -> NoReturn:
+        raise ModelError(self.path, where, problem, fix)
+
+    def name(self, where: str, value: Any) -> None:
+        """A name written outside comments (subcircuit, module, node, port)."""
+        if not is_identifier(value):
+            self.fail(where, f"{escape(repr(value))} is not a netlist name",
+                      "use letters, digits and _ starting with a letter; " + FIX)
+
+    def choice(self, where: str, value: Any, options: tuple[str, ...]) -> None:
+        if value not in options:
+            self.fail(where, f"{escape(repr(value))} is not one of {', '.join(options)}")
+
+    def number(self, where: str, value: Any, integer: bool = False) -> None:
+        ok = isinstance(value, int) if integer else isinstance(value, (int, float))
+        if isinstance(value, bool) or not ok or not math.isfinite(value):
+            self.fail(where, f"{escape(repr(value))} is not a finite {'integer' if integer else 'number'}")
+
+    def entries(self, d: dict, key: str) -> list[dict]:
+        """The list d[key] of JSON objects."""
+        rows = d.get(key)
+        if not all(isinstance(r, dict) for r in rows):
+            self.fail(key, f"{key} must be a list of objects")
+        return rows
+
+
+def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) -> None:
+    """Refuse a model JSON document an emitter could not write safely (see the module docstring)."""
+    c = Checker(path, units)
+    if not isinstance(d, dict):
+        c.fail("(document)", "the model JSON is not an object")
+    for key, kind in REQUIRED.items():
+        if not isinstance(d.get(key), kind):
+            c.fail(key, f"missing, or not a JSON {'string' if kind is str else kind.__name__}")
+    for where, value in leaves(d):
+        if isinstance(value, str) and text_problem(value):
+            c.fail(where, f"text {text_problem(value)}",
+                   "write it as one line of printable text (no line breaks or other control characters); " + FIX)
+        if isinstance(value, float) and not math.isfinite(value):
+            c.fail(where, f"{value} is not a finite number")
+    check_names(c, d)
+    for key in ("samples", "levels", "excluded_touching", "holdout"):      # printed in the headers as they are
+        if key in d["sampling"]:
+            c.number(f"sampling.{key}", d["sampling"][key], integer=True)
+    if "range" in d["sampling"]:
+        c.number("sampling.range", d["sampling"]["range"])
+
+
+def check_names(c: Checker, d: dict) -> None:
+    """Names, kinds, units and fit targets of the coordinates, electrodes, fits, couplings, stops."""
+    c.name("name", d["name"])
+    c.name("plate", d["plate"])
+    for i, row in enumerate(c.entries(d, "coordinates")):
+        c.name(f"coordinates[{i}].name", row.get("name"))
+        c.choice(f"coordinates[{i}].kind", row.get("kind"), KINDS)
+        c.choice(f"coordinates[{i}].unit", row.get("unit"), c.units)
+    electrodes = c.entries(d, "electrodes")
+    for i, row in enumerate(electrodes):
+        c.name(f"electrodes[{i}].name", row.get("name"))
+    names = [e["name"] for e in electrodes]
+    for i, row in enumerate(c.entries(d, "capacitances")):
+        c.choice(f"capacitances[{i}].electrode", row.get("electrode"), tuple(names))
+        c.choice(f"capacitances[{i}].target", row.get("target"), TARGETS)
+    for i, row in enumerate(c.entries(d, "coupling")):
+        pair = row.get("pair")
+        if not isinstance(pair, list) or len(pair) != 2:
+            c.fail(f"coupling[{i}].pair", "must be a pair of electrode names")
+        for k, e in enumerate(pair):
+            c.choice(f"coupling[{i}].pair[{k}]", e, tuple(names))
+    contact = d.get("contact") or {}
+    if not isinstance(contact, dict):
+        c.fail("contact", "must be an object")
+    points = contact.get("points", [])
+    if not isinstance(points, list) or not all(isinstance(p, dict) for p in points):
+        c.fail("contact.points", "must be a list of objects")
+    for j, pt in enumerate(points):
+        c.choice(f"contact.points[{j}].electrode", pt.get("electrode"), tuple(names))
