@@ -16,6 +16,7 @@ from typing import Callable
 
 from ..errors import SimulationError, SimulatorNotFound
 from ..model import MacroModel
+from ..text import netlist_path
 from . import process
 from .rawfile import Plot, last_time, read_raw
 
@@ -80,7 +81,7 @@ class VacaskBench:
         unknown = sorted(set(self.sources) - set(ports))
         if unknown:
             raise ValueError(f"sources for unknown ports {', '.join(unknown)}; the ports are {' '.join(ports)}")
-        lines = [f"netgen test bench for {self.model.name}", "ground 0", f'load "{Path(self.osdi).resolve()}"',
+        lines = [f"netgen test bench for {self.model.name}", "ground 0", f'load "{netlist_path(Path(self.osdi).resolve())}"',
                  f"model mems {self.model.name}", "model vsource vsource",
                  "x1 (" + " ".join(ports) + ") mems"]
         for p in self.model.ports():

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import SweepError
 from ..structure.reader import did_you_mean
+from ..text import comment_text
 from ..units import parse_quantity
 from .spec import TESTBENCH, Sweep
 
@@ -93,7 +94,8 @@ def _spec(index: int, name: str, out: Path, sweep: Sweep, params: dict, base_doc
         doc = json.loads(json.dumps(base_doc))
         for n, v in overrides.items():
             _set_path(doc, n, v, str(structure_path), sweep.path)
-        text = f"# {structure_path} with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())}\n" + to_toml(doc)
+        note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())}", "#")
+        text = f"# {note}\n" + to_toml(doc)
     spec = RunSpec(index, name, str(out / "runs" / name), params, tb, rigid, text, sweep.plots)
     spec.key = hashlib.sha256(json.dumps([tb, rigid, text, sweep.plots], sort_keys=True,
                                          default=str).encode()).hexdigest()[:16]

@@ -49,6 +49,7 @@ from ..errors import SweepError
 from ..files import toml_document
 from ..structure.reader import Reader, did_you_mean
 from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
+from ..text import text_problem
 from ..units import UNITS, UnitError, parse_quantity
 
 METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db",
@@ -242,6 +243,9 @@ def check_name(rd: Reader, where: str, name: str) -> None:
 def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, float | None]:
     """Validate one value of parameter `name`; return (value to use, SI number or None)."""
     check_name(rd, where, name)
+    if isinstance(value, str) and text_problem(value):        # e.g. structure.description: header text
+        raise rd.fail(where, f"{name}: the value {text_problem(value)}",
+                      "write it as one line of printable text (no line breaks, tabs or other control characters)")
     if name.startswith("structure."):
         if isinstance(value, (dict, list)):
             raise rd.fail(where, f"{name}: a structure value must be a number, string or boolean",

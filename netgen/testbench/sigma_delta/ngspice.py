@@ -16,12 +16,14 @@ import numpy as np
 
 from ... import __version__
 from ...emit import xspice
+from ...emit.common import check_names
 from ...files import write_files_atomic
 from ...model import MacroModel
 from ...sim import codemodel
 from ...errors import CodeModelError
 from ...sim.ngspice import run_control, same_build
 from ...templating import render
+from ...text import netlist_path
 from .analysis import levitation, per_clock
 from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
 
@@ -68,6 +70,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
+    check_names(model)                      # names outside comments; the paths below through netlist_path
     ic = dict(ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
@@ -80,7 +83,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  lib=str(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
+                  lib=netlist_path(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
                   control=list(control), sdloop=card, pulses=phase_pulses(d))

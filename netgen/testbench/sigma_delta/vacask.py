@@ -20,10 +20,12 @@ from pathlib import Path
 
 from ... import __version__
 from ...emit import veriloga
+from ...emit.common import check_names
 from ...model import MacroModel
 from ...sim.rawfile import Plot
 from ...sim.vacask import compiled, print_progress, run_vacask
 from ...templating import render
+from ...text import netlist_path
 from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
 
 BLOCKS = Path(__file__).resolve().parent / "blocks.va"
@@ -92,11 +94,13 @@ def saves(model: MacroModel) -> list[str]:
 def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path, cycles: int,
               tone: Tone | None = None, options: str = "") -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2)."""
+    check_names(model)                      # names outside comments; the paths below through netlist_path
     if tone:
         tone.unit = model.coordinates[coord_index(model, tone.coord)].port_units[2]
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  model_osdi=str(Path(model_osdi).resolve()), blocks_osdi=str(Path(blocks_osdi).resolve()),
+                  model_osdi=netlist_path(Path(model_osdi).resolve()),
+                  blocks_osdi=netlist_path(Path(blocks_osdi).resolve()),
                   cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
                   saves=saves(model), options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
 
