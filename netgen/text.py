@@ -20,6 +20,7 @@ import unicodedata
 from .errors import InputError
 
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+OTHER = re.compile(r"[^ -~]")                  # anything but printable ASCII: the characters `allowed` looks at
 SPICE, C_LIKE = "*", "//"                       # the comment markers of the dialects netgen writes
 WIDTH = 100                                     # comment lines are wrapped at this many characters
 CONTROL_NAMES = {"\n": "line feed", "\r": "carriage return", "\t": "tab", "\x00": "NUL", "\x0b": "vertical tab",
@@ -43,7 +44,8 @@ def text_problem(text: object) -> str | None:
     character 12'), or None if it is."""
     if not isinstance(text, str):
         return f"must be a string, got {type(text).__name__}"
-    for i, ch in enumerate(text):
+    for match in OTHER.finditer(text):
+        i, ch = match.start(), match.group()
         if not allowed(ch):
             name = unicodedata.name(ch, "").lower() or CONTROL_NAMES.get(ch, "a control character")
             return f"contains U+{ord(ch):04X} ({name}) at character {i + 1}"
@@ -52,7 +54,8 @@ def text_problem(text: object) -> str | None:
 
 def escape(text: str) -> str:
     """`text` with every character that is not `allowed` written as a Python-style escape."""
-    return "".join(ch if allowed(ch) else ch.encode("unicode_escape").decode("ascii") for ch in text)
+    return OTHER.sub(lambda m: m.group() if allowed(m.group()) else m.group().encode("unicode_escape").decode("ascii"),
+                     text)
 
 
 def inert(line: str, marker: str) -> str:
@@ -86,8 +89,9 @@ def netlist_path(path: object) -> str:
     """A file path to write into a netlist card (`.include PATH`, VACASK `load "PATH"`): refused
     when it holds a character that would end the card or the quoted string."""
     text = str(path)
-    problem = text_problem(text) or ('contains a double quote (")' if '"' in text else None)
+    quote = next((ch for ch in '"\\' if ch in text), None)
+    problem = text_problem(text) or (f"contains {quote!r}" if quote else None)
     if problem:
         raise InputError(escape(text), "path", f"the path {problem}, so it cannot be written into a netlist",
-                         "choose an output folder whose path has printable characters only and no quotes")
+                         "choose an output folder whose path has printable characters only, no quote or backslash")
     return text
