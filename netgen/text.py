@@ -58,6 +58,12 @@ def escape(text: str) -> str:
                      text)
 
 
+def shown(value: object, limit: int = 60) -> str:
+    """`value` for an error message: its repr, escaped (netgen.text.escape) and cut at `limit` characters."""
+    text = escape(repr(value))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def inert(line: str, marker: str) -> str:
     """One escaped line made harmless after `marker`: for // no backtick (Verilog-A directives),
     no /* or */ (block comments), and for every marker no trailing backslash (line splicing)."""

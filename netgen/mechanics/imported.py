@@ -33,7 +33,7 @@ from scipy.spatial import ConvexHull, cKDTree
 from ..files import load_npz, read_csv
 from ..structure import RIGID_COORDINATES, Structure
 from ..structure.reader import identifier
-from ..text import text_problem
+from ..text import shown, text_problem
 from .base import RIGID, Mechanics, rigid_field
 from .fields import P2Field
 from .import_checks import (check_duplicate_nodes, check_full, check_nodes, fail, line_of, modal_values,
@@ -98,7 +98,7 @@ def check_arrays(path: Path, data: dict) -> None:
                    "one column per coordinate name")
     for n in names:
         if not identifier(n) or "error" in n.lower():
-            raise fail(path, WHERE, f"coordinate name {n!r} is not a simple identifier",
+            raise fail(path, WHERE, f"coordinate name {shown(n)} is not a simple identifier",
                        "use letters, digits and _ (e.g. m1, m2)")
         if names.count(n) > 1:
             raise fail(path, WHERE, f"coordinate {n!r} is named twice", "give each coordinate one column")
@@ -107,7 +107,7 @@ def check_arrays(path: Path, data: dict) -> None:
                    "give one label per coordinate (or none)")
     for k, label in enumerate(np.ravel(data.get("labels", ()))):
         if text_problem(str(label)):
-            raise fail(path, f"{WHERE}.labels[{k}]", f"label {str(label)!r} {text_problem(str(label))}",
+            raise fail(path, f"{WHERE}.labels[{k}]", f"label {shown(str(label))} {text_problem(str(label))}",
                        "write each label as one line of printable text (e.g. '2,0c'; no line breaks or other "
                        "control characters): labels are copied into the netlist headers")
     for key, a in (("nodes", nodes), ("vectors", vectors)):

@@ -11,7 +11,7 @@ import math
 from typing import Any, Iterator, NoReturn
 
 from ..errors import ModelError
-from ..text import escape, is_identifier, text_problem
+from ..text import escape, is_identifier, shown, text_problem
 
 KINDS = ("translation", "rotation", "mode")
 TARGETS = ("plates", "inverse", "direct")
@@ -46,17 +46,17 @@ class Checker:
     def name(self, where: str, value: Any) -> None:
         """A name written outside comments (subcircuit, module, node, port)."""
         if not is_identifier(value):
-            self.fail(where, f"{escape(repr(value))} is not a netlist name",
+            self.fail(where, f"{shown(value)} is not a netlist name",
                       "use letters, digits and _ starting with a letter; " + FIX)
 
     def choice(self, where: str, value: Any, options: tuple[str, ...]) -> None:
         if value not in options:
-            self.fail(where, f"{escape(repr(value))} is not one of {', '.join(options)}")
+            self.fail(where, f"{shown(value)} is not one of {', '.join(options)}")
 
     def number(self, where: str, value: Any, integer: bool = False) -> None:
         ok = isinstance(value, int) if integer else isinstance(value, (int, float))
         if isinstance(value, bool) or not ok or not math.isfinite(value):
-            self.fail(where, f"{escape(repr(value))} is not a finite {'integer' if integer else 'number'}")
+            self.fail(where, f"{shown(value)} is not a finite {'integer' if integer else 'number'}")
 
     def entries(self, d: dict, key: str) -> list[dict]:
         """The list d[key] of JSON objects."""

@@ -59,7 +59,7 @@ def hostile(flag: Path) -> list[str]:
                 "\"quoted\" 'single' $HOME ; $(touch x) `x` trailing \\"]
     out = [p for p in payloads if "\n" not in p]
     out += [b + p.replace("\n", b) + b for p in payloads for b in BREAKS]
-    out += [f"\x00{touch}", f"a\x00\n{touch}", f"\t.param vdd=99", "\x1b[2J\x1b[31mred",
+    out += [f"\x00{touch}", f"a\x00\n{touch}", "\t.param vdd=99", "\x1b[2J\x1b[31mred",
             "\u202e.param vdd=99", "µ 日本 ü ∂ –", "A b " * 25_000, (f".control {touch} .endc ") * 2_000,
             (f"\n.control\n{touch}\n.endc") * 500]
     return out
@@ -447,3 +447,18 @@ def test_sweep_values_and_structure_path_are_refused_or_inert(piston, flag, tmp_
         comments = [ln for ln in run.structure_text.split("\n") if ln.startswith("#")]
         assert comments == [run.structure_text.split("\n")[0]] and printable(run.structure_text)
         assert tomllib.loads(run.structure_text) == base_doc | {"description": "benign"}
+
+
+def test_comment_writer_by_hand():
+    """netgen.text on hand-written cases: one marker and a space per line (so never `*#`), every
+    line break a new comment line, other controls escaped, // comments without backticks, /*, */
+    or a trailing backslash, long text wrapped; an identifier is the whole string."""
+    from netgen.text import comment_lines, comment_text, is_identifier
+
+    assert comment_lines("a\n.control\r\nb\u2028c\x85", "*") == "* a\n* .control\n* b\n* c"
+    assert comment_lines("#shell ls", "*") == "* #shell ls" and comment_lines("", "*") == "*"
+    assert comment_text("x\x00y\tz\u202e", "*") == "x\\x00y\\tz\\u202e"
+    assert comment_text("*/ m `define /*/ q \\", "//") == "* / m 'define / * / q \\x5c"
+    assert comment_text("*/ `x`", "*") == "*/ `x`"                         # nothing to neutralise in SPICE
+    assert comment_lines("w " * 120, "//").split("\n") == ["//" + " w" * 49] * 2 + ["//" + " w" * 22]   # 100 wide
+    assert is_identifier("piston") and not is_identifier("piston\n") and not is_identifier("p\u00e9")
