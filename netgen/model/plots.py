@@ -24,7 +24,8 @@ def mode_shapes(path: Path, model: MacroModel, basis: Callable[[np.ndarray, np.n
         ax.pcolormesh(x * 1e6, y * 1e6, w[..., v], cmap="RdBu_r", vmin=-1, vmax=1, shading="gouraud")
         for ox, oy in outlines:
             ax.plot(ox * 1e6, oy * 1e6, color="k", lw=0.6)
-        ax.set_title(f"{c.name} ({c.label})\n{c.frequency_hz / 1e3:.2f} kHz", fontsize=9)
+        # parse_math=False: an imported label is text, never mathtext ("$\\x$" would stop the build)
+        ax.set_title(f"{c.name} ({c.label})\n{c.frequency_hz / 1e3:.2f} kHz", fontsize=9, parse_math=False)
         ax.set_aspect("equal")
         ax.set_xlabel("x (um)")
     axes[0][0].set_ylabel("y (um)")

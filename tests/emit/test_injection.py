@@ -34,6 +34,7 @@ from netgen.emit import EMITTERS
 from netgen.errors import InputError, ModelError, StructureError, SweepError
 from netgen.mechanics.imported import read_modes
 from netgen.model import MacroModel
+from netgen.model.plots import mode_shapes
 from netgen.sim.vacask import compile_va
 from netgen.structure import load_structure, parse_structure
 from netgen.sweep.plan import plan
@@ -291,7 +292,8 @@ def test_build_command_refuses_a_hostile_description_and_writes_nothing(flag, tm
 def test_imported_mode_labels_are_refused_or_inert(piston_build, piston, flag, tmp_path):
     """Mode labels of an imported modes.npz: refused with import.modes.labels[0] named when they
     hold a control character, else carried into the header's coordinate table only as comment
-    text (one full [import] build checks the path through the pipeline)."""
+    text (one full [import] build checks the path through the pipeline), and the mode-shape figure
+    draws a label as text, not mathtext."""
     importers.export(piston_build, tmp_path)
     with np.load(tmp_path / "modes.npz") as z:
         arrays = {k: z[k] for k in z.files}
@@ -314,6 +316,10 @@ def test_imported_mode_labels_are_refused_or_inert(piston_build, piston, flag, t
     lib = emitted(model)[f"{piston.name}.lib"]
     assert "translation */ module evil_module" in lib
     assert_inert(accepted, emitted(piston))
+    mode = replace(model.coordinates[0], kind="mode", label="$\\undefinedcmd$ $x^$")     # mathtext would fail
+    png = mode_shapes(tmp_path / "modes.png", replace(model, coordinates=[mode]), piston_build.mechanics.basis,
+                      100e-6, [])
+    assert png.stat().st_size > 0
 
 
 # ----------------------------------------------------------------------------- read time: model JSON
