@@ -89,7 +89,8 @@ def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) 
 
 
 def check_names(c: Checker, d: dict) -> None:
-    """Names, kinds, units and fit targets of the coordinates, electrodes, fits, couplings, stops."""
+    """Names, kinds, units and fit targets of the coordinates, electrodes, fits and couplings (a stop
+    point's electrode is only a label: never written outside comments, checked as text)."""
     c.name("name", d["name"])
     c.name("plate", d["plate"])
     for i, row in enumerate(c.entries(d, "coordinates")):
@@ -109,11 +110,5 @@ def check_names(c: Checker, d: dict) -> None:
             c.fail(f"coupling[{i}].pair", "must be a pair of electrode names")
         for k, e in enumerate(pair):
             c.choice(f"coupling[{i}].pair[{k}]", e, tuple(names))
-    contact = d.get("contact") or {}
-    if not isinstance(contact, dict):
+    if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
-    points = contact.get("points", [])
-    if not isinstance(points, list) or not all(isinstance(p, dict) for p in points):
-        c.fail("contact.points", "must be a list of objects")
-    for j, pt in enumerate(points):
-        c.choice(f"contact.points[{j}].electrode", pt.get("electrode"), tuple(names))

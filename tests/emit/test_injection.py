@@ -325,10 +325,9 @@ def test_imported_mode_labels_are_refused_or_inert(piston_build, piston, flag, t
 # ----------------------------------------------------------------------------- read time: model JSON
 
 NAME_FIELDS = ["name", "plate", "coordinates.0.name", "coordinates.0.kind", "coordinates.0.unit",
-               "electrodes.0.name", "capacitances.0.electrode", "capacitances.0.target", "sampling.samples",
-               "contact.points.0.electrode"]
+               "electrodes.0.name", "capacitances.0.electrode", "capacitances.0.target", "sampling.samples"]
 TEXT_FIELDS = ["description", "source", "generator", "coordinates.0.label", "electrodes.0.group",
-               "report.electrostatics.extractor"]
+               "report.electrostatics.extractor", "contact.points.0.electrode"]
 
 
 def set_field(doc: dict, field: str, value: str) -> dict:
