@@ -37,6 +37,7 @@ from ..emit import ngspice as emit_ngspice
 from ..emit.common import time_scale
 from ..errors import InputError, SimulationError, SimulatorNotFound
 from ..model import MacroModel
+from ..text import comment_text
 from . import ngspice
 from .rawfile import Plot
 
@@ -445,7 +446,8 @@ class ModelCircuit:
         if not re.fullmatch(r"\w+", instance) or "error" in instance.lower():
             raise InputError(where, "instance", f"{instance!r} is not a simple name",
                              "use letters, digits and _ (not the word 'error')")
-        circuit = Circuit(title or f"netgen {model.name} through PySpice")
+        # the title is the deck's first card: one line, its controls escaped (netgen.text)
+        circuit = Circuit(comment_text(title) if title else f"netgen {model.name} through PySpice")
         circuit.include(str(lib))
         circuit.X(instance, model.name, *[node_of[p["name"]] for p in model.ports()])
         sources = {}

@@ -467,3 +467,16 @@ def test_comment_writer_by_hand():
     assert comment_text("*/ `x`", "*") == "*/ `x`"                         # nothing to neutralise in SPICE
     assert comment_lines("w " * 120, "//").split("\n") == ["//" + " w" * 49] * 2 + ["//" + " w" * 22]   # 100 wide
     assert is_identifier("piston") and not is_identifier("piston\n") and not is_identifier("p\u00e9")
+
+
+def test_pyspice_title_stays_one_card(piston, flag, tmp_path):
+    """netgen.sim.pyspice.ModelCircuit with a hostile title: the deck's title is one card and
+    every other card is the baseline's."""
+    from netgen.sim.pyspice import ModelCircuit
+
+    lib = tmp_path / "piston.lib"
+    lib.write_text(emitted(piston)["piston.lib"], encoding="utf-8")
+    base = str(ModelCircuit.build(piston, lib, title="benign").circuit).split("\n")
+    for h in hostile(flag):
+        deck = str(ModelCircuit.build(piston, lib, title=h).circuit).split("\n")
+        assert printable("\n".join(deck)) and deck[0].startswith(".title ") and deck[1:] == base[1:]
