@@ -77,6 +77,18 @@ def rest_capacitance(f, ncoords: int) -> float:
     return float(sum(1.0 / poly(zero)[0] for poly in f.polys))
 
 
+# every mechanical input (f_<q>, a_in) is tied to ground inside the model by this conductance
+# (noiseless: a VCCS in ngspice, a plain contribution in Verilog-A), so an unused, open input reads
+# 0 instead of leaving the matrix singular; an input driven through a source resistance R_s reads
+# low by R_s * PORT_TIE (1e-6 for 1 Mohm), one driven by an ideal source not at all
+PORT_TIE = 1e-12
+
+
+def input_ties(model: MacroModel) -> list[str]:
+    """The mechanical input ports that carry the PORT_TIE to ground, in port order."""
+    return [p["name"] for p in model.ports() if p["kind"] in ("force_in", "acceleration_in")]
+
+
 def si(value: float, unit: str) -> str:
     return f"{value:.6g} {unit}".strip()
 
@@ -121,9 +133,11 @@ def header_context(model: MacroModel) -> dict:
         f"{c['floor']:g}), and {len(c.get('points', []))} stop points carry a penalty spring "
         f"{c['stiffness']:.4g} N/m with damping {c['damping']:.4g} N*s/m, engaged over {c['smoothing']:g} of the gap"
         " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits).")
+    tie_text = (f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
+                f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm).")
     return {"m": model, "ports": model.ports(), "coords": coords, "fits": fits, "couplings": couplings,
             "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
-            "contact_text": contact_text}
+            "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text}
 
 
 def noise_enabled(model: MacroModel, noise: bool | None) -> bool:

@@ -171,6 +171,30 @@ def linear_network(name: str, poly: Polynomial, state: list[str]) -> list[str]:
     return lines
 
 
+def deviation(poly: Polynomial) -> Polynomial:
+    """P(xs) - P(0): the polynomial without its constant term, 0 at rest."""
+    return Polynomial(poly.exponents, np.where(poly.exponents.sum(axis=1) == 0, 0.0, poly.coeffs))
+
+
+def plate_term(e: str, k: int, p0: float, clamp: tuple[float, float] | None, dv2: str) -> tuple[dict, dict]:
+    """The g and y rows of plate term k of electrode e, g = 1/P_eff, from the node p = P - P(0):
+    ngspice's operating-point Newton iteration starts from all nodes at 0, and p = 0 is the rest
+    state, where an absolute P = 0 read as the clamped contact force and led it to the pulled-in root."""
+    p, g = f"v({node(e, k)})", f"v({g_node(e, k)})"
+    if not clamp:
+        return {"name": g_node(e, k), "expr": f"1/({p} + {num(p0)})"}, \
+            {"name": y_node(e, k), "expr": f"v({dv2})*{g}*{g}"}
+    knee, floor = clamp
+    span = knee - floor
+    below = f"({p} - {num(knee - p0)})".replace("- -", "+ ")          # P - knee
+    gs = {"name": g_node(e, k), "expr": f"{p} > {num(knee - p0)} ? 1/({p} + {num(p0)}) : "
+          f"1/({num(floor)} + {num(span)}*exp({below}/{num(span)}))"}
+    # slope / P_eff^2 = g min(g, (1 - floor g) / span): g^2 above the knee (g < 1/knee), E g^2 below
+    ys = {"name": y_node(e, k), "expr": f"{g} < {num(1 / knee)} ? v({dv2})*{g}*{g} : "
+          f"v({dv2})*{g}*({num(1 / span)} - {num(floor / span)}*{g})"}
+    return gs, ys
+
+
 def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     """Template rows of one electrode in the fast form (see the section comment above)."""
     e, plate = f.electrode, model.plate
@@ -179,23 +203,16 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
         return {"nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}], "dv2": dv2, "ys": [],
                 "gs": [], "charge_expr": charge_expr(f, plate)}
     nodes, gs, ys = [], [], []
+    zero = np.zeros((1, len(state)))
     for k, poly in enumerate(f.polys):
-        p, g = f"v({node(e, k)})", f"v({g_node(e, k)})"
+        shifted = deviation(poly)
         if affine(poly):
-            nodes.append({"name": node(e, k), "lines": linear_network(node(e, k), poly, state)})
+            nodes.append({"name": node(e, k), "lines": linear_network(node(e, k), shifted, state)})
         else:
-            nodes.append({"name": node(e, k), "expr": poly_expr(poly, state)})
-        if clamp[k]:
-            knee, floor = clamp[k]
-            span = knee - floor
-            gs.append({"name": g_node(e, k), "expr": f"{p} > {num(knee)} ? 1/{p} : "
-                       f"1/({num(floor)} + {num(span)}*exp(({p} - {num(knee)})/{num(span)}))"})
-            # slope / P_eff^2 = g min(g, (1 - floor g) / span): g^2 above the knee (g < 1/knee), E g^2 below
-            ys.append({"name": y_node(e, k), "expr": f"{g} < {num(1 / knee)} ? v({dv2['name']})*{g}*{g} : "
-                       f"v({dv2['name']})*{g}*({num(1 / span)} - {num(floor / span)}*{g})"})
-        else:
-            gs.append({"name": g_node(e, k), "expr": f"1/{p}"})
-            ys.append({"name": y_node(e, k), "expr": f"v({dv2['name']})*{g}*{g}"})
+            nodes.append({"name": node(e, k), "expr": poly_expr(shifted, state)})
+        g_row, y_row = plate_term(e, k, float(poly(zero)[0]), clamp[k], dv2["name"])
+        gs.append(g_row)
+        ys.append(y_row)
     # C(0) as a linear capacitor and only the rest behavioural: the same charge, but the plate row of
     # the matrix is never empty (with uic every g node starts at 0: a floating plate was singular)
     # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
