@@ -13,8 +13,9 @@ from typing import Any, Iterator
 from . import __version__
 from .build import build, write_figures
 from .emit import EMITTERS, formats, refusal, write_outputs
-from .errors import InputError, NetgenError
+from .errors import InputError, NetgenError, StructureError
 from .executor import add_scheduler_option, executor
+from .model import FIT_FIX
 from .sim import SIMULATORS, codemodel, ngspice
 from .structure import load_structure
 from .sweep import cli as sweep_cli
@@ -30,6 +31,10 @@ def _build(args: argparse.Namespace) -> int:
     with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.electrostatics.sampling)
         result = build(structure, progress=not args.quiet, **parallel)
     model = result.model
+    if model.fit_warning():                          # a fit that misses [fit] tolerance (MacroModel.fit_misses)
+        if args.strict:
+            raise StructureError(args.structure, "[fit] tolerance", f"{model.fit_problem()} (--strict)", FIT_FIX)
+        print(f"netgen: warning: {args.structure}: {model.fit_warning()}", file=sys.stderr)
     if args.format != "all" and refusal(model, args.format):
         print(f"netgen: {args.structure}: --format {args.format}: {refusal(model, args.format)}", file=sys.stderr)
         return 2
@@ -69,6 +74,8 @@ def _add_build(sub) -> None:
                    + "; all: every dialect the model has")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
+    b.add_argument("--strict", action="store_true",
+                   help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance")
     add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")
     b.add_argument("--sample-store", metavar="DIR",
                    help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")

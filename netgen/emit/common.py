@@ -137,7 +137,8 @@ def header_context(model: MacroModel) -> dict:
                 f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm).")
     return {"m": model, "ports": model.ports(), "coords": coords, "fits": fits, "couplings": couplings,
             "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
-            "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text}
+            "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text,
+            "fit_warning": model.fit_warning()}
 
 
 def noise_enabled(model: MacroModel, noise: bool | None) -> bool:

@@ -2,6 +2,6 @@
 (netgen.model.macromodel), its contact model (netgen.model.contact) and its figures
 (netgen.model.plots)."""
 
-from .macromodel import ACCEL_PORT, PORT_UNITS, Coordinate, Electrode, MacroModel, finite
+from .macromodel import ACCEL_PORT, FIT_FIX, PORT_UNITS, Coordinate, Electrode, MacroModel, finite
 
-__all__ = ["ACCEL_PORT", "PORT_UNITS", "Coordinate", "Electrode", "MacroModel", "finite"]
+__all__ = ["ACCEL_PORT", "FIT_FIX", "PORT_UNITS", "Coordinate", "Electrode", "MacroModel", "finite"]

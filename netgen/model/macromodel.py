@@ -33,6 +33,10 @@ PORT_UNITS = {
 }
 
 
+# what to change when a capacitance fit misses [fit] tolerance (MacroModel.fit_problem)
+FIT_FIX = ("allow more plate terms ([fit] max_terms), more samples ([sampling] levels), a higher [fit] degree "
+           "or a narrower [sampling] range, or accept the error with a larger [fit] tolerance")
+
 ACCEL_PORT = "a_in"       # the inertial-load port (MacroModel.acceleration)
 
 
@@ -239,6 +243,32 @@ class MacroModel:
                                         "participation": list(self.acceleration)}
         return out
 
+    def fit_misses(self) -> list[dict]:
+        """The capacitance fits whose held-out max relative error exceeds the structure's
+        fit.tolerance (sampling["tolerance"]): electrode, error, tolerance; [] when all meet it."""
+        tol = self.sampling.get("tolerance")
+        if tol is None:
+            return []
+        return [{"electrode": f.electrode, "max_rel_error": f.max_rel_error, "tolerance": tol}
+                for f in self.capacitances if f.max_rel_error > tol]
+
+    def fit_problem(self) -> str:
+        """What a fit that misses fit.tolerance means, in one sentence of names and numbers; "" when
+        every fit meets it (the warning on stderr, in the JSON and in every netlist header)."""
+        misses = self.fit_misses()
+        if not misses:
+            return ""
+        worst = max(misses, key=lambda m: m["max_rel_error"])
+        others = f" (and {len(misses) - 1} more electrode(s))" if len(misses) > 1 else ""
+        return (f"the capacitance fit of electrode {worst['electrode']} misses fit.tolerance: held-out max "
+                f"relative error {worst['max_rel_error']:.3e} > {worst['tolerance']:.3e}{others}; charges and "
+                "forces are only that accurate")
+
+    def fit_warning(self) -> str:
+        """fit_problem with its fix (FIT_FIX); "" when every fit meets fit.tolerance."""
+        problem = self.fit_problem()
+        return f"{problem}. Fix: {FIT_FIX}" if problem else ""
+
     def _to_dict(self) -> dict:
         return {
             "generator": self.generator,
@@ -261,10 +291,16 @@ class MacroModel:
             "validity": {"warning": f"the capacitance fits are accurate only inside the sampled box |xs| <= "
                                     f"{self.sampling.get('range')} (xs = q / touching amplitude); outside it "
                                     "they extrapolate, and near contact the clamped terms and stop points of "
-                                    "'contact' take over"},
+                                    "'contact' take over"} | self._fit_validity(),
             "contact": self.contact,
             "report": self.report,
         }
+
+    def _fit_validity(self) -> dict:
+        """The JSON's fit-tolerance entries (only when a fit misses it)."""
+        if not self.fit_misses():
+            return {}
+        return {"fit_warning": self.fit_warning(), "fit_tolerance_missed": self.fit_misses()}
 
     def ports(self) -> list[dict]:
         """Subcircuit port list in order, with meaning and units."""
