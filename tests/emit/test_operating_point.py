@@ -24,7 +24,7 @@ from netgen.build import build
 from netgen.emit import ngspice, veriloga, xspice
 from netgen.model import MacroModel
 from netgen.sim import codemodel
-from netgen.sim.ngspice import run_ngspice
+from netgen.sim.ngspice import ENV, run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
 from netgen.structure import parse_structure
 from tests.fixtures import NETLISTS, NGSPICE, ROOT, Bench
@@ -110,7 +110,7 @@ FORMS = [("39", "piston.lib"), ("46", "piston.lib"), ("39", "piston_xspice.lib")
 @pytest.mark.parametrize("fraction", [0.25, 0.5, 0.75, 0.95])
 def test_piston_op_is_the_stable_root(piston, release, form, fraction, monkeypatch, tmp_path):
     """The piston at 25..95 % of V_PI: the .op travel equals brentq's stable root within 0.5 %."""
-    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
+    monkeypatch.setenv(ENV, NGSPICE[release])
     model, folder, f = piston
     volts = fraction * pull_in(f["k"], f["gap"], f["area"])
     xs = operating_point(model, folder / form, tmp_path, {"drive": repr(volts), "plate": "0"})
@@ -122,7 +122,7 @@ def test_piston_op_is_the_stable_root(piston, release, form, fraction, monkeypat
 def test_open_force_port_runs(piston, release, form, monkeypatch, tmp_path):
     """f_z left unconnected (no source on it): the .op runs without a singular-matrix warning and
     reads zero external force (the stable root at half V_PI)."""
-    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
+    monkeypatch.setenv(ENV, NGSPICE[release])
     model, folder, f = piston
     volts = 0.5 * pull_in(f["k"], f["gap"], f["area"])
     xs = operating_point(model, folder / form, tmp_path, {"drive": repr(volts), "plate": "0"},
@@ -167,7 +167,7 @@ def test_disk_on_springs_op_is_the_stable_root(disk, release, form, fraction, mo
     """The free disk held by port springs, biased at 50 and 90 % of its V_PI: z equals brentq's
     stable root within 0.5 % (the fit's own error, 8.6e-4 in C, is most of what is left) and the
     tilts stay at rest (symmetry)."""
-    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
+    monkeypatch.setenv(ENV, NGSPICE[release])
     model, folder = disk
     lines, held, k = springs(model)
     area = math.pi * DISK_RADIUS**2
@@ -184,7 +184,7 @@ def test_reference_disk_on_springs_stays_at_rest(release, form, monkeypatch, tmp
     """The committed reference model, 15 V on all 16 electrodes, rigid coordinates on 20 kHz port
     springs (the modes on their own): by symmetry the stable state is the plate at rest; a plain
     .op finds it (every |xs| < 1e-3, the fit's asymmetry) instead of a tilted contact state."""
-    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
+    monkeypatch.setenv(ENV, NGSPICE[release])
     model = MacroModel.load_json(NETLISTS / "levitated_disk.json")
     lines, held = [], set()
     for c in model.coordinates[:3]:
