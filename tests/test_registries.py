@@ -96,7 +96,7 @@ def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
 
 def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
     model = MacroModel.load_json(NETLISTS / "levitated_disk.json")
-    with pytest.raises(ValueError, match="choose one of ngspice, veriloga, xspice, all"):
+    with pytest.raises(ValueError, match="choose one of ngspice, veriloga, xspice, osdi, all"):
         emit.write_outputs(model, tmp_path, "spectre")
     with pytest.raises(SystemExit) as info:
         cli.main(["build", str(PISTON), "-o", str(tmp_path), "--format", "spectre"])

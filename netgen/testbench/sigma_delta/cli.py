@@ -43,9 +43,12 @@ def cli(args) -> int:
         if args.model and (args.rigid_only or pressure is not None or args.film or args.noise):
             raise ValueError("--rigid-only, --pressure, --film and --noise rebuild the model from the structure "
                              "file; drop --model")
-        if args.noise and args.simulator == "vacask":
-            raise ValueError("--noise needs --simulator ngspice: VACASK has no transient noise sources "
-                             "(the .va's white_noise acts in noise analyses only)")
+        if args.segment and args.simulator == "ngspice-osdi":
+            raise ValueError(f"--segment {args.segment}: --simulator ngspice-osdi runs in one segment (ngspice's "
+                             ".ic cannot set the OSDI module's internal states a restart needs); drop --segment")
+        if args.noise and args.simulator in ("vacask", "ngspice-osdi"):
+            raise ValueError(f"--noise needs --simulator ngspice: {args.simulator} runs the .va, whose "
+                             "white_noise acts in noise analyses only (no transient noise sources)")
     except ValueError as exc:
         print(f"netgen: {exc}", file=sys.stderr)
         return 2

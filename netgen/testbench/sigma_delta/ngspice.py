@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ... import __version__
-from ...emit import xspice
+from ...emit import osdi, xspice
 from ...emit.common import check_names
 from ...files import write_files_atomic
 from ...model import MacroModel
@@ -31,8 +31,9 @@ TEMPLATE = "sigma_delta/tb.cir.j2"
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
 SEGMENT_S = 5e-4
 MIN_SEGMENT = 16
-# the testbench's sampler/quantizer/driver blocks: behavioural sources, or the netgen_sdloop code model
-LOOPS = ("analog", "xspice")
+# the testbench's sampler/quantizer/driver blocks: behavioural sources, the netgen_sdloop code model,
+# or the Verilog-A modules of blocks.va through OSDI (netgen.testbench.sigma_delta.osdi)
+LOOPS = ("analog", "xspice", "osdi")
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
@@ -47,16 +48,19 @@ def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0
 
 def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -> list[str]:
     """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
-    internal ones (position, velocity, film branches; read from the .lib) and the testbench's
+    internal ones (position, velocity, film branches; read from the .lib, or those of the OSDI
+    instance of an _osdi.lib, netgen.emit.osdi.state_node) and the testbench's
     charge amplifiers, samples and latches. A segment restarted from them continues the run."""
     body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
+    bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
+    if any(line.startswith("n1 ") for line in body.splitlines()):   # the _osdi.lib: the module's internal nodes
+        return [osdi.state_node(s, instance) for s in osdi.states(model)] + bench
     ports = {p["name"].lower() for p in model.ports()}
     # a capacitor node on a voltage source (the charge nodes qn_i behind their 0 V ammeters) is set
     # by that source, not a state
     driven = {n for line in body.splitlines() if line.startswith("v") for n in line.split()[1:3]}
     inner = sorted({n for line in body.splitlines() if line.startswith("c")
                     for n in line.split()[1:3] if n != "0" and n not in ports and n not in driven})
-    bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
     return [f"{instance}.{n}" for n in inner] + bench
 
 
@@ -67,7 +71,8 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
     long run, the periods from `start` on, from the node state `ic`, also saving `states`;
     `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
-    quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop."""
+    quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
+    "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them)."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)                      # names outside comments; the paths below through netlist_path
@@ -86,7 +91,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
                   lib=netlist_path(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
-                  control=list(control), sdloop=card, pulses=phase_pulses(d))
+                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi")
 
 
 def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:

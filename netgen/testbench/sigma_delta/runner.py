@@ -3,7 +3,8 @@ bitstreams.npz, spectra.npz, summary.json and the PNGs; and the model a run uses
 
 BACKENDS maps `--simulator` to the back end that runs the loop: ngspice with the behavioural-
 source loop, ngspice with both code models (the model's electrostatics and the compiled loop),
-or VACASK with the compiled Verilog-A model. Adding one is a module beside ngspice.py and
+VACASK with the compiled Verilog-A model, or ngspice with that model and VACASK's loop blocks
+through OSDI. Adding one is a module beside ngspice.py and
 vacask.py and one line here.
 """
 
@@ -23,7 +24,7 @@ from ...model import MacroModel
 from ...sim.ngspice import identity as ngspice_identity
 from ...sim.vacask import stats as vacask_stats
 from ...structure import Damping, load_structure
-from . import ngspice, vacask
+from . import ngspice, osdi, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import Design, Tone, design
 from .plots import plot_spectra, plot_states
@@ -55,9 +56,16 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     if "cms" in state:
         lib, control = ngspice.xspice_library(model, out, state["cms"])
         loop = "xspice"
+    elif "osdi" in state:                                   # osdi.prepare: the _osdi.lib and its pre_osdi lines
+        lib, control, loop = state["osdi"]["lib"], state["osdi"]["control"], "osdi"
+        segment = 0                                         # one run: .ic cannot reach the module's states (osdi.py)
     clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, segment,
                                                         control, loop)
     return clock, {"breakpoints": breakpoints, "segments": segments, "ngspice": ngspice_identity()}
+
+
+def _compile_osdi(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+    return {"osdi": osdi.prepare(model, lib, out, progress)}
 
 
 def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
@@ -87,6 +95,8 @@ BACKENDS: dict[str, Backend] = {
     "ngspice-xspice": Backend(_code_models, _run_ngspice, "ngspice with the model's plate terms in the compiled "
                               "XSPICE code model and the loop compiled too (netgen codemodel)"),
     "vacask": Backend(_compile_vacask, _run_vacask, "VACASK with the compiled Verilog-A module"),
+    "ngspice-osdi": Backend(_compile_osdi, _run_ngspice, "ngspice 45+ with the model and the loop's blocks as "
+                            "Verilog-A compiled by openvaf-r, loaded through OSDI"),
 }
 SIMULATORS = tuple(BACKENDS)
 
