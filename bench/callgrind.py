@@ -32,7 +32,7 @@ from netgen.sim import codemodel  # noqa: E402
 from netgen.sim.ngspice import ngspice_path  # noqa: E402
 from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
-from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel  # noqa: E402
+from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_control  # noqa: E402
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
@@ -43,11 +43,14 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     (folder / "model.lib").write_text(library(model, variant))
     cm = needs_codemodel(variant, loop)
     control = codemodel.control_lines(*sdn.code_models(progress=False)) if cm else []
+    control += osdi_control(model, variant, loop, folder / "osdi")
     net = sdn.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
                         control=control, loop=loop)
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
     with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
-        subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=callgrind.out", ngspice_path(), "-b",
+        # --trace-children: NETGEN_NGSPICE may be a wrapper script that execs the binary (ngspice 46, .ci/setup)
+        subprocess.run(["valgrind", "--tool=callgrind", "--trace-children=yes", "--callgrind-out-file=callgrind.out",
+                        ngspice_path(), "-b",
                         "bench.cir"], cwd=folder, stdout=log, stderr=subprocess.STDOUT)
     found = re.search(r"Transient iterations\s*=\s*(\d+)", (folder / "bench.log").read_text())
     if not found:
@@ -73,7 +76,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variants", default="xspice,fast,floor", help=f"comma-separated subset of {','.join(VARIANTS)}")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--loops", default="analog", help="comma-separated testbench loops: analog (behavioural "
-                    "sources) and/or xspice (the compiled netgen_sdloop); default analog")
+                    "sources), xspice (the compiled netgen_sdloop) and/or osdi (blocks.va through OSDI, ngspice 45+); "
+                    "default analog")
     ap.add_argument("--keep", help="keep the run folders (netlists, callgrind.out) here")
     args = ap.parse_args(argv)
     variants = args.variants.split(",")

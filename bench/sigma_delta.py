@@ -2,7 +2,10 @@
 
     .venv/bin/python bench/sigma_delta.py [--cycles 4096] [--repeat 3] [--naive-cycles 64]
                                           [--variants xspice,fast,floor,linear,naive]
-                                          [--loops xspice,analog] [--ts 1e-6]
+                                          [--loops xspice,analog] [--ts 1e-6] [--solvers sparse,klu]
+
+    NETGEN_NGSPICE=~/.cache/netgen/ngspice-46/bin/ngspice .venv/bin/python bench/sigma_delta.py \
+        --variants osdi,fast,floor --loops osdi,analog --solvers sparse,klu   # ngspice 46: OSDI and KLU
 
 Runs the testbench of `netgen sigma-delta` (netgen.testbench.sigma_delta.ngspice.testbench, templates/
 sigma_delta/tb.cir.j2) around the reference model (netlists/levitated_disk.json) with
@@ -18,6 +21,8 @@ prints per variant the medians of:
 
 Variants (the same testbench, clocks, tolerances and tmax; only the subcircuit differs):
 
+  osdi    the _osdi.lib: the model's Verilog-A module compiled by openvaf-r, loaded through OSDI
+          (netgen.emit.osdi; ngspice 45+; the netlist sets num_threads=1)
   xspice  the .lib with the plate terms, forces and stops in the compiled XSPICE code model
           netgen_es (netgen.emit.xspice, netgen.sim.codemodel, built on first use); the netlist loads it
           and keeps trtol at 7 (`pre_set xtrtol=7`)
@@ -43,6 +48,11 @@ compare variants within one loop):
           around the xspice .lib)
   analog  the same blocks as behavioural sources (what `--simulator ngspice` runs, around the
           fast .lib)
+  osdi    the same blocks as the Verilog-A modules VACASK runs (blocks.va), loaded through OSDI
+          (what `--simulator ngspice-osdi` runs, around the _osdi.lib)
+
+Solvers (each case runs with each): sparse (ngspice's default Sparse 1.3) and klu (`.options klu`,
+built into ngspice 43 and later; `--solvers` defaults to both where the ngspice has KLU).
 
 Timings on a shared machine are noisy: the figures are medians of --repeat runs, interleaved
 (variant order rotates per repeat), and the load average is printed with them. Point and
@@ -67,17 +77,19 @@ sys.path.insert(0, str(ROOT))          # run from a checkout without installing 
 import numpy as np  # noqa: E402
 
 from baselines import BASELINES  # noqa: E402
-from netgen.emit import ngspice, xspice  # noqa: E402
+from netgen.emit import ngspice, osdi, veriloga, xspice  # noqa: E402
 from netgen.emit.common import force_gain, num, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.sim import codemodel  # noqa: E402
-from netgen.sim.ngspice import ngspice_path  # noqa: E402
+from netgen.sim.ngspice import ngspice_path, version  # noqa: E402
 from netgen.sim.rawfile import read_raw  # noqa: E402
 from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
+from netgen.testbench.sigma_delta import osdi as sdo, vacask as sdv  # noqa: E402
 
 MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
-VARIANTS = ("xspice", "fast", "nodes", "naive", "floor", "linear")
+VARIANTS = ("xspice", "osdi", "fast", "nodes", "naive", "floor", "linear")
+SOLVERS = ("sparse", "klu")
 STATS = {"accepted": r"Accepted timepoints\s*=\s*(\d+)", "rejected": r"Rejected timepoints\s*=\s*(\d+)",
          "iterations": r"Transient iterations\s*=\s*(\d+)",
          "analysis_s": r"Total analysis time \(seconds\)\s*=\s*([0-9.]+)",
@@ -125,16 +137,28 @@ def needs_codemodel(variant: str, loop: str) -> bool:
     return variant == "xspice" or loop == "xspice"
 
 
+def osdi_control(model: MacroModel, variant: str, loop: str, cache: Path) -> list[str]:
+    """The pre_osdi lines (compiled once into `cache`) of an osdi model or loop, and num_threads=1."""
+    lines = []
+    if variant == "osdi":
+        lines.append(f"pre_osdi {osdi.compiled(veriloga.module(model, noise=False), model.name, cache)}")
+    if loop == "osdi":
+        lines.append(f"pre_osdi {osdi.compiled(sdv.blocks_source(), 'sigma_delta_blocks', cache)}")
+    return lines + [sdo.THREADS] if lines else []
+
+
 def library(model: MacroModel, variant: str) -> str:
     if variant in ("floor", "linear"):
         return linearised_subcircuit(model, variant)
     if variant in BASELINES:
         return BASELINES[variant](model, noise=False)
+    if variant == "osdi":
+        return osdi.subcircuit(model)
     return (xspice if variant == "xspice" else ngspice).subcircuit(model, noise=False)
 
 
 def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool,
-             control: list[str] = (), loop: str = "analog") -> dict:
+             control: list[str] = (), loop: str = "analog", solver: str = "sparse") -> dict:
     """One ngspice -b run of the testbench with `lib_text` as the model; stats from `rusage all`."""
     workdir.mkdir(parents=True, exist_ok=True)
     lib = workdir / "model.lib"
@@ -142,6 +166,8 @@ def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles:
     d = sd.design(model, ts)
     net = sdn.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control, loop=loop)
     net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
+    if solver == "klu":
+        net = net.replace("\n.control\n", "\n.options klu\n.control\n", 1)
     (workdir / "bench.cir").write_text(net)
     (workdir / "bench.raw").unlink(missing_ok=True)
     # /usr/bin/time reports the peak resident memory of ngspice itself (the rusage of a child forked
@@ -180,6 +206,7 @@ def summarise(runs: list[dict], cycles: int) -> dict:
             "pts_per_cycle": med["accepted"] / cycles, "all_pts_per_cycle": pts / cycles,
             "it_per_pt": med["iterations"] / pts, "us_per_it": 1e6 * med["wall_s"] / med["iterations"],
             "peak_mb": med["peak_mb"], "equations": med["equations"],
+            "load_pct": 100 * med["load_s"] / med["analysis_s"] if med["analysis_s"] else 0.0,
             "bit_mean_z": med.get("bit_mean_z"), "balance": med.get("balance"),
             "spread_ms": 1e3 * (max(r["wall_s"] for r in runs) - min(r["wall_s"] for r in runs)) / cycles}
 
@@ -196,61 +223,75 @@ def main(argv: list[str] | None = None) -> int:
                     help="comma-separated testbench loops: xspice (samplers, quantizers and drivers in the compiled "
                          "netgen_sdloop, as --simulator ngspice-xspice runs it) and/or analog (behavioural sources, "
                          "as --simulator ngspice); default both")
+    ap.add_argument("--solvers", default=None,
+                    help="comma-separated linear solvers: sparse and/or klu (default both if the ngspice has KLU)")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     loops = [lp for lp in args.loops.split(",") if lp]
-    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sdn.LOOPS]
+    solvers = [x for x in (args.solvers or ("sparse,klu" if version().klu else "sparse")).split(",") if x]
+    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sdn.LOOPS] + \
+        [x for x in solvers if x not in SOLVERS]
     if bad or not loops or args.cycles < 64 or args.repeat < 1:
         ap.error(f"unknown variants or loops {bad}" if bad else "need a loop, --cycles >= 64 and --repeat >= 1")
     model = MacroModel.load_json(args.model)
     libs = {v: library(model, v) for v in variants}
-    cases = [(v, lp) for lp in loops for v in variants]
+    cases = [(v, lp, x) for lp in loops for x in solvers for v in variants]
     control = []
-    if any(needs_codemodel(v, lp) for v, lp in cases):
+    if any(needs_codemodel(v, lp) for v, lp, _ in cases):
         control = codemodel.control_lines(*sdn.code_models(progress=True))
+    cache = Path(tempfile.mkdtemp(prefix="netgen-bench-osdi-"))
+    extra = {(v, lp): osdi_control(model, v, lp, cache) for v, lp, _ in cases}
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}
     load0 = os.getloadavg()
-    runs: dict[tuple[str, str], list[dict]] = {c: [] for c in cases}
+    runs: dict[tuple[str, str, str], list[dict]] = {c: [] for c in cases}
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.keep or tmp)
         for r in range(args.repeat):
             order = cases[r % len(cases):] + cases[:r % len(cases)]
-            for v, lp in order:
-                res = run_once(model, libs[v], base / f"{v}_{lp}", args.ts, cycles[v], check=v not in ("floor",),
-                               control=control if needs_codemodel(v, lp) else [], loop=lp)
-                runs[(v, lp)].append(res)
-                print(f"  run {r + 1}/{args.repeat} {v} ({lp} loop): {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
-                      file=sys.stderr, flush=True)
+            for v, lp, x in order:
+                res = run_once(model, libs[v], base / f"{v}_{lp}_{x}", args.ts, cycles[v], check=v not in ("floor",),
+                               control=(control if needs_codemodel(v, lp) else []) + extra[(v, lp)], loop=lp,
+                               solver=x)
+                runs[(v, lp, x)].append(res)
+                print(f"  run {r + 1}/{args.repeat} {v} ({lp} loop, {x}): "
+                      f"{1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle", file=sys.stderr, flush=True)
     load1 = os.getloadavg()
     print(f"sigma-delta testbench, T_s = {args.ts:g} s, model {model.name}, median of {args.repeat} runs; "
-          f"ngspice {ngspice_path()}; load average {load0[0]:.1f} -> {load1[0]:.1f} on {os.cpu_count()} CPUs")
+          f"ngspice {ngspice_path()} ({version().label}); load average {load0[0]:.1f} -> {load1[0]:.1f} "
+          f"on {os.cpu_count()} CPUs")
     for lp in loops:
-        report(lp, {v: summarise(runs[(v, lp)], cycles[v]) for v in variants})
+        for x in solvers:
+            report(lp, {v: summarise(runs[(v, lp, x)], cycles[v]) for v in variants}, x)
     return 0
 
 
-def report(loop: str, table: dict[str, dict]) -> None:
-    """The table, ratios and 2^16 projection of the variants run in one testbench loop."""
-    print(f"\n{loop} loop ({'--simulator ngspice-xspice' if loop == 'xspice' else '--simulator ngspice'} "
-          f"runs {'xspice' if loop == 'xspice' else 'fast'} in it)")
+RUNS_IN = {"xspice": ("--simulator ngspice-xspice", "xspice"), "analog": ("--simulator ngspice", "fast"),
+           "osdi": ("--simulator ngspice-osdi", "osdi")}
+
+
+def report(loop: str, table: dict[str, dict], solver: str = "sparse") -> None:
+    """The table, ratios and 2^16 projection of the variants run in one testbench loop and solver."""
+    cmd, model = RUNS_IN[loop]
+    print(f"\n{loop} loop, {solver} solver ({cmd} runs {model} in it)")
     print(f"{'variant':8s} {'cycles':>7s} {'ms/cycle':>9s} {'cpu ms':>7s} {'pts/cyc':>8s} {'all pts':>8s} "
-          f"{'it/pt':>6s} {'us/it':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}")
+          f"{'it/pt':>6s} {'us/it':>6s} {'load %':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}")
     for v, s in table.items():
         bit = "-" if s["bit_mean_z"] is None else f"{s['bit_mean_z']:.3f}"
         bal = "-" if s["balance"] is None else f"{s['balance']:.4f}"
         print(f"{v:8s} {s['cycles']:7d} {s['ms_per_cycle']:9.2f} {s['cpu_ms_per_cycle']:7.2f} "
               f"{s['pts_per_cycle']:8.1f} {s['all_pts_per_cycle']:8.1f} {s['it_per_pt']:6.2f} {s['us_per_it']:6.0f} "
-              f"{s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}")
-    for a, b in (("xspice", "floor"), ("xspice", "linear"), ("fast", "xspice"), ("fast", "floor"),
+              f"{s['load_pct']:6.0f} {s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}")
+    for a, b in (("osdi", "floor"), ("fast", "osdi"), ("xspice", "floor"), ("xspice", "linear"), ("fast", "xspice"),
+                 ("fast", "floor"),
                  ("fast", "linear"), ("nodes", "fast"), ("naive", "fast")):
         if a in table and b in table:
             x, y = table[a], table[b]
             print(f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
                   f"{x['cpu_ms_per_cycle'] / y['cpu_ms_per_cycle']:.2f} in CPU time, "
                   f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration")
-    for v in ("xspice", "fast"):
+    for v in ("xspice", "osdi", "fast"):
         if v not in table:
             continue
         f = table[v]
