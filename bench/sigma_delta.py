@@ -137,13 +137,14 @@ def needs_codemodel(variant: str, loop: str) -> bool:
     return variant == "xspice" or loop == "xspice"
 
 
-def osdi_control(model: MacroModel, variant: str, loop: str, cache: Path) -> list[str]:
-    """The pre_osdi lines (compiled once into `cache`) of an osdi model or loop, and num_threads=1."""
+def osdi_control(model: MacroModel, variant: str, loop: str, cache: Path, cpu: str | None = None) -> list[str]:
+    """The pre_osdi lines (compiled once into `cache`, for openvaf-r's target `cpu`) of an osdi
+    model or loop, and num_threads=1."""
     lines = []
     if variant == "osdi":
-        lines.append(f"pre_osdi {osdi.compiled(veriloga.module(model, noise=False), model.name, cache)}")
+        lines.append(f"pre_osdi {osdi.compiled(veriloga.module(model, noise=False), model.name, cache, cpu)}")
     if loop == "osdi":
-        lines.append(f"pre_osdi {osdi.compiled(sdv.blocks_source(), 'sigma_delta_blocks', cache)}")
+        lines.append(f"pre_osdi {osdi.compiled(sdv.blocks_source(), 'sigma_delta_blocks', cache, cpu)}")
     return lines + [sdo.THREADS] if lines else []
 
 

@@ -42,11 +42,14 @@ def openvaf() -> str:
 
 
 def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bool = True,
-               timeout: float = 600.0) -> tuple[Path, str]:
-    """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log."""
+               timeout: float = 600.0, cpu: str | None = None) -> tuple[Path, str]:
+    """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log.
+    cpu: openvaf-r's --target_cpu (default "native": this machine's instruction set, AVX-512
+    included where it has it; "generic" runs on any x86-64 and under valgrind)."""
     va = Path(va)
     osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
-    cmd = [openvaf(), *(["-E", "warnings"] if deny_warnings else []), "-o", str(osdi), str(va)]
+    cmd = [openvaf(), *(["-E", "warnings"] if deny_warnings else []), *(["--target_cpu", cpu] if cpu else []),
+           "-o", str(osdi), str(va)]
     osdi.unlink(missing_ok=True)
     try:
         done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
@@ -60,16 +63,17 @@ def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bo
     return osdi, log
 
 
-def compiled(text: str, stem: str, cache: Path) -> Path:
-    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text."""
+def compiled(text: str, stem: str, cache: Path, cpu: str | None = None) -> Path:
+    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text
+    (and target cpu, see compile_va)."""
     cache.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(text.encode()).hexdigest()[:12]
+    key = hashlib.sha256(text.encode() + (cpu or "").encode()).hexdigest()[:12]
     osdi = cache / f"{stem}-{key}.osdi"
     if not osdi.exists():
         va = cache / f"{stem}-{key}.va"
         va.write_text(text, encoding="utf-8")
         tmp = cache / f"{stem}-{key}.tmp.osdi"
-        compile_va(va, tmp, deny_warnings=True)
+        compile_va(va, tmp, deny_warnings=True, cpu=cpu)
         tmp.replace(osdi)                              # atomic: parallel runs never load a partial file
     return osdi
 
