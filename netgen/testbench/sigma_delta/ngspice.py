@@ -67,12 +67,13 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -
 def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
               tone: Tone | None = None, chunks: int = 50, start: int = 0,
               ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = (),
-              loop: str = "analog") -> str:
+              loop: str = "analog", klu: bool = False) -> str:
     """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
     long run, the periods from `start` on, from the node state `ic`, also saving `states`;
     `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
     quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
-    "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them)."""
+    "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them);
+    `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)                      # names outside comments; the paths below through netlist_path
@@ -91,7 +92,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
                   lib=netlist_path(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
-                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi")
+                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu)
 
 
 def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
@@ -216,7 +217,7 @@ def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path,
 
 def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
                  progress: bool, segment: int | None, control: list[str] = (),
-                 loop: str = "analog") -> tuple[dict, dict, dict]:
+                 loop: str = "analog", klu: bool = False) -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
     reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
     missed an electrode-phase corner is cut at the start of that period, and the next segment
@@ -233,7 +234,7 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
         n = min(length, cycles - n0)
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
         bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
-                          control=control, loop=loop, chunks=max(1, min(50, n // 100)))
+                          control=control, loop=loop, chunks=max(1, min(50, n // 100)), klu=klu)
         plot = simulate(bench, out, d.ts * n, progress,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
         runs += 1
