@@ -59,7 +59,7 @@ def test_plate_levitates_and_balances_gravity(osdi_run, model):
         assert max(abs(coords[c.name]["min"]), abs(coords[c.name]["max"])) < limit * touch, c.name
     assert osdi_run["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
     assert 0.3 < osdi_run["channels"]["z"]["bit_mean"] < 0.7
-    assert osdi_run["segments"]["ngspice_runs"] == 1 and osdi_run["ngspice"] == "ngspice-46"
+    assert osdi_run["segments"]["ngspice_runs"] == 1 and osdi_run["ngspice"]["version"] == "ngspice-46"
     assert osdi_run["breakpoints"]["periods_with_a_missed_corner"] == 0
 
 

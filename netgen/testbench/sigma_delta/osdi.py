@@ -23,6 +23,7 @@ from ...errors import SimulatorNotFound
 from ...files import write_files_atomic
 from ...model import MacroModel
 from ...sim import ngspice as sim_ngspice
+from ...text import netlist_path
 from .vacask import blocks_source, compile_model
 
 ALTERNATIVES = ("use --simulator ngspice (the B-source .lib, any ngspice) or --simulator vacask, "
@@ -62,4 +63,4 @@ def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
     osdi_lib = out / f"{model.name}_osdi.lib"
     write_files_atomic({osdi_lib: osdi.subcircuit(model)})
     return {"lib": osdi_lib, "ngspice": version.label,
-            "control": [f"pre_osdi {model_osdi.resolve()}", f"pre_osdi {blocks_osdi.resolve()}", THREADS]}
+            "control": [f"pre_osdi {netlist_path(p.resolve())}" for p in (model_osdi, blocks_osdi)] + [THREADS]}
