@@ -70,7 +70,7 @@ def _header(text: str) -> list[str]:
     start = next(i for i, ln in enumerate(lines) if ln.startswith("* Usage:"))
     end = next(i for i, ln in enumerate(lines) if ln.startswith("*         X1 "))
     return [ln for ln in lines[:start] + lines[end:] if ln.startswith("*") and not ln.startswith("*   netgen build")
-            and not ln.startswith("* The states are") and not ln.startswith("*   (.ic and")]
+            and not ln.startswith("* The states are") and not ln.startswith("*   (.save and")]
 
 
 def test_outputs_are_the_module_its_compiled_form_and_the_subcircuit(model, built):
