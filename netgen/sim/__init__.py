@@ -10,15 +10,47 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from ..errors import InputError
 from . import ngspice, pyspice, vacask
 from .rawfile import Plot, read_raw
+
+# control characters no text netlist holds (tab, newline, form feed and carriage return are text)
+BINARY = re.compile(rb"[\x00-\x08\x0e-\x1a\x1c-\x1f]")
 
 
 @dataclass(frozen=True)
 class Simulator:
-    """run(netlist text, run folder, name, timeout s) -> the plots of its analyses."""
+    """run(netlist text, run folder, name, timeout s) -> the plots of its analyses;
+    run_file(netlist file, run folder, timeout s): the same for a file, run where it is (None:
+    its text is run, so relative includes resolve as the simulator resolves them for text)."""
     run: Callable[[str, Path, str, float], list[Plot]]
     help: str
+    run_file: Callable[[Path, Path, float], list[Plot]] | None = None
+
+    def file(self, path: Path, workdir: Path, timeout: float) -> list[Plot]:
+        """Run a netlist file (`netgen simulate`)."""
+        if self.run_file is not None:
+            return self.run_file(path, workdir, timeout)
+        return self.run(netlist_text(path), workdir, Path(path).stem, timeout)
+
+
+def netlist_text(path: str | Path) -> str:
+    """A netlist file's text: UTF-8, or Latin-1 (ngspice and VACASK read bytes; an accented
+    comment is fine); binary data (a NUL or other control byte) is an InputError with its offset."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise InputError(str(path), "file", f"cannot read it: {exc.strerror or exc}",
+                         "check the path and its permissions") from None
+    bad = BINARY.search(data)
+    if bad:
+        raise InputError(str(path), f"byte {bad.start()}", f"binary data (byte 0x{data[bad.start()]:02x}), "
+                         "not a text netlist", "give the netlist's text file (.cir/.sp for ngspice, .sim for VACASK), "
+                         "not a raw file, an archive or an executable")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 def run_vacask_netlist(netlist: str, workdir: Path, name: str, timeout: float) -> list[Plot]:
@@ -28,11 +60,20 @@ def run_vacask_netlist(netlist: str, workdir: Path, name: str, timeout: float) -
     return [first] + [read_raw(Path(workdir) / f"{a}.raw")[0] for a in analyses[1:]]
 
 
+def run_vacask_file(path: Path, workdir: Path, timeout: float) -> list[Plot]:
+    """A VACASK netlist file's analyses, run where the file is (includes resolve against its folder)."""
+    analyses = re.findall(r"^\s*analysis\s+(\w+)", netlist_text(path), re.M) or ["tran1"]
+    first = vacask.run_file(path, workdir, analyses[0], timeout)
+    return [first] + [read_raw(Path(workdir) / f"{a}.raw")[0] for a in analyses[1:]]
+
+
 SIMULATORS: dict[str, Simulator] = {
-    "ngspice": Simulator(ngspice.run_ngspice, "ngspice in batch mode (a SPICE netlist with its analyses)"),
+    "ngspice": Simulator(ngspice.run_ngspice, "ngspice in batch mode (a SPICE netlist with its analyses)",
+                         ngspice.run_file),
     "pyspice": Simulator(pyspice.run_netlist, "ngspice's shared library through PySpice, in this process "
                                               "(the libngspice of the selected ngspice, or $NETGEN_LIBNGSPICE)"),
-    "vacask": Simulator(run_vacask_netlist, "VACASK (a Spectre-like netlist with a control block)"),
+    "vacask": Simulator(run_vacask_netlist, "VACASK (a Spectre-like netlist with a control block)",
+                        run_vacask_file),
 }
 
-__all__ = ["SIMULATORS", "Plot", "Simulator", "read_raw"]
+__all__ = ["SIMULATORS", "Plot", "Simulator", "netlist_text", "read_raw"]

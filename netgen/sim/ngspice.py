@@ -29,7 +29,8 @@ FAILURES = [
      "no DC convergence"),
 ]
 # a batch analysis that failed (the raw file may still exist); a .control run that aborted
-FAILED = re.compile(r"simulation\(s\) aborted|analysis .*failed|no convergence", re.I)
+FAILED = re.compile(r"simulation\(s\) aborted|analysis .*failed|no convergence|no such command available|"
+                    r"circuit not parsed|simulation interrupted due to error|fatal error in ngspice", re.I)
 ABORTED = re.compile(r"simulation\(s\) aborted|timestep too small", re.I)
 
 
@@ -201,10 +202,13 @@ def diagnose(log: str) -> str | None:
             if when and what == "timestep too small":
                 details.append(f"at t = {when.group(1)} s")
             return what + (f" ({', '.join(details)})" if details else "")
-    for line in log.splitlines():
-        if re.search(r"\berror\b|fatal|unknown (?:subckt|model|device)", line, re.I) and \
-                "no error" not in line.lower():
-            return line.strip()
+    lines = [ln.strip() for ln in log.splitlines()]
+    for i, line in enumerate(lines):
+        if re.search(r"\berror\b|fatal|unknown (?:subckt|model|device)|no such command|can't find model", line, re.I) \
+                and "no error" not in line.lower():
+            # "Error on line 4 or its substitute:" says what in the lines after it
+            after = [ln for ln in lines[i + 1:i + 3] if ln and not ln.lower().startswith("simulation interrupted")]
+            return " ".join([line] + after[:2]) if line.endswith(":") else line
     return None
 
 
@@ -220,14 +224,43 @@ def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeou
     workdir = Path(workdir)
     check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, f"{name}.raw")
+    reproduce = f"{exe} -b {cir}"
     # names relative to workdir, ngspice's working folder (a relative workdir would resolve twice)
-    done = process.run([exe, "-b", "-r", raw.name, cir.name], workdir, timeout, f"ngspice -b {cir}", "ngspice")
+    done = process.run([exe, "-b", "-r", raw.name, cir.name], workdir, timeout, reproduce, "ngspice")
+    return checked(done, raw, log, reproduce)
+
+
+def run_file(netlist: str | Path, workdir: str | Path, timeout: float = 3600.0) -> list[Plot]:
+    """Run a user's netlist file where it is, so its relative .include/.lib paths resolve
+    against its own folder as ngspice resolves them; the raw file and log go to the run folder
+    `workdir` (also the working folder: what its .control block writes lands there)."""
+    exe = ngspice_path()
+    source, workdir = Path(netlist).resolve(), Path(workdir).resolve()
+    workdir.mkdir(parents=True, exist_ok=True)
+    check_code_models(source.read_bytes().decode("latin-1"), workdir)
+    raw, log = workdir / f"{source.stem}.raw", workdir / f"{source.stem}.log"
+    raw.unlink(missing_ok=True)
+    reproduce = f"cd {workdir} && {exe} -b -r {raw.name} {source}"
+    done = process.run([exe, "-b", "-r", str(raw), str(source)], workdir, timeout, reproduce, "ngspice")
+    return checked(done, raw, log, reproduce)
+
+
+def checked(done: process.Finished, raw: Path, log: Path, reproduce: str) -> list[Plot]:
+    """The plots of a finished batch run, or a SimulationError with ngspice's own message (a
+    netlist it rejects, an aborted analysis, no raw file), the log and how to reproduce it."""
     log.write_text(log_header() + done.output)
     problem = diagnose(done.output)
+    if done.returncode == 0 and not raw.exists() and not problem:
+        problem = ("no raw file: the netlist has no analysis outside a .control block (add e.g. .op or .tran; "
+                   "a .control block writes its own results)")
     if done.returncode != 0 or not raw.exists() or FAILED.search(done.output) or (problem and fatal(problem)):
         raise SimulationError(f"ngspice failed: {problem or f'exit code {done.returncode}'}; "
-                              f"log {log}; reproduce with: {exe} -b {cir}")
-    return read_raw(raw)
+                              f"log {log}; reproduce with: {reproduce}")
+    plots = read_raw(raw)
+    if not plots:
+        raise SimulationError(f"ngspice wrote no results into {raw} (does the netlist have an analysis, "
+                              f"e.g. .op or .tran?); log {log}; reproduce with: {reproduce}")
+    return plots
 
 
 def run_control(netlist: str, workdir: str | Path, name: str, raw_name: str, timeout: float = 36000.0,

@@ -40,7 +40,7 @@ def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: 
     killed and a SimulationError names the program (`name`, default argv[0]) and the command
     that reproduces the run; an interrupt of the caller kills it too. `env`: its environment
     (default: this process's)."""
-    late = SimulationError(f"{name or Path(argv[0]).name} did not finish within {timeout:.0f} s; "
+    late = SimulationError(f"{name or Path(argv[0]).name} did not finish within {timeout:g} s; "
                            f"reproduce with: {reproduce}")
     proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
                             stdin=subprocess.DEVNULL, text=True, errors="replace", start_new_session=True)

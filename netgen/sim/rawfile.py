@@ -34,10 +34,22 @@ class Plot:
 
 def read_raw(path: str | Path, mapped: bool = False) -> list[Plot]:
     """The plots of a raw file. mapped: the one plot of a real binary file as memory-mapped
-    columns (nothing is loaded until a column is used: a 2^16-period run writes ~1 GB)."""
-    if mapped:
-        return [_mapped(Path(path))]
-    data = Path(path).read_bytes()
+    columns (nothing is loaded until a column is used: a 2^16-period run writes ~1 GB).
+    A file that is not a complete raw file (garbage, truncated, cut short by a killed
+    simulator) is a SimulationError naming it, never an exception from the parsing."""
+    try:
+        return [_mapped(Path(path))] if mapped else _plots(Path(path).read_bytes())
+    except SimulationError:
+        raise
+    except (ValueError, IndexError, KeyError, TypeError, UnicodeDecodeError, OverflowError, MemoryError) as exc:
+        raise SimulationError(f"{path} is not a complete raw file ({type(exc).__name__}: {exc}); the simulator "
+                              "wrote garbage or was stopped while writing it: rerun it") from None
+    except OSError as exc:
+        raise SimulationError(f"cannot read the raw file {path}: {exc.strerror or exc}") from None
+
+
+def _plots(data: bytes) -> list[Plot]:
+    """Every plot of a raw file's bytes (errors from the checks or the parsing: read_raw)."""
     plots, pos = [], 0
     while pos < len(data):
         header, pos, binary = read_header(data, pos)
@@ -45,13 +57,19 @@ def read_raw(path: str | Path, mapped: bool = False) -> list[Plot]:
             break
         names = header["names"]
         nvar, npts = len(names), header["points"]
+        if nvar < 1 or nvar != header.get("nvar") or npts < 0:
+            raise ValueError(f"the header lists {nvar} of {header.get('nvar')} variables and {npts} points")
         complex_ = "complex" in header["flags"]
         width = 2 if complex_ else 1
         if binary:
             count = nvar * npts * width
+            if len(data) - pos < count * 8:
+                raise ValueError(f"{npts} points need {count * 8} bytes of values, the file has {len(data) - pos}")
             arr = np.frombuffer(data, dtype="<f8", count=count, offset=pos)
             pos += count * 8
         else:
+            if data.count(b"\n", pos) < nvar * npts:
+                raise ValueError(f"{npts} points of {nvar} variables, fewer value lines in the file")
             arr, pos = _read_ascii_values(data, pos, nvar, npts, complex_)
         arr = arr.reshape(npts, nvar, width)
         values = arr[..., 0] + 1j * arr[..., 1] if complex_ else arr[..., 0]
@@ -114,8 +132,11 @@ def streaming_header(path: Path) -> tuple[dict, int]:
     with open(path, "rb") as fh:
         head = fh.read(1 << 16)
     head = re.sub(rb"(No\. Points:)([ \t]+)\n", lambda m: m.group(1) + b"0".rjust(len(m.group(2))) + b"\n", head)
-    header, pos, binary = read_header(head, 0)
-    if header is None or not binary or "complex" in header["flags"]:
+    try:
+        header, pos, binary = read_header(head, 0)
+    except (ValueError, IndexError, KeyError) as exc:
+        raise SimulationError(f"{path}: not a raw file header ({exc})") from None
+    if header is None or not binary or "complex" in header["flags"] or not header["names"]:
         raise SimulationError(f"{path}: expected a real binary raw file")
     rows = (path.stat().st_size - pos) // (8 * len(header["names"]))
     header["points"] = min(header["points"], rows) if header["points"] else rows

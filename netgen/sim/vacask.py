@@ -70,16 +70,27 @@ def run_vacask(netlist: str, workdir: str | Path, analysis: str = "tran1", name:
     """Write `netlist` to workdir/name.sim, run VACASK there, return the plot of <analysis>.raw
     (memory-mapped with `mapped`). progress(simulated s, wall s) is called every 2 s from the raw
     file VACASK streams."""
-    _, vacask = tools()
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    sim, raw = workdir / f"{name}.sim", workdir / f"{analysis}.raw"
-    log = workdir / (log_name or f"{name}.log")
+    sim = workdir / f"{name}.sim"
     sim.write_text(netlist)
+    return run_file(sim, workdir, analysis, timeout, workdir / (log_name or f"{name}.log"), progress, mapped)
+
+
+def run_file(sim: str | Path, workdir: str | Path, analysis: str = "tran1", timeout: float = 3600.0,
+             log: Path | None = None, progress: Callable[[float, float], None] | None = None,
+             mapped: bool = False) -> Plot:
+    """Run VACASK on the netlist file `sim` where it is (its includes resolve against its own
+    folder), in the run folder `workdir` (where the raw files go); the plot of <analysis>.raw."""
+    _, vacask = tools()
+    sim, workdir = Path(sim).resolve(), Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    raw, log = workdir / f"{analysis}.raw", log or workdir / f"{sim.stem}.log"
     raw.unlink(missing_ok=True)
-    reproduce = f"cd {workdir} && {vacask} {sim.name}"
+    target = sim.name if sim.parent == workdir.resolve() else str(sim)
+    reproduce = f"cd {workdir} && {vacask} {target}"
     tick = (lambda wall: progress(last_time(raw), wall)) if progress else None
-    done = process.run([vacask, sim.name], workdir, timeout, reproduce, "VACASK", on_tick=tick)
+    done = process.run([vacask, target], workdir, timeout, reproduce, "VACASK", on_tick=tick)
     text = ANSI.sub("", done.output)
     log.write_text(text)
     if done.returncode != 0 or not raw.exists() or re.search(r"aborted|timestep too small", text, re.I):
