@@ -143,11 +143,17 @@ def say(progress: bool, text: str) -> None:
         print(text, file=sys.stderr)
 
 
+def figure_names(name: str) -> tuple[str, str]:
+    """The PNGs write_figures can write for model `name`: fit errors, mode shapes."""
+    return f"{name}_fit_errors.png", f"{name}_modes.png"
+
+
 def write_figures(b: Build, folder: Path) -> list[Path]:
     """Mode-shape and fit-error PNGs next to the netlist (from the build's stage outputs)."""
     model = b.model
-    out = [plots.fit_errors(folder / f"{model.name}_fit_errors.png", model)]
+    errors, modes = figure_names(model.name)
+    out = [plots.fit_errors(folder / errors, model)]
     if any(c.kind == "mode" for c in model.coordinates) and b.structure.conductor.outline_shape == "disk":
-        out.append(plots.mode_shapes(folder / f"{model.name}_modes.png", model, b.mechanics.basis,
+        out.append(plots.mode_shapes(folder / modes, model, b.mechanics.basis,
                                      b.structure.conductor.radius, electrode_outlines(b.structure)))
     return out

@@ -1,9 +1,12 @@
 """Command line: `netgen build STRUCTURE.toml -o DIR` and friends. Errors exit with the code of
-their class (netgen.errors: 2 bad input, 3 missing tool, 1 failed run), never a traceback."""
+their class (netgen.errors: 2 bad input, 3 missing tool, 1 failed run), never a traceback: an
+interrupt (SIGINT or SIGTERM) is 130, anything unexpected 70 with its traceback in a crash log."""
 
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 import time
 from contextlib import contextmanager
@@ -11,16 +14,21 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from . import __version__
-from .build import build, write_figures
+from .arguments import existing_file, output_folder, positive
+from .build import build, figure_names, write_figures
 from .emit import EMITTERS, formats, refusal, write_outputs
 from .errors import InputError, NetgenError, StructureError
+from .interrupts import EXIT_INTERRUPTED, install, internal_error, interrupted, restore
 from .executor import add_scheduler_option, executor
+from .folders import OutputFolder
 from .model import FIT_FIX
-from .sim import SIMULATORS, codemodel, ngspice
+from .sim import SIMULATORS, codemodel, netlist_text, ngspice
 from .structure import load_structure
 from .sweep import cli as sweep_cli
 from .testbench import TESTBENCHES
 from .testbench.sigma_delta.ngspice import LOOP_LIBRARY
+
+TIMEOUT_MAX = 1e7                                   # s (116 days): a limit, not a typo of one
 
 
 # ----------------------------------------------------------------------------- netgen build
@@ -38,9 +46,11 @@ def _build(args: argparse.Namespace) -> int:
     if args.format != "all" and refusal(model, args.format):
         print(f"netgen: {args.structure}: --format {args.format}: {refusal(model, args.format)}", file=sys.stderr)
         return 2
-    written = write_outputs(model, Path(args.output), args.format)
-    if not args.no_plots:
-        written += write_figures(result, Path(args.output))
+    with OutputFolder(args.output, model.name, legacy=build_files(model.name)) as out:
+        written = write_outputs(model, out.stage, args.format)
+        if not args.no_plots:
+            written += write_figures(result, out.stage)
+        written = out.commit(written)
     if not args.quiet:
         for path in written:
             print(f"wrote {path}")
@@ -48,6 +58,11 @@ def _build(args: argparse.Namespace) -> int:
         print(f"{model.name}: {model.ncoords} coordinates, {len(model.electrodes)} electrodes, "
               f"held-out max capacitance error {worst:.2e}, {time.perf_counter() - start:.1f} s")
     return 0
+
+
+def build_files(name: str) -> tuple[str, ...]:
+    """Every file a build of model `name` can write (its set, for OutputFolder)."""
+    return tuple(f"{name}{e.suffix}" for e in EMITTERS.values()) + (f"{name}.json",) + figure_names(name)
 
 
 @contextmanager
@@ -68,7 +83,8 @@ def sampling(args: Any) -> Iterator[dict]:
 def _add_build(sub) -> None:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
-    b.add_argument("-o", "--output", required=True, help="output folder for <name>.lib and <name>.json")
+    b.add_argument("-o", "--output", required=True, type=output_folder,
+                   help="output folder for <name>.lib and <name>.json")
     b.add_argument("--format", choices=formats(), default="ngspice",
                    help="netlist dialects to write: " + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
                    + "; all: every dialect the model has")
@@ -77,7 +93,7 @@ def _add_build(sub) -> None:
     b.add_argument("--strict", action="store_true",
                    help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance")
     add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")
-    b.add_argument("--sample-store", metavar="DIR",
+    b.add_argument("--sample-store", metavar="DIR", type=output_folder,
                    help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")
     b.set_defaults(func=_build)
 
@@ -85,23 +101,27 @@ def _add_build(sub) -> None:
 # ----------------------------------------------------------------------------- netgen simulate
 
 def _simulate(args: argparse.Namespace) -> int:
-    netlist = Path(args.netlist).read_text(encoding="utf-8")
-    plots = SIMULATORS[args.simulator].run(netlist, Path(args.output), Path(args.netlist).stem, args.timeout)
+    netlist_text(args.netlist)                      # refuses binary input before the simulator sees it
+    plots = SIMULATORS[args.simulator].run_file(Path(args.netlist), Path(args.output), args.timeout)
     if not args.quiet:
         if args.simulator == "ngspice":                  # its log's first line records the same
             print(f"ran {ngspice.version().label} ({ngspice.version().path})")
         for plot in plots:
-            print(f"{plot.name}: {len(plot.vectors)} vectors, {len(next(iter(plot.vectors.values())))} points")
+            points = len(next(iter(plot.vectors.values()), ()))
+            print(f"{plot.name}: {len(plot.vectors)} vectors, {points} points")
     return 0
 
 
 def _add_simulate(sub) -> None:
     r = sub.add_parser("simulate", help="run a netlist in a simulator (batch) and report failures clearly")
-    r.add_argument("netlist", help="netlist with its analyses (ngspice .cir, or a VACASK .sim)")
-    r.add_argument("-o", "--output", required=True, help="run folder: the saved netlist, raw file and log")
+    r.add_argument("netlist", type=existing_file("netlist"),
+                   help="netlist with its analyses (ngspice .cir, or a VACASK .sim)")
+    r.add_argument("-o", "--output", required=True, type=output_folder,
+                   help="run folder: the raw file and log")
     r.add_argument("--simulator", choices=list(SIMULATORS), default="ngspice",
                    help="; ".join(f"{k}: {s.help}" for k, s in SIMULATORS.items()))
-    r.add_argument("--timeout", type=float, default=3600.0, help="seconds before the run is stopped")
+    r.add_argument("--timeout", type=positive("the time limit in seconds", "--timeout 600", TIMEOUT_MAX),
+                   default=3600.0, help="seconds of wall time before the run is stopped (default 3600)")
     r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
     r.set_defaults(func=_simulate)
 
@@ -146,9 +166,13 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `netgen` console command: the one error boundary of every subcommand."""
-    args = parser().parse_args(argv)
+    """The one error boundary of every subcommand (the `netgen` command runs it through
+    netgen.entry): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
+    anything else exit 70 with the traceback in a crash log next to the output."""
+    previous = install()
+    args = None
     try:
+        args = parser().parse_args(argv)
         with ngspice.selected(args.ngspice):        # --ngspice: the same setting as NETGEN_NGSPICE
             return args.func(args)
     except InputError as exc:
@@ -158,12 +182,39 @@ def main(argv: list[str] | None = None) -> int:
         prefix = "code model: " if isinstance(exc, codemodel.CodeModelError) else ""
         print(f"netgen: {prefix}{exc}", file=sys.stderr)
         return exc.exit_code
-    except KeyboardInterrupt:
-        print("netgen: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return report_interrupt(exc)
+    except BrokenPipeError:                         # `netgen ... | head`: the reader went away
+        sys.stdout = open(os.devnull, "w")
+        return 1
     except OSError as exc:
-        print(f"netgen: {exc}", file=sys.stderr)
+        print(f"netgen: {os_message(exc)}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        stop = interrupted(exc)                     # e.g. an import in a worker cut by the signal
+        return report_interrupt(stop) if stop else internal_error(exc, output_of(args))
+    finally:
+        restore(previous)
+
+
+def report_interrupt(exc: KeyboardInterrupt) -> int:
+    """One line for a run stopped by SIGINT or SIGTERM; exit 130."""
+    which = getattr(exc, "signum", None)
+    print(f"netgen: interrupted{f' ({signal.Signals(which).name})' if which else ''}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def os_message(exc: OSError) -> str:
+    """An OSError as one line with the path and the fix."""
+    where = f"{exc.filename}: " if exc.filename else ""
+    return (f"{where}{exc.strerror or exc}; check that the path exists, that you may read or write it, "
+            "and that the disk has room")
+
+
+def output_of(args: argparse.Namespace | None) -> Path | None:
+    """The run's output folder, if it exists (where a crash log goes)."""
+    out = getattr(args, "output", None)
+    return Path(out) if out and Path(out).is_dir() else None
 
 
 if __name__ == "__main__":

@@ -16,10 +16,11 @@ import pytest
 from tests.fixtures import ROOT
 
 PACKAGE = ROOT / "netgen"
-SHARED = ("__init__", "constants", "errors", "files", "units", "templating", "plots", "executor", "text")
+SHARED = ("__init__", "constants", "errors", "interrupts", "arguments", "files", "folders", "units", "templating",
+          "plots", "executor", "text")
 # the pipeline's order: a stage may import the shared modules, itself and the stages before it
 STAGES = ("structure", "geometry", "mechanics", "electrostatics", "fit", "model", "build", "export",
-          "emit", "sim", "testbench", "sweep", "cli")
+          "emit", "sim", "testbench", "sweep", "cli", "entry")
 
 
 def room(module: str) -> str:

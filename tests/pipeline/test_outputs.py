@@ -309,23 +309,32 @@ def _assert_clean_outputs(folder: Path) -> None:
     assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], names
 
 
-def test_failing_emitter_leaves_nothing(cli_with_model, monkeypatch, tmp_path):
+def _assert_internal_error(capsys, cwd: Path, text: str) -> None:
+    """Exit 70's one line on stderr, the traceback in the crash log in `cwd` (no output folder)."""
+    err = capsys.readouterr().err
+    assert "internal error" in err and text in err and "Traceback" not in err and len(err.splitlines()) == 1
+    assert text in (cwd / "netgen-crash.log").read_text() and "Traceback" in (cwd / "netgen-crash.log").read_text()
+
+
+def test_failing_emitter_leaves_nothing(cli_with_model, monkeypatch, tmp_path, capsys):
     def broken(model):
         raise RuntimeError("emitter failed")
     monkeypatch.setitem(emit.EMITTERS, "ngspice", dataclasses.replace(emit.EMITTERS["ngspice"], render=broken))
-    with pytest.raises(RuntimeError, match="emitter failed"):
-        cli_with_model(tmp_path / "out")
+    monkeypatch.chdir(tmp_path)
+    assert cli_with_model(tmp_path / "out") == 70
     assert _leftovers(tmp_path / "out") == []
+    _assert_internal_error(capsys, tmp_path, "emitter failed")
 
 
-def test_failing_json_after_netlist_leaves_nothing(cli_with_model, monkeypatch, tmp_path):
+def test_failing_json_after_netlist_leaves_nothing(cli_with_model, monkeypatch, tmp_path, capsys):
     """The .lib renders fine, then the model's JSON fails: no .lib may remain on its own."""
     def broken(self):
         raise ValueError("model not serialisable")
     monkeypatch.setattr(MacroModel, "to_dict", broken)
-    with pytest.raises(ValueError, match="serialisable"):
-        cli_with_model(tmp_path / "out")
+    monkeypatch.chdir(tmp_path)
+    assert cli_with_model(tmp_path / "out") == 70
     assert _leftovers(tmp_path / "out") == []
+    _assert_internal_error(capsys, tmp_path, "serialisable")
 
 
 def test_failing_write_leaves_no_temp_files_and_keeps_old_outputs(cli_with_model, monkeypatch, tmp_path, capsys):

@@ -3,14 +3,27 @@ the structure's macromodel, with spectra (netgen.testbench.sigma_delta.runner)."
 
 from __future__ import annotations
 
+import math
 import sys
+import time
 from pathlib import Path
 
+from ...arguments import existing_file, integer, number, output_folder, positive
+from ...errors import InputError, SimulationError
+from ...folders import OutputFolder
 from ...model import MacroModel
 from ...units import parse_quantity
 from .loop import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, Tone
 from .ngspice import MIN_SEGMENT, SEGMENT_S
 from .runner import BACKENDS, model_folder, model_for, run
+
+
+# the run's result set in DIR (sigma-delta.manifest.json names it) and the caches it shares with
+# earlier runs there (compiled Verilog-A, by content hash)
+RESULTS = "sigma-delta"
+MIN_CYCLES, MAX_CYCLES = 64, 1 << 24           # the analysis needs 64; 2^24 periods write ~250 GB of raw file
+TS_MAX = 1.0                                     # s
+SHARED = ("osdi",)
 
 
 def parse_pressure(text: str) -> float:
@@ -29,11 +42,16 @@ def cli(args) -> int:
     out = Path(args.output)
     try:
         tone = Tone.parse(args.tone) if args.tone else None
-        if args.ts <= 0 or args.cycles < 64:
-            raise ValueError(f"need --ts > 0 and --cycles >= 64 (got {args.ts}, {args.cycles})")
+        if args.ts <= 0 or args.cycles < MIN_CYCLES:
+            raise ValueError(f"need --ts > 0 and --cycles >= {MIN_CYCLES} (got {args.ts}, {args.cycles})")
         if args.segment is not None and (args.segment < 0 or 0 < args.segment < MIN_SEGMENT):
             raise ValueError(f"--segment {args.segment}: give at least {MIN_SEGMENT} periods per segment, or 0 "
                              f"for one run (the default is {SEGMENT_S * 1e3:g} ms of simulated time)")
+        if tone and not (math.isfinite(tone.amplitude) and math.isfinite(tone.freq) and 0 < tone.freq < 0.5 / args.ts):
+            raise ValueError(f"--tone {args.tone}: the amplitude must be a finite number and the frequency between 0 "
+                             f"and f_s/2 = {0.5 / args.ts:g} Hz, e.g. --tone z:0.02:1000")
+        if not math.isfinite(args.lead) or abs(args.lead) > 10:
+            raise ValueError(f"--lead {args.lead}: the lead coefficient must lie in [-10, 10] (default 0.8)")
         if not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
             raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT} (default 1e-3; 1e-4 for spectra "
                              "you quote: docs/sigma-delta.md)")
@@ -53,13 +71,21 @@ def cli(args) -> int:
         print(f"netgen: {exc}", file=sys.stderr)
         return 2
     if args.model:
-        model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
+        model, lib = model_file(args.model), Path(args.model).with_suffix(".lib")
     else:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
-    s = run(model, lib, out, args.ts, args.cycles, tone, progress=not args.quiet, plots=not args.no_plots,
-            simulator=args.simulator, segment=args.segment, lead=args.lead, dither=args.dither,
-            reltol=args.reltol)
+    info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
+            "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED) as folder:
+        try:
+            s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
+                    plots=not args.no_plots, simulator=args.simulator, segment=args.segment, lead=args.lead,
+                    dither=args.dither, reltol=args.reltol)
+        except SimulationError as exc:               # its paths: where the failed run's files are kept
+            raise SimulationError(folder.failed_path(str(exc)) + f"; the last complete results are still in "
+                                  f"{out} ({folder.manifest.name})") from None
+        folder.commit()
     if not args.quiet:
         for c in CHANNELS:
             ch = s["channels"][c]
@@ -81,6 +107,18 @@ def cli(args) -> int:
               f"the stop.{lost_hint(s)} Results in {out}", file=sys.stderr)
         return 1
     return 0
+
+
+def model_file(path: str) -> MacroModel:
+    """The --model JSON as a MacroModel; a file that is not one is an InputError with the fix."""
+    fix = "give a model .json written by netgen build (the .lib next to it), or build one: netgen build S.toml -o DIR"
+    try:
+        model = MacroModel.load_json(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "--model", f"cannot read it ({exc})", fix) from None
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
+        raise InputError(path, "--model", f"not a netgen model JSON ({type(exc).__name__}: {exc})", fix) from None
+    return model
 
 
 def lost_hint(s: dict) -> str:
@@ -105,12 +143,15 @@ def add_parser(sub) -> None:
     p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice or VACASK, "
                        "with spectra")
     p.add_argument("structure", help="structure description (TOML)")
-    p.add_argument("-o", "--output", required=True, help="output folder (bitstreams.npz, spectra, summary.json)")
-    p.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
-    p.add_argument("--cycles", type=int, default=4096, help="number of sampling periods (default 4096)")
+    p.add_argument("-o", "--output", required=True, type=output_folder,
+                   help="output folder (bitstreams.npz, spectra, summary.json)")
+    p.add_argument("--ts", type=positive("the sampling period in s", "--ts 1e-6", TS_MAX), default=1e-6,
+                   help="sampling period T_s in s (default 1e-6)")
+    p.add_argument("--cycles", type=integer("the number of sampling periods", MIN_CYCLES, MAX_CYCLES, "--cycles 4096"),
+                   default=4096, help="number of sampling periods (default 4096)")
     p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m)")
     p.add_argument("--rigid-only", action="store_true", help="drop the eigenmodes (model built with modes = 0)")
-    p.add_argument("--model", help="use this model .json (with the .lib, and for VACASK the .va, next to it) "
+    p.add_argument("--model", type=existing_file("model JSON"), help="use this model .json (with the .lib, and for VACASK the .va, next to it) "
                    "instead of building")
     p.add_argument("--simulator", choices=list(BACKENDS), default="ngspice",
                    help="ngspice with the .lib (default); ngspice-xspice: ngspice with the model's plate terms in "
@@ -123,14 +164,15 @@ def add_parser(sub) -> None:
                    help="squeeze-film model (compressible: Maxwell branches, for squeeze numbers above about 1)")
     p.add_argument("--noise", action="store_true", help="thermal force noise of the damping (ngspice trnoise); "
                    "summary.json gives the resulting Brownian floor per channel")
-    p.add_argument("--lead", type=float, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
-    p.add_argument("--dither", type=float, default=0.2,
+    p.add_argument("--lead", type=number, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
+    p.add_argument("--dither", type=number, default=0.2,
                    help="comparator dither amplitude, a fraction of the one-period feedback displacement "
                         "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
-    p.add_argument("--reltol", type=float, default=1e-3,
+    p.add_argument("--reltol", type=number, default=1e-3,
                    help="relative tolerance of the simulator (default 1e-3; docs/sigma-delta.md on how it "
                         "moves the in-band floors: 1e-4 for spectra you quote)")
-    p.add_argument("--segment", type=int, default=None,
+    p.add_argument("--segment", type=integer("periods per segment", MIN_SEGMENT, MAX_CYCLES, f"--segment {MIN_SEGMENT * 64}",
+                                            zero="one run"), default=None,
                    help="ngspice: run in segments of this many periods, each restarted at t = 0 from the "
                         "state the run reached (and cut at any missed breakpoint: docs/sigma-delta.md); "
                         f"0 = one run; default {SEGMENT_S * 1e3:g} ms of simulated time")

@@ -20,6 +20,7 @@ import numpy as np
 
 from ...build import build_model
 from ...emit import write_outputs
+from ...folders import OutputFolder
 from ...model import MacroModel
 from ...sim.ngspice import identity as ngspice_identity
 from ...sim.ngspice import version as ngspice_version
@@ -178,5 +179,7 @@ def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False
     if fresh and not rebuild:
         return MacroModel.load_json(js), lib
     model = build_model(structure, progress=progress)
-    write_outputs(model, folder, "all")              # .lib for ngspice, .va for the VACASK path
+    with OutputFolder(folder, model.name) as out:     # all or nothing, also against a concurrent run
+        write_outputs(model, out.stage, "all")        # .lib for ngspice, .va for the VACASK path
+        out.commit()
     return model, lib

@@ -1,0 +1,134 @@
+"""Argument types of the command line (argparse `type=`): numbers in their range and the paths a
+subcommand reads or writes, checked before any work. A bad value is argparse's exit 2 with a
+message that names the argument (argparse adds it), the value and the fix. Standard library
+only."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+from .interrupts import held
+
+# file systems a run folder can never be on: kernel views and device nodes, not storage
+VIRTUAL = {"proc", "sysfs", "devtmpfs", "devpts", "cgroup", "cgroup2", "debugfs", "tracefs", "securityfs",
+           "pstore", "bpf", "configfs", "fusectl", "mqueue", "hugetlbfs", "binfmt_misc", "autofs", "efivarfs"}
+
+
+def number(text: str) -> float:
+    """A finite number, or ArgumentTypeError."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def positive(what: str, example: str, upper: float = math.inf) -> Callable[[str], float]:
+    """The type of a number that must be > 0 (and <= upper): `what` it is, an `example`."""
+    def check(text: str) -> float:
+        value = number(text)
+        if not 0 < value <= upper:
+            limit = f" and at most {upper:g}" if upper < math.inf else ""
+            raise argparse.ArgumentTypeError(f"{text!r}: {what} must be greater than 0{limit}; e.g. {example}")
+        return value
+    return check
+
+
+def integer(what: str, low: int, high: int, example: str, zero: str | None = None) -> Callable[[str], int]:
+    """The type of an integer in [low, high] (or 0 when `zero` says what 0 means)."""
+    def check(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number; e.g. {example}") from None
+        if value == 0 and zero:
+            return 0
+        if not low <= value <= high:
+            also = f" (or 0: {zero})" if zero else ""
+            raise argparse.ArgumentTypeError(f"{value}: {what} must be between {low} and {high}{also}; "
+                                             f"e.g. {example}")
+        return value
+    return check
+
+
+def existing_file(what: str) -> Callable[[str], str]:
+    """The type of an input file that must exist and be a readable regular file."""
+    def check(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"the {what} path is empty; give the file to read")
+        path = Path(text)
+        if not path.exists():
+            raise argparse.ArgumentTypeError(f"{text}: no such file; check the path to the {what}")
+        if path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text} is a folder; give the {what} file inside it")
+        if not os.access(path, os.R_OK):
+            raise argparse.ArgumentTypeError(f"{text} is not readable; check its permissions (chmod u+r)")
+        return text
+    return check
+
+
+def mount_type(path: Path) -> str:
+    """File system type of the mount holding `path` (an absolute, resolved path), '' if unknown."""
+    best, kind = "", ""
+    try:
+        with open("/proc/self/mounts", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                parts = line.split()
+                if len(parts) < 3:
+                    continue
+                point = parts[1].encode().decode("unicode_escape")       # \040 for a space
+                inside = str(path) == point or str(path).startswith(point.rstrip("/") + "/")
+                if inside and len(point) >= len(best):
+                    best, kind = point, parts[2]
+    except OSError:
+        return ""
+    return kind
+
+
+def output_folder(text: str) -> str:
+    """The type of an output folder: not empty, not a file, not on a kernel file system, and
+    writable (the folder, or the nearest existing folder it would be created in)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("the output folder is empty; give a folder to write into, e.g. -o out")
+    try:
+        return _output_folder(text, Path(text).expanduser().resolve())
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: {exc.strerror}; choose a folder you can write to") from None
+
+
+def _output_folder(text: str, path: Path) -> str:
+    kind = mount_type(path)
+    if kind in VIRTUAL:
+        raise argparse.ArgumentTypeError(f"{text} is on the kernel's {kind} file system, not storage; "
+                                         "choose a folder on disk, e.g. -o out")
+    here = path
+    while not here.exists():
+        here = here.parent
+    if not here.is_dir():
+        what = "is a file" if here == path else f"is inside {here}, which is a file"
+        raise argparse.ArgumentTypeError(f"{text} {what}; give a folder (a new or an existing one)")
+    if not writable(here):
+        which = "" if here == path else f" (it would be created in {here})"
+        raise argparse.ArgumentTypeError(f"{text} is not writable{which}; choose a folder you can write to, "
+                                         "or fix its permissions")
+    return text
+
+
+def writable(folder: Path) -> bool:
+    """Can this process create a file in `folder`? Tried, not guessed (root passes os.access
+    on read-only and kernel file systems)."""
+    with held():                                   # no probe file left behind by a signal
+        try:
+            fd, probe = tempfile.mkstemp(prefix=".netgen-probe-", dir=folder)
+        except OSError:
+            return False
+        os.close(fd)
+        os.unlink(probe)
+    return True

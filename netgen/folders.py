@@ -1,0 +1,198 @@
+"""Output folders as transactions: a run writes into a staging folder inside its output folder
+and commits the set under a lock, with a manifest naming every file and its SHA-256
+(OutputFolder); check_manifest tells whether a folder still holds the set its manifest names."""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+from .files import umask, write_atomic
+from .interrupts import held
+
+STAGING = ".netgen-staging-"
+MANIFEST = ".manifest.json"          # <set name>.manifest.json: the complete set a run committed
+FAILED = ".failed"                   # <set name>.failed/: the files of the last run that failed
+FAILED_NOTE = "FAILED.txt"
+
+
+class OutputFolder:
+    """One run's outputs in `folder` as a transaction. The run writes into `stage` (a hidden
+    staging folder inside `folder`, so the renames stay on one file system); `commit` moves the
+    staged files into place under an exclusive lock on the folder (two runs into one folder
+    commit one after the other: the folder holds the last one's complete set), removes the files
+    the previous run of the same set wrote that this one did not (named by its manifest; files
+    netgen did not write are never touched) and writes `<name>.manifest.json` naming the new set
+    with the SHA-256 of each file. A run that ends without committing leaves the folder as it
+    was; a failed one (not an interrupt) with `keep_failed` moves its files to `<name>.failed/`.
+    SIGINT/SIGTERM are held over the commit and the clean-up (netgen.interrupts.held), so an
+    interrupt never leaves a half-moved set or a staging folder. `shared`: sub-folders of
+    `folder` the run reaches through `stage` (caches such as osdi/), linked, not staged.
+    `legacy`: the names this set's files have, replaced or removed as its own when the folder
+    has no manifest yet (written by a netgen before manifests)."""
+
+    def __init__(self, folder: str | Path, name: str, info: dict | None = None, keep_failed: bool = False,
+                 shared: tuple[str, ...] = (), legacy: tuple[str, ...] = ()):
+        self.folder, self.name, self.info = Path(folder), name, dict(info or {})
+        self.keep_failed, self.shared, self.legacy = keep_failed, shared, legacy
+        self.manifest = self.folder / f"{name}{MANIFEST}"
+        self.stage: Path = self.folder
+        self.committed = False
+        self._created = False
+        self._made: list[Path] = []                  # shared sub-folders this run created
+        self._lock: int | None = None
+
+    def __enter__(self) -> "OutputFolder":
+        with held():
+            self._created = not self.folder.exists()
+            self.folder.mkdir(parents=True, exist_ok=True)
+            remove_stale_stages(self.folder)
+            self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGING}{self.name}-", dir=self.folder))
+            os.chmod(self.stage, 0o777 & ~umask())
+            self._lock = os.open(self.stage, os.O_RDONLY)
+            fcntl.flock(self._lock, fcntl.LOCK_EX)          # alive: remove_stale_stages leaves it
+            for sub in self.shared:
+                if not (self.folder / sub).exists():
+                    (self.folder / sub).mkdir()
+                    self._made.append(self.folder / sub)
+                os.symlink(Path("..") / sub, self.stage / sub)
+        return self
+
+    def commit(self, written: list[Path] | None = None) -> list[Path]:
+        """Move the staged files into the folder as one set (see the class); the final paths of
+        `written` (staged paths), in their order."""
+        with held(), folder_lock(self.folder):
+            new = staged_files(self.stage)
+            before = manifest_files(self.manifest) if self.manifest.exists() else list(self.legacy)
+            old = set(before) - set(new)
+            self.manifest.unlink(missing_ok=True)           # no manifest names a set while it moves
+            for rel in new:
+                os.replace(self.stage / rel, self.folder / rel)
+            for rel in sorted(old):
+                (self.folder / rel).unlink(missing_ok=True)
+            write_atomic(self.manifest, manifest_text(self.folder, self.name, new, self.info))
+            failed = self.folder / f"{self.name}{FAILED}"
+            if (failed / FAILED_NOTE).exists():             # an earlier failure, superseded
+                shutil.rmtree(failed, ignore_errors=True)
+            self._drop_stage()
+            self.committed = True
+        return [self.folder / Path(p).relative_to(self.stage) for p in (written or [])]
+
+    def __exit__(self, kind, exc, tb) -> None:
+        if self.committed:
+            return
+        with held():
+            keep = self.keep_failed and exc is not None and not isinstance(exc, KeyboardInterrupt)
+            if keep and staged_files(self.stage):
+                self._keep_failed(exc)
+            else:
+                self._drop_stage()
+            if self._created and self.folder.exists() and not any(self.folder.iterdir()):
+                self.folder.rmdir()                         # a folder this run made and left empty
+
+    def failed_path(self, text: str) -> str:
+        """`text` (an error message) with the staging folder's paths replaced by the folder its
+        files are kept in after a failure."""
+        return text.replace(str(self.stage), str(self.folder / f"{self.name}{FAILED}"))
+
+    def _keep_failed(self, exc: BaseException) -> None:
+        """The failed run's files, for diagnosis, in <name>.failed/ (an earlier one replaced)."""
+        failed = self.folder / f"{self.name}{FAILED}"
+        if failed.exists() and (failed / FAILED_NOTE).exists():
+            shutil.rmtree(failed, ignore_errors=True)
+        for sub in self.shared:
+            (self.stage / sub).unlink(missing_ok=True)
+        if failed.exists():                                  # not ours: leave it, drop the run's files
+            self._drop_stage()
+            return
+        (self.stage / FAILED_NOTE).write_text(f"this run failed; the folder above holds the last complete set "
+                                              f"({self.manifest.name})\n\n{exc}\n", encoding="utf-8")
+        self._unlock()
+        os.replace(self.stage, failed)
+
+    def _drop_stage(self) -> None:
+        self._unlock()
+        shutil.rmtree(self.stage, ignore_errors=True)
+        for made in self._made:                          # a cache the run did not use
+            if made.is_dir() and not any(made.iterdir()):
+                made.rmdir()
+
+    def _unlock(self) -> None:
+        if self._lock is not None:
+            os.close(self._lock)
+            self._lock = None
+
+
+@contextmanager
+def folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive flock on the folder itself (no lock file left in it); waits for another
+    run's commit to finish."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+def remove_stale_stages(folder: Path) -> None:
+    """Remove the staging folders of runs that died without cleaning up (SIGKILL, a crash):
+    a live run holds a lock on its own staging folder."""
+    for stage in folder.glob(f"{STAGING}*"):
+        try:
+            fd = os.open(stage, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            continue                                         # its run is alive
+        finally:
+            os.close(fd)
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def staged_files(stage: Path) -> list[str]:
+    """The regular files a run wrote into its staging folder (links to shared folders excluded)."""
+    return sorted(p.name for p in stage.iterdir() if p.is_file() and not p.is_symlink())
+
+
+def manifest_files(manifest: Path) -> list[str]:
+    """The file names an earlier run's manifest lists ([] when there is none or it is unreadable)."""
+    try:
+        files = json.loads(manifest.read_text(encoding="utf-8")).get("files", {})
+    except (OSError, ValueError, AttributeError):
+        return []
+    return [f for f in files if isinstance(f, str) and "/" not in f and not f.startswith(".")]
+
+
+def manifest_text(folder: Path, name: str, files: list[str], info: dict) -> str:
+    """The manifest of a committed set: what wrote it, and each file with its SHA-256."""
+    from . import __version__
+    doc = {"generator": f"netgen {__version__}", "set": name, **info,
+           "files": {f: hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files}}
+    return json.dumps(doc, indent=1) + "\n"
+
+
+def check_manifest(folder: str | Path, name: str) -> list[str]:
+    """What is wrong with the set `name` in `folder` against its manifest ([]: complete)."""
+    folder = Path(folder)
+    try:
+        files = json.loads((folder / f"{name}{MANIFEST}").read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError) as exc:
+        return [f"no readable manifest: {exc}"]
+    problems = []
+    for f, digest in files.items():
+        path = folder / f
+        if not path.is_file():
+            problems.append(f"{f}: missing")
+        elif hashlib.sha256(path.read_bytes()).hexdigest() != digest:
+            problems.append(f"{f}: not the file the manifest names")
+    return problems
