@@ -96,7 +96,7 @@ def output_folder(text: str) -> str:
     """The type of an output folder: not empty, not a file, not on a kernel file system, and
     writable (the folder, or the nearest existing folder it would be created in)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError("the output folder is empty; give a folder to write into, e.g. -o out")
+        raise argparse.ArgumentTypeError("the folder is empty (''); give a folder to write into, e.g. out")
     try:
         return _output_folder(text, Path(text).expanduser().resolve())
     except OSError as exc:
@@ -107,7 +107,7 @@ def _output_folder(text: str, path: Path) -> str:
     kind = mount_type(path)
     if kind in VIRTUAL:
         raise argparse.ArgumentTypeError(f"{text} is on the kernel's {kind} file system, not storage; "
-                                         "choose a folder on disk, e.g. -o out")
+                                         "choose a folder on disk")
     here = path
     while not here.exists():
         here = here.parent

@@ -10,12 +10,14 @@ the build needs no ngspice at all; sim.vacask and the sigma-delta back ends comp
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import subprocess
 import tempfile
 from pathlib import Path
 
 from ..errors import SimulationError, SimulatorNotFound
+from ..files import write_atomic
 from ..model import MacroModel
 from ..templating import render
 from . import veriloga
@@ -65,16 +67,21 @@ def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bo
 
 def compiled(text: str, stem: str, cache: Path, cpu: str | None = None) -> Path:
     """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text
-    (and target cpu, see compile_va)."""
+    (and target cpu, see compile_va). The source is written atomically and the compiler's output
+    is a temp file of this process until the rename, so concurrent runs sharing the cache and
+    interrupted ones never leave or load a partial file."""
     cache.mkdir(parents=True, exist_ok=True)
     key = hashlib.sha256(text.encode() + (cpu or "").encode()).hexdigest()[:12]
     osdi = cache / f"{stem}-{key}.osdi"
     if not osdi.exists():
         va = cache / f"{stem}-{key}.va"
-        va.write_text(text, encoding="utf-8")
-        tmp = cache / f"{stem}-{key}.tmp.osdi"
-        compile_va(va, tmp, deny_warnings=True, cpu=cpu)
-        tmp.replace(osdi)                              # atomic: parallel runs never load a partial file
+        write_atomic(va, text)
+        tmp = cache / f".{stem}-{key}.{os.getpid()}.tmp.osdi"
+        try:
+            compile_va(va, tmp, deny_warnings=True, cpu=cpu)
+            tmp.replace(osdi)                          # atomic: parallel runs never load a partial file
+        finally:
+            tmp.unlink(missing_ok=True)
     return osdi
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from ..arguments import output_folder
 from ..executor import add_scheduler_option, executor
 from ..structure import load_structure
 from .plan import plan
@@ -37,7 +38,8 @@ def add_parser(sub) -> None:
     p = sub.add_parser("sweep", help="parameter sweep / Monte Carlo of the sigma-delta loop (local processes or Dask)")
     p.add_argument("structure", help="structure description (TOML)")
     p.add_argument("sweep", help="sweep description (TOML), e.g. examples/sweep_ts.toml")
-    p.add_argument("-o", "--output", required=True, help="output folder (results.csv, runs/, the figure PNG)")
+    p.add_argument("-o", "--output", required=True, type=output_folder,
+                   help="output folder (results.csv, runs/, the figure PNG)")
     add_scheduler_option(p, what="the runs run (default: one local process per core)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

@@ -15,7 +15,7 @@ from ...model import MacroModel
 from ...units import parse_quantity
 from .loop import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, Tone
 from .ngspice import MIN_SEGMENT, SEGMENT_S
-from .runner import BACKENDS, model_folder, model_for, run
+from .runner import BACKENDS, TIMEOUT, model_folder, model_for, run
 
 
 # the run's result set in DIR (sigma-delta.manifest.json names it) and the caches it shares with
@@ -32,8 +32,8 @@ def parse_pressure(text: str) -> float:
         value = float(text)
     except ValueError:
         value = parse_quantity(text, "pressure")
-    if not value > 0:
-        raise ValueError(f"--pressure {text!r} must be positive")
+    if not (value > 0 and math.isfinite(value)):
+        raise ValueError(f"--pressure {text!r} must be a positive, finite pressure, e.g. '100 Pa' or '1 mbar'")
     return value
 
 
@@ -75,13 +75,17 @@ def cli(args) -> int:
     else:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
+    if tone and tone.coord not in [c.name for c in model.coordinates]:
+        print(f"netgen: --tone {args.tone}: the model has no coordinate {tone.coord!r}; choose one of "
+              f"{', '.join(c.name for c in model.coordinates)}", file=sys.stderr)
+        return 2
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED) as folder:
         try:
             s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
                     plots=not args.no_plots, simulator=args.simulator, segment=args.segment, lead=args.lead,
-                    dither=args.dither, reltol=args.reltol)
+                    timeout=args.timeout, dither=args.dither, reltol=args.reltol)
         except SimulationError as exc:               # its paths: where the failed run's files are kept
             raise SimulationError(folder.failed_path(str(exc)) + f"; the last complete results are still in "
                                   f"{out} ({folder.manifest.name})") from None
@@ -176,6 +180,9 @@ def add_parser(sub) -> None:
                    help="ngspice: run in segments of this many periods, each restarted at t = 0 from the "
                         "state the run reached (and cut at any missed breakpoint: docs/sigma-delta.md); "
                         f"0 = one run; default {SEGMENT_S * 1e3:g} ms of simulated time")
+    p.add_argument("--timeout", type=positive("the time limit in seconds", "--timeout 3600", 1e7), default=TIMEOUT,
+                   help=f"wall-clock limit of each simulator run in s (default {TIMEOUT:g}); a run past it is "
+                   "stopped and reported")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

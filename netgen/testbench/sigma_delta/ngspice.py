@@ -217,7 +217,7 @@ def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path,
 
 def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
                  progress: bool, segment: int | None, control: list[str] = (),
-                 loop: str = "analog", klu: bool = False) -> tuple[dict, dict, dict]:
+                 loop: str = "analog", klu: bool = False, timeout: float = 36000.0) -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
     reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
     missed an electrode-phase corner is cut at the start of that period, and the next segment
@@ -235,7 +235,7 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
         bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
                           control=control, loop=loop, chunks=max(1, min(50, n // 100)), klu=klu)
-        plot = simulate(bench, out, d.ts * n, progress,
+        plot = simulate(bench, out, d.ts * n, progress, timeout,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
         runs += 1
         t = np.asarray(plot["time"])

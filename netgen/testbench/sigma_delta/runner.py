@@ -32,6 +32,9 @@ from .loop import Design, Tone, design
 from .plots import plot_spectra, plot_states
 
 
+TIMEOUT = 36000.0           # s: the default wall-clock limit of one simulator run (netgen.sim.process)
+
+
 @dataclass(frozen=True)
 class Backend:
     """prepare(model, lib, out, progress) -> state: what must exist before the timed run (code
@@ -66,7 +69,7 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     else:
         klu = ngspice_version().klu
     clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, segment,
-                                                        control, loop, klu)
+                                                        control, loop, klu, timeout=state.get("timeout", TIMEOUT))
     return clock, {"breakpoints": breakpoints, "segments": segments, "ngspice": ngspice_identity(),
                    "solver": "klu" if klu else "sparse"}
 
@@ -89,7 +92,7 @@ def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> 
 def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
                 progress: bool, segment: int | None, state: dict) -> tuple[dict, dict]:
     """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
-    plot = vacask.run_bench(model, d, out, cycles, tone, progress, va=state["va"])
+    plot = vacask.run_bench(model, d, out, cycles, tone, progress, va=state["va"], timeout=state.get("timeout", TIMEOUT))
     extra = {"compile_s": state["compile_s"], "vacask": vacask_stats(out / vacask.LOG)}
     clock = per_clock(plot, d, cycles, model)
     del plot
@@ -110,7 +113,7 @@ SIMULATORS = tuple(BACKENDS)
 
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
         progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        segment: int | None = None, **choices) -> dict:
+        segment: int | None = None, timeout: float = TIMEOUT, **choices) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
@@ -120,6 +123,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     backend = BACKENDS[simulator]
     d = design(model, ts, **choices)
     state = backend.prepare(model, lib, out, progress)      # fails before any output
+    state["timeout"] = timeout                               # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     clock, extra = backend.run(model, d, lib, out, cycles, tone, progress, segment, state)

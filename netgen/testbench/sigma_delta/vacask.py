@@ -113,10 +113,11 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
 
 
 def run_bench(model: MacroModel, d: Design, out: Path, cycles: int, tone: Tone | None = None,
-              progress: bool = True, va: Path | None = None, cache: Path | None = None, options: str = "") -> Plot:
+              progress: bool = True, va: Path | None = None, cache: Path | None = None, options: str = "",
+              timeout: float = 36000.0) -> Plot:
     """Compile (cached), render and run the VACASK bench in `out`; return its plot."""
     cache = cache or out / "osdi"
     model_osdi = compile_model(model, cache, va)
     blocks_osdi = compile_blocks(cache)
     bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options)
-    return simulate(bench, out, d.ts * cycles, progress)
+    return simulate(bench, out, d.ts * cycles, progress, timeout)
