@@ -91,7 +91,7 @@ def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
     monkeypatch.setitem(emit.EMITTERS, "ports", ports)
     assert cli.main(["build", str(PISTON), "-o", str(tmp_path), "-q", "--no-plots", "--format", "ports"]) == 0
     assert (tmp_path / "piston.ports").read_text().split() == ["drive", "plate", "f_z", "x_z"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["piston.json", "piston.ports"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["piston.json", "piston.manifest.json", "piston.ports"]
 
 
 def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
