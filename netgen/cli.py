@@ -102,7 +102,7 @@ def _add_build(sub) -> None:
 
 def _simulate(args: argparse.Namespace) -> int:
     netlist_text(args.netlist)                      # refuses binary input before the simulator sees it
-    plots = SIMULATORS[args.simulator].run_file(Path(args.netlist), Path(args.output), args.timeout)
+    plots = SIMULATORS[args.simulator].file(Path(args.netlist), Path(args.output), args.timeout)
     if not args.quiet:
         if args.simulator == "ngspice":                  # its log's first line records the same
             print(f"ran {ngspice.version().label} ({ngspice.version().path})")
