@@ -183,7 +183,8 @@ def outcome(command: str, out: Path, refs, user: bytes, runs: list[tuple[int, st
     result = classify(command, out, refs, user)
     result["traceback"] = any("Traceback" in err for _, err in runs)
     result["other_exit"] = any(rc not in (0, 130) for rc, _ in runs)
-    result["detail"] = [f"rc {rc}: {err.strip().splitlines()[-1:] if err.strip() else ''}" for rc, err in runs]
+    result["detail"] = [f"rc {rc}: " + (err.strip() if "Traceback" in err else " ".join(err.strip().splitlines()[-1:]))
+                        for rc, err in runs]
     return result
 
 

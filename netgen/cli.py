@@ -18,7 +18,7 @@ from .arguments import existing_file, output_folder, positive
 from .build import build, figure_names, write_figures
 from .emit import EMITTERS, formats, refusal, write_outputs
 from .errors import InputError, NetgenError, StructureError
-from .interrupts import EXIT_INTERRUPTED, install, internal_error, interrupted, restore
+from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 from .executor import add_scheduler_option, executor
 from .folders import OutputFolder
 from .model import FIT_FIX
@@ -174,7 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser().parse_args(argv)
         with ngspice.selected(args.ngspice):        # --ngspice: the same setting as NETGEN_NGSPICE
-            return args.func(args)
+            code = args.func(args)
+        check()                                     # a signal some library swallowed still stops it
+        return code
     except InputError as exc:
         print(f"netgen: error in {exc.what} {exc}", file=sys.stderr)
         return exc.exit_code

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 
-from .interrupts import EXIT_INTERRUPTED, install, internal_error, interrupted, quiet
+from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, quiet
 
 
 def main() -> int:
@@ -15,6 +15,7 @@ def main() -> int:
     install()
     try:
         from . import cli
+        check()                                     # a signal an import swallowed
     except KeyboardInterrupt:
         print("netgen: interrupted while starting; nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED

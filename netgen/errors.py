@@ -1,6 +1,6 @@
 """The errors netgen reports to a user, each with the exit code the command line gives it.
 
-`cli.main` catches NetgenError (and only it, plus KeyboardInterrupt and OSError) and prints the
+`cli.main` catches NetgenError (and KeyboardInterrupt, OSError and, as exit 70, the rest) and prints the
 message in one line: every class here carries what the user needs (file, key, problem, fix).
 """
 

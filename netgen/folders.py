@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .files import umask, write_atomic
-from .interrupts import held
+from .interrupts import check, held
 
 STAGING = ".netgen-staging-"
 MANIFEST = ".manifest.json"          # <set name>.manifest.json: the complete set a run committed
@@ -68,6 +68,7 @@ class OutputFolder:
     def commit(self, written: list[Path] | None = None) -> list[Path]:
         """Move the staged files into the folder as one set (see the class); the final paths of
         `written` (staged paths), in their order."""
+        check()                                         # an interrupt a library swallowed: no commit
         with held(), folder_lock(self.folder):
             new = staged_files(self.stage)
             before = manifest_files(self.manifest) if self.manifest.exists() else list(self.legacy)

@@ -57,18 +57,40 @@ def interrupted(exc: BaseException) -> Interrupted | None:
 
 def install() -> dict:
     """SIGINT and SIGTERM raise Interrupted in the main thread (no-op in other threads); the
-    handlers they had, for `restore`."""
+    handlers they had, for `restore`. An Interrupted that lands in a finaliser (a __del__, a
+    weakref callback), where Python prints and drops exceptions, is not printed: `check()`
+    acts on it at the next checkpoint."""
     if threading.current_thread() is not threading.main_thread():
         return {}
     ARRIVED.clear()
+    previous: dict = {"unraisable": sys.unraisablehook}
+    sys.unraisablehook = _unraisable
     # a signal ignored since the start stays ignored (a background job of a script, nohup)
-    return {s: signal.signal(s, _raise) for s in SIGNALS if signal.getsignal(s) is not signal.SIG_IGN}
+    previous |= {s: signal.signal(s, _raise) for s in SIGNALS if signal.getsignal(s) is not signal.SIG_IGN}
+    return previous
 
 
 def restore(previous: dict) -> None:
     """Put back the handlers `install` replaced."""
     for s, handler in previous.items():
-        signal.signal(s, handler)
+        if s == "unraisable":
+            sys.unraisablehook = handler
+        else:
+            signal.signal(s, handler)
+
+
+def _unraisable(info) -> None:
+    """sys.unraisablehook: an interrupt dropped in a finaliser stays silent (check() raises it)."""
+    if not isinstance(info.exc_value, KeyboardInterrupt):
+        sys.__unraisablehook__(info)
+
+
+def check() -> None:
+    """A checkpoint: raise Interrupted if a signal arrived that nothing acted on (it landed in a
+    finaliser, or in code that swallowed the exception), so a run never goes on, or commits,
+    after it was told to stop."""
+    if ARRIVED:
+        raise Interrupted(ARRIVED[-1])
 
 
 def quiet() -> None:
