@@ -15,7 +15,10 @@ command and kind: tried / mixed / stale / partial files / tracebacks / other exi
   missing, no manifest: results that cannot be told current);
 - partial files: temp or staging files left, or a file that belongs to neither run;
 - tracebacks: a Python traceback on stderr;
-- other exit: an exit code that is neither 0 (finished) nor 130 (interrupted).
+- other exit: an exit code that is neither 0 (finished) nor 130 (interrupted);
+- before netgen: the signal came while the interpreter itself was starting, before netgen's
+  first line (Python's default action: killed, or for SIGINT its own traceback from site.py);
+  counted apart, not as tracebacks or exit codes (netgen cannot act before it runs).
 
 The build variants are the piston example and the same with a 2.5 um gap (so every file differs),
 written with --format all and --format ngspice --no-plots (so the sets have different files
@@ -178,11 +181,23 @@ def concurrent(command: str, work: Path, old, new, refs, k: int) -> dict:
     return outcome(command, out, refs, user, done)
 
 
+def before_netgen(rc: int, err: str) -> bool:
+    """Did the signal stop the interpreter before netgen's first line ran (Python's own start-up:
+    killed by the signal's default action, or a KeyboardInterrupt in site.py or the script's
+    import line)? Then no netgen code could act, and nothing was written."""
+    frames = [ln for ln in err.splitlines() if ln.strip().startswith('File "')]
+    own = [f for f in frames if "/netgen/" in f and "/bin/netgen" not in f]
+    return (rc in (-signal.SIGINT, -signal.SIGTERM) and not err.strip()) or "Fatal Python error" in err \
+        or ("Traceback" in err and not own)
+
+
 def outcome(command: str, out: Path, refs, user: bytes, runs: list[tuple[int, str]]) -> dict:
     """The folder's classification, plus tracebacks and unexpected exit codes of the runs."""
     result = classify(command, out, refs, user)
-    result["traceback"] = any("Traceback" in err for _, err in runs)
-    result["other_exit"] = any(rc not in (0, 130) for rc, _ in runs)
+    early = [before_netgen(rc, err) for rc, err in runs]
+    result["startup"] = any(early)
+    result["traceback"] = any("Traceback" in err for (_, err), e in zip(runs, early) if not e)
+    result["other_exit"] = any(rc not in (0, 130) for (rc, _), e in zip(runs, early) if not e)
     result["detail"] = [f"rc {rc}: " + (err.strip() if "Traceback" in err else " ".join(err.strip().splitlines()[-1:]))
                         for rc, err in runs]
     return result
@@ -252,12 +267,13 @@ def measure(command: str, signals: int, pairs: int, seed: int = 1, verbose: bool
 
 def add(rows: dict, kind: str, result: dict, verbose: bool, label: str) -> None:
     """Count one experiment into its row."""
-    row = rows.setdefault(kind, {"tried": 0, "mixed": 0, "stale": 0, "partial": 0, "traceback": 0, "other_exit": 0})
+    keys = ("mixed", "stale", "partial", "traceback", "other_exit", "startup")
+    row = rows.setdefault(kind, {"tried": 0} | {k: 0 for k in keys})
     row["tried"] += 1
-    for key in ("mixed", "stale", "partial", "traceback", "other_exit"):
+    for key in keys:
         row[key] += int(result[key])
-    if verbose or any(result[key] for key in ("mixed", "stale", "partial", "traceback", "other_exit")):
-        flags = [key for key in ("mixed", "stale", "partial", "traceback", "other_exit") if result[key]]
+    if verbose or any(result[key] for key in keys):
+        flags = [key for key in keys if result[key]]
         print(f"  {label}: {', '.join(flags) or 'ok'} {result['detail']}", file=sys.stderr, flush=True)
 
 
@@ -270,12 +286,12 @@ def main() -> None:
     p.add_argument("-v", "--verbose", action="store_true", help="one line per experiment on stderr")
     args = p.parse_args()
     print(f"{'command':<12} {'kind':<16} {'tried':>5} {'mixed':>5} {'stale':>5} {'partial':>7} {'tracebacks':>10} "
-          f"{'other exit':>10}")
+          f"{'other exit':>10} {'before netgen':>13}")
     for command in args.commands.split(","):
         start = time.perf_counter()
         for kind, row in measure(command, args.signals, args.pairs, args.seed, args.verbose).items():
             print(f"{command:<12} {kind:<16} {row['tried']:>5} {row['mixed']:>5} {row['stale']:>5} "
-                  f"{row['partial']:>7} {row['traceback']:>10} {row['other_exit']:>10}", flush=True)
+                  f"{row['partial']:>7} {row['traceback']:>10} {row['other_exit']:>10} {row['startup']:>13}", flush=True)
         print(f"{command}: {time.perf_counter() - start:.0f} s", file=sys.stderr)
 
 
