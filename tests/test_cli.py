@@ -95,7 +95,7 @@ def test_an_argument_out_of_range_is_exit_2_naming_it_and_the_fix(argv, argument
     (["sigma-delta", DISK, "--model", MODEL, "--tone", "z:0.02:-5"], "between 0 and f_s/2"),
     (["sigma-delta", DISK, "--model", MODEL, "--tone", "q:0.02:1000"], "choose one of z, tilt_x"),
     (["sigma-delta", DISK, "--model", MODEL, "--pressure", "inf"], "positive, finite pressure"),
-    (["sigma-delta", DISK, "--model", A_FILE], "not a netgen model JSON"),
+    (["sigma-delta", DISK, "--model", A_FILE], "give the .json a build wrote"),
     (["build", PISTON, "--scheduler", "processes:0"], "positive integer"),
 ])
 def test_values_checked_after_parsing_are_exit_2_too(argv, fix, tmp_path, capsys):

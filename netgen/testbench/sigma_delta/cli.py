@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from ...arguments import existing_file, integer, number, output_folder, positive
-from ...errors import InputError, SimulationError
+from ...errors import SimulationError
 from ...folders import OutputFolder
 from ...model import MacroModel
 from ...units import parse_quantity
@@ -71,7 +71,7 @@ def cli(args) -> int:
         print(f"netgen: {exc}", file=sys.stderr)
         return 2
     if args.model:
-        model, lib = model_file(args.model), Path(args.model).with_suffix(".lib")
+        model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
     else:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
@@ -111,18 +111,6 @@ def cli(args) -> int:
               f"the stop.{lost_hint(s)} Results in {out}", file=sys.stderr)
         return 1
     return 0
-
-
-def model_file(path: str) -> MacroModel:
-    """The --model JSON as a MacroModel; a file that is not one is an InputError with the fix."""
-    fix = "give a model .json written by netgen build (the .lib next to it), or build one: netgen build S.toml -o DIR"
-    try:
-        model = MacroModel.load_json(path)
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "--model", f"cannot read it ({exc})", fix) from None
-    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
-        raise InputError(path, "--model", f"not a netgen model JSON ({type(exc).__name__}: {exc})", fix) from None
-    return model
 
 
 def lost_hint(s: dict) -> str:
