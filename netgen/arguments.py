@@ -132,3 +132,23 @@ def writable(folder: Path) -> bool:
         os.close(fd)
         os.unlink(probe)
     return True
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser whose errors end with where the arguments are described (argparse's
+    own messages, such as an unknown option or a missing value, name the argument but no fix)."""
+
+    def error(self, message: str):
+        """Exit 2 with the usage, the message and the help command that lists the arguments."""
+        if message.endswith("expected one argument"):
+            message += "; a value that starts with '-' is written as --option=VALUE"
+        super().error(f"{message} (see: {self.prog} --help)")
+
+
+def nonempty(what: str, example: str) -> Callable[[str], str]:
+    """The type of a text argument that must not be empty."""
+    def check(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"{what} is empty; give one, e.g. {example}")
+        return text
+    return check

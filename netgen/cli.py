@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from . import __version__
-from .arguments import existing_file, output_folder, positive
+from .arguments import Parser, existing_file, output_folder, positive
 from .build import build, figure_names, write_figures
 from .emit import EMITTERS, formats, refusal, write_outputs
 from .errors import InputError, NetgenError, StructureError
@@ -151,7 +151,7 @@ def _add_codemodel(sub) -> None:
 # ----------------------------------------------------------------------------- the command
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="netgen", description=__doc__)
+    p = Parser(prog="netgen", description=__doc__)
     p.add_argument("--version", action="version", version=f"netgen {__version__}")
     p.add_argument("--ngspice", metavar="PATH", help="the ngspice to run and build code models for (default: "
                    f"${ngspice.ENV}, else the ngspice on PATH), e.g. ~/.cache/netgen/ngspice-46/bin/ngspice")

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
+from .arguments import nonempty
 from .errors import ExecutorError
 
 DASK_INSTALL = "pip install 'netgen[dask]'  (or: pip install 'dask[distributed]')"
@@ -357,4 +358,5 @@ def executor(spec: str | None = None) -> Executor:
 
 def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:
     """The shared --scheduler option of the build and sweep commands."""
-    parser.add_argument("--scheduler", metavar="SPEC", help=f"where {what}: {SCHEDULER_HELP}")
+    parser.add_argument("--scheduler", metavar="SPEC", type=nonempty("--scheduler", "processes:2"),
+                        help=f"where {what}: {SCHEDULER_HELP}")

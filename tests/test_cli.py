@@ -65,6 +65,8 @@ RANGES = [
     (["build", PISTON, "-o", ""], "-o/--output", "give a folder"),
     (["build", PISTON, "-o", "/proc/self/netgen"], "-o/--output", "not storage"),
     (["build", PISTON, "-o", "OUT", "--sample-store", A_FILE], "--sample-store", "is a file"),
+    (["build", PISTON, "-o", "OUT", "--scheduler", ""], "--scheduler", "give one, e.g. processes:2"),
+    (["simulate", A_FILE, "-o", "OUT", "--timeout", "-inf"], "--timeout", "--option=VALUE"),
     (["sigma-delta", DISK, "-o", "OUT", "--cycles", "10"], "--cycles", "between 64 and"),
     (["sigma-delta", DISK, "-o", "OUT", "--cycles", "1e3"], "--cycles", "whole number"),
     (["sigma-delta", DISK, "-o", "OUT", "--cycles", str(1 << 30)], "--cycles", "between 64 and"),
@@ -95,6 +97,7 @@ def test_an_argument_out_of_range_is_exit_2_naming_it_and_the_fix(argv, argument
     (["sigma-delta", DISK, "--model", MODEL, "--tone", "z:0.02:-5"], "between 0 and f_s/2"),
     (["sigma-delta", DISK, "--model", MODEL, "--tone", "q:0.02:1000"], "choose one of z, tilt_x"),
     (["sigma-delta", DISK, "--model", MODEL, "--pressure", "inf"], "positive, finite pressure"),
+    (["sigma-delta", DISK, "--model", MODEL, "--tone", ""], "give COORD:AMPLITUDE:FREQ"),
     (["sigma-delta", DISK, "--model", A_FILE], "give the .json a build wrote"),
     (["build", PISTON, "--scheduler", "processes:0"], "positive integer"),
 ])

@@ -31,7 +31,10 @@ def parse_pressure(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        value = parse_quantity(text, "pressure")
+        try:
+            value = parse_quantity(text, "pressure")
+        except ValueError as exc:
+            raise ValueError(f"--pressure {text!r}: {exc}") from None
     if not (value > 0 and math.isfinite(value)):
         raise ValueError(f"--pressure {text!r} must be a positive, finite pressure, e.g. '100 Pa' or '1 mbar'")
     return value
@@ -41,6 +44,8 @@ def cli(args) -> int:
     """`netgen sigma-delta`: build or reuse the model, run the loop, write DIR/summary.json etc."""
     out = Path(args.output)
     try:
+        if args.tone is not None and not args.tone.strip():
+            raise ValueError("--tone is empty: give COORD:AMPLITUDE:FREQ, e.g. --tone z:0.02:1000, or leave it out")
         tone = Tone.parse(args.tone) if args.tone else None
         if args.ts <= 0 or args.cycles < MIN_CYCLES:
             raise ValueError(f"need --ts > 0 and --cycles >= {MIN_CYCLES} (got {args.ts}, {args.cycles})")
@@ -53,7 +58,7 @@ def cli(args) -> int:
         if not math.isfinite(args.lead) or abs(args.lead) > 10:
             raise ValueError(f"--lead {args.lead}: the lead coefficient must lie in [-10, 10] (default 0.8)")
         if not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
-            raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT} (default 1e-3; 1e-4 for spectra "
+            raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT}: give one inside it (default 1e-3; 1e-4 for spectra "
                              "you quote: docs/sigma-delta.md)")
         if not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
