@@ -24,6 +24,9 @@ RESULTS = "sigma-delta"
 MIN_CYCLES, MAX_CYCLES = 64, 1 << 24           # the analysis needs 64; 2^24 periods write ~250 GB of raw file
 TS_MAX = 1.0                                     # s
 SHARED = ("osdi",)
+# the files a run writes (its set when a folder from before manifests holds them)
+RESULT_FILES = ("bitstreams.npz", "spectra.npz", "summary.json", "spectra.png", "coordinates.png", "sigma_delta.cir",
+                "sigma_delta.log", "sigma_delta.sim", "sigma_delta.vacask.log")
 
 
 def parse_pressure(text: str) -> float:
@@ -86,7 +89,8 @@ def cli(args) -> int:
         return 2
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED) as folder:
+    with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,
+                      legacy=RESULT_FILES + (f"{model.name}_xspice.lib",)) as folder:
         try:
             s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
                     plots=not args.no_plots, simulator=args.simulator, segment=args.segment, lead=args.lead,
