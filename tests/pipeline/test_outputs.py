@@ -422,7 +422,7 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
         assert "netgen/templates/ngspice/subckt.lib.j2" in shipped and "netgen/sim/codemodel/netgen_es/cfunc.mod" in shipped
         assert not shipped - names, sorted(shipped - names)
         entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
-        assert "netgen = netgen.cli:main" in z.read(entry).decode()
+        assert "netgen = netgen.entry:main" in z.read(entry).decode()
         z.extractall(tmp_path / "site")
     work = tmp_path / "elsewhere"
     work.mkdir()
