@@ -52,17 +52,21 @@ class OutputFolder:
     def __enter__(self) -> "OutputFolder":
         with held():
             self._created = not self.folder.exists()
-            self.folder.mkdir(parents=True, exist_ok=True)
-            remove_stale_stages(self.folder)
-            self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGING}{self.name}-", dir=self.folder))
-            os.chmod(self.stage, 0o777 & ~umask())
-            self._lock = os.open(self.stage, os.O_RDONLY)
-            fcntl.flock(self._lock, fcntl.LOCK_EX)          # alive: remove_stale_stages leaves it
-            for sub in self.shared:
-                if not (self.folder / sub).exists():
-                    (self.folder / sub).mkdir()
-                    self._made.append(self.folder / sub)
-                os.symlink(Path("..") / sub, self.stage / sub)
+            with folder_lock(self.folder, create=True):     # against a run's clean-up of the same folder
+                remove_stale_stages(self.folder)
+                self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGING}{self.name}-", dir=self.folder))
+                try:
+                    os.chmod(self.stage, 0o777 & ~umask())
+                    self._lock = os.open(self.stage, os.O_RDONLY)
+                    fcntl.flock(self._lock, fcntl.LOCK_EX)  # alive: remove_stale_stages leaves it
+                    for sub in self.shared:
+                        if not (self.folder / sub).exists():
+                            (self.folder / sub).mkdir()
+                            self._made.append(self.folder / sub)
+                        os.symlink(Path("..") / sub, self.stage / sub)
+                except BaseException:
+                    self._drop_stage()
+                    raise
         return self
 
     def commit(self, written: list[Path] | None = None) -> list[Path]:
@@ -89,13 +93,13 @@ class OutputFolder:
     def __exit__(self, kind, exc, tb) -> None:
         if self.committed:
             return
-        with held():
+        with held(), folder_lock(self.folder):
             keep = self.keep_failed and exc is not None and not isinstance(exc, KeyboardInterrupt)
             if keep and staged_files(self.stage):
                 self._keep_failed(exc)
             else:
                 self._drop_stage()
-            if self._created and self.folder.exists() and not any(self.folder.iterdir()):
+            if self._created and not any(self.folder.iterdir()):
                 self.folder.rmdir()                         # a folder this run made and left empty
 
     def failed_path(self, text: str) -> str:
@@ -117,11 +121,20 @@ class OutputFolder:
                                               f"({self.manifest.name})\n\n{exc}\n", encoding="utf-8")
         self._unlock()
         os.replace(self.stage, failed)
+        self._clean_made()
 
     def _drop_stage(self) -> None:
+        """Remove the staging folder (and the shared folders this run made and left empty)."""
         self._unlock()
         shutil.rmtree(self.stage, ignore_errors=True)
-        for made in self._made:                          # a cache the run did not use
+        self._clean_made()
+
+    def _clean_made(self) -> None:
+        """Remove the shared folders this run made if they stayed empty and no other run is
+        staging here (the caller holds the folder lock)."""
+        if any(self.folder.glob(f"{STAGING}*")):
+            return
+        for made in self._made:
             if made.is_dir() and not any(made.iterdir()):
                 made.rmdir()
 
@@ -132,15 +145,25 @@ class OutputFolder:
 
 
 @contextmanager
-def folder_lock(folder: Path) -> Iterator[None]:
+def folder_lock(folder: Path, create: bool = False) -> Iterator[None]:
     """An exclusive flock on the folder itself (no lock file left in it); waits for another
-    run's commit to finish."""
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(fd)
+    run's commit or clean-up to finish. create: make the folder first, and again if another
+    run's clean-up removed it (empty, made by that run) while this one waited."""
+    while True:
+        if create:
+            folder.mkdir(parents=True, exist_ok=True)
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(folder))
+            except FileNotFoundError:
+                same = False
+            if same or not create:
+                yield
+                return
+        finally:
+            os.close(fd)
 
 
 def remove_stale_stages(folder: Path) -> None:

@@ -407,3 +407,20 @@ def test_a_failed_sigma_delta_run_keeps_its_files_apart_from_the_last_results(sd
     assert cli.main(new + ["-o", str(out)]) == 0
     assert not failed.exists() and check_manifest(out, "sigma-delta") == []
     assert np.load(out / "bitstreams.npz")["time"].size == 128
+
+
+def test_two_runs_staging_at_once_share_a_cache_folder_and_commit_in_turn(tmp_path):
+    """Interleaved by hand: run A makes the shared osdi/ and fails, run B (staging meanwhile)
+    keeps using it and commits; the folder is B's set, no staging folder is left."""
+    a = OutputFolder(tmp_path / "out", "sigma-delta", keep_failed=False, shared=("osdi",)).__enter__()
+    b = OutputFolder(tmp_path / "out", "sigma-delta", shared=("osdi",)).__enter__()
+    (a.stage / "summary.json").write_text("A\n")
+    (b.stage / "osdi" / "model.osdi").write_text("compiled by B\n")
+    (b.stage / "summary.json").write_text("B\n")
+    a.__exit__(RuntimeError, RuntimeError("A failed"), None)
+    assert (tmp_path / "out/osdi").is_dir()                 # B is still staging: its cache stays
+    b.commit()
+    b.__exit__(None, None, None)
+    assert (tmp_path / "out/summary.json").read_text() == "B\n"
+    assert (tmp_path / "out/osdi/model.osdi").read_text() == "compiled by B\n"
+    assert check_manifest(tmp_path / "out", "sigma-delta") == [] and bench.leftovers(tmp_path / "out") == []
