@@ -90,7 +90,7 @@ def cli(args) -> int:
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,
-                      legacy=RESULT_FILES + (f"{model.name}_xspice.lib",)) as folder:
+                      legacy=RESULT_FILES + (f"{model.name}_xspice.lib", f"{model.name}_osdi.lib")) as folder:
         try:
             s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
                     plots=not args.no_plots, simulator=args.simulator, segment=args.segment, lead=args.lead,
