@@ -236,8 +236,8 @@ def run_file(netlist: str | Path, workdir: str | Path, timeout: float = 3600.0) 
     `workdir` (also the working folder: what its .control block writes lands there)."""
     exe = ngspice_path()
     source, workdir = Path(netlist).resolve(), Path(workdir).resolve()
+    check_code_models(source.read_bytes().decode("latin-1"), workdir)    # before any folder is made
     workdir.mkdir(parents=True, exist_ok=True)
-    check_code_models(source.read_bytes().decode("latin-1"), workdir)
     raw, log = workdir / f"{source.stem}.raw", workdir / f"{source.stem}.log"
     raw.unlink(missing_ok=True)
     reproduce = f"cd {workdir} && {exe} -b -r {raw.name} {source}"
