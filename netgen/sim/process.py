@@ -11,9 +11,10 @@ import signal
 import subprocess
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 from ..errors import SimulationError
 
@@ -24,6 +25,32 @@ class Finished:
     returncode: int
     output: str
     wall: float
+
+
+_WATCHERS = threading.local()                    # per thread: callbacks told of each process run() starts
+
+
+@contextmanager
+def watched(callback: Callable[[int], None]) -> Iterator[None]:
+    """Within this block (in this thread) callback(pid) is called for every process run()
+    starts, right after it starts: a supervisor (netgen.sweep.processes) records exactly the
+    processes it caused, to signal only those later."""
+    previous = getattr(_WATCHERS, "callbacks", ())
+    _WATCHERS.callbacks = (*previous, callback)
+    try:
+        yield
+    finally:
+        _WATCHERS.callbacks = previous
+
+
+def start_time(pid: int) -> int | None:
+    """The process's start time in clock ticks since boot (/proc/PID/stat field 22), or None
+    if it is gone: with the PID it names one process, never a later one that reuses the PID."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+        return int(stat.rsplit(")", 1)[1].split()[19])
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def line_buffered(argv: list[str]) -> list[str]:
@@ -44,6 +71,12 @@ def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: 
                            f"reproduce with: {reproduce}")
     proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
                             stdin=subprocess.DEVNULL, text=True, errors="replace", start_new_session=True)
+    try:
+        for callback in getattr(_WATCHERS, "callbacks", ()):
+            callback(proc.pid)
+    except BaseException:
+        _kill(proc)
+        raise
     lines: queue.Queue = queue.Queue()
     reader = threading.Thread(target=_pump, args=(proc, lines), daemon=True)
     reader.start()
