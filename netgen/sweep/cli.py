@@ -1,30 +1,57 @@
-"""`netgen sweep STRUCTURE.toml SWEEP.toml -o DIR`: validate, run, gather."""
+"""`netgen sweep STRUCTURE.toml SWEEP.toml -o DIR`: validate everything, estimate, run, gather."""
 
 from __future__ import annotations
 
+import argparse
+import os
+import sys
 import time
 from pathlib import Path
 
 from ..arguments import output_folder
-from ..executor import add_scheduler_option, executor
+from ..executor import add_scheduler_option, executor, planned_workers
 from ..structure import load_structure
+from .check import check_runs
 from .plan import plan
 from .run import figure_path, run_sweep
-from .spec import load_sweep
+from .size import check_size, estimate
+from .spec import MAX_RUNS, load_sweep
+
+RUNS_CEILING = 1_000_000               # --max-runs at most: a planned run takes about 1 kB
+
+
+def positive_int(text: str) -> int:
+    """argparse type of --max-runs: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= RUNS_CEILING:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer between 1 and {RUNS_CEILING} (every run is "
+                                         f"planned in memory first; the default is {MAX_RUNS})")
+    return value
 
 
 def cli(args) -> int:
-    """exit 0 (all ran), 1 (some failed), 2 (bad input: SweepError, StructureError and
-    ExecutorError reach netgen.cli.main, which reports them)."""
+    """exit 0 (all ran, or --dry-run), 1 (some failed), 2 (bad input: SweepError, StructureError,
+    FolderError and ExecutorError reach netgen.cli.main, which reports them), 128 + N (stopped
+    by signal N, resumable)."""
     start = time.perf_counter()
-    sweep = load_sweep(args.sweep)
-    load_structure(args.structure)
-    plan(sweep, args.structure, Path(args.output))         # path errors before any work
+    out = Path(args.output)
+    sweep = load_sweep(args.sweep, args.max_runs)
+    structure = load_structure(args.structure)
+    workers = planned_workers(args.scheduler) or os.cpu_count() or 1
+    check_size(sweep, args.max_runs, workers)               # before any list of runs is made
+    runs = plan(sweep, args.structure, out)                 # path errors before any work
+    check_runs(sweep, structure, args.structure, runs)      # every run, before any runs
+    if not args.quiet or args.dry_run:
+        print(f"sweep: {estimate(sweep, workers, out).text(workers)}", file=sys.stderr)
+    if args.dry_run:
+        return 0
     with executor(args.scheduler) as ex:
-        rows = run_sweep(args.structure, sweep, Path(args.output), ex, progress=not args.quiet)
+        rows = run_sweep(args.structure, sweep, out, ex, progress=not args.quiet)
     bad = [r for r in rows if r["status"] != "ok"]
     if not args.quiet:
-        out = Path(args.output)
         print(f"wrote {out / 'results.csv'}")
         print(f"wrote {figure_path(out, sweep)}")
         for r in bad:
@@ -41,5 +68,9 @@ def add_parser(sub) -> None:
     p.add_argument("-o", "--output", required=True, type=output_folder,
                    help="output folder (results.csv, runs/, the figure PNG)")
     add_scheduler_option(p, what="the runs run (default: one local process per core)")
+    p.add_argument("--max-runs", type=positive_int, default=MAX_RUNS, metavar="N",
+                   help=f"refuse a sweep of more than N runs (default {MAX_RUNS})")
+    p.add_argument("--dry-run", action="store_true",
+                   help="check the sweep file and every run, print the run count and time estimate, run nothing")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

@@ -20,7 +20,7 @@ from ..errors import SweepError
 from ..structure.reader import did_you_mean
 from ..text import comment_text
 from ..units import parse_quantity
-from .spec import TESTBENCH, Sweep
+from .spec import TESTBENCH, Sweep, timeout_for
 
 
 @dataclass
@@ -35,6 +35,8 @@ class RunSpec:
     structure_text: str | None = None
     plots: bool = False
     key: str = ""
+    timeout: float = 0.0                   # s, wall-clock limit of each simulator call
+    owner: dict | None = None              # the sweep process that runs it (netgen.sweep.processes.me)
 
 
 def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
@@ -96,7 +98,8 @@ def _spec(index: int, name: str, out: Path, sweep: Sweep, params: dict, base_doc
             _set_path(doc, n, v, str(structure_path), sweep.path)
         note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())}", "#")
         text = f"# {note}\n" + to_toml(doc)
-    spec = RunSpec(index, name, str(out / "runs" / name), params, tb, rigid, text, sweep.plots)
+    spec = RunSpec(index, name, str(out / "runs" / name), params, tb, rigid, text, sweep.plots,
+                   timeout=sweep.timeout or timeout_for(tb["cycles"]))
     spec.key = hashlib.sha256(json.dumps([tb, rigid, text, sweep.plots], sort_keys=True,
                                          default=str).encode()).hexdigest()[:16]
     return spec

@@ -56,18 +56,35 @@ METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_d
            "slope_db_per_decade")
 FIGURES = tuple(f"{c}.{m}" for c in CHANNELS for m in METRICS) + ("gravity_balance.ratio", "wall_s")
 
+# the ranges a sweep file may ask for: outside them a run cannot succeed (or means nothing)
+TS_RANGE = (1e-9, 1.0)                 # s: the loop's sampling period
+MAX_CYCLES = 1 << 20                   # periods per run (about 3 days of ngspice each)
+MAX_RETRIES = 10
+MAX_RUNS = 10_000                      # default of `netgen sweep --max-runs`
+
+
+def _between(lo: float, hi: float, unit: str = "", closed: bool = True) -> Any:
+    """A check: None inside [lo, hi] (or [lo, hi) when not `closed`), else the problem."""
+    def check(v: float) -> str | None:
+        inside = lo <= v <= hi if closed else lo <= v < hi
+        return None if inside else f"must be between {lo:g}{unit} and {hi:g}{unit}" + ("" if closed else " (excluded)")
+    return check
+
+
 # testbench parameter: (kind, check -> problem or None, what it is)
 TESTBENCH: dict[str, tuple[str, Any, str]] = {
-    "ts": ("time", lambda v: None if v > 0 else "must be > 0", "sampling period T_s"),
-    "cycles": ("int", lambda v: None if v >= 64 else "must be >= 64", "number of sampling periods"),
+    "ts": ("time", _between(*TS_RANGE, " s"), "sampling period T_s"),
+    "cycles": ("int", lambda v: None if 64 <= v <= MAX_CYCLES else f"must be between 64 and {MAX_CYCLES}",
+               "number of sampling periods"),
     "skip": ("int", lambda v: None if v >= 0 else "must be >= 0", "periods skipped before the spectra"),
-    "lead": ("dimensionless", lambda v: None, "lead-compensator coefficient"),
+    "lead": ("dimensionless", _between(0.0, 1.0, closed=False), "lead-compensator coefficient (default 0.8)"),
     "density": ("dimensionless", lambda v: None if 0 < v < 1 else "must be between 0 and 1",
                 "mean z bit that balances gravity"),
-    "sense_ratio": ("dimensionless", lambda v: None if v > 0 else "must be > 0", "V_s / V_fb"),
-    "full_scale": ("dimensionless", lambda v: None if v > 0 else "must be > 0", "readout full scale"),
-    "dither": ("dimensionless", lambda v: None if v >= 0 else "must be >= 0",
-               "comparator dither, fraction of a_fb T_s^2"),
+    "sense_ratio": ("dimensionless", lambda v: None if 0 < v <= 10 else "must be > 0 and <= 10",
+                    "V_s / V_fb (default 0.25)"),
+    "full_scale": ("dimensionless", lambda v: None if 0 < v <= 1 else "must be > 0 and <= 1",
+                   "readout full scale, a fraction of the touch amplitude (default 0.01)"),
+    "dither": ("dimensionless", _between(0.0, 1.0), "comparator dither, fraction of a_fb T_s^2 (default 0.2)"),
     "tone": ("tone", None, "test tone COORD:AMPLITUDE:FREQ"),
     "tone_amplitude": ("dimensionless", lambda v: None, "tone amplitude (f_ port unit)"),
     "tone_freq": ("frequency", lambda v: None if v > 0 else "must be > 0", "tone frequency"),
@@ -114,21 +131,31 @@ class Sweep:
     seed: int = 1
     retries: int = 2
     plots: bool = False
+    timeout: float | None = None           # s per simulator call; None: timeout_for(cycles)
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
     """Read and validate a sweep file; raises SweepError naming file, line, key and fix."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except OSError as exc:
-        raise SweepError(str(path), "file", f"cannot read the sweep file ({exc.strerror})",
+        raise SweepError(str(path), "file", f"cannot read the sweep file ({exc.strerror or exc})",
                          "give the path of an existing SWEEP.toml (see examples/sweep_ts.toml)") from None
-    return parse_sweep(text, str(path))
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SweepError(str(path), "file", f"not UTF-8 text (byte {exc.start} is 0x{data[exc.start]:02x})",
+                         "save the sweep file as UTF-8 TOML (see examples/sweep_ts.toml)") from None
+    if "\x00" in text:
+        raise SweepError(str(path), "file", f"a NUL byte at offset {text.index(chr(0))}: not a text file",
+                         "give a TOML sweep file (see examples/sweep_ts.toml)")
+    return parse_sweep(text, str(path), max_runs)
 
 
-def parse_sweep(text: str, path: str = "<string>") -> Sweep:
-    """Validate sweep-file text into a Sweep; raises SweepError naming file, line, key and fix."""
+def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> Sweep:
+    """Validate sweep-file text into a Sweep; raises SweepError naming file, line, key and fix.
+    `max_runs` bounds every value list (a range's num) before it is made."""
     rd = Reader(path, text, SweepError)
     doc = toml_document(text, path, SweepError, "correct the TOML syntax at that line")
     for key in doc:
@@ -139,28 +166,31 @@ def parse_sweep(text: str, path: str = "<string>") -> Sweep:
     head = doc.get("sweep", {})
     if not isinstance(head, dict):
         raise rd.fail("sweep", "'sweep' must be a table", "write it as a [sweep] section")
-    allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots"]
+    allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots", "timeout"]
     for key in head:
         if key not in allowed:
             raise rd.fail(f"sweep.{key}", f"unknown key '{key}'",
                           f"{did_you_mean(key, allowed)}allowed keys in [sweep]: {', '.join(allowed)}")
     sweep = Sweep(path, [], {})
     if "figure" in head:
-        if head["figure"] not in FIGURES:
+        if not isinstance(head["figure"], str) or head["figure"] not in FIGURES:
             raise rd.fail("sweep.figure", f"figure {head['figure']!r} is not a result column",
                           f"{did_you_mean(str(head['figure']), FIGURES)}use one of {', '.join(FIGURES)}")
         sweep.figure = head["figure"]
     if "mode" in head:
-        if head["mode"] not in ("grid", "zip"):
+        if not isinstance(head["mode"], str) or head["mode"] not in ("grid", "zip"):
             raise rd.fail("sweep.mode", f"mode {head['mode']!r} is not 'grid' or 'zip'",
                           "grid runs every combination of the value lists, zip pairs their k-th values")
         sweep.mode = head["mode"]
-    for key, lo in (("samples", 1), ("seed", 0), ("retries", 0)):
+    for key, lo, hi in (("samples", 1, None), ("seed", 0, None), ("retries", 0, MAX_RETRIES)):
         if key in head:
             v = head[key]
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise rd.fail(f"sweep.{key}", f"{key} = {v!r} must be an integer >= {lo}", f"write {key} = {max(lo, 1)}")
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo or (hi is not None and v > hi):
+                span = f">= {lo}" if hi is None else f"between {lo} and {hi}"
+                raise rd.fail(f"sweep.{key}", f"{key} = {v!r} must be an integer {span}", f"write {key} = {max(lo, 1)}")
             setattr(sweep, key, v)
+    if "timeout" in head:
+        sweep.timeout = _timeout(rd, head["timeout"])
     if "plots" in head:
         if not isinstance(head["plots"], bool):
             raise rd.fail("sweep.plots", "plots must be true or false", "write plots = false")
@@ -177,7 +207,7 @@ def parse_sweep(text: str, path: str = "<string>") -> Sweep:
         raise rd.fail("parameters", "no [[parameters]] entries",
                       'add at least one [[parameters]] table with name = "ts" and values = ["1 us", "2 us"]')
     for k, p in enumerate(params):
-        sweep.parameters.append(_parameter(rd, f"parameters[{k}]", p))
+        sweep.parameters.append(_parameter(rd, f"parameters[{k}]", p, max_runs))
     names = [p.name for p in sweep.parameters]
     for n in names:
         if names.count(n) > 1:
@@ -185,6 +215,10 @@ def parse_sweep(text: str, path: str = "<string>") -> Sweep:
         if n in sweep.fixed:
             raise rd.fail(f"fixed.{n}", f"{n!r} is both fixed and swept", "remove it from [fixed] or [[parameters]]")
     lists = [p for p in sweep.parameters if p.values is not None]
+    if sweep.mode == "zip" and not lists:
+        raise rd.fail("sweep.mode", "zip pairs the k-th values of the value lists, and there is none "
+                      "(a distribution alone would give 0 runs)",
+                      'write mode = "grid" (samples = N draws of the distributions), or give a parameter values = [...]')
     if sweep.mode == "zip" and len({len(p.values) for p in lists}) > 1:
         raise rd.fail("sweep.mode", "zip needs value lists of equal length (got "
                       f"{', '.join(f'{p.name}: {len(p.values)}' for p in lists)})",
@@ -194,14 +228,47 @@ def parse_sweep(text: str, path: str = "<string>") -> Sweep:
         raise rd.fail("sweep.samples", f"samples = {sweep.samples} repeats identical runs (no distribution)",
                       "drop samples, or give a parameter a distribution = \"normal\" (mean, std)")
     sweep.x = head.get("x", names[0])
-    if sweep.x not in names:
+    if not isinstance(sweep.x, str) or sweep.x not in names:
         raise rd.fail("sweep.x", f"x = {sweep.x!r} is not a swept parameter", f"use one of {names}")
     tone = sweep.fixed.get("tone") or next((p.values[0] for p in lists if p.name == "tone"), None)
     for n in ("tone_amplitude", "tone_freq"):
         if (n in names or n in sweep.fixed) and not tone:
             raise rd.fail(n, f"{n} changes the test tone, but no tone is given",
                           'add tone = "z:0.02:2000" (COORD:AMPLITUDE:FREQ) to [fixed]')
+    _check_skip(rd, sweep)
     return sweep
+
+
+def _timeout(rd: Reader, value: Any) -> float:
+    """[sweep] timeout: the wall-clock limit of each simulator call, a time > 0."""
+    try:
+        t = parse_quantity(value, "time")
+    except UnitError as exc:
+        raise rd.fail("sweep.timeout", f"timeout: {exc}", 'write timeout = "2 h" (or seconds: 7200)') from None
+    if not (math.isfinite(t) and t > 0):
+        raise rd.fail("sweep.timeout", f"timeout = {value!r} must be a finite time > 0",
+                      'write timeout = "2 h" (each simulator call is stopped after it)')
+    return t
+
+
+def timeout_for(cycles: int) -> float:
+    """Default wall-clock limit of one simulator call: 10 min plus 3 s per period, ten times
+    the slowest per-period cost measured (bench/sweep_processes.py prints it)."""
+    return 600.0 + 3.0 * cycles
+
+
+def _check_skip(rd: Reader, sweep: Sweep) -> None:
+    """skip must leave half the periods: the runner would silently clip it to cycles // 2."""
+    cycles = [sweep.fixed.get("cycles", 4096)] if "cycles" in sweep.fixed else \
+        next((p.values for p in sweep.parameters if p.name == "cycles"), [4096])
+    skips = [sweep.fixed["skip"]] if "skip" in sweep.fixed else \
+        next((p.values for p in sweep.parameters if p.name == "skip"), [])
+    where = "fixed.skip" if "skip" in sweep.fixed else \
+        next((f"parameters[{k}].values" for k, p in enumerate(sweep.parameters) if p.name == "skip"), "skip")
+    for s in skips:
+        if s > min(cycles) // 2:
+            raise rd.fail(where, f"skip = {s} is more than half of cycles = {min(cycles)}",
+                          f"give skip <= {min(cycles) // 2} (periods left out at the start of the spectra)")
 
 
 def _flatten(table: dict, prefix: str = "") -> list[tuple[str, Any]]:
@@ -250,6 +317,9 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
         if isinstance(value, (dict, list)):
             raise rd.fail(where, f"{name}: a structure value must be a number, string or boolean",
                           'write e.g. "3 um" or 3e-6')
+        if isinstance(value, str) and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
+            raise rd.fail(where, f"{name}: the value {value!r} holds control characters (a newline, tab, ...)",
+                          "write the value on one line, printable characters only")
         num = None
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             num = float(value)
@@ -271,11 +341,20 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
     if kind == "tone":
         if value in ("", None):
             return "", None
+        if not isinstance(value, str):
+            raise rd.fail(where, f"tone = {value!r} must be a string COORD:AMPLITUDE:FREQ",
+                          'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
         try:
-            Tone.parse(str(value))
+            tone = Tone.parse(value)
         except ValueError as exc:
             raise rd.fail(where, str(exc), 'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
-        return str(value), None
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", tone.coord):
+            raise rd.fail(where, f"tone {value!r}: {tone.coord!r} is not a coordinate name",
+                          'name a coordinate of the model, e.g. "z:0.02:2000" or "tilt_x:0.5:1000"')
+        if not (math.isfinite(tone.amplitude) and math.isfinite(tone.freq) and tone.freq > 0):
+            raise rd.fail(where, f"tone {value!r}: the amplitude must be finite and the frequency finite and > 0",
+                          'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
+        return value, None
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
             raise rd.fail(where, f"{name} = {value!r} must be an integer", f"write {name} = <integer> ({what})")
@@ -292,14 +371,15 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
     return (int(value) if kind == "int" else num), num
 
 
-def _parameter(rd: Reader, where: str, p: dict) -> Parameter:
+def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Parameter:
+    """One [[parameters]] entry: its name and its values list, range or distribution, checked."""
     allowed = ["name", "values", "start", "stop", "num", "scale", "distribution", "mean", "std", "low", "high"]
     for key in p:
         if key not in allowed:
             raise rd.fail(f"{where}.{key}", f"unknown key '{key}'",
                           f"{did_you_mean(key, allowed)}allowed keys: {', '.join(allowed)}")
     name = p.get("name")
-    if not isinstance(name, str):
+    if not isinstance(name, str) or not name:
         raise rd.fail(f"{where}.name", "missing parameter name", 'add name = "ts" (or structure.electrodes.gap)')
     check_name(rd, f"{where}.name", name)
     forms = [f for f, keys in (("values", ["values"]), ("range", ["start", "stop", "num"]),
@@ -337,6 +417,9 @@ def _parameter(rd: Reader, where: str, p: dict) -> Parameter:
         num = p.get("num")
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise rd.fail(f"{where}.num", f"num = {num!r} must be an integer >= 1", "write num = 4")
+        if num > max_runs:
+            raise rd.fail(f"{where}.num", f"num = {num} values alone exceed the sweep's limit of {max_runs} runs",
+                          f"give num <= {max_runs} (or raise the limit with --max-runs)")
         scale = p.get("scale", "linear")
         if scale not in ("linear", "log"):
             raise rd.fail(f"{where}.scale", f"scale {scale!r} is not 'linear' or 'log'", 'write scale = "log"')

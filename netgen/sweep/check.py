@@ -1,0 +1,120 @@
+"""The checks of a planned sweep that need the structure file or the drawn values: every run is
+checked here, before any runs, so that nothing a sweep file says fails only at run time. The
+Monte Carlo draws (seeded, so known now) must lie in their parameter's range, a tone must name a
+coordinate of the model and lie below the Nyquist frequency, every run's structure (with its
+overrides) must be a valid structure file, and the loop needs the coordinates z, tilt_x, tilt_y."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import StructureError, SweepError
+from ..structure import RIGID_COORDINATES, Structure, mode_name, parse_structure
+from ..structure.reader import Reader
+from .plan import RunSpec
+from .spec import Sweep, check_value
+
+
+def coordinates(s: Structure, rigid_only: bool) -> tuple[list[str], bool]:
+    """The model's coordinate names known from the structure file, and whether that list is
+    complete (modes given as a count are named only after the FEM)."""
+    names = list(s.coordinates.rigid)
+    modes = s.coordinates.modes
+    if rigid_only or not modes:
+        return names, True
+    if isinstance(modes, int):
+        return names, False
+    return names + [mode_name(m) for m in modes], True
+
+
+def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: list[RunSpec]) -> None:
+    """Refuse (SweepError: sweep file, key, run, fix) any run that could only fail once started."""
+    missing = [c for c in RIGID_COORDINATES if c not in structure.coordinates.rigid]
+    if missing:
+        raise SweepError(structure_path, "coordinates.rigid", f"the sigma-delta loop needs the coordinates "
+                         f"{', '.join(RIGID_COORDINATES)}; the structure has {list(structure.coordinates.rigid)}",
+                         "sweep a structure with rigid = [\"z\", \"tilt_x\", \"tilt_y\"] (e.g. examples/levitated_disk.toml)")
+    rd = _reader(sweep.path)
+    drawn = [p for p in sweep.parameters if p.distribution]
+    parsed: dict[str, Structure] = {}
+    for run in runs:
+        for p in drawn:
+            k = sweep.parameters.index(p)
+            value = run.params[p.name]
+            try:
+                check_value(rd, f"parameters[{k}]", p.name, value)
+            except SweepError as exc:
+                raise SweepError(sweep.path, f"parameters[{k}]", f"{run.name} draws {p.name} = {value:.4g}, out of "
+                                 f"range: {exc.problem}", "narrow the distribution (a smaller std, or "
+                                 "distribution = \"uniform\" within the range)", exc.line) from None
+        s = structure
+        if run.structure_text is not None:
+            if run.structure_text not in parsed:
+                parsed[run.structure_text] = _run_structure(sweep, run, structure_path)
+            s = parsed[run.structure_text]
+        _check_tone(rd, sweep, run, s)
+
+
+def _reader(path: str) -> Reader:
+    """A Reader over the sweep file (for line numbers), empty if it cannot be read."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        text = ""
+    return Reader(path, text, SweepError)
+
+
+def _run_structure(sweep: Sweep, run: RunSpec, structure_path: str) -> Structure:
+    """Parse a run's structure (the file with the run's overrides), as the run would."""
+    try:
+        return parse_structure(run.structure_text, str(Path(run.dir) / "structure.toml"))
+    except StructureError as exc:
+        keys = [k for k in run.params if k.startswith("structure.")] + \
+            [k for k in sweep.fixed if k.startswith("structure.")]
+        settings = ", ".join(f"{k} = {run.params.get(k, sweep.fixed.get(k))!r}" for k in keys)
+        where = " / ".join(f"{_where(sweep, k)} ({k})" for k in keys) or "structure"
+        raise SweepError(sweep.path, where, f"{run.name} ({settings}) makes {structure_path} invalid: "
+                         f"{exc.where}: {exc.problem}",
+                         f"give {' / '.join(keys)} values the structure file accepts ({exc.fix})",
+                         _reader(sweep.path).line_of(_where(sweep, keys[0])) if keys else None) from None
+
+
+def _check_tone(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
+    """The run's tone names a coordinate of its model and lies below f_s / 2."""
+    text = run.testbench.get("tone")
+    if not text:
+        return
+    coord, _, freq = text.split(":")
+    where = _where(sweep, "tone")
+    names, complete = coordinates(s, run.rigid_only)
+    if coord not in names and (complete or not coord.startswith("m")):
+        raise rd.fail(where, f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names}"
+                      f"{' (rigid_only = true drops the modes)' if run.rigid_only else ''}",
+                      f"name one of {', '.join(names)} in the tone (COORD:AMPLITUDE:FREQ)")
+    nyquist = 0.5 / run.testbench["ts"]
+    if float(freq) >= nyquist:
+        key = "tone_freq" if _where(sweep, "tone_freq") else "tone"
+        raise rd.fail(_where(sweep, key), f"{run.name}: {key}: the tone at {float(freq):g} Hz is not below the Nyquist frequency "
+                      f"1/(2 T_s) = {nyquist:g} Hz of T_s = {run.testbench['ts']:g} s",
+                      "give a tone frequency below 1/(2 ts) (in band: below 1/(128 ts))")
+
+
+def _where(sweep: Sweep, name: str) -> str:
+    """The key that sets `name`: parameters[k].values if swept, fixed.<name> if fixed, else ''."""
+    for k, p in enumerate(sweep.parameters):
+        if p.name == name:
+            return f"parameters[{k}].values"
+    return f"fixed.{name}" if name in sweep.fixed else ""
+
+
+def check_model_tones(sweep: Sweep, runs: list[RunSpec], names: dict[bool, list[str]]) -> None:
+    """After the shared models are built (before any run): a tone on a mode named only by the
+    FEM must be one of the built model's coordinates."""
+    rd = _reader(sweep.path)
+    for run in runs:
+        text = run.testbench.get("tone")
+        if text and run.structure_text is None and run.rigid_only in names:
+            coord = text.split(":")[0]
+            if coord not in names[run.rigid_only]:
+                raise rd.fail("tone", f"{run.name}: the tone's coordinate {coord!r} is not one of the model's "
+                              f"{names[run.rigid_only]}", f"name one of {', '.join(names[run.rigid_only])}")
