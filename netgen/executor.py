@@ -22,8 +22,10 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
 import sys
 import tempfile
+import time
 import traceback
 import uuid
 from concurrent import futures as cf
@@ -53,12 +55,53 @@ class Outcome:
         return self.error is None
 
 
+class WorkerStopped(BaseException):
+    """A local worker process got SIGTERM or SIGINT: unwinds its task (whose `finally` blocks
+    kill the simulators it started, netgen.sim.process.run) and then the worker exits."""
+
+
+_WORKER = {"local": False, "busy": False}        # per process: a ProcessExecutor worker? in a task?
+
+
+def _worker_start(registry: str) -> None:
+    """Initializer of a ProcessExecutor worker: record its PID and /proc start time in the
+    executor's registry (so stop() signals exactly its workers) and stop cleanly on signals."""
+    _WORKER["local"] = True
+    signal.signal(signal.SIGTERM, _worker_signal)
+    signal.signal(signal.SIGINT, _worker_signal)
+    with open(registry, "a", encoding="utf-8") as fh:
+        fh.write(f"{os.getpid()} {_start_time(os.getpid())}\n")
+
+
+def _worker_signal(signum: int, frame: Any) -> None:
+    """Idle: exit now. In a task: raise WorkerStopped through it; _call then exits."""
+    if not _WORKER["busy"]:
+        os._exit(128 + signum)
+    _WORKER["busy"] = False                           # a second signal exits at once
+    raise WorkerStopped(signum)
+
+
+def _start_time(pid: int) -> int | None:
+    """/proc/PID/stat field 22 (ticks since boot), or None if the process is gone."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def _call(fn: Callable, shared: Any, item: Any) -> tuple[str, Any, str]:
     """Run one task inside a worker; exceptions come back as data (never retried)."""
+    _WORKER["busy"] = True
     try:
         return "ok", (fn(item) if shared is _NOTHING else fn(_resolve(shared), item)), ""
+    except WorkerStopped as stop:
+        if _WORKER["local"]:
+            os._exit(128 + stop.args[0])
+        raise
     except Exception as exc:                          # noqa: BLE001 - isolate every task failure
         return "error", f"{type(exc).__name__}: {exc}", traceback.format_exc()
+    finally:
+        _WORKER["busy"] = False
 
 
 class _Nothing:
@@ -119,6 +162,10 @@ class Executor:
     def close(self) -> None:
         pass
 
+    def stop(self) -> None:
+        """Stop now (SIGTERM/SIGINT of the caller): running tasks end, no queued task starts."""
+        self.close()
+
     def __enter__(self) -> "Executor":
         return self
 
@@ -157,13 +204,47 @@ class ProcessExecutor(Executor):
         self._pool: cf.ProcessPoolExecutor | None = None
         self._files: list[str] = []
         self._scattered: dict[int, tuple[Any, _SharedFile]] = {}
+        fd, self._registry = tempfile.mkstemp(prefix="netgen-workers-", suffix=".txt")
+        os.close(fd)
 
     def pool(self) -> cf.ProcessPoolExecutor:
         if self._pool is None:
             import multiprocessing
             ctx = multiprocessing.get_context("forkserver" if sys.platform.startswith("linux") else None)
-            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=ctx)
+            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_start,
+                                                initargs=(self._registry,))
         return self._pool
+
+    def worker_processes(self) -> list[tuple[int, int]]:
+        """(PID, start time) of the workers this executor started that still run."""
+        try:
+            lines = Path(self._registry).read_text(encoding="utf-8").split("\n")
+        except OSError:
+            return []
+        out = []
+        for line in lines:
+            pid, _, start = line.partition(" ")
+            if pid.isdigit() and start.isdigit() and _start_time(int(pid)) == int(start):
+                out.append((int(pid), int(start)))
+        return out
+
+    def stop(self):
+        """SIGTERM to each worker this executor started (verified by its start time): it unwinds
+        its task, which kills its simulator, and exits; SIGKILL to any still there after 10 s."""
+        workers = self.worker_processes()
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+        for sig, wait in ((signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
+            for pid, start in workers:
+                if _start_time(pid) == start:
+                    try:
+                        os.kill(pid, sig)
+                    except OSError:
+                        pass
+            deadline = time.monotonic() + wait
+            while any(_start_time(p) == s for p, s in workers) and time.monotonic() < deadline:
+                time.sleep(0.02)
+        self.close()
 
     def submit(self, fn, *args):
         return self.pool().submit(fn, *args)
@@ -220,6 +301,7 @@ class ProcessExecutor(Executor):
             Path(path).unlink(missing_ok=True)
         self._files.clear()
         self._scattered.clear()
+        Path(self._registry).unlink(missing_ok=True)
 
 
 class DaskExecutor(Executor):
@@ -248,6 +330,7 @@ class DaskExecutor(Executor):
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         self.name = f"dask ({self.client.scheduler.address})"
         self._scattered: dict[int, tuple[Any, Any]] = {}
+        self._live: dict = {}                          # imap_unordered's running futures (for stop)
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -287,6 +370,7 @@ class DaskExecutor(Executor):
             return self.client.submit(_call, fn, handle[0], items[i], key=key, pure=False, retries=retries)
 
         futs = {start(i): i for i in attempts}
+        self._live = futs
         done = distributed.as_completed(list(futs))
         for f in done:
             i = futs.pop(f)
@@ -302,6 +386,14 @@ class DaskExecutor(Executor):
             yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
                              attempts[i])
             f.release()
+
+    def stop(self):
+        """Cancel every task of this client; close (a LocalCluster takes its workers down)."""
+        try:
+            self.client.cancel(list(self._live), force=True)
+        except Exception:                             # noqa: BLE001 - a lost scheduler: close anyway
+            pass
+        self.close()
 
     def close(self):
         for _, fut in self._scattered.values():
@@ -354,6 +446,18 @@ def executor(spec: str | None = None) -> Executor:
             return ProcessExecutor(n)
         return DaskExecutor(None, n or os.cpu_count() or 2)
     raise ExecutorError(f"--scheduler {text!r} is not understood; use {SCHEDULER_HELP}")
+
+
+def planned_workers(spec: str | None) -> int | None:
+    """The worker count a --scheduler value asks for, without starting anything (None: known
+    only once connected, a scheduler address)."""
+    text = (spec or "processes").strip()
+    kind, _, count = text.partition(":")
+    if "://" in text or kind not in ("processes", "local", "serial"):
+        return None
+    if kind == "serial":
+        return 1
+    return int(count) if count.isdigit() and int(count) > 0 else (os.cpu_count() or 1)
 
 
 def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:

@@ -49,7 +49,7 @@ def cli(args) -> int:
     if args.dry_run:
         return 0
     with executor(args.scheduler) as ex:
-        rows = run_sweep(args.structure, sweep, out, ex, progress=not args.quiet)
+        rows = run_sweep(args.structure, sweep, out, ex, progress=not args.quiet, runs=runs)
     bad = [r for r in rows if r["status"] != "ok"]
     if not args.quiet:
         print(f"wrote {out / 'results.csv'}")

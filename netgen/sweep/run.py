@@ -5,6 +5,7 @@ the figure's PNG."""
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import re
@@ -19,33 +20,26 @@ from tqdm import tqdm
 
 from ..build import build_model
 from ..emit import write_outputs
-from ..sim.ngspice import identity, same_build
+from ..files import write_atomic
+from ..sim import process as sim_process
+from ..sim.ngspice import identity as ngspice_build, same_build
 from ..structure import parse_structure
 from ..testbench import sigma_delta as sd
+from . import processes
+from .folder import claim, identity
+from .check import check_model_tones
 from .plan import RunSpec, plan
 from .plots import plot
-from .spec import CHANNELS, METRICS, Sweep
+from .spec import CHANNELS, METRICS, Sweep, timeout_for
 
-
-def _reap(folder: Path) -> None:
-    """Kill this machine's processes working in `folder` (an ngspice left running by a worker
-    that was killed mid-run) before a retry reuses the folder. Linux /proc only."""
-    target = str(folder.resolve())
-    for entry in Path("/proc").glob("[0-9]*"):
-        try:
-            cwd = os.readlink(entry / "cwd")
-        except OSError:
-            continue
-        if (cwd == target or cwd.startswith(target + os.sep)) and int(entry.name) != os.getpid():
-            try:
-                os.kill(int(entry.name), signal.SIGKILL)
-            except OSError:
-                pass
+DONE = ".done"                 # in a run folder: the run's key, written when the run completed
 
 
 def run_one(models: dict, spec: RunSpec) -> dict:
     """Work unit: one sigma-delta run in its own folder (structure.toml + model built here when
-    the run overrides the structure). Returns {"summary": ..., "attempts": n}."""
+    the run overrides the structure). Returns {"summary": ..., "attempts": n}. The worker and
+    every simulator it starts are recorded in the folder (netgen.sweep.processes), so a retry
+    stops exactly those of an earlier attempt and nothing else."""
     folder = Path(spec.dir)
     folder.mkdir(parents=True, exist_ok=True)
     marker = folder / ".attempts"
@@ -54,14 +48,23 @@ def run_one(models: dict, spec: RunSpec) -> dict:
         attempts = int(marker.read_text()) + 1 if same else 1
     except (OSError, ValueError):
         attempts = 1
-    _reap(folder)
+    processes.reap(folder)                             # a simulator an earlier attempt left running
     for p in folder.iterdir():                         # a previous attempt's files
         if p.name != ".attempts":
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
     marker.write_text(str(attempts))
+    processes.record(folder, os.getpid(), "worker", spec.owner)
     (folder / "run.json").write_text(json.dumps({"params": spec.params, "testbench": spec.testbench,
                                                  "rigid_only": spec.rigid_only, "key": spec.key},
                                                 indent=1, default=str) + "\n")
+    with sim_process.watched(lambda pid: processes.record(folder, pid, "simulator")):
+        _simulate(models, spec, folder)
+    write_atomic(folder / DONE, spec.key + "\n")        # last: the run is complete
+    return {"summary": json.loads((folder / "summary.json").read_text()), "attempts": attempts}
+
+
+def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
+    """The run itself: its model (shared, or built from its structure.toml), then sd.run."""
     if spec.structure_text is not None:
         (folder / "structure.toml").write_text(spec.structure_text, encoding="utf-8")
         s = parse_structure(spec.structure_text, str(folder / "structure.toml"))
@@ -77,8 +80,8 @@ def run_one(models: dict, spec: RunSpec) -> dict:
     tb = dict(spec.testbench)
     tone = sd.Tone.parse(tb.pop("tone")) if tb.get("tone") else None
     ts, cycles = tb.pop("ts"), tb.pop("cycles")
-    sd.run(model, lib, folder, ts, int(cycles), tone, progress=False, plots=spec.plots, **tb)
-    return {"summary": json.loads((folder / "summary.json").read_text()), "attempts": attempts}
+    sd.run(model, lib, folder, ts, int(cycles), tone, progress=False, plots=spec.plots,
+           timeout=spec.timeout or timeout_for(int(cycles)), **tb)
 
 
 def _attempts(folder: Path) -> int:
@@ -91,7 +94,7 @@ def _attempts(folder: Path) -> int:
 def _same_ngspice(summary: dict) -> bool:
     """A finished run is reused only if it ran in the ngspice this sweep runs (or in none)."""
     ran = summary.get("ngspice")
-    return not ran or same_build(ran, identity())
+    return not ran or same_build(ran, ngspice_build())
 
 
 def _row(spec: RunSpec, record: dict) -> dict:
@@ -111,27 +114,54 @@ def _row(spec: RunSpec, record: dict) -> dict:
     return row
 
 
-def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool = True) -> list[dict]:
-    """Plan, run (through the executor `ex`), gather: the rows of results.csv, in run order."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    runs = plan(sweep, structure_path, out)
+def _reused(runs: list[RunSpec]) -> dict[int, dict]:
+    """Records of the runs that finished earlier with the same settings (their DONE marker
+    holds their key): these are not run again."""
     records: dict[int, dict] = {}
-    for spec in runs:                                  # finished earlier with the same settings: reuse
+    for spec in runs:
         folder = Path(spec.dir)
         try:
-            old = json.loads((folder / "run.json").read_text())
+            done = (folder / DONE).read_text().strip()
             summary = json.loads((folder / "summary.json").read_text())
         except (OSError, ValueError):
             continue
-        if old.get("key") == spec.key and not (folder / "error.txt").exists() and _same_ngspice(summary):
+        if done == spec.key and not (folder / "error.txt").exists() and _same_ngspice(summary):
             records[spec.index] = {"status": "ok", "summary": summary, "attempts": _attempts(folder), "reused": True}
-    todo = [r for r in runs if r.index not in records]
+    return records
+
+
+def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool = True,
+              runs: list[RunSpec] | None = None) -> list[dict]:
+    """Plan, run (through the executor `ex`), gather: the rows of results.csv, in run order.
+    The folder must be new, empty or this sweep's (netgen.sweep.folder); SIGTERM or SIGINT stops
+    the workers and their simulators, writes what finished and raises processes.Interrupted."""
+    out = Path(out)
+    runs = runs if runs is not None else plan(sweep, structure_path, out)
+    with claim(out, identity(structure_path, runs), sweep.path, str(structure_path), len(runs)), \
+            processes.stop_on_signals():
+        records = _reused(runs)
+        try:
+            _run(structure_path, sweep, out, ex, progress, runs, records)
+        except processes.Stop as stop:
+            _stop(ex, runs, records)
+            rows = _gather(structure_path, sweep, out, runs, records)
+            done = sum(r["status"] == "ok" for r in rows)
+            raise processes.Interrupted(stop.signum, f"sweep stopped by {stop}: {done} of {len(runs)} runs finished "
+                                        f"(in {out / 'results.csv'}); run the same command again to run the rest"
+                                        ) from None
+        return _gather(structure_path, sweep, out, runs, records)
+
+
+def _run(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool, runs: list[RunSpec],
+         records: dict[int, dict]) -> None:
+    """Build the shared models, then run every run not yet in `records` (filled as runs end)."""
+    todo = [replace(r, owner=processes.me()) for r in runs if r.index not in records]
     models = {}
     for rigid in sorted({r.rigid_only for r in todo if r.structure_text is None}):
         model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid,
                                   progress=progress)
         models[rigid] = (model, lib.read_text(encoding="utf-8"))
+    check_model_tones(sweep, todo, {rigid: [c.name for c in m.coordinates] for rigid, (m, _) in models.items()})
     if progress and todo:
         print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""),
               file=sys.stderr)
@@ -139,29 +169,50 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
               file=sys.stderr) as bar:
         for j, outcome in ex.imap_unordered(run_one, todo, shared=models, retries=sweep.retries):
             spec = todo[j]
-            folder = Path(spec.dir)
+            rundir = Path(spec.dir)
             if outcome.ok:
                 rec = {"status": "ok", **outcome.value}
-                if not (folder / "summary.json").exists():      # worker on another file system
-                    folder.mkdir(parents=True, exist_ok=True)
-                    (folder / "summary.json").write_text(json.dumps(rec["summary"], indent=1) + "\n")
+                if not (rundir / "summary.json").exists():      # worker on another file system
+                    rundir.mkdir(parents=True, exist_ok=True)
+                    (rundir / "summary.json").write_text(json.dumps(rec["summary"], indent=1) + "\n")
             else:
-                rec = {"status": "failed", "error": outcome.error, "attempts": max(outcome.attempts, _attempts(folder))}
-                folder.mkdir(parents=True, exist_ok=True)
-                (folder / "error.txt").write_text(f"{outcome.error}\n\n{outcome.traceback}")
+                rec = {"status": "failed", "error": outcome.error, "attempts": max(outcome.attempts, _attempts(rundir))}
+                rundir.mkdir(parents=True, exist_ok=True)
+                (rundir / "error.txt").write_text(f"{outcome.error}\n\n{outcome.traceback}")
                 if progress:
                     tqdm.write(f"sweep: {spec.name} failed: {outcome.error}", file=sys.stderr)
             records[spec.index] = rec
             bar.update(1)
-    rows = [_row(spec, records[spec.index]) for spec in runs]
+
+
+def _stop(ex, runs: list[RunSpec], records: dict[int, dict]) -> None:
+    """On SIGTERM/SIGINT: ignore further ones while the executor stops its workers, then kill
+    any recorded simulator or worker still running in an unfinished run's folder."""
+    previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        ex.stop()
+        for spec in runs:
+            if spec.index not in records and Path(spec.dir).is_dir():
+                processes.reap(Path(spec.dir), workers=True)
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def _gather(structure_path: str | Path, sweep: Sweep, out: Path, runs: list[RunSpec],
+            records: dict[int, dict]) -> list[dict]:
+    """results.csv, sweep.json and the figure, each written atomically, from the runs that
+    ended (a run that did not: status "not run", empty figures)."""
+    missing = {"status": "not run", "attempts": 0}
+    rows = [_row(spec, records.get(spec.index, missing)) for spec in runs]
     write_csv(out / "results.csv", rows)
-    (out / "sweep.json").write_text(json.dumps({
+    write_atomic(out / "sweep.json", json.dumps({
         "structure": str(structure_path), "sweep": sweep.path, "figure": sweep.figure, "x": sweep.x,
         "mode": sweep.mode, "samples": sweep.samples, "seed": sweep.seed, "fixed": sweep.fixed,
         "parameters": [asdict(p) for p in sweep.parameters],
-        "runs": [{**asdict(spec), "structure_text": None, **{k: v for k, v in records[spec.index].items()
-                                                             if k != "summary"}} for spec in runs]},
-        indent=1, default=str) + "\n")
+        "runs": [{**asdict(spec), "structure_text": None, "owner": None,
+                  **{k: v for k, v in records.get(spec.index, missing).items() if k != "summary"}}
+                 for spec in runs]}, indent=1, default=str) + "\n")
     plot(figure_path(out, sweep), rows, sweep)
     return rows
 
@@ -172,12 +223,14 @@ def figure_path(out: Path, sweep: Sweep) -> Path:
 
 
 def write_csv(path: Path, rows: list[dict]) -> Path:
+    """The rows as a CSV table (the union of their keys as columns), written atomically."""
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in cols})
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=cols)
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in cols})
+    write_atomic(path, fh.getvalue())
     return path
