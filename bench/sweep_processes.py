@@ -15,7 +15,9 @@ Every case runs the real `netgen sweep` (a 4-run T_s sweep of the rigid disk mod
   refused by the lock, or runs after it), and a different sweep at once (refused).
 - foreign processes: a `sleep` whose cwd is a run folder survives retries and resumes.
 - a hanging simulator: [sweep] timeout stops it by the timer.
-Prints one line per case class: tried, tracebacks, wrong outcomes, leftovers.
+Prints one line per case class: tried, tracebacks, wrong outcomes, leftovers. A Ctrl-C while
+Python still imports netgen (the first second or two) is Python's KeyboardInterrupt traceback
+before netgen.cli.main runs; it is counted apart ("tracebacks during imports").
 """
 
 from __future__ import annotations
@@ -135,7 +137,11 @@ def interrupts(n: int, sig: int, group: bool, reference: dict, tmp: Path, tally:
             os.killpg(p.pid, sig) if group else p.send_signal(sig)
         _, err = p.communicate(timeout=120)
         t["tried"] += 1
-        t["tracebacks"] += "Traceback" in err
+        early = "_run_module_as_main" in err and "line 1" in err and ", in main" not in err
+        t["tracebacks during imports"] = t.get("tracebacks during imports", 0) + ("Traceback" in err and early)
+        t["tracebacks"] += "Traceback" in err and not early
+        if "Traceback" in err and not early:
+            print(f"  {name} after {wait:.1f} s: traceback: {err[-1500:]}")
         if p.returncode not in (0, 128 + sig, -sig, 130):
             t["wrong exit"] += 1
             print(f"  {name}: exit {p.returncode}: {err[-300:]}")
