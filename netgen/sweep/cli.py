@@ -44,10 +44,12 @@ def cli(args) -> int:
     check_size(sweep, args.max_runs, workers)               # before any list of runs is made
     runs = plan(sweep, args.structure, out)                 # path errors before any work
     check_runs(sweep, structure, args.structure, runs)      # every run, before any runs
-    if not args.quiet or args.dry_run:
-        print(f"sweep: {estimate(sweep, workers, out).text(workers)}", file=sys.stderr)
-    if args.dry_run:
+    line = f"sweep: {estimate(sweep, workers, out).text(workers)}"
+    if args.dry_run:                                        # the answer of a dry run: on stdout
+        print(line)
         return 0
+    if not args.quiet:
+        print(line, file=sys.stderr)
     with executor(args.scheduler) as ex:
         rows = run_sweep(args.structure, sweep, out, ex, progress=not args.quiet, runs=runs)
     bad = [r for r in rows if r["status"] != "ok"]

@@ -12,9 +12,11 @@ from pathlib import Path
 from ..errors import SweepError
 from .spec import Sweep
 
-# rough ngspice cost of one sampling period of the sigma-delta loop on one idle core (s), per
-# model kind; measured on this machine (bench/sweep_processes.py --calibrate prints them)
-SECONDS_PER_PERIOD = {"rigid": 0.08, "full": 0.25}
+# rough ngspice cost of one sampling period of the sigma-delta loop (s, summary.json wall_s per
+# period), per model kind, for the levitated disk on this 2-core machine under load
+# (bench/sweep_processes.py --calibrate: rigid 0.020, full 0.071; idle about 25 % less)
+SECONDS_PER_PERIOD = {"rigid": 0.02, "full": 0.07}
+RUN_SECONDS = 5.0              # per run besides the periods: ngspice start, netlist, analysis, files
 BUILD_SECONDS = 60.0           # a run with structure parameters builds its own model first
 
 
@@ -83,7 +85,7 @@ def estimate(sweep: Sweep, workers: int, out: Path | None = None) -> Estimate:
         kind = "rigid" if rigid else "full"
         per_period = SECONDS_PER_PERIOD[kind]
         basis = f"rough figure: {per_period:g} s of ngspice per period for a {kind} model on one core"
-    per_run = per_period * _cycles(sweep)
+    per_run = per_period * _cycles(sweep) + RUN_SECONDS
     if any(p.structure for p in sweep.parameters):
         per_run += BUILD_SECONDS
         basis += f", plus ~{BUILD_SECONDS:.0f} s to build each run's model"

@@ -252,9 +252,10 @@ def _timeout(rd: Reader, value: Any) -> float:
 
 
 def timeout_for(cycles: int) -> float:
-    """Default wall-clock limit of one simulator call: 10 min plus 3 s per period, ten times
-    the slowest per-period cost measured (bench/sweep_processes.py prints it)."""
-    return 600.0 + 3.0 * cycles
+    """Default wall-clock limit of one simulator call: 10 min plus 1 s per period, 14 times the
+    full disk model's per-period cost measured on a loaded machine (bench/sweep_processes.py
+    --calibrate: 0.071 s), so only a hung or runaway simulator reaches it."""
+    return 600.0 + 1.0 * cycles
 
 
 def _check_skip(rd: Reader, sweep: Sweep) -> None:

@@ -13,7 +13,7 @@ import pytest
 
 from netgen import cli
 from netgen.sweep import parse_sweep
-from netgen.sweep.size import SECONDS_PER_PERIOD, estimate, run_count
+from netgen.sweep.size import RUN_SECONDS, SECONDS_PER_PERIOD, estimate, run_count
 
 from tests.fixtures import ROOT
 from tests.sweep.bad_sweeps import GOOD, cases
@@ -30,9 +30,9 @@ def _sweep(tmp_path, data: bytes, *extra: str) -> tuple[int, str]:
 
 def test_the_good_file_is_accepted(tmp_path, capsys):
     rc, _ = _sweep(tmp_path, GOOD.encode())
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out
     # 2 runs of 128 periods at the stated rough figure for a rigid model
-    assert rc == 0 and "2 run(s)" in err and f"{SECONDS_PER_PERIOD['rigid'] * 128:.3g} s each" in err, err
+    assert rc == 0 and "2 run(s)" in err and f"{SECONDS_PER_PERIOD['rigid'] * 128 + RUN_SECONDS:.3g} s each" in err, err
     assert not (tmp_path / "out").exists()                    # a dry run writes nothing
 
 
@@ -70,7 +70,8 @@ def test_the_estimate_uses_runs_measured_in_the_folder(tmp_path):
     run.mkdir(parents=True)
     (run / "summary.json").write_text('{"wall_s": 64.0, "requested_cycles": 128}')
     est = estimate(sweep, workers=1, out=tmp_path)
-    assert est.per_run_s == pytest.approx(64.0) and est.wall_s == pytest.approx(128.0)   # 0.5 s/period x 128, x 2
+    per_run = 0.5 * 128 + RUN_SECONDS                       # the measured 0.5 s per period, 128 periods
+    assert est.per_run_s == pytest.approx(per_run) and est.wall_s == pytest.approx(2 * per_run)   # 2 runs, 1 worker
     assert "measured" in est.basis
 
 
