@@ -190,6 +190,10 @@ def pairs(n: int, tmp: Path, tally: dict) -> None:
             t["both wrote"] += 1
         winner = a if p.returncode == 0 else other
         ident = identity(STRUCTURE, plan(load_sweep(winner), STRUCTURE, out))
+        if not (out / "results.csv").exists():
+            t["bad folder"] += 1
+            print(f"  pair {k}: exits {rcs}, no results.csv: {[e[-300:] for e in errs]}")
+            continue
         rows = list(csv.DictReader(open(out / "results.csv")))
         ts = TS[0] if winner is a else TS[1]
         ok = len(rows) == 1 and rows[0]["status"] == "ok" and float(rows[0]["ts"]) == ts and \

@@ -25,6 +25,7 @@ import pickle
 import signal
 import sys
 import tempfile
+import threading
 import time
 import traceback
 import uuid
@@ -194,6 +195,22 @@ class SerialExecutor(Executor):
             yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb)
 
 
+def _start_forkserver_ignoring_sigint() -> None:
+    """Start the forkserver with SIGINT ignored: Python keeps an inherited SIG_IGN, and the
+    forkserver hands it to every worker it forks, so a Ctrl-C while a worker still imports is
+    ignored (no KeyboardInterrupt traceback from half-imported modules) until _worker_start
+    installs the handler that stops the worker cleanly."""
+    import multiprocessing.forkserver
+    if threading.current_thread() is not threading.main_thread():
+        multiprocessing.forkserver.ensure_running()
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        multiprocessing.forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 class ProcessExecutor(Executor):
     """Local worker processes (concurrent.futures.ProcessPoolExecutor). A pool whose worker
     died is replaced and the tasks it lost are submitted again (up to `retries` times)."""
@@ -213,6 +230,8 @@ class ProcessExecutor(Executor):
             ctx = multiprocessing.get_context("forkserver" if sys.platform.startswith("linux") else None)
             self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_start,
                                                 initargs=(self._registry,))
+            if ctx.get_start_method() == "forkserver":
+                _start_forkserver_ignoring_sigint()
         return self._pool
 
     def worker_processes(self) -> list[tuple[int, int]]:
