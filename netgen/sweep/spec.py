@@ -11,6 +11,7 @@ SWEEP.toml (see examples/sweep_ts.toml):
     seed = 1                             # of the Monte Carlo draws
     retries = 2                          # resubmissions of a run whose worker was lost
     plots = false                        # each run's spectra.png / coordinates.png
+    timeout = "2 h"                      # wall-clock limit of each simulator call (default: timeout_for)
 
     [fixed]                              # settings of every run (same names as parameters)
     cycles = 4096
