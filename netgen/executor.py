@@ -30,6 +30,7 @@ import time
 import traceback
 import uuid
 from concurrent import futures as cf
+from contextlib import contextmanager
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +55,32 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return self.error is None
+
+
+_HELD: dict = {"depth": 0, "pending": None}     # main process: an interrupt held until a safe point
+
+
+@contextmanager
+def uninterrupted() -> Iterator[None]:
+    """A block that an interrupt honouring it (raise_or_hold) does not break: the pool's locks
+    and futures are never left half-taken; a held interrupt is raised when the block ends."""
+    _HELD["depth"] += 1
+    try:
+        yield
+    finally:
+        _HELD["depth"] -= 1
+        pending = _HELD["pending"]
+        if _HELD["depth"] == 0 and pending is not None:
+            _HELD["pending"] = None
+            raise pending
+
+
+def raise_or_hold(exc: BaseException) -> None:
+    """From a signal handler: raise `exc` now, or at the end of the current uninterrupted block."""
+    if _HELD["depth"] > 0:
+        _HELD["pending"] = exc
+        return
+    raise exc
 
 
 class WorkerStopped(BaseException):
@@ -195,6 +222,16 @@ class SerialExecutor(Executor):
             yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb)
 
 
+def _finished(futs: dict) -> Iterator[Any]:
+    """The futures as they finish (like as_completed), waiting in short uninterrupted slices so
+    that an interrupt is raised between them, never inside the futures' locks."""
+    remaining = set(futs)
+    while remaining:
+        with uninterrupted():
+            done, remaining = cf.wait(remaining, timeout=0.25, return_when=cf.FIRST_COMPLETED)
+        yield from done
+
+
 def _start_forkserver_ignoring_sigint() -> None:
     """Start the forkserver with SIGINT ignored: Python keeps an inherited SIG_IGN, and the
     forkserver hands it to every worker it forks, so a Ctrl-C while a worker still imports is
@@ -287,13 +324,14 @@ class ProcessExecutor(Executor):
         pending = set(range(len(items)))
         attempts = dict.fromkeys(pending, 0)
         while pending:
-            pool = self.pool()
             futs = {}
-            for i in sorted(pending):
-                attempts[i] += 1
-                futs[pool.submit(_call, fn, shared, items[i])] = i
+            with uninterrupted():                      # a signal never lands inside the pool's locks
+                pool = self.pool()
+                for i in sorted(pending):
+                    attempts[i] += 1
+                    futs[pool.submit(_call, fn, shared, items[i])] = i
             lost = []
-            for f in cf.as_completed(futs):
+            for f in _finished(futs):
                 i = futs[f]
                 try:
                     status, value, tb = f.result()
@@ -304,8 +342,9 @@ class ProcessExecutor(Executor):
                 yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
                                  attempts[i])
             if lost:                                   # a worker died: new pool, resubmit its tasks
-                self._pool.shutdown(wait=False, cancel_futures=True)
-                self._pool = None
+                with uninterrupted():
+                    self._pool.shutdown(wait=False, cancel_futures=True)
+                    self._pool = None
                 for i in lost:
                     if attempts[i] > retries:
                         pending.discard(i)

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..errors import NetgenError
+from ..executor import raise_or_hold
 from ..sim.process import start_time
 
 RECORDS = ".processes"
@@ -115,7 +116,7 @@ def stop_on_signals() -> Iterator[None]:
         return
 
     def handler(signum: int, frame: object) -> None:
-        raise Stop(signum)
+        raise_or_hold(Stop(signum))                    # held while the executor holds its pool's locks
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
         yield
