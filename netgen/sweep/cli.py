@@ -34,8 +34,8 @@ def positive_int(text: str) -> int:
 
 def cli(args) -> int:
     """exit 0 (all ran, or --dry-run), 1 (some failed), 2 (bad input: SweepError, StructureError,
-    FolderError and ExecutorError reach netgen.cli.main, which reports them), 128 + N (stopped
-    by signal N, resumable)."""
+    FolderError and ExecutorError reach netgen.cli.main, which reports them), 130 (stopped
+    by SIGINT or SIGTERM, resumable)."""
     start = time.perf_counter()
     out = Path(args.output)
     sweep = load_sweep(args.sweep, args.max_runs)

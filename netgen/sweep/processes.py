@@ -20,6 +20,7 @@ from typing import Iterator
 
 from ..errors import NetgenError
 from ..executor import raise_or_hold
+from ..interrupts import EXIT_INTERRUPTED
 from ..sim.process import start_time
 
 RECORDS = ".processes"
@@ -34,11 +35,13 @@ class Stop(KeyboardInterrupt):
 
 
 class Interrupted(NetgenError):
-    """The sweep stopped on a signal after cleaning up; exit 128 + the signal number."""
+    """The sweep stopped on a signal after cleaning up; exit 130 for SIGINT and SIGTERM alike, as
+    every other subcommand (netgen.interrupts.EXIT_INTERRUPTED)."""
 
     def __init__(self, signum: int, message: str):
         super().__init__(message)
-        self.exit_code = 128 + signum
+        self.signum = signum
+        self.exit_code = EXIT_INTERRUPTED
 
 
 def me() -> dict:
