@@ -6,8 +6,9 @@ real ngspice), checked against /proc and against direct sigma_delta.run calls (c
   whose PID now names another process (other start time) is ignored;
 - every simulator call has a wall-clock limit (`timeout` in [sweep]): a run past it fails with
   that message, its ngspice is gone, and the sweep reports it (exit 1);
-- SIGTERM, then SIGINT to the whole process group (a Ctrl-C) of a running sweep: exit 130 for both (as every subcommand),
-  no process the sweep started is left, the folder resumes to the reference results;
+- SIGTERM, then SIGINT to the whole process group (a Ctrl-C) of a running sweep: exit 130 for
+  both (as every subcommand), no process the sweep started is left, the folder resumes to the
+  reference results;
 - a different sweep into that folder, a non-sweep folder, and a second sweep while one holds
   the folder are refused (exit 2) and leave the folder as it was.
 """
