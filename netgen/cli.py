@@ -16,7 +16,7 @@ from typing import Any, Iterator
 from . import __version__
 from .arguments import Parser, existing_file, output_folder, positive
 from .build import build, figure_names, write_figures
-from .emit import EMITTERS, formats, refusal, write_outputs
+from .emit import EMITTERS, refusal, requested, write_outputs
 from .errors import InputError, NetgenError, StructureError
 from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 from .executor import add_scheduler_option, executor
@@ -43,9 +43,10 @@ def _build(args: argparse.Namespace) -> int:
         if args.strict:
             raise StructureError(args.structure, "[fit] tolerance", f"{model.fit_problem()} (--strict)", FIT_FIX)
         print(f"netgen: warning: {args.structure}: {model.fit_warning()}", file=sys.stderr)
-    if args.format != "all" and refusal(model, args.format):
-        print(f"netgen: {args.structure}: --format {args.format}: {refusal(model, args.format)}", file=sys.stderr)
-        return 2
+    for fmt in requested(args.format):
+        if fmt != "all" and refusal(model, fmt):
+            print(f"netgen: {args.structure}: --format {fmt}: {refusal(model, fmt)}", file=sys.stderr)
+            return 2
     with OutputFolder(args.output, model.name, legacy=build_files(model.name)) as out:
         written = write_outputs(model, out.stage, args.format)
         if not args.no_plots:
@@ -80,14 +81,24 @@ def sampling(args: Any) -> Iterator[dict]:
             ex.close()
 
 
+def format_list(text: str) -> str:
+    """argparse type of --format: one or more of emit.formats() joined by commas."""
+    try:
+        requested(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"{text!r}: {exc}") from None
+    return text
+
+
 def _add_build(sub) -> None:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
     b.add_argument("-o", "--output", required=True, type=output_folder,
                    help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", choices=formats(), default="ngspice",
-                   help="netlist dialects to write: " + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
-                   + "; all: every dialect the model has")
+    b.add_argument("--format", type=format_list, default="ngspice",
+                   help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
+                   + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
+                   + "; all: every dialect the model has but osdi")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
     b.add_argument("--strict", action="store_true",

@@ -96,11 +96,25 @@ def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
 
 def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
     model = MacroModel.load_json(NETLISTS / "levitated_disk.json")
-    with pytest.raises(ValueError, match="choose one of ngspice, veriloga, xspice, osdi, all"):
+    with pytest.raises(ValueError, match=r"choose one or more \(joined by commas\) of ngspice, veriloga, xspice, "
+                                         r"osdi, all"):
         emit.write_outputs(model, tmp_path, "spectre")
-    with pytest.raises(SystemExit) as info:
-        cli.main(["build", str(PISTON), "-o", str(tmp_path), "--format", "spectre"])
-    assert info.value.code == 2 and "invalid choice: 'spectre'" in capsys.readouterr().err
+    for bad in ("spectre", "ngspice,spectre", ""):
+        with pytest.raises(SystemExit) as info:
+            cli.main(["build", str(PISTON), "-o", str(tmp_path / "out"), "--format", bad])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and "argument --format" in err and "ngspice, veriloga, xspice, osdi, all" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_several_formats_are_one_build_and_one_set(tmp_path):
+    """--format ngspice,osdi writes both dialects (and the .va the .osdi is compiled from) as one
+    set; a dialect named twice, or inside "all" too, is written once."""
+    assert cli.main(["build", str(PISTON), "-o", str(tmp_path), "-q", "--no-plots", "--format", "ngspice,osdi"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "piston.json", "piston.lib", "piston.manifest.json", "piston.osdi", "piston.va", "piston_osdi.lib"]
+    model = MacroModel.load_json(tmp_path / "piston.json")
+    assert emit.chosen(model, "all,ngspice,all") == emit.chosen(model, "all") == ["ngspice", "veriloga", "xspice"]
 
 
 def test_a_refused_format_is_left_out_of_all():

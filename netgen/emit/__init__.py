@@ -61,16 +61,34 @@ def refusal(model: MacroModel, fmt: str) -> str | None:
     return f"{problem}; fix: {emitter.fix}" if problem else None
 
 
+def requested(fmt: str) -> list[str]:
+    """The --format value as a list: one choice of formats() or several joined by commas (e.g.
+    "all,osdi": one build, one folder, every form); ValueError names an unknown one."""
+    names = [f.strip() for f in fmt.split(",")]
+    unknown = [f for f in names if f not in formats()]
+    if unknown or not names:
+        raise ValueError(f"unknown netlist format {', '.join(unknown) or fmt!r}; choose one or more (joined by "
+                         f"commas) of {', '.join(formats())}")
+    return names
+
+
+def chosen(model: MacroModel, fmt: str) -> list[str]:
+    """The dialects a --format value writes for `model`: "all" is every dialect the model supports
+    (xspice needs 1/P capacitance fits) but those outside it (osdi: in_all)."""
+    names: list[str] = []
+    for f in requested(fmt):
+        every = [g for g, e in EMITTERS.items() if e.in_all and not e.refusal(model)] if f == "all" else [f]
+        names += [g for g in every if g not in names]
+    return names
+
+
 def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
-    """Emit the requested dialects and the model JSON into `folder` (all or nothing); return the paths written.
-    "all" is every dialect the model supports (xspice needs 1/P capacitance fits) but those
-    outside it (osdi: in_all)."""
-    if fmt not in formats():
-        raise ValueError(f"unknown netlist format {fmt!r}; choose one of {', '.join(formats())}")
-    chosen = [f for f, e in EMITTERS.items() if e.in_all and not e.refusal(model)] if fmt == "all" else [fmt]
+    """Emit the requested dialects (see chosen) and the model JSON into `folder` (all or nothing);
+    return the paths written."""
+    chosen_ = chosen(model, fmt)
     # render everything before writing anything: a failing emitter or model leaves no output
     texts: dict[Path, str | bytes] = {}
-    for f in chosen:
+    for f in chosen_:
         texts[folder / f"{model.name}{EMITTERS[f].suffix}"] = EMITTERS[f].render(model)
         extra = EMITTERS[f].extra(model) if EMITTERS[f].extra else {}
         texts.update({folder / f"{model.name}{suffix}": content for suffix, content in extra.items()})
