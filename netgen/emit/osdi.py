@@ -96,9 +96,15 @@ def state_node(state: str, instance: str = "x1") -> str:
     return f"n.{instance}.n1#{state}"
 
 
+def force_nodes(model: MacroModel) -> list[str]:
+    """The module's internal force nodes fn_<q> (netgen.emit.veriloga: the nonlinear generalized
+    forces as nodes, so that ngspice's Newton test sees them converge)."""
+    return [f"fn_{c.name}" for c in model.coordinates]
+
+
 def nodes(model: MacroModel) -> int:
-    """Nodes of one instance of the compiled module: its terminals and its internal states."""
-    return len(model.ports()) + len(states(model))
+    """Nodes of one instance of the compiled module: its terminals, internal states and force nodes."""
+    return len(model.ports()) + len(states(model)) + len(force_nodes(model))
 
 
 def model_card(model: MacroModel) -> str:

@@ -80,17 +80,24 @@ def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
     return _sum(terms)
 
 
-def _rhs(c: Coordinate, ws: float, contact: bool = False) -> str:
-    """Right-hand side of (1/w_s) du/dt: (F_ext + F_el - K L xs - D L w_s u) / (M L w_s^2)."""
-    a = force_gain(c, ws)
-    parts = [f"{num(a * c.port_units[3])} * V(f_{c.name})"]
+def _rhs(c: Coordinate, ws: float) -> str:
+    """Right-hand side of (1/w_s) du/dt: (F_ext + F_nl - K L xs - D L w_s u) / (M L w_s^2), linear
+    in the nodes: the nonlinear forces F_nl enter through the force node fn_<q> (`_force_node`)."""
+    a = force_gain(c, ws) * c.port_units[3]
+    parts = [f"{num(a)} * V(f_{c.name})"]
     if c.stiffness:
         parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))} * V(xs_{c.name})")
-    parts += [f"-d_{c.name} * {num(1.0 / (c.mass * ws))} * V(u_{c.name})",
-              f"fel_scale * {num(a)} * fel_{c.name}"]
-    if contact:
-        parts.append(f"{num(a)} * fcon_{c.name}")
+    parts += [f"-d_{c.name} * {num(1.0 / (c.mass * ws))} * V(u_{c.name})", f"{num(a)} * V(fn_{c.name})"]
     return " + ".join(parts).replace("+ -", "- ")
+
+
+def _force_node(c: Coordinate, contact: bool) -> str:
+    """The value of the force node fn_<q>: the nonlinear generalized forces (electrostatic, contact;
+    netgen.emit.veriloga.nonlinear_rows adds the strain-energy one) in the f_<q> port's unit. As a
+    node, not a variable, so that ngspice's Newton test (node changes below reltol |V| + vntol; OSDI
+    devices have no current test) sees the force converge, as the .lib's B sources make it."""
+    terms = [f"fel_scale * fel_{c.name}"] + ([f"fcon_{c.name}"] if contact else [])
+    return f"({' + '.join(terms)}) / {num(c.port_units[3])}"
 
 
 def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list[str]) -> None:
@@ -103,7 +110,8 @@ def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list
         row.update({"f": f"f_{c.name}", "x": f"x_{c.name}", "xs": f"xs_{c.name}", "u": f"u_{c.name}",
                     "d": f"d_{c.name}", "fel": f"fel_{c.name}", "damping": num(c.damping),
                     "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
-                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws, has_contact),
+                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws),
+                    "fn": f"fn_{c.name}", "fn_expr": _force_node(c, has_contact),
                     "out_gain": num(c.scale / c.port_units[1])})
 
 
@@ -162,7 +170,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
     check_identifiers([model.name] + [p["name"] for p in ctx["ports"]] + states + p_vars + dv2_vars + y_vars
-                      + [c[k] for c in ctx["coords"] for k in ("d", "fel")] + ["fel_scale"] + stop_vars
+                      + [c[k] for c in ctx["coords"] for k in ("d", "fel", "fn")] + ["fel_scale"] + stop_vars
                       + [n["var"] for n in ctx["nonlinear"]])
     if noise_enabled(model, noise):
         noise_rows(model, ctx["coords"], ws)
@@ -187,7 +195,7 @@ def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) ->
             continue
         var = f"fnl_{c.name}"
         ctx["nonlinear"].append({"var": var, "expr": expr})
-        row["rhs"] = f"{row['rhs']} + {num(force_gain(c, ws))} * {var}"
+        row["fn_expr"] = row["fn_expr"].replace(") / ", f" + {var}) / ", 1)
 
 
 def film_rows(model: MacroModel, ws: float) -> list[dict]:

@@ -79,7 +79,9 @@ def _random_points(model: MacroModel, n: int = 200):
 
 def test_charges_and_forces_match_the_python_model(model, compiled):
     """200 random points: electrode charges (reactive residuals) and generalized forces within
-    1e-9 relative of MacroModel.electrode_charges / electrostatic_force."""
+    1e-9 relative of MacroModel.electrode_charges / electrostatic_force. The force is the residual
+    of the force node fn_<q> (V(fn) - F/unit, read at V(fn) = 0), and 1 V on fn_<q> moves the
+    velocity equation exactly as 1 V on the port f_<q> does."""
     params = {f"d_{c.name}": c.damping for c in model.coordinates} | {"fel_scale": 1.0, "mfactor": 1.0}
     unit = np.array([c.port_units[3] for c in model.coordinates])          # SI force per volt on f_<q>
     x, v_el, v_plate = _random_points(model)
@@ -89,10 +91,13 @@ def test_charges_and_forces_match_the_python_model(model, compiled):
         still = np.full(len(model.electrodes), v_plate[p])                  # no field: F_el = 0
         base = va_residuals(compiled, va_volts(model, x[p], still, v_plate[p]), params)
         pushed = va_residuals(compiled, va_volts(model, x[p], still, v_plate[p], force=1.0), params)
+        nodes = va_volts(model, x[p], still, v_plate[p]) | {f"fn_{c.name}": 1.0 for c in model.coordinates}
+        by_node = va_residuals(compiled, nodes, params)
         q_va[p] = [full[e.name][1] for e in model.electrodes]
         for v, c in enumerate(model.coordinates):
-            u = f"u_{c.name}"
-            f_va[p, v] = unit[v] * (full[u][0] - base[u][0]) / (pushed[u][0] - base[u][0])
+            u, fn = f"u_{c.name}", f"fn_{c.name}"
+            f_va[p, v] = -unit[v] * (full[fn][0] - base[fn][0])
+            assert by_node[u][0] - base[u][0] == pytest.approx(pushed[u][0] - base[u][0], rel=1e-12), c.name
     q_py = model.electrode_charges(x, v_el, v_plate)
     f_py = model.electrostatic_force(x, v_el, v_plate)
     q_err = np.abs(q_va - q_py) / np.abs(q_py)

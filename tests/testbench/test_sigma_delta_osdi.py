@@ -76,18 +76,17 @@ def test_spectra_are_noise_shaped_and_latches_clean(osdi_run):
 
 def test_mechanics_match_an_independent_integration(osdi_run, model):
     """The first 32 clocks: solve_ivp of the mechanics driven by the electrode voltages of the
-    run's own bits; tilts and modes within 1.5 % of their peak (the VACASK test's bound), z within
-    10 %. Measured on ngspice 46 at the bench's reltol 1e-3: z 7.2 % (4.3 % at 1e-4), tilts 0.4 %,
-    modes <= 0.8 %; the B-source .lib in the same loop and ngspice: z 1.3 %, and the osdi loop
-    around the .lib gives the .lib's figures, so the extra z error is ngspice's integration of the
-    compiled model (z is the small residual of a nearly balanced force; design notes: the .va
-    needs a tighter reltol than the .lib in ngspice for the same error)."""
+    run's own bits; tilts and modes within 1.5 % of their peak, z within 3 % (the VACASK test's
+    bounds are 1.5 % and 6 %). Measured on ngspice 46 at the bench's reltol 1e-3: z 1.6 %, tilts
+    0.07 %, modes <= 0.43 % (the B-source .lib in the same loop: z 1.3 %). Before the module's
+    nonlinear forces were nodes (netgen.emit.veriloga, fn_<q>) z was 7.2 % off: ngspice's Newton
+    test of an OSDI device looks at node changes only, and accepted the force one update early."""
     clock = osdi_run["clock"]
     ref = replay(model, sd.design(model, TS), clock, REPLAY)
     for i, c in enumerate(model.coordinates):
         err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |ngspice-osdi - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.10 if c.name == "z" else 0.015), c.name
+        assert err < (0.03 if c.name == "z" else 0.015), c.name
 
 
 def test_agrees_with_vacask(osdi_run, vacask_run):
@@ -123,11 +122,11 @@ def test_ngspice_39_is_refused_with_exit_3(tmp_path, monkeypatch, capsys):
 
 def test_the_node_cap_of_ngspice_44_is_refused(model, monkeypatch):
     """ngspice 44 caps an OSDI instance at 20 nodes (not installed here: its Version stands in):
-    the 45-node disk is refused with the count and the alternatives."""
+    the 52-node disk is refused with the count and the alternatives."""
     from netgen.errors import SimulatorNotFound
     from netgen.sim import ngspice as sim_ngspice
     from netgen.testbench.sigma_delta import osdi
 
     monkeypatch.setattr(sim_ngspice, "version", lambda path=None: sim_ngspice.Version("/opt/ngspice-44", 44, 2, True))
-    with pytest.raises(SimulatorNotFound, match=r"ngspice-44.2 .*20 nodes.*has 45.*45 or later"):
+    with pytest.raises(SimulatorNotFound, match=r"ngspice-44.2 .*20 nodes.*has 52.*45 or later"):
         osdi.check(model)

@@ -44,7 +44,7 @@ def check(model: MacroModel) -> sim_ngspice.Version:
     if limit is not None and n > limit:
         raise SimulatorNotFound(f"{v.label} ({v.path}) caps an OSDI instance at {limit} nodes and "
                                 f"{model.name} has {n} ({len(model.ports())} ports, {n - len(model.ports())} "
-                                f"states); the cap is gone from ngspice 45 on; {ALTERNATIVES}")
+                                f"internal); the cap is gone from ngspice 45 on; {ALTERNATIVES}")
     return v
 
 
