@@ -285,7 +285,8 @@ def test_suspended_structure_errors():
 def test_veriloga_nonlinear_restoring_force_matches_the_python_model(tmp_path):
     """The cc beam's .va compiles without warnings (openvaf-r) and, evaluated by openvaf-py at 20
     random states with no field, gives the restoring force -K q - dU/dq (+ the contact stops'
-    penalty where a state reaches them) of the Python model within 1e-9 relative."""
+    penalty where a state reaches them) of the Python model within 1e-9 relative: -K q in the
+    velocity equation, the rest in the force node fn_<q> (netgen.emit.veriloga)."""
     import openvaf_py
     from netgen.emit.veriloga import module
     from netgen.sim.vacask import compile_va
@@ -305,8 +306,12 @@ def test_veriloga_nonlinear_restoring_force_matches_the_python_model(tmp_path):
     pushed = va_residuals(compiled, va_volts(model, zero, [0.0], 0.0, force=1.0), params)
     for p in range(len(x)):
         res = va_residuals(compiled, va_volts(model, x[p], [0.0], 0.0), params)
+        # the linear spring acts in the velocity equation; the nonlinear force (strain energy,
+        # contact) is the force node fn_<q>'s residual V(fn) - F/unit, read at V(fn) = 0
         f_va = [unit[v] * (res[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
-                / (pushed[f"u_{c.name}"][0] - base[f"u_{c.name}"][0]) for v, c in enumerate(model.coordinates)]
+                / (pushed[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
+                - unit[v] * (res[f"fn_{c.name}"][0] - base[f"fn_{c.name}"][0])
+                for v, c in enumerate(model.coordinates)]
         f_py = -k * model.scales * x[p] + model.nonlinear_force(x[p:p + 1])[0] + model.contact_force(x[p], 0 * x[p])
         assert np.allclose(f_va, f_py, rtol=1e-9, atol=1e-12 * np.abs(f_py).max())
     assert np.abs(model.nonlinear_force(x)).max() > 1e-3 * np.abs(k * model.scales * x).max()
