@@ -5,10 +5,14 @@ from __future__ import annotations
 
 from typing import Callable
 
+from ..constants import EPS0
 from ..errors import StructureError
 from ..geometry.shapes import Plate
+from ..structure import CombElectrode
 from . import parallel_plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
+from .comb import CombExtractor
+from .mixed import MixedExtractor
 
 # [electrostatics] extractor -> builder(structure, plate outline): one line per extractor
 EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
@@ -18,12 +22,16 @@ EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
 
 def extractor(s, plate: Plate) -> CapacitanceExtractor:
     """The extractor a structure names (s: netgen.structure.Structure), or a StructureError
-    that lists the known ones."""
+    that lists the known ones; with comb electrodes it answers for the plates beside the comb
+    extractor (netgen.electrostatics.mixed)."""
     name = s.electrostatics.extractor
     if name not in EXTRACTORS:
         raise StructureError(s.source, "electrostatics.extractor", f"unknown extractor {name!r}",
                              f"use one of {', '.join(EXTRACTORS)}")
-    return EXTRACTORS[name](s, plate)
+    chosen = EXTRACTORS[name](s, plate)
+    if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
+        return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity))
+    return chosen
 
 
 __all__ = ["EXTRACTORS", "CapacitanceExtractor", "PreparedExtractor", "ProbePoints", "extractor"]

@@ -12,7 +12,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..structure import ElectrodeSet, RectElectrode, Structure
+from ..structure import CombElectrode, ElectrodeSet, RectElectrode, Structure
+from .combs import CombShape
 from .shapes import AnnularSector, DiskPlate, Electrode, Plate, Rectangle, RectPlate
 
 
@@ -40,10 +41,17 @@ def rectangle(e: RectElectrode) -> list[Electrode]:
     return [Electrode(Rectangle(e.name, e.x0, e.x1, e.y0, e.y1), e.side, e.gap, e.name)]
 
 
+def comb(e: CombElectrode) -> list[Electrode]:
+    """A comb-finger array: one electrode whose gaps close in the plane."""
+    fields = {k: getattr(e, k) for k in CombShape.__dataclass_fields__}
+    return [Electrode(CombShape(**fields), "in_plane", e.gap, e.name)]
+
+
 # electrode kind of the structure file -> its shapes
 SHAPES: dict[type, Callable[..., list[Electrode]]] = {
     ElectrodeSet: ring_sectors,
     RectElectrode: rectangle,
+    CombElectrode: comb,
 }
 
 

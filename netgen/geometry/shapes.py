@@ -31,7 +31,7 @@ Array = NDArray[np.float64]
 Basis = Callable[[Array, Array], Array]
 """basis(x, y) -> (npts, ncoords): vertical displacement per unit generalized coordinate."""
 
-Side = Literal["above", "below"]
+Side = Literal["above", "below", "in_plane"]
 
 # ----------------------------------------------------------------------------- quadrature helpers
 
@@ -461,8 +461,8 @@ class Electrode:
 
     def __post_init__(self) -> None:
         """Validate side and gap."""
-        if self.side not in ("above", "below"):
-            raise ValueError(f"side must be 'above' or 'below', not {self.side!r}")
+        if self.side not in ("above", "below", "in_plane"):
+            raise ValueError(f"side must be 'above', 'below' or 'in_plane' (comb fingers), not {self.side!r}")
         if not self.gap > 0.0:
             raise ValueError("gap must be positive")
 
@@ -473,8 +473,9 @@ class Electrode:
 
     @property
     def sign(self) -> float:
-        """+1 above (local gap g - w), -1 below (local gap g + w)."""
-        return 1.0 if self.side == "above" else -1.0
+        """+1 above (local gap g - w), -1 below (local gap g + w), 0 in plane (comb fingers:
+        their gaps close in the plane, netgen.electrostatics.comb)."""
+        return {"above": 1.0, "below": -1.0}.get(self.side, 0.0)
 
 
 # ----------------------------------------------------------------------------- neighbour edges

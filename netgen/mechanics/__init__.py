@@ -12,7 +12,7 @@ from types import ModuleType
 
 from ..errors import StructureError
 from ..structure import Structure
-from . import beam, free_disk, piston
+from . import beam, free_disk, piston, proof_mass
 from .base import Mechanics, StrainEnergy, participation, rigid_basis
 
 # conductor kind -> module with mechanics(structure) -> Mechanics: one line per kind
@@ -21,6 +21,7 @@ KINDS: dict[str, ModuleType] = {
     "piston": piston,
     "clamped_clamped_beam": beam,
     "cantilever": beam,
+    "proof_mass": proof_mass,
 }
 
 

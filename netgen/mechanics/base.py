@@ -14,12 +14,46 @@ from ..geometry.layout import plate_outline
 from ..structure import Structure
 
 # rigid-body coordinate -> (kind, SI unit); every other coordinate is an eigenmode in m
-RIGID = {"z": ("translation", "m"), "tilt_x": ("rotation", "rad"), "tilt_y": ("rotation", "rad")}
+RIGID = {"x": ("translation", "m"), "y": ("translation", "m"), "z": ("translation", "m"),
+         "rot_z": ("rotation", "rad"), "tilt_x": ("rotation", "rad"), "tilt_y": ("rotation", "rad")}
+
+# Small-angle kinematics of the rigid-body coordinates, for a point (x, y) of the mid-plane:
+# displacement (u_x, u_y, u_z) = (X - rot_z y, Y + rot_z x, Z + tilt_x y - tilt_y x), i.e. the
+# rotation matrix to first order in the angles (tilt_x about +x, tilt_y about +y, rot_z about +z;
+# the in-plane motion of the mid-plane under the tilts, and every product of angles, are dropped).
+# netgen.mechanics.proof_mass reports where this is off by more than 0.1 % (small_angle_report).
+KINEMATICS = ("small-angle rigid-body kinematics at the mid-plane: u_x = x - rot_z*Y, u_y = y + rot_z*X, "
+              "u_z = z + tilt_x*Y - tilt_y*X (X, Y: the point's rest position; first order in the angles)")
 
 
 def rigid_field(name: str, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Vertical displacement per unit rigid-body coordinate: z 1, tilt_x y, tilt_y -x (small angles)."""
+    """Vertical displacement per unit rigid-body coordinate: z 1, tilt_x y, tilt_y -x (small
+    angles); the in-plane coordinates x, y, rot_z move nothing vertically."""
+    if name in ("x", "y", "rot_z"):
+        return np.zeros_like(x)
     return {"z": np.ones_like(x), "tilt_x": y, "tilt_y": -x}[name]
+
+
+def in_plane_field(name: str, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """In-plane displacement (npts, 2) per unit rigid-body coordinate: x (1, 0), y (0, 1),
+    rot_z (-y, x); the out-of-plane coordinates move the mid-plane vertically only."""
+    zero, one = np.zeros_like(x), np.ones_like(x)
+    return np.stack({"x": (one, zero), "y": (zero, one), "rot_z": (-y, x)}.get(name, (zero, zero)), axis=-1)
+
+
+class RigidBasis:
+    """basis(x, y) -> (npts, ncoords) vertical displacement of the rigid-body coordinates `names`
+    (the basis every extractor takes), with `in_plane(x, y)` -> (npts, 2, ncoords) beside it for
+    the extractors of in-plane electrodes (netgen.electrostatics.comb)."""
+
+    def __init__(self, names: list[str] | tuple[str, ...]):
+        self.names = tuple(names)
+
+    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.stack([rigid_field(n, x, y) for n in self.names], axis=-1)
+
+    def in_plane(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.stack([in_plane_field(n, np.asarray(x, float), np.asarray(y, float)) for n in self.names], axis=-1)
 
 
 def rigid_basis(names: list[str] | tuple[str, ...] = ("z", "tilt_x", "tilt_y")) -> Callable:

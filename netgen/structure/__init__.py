@@ -2,13 +2,13 @@
 (netgen.structure.parse). Conductor kinds: netgen.structure.conductors.CONDUCTORS."""
 
 from ..errors import StructureError
-from .conductors import CONDUCTORS, Beam, FreeDisk, Piston
-from .electrodes import ElectrodeSet, RectElectrode
+from .conductors import CONDUCTORS, Beam, FreeDisk, Piston, ProofMass
+from .electrodes import CombElectrode, ElectrodeSet, RectElectrode
 from .parse import load_structure, parse_structure
-from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Coordinates, Damping, ElectrostaticsOptions,
+from .schema import (ALL_RIGID, IN_PLANE_COORDINATES, MAX_GRID_POINTS, RIGID_COORDINATES, Coordinates, Damping, ElectrostaticsOptions,
                      FemOptions, FitOptions, Imports, Sampling, Structure, mode_name)
 
-__all__ = ["CONDUCTORS", "MAX_GRID_POINTS", "RIGID_COORDINATES", "Beam", "Coordinates", "Damping",
+__all__ = ["ALL_RIGID", "CONDUCTORS", "CombElectrode", "IN_PLANE_COORDINATES", "ProofMass", "MAX_GRID_POINTS", "RIGID_COORDINATES", "Beam", "Coordinates", "Damping",
            "ElectrodeSet", "ElectrostaticsOptions", "FemOptions", "FitOptions", "FreeDisk", "Imports", "Piston",
            "RectElectrode", "Sampling", "Structure", "StructureError", "load_structure", "mode_name",
            "parse_structure"]

@@ -12,10 +12,11 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-from .electrodes import check_ring_overlaps, rectangles, ring_sets
+from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
+from .flexures import Flexure, read_flexure
 from .reader import (Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity,
                      table)
-from .schema import MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
+from .schema import ALL_RIGID, MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
 
 
 def acceleration_port(rd: Reader, t: dict) -> bool:
@@ -275,6 +276,84 @@ class Beam(Suspended):
         return [mode_name(str(k + 1)) for k in range(coords.modes)]
 
 
+@dataclass(frozen=True)
+class ProofMass(Suspended):
+    """A rigid rectangular proof mass (length along x, width along y, centred at the origin) with
+    an optional square etch-hole grid (`hole` side on a `hole_pitch` grid), suspended by a named
+    flexure (netgen.structure.flexures), between plate electrodes and comb-finger arrays; its
+    coordinates are any of the six rigid-body motions (netgen.mechanics.proof_mass)."""
+    length: float
+    width: float
+    thickness: float
+    density: float
+    youngs_modulus: float
+    poisson_ratio: float
+    flexure: Flexure
+    hole: float = 0.0
+    hole_pitch: float = 0.0
+    kind: str = "proof_mass"
+
+    def holes(self) -> tuple[int, int]:
+        """Number of etch holes along x and y (a centred grid that fits inside the mass)."""
+        if not self.hole:
+            return 0, 0
+        return int(self.length // self.hole_pitch), int(self.width // self.hole_pitch)
+
+    @property
+    def mass(self) -> float:
+        nx, ny = self.holes()
+        return (self.length * self.width - nx * ny * self.hole**2) * self.thickness * self.density
+
+    def outline(self) -> tuple[float, float, float, float]:
+        return -self.length / 2, self.length / 2, -self.width / 2, self.width / 2
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> "ProofMass":
+        """The [conductor] table of a proof mass (with its [conductor.flexure])."""
+        check_keys(rd, "conductor", t, ["kind", "length", "width", "thickness", "density", "youngs_modulus",
+                                        "poisson_ratio", "hole", "hole_pitch", "flexure"])
+        length = quantity(rd, t, "conductor", "length", "length", check=positive, what="mass length (along x)")
+        width = quantity(rd, t, "conductor", "width", "length", default=length, check=positive,
+                         what="mass width (along y)")
+        thickness = quantity(rd, t, "conductor", "thickness", "length", check=positive, what="mass thickness")
+        density = quantity(rd, t, "conductor", "density", "density", check=positive,
+                           what="mass density (polysilicon: 2330 kg/m^3)")
+        modulus = quantity(rd, t, "conductor", "youngs_modulus", "modulus", default=160e9, check=positive,
+                           what="Young's modulus of the flexures (polysilicon: 160 GPa)")
+        nu = quantity(rd, t, "conductor", "poisson_ratio", "dimensionless", default=0.22,
+                      check=lambda v: None if -1 < v < 0.5 else "must lie in (-1, 0.5)", what="Poisson's ratio")
+        hole = quantity(rd, t, "conductor", "hole", "length", default=0.0, check=nonnegative, what="etch-hole side")
+        pitch = quantity(rd, t, "conductor", "hole_pitch", "length", default=0.0, check=nonnegative,
+                         what="etch-hole pitch")
+        if bool(hole) != bool(pitch) or (hole and hole >= pitch):
+            raise rd.fail("conductor.hole_pitch", f"hole = {hole:g} m with hole_pitch = {pitch:g} m is not a hole grid",
+                          "give both, with hole < hole_pitch (e.g. hole = \"4 um\", hole_pitch = \"10 um\"), or neither")
+        return cls(length, width, thickness, density, modulus, nu, read_flexure(rd, t, thickness), hole, pitch)
+
+    def read_electrodes(self, rd: Reader, doc: dict) -> tuple:
+        return plates_and_combs(rd, doc, self.outline(), self.thickness)
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
+        """Any of the six rigid-body motions (default x, y, z); no internal modes."""
+        t = table(rd, doc, "coordinates", required=False)
+        accel = acceleration_port(rd, t)
+        check_keys(rd, "coordinates", t, ["rigid", "acceleration_port"])
+        rigid = t.get("rigid", ["x", "y", "z"])
+        if not isinstance(rigid, list) or not rigid or not all(isinstance(r, str) for r in rigid) \
+                or len(set(rigid)) != len(rigid) or not set(rigid) <= set(ALL_RIGID):
+            raise rd.fail("coordinates.rigid", f"rigid = {rigid!r} is not a list of distinct names from "
+                          f"{list(ALL_RIGID)}", 'write rigid = ["x", "y", "z"] (any of the six rigid-body motions)')
+        return Coordinates(tuple(r for r in ALL_RIGID if r in rigid), 0, accel)
+
+    @property
+    def sprung_rigid(self) -> bool:
+        """The rigid-body motions have springs (so a Q or damping ratio of them is defined)."""
+        return self.flexure.type != "none"
+
+    def coordinate_names(self, coords: Coordinates) -> list[str]:
+        return list(coords.rigid)
+
+
 # kind -> conductor class; a new kind is a dataclass with read / read_electrodes / read_coordinates /
 # read_fem / check / coordinate_names, one line here, and its mechanics (netgen.mechanics.KINDS)
 CONDUCTORS: dict[str, type] = {
@@ -282,4 +361,5 @@ CONDUCTORS: dict[str, type] = {
     "piston": Piston,
     "clamped_clamped_beam": Beam,
     "cantilever": Beam,
+    "proof_mass": ProofMass,
 }

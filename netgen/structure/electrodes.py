@@ -182,3 +182,130 @@ def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]
     if not out:
         raise rd.fail("[[electrodes]]", "no electrodes", "add at least one [[electrodes]] table")
     return tuple(out)
+
+
+# ---------------------------------------------------------------- comb-finger arrays (proof masses)
+
+COMB_KINDS = ("lateral_comb", "transverse_comb")
+COMB_KEYS = ["name", "kind", "orientation", "fingers", "width", "gap", "length", "overlap", "thickness", "side",
+             "anti_gap", "pitch", "center", "root", "substrate_gap"]
+
+
+@dataclass(frozen=True)
+class CombElectrode:
+    """A fixed comb interdigitated with `fingers` moving fingers of the proof mass.
+
+    Fingers run along `orientation` ("x" or "y"); `center` is the middle of the overlap region at
+    rest. The fixed comb's base lies at the `root` end ("+" or "-" along the fingers): moving toward
+    it deepens the overlap (`overlap` at rest, at most `length`, the finger length). A lateral comb
+    faces each moving finger on both sides at `gap` (C grows with the overlap); a transverse comb
+    faces it on `side` ("+" or "-" across the fingers) at `gap`, and on the other side at `anti_gap`
+    if given (0: that side belongs to another electrode, e.g. the differential partner)."""
+    name: str
+    kind: str
+    orientation: str
+    fingers: int
+    width: float
+    gap: float
+    length: float
+    overlap: float
+    thickness: float
+    side: str
+    root: str
+    anti_gap: float
+    pitch: float
+    center: tuple[float, float]
+    substrate_gap: float
+
+    def electrode_names(self) -> list[str]:
+        return [self.name]
+
+
+def sign_key(rd: Reader, t: dict, where: str, key: str, default: str | None) -> str:
+    """A "+" / "-" key (accepting "+x" style with the axis letter)."""
+    raw = t.get(key, default)
+    value = raw[0] if isinstance(raw, str) and raw[:1] in "+-" and len(raw) <= 2 else None
+    if value is None:
+        raise rd.fail(f"{where}.{key}", f"{key} = {raw!r} is not \"+\" or \"-\"",
+                      f'write {key} = "+" (or "-"): the direction along/across the fingers')
+    return value
+
+
+def point(rd: Reader, t: dict, where: str, key: str) -> tuple[float, float]:
+    """center = [x, y] (lengths)."""
+    raw = t.get(key)
+    fix = f'write {key} = ["0 um", "150 um"]'
+    if not isinstance(raw, list) or len(raw) != 2:
+        raise rd.fail(f"{where}.{key}", f"{key} must be an [x, y] pair", fix)
+    try:
+        return parse_quantity(raw[0], "length"), parse_quantity(raw[1], "length")
+    except UnitError as exc:
+        raise rd.fail(f"{where}.{key}", str(exc), fix)
+
+
+def comb(rd: Reader, t: dict, where: str, name: str, kind: str, thickness: float) -> CombElectrode:
+    """One comb electrode's table (keys COMB_KEYS)."""
+    check_keys(rd, where, t, COMB_KEYS)
+    q = lambda key, what, default=None, check=positive: quantity(rd, t, where, key, "length", default, check, what)  # noqa: E731
+    orientation = choice(rd, t, where, "orientation", ["x", "y"], default=None)
+    fingers = integer(rd, t, where, "fingers", None, 1, 10000, "number of moving fingers in the array")
+    width, gap = q("width", "finger width"), q("gap", "finger gap")
+    length, overlap = q("length", "finger length"), q("overlap", "finger overlap at rest")
+    if overlap >= length:
+        raise rd.fail(f"{where}.overlap", f"overlap {overlap:g} m is not shorter than the finger length {length:g} m",
+                      "the fingers must not bottom out at rest: give overlap < length")
+    lateral = kind == "lateral_comb"
+    anti = 0.0 if lateral else q("anti_gap", "gap on the far side of each moving finger (0: none)", 0.0, nonnegative)
+    if lateral and "anti_gap" in t:
+        raise rd.fail(f"{where}.anti_gap", "a lateral comb faces each finger on both sides at `gap`",
+                      "remove anti_gap (or use kind = \"transverse_comb\")")
+    if anti and anti <= gap:
+        raise rd.fail(f"{where}.anti_gap", f"anti_gap {anti:g} m is not larger than gap {gap:g} m",
+                      "give the far gap larger than the sensing gap, or 0 for none")
+    side = "+" if lateral else sign_key(rd, t, where, "side", None)
+    root = sign_key(rd, t, where, "side" if lateral else "root", "+" if not lateral else None)
+    default_pitch = 2 * (width + gap) if lateral else (2 * width + gap + anti if anti else 3 * (width + gap))
+    pitch = q("pitch", "finger pitch (moving finger to moving finger)", default_pitch)
+    if pitch < 2 * width + gap:
+        raise rd.fail(f"{where}.pitch", f"pitch {pitch:g} m leaves no room for the fixed fingers",
+                      f"give pitch >= 2 width + gap = {2 * width + gap:g} m")
+    return CombElectrode(name, kind, orientation, fingers, width, gap, length, overlap,
+                         q("thickness", "finger thickness", thickness), side, root, anti, pitch,
+                         point(rd, t, where, "center"), q("substrate_gap", "finger bottom to substrate", 0.0, nonnegative))
+
+
+def rectangle_table(rd: Reader, t: dict, where: str, name: str, outline: tuple[float, float, float, float],
+                    out: list) -> RectElectrode:
+    """One rectangular plate electrode's table, refused if it overlaps an earlier one on its side."""
+    x0, x1, y0, y1 = outline
+    check_keys(rd, where, t, ["name", "kind", "side", "gap", "x", "y"])
+    side = choice(rd, t, where, "side", ["above", "below"], default="below")
+    gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between conductor and electrode")
+    a, b = span(rd, t, where, "x", x0, x1)
+    c, d = span(rd, t, where, "y", y0, y1)
+    for prev in out:
+        if isinstance(prev, RectElectrode) and prev.side == side and a < prev.x1 and prev.x0 < b \
+                and c < prev.y1 and prev.y0 < d:
+            raise rd.fail(f"{where}.x", f"electrode {name!r} overlaps {prev.name!r} on the same side ({side})",
+                          "make the rectangles disjoint or merge them")
+    return RectElectrode(name, side, gap, a, b, c, d)
+
+
+def plates_and_combs(rd: Reader, doc: dict, outline: tuple[float, float, float, float],
+                     thickness: float) -> tuple:
+    """[[electrodes]] of a proof mass: plates over the substrate (kind = "plate", the default) and
+    comb arrays (kind = "lateral_comb" / "transverse_comb")."""
+    raw = electrode_tables(rd, doc, "missing electrodes",
+                           "add [[electrodes]] tables (see examples/accelerometer_xyz.toml)", "electrode")
+    out, names = [], set()
+    for i, t in enumerate(raw):
+        where = f"electrodes[{i}]"
+        name = unique_name(rd, t, where, names, "electrode", "electrode",
+                           "use letters, digits and _ (starting with a letter), e.g. name = \"xp\"; "
+                           "avoid 'plate' and the word 'error'", forbidden=("plate",))
+        kind = choice(rd, t, where, "kind", ["plate", *COMB_KINDS], default="plate")
+        out.append(rectangle_table(rd, t, where, name, outline, out) if kind == "plate"
+                   else comb(rd, t, where, name, kind, thickness))
+    if not out:
+        raise rd.fail("[[electrodes]]", "no electrodes", "add at least one [[electrodes]] table")
+    return tuple(out)

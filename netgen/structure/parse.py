@@ -18,7 +18,7 @@ from ..text import escape, text_problem
 from .conductors import CONDUCTORS
 from .reader import (Reader, check_keys, choice, did_you_mean, flag, free_text, identifier, integer,
                      nonnegative, positive, quantity, table)
-from .schema import (MAX_GRID_POINTS, RIGID_COORDINATES, Damping, ElectrostaticsOptions, FitOptions,
+from .schema import (ALL_RIGID, MAX_GRID_POINTS, Damping, ElectrostaticsOptions, FitOptions,
                      Imports, Sampling, Structure)
 
 TOP_KEYS = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
@@ -63,7 +63,8 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     return Structure(name=name, description=description, source=path, conductor=conductor,
                      electrode_sets=sets, coordinates=coords, sampling=sampling,
                      fit=fit, electrostatics=read_electrostatics(rd, doc), fem=fem,
-                     damping=read_damping(rd, doc, conductor.coordinate_names(coords)),
+                     damping=read_damping(rd, doc, conductor.coordinate_names(coords),
+                                          getattr(conductor, "sprung_rigid", False)),
                      imports=read_imports(rd, doc))
 
 
@@ -129,7 +130,8 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
 # ---------------------------------------------------------------- [damping]
 
 def per_coordinate(rd: Reader, t: dict, key: str, names: list[str] | None,
-                   check: Callable[[float], str | None], what: str) -> tuple[tuple[str, float], ...]:
+                   check: Callable[[float], str | None], what: str,
+                   sprung: bool = False) -> tuple[tuple[str, float], ...]:
     """A number (every eigenmode: key '*') or a table {coordinate = number} of positive values."""
     loc = f"damping.{key}"
     if key not in t:
@@ -140,7 +142,7 @@ def per_coordinate(rd: Reader, t: dict, key: str, names: list[str] | None,
     for name, value in entries.items():
         if name != "*" and names is not None and name not in names:
             raise rd.fail(loc, f"unknown coordinate {name!r}", f"{did_you_mean(name, names)}use one of {names}")
-        if name in RIGID_COORDINATES:
+        if name in ALL_RIGID and not sprung:
             raise rd.fail(loc, f"{key} of the rigid coordinate {name!r} is undefined (no stiffness, no resonance)",
                           "damp rigid-body motions with squeeze_film or rayleigh alpha instead")
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -164,16 +166,17 @@ def rayleigh(rd: Reader, t: dict) -> tuple[float, float]:
             quantity(rd, raw, "damping.rayleigh", "beta", "dimensionless", 0.0, nonnegative, "stiffness-proportional s"))
 
 
-def read_damping(rd: Reader, doc: dict, names: list[str] | None) -> Damping | None:
-    """The optional [damping] table; `names`: the coordinate names (None while unknown)."""
+def read_damping(rd: Reader, doc: dict, names: list[str] | None, sprung: bool = False) -> Damping | None:
+    """The optional [damping] table; `names`: the coordinate names (None while unknown); `sprung`:
+    the rigid-body motions have springs (a proof mass on flexures), so Q and zeta apply to them too."""
     if "damping" not in doc:
         return None
     t = table(rd, doc, "damping", required=False)
     check_keys(rd, "damping", t, DAMPING_KEYS)
     q = per_coordinate(rd, t, "q_factor", names, lambda v: None if v > 0.5 else "must exceed 0.5",
-                       "quality factor (> 0.5, underdamped)")
+                       "quality factor (> 0.5, underdamped)", sprung)
     zeta = per_coordinate(rd, t, "damping_ratio", names, lambda v: None if 0 < v < 1 else "must lie in (0, 1)",
-                          "damping ratio")
+                          "damping ratio", sprung)
     both = sorted({n for n, _ in q} & {n for n, _ in zeta})
     if both:
         raise rd.fail("damping.damping_ratio", f"coordinate(s) {both} given both q_factor and damping_ratio",

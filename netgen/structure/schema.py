@@ -7,7 +7,9 @@ import re
 from dataclasses import dataclass, field
 from typing import Protocol
 
-RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")
+RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")      # out of plane: every conductor kind
+IN_PLANE_COORDINATES = ("x", "y", "rot_z")        # in plane: proof masses (netgen.structure.conductors.ProofMass)
+ALL_RIGID = IN_PLANE_COORDINATES + RIGID_COORDINATES
 MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")      # \Z: "2,0c\n" is not a label
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
