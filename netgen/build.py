@@ -28,6 +28,7 @@ from .geometry.shapes import Plate
 from .mechanics import Mechanics, mechanics, participation
 from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
+from .mechanics.kinematics import small_angle_report
 from .model import Coordinate, Electrode, MacroModel
 from .model import contact
 from .model import plots
@@ -117,6 +118,9 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
     if damp_report:
         report["damping"] = damp_report
+    if set(m.names) & {"x", "y", "rot_z"}:               # in-plane motion: where small angles stop holding
+        report["small_angle"] = small_angle_report(m.names, m.kinds, scales, s.sampling.range,
+                                                   farthest(plate, shapes), min(e.gap for e in shapes))
     model = MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
                        sampling, report, contact=stops(s, m, prepared, shapes, scales))
     if s.coordinates.acceleration_port:
@@ -125,6 +129,15 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
         poly, fit_report = fit_energy(m.strain_energy.energy, scales)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     return model
+
+
+def farthest(plate: Plate, shapes: list[ShapeElectrode]) -> float:
+    """Distance from the origin of the farthest point of the conductor outline or a comb's fingers."""
+    x, y, _ = plate.area_rule(4)
+    corners = [getattr(plate, "radius", 0.0)] + [float(np.max(np.hypot(x, y)))]
+    if hasattr(plate, "x0"):
+        corners += [math.hypot(a, b) for a in (plate.x0, plate.x1) for b in (plate.y0, plate.y1)]
+    return max(corners + [e.shape.extent() for e in shapes if hasattr(e.shape, "extent")])
 
 
 def stops(s: Structure, m: Mechanics, prepared: PreparedExtractor, shapes: list[ShapeElectrode],
@@ -144,15 +157,17 @@ def say(progress: bool, text: str) -> None:
 
 
 def figure_names(name: str) -> tuple[str, str]:
-    """The PNGs write_figures can write for model `name`: fit errors, mode shapes."""
-    return f"{name}_fit_errors.png", f"{name}_modes.png"
+    """The PNGs write_figures can write for model `name`: fit errors, mode shapes, small-angle errors."""
+    return f"{name}_fit_errors.png", f"{name}_modes.png", f"{name}_small_angle.png"
 
 
 def write_figures(b: Build, folder: Path) -> list[Path]:
     """Mode-shape and fit-error PNGs next to the netlist (from the build's stage outputs)."""
     model = b.model
-    errors, modes = figure_names(model.name)
+    errors, modes, angles = figure_names(model.name)
     out = [plots.fit_errors(folder / errors, model)]
+    if "small_angle" in model.report:
+        out.append(plots.small_angle(folder / angles, model.report["small_angle"]))
     if any(c.kind == "mode" for c in model.coordinates) and b.structure.conductor.outline_shape == "disk":
         out.append(plots.mode_shapes(folder / modes, model, b.mechanics.basis,
                                      b.structure.conductor.radius, electrode_outlines(b.structure)))

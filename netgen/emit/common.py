@@ -135,10 +135,27 @@ def header_context(model: MacroModel) -> dict:
         " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits).")
     tie_text = (f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
                 f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm).")
-    return {"m": model, "ports": model.ports(), "coords": coords, "fits": fits, "couplings": couplings,
+    return {"m": model, "ports": model.ports(), "coords": coords, "kinematics_text": kinematics_text(model), "fits": fits, "couplings": couplings,
             "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
             "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text,
             "fit_warning": model.fit_warning()}
+
+
+def kinematics_text(model: MacroModel) -> str:
+    """The header's statement of the rigid-body kinematics and where its small-angle error passes
+    0.1 % (the build's report.small_angle: models with in-plane coordinates)."""
+    if "small_angle" not in model.report:          # models without in-plane coordinates: as before
+        return ""
+    text = ("Kinematics: small-angle rigid body, at a point (X, Y) of the mid-plane u_x = x - rot_z*Y, "
+            "u_y = y + rot_z*X, u_z = z + tilt_x*Y - tilt_y*X (first order in the angles).")
+    report = model.report.get("small_angle")
+    if report:
+        over = [r["coordinate"] for r in report["rotations"] if r["exceeds_0p1_percent"]]
+        text += (f" Its displacement error passes {report['limit']:.1%} beyond |angle| = "
+                 f"{report['threshold_rad'] * 1e3:.3g} mrad" + (f"; within the touching amplitude of {', '.join(over)}"
+                                                                 if over else "; not within any touching amplitude")
+                 + " (report.small_angle in the model JSON).")
+    return text
 
 
 def noise_enabled(model: MacroModel, noise: bool | None) -> bool:

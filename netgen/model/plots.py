@@ -48,3 +48,22 @@ def fit_errors(path: Path, model: MacroModel) -> Path:
     ax.legend(fontsize=8)
     fig.tight_layout()
     return save(fig, path)
+
+
+def small_angle(path: Path, report: dict) -> Path:
+    """The small-angle kinematics' relative displacement error vs angle, with the 0.1 % line and
+    each rotation coordinate's sampled and touching amplitudes (netgen.mechanics.kinematics)."""
+    t = np.geomspace(1e-5, 0.3, 200)
+    err = np.hypot(1 - np.cos(t), t - np.sin(t)) / t
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    ax.loglog(t * 1e3, err, color="k", lw=1.2, label="displacement error / displacement")
+    ax.axhline(report["limit"], color="r", lw=0.8, ls="--", label=f"{report['limit']:.1%}")
+    for k, row in enumerate(report["rotations"]):
+        color = f"C{k}"
+        ax.axvline(row["sampled_rad"] * 1e3, color=color, lw=0.8, ls=":")
+        ax.axvline(row["touching_rad"] * 1e3, color=color, lw=0.8, label=f"{row['coordinate']}: sampled (dotted), touching")
+    ax.set_xlabel("angle (mrad)")
+    ax.set_ylabel("relative error")
+    ax.set_title(f"small-angle kinematics: 0.1 % beyond {report['threshold_rad'] * 1e3:.3g} mrad", fontsize=9)
+    ax.legend(fontsize=7)
+    return save(fig, path)
