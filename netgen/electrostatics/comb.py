@@ -34,8 +34,10 @@ NODES = 4       # Gauss-Legendre points along each face's overlap (exact for the
 
 @dataclass(frozen=True)
 class CombCell:
-    """What the cross-section model needs of one comb: finger width and thickness, finger pitch,
-    moving finger bottom to substrate (0: no substrate given), permittivity (F/m)."""
+    """What the cross-section model needs of one comb: finger width and thickness, `pitch` the
+    centre distance of a moving finger and its neighbouring fixed finger (half the moving fingers'
+    period, CombShape.pitch), the fixed fingers' bottom to the substrate (inf: none given),
+    permittivity (F/m); netgen.electrostatics.comb_section's conventions."""
     width: float
     thickness: float
     pitch: float
@@ -106,7 +108,8 @@ def geometry(shape: CombShape, basis: Basis, nc: int, eps: float) -> CombGeometr
     return CombGeometry(np.array([f.gap for f in faces]), shape.overlap, close,
                         np.einsum("fk,fkv->fv", n, u1 - u0), np.einsum("k,fkv->fv", e, u0), w0, w1 - w0,
                         clearance, tip_close, wt, probe_gap, probe_phi,
-                        CombCell(shape.width, shape.thickness, shape.pitch, shape.substrate_gap, eps))
+                        CombCell(shape.width, shape.thickness, shape.pitch / 2,
+                                 shape.substrate_gap or float("inf"), eps))
 
 
 def comb_capacitance(g: CombGeometry, q: np.ndarray) -> np.ndarray:
