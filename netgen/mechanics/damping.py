@@ -51,21 +51,30 @@ def _modal_ratios(s: Structure, names: list[str], kinds: list[str]) -> np.ndarra
 
 def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
     """Reynolds squeeze-film damping of both sides' gaps (the plate disk, p = 0 at its rim)."""
-    d, radius = s.damping, s.conductor.radius
+    d, c = s.damping, s.conductor
     gas = GASES[d.gas]
-    mesh = sf.disk_mesh(radius, d.fem_refine)
-    reynolds = sf.reynolds_matrix(mesh, m.basis)                  # shared by all gaps
     gaps = {}
     for e in s.electrode_sets:
-        gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
-    total, sides = np.zeros_like(reynolds), {}
+        if getattr(e, "side", None) in ("above", "below"):       # comb fingers have no film of their own
+            gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
+    if c.outline_shape == "disk":
+        radius = c.radius
+        mesh = sf.disk_mesh(radius, d.fem_refine)
+        reynolds = {gap: sf.reynolds_matrix(mesh, m.basis) for gap in set(gaps.values())}   # shared by all gaps
+    else:                                                        # a proof mass: its rectangle, with its holes
+        radius = min(c.length, c.width) / 2
+        mesh = sf.centred_rectangle_mesh(c.length, c.width, 2 ** d.fem_refine)
+        reynolds = {gap: sf.reynolds_matrix(mesh, m.basis, sf.perforation_leak(gap, c.thickness, c.hole, c.hole_pitch)
+                                            if c.hole else 0.0) for gap in set(gaps.values())}
+    total, sides = np.zeros((len(m.names), len(m.names))), {}
     for side, gap in sorted(gaps.items()):
         mu = sf.effective_viscosity(gas, d.pressure, gap)
-        total += 12.0 * mu / gap**3 * reynolds
+        total += 12.0 * mu / gap**3 * reynolds[gap]
         sigma = [sf.squeeze_number(mu, 2 * np.pi * f, radius, d.pressure, gap) for f in m.frequencies]
         sides[side] = {"gap_m": gap, "knudsen": sf.knudsen(gas, d.pressure, gap), "mu_eff_Pa_s": mu,
                        "squeeze_number_at_f0": [float(v) for v in sigma],
-                       "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)}
+                       "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)
+                       if c.outline_shape == "disk" else "not computed for a perforated proof mass"}
     worst = max(v for side in sides.values() for v in side["squeeze_number_at_f0"])
     if d.film_model == "compressible":
         return compressible_film(s, m, mesh, gaps, total, sides)

@@ -64,10 +64,11 @@ def rectangle_mesh(length: float, width: float, n: int = 32) -> MeshTri:
     return MeshTri.init_tensor(np.linspace(0, length, n + 1), np.linspace(0, width, n + 1))
 
 
-def reynolds_matrix(mesh: MeshTri, shapes: Shapes) -> np.ndarray:
-    """<phi_u, (-lap)^-1 phi_v> over the mesh with p = 0 on its whole boundary (m^4 per unit^2)."""
+def reynolds_matrix(mesh: MeshTri, shapes: Shapes, leak: float = 0.0) -> np.ndarray:
+    """<phi_u, (-lap + leak)^-1 phi_v> over the mesh with p = 0 on its whole boundary (m^4 per
+    unit^2); `leak` (1/m^2) = 1 / lambda^2 of a perforated plate (perforation_leak)."""
     basis = Basis(mesh, ElementTriP2())
-    stiffness = BilinearForm(lambda u, v, w: dot(grad(u), grad(v))).assemble(basis)
+    stiffness = BilinearForm(lambda u, v, w: dot(grad(u), grad(v)) + leak * u * v).assemble(basis)
     ncol = shapes(np.zeros(1), np.zeros(1)).shape[-1]
     loads = np.stack([_load(basis, shapes, k) for k in range(ncol)], axis=1)
     interior = basis.complement_dofs(basis.get_dofs())
@@ -75,6 +76,31 @@ def reynolds_matrix(mesh: MeshTri, shapes: Shapes) -> np.ndarray:
     for k in range(ncol):
         pressure[:, k] = solve(*condense(stiffness, loads[:, k], I=interior))
     return loads.T @ pressure
+
+
+def centred_rectangle_mesh(length: float, width: float, n: int = 32) -> MeshTri:
+    """Structured triangle mesh of [-length/2, length/2] x [-width/2, width/2]."""
+    return MeshTri.init_tensor(np.linspace(-length / 2, length / 2, n + 1), np.linspace(-width / 2, width / 2, n + 1))
+
+
+def perforation_leak(gap: float, thickness: float, hole: float, pitch: float) -> float:
+    """1 / lambda^2 (1/m^2) of square etch holes (side `hole` on a `pitch` grid, through the plate
+    `thickness`) in the Reynolds equation, -lap p + p / lambda^2 = 12 mu v / g^3: each hole a
+    Poiseuille duct, Q = hole^4 dp / (28.45 mu t) (square section), smeared over its cell, so
+    1 / lambda^2 = 12 hole^4 / (28.45 g^3 t pitch^2) (Bao, "Micro Mechanical Transducers" (2000),
+    sec. 3.7's perforated-plate model without the hole-end corrections; valid for many holes
+    across the plate and hole >~ gap)."""
+    return 12.0 * hole**4 / (28.45 * gap**3 * thickness * pitch**2)
+
+
+def rectangular_plate_leaky_series(mu: float, length: float, width: float, gap: float, leak: float,
+                                   terms: int = 200) -> float:
+    """Rigid rectangular plate, -lap p + leak p = 12 mu v / g^3, p = 0 on the edges: the double sine
+    series b = (12 mu / g^3) sum_{m,n odd} 64 L W / (pi^4 m^2 n^2 (pi^2 (m^2/L^2 + n^2/W^2) + leak))."""
+    m = np.arange(1, 2 * terms, 2, dtype=float)[:, None]
+    n = np.arange(1, 2 * terms, 2, dtype=float)[None, :]
+    lam = math.pi**2 * (m**2 / length**2 + n**2 / width**2) + leak
+    return 12.0 * mu / gap**3 * float(np.sum(64.0 * length * width / (math.pi**4 * m**2 * n**2 * lam)))
 
 
 def _load(basis: Basis, shapes: Shapes, k: int) -> np.ndarray:

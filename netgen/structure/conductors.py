@@ -345,6 +345,13 @@ class ProofMass(Suspended):
                           f"{list(ALL_RIGID)}", 'write rigid = ["x", "y", "z"] (any of the six rigid-body motions)')
         return Coordinates(tuple(r for r in ALL_RIGID if r in rigid), 0, accel)
 
+    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None:
+        """The squeeze film under the mass is the incompressible one (with its etch holes)."""
+        damp = doc.get("damping")
+        if isinstance(damp, dict) and damp.get("film_model") == "compressible":
+            raise rd.fail("damping.film_model", "the compressible film is solved on the free disk only",
+                          "remove film_model (a proof mass has the incompressible film with its etch holes)")
+
     @property
     def sprung_rigid(self) -> bool:
         """The rigid-body motions have springs (so a Q or damping ratio of them is defined)."""

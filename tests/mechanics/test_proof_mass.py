@@ -184,3 +184,51 @@ def test_proof_mass_input_errors(edit, where, word):
     with pytest.raises(StructureError) as err:
         parse_structure(STRUCTURE.replace(*edit), "bad.toml")
     assert err.value.where == where and word in str(err.value) and err.value.fix
+
+
+@pytest.mark.parametrize("hole", [0.0, 4e-6])
+def test_squeeze_film_of_the_perforated_mass(hole):
+    """z damping of the proof mass (incompressible film, holes as a smeared Poiseuille leak,
+    netgen.mechanics.squeeze_film.perforation_leak) against the double sine series of the same
+    equation on the rectangle within 1 %; holes lower it; in-plane coordinates get none."""
+    from netgen.constants import GASES
+    from netgen.mechanics import mechanics
+    from netgen.mechanics import squeeze_film as sf
+    from netgen.mechanics.damping import damping
+    plate = '[[electrodes]]\nname = "zs"\nside = "below"\ngap = "2 um"\n[coordinates]'
+    text = STRUCTURE.replace('rigid = ["x", "y", "rot_z"]', 'rigid = ["x", "z"]').replace("[coordinates]", plate) \
+        + '[damping]\nsqueeze_film = true\nq_factor = { x = 30 }\n'
+    if hole:
+        text = text.replace('hole = "0 um"', f'hole = "{hole * 1e6:g} um"').replace('hole_pitch = "0 um"',
+                                                                                  'hole_pitch = "10 um"')
+    s = parse_structure(text, "pm.toml")
+    m = mechanics(s)
+    d, _ = damping(s, m)
+    mu = sf.effective_viscosity(GASES["air"], 101325.0, 2e-6)
+    leak = sf.perforation_leak(2e-6, 2e-6, hole, 10e-6) if hole else 0.0
+    ref = sf.rectangular_plate_leaky_series(mu, 300e-6, 200e-6, 2e-6, leak)
+    iz = m.names.index("z")
+    print(f"hole {hole:g} m: FEM {d[iz]:.6e} N*s/m, series {ref:.6e}, ratio {d[iz] / ref - 1:+.2e}")
+    assert d[iz] == pytest.approx(ref, rel=0.01)
+    ix = m.names.index("x")
+    assert d[ix] == pytest.approx(2 * m.masses[ix] * 2 * math.pi * m.frequencies[ix] / 60, rel=1e-9)   # Q only
+    if hole:
+        assert ref < 0.5 * sf.rectangular_plate_series(mu, 300e-6, 200e-6, 2e-6)
+
+
+def test_free_body_accelerates_as_newton_says(tmp_path):
+    """type = "none": a free proof mass, no springs; a constant force on f_x in ngspice moves it by
+    F t^2 / (2 m) (m by hand) within 0.1 % over 20 us, and nothing else moves."""
+    import re
+    text = re.sub(r"\[conductor.flexure\][^\[]*", '[conductor.flexure]\ntype = "none"\n', STRUCTURE)
+    model = build(parse_structure(text, "free.toml")).model
+    assert all(c.stiffness == 0.0 for c in model.coordinates)
+    lib = tmp_path / "free.lib"
+    lib.write_text(emit_ngspice.subcircuit(model))
+    m, force, stop = RHO * 300e-6 * 200e-6 * 2e-6, 0.1e-6, 20e-6                  # kg, N (0.1 V on f_x), s
+    bench = Bench(model, lib, sources={"f_x": "DC 0.1", "plate": "0"}, options="reltol=1e-7")
+    plot = run_ngspice(bench.netlist(f".tran 20n {stop!r} 0 20n uic"), tmp_path)[0]
+    x = plot["x1.xs_x"][-1] * model.coordinates[0].scale
+    assert x == pytest.approx(force * stop**2 / (2 * m), rel=1e-3)
+    assert x < 0.2 * model.coordinates[0].scale                                  # inside the sampled box
+    assert abs(plot["x1.xs_y"]).max() < 1e-9 and abs(plot["x1.xs_rot_z"]).max() < 1e-9
