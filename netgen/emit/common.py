@@ -124,9 +124,7 @@ def header_context(model: MacroModel) -> dict:
     fit_form = {"plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
                 "inverse": "C = c_ref / P(xs): fit of 1/C", "direct": "C = c_ref * P(xs)"}[model.capacitances[0].target]
     degree = max(f.degree for f in model.capacitances)
-    names = [e.name for e in model.electrodes]
-    couplings = [{"a": names[i], "b": names[j], "value": num(model.coupling[i, j])}
-                 for i in range(len(names)) for j in range(i + 1, len(names)) if model.coupling[i, j]]
+    couplings = coupling_rows(model)
     c = model.contact
     contact_text = "" if not c else (
         f"Contact: below {c['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
@@ -136,6 +134,7 @@ def header_context(model: MacroModel) -> dict:
     tie_text = (f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
                 f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm).")
     return {"m": model, "ports": model.ports(), "coords": coords, "kinematics_text": kinematics_text(model), "fits": fits, "couplings": couplings,
+            "coupling_text": coupling_text(model),
             "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
             "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text,
             "fit_warning": model.fit_warning()}
@@ -156,6 +155,33 @@ def kinematics_text(model: MacroModel) -> str:
                                                                  if over else "; not within any touching amplitude")
                  + " (report.small_angle in the model JSON).")
     return text
+
+
+def coupling_rows(model: MacroModel) -> list[dict]:
+    """The constant electrode-electrode capacitors (MacroModel.coupling, upper triangle, non-zero):
+    terminals a, b, the netlist value and the header's text (value in fF, and its spread over the
+    calibration points when the model records one)."""
+    names = [e.name for e in model.electrodes]
+    spread = {tuple(r["pair"]): r for r in model.calibration.get("coupling_spread", [])}
+    rows = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if not model.coupling[i, j]:
+                continue
+            s = spread.get((names[i], names[j]))
+            extra = f" (+-{s['std'] * 1e15:.3g} fF over the calibration points)" if s else ""
+            rows.append({"a": names[i], "b": names[j], "value": num(model.coupling[i, j]),
+                         "text": f"Cc_{names[i]}_{names[j]} = {model.coupling[i, j] * 1e15:.6g} fF{extra}"})
+    return rows
+
+
+def coupling_text(model: MacroModel) -> str:
+    """Where the couplings and fringe coefficients came from (MacroModel.calibration), one line; "" without."""
+    cal = model.calibration
+    if not cal:
+        return ""
+    fringe = f", per-electrode fringe a + b ln(L/g) fitted at {cal['points']} point(s)" if cal.get("fringe") else ""
+    return f"Calibration: {cal.get('source', 'given')}{fringe} (the model JSON's calibration entry)."
 
 
 def noise_enabled(model: MacroModel, noise: bool | None) -> bool:

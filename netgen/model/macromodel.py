@@ -99,6 +99,10 @@ class MacroModel:
     # non-empty = the model has the port a_in (frame acceleration along +z, 1 V = 1 m/s^2)
     # and each coordinate feels -G_v a_in
     acceleration: list[float] = field(default_factory=list)
+    # electrostatic calibration (netgen.electrostatics.calibration): its source and point count, the
+    # per-electrode fringe coefficients {"electrode", "a", "b", "length"} of the term a + b ln(L/g) per
+    # unit edge length, and the spread of each coupling over the points; {} = the analytic defaults
+    calibration: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -241,6 +245,8 @@ class MacroModel:
             out["acceleration_port"] = {"port": ACCEL_PORT, "unit": "m/s^2", "meaning": "frame acceleration along "
                                         "+z; coordinate v feels -participation_v * a_in (a_in = 9.81: gravity)",
                                         "participation": list(self.acceleration)}
+        if self.calibration:
+            out["calibration"] = self.calibration
         return out
 
     def fit_misses(self) -> list[dict]:
@@ -350,7 +356,8 @@ class MacroModel:
             coupling[i, j] = coupling[j, i] = c["capacitance"]
         return cls(d["name"], d["description"], d["source"], coords, electrodes, fits, coupling,
                    d["sampling"], d["report"], d["plate"], d["generator"], d.get("contact", {}),
-                   d.get("nonlinear_stiffness", {}), d.get("acceleration_port", {}).get("participation", []))
+                   d.get("nonlinear_stiffness", {}), d.get("acceleration_port", {}).get("participation", []),
+                   d.get("calibration", {}))
 
     @classmethod
     def load_json(cls, path: str | Path) -> "MacroModel":

@@ -104,11 +104,55 @@ def check_names(c: Checker, d: dict) -> None:
     for i, row in enumerate(c.entries(d, "capacitances")):
         c.choice(f"capacitances[{i}].electrode", row.get("electrode"), tuple(names))
         c.choice(f"capacitances[{i}].target", row.get("target"), TARGETS)
+    check_couplings(c, d, tuple(names))
+    check_calibration(c, d.get("calibration", {}), tuple(names))
+    if not isinstance(d.get("contact") or {}, dict):
+        c.fail("contact", "must be an object")
+
+
+def check_couplings(c: Checker, d: dict, names: tuple[str, ...]) -> None:
+    """Each coupling joins two different electrodes, each pair once, with a finite capacitance >= 0
+    (a two-terminal capacitor; a Maxwell matrix's off-diagonal entries are its negatives)."""
+    seen: dict[frozenset, int] = {}
     for i, row in enumerate(c.entries(d, "coupling")):
         pair = row.get("pair")
         if not isinstance(pair, list) or len(pair) != 2:
             c.fail(f"coupling[{i}].pair", "must be a pair of electrode names")
         for k, e in enumerate(pair):
-            c.choice(f"coupling[{i}].pair[{k}]", e, tuple(names))
-    if not isinstance(d.get("contact") or {}, dict):
-        c.fail("contact", "must be an object")
+            c.choice(f"coupling[{i}].pair[{k}]", e, names)
+        if pair[0] == pair[1]:
+            c.fail(f"coupling[{i}].pair", f"couples electrode {pair[0]} to itself",
+                   "a coupling joins two different electrodes; " + FIX)
+        key = frozenset(pair)
+        if key in seen:
+            c.fail(f"coupling[{i}].pair", f"the pair {pair[0]}-{pair[1]} is given twice (also coupling[{seen[key]}])",
+                   "give each pair once; " + FIX)
+        seen[key] = i
+        value = row.get("capacitance")
+        c.number(f"coupling[{i}].capacitance", value)
+        if value < 0:
+            c.fail(f"coupling[{i}].capacitance", f"{value!r} F is negative",
+                   "give the two-terminal capacitance (the negative of the Maxwell matrix's off-diagonal entry); " + FIX)
+
+
+def check_calibration(c: Checker, cal: Any, names: tuple[str, ...]) -> None:
+    """The optional calibration record (netgen.electrostatics.calibration): per-electrode fringe
+    coefficients a, b (finite) with a positive reference length, each electrode at most once."""
+    if not isinstance(cal, dict):
+        c.fail("calibration", "must be an object")
+    fringe = cal.get("fringe", [])
+    if not isinstance(fringe, list) or not all(isinstance(r, dict) for r in fringe):
+        c.fail("calibration.fringe", "must be a list of objects")
+    seen: set[str] = set()
+    for i, row in enumerate(fringe):
+        where = f"calibration.fringe[{i}]"
+        c.choice(f"{where}.electrode", row.get("electrode"), names)
+        if row["electrode"] in seen:
+            c.fail(f"{where}.electrode", f"electrode {row['electrode']} has two fringe entries", FIX)
+        seen.add(row["electrode"])
+        for key in ("a", "b", "length"):
+            c.number(f"{where}.{key}", row.get(key))
+        if not row["length"] > 0:
+            c.fail(f"{where}.length", f"{row['length']!r} m is not a positive reference length")
+    if "points" in cal:
+        c.number("calibration.points", cal["points"], integer=True)
