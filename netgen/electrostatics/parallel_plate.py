@@ -75,6 +75,24 @@ class EdgeFringe:
 
 
 @dataclass(frozen=True)
+class PointFringe:
+    """Per-point fringe coefficients: electrode i's EdgeFringe (a_i, b_i) repeated over its edge
+    points, so each electrode keeps its own calibrated a + b ln(L/g) (netgen.electrostatics.calibration)."""
+
+    a: Array
+    b: Array
+    length: float
+
+    def per_length(self, g: ArrayLike) -> Array:
+        """f(g) = a_p + b_p ln(L/g) at every edge point p (broadcast over samples)."""
+        return self.a + self.b * np.log(self.length / np.asarray(g, dtype=float))
+
+    def derivative(self, g: ArrayLike) -> Array:
+        """df/dg = -b_p/g."""
+        return -self.b / np.asarray(g, dtype=float)
+
+
+@dataclass(frozen=True)
 class _PointSet:
     """Points of all electrodes, concatenated electrode by electrode, with signed basis values.
 
@@ -139,7 +157,7 @@ class PreparedParallelPlate:
     """
 
     def __init__(self, electrodes: Sequence[Electrode], area: _PointSet, edge: _PointSet, probe: _PointSet,
-                 eps: float, fringe: EdgeFringe | None, chunk_elements: int) -> None:
+                 eps: float, fringe: EdgeFringe | PointFringe | None, chunk_elements: int) -> None:
         """Store the precomputed point sets; use ParallelPlateExtractor.prepare to build one."""
         self.electrodes = tuple(electrodes)
         self.area, self.edge, self.probe = area, edge, probe
@@ -218,7 +236,10 @@ class PreparedParallelPlate:
 class ParallelPlateExtractor:
     """Parallel plate over the local gap plus edge fringe; constant slot coupling between electrodes.
 
-    eps: permittivity (F/m).  fringe: EdgeFringe or None (off).  coupling_per_length: F/m of
+    eps: permittivity (F/m).  fringe: EdgeFringe or None (off).  fringes: one EdgeFringe per
+    electrode, in the order prepare() gets them (a calibration's, netgen.electrostatics.calibration;
+    overrides `fringe`).  coupling: a given constant coupling matrix (nel, nel) in F (a calibration's
+    or a file's, netgen.electrostatics.coupling_file; overrides coupling_per_length).  coupling_per_length: F/m of
     shared slot edge between neighbouring coplanar electrodes (a calibration value, e.g. from
     one BEM run; design.md finds 5-15 % of the disk-sector capacitance, nearly position
     independent).  neighbour_gap: largest edge separation counted as "neighbouring"
@@ -231,6 +252,8 @@ class ParallelPlateExtractor:
     fringe: EdgeFringe | None = field(default_factory=EdgeFringe)
     coupling_per_length: float = 0.0
     neighbour_gap: float | None = None
+    fringes: tuple[EdgeFringe, ...] | None = None
+    coupling_matrix: tuple[tuple[float, ...], ...] | None = None
     order: int = DEFAULT_ORDER
     edge_order: int = DEFAULT_EDGE_ORDER
     chunk_elements: int = 2**21
@@ -259,7 +282,21 @@ class ParallelPlateExtractor:
             weights = [p[2] if len(p) == 3 else np.zeros(p[0].size) for p in g]
             sets.append(_PointSet.build(gaps, blocks, weights, nc))
         fringe = self.fringe.resolved(plate.size) if self.fringe is not None else None
+        if self.fringes is not None:
+            fringe = self.point_fringe(edge, plate)
         return PreparedParallelPlate(electrodes, *sets, self.eps, fringe, self.chunk_elements)
+
+    def point_fringe(self, edge: list, plate: Plate) -> PointFringe:
+        """The per-electrode fringes as per-point coefficients over the electrodes' edge points."""
+        fringes = [f.resolved(plate.size) for f in self.fringes]
+        lengths = {f.length for f in fringes}
+        if len(lengths) != 1:
+            raise ValueError(f"per-electrode fringes need one reference length, got {sorted(lengths)}")
+        sizes = [pts[0].size for pts in edge]
+        if len(sizes) != len(fringes):
+            raise ValueError(f"{len(fringes)} per-electrode fringes for {len(sizes)} electrodes")
+        return PointFringe(np.repeat([f.a for f in fringes], sizes), np.repeat([f.b for f in fringes], sizes),
+                           lengths.pop())
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """Electrode-to-electrode capacitances (nel, nel) in F: coupling_per_length x shared slot edge.
@@ -268,6 +305,11 @@ class ParallelPlateExtractor:
         side and gap), proportional to the length of their facing edges over the plate.
         """
         n = len(electrodes)
+        if self.coupling_matrix is not None:
+            given = np.array(self.coupling_matrix, dtype=float)
+            if given.shape != (n, n):
+                raise ValueError(f"the given coupling matrix is {given.shape}, the structure has {n} electrodes")
+            return given
         out = np.zeros((n, n))
         if self.coupling_per_length == 0.0:
             return out
