@@ -17,6 +17,7 @@ import numpy as np
 
 from .constants import EPS0
 from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
+from .electrostatics import calibration_report
 from .electrostatics import imported as imported_capacitance
 from .errors import StructureError
 from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout
@@ -47,6 +48,7 @@ class Build:
     holdout: Samples
     fits: list[CapacitanceFit]
     model: MacroModel
+    extractor: CapacitanceExtractor | None = None
 
 
 def build(s: Structure, progress: bool = False, **parallel) -> Build:
@@ -73,7 +75,7 @@ def build(s: Structure, progress: bool = False, **parallel) -> Build:
         model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
         if imp.capacitance:
             model.report["electrostatics"] = {"extractor": f"imported table {Path(imp.capacitance).name}"}
-    return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model)
+    return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model, ext)
 
 
 def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode]) -> np.ndarray:
@@ -123,6 +125,8 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
                                                    farthest(plate, shapes), min(e.gap for e in shapes))
     model = MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
                        sampling, report, contact=stops(s, m, prepared, shapes, scales))
+    if hasattr(ext, "calibration"):                   # calibrated fringes / given couplings (netgen.electrostatics.calibrated)
+        model.calibration = ext.calibration()
     if s.coordinates.acceleration_port:
         model.acceleration = participation(s, m)
     if m.strain_energy is not None:                       # e.g. stress stiffening (netgen.mechanics.beam)
@@ -156,15 +160,26 @@ def say(progress: bool, text: str) -> None:
         print(text, file=sys.stderr)
 
 
-def figure_names(name: str) -> tuple[str, str]:
-    """The PNGs write_figures can write for model `name`: fit errors, mode shapes, small-angle errors."""
-    return f"{name}_fit_errors.png", f"{name}_modes.png", f"{name}_small_angle.png"
+def figure_names(name: str) -> tuple[str, ...]:
+    """The files write_figures and write_calibration can write for model `name`: fit errors, mode
+    shapes, small-angle errors, the calibration report (JSON and PNG)."""
+    return (f"{name}_fit_errors.png", f"{name}_modes.png", f"{name}_small_angle.png", f"{name}_calibration.json",
+            f"{name}_calibration.png")
+
+
+def write_calibration(b: Build, folder: Path, figure: bool = True) -> list[Path]:
+    """The calibrated extractor's report beside the netlists (netgen.electrostatics.calibration_report):
+    JSON, and its PNG when `figure`; nothing for an uncalibrated build."""
+    if not hasattr(b.extractor, "report"):
+        return []
+    names = figure_names(b.model.name)
+    return calibration_report.write(b.extractor.report(), folder / names[3], folder / names[4] if figure else None)
 
 
 def write_figures(b: Build, folder: Path) -> list[Path]:
     """Mode-shape and fit-error PNGs next to the netlist (from the build's stage outputs)."""
     model = b.model
-    errors, modes, angles = figure_names(model.name)
+    errors, modes, angles = figure_names(model.name)[:3]
     out = [plots.fit_errors(folder / errors, model)]
     if "small_angle" in model.report:
         out.append(plots.small_angle(folder / angles, model.report["small_angle"]))

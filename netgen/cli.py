@@ -15,7 +15,7 @@ from typing import Any, Iterator
 
 from . import __version__
 from .arguments import Parser, existing_file, output_folder, positive
-from .build import build, figure_names, write_figures
+from .build import build, figure_names, write_calibration, write_figures
 from .emit import EMITTERS, refusal, requested, write_outputs
 from .errors import InputError, NetgenError, StructureError
 from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
@@ -51,6 +51,7 @@ def _build(args: argparse.Namespace) -> int:
         written = write_outputs(model, out.stage, args.format)
         if not args.no_plots:
             written += write_figures(result, out.stage)
+        written += write_calibration(result, out.stage, figure=not args.no_plots)
         written = out.commit(written)
     if not args.quiet:
         for path in written:

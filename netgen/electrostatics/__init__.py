@@ -9,7 +9,7 @@ from ..constants import EPS0
 from ..errors import StructureError
 from ..geometry.shapes import Plate
 from ..structure import CombElectrode
-from . import parallel_plate
+from . import calibrated, parallel_plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
 from .comb import CombExtractor
 from .mixed import MixedExtractor
@@ -17,6 +17,7 @@ from .mixed import MixedExtractor
 # [electrostatics] extractor -> builder(structure, plate outline): one line per extractor
 EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
     "parallel_plate": parallel_plate.from_structure,
+    "calibrated": calibrated.from_structure,
 }
 
 
@@ -29,6 +30,8 @@ def extractor(s, plate: Plate) -> CapacitanceExtractor:
         raise StructureError(s.source, "electrostatics.extractor", f"unknown extractor {name!r}",
                              f"use one of {', '.join(EXTRACTORS)}")
     chosen = EXTRACTORS[name](s, plate)
+    if s.electrostatics.couplings is not None and name == "parallel_plate":     # the file's couplings beside it
+        chosen = calibrated.with_file_couplings(s, chosen)
     if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
         return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity))
     return chosen

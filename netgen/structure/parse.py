@@ -108,14 +108,29 @@ def read_fit(rd: Reader, doc: dict) -> FitOptions:
 
 def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
     t = table(rd, doc, "electrostatics", required=False)
-    keys = ["extractor", "fringe", "fringe_a", "fringe_b", "relative_permittivity", "coupling_per_length"]
+    keys = ["extractor", "fringe", "fringe_a", "fringe_b", "relative_permittivity", "coupling_per_length",
+            "couplings", "calibration_points"]
     check_keys(rd, "electrostatics", t, keys)
     d = ElectrostaticsOptions()
     extractor = t.get("extractor", d.extractor)
     if not identifier(extractor):
         raise rd.fail("electrostatics.extractor", f"extractor = {extractor!r} is not a name",
                       'write extractor = "parallel_plate"')
-    return ElectrostaticsOptions(
+    couplings = data_file(rd, t, "electrostatics", "couplings", (".json", ".csv"))
+    points = integer(rd, t, "electrostatics", "calibration_points", 0, 0, 1000, "BEM calibration points")
+    if couplings and t.get("coupling_per_length"):
+        raise rd.fail("electrostatics.coupling_per_length", "coupling_per_length and a couplings file both set "
+                      "the electrode-electrode couplings", "keep one of them")
+    if extractor == "calibrated" and not couplings and not points:
+        raise rd.fail("electrostatics.extractor", 'extractor = "calibrated" needs a field solution to calibrate against',
+                      'add calibration_points = 9 (BEM solves) or couplings = "maxwell.json" (a field solver\'s matrices)')
+    if points and extractor != "calibrated":
+        raise rd.fail("electrostatics.calibration_points", f"calibration_points with extractor = {extractor!r}",
+                      'write extractor = "calibrated", or drop calibration_points')
+    if points and couplings:
+        raise rd.fail("electrostatics.calibration_points", "calibration_points (BEM) and a couplings file are two "
+                      "calibration sources", "keep one: the file's points, or BEM at calibration_points")
+    return ElectrostaticsOptions(couplings=couplings, calibration_points=points,
         fringe=choice(rd, t, "electrostatics", "fringe", ["plate_between", "palmer", "none"], d.fringe),
         fringe_a=quantity(rd, t, "electrostatics", "fringe_a", "dimensionless", d.fringe_a),
         fringe_b=quantity(rd, t, "electrostatics", "fringe_b", "dimensionless", d.fringe_b),
@@ -125,6 +140,22 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
                                      d.coupling_per_length, check=lambda v: None if v >= 0 else "must be >= 0",
                                      what="electrode-electrode capacitance per slot length in F/m"),
         extractor=extractor)
+
+
+def data_file(rd: Reader, t: dict, section: str, key: str, suffixes: tuple[str, ...]) -> str | None:
+    """An optional data file named relative to the structure file, with one of `suffixes`; None if absent."""
+    if key not in t:
+        return None
+    value = t[key]
+    if isinstance(value, str):
+        free_text(rd, f"{section}.{key}", value, key)
+    if not isinstance(value, str) or not value.endswith(suffixes):
+        raise rd.fail(f"{section}.{key}", f"{key} = {value!r} is not a {' or '.join(suffixes)} file name",
+                      f'write {key} = "data/{key}{suffixes[0]}" (relative to the structure file)')
+    path = Path(rd.path).parent / value
+    if not path.is_file():
+        raise rd.fail(f"{section}.{key}", f"no such file: {path}", "check the path (relative to the structure file)")
+    return str(path)
 
 
 # ---------------------------------------------------------------- [damping]

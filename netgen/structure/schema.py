@@ -78,6 +78,8 @@ class ElectrostaticsOptions:
     relative_permittivity: float = 1.0
     coupling_per_length: float = 0.0
     extractor: str = "parallel_plate"
+    couplings: str | None = None         # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
+    calibration_points: int = 0          # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
 
 
 @dataclass(frozen=True)
