@@ -10,6 +10,7 @@ its Maxwell matrix at given generalized coordinates), or the Maxwell matrices of
 
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass, field
 from typing import Callable, ClassVar, Sequence
 
@@ -23,9 +24,31 @@ from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 from .parallel_plate import from_structure as parallel_plate_from_structure
 from .sampling import coordinate_scales
 
-# (structure, electrodes, plate, basis) -> the field solution's Maxwell matrix at q: set by the BEM
-# extractor's module (netgen.electrostatics.bem) when it is installed; None: not available
-BEM_SOURCE: list[Callable[..., MaxwellSource]] = []
+def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> MaxwellSource:
+    """The BEM extractor's Maxwell matrix at q (netgen.electrostatics.bem: PreparedBem.maxwell(q).matrix,
+    conductors [plate, *electrodes]); each solve's estimated error is kept in `source.errors`."""
+    from . import bem                                  # optional: needs bempp-cl (pip install -e '.[bem]')
+    prepared = bem.from_structure(s, plate).prepare(electrodes, plate, basis)
+    errors: list[float] = []
+
+    def source(q: np.ndarray) -> np.ndarray:
+        m = prepared.maxwell(q)
+        errors.append(float(m.error))
+        return np.asarray(m.matrix, dtype=float)
+    source.errors = errors                             # type: ignore[attr-defined]
+    return source
+
+
+def bem_available() -> bool:
+    """Whether the BEM extractor (netgen.electrostatics.bem and its bempp-cl) can be imported."""
+    if importlib.util.find_spec("netgen.electrostatics.bem") is None:
+        return False
+    return importlib.util.find_spec("bempp_cl") is not None
+
+
+# (structure, electrodes, plate, basis) -> the field solution's Maxwell matrix at q: the BEM
+# extractor's when it is installed; empty: not available
+BEM_SOURCE: list[Callable[..., MaxwellSource]] = [bem_source] if bem_available() else []
 
 
 @dataclass
@@ -60,6 +83,7 @@ class CalibratedExtractor:
             maxwell = self.source(self.structure, electrodes, plate, basis)
             cal = calibrate(maxwell, electrodes, plate, basis, design(self.points, scales, self.span), self.base,
                             f"BEM at {self.points} point(s)")
+            self.result["field_errors"] = list(getattr(maxwell, "errors", []))
         self.result["calibration"] = cal
         self.result["names"] = [e.name for e in electrodes]
         return ParallelPlateExtractor(eps=self.base.eps, fringes=cal.fringes, order=self.base.order,
@@ -80,6 +104,7 @@ class CalibratedExtractor:
         """The calibration against its field solution (netgen.electrostatics.calibration.comparison)."""
         cal: Calibration = self.result["calibration"]
         return {"source": cal.source, "points_si": cal.points.tolist(), "coordinates": list(self.coordinates),
+                "field_solution_rel_errors": self.result.get("field_errors", []),
                 "electrodes": cal.comparison} | {"calibration": self.calibration()}
 
 
