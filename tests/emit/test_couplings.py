@@ -78,7 +78,7 @@ def test_headers_list_every_coupling(coupled, suffix, marker):
     text = (folder / f"{model.name}{suffix}").read_text()
     names = [e.name for e in model.electrodes]
     listed = dict(re.findall(rf"^{re.escape(marker)}     Cc_(\w+) = ([0-9.e+-]+) fF", text, re.M))
-    assert f"Constant electrode-electrode couplings: 24 capacitor(s)" in text
+    assert "Constant electrode-electrode couplings: 24 capacitor(s)" in text
     if suffix == ".va":
         body = {(a, b): float(v) for a, b, v in
                 re.findall(r"I\((\w+), (\w+)\) <\+ ddt\(([0-9.e+-]+) \* V\(\1, \2\)\);", text)}
