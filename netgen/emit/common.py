@@ -163,15 +163,18 @@ def coupling_rows(model: MacroModel) -> list[dict]:
     calibration points when the model records one)."""
     names = [e.name for e in model.electrodes]
     spread = {tuple(r["pair"]): r for r in model.calibration.get("coupling_spread", [])}
-    rows = []
+    rows, used = [], set()
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             if not model.coupling[i, j]:
                 continue
             s = spread.get((names[i], names[j]))
             extra = f" (+-{s['std'] * 1e15:.3g} fF over the calibration points)" if s else ""
-            rows.append({"a": names[i], "b": names[j], "value": num(model.coupling[i, j]),
-                         "text": f"Cc_{names[i]}_{names[j]} = {model.coupling[i, j] * 1e15:.6g} fF{extra}"})
+            label = f"{names[i]}_{names[j]}"
+            label = label if label not in used else f"{label}_{i + 1}_{j + 1}"    # a_b_c: (a_b, c) or (a, b_c)
+            used.add(label)
+            rows.append({"a": names[i], "b": names[j], "label": label, "value": num(model.coupling[i, j]),
+                         "text": f"Cc_{label} = {model.coupling[i, j] * 1e15:.6g} fF{extra}"})
     return rows
 
 
