@@ -45,7 +45,8 @@ def tone_run(tmp_path_factory):
 
 def test_compare_simulators_and_tone_coupling_read_a_run(tone_run):
     """compare_simulators.py on one run against itself: the same floors and notches (0 dB, 0 %);
-    tone_coupling.py finds the tone's line in the z bitstream."""
+    tone_coupling.py finds the tone's line in the z bitstream; couplings_sigma_delta.py on the run against
+    itself finds no differing bit and no line change."""
     same = subprocess.run([sys.executable, "bench/compare_simulators.py", str(tone_run), str(tone_run)], cwd=ROOT,
                           capture_output=True, text=True, timeout=120)
     assert same.returncode == 0, same.stderr[-3000:]
@@ -55,3 +56,8 @@ def test_compare_simulators_and_tone_coupling_read_a_run(tone_run):
                           capture_output=True, text=True, timeout=120)
     assert tone.returncode == 0, tone.stderr[-3000:]
     assert "tilt_x" in tone.stdout and "dB" in tone.stdout, tone.stdout
+    pair = subprocess.run([sys.executable, "bench/couplings_sigma_delta.py", str(tone_run), str(tone_run),
+                           "--nperseg", "256"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert pair.returncode == 0, pair.stderr[-3000:]
+    for channel in ("z", "tilt_x", "tilt_y"):              # a run against itself: no bit differs, no line moves
+        assert f"{channel:8s} differing bits: 0 of 512; line change +0.00 dB" in pair.stdout, pair.stdout
