@@ -159,7 +159,8 @@ def calibrate(source: MaxwellSource | None, electrodes: Sequence[Electrode], pla
 
 def comparison(analytic: list[Array], c: Array, diffs: list, names: list[str], coupling: Array) -> dict:
     """Per electrode: the relative error of C at the points and of its central difference along each
-    coordinate, for the uncalibrated and the calibrated extractor; the couplings over C_i(0)."""
+    coordinate, for the uncalibrated and the calibrated extractor; the couplings over C_i at the
+    first point (the design's centre; a file's first point)."""
     out = {}
     for i, name in enumerate(names):
         row = {"c_field_F": c[:, i].tolist()}

@@ -5,6 +5,7 @@ couplings with their spread (netgen.electrostatics.calibrated.CalibratedExtracto
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +44,7 @@ def figure(doc: dict, path: Path) -> Path:
     fig, axes = plt.subplots(3, 1, figsize=(max(6.0, 0.45 * len(names) + 2), 8.5))
     for k, label in enumerate(("analytic", "calibrated")):
         axes[0].bar(x + (k - 0.5) * 0.4, [100 * s[n][f"{label}_c_max_abs_rel_error"] for n in names], 0.4, label=label)
+    axes[0].set_yscale("symlog", linthresh=1e-3)
     axes[0].set_ylabel("max |C - C_field| / C_field (%)")
     axes[0].legend(fontsize=8)
     coords = sorted({c for n in names for c in s[n]["analytic_dc_max_abs_rel_error"]})
@@ -53,6 +55,7 @@ def figure(doc: dict, path: Path) -> Path:
             axes[1].bar(x - 0.4 + (2 * j + k + 0.5) * width, vals, width, label=f"{c} {label}",
                         hatch="" if k == 0 else "//")
     axes[1].set_ylabel("max |dC - dC_field| / |dC_field| (%)")
+    axes[1].set_yscale("symlog", linthresh=1e-3)
     axes[1].legend(fontsize=6, ncol=max(1, len(coords)))
     for i, n in enumerate(names):
         ratios = doc["electrodes"][n]["coupling_over_c0"]
@@ -61,6 +64,6 @@ def figure(doc: dict, path: Path) -> Path:
     for ax in axes:
         ax.set_xticks(x, names, rotation=60, fontsize=7)
         ax.grid(axis="y", alpha=0.3)
-    fig.suptitle(f"calibration against {doc['source']}"[:120], fontsize=9)
+    fig.suptitle(textwrap.fill(f"calibration against {doc['source']}", 90), fontsize=8)
     fig.tight_layout()
     return save(fig, path)

@@ -118,6 +118,9 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
                       'write extractor = "parallel_plate"')
     couplings = data_file(rd, t, "electrostatics", "couplings", (".json", ".csv"))
     points = integer(rd, t, "electrostatics", "calibration_points", 0, 0, 1000, "BEM calibration points")
+    if couplings and extractor not in ("parallel_plate", "calibrated"):
+        raise rd.fail("electrostatics.couplings", f"extractor = {extractor!r} takes no couplings file (its own field "
+                      "solution gives the couplings)", 'drop couplings, or use extractor = "calibrated" or "parallel_plate"')
     if couplings and t.get("coupling_per_length"):
         raise rd.fail("electrostatics.coupling_per_length", "coupling_per_length and a couplings file both set "
                       "the electrode-electrode couplings", "keep one of them")

@@ -272,6 +272,7 @@ def test_csv_matrix_gives_the_couplings(tmp_path):
     ('couplings = "nothere.json"\n', "no such file"),
     ('couplings = "maxwell.txt"\n', "is not a .json or .csv file name"),
     ('extractor = "bem_typo"\n', "unknown extractor"),
+    ('extractor = "bem"\ncouplings = "maxwell.json"\n', "takes no couplings file"),
 ])
 def test_bad_electrostatics_keys_exit_2(tmp_path, section, problem):
     """Bad [electrostatics] calibration keys: exit 2 naming the key and the fix."""
