@@ -20,7 +20,9 @@ from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
 from .electrostatics import calibration_report
 from .electrostatics import imported as imported_capacitance
 from .errors import StructureError
-from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout
+from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout, sample_points
+from .fit import cost
+from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all
 from .fit.energy import energy_entry, fit_energy
 from .geometry.layout import electrode_outlines, electrodes, overlap_area, plate_outline
@@ -51,8 +53,9 @@ class Build:
     extractor: CapacitanceExtractor | None = None
 
 
-def build(s: Structure, progress: bool = False, **parallel) -> Build:
-    """Run the whole pipeline for one structure, keeping every stage's output.
+def build(s: Structure, progress: bool = False, max_minutes: float | None = None, **parallel) -> Build:
+    """Run the whole pipeline for one structure, keeping every stage's output. With `max_minutes`
+    the sampling and fit cost is estimated first (netgen.fit.cost) and a design over it refused.
     `parallel`: executor= and store= for the capacitance sampling (netgen.electrostatics.sampling)."""
     imp = s.imports
     say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
@@ -65,17 +68,38 @@ def build(s: Structure, progress: bool = False, **parallel) -> Build:
     scales = scales_of(s, prepared, m, shapes)
     if table is not None:
         grid, holdout = imported_capacitance.samples(table, scales, plate_estimates(s, shapes, plate), s.fit.degree)
+        say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
+        fits, extra = fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
     else:
-        grid = sample_grid(s, prepared, scales, progress, **parallel)
-        holdout = sample_holdout(s, prepared, scales, progress, **parallel)
-    say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
-    fits = fit_all(s, shapes, m.basis, scales, grid, holdout, progress)
-    model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits)
+        grid, holdout, fits, extra = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
+    model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits, extra)
     if imp:
         model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
         if imp.capacitance:
             model.report["electrostatics"] = {"extractor": f"imported table {Path(imp.capacitance).name}"}
     return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model, ext)
+
+
+def sample_and_fit(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode],
+                   scales: np.ndarray, progress: bool, max_minutes: float | None,
+                   **parallel) -> tuple[Samples, Samples, list[CapacitanceFit], dict]:
+    """The structure's sample design (after the cost estimate, with `max_minutes`) and one fit per
+    electrode; the adaptive design grows its samples while fitting (netgen.fit.adaptive). Returns
+    the training and held-out samples, the fits and the design's report entries."""
+    if max_minutes is not None:
+        estimate = cost.estimate(s, prepared, scales, len(shapes))
+        say(progress, f"{s.name}: {estimate.text()}")
+        cost.check(s, estimate, max_minutes)
+    grid = sample_grid(s, prepared, scales, progress, **parallel)
+    holdout = sample_holdout(s, prepared, scales, progress, **parallel)
+    if s.sampling.design != "adaptive":
+        say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
+        return grid, holdout, fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
+    say(progress, f"{s.name}: adaptive design from {len(grid.x)} samples, budget {s.sampling.points}")
+    result = adaptive_fits(s, shapes, m.basis, scales, grid,
+                           lambda x: sample_points(prepared, x, scales, False, "probes", **parallel), holdout, progress)
+    return result.samples, holdout, result.fits, {"probes": result.probes, "rounds": len(result.rounds),
+                                                  "converged": result.converged}
 
 
 def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode]) -> np.ndarray:
@@ -102,7 +126,7 @@ def build_model(s: Structure, progress: bool = False) -> MacroModel:
 
 def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectrode], ext: CapacitanceExtractor,
              prepared: PreparedExtractor, scales: np.ndarray, grid: Samples, holdout: Samples,
-             fits: list[CapacitanceFit]) -> MacroModel:
+             fits: list[CapacitanceFit], design_extra: dict | None = None) -> MacroModel:
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
     coupling = ext.coupling(shapes, plate)
     damp, damp_report = damping(s, m)
@@ -115,6 +139,8 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
                 "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
                 "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
                 "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
+    if s.sampling.design != "grid":                            # the grid's JSON as before
+        sampling = {k: v for k, v in sampling.items() if k != "levels"} | cost.design_report(s, design_extra or {})
     report = {"mechanics": m.report, "electrostatics": {
         "extractor": ext.description,
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}

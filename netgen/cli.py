@@ -37,7 +37,7 @@ def _build(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     structure = load_structure(args.structure)
     with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.electrostatics.sampling)
-        result = build(structure, progress=not args.quiet, **parallel)
+        result = build(structure, progress=not args.quiet, max_minutes=args.max_minutes, **parallel)
     model = result.model
     if model.fit_warning():                          # a fit that misses [fit] tolerance (MacroModel.fit_misses)
         if args.strict:
@@ -102,6 +102,9 @@ def _add_build(sub) -> None:
                    + "; all: every dialect the model has but osdi")
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
+    b.add_argument("--max-minutes", type=positive("--max-minutes", "--max-minutes 60"), default=60.0, metavar="MIN",
+                   help="refuse (exit 2) a sample design whose estimated sampling and fit time exceeds MIN "
+                   "minutes (default 60; the estimate is printed before the work)")
     b.add_argument("--strict", action="store_true",
                    help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance")
     add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")

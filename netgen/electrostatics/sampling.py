@@ -1,5 +1,6 @@
 """Sampling the extractor: the coordinate scales (touching amplitudes), the sample designs
-(the paper's tensor grid, seeded held-out points) and the capacitances at those points, in
+(netgen.electrostatics.designs: the paper's tensor grid, sparse grids, space-filling designs;
+seeded held-out points) and the capacitances at those points, in
 chunks with a progress bar, serially or through an executor (netgen.executor), with finished
 chunks streamed to a store so a re-run computes only the missing ones.
 
@@ -25,6 +26,7 @@ from tqdm import tqdm
 
 from ..executor import Executor, SerialExecutor
 from ..files import write_bytes_atomic
+from . import designs
 from .base import PreparedExtractor
 
 
@@ -34,13 +36,34 @@ class Samples:
     x: np.ndarray                   # (n, ncoords) grid points kept
     c: np.ndarray                   # (n, nelectrodes) F
     excluded: int                   # grid points dropped because the plate touches an electrode
+    points: np.ndarray | None = None    # every design point, the dropped ones included
+
+    def __add__(self, other: "Samples") -> "Samples":
+        """Both sample sets as one (the adaptive design's growing training set)."""
+        pts = None if self.points is None or other.points is None else np.concatenate([self.points, other.points])
+        return Samples(np.concatenate([self.x, other.x]), np.concatenate([self.c, other.c]),
+                       self.excluded + other.excluded, pts)
 
 
 def sampling_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
     """Full tensor grid of `levels` values in [-half_range, half_range] per coordinate."""
-    axis = np.linspace(-half_range, half_range, levels)
-    mesh = np.meshgrid(*([axis] * ncoords), indexing="ij")
-    return np.stack([m.ravel() for m in mesh], axis=-1)
+    return designs.full_grid(ncoords, levels, half_range)
+
+
+def design_points(sampling, ncoords: int) -> np.ndarray:
+    """The points of a structure's [sampling] design (for "adaptive": its starting design, the
+    Smolyak level-1 grid, centre and axis ends, plus a Sobol set of 16 (n + 1) points)."""
+    o, r = sampling, sampling.range
+    if o.design == "grid":
+        return designs.full_grid(ncoords, o.levels, r)
+    if o.design == "sparse":
+        return designs.smolyak_points(ncoords, o.level, r)
+    if o.design == "lhs":
+        return designs.latin_hypercube(ncoords, o.points, r, o.seed)
+    if o.design == "sobol":
+        return designs.sobol(ncoords, o.points, r, o.seed)
+    start = designs.sobol(ncoords, 1 << (16 * (ncoords + 1) - 1).bit_length(), r, o.seed)[: 16 * (ncoords + 1)]
+    return np.concatenate([designs.smolyak_points(ncoords, 1, r), start])[: o.points]
 
 
 def holdout_points(ncoords: int, count: int, half_range: float, seed: int) -> np.ndarray:
@@ -94,12 +117,13 @@ def sample_points(prepared: PreparedExtractor, x: np.ndarray, scales: np.ndarray
     `parallel`: executor= and store= of sample()."""
     c = sample(prepared, x * scales, progress, desc, **parallel)
     touching = np.isnan(c).any(axis=1)     # e.g. grid corners where the combined motion closes a gap
-    return Samples(x[~touching], c[~touching], int(touching.sum()))
+    return Samples(x[~touching], c[~touching], int(touching.sum()), x)
 
 
 def sample_grid(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
-    """The fit's samples: levels^ncoords tensor grid over +-range of the touching amplitudes."""
-    x = sampling_grid(len(scales), s.sampling.levels, s.sampling.range)
+    """The fit's samples at the structure's design (netgen.electrostatics.designs) over +-range of
+    the touching amplitudes: the paper's levels^ncoords tensor grid by default."""
+    x = design_points(s.sampling, len(scales))
     return sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
 
 

@@ -24,6 +24,9 @@ from ..structure import Structure
 from .polynomial import Polynomial, fit_polynomial, monomial_exponents, monomials, span
 
 
+MAX_NFEV = 60            # Levenberg-Marquardt evaluations per plate fit (netgen.fit.cost uses it too)
+
+
 @dataclass(frozen=True)
 class CapacitanceFit:
     """One fitted capacitance between the moving conductor and an electrode.
@@ -87,7 +90,7 @@ def fit_capacitance(name: str, x: np.ndarray, c: np.ndarray, degree: int, target
 
 
 def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, degree: int,
-               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = 60) -> CapacitanceFit:
+               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = MAX_NFEV) -> CapacitanceFit:
     """Fit C = c_ref sum_k 1/P_k(x) by least squares on the relative error.
 
     `initial` (K, 1 + ncoords) holds affine first guesses of the P_k (from physical patches
@@ -123,17 +126,19 @@ PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (
 
 def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarray, x: np.ndarray,
                   c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray,
-                  first: int = 0) -> tuple[CapacitanceFit, int]:
+                  first: int = 0, oversample: float = 1.0) -> tuple[CapacitanceFit, int]:
     """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
     starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
-    term limit is reached). Returns the fit and the index of the grid used."""
+    term limit is reached: at most len(x) / oversample coefficients). Returns the fit and the
+    index of the grid used."""
     o = s.fit
     if o.target != "plates":
         return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
     best, used = None, first
     for k in range(first, len(PATCH_GRIDS)):
         grid = PATCH_GRIDS[k]
-        if grid[0] * grid[1] > o.max_terms or grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) > len(x):
+        if grid[0] * grid[1] > o.max_terms or \
+                grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) * oversample > len(x):
             break                              # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
         fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)

@@ -18,7 +18,8 @@ from ..text import escape, text_problem
 from .conductors import CONDUCTORS
 from .reader import (Reader, check_keys, choice, did_you_mean, flag, free_text, identifier, integer,
                      nonnegative, positive, quantity, table)
-from .schema import (ALL_RIGID, MAX_GRID_POINTS, Damping, ElectrostaticsOptions, FitOptions,
+from .schema import (ALL_RIGID, DESIGN_KEYS, DESIGNS, MAX_GRID_POINTS, Damping, ElectrostaticsOptions, FitOptions,
+                     default_design, default_points, smolyak_count,
                      Imports, Sampling, Structure)
 
 TOP_KEYS = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
@@ -50,16 +51,17 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     conductor = CONDUCTORS[kind].read(rd, t, kind)
     sets = conductor.read_electrodes(rd, doc)
     coords = conductor.read_coordinates(rd, doc)
-    sampling, fit = read_sampling(rd, doc), read_fit(rd, doc)
-    if fit.degree >= sampling.levels:
+    sampling, fit = read_sampling(rd, doc, coords.count), read_fit(rd, doc)
+    if sampling.design == "grid" and fit.degree >= sampling.levels:
         raise rd.fail("fit.degree", f"degree {fit.degree} needs at least {fit.degree + 1} sampling levels "
                       f"per coordinate (have {sampling.levels})",
                       f"lower fit.degree or raise sampling.levels to {fit.degree + 1}")
     fem = conductor.read_fem(rd, doc)
     conductor.check(rd, doc, sets, coords, fem)
-    if sampling.levels ** coords.count > MAX_GRID_POINTS:
+    if sampling.design == "grid" and sampling.levels ** coords.count > MAX_GRID_POINTS:
         raise rd.fail("sampling.levels", f"{sampling.levels}^{coords.count} = {sampling.levels ** coords.count} "
-                      f"capacitance samples exceed {MAX_GRID_POINTS}", "lower sampling.levels or use fewer coordinates")
+                      f"capacitance samples exceed {MAX_GRID_POINTS}",
+                      'lower sampling.levels, use fewer coordinates or set design = "sparse"')
     return Structure(name=name, description=description, source=path, conductor=conductor,
                      electrode_sets=sets, coordinates=coords, sampling=sampling,
                      fit=fit, electrostatics=read_electrostatics(rd, doc), fem=fem,
@@ -82,14 +84,35 @@ def load_structure(path: str | Path) -> Structure:
 
 # ---------------------------------------------------------------- sections of every kind
 
-def read_sampling(rd: Reader, doc: dict) -> Sampling:
+def read_sampling(rd: Reader, doc: dict, ncoords: int) -> Sampling:
+    """[sampling]: the design (default: the grid up to GRID_DEFAULT_MAX coordinates, else the sparse
+    grid), its own keys (a key of another design is refused) and the box range."""
     t = table(rd, doc, "sampling", required=False)
-    check_keys(rd, "sampling", t, ["levels", "range"])
+    check_keys(rd, "sampling", t, ["design", "levels", "range", "level", "points", "seed"])
     rng = quantity(rd, t, "sampling", "range", "dimensionless", default=0.2,
                    check=lambda v: None if 0 < v < 0.9 else "must lie in (0, 0.9): it is a fraction of the "
                    "amplitude at which the plate touches an electrode, and 1 means contact",
                    what="sampling range as a fraction of the touching amplitude")
-    return Sampling(levels=integer(rd, t, "sampling", "levels", 3, 2, 9, "levels per coordinate"), range=rng)
+    design = choice(rd, t, "sampling", "design", list(DESIGNS), default_design(ncoords))
+    for key, owners in DESIGN_KEYS.items():
+        if key in t and design not in owners:
+            raise rd.fail(f"sampling.{key}", f"'{key}' does not apply to design = \"{design}\" "
+                          f"(it belongs to {' / '.join(owners)})",
+                          f"remove {key}, or set design = \"{owners[0]}\"")
+    level = integer(rd, t, "sampling", "level", 2, 1, 6, "Smolyak level of the sparse grid")
+    if design == "sparse" and smolyak_count(ncoords, level) > MAX_GRID_POINTS:
+        raise rd.fail("sampling.level", f"a level-{level} sparse grid in {ncoords} coordinates has "
+                      f"{smolyak_count(ncoords, level)} points, more than {MAX_GRID_POINTS}",
+                      "lower sampling.level or use fewer coordinates")
+    points = integer(rd, t, "sampling", "points", default_points(design, ncoords), 8, MAX_GRID_POINTS,
+                     "sample points (lhs, sobol) or point budget (adaptive)")
+    if design == "sobol" and points & (points - 1):
+        raise rd.fail("sampling.points", f"points = {points} is not a power of two; a Sobol design is "
+                      "balanced only at powers of two",
+                      f"write points = {1 << (points - 1).bit_length() >> 1} or {1 << (points - 1).bit_length()}")
+    return Sampling(levels=integer(rd, t, "sampling", "levels", 3, 2, 9, "levels per coordinate"), range=rng,
+                    design=design, level=level, points=points,
+                    seed=integer(rd, t, "sampling", "seed", 1, 0, 2**31 - 1, "random seed of the design"))
 
 
 def read_fit(rd: Reader, doc: dict) -> FitOptions:

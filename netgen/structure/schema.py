@@ -3,6 +3,7 @@ its electrodes (netgen.structure.conductors, netgen.structure.electrodes)."""
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -13,6 +14,37 @@ ALL_RIGID = IN_PLANE_COORDINATES + RIGID_COORDINATES
 MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")      # \Z: "2,0c\n" is not a label
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
+DESIGNS = ("grid", "sparse", "lhs", "sobol", "adaptive")     # [sampling] design (netgen.electrostatics.designs)
+DESIGN_KEYS = {"levels": ("grid",), "level": ("sparse",), "points": ("lhs", "sobol", "adaptive"),
+               "seed": ("lhs", "sobol", "adaptive")}          # the [sampling] keys each design reads
+GRID_DEFAULT_MAX = 7             # the full grid is the default design up to 7 coordinates (3^7 = 2187)
+
+
+def default_design(ncoords: int) -> str:
+    """The design without `[sampling] design`: the paper's grid up to GRID_DEFAULT_MAX coordinates,
+    the Smolyak sparse grid above (2 n^2 + 2 n + 1 points at level 2 against the grid's 3^n)."""
+    return "grid" if ncoords <= GRID_DEFAULT_MAX else "sparse"
+
+
+def default_points(design: str, ncoords: int) -> int:
+    """Default `points`: 32 (n + 1) for lhs (sobol: the next power of two), a budget of 64 (n + 1)
+    for adaptive (the plate fit has K (n + 1) coefficients per electrode, K up to 16)."""
+    if design == "adaptive":
+        return 64 * (ncoords + 1)
+    size = 32 * (ncoords + 1)
+    return 1 << (size - 1).bit_length() if design == "sobol" else size
+
+
+def smolyak_count(ncoords: int, level: int) -> int:
+    """Points of the Smolyak grid of `level` on nested Clenshaw-Curtis nodes (each 1-D level i >= 2
+    adds 2^(i-1) nodes, level 1 adds 2, level 0 is the centre), summed over |i| <= level."""
+    sizes = [1, 2] + [2 ** (i - 1) for i in range(2, level + 1)]
+
+    def count(n: int, budget: int) -> int:
+        if n == 0:
+            return 1
+        return sum(sizes[i] * count(n - 1, budget - i) for i in range(budget + 1))
+    return count(ncoords, level)
 
 
 def mode_name(label: str) -> str:
@@ -47,9 +79,15 @@ class Coordinates:
 
 @dataclass(frozen=True)
 class Sampling:
-    """Capacitance sampling grid: `levels` per coordinate over +-range x touching amplitude."""
+    """Capacitance sample design over +-range x touching amplitude (netgen.electrostatics.designs):
+    "grid" (`levels` per coordinate), "sparse" (Smolyak `level`), "lhs" / "sobol" (`points`,
+    `seed`) or "adaptive" (refined until fit.tolerance or a budget of `points`, `seed`)."""
     levels: int = 3
     range: float = 0.2
+    design: str = "grid"
+    level: int = 2
+    points: int = 0              # lhs / sobol size, adaptive budget (0 before the parser's default)
+    seed: int = 1
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,107 @@
+"""The adaptive sample design ([sampling] design = "adaptive"): fit, look for the largest error
+on probe points the fit has not seen, move the worst of them into the training set, refit, until
+every electrode's probe error meets fit.tolerance or the budget of `points` training samples is
+spent. The probes are the continuation of a seeded Sobol sequence, so the same structure gives the
+same design; the reported errors stay those on the structure's own held-out points.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..electrostatics import designs
+from ..electrostatics.sampling import Samples
+from ..geometry.shapes import Electrode
+from ..structure import Structure
+from .capacitance import CapacitanceFit, fit_electrode, with_errors
+
+
+OVERSAMPLE = 2.0     # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
+SAFETY = 0.5         # stop when every probe error is below half fit.tolerance: a max over a few hundred
+                     # random points is itself uncertain, and the held-out points are other points
+
+
+@dataclass
+class AdaptiveResult:
+    """The grown training set, the final fits and the history of each round."""
+    samples: Samples
+    fits: list[CapacitanceFit]
+    probes: int                                  # extractor calls spent on probe points
+    rounds: list[dict] = field(default_factory=list)
+    converged: bool = False
+
+
+class ProbeStream:
+    """Seeded Sobol points (a different seed from the design's start) handed out in order."""
+
+    def __init__(self, ncoords: int, half_range: float, seed: int, total: int):
+        count = 1 << max(0, total - 1).bit_length()
+        self.points = designs.sobol(ncoords, count, half_range, seed + 7919)
+        self.next = 0
+
+    def take(self, k: int) -> np.ndarray:
+        out = self.points[self.next:self.next + k]
+        self.next += len(out)
+        return out
+
+
+def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, start: Samples,
+                  evaluate: Callable[[np.ndarray], Samples], holdout: Samples,
+                  progress: bool = False) -> AdaptiveResult:
+    """Grow `start` by the probe points of largest relative error (over all electrodes, in units
+    of fit.tolerance) until every probe error is below SAFETY x fit.tolerance or len(train) reaches
+    [sampling] points. Each electrode keeps the fit of the last round that refitted it (errors on
+    the held-out points at the end). `evaluate(x)` samples the extractor at scaled points x."""
+    n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
+    batch, pool_size = 2 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
+    stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + 2 * pool_size)
+    train, probes = start, evaluate(stream.take(pool_size))
+    spent = len(probes.points)
+    fits, used = fit_round(s, shapes, basis, scales, train, probes, range(len(shapes)), [0] * len(shapes))
+    result = AdaptiveResult(train, fits, spent)
+    while True:
+        err = np.abs(np.stack([f.value(probes.x) for f in fits], axis=1) / probes.c - 1.0)
+        worst = err.max(axis=0)
+        result.rounds.append({"samples": len(train.x), "probe_max_rel_error": float(worst.max()),
+                              "failing": int(np.sum(worst > tol))})
+        say(progress, f"adaptive: {len(train.x)} samples, probe max error {worst.max():.2e} "
+                      f"({int(np.sum(worst > tol))} electrode(s) above {tol:g})")
+        if worst.max() <= SAFETY * tol or len(train.points) >= budget or stream.next >= len(stream.points):
+            result.converged = bool(worst.max() <= SAFETY * tol)
+            break
+        score = (err / (SAFETY * tol)).max(axis=1)
+        pick = np.argsort(-score, kind="stable")[: min(batch, budget - len(train.points))]
+        pick = pick[score[pick] > 1.0]
+        keep = np.setdiff1d(np.arange(len(probes.x)), pick)
+        train = train + Samples(probes.x[pick], probes.c[pick], 0, probes.x[pick])
+        fresh = evaluate(stream.take(len(pick)))
+        spent += len(fresh.points)
+        probes = Samples(probes.x[keep], probes.c[keep], 0, probes.x[keep]) + fresh
+        failing = [i for i in range(len(shapes)) if worst[i] > SAFETY * tol]
+        fits, used = fit_round(s, shapes, basis, scales, train, probes, failing, used, fits)
+    final = [with_errors(f, train.x, train.c[:, i], holdout.x, holdout.c[:, i]) for i, f in enumerate(fits)]
+    result.samples, result.fits, result.probes = train, final, spent
+    return result
+
+
+def fit_round(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, train: Samples,
+              check: Samples, which, used: list[int],
+              previous: list[CapacitanceFit] | None = None) -> tuple[list[CapacitanceFit], list[int]]:
+    """Refit the electrodes `which` on `train` (their patch count starting where the last round
+    ended: a warm start), keep the others; errors against `check`."""
+    fits, used = list(previous) if previous else [None] * len(shapes), list(used)
+    for i in which:
+        fit, used[i] = fit_electrode(s, shapes[i], shapes[i].name, basis, scales, train.x, train.c[:, i],
+                                     check.x, check.c[:, i], used[i], OVERSAMPLE)
+        fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])
+    return fits, used
+
+
+def say(progress: bool, text: str) -> None:
+    """A progress line on stderr."""
+    if progress:
+        print(text, file=sys.stderr)
