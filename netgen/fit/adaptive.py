@@ -17,7 +17,7 @@ from ..electrostatics import designs
 from ..electrostatics.sampling import Samples
 from ..geometry.shapes import Electrode
 from ..structure import Structure
-from .capacitance import CapacitanceFit, fit_electrode, with_errors
+from .capacitance import CapacitanceFit, check_determined, fit_electrode, with_errors
 
 
 OVERSAMPLE = 2.0     # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
@@ -57,6 +57,7 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     [sampling] points. Each electrode keeps the fit of the last round that refitted it (errors on
     the held-out points at the end). `evaluate(x)` samples the extractor at scaled points x."""
     n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
+    check_determined(s, start.x)
     batch, pool_size = 2 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
     stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + 2 * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))

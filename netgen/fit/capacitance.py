@@ -17,6 +17,7 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from ..constants import EPS0
+from ..errors import StructureError
 from ..electrostatics.sampling import Samples
 from ..geometry.layout import plate_outline
 from ..geometry.shapes import Electrode
@@ -182,9 +183,25 @@ def _bins(values: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
     return ids
 
 
+def check_determined(s: Structure, x: np.ndarray) -> None:
+    """Refuse a design whose samples cannot determine the fit's polynomial terms (rank of the
+    monomial matrix below the term count), e.g. a degree-2 fit on a level-1 sparse grid."""
+    degree = s.fit.degree if s.fit.target != "plates" else 1        # a plate term: affine in x
+    exps = monomial_exponents(x.shape[1], degree)
+    rank = np.linalg.matrix_rank(monomials(x / span(x), exps)) if len(x) else 0
+    if rank < len(exps):
+        raise StructureError(s.source, "fit.degree", f"the {len(x)} samples of the {s.sampling.design} design "
+                             f"determine only {rank} of the {len(exps)} terms of a polynomial of total degree {degree} "
+                             f"in {x.shape[1]} coordinates",
+                             "lower [fit] degree or use a richer design ([sampling] levels, level or points; a "
+                             "level-L sparse grid determines total degree L)")
+
+
 def fit_all(s: Structure, electrodes: list[Electrode], basis, scales: np.ndarray, grid: Samples,
             holdout: Samples, progress: bool = False) -> list[CapacitanceFit]:
-    """One capacitance fit per electrode, in port order."""
+    """One capacitance fit per electrode, in port order (refused when the samples cannot
+    determine the fit's terms)."""
+    check_determined(s, grid.x)
     fits, start = [], {}
     for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr,
                                leave=False)):
