@@ -13,6 +13,8 @@ import pytest
 from tests.fixtures import ROOT
 
 RUNS = {
+    "build_scaling": (["bench/build_scaling.py", "-o", "{tmp}", "--n", "3", "--designs", "grid,sparse"],
+                      ["sparse      3       25", "wrote "]),
     "build": (["bench/build.py", "--repeat", "1"], ["median of 1 build(s)", "fits (16 electrodes, plates)", "budget 60 s"]),
     "sigma_delta": (["bench/sigma_delta.py", "--cycles", "64", "--repeat", "1", "--naive-cycles", "1",
                      "--variants", "xspice,fast,nodes,naive,floor,linear", "--loops", "xspice,analog"],
@@ -27,7 +29,7 @@ RUNS = {
 @pytest.mark.parametrize("name", sorted(RUNS))
 def test_bench_script_runs(name, tmp_path):
     argv, expect = RUNS[name]
-    proc = subprocess.run([sys.executable, *argv], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run([sys.executable, *[a.replace("{tmp}", str(tmp_path)) for a in argv]], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     for text in expect:
         assert text in proc.stdout, f"{name}: no {text!r} in\n{proc.stdout[-2000:]}"

@@ -20,6 +20,7 @@ from ..structure import Structure
 from .capacitance import CapacitanceFit, check_determined, fit_electrode, with_errors
 
 
+STALL = 4            # rounds without progress before the design stops short of its budget
 OVERSAMPLE = 2.0     # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
 SAFETY = 0.5         # stop when every probe error is below half fit.tolerance: a max over a few hundred
                      # random points is itself uncertain, and the held-out points are other points
@@ -58,7 +59,7 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     the held-out points at the end). `evaluate(x)` samples the extractor at scaled points x."""
     n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
     check_determined(s, start.x)
-    batch, pool_size = 2 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
+    batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
     stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + 2 * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))
     spent = len(probes.points)
@@ -71,7 +72,8 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
                               "failing": int(np.sum(worst > tol))})
         say(progress, f"adaptive: {len(train.x)} samples, probe max error {worst.max():.2e} "
                       f"({int(np.sum(worst > tol))} electrode(s) above {tol:g})")
-        if worst.max() <= SAFETY * tol or len(train.points) >= budget or stream.next >= len(stream.points):
+        if worst.max() <= SAFETY * tol or len(train.points) >= budget or stream.next >= len(stream.points) \
+                or stalled(result.rounds):
             result.converged = bool(worst.max() <= SAFETY * tol)
             break
         score = (err / (SAFETY * tol)).max(axis=1)
@@ -87,6 +89,15 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     final = [with_errors(f, train.x, train.c[:, i], holdout.x, holdout.c[:, i]) for i, f in enumerate(fits)]
     result.samples, result.fits, result.probes = train, final, spent
     return result
+
+
+def stalled(rounds: list[dict]) -> bool:
+    """No round of the last STALL improved the worst probe error by 10 %: more points of the same
+    kind will not help (the fit form or fit.max_terms limits it, and the warning says so)."""
+    if len(rounds) <= STALL:
+        return False
+    best_before = min(r["probe_max_rel_error"] for r in rounds[:-STALL])
+    return min(r["probe_max_rel_error"] for r in rounds[-STALL:]) > 0.9 * best_before
 
 
 def fit_round(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, train: Samples,

@@ -88,7 +88,7 @@ def fit_time(s: Structure, samples: int, ncoords: int, electrodes: int, step: fl
     plates = [a * b for a, b in PATCH_GRIDS if a * b <= s.fit.max_terms and a * b * nterm <= samples]
     per = sum(samples * (k * nterm) ** 2 * MAX_NFEV * step for k in plates[:EXPECTED_TRIALS])
     if s.sampling.design == "adaptive":
-        rounds = max(1, (samples - 9 * (ncoords + 1)) // (2 * (ncoords + 1)))
+        rounds = max(1, (samples - 18 * (ncoords + 1)) // (3 * (ncoords + 1)))
         per *= 1 + 2 * rounds / EXPECTED_TRIALS / 2       # about two trials per round at the mean size
     return electrodes * per
 

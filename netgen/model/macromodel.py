@@ -34,7 +34,8 @@ PORT_UNITS = {
 
 
 # what to change when a capacitance fit misses [fit] tolerance (MacroModel.fit_problem)
-FIT_FIX = ("allow more plate terms ([fit] max_terms), more samples ([sampling] levels), a higher [fit] degree "
+FIT_FIX = ("allow more plate terms ([fit] max_terms), more samples ([sampling] levels, or the level / points "
+           "of its design), a higher [fit] degree "
            "or a narrower [sampling] range, or accept the error with a larger [fit] tolerance")
 
 ACCEL_PORT = "a_in"       # the inertial-load port (MacroModel.acceleration)
