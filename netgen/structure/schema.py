@@ -3,7 +3,6 @@ its electrodes (netgen.structure.conductors, netgen.structure.electrodes)."""
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from typing import Protocol

@@ -8,7 +8,6 @@ defining stratification of Latin hypercubes and of Sobol (0, m, s)-nets.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
