@@ -85,15 +85,16 @@ def load_structure(path: str | Path) -> Structure:
 # ---------------------------------------------------------------- sections of every kind
 
 def read_sampling(rd: Reader, doc: dict, ncoords: int) -> Sampling:
-    """[sampling]: the design (default: the grid up to GRID_DEFAULT_MAX coordinates, else the sparse
-    grid), its own keys (a key of another design is refused) and the box range."""
+    """[sampling]: the design (default: the grid when `levels` is given or up to GRID_DEFAULT_MAX
+    coordinates, else the sparse grid), its own keys (a key of another design is refused) and the
+    box range."""
     t = table(rd, doc, "sampling", required=False)
     check_keys(rd, "sampling", t, ["design", "levels", "range", "level", "points", "seed"])
     rng = quantity(rd, t, "sampling", "range", "dimensionless", default=0.2,
                    check=lambda v: None if 0 < v < 0.9 else "must lie in (0, 0.9): it is a fraction of the "
                    "amplitude at which the plate touches an electrode, and 1 means contact",
                    what="sampling range as a fraction of the touching amplitude")
-    design = choice(rd, t, "sampling", "design", list(DESIGNS), default_design(ncoords))
+    design = choice(rd, t, "sampling", "design", list(DESIGNS), "grid" if "levels" in t else default_design(ncoords))
     for key, owners in DESIGN_KEYS.items():
         if key in t and design not in owners:
             raise rd.fail(f"sampling.{key}", f"'{key}' does not apply to design = \"{design}\" "
