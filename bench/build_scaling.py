@@ -75,7 +75,8 @@ def run_one(s, m, progress: bool = False) -> dict:
     worst = max(fits, key=lambda f: f.max_rel_error)
     misses = [f.electrode for f in fits if f.max_rel_error > s.fit.tolerance]
     return {"samples": int(len(grid.x)), "extractor_s": t_sample + spent["extractor"], "fit_s": t_fit,
-            "estimate_s": est.extractor_s + est.fit_s, "estimate_calibration_s": t_est,
+            "estimate_s": est.extractor_s + est.fit_s, "estimate_max_s": est.extractor_s + est.fit_max_s,
+            "estimate_calibration_s": t_est,
             "max_rel_error": worst.max_rel_error, "worst_electrode": worst.electrode,
             "misses": misses, "fit_warning": bool(misses), **extra}
 

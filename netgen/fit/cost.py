@@ -20,7 +20,7 @@ from ..structure import Structure
 from ..structure.schema import smolyak_count
 from .capacitance import PATCH_GRIDS, MAX_NFEV
 
-EXPECTED_TRIALS = 5           # patch grids an electrode tries on average (1, 2, 4, 6, 9 plates)
+EXPECTED_TRIALS = 5           # patch grids an electrode that meets fit.tolerance tries (1, 2, 4, 6, 9 plates)
 CALIBRATION_POINTS = 32       # extractor points timed (fewer when one point takes over 0.5 s)
 
 
@@ -33,15 +33,18 @@ class Estimate:
     per_point_s: float            # extractor time per point (calibrated)
     extractor_s: float
     fit_s: float
+    fit_max_s: float              # every patch grid tried (the fits that miss fit.tolerance try them all)
 
     @property
     def minutes(self) -> float:
+        """The expected minutes (the budget check; fit_max_s is printed beside it)."""
         return (self.extractor_s + self.fit_s) / 60.0
 
     def text(self) -> str:
         """One line for the build's progress output."""
         return (f"{self.design} design: {self.samples} samples + {self.checks} check points; estimated "
-                f"extractor {self.extractor_s:.1f} s ({self.per_point_s * 1e3:.2f} ms/point), fit {self.fit_s:.1f} s")
+                f"extractor {self.extractor_s:.1f} s ({self.per_point_s * 1e3:.2f} ms/point), fit {self.fit_s:.1f} s "
+                f"(up to {self.fit_max_s:.1f} s when fits miss fit.tolerance)")
 
 
 def sample_count(s: Structure, ncoords: int) -> int:
@@ -79,14 +82,15 @@ def lm_step_time() -> float:
     return (time.perf_counter() - t0) / (5 * 2000 * 48**2)
 
 
-def fit_time(s: Structure, samples: int, ncoords: int, electrodes: int, step: float) -> float:
-    """Expected plate-fit seconds: per electrode EXPECTED_TRIALS patch grids (as many as the samples
+def fit_time(s: Structure, samples: int, ncoords: int, electrodes: int, step: float,
+             trials: int = EXPECTED_TRIALS) -> float:
+    """Expected plate-fit seconds: per electrode `trials` patch grids (as many as the samples
     determine and max_terms allows), MAX_NFEV steps of samples x coefficients^2 each."""
     nterm = math.comb(ncoords + s.fit.degree, s.fit.degree)
     if s.fit.target != "plates":
         return electrodes * samples * nterm**2 * step
     plates = [a * b for a, b in PATCH_GRIDS if a * b <= s.fit.max_terms and a * b * nterm <= samples]
-    per = sum(samples * (k * nterm) ** 2 * MAX_NFEV * step for k in plates[:EXPECTED_TRIALS])
+    per = sum(samples * (k * nterm) ** 2 * MAX_NFEV * step for k in plates[:trials])
     if s.sampling.design == "adaptive":
         rounds = max(1, (samples - 18 * (ncoords + 1)) // (3 * (ncoords + 1)))
         per *= 1 + 2 * rounds / EXPECTED_TRIALS / 2       # about two trials per round at the mean size
@@ -98,9 +102,9 @@ def estimate(s: Structure, prepared, scales: np.ndarray, electrodes: int) -> Est
     n = len(scales)
     samples = sample_count(s, n)
     checks = s.fit.holdout + (samples + 2 * max(s.fit.holdout, 6 * (n + 1)) if s.sampling.design == "adaptive" else 0)
-    per_point = extractor_time(prepared, s, scales)
+    per_point, step = extractor_time(prepared, s, scales), lm_step_time()
     return Estimate(s.sampling.design, samples, checks, per_point, per_point * (samples + checks),
-                    fit_time(s, samples, n, electrodes, lm_step_time()))
+                    fit_time(s, samples, n, electrodes, step), fit_time(s, samples, n, electrodes, step, len(PATCH_GRIDS)))
 
 
 def check(s: Structure, est: Estimate, max_minutes: float) -> None:
