@@ -123,11 +123,12 @@ def figure(rows: list[dict], path: Path) -> None:
     for d in sorted({r["design"] for r in rows}):
         r = [x for x in rows if x["design"] == d and not x.get("extrapolated")]
         n = [x["n"] for x in r]
-        a.semilogy(n, [x["extractor_s"] + x["fit_s"] for x in r], "o-", label=d)
-        b.semilogy(n, [x["max_rel_error"] for x in r], "o-", label=d)
+        line, = a.semilogy(n, [x["extractor_s"] + x["fit_s"] for x in r], "o-", label=d)
+        b.semilogy(n, [x["max_rel_error"] for x in r], "o-", label=d, color=line.get_color())
         ex = [x for x in rows if x["design"] == d and x.get("extrapolated")]
         if ex:
-            a.semilogy([x["n"] for x in ex], [x["extractor_s"] + x["fit_s"] for x in ex], "x--", label=f"{d} (extrapolated)")
+            a.semilogy([x["n"] for x in ex], [x["extractor_s"] + x["fit_s"] for x in ex], "x--", color=line.get_color(),
+                       label=f"{d} (extrapolated)")
     tol = rows[0]["tolerance"]
     b.axhline(tol, color="k", ls=":", label="fit.tolerance")
     a.set_xlabel("coordinates n"); a.set_ylabel("sampling + fit time (s)"); a.legend(fontsize=8); a.grid(alpha=0.3)
