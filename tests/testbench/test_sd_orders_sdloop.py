@@ -34,14 +34,14 @@ def _netlist(cm, f: filters.Filter, u0: list[float], periods: int) -> str:
             f"flt_c={vec(f.c)} flt_d=[{f.d!r} 0] u0={vec(u0)})")
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {fr} 0 0 {np.degrees(p)})" for i, (a, fr, p, o) in enumerate(CA)]
     return "\n".join(["netgen_sdloop: a state-space channel and a lead channel", *sources,
-                      "A1 [ca0 ca1] NULL [d0 d1] [b0 b1] [cur0 cur1] NULL lp", card, ".control",
+                      f"A1 [ca0 ca1] NULL [d0 d1] [b0 b1] [cur0 cur1] NULL [{' '.join(f'u{i}' for i in range(f.states))}] lp", card, ".control",
                       *codemodel.control_lines(cm), ".endc", f".tran {TS / 50} {periods * TS} 0 {TS / 20}", ".end", ""])
 
 
 def test_state_space_channel_is_the_filter_definition(cold_build, tmp_path):
     """Over 300 periods the filter channel's bits are those of y = c.u + d x, u <- A u + bx x +
-    bv v run in numpy on ca at the exact sample instants from u0, bit for bit; the lead channel
-    beside it keeps lead prev - cur."""
+    bv v run in numpy on ca at the exact sample instants from u0, bit for bit, and the u port
+    carries the states; the lead channel beside it keeps lead prev - cur."""
     periods = 300
     f = filters.design(DISK_Z, 4, 64, 1.5, "cifb")
     u0 = [0.01, -0.02]
@@ -51,15 +51,20 @@ def test_state_space_channel_is_the_filter_definition(cold_build, tmp_path):
     got = np.array([np.interp(at, t, plot[f"v(b{i})"]) for i in range(2)]).T
     ts = (np.arange(periods) + T_SAMPLE) * TS
     x = np.array([a * np.sin(2 * np.pi * fr * ts + p) + o for a, fr, p, o in CA]).T
-    u, want, ys = np.array(u0), [], []
+    u, want, ys, us = np.array(u0), [], [], []
     for n in range(periods):
         y = f.c @ u + f.d * x[n, 0]
         v = 1.0 if y > 0 else -1.0
         u = f.a @ u + f.bx * x[n, 0] + f.bv * v
         want.append(v > 0)
         ys.append(y)
+        us.append(u)
     assert np.min(np.abs(ys)) > 1e-4 * np.max(np.abs(ys))      # no decision the interpolation could flip
     assert 0.2 < np.mean(want) < 0.8
     assert np.array_equal(got[:, 0] > 0.5, np.array(want))
+    states = np.array([np.interp(at, t, plot[f"v(u{i})"]) for i in range(f.states)]).T
+    # the u port after each update (the integrators sum the samples' interpolation error, 1e-4 each)
+    assert np.abs(states - np.array(us)).max() < 1e-3 * np.abs(us).max()
+    assert [plot[f"v(u{i})"][0] for i in range(f.states)] == pytest.approx(u0)
     lead = LEAD * np.concatenate([[0.0], x[:-1, 1]]) - x[:, 1]
     assert np.array_equal(got[:, 1] > 0.5, lead > 0)

@@ -42,7 +42,8 @@ RAMP_PIECES = 4
 class Mechanics:
     """One channel's mechanics as the loop sees it, SI: q'' = (F - k q - b q')/m + a_in, with
     the feedback force F = force x v x pulse(t) (pulse: (start, end, weight) phases of a period,
-    after the sample), read out as x = gain q at the phase `sample` of every period."""
+    after the sample), read out as x = gain q + offset at the phase `sample` of every period
+    (offset: the readout at rest, e.g. unequal electrode capacitances)."""
     mass: float
     stiffness: float
     damping: float
@@ -51,6 +52,7 @@ class Mechanics:
     ts: float
     sample: float
     pulse: tuple[tuple[float, float, float], ...]
+    offset: float = 0.0
 
     def continuous(self) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) of the state (q, q') for a force input."""
@@ -248,3 +250,48 @@ def target_ntf(f: Filter) -> signal.ZerosPolesGain:
     spec = f.design["ntf"]
     return signal.ZerosPolesGain(np.array([complex(*q) for q in spec["zeros"]]),
                                  np.array([complex(*p) for p in spec["poles"]]), 1.0, dt=1)
+
+
+def channel_filters(channels: list[dict]) -> list[Filter | None]:
+    """The state-space filter of each Design channel whose `filter` is a designed kind (None for
+    lead2 or no filter: the compiled loop's lead path)."""
+    return [Filter.from_dict(ch["filter"]) if ch.get("filter", {}).get("kind", "lead2") != "lead2" else None
+            for ch in channels]
+
+
+def state_nodes(channels: list[dict]) -> list[str]:
+    """The compiled loop's filter-state nodes (its u port), u<j>_<channel>, in port order."""
+    return [f"u{j}_{ch['name']}" for ch, f in zip(channels, channel_filters(channels)) if f for j in range(f.states)]
+
+
+def sdloop_params(channels: list[dict], ic: dict[str, float]) -> dict:
+    """netgen_sdloop's flt_* and u0 parameters for the channels' filters (the lead-only form,
+    flt_n all 0, when none has states); the initial states are popped from `ic` (a segment's
+    restart state), else 0."""
+    fs = channel_filters(channels)
+    if not any(fs):
+        zero = [0.0]
+        return {"flt_n": [0] * len(channels), "flt_a": zero, "flt_bx": zero, "flt_bv": zero, "flt_c": zero,
+                "flt_d": [0.0] * len(channels), "u0": zero}
+    cat = lambda get: [float(v) for f in fs if f for v in get(f)]   # noqa: E731
+    return {"flt_n": [f.states if f else 0 for f in fs], "flt_a": cat(lambda f: f.a.ravel()),
+            "flt_bx": cat(lambda f: f.bx), "flt_bv": cat(lambda f: f.bv), "flt_c": cat(lambda f: f.c),
+            "flt_d": [float(f.d) if f else 0.0 for f in fs], "u0": [ic.pop(n, 0.0) for n in state_nodes(channels)]}
+
+
+def mechanics_of(model, d, channel: str) -> Mechanics:
+    """A Design channel's mechanics as the loop sees it (the MacroModel's mass, stiffness and
+    in-band damping of the coordinate; the fed-back force while on; the readout's volts per SI
+    unit and its value at rest, V_s sum_i w_i C_i(0) / C_f; the compiled loop's sample instant and
+    the feedback trapezoid of the Design's timing).
+    The electrostatic springs of the sense and feedback voltages are left out (a spring far
+    below the band moves the NTF's zeros, not its poles)."""
+    names = [c.name for c in model.coordinates]
+    coord = model.coordinates[names.index(channel)]
+    ch = next(c for c in d.channels if c["name"] == channel)
+    t = d.t
+    rest = model.capacitance(np.zeros(model.ncoords))[0]
+    offset = d.vs * sum(e["w"][ch["index"]] * rest[i] for i, e in enumerate(d.electrodes)) / ch["cf"]
+    return Mechanics(coord.mass, coord.stiffness, float(coord.admittance(0.0).real), d.level(channel) / d.duty,
+                     ch["sensitivity"] / ch["cf"] / coord.scale, d.ts, t.cur + t.sample,
+                     trapezoid_pulse(t.fb_on, t.fb_off, t.edge), float(offset))

@@ -41,7 +41,7 @@ def augmented(mech: Mechanics, inp: Input) -> tuple[np.ndarray, np.ndarray]:
 def simulate(mech: Mechanics, f: Filter, cycles: int, inp: Input | None = None, dither: float = 0.0,
              dither_step: float = 0.0, u0: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Run the loop for `cycles` periods from rest at t = 0: per period n the sample x[n] = gain
-    q((n + sample) T_s), y[n] = c.u + d x + dither sin(dither_step n), v[n] = sign(y), the filter
+    q((n + sample) T_s) + offset, y[n] = c.u + d x + dither sin(dither_step n), v[n] = sign(y), the filter
     update and the force pulse v[n] F. Returns v (+-1), x, q, y, u (per period) and the max |u|."""
     inp = inp or Input()
     a, b = augmented(mech, inp)
@@ -53,13 +53,13 @@ def simulate(mech: Mechanics, f: Filter, cycles: int, inp: Input | None = None, 
     xs, ys, us = np.empty(cycles), np.empty(cycles), np.empty((cycles, f.states))
     dith = dither * np.sin(dither_step * np.arange(cycles))
     for n in range(cycles):
-        x = gain * s[0]
+        x = gain * s[0] + mech.offset
         y = float(c @ u) + d * x + dith[n]
         bit = 1 if y > 0 else -1
         xs[n], ys[n], v[n], us[n] = x, y, bit, u
         u = fa @ u + bx * x + bv * bit
         s = phi @ s + gamma * bit
-    return {"v": v, "x": xs, "q": xs / gain, "y": ys, "u": us, "u_max": np.max(np.abs(us), axis=0)}
+    return {"v": v, "x": xs, "q": (xs - mech.offset) / gain, "y": ys, "u": us, "u_max": np.max(np.abs(us), axis=0)}
 
 
 def stable(run: dict[str, np.ndarray], q_limit: float) -> bool:

@@ -8,7 +8,7 @@
                    or, for a channel with flt_n[c] = K > 0 filter states u (the higher-order loops of
                    netgen/testbench/sigma_delta/filters.py; sd_filter below):
                    y = flt_c . u + flt_d[c] cur[c] + dither,  b[c] = [y > 0],  v = 2 b[c] - 1,
-                   u <- flt_a u + flt_bx cur[c] + flt_bv v
+                   u <- flt_a u + flt_bx cur[c] + flt_bv v   (u: on the optional port u; u0 at t = 0)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
      s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
@@ -41,11 +41,23 @@ static double sd_pulse(const double *p, double t)
     return v2 + (v1 - v2) * (t - tr - pw) / tf;
 }
 
+/* does any channel have filter states (flt_n > 0)? Lead-only loops give flt_n = [0 ..] and one
+   0 in each of flt_a, flt_bx, flt_bv, flt_c, u0 (XSPICE refuses an unset array parameter
+   without a default, and a defaulted one must be sized by a port) */
+static int sd_has_filter(ARGS)
+{
+    int c;
+    if (PARAM_NULL(flt_n)) return 0;
+    for (c = 0; c < PARAM_SIZE(flt_n); c++)
+        if (PARAM(flt_n[c]) > 0) return 1;
+    return 0;
+}
+
 /* sum over the channels of flt_n^power (the filter states: power 1; their A matrices: 2) */
 static int sd_filter_size(ARGS, int C, int power)
 {
     int c, n = 0;
-    if (PARAM_NULL(flt_n)) return 0;
+    if (!sd_has_filter(mif_private)) return 0;
     for (c = 0; c < C && c < PARAM_SIZE(flt_n); c++) {
         int k = PARAM(flt_n[c]) > 0 ? PARAM(flt_n[c]) : 0;
         n += power == 2 ? k * k : k;
@@ -83,14 +95,16 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
     else if (PARAM_SIZE(dither_amp) != C || PARAM_SIZE(dither_step) != C || PARAM_SIZE(cur0) != C
              || PARAM_SIZE(prev0) != C || PARAM_SIZE(b0) != C)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
-    else if (!PARAM_NULL(flt_n) && PARAM_SIZE(flt_n) != C) bad = "flt_n needs one entry per ca input";
-    else if (!PARAM_NULL(flt_n) && (PARAM_NULL(flt_a) || PARAM_NULL(flt_bx) || PARAM_NULL(flt_bv) || PARAM_NULL(flt_c)
+    else if (sd_has_filter(mif_private) && PARAM_SIZE(flt_n) != C) bad = "flt_n needs one entry per ca input";
+    else if (sd_has_filter(mif_private) && (PARAM_NULL(flt_a) || PARAM_NULL(flt_bx) || PARAM_NULL(flt_bv) || PARAM_NULL(flt_c)
                                     || PARAM_NULL(flt_d) || PARAM_SIZE(flt_a) != sd_filter_size(mif_private, C, 2)
                                     || PARAM_SIZE(flt_bx) != sd_filter_size(mif_private, C, 1)
                                     || PARAM_SIZE(flt_bv) != PARAM_SIZE(flt_bx) || PARAM_SIZE(flt_c) != PARAM_SIZE(flt_bx)
                                     || PARAM_SIZE(flt_d) != C
-                                    || (!PARAM_NULL(u0) && PARAM_SIZE(u0) != PARAM_SIZE(flt_bx))))
+                                    || PARAM_SIZE(u0) != PARAM_SIZE(flt_bx)))
         bad = "flt_a needs sum flt_n^2 entries, flt_bx, flt_bv, flt_c (and u0) sum flt_n, flt_d one per ca input";
+    else if (!PORT_NULL(u) && PORT_SIZE(u) != sd_filter_size(mif_private, C, 1))
+        bad = "u needs one node per filter state (sum flt_n)";
     else if ((!PORT_NULL(b) && PORT_SIZE(b) != C) || (!PORT_NULL(cur) && PORT_SIZE(cur) != C)
              || (!PORT_NULL(prev) && PORT_SIZE(prev) != C))
         bad = "b, cur and prev need one node per ca input";
@@ -113,7 +127,7 @@ static void sd_initial(ARGS, double *s, int C)
         s[ST_HEAD + 3 * C + c] = PARAM(b0[c]) > 0.5 ? 1.0 : 0.0;
     }
     for (c = 0; c < sd_filter_size(mif_private, C, 1); c++)
-        s[ST_HEAD + 4 * C + c] = PARAM_NULL(u0) ? 0.0 : PARAM(u0[c]);
+        s[ST_HEAD + 4 * C + c] = PARAM(u0[c]);
 }
 
 /* the events of (old time, TIME] in order, applied to s (a copy of the accepted state); returns
@@ -142,7 +156,7 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
             if (ph == pl) {
                 int off = 0, offa = 0;
                 for (c = 0; c < C; c++) {
-                    int nk = PARAM_NULL(flt_n) ? 0 : PARAM(flt_n[c]);
+                    int nk = sd_has_filter(mif_private) ? PARAM(flt_n[c]) : 0;
                     double dither = PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
                     double y = nk > 0 ? sd_filter(mif_private, s + ST_HEAD + 4 * C + off, c, nk, off, offa,
                                                   s[ST_HEAD + C + c], dither)
@@ -156,6 +170,32 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
     }
     for (c = 0; c < C; c++) s[ST_HEAD + c] = INPUT(ca[c]);
     s[ST_T] = t0;
+}
+
+/* the filter states on the u port (a segment restarted at t = 0 sets them again through u0) */
+static void sd_state_outputs(ARGS, const double *s, int C, int J)
+{
+    int i, j, own = PORT_NULL(ph);
+    if (PORT_NULL(u)) return;
+    for (i = 0; i < PORT_SIZE(u); i++) {
+        OUTPUT(u[i]) = s[ST_HEAD + 4 * C + i];
+        for (j = 0; j < C; j++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                AC_GAIN(u[i], ca[j]) = zero;
+            } else {
+                PARTIAL(u[i], ca[j]) = 0.0;
+            }
+        }
+        for (j = 0; j < J && !own; j++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                AC_GAIN(u[i], ph[j]) = zero;
+            } else {
+                PARTIAL(u[i], ph[j]) = 0.0;
+            }
+        }
+    }
 }
 
 static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, int J)
@@ -246,7 +286,7 @@ void cm_netgen_sdloop(ARGS)
         return;
     }
     if (!sd_sizes_ok(mif_private, C, E, J)) return;
-    for (c = 0; !PARAM_NULL(flt_n) && c < C; c++)
+    for (c = 0; sd_has_filter(mif_private) && c < C; c++)
         if (PARAM(flt_n[c]) > SD_MAX_K) {
             if (INIT) cm_message_send("netgen_sdloop: at most 8 filter states per channel (flt_n)");
             return;
@@ -266,4 +306,5 @@ void cm_netgen_sdloop(ARGS)
         sd_events(mif_private, old, s, C, dcur);
     }
     sd_outputs(mif_private, s, dcur, C, E, J);
+    sd_state_outputs(mif_private, s, C, J);
 }
