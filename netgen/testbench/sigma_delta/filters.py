@@ -280,18 +280,56 @@ def sdloop_params(channels: list[dict], ic: dict[str, float]) -> dict:
 
 
 def mechanics_of(model, d, channel: str) -> Mechanics:
-    """A Design channel's mechanics as the loop sees it (the MacroModel's mass, stiffness and
-    in-band damping of the coordinate; the fed-back force while on; the readout's volts per SI
-    unit and its value at rest, V_s sum_i w_i C_i(0) / C_f; the compiled loop's sample instant and
-    the feedback trapezoid of the Design's timing).
-    The electrostatic springs of the sense and feedback voltages are left out (a spring far
-    below the band moves the NTF's zeros, not its poles)."""
+    """A Design channel's mechanics as the loop sees it: the MacroModel's mass, stiffness and
+    in-band damping of the coordinate, plus the electrostatic spring of the feedback and sense
+    voltages averaged over the period (electrostatic_spring); the fed-back force while on; the
+    readout's volts per SI unit and its value at rest, V_s sum_i w_i C_i(0) / C_f; the compiled
+    loop's sample instant and the feedback trapezoid of the Design's timing."""
     names = [c.name for c in model.coordinates]
     coord = model.coordinates[names.index(channel)]
     ch = next(c for c in d.channels if c["name"] == channel)
     t = d.t
     rest = model.capacitance(np.zeros(model.ncoords))[0]
     offset = d.vs * sum(e["w"][ch["index"]] * rest[i] for i, e in enumerate(d.electrodes)) / ch["cf"]
-    return Mechanics(coord.mass, coord.stiffness, float(coord.admittance(0.0).real), d.level(channel) / d.duty,
+    return Mechanics(coord.mass, coord.stiffness + electrostatic_spring(model, d, names.index(channel)),
+                     float(coord.admittance(0.0).real), d.level(channel) / d.duty,
                      ch["sensitivity"] / ch["cf"] / coord.scale, d.ts, t.cur + t.sample,
                      trapezoid_pulse(t.fb_on, t.fb_off, t.edge), float(offset))
+
+
+def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:
+    """-dF/dq of the coordinate at the centre (SI, a central difference of the model's
+    electrostatic force over +-h of the touching amplitude), averaged over the period: the mean
+    over the feedback patterns x the feedback duty plus the sense level's x the sense duty. A
+    plate between electrodes gets a negative spring (for the disk's z, -0.27 N/m: a 640 Hz
+    instability inside the band that the loop has to hold)."""
+    from .loop import duty, selected                      # the Design's own pattern logic
+
+    dx = np.zeros(model.ncoords)
+    dx[index] = h
+    scale = model.coordinates[index].scale
+
+    def spring(volts: np.ndarray) -> float:
+        f = model.electrostatic_force(np.stack([dx, -dx]), np.stack([volts, volts]))[:, index]
+        return -float(f[0] - f[1]) / (2 * h * scale)
+    fb = np.mean([spring(d.vfb * selected(d.electrodes, tuple(r["pattern"]))) for r in d.table])
+    sense = spring(np.full(len(d.electrodes), d.vs))
+    return float(fb * d.duty + sense * duty(d.t, d.t.sense_on, d.t.sense_off))
+
+
+def dc_acceleration(model, d, channel: str) -> float:
+    """The channel's DC input acceleration in the Design's bench: gravity on z (the -m g on f_z
+    of loop.mechanical_inputs), the sense phase's mean force at the centre, and on z the
+    feedback's asymmetry (F_up + F_down) / 2 x the feedback duty (F_up, F_down: the mean z force
+    of the patterns with the z bit +1 / -1, d.table; unequal by 0.2 % on the disk, 4e-4 g) — the
+    rest, (F_up - F_down) / 2, is Mechanics.force x v."""
+    from .loop import duty
+
+    index = [c.name for c in model.coordinates].index(channel)
+    mass = model.coordinates[index].mass
+    sense = d.sense_force[index] * duty(d.t, d.t.sense_on, d.t.sense_off) / mass
+    if channel != "z":
+        return sense
+    up = np.mean([r["fz"] for r in d.table if r["pattern"][0] > 0]) * 1e-6
+    down = np.mean([r["fz"] for r in d.table if r["pattern"][0] < 0]) * 1e-6
+    return float(-d.g + sense + 0.5 * (up + down) * d.duty / mass)

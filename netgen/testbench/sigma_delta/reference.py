@@ -65,3 +65,30 @@ def simulate(mech: Mechanics, f: Filter, cycles: int, inp: Input | None = None, 
 def stable(run: dict[str, np.ndarray], q_limit: float) -> bool:
     """Did the loop hold: every position sample within q_limit (SI) and every state finite."""
     return bool(np.all(np.isfinite(run["u"])) and np.max(np.abs(run["q"])) <= q_limit)
+
+
+def positions(mech: Mechanics, v: np.ndarray, inp: Input | None = None, phase: float = 0.72) -> np.ndarray:
+    """q at (n + phase) T_s for each period n of the mechanics driven open-loop by the feedback
+    v[n] x force (v: the bits +-1, or per period the pattern's force over `force`) from rest at
+    t = 0, through the exact state transition: the circuit's own bits, to compare with its
+    coordinates (netgen.testbench.sigma_delta.analysis.per_clock samples them mid-feedback)."""
+    a, b = augmented(mech, inp or Input())
+    edges = sorted({0.0, 1.0, phase, *(p for piece in mech.pulse for p in piece[:2])})
+    weight = lambda lo, hi: sum(w for p0, p1, w in mech.pulse if p0 <= lo and hi <= p1)   # noqa: E731
+    cache: dict[float, list[tuple[float, np.ndarray]]] = {}
+
+    def steps(level: float) -> list[tuple[float, np.ndarray]]:
+        if level not in cache:
+            cache[level] = []
+            for lo, hi in zip(edges[:-1], edges[1:]):
+                m = np.zeros((6, 6))
+                m[:5, :5], m[:5, 5] = a, b * weight(lo, hi) * level
+                cache[level].append((hi, linalg.expm(m * (hi - lo) * mech.ts)))
+        return cache[level]
+    s, out = np.array([0.0, 0.0, 1.0, 0.0, 1.0, 1.0]), np.empty(len(v))
+    for n, level in enumerate(np.asarray(v, dtype=float)):
+        for hi, step in steps(float(level)):
+            s = step @ s
+            if hi == phase:
+                out[n] = s[0]
+    return out
