@@ -333,3 +333,26 @@ def dc_acceleration(model, d, channel: str) -> float:
     up = np.mean([r["fz"] for r in d.table if r["pattern"][0] > 0]) * 1e-6
     down = np.mean([r["fz"] for r in d.table if r["pattern"][0] < 0]) * 1e-6
     return float(-d.g + sense + 0.5 * (up + down) * d.duty / mass)
+
+
+def statefilter_params(channels: list[dict], d) -> dict[str, str]:
+    """Per channel with a designed filter, the instance parameters of blocks.va's sd_statefilter
+    (VACASK and OSDI loops): A, bx, bv, c, d of up to 3 states, its clock (master window 0.02 T_s
+    after the latch window, slave window at 0.60 T_s) and the sampler switches' C_s and g."""
+    out = {}
+    for ch, f in zip(channels, channel_filters(channels)):
+        if f is None:
+            continue
+        if f.states > 3:
+            raise ValueError(f"channel {ch['name']}: blocks.va's sd_statefilter holds 3 states, the filter has {f.states}")
+        k, p = f.states, {}
+        for i in range(3):
+            for j in range(3):
+                p[f"a{i + 1}{j + 1}"] = f.a[i, j] if i < k and j < k else 0.0
+            for name, vec in (("bx", f.bx), ("bv", f.bv), ("c", f.c)):
+                p[f"{name}{i + 1}"] = vec[i] if i < k else 0.0
+        t = d.t
+        p.update({"d": f.d, "ts": d.ts, "w": t.edge / 8, "on1": t.clk + t.sample + 0.02, "on2": 0.60,
+                  "width": t.sample, "cs": d.cs, "g": d.g_switch})
+        out[ch["name"]] = " ".join(f"{key}={float(val)!r}" for key, val in p.items())
+    return out
