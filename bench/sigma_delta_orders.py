@@ -155,7 +155,8 @@ def report(results: dict, args) -> None:
         if dr:
             print(f"order {o} reference dynamic range: max stable tone {dr['max_stable_amplitude']} FS, peak SQNR "
                   f"{dr['peak_sqnr_db']:.1f} dB, DR {dr['dynamic_range_db']:.1f} dB; "
-                  + ", ".join(f"{r['amplitude']:g}:{r['sqnr_db']:.0f}{'' if r['held'] else '(lost)'}" for r in dr["rows"]))
+                  + ", ".join(f"{r['amplitude']:g}:{r['sqnr_db']:.0f}" if r["held"] else f"{r['amplitude']:g}:lost"
+                           for r in dr["rows"]))
 
 
 if __name__ == "__main__":
