@@ -35,18 +35,17 @@ def run(tmp_path_factory) -> dict:
             "ref": reference.simulate(mech, f, CYCLES, reference.Input(dc)), "dc": dc}
 
 
-def test_circuit_bits_are_the_reference_bits_until_the_first_close_decision(run):
-    """Both start from rest under gravity: the bitstreams agree bit for bit up to the first
-    decision where the reference's quantizer input is within 2 % of its typical size (the
-    circuit's readout and electrostatic forces differ from the linear reference by about that
-    much), and at least over the first 25 periods."""
+def test_circuit_bits_are_the_reference_bits_over_the_first_periods(run):
+    """Both start from rest under gravity: the bitstreams agree bit for bit over at least the first
+    25 periods (measured: 34). After that the two loops, a chaotic map each, part at the first
+    decision that their 1e-4 difference in force (the model's exact electrostatics against the
+    linear reference) flips; the filter itself is bit-exact on the circuit's own samples
+    (test_sd_orders_sdloop.py). The filter states cross the segment restart."""
     got, ref = run["clock"]["bits_z"], run["ref"]["v"]
-    y = run["ref"]["y"]
-    close = np.nonzero(np.abs(y) < 0.02 * np.median(np.abs(y)))[0]
     first_diff = int(np.argmax(got != ref)) if np.any(got != ref) else len(got)
     assert first_diff >= 25
-    assert first_diff >= (close[0] if len(close) else len(got)) or first_diff >= 25
     assert run["segments"]["ngspice_runs"] == 2 and "u0_z" in run["segments"]["state_nodes"]
+    assert abs(got.mean() - ref.mean()) < 0.05
 
 
 def test_circuit_mechanics_follow_its_own_bits(run):
