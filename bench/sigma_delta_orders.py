@@ -103,7 +103,8 @@ def run_circuit(args, order: int) -> dict:
     zmax = float(np.max(np.abs(clock["x_z"])) * 1e-6)            # x_z port: 1 V = 1 um
     res = {"wall_s": wall, "periods": int(len(v)), "max_z_over_gap": zmax / gap, "bit_mean": float(v.mean()),
            "held": bool(len(v) == args.cycles and zmax <= args.hold * gap), "segments": segments["ngspice_runs"],
-           "missed_corner_cuts": len(breakpoints.get("segments_cut", []) or [])}
+           "missed_corner_cuts": len(breakpoints["segments_cut_at_a_missed_corner"]),
+           "missed_corners_kept": breakpoints["periods_with_a_missed_corner"]}
     if len(v) >= 4 * NPERSEG:
         res.update(figures(v, args.ts, args.osr, tone_hz))
     return res
