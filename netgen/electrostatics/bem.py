@@ -34,9 +34,11 @@ from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 from .base import ProbePoints
 
 BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
-# largest element facing a gap, in gaps -> bempp's regular quadrature order (design.md)
+# largest element facing a gap, in gaps -> bempp's regular quadrature order (design.md); a rule
+# holds up to SLACK times its limit (a sample point closing a gap by a few % keeps its order)
 QUADRATURE: tuple[tuple[float, int], ...] = ((2.0, 4), (4.0, 8), (8.0, 12))
-BYTES_PER_ENTRY = 8 * 2.5       # the dense matrix, its LU copy and bempp's assembly buffers
+SLACK = 1.1
+BYTES_PER_ENTRY = 10.0          # the dense matrix (factorised in place) and bempp's assembly buffers
 
 
 class BemBudgetError(SimulationError):
@@ -46,10 +48,10 @@ class BemBudgetError(SimulationError):
 def quadrature_order(ratio: float) -> int:
     """bempp's regular quadrature order for elements `ratio` times the gap they face."""
     for limit, order in QUADRATURE:
-        if ratio <= limit * (1.0 + 1e-9):
+        if ratio <= limit * SLACK:
             return order
     raise BemBudgetError(f"BEM: elements {ratio:.2f} times the gap they face exceed the largest quadrature "
-                         f"rule ({QUADRATURE[-1][0]:g} gaps, order {QUADRATURE[-1][1]}); lower "
+                         f"rule ({QUADRATURE[-1][0] * SLACK:g} gaps, order {QUADRATURE[-1][1]}); lower "
                          "BemSettings.element_to_gap")
 
 
@@ -147,13 +149,14 @@ def solve_surfaces(surfaces: Sequence[Surface], eps: float, order: int, singular
     params.quadrature.regular, params.quadrature.singular = order, singular_order
     op = bempp.operators.boundary.laplace.single_layer(space, space, space, parameters=params, assembler="dense",
                                                        device_interface="numba", precision="double")
-    A = np.asarray(op.weak_form().A)
+    A = np.asarray(op.weak_form().to_dense())
     t1 = time.perf_counter()
     # element i of the grid is element i of the concatenation (bempp keeps the given order)
     areas, owner = np.asarray(grid.volumes), np.asarray(grid.domain_indices)
     B = np.zeros((n_el, len(surfaces)))
     B[np.arange(n_el), owner] = areas
-    X = lu_solve(lu_factor(A, overwrite_a=True, check_finite=False), B, check_finite=False)
+    # A.T is Fortran-ordered: getrf factorises it in place (no copy); trans=1 then solves A X = B
+    X = lu_solve(lu_factor(A.T, overwrite_a=True, check_finite=False), B, trans=1, check_finite=False)
     C = eps * (B.T @ X)
     t2 = time.perf_counter()
     return C, {"elements": int(n_el), "order": int(order), "assembly_s": t1 - t0, "solve_s": t2 - t1}
@@ -185,14 +188,15 @@ def relative_change(a: Array, b: Array) -> float:
 
 
 def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], eps: float, gap: float,
-              settings: BemSettings, h_max: float | None = None) -> MaxwellMatrix:
+              settings: BemSettings, h_max: float | None = None, order: int | None = None) -> MaxwellMatrix:
     """The Maxwell matrix on `settings.levels` or more mesh levels (meshes(level): the surfaces,
     level 0 coarsest, its largest element h_max (default element_to_gap * gap); `gap`: the
     smallest gap they face), extrapolated; BemBudgetError if the tolerance needs more than the
-    memory budget or max_levels."""
+    memory budget or max_levels. `order` overrides the quadrature rule (differences of solves
+    on the same meshes need the same rule)."""
     sols: list[Array] = []
     info: list[dict] = []
-    order = quadrature_order((h_max or settings.element_to_gap * gap) / gap)
+    order = order or quadrature_order((h_max or settings.element_to_gap * gap) / gap)
     err, best, p = math.inf, None, settings.richardson_order
     for level in range(settings.max_levels):
         try:
@@ -261,15 +265,16 @@ class PreparedBem:
         g = self.geometry.min_gap(np.asarray(q, dtype=float))
         return float(np.min(g[np.isfinite(g)])) if np.isfinite(g).any() else self.gap
 
-    def maxwell(self, q: ArrayLike) -> MaxwellMatrix:
-        """The converged Maxwell matrix at generalized coordinates q (ncoords,)."""
+    def maxwell(self, q: ArrayLike, order: int | None = None) -> MaxwellMatrix:
+        """The converged Maxwell matrix at generalized coordinates q (ncoords,); `order`: the
+        quadrature order (default: from the element-to-gap rule at q's smallest local gap)."""
         q = np.asarray(q, dtype=float).reshape(self.ncoords)
         gap = self.local_gap(q)
         if gap <= 0.0:
             raise ValueError("the plate touches an electrode at this q")
         t0 = time.perf_counter()
         m = converged(lambda k: self.surfaces(q, k), self.names, self.eps, min(gap, self.gap), self.settings,
-                      h_max=self.settings.element_to_gap * self.gap)
+                      h_max=self.settings.element_to_gap * self.gap, order=order)
         m.settings["seconds"] = time.perf_counter() - t0
         return m
 
@@ -290,10 +295,12 @@ class PreparedBem:
         step = 0.01 * self.gap / np.where(amp > 0, amp, 1.0)
         out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
         for i, row in enumerate(q):
+            order = quadrature_order(self.settings.element_to_gap * self.gap / min(self.local_gap(row), self.gap))
             for v in range(self.ncoords):
                 dq = np.zeros(self.ncoords)
                 dq[v] = step[v]
-                out[i, :, v] = (self.capacitance(row + dq) - self.capacitance(row - dq)) / (2 * step[v])
+                plus, minus = self.maxwell(row + dq, order), self.maxwell(row - dq, order)
+                out[i, :, v] = (plus.plate_electrode - minus.plate_electrode) / (2 * step[v])
         return out[0] if np.ndim(Q) == 1 else out
 
     def min_gap(self, Q: ArrayLike) -> Array:

@@ -80,7 +80,8 @@ def _delaunay(points: Array) -> np.ndarray:
     """Triangles of a point set of a convex region, zero-area slivers on the hull removed."""
     tri = Delaunay(points).simplices
     p = points[tri]
-    area = 0.5 * np.abs(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
     return tri[area > 1e-12 * area.max()]
 
 
@@ -114,24 +115,24 @@ def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float) -> Surface:
     return Surface(v, tri)
 
 
-def _ring_sheet(radii: Array, sizes: Sizes, z: float) -> Surface:
-    """A full ring or disk (no slots) as rings of points, triangulated in the plane."""
+def _ring_sheet(radii: Array, sizes: Sizes, z: float, aspect: float = 10.0) -> Surface:
+    """A full ring or disk (no slots) as rings of points, triangulated in the plane. Along a
+    ring the spacing is h_max, or `aspect` times the local ring spacing where that is finer:
+    near the rim the elements are long and thin, resolving the radial edge singularity."""
     pts, dr = [], np.diff(radii)
     for k, r in enumerate(radii):
         if r == 0.0:
             pts.append((0.0, 0.0))
             continue
         local = dr[min(k, len(dr) - 1)] if k == 0 else min(dr[k - 1], dr[min(k, len(dr) - 1)])
-        n = max(8, math.ceil(2.0 * math.pi * r / min(sizes.h_max, 1.5 * local)))
+        n = max(8, math.ceil(2.0 * math.pi * r / min(sizes.h_max, aspect * local)))
         t = (np.arange(n) + 0.5 * (k % 2)) * (2.0 * math.pi / n)
         pts.extend(zip(r * np.cos(t), r * np.sin(t)))
     xy = np.array(pts)
-    if radii[0] > 0.0:                     # an annulus: triangulate, then drop triangles over the hole
-        tri = _delaunay(xy)
+    tri = _delaunay(xy)
+    if radii[0] > 0.0:                     # an annulus: drop the triangles over the hole
         c = xy[tri].mean(axis=1)
         tri = tri[np.hypot(c[:, 0], c[:, 1]) > radii[0]]
-    else:
-        tri = _delaunay(xy)
     return Surface(np.column_stack([xy, np.full(len(xy), z)]), tri)
 
 
