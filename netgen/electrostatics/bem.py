@@ -64,7 +64,8 @@ class BemSettings:
     ratio between mesh levels; levels / max_levels: levels always solved / at most; tolerance:
     relative error estimate to reach; richardson_order: convergence order assumed for the
     extrapolation (None: report the finest level, error = last change); memory_budget: bytes
-    for the dense matrix of the finest level; singular_order: quadrature of touching pairs.
+    for the dense matrix of the finest level; singular_order: quadrature of touching pairs;
+    element_to_size: largest element in units of the plate's size (radius, shorter side).
     """
     element_to_gap: float = 4.0
     edge_to_gap: float = 0.5
@@ -76,11 +77,15 @@ class BemSettings:
     richardson_order: float | None = 2.0
     memory_budget: float = 4e9
     singular_order: int = 4
+    element_to_size: float = 0.2
 
-    def sizes(self, gap: float, level: int) -> Sizes:
-        """Element sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap `gap`."""
-        f = gap / self.refinement ** level
-        return Sizes(self.edge_to_gap * f, self.element_to_gap * f, self.growth)
+    def sizes(self, gap: float, level: int, size: float = math.inf) -> Sizes:
+        """Element sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap `gap` and
+        a plate of `size` (radius or shorter side): elements are also at most element_to_size
+        times the plate, so that a wide gap does not leave its outline unresolved."""
+        f = 1.0 / self.refinement ** level
+        h_max = min(self.element_to_gap * gap, self.element_to_size * size)
+        return Sizes(min(self.edge_to_gap * gap, h_max / 2.0) * f, h_max * f, self.growth)
 
 
 @dataclass(frozen=True)
@@ -243,12 +248,13 @@ class PreparedBem:
             electrodes, plate, basis)
         self.ncoords = self.geometry.ncoords
         self.gap = min(e.gap for e in electrodes)
+        self.plate_size = plate.size
         self.names = ("plate",) + tuple(e.name for e in electrodes)
         self.levels = [self._level(plate, basis, k) for k in range(settings.max_levels)]
 
     def _level(self, plate: Plate, basis: Basis, k: int) -> _Level:
         """Meshes of level k: the plate (closed if thick) and each electrode at its height."""
-        sizes = self.settings.sizes(self.gap, k)
+        sizes = self.settings.sizes(self.gap, k, plate.size)
         p = thick_plate(plate, self.thickness, sizes)
         phi = np.asarray(basis(p.vertices[:, 0], p.vertices[:, 1]), dtype=float).reshape(len(p.vertices), -1)
         half = self.thickness / 2.0
@@ -274,7 +280,7 @@ class PreparedBem:
             raise ValueError("the plate touches an electrode at this q")
         t0 = time.perf_counter()
         m = converged(lambda k: self.surfaces(q, k), self.names, self.eps, min(gap, self.gap), self.settings,
-                      h_max=self.settings.element_to_gap * self.gap, order=order)
+                      h_max=self.settings.sizes(self.gap, 0, self.plate_size).h_max, order=order)
         m.settings["seconds"] = time.perf_counter() - t0
         return m
 
@@ -295,7 +301,8 @@ class PreparedBem:
         step = 0.01 * self.gap / np.where(amp > 0, amp, 1.0)
         out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
         for i, row in enumerate(q):
-            order = quadrature_order(self.settings.element_to_gap * self.gap / min(self.local_gap(row), self.gap))
+            h_max = self.settings.sizes(self.gap, 0, self.plate_size).h_max
+            order = quadrature_order(h_max / min(self.local_gap(row), self.gap))
             for v in range(self.ncoords):
                 dq = np.zeros(self.ncoords)
                 dq[v] = step[v]

@@ -21,21 +21,24 @@ from netgen.electrostatics.bem_mesh import Surface, disk_sheet, icosphere, recta
 from netgen.electrostatics.closed_forms import love_disks, palmer_rectangle  # noqa: E402
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
 
-COARSE = bem.BemSettings(element_to_gap=4.0, edge_to_gap=0.5, levels=2, max_levels=2, tolerance=1.0)
+COARSE = bem.BemSettings(element_to_gap=4.0, edge_to_gap=0.25, element_to_size=0.125, levels=2, max_levels=2,
+                         tolerance=1.0)
 MM, UM = 1e-3, 1e-6
 
 
 def two_disks(kappa: float) -> bem.MaxwellMatrix:
     """Two coaxial unit disks at distance kappa (eps = 1)."""
-    return bem.converged(lambda k: [disk_sheet(1.0, COARSE.sizes(kappa, k)),
-                                    disk_sheet(1.0, COARSE.sizes(kappa, k), kappa)], ["a", "b"], 1.0, kappa, COARSE)
+    def meshes(k):
+        s = COARSE.sizes(kappa, k, 1.0)
+        return [disk_sheet(1.0, s), disk_sheet(1.0, s, kappa)]
+    return bem.converged(meshes, ["a", "b"], 1.0, kappa, COARSE, h_max=COARSE.sizes(kappa, 0, 1.0).h_max)
 
 
-@pytest.mark.parametrize("kappa", [0.1, 0.2])
+@pytest.mark.parametrize("kappa", [0.05, 0.1, 0.2])
 def test_two_disks_against_love(kappa):
     """C11 - C12 (disks at +1/-1) and C11 + C12 (both at +1) within 0.5 % of Love's equation."""
     m = two_disks(kappa)
-    assert m.settings["solves"][0]["order"] == 8          # elements up to 4 gaps
+    assert m.settings["solves"][0]["order"] <= 8          # elements up to 4 gaps
     c = m.matrix
     assert (c[0, 0] - c[0, 1]) == pytest.approx(love_disks(kappa), rel=5e-3)
     assert (c[0, 0] + c[0, 1]) == pytest.approx(love_disks(kappa, same_potential=True), rel=5e-3)
@@ -57,9 +60,9 @@ def test_two_squares_against_palmer(g, best, palmer_tol):
     of design.md at g = 50 / 20 um (its neglected corner terms); the coarse BEM is within that of
     Palmer, below it, and within 0.5 % of design.md's converged value (eps0*mm)."""
     def meshes(k):
-        s = COARSE.sizes(g, k)
+        s = COARSE.sizes(g, k, MM)
         return [rectangle_sheet(0, MM, 0, MM, s), rectangle_sheet(0, MM, 0, MM, s, g)]
-    c = bem.converged(meshes, ["a", "b"], EPS0, g, COARSE).matrix
+    c = bem.converged(meshes, ["a", "b"], EPS0, g, COARSE, h_max=COARSE.sizes(g, 0, MM).h_max).matrix
     two_terminal = (c[0, 0] - c[0, 1]) / 2.0    # Q at +-1/2 V
     palmer = palmer_rectangle(EPS0, MM, MM, g)
     assert 0.0 < 1.0 - two_terminal / palmer < palmer_tol
