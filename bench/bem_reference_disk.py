@@ -129,7 +129,7 @@ def table(r: dict) -> str:
         row = f"{name:10s} {r['C_bem'][i] * 1e15:9.3f} {pct(r['C_pp'][i], r['C_bem'][i]):>8s}"
         for k in r["dC_bem"]:
             b, a = r["dC_bem"][k][i], r["dC_pp"][k][i]
-            row += f" {b:12.4e} {pct(a, b) if abs(b) > 1e-6 * max(map(abs, r['dC_bem'][k])) else '     n/a':>8s}"
+            row += f" {b:12.4e} {pct(a, b) if abs(b) > 1e-3 * max(map(abs, r['dC_bem'][k])) else '     n/a':>8s}"
         lines.append(row)
     c = np.array(r["adjacent_coupling_ratio"])
     lines.append(f"adjacent-sector coupling / plate-sector C: {100 * c.min():.1f} .. {100 * c.max():.1f} % "
