@@ -284,7 +284,7 @@ def test_lost_shared_input_is_scattered_again(cluster):
     for i, outcome in ex.imap_unordered(_scaled_sum, items, shared=shared):
         out[i] = outcome
         if len(out) == 1:
-            client.restart()                       # every copy of the shared input is gone
+            client.restart(timeout=600)             # every copy of the shared input is gone
     assert sorted(out) == list(range(len(items)))
     assert all(o.ok for o in out.values()), [o.error for o in out.values()]
     assert [out[i].value for i in range(len(items))] == [_scaled_sum(shared, x) for x in items]
