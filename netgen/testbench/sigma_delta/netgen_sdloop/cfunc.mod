@@ -5,6 +5,7 @@
                    linearly between the accepted time points around the instant: exact timing
                    without a breakpoint)
      at t_latch:   b[c] = 1 if lead prev[c] - cur[c] + dither_amp[c] sin(dither_step[c] n) > 0 else 0
+                   (lead: leads[c] when the vector leads is given, else the scalar lead)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
      s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
@@ -48,6 +49,8 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
     else if (PARAM_SIZE(dither_amp) != C || PARAM_SIZE(dither_step) != C || PARAM_SIZE(cur0) != C
              || PARAM_SIZE(prev0) != C || PARAM_SIZE(b0) != C)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
+    else if (!PARAM_NULL(leads) && PARAM_SIZE(leads) != C)
+        bad = "leads needs one entry per ca input";
     else if ((!PORT_NULL(b) && PORT_SIZE(b) != C) || (!PORT_NULL(cur) && PORT_SIZE(cur) != C)
              || (!PORT_NULL(prev) && PORT_SIZE(prev) != C))
         bad = "b, cur and prev need one node per ca input";
@@ -96,7 +99,8 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
             }
             if (ph == pl) {
                 for (c = 0; c < C; c++) {
-                    double y = lead * s[ST_HEAD + 2 * C + c] - s[ST_HEAD + C + c]
+                    double lc = PARAM_NULL(leads) ? lead : PARAM(leads[c]);
+                    double y = lc * s[ST_HEAD + 2 * C + c] - s[ST_HEAD + C + c]
                                + PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
                     s[ST_HEAD + 3 * C + c] = y > 0.0 ? 1.0 : 0.0;
                     if (ph == ps) dcur[c] = 0.0;      /* a hard decision: no partial */
