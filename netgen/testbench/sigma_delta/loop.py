@@ -398,6 +398,14 @@ def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
 
 
 MAX_BIT_MEAN = 0.95     # |mean bit| an input may need (DC + tone peak): beyond it the loop overloads
+ONE_SIDED_FIX = ("add an electrode on the other side (force feedback pulls both ways: "
+                 "examples/accelerometer_z.toml), or give an input the feedback can balance")
+
+
+def one_sided(fp: float, fm: float) -> str:
+    """Why a channel's feedback is one-sided, in words."""
+    return (f"its feedback is one-sided (the electrodes only push towards {'-' if fp <= 0 else '+'}q: "
+            f"{fp:.3g} N with the bit 1, {fm:.3g} N with 0)")
 
 
 def drive_forces(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str]) -> list[tuple[float, float]]:
@@ -474,6 +482,11 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     per_v2 = [float(np.mean([abs(r["f"][n]) for r in unit])) * si_factor(model, i)[0] for n, i in zip(names, idx)]
     load = [abs(dc_si[i]) / p for i, p in zip(idx, per_v2)]
     jb = int(np.argmax(load))
+    if not spec.feedback_voltage and not (abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
+        for n, (fp, fm) in zip(names, drive):        # no input: a one-sided loop has nothing to balance against
+            if fp <= 0 or fm >= 0:
+                raise spec.fail("loop.channels", f"channel {n}: {one_sided(fp, fm)} and the loop has no input to "
+                                "balance it against", ONE_SIDED_FIX)
     vfb = spec.feedback_voltage or feedback_voltage(spec, abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]],
                                                     density * duty(t) * per_v2[jb])
     vs = volts(sense_ratio * vfb)
@@ -526,6 +539,10 @@ def check_balance(model: MacroModel, spec: LoopSpec, names: list[str], drive: li
         if refuse and abs(bit) + swing > MAX_BIT_MEAN:
             v = vfb * np.sqrt((abs(bit) + swing + 1) / (1 + MAX_BIT_MEAN * 0.9))
             where = "loop.feedback_voltage" if spec.feedback_voltage else "loop.input"
+            if (fp <= 0 and need > 0) or (fm >= 0 and need < 0):
+                raise spec.fail(where, f"channel {n}: the feedback cannot balance the input at any voltage: "
+                                f"{one_sided(fp, fm)}, and the input needs a force towards "
+                                f"{'+' if need > 0 else '-'}q ({need * fduty:.4g} N)", ONE_SIDED_FIX)
             raise spec.fail(where, f"channel {n}: the feedback cannot balance the input: it needs a mean bit of "
                             f"{bit:+.3f}" + (f" +- {swing:.3f} (tone)" if swing else "") + f" at V_fb = {vfb:g} V "
                             f"(at most +-{MAX_BIT_MEAN}; full-scale force {0.5 * (fp - fm) * fduty:.4g} N, DC input "
