@@ -397,6 +397,7 @@ def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
     return f
 
 
+MAX_VFB = 1e4          # V: the derived feedback voltage's limit (a [loop] feedback_voltage's range)
 MAX_BIT_MEAN = 0.95     # |mean bit| an input may need (DC + tone peak): beyond it the loop overloads
 ONE_SIDED_FIX = ("add an electrode on the other side (force feedback pulls both ways: "
                  "examples/accelerometer_z.toml), or give an input the feedback can balance")
@@ -493,6 +494,7 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
     needed = check_balance(model, spec, names, drive, dc_si, sense, tone, vfb, t, balance_check)
     table = force_table(model, electrodes, vfb, names)
+    check_step(model, spec, table, names, ts)
     channels = []
     for k, (name, i) in enumerate(zip(names, idx)):
         sens = vs * float(sum(e["w"][k] * grad[j, i] for j, e in enumerate(electrodes)))
@@ -510,6 +512,21 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
                   duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
 
 
+MAX_STEP = 0.01         # one period's feedback displacement a_fb T_s^2 / touch amplitude (the disk: 1.5e-5)
+
+
+def check_step(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str], ts: float) -> None:
+    """One period of feedback must move each channel's coordinate by less than MAX_STEP of its
+    touching amplitude (the loop holds it within 2 %: analysis.levitation); else a LoopError."""
+    for n in names:
+        step = step_volts(model, table, n, ts, 1.0)
+        if step > MAX_STEP:
+            raise spec.fail("loop.feedback_voltage" if spec.feedback_voltage else "loop.input",
+                            f"channel {n}: one period of feedback moves it {step:.3g} of its touching amplitude "
+                            f"(at most {MAX_STEP}: the loop could not hold it near rest)",
+                            "lower the input or the feedback voltage, or shorten --ts")
+
+
 def volts(v: float) -> float:
     """A voltage rounded for the netlist: to 1 mV (the disk's 2.12 V), 4 digits below 1 V."""
     return round(v, 3) if v >= 1.0 else float(f"{v:.4g}")
@@ -520,7 +537,11 @@ def feedback_voltage(spec: LoopSpec, force: float, per_v2: float) -> float:
     if not force > 0:
         raise spec.fail("loop.feedback_voltage", "the loop has no input to size the feedback from (no DC "
                         "input or tone on its channels)", 'give feedback_voltage = "5 V" in [loop], or an input')
-    return volts(float(np.sqrt(force / per_v2)))
+    v = volts(float(np.sqrt(force / per_v2)))
+    if v > MAX_VFB:
+        raise spec.fail("loop.input", f"the input needs a feedback voltage of {v:.4g} V (more than {MAX_VFB:g} V)",
+                        "lower the input, or give a device with more electrode area or smaller gaps")
+    return v
 
 
 def check_balance(model: MacroModel, spec: LoopSpec, names: list[str], drive: list[tuple[float, float]],
@@ -537,7 +558,7 @@ def check_balance(model: MacroModel, spec: LoopSpec, names: list[str], drive: li
         bit = 2 * (need - fm) / (fp - fm) - 1
         swing = 2 * amp[i] / fduty / (fp - fm)
         if refuse and abs(bit) + swing > MAX_BIT_MEAN:
-            v = vfb * np.sqrt((abs(bit) + swing + 1) / (1 + MAX_BIT_MEAN * 0.9))
+            v = vfb * np.sqrt((abs(bit) + swing) / (0.9 * MAX_BIT_MEAN))     # the forces go as V^2
             where = "loop.feedback_voltage" if spec.feedback_voltage else "loop.input"
             if (fp <= 0 and need > 0) or (fm >= 0 and need < 0):
                 raise spec.fail(where, f"channel {n}: the feedback cannot balance the input at any voltage: "
