@@ -76,8 +76,9 @@ def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
     text = sdv.testbench(model, d, tmp_path / "m.osdi", tmp_path / "b.osdi", 64)
     for e in d.electrodes:
         line = next(ln for ln in text.splitlines() if ln.startswith(f"xd_{e['name']} "))
-        assert f"b_{e['axis']} ca_z ca_{e['axis']})" in line
-        assert f"vs={d.vs} vfb={d.vfb} side={e['side']} sign={e['sign']}" in line
+        axis = "tilt_x" if e["w"][1] else "tilt_y"           # the tilt this electrode senses (loop.groups)
+        assert f"b_{axis} ca_z ca_{axis})" in line
+        assert f"vs={d.vs} vfb={d.vfb} side={e['w'][0]} sign={e['w'][1] or e['w'][2]}" in line
     for ch in d.channels:
         assert f"cf={ch['cf']} grst={d.g_reset(ch['cf'])}" in text
         assert f"lead={d.lead} vcmp={d.vcmp} cs={d.cs} g={d.g_latch} dither={ch['dither_v']}" in text

@@ -86,6 +86,23 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone |
     return out
 
 
+def tone_fit(bits: np.ndarray, t: np.ndarray, freq: float, ts: float, osr: int) -> dict:
+    """The tone in a +-1 bitstream by a least-squares sine at its known frequency (exact where the
+    PSD's bins are wider than the tone's distance from DC, which short runs have): amplitude in
+    bits (1 = the full-scale force), its power B^2/2 in dB, and the SQNR: that power over the
+    in-band power of the bitstream with the fitted sine (and its mean) removed."""
+    a = np.column_stack([np.sin(2 * np.pi * freq * t), np.cos(2 * np.pi * freq * t), np.ones_like(t)])
+    c = np.linalg.lstsq(a, bits.astype(float), rcond=None)[0]
+    amp = float(np.hypot(c[0], c[1]))
+    f, p = psd(bits - a @ c, ts)
+    band = (f > 0) & (f <= 0.5 / ts / osr)
+    noise = float(np.sum(p[band]) * (f[1] - f[0]))
+    out = {"tone_amplitude_bits": amp, "tone_fit_db": float(10 * np.log10(amp * amp / 2 + 1e-300)),
+           "residual_inband_noise_db": float(10 * np.log10(noise + 1e-300))}
+    out["sqnr_db"] = out["tone_fit_db"] - out["residual_inband_noise_db"]
+    return out
+
+
 def scale_factor(inputs: np.ndarray, bit_means: np.ndarray, full_scale: float | None = None) -> dict:
     """Bitstream mean against the applied input (a DC sweep): the least-squares line's slope (the
     scale factor, bit mean per input unit) and offset, and the linearity: the largest residual
@@ -111,6 +128,8 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
         f, p = psd(bits, d.ts)
         notches, peaks = features(f, p)
         m = band_metrics(f, p, d.ts, osr, tone)
+        if tone:
+            m |= tone_fit(bits, clock["time"][skip:], tone.freq, d.ts, osr)
         summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
                                   "bit_mean_needed": d.channel(c)["bit_mean_needed"], "filter": d.channel(c)["filter"],
                                   **m, "notches": notches, "peaks": peaks, **latch_quality(clock, c, skip)}
