@@ -109,6 +109,7 @@ def cli(args) -> int:
     if not args.quiet:
         for c, ch in s["channels"].items():
             snr = f", SNR {ch['snr_db']:.1f} dB" if "snr_db" in ch else ""
+            snr += f", SQNR {ch['sqnr_db']:.1f} dB (sine fit)" if "sqnr_db" in ch else ""
             floor = ch["noise_floor_db_per_hz"]
             floor = "n/a (run too short)" if floor is None else f"{floor:.1f} dB/Hz"
             print(f"{c}: bit mean {ch['bit_mean']:+.4f}, in-band floor {floor}"

@@ -8,7 +8,8 @@
                    (lead: leads[c] when the vector leads is given, else the scalar lead)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
-     s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
+     s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0), and 0 if every sel[e,c] = 0
+              (an electrode in no feedback pattern only senses).
    ph[j] are inputs (ph_pulse is then ignored: give [0]), or (ph NULL) the instance's own PULSE
    waveforms ph_pulse[7 j ..] of TIME,
    evaluated as ngspice's PULSE source evaluates them: the drives then have no inputs to stamp
@@ -132,11 +133,14 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
     }
     for (e = 0; e < E; e++) {
         double g = 1.0;
+        int fed = 0;
         for (c = 0; c < C; c++) {
             int need = PARAM(sel[e * C + c]);
             if (need > 0) g *= bit[c];
             else if (need < 0) g *= 1.0 - bit[c];
+            if (need) fed = 1;
         }
+        if (!fed) g = 0.0;
         OUTPUT(drv[e]) = sense + g * fb;
         for (j = 0; j < J && !own; j++) {
             double p = PARAM(ph_sense[j]) + g * PARAM(ph_fb[j]);
