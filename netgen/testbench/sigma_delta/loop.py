@@ -243,8 +243,10 @@ def si_factor(model: MacroModel, index: int) -> tuple[float, float]:
 
 
 def channel_names(model: MacroModel, spec: LoopSpec) -> list[str]:
-    """The loop's channels: as given, else the model's rigid-body coordinates that some electrode
-    senses (the disk: z, tilt_x, tilt_y; a piston: z), else its first coordinate (a beam's m1)."""
+    """The loop's channels: as given, else the model's rigid-body coordinates that the electrodes
+    can push both ways (dC_i/dq of both signs: the disk's z, tilt_x, tilt_y; the z accelerometer's
+    z; the xyz proof mass's x and y), else the rigid ones some electrode senses (design() then says
+    why their feedback is one-sided), else the first coordinate (a beam's m1)."""
     names = [c.name for c in model.coordinates]
     if spec.channels is not None:
         for k, ch in enumerate(spec.channels):
@@ -255,9 +257,10 @@ def channel_names(model: MacroModel, spec: LoopSpec) -> list[str]:
         return [ch.name for ch in spec.channels]
     grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
     peak = np.abs(grad).max(initial=0.0)
-    rigid = [c.name for k, c in enumerate(model.coordinates)
+    rigid = [k for k, c in enumerate(model.coordinates)
              if c.kind != "mode" and np.abs(grad[:, k]).max(initial=0.0) > 1e-9 * peak]
-    return rigid[:4] or names[:1]
+    both = [k for k in rigid if grad[:, k].max() > 1e-6 * np.abs(grad[:, k]).max() < -grad[:, k].min()]
+    return [names[k] for k in (both or rigid)][:4] or names[:1]
 
 
 def did_you_mean(value: str, choices: list[str]) -> str:
