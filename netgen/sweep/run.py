@@ -162,8 +162,8 @@ def _run(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool
         model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid,
                                   progress=progress)
         models[rigid] = (model, lib.read_text(encoding="utf-8"))
-    check_model_tones(sweep, todo, {rigid: [c.name for c in m.coordinates] for rigid, (m, _) in models.items()
-                                    if rigid != "loop"})
+    check_model_tones(sweep, todo, {rigid: [c.name for c in m[0].coordinates]
+                                    for rigid, m in models.items() if rigid != "loop"})
     if progress and todo:
         print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""),
               file=sys.stderr)

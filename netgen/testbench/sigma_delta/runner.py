@@ -170,8 +170,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
                     "design": {"channels": d.names, "electrodes": d.electrodes, "table": d.table,
                                "cf": {c["name"]: c["cf"] for c in d.channels},
                                "filters": {c["name"]: c["filter"] for c in d.channels}, "inputs": d.inputs,
-                               "balance": d.balance, "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol,
-                               "loop_source": loop.source}})
+                               "balance": d.balance, "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if plots:
         plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",
