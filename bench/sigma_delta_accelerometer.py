@@ -56,10 +56,11 @@ def one(args: tuple) -> dict:
     s = sd.run(model, Path(lib), Path(out), TS, cycles, tone, progress=False, plots=False, simulator=simulator,
                loop=loop, skip=cycles // 8, balance_check=check)
     gap = model.coordinates[0].scale
-    x = np.abs(s["clock"]["x_z"][cycles // 8:]) * 1e-6
+    done = len(s["clock"]["time"])                        # fewer than cycles if the mass was lost
+    x = np.abs(s["clock"]["x_z"][min(cycles // 8, done // 2):]) * 1e-6
     ch = s["channels"]["z"]
     return {"kind": kind, "input": a, "held": s["levitation"]["held"], "bit_mean": ch["bit_mean"],
-            "max_x_pct_gap": float(100 * x.max() / gap), "floor_db_per_hz": ch.get("noise_floor_db_per_hz"),
+            "max_x_pct_gap": float(100 * x.max(initial=0.0) / gap), "floor_db_per_hz": ch.get("noise_floor_db_per_hz"),
             "slope_db_per_decade": ch.get("slope_db_per_decade"), "sqnr_db": ch.get("sqnr_db"),
             "tone_amplitude_bits": ch.get("tone_amplitude_bits"), "wall_s": s["wall_s"], "cycles": s["cycles"]}
 
@@ -89,8 +90,11 @@ def main(argv: list[str] | None = None) -> int:
              for f in map(float, args.amplitudes.split(","))]
     if args.long:
         runs.append(("long", 9.81, js, lib, out / "long", args.long, args.simulator, d.vfb, freq))
+    res = []
     with ProcessPoolExecutor(args.jobs) as ex:
-        res = list(ex.map(one, runs))
+        for r in ex.map(one, runs):                         # each result kept as it comes
+            res.append(r)
+            (out / "runs.jsonl").open("a").write(json.dumps(r) + "\n")
     dc = [r for r in res if r["kind"] == "dc"]
     fit = analysis.scale_factor([r["input"] for r in dc], [r["bit_mean"] for r in dc], fs_acc)
     tones = [r for r in res if r["kind"] == "tone"]

@@ -12,14 +12,15 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field, fields
-from typing import Callable
 
 import numpy as np
 
 from ...constants import G
 from ...model import MacroModel
-from ...structure.reader import Reader, check_keys
+from . import kinds
 from .loopfile import LoopSpec
+
+FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind      # the loop-filter registry (kinds.py), by its old name
 
 
 @dataclass(frozen=True)
@@ -72,36 +73,6 @@ class Tone:
             return cls(parts[0], float(parts[1]), float(parts[2]))
         except ValueError:
             raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers") from None
-
-
-@dataclass(frozen=True)
-class FilterKind:
-    """A loop-filter kind: `read(rd, where, table)` validates its [loop.filter] table into the
-    channel's `filter` dict (with "kind"); `order` of the whole loop (the mechanics' two
-    integrations included); `backends`: the --simulator names that render it."""
-    read: Callable[[Reader, str, dict], dict]
-    order: int
-    backends: tuple[str, ...]
-    help: str
-
-
-def read_lead2(rd: Reader, where: str, t: dict) -> dict:
-    """lead2: y[n] = lead prev[n] - cur[n] (lead None: the design's `lead`, --lead, default 0.8)."""
-    check_keys(rd, where, t, ["kind", "lead"])
-    lead = t.get("lead")
-    if lead is not None and (isinstance(lead, bool) or not isinstance(lead, (int, float))
-                             or not np.isfinite(lead) or abs(lead) > 10):
-        raise rd.fail(f"{where}.lead", f"lead = {lead!r} must be a number in [-10, 10]",
-                      "write lead = 0.8 (the zero of the lead compensator, y = lead*prev - cur)")
-    return {"kind": "lead2", "lead": None if lead is None else float(lead)}
-
-
-ALL_BACKENDS = ("ngspice", "ngspice-xspice", "vacask", "ngspice-osdi")
-# loop-filter kinds by name (a channel's Design entry `filter`): a new kind is its module and one line here
-FILTERS: dict[str, FilterKind] = {
-    "lead2": FilterKind(read_lead2, 2, ALL_BACKENDS, "second-order electromechanical loop, lead compensator "
-                        "y = lead*prev - cur (zero at z = lead)"),
-}
 
 
 @dataclass

@@ -38,6 +38,7 @@ from ...files import did_you_mean, read_text, toml_document
 from ...structure.reader import Reader, check_keys, choice
 from ...text import escape, is_identifier, text_problem
 from ...units import UnitError, parse_quantity
+from .kinds import FILTERS
 
 LOOP_KEYS = ["channels", "feedback_voltage", "sense_ratio", "full_scale", "density", "dither", "readout",
              "filter", "timing", "input", "reltol"]
@@ -241,7 +242,6 @@ def weights(rd: Reader, t: dict, where: str, key: str, pattern: bool) -> dict:
 
 def read_filter(rd: Reader, t: dict, where: str) -> dict:
     """A loop filter table: kind (a loop.FILTERS name) and that kind's coefficients."""
-    from .loop import FILTERS                 # the registry lives with the design
     where_parent, key = where.rsplit(".", 1)
     table = subtable(rd, t, where_parent, key)
     kind = choice(rd, table, where, "kind", list(FILTERS), "lead2")
