@@ -117,3 +117,19 @@ def test_scale_factor_fit():
     assert fit["scale_factor"] == pytest.approx(0.1, rel=1e-3) and fit["offset"] == pytest.approx(0.02 + 0.003 / 9, rel=1e-6)
     resid = 0.003 - 0.003 / 9
     assert fit["max_nonlinearity_pct_fs"] == pytest.approx(resid / 0.1 / 10 * 100, rel=1e-6)
+
+
+def test_a_tone_above_the_band_has_no_snr():
+    """A flat PSD of 1e-8 /Hz: a tone at 20 kHz (above f_s / 2 / 64 = 7.8 kHz) gets a note and no
+    tone level or SNR; a line of 1e-4 /Hz in one bin at 3.9 kHz gives its power over the flat
+    in-band noise: the 7 bins within 3 of the tone are its power (the line and 6 flat bins), the
+    rest of the band the noise."""
+    f = np.linspace(0, 5e5, 1025)
+    p = np.full_like(f, 1e-8)
+    far = analysis.band_metrics(f, p, TS, 64, sd.Tone("z", 1.0, 2e4))
+    assert "snr_db" not in far and "tone_level_db" not in far and "20000" in far["tone_note"]
+    k = int(np.argmin(np.abs(f - 3906.25)))
+    p[k] = 1e-4
+    near = analysis.band_metrics(f, p, TS, 64, sd.Tone("z", 1.0, f[k]))
+    band = int(np.sum((f > 0) & (f <= 7812.5)))
+    assert near["snr_db"] == pytest.approx(10 * np.log10((1e-4 + 6e-8) / (1e-8 * (band - 7))), abs=1e-9)

@@ -63,19 +63,22 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone |
         return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
                 "note": "band has no PSD bins: run more cycles"}
     out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
+    if tone and not tone.freq <= fb:              # above the band edge: no in-band tone to quote
+        out["tone_note"] = f"the tone at {tone.freq:g} Hz is above the band edge {fb:g} Hz: no tone level or SNR"
+        tone = None
     if tone:
         near = band & (np.abs(f - tone.freq) <= 3 * df)
         mask &= ~near
         sig = float(np.sum(p[near]) * df)
         out["tone_power"] = sig
-        out["tone_level_db"] = 10 * np.log10(sig + 1e-300)
+        out["tone_level_db"] = float(10 * np.log10(sig)) if sig > 0 else None
     if mask.sum() < 2:                             # run too short to resolve the band
         out.update({"noise_floor_db_per_hz": None, "inband_noise_db": None, "note": "band has < 2 bins"})
         return out
     noise = float(np.sum(p[mask]) * df)
     out["noise_floor_db_per_hz"] = float(10 * np.log10(np.median(p[mask])))
     out["inband_noise_db"] = float(10 * np.log10(noise))
-    if tone:
+    if tone and out["tone_level_db"] is not None:
         out["snr_db"] = float(out["tone_level_db"] - out["inband_noise_db"])
     lo, hi = fb / 10, fb
     sel = (f >= lo) & (f <= hi) & mask
@@ -99,7 +102,8 @@ def tone_fit(bits: np.ndarray, t: np.ndarray, freq: float, ts: float, osr: int) 
     noise = float(np.sum(p[band]) * (f[1] - f[0]))
     out = {"tone_amplitude_bits": amp, "tone_fit_db": float(10 * np.log10(amp * amp / 2 + 1e-300)),
            "residual_inband_noise_db": float(10 * np.log10(noise + 1e-300))}
-    out["sqnr_db"] = out["tone_fit_db"] - out["residual_inband_noise_db"]
+    if freq <= 0.5 / ts / osr and noise > 0:       # an SQNR is of an in-band tone
+        out["sqnr_db"] = out["tone_fit_db"] - out["residual_inband_noise_db"]
     return out
 
 
