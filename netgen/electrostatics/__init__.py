@@ -9,7 +9,7 @@ from ..constants import EPS0
 from ..errors import StructureError
 from ..geometry.shapes import Plate
 from ..structure import CombElectrode
-from . import calibrated, parallel_plate
+from . import bem, calibrated, parallel_plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
 from .comb import CombExtractor
 from .mixed import MixedExtractor
@@ -18,6 +18,7 @@ from .mixed import MixedExtractor
 EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
     "parallel_plate": parallel_plate.from_structure,
     "calibrated": calibrated.from_structure,
+    "bem": bem.from_structure,
 }
 
 

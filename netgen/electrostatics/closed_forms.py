@@ -68,3 +68,24 @@ def tilted_sector_exact(
 
     value, _ = quad(ring, lo, hi, epsabs=0.0, epsrel=1e-13, limit=200)
     return eps * value
+
+
+def love_disks(kappa: float, same_potential: bool = False, panels: int | None = None, order: int = 16) -> float:
+    """Charge of one of two coaxial equal thin disks (radius a, distance d = kappa a) in units
+    of eps*a, at potential 1 with the other at -1 (the capacitor; C = Q/2 per unit of a) or +1.
+
+    Love's integral equation (1949), f(x) -+ (1/pi) int_-1^1 kappa f(t) / (kappa^2 + (x-t)^2) dt = 1,
+    the charge 4 int_-1^1 f: solved by Nystrom on composite Gauss-Legendre panels about kappa
+    wide (the kernel's width), so the quadrature is spectrally accurate (a 1-D Fredholm equation
+    of the second kind).
+    """
+    n = panels or max(8, math.ceil(4.0 / kappa))
+    g, w = np.polynomial.legendre.leggauss(order)
+    edges = np.linspace(-1.0, 1.0, n + 1)
+    half = 0.5 * np.diff(edges)
+    x = (edges[:-1, None] + half[:, None] * (g[None, :] + 1.0)).ravel()
+    wx = (half[:, None] * w[None, :]).ravel()
+    K = kappa / (kappa * kappa + (x[:, None] - x[None, :]) ** 2) / math.pi
+    sign = 1.0 if same_potential else -1.0
+    f = np.linalg.solve(np.eye(x.size) + sign * K * wx[None, :], np.ones(x.size))
+    return float(4.0 * wx @ f)

@@ -53,11 +53,12 @@ def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None, leads:
     card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} {lead} start={START} "
             f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse={ph_pulse} "
             f"dither_amp={vec(a for a, _ in DITHER)} dither_step={vec(s for _, s in DITHER)} "
-            + " ".join(f"{k}={vec(v)}" for k, v in INIT.items()) + ")")
+            + " ".join(f"{k}={vec(v)}" for k, v in INIT.items())
+            + " flt_n=[0 0] flt_a=[0] flt_bx=[0] flt_bv=[0] flt_c=[0] flt_d=[0 0] u0=[0])")   # lead channels
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {f} 0 0 {np.degrees(p)})" for i, (a, f, p, o) in enumerate(CA)]
     return "\n".join([
         "netgen_sdloop: two channels, three electrodes", *sources, "Vphs phs 0 DC 1", "Vphf phf 0 DC 1 AC 1",
-        f"A1 [ca0 ca1] {'NULL' if pulses else '[phs phf]'} [d0 d1 d2] [b0 b1] [cur0 cur1] [prev0 prev1] lp", card,
+        f"A1 [ca0 ca1] {'NULL' if pulses else '[phs phf]'} [d0 d1 d2] [b0 b1] [cur0 cur1] [prev0 prev1] NULL lp", card,
         ".control", *codemodel.control_lines(cm), ".endc", analysis, ".end", ""])
 
 

@@ -24,6 +24,7 @@ from ...errors import CodeModelError
 from ...sim.ngspice import run_control, same_build
 from ...templating import render
 from ...text import netlist_path
+from . import filters
 from .analysis import levitation, per_clock
 from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
 from .vacask import drivers
@@ -54,6 +55,7 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -
     charge amplifiers, samples and latches. A segment restarted from them continues the run."""
     body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
     bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
+    bench += filters.state_nodes(d.channels)
     if any(line.startswith("n1 ") for line in body.splitlines()):   # the _osdi.lib: the module's internal nodes
         return [osdi.state_node(s, instance) for s in osdi.states(model)] + bench
     ports = {p["name"].lower() for p in model.ports()}
@@ -78,6 +80,9 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)                      # names outside comments; the paths below through netlist_path
+    if loop != "xspice" and any(filters.channel_filters(d.channels)):
+        raise ValueError(f"the higher-order loop filters run in the compiled loop only (--simulator ngspice-xspice), "
+                         f"not in the {loop!r} loop")
     ic = dict(ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
@@ -115,7 +120,7 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
     # an electrode is energised when each channel's bit equals its feedback entry there (loop.groups,
     # loop.selected); one lead coefficient for all channels, or one per channel (leads)
-    leads = [c["filter"]["lead"] for c in d.channels]
+    leads = [c["filter"].get("lead", 0.0) for c in d.channels]      # (a state-space channel: its flt_* path)
     lead = {"lead": leads[0]} if len(set(leads)) == 1 else {"lead": 0.0, "leads": leads}
     params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, **lead,
               "start": float(start), "sel": [s for e in d.electrodes for s in e["sel"]],
@@ -123,10 +128,11 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
               "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
               "dither_amp": [c["dither_v"] for c in d.channels],
               "dither_step": [float(c["dither_step"]) for c in d.channels],
-              "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"]}
+              "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"],
+              **filters.sdloop_params(d.channels, ic)}      # the higher-order channels' filter states
     text = [(k, f"[{' '.join(repr(x) for x in v)}]" if isinstance(v, list) else repr(v)) for k, v in params.items()]
     nodes = [[f"ca_{n}" for n in names], None, [f"drv_{e['name']}" for e in d.electrodes],
-             *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev"))]
+             *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev")), filters.state_nodes(d.channels) or None]
     return {"params": params, "text": text,
             "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
 

@@ -26,6 +26,7 @@ from ...sim.rawfile import Plot
 from ...sim.vacask import compiled, print_progress, run_vacask
 from ...templating import render
 from ...text import netlist_path
+from . import filters
 from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
 
 BLOCKS = Path(__file__).resolve().parent / "blocks.va"
@@ -133,7 +134,9 @@ def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path,
                   model_osdi=netlist_path(Path(model_osdi).resolve()),
                   blocks_osdi=netlist_path(Path(blocks_osdi).resolve()),
                   cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
-                  saves=saves(model, d), drivers=drivers(d), inputs=input_text(model, d), options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
+                  saves=saves(model, d), drivers=drivers(d), inputs=input_text(model, d),
+                  statefilters=filters.statefilter_params(d.channels, d),
+                  options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
 
 
 def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0) -> Plot:

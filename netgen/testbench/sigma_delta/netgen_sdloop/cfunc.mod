@@ -6,6 +6,10 @@
                    without a breakpoint)
      at t_latch:   b[c] = 1 if lead prev[c] - cur[c] + dither_amp[c] sin(dither_step[c] n) > 0 else 0
                    (lead: leads[c] when the vector leads is given, else the scalar lead)
+                   or, for a channel with flt_n[c] = K > 0 filter states u (the higher-order loops of
+                   netgen/testbench/sigma_delta/filters.py; sd_filter below):
+                   y = flt_c . u + flt_d[c] cur[c] + dither,  b[c] = [y > 0],  v = 2 b[c] - 1,
+                   u <- flt_a u + flt_bx cur[c] + flt_bv v   (u: on the optional port u; u0 at t = 0)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
      s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0), and 0 if every sel[e,c] = 0
@@ -23,7 +27,9 @@
 #include <stdio.h>
 #include <string.h>
 
-enum { ST_T, ST_HEAD };      /* state layout: t, then ca[C], cur[C], prev[C], b[C] */
+#define SD_MAX_K 8           /* filter states per channel (order 5 needs 3) */
+
+enum { ST_T, ST_HEAD };      /* state layout: t, then ca[C], cur[C], prev[C], b[C], u[sum flt_n] */
 
 /* ngspice's PULSE(v1 v2 td tr tf pw per) at time t (src/spicelib/devices/vsrc/vsrcload.c) */
 static double sd_pulse(const double *p, double t)
@@ -35,6 +41,47 @@ static double sd_pulse(const double *p, double t)
     if (t >= tr && t <= tr + pw) return v2;
     if (t > 0.0 && t < tr) return v1 + (v2 - v1) * t / tr;
     return v2 + (v1 - v2) * (t - tr - pw) / tf;
+}
+
+/* does any channel have filter states (flt_n > 0)? Lead-only loops give flt_n = [0 ..] and one
+   0 in each of flt_a, flt_bx, flt_bv, flt_c, u0 (XSPICE refuses an unset array parameter
+   without a default, and a defaulted one must be sized by a port) */
+static int sd_has_filter(ARGS)
+{
+    int c;
+    if (PARAM_NULL(flt_n)) return 0;
+    for (c = 0; c < PARAM_SIZE(flt_n); c++)
+        if (PARAM(flt_n[c]) > 0) return 1;
+    return 0;
+}
+
+/* sum over the channels of flt_n^power (the filter states: power 1; their A matrices: 2) */
+static int sd_filter_size(ARGS, int C, int power)
+{
+    int c, n = 0;
+    if (!sd_has_filter(mif_private)) return 0;
+    for (c = 0; c < C && c < PARAM_SIZE(flt_n); c++) {
+        int k = PARAM(flt_n[c]) > 0 ? PARAM(flt_n[c]) : 0;
+        n += power == 2 ? k * k : k;
+    }
+    return n;
+}
+
+/* one channel's state-space loop filter at the latch (filters.py): the decision variable
+   y = c.u + d x + dither from the states before the update, then u <- A u + bx x + bv v with
+   v = +-1 the bit just decided; off / offa: the channel's first entry in flt_bx.. / flt_a */
+static double sd_filter(ARGS, double *u, int c, int k, int off, int offa, double x, double dither)
+{
+    double y = PARAM(flt_d[c]) * x + dither, v, next[SD_MAX_K];
+    int i, j;
+    for (i = 0; i < k; i++) y += PARAM(flt_c[off + i]) * u[i];
+    v = y > 0.0 ? 1.0 : -1.0;
+    for (i = 0; i < k; i++) {
+        next[i] = PARAM(flt_bx[off + i]) * x + PARAM(flt_bv[off + i]) * v;
+        for (j = 0; j < k; j++) next[i] += PARAM(flt_a[offa + i * k + j]) * u[j];
+    }
+    for (i = 0; i < k; i++) u[i] = next[i];
+    return y;
 }
 
 /* the parameter and port sizes agree (checked at every call: a mismatch would index past an
@@ -52,6 +99,16 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
     else if (!PARAM_NULL(leads) && PARAM_SIZE(leads) != C)
         bad = "leads needs one entry per ca input";
+    else if (sd_has_filter(mif_private) && PARAM_SIZE(flt_n) != C) bad = "flt_n needs one entry per ca input";
+    else if (sd_has_filter(mif_private) && (PARAM_NULL(flt_a) || PARAM_NULL(flt_bx) || PARAM_NULL(flt_bv) || PARAM_NULL(flt_c)
+                                    || PARAM_NULL(flt_d) || PARAM_SIZE(flt_a) != sd_filter_size(mif_private, C, 2)
+                                    || PARAM_SIZE(flt_bx) != sd_filter_size(mif_private, C, 1)
+                                    || PARAM_SIZE(flt_bv) != PARAM_SIZE(flt_bx) || PARAM_SIZE(flt_c) != PARAM_SIZE(flt_bx)
+                                    || PARAM_SIZE(flt_d) != C
+                                    || PARAM_SIZE(u0) != PARAM_SIZE(flt_bx)))
+        bad = "flt_a needs sum flt_n^2 entries, flt_bx, flt_bv, flt_c (and u0) sum flt_n, flt_d one per ca input";
+    else if (!PORT_NULL(u) && PORT_SIZE(u) != sd_filter_size(mif_private, C, 1))
+        bad = "u needs one node per filter state (sum flt_n)";
     else if ((!PORT_NULL(b) && PORT_SIZE(b) != C) || (!PORT_NULL(cur) && PORT_SIZE(cur) != C)
              || (!PORT_NULL(prev) && PORT_SIZE(prev) != C))
         bad = "b, cur and prev need one node per ca input";
@@ -73,6 +130,8 @@ static void sd_initial(ARGS, double *s, int C)
         s[ST_HEAD + 2 * C + c] = PARAM(prev0[c]);
         s[ST_HEAD + 3 * C + c] = PARAM(b0[c]) > 0.5 ? 1.0 : 0.0;
     }
+    for (c = 0; c < sd_filter_size(mif_private, C, 1); c++)
+        s[ST_HEAD + 4 * C + c] = PARAM(u0[c]);
 }
 
 /* the events of (old time, TIME] in order, applied to s (a copy of the accepted state); returns
@@ -99,10 +158,15 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
                 }
             }
             if (ph == pl) {
+                int off = 0, offa = 0;
                 for (c = 0; c < C; c++) {
-                    double lc = PARAM_NULL(leads) ? lead : PARAM(leads[c]);
-                    double y = lc * s[ST_HEAD + 2 * C + c] - s[ST_HEAD + C + c]
-                               + PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
+                    int nk = sd_has_filter(mif_private) ? PARAM(flt_n[c]) : 0;
+                    double dither = PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
+                    double y = nk > 0 ? sd_filter(mif_private, s + ST_HEAD + 4 * C + off, c, nk, off, offa,
+                                                  s[ST_HEAD + C + c], dither)
+                                      : (PARAM_NULL(leads) ? lead : PARAM(leads[c])) * s[ST_HEAD + 2 * C + c]
+                                        - s[ST_HEAD + C + c] + dither;
+                    if (nk > 0) { off += nk; offa += nk * nk; }
                     s[ST_HEAD + 3 * C + c] = y > 0.0 ? 1.0 : 0.0;
                     if (ph == ps) dcur[c] = 0.0;      /* a hard decision: no partial */
                 }
@@ -111,6 +175,32 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
     }
     for (c = 0; c < C; c++) s[ST_HEAD + c] = INPUT(ca[c]);
     s[ST_T] = t0;
+}
+
+/* the filter states on the u port (a segment restarted at t = 0 sets them again through u0) */
+static void sd_state_outputs(ARGS, const double *s, int C, int J)
+{
+    int i, j, own = PORT_NULL(ph);
+    if (PORT_NULL(u)) return;
+    for (i = 0; i < PORT_SIZE(u); i++) {
+        OUTPUT(u[i]) = s[ST_HEAD + 4 * C + i];
+        for (j = 0; j < C; j++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                AC_GAIN(u[i], ca[j]) = zero;
+            } else {
+                PARTIAL(u[i], ca[j]) = 0.0;
+            }
+        }
+        for (j = 0; j < J && !own; j++) {
+            if (ANALYSIS == MIF_AC) {
+                Mif_Complex_t zero = {0.0, 0.0};
+                AC_GAIN(u[i], ph[j]) = zero;
+            } else {
+                PARTIAL(u[i], ph[j]) = 0.0;
+            }
+        }
+    }
 }
 
 static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, int J)
@@ -198,23 +288,31 @@ void cm_netgen_sdloop(ARGS)
     int C = PORT_SIZE(ca), E = PORT_SIZE(drv);
     int J = PORT_NULL(ph) ? PARAM_SIZE(ph_pulse) / 7 : PORT_SIZE(ph);
     double *s, *old, dcur[64];
+    int c, n;
     if (C > 64) {
         cm_message_send("netgen_sdloop: at most 64 channels");
         return;
     }
-    if (INIT) cm_analog_alloc(0, (int) sizeof(double) * (ST_HEAD + 4 * C));
     if (!sd_sizes_ok(mif_private, C, E, J)) return;
+    for (c = 0; sd_has_filter(mif_private) && c < C; c++)
+        if (PARAM(flt_n[c]) > SD_MAX_K) {
+            if (INIT) cm_message_send("netgen_sdloop: at most 8 filter states per channel (flt_n)");
+            return;
+        }
+    n = ST_HEAD + 4 * C + sd_filter_size(mif_private, C, 1);
+    if (INIT) cm_analog_alloc(0, (int) sizeof(double) * n);
     s = (double *) cm_analog_get_ptr(0, 0);
     old = (double *) cm_analog_get_ptr(0, 1);
     memset(dcur, 0, sizeof dcur);
     if (INIT || ANALYSIS != MIF_TRAN || TIME == 0.0) {
         if (ANALYSIS != MIF_AC) {
             sd_initial(mif_private, s, C);
-            memcpy(old, s, sizeof(double) * (ST_HEAD + 4 * C));
+            memcpy(old, s, sizeof(double) * n);
         }
     } else {
-        memcpy(s, old, sizeof(double) * (ST_HEAD + 4 * C));
+        memcpy(s, old, sizeof(double) * n);
         sd_events(mif_private, old, s, C, dcur);
     }
     sd_outputs(mif_private, s, dcur, C, E, J);
+    sd_state_outputs(mif_private, s, C, J);
 }

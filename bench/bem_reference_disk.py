@@ -1,0 +1,191 @@
+"""The reference disk (examples/levitated_disk.toml: R = 473 um, 10 um thick, 2 x 8 sector
+electrodes, 10 um slots) at enlarged gaps: the analytic extractor (parallel plate over the
+local gap + edge fringe, netgen.electrostatics.parallel_plate) against the BEM extractor
+(netgen.electrostatics.bem) for each plate-electrode capacitance and its z and tilt
+derivatives; the adjacent-sector couplings against design.md's 5-15 %; the trend of the
+differences extrapolated to the reference g/R = 3/473 = 0.0063.
+
+    .venv/bin/python bench/bem_reference_disk.py                    # g/R = 0.05 and 0.02
+    .venv/bin/python bench/bem_reference_disk.py --gaps 0.05 --json out.json
+
+Derivatives: central differences of BEM solves on the same meshes (a step closing 1 % of the
+gap); --forward halves the cost (one-sided, about 1 % high for 1/g-like capacitances: the
+table says which). Each solve prints its mesh sizes, quadrature order and time on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from netgen.constants import EPS0
+from netgen.electrostatics import EXTRACTORS, bem
+from netgen.geometry.layout import electrodes, plate_outline
+from netgen.mechanics import mechanics
+from netgen.structure.parse import parse_structure
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "examples" / "levitated_disk.toml"
+RIGID = ("z", "tilt_x", "tilt_y")
+
+
+def structure(gap_over_r: float):
+    """The reference structure with both gaps set to gap_over_r * R."""
+    text = REFERENCE.read_text()
+    gap_um = gap_over_r * 473.0
+    return parse_structure(text.replace('gap = "3 um"', f'gap = "{gap_um:.6g} um"'), str(REFERENCE))
+
+
+def adjacent_pairs(shapes) -> list[tuple[int, int]]:
+    """Index pairs of neighbouring sectors: same side and ring, next sector."""
+    out = []
+    for i, a in enumerate(shapes):
+        for j, b in enumerate(shapes):
+            if j <= i or a.side != b.side or a.shape.r_in != b.shape.r_in:
+                continue
+            if math.isclose(a.shape.theta_end % (2 * math.pi), b.shape.theta_start % (2 * math.pi), abs_tol=1e-9) or \
+               math.isclose(b.shape.theta_end % (2 * math.pi), a.shape.theta_start % (2 * math.pi), abs_tol=1e-9):
+                out.append((i, j))
+    return out
+
+
+def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords: int = 3) -> dict:
+    """Analytic and BEM capacitances and rigid-coordinate derivatives at one g/R."""
+    s = structure(gap_over_r)
+    m = mechanics(s)
+    plate, shapes = plate_outline(s), electrodes(s)
+    pp = EXTRACTORS["parallel_plate"](s, plate).prepare(shapes, plate, m.basis)
+    ext = bem.BemExtractor(eps=EPS0 * s.electrostatics.relative_permittivity,
+                           thickness=s.conductor.thickness, settings=settings)
+    pb = ext.prepare(shapes, plate, m.basis)
+    nc = len(m.names)
+    q0 = np.zeros(nc)
+    t0 = time.perf_counter()
+    centre = pb.maxwell(q0)
+    log(gap_over_r, "q=0", centre)
+    c_pp = pp.capacitance(q0)
+    for i, e in enumerate(shapes):                      # the capacitances at once (derivatives take longer)
+        print(f"  {e.name:10s} C_bem {centre.plate_electrode[i] * 1e15:9.3f} fF  pp-bem "
+              f"{pct(c_pp[i], centre.plate_electrode[i])} %", file=sys.stderr, flush=True)
+    order = centre.settings["solves"][0]["order"]          # the same rule for the differences
+    amp = np.abs(pb.geometry.probe.phi).max(axis=0)
+    grads_bem, grads_pp = {}, {}
+    for name in RIGID[:coords]:
+        v = m.names.index(name)
+        step = 0.01 * pb.gap / amp[v]
+        dq = np.zeros(nc)
+        dq[v] = step
+        plus = pb.maxwell(dq, order)
+        log(gap_over_r, f"+{name}", plus)
+        if forward:
+            grads_bem[name] = (plus.plate_electrode - centre.plate_electrode) / step
+        else:
+            minus = pb.maxwell(-dq, order)
+            log(gap_over_r, f"-{name}", minus)
+            grads_bem[name] = (plus.plate_electrode - minus.plate_electrode) / (2 * step)
+        grads_pp[name] = pp.gradient(q0)[:, v]
+    pairs = adjacent_pairs(shapes)
+    cpl = [centre.coupling[i, j] / centre.plate_electrode[i] for i, j in pairs]
+    return {"g_over_R": gap_over_r, "gap_m": pb.gap, "names": [e.name for e in shapes],
+            "C_pp": pp.capacitance(q0).tolist(), "C_bem": centre.plate_electrode.tolist(),
+            "error_bem": centre.error, "dC_pp": {k: v.tolist() for k, v in grads_pp.items()},
+            "dC_bem": {k: v.tolist() for k, v in grads_bem.items()},
+            "adjacent_coupling_ratio": cpl, "pairs": pairs, "symmetry": asymmetry(centre.matrix),
+            "derivatives": "forward" if forward else "central", "seconds": time.perf_counter() - t0,
+            "solve": {k: v for k, v in centre.settings.items() if k != "solves"},
+            "solves": centre.settings["solves"]}
+
+
+def asymmetry(c: np.ndarray) -> float:
+    """max |C - C^T| / max |C|."""
+    return float(np.abs(c - c.T).max() / np.abs(c).max())
+
+
+def log(gr: float, what: str, m: bem.MaxwellMatrix) -> None:
+    """One line per solve on stderr."""
+    lv = ", ".join(f"{s['elements']} el order {s['order']} {s['assembly_s'] + s['solve_s']:.0f} s"
+                   for s in m.settings["solves"])
+    print(f"  g/R={gr:g} {what}: est. error {m.error:.2%} ({lv})", file=sys.stderr, flush=True)
+
+
+def pct(a: float, b: float) -> str:
+    """(a/b - 1) in percent."""
+    return f"{100 * (a / b - 1):+7.2f}"
+
+
+def table(r: dict) -> str:
+    """The per-electrode table of one g/R."""
+    lines = [f"g/R = {r['g_over_R']:g} (gap {r['gap_m'] * 1e6:.2f} um), BEM est. error {r['error_bem']:.2%}, "
+             f"Maxwell asymmetry {r['symmetry']:.1e}, derivatives {r['derivatives']}, {r['seconds']:.0f} s",
+             f"{'electrode':10s} {'C_bem fF':>9s} {'pp-bem %':>8s}" + "".join(f" {'d' + k + ' bem':>12s} {'pp-bem %':>8s}"
+                                                                        for k in r["dC_bem"])]
+    for i, name in enumerate(r["names"]):
+        row = f"{name:10s} {r['C_bem'][i] * 1e15:9.3f} {pct(r['C_pp'][i], r['C_bem'][i]):>8s}"
+        for k in r["dC_bem"]:
+            b, a = r["dC_bem"][k][i], r["dC_pp"][k][i]
+            row += f" {b:12.4e} {pct(a, b) if abs(b) > 1e-3 * max(map(abs, r['dC_bem'][k])) else '     n/a':>8s}"
+        lines.append(row)
+    c = np.array(r["adjacent_coupling_ratio"])
+    lines.append(f"adjacent-sector coupling / plate-sector C: {100 * c.min():.1f} .. {100 * c.max():.1f} % "
+                 f"(design.md: 5-15 %)")
+    return "\n".join(lines)
+
+
+def ring_means(r: dict) -> dict[str, float]:
+    """Mean pp-vs-BEM difference (relative) of C per ring (inner: the first 4 of each side)."""
+    d = np.array(r["C_pp"]) / np.array(r["C_bem"]) - 1.0
+    inner = [i for i, n in enumerate(r["names"]) if i % 8 < 4]
+    outer = [i for i in range(len(d)) if i not in inner]
+    return {"inner": float(d[inner].mean()), "outer": float(d[outer].mean()), "all": float(d.mean())}
+
+
+def extrapolate(results: list[dict], target: float = 3.0 / 473.0) -> str:
+    """The differences' trend to g/R = target: linear in g/R and linear in (g/R) ln(R/g) through
+    the computed points; the value is their mean, the uncertainty half their spread plus the
+    BEM error estimate."""
+    if len(results) < 2:
+        return "trend: needs two or more gaps"
+    x = np.array([r["g_over_R"] for r in results])
+    lines = [f"trend of (pp - BEM)/BEM to the reference g/R = {target:.4f}:"]
+    for ring in ("inner", "outer", "all"):
+        y = np.array([ring_means(r)[ring] for r in results])
+        f1 = np.polyval(np.polyfit(x, y, 1), target)
+        u = x * np.log(1 / x)
+        f2 = np.polyval(np.polyfit(u, y, 1), target * math.log(1 / target))
+        err = max(r["error_bem"] for r in results)
+        mid, unc = 0.5 * (f1 + f2), 0.5 * abs(f1 - f2) + err
+        pts = ", ".join(f"{100 * yi:+.2f} % at {xi:g}" for xi, yi in zip(x, y))
+        lines.append(f"  {ring:5s}: {pts} -> {100 * mid:+.2f} +- {100 * unc:.2f} %")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    """Run the gaps, print the tables and the trend."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--gaps", default="0.05,0.02", help="comma-separated g/R values")
+    ap.add_argument("--forward", action="store_true", help="one-sided derivatives (half the solves)")
+    ap.add_argument("--element-to-gap", type=float, default=4.0)
+    ap.add_argument("--edge-to-gap", type=float, default=0.5)
+    ap.add_argument("--budget-gb", type=float, default=12.0)
+    ap.add_argument("--coordinates", type=int, default=3, help="derivatives of the first N of z, tilt_x, tilt_y")
+    ap.add_argument("--json", type=Path, help="write the results here")
+    a = ap.parse_args()
+    settings = bem.BemSettings(element_to_gap=a.element_to_gap, edge_to_gap=a.edge_to_gap, max_levels=2,
+                               tolerance=0.05, memory_budget=a.budget_gb * 1e9)
+    results = []
+    for gr in (float(g) for g in a.gaps.split(",")):
+        results.append(run_gap(gr, settings, a.forward, a.coordinates))
+        print(table(results[-1]), flush=True)
+        if a.json:
+            a.json.write_text(json.dumps(results, indent=1))
+    print(extrapolate(results))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,366 @@
+"""The boundary-element extractor: the full Maxwell capacitance matrix of the moving plate and
+every fixed electrode, from bempp-cl's Laplace single layer (Galerkin, piecewise constants).
+
+Each conductor is a graded triangulation (netgen.electrostatics.bem_mesh): the plate is moved
+by its generalized coordinates q (rigid motion and mode shapes, w = basis(x, y) q, applied to
+every plate vertex), electrodes are sheets at their gaps. One dense matrix A (V sigma = u), one
+LU factorisation (design.md: OpenBLAS Cholesky segfaulted at 20k unknowns; LU does not), one
+right-hand side per conductor: C = eps B^T A^-1 B, B the element areas of each conductor.
+
+Accuracy (design.md, "Measured: boundary-element check"): bempp uses one quadrature rule for
+all non-touching element pairs, so the element size facing a gap g sets the order: elements up
+to 2g need order 4, 4g order 8, 8g order 12 (QUADRATURE). Every solve runs on two mesh levels
+(sizes in the ratio BemSettings.refinement) and Richardson-extrapolates; the correction is the
+error estimate. A finer level is added while the estimate exceeds the tolerance and the dense
+matrix fits BemSettings.memory_budget; past that BemBudgetError says so and stops.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, ClassVar, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.linalg import lu_factor, lu_solve
+
+from ..constants import EPS0
+from ..errors import SimulationError, SimulatorNotFound
+from ..geometry.shapes import Array, Basis, Electrode, Plate
+from .bem_mesh import Sizes, Surface, electrode_sheet, thick_plate
+from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
+from .base import ProbePoints
+
+BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
+# largest element facing a gap, in gaps -> bempp's regular quadrature order (design.md); a rule
+# holds up to SLACK times its limit (a sample point closing a gap by a few % keeps its order)
+QUADRATURE: tuple[tuple[float, int], ...] = ((2.0, 4), (4.0, 8), (8.0, 12))
+SLACK = 1.1
+BYTES_PER_ENTRY = 10.0          # the dense matrix (factorised in place) and bempp's assembly buffers
+
+
+class BemBudgetError(SimulationError):
+    """The requested accuracy needs a denser matrix than the memory budget allows."""
+
+
+def quadrature_order(ratio: float) -> int:
+    """bempp's regular quadrature order for elements `ratio` times the gap they face."""
+    for limit, order in QUADRATURE:
+        if ratio <= limit * SLACK:
+            return order
+    raise BemBudgetError(f"BEM: elements {ratio:.2f} times the gap they face exceed the largest quadrature "
+                         f"rule ({QUADRATURE[-1][0] * SLACK:g} gaps, order {QUADRATURE[-1][1]}); lower "
+                         "BemSettings.element_to_gap")
+
+
+@dataclass(frozen=True)
+class BemSettings:
+    """How the BEM meshes and solves (all lengths in units of the smallest plate-electrode gap).
+
+    element_to_gap: largest element (sets the quadrature order, QUADRATURE); edge_to_gap:
+    element size at free edges; growth: size ratio of neighbouring elements; refinement: size
+    ratio between mesh levels; levels / max_levels: levels always solved / at most; tolerance:
+    relative error estimate to reach; richardson_order: convergence order assumed for the
+    extrapolation (None: report the finest level, error = last change); memory_budget: bytes
+    for the dense matrix of the finest level; singular_order: quadrature of touching pairs;
+    element_to_size: largest element in units of the plate's size (radius, shorter side).
+    """
+    element_to_gap: float = 4.0
+    edge_to_gap: float = 0.5
+    growth: float = 1.5
+    refinement: float = math.sqrt(2.0)
+    levels: int = 2
+    max_levels: int = 3
+    tolerance: float = 5e-3
+    richardson_order: float | None = 2.0
+    memory_budget: float = 4e9
+    singular_order: int = 4
+    element_to_size: float = 0.2
+
+    def sizes(self, gap: float, level: int, size: float = math.inf) -> Sizes:
+        """Element sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap `gap` and
+        a plate of `size` (radius or shorter side): elements are also at most element_to_size
+        times the plate, so that a wide gap does not leave its outline unresolved."""
+        f = 1.0 / self.refinement ** level
+        h_max = min(self.element_to_gap * gap, self.element_to_size * size)
+        return Sizes(min(self.edge_to_gap * gap, h_max / 2.0) * f, h_max * f, self.growth)
+
+
+@dataclass(frozen=True)
+class MaxwellMatrix:
+    """One BEM solve: the Maxwell (short-circuit) matrix, Q = matrix @ V, in F; conductor 0 is
+    the moving plate, then the electrodes in the order given."""
+    names: tuple[str, ...]
+    matrix: Array                 # (n+1, n+1) best estimate (Richardson-extrapolated)
+    coarse: Array                 # (n+1, n+1) the next coarser level's solution
+    error: float                  # estimated relative error of plate_electrode (max over electrodes)
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def plate_electrode(self) -> Array:
+        """(n,) two-terminal plate-electrode capacitances, -matrix[0, 1:]."""
+        return -self.matrix[0, 1:]
+
+    @property
+    def coupling(self) -> Array:
+        """(n, n) electrode-electrode two-terminal capacitances (zero diagonal): the convention
+        of CapacitanceExtractor.coupling."""
+        c = -self.matrix[1:, 1:].copy()
+        np.fill_diagonal(c, 0.0)
+        return c
+
+    @property
+    def to_infinity(self) -> Array:
+        """(n+1,) each conductor's capacitance to infinity (the row sums)."""
+        return self.matrix.sum(axis=1)
+
+
+def _bempp():
+    """bempp_cl.api, or SimulatorNotFound saying how to install it."""
+    try:
+        import bempp_cl.api as bempp
+    except ImportError:
+        raise SimulatorNotFound(f"the BEM extractor needs bempp-cl; install it with: {BEM_INSTALL}") from None
+    return bempp
+
+
+def check_budget(unknowns: int, budget: float, what: str = "") -> None:
+    """BemBudgetError when the dense system of `unknowns` does not fit `budget` bytes."""
+    need = BYTES_PER_ENTRY * unknowns * unknowns
+    if need > budget:
+        raise BemBudgetError(f"BEM{what}: {unknowns} unknowns need {need / 1e9:.1f} GB for the dense matrix, above "
+                             f"the memory budget of {budget / 1e9:.1f} GB; raise BemSettings.memory_budget, "
+                             "loosen tolerance or element_to_gap, or use a calibrated analytic extractor")
+
+
+def solve_surfaces(surfaces: Sequence[Surface], eps: float, order: int, singular_order: int = 4,
+                   budget: float = 4e9) -> tuple[Array, dict]:
+    """Maxwell matrix (n, n) in F of conductors given as triangulated surfaces, with bempp's
+    dense single layer at quadrature `order`; and what the solve cost (elements, seconds)."""
+    bempp = _bempp()
+    from bempp_cl.api.utils.parameters import DefaultParameters
+    n_el = sum(len(s.triangles) for s in surfaces)
+    check_budget(n_el, budget)
+    t0 = time.perf_counter()
+    offsets = np.cumsum([0] + [len(s.vertices) for s in surfaces])
+    verts = np.concatenate([s.vertices for s in surfaces]).T
+    tris = np.concatenate([s.triangles + o for s, o in zip(surfaces, offsets)]).T.astype(np.uint32)
+    dom = np.concatenate([np.full(len(s.triangles), i) for i, s in enumerate(surfaces)]).astype(np.uint32)
+    grid = bempp.Grid(verts, tris, dom)
+    space = bempp.function_space(grid, "DP", 0)
+    params = DefaultParameters()
+    params.quadrature.regular, params.quadrature.singular = order, singular_order
+    op = bempp.operators.boundary.laplace.single_layer(space, space, space, parameters=params, assembler="dense",
+                                                       device_interface="numba", precision="double")
+    A = symmetrised(np.asarray(op.weak_form().to_dense()))
+    t1 = time.perf_counter()
+    # element i of the grid is element i of the concatenation (bempp keeps the given order)
+    areas, owner = np.asarray(grid.volumes), np.asarray(grid.domain_indices)
+    B = np.zeros((n_el, len(surfaces)))
+    B[np.arange(n_el), owner] = areas
+    # A.T is Fortran-ordered: getrf factorises it in place (no copy); trans=1 then solves A X = B
+    X = lu_solve(lu_factor(A.T, overwrite_a=True, check_finite=False), B, trans=1, check_finite=False)
+    C = eps * (B.T @ X)
+    t2 = time.perf_counter()
+    return C, {"elements": int(n_el), "order": int(order), "assembly_s": t1 - t0, "solve_s": t2 - t1}
+
+
+def symmetrised(A: Array, block: int = 1024) -> Array:
+    """(A + A^T) / 2 in place, block by block (no second N x N array). The Galerkin single layer
+    is symmetric; bempp's quadrature of the pairs (i, j) and (j, i) differs by a few 1e-6 of C,
+    and the symmetric part is the better of the two approximations."""
+    n = len(A)
+    for i in range(0, n, block):
+        for j in range(i, n, block):
+            m = 0.5 * (A[i:i + block, j:j + block] + A[j:j + block, i:i + block].T)
+            A[i:i + block, j:j + block] = m
+            A[j:j + block, i:i + block] = m.T
+    return A
+
+
+def extrapolate(levels: Sequence[Array], ratio: float, order: float | None) -> tuple[Array, float]:
+    """Best estimate from solutions on successively finer levels (size ratio `ratio`) and its
+    relative error: Richardson with `order` (or, from three levels, the observed order when it
+    is between 0.5 and 4); without an order, the finest level and its last change."""
+    fine, coarse = levels[-1], levels[-2]
+    p = order
+    if order is not None and len(levels) >= 3:
+        d1, d2 = levels[-2] - levels[-3], fine - coarse
+        mask = np.abs(d2) > 1e-9 * np.abs(fine).max()
+        if mask.any():
+            r = np.median(np.abs(d1[mask] / d2[mask]))
+            if r > 1.0:
+                observed = math.log(r) / math.log(ratio)
+                p = observed if 0.5 <= observed <= 4.0 else order
+    best = fine if p is None else fine + (fine - coarse) / (ratio ** p - 1.0)
+    return best, p
+
+
+def relative_change(a: Array, b: Array) -> float:
+    """Largest |a - b| / |a| over the watched entries: the plate-electrode capacitances a[0, 1:]
+    (a single conductor: its capacitance)."""
+    ra, rb = (a[0, 1:], b[0, 1:]) if len(a) > 1 else (a[0], b[0])
+    keep = np.abs(ra) > 1e-6 * np.abs(ra).max()
+    return float(np.max(np.abs(ra[keep] - rb[keep]) / np.abs(ra[keep]))) if keep.any() else 0.0
+
+
+def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], eps: float, gap: float,
+              settings: BemSettings, h_max: float | None = None, order: int | None = None) -> MaxwellMatrix:
+    """The Maxwell matrix on `settings.levels` or more mesh levels (meshes(level): the surfaces,
+    level 0 coarsest, its largest element h_max (default element_to_gap * gap); `gap`: the
+    smallest gap they face), extrapolated; BemBudgetError if the tolerance needs more than the
+    memory budget or max_levels. `order` overrides the quadrature rule (differences of solves
+    on the same meshes need the same rule)."""
+    sols: list[Array] = []
+    info: list[dict] = []
+    order = order or quadrature_order((h_max or settings.element_to_gap * gap) / gap)
+    err, best, p = math.inf, None, settings.richardson_order
+    for level in range(settings.max_levels):
+        try:
+            C, cost = solve_surfaces(meshes(level), eps, order, settings.singular_order, settings.memory_budget)
+        except BemBudgetError as exc:
+            if len(sols) < 2:
+                raise
+            raise BemBudgetError(f"{exc} (the error estimate is {err:.2%} after {len(sols)} levels, "
+                                 f"tolerance {settings.tolerance:.2%})") from None
+        sols.append(C)
+        info.append(cost)
+        if len(sols) >= settings.levels:
+            best, p = extrapolate(sols, settings.refinement, settings.richardson_order)
+            err = relative_change(best, sols[-1]) if p is not None else relative_change(sols[-1], sols[-2])
+            if err <= settings.tolerance:
+                break
+    else:
+        raise BemBudgetError(f"BEM: the error estimate {err:.2%} is above the tolerance {settings.tolerance:.2%} "
+                             f"after {settings.max_levels} mesh levels; raise BemSettings.max_levels (and the "
+                             "memory budget) or loosen the tolerance")
+    record = {**asdict(settings), "gap": gap, "solves": info, "richardson_order": p}
+    return MaxwellMatrix(tuple(names), best, sols[-2], err, record)
+
+
+@dataclass(frozen=True)
+class _Level:
+    """One mesh level of a prepared structure: the undeformed plate, its basis at the plate
+    vertices (nv, ncoords) and the electrode sheets."""
+    plate: Surface
+    phi: Array
+    electrodes: tuple[Surface, ...]
+
+
+class PreparedBem:
+    """BemExtractor bound to electrodes, plate and basis: meshes and basis values are computed
+    once per level (numpy only, so it pickles to executor workers); every q is a BEM solve."""
+
+    def __init__(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis, eps: float, thickness: float,
+                 settings: BemSettings):
+        """Mesh every level; the parallel-plate geometry answers min_gap and probe_points."""
+        self.electrodes = tuple(electrodes)
+        self.eps, self.thickness, self.settings = eps, thickness, settings
+        self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=eps, fringe=None).prepare(
+            electrodes, plate, basis)
+        self.ncoords = self.geometry.ncoords
+        self.gap = min(e.gap for e in electrodes)
+        self.plate_size = plate.size
+        self.names = ("plate",) + tuple(e.name for e in electrodes)
+        self.levels = [self._level(plate, basis, k) for k in range(settings.max_levels)]
+
+    def _level(self, plate: Plate, basis: Basis, k: int) -> _Level:
+        """Meshes of level k: the plate (closed if thick) and each electrode at its height."""
+        sizes = self.settings.sizes(self.gap, k, plate.size)
+        p = thick_plate(plate, self.thickness, sizes)
+        phi = np.asarray(basis(p.vertices[:, 0], p.vertices[:, 1]), dtype=float).reshape(len(p.vertices), -1)
+        half = self.thickness / 2.0
+        sheets = tuple(electrode_sheet(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+        return _Level(p, phi, sheets)
+
+    def surfaces(self, q: ArrayLike, level: int) -> list[Surface]:
+        """The conductors at coordinates q on mesh level `level`: the moved plate, then the electrodes."""
+        lv = self.levels[level]
+        return [lv.plate.moved(lv.phi @ np.asarray(q, dtype=float)), *lv.electrodes]
+
+    def local_gap(self, q: ArrayLike) -> float:
+        """Smallest local plate-electrode gap at q (m)."""
+        g = self.geometry.min_gap(np.asarray(q, dtype=float))
+        return float(np.min(g[np.isfinite(g)])) if np.isfinite(g).any() else self.gap
+
+    def maxwell(self, q: ArrayLike, order: int | None = None) -> MaxwellMatrix:
+        """The converged Maxwell matrix at generalized coordinates q (ncoords,); `order`: the
+        quadrature order (default: from the element-to-gap rule at q's smallest local gap)."""
+        q = np.asarray(q, dtype=float).reshape(self.ncoords)
+        gap = self.local_gap(q)
+        if gap <= 0.0:
+            raise ValueError("the plate touches an electrode at this q")
+        t0 = time.perf_counter()
+        m = converged(lambda k: self.surfaces(q, k), self.names, self.eps, min(gap, self.gap), self.settings,
+                      h_max=self.settings.sizes(self.gap, 0, self.plate_size).h_max, order=order)
+        m.settings["seconds"] = time.perf_counter() - t0
+        return m
+
+    def capacitance(self, Q: ArrayLike) -> Array:
+        """Plate-electrode capacitances (nsamples, nelectrodes) in F; nan where the plate touches."""
+        q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.full((q.shape[0], len(self.electrodes)), np.nan)
+        for i, row in enumerate(q):
+            if self.local_gap(row) > 0.0:
+                out[i] = self.maxwell(row).plate_electrode
+        return out[0] if np.ndim(Q) == 1 else out
+
+    def gradient(self, Q: ArrayLike) -> Array:
+        """dC_i/dq_v (nsamples, nelectrodes, ncoords) by central differences of BEM solves on the
+        same meshes (a step closing 1 % of the smallest gap)."""
+        q = np.atleast_2d(np.asarray(Q, dtype=float))
+        amp = np.abs(self.geometry.probe.phi).max(axis=0)
+        step = 0.01 * self.gap / np.where(amp > 0, amp, 1.0)
+        out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
+        for i, row in enumerate(q):
+            h_max = self.settings.sizes(self.gap, 0, self.plate_size).h_max
+            order = quadrature_order(h_max / min(self.local_gap(row), self.gap))
+            for v in range(self.ncoords):
+                dq = np.zeros(self.ncoords)
+                dq[v] = step[v]
+                plus, minus = self.maxwell(row + dq, order), self.maxwell(row - dq, order)
+                out[i, :, v] = (plus.plate_electrode - minus.plate_electrode) / (2 * step[v])
+        return out[0] if np.ndim(Q) == 1 else out
+
+    def min_gap(self, Q: ArrayLike) -> Array:
+        """Smallest local gap under each electrode (the parallel-plate geometry's)."""
+        return self.geometry.min_gap(Q)
+
+    def probe_points(self) -> ProbePoints:
+        """The contact model's stop candidates (the parallel-plate geometry's)."""
+        return self.geometry.probe_points()
+
+
+@dataclass(frozen=True)
+class BemExtractor:
+    """Boundary-element capacitances (bempp-cl): eps (F/m), plate thickness (m; 0: a sheet),
+    settings (BemSettings)."""
+
+    description: ClassVar[str] = "boundary elements (bempp-cl, Galerkin P0, two mesh levels + Richardson)"
+    eps: float = EPS0
+    thickness: float = 0.0
+    settings: BemSettings = field(default_factory=BemSettings)
+
+    def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedBem:
+        """Mesh the structure once (every level); each sample is then a solve."""
+        return PreparedBem(electrodes, plate, basis, self.eps, self.thickness, self.settings)
+
+    def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
+        """Electrode-electrode capacitances (nel, nel) in F at the undeformed position."""
+        prepared = self.prepare(electrodes, plate, lambda x, y: np.zeros((np.size(x), 1)))
+        return prepared.maxwell(np.zeros(1)).coupling
+
+
+def maxwell_matrix(electrodes: Sequence[Electrode], plate: Plate, basis: Basis, q: ArrayLike, eps: float = EPS0,
+                   thickness: float = 0.0, settings: BemSettings | None = None) -> MaxwellMatrix:
+    """The Maxwell matrix of plate and electrodes at generalized coordinates q (one call)."""
+    ext = BemExtractor(eps, thickness, settings or BemSettings())
+    return ext.prepare(electrodes, plate, basis).maxwell(q)
+
+
+def from_structure(s, plate: Plate) -> BemExtractor:
+    """The extractor for a structure (s: netgen.structure.Structure): its permittivity and thickness."""
+    eps = EPS0 * s.electrostatics.relative_permittivity
+    return BemExtractor(eps=eps, thickness=float(getattr(s.conductor, "thickness", 0.0)))

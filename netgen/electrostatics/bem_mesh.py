@@ -1,0 +1,249 @@
+"""Triangulations for the boundary-element extractor (netgen.electrostatics.bem), in numpy.
+
+Every conductor is a set of flat triangles: electrodes and thin plates are open sheets, a plate
+of finite thickness is a closed surface (top, bottom and rim band). Meshes are graded: the
+element size is `h_edge` at every free edge (where the surface charge is singular) and grows
+geometrically by `growth` up to `h_max` (set by the element-to-gap rule of
+netgen.electrostatics.bem.quadrature_order). Polar shapes are triangulated in (r, arc length)
+coordinates, where they are convex, by scipy's Delaunay, and mapped back.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import Delaunay
+
+from ..geometry.shapes import AnnularSector, Array, DiskPlate, Electrode, Plate, Rectangle, RectPlate, corner_radius
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """Element sizes of one mesh level (m): `h_edge` at free edges, at most `h_max` elsewhere."""
+    h_edge: float
+    h_max: float
+    growth: float = 1.5
+
+    def scaled(self, factor: float) -> Sizes:
+        """The same grading with every size times `factor` (the next mesh level)."""
+        return Sizes(self.h_edge * factor, self.h_max * factor, self.growth)
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Flat triangles of one conductor: vertices (nv, 3) in m and triangles (nt, 3) indices."""
+    vertices: Array
+    triangles: np.ndarray
+
+    def moved(self, dz: Array) -> Surface:
+        """The surface with vertex i shifted by dz[i] along z (a deformed plate)."""
+        v = self.vertices.copy()
+        v[:, 2] += dz
+        return Surface(v, self.triangles)
+
+    def areas(self) -> Array:
+        """Area of every triangle."""
+        p = self.vertices[self.triangles]
+        return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+
+def graded(lo: float, hi: float, sizes: Sizes, ends: tuple[bool, bool] = (True, True)) -> Array:
+    """Nodes from lo to hi: spacing h_edge at each graded end, growing by `growth` to h_max.
+
+    The step sequence is built from the graded end(s) (mirrored about the middle when both
+    are graded) and stretched uniformly so that the last node lands on hi.
+    """
+    length = hi - lo
+    if length <= 0.0:
+        raise ValueError("graded: need hi > lo")
+    graded_ends = sum(ends)
+    span = length / 2.0 if graded_ends == 2 else length
+    first = sizes.h_edge if graded_ends else sizes.h_max
+    steps, total = [], 0.0
+    while total < span * (1.0 - 1e-9):
+        step = min(first * sizes.growth ** len(steps), sizes.h_max)
+        steps.append(step)
+        total += step
+    if len(steps) > 1 and total - span > 0.5 * steps[-1]:
+        total -= steps.pop()
+    steps = np.array(steps) * (span / total)
+    if graded_ends == 2:
+        steps = np.concatenate([steps, steps[::-1]])
+    elif ends == (False, True):
+        steps = steps[::-1]
+    return lo + np.concatenate([[0.0], np.cumsum(steps)]) * (length / steps.sum())
+
+
+def _delaunay(points: Array) -> np.ndarray:
+    """Triangles of a point set of a convex region, zero-area slivers on the hull removed."""
+    tri = Delaunay(points).simplices
+    p = points[tri]
+    a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    return tri[area > 1e-12 * area.max()]
+
+
+def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float) -> Surface:
+    """An annular sector (with its slot trims) as a flat graded sheet at height z.
+
+    Rings at graded radii; on each ring the arc length u from the first slot side is graded
+    towards both sides. In (r, u) the region is convex, so its Delaunay triangulation is.
+    """
+    lo = max(shape.r_in, corner_radius(shape.slot, shape.span))
+    radii = graded(lo, shape.r_out, sizes, ends=(lo > 0.0, True))
+    if shape.full_ring:
+        return _ring_sheet(radii, sizes, z)
+    h = shape.slot / 2.0
+    pts, ring = [], []
+    for r in radii:
+        trim = math.asin(min(1.0, h / r)) if (shape.slot > 0.0 and r > 0.0) else 0.0
+        width = max(shape.span - 2.0 * trim, 0.0)
+        if r == 0.0 or width == 0.0:
+            pts.append((r, 0.0))
+            ring.append((r, 0.0, shape.theta_start + trim))
+            continue
+        for uk in graded(0.0, r * width, sizes):
+            pts.append((r, uk))
+            ring.append((r, uk, shape.theta_start + trim))
+    uv = np.array(pts)
+    tri = _delaunay(uv)
+    meta = np.array(ring)
+    theta = meta[:, 2] + np.where(meta[:, 0] > 0, meta[:, 1] / np.maximum(meta[:, 0], 1e-300), 0.0)
+    v = np.column_stack([meta[:, 0] * np.cos(theta), meta[:, 0] * np.sin(theta), np.full(len(meta), z)])
+    return Surface(v, tri)
+
+
+def _ring_sheet(radii: Array, sizes: Sizes, z: float, aspect: float = 10.0) -> Surface:
+    """A full ring or disk (no slots) as rings of points, triangulated in the plane. Along a
+    ring the spacing is h_max, or `aspect` times the local ring spacing where that is finer:
+    near the rim the elements are long and thin, resolving the radial edge singularity."""
+    pts, dr = [], np.diff(radii)
+    for k, r in enumerate(radii):
+        if r == 0.0:
+            pts.append((0.0, 0.0))
+            continue
+        local = dr[min(k, len(dr) - 1)] if k == 0 else min(dr[k - 1], dr[min(k, len(dr) - 1)])
+        n = max(8, math.ceil(2.0 * math.pi * r / min(sizes.h_max, aspect * local)))
+        t = (np.arange(n) + 0.5 * (k % 2)) * (2.0 * math.pi / n)
+        pts.extend(zip(r * np.cos(t), r * np.sin(t)))
+    xy = np.array(pts)
+    tri = _delaunay(xy)
+    if radii[0] > 0.0:                     # an annulus: drop the triangles over the hole
+        c = xy[tri].mean(axis=1)
+        tri = tri[np.hypot(c[:, 0], c[:, 1]) > radii[0]]
+    return Surface(np.column_stack([xy, np.full(len(xy), z)]), tri)
+
+
+def disk_sheet(radius: float, sizes: Sizes, z: float = 0.0) -> Surface:
+    """A flat disk graded towards its rim (rings of points, Delaunay)."""
+    return _ring_sheet(graded(0.0, radius, sizes, ends=(False, True)), sizes, z)
+
+
+def rectangle_sheet(x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z: float = 0.0) -> Surface:
+    """A flat rectangle: a tensor grid graded towards all four edges, each cell two triangles."""
+    x, y = graded(x0, x1, sizes), graded(y0, y1, sizes)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    nx, ny = len(x), len(y)
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    tri = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return Surface(np.column_stack([X.ravel(), Y.ravel(), np.full(nx * ny, z)]), tri)
+
+
+def plate_face(plate: Plate, sizes: Sizes) -> Surface:
+    """The plate outline as a flat sheet at z = 0."""
+    if isinstance(plate, DiskPlate):
+        return disk_sheet(plate.radius, sizes)
+    if isinstance(plate, RectPlate):
+        return rectangle_sheet(plate.x0, plate.x1, plate.y0, plate.y1, sizes)
+    raise NotImplementedError(f"no BEM mesh for plate {type(plate).__name__}")
+
+
+def _rim(face: Surface) -> np.ndarray:
+    """Vertex indices of the face's boundary loop, in order (edges used by one triangle)."""
+    t = face.triangles
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(edges, axis=0, return_counts=True)
+    boundary = uniq[count == 1]
+    nxt: dict[int, list[int]] = {}
+    for a, b in boundary:
+        nxt.setdefault(int(a), []).append(int(b))
+        nxt.setdefault(int(b), []).append(int(a))
+    start = int(boundary[0, 0])
+    loop, prev = [start], -1
+    while True:
+        cur = loop[-1]
+        step = [n for n in nxt[cur] if n != prev]
+        if not step or step[0] == start:
+            break
+        prev = cur
+        loop.append(step[0])
+    return np.array(loop)
+
+
+def thick_plate(plate: Plate, thickness: float, sizes: Sizes) -> Surface:
+    """A closed plate surface: top face at +thickness/2, bottom at -thickness/2, and a rim band
+    of about thickness/h_edge layers joining their boundary loops."""
+    face = plate_face(plate, sizes)
+    if thickness <= 0.0:
+        return face
+    nv = len(face.vertices)
+    loop = _rim(face)
+    layers = max(1, math.ceil(thickness / sizes.h_edge))
+    zs = np.linspace(-thickness / 2.0, thickness / 2.0, layers + 1)
+    top = face.vertices.copy()
+    top[:, 2] = zs[-1]
+    bot = face.vertices.copy()
+    bot[:, 2] = zs[0]
+    inner = [np.column_stack([face.vertices[loop, :2], np.full(len(loop), z)]) for z in zs[1:-1]]
+    v = np.concatenate([top, bot, *inner]) if inner else np.concatenate([top, bot])
+    ring_ids = [loop + nv] + [2 * nv + k * len(loop) + np.arange(len(loop)) for k in range(len(inner))] + [loop]
+    band = []
+    for lo_ids, hi_ids in zip(ring_ids[:-1], ring_ids[1:]):
+        a, b = lo_ids, np.roll(lo_ids, -1)
+        c, d = np.roll(hi_ids, -1), hi_ids
+        band += [np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+    tri = np.concatenate([face.triangles, face.triangles[:, ::-1] + nv, *band])
+    return Surface(v, tri)
+
+
+def electrode_sheet(e: Electrode, sizes: Sizes, z: float) -> Surface:
+    """A fixed electrode's full outline as a flat sheet at height z."""
+    s = e.shape
+    if isinstance(s, AnnularSector):
+        return sector_sheet(s, sizes, z)
+    if isinstance(s, Rectangle):
+        return rectangle_sheet(s.x0, s.x1, s.y0, s.y1, sizes, z)
+    raise NotImplementedError(f"no BEM mesh for electrode shape {type(s).__name__}")
+
+
+def icosphere(radius: float, level: int) -> Surface:
+    """A sphere as the level-times subdivided icosahedron, vertices projected onto the sphere."""
+    p = (1.0 + math.sqrt(5.0)) / 2.0
+    v = [(-1, p, 0), (1, p, 0), (-1, -p, 0), (1, -p, 0), (0, -1, p), (0, 1, p), (0, -1, -p), (0, 1, -p),
+         (p, 0, -1), (p, 0, 1), (-p, 0, -1), (-p, 0, 1)]
+    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+         (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
+         (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    verts = [np.array(x, dtype=float) / np.linalg.norm(x) for x in v]
+    faces = f
+    for _ in range(level):
+        cache: dict[tuple[int, int], int] = {}
+
+        def mid(a: int, b: int) -> int:
+            """Index of the (projected) midpoint of edge a-b, created once."""
+            key = (min(a, b), max(a, b))
+            if key not in cache:
+                m = verts[a] + verts[b]
+                verts.append(m / np.linalg.norm(m))
+                cache[key] = len(verts) - 1
+            return cache[key]
+
+        new = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            new += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = new
+    return Surface(radius * np.array(verts), np.array(faces))
