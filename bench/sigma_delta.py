@@ -54,6 +54,13 @@ compare variants within one loop):
 Solvers (each case runs with each): sparse (ngspice's default Sparse 1.3) and klu (`.options klu`,
 built into ngspice 43 and later; `--solvers` defaults to both where the ngspice has KLU).
 
+Another device: `--model` its JSON; the testbench is its default loop (loop.design: channels,
+electrodes and gravity from the model), e.g. the z accelerometer's compiled loop against its floor:
+
+    .venv/bin/netgen build examples/accelerometer_z.toml -o out/acc_model
+    .venv/bin/python bench/sigma_delta.py --model out/acc_model/accelerometer_z.json \
+        --variants xspice,floor,linear --loops xspice --solvers sparse
+
 Timings on a shared machine are noisy: the figures are medians of --repeat runs, interleaved
 (variant order rotates per repeat), and the load average is printed with them. Point and
 iteration counts are deterministic.
@@ -114,6 +121,8 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
                   f"Ex_{n} x_{n} 0 xs_{n} 0 {num(c.scale / c.port_units[1])}"]
         if c.stiffness:
             lines.append(f"Gk_{n} 0 u_{n} xs_{n} 0 {num(-c.stiffness / (c.mass * ws * ws))}")
+        if model.acceleration and model.acceleration[v]:   # the inertial load -G_v a_in, a force like f_<q>
+            lines.append(f"Ga_{n} 0 u_{n} a_in 0 {num(-a * model.acceleration[v])}")
         if c.damping:
             lines.append(f"Gd_{n} 0 u_{n} u_{n} 0 {num(-c.damping / (c.mass * ws))}")
         if kind == "linear":      # F_v = 1/2 sum_i dC_i/dq_v dv_i^2, scaled like every force of the u node

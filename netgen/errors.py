@@ -34,6 +34,13 @@ class SweepError(InputError):
     what = "sweep file"
 
 
+class LoopError(InputError):
+    """Invalid sigma-delta loop description (a structure file's [loop] table or `--loop` file), or one
+    the model cannot close (a channel no electrode senses or drives, feedback that cannot balance
+    the input)."""
+    what = "loop description"
+
+
 class ModelError(InputError):
     """Invalid model JSON (netgen.model.validate): a name that is not an identifier, text with
     control characters, a missing or malformed entry."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 import re
 
+from .constants import G
+
 # quantity kind -> {unit spelling: factor to SI}
 UNITS: dict[str, dict[str, float]] = {
     "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9},
@@ -18,10 +20,12 @@ UNITS: dict[str, dict[str, float]] = {
                  "Torr": 101325.0 / 760, "atm": 101325.0},
     "temperature": {"K": 1.0},
     "dimensionless": {"": 1.0},
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "g": G},
 }
 
 SI_NAME = {"length": "m", "modulus": "Pa", "density": "kg/m^3", "angle": "rad",
-           "voltage": "V", "frequency": "Hz", "time": "s", "pressure": "Pa", "temperature": "K", "dimensionless": ""}
+           "voltage": "V", "frequency": "Hz", "time": "s", "pressure": "Pa", "temperature": "K", "dimensionless": "",
+           "acceleration": "m/s^2"}
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
 
@@ -54,4 +58,5 @@ def example(kind: str) -> str:
     """A short example quantity string for error messages."""
     return {"length": "473 um", "modulus": "160 GPa", "density": "2330 kg/m^3",
             "angle": "45 deg", "voltage": "5 V", "frequency": "100 kHz",
-            "time": "1 us", "pressure": "1 Pa", "temperature": "300 K", "dimensionless": "0.22"}[kind]
+            "time": "1 us", "pressure": "1 Pa", "temperature": "300 K", "dimensionless": "0.22",
+            "acceleration": "9.81 m/s^2"}[kind]

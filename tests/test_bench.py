@@ -23,6 +23,9 @@ RUNS = {
                            ["ngspice / vacask", "vacask "]),
     "callgrind": (["bench/callgrind.py", "--cycles", "1", "--variants", "floor"], ["floor"]),
     "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
+    "sigma_delta_accelerometer": (["bench/sigma_delta_accelerometer.py", "-o", "out/test_bench_accelerometer",
+                                   "--cycles", "256", "--long", "0", "--points", "3", "--amplitudes", "0.5", "--jobs", "1"],
+                                  ["DC sweep: scale factor", "maximum stable tone amplitude"]),
 }
 
 

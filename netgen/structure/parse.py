@@ -23,7 +23,7 @@ from .schema import (ALL_RIGID, DESIGN_KEYS, DESIGNS, MAX_GRID_POINTS, Damping, 
                      Imports, Sampling, Structure)
 
 TOP_KEYS = ["name", "description", "conductor", "electrodes", "coordinates", "sampling", "fit",
-            "electrostatics", "fem", "damping", "import"]
+            "electrostatics", "fem", "damping", "import", "loop"]   # [loop]: the sigma-delta testbench's (loopfile)
 DAMPING_KEYS = ["q_factor", "damping_ratio", "rayleigh", "squeeze_film", "pressure", "gas", "temperature",
                 "noise", "fem_refine", "film_model", "film_max_frequency"]
 

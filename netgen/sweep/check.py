@@ -87,7 +87,7 @@ def _check_tone(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
     coord, _, freq = text.split(":")
     where = _where(sweep, "tone")
     names, complete = coordinates(s, run.rigid_only)
-    if coord not in names and (complete or not coord.startswith("m")):
+    if coord != "a_in" and coord not in names and (complete or not coord.startswith("m")):
         raise rd.fail(where, f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names}"
                       f"{' (rigid_only = true drops the modes)' if run.rigid_only else ''}",
                       f"name one of {', '.join(names)} in the tone (COORD:AMPLITUDE:FREQ)")
@@ -115,6 +115,6 @@ def check_model_tones(sweep: Sweep, runs: list[RunSpec], names: dict[bool, list[
         text = run.testbench.get("tone")
         if text and run.structure_text is None and run.rigid_only in names:
             coord = text.split(":")[0]
-            if coord not in names[run.rigid_only]:
+            if coord != "a_in" and coord not in names[run.rigid_only]:
                 raise rd.fail("tone", f"{run.name}: the tone's coordinate {coord!r} is not one of the model's "
                               f"{names[run.rigid_only]}", f"name one of {', '.join(names[run.rigid_only])}")

@@ -30,7 +30,7 @@ from .folder import claim, identity
 from .check import check_model_tones
 from .plan import RunSpec, plan
 from .plots import plot
-from .spec import CHANNELS, METRICS, Sweep, timeout_for
+from .spec import METRICS, Sweep, timeout_for
 
 DONE = ".done"                 # in a run folder: the run's key, written when the run completed
 
@@ -68,12 +68,14 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
     if spec.structure_text is not None:
         (folder / "structure.toml").write_text(spec.structure_text, encoding="utf-8")
         s = parse_structure(spec.structure_text, str(folder / "structure.toml"))
+        loop = sd.read_structure_loop(folder / "structure.toml")
         if spec.rigid_only:
             s = replace(s, coordinates=replace(s.coordinates, modes=0))
         model = build_model(s)
         write_outputs(model, folder / "model", "ngspice")
     else:
         model, lib_text = models[spec.rigid_only]
+        loop = models.get("loop")
         (folder / "model").mkdir(exist_ok=True)
         (folder / "model" / f"{model.name}.lib").write_text(lib_text, encoding="utf-8")
     lib = folder / "model" / f"{model.name}.lib"
@@ -81,7 +83,7 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
     tone = sd.Tone.parse(tb.pop("tone")) if tb.get("tone") else None
     ts, cycles = tb.pop("ts"), tb.pop("cycles")
     sd.run(model, lib, folder, ts, int(cycles), tone, progress=False, plots=spec.plots,
-           timeout=spec.timeout or timeout_for(int(cycles)), **tb)
+           timeout=spec.timeout or timeout_for(int(cycles)), loop=loop, **tb)
 
 
 def _attempts(folder: Path) -> int:
@@ -102,8 +104,7 @@ def _row(spec: RunSpec, record: dict) -> dict:
     for k, v in spec.params.items():
         row[k] = v
     s = record.get("summary") or {}
-    for c in CHANNELS:
-        ch = s.get("channels", {}).get(c, {})
+    for c, ch in (s.get("channels") or {}).items():
         for m in METRICS:
             row[f"{c}.{m}"] = ch.get(m)
     row["gravity_balance.ratio"] = (s.get("gravity_balance") or {}).get("ratio")
@@ -156,12 +157,13 @@ def _run(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool
          records: dict[int, dict]) -> None:
     """Build the shared models, then run every run not yet in `records` (filled as runs end)."""
     todo = [replace(r, owner=processes.me()) for r in runs if r.index not in records]
-    models = {}
+    models: dict = {"loop": sd.read_structure_loop(structure_path)}     # the structure's [loop] table
     for rigid in sorted({r.rigid_only for r in todo if r.structure_text is None}):
         model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid,
                                   progress=progress)
         models[rigid] = (model, lib.read_text(encoding="utf-8"))
-    check_model_tones(sweep, todo, {rigid: [c.name for c in m.coordinates] for rigid, (m, _) in models.items()})
+    check_model_tones(sweep, todo, {rigid: [c.name for c in m[0].coordinates]
+                                    for rigid, m in models.items() if rigid != "loop"})
     if progress and todo:
         print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""),
               file=sys.stderr)

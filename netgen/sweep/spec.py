@@ -49,13 +49,23 @@ import numpy as np
 from ..errors import SweepError
 from ..files import toml_document
 from ..structure.reader import Reader, did_you_mean
-from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
+from ..testbench.sigma_delta import RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
 from ..text import text_problem
 from ..units import UNITS, UnitError, parse_quantity
 
 METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db",
            "slope_db_per_decade")
-FIGURES = tuple(f"{c}.{m}" for c in CHANNELS for m in METRICS) + ("gravity_balance.ratio", "wall_s")
+# result columns: <channel>.<metric> for any channel of the loop (the disk's z, tilt_x, tilt_y are
+# listed; figure_ok accepts every coordinate name) and the run's own figures
+CHANNELS = ("z", "tilt_x", "tilt_y")
+RUN_FIGURES = ("gravity_balance.ratio", "wall_s")
+FIGURES = tuple(f"{c}.{m}" for c in CHANNELS for m in METRICS) + RUN_FIGURES
+
+
+def figure_ok(name: str) -> bool:
+    """A result column: a run figure, or <coordinate>.<metric> (the loop's channels are its coordinates)."""
+    c, dot, m = name.partition(".")
+    return name in RUN_FIGURES or (bool(dot) and m in METRICS and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", c) is not None)
 
 # the ranges a sweep file may ask for: outside them a run cannot succeed (or means nothing)
 TS_RANGE = (1e-9, 1.0)                 # s: the loop's sampling period
@@ -92,8 +102,12 @@ TESTBENCH: dict[str, tuple[str, Any, str]] = {
     "rigid_only": ("bool", None, "drop the eigenmodes"),
     "simulator": ("str", None, f"circuit simulator of the run ({', '.join(SIMULATORS)})"),
     "reltol": ("dimensionless", lambda v: _reltol_problem(v), "relative tolerance of the simulator"),
+    "feedback_voltage": ("voltage", _between(1e-3, 1e4, " V"), "feedback voltage V_fb (default: from the loop's input)"),
+    "acceleration": ("acceleration", _between(-1e7, 1e7, " m/s^2"), "DC frame acceleration through a_in (a DC sweep: "
+                     "the scale factor and linearity)"),
 }
 DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
+LOOP_CHOICES = ("feedback_voltage", "acceleration")      # netgen.testbench.sigma_delta.runner.run: into its LoopSpec
 
 
 def _reltol_problem(value: float) -> str | None:
@@ -174,7 +188,7 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
                           f"{did_you_mean(key, allowed)}allowed keys in [sweep]: {', '.join(allowed)}")
     sweep = Sweep(path, [], {})
     if "figure" in head:
-        if not isinstance(head["figure"], str) or head["figure"] not in FIGURES:
+        if not isinstance(head["figure"], str) or not figure_ok(head["figure"]):
             raise rd.fail("sweep.figure", f"figure {head['figure']!r} is not a result column",
                           f"{did_you_mean(str(head['figure']), FIGURES)}use one of {', '.join(FIGURES)}")
         sweep.figure = head["figure"]

@@ -23,31 +23,34 @@ def cold_build():
 TS, T_SAMPLE, T_LATCH, LEAD, START = 1e-6, 0.34, 0.42, 0.8, 5
 CA = [(1.0, 37e3, 0.0, 0.0), (0.5, 91e3, 0.3, 0.1)]           # amplitude, frequency, phase, offset
 DITHER = [(0.05, 2.9), (0.02, 1.7)]                             # amplitude, phase step per period
-SEL = [[1, 0], [-1, 1], [0, 0]]                                 # e0: b0 = 1; e1: b0 = 0 and b1 = 1; e2: always
+SEL = [[1, 0], [-1, 1], [0, 0]]                                 # e0: b0 = 1; e1: b0 = 0 and b1 = 1; e2: never (sense only)
+LEADS = [0.8, 0.55]                                             # per channel (the leads vector), for the second case
 INIT = {"cur0": [0.3, -0.2], "prev0": [0.1, 0.4], "b0": [1, 0]}
 
 
-def _loop_reference(periods: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _loop_reference(periods: int, leads: list[float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The loop's definition, period by period, with ca sampled at its exact instants: samples,
-    bits and the lead-filter-plus-dither decision variable y."""
+    bits and the lead-filter-plus-dither decision variable y (lead per channel: `leads`)."""
+    lead = np.array(leads) if leads else LEAD
     cur, prev = np.array(INIT["cur0"], float), np.array(INIT["prev0"], float)
     curs, bits, ys = [], [], []
     for k in range(periods):
         t = (k + T_SAMPLE) * TS
         prev, cur = cur, np.array([a * np.sin(2 * np.pi * f * t + p) + o for a, f, p, o in CA])
-        y = LEAD * prev - cur + np.array([a * np.sin(s * (k + START)) for a, s in DITHER])
+        y = lead * prev - cur + np.array([a * np.sin(s * (k + START)) for a, s in DITHER])
         curs.append(cur)
         ys.append(y)
         bits.append((y > 0).astype(float))
     return np.array(curs), np.array(bits), np.array(ys)
 
 
-def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None) -> str:
+def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None, leads: list[float] | None = None) -> str:
     """The instance with the phases as inputs from DC sources, or (pulses given) from its own
-    PULSE(v1 v2 td tr tf pw per) waveforms."""
+    PULSE(v1 v2 td tr tf pw per) waveforms; `leads`: a lead coefficient per channel."""
     vec = lambda xs: "[" + " ".join(str(x) for x in xs) + "]"      # noqa: E731
     ph_pulse = vec(float(v) for p in pulses for v in p) if pulses else "[0]"
-    card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} lead={LEAD} start={START} "
+    lead = f"leads={vec(leads)}" if leads else f"lead={LEAD}"
+    card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} {lead} start={START} "
             f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse={ph_pulse} "
             f"dither_amp={vec(a for a, _ in DITHER)} dither_step={vec(s for _, s in DITHER)} "
             + " ".join(f"{k}={vec(v)}" for k, v in INIT.items())
@@ -59,16 +62,18 @@ def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None) -> str
         ".control", *codemodel.control_lines(cm), ".endc", analysis, ".end", ""])
 
 
-def test_sdloop_samples_filters_quantizes_and_drives(cold_build, tmp_path):
+@pytest.mark.parametrize("leads", [None, LEADS], ids=["lead", "leads"])
+def test_sdloop_samples_filters_quantizes_and_drives(cold_build, tmp_path, leads):
     """Over 200 periods the code model's samples equal ca at the exact sample instants (within the
     linear interpolation between time points, 1e-4 of the amplitude), its latched bits equal the
     sign of lead*prev - cur + dither of that reference, prev holds the sample before, the drives
     are ph_sense.ph + selection(bits) * ph_fb.ph, and the state starts from cur0/prev0/b0."""
     periods = 200
-    plot = run_ngspice(_sdloop_netlist(cold_build, f".tran {TS / 50} {periods * TS} 0 {TS / 20}"), tmp_path)[0]
+    plot = run_ngspice(_sdloop_netlist(cold_build, f".tran {TS / 50} {periods * TS} 0 {TS / 20}", leads=leads),
+                       tmp_path)[0]
     t = np.asarray(plot["time"])
     at = (np.arange(periods) + 0.7) * TS                     # after the latch of each period
-    cur, bits, y = _loop_reference(periods)
+    cur, bits, y = _loop_reference(periods, leads)
     got = {k: np.array([np.interp(at, t, plot[f"v({k}{i})"]) for i in range(2)]).T for k in ("cur", "prev", "b")}
     assert np.abs(got["cur"] - cur).max() < 1e-4
     assert np.abs(got["prev"][1:] - cur[:-1]).max() < 1e-4
@@ -80,15 +85,15 @@ def test_sdloop_samples_filters_quantizes_and_drives(cold_build, tmp_path):
     assert before == tuple(float(b) for b in INIT["b0"])      # the latch holds b0 until the first clock
     b = got["b"]
     drives = np.array([np.interp(at, t, plot[f"v(d{e})"]) for e in range(3)]).T
-    expect = 0.5 + 2 * np.array([b[:, 0], (1 - b[:, 0]) * b[:, 1], np.ones(periods)]).T
+    expect = 0.5 + 2 * np.array([b[:, 0], (1 - b[:, 0]) * b[:, 1], np.zeros(periods)]).T
     assert np.abs(drives - expect).max() < 1e-9
 
 
 def test_sdloop_ac_gain_is_the_selected_drive(cold_build, tmp_path):
-    """At the initial state (b0 = [1, 0]: electrodes 0 and 2 selected) d drv / d phf = ph_fb = 2 on
-    the selected electrodes and 0 on the other."""
+    """At the initial state (b0 = [1, 0]: electrode 0 selected, 1 not, 2 in no pattern)
+    d drv / d phf = ph_fb = 2 on the selected electrode and 0 on the others."""
     plot = run_ngspice(_sdloop_netlist(cold_build, ".ac lin 1 1k 1k"), tmp_path)[0]
-    assert [plot[f"v(d{e})"][0].real for e in range(3)] == pytest.approx([2.0, 0.0, 2.0], abs=1e-12)
+    assert [plot[f"v(d{e})"][0].real for e in range(3)] == pytest.approx([2.0, 0.0, 0.0], abs=1e-12)
 
 
 def _pulse(t: np.ndarray, v1, v2, td, tr, tf, pw, per) -> np.ndarray:
@@ -107,7 +112,7 @@ def test_sdloop_drives_from_its_own_pulse_phases(cold_build, tmp_path):
     plot = run_ngspice(_sdloop_netlist(cold_build, ".tran 1e-9 0.4e-6 0 5e-9", pulses), tmp_path)[0]
     t = np.asarray(plot["time"])
     sense, fb = (_pulse(t, *p) for p in pulses)
-    expect = [0.5 * sense + 2 * fb, 0.5 * sense + 0 * fb, 0.5 * sense + 2 * fb]      # s = [1, 0, 1]
+    expect = [0.5 * sense + 2 * fb, 0.5 * sense + 0 * fb, 0.5 * sense + 0 * fb]      # s = [1, 0, 0]
     for e in range(3):
         assert np.abs(np.asarray(plot[f"v(d{e})"]) - expect[e]).max() < 1e-12
     assert fb.max() == 2 and sense.max() == 1                                 # the ramps were covered

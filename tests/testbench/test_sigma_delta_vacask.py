@@ -27,6 +27,8 @@ from netgen.model import MacroModel
 
 from tests.fixtures import ROOT
 
+CHANNELS = ("z", "tilt_x", "tilt_y")     # the levitated disk's default channels (loop.channel_names)
+
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 TS = 1e-6
 CYCLES, SKIP = 512, 64            # VACASK: ~10 s; long enough for a momentum balance within 1 %
@@ -74,8 +76,9 @@ def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
     text = sdv.testbench(model, d, tmp_path / "m.osdi", tmp_path / "b.osdi", 64)
     for e in d.electrodes:
         line = next(ln for ln in text.splitlines() if ln.startswith(f"xd_{e['name']} "))
-        assert f"b_{e['axis']} ca_z ca_{e['axis']})" in line
-        assert f"vs={d.vs} vfb={d.vfb} side={e['side']} sign={e['sign']}" in line
+        axis = "tilt_x" if e["w"][1] else "tilt_y"           # the tilt this electrode senses (loop.groups)
+        assert f"b_{axis} ca_z ca_{axis})" in line
+        assert f"vs={d.vs} vfb={d.vfb} side={e['w'][0]} sign={e['w'][1] or e['w'][2]}" in line
     for ch in d.channels:
         assert f"cf={ch['cf']} grst={d.g_reset(ch['cf'])}" in text
         assert f"lead={d.lead} vcmp={d.vcmp} cs={d.cs} g={d.g_latch} dither={ch['dither_v']}" in text
@@ -104,7 +107,7 @@ def test_bitstream_balances_gravity(vacask):
 def test_spectra_are_noise_shaped(vacask):
     """Below f_s/32 the bitstream PSD is at least 15 dB under its mean over f_s/4..f_s/2."""
     fs = 1 / TS
-    for channel in sd.CHANNELS:
+    for channel in CHANNELS:
         f, p = vacask["spectra"][channel]
         assert 10 * np.log10(p[f >= fs / 4].mean() / p[(f > 0) & (f <= fs / 32)].mean()) > 15, channel
 
@@ -121,13 +124,13 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndar
     on the electrodes netgen.testbench.sigma_delta.loop.selected() picks in the feedback phase, gravity on z."""
     t = d.t
     n = model.ncoords
-    sel = [sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in sd.CHANNELS)) for k in range(cycles)]
+    sel = [sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)) for k in range(cycles)]
     mass = np.array([c.mass for c in model.coordinates])
     stiff = np.array([c.stiffness for c in model.coordinates])
     damp = np.array([c.damping for c in model.coordinates])
     scale = model.scales
     f_ext = np.zeros(n)
-    f_ext[0] = -d.mass * d.g
+    f_ext[0] = -d.mass * 9.81                   # gravity on z (the design's default input)
 
     def rhs(time_, y):
         k = min(int(time_ / d.ts), cycles - 1)
@@ -194,7 +197,7 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
         err = np.abs(b[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |ngspice - solve_ivp| = {err:.2e} of its peak")
         assert err < (0.06 if c.name == "z" else 0.015), c.name
-    same = np.all([a[f"bits_{c}"][:NG_CYCLES] == b[f"bits_{c}"] for c in sd.CHANNELS], axis=0)
+    same = np.all([a[f"bits_{c}"][:NG_CYCLES] == b[f"bits_{c}"] for c in CHANNELS], axis=0)
     print(f"bits identical for the first {int(np.argmin(same)) if not same.all() else NG_CYCLES} clocks")
     window = slice(NG_SKIP, NG_CYCLES - 2)
     za, zb = a["bits_z"][window].mean(), b["bits_z"][window].mean()
@@ -240,6 +243,6 @@ def test_latches_hold_clean_decisions(vacask):
     """As for ngspice (tests/testbench/test_sigma_delta.py): every held latch level within 0.3 of 0 or 1, so
     the force that acted is the one the bitstream records (the comparator dither is held constant
     within each period; a dither that moved during the latch window left levels 0.45 off)."""
-    for channel in sd.CHANNELS:
+    for channel in CHANNELS:
         ch = vacask["channels"][channel]
         assert ch["partial_latches"] == 0 and ch["max_latch_error"] < 0.3, channel

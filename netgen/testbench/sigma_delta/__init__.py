@@ -1,14 +1,21 @@
-"""The paper's sigma-delta levitation loop (section 3, Fig. 3) around an emitted macromodel.
+"""The sigma-delta force-feedback loop (the paper's section 3, Fig. 3, for any device) around an
+emitted macromodel.
 
-loop: the loop design derived from the model; ngspice / vacask: the back ends (netlists, runs); runner:
-a run from model to summary.json (BACKENDS: the --simulator choices); analysis: bitstreams to
-spectra and figures; plots; cli: `netgen sigma-delta`.
+loopfile: the loop description ([loop] table, --loop); loop: the design derived from the model
+and the description (FILTERS: the loop-filter kinds); ngspice / vacask / osdi: the back ends
+(netlists, runs); runner: a run from model to summary.json (BACKENDS: the --simulator choices);
+analysis: bitstreams to spectra and figures; plots; cli: `netgen sigma-delta`.
 """
 
 from .analysis import analyse, gravity_balance, levitation, per_clock, psd, thermal_floor
-from .loop import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, Design, Timing, Tone, design, duty, groups
+from .loop import FILTERS, RELTOL_RANGE, RELTOL_TEXT, Design, Timing, Tone, design, duty, groups
+from .loopfile import LoopSpec, read_loop_file, read_structure_loop
 from .runner import BACKENDS, SIMULATORS, model_for, run, with_damping
 
-__all__ = ["BACKENDS", "CHANNELS", "RELTOL_RANGE", "RELTOL_TEXT", "SIMULATORS", "Design", "Timing", "Tone",
+# the levitated disk's channels (its default loop: loop.channel_names), for the disk's scripts;
+# a run's channels are its Design.names and summary["channels"]
+CHANNELS = ("z", "tilt_x", "tilt_y")
+
+__all__ = ["BACKENDS", "CHANNELS", "FILTERS", "RELTOL_RANGE", "RELTOL_TEXT", "SIMULATORS", "Design", "LoopSpec", "Timing", "Tone",
            "analyse", "design", "duty", "gravity_balance", "groups", "levitation", "model_for", "per_clock", "psd",
-           "run", "thermal_floor", "with_damping"]
+           "read_loop_file", "read_structure_loop", "run", "thermal_floor", "with_damping"]

@@ -11,7 +11,7 @@ from scipy import signal
 from ...constants import K_B
 from ...errors import SimulationError
 from ...model import MacroModel
-from .loop import CHANNELS, Design, Tone, coord_index, duty
+from .loop import Design, Tone, duty
 
 
 def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
@@ -21,7 +21,7 @@ def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.n
         raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
     at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
     out: dict[str, np.ndarray] = {}
-    for c in CHANNELS:
+    for c in d.names:
         level = np.interp(at, t, plot[f"v(b_{c})"])
         out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
         out[f"latch_{c}"] = level           # the held latch level (ideally 0 or 1): soft decisions
@@ -63,37 +63,79 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone |
         return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
                 "note": "band has no PSD bins: run more cycles"}
     out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
+    if tone and not tone.freq <= fb:              # above the band edge: no in-band tone to quote
+        out["tone_note"] = f"the tone at {tone.freq:g} Hz is above the band edge {fb:g} Hz: no tone level or SNR"
+        tone = None
     if tone:
         near = band & (np.abs(f - tone.freq) <= 3 * df)
         mask &= ~near
         sig = float(np.sum(p[near]) * df)
         out["tone_power"] = sig
-        out["tone_level_db"] = 10 * np.log10(sig + 1e-300)
+        out["tone_level_db"] = float(10 * np.log10(sig)) if sig > 0 else None
     if mask.sum() < 2:                             # run too short to resolve the band
         out.update({"noise_floor_db_per_hz": None, "inband_noise_db": None, "note": "band has < 2 bins"})
         return out
     noise = float(np.sum(p[mask]) * df)
     out["noise_floor_db_per_hz"] = float(10 * np.log10(np.median(p[mask])))
     out["inband_noise_db"] = float(10 * np.log10(noise))
-    if tone:
+    if tone and out["tone_level_db"] is not None:
         out["snr_db"] = float(out["tone_level_db"] - out["inband_noise_db"])
     lo, hi = fb / 10, fb
     sel = (f >= lo) & (f <= hi) & mask
     if sel.sum() > 3:
-        out["slope_db_per_decade"] = float(np.polyfit(np.log10(f[sel]), 10 * np.log10(p[sel]), 1)[0])
+        slope, at = np.polyfit(np.log10(f[sel]), 10 * np.log10(p[sel]), 1)
+        out["slope_db_per_decade"] = float(slope)
+        out["slope_fit"] = {"band_hz": [float(lo), float(hi)], "db_at_1hz": float(at)}
     return out
+
+
+def tone_fit(bits: np.ndarray, t: np.ndarray, freq: float, ts: float, osr: int) -> dict:
+    """The tone in a +-1 bitstream by a least-squares sine at its known frequency (exact where the
+    PSD's bins are wider than the tone's distance from DC, which short runs have): amplitude in
+    bits (1 = the full-scale force), its power B^2/2 in dB, and the SQNR: that power over the
+    in-band power of the bitstream with the fitted sine (and its mean) removed."""
+    a = np.column_stack([np.sin(2 * np.pi * freq * t), np.cos(2 * np.pi * freq * t), np.ones_like(t)])
+    c = np.linalg.lstsq(a, bits.astype(float), rcond=None)[0]
+    amp = float(np.hypot(c[0], c[1]))
+    f, p = psd(bits - a @ c, ts)
+    band = (f > 0) & (f <= 0.5 / ts / osr)
+    noise = float(np.sum(p[band]) * (f[1] - f[0]))
+    out = {"tone_amplitude_bits": amp, "tone_fit_db": float(10 * np.log10(amp * amp / 2 + 1e-300)),
+           "residual_inband_noise_db": float(10 * np.log10(noise + 1e-300))}
+    if freq <= 0.5 / ts / osr and noise > 0:       # an SQNR is of an in-band tone
+        out["sqnr_db"] = out["tone_fit_db"] - out["residual_inband_noise_db"]
+    return out
+
+
+def scale_factor(inputs: np.ndarray, bit_means: np.ndarray, full_scale: float | None = None) -> dict:
+    """Bitstream mean against the applied input (a DC sweep): the least-squares line's slope (the
+    scale factor, bit mean per input unit) and offset, and the linearity: the largest residual
+    from that line in % of full scale (full_scale: the input at a bit mean of 1; default
+    1 / |slope|). Why here: the accelerometer's acceptance figure (docs/sigma-delta.md)."""
+    x, y = np.asarray(inputs, float), np.asarray(bit_means, float)
+    if len(x) < 3:
+        raise ValueError("a scale-factor fit needs at least 3 inputs")
+    slope, offset = np.polyfit(x, y, 1)
+    fs = full_scale or 1.0 / abs(slope)
+    resid = y - (slope * x + offset)
+    return {"scale_factor": float(slope), "offset": float(offset), "full_scale_input": float(fs),
+            "max_nonlinearity_pct_fs": float(np.max(np.abs(resid)) / abs(slope) / fs * 100),
+            "residuals": resid.tolist()}
 
 
 def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, skip: int = 0) -> dict:
     """Summary per channel: spectra features, noise floor, SNR, bit mean and force balance."""
     summary: dict = {"ts": d.ts, "fs_hz": 1 / d.ts, "osr": osr, "cycles": int(len(clock["time"])), "skip": skip,
                      "vfb": d.vfb, "vs": d.vs, "lead": d.lead, "channels": {}, "spectra": {}}
-    for c in CHANNELS:
+    for c in d.names:
         bits = clock[f"bits_{c}"][skip:]
         f, p = psd(bits, d.ts)
         notches, peaks = features(f, p)
         m = band_metrics(f, p, d.ts, osr, tone)
+        if tone:
+            m |= tone_fit(bits, clock["time"][skip:], tone.freq, d.ts, osr)
         summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
+                                  "bit_mean_needed": d.channel(c)["bit_mean_needed"], "filter": d.channel(c)["filter"],
                                   **m, "notches": notches, "peaks": peaks, **latch_quality(clock, c, skip)}
         summary["spectra"][c] = (f, p)
     summary["gravity_balance"] = gravity_balance(clock, d, skip)
@@ -131,31 +173,37 @@ def levitation(clock: dict, model: MacroModel, limit: float = 0.02) -> dict:
 
 
 def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
-    """Momentum balance on z between the clock samples a = skip and b = N - 2: the mean
+    """Momentum balance on the balanced channel (Design.balance: the disk's z) between the clock samples a = skip and b = N - 2: the mean
     electrostatic force implied by the bits (the model's centre force of each bit pattern x the
-    feedback duty, plus the sense-phase force) against m g + m (v_b - v_a) / (t_b - t_a), with
+    feedback duty, plus the sense-phase force) against -F_dc + m (v_b - v_a) / (t_b - t_a) (F_dc:
+    the DC input force, -m g for gravity), with
     v from central differences of x_z, + the damping impulse B(0) (x_b - x_a) / (t_b - t_a) (exact
     for a dashpot; a film branch adds its force change / corner, negligible for corners far above
     the loop's motion). Samples sit mid-feedback, so the end periods count half. An applied tone
     force and the thermal noise force are not included (the first averages out only over whole
     tone periods; the second's impulse is ~1e-3 of m g T at 100 Pa over 128 periods)."""
-    pats = np.stack([clock[f"bits_{c}"] for c in CHANNELS], axis=1)
-    lookup = {tuple(r["pattern"]): r["fz"] * 1e-6 for r in d.table}
+    name, unit = d.balance["channel"], d.channels[d.balance["index"]]["force_unit_si"]
+    pats = np.stack([clock[f"bits_{c}"] for c in d.names], axis=1)
+    lookup = {tuple(r["pattern"]): r["f"][name] * unit for r in d.table}
     fz = np.array([lookup[tuple(p)] for p in pats.tolist()])
     a, b = skip, len(fz) - 2
     if b - a < 8:
         raise ValueError(f"too few clock samples after skipping {skip} for a force balance")
     weights = np.ones(b - a + 1)
     weights[[0, -1]] = 0.5
-    sense = d.sense_force[0] * duty(d.t, d.t.sense_on, d.t.sense_off)
+    sense = d.sense_force[d.balance["coord"]] * duty(d.t, d.t.sense_on, d.t.sense_off)
     mean = float(np.dot(weights, fz[a:b + 1]) / (b - a) * d.duty + sense)
-    x = clock["x_z"] * 1e-6                       # x_z port: 1 V = 1 um
+    x = clock[f"x_{name}"] * d.balance["x_unit_si"]   # the port: 1 V = 1 um (or 1 mrad)
     v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
     inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
     damping = d.damping * (x[b] - x[a]) / ((b - a) * d.ts)
-    need = d.mass * d.g + inertia + damping
-    return {"mean_force_n": mean, "weight_n": d.mass * d.g, "inertial_n": float(inertia),
-            "damping_n": float(damping), "ratio": float(mean / need), "window": [a, b]}
+    weight = -d.balance["dc_force_n"]
+    need = weight + inertia + damping
+    # no DC input: the ratio of two near-zero forces says nothing; the residual force does
+    full = d.channels[d.balance["index"]]["full_scale_force_si"]
+    ratio = float(mean / need) if abs(weight) > 1e-3 * full else None
+    return {"channel": name, "mean_force_n": mean, "weight_n": weight, "inertial_n": float(inertia),
+            "damping_n": float(damping), "ratio": ratio, "residual_n": float(mean - need), "window": [a, b]}
 
 
 def thermal_floor(model: MacroModel, d: Design) -> dict:
@@ -170,8 +218,8 @@ def thermal_floor(model: MacroModel, d: Design) -> dict:
     if noise:   # measured: `setseed`, `set rndseed` and `.options seed` all leave TRNOISE unseeded
         out["reproducibility"] = ("statistical only: ngspice 39 fills the Gaussian pool of TRNOISE from its "
                                   "process id (trannoise/wallace.c initw) and no seed option reaches it")
-    for c in CHANNELS:
-        b = float(model.coordinates[coord_index(model, c)].admittance(0.0).real)
+    for c in d.names:
+        b = float(model.coordinates[d.channel(c)["coord"]].admittance(0.0).real)
         floor = 10 * np.log10(4 * K_B * temp * b / d.level(c) ** 2) if b > 0 else None
         out["channels"][c] = {"damping_si": b, "thermal_floor_db_per_hz": floor}
     return out

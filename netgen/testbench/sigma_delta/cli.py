@@ -1,5 +1,6 @@
-"""`netgen sigma-delta STRUCTURE.toml -o DIR`: the paper's sigma-delta levitation loop around
-the structure's macromodel, with spectra (netgen.testbench.sigma_delta.runner)."""
+"""`netgen sigma-delta STRUCTURE.toml -o DIR`: the sigma-delta force-feedback loop (the paper's
+levitation loop, for any device: the structure's [loop] table or --loop LOOP.toml) around the
+structure's macromodel, with spectra (netgen.testbench.sigma_delta.runner)."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ from ...errors import SimulationError
 from ...folders import OutputFolder
 from ...model import MacroModel
 from ...units import parse_quantity
-from .loop import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, Tone
+from .loop import RELTOL_RANGE, RELTOL_TEXT, Tone, design
+from .loopfile import read_loop_file, read_structure_loop
 from .ngspice import MIN_SEGMENT, SEGMENT_S
-from .runner import BACKENDS, TIMEOUT, model_folder, model_for, run
+from .runner import BACKENDS, TIMEOUT, check_backend, model_folder, model_for, run
 
 
 # the run's result set in DIR (sigma-delta.manifest.json names it) and the caches it shares with
@@ -58,12 +60,12 @@ def cli(args) -> int:
         if tone and not (math.isfinite(tone.amplitude) and math.isfinite(tone.freq) and 0 < tone.freq < 0.5 / args.ts):
             raise ValueError(f"--tone {args.tone}: the amplitude must be a finite number and the frequency between 0 "
                              f"and f_s/2 = {0.5 / args.ts:g} Hz, e.g. --tone z:0.02:1000")
-        if not math.isfinite(args.lead) or abs(args.lead) > 10:
+        if args.lead is not None and (not math.isfinite(args.lead) or abs(args.lead) > 10):
             raise ValueError(f"--lead {args.lead}: the lead coefficient must lie in [-10, 10] (default 0.8)")
-        if not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
+        if args.reltol is not None and not RELTOL_RANGE[0] <= args.reltol <= RELTOL_RANGE[1]:
             raise ValueError(f"--reltol {args.reltol} is outside {RELTOL_TEXT}: give one inside it (default 1e-3; 1e-4 for spectra "
                              "you quote: docs/sigma-delta.md)")
-        if not 0 <= args.dither <= 1:
+        if args.dither is not None and not 0 <= args.dither <= 1:
             raise ValueError(f"--dither {args.dither} must be between 0 (none) and 1 (the default is 0.2)")
         pressure = parse_pressure(args.pressure) if args.pressure is not None else None
         if args.model and (args.rigid_only or pressure is not None or args.film or args.noise):
@@ -78,31 +80,36 @@ def cli(args) -> int:
     except ValueError as exc:
         print(f"netgen: {exc}", file=sys.stderr)
         return 2
+    loop = read_loop_file(args.loop) if args.loop else read_structure_loop(args.structure)   # LoopError: exit 2
     if args.model:
         model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
     else:
         model, lib = model_for(args.structure, model_folder(out, args.rigid_only, pressure, args.film, args.noise),
                                args.rigid_only, args.rebuild, not args.quiet, pressure, args.film, args.noise)
-    if tone and tone.coord not in [c.name for c in model.coordinates]:
+    inputs = [c.name for c in model.coordinates] + (["a_in"] if model.acceleration else [])
+    if tone and tone.coord not in inputs:
         print(f"netgen: --tone {args.tone}: the model has no coordinate {tone.coord!r}; choose one of "
-              f"{', '.join(c.name for c in model.coordinates)}", file=sys.stderr)
+              f"{', '.join(inputs)}", file=sys.stderr)
         return 2
+    choices = {"lead": args.lead, "dither": args.dither, "reltol": args.reltol}
+    # the loop checked against the model before any output (LoopError: exit 2)
+    check_backend(design(model, args.ts, spec=loop, tone=tone or loop.input.tone, **choices), loop, args.simulator)
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,
                       legacy=RESULT_FILES + (f"{model.name}_xspice.lib", f"{model.name}_osdi.lib")) as folder:
         try:
             s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
-                    plots=not args.no_plots, simulator=args.simulator, segment=args.segment, lead=args.lead,
-                    timeout=args.timeout, dither=args.dither, reltol=args.reltol)
+                    plots=not args.no_plots, simulator=args.simulator, segment=args.segment,
+                    timeout=args.timeout, loop=loop, **choices)
         except SimulationError as exc:               # its paths: where the failed run's files are kept
             raise SimulationError(folder.failed_path(str(exc)) + f"; the last complete results are still in "
                                   f"{out} ({folder.manifest.name})") from None
         folder.commit()
     if not args.quiet:
-        for c in CHANNELS:
-            ch = s["channels"][c]
+        for c, ch in s["channels"].items():
             snr = f", SNR {ch['snr_db']:.1f} dB" if "snr_db" in ch else ""
+            snr += f", SQNR {ch['sqnr_db']:.1f} dB (sine fit)" if "sqnr_db" in ch else ""
             floor = ch["noise_floor_db_per_hz"]
             floor = "n/a (run too short)" if floor is None else f"{floor:.1f} dB/Hz"
             print(f"{c}: bit mean {ch['bit_mean']:+.4f}, in-band floor {floor}"
@@ -112,7 +119,9 @@ def cli(args) -> int:
         if any(v["thermal_floor_db_per_hz"] is not None for v in th.values()):
             print("gas-film Brownian force floor (dB re F_fb^2/Hz): " + ", ".join(
                 f"{c} {v['thermal_floor_db_per_hz']:.1f}" for c, v in th.items() if v["thermal_floor_db_per_hz"]))
-        print(f"mean feedback force / weight = {gb['ratio']:.4f}; wrote {out / 'summary.json'} ({s['wall_s']:.0f} s)")
+        ratio = (f"mean feedback force / weight = {gb['ratio']:.4f}" if gb["ratio"] is not None else
+                 f"mean feedback force - input on {gb['channel']} = {gb['residual_n']:.3g} N")
+        print(f"{ratio}; wrote {out / 'summary.json'} ({s['wall_s']:.0f} s)")
     lev = s["levitation"]
     if not lev["held"]:
         print(f"netgen: the loop lost the plate at period {lev['lost_at_period']} ({lev['coordinate']} = "
@@ -141,16 +150,20 @@ def lost_hint(s: dict) -> str:
 
 def add_parser(sub) -> None:
     """The `sigma-delta` subcommand's arguments."""
-    p = sub.add_parser("sigma-delta", help="run the paper's sigma-delta levitation loop in ngspice or VACASK, "
-                       "with spectra")
-    p.add_argument("structure", help="structure description (TOML)")
+    p = sub.add_parser("sigma-delta", help="run the sigma-delta force-feedback loop (the paper's levitation loop, "
+                       "for any device) in ngspice or VACASK, with spectra")
+    p.add_argument("structure", help="structure description (TOML; its [loop] table describes the loop)")
+    p.add_argument("--loop", type=existing_file("loop description"), help="loop description LOOP.toml (a [loop] "
+                   "table, as in a structure file; replaces the structure's): channels, electrodes, feedback "
+                   "voltage, loop filter, timing, input (docs/sigma-delta.md)")
     p.add_argument("-o", "--output", required=True, type=output_folder,
                    help="output folder (bitstreams.npz, spectra, summary.json)")
     p.add_argument("--ts", type=positive("the sampling period in s", "--ts 1e-6", TS_MAX), default=1e-6,
                    help="sampling period T_s in s (default 1e-6)")
     p.add_argument("--cycles", type=integer("the number of sampling periods", MIN_CYCLES, MAX_CYCLES, "--cycles 4096"),
                    default=4096, help="number of sampling periods (default 4096)")
-    p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m)")
+    p.add_argument("--tone", help="sinusoidal force COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m), "
+                   "or a_in:AMPLITUDE:FREQ (frame acceleration, m/s^2)")
     p.add_argument("--rigid-only", action="store_true", help="drop the eigenmodes (model built with modes = 0)")
     p.add_argument("--model", type=existing_file("model JSON"), help="use this model .json (with the .lib, and for VACASK the .va, next to it) "
                    "instead of building")
@@ -165,11 +178,12 @@ def add_parser(sub) -> None:
                    help="squeeze-film model (compressible: Maxwell branches, for squeeze numbers above about 1)")
     p.add_argument("--noise", action="store_true", help="thermal force noise of the damping (ngspice trnoise); "
                    "summary.json gives the resulting Brownian floor per channel")
-    p.add_argument("--lead", type=number, default=0.8, help="lead-compensator coefficient a in y = a*prev - cur")
-    p.add_argument("--dither", type=number, default=0.2,
+    p.add_argument("--lead", type=number, default=None, help="lead-compensator coefficient a in y = a*prev - cur "
+                   "(every lead2 channel; default: the [loop] filter's, else 0.8)")
+    p.add_argument("--dither", type=number, default=None,
                    help="comparator dither amplitude, a fraction of the one-period feedback displacement "
                         "a_fb*T_s^2 (a sine near f_s/2 per channel; 0 = none; default 0.2)")
-    p.add_argument("--reltol", type=number, default=1e-3,
+    p.add_argument("--reltol", type=number, default=None,
                    help="relative tolerance of the simulator (default 1e-3; docs/sigma-delta.md on how it "
                         "moves the in-band floors: 1e-4 for spectra you quote)")
     p.add_argument("--segment", type=integer("periods per segment", MIN_SEGMENT, MAX_CYCLES, f"--segment {MIN_SEGMENT * 64}",

@@ -325,14 +325,15 @@ def dc_acceleration(model, d, channel: str) -> float:
     rest, (F_up - F_down) / 2, is Mechanics.force x v."""
     from .loop import duty
 
-    index = [c.name for c in model.coordinates].index(channel)
+    ch = d.channel(channel)                               # the balanced channel: the disk's z
+    index, j, unit = ch["coord"], ch["index"], ch["force_unit_si"]
     mass = model.coordinates[index].mass
     sense = d.sense_force[index] * duty(d.t, d.t.sense_on, d.t.sense_off) / mass
-    if channel != "z":
+    if channel != d.balance["channel"]:
         return sense
-    up = np.mean([r["fz"] for r in d.table if r["pattern"][0] > 0]) * 1e-6
-    down = np.mean([r["fz"] for r in d.table if r["pattern"][0] < 0]) * 1e-6
-    return float(-d.g + sense + 0.5 * (up + down) * d.duty / mass)
+    up = np.mean([r["f"][channel] for r in d.table if r["pattern"][j] > 0]) * unit
+    down = np.mean([r["f"][channel] for r in d.table if r["pattern"][j] < 0]) * unit
+    return float(d.balance["dc_force_n"] / mass + sense + 0.5 * (up + down) * d.duty / mass)
 
 
 def statefilter_params(channels: list[dict], d) -> dict[str, str]:

@@ -1,20 +1,26 @@
-"""The sigma-delta loop's design, derived from the MacroModel: electrode groups from the signs of
-dC_i/dq at the centre, the feedback pattern and its forces, voltages, charge-amplifier
-capacitors, the clock timing and the dither; and the loop's inputs (gravity, a tone). Every back
-end (netgen.testbench.sigma_delta.ngspice, .vacask) renders the same Design.
+"""The sigma-delta loop's design, derived from the MacroModel and the loop description
+(netgen.testbench.sigma_delta.loopfile): the channels (any of the model's coordinates), per
+electrode the sense weights and feedback pattern (from the signs of dC_i/dq at rest, or given),
+the feedback forces of every bit pattern, voltages, charge-amplifier capacitors, each channel's
+loop filter (FILTERS), the clock timing and the dither; and the loop's inputs (DC and tone on
+the force ports or a_in). Every back end (netgen.testbench.sigma_delta.ngspice, .vacask, .osdi)
+renders the same Design. Why a model cannot close the loop (a channel no electrode senses or
+drives, feedback that cannot balance the input) is a LoopError naming the file and key.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from ...constants import G
 from ...model import MacroModel
+from . import kinds
+from .loopfile import LoopSpec
 
-CHANNELS = ("z", "tilt_x", "tilt_y")
+FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind      # the loop-filter registry (kinds.py), by its old name
 
 
 @dataclass(frozen=True)
@@ -40,9 +46,9 @@ class Timing:
     rst_off: float = -0.04
 
 
-# per channel (z, tilt_x, tilt_y): the dither sits at f_s (1/2 - delta), a different delta per
-# channel so that the three dithers are uncorrelated
-DITHER_DELTA = (0.0218, 0.0274, 0.0331)
+# per channel (in order; the disk's z, tilt_x, tilt_y take the first three): the dither sits at
+# f_s (1/2 - delta), a different delta per channel so that the dithers are uncorrelated
+DITHER_DELTA = (0.0218, 0.0274, 0.0331, 0.0388, 0.0445, 0.0502)
 # the simulators' relative tolerance: range accepted from the CLI and sweep files
 RELTOL_RANGE = (1e-7, 1e-2)
 RELTOL_TEXT = "1e-7..1e-2"
@@ -50,7 +56,8 @@ RELTOL_TEXT = "1e-7..1e-2"
 
 @dataclass
 class Tone:
-    """A sinusoidal generalized force on one coordinate (amplitude in the f_ port unit)."""
+    """A sinusoidal input: a generalized force on coordinate `coord` (amplitude in its f_ port
+    unit), or with coord "a_in" the frame acceleration (m/s^2) through the model's a_in port."""
     coord: str
     amplitude: float
     freq: float
@@ -58,10 +65,10 @@ class Tone:
 
     @classmethod
     def parse(cls, text: str) -> "Tone":
-        """Parse COORD:AMPLITUDE:FREQ, e.g. z:0.02:1e3 (uN on z at 1 kHz)."""
+        """Parse COORD:AMPLITUDE:FREQ, e.g. z:0.02:1e3 (uN on z at 1 kHz) or a_in:2:1e3 (m/s^2)."""
         parts = text.split(":")
         if len(parts) != 3:
-            raise ValueError(f"tone {text!r} is not COORD:AMPLITUDE:FREQ (e.g. z:0.02:1000)")
+            raise ValueError(f"tone {text!r} is not COORD:AMPLITUDE:FREQ (e.g. z:0.02:1000 or a_in:2:1000)")
         try:
             return cls(parts[0], float(parts[1]), float(parts[2]))
         except ValueError:
@@ -70,18 +77,22 @@ class Tone:
 
 @dataclass
 class Design:
-    """Everything the testbench needs; all derived from the model and the few choices here."""
+    """Everything the testbench needs; all derived from the model and the loop description.
+    channels: per channel name, coordinate index `coord`, sensitivity, C_f, dither, `filter`
+    (FILTERS), full-scale force; electrodes: per electrode the sense weights `w` and the
+    feedback pattern `sel` (one entry per channel); table: the generalized forces of every bit
+    pattern; inputs: DC value per input port (port units); balance: the DC force balance of the
+    channel whose input needs the largest mean bit."""
     ts: float
     vs: float
     vfb: float
-    lead: float
+    lead: float | None
     full_scale: float
     electrodes: list[dict]
     channels: list[dict]
     table: list[dict]
-    mass: float
-    g: float
-    gravity_un: float
+    inputs: dict[str, float]
+    balance: dict
     duty: float
     sense_force: list[float]
     t: Timing = field(default_factory=Timing)
@@ -148,20 +159,29 @@ class Design:
         """Reset-switch conductance: C_f discharges `settle` time constants within 10 % of T_s."""
         return self.settle * cf / (0.1 * self.ts)
 
+    @property
+    def names(self) -> list[str]:
+        """The channel names (coordinates) in order."""
+        return [c["name"] for c in self.channels]
+
+    @property
+    def gravity_un(self) -> float:
+        """The DC force on f_z in uN (the disk's gravity), 0 if none."""
+        return self.inputs.get("f_z", 0.0)
+
+    @property
+    def mass(self) -> float:
+        """Mass (or inertia) of the balanced channel's coordinate."""
+        return self.balance["mass"]
+
+    def channel(self, name: str) -> dict:
+        """The channel entry of a coordinate."""
+        return next(c for c in self.channels if c["name"] == name)
+
     def level(self, channel: str) -> float:
         """Mean |fed-back force or torque| of a channel over a period (SI), for normalisation."""
-        key = {"z": "fz", "tilt_x": "tx", "tilt_y": "ty"}[channel]
-        unit = 1e-6 if channel == "z" else 1e-9
-        return float(np.mean([abs(r[key]) for r in self.table])) * unit * self.duty
-
-
-def coord_index(model: MacroModel, name: str) -> int:
-    """Index of a coordinate, or a clear error."""
-    names = [c.name for c in model.coordinates]
-    if name not in names:
-        raise ValueError(f"model {model.name} has no coordinate {name!r} (has {names}); "
-                         "the sigma-delta loop needs z, tilt_x and tilt_y")
-    return names.index(name)
+        ch = self.channel(channel)
+        return float(np.mean([abs(r["f"][channel]) for r in self.table])) * ch["force_unit_si"] * self.duty
 
 
 def window(p: np.ndarray, a: float, b: float, t: Timing) -> np.ndarray:
@@ -177,83 +197,390 @@ def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
     return (b - a - t.edge) + 2 * t.edge / 3
 
 
-def groups(model: MacroModel) -> list[dict]:
-    """Per electrode: side (+1 pulls z up), sensed tilt axis and its sign, sense weights."""
-    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0]
-    iz, ix, iy = (coord_index(model, c) for c in CHANNELS)
+def coord_index(model: MacroModel, name: str) -> int:
+    """Index of a coordinate, or a clear error."""
+    names = [c.name for c in model.coordinates]
+    if name not in names:
+        raise ValueError(f"model {model.name} has no coordinate {name!r} (has {names})")
+    return names.index(name)
+
+
+def si_factor(model: MacroModel, index: int) -> tuple[float, float]:
+    """(SI per f_ port unit, port units per SI) of a coordinate's force port: (1e-6, 1e6) for uN.
+    The second is rounded to an integer where it is one (1/1e-9 is not 1e9 in floating point)."""
+    f = model.coordinates[index].port_units[3]
+    inv = 1.0 / f
+    return f, float(round(inv)) if abs(inv - round(inv)) < 1e-6 * inv else inv
+
+
+def channel_names(model: MacroModel, spec: LoopSpec) -> list[str]:
+    """The loop's channels: as given, else the model's rigid-body coordinates that the electrodes
+    can push both ways (dC_i/dq of both signs: the disk's z, tilt_x, tilt_y; the z accelerometer's
+    z; the xyz proof mass's x and y), else the rigid ones some electrode senses (design() then says
+    why their feedback is one-sided), else the first coordinate (a beam's m1)."""
+    names = [c.name for c in model.coordinates]
+    if spec.channels is not None:
+        for k, ch in enumerate(spec.channels):
+            if ch.name not in names:
+                where = "loop.channels" + (f".{ch.name}" if ch.sense or ch.feedback or ch.filter else f"[{k}]")
+                raise spec.fail(where, f"model {model.name} has no coordinate {ch.name!r}",
+                                f"{did_you_mean(ch.name, names)}choose among {', '.join(names)}")
+        return [ch.name for ch in spec.channels]
+    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+    peak = np.abs(grad).max(initial=0.0)
+    rigid = [k for k, c in enumerate(model.coordinates)
+             if c.kind != "mode" and np.abs(grad[:, k]).max(initial=0.0) > 1e-9 * peak]
+    both = [k for k in rigid if grad[:, k].max() > 1e-6 * np.abs(grad[:, k]).max() < -grad[:, k].min()]
+    return [names[k] for k in (both or rigid)][:4] or names[:1]
+
+
+def did_you_mean(value: str, choices: list[str]) -> str:
+    """'did you mean X? ' (netgen.files.did_you_mean)."""
+    from ...files import did_you_mean as near
+    return near(value, choices)
+
+
+def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None) -> list[dict]:
+    """Per electrode: sense weights `w` and feedback pattern `sel`, one entry per channel. Derived
+    from the signs of dC_i/dq at rest: the first channel reads every electrode with the sign of
+    its dC/dq (the disk's z: top +1, bottom -1); each further channel reads the electrodes whose
+    scaled |dC/dq| is largest for it among the further channels (the disk's tilts: the sign of
+    dC/dtilt of the electrodes that sense that tilt). The feedback pattern is the sign pattern:
+    an electrode is energised when every channel's bit equals its weight there. A channel of
+    the loop description with explicit `sense` / `feedback` replaces its column."""
+    names = names or channel_names(model, spec or LoopSpec())
+    idx = [coord_index(model, n) for n in names]
+    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
     out = []
     for k, e in enumerate(model.electrodes):
-        side = int(np.sign(grad[k, iz]))
-        axis = "tilt_x" if abs(grad[k, ix]) >= abs(grad[k, iy]) else "tilt_y"
-        sign = int(np.sign(grad[k, ix if axis == "tilt_x" else iy]))
-        w = [side, sign if axis == "tilt_x" else 0, sign if axis == "tilt_y" else 0]
-        bz = "bit(v(b_z))" if side > 0 else "(1-bit(v(b_z)))"
-        bt = f"bit(v(b_{axis}))" if sign > 0 else f"(1-bit(v(b_{axis})))"
-        out.append({"name": e.name, "side": side, "axis": axis, "sign": sign, "w": w, "select": f"{bz}*{bt}"})
+        w = [int(np.sign(grad[k, idx[0]]))] + [0] * (len(idx) - 1)
+        if len(idx) > 1:
+            j = 1 + int(np.argmax([abs(grad[k, i]) for i in idx[1:]]))     # ties: the first (tilt_x)
+            w[j] = int(np.sign(grad[k, idx[j]]))
+        out.append({"name": e.name, "w": w, "sel": list(w)})
+    for j, ch in enumerate((spec.channels or ()) if spec else ()):
+        explicit(model, spec, ch, j, out)
     return out
 
 
-def selected(electrodes: list[dict], bits: tuple[int, int, int]) -> np.ndarray:
-    """0/1 per electrode: energised for the bit pattern (bz, bx, by), each +-1."""
-    bz, bx, by = bits
-    return np.array([float(e["side"] == bz and e["sign"] == (bx if e["axis"] == "tilt_x" else by))
+def explicit(model: MacroModel, spec: LoopSpec, ch, j: int, out: list[dict]) -> None:
+    """Apply a channel's explicit sense weights / feedback pattern (column j) to the electrodes."""
+    names = [e.name for e in model.electrodes]
+    for key in ("sense", "feedback"):
+        given = getattr(ch, key)
+        if given is None:
+            continue
+        for el in given:
+            if el not in names:
+                raise spec.fail(f"loop.channels.{ch.name}.{key}.{el}", f"model {model.name} has no electrode {el!r}",
+                                f"{did_you_mean(el, names)}choose among {', '.join(names)}")
+        for e in out:
+            e["w" if key == "sense" else "sel"][j] = given.get(e["name"], 0)
+
+
+def selected(electrodes: list[dict], bits: tuple[int, ...]) -> np.ndarray:
+    """0/1 per electrode: energised for the bit pattern (one +-1 per channel): every channel's bit
+    equals the electrode's feedback entry where that is non-zero (all zero: never fed back)."""
+    return np.array([float(any(e["sel"]) and all(s == 0 or s == b for s, b in zip(e["sel"], bits)))
                      for e in electrodes])
 
 
-def force_table(model: MacroModel, electrodes: list[dict], vfb: float) -> list[dict]:
-    """Generalized forces at the centre for each of the 8 bit patterns (uN, nN*m)."""
-    iz, ix, iy = (coord_index(model, c) for c in CHANNELS)
+def force_table(model: MacroModel, electrodes: list[dict], vfb: float, names: list[str]) -> list[dict]:
+    """Generalized forces at rest for each bit pattern: `f` per channel in its f_ port unit (uN,
+    nN*m), `all` per coordinate in SI."""
+    idx = [coord_index(model, n) for n in names]
     rows = []
-    for bits in itertools.product((1, -1), repeat=3):
+    for bits in itertools.product((1, -1), repeat=len(names)):
         f = model.electrostatic_force(np.zeros(model.ncoords), vfb * selected(electrodes, bits))[0]
         rows.append({"bits": "".join("+" if b > 0 else "-" for b in bits), "pattern": list(bits),
-                     "fz": f[iz] * 1e6, "tx": f[ix] * 1e9, "ty": f[iy] * 1e9, "all": f.tolist()})
+                     "f": {n: f[i] * si_factor(model, i)[1] for n, i in zip(names, idx)}, "all": f.tolist()})
     return rows
 
 
-def design(model: MacroModel, ts: float, density: float = 0.5, sense_ratio: float = 0.25,
-           lead: float = 0.8, full_scale: float = 0.01, g: float = G, timing: Timing | None = None,
-           dither: float = 0.2, reltol: float = 1e-3) -> Design:
-    """Loop design from the model: V_fb so that gravity needs a mean z-bit of `density`,
-    V_s = sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V;
-    `reltol` is the simulators' relative tolerance (the in-band floors depend on it: bench/compare_simulators.py)."""
-    t = timing or Timing()
-    iz = coord_index(model, "z")
-    electrodes = groups(model)
-    unit = force_table(model, electrodes, 1.0)
-    fz_per_v2 = float(np.mean([abs(r["fz"]) for r in unit])) * 1e-6
-    mass = model.coordinates[iz].mass
-    vfb = round(float(np.sqrt(mass * g / (density * duty(t) * fz_per_v2))), 3)
-    vs = round(sense_ratio * vfb, 3)
+def dc_forces(model: MacroModel, spec: LoopSpec, g: float) -> tuple[dict[str, float], np.ndarray]:
+    """The DC inputs per port (port units) and the DC generalized force per coordinate (SI).
+    Default (no [loop.input]): gravity, a_in = g if the model has the port, else -m g on f_z."""
+    si = np.zeros(model.ncoords)
+    names = [c.name for c in model.coordinates]
+    if spec.input.default:
+        if model.acceleration:
+            si -= np.array(model.acceleration) * g
+            return {"a_in": g}, si
+        if "z" not in names:
+            return {}, si
+        iz = names.index("z")
+        si[iz] = -model.coordinates[iz].mass * g
+        return {"f_z": -model.coordinates[iz].mass * g * si_factor(model, iz)[1]}, si
+    for port, value in spec.input.dc.items():
+        if port == "a_in":
+            if not model.acceleration:
+                raise spec.fail("loop.input.acceleration", f"model {model.name} has no a_in port",
+                                "add acceleration_port = true to the structure's [coordinates], or give "
+                                "force = {coordinate, dc} instead")
+            si -= np.array(model.acceleration) * value
+        else:
+            i = coord_index_for(model, spec, port[2:], "loop.input.force.coordinate")
+            si[i] += value * si_factor(model, i)[0]
+    return dict(spec.input.dc), si
+
+
+def coord_index_for(model: MacroModel, spec: LoopSpec, name: str, where: str) -> int:
+    """coord_index with the loop description's error."""
+    names = [c.name for c in model.coordinates]
+    if name not in names:
+        raise spec.fail(where, f"model {model.name} has no coordinate {name!r}",
+                        f"{did_you_mean(name, names)}choose among {', '.join(names)}")
+    return names.index(name)
+
+
+def tone_forces(model: MacroModel, tone: Tone | None) -> np.ndarray:
+    """Amplitude of the tone's generalized force per coordinate (SI)."""
+    out = np.zeros(model.ncoords)
+    if tone is None:
+        return out
+    if tone.coord == "a_in":
+        return np.abs(np.array(model.acceleration or [0.0] * model.ncoords)) * abs(tone.amplitude)
+    i = coord_index(model, tone.coord)
+    out[i] = abs(tone.amplitude) * si_factor(model, i)[0]
+    return out
+
+
+def check_timing(spec: LoopSpec, t: Timing) -> None:
+    """The period's events in order, each edge inside the period (else LoopError on [loop.timing])."""
+    h = t.edge / 2
+    order = [("edge", 0 < t.edge <= 0.1), ("sense_on", t.sense_on - h >= 0), ("prev", t.sense_on < t.prev),
+             ("cur", t.prev + t.sample <= t.cur + 1e-12), ("clk", t.cur + t.sample <= t.clk + 1e-12),
+             ("sample", 0 < t.sample and t.clk + t.sample <= t.sense_off),
+             ("sense_off", t.sense_off + h <= t.fb_on - h), ("rst_on", t.sense_off + h <= t.rst_on <= t.fb_on - h),
+             ("fb_off", t.fb_on + h < t.fb_off - h and t.fb_off + h <= 1.0),
+             ("rst_off", t.fb_off + h - 1.0 <= t.rst_off <= t.sense_on - h)]
+    for key, ok in order:
+        if not ok:
+            raise spec.fail(f"loop.timing.{key}", f"{key} = {getattr(t, key)} breaks the period's order "
+                            "(sense on < prev < cur < latch < sense off < reset on < feedback on < feedback off, "
+                            "edges inside the period)", f"keep the order of the defaults ({Timing()})")
+
+
+def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
+    """A channel's loop filter: its own [loop.channels.<q>.filter], else [loop.filter], else lead2;
+    lead2's coefficient from the table, else `lead` (--lead), else 0.8."""
+    own = next((c.filter for c in spec.channels or () if c.name == name and c.filter), None)
+    f = dict(own or spec.filter or {"kind": "lead2", "lead": None})
+    if f["kind"] == "lead2":
+        f["lead"] = lead if lead is not None else (f["lead"] if f["lead"] is not None else 0.8)
+    return f
+
+
+MAX_VFB = 1e4          # V: the derived feedback voltage's limit (a [loop] feedback_voltage's range)
+MAX_BIT_MEAN = 0.95     # |mean bit| an input may need (DC + tone peak): beyond it the loop overloads
+ONE_SIDED_FIX = ("add an electrode on the other side (force feedback pulls both ways: "
+                 "examples/accelerometer_z.toml), or give an input the feedback can balance")
+
+
+def one_sided(fp: float, fm: float) -> str:
+    """Why a channel's feedback is one-sided, in words."""
+    return (f"its feedback is one-sided (the electrodes only push towards {'-' if fp <= 0 else '+'}q: "
+            f"{fp:.3g} N with the bit 1, {fm:.3g} N with 0)")
+
+
+def drive_forces(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str]) -> list[tuple[float, float]]:
+    """(f+, f-) per channel, SI: its mean feedback force over the patterns with its bit +1 / -1;
+    a channel whose bit does not push towards +q (f+ <= f-) is a LoopError."""
+    out = []
+    for j, n in enumerate(names):
+        unit = si_factor(model, coord_index(model, n))[0]
+        fp = float(np.mean([r["f"][n] for r in table if r["pattern"][j] > 0])) * unit
+        fm = float(np.mean([r["f"][n] for r in table if r["pattern"][j] < 0])) * unit
+        if not fp - fm > 1e-9 * max(abs(fp), abs(fm), 1e-300):
+            where = f"loop.channels.{n}.feedback" if feedback_given(spec, n) else "loop.channels"
+            why = ("no electrode drives it" if max(abs(fp), abs(fm)) == 0 else
+                   "its feedback pushes towards -q when its bit is 1" if fp < fm else "its bit does not change its force")
+            raise spec.fail(where, f"channel {n}: {why} (feedback force {fp:.3g} N with the bit 1, {fm:.3g} N with 0, "
+                            "at 1 V)", "close the loop on a coordinate the electrodes can push both ways, or "
+                            f"give [loop.channels.{n}] feedback = {{electrode = +1 or -1}} that does")
+        out.append((fp, fm))
+    return out
+
+
+def feedback_given(spec: LoopSpec, name: str) -> bool:
+    """Did the loop description give this channel's feedback pattern?"""
+    return any(c.name == name and c.feedback for c in spec.channels or ())
+
+
+def check_sensing(model: MacroModel, spec: LoopSpec, electrodes: list[dict], names: list[str]) -> np.ndarray:
+    """The scaled dC/dq; a channel whose readout sum_i w_i dC_i/dq is not positive is a LoopError."""
     grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
-    channels = []
-    table = force_table(model, electrodes, vfb)
-    for k, name in enumerate(CHANNELS):
-        sens = vs * float(sum(e["w"][k] * grad[i, coord_index(model, name)] for i, e in enumerate(electrodes)))
-        channels.append({"name": name, "index": k, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}"),
-                         "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
-                         "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k])})
+    for j, n in enumerate(names):
+        s = float(sum(e["w"][j] * grad[i, coord_index(model, n)] for i, e in enumerate(electrodes)))
+        peak = float(np.abs(grad).max(initial=0.0))
+        if not s > 1e-9 * peak:
+            given = any(c.name == n and c.sense for c in spec.channels or ())
+            why = "no electrode senses it" if abs(s) <= 1e-9 * peak else "its sense weights read -q"
+            raise spec.fail(f"loop.channels.{n}.sense" if given else "loop.channels",
+                            f"channel {n}: {why} (sum_i w_i dC_i/dq = {s:.3g} F per touch amplitude)",
+                            "close the loop on a coordinate the electrodes sense, or give sense weights with the sign "
+                            "of dC/dq")
+    return grad
+
+
+def pick(given, spec: LoopSpec, key: str, default):
+    """A design choice: the caller's (CLI, sweep), else the loop description's, else the default."""
+    if given is not None:
+        return given
+    value = getattr(spec, key)
+    return default if value is None else value
+
+
+def design(model: MacroModel, ts: float, density: float | None = None, sense_ratio: float | None = None,
+           lead: float | None = None, full_scale: float | None = None, g: float = G, timing: Timing | None = None,
+           dither: float | None = None, reltol: float | None = None, spec: LoopSpec | None = None,
+           tone: Tone | None = None, balance_check: bool = True) -> Design:
+    """Loop design from the model and the loop description `spec`: V_fb so that the DC input needs
+    a mean bit of `density` on the channel it loads most (the disk: gravity on z), V_s =
+    sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V; `reltol` is
+    the simulators' relative tolerance (the in-band floors depend on it: bench/compare_simulators.py).
+    Arguments given here win over the description's; `tone` enters the balance check
+    (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported)."""
+    spec = spec or LoopSpec()
+    density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
+    full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
+    reltol = pick(reltol, spec, "reltol", 1e-3)
+    t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
+    check_timing(spec, t)
+    names = channel_names(model, spec)
+    idx = [coord_index(model, n) for n in names]
+    electrodes = groups(model, names, spec)
+    grad = check_sensing(model, spec, electrodes, names)
+    unit = force_table(model, electrodes, 1.0, names)
+    drive = drive_forces(model, spec, unit, names)
+    inputs, dc_si = dc_forces(model, spec, g)
+    per_v2 = [float(np.mean([abs(r["f"][n]) for r in unit])) * si_factor(model, i)[0] for n, i in zip(names, idx)]
+    load = [abs(dc_si[i]) / p for i, p in zip(idx, per_v2)]
+    jb = int(np.argmax(load))
+    if not spec.feedback_voltage and not (abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
+        for n, (fp, fm) in zip(names, drive):        # no input: a one-sided loop has nothing to balance against
+            if fp <= 0 or fm >= 0:
+                raise spec.fail("loop.channels", f"channel {n}: {one_sided(fp, fm)} and the loop has no input to "
+                                "balance it against", ONE_SIDED_FIX)
+    vfb = spec.feedback_voltage or feedback_voltage(spec, abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]],
+                                                    density * duty(t) * per_v2[jb])
+    vs = volts(sense_ratio * vfb)
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
-    return Design(ts, vs, vfb, lead, full_scale, electrodes, channels, table,
-                  mass, g, -mass * g * 1e6, duty(t), sense.tolist(), t,
-                  damping=float(model.coordinates[iz].admittance(0.0).real), dither=dither, reltol=reltol)
+    needed = check_balance(model, spec, names, drive, dc_si, sense, tone, vfb, t, balance_check)
+    table = force_table(model, electrodes, vfb, names)
+    check_step(model, spec, table, names, ts)
+    channels = []
+    for k, (name, i) in enumerate(zip(names, idx)):
+        sens = vs * float(sum(e["w"][k] * grad[j, i] for j, e in enumerate(electrodes)))
+        channels.append({"name": name, "index": k, "coord": i, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}"),
+                         "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
+                         "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k]), "filter": channel_filter(spec, name, lead),
+                         "force_unit_si": si_factor(model, i)[0], "bit_mean_needed": needed[k],
+                         "full_scale_force_si": 0.5 * (drive[k][0] - drive[k][1]) * vfb**2 * duty(t),
+                         "bit_node": {"z": "bz", "tilt_x": "bx", "tilt_y": "by"}.get(name, f"bit_{name}")})
+    c = model.coordinates[idx[jb]]
+    balance = {"channel": names[jb], "index": jb, "coord": idx[jb], "mass": c.mass, "dc_force_n": float(dc_si[idx[jb]]),
+               "damping": float(c.admittance(0.0).real), "x_unit_si": c.port_units[1]}
+    first = channels[0]["filter"]
+    return Design(ts, vs, vfb, first.get("lead"), full_scale, electrodes, channels, table, inputs, balance,
+                  duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
+
+
+MAX_STEP = 0.01         # one period's feedback displacement a_fb T_s^2 / touch amplitude (the disk: 1.5e-5)
+
+
+def check_step(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str], ts: float) -> None:
+    """One period of feedback must move each channel's coordinate by less than MAX_STEP of its
+    touching amplitude (the loop holds it within 2 %: analysis.levitation); else a LoopError."""
+    for n in names:
+        step = step_volts(model, table, n, ts, 1.0)
+        if step > MAX_STEP:
+            raise spec.fail("loop.feedback_voltage" if spec.feedback_voltage else "loop.input",
+                            f"channel {n}: one period of feedback moves it {step:.3g} of its touching amplitude "
+                            f"(at most {MAX_STEP}: the loop could not hold it near rest)",
+                            "lower the input or the feedback voltage, or shorten --ts")
+
+
+def volts(v: float) -> float:
+    """A voltage rounded for the netlist: to 1 mV (the disk's 2.12 V), 4 digits below 1 V."""
+    return round(v, 3) if v >= 1.0 else float(f"{v:.4g}")
+
+
+def feedback_voltage(spec: LoopSpec, force: float, per_v2: float) -> float:
+    """V_fb from the input the feedback must carry at the design's mean bit (force: SI)."""
+    if not force > 0:
+        raise spec.fail("loop.feedback_voltage", "the loop has no input to size the feedback from (no DC "
+                        "input or tone on its channels)", 'give feedback_voltage = "5 V" in [loop], or an input')
+    v = volts(float(np.sqrt(force / per_v2)))
+    if v > MAX_VFB:
+        raise spec.fail("loop.input", f"the input needs a feedback voltage of {v:.4g} V (more than {MAX_VFB:g} V)",
+                        "lower the input, or give a device with more electrode area or smaller gaps")
+    return v
+
+
+def check_balance(model: MacroModel, spec: LoopSpec, names: list[str], drive: list[tuple[float, float]],
+                  dc_si: np.ndarray, sense: np.ndarray, tone: Tone | None, vfb: float, t: Timing,
+                  refuse: bool = True) -> list[float]:
+    """The mean bit each channel needs for its DC input (with the sense phase's force), and a
+    LoopError when DC + tone peak need more than MAX_BIT_MEAN of the feedback's range."""
+    sduty, fduty, amp = duty(t, t.sense_on, t.sense_off), duty(t), tone_forces(model, tone)
+    out = []
+    for j, n in enumerate(names):
+        i = coord_index(model, n)
+        fp, fm = drive[j][0] * vfb**2, drive[j][1] * vfb**2
+        need = -(dc_si[i] + sense[i] * sduty) / fduty
+        bit = 2 * (need - fm) / (fp - fm) - 1
+        swing = 2 * amp[i] / fduty / (fp - fm)
+        if refuse and abs(bit) + swing > MAX_BIT_MEAN:
+            v = vfb * np.sqrt((abs(bit) + swing) / (0.9 * MAX_BIT_MEAN))     # the forces go as V^2
+            where = "loop.feedback_voltage" if spec.feedback_voltage else "loop.input"
+            if (fp <= 0 and need > 0) or (fm >= 0 and need < 0):
+                raise spec.fail(where, f"channel {n}: the feedback cannot balance the input at any voltage: "
+                                f"{one_sided(fp, fm)}, and the input needs a force towards "
+                                f"{'+' if need > 0 else '-'}q ({need * fduty:.4g} N)", ONE_SIDED_FIX)
+            raise spec.fail(where, f"channel {n}: the feedback cannot balance the input: it needs a mean bit of "
+                            f"{bit:+.3f}" + (f" +- {swing:.3f} (tone)" if swing else "") + f" at V_fb = {vfb:g} V "
+                            f"(at most +-{MAX_BIT_MEAN}; full-scale force {0.5 * (fp - fm) * fduty:.4g} N, DC input "
+                            f"{-dc_si[i]:.4g} N)", f"raise feedback_voltage to about {v:.3g} V or more, or lower the input")
+        out.append(float(bit))
+    return out
 
 
 def step_volts(model: MacroModel, table: list[dict], channel: str, ts: float, full_scale: float) -> float:
     """The channel's one-period feedback displacement a_fb T_s^2 (a_fb: mean |fed-back force or
     torque| while on, over the mass or inertia) in readout volts (1 V = full_scale x touch)."""
-    c = model.coordinates[coord_index(model, channel)]
-    key, unit = {"z": ("fz", 1e-6), "tilt_x": ("tx", 1e-9), "tilt_y": ("ty", 1e-9)}[channel]
-    force = float(np.mean([abs(r[key]) for r in table])) * unit
+    i = coord_index(model, channel)
+    c = model.coordinates[i]
+    force = float(np.mean([abs(r["f"][channel]) for r in table])) * si_factor(model, i)[0]
     return force / c.mass * ts**2 / (c.scale * full_scale)
 
 
 def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
-    """(port, DC value, tone or None) per input port of the model: gravity on f_z, the optional
-    tone on its coordinate, 0 on the other force ports and on any other input (e.g. a_in).
+    """(port, DC value, tone or None) per input port of the model: the design's DC inputs (the
+    disk: gravity on f_z), the optional tone on its port (f_<q>, or a_in), 0 on the others.
     Both benches format these in their own source syntax."""
-    out = [(f"f_{c.name}", d.gravity_un if c.name == "z" else 0.0, tone if tone and tone.coord == c.name else None)
+    port = None if tone is None else ("a_in" if tone.coord == "a_in" else f"f_{tone.coord}")
+    out = [(f"f_{c.name}", d.inputs.get(f"f_{c.name}", 0.0), tone if port == f"f_{c.name}" else None)
            for c in model.coordinates]
-    driven = {port for port, _, _ in out}
-    return out + [(p["name"], 0.0, None) for p in model.ports()
-                  if p["kind"].endswith("_in") and p["name"] not in driven]
+    driven = {p for p, _, _ in out}
+    return out + [(p["name"], d.inputs.get(p["name"], 0.0), tone if port == p["name"] else None)
+                  for p in model.ports() if p["kind"].endswith("_in") and p["name"] not in driven]
+
+
+def tone_unit(model: MacroModel, tone: Tone) -> str:
+    """The unit of a tone's amplitude: its f_ port's, or m/s^2 on a_in (a ValueError if the model
+    has no such input)."""
+    if tone.coord == "a_in":
+        if not model.acceleration:
+            raise ValueError(f"model {model.name} has no a_in port (structure: [coordinates] acceleration_port = true)")
+        return "m/s^2"
+    return model.coordinates[coord_index(model, tone.coord)].port_units[2]
+
+
+def input_text(model: MacroModel, d: Design) -> str:
+    """One comment line on the DC inputs and the channel they load, for the netlist headers."""
+    units = {f"f_{c.name}": c.port_units[2] for c in model.coordinates} | {"a_in": "m/s^2"}
+    dc = ", ".join(f"{p} = {v:.6g} {units.get(p, '')}" for p, v in d.inputs.items()) or "none"
+    b = d.balance
+    return (f"DC inputs: {dc}; balanced on {b['channel']} by a mean bit of "
+            f"{d.channels[b['index']]['bit_mean_needed']:+.4f} (m = {b['mass']:.6g} SI, DC force {b['dc_force_n']:.6g} N).")

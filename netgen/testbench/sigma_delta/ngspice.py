@@ -26,7 +26,8 @@ from ...templating import render
 from ...text import netlist_path
 from . import filters
 from .analysis import levitation, per_clock
-from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
+from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
+from .vacask import drivers
 
 TEMPLATE = "sigma_delta/tb.cir.j2"
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
@@ -85,19 +86,19 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     ic = dict(ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
-        coord_index(model, tone.coord)
-        tone.unit = model.coordinates[coord_index(model, tone.coord)].port_units[2]
+        tone.unit = tone_unit(model, tone)
     # only what per_clock() reads: ngspice holds every saved vector in memory (measured 27 kB per
     # period with these 11, 1.8 GB for 2^16 periods; with the 3 lead-filter outputs too, over 2 GB)
-    saves = ["time"] + [f"v(b_{c})" for c in CHANNELS] + [f"v(x_{c.name})" for c in model.coordinates]
+    saves = ["time"] + [f"v(b_{c})" for c in d.names] + [f"v(x_{c.name})" for c in model.coordinates]
     saves += [f"v({n})" for n in states]
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
                   lib=netlist_path(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
-                  progress=progress, selects=selection_nodes(d.electrodes), start=start, ic=ic,
-                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu)
+                  progress=progress, selects=selection_nodes(d), start=start, ic=ic,
+                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu,
+                  inputs=input_text(model, d), drivers=drivers(d) if loop == "osdi" else [])
 
 
 def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
@@ -117,10 +118,12 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     fb = d.feedback_basis
     names = [c["name"] for c in d.channels]
     init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
-    # an electrode is energised when each channel's bit equals its sense weight there (side for z,
-    # tilt sign for its axis; groups(), selected()): the weights are the selection pattern
-    params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, "lead": d.lead,
-              "start": float(start), "sel": [w for e in d.electrodes for w in e["w"]],
+    # an electrode is energised when each channel's bit equals its feedback entry there (loop.groups,
+    # loop.selected); one lead coefficient for all channels, or one per channel (leads)
+    leads = [c["filter"].get("lead", 0.0) for c in d.channels]      # (a state-space channel: its flt_* path)
+    lead = {"lead": leads[0]} if len(set(leads)) == 1 else {"lead": 0.0, "leads": leads}
+    params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, **lead,
+              "start": float(start), "sel": [s for e in d.electrodes for s in e["sel"]],
               "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
               "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
               "dither_amp": [c["dither_v"] for c in d.channels],
@@ -134,16 +137,18 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
             "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
 
 
-def selection_nodes(electrodes: list[dict]) -> dict[str, dict[str, str]]:
-    """Per electrode the name of its feedback-selection node, and per node its expression in the
-    restored bits bz, bx, by (e.g. sel_zp_tilt_xn = v(bz)*(1-v(bx))): the electrodes share the 8
-    products, so the drivers are cheap 3-variable B-sources (bench/callgrind.py)."""
+def selection_nodes(d: Design) -> dict[str, dict[str, str]]:
+    """Per feedback electrode the name of its selection node, and per node its expression in the
+    restored bits (the channels' bit_node: bz, bx, by for the disk; e.g. sel_zp_tilt_xn =
+    v(bz)*(1-v(bx))): the electrodes share the products, so the drivers are cheap few-variable
+    B-sources (bench/callgrind.py). An electrode with no feedback entry has none."""
     nodes, of = {}, {}
-    for e in electrodes:
-        name = f"sel_z{'p' if e['side'] > 0 else 'n'}_{e['axis']}{'p' if e['sign'] > 0 else 'n'}"
-        bt = "bx" if e["axis"] == "tilt_x" else "by"
-        nodes[name] = (("v(bz)" if e["side"] > 0 else "(1-v(bz))") + "*"
-                       + (f"v({bt})" if e["sign"] > 0 else f"(1-v({bt}))"))
+    for e in d.electrodes:
+        used = [(c, s) for c, s in zip(d.channels, e["sel"]) if s]
+        if not used:
+            continue
+        name = "sel_" + "_".join(f"{c['name']}{'p' if s > 0 else 'n'}" for c, s in used)
+        nodes[name] = "*".join(f"v({c['bit_node']})" if s > 0 else f"(1-v({c['bit_node']}))" for c, s in used)
         of[e["name"]] = name
     return {"nodes": nodes, "of": of}
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ...build import build_model
 from ...emit import write_outputs
+from ...errors import LoopError
 from ...folders import OutputFolder
 from ...model import MacroModel
 from ...sim.ngspice import identity as ngspice_identity
@@ -28,7 +29,8 @@ from ...sim.vacask import stats as vacask_stats
 from ...structure import Damping, load_structure
 from . import ngspice, osdi, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
-from .loop import Design, Tone, design
+from .loop import FILTERS, Design, Tone, design
+from .loopfile import InputSpec, LoopSpec
 from .plots import plot_spectra, plot_states
 
 
@@ -111,17 +113,44 @@ BACKENDS: dict[str, Backend] = {
 SIMULATORS = tuple(BACKENDS)
 
 
+def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
+    """Every channel's loop filter is one this back end renders (FilterKind.backends), else a
+    LoopError naming the kind and the back ends that do."""
+    for ch in d.channels:
+        kind = FILTERS[ch["filter"]["kind"]]
+        if simulator not in kind.backends:
+            raise spec.fail(f"loop.channels.{ch['name']}.filter.kind", f"loop filter {ch['filter']['kind']!r} is not "
+                            f"implemented for --simulator {simulator}", f"use --simulator {' or '.join(kind.backends)}")
+
+
+def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: float | None) -> LoopSpec:
+    """The loop description with a sweep's (or caller's) feedback voltage and DC acceleration on a_in."""
+    if feedback_voltage is not None:
+        loop = replace(loop, feedback_voltage=feedback_voltage)
+    if acceleration is not None:
+        dc = {k: v for k, v in loop.input.dc.items() if k == "a_in"} | {"a_in": acceleration}
+        loop = replace(loop, input=InputSpec(dc, loop.input.tone if not loop.input.default else None, default=False))
+    return loop
+
+
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
         progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        segment: int | None = None, timeout: float = TIMEOUT, **choices) -> dict:
+        segment: int | None = None, timeout: float = TIMEOUT, loop: LoopSpec | None = None, **choices) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
-    .va next to `lib` or else the module emitted from `model`)."""
+    .va next to `lib` or else the module emitted from `model`); `loop`: the loop description
+    (defaults: the model's), `tone` (else the description's) its input tone."""
     if simulator not in BACKENDS:
         raise ValueError(f"unknown simulator {simulator!r}; choose one of {', '.join(BACKENDS)}")
     backend = BACKENDS[simulator]
-    d = design(model, ts, **choices)
+    loop = overridden(loop or LoopSpec(), choices.pop("feedback_voltage", None), choices.pop("acceleration", None))
+    tone = tone or loop.input.tone
+    d = design(model, ts, spec=loop, tone=tone, **choices)
+    check_backend(d, loop, simulator)
+    if len(d.channels) > 4 and simulator in ("vacask", "ngspice-osdi"):
+        raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most 4",
+                        "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice")
     state = backend.prepare(model, lib, out, progress)      # fails before any output
     state["timeout"] = timeout                               # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
@@ -138,8 +167,10 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
                                                 for k, v in (("f", fr), ("psd", p))})
     summary.update({"requested_cycles": cycles, "model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
                     "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
-                    "design": {"electrodes": d.electrodes, "table": d.table, "cf": {c["name"]: c["cf"] for c in d.channels},
-                               "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
+                    "design": {"channels": d.names, "electrodes": d.electrodes, "table": d.table,
+                               "cf": {c["name"]: c["cf"] for c in d.channels},
+                               "filters": {c["name"]: c["filter"] for c in d.channels}, "inputs": d.inputs,
+                               "balance": d.balance, "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if plots:
         plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",

@@ -27,7 +27,7 @@ from ...sim.vacask import compiled, print_progress, run_vacask
 from ...templating import render
 from ...text import netlist_path
 from . import filters
-from .loop import CHANNELS, Design, Tone, coord_index, mechanical_inputs
+from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
 
 BLOCKS = Path(__file__).resolve().parent / "blocks.va"
 TEMPLATE = "sigma_delta/tb.vacask.j2"
@@ -86,9 +86,40 @@ def merge_options(*texts: str) -> str:
     return " ".join(f"{k}={v}" for k, v in merged.items())
 
 
-def saves(model: MacroModel) -> list[str]:
+# the general electrode driver of blocks.va: up to this many channels per electrode
+DRIVER_SLOTS = 4
+
+
+def drivers(d: Design) -> list[dict]:
+    """Per electrode its blocks.va driver instance: nodes, model and parameters. An electrode
+    fed back and read by exactly two channels with +-1 (the disk's z and one tilt) is sd_driver
+    (model drv: side and sign select the bits and weight the two amplifiers); any other is
+    sd_driver4 (model drvn: feedback entries s1..s4, sense weights w1..w4, unused slots on 0)."""
+    out = []
+    for e in d.electrodes:
+        used = [k for k, c in enumerate(d.channels) if e["w"][k] or e["sel"][k]]
+        if len(used) == 2 and all(e["w"][k] == e["sel"][k] and e["sel"][k] in (1, -1) for k in used):
+            a, b = (d.channels[k]["name"] for k in used)
+            out.append({"name": e["name"], "model": "drv",
+                        "nodes": [e["name"], "phs", "phf", "rst", f"b_{a}", f"b_{b}", f"ca_{a}", f"ca_{b}"],
+                        "params": f"vs={d.vs} vfb={d.vfb} side={e['sel'][used[0]]} sign={e['sel'][used[1]]}"})
+            continue
+        if len(used) > DRIVER_SLOTS:
+            raise ValueError(f"electrode {e['name']} serves {len(used)} channels; the Verilog-A driver takes at "
+                             f"most {DRIVER_SLOTS}")
+        slots = used + [None] * (DRIVER_SLOTS - len(used))
+        names = [d.channels[k]["name"] if k is not None else None for k in slots]
+        params = [f"vs={d.vs} vfb={d.vfb}"] + [f"s{j + 1}={e['sel'][k]} w{j + 1}={e['w'][k]}"
+                                                for j, k in enumerate(slots) if k is not None]
+        out.append({"name": e["name"], "model": "drvn",
+                    "nodes": [e["name"], "phs", "phf", "rst"] + [f"b_{n}" if n else "0" for n in names]
+                    + [f"ca_{n}" if n else "0" for n in names], "params": " ".join(params)})
+    return out
+
+
+def saves(model: MacroModel, d: Design) -> list[str]:
     """Node voltages per_clock() and the comparisons need: bits, lead-filter outputs, coordinates."""
-    names = [f"b_{c}" for c in CHANNELS] + [f"y_{c}" for c in CHANNELS] + [f"x_{c.name}" for c in model.coordinates]
+    names = [f"b_{c}" for c in d.names] + [f"y_{c}" for c in d.names] + [f"x_{c.name}" for c in model.coordinates]
     return [f"v({n})" for n in names]               # bare node names would be ignored (all nodes saved)
 
 
@@ -97,13 +128,15 @@ def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path,
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2)."""
     check_names(model)                      # names outside comments; the paths below through netlist_path
     if tone:
-        tone.unit = model.coordinates[coord_index(model, tone.coord)].port_units[2]
+        tone.unit = tone_unit(model, tone)
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
                   model_osdi=netlist_path(Path(model_osdi).resolve()),
                   blocks_osdi=netlist_path(Path(blocks_osdi).resolve()),
                   cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
-                  saves=saves(model), statefilters=filters.statefilter_params(d.channels, d), options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
+                  saves=saves(model, d), drivers=drivers(d), inputs=input_text(model, d),
+                  statefilters=filters.statefilter_params(d.channels, d),
+                  options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
 
 
 def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0) -> Plot:

@@ -5,13 +5,15 @@
                    linearly between the accepted time points around the instant: exact timing
                    without a breakpoint)
      at t_latch:   b[c] = 1 if lead prev[c] - cur[c] + dither_amp[c] sin(dither_step[c] n) > 0 else 0
+                   (lead: leads[c] when the vector leads is given, else the scalar lead)
                    or, for a channel with flt_n[c] = K > 0 filter states u (the higher-order loops of
                    netgen/testbench/sigma_delta/filters.py; sd_filter below):
                    y = flt_c . u + flt_d[c] cur[c] + dither,  b[c] = [y > 0],  v = 2 b[c] - 1,
                    u <- flt_a u + flt_bx cur[c] + flt_bv v   (u: on the optional port u; u0 at t = 0)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
-     s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0).
+     s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0), and 0 if every sel[e,c] = 0
+              (an electrode in no feedback pattern only senses).
    ph[j] are inputs (ph_pulse is then ignored: give [0]), or (ph NULL) the instance's own PULSE
    waveforms ph_pulse[7 j ..] of TIME,
    evaluated as ngspice's PULSE source evaluates them: the drives then have no inputs to stamp
@@ -95,6 +97,8 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
     else if (PARAM_SIZE(dither_amp) != C || PARAM_SIZE(dither_step) != C || PARAM_SIZE(cur0) != C
              || PARAM_SIZE(prev0) != C || PARAM_SIZE(b0) != C)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
+    else if (!PARAM_NULL(leads) && PARAM_SIZE(leads) != C)
+        bad = "leads needs one entry per ca input";
     else if (sd_has_filter(mif_private) && PARAM_SIZE(flt_n) != C) bad = "flt_n needs one entry per ca input";
     else if (sd_has_filter(mif_private) && (PARAM_NULL(flt_a) || PARAM_NULL(flt_bx) || PARAM_NULL(flt_bv) || PARAM_NULL(flt_c)
                                     || PARAM_NULL(flt_d) || PARAM_SIZE(flt_a) != sd_filter_size(mif_private, C, 2)
@@ -160,7 +164,8 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
                     double dither = PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
                     double y = nk > 0 ? sd_filter(mif_private, s + ST_HEAD + 4 * C + off, c, nk, off, offa,
                                                   s[ST_HEAD + C + c], dither)
-                                      : lead * s[ST_HEAD + 2 * C + c] - s[ST_HEAD + C + c] + dither;
+                                      : (PARAM_NULL(leads) ? lead : PARAM(leads[c])) * s[ST_HEAD + 2 * C + c]
+                                        - s[ST_HEAD + C + c] + dither;
                     if (nk > 0) { off += nk; offa += nk * nk; }
                     s[ST_HEAD + 3 * C + c] = y > 0.0 ? 1.0 : 0.0;
                     if (ph == ps) dcur[c] = 0.0;      /* a hard decision: no partial */
@@ -218,11 +223,14 @@ static void sd_outputs(ARGS, const double *s, const double *dcur, int C, int E, 
     }
     for (e = 0; e < E; e++) {
         double g = 1.0;
+        int fed = 0;
         for (c = 0; c < C; c++) {
             int need = PARAM(sel[e * C + c]);
             if (need > 0) g *= bit[c];
             else if (need < 0) g *= 1.0 - bit[c];
+            if (need) fed = 1;
         }
+        if (!fed) g = 0.0;
         OUTPUT(drv[e]) = sense + g * fb;
         for (j = 0; j < J && !own; j++) {
             double p = PARAM(ph_sense[j]) + g * PARAM(ph_fb[j]);
