@@ -6,7 +6,9 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy import special
 from scipy.integrate import quad
+from scipy.optimize import brentq
 
 from ..geometry.shapes import Array, corner_radius
 
@@ -89,3 +91,54 @@ def love_disks(kappa: float, same_potential: bool = False, panels: int | None = 
     sign = 1.0 if same_potential else -1.0
     f = np.linalg.solve(np.eye(x.size) + sign * K * wx[None, :], np.ones(x.size))
     return float(4.0 * wx @ f)
+
+
+# ----------------------------------------------------------------------------- 2-D, per unit length
+
+
+def coplanar_strips(eps: float, width: float, gap: float) -> float:
+    """C' (F/m) between two coplanar zero-thickness strips of width w, inner edges `gap` apart, in a
+    homogeneous medium (both half-spaces): eps K(k')/K(k), k = s/(s + 2w) (conformal map)."""
+    k = gap / (gap + 2.0 * width)
+    return eps * float(special.ellipk(1.0 - k * k) / special.ellipk(k * k))
+
+
+def wire_over_plane(eps: float, radius: float, height: float) -> float:
+    """C' (F/m) of a round wire of radius r with its centre at height h over a ground plane:
+    2 pi eps / acosh(h/r) (method of images, exact)."""
+    return 2.0 * math.pi * eps / math.acosh(height / radius)
+
+
+def palmer_strips(eps: float, width: float, gap: float) -> float:
+    """Maxwell's (Palmer's) asymptotic C' of two parallel thin strips of width W at distance g:
+    eps (W/g + (1 + ln(2 pi W/g)) / pi), the first two terms in g/W."""
+    r = width / gap
+    return eps * (r + (1.0 + math.log(2.0 * math.pi * r)) / math.pi)
+
+
+def parallel_strips(eps: float, width: float, gap: float) -> float:
+    """Exact C' (F/m) of two parallel zero-thickness strips of width W, `gap` apart, face to face
+    (Palmer 1927's conformal map, W/g <= 100).
+
+    By symmetry a quarter of the plane maps (Schwarz-Christoffel, prevertices 0 < beta < c < 1,
+    dz/dt ~ (t - c) / sqrt(t (t - beta) (t - 1))) to the upper half plane; closure of the strip's
+    two faces gives c = E(1-beta)/K(1-beta), the mid-plane-to-strip height
+    g/2 ~ 2cK(beta) - 2(K(beta) - E(beta)), the half-width W/2 ~ int_beta^c (beta = e^-s, solved
+    for W/g), and C' = eps K(k')/(2K(k)) with k = (1 - sqrt(1-beta)) / (1 + sqrt(1-beta)).
+    """
+    ratio = width / gap
+    if not 0.0 < ratio <= 100.0:
+        raise ValueError("parallel_strips: need 0 < W/g <= 100 (beyond, use palmer_strips)")
+
+    def shape(beta: float) -> float:
+        c = special.ellipe(1.0 - beta) / special.ellipkm1(beta)
+        h = 2.0 * c * special.ellipk(beta) - 2.0 * (special.ellipk(beta) - special.ellipe(beta))
+        top = math.acosh(math.sqrt(c / beta))
+        a, _ = quad(lambda u: 2.0 * (c - beta * math.cosh(u) ** 2) / math.sqrt(1.0 - beta * math.cosh(u) ** 2),
+                    0.0, top, limit=400, epsabs=1e-12 * c, epsrel=1e-9)
+        return a / h - ratio
+
+    s = brentq(lambda s: shape(math.exp(-s)), 1e-9, 700.0, xtol=1e-14)
+    q = -math.expm1(0.5 * math.log1p(-math.exp(-s)))
+    k = q / (2.0 - q)
+    return eps * float(special.ellipkm1(k * k) / (2.0 * special.ellipk(k * k)))
