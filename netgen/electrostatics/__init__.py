@@ -34,7 +34,8 @@ def extractor(s, plate: Plate) -> CapacitanceExtractor:
     if s.electrostatics.couplings is not None and name == "parallel_plate":     # the file's couplings beside it
         chosen = calibrated.with_file_couplings(s, chosen)
     if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
-        return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity))
+        return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity,
+                                                       s.electrostatics.comb_model))
     return chosen
 
 

@@ -11,22 +11,24 @@ rigid-body displacement u (netgen.mechanics.base.KINEMATICS; rot_z turns the fin
 varies along the overlap: NODES Gauss points per face). Each finger end adds TIP at the tip
 clearance (finger length - overlap, closed by e . u). C per electrode is the sum over its faces.
 
-SECTION and TIP are the one seam to the cross-section solver: the textbook model below (a
-parallel plate eps t / g per unit overlap and face, no fringe, no out-of-plane dependence, no
-tip term, so no vertical force) until netgen.electrostatics.comb_section (a 2-D field solve of
-the finger cell) replaces it in one line.
+SECTION and TIP are the seam to the cross-section model ([electrostatics] comb_model, MODELS):
+"field2d" (default) is netgen.electrostatics.comb_section (a 2-D field solve of the periodic
+finger cell over the substrate, with fringe, out-of-plane offset and so the levitation force, and
+a finger-end section); "textbook" is the parallel plate eps t / g per unit overlap and face (no
+fringe, no out-of-plane dependence, no tip term, so no vertical force).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..geometry.combs import CombShape
 from ..geometry.shapes import Array, Basis, Electrode, Plate
+from . import comb_section
 from .base import ProbePoints
 
 NODES = 4       # Gauss-Legendre points along each face's overlap (exact for the textbook form to ~1e-9)
@@ -55,9 +57,23 @@ def textbook_tip(gap: np.ndarray, offset: np.ndarray, cell: CombCell) -> np.ndar
     return 0.0 * gap
 
 
-SECTION = textbook_section      # the seam: netgen.electrostatics.comb_section's per-length capacitance
-TIP = textbook_tip              # the seam: its tip/end correction
-DESCRIPTION = "comb fingers: parallel plate eps t / g per face and unit overlap (textbook, no fringe)"
+@dataclass(frozen=True)
+class CombModel:
+    """A per-length face capacitance SECTION(gap, offset, cell) (F/m), a finger-end TIP (F) and
+    the line the model report shows."""
+    section: Callable[[np.ndarray, np.ndarray, CombCell], np.ndarray]
+    tip: Callable[[np.ndarray, np.ndarray, CombCell], np.ndarray]
+    description: str
+
+
+# [electrostatics] comb_model -> the cross-section model (one line per model)
+MODELS = {
+    "field2d": CombModel(comb_section.section, comb_section.tip,
+                         "comb fingers: 2-D field solve of the periodic finger cell over the substrate per face and "
+                         "unit overlap + finger-end section (netgen.electrostatics.comb_section)"),
+    "textbook": CombModel(textbook_section, textbook_tip,
+                          "comb fingers: parallel plate eps t / g per face and unit overlap (textbook, no fringe)"),
+}
 
 
 @dataclass(frozen=True)
@@ -76,6 +92,7 @@ class CombGeometry:
     probe_gap: Array    # (P,) rest gaps of the stop candidates (face ends and tips)
     probe_phi: Array    # (P, nc) closing per unit q
     cell: CombCell
+    model: CombModel
 
 
 def motion(basis: Basis, pts: np.ndarray, nc: int) -> tuple[np.ndarray, np.ndarray]:
@@ -87,7 +104,7 @@ def motion(basis: Basis, pts: np.ndarray, nc: int) -> tuple[np.ndarray, np.ndarr
     return np.asarray(u, dtype=float), w
 
 
-def geometry(shape: CombShape, basis: Basis, nc: int, eps: float) -> CombGeometry:
+def geometry(shape: CombShape, basis: Basis, nc: int, eps: float, model: CombModel) -> CombGeometry:
     """Evaluate the basis at the faces' tips and one unit back along the fingers (the motion is
     affine in position for rigid bodies, so the difference is the exact gradient)."""
     faces = shape.faces()
@@ -109,7 +126,7 @@ def geometry(shape: CombShape, basis: Basis, nc: int, eps: float) -> CombGeometr
                         np.einsum("fk,fkv->fv", n, u1 - u0), np.einsum("k,fkv->fv", e, u0), w0, w1 - w0,
                         clearance, tip_close, wt, probe_gap, probe_phi,
                         CombCell(shape.width, shape.thickness, shape.pitch / 2,
-                                 shape.substrate_gap or float("inf"), eps))
+                                 shape.substrate_gap or float("inf"), eps), model)
 
 
 def comb_capacitance(g: CombGeometry, q: np.ndarray) -> np.ndarray:
@@ -126,10 +143,10 @@ def comb_capacitance(g: CombGeometry, q: np.ndarray) -> np.ndarray:
         back = (1 - tk) * length                                   # distance back from the tip
         gap = g.gap0[None, :] - close + back * slope
         bad |= np.any(gap <= 0, axis=1)
-        c += np.sum(wk * length * SECTION(np.where(gap > 0, gap, 1.0), lift - back * tilt, g.cell), axis=1)
+        c += np.sum(wk * length * g.model.section(np.where(gap > 0, gap, 1.0), lift - back * tilt, g.cell), axis=1)
     clearance = g.clearance0 - q @ g.tip_close.T
     bad |= np.any(clearance <= 0, axis=1)
-    c += 2 * np.sum(TIP(np.where(clearance > 0, clearance, 1.0), q @ g.tip_lift.T, g.cell), axis=1)
+    c += 2 * np.sum(g.model.tip(np.where(clearance > 0, clearance, 1.0), q @ g.tip_lift.T, g.cell), axis=1)
     return np.where(bad, np.nan, c)
 
 
@@ -186,13 +203,21 @@ class PreparedComb:
 
 @dataclass(frozen=True)
 class CombExtractor:
-    """Capacitances of comb electrodes (netgen.geometry.combs.CombShape) from SECTION and TIP."""
+    """Capacitances of comb electrodes (netgen.geometry.combs.CombShape) from the cross-section
+    model `model` names in MODELS (the 2-D field solve by default, the textbook as an option)."""
     eps: float
-    description: str = DESCRIPTION
+    model: str = "field2d"
+
+    @property
+    def description(self) -> str:
+        """The chosen model's line for the model report."""
+        return MODELS[self.model].description
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedComb:
+        """The faces and tips of every comb with the basis evaluated there."""
         nc = np.asarray(basis(np.zeros(1), np.zeros(1))).reshape(1, -1).shape[1]
-        return PreparedComb(electrodes, [geometry(e.shape, basis, nc, self.eps) for e in electrodes], nc)
+        model = MODELS[self.model]
+        return PreparedComb(electrodes, [geometry(e.shape, basis, nc, self.eps, model) for e in electrodes], nc)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """No constant comb-to-comb or comb-to-plate couplings in this model."""

@@ -42,11 +42,11 @@ from .mesh2d import Rect
 
 Array = np.ndarray
 VERSION = 1                      # bump when the solver or the cell changes what a table holds
-GAP_RANGE = (0.3, 1.7)           # x nominal gap (pitch - width)
+GAP_RANGE = (0.1, 1.9)           # x nominal gap (pitch - width)
 OFFSET_RANGE = (-0.5, 0.5)       # x thickness
 END_RANGE = (0.2, 20.0)          # x nominal gap, log-spaced
 SETTINGS = {"tol": 2e-3, "max_levels": 3, "mesh_scale": 1.0, "order": 2}
-GRID = {"gaps": 9, "offsets": 5, "ends": 7}
+GRID = {"gaps": 13, "offsets": 5, "ends": 7}
 
 
 @dataclass(frozen=True)
@@ -182,12 +182,14 @@ def cached(g: Geometry, kind: str) -> dict[str, Array]:
 
 @dataclass(frozen=True)
 class Table:
-    """A bicubic spline of one quantity over (u, offset); u is the gap or log(end gap)."""
+    """A bicubic spline over (u, offset) of gap * C (`scaled`, for the side: smooth where C ~ 1/gap),
+    C (the substrate) or, `log`, gap * C over u = log(end gap) (the tip)."""
     spline: RectBivariateSpline
     u: Array
     offsets: Array
     what: str
     log: bool = False
+    scaled: bool = False
 
     def ev(self, gap: ArrayLike, offset: ArrayLike, dgap: int = 0, doff: int = 0) -> Array:
         """The value (or a first derivative) at arrays of gaps and offsets; ValueError outside the grid."""
@@ -200,7 +202,11 @@ class Table:
             raise ValueError(f"comb_section: {self.what} asked outside its table: gap in [{span[0]:.4g}, "
                              f"{span[1]:.4g}] m, offset in [{self.offsets[0]:.4g}, {self.offsets[-1]:.4g}] m")
         v = self.spline.ev(u, offset, dx=dgap, dy=doff)
-        return v / gap if (self.log and dgap) else v
+        if self.log:                                  # spline of gap * C over log(gap)
+            return (v if not dgap else v - self.spline.ev(u, offset)) / gap ** (1 + dgap)
+        if self.scaled:                               # spline of gap * C over gap
+            return (v if not dgap else v - self.spline.ev(u, offset) / gap) / gap
+        return v
 
 
 _TABLES: dict[tuple[Geometry, str], Table] = {}
@@ -213,8 +219,12 @@ def table(cell, what: str) -> Table:
         kind = "end" if what == "tip" else "section"
         v = cached(g, kind)
         u = np.log(v["ends"]) if kind == "end" else v["gaps"]
-        _TABLES[g, what] = Table(RectBivariateSpline(u, v["offsets"], v[what], kx=3, ky=3), u, v["offsets"],
-                                 what, kind == "end")
+        gap = np.exp(u) if kind == "end" else v["gaps"]
+        scaled = what != "substrate"
+        z = v[what] * gap[:, None] if scaled else v[what]
+        kx, ky = min(3, u.size - 1), min(3, v["offsets"].size - 1)
+        _TABLES[g, what] = Table(RectBivariateSpline(u, v["offsets"], z, kx=kx, ky=ky), u, v["offsets"],
+                                 what, kind == "end", scaled and kind != "end")
     return _TABLES[g, what]
 
 

@@ -29,7 +29,7 @@ from skfem.helpers import dot, grad
 
 from ..constants import EPS0
 from . import mesh2d
-from .mesh2d import Disk, Rect, Shape, Strip
+from .mesh2d import Disk, Shape
 
 Array = np.ndarray
 SIDES = ("bottom", "right", "top", "left")

@@ -133,7 +133,7 @@ def read_fit(rd: Reader, doc: dict) -> FitOptions:
 def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
     t = table(rd, doc, "electrostatics", required=False)
     keys = ["extractor", "fringe", "fringe_a", "fringe_b", "relative_permittivity", "coupling_per_length",
-            "couplings", "calibration_points"]
+            "couplings", "calibration_points", "comb_model"]
     check_keys(rd, "electrostatics", t, keys)
     d = ElectrostaticsOptions()
     extractor = t.get("extractor", d.extractor)
@@ -166,7 +166,8 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
         coupling_per_length=quantity(rd, t, "electrostatics", "coupling_per_length", "dimensionless",
                                      d.coupling_per_length, check=lambda v: None if v >= 0 else "must be >= 0",
                                      what="electrode-electrode capacitance per slot length in F/m"),
-        extractor=extractor)
+        extractor=extractor,
+        comb_model=choice(rd, t, "electrostatics", "comb_model", ["field2d", "textbook"], d.comb_model))
 
 
 def data_file(rd: Reader, t: dict, section: str, key: str, suffixes: tuple[str, ...]) -> str | None:

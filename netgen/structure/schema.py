@@ -117,6 +117,7 @@ class ElectrostaticsOptions:
     extractor: str = "parallel_plate"
     couplings: str | None = None         # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
     calibration_points: int = 0          # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
+    comb_model: str = "field2d"          # netgen.electrostatics.comb.MODELS: "field2d" or "textbook"
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Comb-finger electrodes (netgen.electrostatics.comb, textbook per-length model): the extractor
+"""Comb-finger electrodes (netgen.electrostatics.comb, comb_model = "textbook"): the extractor
 against the parallel-plate closed forms of a finger array, the fit and the emitted model in
 ngspice against (1/2) V^2 dC/dx, and the side instability of a lateral comb in an ngspice DC
 sweep against V = sqrt(k g^3 / (2 eps n t L))."""
@@ -51,6 +51,7 @@ levels = 5
 degree = 3
 [electrostatics]
 fringe = "none"
+comb_model = "textbook"
 """
 
 

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from netgen.constants import EPS0
 from netgen.electrostatics import closed_forms
 from netgen.electrostatics.field2d import Conductor, Problem, open_box, solve
-from netgen.electrostatics.mesh2d import Disk, Rect, Strip
+from netgen.electrostatics.mesh2d import Disk, Strip
 
 OPEN = {"bottom": "open", "right": "open", "top": "open", "left": "open"}
 GROUNDED = {**OPEN, "bottom": "ground"}
