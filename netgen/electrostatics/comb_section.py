@@ -43,10 +43,10 @@ from .mesh2d import Rect
 Array = np.ndarray
 VERSION = 1                      # bump when the solver or the cell changes what a table holds
 GAP_RANGE = (0.1, 1.9)           # x nominal gap (pitch - width)
-OFFSET_RANGE = (-0.5, 0.5)       # x thickness
+OFFSET_RANGE = (-0.5, 0.5)       # x thickness (down at most 0.8 substrate gaps)
 END_RANGE = (0.2, 20.0)          # x nominal gap, log-spaced
-SETTINGS = {"tol": 2e-3, "max_levels": 3, "mesh_scale": 1.0, "order": 2}
-GRID = {"gaps": 13, "offsets": 5, "ends": 7}
+SETTINGS = {"tol": 2e-3, "max_levels": 3, "mesh_scale": 1.5, "order": 2}
+GRID = {"gaps": 13, "offsets": 5, "ends": 6}
 
 
 @dataclass(frozen=True)
@@ -138,7 +138,8 @@ def solve_cell(g: Geometry, gap: float, offset: float) -> tuple[float, float, fl
 def grids(g: Geometry) -> tuple[Array, Array, Array]:
     """The (gap, offset, end gap) grids of a geometry's tables."""
     gaps = g.gap * np.linspace(*GAP_RANGE, GRID["gaps"])
-    offsets = g.thickness * np.linspace(*OFFSET_RANGE, GRID["offsets"])
+    low = max(OFFSET_RANGE[0] * g.thickness, -0.8 * g.substrate_gap)    # the finger stays off the substrate
+    offsets = np.linspace(low, OFFSET_RANGE[1] * g.thickness, GRID["offsets"])
     ends = g.gap * np.geomspace(*END_RANGE, GRID["ends"])
     return gaps, offsets, ends
 

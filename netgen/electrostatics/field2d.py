@@ -148,7 +148,19 @@ def scaled(problem: Problem, s: float) -> Problem:
 def reference_length(problem: Problem) -> float:
     """The smallest conductor size or gap: the unit lengths are divided by."""
     shapes = problem.shapes()
-    return min([q.size() for q in shapes if q.size() > 0] + [mesh2d.min_gap(shapes)])
+    L = min([q.size() for q in shapes if q.size() > 0] + [mesh2d.min_gap(shapes), box_clearance(problem)])
+    if not L > 0:
+        raise ValueError("field2d: conductors touch each other or a grounded side (no gap to mesh)")
+    return L
+
+
+def box_clearance(problem: Problem) -> float:
+    """Smallest distance of a conductor to a grounded side of the box (inf if none is grounded)."""
+    pts = np.concatenate([mesh2d.boundary_samples(q, 8) for q in problem.shapes()])
+    x0, y0, x1, y1 = problem.box
+    d = {"bottom": pts[:, 1] - y0, "top": y1 - pts[:, 1], "left": pts[:, 0] - x0, "right": x1 - pts[:, 0]}
+    grounded = [float(d[k].min()) for k, v in problem.sides.items() if v == "ground"]
+    return min(grounded, default=math.inf)
 
 
 def initial_mesh(problem: Problem, scale: float = 1.0, grade: float = 0.25) -> MeshTri:
