@@ -136,7 +136,9 @@ def solve_cell(g: Geometry, gap: float, offset: float) -> tuple[float, float, fl
 
 
 def grids(g: Geometry) -> tuple[Array, Array, Array]:
-    """The (gap, offset, end gap) grids of a geometry's tables."""
+    """The (gap, offset, end gap) grids of a geometry's tables (at least 4 points each: bicubic)."""
+    if min(GRID.values()) < 4:
+        raise ValueError(f"comb_section.GRID needs at least 4 points per axis, got {GRID}")
     gaps = g.gap * np.linspace(*GAP_RANGE, GRID["gaps"])
     low = max(OFFSET_RANGE[0] * g.thickness, -0.8 * g.substrate_gap)    # the finger stays off the substrate
     offsets = np.linspace(low, OFFSET_RANGE[1] * g.thickness, GRID["offsets"])
@@ -223,8 +225,7 @@ def table(cell, what: str) -> Table:
         gap = np.exp(u) if kind == "end" else v["gaps"]
         scaled = what != "substrate"
         z = v[what] * gap[:, None] if scaled else v[what]
-        kx, ky = min(3, u.size - 1), min(3, v["offsets"].size - 1)
-        _TABLES[g, what] = Table(RectBivariateSpline(u, v["offsets"], z, kx=kx, ky=ky), u, v["offsets"],
+        _TABLES[g, what] = Table(RectBivariateSpline(u, v["offsets"], z, kx=3, ky=3), u, v["offsets"],
                                  what, kind == "end", scaled and kind != "end")
     return _TABLES[g, what]
 

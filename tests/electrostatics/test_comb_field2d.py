@@ -27,7 +27,7 @@ def lateral(tmp_path_factory):
     """The lateral comb of test_comb built on coarse field2d tables (restored afterwards)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("NETGEN_CACHE", str(tmp_path_factory.mktemp("cache")))
-        mp.setattr(comb_section, "GRID", {"gaps": 5, "offsets": 2, "ends": 4})
+        mp.setattr(comb_section, "GRID", {"gaps": 5, "offsets": 4, "ends": 4})
         mp.setattr(comb_section, "SETTINGS", {"tol": 5e-3, "max_levels": 1, "mesh_scale": 1.0, "order": 2})
         mp.setattr(comb_section, "_TABLES", {})
         yield build(parse_structure(FIELD, "comb.toml"))

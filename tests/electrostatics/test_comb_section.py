@@ -19,7 +19,7 @@ UM = 1e-6
 def coarse(monkeypatch, tmp_path):
     """Small grids and a private cache folder (the module's tables are rebuilt per test)."""
     monkeypatch.setenv("NETGEN_CACHE", str(tmp_path))
-    monkeypatch.setattr(comb_section, "GRID", {"gaps": 5, "offsets": 2, "ends": 4})
+    monkeypatch.setattr(comb_section, "GRID", {"gaps": 5, "offsets": 4, "ends": 4})
     monkeypatch.setattr(comb_section, "SETTINGS", {"tol": 5e-3, "max_levels": 1, "mesh_scale": 1.5, "order": 2})
     monkeypatch.setattr(comb_section, "_TABLES", {})
     return tmp_path
@@ -46,11 +46,12 @@ def test_symmetric_cell_splits_evenly_and_free_space_is_even_in_offset(coarse):
 
 
 def test_table_matches_direct_solves_and_is_cached(coarse, monkeypatch):
-    """The spline between grid points within 1 % of a direct solve there, its gap derivative within
+    """The spline between grid gaps within 1 % of a direct solve there, its gap derivative within
     3 % of a central difference of direct solves; a second use reads the disk and never solves."""
     c = cell()
     g = comb_section.Geometry.of(c)
-    gap, off = 1.4 * UM, 0.5 * UM                     # off the 5 x 2 grid (gaps 0.2-3.8 um, offsets +-2 um)
+    gap = 1.4 * UM                                    # between the grid's gaps 1.1 and 2.0 um
+    off = float(comb_section.grids(g)[1][-1])         # on the offset grid (-1.6 .. +2 um)
     direct = comb_section.solve_cell(g, gap, off)[0]
     assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2)
     h = 0.05 * UM
