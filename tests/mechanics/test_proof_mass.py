@@ -131,6 +131,7 @@ center = ["0 um", "130 um"]
 rigid = ["x", "y", "rot_z"]
 [electrostatics]
 fringe = "none"
+comb_model = "textbook"
 """
 
 
