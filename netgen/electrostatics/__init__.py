@@ -35,7 +35,7 @@ def extractor(s, plate: Plate) -> CapacitanceExtractor:
         chosen = calibrated.with_file_couplings(s, chosen)
     if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
         return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity,
-                                                       s.electrostatics.comb_model))
+                                                       s.electrostatics.comb_model, s.source))
     return chosen
 
 

@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..errors import StructureError
 from ..geometry.combs import CombShape
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from . import comb_section
@@ -163,14 +164,24 @@ def as_samples(Q: ArrayLike, nc: int) -> tuple[np.ndarray, bool]:
 class PreparedComb:
     """CombExtractor bound to its electrodes and the basis (see the module docstring)."""
 
-    def __init__(self, electrodes: Sequence[Electrode], geoms: list[CombGeometry], nc: int):
-        self.electrodes, self.geoms, self.ncoords = tuple(electrodes), geoms, nc
+    def __init__(self, electrodes: Sequence[Electrode], geoms: list[CombGeometry], nc: int, source: str = ""):
+        self.electrodes, self.geoms, self.ncoords, self.source = tuple(electrodes), geoms, nc, source
 
     def capacitance(self, Q: ArrayLike) -> Array:
         """Comb capacitances (nsamples, nelectrodes) in F; nan where touching."""
         q, single = as_samples(Q, self.ncoords)
-        out = np.stack([comb_capacitance(g, q) for g in self.geoms], axis=1)
+        out = np.stack([self.one(e, g, q) for e, g in zip(self.electrodes, self.geoms)], axis=1)
         return out[0] if single else out
+
+    def one(self, e: Electrode, g: CombGeometry, q: np.ndarray) -> np.ndarray:
+        """comb_capacitance of one comb; a motion outside the 2-D section tables is a StructureError
+        naming the electrode (the tables span netgen.electrostatics.comb_section's ranges)."""
+        try:
+            return comb_capacitance(g, q)
+        except comb_section.OutsideTable as err:
+            raise StructureError(self.source, f"electrode {e.name}", f"the sampled motion leaves the comb's 2-D "
+                                 f"section tables ({err})", "narrow [sampling] range, or set [electrostatics] "
+                                 'comb_model = "textbook"') from None
 
     def gradient(self, Q: ArrayLike) -> Array:
         """dC/dq (nsamples, nelectrodes, ncoords) by central differences (steps 1e-6 of each
@@ -207,6 +218,7 @@ class CombExtractor:
     model `model` names in MODELS (the 2-D field solve by default, the textbook as an option)."""
     eps: float
     model: str = "field2d"
+    source: str = ""                    # the structure file, for errors
 
     @property
     def description(self) -> str:
@@ -217,7 +229,8 @@ class CombExtractor:
         """The faces and tips of every comb with the basis evaluated there."""
         nc = np.asarray(basis(np.zeros(1), np.zeros(1))).reshape(1, -1).shape[1]
         model = MODELS[self.model]
-        return PreparedComb(electrodes, [geometry(e.shape, basis, nc, self.eps, model) for e in electrodes], nc)
+        return PreparedComb(electrodes, [geometry(e.shape, basis, nc, self.eps, model) for e in electrodes], nc,
+                            self.source)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """No constant comb-to-comb or comb-to-plate couplings in this model."""

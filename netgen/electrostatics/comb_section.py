@@ -183,6 +183,11 @@ def cached(g: Geometry, kind: str) -> dict[str, Array]:
     return values
 
 
+class OutsideTable(ValueError):
+    """A gap or offset outside a section table's span (netgen.electrostatics.comb turns it into
+    a StructureError naming the electrode)."""
+
+
 @dataclass(frozen=True)
 class Table:
     """A bicubic spline over (u, offset) of gap * C (`scaled`, for the side: smooth where C ~ 1/gap),
@@ -202,7 +207,7 @@ class Table:
         if np.any(~((u >= lo - 1e-12 * abs(lo)) & (u <= hi + 1e-12 * abs(hi)))) or np.any(
                 (offset < self.offsets[0] - 1e-15) | (offset > self.offsets[-1] + 1e-15)):
             span = (np.exp([lo, hi]) if self.log else np.array([lo, hi]))
-            raise ValueError(f"comb_section: {self.what} asked outside its table: gap in [{span[0]:.4g}, "
+            raise OutsideTable(f"comb_section: {self.what} asked outside its table: gap in [{span[0]:.4g}, "
                              f"{span[1]:.4g}] m, offset in [{self.offsets[0]:.4g}, {self.offsets[-1]:.4g}] m")
         v = self.spline.ev(u, offset, dx=dgap, dy=doff)
         if self.log:                                  # spline of gap * C over log(gap)
