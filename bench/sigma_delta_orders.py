@@ -6,7 +6,9 @@
 
 Order 2 is the lead compensator (lead2), orders 3-5 the CIFB electromechanical loops designed
 from an NTF with the per-order H_inf (filters.design). The device is the levitated disk's z
-channel (netlists/levitated_disk.json): gravity needs a mean bit of 0.5, i.e. a DC input at
+channel (netlists/levitated_disk.json), or with --model examples/accelerometer_z.toml a structure
+built here with its [loop] (the filter set through [loop.filter], the tone through a_in): gravity
+needs a mean bit of 0.5, i.e. a DC input at
 -6 dBFS, on which a tone (--tone-fs of full scale, at a quarter of the band edge) is added
 through f_z. Per order it prints the in-band noise floor (dB re F_fb^2/Hz, median), in-band
 noise, SQNR of the tone, noise-shaping slope over the decade below the band edge, whether the
@@ -25,29 +27,46 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen.model import MacroModel
-from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, reference
+from dataclasses import replace
 
-H_INF = {3: 1.5, 4: 1.4, 5: 1.5}
+from netgen.build import build_model
+from netgen.model import MacroModel
+from netgen.structure import load_structure
+from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, read_structure_loop, reference
+from netgen.testbench.sigma_delta.kinds import FILTERS
+from netgen.testbench.sigma_delta.loopfile import LoopSpec
+
+H_INF = {3: 1.5, 4: 1.4, 5: 1.5}          # the disk's (the accelerometer's order 5 needs 1.4: --h-inf 1.4)
 NPERSEG = 8192
 
 
+def load(model_path: str):
+    """The MacroModel and its loop description: a model .json (the disk's defaults) or a
+    structure .toml built here with its [loop] table (examples/accelerometer_z.toml)."""
+    if model_path.endswith(".toml"):
+        return build_model(load_structure(model_path), progress=False), read_structure_loop(model_path)
+    return MacroModel.load_json(model_path), LoopSpec()
+
+
 def setup(model_path: str, ts: float, order: int, osr: float, h_inf: float | None, reltol: float = 1e-3):
-    """Model, Design (z channel's filter set for the order, no dither on it), mechanics, filter."""
-    model = MacroModel.load_json(model_path)
-    d = design(model, ts, reltol=reltol)
-    mech = filters.mechanics_of(model, d, "z")
-    if order == 2:
-        return model, d, mech, filters.lead2(d.lead)
-    f = filters.design(mech, order, osr, h_inf or H_INF[order], "cifb")
-    d.channels[0]["filter"] = f.as_dict()
-    d.channels[0]["dither_v"] = 0.0           # the higher-order loops need no idle-tone dither
-    return model, d, mech, f
+    """Model, Design, mechanics, filter of the first channel at this order: lead2, or cifb through
+    the [loop.filter] path (designed inside loop.design, no dither) on a structure's [loop]; on a
+    model .json (the disk) only its first channel (z) gets the cifb filter, by the same design step."""
+    model, spec = load(model_path)
+    table = {"kind": "cifb", "order": order, "osr": float(osr), "h_inf": h_inf or H_INF.get(order, 1.5)}
+    if order > 2 and model_path.endswith(".toml"):
+        spec = replace(spec, filter=table)
+    d = design(model, ts, reltol=reltol, spec=spec)
+    ch = d.channels[0]
+    if order > 2 and not model_path.endswith(".toml"):
+        ch["filter"], ch["dither_v"] = FILTERS["cifb"].design(model, d, ch, table), 0.0
+    mech = filters.mechanics_of(model, d, ch["name"])
+    return model, d, mech, filters.Filter.from_dict(ch["filter"]) if order > 2 else filters.lead2(d.lead)
 
 
 def dc_input(model: MacroModel, d, mech: filters.Mechanics) -> float:
-    """The z channel's DC input acceleration: gravity and the sense phase's mean force."""
-    return filters.dc_acceleration(model, d, "z")
+    """The first channel's DC input acceleration: gravity and the sense phase's mean force."""
+    return filters.dc_acceleration(model, d, d.channels[0]["name"])
 
 
 def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
@@ -92,15 +111,17 @@ def run_circuit(args, order: int) -> dict:
     out = Path(args.out) / f"order{order}"
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
-    tone = Tone("z", args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz)       # uN on f_z
+    name = d.channels[0]["name"]
+    tone = (Tone("a_in", args.tone_fs * mech.full_scale, tone_hz) if model.acceleration    # m/s^2 on a_in
+            else Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz))     # uN on f_z
     start = time.perf_counter()
     clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, args.cycles, tone, False, None,
                                                         control, "xspice")
     wall = time.perf_counter() - start
-    v = clock["bits_z"].astype(float)
+    v = clock[f"bits_{name}"].astype(float)
     np.savez_compressed(out / "bitstreams.npz", **clock)
     gap = min(e.gap for e in model.electrodes)
-    zmax = float(np.max(np.abs(clock["x_z"])) * 1e-6)            # x_z port: 1 V = 1 um
+    zmax = float(np.max(np.abs(clock[f"x_{name}"])) * 1e-6)      # x_ port: 1 V = 1 um
     res = {"wall_s": wall, "periods": int(len(v)), "max_z_over_gap": zmax / gap, "bit_mean": float(v.mean()),
            "held": bool(len(v) == args.cycles and zmax <= args.hold * gap), "segments": segments["ngspice_runs"],
            "missed_corner_cuts": len(breakpoints["segments_cut_at_a_missed_corner"]),

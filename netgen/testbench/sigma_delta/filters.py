@@ -124,6 +124,11 @@ class Filter:
     design: dict = field(default_factory=dict)
 
     @property
+    def x0(self) -> float:
+        """The readout's rest value trimmed from the filter's input x (V; kinds.design_designed)."""
+        return float(self.design.get("x0", 0.0))
+
+    @property
     def states(self) -> int:
         """Number of filter states K."""
         return len(self.c)
@@ -276,7 +281,8 @@ def sdloop_params(channels: list[dict], ic: dict[str, float]) -> dict:
     cat = lambda get: [float(v) for f in fs if f for v in get(f)]   # noqa: E731
     return {"flt_n": [f.states if f else 0 for f in fs], "flt_a": cat(lambda f: f.a.ravel()),
             "flt_bx": cat(lambda f: f.bx), "flt_bv": cat(lambda f: f.bv), "flt_c": cat(lambda f: f.c),
-            "flt_d": [float(f.d) if f else 0.0 for f in fs], "u0": [ic.pop(n, 0.0) for n in state_nodes(channels)]}
+            "flt_d": [float(f.d) if f else 0.0 for f in fs], "u0": [ic.pop(n, 0.0) for n in state_nodes(channels)],
+            "flt_x0": [f.x0 if f else 0.0 for f in fs]}
 
 
 def mechanics_of(model, d, channel: str) -> Mechanics:
@@ -353,7 +359,7 @@ def statefilter_params(channels: list[dict], d) -> dict[str, str]:
             for name, vec in (("bx", f.bx), ("bv", f.bv), ("c", f.c)):
                 p[f"{name}{i + 1}"] = vec[i] if i < k else 0.0
         t = d.t
-        p.update({"d": f.d, "ts": d.ts, "w": t.edge / 8, "on1": t.clk + t.sample + 0.02, "on2": 0.60,
+        p.update({"d": f.d, "x0": f.x0, "ts": d.ts, "w": t.edge / 8, "on1": t.clk + t.sample + 0.02, "on2": 0.60,
                   "width": t.sample, "cs": d.cs, "g": d.g_switch})
         out[ch["name"]] = " ".join(f"{key}={float(val)!r}" for key, val in p.items())
     return out

@@ -482,8 +482,12 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     balance = {"channel": names[jb], "index": jb, "coord": idx[jb], "mass": c.mass, "dc_force_n": float(dc_si[idx[jb]]),
                "damping": float(c.admittance(0.0).real), "x_unit_si": c.port_units[1]}
     first = channels[0]["filter"]
-    return Design(ts, vs, vfb, first.get("lead"), full_scale, electrodes, channels, table, inputs, balance,
-                  duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
+    d = Design(ts, vs, vfb, first.get("lead"), full_scale, electrodes, channels, table, inputs, balance,
+               duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
+    for ch in (c for c in channels if FILTERS[c["filter"]["kind"]].design):   # designed kinds (kinds.py)
+        ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
+        ch["dither_v"] = ch["dither_v"] if spec.dither is not None else 0.0      # no idle tones to break
+    return d
 
 
 MAX_STEP = 0.01         # one period's feedback displacement a_fb T_s^2 / touch amplitude (the disk: 1.5e-5)

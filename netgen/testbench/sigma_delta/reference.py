@@ -41,23 +41,23 @@ def augmented(mech: Mechanics, inp: Input) -> tuple[np.ndarray, np.ndarray]:
 def simulate(mech: Mechanics, f: Filter, cycles: int, inp: Input | None = None, dither: float = 0.0,
              dither_step: float = 0.0, u0: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Run the loop for `cycles` periods from rest at t = 0: per period n the sample x[n] = gain
-    q((n + sample) T_s) + offset, y[n] = c.u + d x + dither sin(dither_step n), v[n] = sign(y), the filter
-    update and the force pulse v[n] F. Returns v (+-1), x, q, y, u (per period) and the max |u|."""
+    q((n + sample) T_s) + offset, y[n] = c.u + d (x - x0) + dither sin(dither_step n), v[n] = sign(y), the filter
+    update (with x - x0: the filter's trim, Filter.x0) and the force pulse v[n] F. Returns v (+-1), x, q, y, u (per period) and the max |u|."""
     inp = inp or Input()
     a, b = augmented(mech, inp)
     phi, gamma = step_map(a, b, mech.ts, mech.sample, mech.pulse)
     s = linalg.expm(a * mech.sample * mech.ts) @ np.array([0.0, 0.0, 1.0, 0.0, 1.0])
     u = np.zeros(f.states) if u0 is None else np.array(u0, dtype=float)
-    gain, fa, bx, bv, c, d = mech.gain, f.a, f.bx, f.bv, f.c, f.d
+    gain, fa, bx, bv, c, d, x0 = mech.gain, f.a, f.bx, f.bv, f.c, f.d, f.x0
     v = np.empty(cycles, dtype=np.int8)
     xs, ys, us = np.empty(cycles), np.empty(cycles), np.empty((cycles, f.states))
     dith = dither * np.sin(dither_step * np.arange(cycles))
     for n in range(cycles):
         x = gain * s[0] + mech.offset
-        y = float(c @ u) + d * x + dith[n]
+        y = float(c @ u) + d * (x - x0) + dith[n]
         bit = 1 if y > 0 else -1
         xs[n], ys[n], v[n], us[n] = x, y, bit, u
-        u = fa @ u + bx * x + bv * bit
+        u = fa @ u + bx * (x - x0) + bv * bit
         s = phi @ s + gamma * bit
     return {"v": v, "x": xs, "q": (xs - mech.offset) / gain, "y": ys, "u": us, "u_max": np.max(np.abs(us), axis=0)}
 

@@ -10,6 +10,7 @@
                    netgen/testbench/sigma_delta/filters.py; sd_filter below):
                    y = flt_c . u + flt_d[c] cur[c] + dither,  b[c] = [y > 0],  v = 2 b[c] - 1,
                    u <- flt_a u + flt_bx cur[c] + flt_bv v   (u: on the optional port u; u0 at t = 0)
+                   with cur[c] - flt_x0[c] for cur[c] in both (the readout's rest value trimmed)
    and per electrode e, at every time point,
      drv[e] = sum_j ph_sense[j] ph[j] + s_e(b) sum_j ph_fb[j] ph[j],
      s_e(b) = prod_c (b[c] if sel[e,c] = +1, 1 - b[c] if -1, 1 if 0), and 0 if every sel[e,c] = 0
@@ -99,6 +100,8 @@ static int sd_sizes_ok(ARGS, int C, int E, int J)
         bad = "dither_amp, dither_step, cur0, prev0 and b0 need one entry per ca input";
     else if (!PARAM_NULL(leads) && PARAM_SIZE(leads) != C)
         bad = "leads needs one entry per ca input";
+    else if (!PARAM_NULL(flt_x0) && PARAM_SIZE(flt_x0) != C)
+        bad = "flt_x0 needs one entry per ca input";
     else if (sd_has_filter(mif_private) && PARAM_SIZE(flt_n) != C) bad = "flt_n needs one entry per ca input";
     else if (sd_has_filter(mif_private) && (PARAM_NULL(flt_a) || PARAM_NULL(flt_bx) || PARAM_NULL(flt_bv) || PARAM_NULL(flt_c)
                                     || PARAM_NULL(flt_d) || PARAM_SIZE(flt_a) != sd_filter_size(mif_private, C, 2)
@@ -163,7 +166,7 @@ static void sd_events(ARGS, const double *old, double *s, int C, double *dcur)
                     int nk = sd_has_filter(mif_private) ? PARAM(flt_n[c]) : 0;
                     double dither = PARAM(dither_amp[c]) * sin(PARAM(dither_step[c]) * ((double) k + start));
                     double y = nk > 0 ? sd_filter(mif_private, s + ST_HEAD + 4 * C + off, c, nk, off, offa,
-                                                  s[ST_HEAD + C + c], dither)
+                                                  s[ST_HEAD + C + c] - (PARAM_NULL(flt_x0) ? 0.0 : PARAM(flt_x0[c])), dither)
                                       : (PARAM_NULL(leads) ? lead : PARAM(leads[c])) * s[ST_HEAD + 2 * C + c]
                                         - s[ST_HEAD + C + c] + dither;
                     if (nk > 0) { off += nk; offa += nk * nk; }
