@@ -115,7 +115,7 @@ def run_circuit(args, order: int) -> dict:
     tone = (Tone("a_in", args.tone_fs * mech.full_scale, tone_hz) if model.acceleration    # m/s^2 on a_in
             else Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz))     # uN on f_z
     start = time.perf_counter()
-    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, args.cycles, tone, False, None,
+    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, args.cycles, tone, False, args.segment,
                                                         control, "xspice")
     wall = time.perf_counter() - start
     v = clock[f"bits_{name}"].astype(float)
@@ -145,6 +145,7 @@ def main() -> None:
     p.add_argument("--dr", action="store_true", help="the reference's dynamic-range curve")
     p.add_argument("--reltol", type=float, default=1e-3, help="the circuit simulator's relative tolerance")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--segment", type=int, default=None, help="periods per ngspice segment (0: one run; default: the bench's)")
     p.add_argument("-o", "--out", default="out/sigma_delta_orders")
     args = p.parse_args()
     orders = [int(o) for o in args.orders.split(",")]

@@ -66,7 +66,7 @@ def read_designed(kind: str) -> Callable[[Reader, str, dict], dict]:
         if isinstance(order, bool) or not isinstance(order, int) or order not in filters.ORDERS:
             raise rd.fail(f"{where}.order", f"order = {order!r}: a {kind} electromechanical loop has order "
                           f"{', '.join(map(str, filters.ORDERS))} (the mechanics' two integrations plus 1-3 "
-                          "electronic integrators)", f"write order = 4, or kind = \"lead2\" for a second-order loop")
+                          "electronic integrators)", "write order = 4, or kind = \"lead2\" for a second-order loop")
         osr = number(rd, where, t, "osr", *OSR_RANGE, "write osr = 64 (the oversampling ratio f_s / (2 f_band))")
         h_inf = number(rd, where, t, "h_inf", *H_INF_RANGE, "write h_inf = 1.4 (the NTF's peak gain; Lee's rule: "
                        "below 2 for a 1-bit quantizer)")
