@@ -443,6 +443,7 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported)."""
     spec = spec or LoopSpec()
     density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
+    dither_given = dither is not None or spec.dither is not None      # a designed kind runs without, unless given
     full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
     reltol = pick(reltol, spec, "reltol", 1e-3)
     t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
@@ -486,7 +487,7 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
                duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
     for ch in (c for c in channels if FILTERS[c["filter"]["kind"]].design):   # designed kinds (kinds.py)
         ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
-        ch["dither_v"] = ch["dither_v"] if spec.dither is not None else 0.0      # no idle tones to break
+        ch["dither_v"] = ch["dither_v"] if dither_given else 0.0      # no idle tones to break
     return d
 
 
