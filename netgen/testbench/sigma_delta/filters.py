@@ -30,6 +30,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from . import ntf as ntfs
+from .signals import duty, selected
 
 TOPOLOGIES = ("cifb", "crfb")
 ORDERS = (3, 4, 5)
@@ -309,7 +310,6 @@ def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:
     over the feedback patterns x the feedback duty plus the sense level's x the sense duty. A
     plate between electrodes gets a negative spring (for the disk's z, -0.27 N/m: a 640 Hz
     instability inside the band that the loop has to hold)."""
-    from .loop import duty, selected                      # the Design's own pattern logic
 
     dx = np.zeros(model.ncoords)
     dx[index] = h
@@ -329,7 +329,6 @@ def dc_acceleration(model, d, channel: str) -> float:
     feedback's asymmetry (F_up + F_down) / 2 x the feedback duty (F_up, F_down: the mean z force
     of the patterns with the z bit +1 / -1, d.table; unequal by 0.2 % on the disk, 4e-4 g) — the
     rest, (F_up - F_down) / 2, is Mechanics.force x v."""
-    from .loop import duty
 
     ch = d.channel(channel)                               # the balanced channel: the disk's z
     index, j, unit = ch["coord"], ch["index"], ch["force_unit_si"]

@@ -39,6 +39,7 @@ from ...structure.reader import Reader, check_keys, choice
 from ...text import escape, is_identifier, text_problem
 from ...units import UnitError, parse_quantity
 from .kinds import FILTERS
+from .signals import Timing, Tone
 
 LOOP_KEYS = ["channels", "feedback_voltage", "sense_ratio", "full_scale", "density", "dither", "readout",
              "filter", "timing", "input", "reltol"]
@@ -252,7 +253,6 @@ def read_timing(rd: Reader, t: dict) -> dict[str, float]:
     """[loop.timing]: Timing fields as fractions of T_s; their order is checked in design()."""
     if "timing" not in t:
         return {}
-    from .loop import Timing
     table = subtable(rd, t, "loop", "timing")
     allowed = [f.name for f in fields(Timing)]
     check_keys(rd, "loop.timing", table, allowed)
@@ -285,7 +285,6 @@ def read_input(rd: Reader, t: dict) -> InputSpec:
     if "tone" in table:
         tt = subtable(rd, table, "loop.input", "tone")
         check_keys(rd, "loop.input.tone", tt, ["amplitude", "frequency"])
-        from .loop import Tone
         tone = Tone("a_in", quantity(rd, tt, "loop.input.tone", "amplitude", "acceleration", 0.0, 1e7,
                                      "> 0 and <= 1e7 m/s^2", required=True),
                     quantity(rd, tt, "loop.input.tone", "frequency", "frequency", 0.0, 1e12, "> 0", required=True))
@@ -308,7 +307,6 @@ def read_force(rd: Reader, t: dict) -> tuple[dict[str, float], object]:
     freq = quantity(rd, t, where, "frequency", "frequency", 0.0, 1e12, "> 0")
     if freq is not None and amp is None:
         raise rd.fail(f"{where}.amplitude", "a frequency needs an amplitude", "add amplitude = 0.02 (f_ port unit)")
-    from .loop import Tone
     tone = Tone(coord, amp, freq) if amp is not None else None
     return ({f"f_{coord}": dc} if dc is not None else {}), tone
 

@@ -1,0 +1,74 @@
+"""The loop's clock timing (Timing, fractions of T_s) and its sinusoidal input (Tone), with the
+phase arithmetic on them (window, duty) and the feedback selection per bit pattern (selected): plain
+values that the loop description (netgen.testbench.sigma_delta.loopfile) reads and the Design
+(netgen.testbench.sigma_delta.loop) carries to every back end."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Event times within one period, as fractions of T_s (see the template header).
+
+    Chosen for few ngspice time points (bench/sigma_delta.py counts them): the three electrode ramps (sense
+    on, sense off, feedback on/off) are PULSE edges whose 8 corners are breakpoints at least
+    2 % of T_s apart (each corner costs ngspice ~8 time points: it restarts the step at 1/10 of
+    the previous one); the reset switches inside the gaps where every electrode is static and the
+    charge amplifier is near 0 (sense off -> feedback on, feedback off -> next sense on), so it
+    is a smooth window without breakpoints. The samplers and the latch sit in the sense phase."""
+    edge: float = 0.02
+    sense_on: float = 0.01
+    prev: float = 0.20
+    cur: float = 0.28
+    sample: float = 0.06
+    clk: float = 0.36
+    sense_off: float = 0.46
+    fb_on: float = 0.50
+    fb_off: float = 0.94
+    rst_on: float = 0.48
+    rst_off: float = -0.04
+
+
+@dataclass
+class Tone:
+    """A sinusoidal input: a generalized force on coordinate `coord` (amplitude in its f_ port
+    unit), or with coord "a_in" the frame acceleration (m/s^2) through the model's a_in port."""
+    coord: str
+    amplitude: float
+    freq: float
+    unit: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> "Tone":
+        """Parse COORD:AMPLITUDE:FREQ, e.g. z:0.02:1e3 (uN on z at 1 kHz) or a_in:2:1e3 (m/s^2)."""
+        parts = text.split(":")
+        if len(parts) != 3:
+            raise ValueError(f"tone {text!r} is not COORD:AMPLITUDE:FREQ (e.g. z:0.02:1000 or a_in:2:1000)")
+        try:
+            return cls(parts[0], float(parts[1]), float(parts[2]))
+        except ValueError:
+            raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers") from None
+
+
+def window(p: np.ndarray, a: float, b: float, t: Timing) -> np.ndarray:
+    """The template's smooth clock window W(a, b) at period phase p."""
+    w = t.edge / 8
+    return 0.5 * (np.tanh((p - a) / w) - np.tanh((p - b) / w))
+
+
+def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
+    """Mean of the squared PULSE phase (linear edges of t.edge centred on a and b) over a period
+    (feedback phase by default)."""
+    a, b = (t.fb_on if a is None else a), (t.fb_off if b is None else b)
+    return (b - a - t.edge) + 2 * t.edge / 3
+
+
+def selected(electrodes: list[dict], bits: tuple[int, ...]) -> np.ndarray:
+    """0/1 per electrode: energised for the bit pattern (one +-1 per channel): every channel's bit
+    equals the electrode's feedback entry where that is non-zero (all zero: never fed back)."""
+    return np.array([float(any(e["sel"]) and all(s == 0 or s == b for s, b in zip(e["sel"], bits)))
+                     for e in electrodes])
