@@ -65,3 +65,15 @@ def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
     force = 0.5 * v**2 * model.capacitance_gradient(np.array([[xs, 0.0]]))[0, 0, 0]
     assert K * xs * model.coordinates[0].scale == pytest.approx(force, rel=0.005)
     assert xs > 1e-3
+
+
+def test_motion_outside_the_tables_is_a_structure_error_naming_the_electrode(lateral):
+    """A finger gap the section table does not span (y closing the 2 um gap to 0.1 um, below the
+    table's lower edge of 0.1 gap) is a StructureError naming the file, the electrode and the fix,
+    not a ValueError that would exit 70 as an internal error."""
+    from netgen.errors import StructureError
+    combs = [p for _, p in lateral.prepared.parts if hasattr(p, "geoms")]
+    with pytest.raises(StructureError) as err:
+        combs[0].capacitance(np.array([0.0, 1.9 * UM]))
+    text = str(err.value)
+    assert "comb.toml" in text and "electrode drive" in text and 'comb_model = "textbook"' in text
