@@ -1,5 +1,5 @@
 """The loop's clock timing (Timing, fractions of T_s) and its sinusoidal input (Tone), with the
-phase arithmetic on them (window, duty) and the feedback selection per bit pattern (selected): plain
+feedback phase's duty (duty) and the feedback selection per bit pattern (selected): plain
 values that the loop description (netgen.testbench.sigma_delta.loopfile) reads and the Design
 (netgen.testbench.sigma_delta.loop) carries to every back end."""
 
@@ -52,12 +52,6 @@ class Tone:
             return cls(parts[0], float(parts[1]), float(parts[2]))
         except ValueError:
             raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers") from None
-
-
-def window(p: np.ndarray, a: float, b: float, t: Timing) -> np.ndarray:
-    """The template's smooth clock window W(a, b) at period phase p."""
-    w = t.edge / 8
-    return 0.5 * (np.tanh((p - a) / w) - np.tanh((p - b) / w))
 
 
 def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
