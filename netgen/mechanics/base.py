@@ -89,10 +89,12 @@ class Mechanics:
 def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
     """Inertial participation G_v = rho h int phi_v dA over the plate (Gauss quadrature): the
     generalized force per unit frame acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate
-    modes and tilts about the centre, zero by symmetry up to round-off) are set to exactly 0."""
+    modes and tilts about the centre, zero by symmetry up to round-off) are set to exactly 0. A
+    perforated proof mass's areal density carries its solid fraction (`fill_factor`)."""
     plate = plate_outline(s)
     x, y, weights = plate.area_rule(order)
     phi = m.basis(x, y)                                                  # (points, ncoords)
-    gam = s.conductor.density * s.conductor.thickness * (weights @ phi)
-    total = s.conductor.density * s.conductor.thickness * plate.area()
+    rho_h = s.conductor.density * s.conductor.thickness * getattr(s.conductor, "fill_factor", 1.0)
+    gam = rho_h * (weights @ phi)
+    total = rho_h * plate.area()
     return [0.0 if abs(v) < 1e-6 * math.sqrt(mv * total) else float(v) for v, mv in zip(gam, m.masses)]

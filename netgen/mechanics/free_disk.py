@@ -75,7 +75,7 @@ class UnitDisk:
     rigid_norms: np.ndarray      # (3,): M-norms of the rigid fields 1, x, y
 
 
-def _bending_form(nu: float) -> BilinearForm:
+def bending_form(nu: float) -> BilinearForm:
     """Kirchhoff bending energy per unit D; the free edge is the natural condition."""
     @BilinearForm
     def form(u, v, _):
@@ -84,7 +84,7 @@ def _bending_form(nu: float) -> BilinearForm:
 
 
 @BilinearForm
-def _mass_form(u, v, _):
+def mass_form(u, v, _):
     """Mass per unit rho h."""
     return u * v
 
@@ -96,7 +96,7 @@ def unit_disk(nu: float, refine: int) -> UnitDisk:
     moments = np.stack([LinearForm(lambda v, w, f=f: f(w) * v).assemble(basis)
                         for f in weights])
     norms = np.sqrt([Functional(lambda w, f=f: f(w) ** 2).assemble(basis) for f in weights])
-    return UnitDisk(basis, _bending_form(nu).assemble(basis), _mass_form.assemble(basis),
+    return UnitDisk(basis, bending_form(nu).assemble(basis), mass_form.assemble(basis),
                     moments, norms)
 
 

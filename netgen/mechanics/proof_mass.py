@@ -3,7 +3,11 @@ coordinates x, y, z, rot_z, tilt_x, tilt_y with the mass and the inertia tensor 
 perforated rectangle, and the flexure stiffness per coordinate (netgen.mechanics.flexures:
 a 3-D frame solve of the named suspension, closed forms beside it in the report; or given
 numbers; or none: a free body). The flexures' own mass is not added (reported as a fraction).
-Small-angle kinematics (netgen.mechanics.base.KINEMATICS)."""
+Small-angle kinematics (netgen.mechanics.base.KINEMATICS). With [coordinates] modes = N the first
+N internal modes of the plate (free edges, netgen.mechanics.plates) join them as m1, m2, ...:
+vertical mode shapes that deform the plate electrodes' gaps (and move the comb fingers on the
+edges vertically), M-orthogonal to the rigid motions; the flexures' vertical springs at their
+attachment points are left out of the modes (their Rayleigh shift is in the report)."""
 
 from __future__ import annotations
 
@@ -11,9 +15,11 @@ import math
 
 import numpy as np
 
-from ..structure import Structure
+from ..structure import Structure, mode_name
 from . import flexures
-from .base import KINEMATICS, RIGID, Mechanics, RigidBasis
+from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, rigid_field
+from .plates import PLATE_MODES
+from .rect_plate import ELEMENTS, EffectivePlate
 
 
 def second_moments(c) -> tuple[float, float]:
@@ -68,16 +74,70 @@ def flexure_mass(c) -> float:
     return beams * f.thickness * c.density
 
 
+class ModalBasis(RigidBasis):
+    """The rigid-body fields followed by the plate's internal modes (vertical only: they move
+    nothing in plane)."""
+
+    def __init__(self, rigid: list[str], modes):
+        super().__init__(list(rigid) + [mode_name(lab) for lab in modes.labels])
+        self.rigid, self.modes = tuple(rigid), modes
+
+    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        shapes = self.modes.shape(x, y).reshape(x.shape + (-1,))
+        rigid = [rigid_field(n, x, y) for n in self.rigid]
+        return np.concatenate([np.stack(rigid, axis=-1), shapes], axis=-1) if rigid else shapes
+
+    def in_plane(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, float)
+        rigid = RigidBasis(self.rigid).in_plane(x, y) if self.rigid else np.zeros(x.shape + (2, 0))
+        return np.concatenate([rigid, np.zeros(rigid.shape[:-1] + (len(self.modes.labels),))], axis=-1)
+
+
+def flexure_shift(c, modes) -> list[float] | str:
+    """Relative frequency shift each mode would take from the flexures' vertical springs at their
+    attachment points (k_z shared equally), by the Rayleigh quotient: sum k phi^2 / (2 k_mode)."""
+    f = c.flexure
+    if f.type in ("none", "given"):
+        return f"not estimated: no attachment points (flexure type {f.type})"
+    frame = flexures.suspension(f, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)
+    pts = np.array([frame.nodes[i][:2] for i in sorted(frame.tied)])
+    k_tie = flexures.frame_stiffness(f, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)["z"] / len(pts)
+    phi = modes.shape(pts[:, 0], pts[:, 1])
+    return [float(v) for v in k_tie * np.sum(phi**2, axis=0) / (2 * modes.modal_stiffness)]
+
+
+def modes_report(c, modes) -> dict:
+    """What the internal modes are and how far to trust them."""
+    eff = EffectivePlate.of_holes(c.hole, c.hole_pitch)
+    return {"source": "Kirchhoff plate, free edges, scikit-fem Bogner-Fox-Schmit elements (netgen.mechanics.rect_plate)",
+            "elements_along_length": ELEMENTS, "labels": list(modes.labels),
+            "frequencies_hz": [float(v) for v in modes.frequencies_hz],
+            "lambda2_leissa": [float(v) for v in modes.lambda2],
+            "effective_plate": {"density_factor": eff.density_factor, "bending_stiffness_factor": eff.stiffness_factor,
+                                "model": "etch holes as an effective plate: mass fraction; D of a series strip"},
+            "side_conditions": modes.orthogonality, "normalisation": "peak deflection 1 over the mesh nodes",
+            "flexure_rayleigh_shift": flexure_shift(c, modes)}
+
+
 def mechanics(s: Structure) -> Mechanics:
-    """The proof mass's rigid-body coordinates with their inertias and flexure springs."""
+    """The proof mass's rigid-body coordinates with their inertias and flexure springs, and its
+    first internal plate modes when [coordinates] modes asks for them."""
     c = s.conductor
-    names = list(s.coordinates.rigid)
+    rigid = list(s.coordinates.rigid)
     inert, (springs, spring_report) = inertia(c), stiffness(c)
-    masses = np.array([inert[n] for n in names])
-    stiff = np.array([springs[n] for n in names])
+    count = s.coordinates.modes
+    modes = PLATE_MODES[c.outline_shape](c, count) if count else None
+    masses = np.array([inert[n] for n in rigid] + (list(modes.modal_mass) if modes else []))
+    stiff = np.array([springs[n] for n in rigid] + (list(modes.modal_stiffness) if modes else []))
     freqs = np.sqrt(stiff / masses) / (2 * math.pi)
+    labels = list(modes.labels) if modes else []
     report = {"kind": "proof_mass", "mass_kg": c.mass, "holes": list(c.holes()),
               "inertia_kg_m2": {k: v for k, v in inert.items() if k in ("rot_z", "tilt_x", "tilt_y")},
               "flexure": spring_report, "kinematics": KINEMATICS}
-    return Mechanics(names, [RIGID[n][0] for n in names], [RIGID[n][1] for n in names], [""] * len(names),
-                     masses, stiff, freqs, RigidBasis(names), report)
+    if modes:
+        report["internal_modes"] = modes_report(c, modes)
+    names = rigid + [mode_name(lab) for lab in labels]
+    return Mechanics(names, [RIGID[n][0] for n in rigid] + ["mode"] * count,
+                     [RIGID[n][1] for n in rigid] + ["m"] * count, [""] * len(rigid) + labels,
+                     masses, stiff, freqs, ModalBasis(rigid, modes) if modes else RigidBasis(rigid), report)

@@ -19,6 +19,9 @@ from .reader import (Reader, check_keys, did_you_mean, flag, integer, nonnegativ
 from .schema import ALL_RIGID, MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
 
 
+MAX_PLATE_MODES = 12           # internal modes of a proof mass (the plate mesh resolves them: netgen.mechanics.rect_plate)
+
+
 def acceleration_port(rd: Reader, t: dict) -> bool:
     """coordinates.acceleration_port: emit the a_in port (frame acceleration along +z)."""
     return flag(rd, t, "coordinates", "acceleration_port", False,
@@ -281,7 +284,8 @@ class ProofMass(Suspended):
     """A rigid rectangular proof mass (length along x, width along y, centred at the origin) with
     an optional square etch-hole grid (`hole` side on a `hole_pitch` grid), suspended by a named
     flexure (netgen.structure.flexures), between plate electrodes and comb-finger arrays; its
-    coordinates are any of the six rigid-body motions (netgen.mechanics.proof_mass)."""
+    coordinates are any of the six rigid-body motions and, if requested, its first internal plate
+    modes (netgen.mechanics.proof_mass)."""
     length: float
     width: float
     thickness: float
@@ -303,6 +307,12 @@ class ProofMass(Suspended):
     def mass(self) -> float:
         nx, ny = self.holes()
         return (self.length * self.width - nx * ny * self.hole**2) * self.thickness * self.density
+
+    @property
+    def fill_factor(self) -> float:
+        """Solid fraction of the rectangle (1 without holes): the areal density's factor."""
+        nx, ny = self.holes()
+        return 1.0 - nx * ny * self.hole**2 / (self.length * self.width)
 
     def outline(self) -> tuple[float, float, float, float]:
         return -self.length / 2, self.length / 2, -self.width / 2, self.width / 2
@@ -334,16 +344,24 @@ class ProofMass(Suspended):
         return plates_and_combs(rd, doc, self.outline(), self.thickness)
 
     def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
-        """Any of the six rigid-body motions (default x, y, z); no internal modes."""
+        """Any of the six rigid-body motions (default x, y, z) and, if requested, the first
+        `modes` internal plate modes m1, m2, ... (netgen.mechanics.rect_plate)."""
         t = table(rd, doc, "coordinates", required=False)
         accel = acceleration_port(rd, t)
-        check_keys(rd, "coordinates", t, ["rigid", "acceleration_port"])
+        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port"])
         rigid = t.get("rigid", ["x", "y", "z"])
-        if not isinstance(rigid, list) or not rigid or not all(isinstance(r, str) for r in rigid) \
+        if not isinstance(rigid, list) or not all(isinstance(r, str) for r in rigid) \
                 or len(set(rigid)) != len(rigid) or not set(rigid) <= set(ALL_RIGID):
             raise rd.fail("coordinates.rigid", f"rigid = {rigid!r} is not a list of distinct names from "
                           f"{list(ALL_RIGID)}", 'write rigid = ["x", "y", "z"] (any of the six rigid-body motions)')
-        return Coordinates(tuple(r for r in ALL_RIGID if r in rigid), 0, accel)
+        modes = t.get("modes", 0)
+        if isinstance(modes, bool) or not isinstance(modes, int) or not 0 <= modes <= MAX_PLATE_MODES:
+            raise rd.fail("coordinates.modes", f"modes = {modes!r} must be a count 0..{MAX_PLATE_MODES} of internal "
+                          "plate modes", "write modes = 2 (the first two internal modes of the mass, named m1, m2)")
+        if not rigid and not modes:
+            raise rd.fail("coordinates.rigid", "no generalized coordinates",
+                          'list rigid coordinates (e.g. rigid = ["x", "y", "z"]) and/or modes = N')
+        return Coordinates(tuple(r for r in ALL_RIGID if r in rigid), modes, accel)
 
     def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None:
         """The squeeze film under the mass is the incompressible one (with its etch holes)."""
@@ -358,7 +376,7 @@ class ProofMass(Suspended):
         return self.flexure.type != "none"
 
     def coordinate_names(self, coords: Coordinates) -> list[str]:
-        return list(coords.rigid)
+        return list(coords.rigid) + [mode_name(str(k + 1)) for k in range(coords.modes)]
 
 
 # kind -> conductor class; a new kind is a dataclass with read / read_electrodes / read_coordinates /

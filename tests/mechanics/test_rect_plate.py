@@ -1,0 +1,157 @@
+"""The proof mass's internal modes (netgen.mechanics.rect_plate, [coordinates] modes = N) against
+independent references: Leissa's tables of the rectangular plate (A. W. Leissa, "The free
+vibration of rectangular plates", J. Sound Vib. 31(3), 257-293, 1973: 36-term Ritz, a/b = 1,
+nu = 0.3) for all edges clamped (C-C-C-C) and all edges free (F-F-F-F, Ritz upper bounds), the
+converged F-F-F-F values of Gorman's superposition solution (J. Sound Vib. 1978), the exact
+all-edges simply supported rectangle (lambda^2 = pi^2 (m^2 + n^2 (a/b)^2), Leissa's eq. for
+S-S-S-S), the perforated plate with its holes cut out of the mesh, and an ngspice ring-down of a
+mode of a built proof mass (ngspice 39 and 46)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from netgen.build import build
+from netgen.emit import ngspice as emit_ngspice
+from netgen.mechanics.rect_plate import EffectivePlate, rect_plate_modes
+from netgen.structure import StructureError, parse_structure
+from tests.mechanics.test_proof_mass import ring_down
+
+# lambda^2 = omega a^2 sqrt(rho h / D) of the square plate, nu = 0.3
+LEISSA_CCCC = [35.992, 73.413, 73.413, 108.27, 131.64, 132.24]       # Leissa 1973, C-C-C-C, a/b = 1
+LEISSA_FFFF = [13.489, 19.789, 24.432, 35.024, 35.024]               # Leissa 1973, F-F-F-F, a/b = 1 (Ritz)
+GORMAN_FFFF = [13.468, 19.596, 24.270, 34.801, 34.801, 61.093]       # Gorman 1978, superposition
+
+
+def square(boundary: str, count: int, elements: int = 24, **kw):
+    """Modes of the unit square plate with D = 1 (E chosen for h = 0.01, nu = 0.3) and rho h = 1."""
+    h, nu = 0.01, 0.3
+    return rect_plate_modes(1.0, 1.0, h, 12 * (1 - nu**2) / h**3, nu, 1 / h, count, elements, boundary, **kw)
+
+
+def test_clamped_square_against_leissa():
+    """C-C-C-C: the first six lambda^2 within 0.1 % of Leissa's table (his Ritz values are upper
+    bounds good to about 0.05 %), the degenerate pair (2,1)/(1,2) equal."""
+    got = square("clamped", 6).lambda2
+    assert got == pytest.approx(LEISSA_CCCC, rel=1e-3)
+    assert got[1] == pytest.approx(got[2], rel=1e-9)
+
+
+def test_free_square_against_leissa_and_gorman():
+    """F-F-F-F (the proof mass's edges): below Leissa's Ritz upper bounds and within 1.2 % of them
+    (beam functions converge slowly at free edges), within 0.01 % of Gorman's converged values; the
+    modes M-orthogonal to the rigid translation and tilts."""
+    m = square("free", 6)
+    assert np.all(m.lambda2[:5] < LEISSA_FFFF)
+    assert m.lambda2[:5] == pytest.approx(LEISSA_FFFF, rel=1.2e-2)
+    assert m.lambda2 == pytest.approx(GORMAN_FFFF, rel=1e-4)
+    assert max(m.orthogonality[k] for k in ("phi", "x_phi", "y_phi")) < 1e-9
+
+
+def test_simply_supported_rectangle_exact():
+    """S-S-S-S, a/b = 2: lambda^2 = pi^2 (m^2 + 4 n^2), exact, within 1e-4 for the first five."""
+    m = rect_plate_modes(2.0, 1.0, 0.01, 12 * 0.91 / 1e-6, 0.3, 100.0, 5, 32, "simply_supported")
+    exact = sorted(math.pi**2 * (i * i + 4 * j * j) for i in range(1, 6) for j in range(1, 4))[:5]
+    assert m.lambda2 == pytest.approx(exact, rel=1e-4)
+
+
+def test_degenerate_pair_has_definite_parity_and_peak_one():
+    """The square's (2,1)/(1,2) pair comes out as one mode even and one odd under x -> -x (the same
+    on every machine), each with peak deflection 1."""
+    m = square("free", 5)
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-0.5, 0.5, 50), rng.uniform(-0.5, 0.5, 50)
+    here, mirror = m.shape(x, y), m.shape(-x, y)
+    assert np.abs(mirror[:, 3] - here[:, 3]).max() < 1e-8           # even
+    assert np.abs(mirror[:, 4] + here[:, 4]).max() < 1e-8           # odd
+    grid = np.linspace(-0.5, 0.5, 41)
+    gx, gy = np.meshgrid(grid, grid)
+    assert np.abs(m.shape(gx, gy)).max(axis=0) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_effective_perforated_plate_against_the_holes_in_the_mesh():
+    """An 8 x 8 grid of 4 um holes on a 10 um pitch cut out of the mesh: the effective plate
+    (mass fraction 0.84, series-strip D factor 0.789) lands closer than the solid plate on each of
+    the first five free modes, within 2 % on the bending and twisting modes 1, 2, 4, 5 and 8 % on
+    mode 3 (the isotropic model misses the grid's lower Poisson coupling)."""
+    a, args = 80e-6, (2e-6, 160e9, 0.22, 2330.0, 5)
+    holes = rect_plate_modes(a, a, *args, elements=1, holes=(4e-6, 10e-6)).frequencies_hz
+    eff = rect_plate_modes(a, a, *args, elements=16, effective=EffectivePlate.of_holes(4e-6, 10e-6)).frequencies_hz
+    solid = rect_plate_modes(a, a, *args, elements=16).frequencies_hz
+    err, err_solid = eff / holes - 1, solid / holes - 1
+    assert np.all(np.abs(err) < np.abs(err_solid))
+    assert np.abs(err[[0, 1, 3, 4]]).max() < 0.02
+    assert abs(err[2]) < 0.08
+
+
+STRUCTURE = """
+name = "pm_modes"
+[conductor]
+kind = "proof_mass"
+length = "200 um"
+width = "200 um"
+thickness = "2 um"
+density = 2330
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.3
+[conductor.flexure]
+type = "given"
+k_z = 1.0
+[[electrodes]]
+name = "corner"
+kind = "plate"
+side = "below"
+gap = "2 um"
+x = ["20 um", "90 um"]
+y = ["20 um", "90 um"]
+[coordinates]
+rigid = ["z"]
+modes = 2
+acceleration_port = true
+[electrostatics]
+fringe = "none"
+[sampling]
+levels = 3
+"""
+
+
+@pytest.mark.parametrize("release", ["39", "46"])
+def test_first_internal_mode_rings_down_at_gorman_frequency(tmp_path, release, monkeypatch):
+    """m1 of a free 200 um square polysilicon plate (nu = 0.3, the twisting mode) rings down in
+    ngspice at lambda^2 / (2 pi a^2) sqrt(D / rho h), lambda^2 = 13.468 (Gorman), within 0.1 %;
+    the free modes take no frame acceleration (orthogonal to the translation)."""
+    from netgen.sim import ngspice as sim_ngspice
+    from tests.fixtures import NGSPICE
+    monkeypatch.setenv(sim_ngspice.ENV, NGSPICE[release])
+    b = build(parse_structure(STRUCTURE, "pm_modes.toml"))
+    assert [c.name for c in b.model.coordinates] == ["z", "m1", "m2"]
+    lib = tmp_path / "pm.lib"
+    lib.write_text(emit_ngspice.subcircuit(b.model))
+    d = 160e9 * 2e-6**3 / (12 * (1 - 0.3**2))
+    f1 = GORMAN_FFFF[0] / (2 * math.pi * 200e-6**2) * math.sqrt(d / (2330 * 2e-6))
+    assert ring_down(b.model, lib, tmp_path, "m1", f1) == pytest.approx(f1, rel=1e-3)
+    assert b.model.acceleration[1:] == [0.0, 0.0]
+    assert b.model.acceleration[0] == pytest.approx(2330 * 2e-6 * 200e-6**2, rel=1e-9)
+
+
+def test_perforated_mass_takes_the_frame_acceleration_of_its_own_mass():
+    """With etch holes, the a_in participation of z is the perforated mass (solid fraction 0.84
+    of the rectangle's), the mass the dynamics carries: no 1/0.84 error in the sensitivity."""
+    text = STRUCTURE.replace('poisson_ratio = 0.3', 'poisson_ratio = 0.3\nhole = "4 um"\nhole_pitch = "10 um"')
+    text = text.replace("modes = 2", "modes = 0")
+    s = parse_structure(text, "pm_holes.toml")
+    b = build(s)
+    solid = 2330 * 2e-6 * (200e-6**2 - 400 * 4e-6**2)
+    assert b.model.acceleration[0] == pytest.approx(solid, rel=1e-9)
+    assert b.model.coordinates[0].mass == pytest.approx(solid, rel=1e-9)
+
+
+@pytest.mark.parametrize("value", ["-1", "13", '"two"', "true", "2.5"])
+def test_bad_mode_count_names_the_key(value):
+    """modes outside 0..12 or not an integer: a StructureError at coordinates.modes."""
+    with pytest.raises(StructureError) as err:
+        parse_structure(STRUCTURE.replace("modes = 2", f"modes = {value}"), "pm_modes.toml")
+    assert "coordinates.modes" in str(err.value)
