@@ -21,8 +21,8 @@ EXPECTED = {
     "levitated_disk": (0, None), "accelerometer_z": (0, None), "cantilever_fb": (0, None),
     # one electrode below: the feedback only pulls towards -z / -m1
     "piston": (2, "one-sided"), "cantilever": (2, "one-sided"), "cc_beam": (2, "one-sided"),
-    # in-plane x, y, rot_z on combs (z is one-sided): nothing to size V_fb from without a [loop] input
-    "accelerometer_xyz": (2, "no input"),
+    # x, y on combs and z on plates above and below, each channel on its own electrodes ([loop])
+    "accelerometer_xyz": (0, None),
     "sweep_ts": (2, "conductor"),          # a sweep file, not a structure
     "calibrated_disk": (0, None),          # the disk with calibrated couplings
 }

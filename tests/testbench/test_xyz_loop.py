@@ -1,0 +1,77 @@
+"""The three-axis accelerometer (examples/accelerometer_xyz.toml) in force feedback on x, y and z:
+the cap plate above the mass balances the sense voltage's pull on z (the single plate below lost
+z), each channel reads and drives its own electrodes, and 64 periods in ngspice-xspice and in
+VACASK hold every channel with gravity balanced on z."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from netgen import cli
+from netgen.model import MacroModel
+
+from tests.fixtures import ROOT
+
+EXAMPLE = ROOT / "examples" / "accelerometer_xyz.toml"
+OWN = {"x": {"xp_t", "xn_t", "xp_b", "xn_b"}, "y": {"yp_r", "yn_r", "yp_l", "yn_l"}, "z": {"zs", "zt"}}
+
+
+@pytest.fixture(scope="module")
+def xspice_run(tmp_path_factory):
+    """The example built and run for 64 periods in the compiled ngspice loop."""
+    out = tmp_path_factory.mktemp("xyz") / "sd"
+    assert cli.main(["sigma-delta", str(EXAMPLE), "--simulator", "ngspice-xspice", "--cycles", "64", "-o", str(out),
+                     "-q"]) == 0
+    return out
+
+
+def test_sense_voltage_pulls_z_both_ways_equally(xspice_run):
+    """Every electrode at the sense voltage: the z force of the plates above and below cancels
+    (mirror images: below 1e-3 of the pull of the lower plate alone)."""
+    s = json.loads((xspice_run / "summary.json").read_text())
+    model = MacroModel.load_json(xspice_run / "model" / "accelerometer_xyz.json")
+    names = [e.name for e in model.electrodes]
+    iz = [c.name for c in model.coordinates].index("z")
+    rest = np.zeros(model.ncoords)
+    everyone = model.electrostatic_force(rest, np.full(len(names), s["vs"]), 0.0)[0][iz]
+    below = model.electrostatic_force(rest, np.where(np.array(names) == "zs", s["vs"], 0.0), 0.0)[0][iz]
+    assert below < 0
+    assert abs(everyone) < 1e-3 * abs(below)
+
+
+def test_each_channel_reads_and_drives_its_own_electrodes(xspice_run):
+    """Sense weights and feedback pattern of x, y, z are non-zero on that channel's electrodes only."""
+    s = json.loads((xspice_run / "summary.json").read_text())
+    order = list(s["channels"])
+    assert order == ["x", "y", "z"]
+    for e in s["design"]["electrodes"]:
+        for i, ch in enumerate(order):
+            mine = e["name"] in OWN[ch]
+            assert (e["w"][i] != 0) == mine and (e["sel"][i] != 0) == mine, (e, ch)
+
+
+def test_three_channels_hold_with_gravity_balanced(xspice_run):
+    """64 periods: held, every coordinate within 1 % of its touching amplitude, and the z
+    feedback's mean force balances the weight (momentum balance within 3 %)."""
+    s = json.loads((xspice_run / "summary.json").read_text())
+    assert s["levitation"]["held"]
+    for name in ("x", "y", "z"):
+        c = s["coordinates"][name]
+        assert max(abs(c["min"]), abs(c["max"])) < 0.01, name
+    assert s["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.03)
+
+
+def test_three_channels_in_vacask(xspice_run, tmp_path):
+    """The same model, 64 periods in VACASK (3 channels, within its 4): held, every coordinate
+    within 1 % of its touching amplitude, the weight balanced by the z feedback within 5 %."""
+    out = tmp_path / "vac"
+    model = xspice_run / "model" / "accelerometer_xyz.json"
+    assert cli.main(["sigma-delta", str(EXAMPLE), "--simulator", "vacask", "--model", str(model), "--cycles", "64",
+                     "-o", str(out), "-q"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["levitation"]["held"] and list(s["channels"]) == ["x", "y", "z"]
+    assert max(max(abs(c["min"]), abs(c["max"])) for c in s["coordinates"].values()) < 0.01
+    assert s["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.05)
