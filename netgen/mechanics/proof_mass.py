@@ -7,7 +7,8 @@ Small-angle kinematics (netgen.mechanics.base.KINEMATICS). With [coordinates] mo
 N internal modes of the plate (free edges, netgen.mechanics.plates) join them as m1, m2, ...:
 vertical mode shapes that deform the plate electrodes' gaps (and move the comb fingers on the
 edges vertically), M-orthogonal to the rigid motions; the flexures' vertical springs at their
-attachment points are left out of the modes (their Rayleigh shift is in the report)."""
+attachment points add to each mode's stiffness (first order: the Rayleigh quotient), their
+coupling of the modes to z and the tilts is dropped (its size is in the report)."""
 
 from __future__ import annotations
 
@@ -94,30 +95,43 @@ class ModalBasis(RigidBasis):
         return np.concatenate([rigid, np.zeros(rigid.shape[:-1] + (len(self.modes.labels),))], axis=-1)
 
 
-def flexure_shift(c, modes) -> list[float] | str:
-    """Relative frequency shift each mode would take from the flexures' vertical springs at their
-    attachment points (k_z shared equally), by the Rayleigh quotient: sum k phi^2 / (2 k_mode)."""
+def flexure_springs(c, modes, rigid: list[str]) -> tuple[np.ndarray, float] | None:
+    """The flexures' vertical springs at their attachment points (k_z shared equally, their
+    rotational restraint left out) on the internal modes: the stiffness each mode gains,
+    sum k phi^2, and the largest coupling sum k phi_mode phi_rigid to z and the tilts, relative to
+    sqrt(K_mode K_rigid), which the diagonal model drops. None without attachment points."""
     f = c.flexure
     if f.type in ("none", "given"):
-        return f"not estimated: no attachment points (flexure type {f.type})"
+        return None
     frame = flexures.suspension(f, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)
     pts = np.array([frame.nodes[i][:2] for i in sorted(frame.tied)])
     k_tie = flexures.frame_stiffness(f, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)["z"] / len(pts)
     phi = modes.shape(pts[:, 0], pts[:, 1])
-    return [float(v) for v in k_tie * np.sum(phi**2, axis=0) / (2 * modes.modal_stiffness)]
+    gain = k_tie * np.sum(phi**2, axis=0)
+    out_of_plane = [n for n in rigid if n in ("z", "tilt_x", "tilt_y")]
+    if not out_of_plane:
+        return gain, 0.0
+    fields = np.stack([rigid_field(n, pts[:, 0], pts[:, 1]) for n in out_of_plane], axis=-1)
+    k_rr = k_tie * np.sum(fields**2, axis=0)
+    cross = k_tie * fields.T @ phi
+    return gain, float(np.max(np.abs(cross) / np.sqrt(np.outer(k_rr, modes.modal_stiffness + gain))))
 
 
-def modes_report(c, modes) -> dict:
+def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
     """What the internal modes are and how far to trust them."""
     eff = EffectivePlate.of_holes(c.hole, c.hole_pitch)
+    flex = (f"none: no attachment points (flexure type {c.flexure.type})" if springs is None else
+            {"stiffness_added_rel": [float(v) for v in springs[0] / modes.modal_stiffness],
+             "coupling_to_z_and_tilts_max": springs[1],
+             "model": "k_z / (attachment points) at each, added to each mode's stiffness; couplings dropped"})
     return {"source": "Kirchhoff plate, free edges, scikit-fem Bogner-Fox-Schmit elements (netgen.mechanics.rect_plate)",
             "elements_along_length": ELEMENTS, "labels": list(modes.labels),
-            "frequencies_hz": [float(v) for v in modes.frequencies_hz],
+            "free_plate_frequencies_hz": [float(v) for v in modes.frequencies_hz],
             "lambda2_leissa": [float(v) for v in modes.lambda2],
             "effective_plate": {"density_factor": eff.density_factor, "bending_stiffness_factor": eff.stiffness_factor,
                                 "model": "etch holes as an effective plate: mass fraction; D of a series strip"},
             "side_conditions": modes.orthogonality, "normalisation": "peak deflection 1 over the mesh nodes",
-            "flexure_rayleigh_shift": flexure_shift(c, modes)}
+            "flexure_springs": flex}
 
 
 def mechanics(s: Structure) -> Mechanics:
@@ -128,15 +142,17 @@ def mechanics(s: Structure) -> Mechanics:
     inert, (springs, spring_report) = inertia(c), stiffness(c)
     count = s.coordinates.modes
     modes = PLATE_MODES[c.outline_shape](c, count) if count else None
+    attached = flexure_springs(c, modes, rigid) if modes else None
+    modal = (modes.modal_stiffness + (attached[0] if attached else 0.0)) if modes else []
     masses = np.array([inert[n] for n in rigid] + (list(modes.modal_mass) if modes else []))
-    stiff = np.array([springs[n] for n in rigid] + (list(modes.modal_stiffness) if modes else []))
+    stiff = np.array([springs[n] for n in rigid] + list(modal))
     freqs = np.sqrt(stiff / masses) / (2 * math.pi)
     labels = list(modes.labels) if modes else []
     report = {"kind": "proof_mass", "mass_kg": c.mass, "holes": list(c.holes()),
               "inertia_kg_m2": {k: v for k, v in inert.items() if k in ("rot_z", "tilt_x", "tilt_y")},
               "flexure": spring_report, "kinematics": KINEMATICS}
     if modes:
-        report["internal_modes"] = modes_report(c, modes)
+        report["internal_modes"] = modes_report(c, modes, attached)
     names = rigid + [mode_name(lab) for lab in labels]
     return Mechanics(names, [RIGID[n][0] for n in rigid] + ["mode"] * count,
                      [RIGID[n][1] for n in rigid] + ["m"] * count, [""] * len(rigid) + labels,

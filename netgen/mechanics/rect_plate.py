@@ -5,9 +5,8 @@ with the disk's bending and mass forms (netgen.mechanics.free_disk.bending_form,
 Conventions
 -----------
 * Edges are free (the natural condition of the bending form), "clamped" (w = dw/dn = 0) or
-  "simply_supported" (w = 0); the proof mass uses free edges: its flexures are soft against the
-  plate (their vertical springs at the attachment points shift a mode by the Rayleigh quotient
-  reported by netgen.mechanics.proof_mass, about 1e-4 in the example).
+  "simply_supported" (w = 0); the proof mass uses free edges, and netgen.mechanics.proof_mass adds
+  its flexures' vertical springs at the attachment points to each mode's stiffness.
 * Modes are labelled "1", "2", ... in frequency order (coordinate names m1, m2, ...), each scaled to
   a peak |w| = 1 over the mesh nodes (the modal coordinate is the peak deflection in metres), with
   its sign fixed by the node of largest |w| (ties: largest x, then y). A degenerate pair (a square

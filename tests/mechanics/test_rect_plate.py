@@ -18,6 +18,7 @@ from netgen.build import build
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics.rect_plate import EffectivePlate, rect_plate_modes
 from netgen.structure import StructureError, parse_structure
+from tests.fixtures import ROOT
 from tests.mechanics.test_proof_mass import ring_down
 
 # lambda^2 = omega a^2 sqrt(rho h / D) of the square plate, nu = 0.3
@@ -155,3 +156,32 @@ def test_bad_mode_count_names_the_key(value):
     with pytest.raises(StructureError) as err:
         parse_structure(STRUCTURE.replace("modes = 2", f"modes = {value}"), "pm_modes.toml")
     assert "coordinates.modes" in str(err.value)
+
+
+def test_flexure_springs_on_the_modes_against_the_plate_with_point_springs():
+    """The example's mass (400 um, crab legs, holes) with modes = 3: each mode's frequency with
+    the flexures' vertical springs added (first order) within 0.2 % of an eigensolve of the
+    effective plate with the springs (k_z / 4 at each attachment point) in its stiffness matrix
+    (that solve also keeps the couplings to z and the tilts the model drops)."""
+    from scipy.sparse.linalg import eigsh
+
+    from netgen.mechanics import flexures, mechanics, rect_plate
+    from netgen.mechanics.free_disk import bending_form, mass_form
+    text = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
+    text = text.replace('rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]',
+                        'rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]\nmodes = 3')
+    s = parse_structure(text, "accelerometer_xyz.toml")
+    m, c = mechanics(s), s.conductor
+    got = m.frequencies[-3:]
+    eff = EffectivePlate.of_holes(c.hole, c.hole_pitch)
+    basis = rect_plate.plate_basis(c.length, c.width, rect_plate.ELEMENTS)
+    d = c.youngs_modulus * eff.stiffness_factor * c.thickness**3 / (12 * (1 - c.poisson_ratio**2))
+    frame = flexures.suspension(c.flexure, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)
+    ties = np.array([frame.nodes[i][:2] for i in sorted(frame.tied)]).T / c.length
+    k_tie = flexures.frame_stiffness(c.flexure, c.length / 2, c.width / 2, c.youngs_modulus, c.poisson_ratio)["z"] / 4
+    probe = basis.probes(np.clip(ties, -0.5 + 1e-12, 0.5 - 1e-12))
+    K = d / c.length**2 * bending_form(c.poisson_ratio).assemble(basis) + k_tie * (probe.T @ probe)
+    M = c.density * eff.density_factor * c.thickness * c.length**2 * mass_form.assemble(basis)
+    mu = np.sort(eigsh(K.tocsc(), k=6, M=M, sigma=-1.0, which="LM", v0=np.ones(basis.N))[0])
+    assert len(ties[0]) == 4
+    assert got == pytest.approx(np.sqrt(mu[3:]) / (2 * math.pi), rel=2e-3)
