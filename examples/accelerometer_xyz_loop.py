@@ -1,8 +1,10 @@
 """The three-axis accelerometer in force feedback on x, y and z: per channel the in-band noise floor
-and the noise-shaping slope, and the cross-axis correlation of the bitstreams (raw, and in band),
-from the folder of a `netgen sigma-delta` run.
+and the noise-shaping slope (tone bins excluded), the level of the run's tone (--tone) in every
+channel, and the cross-axis correlation of the bitstreams (raw, and in band), from the folder of
+a `netgen sigma-delta` run.
 
-    netgen sigma-delta examples/accelerometer_xyz.toml -o OUT --cycles 16384 --simulator ngspice-xspice
+    netgen sigma-delta examples/accelerometer_xyz.toml -o OUT --cycles 16384 --simulator ngspice-xspice \
+        --tone x:0.016:1953.125
     python examples/accelerometer_xyz_loop.py OUT
 """
 
@@ -37,12 +39,14 @@ def analyse(folder: Path) -> dict:
     bits = {n: np.asarray(data[f"bits_{n}"], float)[skip:] for n in names}
     out = {"simulator": summary["simulator"], "cycles": summary["cycles"], "held": summary["levitation"]["held"],
            "gravity_balance": summary["gravity_balance"]["ratio"], "channels": {}, "correlation": {}}
+    tone = summary["tone"]["freq"] if summary.get("tone") else None
     for n in names:
         f, p = metrics.spectrum(bits[n], ts, min(len(bits[n]), NPERSEG))
-        b = metrics.band(f, p, fb)
+        b = metrics.band(f, p, fb, tone)
         out["channels"][n] = {"bit_mean": float(bits[n].mean()), "floor_db_per_hz": b["floor_db_per_hz"],
                               "inband_noise_db": b["noise_db"], "slope_db_per_decade": b["slope_db_per_decade"],
-                              "peak_position_of_gap": max(abs(summary["coordinates"][n]["min"]),
+                              "tone_db": b.get("tone_db"),
+                              "peak_um": max(abs(summary["coordinates"][n]["min"]),
                                                           abs(summary["coordinates"][n]["max"]))}
     for a, b in itertools.combinations(names, 2):
         raw = float(np.corrcoef(bits[a], bits[b])[0, 1])
