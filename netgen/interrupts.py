@@ -26,11 +26,15 @@ EXIT_INTERNAL = 70
 
 
 class Interrupted(KeyboardInterrupt):
-    """The run was stopped by SIGINT (Ctrl-C) or SIGTERM; `signum` says which."""
+    """The run was stopped by SIGINT (Ctrl-C) or SIGTERM; `signum` says which. `message`, when a
+    stage has cleaned up after the signal and knows what is left (a sweep: which runs finished,
+    how to resume), is the one line the error boundary (netgen.cli.report_interrupt) prints; the
+    exit code is EXIT_INTERRUPTED either way. str() is the signal's name."""
 
-    def __init__(self, signum: int = signal.SIGINT):
+    def __init__(self, signum: int = signal.SIGINT, message: str | None = None):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
+        self.message = message
 
 
 # the signals that have arrived since install(): an extension module's import turns the

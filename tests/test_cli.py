@@ -25,6 +25,7 @@ from netgen import cli
 from netgen.arguments import output_folder
 from netgen.errors import SimulationError
 from netgen.folders import OutputFolder, check_manifest
+from netgen.interrupts import Interrupted
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.rawfile import read_raw
 
@@ -138,12 +139,18 @@ def test_an_unexpected_exception_is_one_line_exit_70_and_a_crash_log(tmp_path, c
     assert "Traceback" in log and "in broken" in log
 
 
-def test_a_keyboard_interrupt_inside_a_command_is_exit_130(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("exc, line", [
+    (KeyboardInterrupt(), "netgen: interrupted"),
+    (Interrupted(signal.SIGTERM), "netgen: interrupted (SIGTERM)"),
+    # a stage that cleaned up says what is left (netgen.sweep.run.run_sweep): its line, still exit 130
+    (Interrupted(signal.SIGTERM, "sweep stopped by SIGTERM: 1 of 2 runs finished"),
+     "netgen: sweep stopped by SIGTERM: 1 of 2 runs finished")])
+def test_a_keyboard_interrupt_inside_a_command_is_exit_130(exc, line, tmp_path, capsys, monkeypatch):
     def interrupted(path):
-        raise KeyboardInterrupt
+        raise exc
     monkeypatch.setattr(cli, "load_structure", interrupted)
     assert cli.main(["build", PISTON, "-o", str(tmp_path / "out")]) == 130
-    assert capsys.readouterr().err == "netgen: interrupted\n"
+    assert capsys.readouterr().err == line + "\n"
 
 
 def catches(pid: int, sig: signal.Signals) -> bool:

@@ -3,8 +3,9 @@ lines) of the worker that ran it and of every simulator that worker started (thr
 netgen.sim.process.watched), each with its PID, process group, /proc start time and host. A
 retry or a resume signals a recorded process only while that PID still names the same process
 (same start time, same host): a user's shell or editor whose working directory is inside a run
-folder is never touched. SIGTERM and SIGINT of the sweep become `Stop`, which run_sweep turns
-into stopped workers, killed simulators and a resumable folder."""
+folder is never touched. SIGTERM and SIGINT of the sweep become netgen.interrupts.Interrupted
+(held while the executor holds its locks), which run_sweep turns into stopped workers, killed
+simulators, a resumable folder and an Interrupted that says so."""
 
 from __future__ import annotations
 
@@ -18,30 +19,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import NetgenError
 from ..executor import raise_or_hold
-from ..interrupts import EXIT_INTERRUPTED
+from ..interrupts import Interrupted
 from ..sim.process import start_time
 
 RECORDS = ".processes"
-
-
-class Stop(KeyboardInterrupt):
-    """SIGTERM or SIGINT reached the sweep (the signal number in `signum`)."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-class Interrupted(NetgenError):
-    """The sweep stopped on a signal after cleaning up; exit 130 for SIGINT and SIGTERM alike, as
-    every other subcommand (netgen.interrupts.EXIT_INTERRUPTED)."""
-
-    def __init__(self, signum: int, message: str):
-        super().__init__(message)
-        self.signum = signum
-        self.exit_code = EXIT_INTERRUPTED
 
 
 def me() -> dict:
@@ -113,13 +95,13 @@ def reap(folder: Path, workers: bool = False) -> list[int]:
 
 @contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """Within: SIGTERM and SIGINT raise Stop in the main thread (elsewhere: nothing changes)."""
+    """Within: SIGTERM and SIGINT raise netgen.interrupts.Interrupted in the main thread (elsewhere: nothing changes)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: object) -> None:
-        raise_or_hold(Stop(signum))                    # held while the executor holds its pool's locks
+        raise_or_hold(Interrupted(signum))                    # held while the executor holds its pool's locks
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
         yield

@@ -21,6 +21,7 @@ from tqdm import tqdm
 from ..build import build_model
 from ..emit import write_outputs
 from ..files import write_atomic
+from ..interrupts import Interrupted
 from ..sim import process as sim_process
 from ..sim.ngspice import identity as ngspice_build, same_build
 from ..structure import parse_structure
@@ -135,7 +136,8 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
               runs: list[RunSpec] | None = None) -> list[dict]:
     """Plan, run (through the executor `ex`), gather: the rows of results.csv, in run order.
     The folder must be new, empty or this sweep's (netgen.sweep.folder); SIGTERM or SIGINT stops
-    the workers and their simulators, writes what finished and raises processes.Interrupted."""
+    the workers and their simulators, writes what finished and raises netgen.interrupts.Interrupted with a line
+    saying how many runs finished and how to resume (exit 130)."""
     out = Path(out)
     runs = runs if runs is not None else plan(sweep, structure_path, out)
     with claim(out, identity(structure_path, runs), sweep.path, str(structure_path), len(runs)), \
@@ -143,13 +145,12 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
         records = _reused(runs)
         try:
             _run(structure_path, sweep, out, ex, progress, runs, records)
-        except processes.Stop as stop:
+        except Interrupted as stop:
             _stop(ex, runs, records)
             rows = _gather(structure_path, sweep, out, runs, records)
             done = sum(r["status"] == "ok" for r in rows)
-            raise processes.Interrupted(stop.signum, f"sweep stopped by {stop}: {done} of {len(runs)} runs finished "
-                                        f"(in {out / 'results.csv'}); run the same command again to run the rest"
-                                        ) from None
+            raise Interrupted(stop.signum, f"sweep stopped by {stop}: {done} of {len(runs)} runs finished "
+                              f"(in {out / 'results.csv'}); run the same command again to run the rest") from None
         return _gather(structure_path, sweep, out, runs, records)
 
 
