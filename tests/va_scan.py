@@ -21,8 +21,8 @@ from itertools import product as cartesian
 
 STATEMENT = re.compile(r"^\s*(?:if\s*\((?P<cond>[^;]*?)\)\s*)?(?P<lhs>[A-Za-z_]\w*(?:\([^()]*\))?)\s*"
                        r"(?P<op><\+|=)(?!=)\s*(?P<rhs>.*)$", re.S)
-TERNARY = re.compile(r"\(([^()?]*)\)\s*\?\s*([^:]+?)\s*:\s*(.+)$")
 MAX_ALTERNATIVES = 64
+EITHER = "either_"                                      # what `c ? a : b` becomes
 
 
 @dataclass(frozen=True)
@@ -121,6 +121,9 @@ class Scanner:
                 else:
                     out.append(OTHER)
             return out
+        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == EITHER:    # cond ? a : b
+            self.eval(node.args[0])
+            return (self.eval(node.args[1]) + self.eval(node.args[2]))[:MAX_ALTERNATIVES]
         for child in ast.iter_child_nodes(node):         # calls, comparisons: checked inside, opaque outside
             self.eval(child)
         return [OTHER]
@@ -128,18 +131,39 @@ class Scanner:
     def run(self, lhs: str, op: str, rhs: str, conditional: bool) -> None:
         """One statement: evaluate the right-hand side; an assignment sets (or, under `if`, adds to)
         the variable's values."""
-        m = TERNARY.match(rhs)
-        if m:
-            self.eval(parse(m.group(1)))
-            alts = [v for part in (m.group(2), m.group(3)) for v in self.eval(parse(part))]
-        else:
-            alts = self.eval(parse(rhs))
+        alts = self.eval(parse(rhs))
         if op == "=":
             self.values[lhs] = (self.values.get(lhs, []) + alts if conditional else alts)[:MAX_ALTERNATIVES]
 
 
+def ternaries(text: str) -> str:
+    """`c ? a : b` (innermost first) as the call EITHER(c, a, b), each within its parentheses."""
+    while "?" in text:
+        q = text.rindex("?")
+        depth, start = 0, 0
+        for i in range(q - 1, -1, -1):                 # the parenthesis that holds the `?`
+            depth += {")": 1, "(": -1}.get(text[i], 0)
+            if depth < 0:
+                start = i + 1
+                break
+        depth, colon, end = 0, None, len(text)
+        for i in range(q + 1, len(text)):
+            depth += {"(": 1, ")": -1}.get(text[i], 0)
+            if depth == 0 and text[i] == ":" and colon is None:
+                colon = i
+            if depth < 0:
+                end = i
+                break
+        if colon is None:
+            raise ValueError(f"va_scan cannot read the conditional in {text!r}")
+        text = (f"{text[:start]}{EITHER}(({text[start:q]}), ({text[q + 1:colon]}), ({text[colon + 1:end]}))"
+                f"{text[end:]}")
+    return text
+
+
 def parse(expr: str) -> ast.AST:
-    """A Verilog-A expression as a Python expression tree ($names, ||, && and ! translated)."""
+    """A Verilog-A expression as a Python expression tree ($names, ||, &&, ! and ?: translated)."""
+    expr = ternaries(expr)
     text = re.sub(r"\b(" + "|".join(keyword.kwlist) + r")\b", r"\1_", expr)     # a port named `in`
     text = text.replace("$", "_sys_").replace("||", " or ").replace("&&", " and ")
     text = re.sub(r"!(?!=)", " not ", text)

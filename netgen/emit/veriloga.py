@@ -145,7 +145,7 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
         cl = clamps[i] if clamps else [None] * len(f.polys)
         row.update({
             "polys": [{"name": node(f.electrode, k),
-                       "expr": clamp_expr(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
+                       "expr": clamp_va(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
                       for k, p in enumerate(f.polys)],
             "dv2": dv2, "charge": charge(f, model.plate, state),
             "ys": [] if f.target == "direct" else
@@ -153,6 +153,12 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
               + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
               + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
              for k in range(len(f.polys))]})
+
+
+def clamp_va(expr: str, knee: float, floor: float) -> str:
+    """The contact clamp of a plate term (netgen.emit.common.clamp_expr) with its exp evaluated only
+    below the knee, where it acts: at and above it the clamp is P itself, value and slope."""
+    return f"({expr} >= {num(knee)} ? {expr} : {clamp_expr(expr, knee, floor)})"
 
 
 def check_identifiers(names: list[str]) -> None:
