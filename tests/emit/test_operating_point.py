@@ -28,33 +28,14 @@ from netgen.sim.ngspice import ENV, run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
 from netgen.structure import parse_structure
 from tests.fixtures import NETLISTS, NGSPICE, ROOT, Bench
+from tests.structures import ONE_PLATE_GAP, ONE_PLATE_RADIUS, one_plate_disk
 
 PISTON = ROOT / "examples" / "piston.toml"
-DISK = """
-name = "spring_disk"
-description = "Rigid free disk over one electrode, held by external springs through its force ports"
-[conductor]
-kind = "free_disk"
-radius = "300 um"
-thickness = "5 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["0 um", "300 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
+DISK = one_plate_disk("spring_disk", "Rigid free disk over one electrode, held by external springs through its force ports") + """[sampling]
 levels = 5
 range = 0.3
-[electrostatics]
-fringe = "none"
 """
-DISK_RADIUS, DISK_GAP = 300e-6, 3e-6
+DISK_RADIUS, DISK_GAP = ONE_PLATE_RADIUS, ONE_PLATE_GAP
 SPRING_HZ = 20e3                 # external springs: z at 20 kHz, the tilts twice as stiff (stable past z's fold)
 
 

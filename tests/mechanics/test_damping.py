@@ -29,34 +29,14 @@ from netgen.build import build_model
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT, Bench
+from tests.structures import disk, ring_electrode
 
 K_B = 1.380649e-23
 MU_AIR = 1.85e-5
 
-SMALL = """
-name = "damped_disk"
-description = "one-mode disk for the damping tests"
-[conductor]
-radius = "473 um"
-thickness = "10 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "3 um"
-rings = [["20 um", "473 um"]]
-sectors = 4
-slot = "10 um"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["20 um", "473 um"]]
-sectors = 4
-slot = "10 um"
-[coordinates]
+SMALL = disk("damped_disk", "one-mode disk for the damping tests", "473 um", "10 um", kind=None) + "".join(
+    ring_electrode(name, side, "3 um", [("20 um", "473 um")], sectors=4, slot="10 um")
+    for name, side in (("top", "above"), ("bot", "below"))) + """[coordinates]
 rigid = ["z"]
 modes = ["2,0c"]
 [fem]

@@ -16,34 +16,15 @@ from scipy.constants import epsilon_0
 from netgen.cli import main
 from netgen.model import MacroModel
 from tests.fixtures import ROOT
+from tests.structures import ONE_PLATE_GAP, ONE_PLATE_RADIUS, one_plate_disk
 
-RADIUS, GAP = 300e-6, 3e-6
-MISSES = """
-name = "one_plate"
-description = "Rigid free disk over one electrode under the whole disk, one plate term: misses 2e-3"
-[conductor]
-kind = "free_disk"
-radius = "300 um"
-thickness = "5 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["0 um", "300 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
+RADIUS, GAP = ONE_PLATE_RADIUS, ONE_PLATE_GAP
+MISSES = one_plate_disk("one_plate", "Rigid free disk over one electrode under the whole disk, one plate term: misses 2e-3") + """[sampling]
 levels = 3
 range = 0.2
 [fit]
 max_terms = 1
 tolerance = 2e-3
-[electrostatics]
-fringe = "none"
 """
 WARNING = "WARNING: the capacitance fit of electrode bot_r1s1 misses fit.tolerance"
 

@@ -31,25 +31,10 @@ from netgen.cli import main
 from netgen.structure import parse_structure
 
 from tests.fixtures import ROOT
+from tests.structures import disk, ring_electrode
 
-DISK = '''name = "disk"
-description = "free disk, rigid coordinates only"
-[conductor]
-kind = "free_disk"
-radius = "200 um"
-thickness = "5 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["0 um", "200 um"]]
-sectors = 2
-sector_start = "0 deg"
-slot = "10 um"
-[coordinates]
+DISK = disk("disk", "free disk, rigid coordinates only", "200 um") + ring_electrode(
+    "bot", "below", "3 um", [("0 um", "200 um")], sectors=2, sector_start="0 deg", slot="10 um") + '''[coordinates]
 rigid = ["z", "tilt_x"]
 [sampling]
 levels = 3
