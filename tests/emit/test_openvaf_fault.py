@@ -8,6 +8,8 @@ product holding both factors, also through a variable. The Verilog-A emitter nev
 - a hand-made model whose force and charge would have the faulty shape: the emitted module
   has no such product, and its VACASK operating point is the hand-solved equilibrium (the
   same module written the old way lands elsewhere);
+- the fault reaches the derivative through a product (an ngspice 46 AC analysis), and the scan
+  flags that product;
 - the committed .va and blocks.va hold no such product (bench/va_fault_scan.py scans the
   .va of every example)."""
 
@@ -21,8 +23,9 @@ import pytest
 
 from netgen.emit import veriloga
 from netgen.model import MacroModel
+from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
-from tests.fixtures import ROOT
+from tests.fixtures import ROOT, using_ngspice
 from tests.va_scan import scan
 
 X, Y, Z = 3.0, 7.0, 5.0
@@ -71,6 +74,28 @@ def test_the_scan_sees_every_shape_openvaf_r_gets_wrong(tmp_path):
             print(f"openvaf-r: {rhs} = {got!r}, not {want!r}")
     assert wrong <= flagged, f"the scan misses {sorted(wrong - flagged)}"
     assert "V(o7)" not in flagged and "V(o9)" not in flagged and "V(o10)" not in flagged
+
+
+def test_the_fault_reaches_derivatives_and_the_scan_sees_it(tmp_path):
+    """V(o) <+ 2.0*V(x)*(0.5 + 0.5*V(z)) has the right value, but its derivative by V(x) is the
+    faulty 2.0*(0.5 + 0.5*V(z)): an ngspice 46 AC analysis reads dV(o)/dV(x) against 1 + z by hand;
+    where it is wrong, the scan flags the product. A product without the shape is the control."""
+    rows = {"o1": ("2.0*V(x)*(0.5 + 0.5*V(z))", 1.0 + Z), "o2": ("2.0*V(x)*(1.5 + 0.5*V(z))", 3.0 + Z)}
+    text = "\n".join(['`include "disciplines.vams"', "module deriv(x, z, o1, o2);", "    inout x, z, o1, o2;",
+                      "    electrical x, z, o1, o2;", "    analog begin",
+                      *(f"        V({o}) <+ {rhs};" for o, (rhs, _) in rows.items()), "    end", "endmodule", ""])
+    (tmp_path / "deriv.va").write_text(text)
+    osdi, _ = compile_va(tmp_path / "deriv.va", tmp_path / "deriv.osdi")
+    net = ["derivatives", ".model m deriv", "N1 x z o1 o2 m", f"vx x 0 dc {X} ac 1", f"vz z 0 dc {Z}",
+           ".ac lin 1 1 1", ".control", f"pre_osdi {osdi}", ".endc", ".end", ""]
+    with using_ngspice("46"):
+        plot = run_ngspice("\n".join(net), tmp_path)[0]
+    flagged = {f.statement.split("<+")[0].strip() for f in scan(text)}
+    assert float(abs(plot["v(o2)"][0])) == pytest.approx(rows["o2"][1], rel=1e-12)
+    assert "V(o2)" not in flagged
+    got = float(abs(plot["v(o1)"][0]))
+    print(f"openvaf-r: d/dV(x) of {rows['o1'][0]} = {got!r}, not {rows['o1'][1]!r}")
+    assert got == pytest.approx(rows["o1"][1], rel=1e-12) or "V(o1)" in flagged
 
 
 # a hand-made model (the fields of a build's JSON): the piston's layout with round numbers
