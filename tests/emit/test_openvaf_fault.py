@@ -10,8 +10,8 @@ product holding both factors, also through a variable. The Verilog-A emitter nev
   same module written the old way lands elsewhere);
 - the fault reaches the derivative through a product (an ngspice 46 AC analysis), and the scan
   flags that product;
-- the committed .va and blocks.va hold no such product (bench/va_fault_scan.py scans the
-  .va of every example)."""
+- the committed .va of every example (netlists/, kept current by tests/test_netlists.py) and
+  blocks.va hold no such product (bench/va_fault_scan.py scans fresh builds of them)."""
 
 from __future__ import annotations
 
@@ -153,10 +153,13 @@ def test_the_emitter_folds_the_faulty_product(tmp_path, monkeypatch):
     assert operating_xs(model, old, tmp_path / "old") == pytest.approx(0.0, abs=1e-12)
 
 
-@pytest.mark.parametrize("path", [ROOT / "netlists" / "levitated_disk.va",
-                                  ROOT / "netgen" / "testbench" / "sigma_delta" / "blocks.va"],
-                         ids=lambda p: p.name)
+# every example's emitted module as committed (tests/test_netlists.py keeps them current) and the loop blocks
+COMMITTED = sorted((ROOT / "netlists").glob("**/*.va")) + [ROOT / "netgen" / "testbench" / "sigma_delta" / "blocks.va"]
+
+
+@pytest.mark.parametrize("path", COMMITTED, ids=lambda p: p.name)
 def test_committed_verilog_a_has_no_faulty_product(path):
-    """The committed module and the loop blocks (whose 0.5 + 0.5*tanh(...) bits are multiplied
+    """Every committed module and the loop blocks (whose 0.5 + 0.5*tanh(...) bits are multiplied
     only by parameters and node values, never by a number)."""
+    assert len(COMMITTED) > 2
     assert scan(path.read_text(encoding="utf-8")) == []
