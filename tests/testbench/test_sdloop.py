@@ -44,9 +44,11 @@ def _loop_reference(periods: int, leads: list[float] | None = None) -> tuple[np.
     return np.array(curs), np.array(bits), np.array(ys)
 
 
-def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None, leads: list[float] | None = None) -> str:
+def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None, leads: list[float] | None = None,
+                    extra: str = "") -> str:
     """The instance with the phases as inputs from DC sources, or (pulses given) from its own
-    PULSE(v1 v2 td tr tf pw per) waveforms; `leads`: a lead coefficient per channel."""
+    PULSE(v1 v2 td tr tf pw per) waveforms; `leads`: a lead coefficient per channel; `extra`:
+    more .model parameters."""
     vec = lambda xs: "[" + " ".join(str(x) for x in xs) + "]"      # noqa: E731
     ph_pulse = vec(float(v) for p in pulses for v in p) if pulses else "[0]"
     lead = f"leads={vec(leads)}" if leads else f"lead={LEAD}"
@@ -54,7 +56,8 @@ def _sdloop_netlist(cm, analysis: str, pulses: list[tuple] | None = None, leads:
             f"sel={vec(v for row in SEL for v in row)} ph_sense=[0.5 0] ph_fb=[0 2] ph_pulse={ph_pulse} "
             f"dither_amp={vec(a for a, _ in DITHER)} dither_step={vec(s for _, s in DITHER)} "
             + " ".join(f"{k}={vec(v)}" for k, v in INIT.items())
-            + " flt_n=[0 0] flt_a=[0] flt_bx=[0] flt_bv=[0] flt_c=[0] flt_d=[0 0] u0=[0])")   # lead channels
+            + " flt_n=[0 0] flt_a=[0] flt_bx=[0] flt_bv=[0] flt_c=[0] flt_d=[0 0] u0=[0]" + (f" {extra}" if extra else "")
+            + ")")   # lead channels
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {f} 0 0 {np.degrees(p)})" for i, (a, f, p, o) in enumerate(CA)]
     return "\n".join([
         "netgen_sdloop: two channels, three electrodes", *sources, "Vphs phs 0 DC 1", "Vphf phf 0 DC 1 AC 1",
@@ -116,3 +119,35 @@ def test_sdloop_drives_from_its_own_pulse_phases(cold_build, tmp_path):
     for e in range(3):
         assert np.abs(np.asarray(plot[f"v(d{e})"]) - expect[e]).max() < 1e-12
     assert fb.max() == 2 and sense.max() == 1                                 # the ramps were covered
+
+
+FB_LEVEL, FB_ON, FB_OFF = 1.5, 0.5, 0.94
+
+
+def test_sdloop_feedback_step_is_a_step_at_its_own_breakpoints(cold_build, tmp_path):
+    """With fb_level the drives add fb_level x selection on (fb_on, fb_off] of every period, a
+    step: at every time point the drive is the definition's (the selection from the numpy loop's
+    bits, latched at 0.42 T_s), and ngspice put a time point on each step instant and on the one
+    1e-3 T_s after it (the instance's own breakpoints: backward-Euler steps there, so a force that
+    is constant between them is integrated exactly; netgen_sdloop/cfunc.mod)."""
+    pulses = [(0, 1, 0.05e-6, 0.02e-6, 0.03e-6, 0.1e-6, 1e-6), (0, 0, 0.0, 0.04e-6, 0.01e-6, 0.05e-6, 1e-6)]
+    periods = 3
+    net = _sdloop_netlist(cold_build, f".tran 1e-9 {periods * TS} 0 5e-8", pulses,
+                          extra=f"fb_level={FB_LEVEL} fb_on={FB_ON} fb_off={FB_OFF}")
+    plot = run_ngspice(net, tmp_path)[0]
+    t = np.asarray(plot["time"])
+    _, bits, _ = _loop_reference(periods)
+    phase = t / TS - np.floor(t / TS)
+    last = np.floor(t / TS - T_LATCH).astype(int)                   # the latch that set the bits at t
+    b = np.where(last[:, None] < 0, np.array(INIT["b0"], float)[None, :], bits[np.clip(last, 0, None)])
+    on = ((phase > FB_ON + 1e-6) & (phase <= FB_OFF + 1e-6)).astype(float)
+    sel = [b[:, 0], (1 - b[:, 0]) * b[:, 1], 0 * b[:, 0]]
+    sense = _pulse(t, *pulses[0])
+    away = np.abs(t / TS - np.round(t / TS - T_LATCH) - T_LATCH) > 1e-3   # not at a latch instant
+    for e in range(3):
+        expect = 0.5 * sense + sel[e] * FB_LEVEL * on
+        assert np.abs(np.asarray(plot[f"v(d{e})"]) - expect)[away].max() < 1e-12, e
+    for k in range(periods):
+        for at in (FB_ON, FB_ON + 1e-3, FB_OFF, FB_OFF + 1e-3):
+            assert np.abs(t - (k + at) * TS).min() < 1e-9 * TS, (k, at)
+    assert on.any() and any(sel[0] * on)                           # a step was on in the run

@@ -98,7 +98,9 @@ def step_map(a: np.ndarray, b: np.ndarray, ts: float, sample: float,
 def trapezoid_pulse(on: float, off: float, edge: float, pieces: int = RAMP_PIECES) -> tuple[tuple[float, float, float], ...]:
     """The force pulse of a voltage trapezoid (linear edges of width `edge` centred on `on` and
     `off`): force ~ V^2, so a ramp is `pieces` constant pieces, each with the mean of the squared
-    ramp over it (its exact impulse), and the flat top weight 1."""
+    ramp over it (its exact impulse), and the flat top weight 1; edge 0: one piece (a step)."""
+    if edge == 0:
+        return ((on, off, 1.0),)
     out = []
     h = edge / pieces
     for k in range(pieces):                                  # mean of s^2 over [k, k+1] / pieces
@@ -301,7 +303,7 @@ def mechanics_of(model, d, channel: str) -> Mechanics:
     return Mechanics(coord.mass, coord.stiffness + electrostatic_spring(model, d, names.index(channel)),
                      float(coord.admittance(0.0).real), d.level(channel) / d.duty,
                      ch["sensitivity"] / ch["cf"] / coord.scale, d.ts, t.cur + t.sample,
-                     trapezoid_pulse(t.fb_on, t.fb_off, t.edge), float(offset))
+                     trapezoid_pulse(t.fb_on, t.fb_off, t.fb_ramp), float(offset))
 
 
 def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:

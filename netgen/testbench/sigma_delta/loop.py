@@ -11,7 +11,7 @@ drives, feedback that cannot balance the input) is a LoopError naming the file a
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -89,18 +89,23 @@ class Design:
         """The feedback phase (0 -> 1 over [a, b], 1 until c, 1 -> 0 over [c, d]) as
         k1 T1 - k2 T2 of two delay-free PULSE trapezoids, T1 rising over [0, b], T2 over [0, a],
         both falling over [c, d]: on [0, a] the two ramps cancel (k1 / b = k2 / a), on [a, b]
-        the sum rises with slope 1 / (b - a), and k1 - k2 = 1 on [b, c]. Why: the template."""
+        the sum rises with slope 1 / (b - a), and k1 - k2 = 1 on [b, c]. Why: the template.
+        A feedback step (Timing.fb_ramp 0, the compiled loop's fb_level) has k1 = k2 = 0: T1 and
+        T2 then only give ngspice breakpoints at the step instants (corners at 0, fb_on, fb_off, 1)."""
         t, ts = self.t, self.ts
-        a, b = t.fb_on - t.edge / 2, t.fb_on + t.edge / 2
-        c, e = t.fb_off - t.edge / 2, t.fb_off + t.edge / 2
+        if t.fb_ramp == 0:
+            on, off = t.fb_on * ts, (t.fb_off - t.fb_on) * ts
+            return {"tr1": on, "pw1": off, "tr2": on, "pw2": off, "tf": (1.0 - t.fb_off) * ts, "k1": 0.0, "k2": 0.0}
+        a, b = t.fb_on - t.fb_ramp / 2, t.fb_on + t.fb_ramp / 2
+        c, e = t.fb_off - t.fb_ramp / 2, t.fb_off + t.fb_ramp / 2
         return {"tr1": b * ts, "pw1": (c - b) * ts, "tr2": a * ts, "pw2": (c - a) * ts, "tf": (e - c) * ts,
                 "k1": b / (b - a), "k2": a / (b - a)}
 
     def corners(self) -> list[float]:
         """Period phases of the electrode-phase corners (the breakpoints the ramps need)."""
-        t, h = self.t, self.t.edge / 2
+        t, h, hf = self.t, self.t.edge / 2, self.t.fb_ramp / 2
         return sorted({t.sense_on - h, t.sense_on + h, t.sense_off - h, t.sense_off + h,
-                       t.fb_on - h, t.fb_on + h, t.fb_off - h, t.fb_off + h})
+                       t.fb_on - hf, t.fb_on + hf, t.fb_off - hf, t.fb_off + hf})
 
     @property
     def g_latch(self) -> float:
@@ -284,13 +289,14 @@ def tone_forces(model: MacroModel, tone: Tone | None) -> np.ndarray:
 
 def check_timing(spec: LoopSpec, t: Timing) -> None:
     """The period's events in order, each edge inside the period (else LoopError on [loop.timing])."""
-    h = t.edge / 2
-    order = [("edge", 0 < t.edge <= 0.1), ("sense_on", t.sense_on - h >= 0), ("prev", t.sense_on < t.prev),
+    h, hf = t.edge / 2, t.fb_ramp / 2
+    order = [("edge", 0 < t.edge <= 0.1), ("fb_edge", 0 <= t.fb_ramp <= 0.1), ("sense_on", t.sense_on - h >= 0),
+             ("prev", t.sense_on < t.prev),
              ("cur", t.prev + t.sample <= t.cur + 1e-12), ("clk", t.cur + t.sample <= t.clk + 1e-12),
              ("sample", 0 < t.sample and t.clk + t.sample <= t.sense_off),
-             ("sense_off", t.sense_off + h <= t.fb_on - h), ("rst_on", t.sense_off + h <= t.rst_on <= t.fb_on - h),
-             ("fb_off", t.fb_on + h < t.fb_off - h and t.fb_off + h <= 1.0),
-             ("rst_off", t.fb_off + h - 1.0 <= t.rst_off <= t.sense_on - h)]
+             ("sense_off", t.sense_off + h <= t.fb_on - hf), ("rst_on", t.sense_off + h <= t.rst_on <= t.fb_on - hf),
+             ("fb_off", t.fb_on + hf < t.fb_off - hf and t.fb_off + hf <= 1.0),
+             ("rst_off", t.fb_off + hf - 1.0 <= t.rst_off <= t.sense_on - h)]
     for key, ok in order:
         if not ok:
             raise spec.fail(f"loop.timing.{key}", f"{key} = {getattr(t, key)} breaks the period's order "
@@ -384,8 +390,11 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
     reltol = pick(reltol, spec, "reltol", 1e-3)
     t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
-    check_timing(spec, t)
     names = channel_names(model, spec)
+    if timing is None and "fb_edge" not in spec.timing and any(FILTERS[channel_filter(spec, n, lead)["kind"]].design
+                                                                   for n in names):
+        t = replace(t, fb_edge=0.0)       # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
+    check_timing(spec, t)
     idx = [coord_index(model, n) for n in names]
     electrodes = groups(model, names, spec)
     grad = check_sensing(model, spec, electrodes, names)

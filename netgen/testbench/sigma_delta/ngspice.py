@@ -83,6 +83,9 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     if loop != "xspice" and any(filters.channel_filters(d.channels)):
         raise ValueError(f"the higher-order loop filters run in the compiled loop only (--simulator ngspice-xspice), "
                          f"not in the {loop!r} loop")
+    if loop != "xspice" and d.t.fb_ramp == 0:
+        raise ValueError(f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
+                         f"not in the {loop!r} loop")
     ic = dict(ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
@@ -125,6 +128,8 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, **lead,
               "start": float(start), "sel": [s for e in d.electrodes for s in e["sel"]],
               "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
+              # a feedback step (Timing.fb_ramp 0): V_fb on (fb_on, fb_off], with its own breakpoints
+              **({"fb_level": d.vfb, "fb_on": d.t.fb_on, "fb_off": d.t.fb_off} if d.t.fb_ramp == 0 else {}),
               "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
               "dither_amp": [c["dither_v"] for c in d.channels],
               "dither_step": [float(c["dither_step"]) for c in d.channels],

@@ -111,16 +111,22 @@ BACKENDS: dict[str, Backend] = {
                             "Verilog-A compiled by openvaf-r, loaded through OSDI"),
 }
 SIMULATORS = tuple(BACKENDS)
+# the back ends that render a feedback step (Timing.fb_edge = 0; netgen_sdloop's fb_level, VACASK's pulse)
+STEP_BACKENDS = ("ngspice-xspice", "vacask")
 
 
 def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
     """Every channel's loop filter is one this back end renders (FilterKind.backends), else a
-    LoopError naming the kind and the back ends that do."""
+    LoopError naming the kind and the back ends that do; likewise a feedback step (Timing.fb_edge 0)."""
     for ch in d.channels:
         kind = FILTERS[ch["filter"]["kind"]]
         if simulator not in kind.backends:
             raise spec.fail(f"loop.channels.{ch['name']}.filter.kind", f"loop filter {ch['filter']['kind']!r} is not "
                             f"implemented for --simulator {simulator}", f"use --simulator {' or '.join(kind.backends)}")
+    if d.t.fb_ramp == 0 and simulator not in STEP_BACKENDS:
+        raise spec.fail("loop.timing.fb_edge", f"a feedback step (fb_edge = 0) is not implemented for --simulator "
+                        f"{simulator}", f"use --simulator {' or '.join(STEP_BACKENDS)}, or give [loop.timing] "
+                        "fb_edge = 0.02 (ramps)")
 
 
 def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: float | None) -> LoopSpec:

@@ -31,6 +31,17 @@ class Timing:
     fb_off: float = 0.94
     rst_on: float = 0.48
     rst_off: float = -0.04
+    # the feedback phase's own edge width (None: `edge`); 0 is a voltage step at fb_on and fb_off,
+    # which only the compiled loop (netgen_sdloop) renders: there the proof mass gets the same
+    # impulse in every period, while a ramp's V^2 force is integrated with an error that depends on
+    # ngspice's time steps inside the ramp (a flat in-band floor near -138 dB/Hz on the z
+    # accelerometer; docs/sigma-delta.md, "The feedback step"). The designed loop filters default to 0.
+    fb_edge: float | None = None
+
+    @property
+    def fb_ramp(self) -> float:
+        """The width of the feedback phase's voltage edges (fraction of T_s; 0: a step)."""
+        return self.edge if self.fb_edge is None else self.fb_edge
 
 
 @dataclass
@@ -56,9 +67,10 @@ class Tone:
 
 def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
     """Mean of the squared PULSE phase (linear edges of t.edge centred on a and b) over a period
-    (feedback phase by default)."""
+    (the feedback phase by default, with its edges t.fb_ramp)."""
+    edge = t.fb_ramp if a is None else t.edge
     a, b = (t.fb_on if a is None else a), (t.fb_off if b is None else b)
-    return (b - a - t.edge) + 2 * t.edge / 3
+    return (b - a - edge) + 2 * edge / 3
 
 
 def selected(electrodes: list[dict], bits: tuple[int, ...]) -> np.ndarray:
