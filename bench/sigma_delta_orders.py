@@ -14,7 +14,9 @@ through f_z. Per order it prints the in-band noise floor (dB re F_fb^2/Hz, media
 noise, SQNR of the tone, noise-shaping slope over the decade below the band edge, whether the
 mass held (|z| within --hold of the gap), and with --circuit the circuit's figures and their
 difference to the reference. --dr adds the reference's dynamic-range curve (tone amplitude
-sweep on top of gravity). Results also go to DIR/orders.json.
+sweep on top of gravity). Results also go to DIR/orders.json. Orders 3-5 run with the feedback
+step (Timing.fb_edge 0, their default); --fb-edge 0.02 gives the ramped feedback whose integration
+error set the circuit's old flat in-band floor (bench/sigma_delta_impulse.py measures it).
 """
 
 from __future__ import annotations
@@ -48,14 +50,19 @@ def load(model_path: str):
     return MacroModel.load_json(model_path), LoopSpec()
 
 
-def setup(model_path: str, ts: float, order: int, osr: float, h_inf: float | None, reltol: float = 1e-3):
+def setup(model_path: str, ts: float, order: int, osr: float, h_inf: float | None, reltol: float = 1e-3,
+          fb_edge: float | None = None):
     """Model, Design, mechanics, filter of the first channel at this order: lead2, or cifb through
     the [loop.filter] path (designed inside loop.design, no dither) on a structure's [loop]; on a
-    model .json (the disk) only its first channel (z) gets the cifb filter, by the same design step."""
+    model .json (the disk) only its first channel (z) gets the cifb filter, by the same design step.
+    The feedback edge: `fb_edge` if given, else the design's default (a step for cifb: Timing.fb_edge;
+    on the disk, whose tilts keep lead2, the step is set here for orders above 2)."""
     model, spec = load(model_path)
     table = {"kind": "cifb", "order": order, "osr": float(osr), "h_inf": h_inf or H_INF.get(order, 1.5)}
     if order > 2 and model_path.endswith(".toml"):
         spec = replace(spec, filter=table)
+    if fb_edge is not None or (order > 2 and not model_path.endswith(".toml")):
+        spec = replace(spec, timing={**spec.timing, "fb_edge": 0.0 if fb_edge is None else fb_edge})
     d = design(model, ts, reltol=reltol, spec=spec)
     ch = d.channels[0]
     if order > 2 and not model_path.endswith(".toml"):
@@ -77,7 +84,7 @@ def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
 
 def run_reference(args, order: int) -> dict:
     """The numpy loop of this order: figures, max |z| and time."""
-    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf)
+    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, fb_edge=args.fb_edge)
     tone = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
     start = time.perf_counter()
     r = reference.simulate(mech, f, args.cycles, reference.Input(dc_input(model, d, mech),
@@ -106,7 +113,7 @@ def dynamic_range(args, model, d, mech, f, tone: float) -> dict:
 
 def run_circuit(args, order: int) -> dict:
     """The compiled ngspice loop (netgen_sdloop with the z channel's filter), segmented."""
-    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, args.reltol)
+    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, args.reltol, args.fb_edge)
     tone_hz = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
     out = Path(args.out) / f"order{order}"
     out.mkdir(parents=True, exist_ok=True)
@@ -144,6 +151,8 @@ def main() -> None:
     p.add_argument("--circuit", action="store_true", help="also run the compiled ngspice loop")
     p.add_argument("--dr", action="store_true", help="the reference's dynamic-range curve")
     p.add_argument("--reltol", type=float, default=1e-3, help="the circuit simulator's relative tolerance")
+    p.add_argument("--fb-edge", type=float, default=None, help="feedback edge width, fraction of T_s (default: "
+                   "the design's, a step for orders 3-5; 0.02 gives the ramps that set the old flat floor)")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--segment", type=int, default=None, help="periods per ngspice segment (0: one run; default: the bench's)")
     p.add_argument("-o", "--out", default="out/sigma_delta_orders")
