@@ -97,8 +97,8 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
 
 def test_the_designed_filters_default_to_the_step_and_lead2_keeps_its_ramps(model, tmp_path):
     """cifb: Timing.fb_edge 0, the reference's force pulse one piece over [fb_on, fb_off], duty
-    fb_off - fb_on and two step corners; the example's lead2 loop: the 0.02 T_s ramps of the paper's
-    bench; [loop.timing] fb_edge chooses either."""
+    fb_off - fb_on and two step corners; the example's lead2 loop, and cifb where the back end has
+    no step: the 0.02 T_s ramps of the paper's bench; [loop.timing] fb_edge chooses either."""
     d = sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4)))
     t = d.t
     assert t.fb_ramp == 0 and filters.mechanics_of(model, d, "z").pulse == ((t.fb_on, t.fb_off, 1.0),)
@@ -107,6 +107,8 @@ def test_the_designed_filters_default_to_the_step_and_lead2_keeps_its_ramps(mode
     assert lead.t.fb_ramp == 0.02 == lead.t.edge and lead.t.fb_edge is None
     ramp = sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4 + "[loop.timing]\nfb_edge = 0.02\n")))
     assert ramp.t.fb_ramp == 0.02 and len(filters.mechanics_of(model, ramp, "z").pulse) == 2 * filters.RAMP_PIECES + 1
+    # a back end without the step (runner.STEP_BACKENDS) keeps a designed filter on the ramps
+    assert sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4)), step=False).t.fb_ramp == 0.02
 
 
 @pytest.mark.parametrize("sim,text,key", [

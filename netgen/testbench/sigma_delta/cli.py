@@ -17,7 +17,7 @@ from ...units import parse_quantity
 from .loop import RELTOL_RANGE, RELTOL_TEXT, Tone, design
 from .loopfile import read_loop_file, read_structure_loop
 from .ngspice import MIN_SEGMENT, SEGMENT_S
-from .runner import BACKENDS, TIMEOUT, check_backend, model_folder, model_for, run
+from .runner import BACKENDS, STEP_BACKENDS, TIMEOUT, check_backend, model_folder, model_for, run
 
 
 # the run's result set in DIR (sigma-delta.manifest.json names it) and the caches it shares with
@@ -93,7 +93,8 @@ def cli(args) -> int:
         return 2
     choices = {"lead": args.lead, "dither": args.dither, "reltol": args.reltol}
     # the loop checked against the model before any output (LoopError: exit 2)
-    check_backend(design(model, args.ts, spec=loop, tone=tone or loop.input.tone, **choices), loop, args.simulator)
+    check_backend(design(model, args.ts, spec=loop, tone=tone or loop.input.tone, step=args.simulator in STEP_BACKENDS,
+                         **choices), loop, args.simulator)
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,

@@ -377,13 +377,15 @@ def pick(given, spec: LoopSpec, key: str, default):
 def design(model: MacroModel, ts: float, density: float | None = None, sense_ratio: float | None = None,
            lead: float | None = None, full_scale: float | None = None, g: float = G, timing: Timing | None = None,
            dither: float | None = None, reltol: float | None = None, spec: LoopSpec | None = None,
-           tone: Tone | None = None, balance_check: bool = True) -> Design:
+           tone: Tone | None = None, balance_check: bool = True, step: bool = True) -> Design:
     """Loop design from the model and the loop description `spec`: V_fb so that the DC input needs
     a mean bit of `density` on the channel it loads most (the disk: gravity on z), V_s =
     sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V; `reltol` is
     the simulators' relative tolerance (the in-band floors depend on it: bench/compare_simulators.py).
     Arguments given here win over the description's; `tone` enters the balance check
-    (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported)."""
+    (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported);
+    `step`: the back end renders a feedback step (runner.STEP_BACKENDS), which a designed filter then
+    gets unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
     spec = spec or LoopSpec()
     density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
     dither_given = dither is not None or spec.dither is not None      # a designed kind runs without, unless given
@@ -391,8 +393,8 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     reltol = pick(reltol, spec, "reltol", 1e-3)
     t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
     names = channel_names(model, spec)
-    if timing is None and "fb_edge" not in spec.timing and any(FILTERS[channel_filter(spec, n, lead)["kind"]].design
-                                                                   for n in names):
+    if step and timing is None and "fb_edge" not in spec.timing and any(
+            FILTERS[channel_filter(spec, n, lead)["kind"]].design for n in names):
         t = replace(t, fb_edge=0.0)       # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
     check_timing(spec, t)
     idx = [coord_index(model, n) for n in names]

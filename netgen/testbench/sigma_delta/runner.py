@@ -152,7 +152,7 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     backend = BACKENDS[simulator]
     loop = overridden(loop or LoopSpec(), choices.pop("feedback_voltage", None), choices.pop("acceleration", None))
     tone = tone or loop.input.tone
-    d = design(model, ts, spec=loop, tone=tone, **choices)
+    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **choices)
     check_backend(d, loop, simulator)
     if len(d.channels) > 4 and simulator in ("vacask", "ngspice-osdi"):
         raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most 4",
