@@ -16,10 +16,13 @@ table says which). Each solve prints its mesh sizes, quadrature order and time o
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
+import resource
 import sys
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +36,42 @@ from netgen.structure.parse import parse_structure
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "examples" / "levitated_disk.toml"
 RIGID = ("z", "tilt_x", "tilt_y")
+STORE = Path.home() / ".cache" / "netgen" / "bem_reference_disk"
+
+
+class SolveStore:
+    """Each BEM solve of the bench stored as it finishes (one .npz per solve, keyed by g/R, the
+    displacement, the quadrature order and the settings), so an interrupted run loses at most the
+    solve under way and a rerun or a later extrapolation reads the stored ones."""
+
+    def __init__(self, folder: Path | None):
+        """folder None: store nothing."""
+        self.folder = folder
+        if folder is not None:
+            folder.mkdir(parents=True, exist_ok=True)
+
+    def path(self, gr: float, what: str, order: int | None, settings: bem.BemSettings) -> Path:
+        """The file of one solve."""
+        given = {k: v for k, v in asdict(settings).items() if v is not None}    # a field added later as None keeps the key
+        key = hashlib.sha256(json.dumps([given, order], sort_keys=True).encode()).hexdigest()[:12]
+        return self.folder / f"gR{gr:g}_{what}_{key}.npz"
+
+    def solve(self, pb, gr: float, what: str, dq: np.ndarray, order: int | None = None) -> bem.MaxwellMatrix:
+        """pb.maxwell(dq, order), from the store when it holds it."""
+        if self.folder is None:
+            return pb.maxwell(dq, order)
+        f = self.path(gr, what, order, pb.settings)
+        if f.exists():
+            d = np.load(f, allow_pickle=False)
+            if np.array_equal(d["q"], dq):
+                return bem.MaxwellMatrix(tuple(str(n) for n in d["names"]), d["matrix"], d["coarse"], float(d["error"]),
+                                         json.loads(str(d["settings"])))
+        m = pb.maxwell(dq, order)
+        tmp = f.with_suffix(".partial.npz")
+        np.savez(tmp, q=dq, names=np.array(m.names), matrix=m.matrix, coarse=m.coarse, error=m.error,
+                 settings=json.dumps(m.settings))
+        tmp.replace(f)
+        return m
 
 
 def structure(gap_over_r: float):
@@ -55,7 +94,27 @@ def adjacent_pairs(shapes) -> list[tuple[int, int]]:
     return out
 
 
-def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords: int = 3) -> dict:
+def mirrors(shapes) -> list[int]:
+    """Index of each electrode's mirror image under y -> -y (same side and ring, angles negated)."""
+    def key(e, sign):
+        a, b = (e.shape.theta_start, e.shape.theta_end) if sign > 0 else (-e.shape.theta_end, -e.shape.theta_start)
+        c = 0.5 * (a + b)
+        return e.side, round(e.shape.r_in, 12), round(math.cos(c), 9) + 0.0, round(math.sin(c), 9) + 0.0
+    where = {key(e, 1): i for i, e in enumerate(shapes)}
+    return [where[key(e, -1)] for e in shapes]
+
+
+def separate(dc: np.ndarray, mirror: list[int], steps: dict) -> dict:
+    """dC/dz and dC/dtilt_x from one forward step along both (dc = C(q0 + dz + dtilt) - C(q0)):
+    z keeps the y-mirror symmetry and tilt_x (w = theta y) reverses it, so the mirror pair's mean
+    is the z part and half its difference the tilt part (exactly zero for a sector on the x axis)."""
+    dc = np.asarray(dc, dtype=float)
+    m = dc[mirror]
+    return {"z": 0.5 * (dc + m) / steps["z"], "tilt_x": 0.5 * (dc - m) / steps["tilt_x"]}
+
+
+def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords: int = 3,
+            store: SolveStore = SolveStore(None), combined: bool = False) -> dict:
     """Analytic and BEM capacitances and rigid-coordinate derivatives at one g/R."""
     s = structure(gap_over_r)
     m = mechanics(s)
@@ -67,7 +126,7 @@ def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords:
     nc = len(m.names)
     q0 = np.zeros(nc)
     t0 = time.perf_counter()
-    centre = pb.maxwell(q0)
+    centre = store.solve(pb, gap_over_r, "q0", q0)
     log(gap_over_r, "q=0", centre)
     c_pp = pp.capacitance(q0)
     for i, e in enumerate(shapes):                      # the capacitances at once (derivatives take longer)
@@ -75,31 +134,46 @@ def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords:
               f"{pct(c_pp[i], centre.plate_electrode[i])} %", file=sys.stderr, flush=True)
     order = centre.settings["solves"][0]["order"]          # the same rule for the differences
     amp = np.abs(pb.geometry.probe.phi).max(axis=0)
-    grads_bem, grads_pp = {}, {}
+    steps = {name: 0.01 * pb.gap / amp[m.names.index(name)] for name in RIGID[:coords]}
+    grads_bem, grads_pp, exact_pp = {}, {}, {}
     for name in RIGID[:coords]:
-        v = m.names.index(name)
-        step = 0.01 * pb.gap / amp[v]
+        exact_pp[name] = pp.gradient(q0)[:, m.names.index(name)]
+    if combined:                                        # one forward solve along z and tilt_x at once
         dq = np.zeros(nc)
-        dq[v] = step
-        plus = pb.maxwell(dq, order)
+        for name in ("z", "tilt_x"):
+            dq[m.names.index(name)] = steps[name]
+        plus = store.solve(pb, gap_over_r, "+z+tilt_x", dq, order)
+        log(gap_over_r, "+z+tilt_x", plus)
+        mirror = mirrors(shapes)
+        grads_bem.update(separate(plus.plate_electrode - centre.plate_electrode, mirror, steps))
+        grads_pp.update(separate(pp.capacitance(dq) - c_pp, mirror, steps))
+    for name in ([] if combined else RIGID[:coords]):
+        v = m.names.index(name)
+        dq = np.zeros(nc)
+        dq[v] = steps[name]
+        plus = store.solve(pb, gap_over_r, f"+{name}", dq, order)
         log(gap_over_r, f"+{name}", plus)
         if forward:
-            grads_bem[name] = (plus.plate_electrode - centre.plate_electrode) / step
+            grads_bem[name] = (plus.plate_electrode - centre.plate_electrode) / steps[name]
+            grads_pp[name] = (pp.capacitance(dq) - c_pp) / steps[name]
         else:
-            minus = pb.maxwell(-dq, order)
+            minus = store.solve(pb, gap_over_r, f"-{name}", -dq, order)
             log(gap_over_r, f"-{name}", minus)
-            grads_bem[name] = (plus.plate_electrode - minus.plate_electrode) / (2 * step)
-        grads_pp[name] = pp.gradient(q0)[:, v]
+            grads_bem[name] = (plus.plate_electrode - minus.plate_electrode) / (2 * steps[name])
+            grads_pp[name] = (pp.capacitance(dq) - pp.capacitance(-dq)) / (2 * steps[name])
     pairs = adjacent_pairs(shapes)
     cpl = [centre.coupling[i, j] / centre.plate_electrode[i] for i, j in pairs]
     return {"g_over_R": gap_over_r, "gap_m": pb.gap, "names": [e.name for e in shapes],
             "C_pp": pp.capacitance(q0).tolist(), "C_bem": centre.plate_electrode.tolist(),
             "error_bem": centre.error, "dC_pp": {k: v.tolist() for k, v in grads_pp.items()},
+            "dC_pp_exact": {k: v.tolist() for k, v in exact_pp.items()}, "steps": steps,
+            "maxwell": centre.matrix.tolist(), "C_pp_plus": None if not combined else pp.capacitance(dq).tolist(),
             "dC_bem": {k: v.tolist() for k, v in grads_bem.items()},
             "adjacent_coupling_ratio": cpl, "pairs": pairs, "symmetry": asymmetry(centre.matrix),
-            "derivatives": "forward" if forward else "central", "seconds": time.perf_counter() - t0,
+            "derivatives": "combined forward (z + tilt_x in one solve, split by the y-mirror)" if combined
+            else "forward" if forward else "central", "seconds": time.perf_counter() - t0,
             "solve": {k: v for k, v in centre.settings.items() if k != "solves"},
-            "solves": centre.settings["solves"]}
+            "solves": centre.settings["solves"], "all_solves": [x for x in SOLVES if x["g_over_R"] == gap_over_r]}
 
 
 def asymmetry(c: np.ndarray) -> float:
@@ -107,11 +181,17 @@ def asymmetry(c: np.ndarray) -> float:
     return float(np.abs(c - c.T).max() / np.abs(c).max())
 
 
+SOLVES: list[dict] = []          # every solve of the run: g/R, what, mesh levels, seconds (the cost scaling)
+
+
 def log(gr: float, what: str, m: bem.MaxwellMatrix) -> None:
-    """One line per solve on stderr."""
+    """One line per solve on stderr, and its record in SOLVES."""
+    SOLVES.append({"g_over_R": gr, "what": what, "levels": m.settings["solves"], "seconds": m.settings.get("seconds")})
     lv = ", ".join(f"{s['elements']} el order {s['order']} {s['assembly_s'] + s['solve_s']:.0f} s"
                    for s in m.settings["solves"])
-    print(f"  g/R={gr:g} {what}: est. error {m.error:.2%} ({lv})", file=sys.stderr, flush=True)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+    print(f"  g/R={gr:g} {what}: est. error {m.error:.2%} ({lv}; peak RSS so far {rss:.2f} GB, "
+          f"{time.strftime('%H:%M:%S')})", file=sys.stderr, flush=True)
 
 
 def pct(a: float, b: float) -> str:
@@ -174,13 +254,16 @@ def main() -> None:
     ap.add_argument("--edge-to-gap", type=float, default=0.5)
     ap.add_argument("--budget-gb", type=float, default=12.0)
     ap.add_argument("--coordinates", type=int, default=3, help="derivatives of the first N of z, tilt_x, tilt_y")
+    ap.add_argument("--combined", action="store_true",
+                    help="dC/dz and dC/dtilt_x from one forward solve along both (split by the y-mirror symmetry)")
     ap.add_argument("--json", type=Path, help="write the results here")
+    ap.add_argument("--store", type=Path, default=STORE, help=f"folder of the stored solves (default {STORE})")
     a = ap.parse_args()
     settings = bem.BemSettings(element_to_gap=a.element_to_gap, edge_to_gap=a.edge_to_gap, max_levels=2,
                                tolerance=0.05, memory_budget=a.budget_gb * 1e9)
     results = []
     for gr in (float(g) for g in a.gaps.split(",")):
-        results.append(run_gap(gr, settings, a.forward, a.coordinates))
+        results.append(run_gap(gr, settings, a.forward, a.coordinates, SolveStore(a.store), a.combined))
         print(table(results[-1]), flush=True)
         if a.json:
             a.json.write_text(json.dumps(results, indent=1))

@@ -24,19 +24,28 @@ EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
 
 def extractor(s, plate: Plate) -> CapacitanceExtractor:
     """The extractor a structure names (s: netgen.structure.Structure), or a StructureError
-    that lists the known ones; with comb electrodes it answers for the plates beside the comb
-    extractor (netgen.electrostatics.mixed)."""
+    that lists the known ones, composed with what else the structure needs: a couplings file's
+    constant couplings beside an extractor that has none of its own, and the comb extractor for
+    comb electrodes (compose)."""
     name = s.electrostatics.extractor
     if name not in EXTRACTORS:
         raise StructureError(s.source, "electrostatics.extractor", f"unknown extractor {name!r}",
                              f"use one of {', '.join(EXTRACTORS)}")
     chosen = EXTRACTORS[name](s, plate)
-    if s.electrostatics.couplings is not None and name == "parallel_plate":     # the file's couplings beside it
+    if s.electrostatics.couplings is not None and not hasattr(chosen, "calibration"):   # the file's couplings beside it
         chosen = calibrated.with_file_couplings(s, chosen)
     if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
-        return MixedExtractor(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity,
-                                                       s.electrostatics.comb_model, s.source))
+        chosen = compose(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity,
+                                               s.electrostatics.comb_model, s.source))
     return chosen
 
 
-__all__ = ["EXTRACTORS", "CapacitanceExtractor", "PreparedExtractor", "ProbePoints", "extractor"]
+def compose(plates: CapacitanceExtractor, combs: CapacitanceExtractor) -> CapacitanceExtractor:
+    """The one composition step: `plates` answers for the plate electrodes and `combs` for the comb
+    electrodes (netgen.electrostatics.mixed), with the optional hooks of either part (a calibrated
+    extractor's record and report) kept, so any plate extractor, calibrated ones too, reaches comb
+    structures."""
+    return MixedExtractor(plates, combs)
+
+
+__all__ = ["EXTRACTORS", "CapacitanceExtractor", "PreparedExtractor", "ProbePoints", "compose", "extractor"]

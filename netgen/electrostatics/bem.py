@@ -20,14 +20,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
-from typing import Callable, ClassVar, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import lu_factor, lu_solve
 
 from ..constants import EPS0
-from ..errors import SimulationError, SimulatorNotFound
+from ..errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .bem_mesh import Sizes, Surface, electrode_sheet, thick_plate
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
@@ -65,7 +65,9 @@ class BemSettings:
     relative error estimate to reach; richardson_order: convergence order assumed for the
     extrapolation (None: report the finest level, error = last change); memory_budget: bytes
     for the dense matrix of the finest level; singular_order: quadrature of touching pairs;
-    element_to_size: largest element in units of the plate's size (radius, shorter side).
+    element_to_size: largest element in units of the plate's size (radius, shorter side);
+    quadrature_order: the regular order (None: the QUADRATURE rule; from_structure refuses one
+    below the rule). A structure file sets them in [electrostatics.bem] (netgen.structure.bem_table).
     """
     element_to_gap: float = 4.0
     edge_to_gap: float = 0.5
@@ -78,6 +80,7 @@ class BemSettings:
     memory_budget: float = 4e9
     singular_order: int = 4
     element_to_size: float = 0.2
+    quadrature_order: int | None = None     # regular quadrature order; None: QUADRATURE's rule for element_to_gap
 
     def sizes(self, gap: float, level: int, size: float = math.inf) -> Sizes:
         """Element sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap `gap` and
@@ -215,7 +218,7 @@ def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], 
     on the same meshes need the same rule)."""
     sols: list[Array] = []
     info: list[dict] = []
-    order = order or quadrature_order((h_max or settings.element_to_gap * gap) / gap)
+    order = order or settings.quadrature_order or quadrature_order((h_max or settings.element_to_gap * gap) / gap)
     err, best, p = math.inf, None, settings.richardson_order
     for level in range(settings.max_levels):
         try:
@@ -316,7 +319,7 @@ class PreparedBem:
         out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
         for i, row in enumerate(q):
             h_max = self.settings.sizes(self.gap, 0, self.plate_size).h_max
-            order = quadrature_order(h_max / min(self.local_gap(row), self.gap))
+            order = self.settings.quadrature_order or quadrature_order(h_max / min(self.local_gap(row), self.gap))
             for v in range(self.ncoords):
                 dq = np.zeros(self.ncoords)
                 dq[v] = step[v]
@@ -338,10 +341,19 @@ class BemExtractor:
     """Boundary-element capacitances (bempp-cl): eps (F/m), plate thickness (m; 0: a sheet),
     settings (BemSettings)."""
 
-    description: ClassVar[str] = "boundary elements (bempp-cl, Galerkin P0, two mesh levels + Richardson)"
     eps: float = EPS0
     thickness: float = 0.0
     settings: BemSettings = field(default_factory=BemSettings)
+
+    @property
+    def description(self) -> str:
+        """What it computes and with which settings (the model report's extractor line)."""
+        st = self.settings
+        order = st.quadrature_order or "by element_to_gap"
+        return (f"boundary elements (bempp-cl, Galerkin P0, {st.levels}..{st.max_levels} mesh levels + Richardson): "
+                f"element_to_gap {st.element_to_gap:g}, edge_to_gap {st.edge_to_gap:g}, refinement {st.refinement:.3g}, "
+                f"tolerance {st.tolerance:g}, quadrature {order}/{st.singular_order}, "
+                f"memory budget {st.memory_budget / 1e9:g} GB")
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedBem:
         """Mesh the structure once (every level); each sample is then a solve."""
@@ -360,7 +372,31 @@ def maxwell_matrix(electrodes: Sequence[Electrode], plate: Plate, basis: Basis, 
     return ext.prepare(electrodes, plate, basis).maxwell(q)
 
 
+def settings_of(s) -> BemSettings:
+    """BemSettings from the structure's [electrostatics.bem] table (netgen.structure.bem_table:
+    types and ranges checked there), with the limits of the quadrature rules checked here: a
+    StructureError naming the file, the key and the fix."""
+    given = dict(getattr(s.electrostatics, "bem", ()))
+    if "memory_budget_gb" in given:
+        given["memory_budget"] = given.pop("memory_budget_gb") * 1e9
+    st = BemSettings(**given)
+    where = "electrostatics.bem"
+    limit = QUADRATURE[-1][0] * SLACK
+    if st.element_to_gap > limit:
+        raise StructureError(s.source, f"{where}.element_to_gap", f"element_to_gap = {st.element_to_gap:g}: no "
+                             f"quadrature rule is measured for elements above {limit:g} gaps (QUADRATURE)",
+                             f"write element_to_gap = {QUADRATURE[-1][0]:g} or less")
+    need = quadrature_order(st.element_to_gap)
+    if st.quadrature_order is not None and st.quadrature_order < need:
+        raise StructureError(s.source, f"{where}.quadrature_order", f"quadrature_order = {st.quadrature_order} is below "
+                             f"the order {need} that elements of {st.element_to_gap:g} gaps need (coarse quadrature "
+                             "overestimates C by 3-23 %)", f"write quadrature_order = {need} or more, or lower "
+                             "element_to_gap, or drop quadrature_order")
+    return st
+
+
 def from_structure(s, plate: Plate) -> BemExtractor:
-    """The extractor for a structure (s: netgen.structure.Structure): its permittivity and thickness."""
+    """The extractor for a structure (s: netgen.structure.Structure): its permittivity, thickness
+    and [electrostatics.bem] settings."""
     eps = EPS0 * s.electrostatics.relative_permittivity
-    return BemExtractor(eps=eps, thickness=float(getattr(s.conductor, "thickness", 0.0)))
+    return BemExtractor(eps=eps, thickness=float(getattr(s.conductor, "thickness", 0.0)), settings=settings_of(s))

@@ -22,7 +22,7 @@ from . import coupling_file
 from .calibration import Calibration, MaxwellSource, calibrate, design, electrode_couplings
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 from .parallel_plate import from_structure as parallel_plate_from_structure
-from .sampling import coordinate_scales
+from .sampling import touch_amplitudes
 
 def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> MaxwellSource:
     """The BEM extractor's Maxwell matrix at q (netgen.electrostatics.bem: PreparedBem.maxwell(q).matrix,
@@ -69,7 +69,7 @@ class CalibratedExtractor:
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedParallelPlate:
         """Calibrate against the field solution, then prepare the calibrated parallel-plate extractor."""
         analytic = self.base.prepare(electrodes, plate, basis)
-        scales = coordinate_scales(analytic, self.coordinates, np.array([e.gap for e in electrodes]))
+        scales = plate_scales(analytic, self.coordinates, electrodes)
         if self.file is not None:
             f = read_checked(self.file, self.coordinates, electrodes, analytic, scales, need_plate=True)
             cal = calibrate(None, electrodes, plate, basis, f.q, self.base, f"Maxwell matrices of {f.path}",
@@ -122,7 +122,7 @@ class FileCoupledExtractor:
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedParallelPlate:
         """Read and check the file against the electrodes, then prepare the analytic extractor."""
         prepared = self.base.prepare(electrodes, plate, basis)
-        scales = coordinate_scales(prepared, self.coordinates, np.array([e.gap for e in electrodes]))
+        scales = plate_scales(prepared, self.coordinates, electrodes)
         f = read_checked(self.file, self.coordinates, electrodes, prepared, scales, need_plate=False)
         cc = pad_plate(f.ordered([e.name for e in electrodes], plate=False))
         self.result.update(coupling=cc.mean(axis=0), spread=cc.std(axis=0), points=len(f.q), path=f.path,
@@ -140,6 +140,13 @@ class FileCoupledExtractor:
                   for i in range(len(names)) for j in range(i + 1, len(names)) if c[i, j]]
         return {"source": f"couplings from {self.result['path']}", "points": int(self.result["points"]),
                 "coupling_spread": spread}
+
+
+def plate_scales(analytic, coordinates: list[str], electrodes: Sequence[Electrode]) -> np.ndarray:
+    """Touching amplitude of each coordinate for these (plate) electrodes; infinite for one that
+    moves none of them (in-plane beside combs: netgen.electrostatics.compose), which the
+    calibration leaves at 0."""
+    return touch_amplitudes(analytic, len(coordinates), np.array([e.gap for e in electrodes]))
 
 
 def pad_plate(m: np.ndarray) -> np.ndarray:

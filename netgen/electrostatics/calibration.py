@@ -60,12 +60,15 @@ class Calibration:
 
 def design(n: int, scales: Array, span: float) -> Array:
     """n calibration points (n, ncoords) in SI: the centre, +-span x touching amplitude along each
-    coordinate in turn, then seeded uniform random points inside that box."""
+    coordinate in turn, then seeded uniform random points inside that box; a coordinate with an
+    infinite amplitude (one that moves no plate towards an electrode, e.g. in-plane beside combs)
+    stays at 0."""
     if n < 1:
         raise ValueError("calibration needs at least one point")
     nc = len(scales)
-    h = span * np.asarray(scales, dtype=float)
-    star = [np.zeros(nc)] + [s * h[v] * np.eye(nc)[v] for v in range(nc) for s in (1.0, -1.0)]
+    finite = np.isfinite(np.asarray(scales, dtype=float))      # an in-plane coordinate never closes a plate gap:
+    h = np.where(finite, span * np.asarray(scales, dtype=float), 0.0)    # it stays at 0 (nothing to fit along it)
+    star = [np.zeros(nc)] + [s * h[v] * np.eye(nc)[v] for v in range(nc) if finite[v] for s in (1.0, -1.0)]
     extra = np.random.default_rng(SEED).uniform(-1.0, 1.0, (max(0, n - len(star)), nc)) * h
     return np.vstack(star[:n] + list(extra))
 

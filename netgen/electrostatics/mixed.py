@@ -1,7 +1,9 @@
-"""Plates and combs of one structure together: the structure's plate extractor
+"""Two extractors of one structure together: the structure's plate extractor
 (netgen.electrostatics.EXTRACTORS) on the plate electrodes and netgen.electrostatics.comb on the
 comb electrodes, their columns merged in port order, so sampling, fitting and the contact model
-see one extractor."""
+see one extractor. The optional hooks a part may have beyond the protocol (OPTIONAL: a
+calibration record and report, netgen.electrostatics.calibrated) answer for the pair, so a
+calibrated plate extractor keeps its calibration beside the combs."""
 
 from __future__ import annotations
 
@@ -15,6 +17,10 @@ from ..geometry.combs import CombShape
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
 from .comb import CombExtractor
+
+# hooks beyond the protocol that netgen.build asks for with hasattr (the model's calibration
+# entry, the calibration report); a pair has one when a part has it
+OPTIONAL = ("calibration", "report")
 
 
 def split(electrodes: Sequence[Electrode]) -> tuple[list[int], list[int]]:
@@ -71,6 +77,17 @@ class MixedExtractor:
             parts.insert(0, (ip, self.plates.prepare([electrodes[i] for i in ip], plate, basis)))
         return PreparedMixed(electrodes, parts)
 
+    def __getattr__(self, name: str):
+        """An OPTIONAL hook of the part that has it (both: the calibration records merged), else
+        AttributeError, so hasattr(pair, hook) says whether a part has it."""
+        if name not in OPTIONAL:
+            raise AttributeError(name)
+        owners = [getattr(p, name) for p in (self.__dict__.get("plates"), self.__dict__.get("combs"))
+                  if p is not None and hasattr(p, name)]
+        if not owners:
+            raise AttributeError(name)
+        return owners[0] if len(owners) == 1 or name != "calibration" else (lambda: merged([f() for f in owners]))
+
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """The plate extractor's couplings among the plates; none to or between combs."""
         ip, _ = split(electrodes)
@@ -78,3 +95,15 @@ class MixedExtractor:
         if ip:
             out[np.ix_(ip, ip)] = self.plates.coupling([electrodes[i] for i in ip], plate)
         return out
+
+
+def merged(records: list[dict]) -> dict:
+    """Calibration records of two parts as one: sources joined, per-electrode lists concatenated."""
+    out: dict = {"source": "; ".join(r.get("source", "") for r in records)}
+    for key in ("fringe", "coupling_spread"):
+        rows = [row for r in records for row in r.get(key, [])]
+        if rows:
+            out[key] = rows
+    if any("points" in r for r in records):
+        out["points"] = max(int(r.get("points", 0)) for r in records)
+    return out

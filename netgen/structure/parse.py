@@ -15,6 +15,7 @@ from ..constants import GASES
 from ..errors import StructureError
 from ..files import toml_document
 from ..text import escape, text_problem
+from .bem_table import read_bem
 from .conductors import CONDUCTORS
 from .reader import (Reader, check_keys, choice, did_you_mean, flag, free_text, identifier, integer,
                      nonnegative, positive, quantity, table)
@@ -133,7 +134,7 @@ def read_fit(rd: Reader, doc: dict) -> FitOptions:
 def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
     t = table(rd, doc, "electrostatics", required=False)
     keys = ["extractor", "fringe", "fringe_a", "fringe_b", "relative_permittivity", "coupling_per_length",
-            "couplings", "calibration_points", "comb_model"]
+            "couplings", "calibration_points", "comb_model", "bem"]
     check_keys(rd, "electrostatics", t, keys)
     d = ElectrostaticsOptions()
     extractor = t.get("extractor", d.extractor)
@@ -157,7 +158,7 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
     if points and couplings:
         raise rd.fail("electrostatics.calibration_points", "calibration_points (BEM) and a couplings file are two "
                       "calibration sources", "keep one: the file's points, or BEM at calibration_points")
-    return ElectrostaticsOptions(couplings=couplings, calibration_points=points,
+    return ElectrostaticsOptions(couplings=couplings, calibration_points=points, bem=read_bem(rd, t, extractor, couplings),
         fringe=choice(rd, t, "electrostatics", "fringe", ["plate_between", "palmer", "none"], d.fringe),
         fringe_a=quantity(rd, t, "electrostatics", "fringe_a", "dimensionless", d.fringe_a),
         fringe_b=quantity(rd, t, "electrostatics", "fringe_b", "dimensionless", d.fringe_b),

@@ -118,6 +118,7 @@ class ElectrostaticsOptions:
     couplings: str | None = None         # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
     calibration_points: int = 0          # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
     comb_model: str = "field2d"          # netgen.electrostatics.comb.MODELS: "field2d" or "textbook"
+    bem: tuple = ()                      # [electrostatics.bem] (key, value) pairs: netgen.electrostatics.bem.BemSettings
 
 
 @dataclass(frozen=True)

@@ -38,38 +38,12 @@ from netgen.geometry.shapes import Electrode, Rectangle, RectPlate
 from netgen.mechanics import mechanics
 from netgen.model import MacroModel
 from netgen.structure import parse_structure
+from tests.fixtures import ROOT
 
 MM = 1e-3
-DISK = '''name = "small_disk"
-description = "reduced disk: one ring of four sectors per side, rigid coordinates"
-[conductor]
-kind = "free_disk"
-radius = "473 um"
-thickness = "10 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "3 um"
-rings = [["20 um", "473 um"]]
-sectors = 4
-sector_start = "-45 deg"
-slot = "10 um"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["20 um", "473 um"]]
-sectors = 4
-sector_start = "-45 deg"
-slot = "10 um"
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[fit]
-holdout = 50
-'''
+# the reduced disk of examples/calibrated_disk.toml (one ring of four sectors per side, rigid
+# coordinates), without its [electrostatics] table; bench/calibrate_bem.py shares it
+DISK = (ROOT / "examples" / "calibrated_disk.toml").read_text().split("[electrostatics]")[0] + "[fit]\nholdout = 50\n"
 CALIBRATED = DISK + '[electrostatics]\nextractor = "calibrated"\ncouplings = "maxwell.json"\n'
 
 
@@ -176,7 +150,7 @@ def test_calibrated_build_recovers_fringes_and_couplings(tmp_path):
     t = truth(tmp_path)
     code, err = build(tmp_path, CALIBRATED)
     assert code == 0, err
-    model = MacroModel.load_json(tmp_path / "out" / "small_disk.json")
+    model = MacroModel.load_json(tmp_path / "out" / "calibrated_disk.json")
     for row, f in zip(model.calibration["fringe"], t["fringes"]):
         assert row["a"] == pytest.approx(f.a, rel=1e-9) and row["b"] == pytest.approx(f.b, rel=1e-9)
     mean, std = t["couplings"].mean(axis=0), t["couplings"].std(axis=0)
@@ -186,10 +160,10 @@ def test_calibrated_build_recovers_fringes_and_couplings(tmp_path):
     for (a, b), r in spread.items():
         i, j = t["names"].index(a), t["names"].index(b)
         assert r["std"] == pytest.approx(std[i, j], rel=1e-9) and r["max"] == pytest.approx(t["couplings"][:, i, j].max())
-    lib = (tmp_path / "out" / "small_disk.lib").read_text()
+    lib = (tmp_path / "out" / "calibrated_disk.lib").read_text()
     assert "Constant electrode-electrode couplings: 8 capacitor(s)" in lib and lib.count("\nCc_") == 8
-    report = json.loads((tmp_path / "out" / "small_disk_calibration.json").read_text())
-    assert set(report["electrodes"]) == set(t["names"]) and (tmp_path / "out" / "small_disk_calibration.png").exists()
+    report = json.loads((tmp_path / "out" / "calibrated_disk_calibration.json").read_text())
+    assert set(report["electrodes"]) == set(t["names"]) and (tmp_path / "out" / "calibrated_disk_calibration.png").exists()
     worst = max(v["calibrated_c_max_abs_rel_error"] for v in report["summary"].values())
     assert worst < 1e-9
 
@@ -199,7 +173,7 @@ def test_parallel_plate_takes_only_the_files_couplings(tmp_path):
     t = truth(tmp_path)
     code, err = build(tmp_path, DISK + '[electrostatics]\ncouplings = "maxwell.json"\n')
     assert code == 0, err
-    model = MacroModel.load_json(tmp_path / "out" / "small_disk.json")
+    model = MacroModel.load_json(tmp_path / "out" / "calibrated_disk.json")
     np.testing.assert_allclose(model.coupling, t["couplings"].mean(axis=0), rtol=1e-12)
     assert "fringe" not in model.calibration
 
@@ -242,7 +216,7 @@ def test_bad_maxwell_files_exit_2_naming_file_entry_and_fix(tmp_path, case):
     code, err = build(tmp_path, CALIBRATED)
     assert code == 2, err
     assert "maxwell.json" in err and "electrostatics.couplings" in err and "fix:" in err and problem in err, err
-    assert "Traceback" not in err and not (tmp_path / "out" / "small_disk.lib").exists()
+    assert "Traceback" not in err and not (tmp_path / "out" / "calibrated_disk.lib").exists()
 
 
 def test_not_json_is_refused(tmp_path):
@@ -262,7 +236,7 @@ def test_csv_matrix_gives_the_couplings(tmp_path):
     (tmp_path / "maxwell.csv").write_text("\n".join(rows) + "\n")
     code, err = build(tmp_path, DISK + '[electrostatics]\ncouplings = "maxwell.csv"\n')
     assert code == 0, err
-    model = MacroModel.load_json(tmp_path / "out" / "small_disk.json")
+    model = MacroModel.load_json(tmp_path / "out" / "calibrated_disk.json")
     np.testing.assert_allclose(model.coupling, t["couplings"][0], rtol=1e-12)
 
 
