@@ -8,9 +8,16 @@ differences extrapolated to the reference g/R = 3/473 = 0.0063.
     .venv/bin/python bench/bem_reference_disk.py                    # g/R = 0.05 and 0.02
     .venv/bin/python bench/bem_reference_disk.py --gaps 0.05 --json out.json
 
+    .venv/bin/python bench/bem_reference_disk.py --gaps 0.015 --combined --coordinates 2 --json r.json
+
 Derivatives: central differences of BEM solves on the same meshes (a step closing 1 % of the
-gap); --forward halves the cost (one-sided, about 1 % high for 1/g-like capacitances: the
-table says which). Each solve prints its mesh sizes, quadrature order and time on stderr.
+gap); --forward halves the cost (one-sided, about 1 % high for 1/g-like capacitances); --combined
+takes dC/dz and dC/dtilt_x from one forward solve along both, split by the y-mirror symmetry. The
+analytic extractor is differenced over the same step, so the one-sided bias cancels in the
+comparison. Each solve prints its mesh sizes, quadrature order, time and peak memory on stderr and
+is stored as it finishes (--store, default ~/.cache/netgen/bem_reference_disk): a rerun or an
+interrupted run recomputes only what is missing. bench/bem_extrapolate.py extrapolates several
+--json files to the reference gap.
 """
 
 from __future__ import annotations
@@ -217,32 +224,13 @@ def table(r: dict) -> str:
     return "\n".join(lines)
 
 
-def ring_means(r: dict) -> dict[str, float]:
-    """Mean pp-vs-BEM difference (relative) of C per ring (inner: the first 4 of each side)."""
-    d = np.array(r["C_pp"]) / np.array(r["C_bem"]) - 1.0
-    inner = [i for i, n in enumerate(r["names"]) if i % 8 < 4]
-    outer = [i for i in range(len(d)) if i not in inner]
-    return {"inner": float(d[inner].mean()), "outer": float(d[outer].mean()), "all": float(d.mean())}
-
-
-def extrapolate(results: list[dict], target: float = 3.0 / 473.0) -> str:
-    """The differences' trend to g/R = target: linear in g/R and linear in (g/R) ln(R/g) through
-    the computed points; the value is their mean, the uncertainty half their spread plus the
-    BEM error estimate."""
+def extrapolate(results: list[dict]) -> str:
+    """The trend to the reference g/R (bench/bem_extrapolate.py: its fit forms and uncertainty)."""
     if len(results) < 2:
-        return "trend: needs two or more gaps"
-    x = np.array([r["g_over_R"] for r in results])
-    lines = [f"trend of (pp - BEM)/BEM to the reference g/R = {target:.4f}:"]
-    for ring in ("inner", "outer", "all"):
-        y = np.array([ring_means(r)[ring] for r in results])
-        f1 = np.polyval(np.polyfit(x, y, 1), target)
-        u = x * np.log(1 / x)
-        f2 = np.polyval(np.polyfit(u, y, 1), target * math.log(1 / target))
-        err = max(r["error_bem"] for r in results)
-        mid, unc = 0.5 * (f1 + f2), 0.5 * abs(f1 - f2) + err
-        pts = ", ".join(f"{100 * yi:+.2f} % at {xi:g}" for xi, yi in zip(x, y))
-        lines.append(f"  {ring:5s}: {pts} -> {100 * mid:+.2f} +- {100 * unc:.2f} %")
-    return "\n".join(lines)
+        return "trend: needs two or more gaps (or bench/bem_extrapolate.py on several --json files)"
+    import bem_extrapolate                          # the script beside this one
+    ordered = sorted(results, key=lambda r: r["g_over_R"])
+    return "\n".join(bem_extrapolate.ring_table(bem_extrapolate.differences(ordered)))
 
 
 def main() -> None:
