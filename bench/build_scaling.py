@@ -26,6 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from netgen.build import default_range  # noqa: E402
 from netgen.electrostatics import extractor  # noqa: E402
 from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout, sample_points  # noqa: E402
 from netgen.fit import cost  # noqa: E402
@@ -38,10 +39,13 @@ from netgen.structure import parse_structure  # noqa: E402
 EXAMPLE = (ROOT / "examples/levitated_disk.toml").read_text()
 
 
-def structure_text(modes: int, design: str, half_range: float) -> str:
-    """The reference disk with `modes` elastic modes (by count) and the given [sampling] design."""
+def structure_text(modes: int, design: str, half_range: float | None) -> str:
+    """The reference disk with `modes` elastic modes (by count) and the given [sampling] design;
+    half_range None: no `range` key (the build's default, narrowed where the box's corners touch)."""
     text = EXAMPLE.replace('modes = ["2,0c", "2,0s", "3,0c", "3,0s"]', f"modes = {modes}")
     text = text.replace("levels = 3        # 3^7 = 2187 samples, as in the paper", f'design = "{design}"')
+    if half_range is None:
+        return "\n".join(line for line in text.splitlines() if not line.startswith("range = 0.2")) + "\n"
     return text.replace("range = 0.2       #", f"range = {half_range}       #")
 
 
@@ -50,6 +54,7 @@ def run_one(s, m, progress: bool = False) -> dict:
     plate, shapes = plate_outline(s), electrodes(s)
     prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
     scales = coordinate_scales(prepared, m.names, np.array([e.gap for e in shapes]))
+    s = default_range(s, prepared, scales, False)
     t0 = time.perf_counter()
     est = cost.estimate(s, prepared, scales, len(shapes))
     t_est = time.perf_counter() - t0
@@ -78,7 +83,7 @@ def run_one(s, m, progress: bool = False) -> dict:
             "estimate_s": est.extractor_s + est.fit_s, "estimate_max_s": est.extractor_s + est.fit_max_s,
             "estimate_calibration_s": t_est,
             "max_rel_error": worst.max_rel_error, "worst_electrode": worst.electrode,
-            "misses": misses, "fit_warning": bool(misses), **extra}
+            "misses": misses, "fit_warning": bool(misses), "range": s.sampling.range, **extra}
 
 
 def parse_n(text: str) -> list[int]:
@@ -101,14 +106,14 @@ def growth(rows: list[dict], design: str) -> dict:
 
 def table(rows: list[dict]) -> str:
     """The rows as a fixed-width table; a design that misses fit.tolerance says so on its row."""
-    head = (f"{'design':9} {'n':>3} {'samples':>8} {'mech s':>7} {'extr s':>7} {'fit s':>7} {'est s':>7} "
+    head = (f"{'design':9} {'n':>3} {'range':>5} {'samples':>8} {'mech s':>7} {'extr s':>7} {'fit s':>7} {'est s':>7} "
             f"{'max err':>9} {'worst':>9}  warning")
     lines = [head, "-" * len(head)]
     for r in rows:
         warn = f"MISSES tolerance: {len(r['misses'])} electrode(s)" if r["fit_warning"] else ""
         extra = " (extrapolated)" if r.get("extrapolated") else ""
         err = f"{r['max_rel_error']:9.2e}" if r.get("max_rel_error") is not None else f"{'-':>9}"
-        lines.append(f"{r['design']:9} {r['n']:3d} {r['samples']:8d} {r['mechanics_s']:7.1f} {r['extractor_s']:7.1f} "
+        lines.append(f"{r['design']:9} {r['n']:3d} {r.get('range', float('nan')):5.3g} {r['samples']:8d} {r['mechanics_s']:7.1f} {r['extractor_s']:7.1f} "
                      f"{r['fit_s']:7.1f} {r['estimate_s']:7.1f} {err} {r.get('worst_electrode', '-'):>9}  "
                      f"{warn}{extra}")
     return "\n".join(lines)
@@ -144,8 +149,10 @@ def main() -> int:
     p.add_argument("--n", default="3-12", help="coordinate counts, e.g. 3-12 (n = 3 + modes)")
     p.add_argument("--designs", default="grid,sparse,adaptive")
     p.add_argument("--grid-max", type=int, default=8, help="largest n the grid is run at (above: extrapolated)")
-    p.add_argument("--range", type=float, default=0.2, help="[sampling] range")
+    p.add_argument("--range", default="0.2", help="[sampling] range, or 'auto' for none (the build's default: "
+                   "0.2, narrowed where the box's corners reach an electrode)")
     args = p.parse_args()
+    args.range = None if args.range == "auto" else float(args.range)
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []

@@ -8,6 +8,7 @@ stage is a function of the previous stages' outputs.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
 from .electrostatics import calibration_report
 from .electrostatics import imported as imported_capacitance
 from .errors import StructureError
-from .electrostatics.sampling import Samples, coordinate_scales, sample_grid, sample_holdout, sample_points
+from .electrostatics.sampling import Samples, box_range, coordinate_scales, sample_grid, sample_holdout, sample_points
 from .fit import cost
 from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all
@@ -36,6 +37,7 @@ from .model import Coordinate, Electrode, MacroModel
 from .model import contact
 from .model import plots
 from .structure import Structure
+from .structure.schema import Sampling
 
 
 @dataclass
@@ -71,6 +73,7 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
         say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
         fits, extra = fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
     else:
+        s = default_range(s, prepared, scales, progress)
         grid, holdout, fits, extra = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
     model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits, extra)
     if imp:
@@ -98,8 +101,23 @@ def sample_and_fit(s: Structure, prepared: PreparedExtractor, m: Mechanics, shap
     say(progress, f"{s.name}: adaptive design from {len(grid.x)} samples, budget {s.sampling.points}")
     result = adaptive_fits(s, shapes, m.basis, scales, grid,
                            lambda x: sample_points(prepared, x, scales, False, "probes", **parallel), holdout, progress)
+    checked = [r["validation_max_rel_error"] for r in result.rounds if "validation_max_rel_error" in r]
     return result.samples, holdout, result.fits, {"probes": result.probes, "rounds": len(result.rounds),
-                                                  "converged": result.converged}
+                                                  "converged": result.converged} | \
+        ({"validation_max_rel_error": checked[-1]} if checked else {})
+
+
+def default_range(s: Structure, prepared: PreparedExtractor, scales: np.ndarray, progress: bool) -> Structure:
+    """The structure with its [sampling] range narrowed when the file gives none and the default
+    box's corners would reach an electrode (netgen.electrostatics.sampling.box_range); said on stderr."""
+    if s.sampling.range_given:
+        return s
+    r = box_range(prepared, scales, s.sampling.range)
+    if r == s.sampling.range:
+        return s
+    say(progress, f"{s.name}: [sampling] range {r:g} (not {s.sampling.range:g}: at +-{s.sampling.range:g} the "
+                          f"corners of the {len(scales)}-coordinate box reach an electrode; give range to choose)")
+    return dataclasses.replace(s, sampling=dataclasses.replace(s.sampling, range=r))
 
 
 def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode]) -> np.ndarray:
@@ -141,6 +159,8 @@ def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectro
                 "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
     if s.sampling.design != "grid":                            # the grid's JSON as before
         sampling = {k: v for k, v in sampling.items() if k != "levels"} | cost.design_report(s, design_extra or {})
+    if not s.sampling.range_given and s.sampling.range < Sampling.range:      # netgen.build.default_range
+        sampling["range_narrowed_from"] = Sampling.range
     report = {"mechanics": m.report, "electrostatics": {
         "extractor": ext.description,
         "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}

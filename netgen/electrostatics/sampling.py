@@ -96,6 +96,31 @@ def coordinate_scales(prepared: PreparedExtractor, names: list[str], gaps: np.nd
     return scales
 
 
+CORNER_REACH = 1.0       # the default box's worst corner closes at most this fraction of a gap
+
+
+def corner_closure(prepared: PreparedExtractor, scales: np.ndarray) -> float:
+    """Largest fraction of its gap any watched electrode point closes at a corner of the scaled
+    box [-1, 1]^n: max_j sum_v |phi_jv L_v| / g_j. The local gap is affine in q
+    (PreparedExtractor.probe_points), so the worst corner is this sum, exactly."""
+    p = prepared.probe_points()
+    if len(p.gap) == 0:
+        return 0.0
+    return float(np.max(np.abs(p.phi * scales[None, :]).sum(axis=1) / p.gap))
+
+
+def box_range(prepared: PreparedExtractor, scales: np.ndarray, requested: float) -> float:
+    """The default [sampling] range: `requested` unless the box's corners would then close more than
+    CORNER_REACH of a gap (many coordinates combined: the free disk from 9), else CORNER_REACH over
+    the corner closure, rounded down to two digits. Past contact the plate-sum form cannot follow
+    the capacitance, and the fits miss by tens of percent."""
+    reach = corner_closure(prepared, scales) * requested
+    if reach <= CORNER_REACH:
+        return requested
+    r = CORNER_REACH * requested / reach
+    return math.floor(r * 100.0) / 100.0 if r >= 0.01 else float(f"{r:.2g}")
+
+
 def sample(prepared: PreparedExtractor, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
            executor: Executor | None = None, store: "ChunkStore | str | Path | None" = None) -> np.ndarray:
     """Capacitances at many coordinate points, in chunks, with a progress bar on stderr.

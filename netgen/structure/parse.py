@@ -114,7 +114,8 @@ def read_sampling(rd: Reader, doc: dict, ncoords: int) -> Sampling:
                       f"write points = {1 << (points - 1).bit_length() >> 1} or {1 << (points - 1).bit_length()}")
     return Sampling(levels=integer(rd, t, "sampling", "levels", 3, 2, 9, "levels per coordinate"), range=rng,
                     design=design, level=level, points=points,
-                    seed=integer(rd, t, "sampling", "seed", 1, 0, 2**31 - 1, "random seed of the design"))
+                    seed=integer(rd, t, "sampling", "seed", 1, 0, 2**31 - 1, "random seed of the design"),
+                    range_given="range" in t)
 
 
 def read_fit(rd: Reader, doc: dict) -> FitOptions:

@@ -80,13 +80,16 @@ class Coordinates:
 class Sampling:
     """Capacitance sample design over +-range x touching amplitude (netgen.electrostatics.designs):
     "grid" (`levels` per coordinate), "sparse" (Smolyak `level`), "lhs" / "sobol" (`points`,
-    `seed`) or "adaptive" (refined until fit.tolerance or a budget of `points`, `seed`)."""
+    `seed`) or "adaptive" (refined until fit.tolerance or a budget of `points`, `seed`).
+    `range_given` False: the file has no `range`, and the build narrows the default 0.2 where the
+    box's corners would reach an electrode (netgen.electrostatics.sampling.box_range)."""
     levels: int = 3
     range: float = 0.2
     design: str = "grid"
     level: int = 2
     points: int = 0              # lhs / sobol size, adaptive budget (0 before the parser's default)
     seed: int = 1
+    range_given: bool = True
 
 
 @dataclass(frozen=True)
