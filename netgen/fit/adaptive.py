@@ -3,6 +3,10 @@ on probe points the fit has not seen, move the worst of them into the training s
 every electrode's probe error meets fit.tolerance or the budget of `points` training samples is
 spent. The probes are the continuation of a seeded Sobol sequence, so the same structure gives the
 same design; the reported errors stay those on the structure's own held-out points.
+
+The probe pool is what the patch counts and the points are chosen on, so its error is optimistic:
+before the design stops it checks a fresh pool of the same size, which no choice has seen, and
+only stops when that pool meets the bound too (else the fresh pool joins the probes, and it goes on).
 """
 
 from __future__ import annotations
@@ -17,13 +21,14 @@ from ..electrostatics import designs
 from ..electrostatics.sampling import Samples
 from ..geometry.shapes import Electrode
 from ..structure import Structure
-from .capacitance import CapacitanceFit, check_determined, fit_electrode, with_errors
+from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, with_errors
 
 
 STALL = 4            # rounds without progress before the design stops short of its budget
 OVERSAMPLE = 2.0     # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
 SAFETY = 0.5         # stop when every probe error is below half fit.tolerance: a max over a few hundred
                      # random points is itself uncertain, and the held-out points are other points
+VALIDATIONS = 4      # fresh pools the design may draw to confirm a stop (each failed one joins the probes)
 
 
 @dataclass
@@ -60,21 +65,34 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
     check_determined(s, start.x)
     batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
-    stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + 2 * pool_size)
+    stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))
-    spent = len(probes.points)
+    spent, validations, since = len(probes.points), 0, 0
     fits, used = fit_round(s, shapes, basis, scales, train, probes, range(len(shapes)), [0] * len(shapes))
     result = AdaptiveResult(train, fits, spent)
     while True:
-        err = np.abs(np.stack([f.value(probes.x) for f in fits], axis=1) / probes.c - 1.0)
+        err = errors(fits, probes)
         worst = err.max(axis=0)
         result.rounds.append({"samples": len(train.x), "probe_max_rel_error": float(worst.max()),
                               "failing": int(np.sum(worst > tol))})
         say(progress, f"adaptive: {len(train.x)} samples, probe max error {worst.max():.2e} "
                       f"({int(np.sum(worst > tol))} electrode(s) above {tol:g})")
+        if worst.max() <= SAFETY * tol and validations < VALIDATIONS and len(stream.points) - stream.next >= pool_size:
+            fresh = evaluate(stream.take(pool_size))            # points no patch or point choice has seen
+            spent, validations = spent + len(fresh.points), validations + 1
+            fresh_worst = errors(fits, fresh).max(axis=0)
+            result.rounds[-1]["validation_max_rel_error"] = float(fresh_worst.max())
+            say(progress, f"adaptive: fresh validation pool max error {fresh_worst.max():.2e}")
+            probes = probes + Samples(fresh.x, fresh.c, 0, fresh.x)
+            if fresh_worst.max() > SAFETY * tol:
+                err, worst = errors(fits, probes), np.maximum(worst, fresh_worst)
+                since = len(result.rounds)               # progress is judged on the larger pool from here
+            else:
+                result.converged = True
+                break
         if worst.max() <= SAFETY * tol or len(train.points) >= budget or stream.next >= len(stream.points) \
-                or stalled(result.rounds):
-            result.converged = bool(worst.max() <= SAFETY * tol)
+                or (stalled(result.rounds[since:]) and form_limited(s, worst, used)):
+            result.converged = bool(worst.max() <= SAFETY * tol) and not validations    # unconfirmed else
             break
         score = (err / (SAFETY * tol)).max(axis=1)
         pick = np.argsort(-score, kind="stable")[: min(batch, budget - len(train.points))]
@@ -89,6 +107,18 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     final = [with_errors(f, train.x, train.c[:, i], holdout.x, holdout.c[:, i]) for i, f in enumerate(fits)]
     result.samples, result.fits, result.probes = train, final, spent
     return result
+
+
+def errors(fits: list[CapacitanceFit], points: Samples) -> np.ndarray:
+    """Relative error of every fit at every point, shape (npoints, nelectrodes)."""
+    return np.abs(np.stack([f.value(points.x) for f in fits], axis=1) / points.c - 1.0)
+
+
+def form_limited(s: Structure, worst: np.ndarray, used: list[int]) -> bool:
+    """Every electrode above the bound already fits with the most plates fit.max_terms allows: more
+    points cannot help it (below that, more points unlock the next patch grid, OVERSAMPLE per term)."""
+    top = max(k for k, (a, b) in enumerate(PATCH_GRIDS) if a * b <= s.fit.max_terms or k == 0)
+    return all(used[i] >= top for i in np.flatnonzero(worst > SAFETY * s.fit.tolerance))
 
 
 def stalled(rounds: list[dict]) -> bool:

@@ -101,7 +101,7 @@ def estimate(s: Structure, prepared, scales: np.ndarray, electrodes: int) -> Est
     """The expected sampling and fit time of the structure's design."""
     n = len(scales)
     samples = sample_count(s, n)
-    checks = s.fit.holdout + (samples + 2 * max(s.fit.holdout, 6 * (n + 1)) if s.sampling.design == "adaptive" else 0)
+    checks = s.fit.holdout + (samples + 3 * max(s.fit.holdout, 6 * (n + 1)) if s.sampling.design == "adaptive" else 0)
     per_point, step = extractor_time(prepared, s, scales), lm_step_time()
     return Estimate(s.sampling.design, samples, checks, per_point, per_point * (samples + checks),
                     fit_time(s, samples, n, electrodes, step), fit_time(s, samples, n, electrodes, step, len(PATCH_GRIDS)))
