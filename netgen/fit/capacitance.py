@@ -135,7 +135,7 @@ def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarr
     o = s.fit
     if o.target != "plates":
         return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
-    best, used = None, first
+    best, used, best_ok = None, first, False
     for k in range(first, len(PATCH_GRIDS)):
         grid = PATCH_GRIDS[k]
         if grid[0] * grid[1] > o.max_terms or \
@@ -143,11 +143,20 @@ def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarr
             break                              # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
         fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)
-        if best is None or fit.max_rel_error < best.max_rel_error:
-            best, used = fit, k
-        if fit.max_rel_error <= o.tolerance:
+        ok = physical(fit, x, x_check)
+        if best is None or (ok, -fit.max_rel_error) > (best_ok, -best.max_rel_error):
+            best, used, best_ok = fit, k, ok
+        if ok and fit.max_rel_error <= o.tolerance:
             break
     return best, used
+
+
+def physical(fit: CapacitanceFit, x: np.ndarray, x_check: np.ndarray) -> bool:
+    """Every plate term 1/P_k positive at every sample and check point. A term that turns negative
+    (a least-squares run with many plates over a box whose corners close the gap) puts a pole,
+    P_k = 0, between the samples: held-out errors of tens of percent (lhs n = 11: 7.2e-1)."""
+    pts = np.concatenate([x, x_check])
+    return all(float(np.min(p(pts))) > 0.0 for p in fit.polys)
 
 
 def patch_guess(s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tuple[int, int],

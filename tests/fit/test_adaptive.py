@@ -11,7 +11,7 @@ import pytest
 from netgen.build import build
 from netgen.constants import EPS0
 from netgen.electrostatics.sampling import Samples, design_points
-from netgen.fit.adaptive import adaptive_fits
+from netgen.fit.adaptive import SAFETY, adaptive_fits
 from netgen.fit.capacitance import fit_all
 from netgen.structure import parse_structure
 
@@ -102,6 +102,8 @@ def test_adaptive_reaches_the_tolerance_with_fewer_points_than_the_grid(piston):
     result = adaptive_fits(s, b.electrodes, b.mechanics.basis, b.scales, start, evaluate, holdout)
     assert result.converged
     assert result.fits[0].max_rel_error <= s.fit.tolerance
+    checked = [r["validation_max_rel_error"] for r in result.rounds if "validation_max_rel_error" in r]
+    assert checked and checked[-1] <= SAFETY * s.fit.tolerance      # the stop was confirmed on fresh points
     grids = {}
     for levels in (3, 5):
         g = parse_structure(PISTON.format(sampling=f"levels = {levels}"), "piston3.toml")

@@ -1,0 +1,30 @@
+"""A plate-sum fit is physical only if every term 1/P_k is a positive capacitance wherever the
+fit was sampled or checked (netgen.fit.capacitance.physical): a term that turns negative puts a
+pole P_k = 0 between the samples. Hand-made polynomials: 1 - x/2 vanishes at x = 2."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from netgen.fit.capacitance import CapacitanceFit, physical
+from netgen.fit.polynomial import Polynomial
+
+EXPS = np.array([[0], [1]])
+
+
+def fit_of(*coeffs) -> CapacitanceFit:
+    """C = sum_k 1 / (a_k + b_k x) in units of c_ref = 1 F."""
+    return CapacitanceFit("e", 1.0, "plates", tuple(Polynomial(EXPS, np.array(c, float)) for c in coeffs), 0, 0, 0)
+
+
+def test_a_sum_of_positive_plates_is_physical():
+    x = np.linspace(-1, 1, 11)[:, None]
+    assert physical(fit_of([1.0, -0.5], [2.0, 0.3]), x, x)
+
+
+def test_a_term_crossing_zero_inside_the_points_is_not():
+    """1 - x/2 is negative at x = 3: the term's pole at x = 2 lies among the points."""
+    x = np.linspace(0, 3, 7)[:, None]
+    f = fit_of([1.0, -0.5], [2.0, 0.3])
+    assert not physical(f, x[:4], x[4:])             # the check points alone reveal it
+    assert physical(f, x[:4], x[:4])
