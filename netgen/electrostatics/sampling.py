@@ -30,6 +30,17 @@ from . import designs
 from .base import PreparedExtractor
 
 
+@dataclass(frozen=True)
+class Rest:
+    """The extractor at rest: capacitances (nelectrodes,) F and their gradient in the scaled
+    coordinates (nelectrodes, ncoords) F, by central differences (REST_STEP)."""
+    c: np.ndarray
+    grad: np.ndarray
+
+
+REST_STEP = 1e-3         # scaled step of the rest gradient's central differences
+
+
 @dataclass
 class Samples:
     """Scaled sample points and extractor capacitances, touching points removed."""
@@ -37,12 +48,13 @@ class Samples:
     c: np.ndarray                   # (n, nelectrodes) F
     excluded: int                   # grid points dropped because the plate touches an electrode
     points: np.ndarray | None = None    # every design point, the dropped ones included
+    rest: Rest | None = None        # C and dC/dx at rest, which the fit then matches (non-grid designs)
 
     def __add__(self, other: "Samples") -> "Samples":
-        """Both sample sets as one (the adaptive design's growing training set)."""
+        """Both sample sets as one (the adaptive design's growing training set; this one's rest)."""
         pts = None if self.points is None or other.points is None else np.concatenate([self.points, other.points])
         return Samples(np.concatenate([self.x, other.x]), np.concatenate([self.c, other.c]),
-                       self.excluded + other.excluded, pts)
+                       self.excluded + other.excluded, pts, self.rest)
 
 
 def sampling_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
@@ -149,7 +161,21 @@ def sample_grid(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bo
     """The fit's samples at the structure's design (netgen.electrostatics.designs) over +-range of
     the touching amplitudes: the paper's levels^ncoords tensor grid by default."""
     x = design_points(s.sampling, len(scales))
-    return sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
+    out = sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
+    if s.sampling.design != "grid":                  # the grid's fits as in the paper (netlists unchanged)
+        out.rest = rest_of(prepared, scales)
+    return out
+
+
+def rest_of(prepared: PreparedExtractor, scales: np.ndarray) -> Rest:
+    """C and dC/dx at rest from 2n + 1 extractor points. A loop holds the structure within a
+    fraction of a nanometre of rest, where its forces are these slopes; a fit over the box
+    misses them by a few 1e-4 (which moves the disk's sigma-delta z loop on or off its lock
+    to the mean bit 1/2), so the non-grid designs' fits match them (netgen.fit.capacitance.fit_plates)."""
+    n = len(scales)
+    q = np.concatenate([np.zeros((1, n)), REST_STEP * np.eye(n), -REST_STEP * np.eye(n)]) * scales
+    c = prepared.capacitance(q)
+    return Rest(c[0], ((c[1:n + 1] - c[n + 1:]) / (2 * REST_STEP)).T)
 
 
 def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False,

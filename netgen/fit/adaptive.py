@@ -21,7 +21,7 @@ from ..electrostatics import designs
 from ..electrostatics.sampling import Samples
 from ..geometry.shapes import Electrode
 from ..structure import Structure
-from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, with_errors
+from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, rest_of, with_errors
 
 
 STALL = 4            # rounds without progress before the design stops short of its budget
@@ -138,7 +138,7 @@ def fit_round(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, 
     fits, used = list(previous) if previous else [None] * len(shapes), list(used)
     for i in which:
         fit, used[i] = fit_electrode(s, shapes[i], shapes[i].name, basis, scales, train.x, train.c[:, i],
-                                     check.x, check.c[:, i], used[i], OVERSAMPLE)
+                                     check.x, check.c[:, i], used[i], OVERSAMPLE, rest_of(train, i))
         fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])
     return fits, used
 

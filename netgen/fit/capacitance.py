@@ -26,6 +26,7 @@ from .polynomial import Polynomial, fit_polynomial, monomial_exponents, monomial
 
 
 MAX_NFEV = 60            # Levenberg-Marquardt evaluations per plate fit (netgen.fit.cost uses it too)
+REST_WEIGHT = 3.0        # the rest residuals weigh as REST_WEIGHT^2 times all the samples together
 
 
 @dataclass(frozen=True)
@@ -91,11 +92,14 @@ def fit_capacitance(name: str, x: np.ndarray, c: np.ndarray, degree: int, target
 
 
 def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, degree: int,
-               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = MAX_NFEV) -> CapacitanceFit:
+               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = MAX_NFEV,
+               rest: tuple[float, np.ndarray] | None = None) -> CapacitanceFit:
     """Fit C = c_ref sum_k 1/P_k(x) by least squares on the relative error.
 
     `initial` (K, 1 + ncoords) holds affine first guesses of the P_k (from physical patches
     of the electrode); higher-degree coefficients start at zero. The Jacobian is analytic.
+    `rest` (C(0), dC/dx(0)): n + 1 more residuals, weighted REST_WEIGHT sqrt(samples), so the fit
+    matches the capacitance and its slopes at rest (netgen.electrostatics.sampling.rest_of).
     """
     c_ref = reference(x, c)
     exps = monomial_exponents(x.shape[1], degree)
@@ -106,12 +110,34 @@ def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, deg
     start[:, : 1 + x.shape[1]] = initial * np.concatenate([[1.0], sp])[None, :]
 
     def residual(a: np.ndarray) -> np.ndarray:
-        return c_ref * np.sum(1.0 / (basis @ a.reshape(k_terms, nterm).T), axis=1) / c - 1.0
+        out = c_ref * np.sum(1.0 / (basis @ a.reshape(k_terms, nterm).T), axis=1) / c - 1.0
+        return out if rest is None else np.concatenate([out, rest_residual(a.reshape(k_terms, nterm))])
 
     def jacobian(a: np.ndarray) -> np.ndarray:
         p = basis @ a.reshape(k_terms, nterm).T                # (npts, K)
         w = -c_ref / (p * p) / c[:, None]                      # d residual / d P_k
-        return (w[:, :, None] * basis[:, None, :]).reshape(len(c), k_terms * nterm)
+        jac = (w[:, :, None] * basis[:, None, :]).reshape(len(c), k_terms * nterm)
+        return jac if rest is None else np.concatenate([jac, rest_jacobian(a.reshape(k_terms, nterm))])
+
+    lin = 1 + np.arange(x.shape[1])                           # the linear monomials' columns (graded order)
+    weight = REST_WEIGHT * math.sqrt(len(c))
+
+    def rest_residual(a: np.ndarray) -> np.ndarray:
+        """C(0) and dC/dx(0) against the extractor's, relative to C(0); in the basis x / span."""
+        c0, g0 = rest
+        a0 = a[:, 0]
+        grad = -c_ref * np.sum(a[:, lin] / (a0 * a0)[:, None], axis=0) / sp
+        return weight * np.concatenate([[c_ref * np.sum(1.0 / a0) / c0 - 1.0], (grad - g0) / c0])
+
+    def rest_jacobian(a: np.ndarray) -> np.ndarray:
+        c0, _ = rest
+        a0 = a[:, 0]
+        jac = np.zeros((1 + len(lin), k_terms, nterm))
+        jac[0, :, 0] = -c_ref / (a0 * a0) / c0
+        jac[1:, :, 0] = (2.0 * c_ref * a[:, lin] / (a0**3)[:, None] / sp[None, :] / c0).T
+        for j, col in enumerate(lin):
+            jac[1 + j, :, col] = -c_ref / (a0 * a0) / sp[j] / c0
+        return weight * jac.reshape(1 + len(lin), k_terms * nterm)
 
     # a capped Levenberg-Marquardt run: the error budget is met long before full convergence
     sol = least_squares(residual, start.ravel(), jac=jacobian, method="lm", max_nfev=max_nfev)
@@ -127,7 +153,8 @@ PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (
 
 def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarray, x: np.ndarray,
                   c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray,
-                  first: int = 0, oversample: float = 1.0) -> tuple[CapacitanceFit, int]:
+                  first: int = 0, oversample: float = 1.0,
+                  rest: tuple[float, np.ndarray] | None = None) -> tuple[CapacitanceFit, int]:
     """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
     starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
     term limit is reached: at most len(x) / oversample coefficients). Returns the fit and the
@@ -142,7 +169,7 @@ def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarr
                 grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) * oversample > len(x):
             break                              # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
-        fit = fit_plates(name, x, c, init, o.degree, x_check, c_check)
+        fit = fit_plates(name, x, c, init, o.degree, x_check, c_check, rest=rest)
         ok = physical(fit, x, x_check)
         if best is None or (ok, -fit.max_rel_error) > (best_ok, -best.max_rel_error):
             best, used, best_ok = fit, k, ok
@@ -192,6 +219,11 @@ def _bins(values: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
     return ids
 
 
+def rest_of(samples: Samples, i: int) -> tuple[float, np.ndarray] | None:
+    """Electrode i's capacitance and gradient at rest, if the samples carry them."""
+    return None if samples.rest is None else (float(samples.rest.c[i]), samples.rest.grad[i])
+
+
 def check_determined(s: Structure, x: np.ndarray) -> None:
     """Refuse a design whose samples cannot determine the fit's polynomial terms (rank of the
     monomial matrix below the term count), e.g. a degree-2 fit on a level-1 sparse grid."""
@@ -216,6 +248,6 @@ def fit_all(s: Structure, electrodes: list[Electrode], basis, scales: np.ndarray
                                leave=False)):
         ring = e.name.rsplit("s", 1)[0]            # electrodes of one ring share a patch grid
         fit, start[ring] = fit_electrode(s, e, e.name, basis, scales, grid.x, grid.c[:, i],
-                                         holdout.x, holdout.c[:, i], start.get(ring, 0))
+                                         holdout.x, holdout.c[:, i], start.get(ring, 0), rest=rest_of(grid, i))
         fits.append(fit)
     return fits
