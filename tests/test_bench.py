@@ -14,7 +14,9 @@ from tests.fixtures import ROOT
 
 RUNS = {
     "build_scaling": (["bench/build_scaling.py", "-o", "{tmp}", "--n", "3", "--designs", "grid,sparse"],
-                      ["sparse      3       25", "wrote "]),
+                      ["sparse      3   0.2       25", "wrote "]),
+    "sigma_delta_designs": (["bench/sigma_delta_designs.py", "examples/levitated_disk.toml", "netlists/levitated_disk.json",
+                             "-o", "{tmp}", "--eps=0", "--cycles", "512"], ["mean median", "0_netlists               z"]),
     "build": (["bench/build.py", "--repeat", "1"], ["median of 1 build(s)", "fits (16 electrodes, plates)", "budget 60 s"]),
     "sigma_delta": (["bench/sigma_delta.py", "--cycles", "64", "--repeat", "1", "--naive-cycles", "1",
                      "--variants", "xspice,fast,nodes,naive,floor,linear", "--loops", "xspice,analog"],
