@@ -21,7 +21,7 @@ from ..electrostatics import designs
 from ..electrostatics.sampling import Samples
 from ..geometry.shapes import Electrode
 from ..structure import Structure
-from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, rest_of, with_errors
+from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, refuse_unphysical, rest_of, with_errors
 
 
 STALL = 4            # rounds without progress before the design stops short of its budget
@@ -105,6 +105,7 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
         failing = [i for i in range(len(shapes)) if worst[i] > SAFETY * tol]
         fits, used = fit_round(s, shapes, basis, scales, train, probes, failing, used, fits)
     final = [with_errors(f, train.x, train.c[:, i], holdout.x, holdout.c[:, i]) for i, f in enumerate(fits)]
+    refuse_unphysical(s, final, train.x, holdout.x)
     result.samples, result.fits, result.probes = train, final, spent
     return result
 

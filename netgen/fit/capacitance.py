@@ -186,6 +186,18 @@ def physical(fit: CapacitanceFit, x: np.ndarray, x_check: np.ndarray) -> bool:
     return all(float(np.min(p(pts))) > 0.0 for p in fit.polys)
 
 
+def refuse_unphysical(s: Structure, fits: list[CapacitanceFit], x: np.ndarray, x_check: np.ndarray) -> None:
+    """Refuse a model whose chosen plate fit has a term 1/P_k that is not positive at a sample or
+    check point (no physical patch grid was found): it has a pole inside the sampled box."""
+    bad = [f.electrode for f in fits if f.target == "plates" and not physical(f, x, x_check)]
+    if bad:
+        raise StructureError(s.source, "sampling.range", f"the capacitance fit of electrode {bad[0]}"
+                             f"{f' (and {len(bad) - 1} more)' if len(bad) > 1 else ''} has a plate term 1/P_k that "
+                             f"turns negative inside the sampled box (+-{s.sampling.range:g}): a pole between the samples",
+                             "narrow [sampling] range (without the key the build narrows it where the box's corners "
+                             "reach an electrode), or use fewer coordinates")
+
+
 def patch_guess(s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tuple[int, int],
                 c_ref: float) -> np.ndarray:
     """Affine first guesses P_k(x) for K = nr x nt patches of the electrode (equal-area bins in
@@ -250,4 +262,5 @@ def fit_all(s: Structure, electrodes: list[Electrode], basis, scales: np.ndarray
         fit, start[ring] = fit_electrode(s, e, e.name, basis, scales, grid.x, grid.c[:, i],
                                          holdout.x, holdout.c[:, i], start.get(ring, 0), rest=rest_of(grid, i))
         fits.append(fit)
+    refuse_unphysical(s, fits, grid.x, holdout.x)
     return fits

@@ -6,8 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from netgen.fit.capacitance import CapacitanceFit, physical
+from netgen.errors import StructureError
+from netgen.fit.capacitance import CapacitanceFit, physical, refuse_unphysical
 from netgen.fit.polynomial import Polynomial
+from netgen.structure import parse_structure
+from tests.fit.test_adaptive import PISTON
 
 EXPS = np.array([[0], [1]])
 
@@ -28,3 +31,16 @@ def test_a_term_crossing_zero_inside_the_points_is_not():
     f = fit_of([1.0, -0.5], [2.0, 0.3])
     assert not physical(f, x[:4], x[4:])             # the check points alone reveal it
     assert physical(f, x[:4], x[:4])
+
+
+def test_a_model_with_such_a_term_is_refused_naming_the_electrode_and_the_fix():
+    s = parse_structure(PISTON.format(sampling="levels = 3"), "piston3.toml")
+    x = np.linspace(0, 3, 7)[:, None]
+    refuse_unphysical(s, [fit_of([2.0, 0.3])], x, x)                  # physical: nothing said
+    try:
+        refuse_unphysical(s, [fit_of([1.0, -0.5])], x[:4], x[4:])
+    except StructureError as exc:
+        text = str(exc)
+    else:
+        raise AssertionError("not refused")
+    assert "piston3.toml" in text and "electrode e" in text and "sampling.range" in text and "narrow" in text
