@@ -1,14 +1,15 @@
 """Comb-finger arrays as shapes: where the faces of the moving fingers are, which way they face,
 at what gap, and where the finger tips are, in the proof mass's frame at rest (x, y in m).
 netgen.electrostatics.comb turns them into capacitances; netgen.geometry.layout maps the
-structure file's CombElectrode here."""
+structure file's CombElectrode here (CombShape.of)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ..structure import CombElectrode
 from .shapes import Array, Plate, empty
 
 
@@ -22,23 +23,14 @@ class Face:
 
 
 @dataclass(frozen=True)
-class CombShape:
-    """A comb array (see netgen.structure.electrodes.CombElectrode for the fields' meaning)."""
-    name: str
-    kind: str
-    orientation: str
-    fingers: int
-    width: float
-    gap: float
-    length: float
-    overlap: float
-    thickness: float
-    side: str
-    root: str
-    anti_gap: float
-    pitch: float
-    center: tuple[float, float]
-    substrate_gap: float = 0.0
+class CombShape(CombElectrode):
+    """A comb array as a shape: the structure file's CombElectrode (its fields and their meaning)
+    with the geometry of its faces and tips."""
+
+    @classmethod
+    def of(cls, e: CombElectrode) -> CombShape:
+        """The shape of a structure file's comb electrode (every field of it, by dataclasses.fields)."""
+        return cls(**{f.name: getattr(e, f.name) for f in fields(CombElectrode)})
 
     @property
     def axis(self) -> np.ndarray:

@@ -43,8 +43,7 @@ def rectangle(e: RectElectrode) -> list[Electrode]:
 
 def comb(e: CombElectrode) -> list[Electrode]:
     """A comb-finger array: one electrode whose gaps close in the plane."""
-    fields = {k: getattr(e, k) for k in CombShape.__dataclass_fields__}
-    return [Electrode(CombShape(**fields), "in_plane", e.gap, e.name)]
+    return [Electrode(CombShape.of(e), "in_plane", e.gap, e.name)]
 
 
 # electrode kind of the structure file -> its shapes
