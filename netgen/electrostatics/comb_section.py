@@ -19,7 +19,10 @@ substrate_gap, eps -- netgen.electrostatics.comb's CombCell):
 Each is solved on a small (gap, offset) grid, interpolated by bicubic splines (smooth first
 derivatives for the fit and the forces), and the grid values are cached on disk keyed by the
 SHA-256 of the geometry, the grid and the solver settings (NETGEN_CACHE, else
-$XDG_CACHE_HOME/netgen, folder comb_sections), so a build does not re-solve.
+$XDG_CACHE_HOME/netgen, folder comb_sections), so a build does not re-solve. The package ships
+the tables of the examples' combs under the same names (SHIPPED, netgen/electrostatics/comb_tables),
+so a fresh install builds them without solving; `bench/comb_tables.py` re-solves and writes them
+there (after a change of the cell, the grid or the settings renames every table).
 """
 
 from __future__ import annotations
@@ -43,10 +46,11 @@ from .mesh2d import Rect
 Array = np.ndarray
 VERSION = 1                      # bump when the solver or the cell changes what a table holds
 GAP_RANGE = (0.1, 1.9)           # x nominal gap (pitch - width)
-OFFSET_RANGE = (-0.5, 0.5)       # x thickness (down at most 0.8 substrate gaps)
+OFFSET_RANGE = (-1.0, 1.0)       # x thickness (down at most 0.8 substrate gaps): fingers apart at +-1
 END_RANGE = (0.2, 20.0)          # x nominal gap, log-spaced
 SETTINGS = {"tol": 2e-3, "max_levels": 3, "mesh_scale": 1.5, "order": 2}
-GRID = {"gaps": 13, "offsets": 5, "ends": 6}
+GRID = {"gaps": 13, "offsets": 9, "ends": 6}
+SHIPPED = Path(__file__).with_name("comb_tables")   # converged tables of the examples' combs, read before a solve
 
 
 @dataclass(frozen=True)
@@ -170,11 +174,14 @@ def end_values(g: Geometry) -> dict[str, Array]:
 
 
 def cached(g: Geometry, kind: str) -> dict[str, Array]:
-    """A table from the disk cache, computed and stored (atomically) if absent."""
-    path = cache_dir() / f"{kind}-{g.key(kind)}.npz"
-    if path.exists():
-        with np.load(path) as z:
-            return {k: z[k] for k in z.files}
+    """A table from the disk cache or the shipped tables, computed and stored (atomically) in the
+    cache if in neither."""
+    name = f"{kind}-{g.key(kind)}.npz"
+    path = cache_dir() / name
+    for found in (path, SHIPPED / name):
+        if found.exists():
+            with np.load(found) as z:
+                return {k: z[k] for k in z.files}
     values = section_values(g) if kind == "section" else end_values(g)
     buf = io.BytesIO()
     np.savez(buf, **values)
