@@ -90,7 +90,7 @@ class CombGeometry:
     clearance0: float   # finger length - overlap
     tip_close: Array    # (T, nc): e . u at each finger tip
     tip_lift: Array     # (T, nc)
-    probe_gap: Array    # (P,) rest gaps of the stop candidates (face ends and tips)
+    probe_gap: Array    # (P,) rest gaps of the stop candidates (face ends, tips; finger ends over the substrate)
     probe_phi: Array    # (P, nc) closing per unit q
     cell: CombCell
     model: CombModel
@@ -123,6 +123,10 @@ def geometry(shape: CombShape, basis: Basis, nc: int, eps: float, model: CombMod
     clearance = shape.length - shape.overlap
     probe_gap = np.concatenate([[f.gap for f in faces] * 2, np.full(len(tips), clearance)])
     probe_phi = np.concatenate([close, np.einsum("fk,fkv->fv", n, ur), tip_close])
+    if shape.substrate_gap:                       # the fingers' tips and roots bottom out on the substrate
+        _, wr = motion(basis, tips - e[None, :] * shape.length, nc)
+        probe_gap = np.concatenate([probe_gap, np.full(2 * len(tips), shape.substrate_gap)])
+        probe_phi = np.concatenate([probe_phi, -wt, -wr])
     return CombGeometry(np.array([f.gap for f in faces]), shape.overlap, close,
                         np.einsum("fk,fkv->fv", n, u1 - u0), np.einsum("k,fkv->fv", e, u0), w0, w1 - w0,
                         clearance, tip_close, wt, probe_gap, probe_phi,
@@ -207,7 +211,8 @@ class PreparedComb:
         return out[0] if single else out
 
     def probe_points(self) -> ProbePoints:
-        """Face ends (at rest) and finger tips: the contact model's stop candidates."""
+        """Face ends (at rest), finger tips and, over a substrate, the fingers' two ends going down
+        onto it: the contact model's stop candidates (and the sampling's touching amplitudes)."""
         owner = np.concatenate([np.full(len(g.probe_gap), i) for i, g in enumerate(self.geoms)]).astype(int)
         return ProbePoints(np.concatenate([g.probe_gap for g in self.geoms]),
                            np.concatenate([g.probe_phi for g in self.geoms]), owner)
