@@ -44,7 +44,7 @@ from .field2d import Conductor, Problem, solve
 from .mesh2d import Rect
 
 Array = np.ndarray
-VERSION = 1                      # bump when the solver or the cell changes what a table holds
+VERSION = 2                      # bump when the solver, the cell or the grids change what a table holds
 GAP_RANGE = (0.1, 1.9)           # x nominal gap (pitch - width)
 OFFSET_RANGE = (-1.0, 1.0)       # x thickness (down at most 0.8 substrate gaps): fingers apart at +-1
 END_RANGE = (0.2, 20.0)          # x nominal gap, log-spaced
@@ -145,9 +145,17 @@ def grids(g: Geometry) -> tuple[Array, Array, Array]:
         raise ValueError(f"comb_section.GRID needs at least 4 points per axis, got {GRID}")
     gaps = g.gap * np.linspace(*GAP_RANGE, GRID["gaps"])
     low = max(OFFSET_RANGE[0] * g.thickness, -0.8 * g.substrate_gap)    # the finger stays off the substrate
-    offsets = np.linspace(low, OFFSET_RANGE[1] * g.thickness, GRID["offsets"])
+    offsets = offset_grid(low, OFFSET_RANGE[1] * g.thickness, GRID["offsets"])
     ends = g.gap * np.geomspace(*END_RANGE, GRID["ends"])
     return gaps, offsets, ends
+
+
+def offset_grid(low: float, high: float, n: int) -> Array:
+    """n offsets from low < 0 to high > 0 with 0 a node (the fingers level: a y-only or in-plane
+    motion reads the table on that row exactly), the points shared in proportion to each side's
+    length, at least one interval per side."""
+    below = min(max(round((n - 1) * -low / (high - low)), 1), n - 2)
+    return np.concatenate([np.linspace(low, 0.0, below + 1), np.linspace(0.0, high, n - below)[1:]])
 
 
 def section_values(g: Geometry) -> dict[str, Array]:

@@ -4,7 +4,8 @@ a proof mass displaced in plane from the comb's symmetry (gaps 1.3 um and 1.7 um
 longer cancels between the two sides and a z acceleration moves x. ngspice's operating points
 (39 and 46) against the Python MacroModel's static equilibrium, and against the 2-D section
 tables' own derivatives (netgen.electrostatics.comb_section, independent of the fit); the centred
-mass leaves x alone. Coarse tables in a private cache (seconds on a clean clone)."""
+mass leaves x alone. The cell is the three-axis example's, so the converged tables the package
+ships serve (seconds on a clean clone, no solve)."""
 
 from __future__ import annotations
 
@@ -77,13 +78,13 @@ def structure(gap_p: float, gap_n: float) -> str:
 
 @pytest.fixture(scope="module")
 def builds(tmp_path_factory):
-    """The offset and the centred mass, built on one coarse section table (same pitch, width,
-    thickness and substrate: one cell geometry); the tables stay loaded for the references."""
+    """The offset and the centred mass, built on one section table (same pitch, width, thickness
+    and substrate: one cell geometry, the three-axis example's, whose converged tables the
+    package ships: nothing is solved); the tables stay loaded for the references."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("NETGEN_CACHE", str(tmp_path_factory.mktemp("cache")))
-        mp.setattr(comb_section, "GRID", {"gaps": 5, "offsets": 5, "ends": 4})
-        mp.setattr(comb_section, "SETTINGS", {"tol": 5e-3, "max_levels": 1, "mesh_scale": 1.0, "order": 2})
         mp.setattr(comb_section, "_TABLES", {})
+        mp.setattr(comb_section, "solve", lambda *a, **k: pytest.fail("solved a table the package ships"))
         yield {"offset": build(parse_structure(structure(1.3, 1.7), "offset.toml")),
                "centred": build(parse_structure(structure(1.5, 1.5), "centred.toml"))}
 
@@ -139,7 +140,7 @@ def test_offset_mass_couples_z_into_x_as_the_tables_predict(builds, tmp_path, re
     """A z acceleration of 1000 m/s^2 moves the offset mass's x in ngspice by the Python model's
     prediction within 2 %, and the x it moves per unit z, dx/dz = E_xz / (k_x - E_xx), is the 2-D
     tables' within 2 % (E = (1/2) V^2 d2C/dq dq' of both combs at the midpoint of the two
-    operating points); the term is no round-off: above 1e-2 of x's own sensitivity m / k_x."""
+    operating points); the term is no round-off: above 2e-3 of x's own sensitivity m / k_x."""
     b = builds["offset"]
     ng, py = operating_points(b, tmp_path, release), python_points(b.model)
     (dx_ng, dz_ng), (dx_py, dz_py) = ng[1] - ng[0], py[1] - py[0]
@@ -148,7 +149,7 @@ def test_offset_mass_couples_z_into_x_as_the_tables_predict(builds, tmp_path, re
           f"dx / (m a / k) = {dx_ng / own:.3e}; ngspice / Python - 1: dx {dx_ng / dx_py - 1:+.1e}, dz {dz_ng / dz_py - 1:+.1e}")
     assert dx_ng == pytest.approx(dx_py, rel=0.02)
     assert dz_ng == pytest.approx(dz_py, rel=0.02)
-    assert abs(dx_ng) > 1e-2 * own
+    assert abs(dx_ng) > 2e-3 * own
     e_xz, e_xx = table_derivatives(b, *(0.5 * (ng[0] + ng[1])))
     print(f"dx/dz: ngspice {dx_ng / dz_ng:.5e}, tables {e_xz / (K - e_xx):.5e} (E_xz {e_xz:.4e}, E_xx {e_xx:.4e} N/m), "
           f"ngspice / tables - 1 {dx_ng / dz_ng / (e_xz / (K - e_xx)) - 1:+.2e}")
