@@ -17,6 +17,9 @@ difference to the reference. --dr adds the reference's dynamic-range curve (tone
 sweep on top of gravity). Results also go to DIR/orders.json. Orders 3-5 run with the feedback
 step (Timing.fb_edge 0, their default); --fb-edge 0.02 gives the ramped feedback whose integration
 error set the circuit's old flat in-band floor (bench/sigma_delta_impulse.py measures it).
+--loop LOOP.toml replaces the model's loop description; --model DIR/levitated_disk.json of
+runner.model_for(..., rigid_only=True) runs the rigid-body disk (bench/sigma_delta_cross_impulse.py
+splits the disk's z floor by the terms the single-channel reference leaves out).
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ from dataclasses import replace
 from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.structure import load_structure
-from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, read_structure_loop, reference
+from netgen.testbench.sigma_delta import (Tone, design, filters, metrics, ngspice, read_loop_file, read_structure_loop,
+                                          reference)
 from netgen.testbench.sigma_delta.kinds import FILTERS
 from netgen.testbench.sigma_delta.loopfile import LoopSpec
 
@@ -42,22 +46,25 @@ H_INF = {3: 1.5, 4: 1.4, 5: 1.5}          # the disk's (the accelerometer's orde
 NPERSEG = 8192
 
 
-def load(model_path: str):
+def load(model_path: str, loop: str | None = None):
     """The MacroModel and its loop description: a model .json (the disk's defaults) or a
-    structure .toml built here with its [loop] table (examples/accelerometer_z.toml)."""
+    structure .toml built here with its [loop] table (examples/accelerometer_z.toml); --loop
+    FILE's (`loop`) replaces either (the disk's z alone: channels = ["z"])."""
     if model_path.endswith(".toml"):
-        return build_model(load_structure(model_path), progress=False), read_structure_loop(model_path)
-    return MacroModel.load_json(model_path), LoopSpec()
+        model, spec = build_model(load_structure(model_path), progress=False), read_structure_loop(model_path)
+    else:
+        model, spec = MacroModel.load_json(model_path), LoopSpec()
+    return model, read_loop_file(loop) if loop else spec
 
 
 def setup(model_path: str, ts: float, order: int, osr: float, h_inf: float | None, reltol: float = 1e-3,
-          fb_edge: float | None = None):
+          fb_edge: float | None = None, loop: str | None = None):
     """Model, Design, mechanics, filter of the first channel at this order: lead2, or cifb through
     the [loop.filter] path (designed inside loop.design, no dither) on a structure's [loop]; on a
     model .json (the disk) only its first channel (z) gets the cifb filter, by the same design step.
     The feedback edge: `fb_edge` if given, else the design's default (a step for cifb: Timing.fb_edge;
     on the disk, whose tilts keep lead2, the step is set here for orders above 2)."""
-    model, spec = load(model_path)
+    model, spec = load(model_path, loop)
     table = {"kind": "cifb", "order": order, "osr": float(osr), "h_inf": h_inf or H_INF.get(order, 1.5)}
     if order > 2 and model_path.endswith(".toml"):
         spec = replace(spec, filter=table)
@@ -84,7 +91,7 @@ def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
 
 def run_reference(args, order: int) -> dict:
     """The numpy loop of this order: figures, max |z| and time."""
-    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, fb_edge=args.fb_edge)
+    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, fb_edge=args.fb_edge, loop=args.loop)
     tone = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
     start = time.perf_counter()
     r = reference.simulate(mech, f, args.cycles, reference.Input(dc_input(model, d, mech),
@@ -113,7 +120,7 @@ def dynamic_range(args, model, d, mech, f, tone: float) -> dict:
 
 def run_circuit(args, order: int) -> dict:
     """The compiled ngspice loop (netgen_sdloop with the z channel's filter), segmented."""
-    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, args.reltol, args.fb_edge)
+    model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, args.reltol, args.fb_edge, args.loop)
     tone_hz = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
     out = Path(args.out) / f"order{order}"
     out.mkdir(parents=True, exist_ok=True)
@@ -155,6 +162,7 @@ def main() -> None:
                    "the design's, a step for orders 3-5; 0.02 gives the ramps that set the old flat floor)")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--segment", type=int, default=None, help="periods per ngspice segment (0: one run; default: the bench's)")
+    p.add_argument("--loop", default=None, help="a loop description (LOOP.toml) replacing the model's")
     p.add_argument("-o", "--out", default="out/sigma_delta_orders")
     args = p.parse_args()
     orders = [int(o) for o in args.orders.split(",")]
