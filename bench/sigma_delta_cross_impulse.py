@@ -19,6 +19,10 @@ channel's bit times the others', the force table's cross terms), "own position x
 bit product), so their sum is the figure; the parts show which terms carry it. Also prints the
 MacroModel's own dF/dq per bit pattern at rest next to the regression's coefficient for the
 largest position terms (they agree: the regression measures the model's electrostatics).
+Last, the causal check: the numpy reference of the channel run with the measured error added to
+its feedback (the terms with the channel's bit as a relative change of its force g[n], the rest
+as a force h[n], the 8192-period sequences tiled 4x), its z-bit PSD per octave against the
+reference's own and the error's.
 Measured on the disk (docs/sigma-delta.md, "The disk's second floor").
 """
 
@@ -35,7 +39,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sigma_delta_orders import setup                                     # noqa: E402
 
-from netgen.testbench.sigma_delta import Tone, metrics, ngspice          # noqa: E402
+from scipy import linalg                                                  # noqa: E402
+
+from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, reference   # noqa: E402
 from netgen.testbench.sigma_delta.loop import selected                   # noqa: E402
 
 WINDOW = (0.47, 0.97)        # sense off .. reset off: only the feedback, springs and input act on the mass
@@ -82,7 +88,49 @@ def run(args) -> dict:
     res["coefficients"] = {lab: float(c / unit * (WINDOW[1] - WINDOW[0]) * d.ts if "x" in lab.split(" ")[0:1]
                                       else c / unit) for lab, c in zip(labels, coef)}
     res["model_dfdq"] = model_slopes(model, d, coords)
+    own = np.array([o != "reference" and name in lab.split(" ")[-1].split("*") for o, lab in zip(owner, labels)])
+    rest = np.array([o != "reference" for o in owner]) & ~own
+    g, h = m[:, own] @ coef[own] / unit * bits[name][:], m[:, rest] @ coef[rest] / unit
+    res["injected_octaves_db_per_hz"] = injected(model, d, mech, f_filter(d), g, h, args, tone_hz,
+                                                 (du - m @ coef) / unit + m[:, own | rest] @ coef[own | rest] / unit)
     return res
+
+
+def f_filter(d):
+    """The first channel's loop filter."""
+    return filters.Filter.from_dict(d.channels[0]["filter"])
+
+
+OCTAVES = [244.0, 488.0, 977.0, 1953.0, 3906.0, 7812.0]
+
+
+def octaves(v: np.ndarray, ts: float, tone_hz: float) -> list[float]:
+    """Median PSD per octave of OCTAVES (dB/Hz), the tone's bins left out, after the first eighth."""
+    f, p = metrics.spectrum(v[len(v) // 8:], ts, NPERSEG)
+    return [float(10 * np.log10(np.median(p[(f >= lo) & (f < hi) & (np.abs(f - tone_hz) > 400)])))
+            for lo, hi in zip(OCTAVES, OCTAVES[1:])]
+
+
+def injected(model, d, mech, flt, g: np.ndarray, h: np.ndarray, args, tone_hz: float, e: np.ndarray) -> dict:
+    """The reference loop (reference.simulate's equations) with the feedback v (1 + g[n]) + h[n],
+    the sequences tiled 4x; octave PSDs of its bits, of the reference's own and of the error."""
+    inp = reference.Input(filters.dc_acceleration(model, d, d.names[0]), args.tone_fs * mech.full_scale, tone_hz)
+    a, b = reference.augmented(mech, inp)
+    phi, gamma = filters.step_map(a, b, mech.ts, mech.sample, mech.pulse)
+    n = 4 * len(g)
+    gt, ht = np.tile(g, 4), np.tile(h, 4)
+
+    def loop(on: float) -> np.ndarray:
+        s = linalg.expm(a * mech.sample * mech.ts) @ np.array([0.0, 0.0, 1.0, 0.0, 1.0])
+        u, v = np.zeros(flt.states), np.empty(n)
+        for k in range(n):
+            x = mech.gain * s[0] + mech.offset
+            v[k] = 1.0 if float(flt.c @ u) + flt.d * (x - flt.x0) > 0 else -1.0
+            u = flt.a @ u + flt.bx * (x - flt.x0) + flt.bv * v[k]
+            s = phi @ s + gamma * (v[k] * (1 + on * gt[k]) + on * ht[k])
+        return v
+    return {"reference": octaves(loop(0.0), d.ts, tone_hz), "reference + error": octaves(loop(1.0), d.ts, tone_hz),
+            "error": octaves(np.tile(e, 4), d.ts, tone_hz)}
 
 
 def periods(t: np.ndarray, ts: float) -> np.ndarray:
@@ -191,6 +239,9 @@ def main() -> None:
     for c in res["channels"][1:]:
         s = res["model_dfdq"][f"d/d {c}"]
         print(f"  the model's d/d {c}:", {k: f"{v:+.3g}" for k, v in s.items() if abs(v) > 1e-3})
+    print("  octaves " + ", ".join(f"{lo:g}" for lo in OCTAVES) + " Hz (dB/Hz):")
+    for k, v in res["injected_octaves_db_per_hz"].items():
+        print(f"    {k:<18}" + " ".join(f"{x:7.1f}" for x in v))
 
 
 if __name__ == "__main__":
