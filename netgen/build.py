@@ -9,6 +9,8 @@ stage is a function of the previous stages' outputs.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import math
 import sys
 from dataclasses import dataclass
@@ -135,6 +137,21 @@ def plate_estimates(s: Structure, shapes: list[ShapeElectrode], plate: Plate) ->
     """eps A / g of each electrode at rest: the scale an imported capacitance table must be near."""
     eps = EPS0 * s.electrostatics.relative_permittivity
     return np.array([eps * overlap_area(e, plate) / e.gap for e in shapes])
+
+
+def build_key(s: Structure) -> str:
+    """SHA-256 of what a build of `s` depends on: the validated structure (every value the
+    pipeline reads; not the [loop] table, which the structure stage ignores), the content of the
+    data files it names ([import], electrostatics.couplings) and netgen's version. A cached model
+    with the same key is this build's output (netgen.testbench.sigma_delta.runner.model_for);
+    file modification times play no part."""
+    files = [getattr(s.imports, f) for f in ("mass_matrix", "stiffness_matrix", "modes", "capacitance")] \
+        if s.imports else []
+    files.append(s.electrostatics.couplings)
+    from . import __version__
+    doc = {"netgen": __version__, "structure": repr(s),
+           "files": {p: hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in files if p}}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
 def build_model(s: Structure, progress: bool = False) -> MacroModel:

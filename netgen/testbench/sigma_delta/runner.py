@@ -18,10 +18,10 @@ from typing import Callable
 
 import numpy as np
 
-from ...build import build_model
+from ...build import build_key, build_model
 from ...emit import write_outputs
 from ...errors import LoopError
-from ...folders import OutputFolder
+from ...folders import MANIFEST, OutputFolder, check_manifest
 from ...model import MacroModel
 from ...sim.ngspice import identity as ngspice_identity
 from ...sim.ngspice import version as ngspice_version
@@ -211,16 +211,27 @@ def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False
               noise: bool = False) -> tuple[MacroModel, Path]:
     """Build the structure's model into `folder` (rigid-body only: modes = 0; gas film at
     `pressure`, thermal noise sources with `noise`), or reuse the .json/.lib (and .va) there
-    when they are newer than the structure file."""
+    when the set there was built from the same content (netgen.build.build_key, kept in the
+    set's manifest): editing only the [loop] table, or touching the file, rebuilds nothing."""
     structure = with_damping(load_structure(structure_path), pressure, film, noise)
     if rigid_only:
         structure = replace(structure, coordinates=replace(structure.coordinates, modes=0))
     js, lib = folder / f"{structure.name}.json", folder / f"{structure.name}.lib"
-    fresh = js.exists() and lib.exists() and js.stat().st_mtime > Path(structure_path).stat().st_mtime
-    if fresh and not rebuild:
+    key = build_key(structure)
+    if not rebuild and cached_key(folder, structure.name) == key and js.exists() and lib.exists():
         return MacroModel.load_json(js), lib
     model = build_model(structure, progress=progress)
-    with OutputFolder(folder, model.name) as out:     # all or nothing, also against a concurrent run
+    with OutputFolder(folder, model.name, info={"build_key": key}) as out:   # all or nothing, also against a concurrent run
         write_outputs(model, out.stage, "all")        # .lib for ngspice, .va for the VACASK path
         out.commit()
     return model, lib
+
+
+def cached_key(folder: Path, name: str) -> str | None:
+    """The build key of the model set `name` in `folder` (its manifest's), or None when there
+    is none, it predates build keys, or a file of the set is missing or altered."""
+    try:
+        key = json.loads((folder / f"{name}{MANIFEST}").read_text(encoding="utf-8")).get("build_key")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return key if isinstance(key, str) and not check_manifest(folder, name) else None
