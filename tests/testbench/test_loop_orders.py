@@ -1,8 +1,7 @@
 """Higher-order loop filters from a [loop] table (kinds.FILTERS "cifb"/"crfb", designed inside
 loop.design from the channel's mechanics, filters.mechanics_of) on the z accelerometer
 (examples/accelerometer_z.toml): the mechanics the design sees against the parallel-plate
-formulas, the readout trim, the bad keys (exit 2 naming the file and the key), the back ends
-that cannot run a state-space filter, and a 4th-order loop in the compiled ngspice loop against
+formulas, the readout trim, the bad keys (exit 2 naming the file and the key), and a 4th-order loop in the compiled ngspice loop against
 the numpy reference loop bit for bit over its first periods. Long runs: bench/sigma_delta_orders.py."""
 
 from __future__ import annotations
@@ -119,18 +118,6 @@ def test_a_bad_filter_table_exits_2_naming_the_file_and_the_key(text, key, tmp_p
     assert code == 2, err
     assert "Traceback" not in err and str(bad) in err and key in err and "fix:" in err, err
     assert not out.exists() or not any(out.iterdir())
-
-
-@pytest.mark.parametrize("sim", ["ngspice", "ngspice-osdi"])
-def test_a_back_end_without_a_state_space_filter_refuses_it(sim, tmp_path, capsys):
-    """The behavioural ngspice loop and the OSDI loop exit 2 naming the kind and the back ends that run it."""
-    loop = tmp_path / "loop.toml"
-    loop.write_text(CIFB4, encoding="utf-8")
-    code = cli.main(["sigma-delta", str(EXAMPLE), "--loop", str(loop), "--simulator", sim, "--cycles", "64",
-                     "-o", str(tmp_path / "sd"), "-q"])
-    err = capsys.readouterr().err
-    assert code == 2 and "Traceback" not in err, err
-    assert "cifb" in err and "ngspice-xspice" in err and "vacask" in err, err
 
 
 CIRCUIT_PERIODS = 400

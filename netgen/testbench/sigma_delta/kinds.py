@@ -84,8 +84,8 @@ def design_designed(model, d, ch: dict, spec: dict) -> dict:
     return {**f.as_dict(), "x0": float(mech.offset)}
 
 
-STATE_SPACE_BACKENDS = ("ngspice-xspice", "vacask")
 ALL_BACKENDS = ("ngspice", "ngspice-xspice", "vacask", "ngspice-osdi")
+STATE_SPACE_BACKENDS = ALL_BACKENDS           # the behavioural and OSDI loops too (ngspice.analog_filters)
 # loop-filter kinds by name (a channel's Design entry `filter`): a new kind is its module and one line here
 FILTERS: dict[str, FilterKind] = {
     "lead2": FilterKind(read_lead2, 2, ALL_BACKENDS, "second-order electromechanical loop, lead compensator "

@@ -36,6 +36,11 @@ MIN_SEGMENT = 16
 # the testbench's sampler/quantizer/driver blocks: behavioural sources, the netgen_sdloop code model,
 # or the Verilog-A modules of blocks.va through OSDI (netgen.testbench.sigma_delta.osdi)
 LOOPS = ("analog", "xspice", "osdi")
+# the behavioural loop's state-space filters decide a tie y = 0 (the first period from rest, every
+# state 0 and d = 0) as bit 0, as the compiled loop and the numpy reference do (bit 1 only for
+# y > 0): y is offset by this many comparator widths, so the tanh comparator gives e^-10 there and
+# not the half-way level that fed back 0.94 of a bit (measured: the first state 6 % off)
+TIE = 5.0
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
@@ -48,14 +53,18 @@ def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0
             for port, dc, t in mechanical_inputs(model, d, tone)]
 
 
-def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1") -> list[str]:
+def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", analog: bool = False) -> list[str]:
     """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
     internal ones (position, velocity, film branches; read from the .lib, or those of the OSDI
     instance of an _osdi.lib, netgen.emit.osdi.state_node) and the testbench's
-    charge amplifiers, samples and latches. A segment restarted from them continues the run."""
+    charge amplifiers, samples, latches and filter states (with `analog`, the behavioural
+    loop's: also the filters' master nodes, analog_filters). A segment restarted from them
+    continues the run."""
     body = Path(lib).read_text().lower().split(f".subckt {model.name.lower()} ", 1)[1].split("\n.ends", 1)[0]
     bench = [f"{kind}_{c['name']}" for c in d.channels for kind in ("ca", "cur", "prev", "b")]
     bench += filters.state_nodes(d.channels)
+    if analog:
+        bench += [s["m"] for f in analog_filters(d).values() for s in f["states"]]
     if any(line.startswith("n1 ") for line in body.splitlines()):   # the _osdi.lib: the module's internal nodes
         return [osdi.state_node(s, instance) for s in osdi.states(model)] + bench
     ports = {p["name"].lower() for p in model.ports()}
@@ -80,9 +89,6 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)                      # names outside comments; the paths below through netlist_path
-    if loop != "xspice" and any(filters.channel_filters(d.channels)):
-        raise ValueError(f"the higher-order loop filters run in the compiled loop only (--simulator ngspice-xspice), "
-                         f"not in the {loop!r} loop")
     if loop != "xspice" and d.t.fb_ramp == 0:
         raise ValueError(f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
                          f"not in the {loop!r} loop")
@@ -101,7 +107,51 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d), start=start, ic=ic,
                   control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu,
-                  inputs=input_text(model, d), drivers=drivers(d) if loop == "osdi" else [])
+                  inputs=input_text(model, d), drivers=drivers(d) if loop == "osdi" else [],
+                  statefilters=(filters.statefilter_params(d.channels, d) if loop == "osdi"
+                                else analog_filters(d) if loop == "analog" else {}),
+                  windows=filter_windows(d), tie=TIE * d.vcmp)
+
+
+def filter_windows(d: Design) -> dict[str, tuple[float, float]]:
+    """The behavioural loop's state-space filter clocks (period phases): the master window from
+    one edge after the latch window to the middle of the rest of the period, the slave window from
+    one edge after it to one edge before the period ends. The master computes the next state from
+    the held sample, bit and state; the slave copies it, so the state the latch sees changes once
+    per period, after the latch and before the next one (the compiled loop's update)."""
+    t = d.t
+    on, off = t.clk + t.sample + t.edge, 1.0 - t.edge
+    mid = 0.5 * (on + off)
+    return {"master": (on, mid - t.edge / 2), "slave": (mid + t.edge / 2, off)}
+
+
+def analog_filters(d: Design) -> dict[str, dict]:
+    """Per channel with a designed (state-space) filter, the behavioural loop's sources
+    (templates/sigma_delta/tb.cir.j2): for each state j a master node m<j>_<ch> that tracks
+    A u + bx (cur - x0) + bv (2 bit - 1) through the sampling switch onto C_s in the master
+    window, and the state node u<j>_<ch> (filters.state_nodes) that tracks it in the slave
+    window; y = c . u + d (cur - x0) - TIE vcmp. The coefficients are the design's numbers (repr).
+    The switches are the samplers' (Design.g_switch, time constant 0.012 T_s): each update lands
+    within 0.1-0.7 % of the largest update (trapezoidal steps of up to tmax settle geometrically,
+    not as e^-t/tau); time constants of 0.025 and 0.05 T_s gave 0.3-1.1 %, 0.1 T_s 17 % (the
+    z accelerometer's cifb order 4, 100 periods, reltol 1e-3 and 1e-4)."""
+    out = {}
+    for ch, f in zip(d.channels, filters.channel_filters(d.channels)):
+        if f is None:
+            continue
+        name, k = ch["name"], f.states
+        u = [f"u{j}_{name}" for j in range(k)]
+        x = f"(v(cur_{name})-{f.x0!r})"
+        v = f"(2*v({ch['bit_node']})-1)"
+
+        def terms(row, extra):
+            return " + ".join([f"{float(a)!r}*v({n})" for a, n in zip(row, u) if a] + extra) or "0"
+        states = [{"m": f"m{j}_{name}", "u": u[j],
+                   "next": terms(f.a[j], [f"{float(f.bx[j])!r}*{x}", f"{float(f.bv[j])!r}*{v}"])} for j in range(k)]
+        tie = [f"{-TIE * d.vcmp!r}"]
+        out[name] = {"kind": f.kind, "order": f.order, "states": states,
+                     "y": terms(f.c, ([f"{float(f.d)!r}*{x}"] if f.d else []) + tie)}
+    return out
 
 
 def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
@@ -243,7 +293,7 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     currents ring after every ramp, the readout integrates the ringing and the plate falls;
     restarting at the first missed corner never runs on a broken chain."""
     length = segment_periods(d.ts, segment, cycles)
-    states = state_nodes(lib, model, d) if length < cycles else []
+    states = state_nodes(lib, model, d, analog=loop == "analog") if length < cycles else []
     parts, accepted_misses, cuts, runs = [], [], [], 0
     n0, ic, wall0 = 0, None, time.perf_counter()
     while n0 < cycles:
