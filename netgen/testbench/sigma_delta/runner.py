@@ -154,8 +154,9 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     tone = tone or loop.input.tone
     d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **choices)
     check_backend(d, loop, simulator)
-    if len(d.channels) > 4 and simulator in ("vacask", "ngspice-osdi"):
-        raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most 4",
+    if len(d.channels) > vacask.MAX_CHANNELS and simulator in ("vacask", "ngspice-osdi"):
+        raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most "
+                        f"{vacask.MAX_CHANNELS}",
                         "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice")
     state = backend.prepare(model, lib, out, progress)      # fails before any output
     state["timeout"] = timeout                               # the wall-clock limit of each simulator run

@@ -92,13 +92,16 @@ def merge_options(*texts: str) -> str:
 
 # the general electrode driver of blocks.va: up to this many channels per electrode
 DRIVER_SLOTS = 4
+WIDE_SLOTS = 6              # sd_driver6 (model drv6): an electrode that serves five or six channels
+MAX_CHANNELS = WIDE_SLOTS
 
 
 def drivers(d: Design) -> list[dict]:
     """Per electrode its blocks.va driver instance: nodes, model and parameters. An electrode
     fed back and read by exactly two channels with +-1 (the disk's z and one tilt) is sd_driver
     (model drv: side and sign select the bits and weight the two amplifiers); any other is
-    sd_driver4 (model drvn: feedback entries s1..s4, sense weights w1..w4, unused slots on 0)."""
+    sd_driver4 (model drvn: feedback entries s1..s4, sense weights w1..w4, unused slots on 0),
+    or sd_driver6 (model drv6, the same with six slots) when it serves five or six channels."""
     out = []
     for e in d.electrodes:
         used = [k for k, c in enumerate(d.channels) if e["w"][k] or e["sel"][k]]
@@ -108,14 +111,15 @@ def drivers(d: Design) -> list[dict]:
                         "nodes": [e["name"], "phs", "phf", "rst", f"b_{a}", f"b_{b}", f"ca_{a}", f"ca_{b}"],
                         "params": f"vs={d.vs} vfb={d.vfb} side={e['sel'][used[0]]} sign={e['sel'][used[1]]}"})
             continue
-        if len(used) > DRIVER_SLOTS:
+        if len(used) > WIDE_SLOTS:
             raise ValueError(f"electrode {e['name']} serves {len(used)} channels; the Verilog-A driver takes at "
-                             f"most {DRIVER_SLOTS}")
-        slots = used + [None] * (DRIVER_SLOTS - len(used))
+                             f"most {WIDE_SLOTS}")
+        width = DRIVER_SLOTS if len(used) <= DRIVER_SLOTS else WIDE_SLOTS
+        slots = used + [None] * (width - len(used))
         names = [d.channels[k]["name"] if k is not None else None for k in slots]
         params = [f"vs={d.vs} vfb={d.vfb}"] + [f"s{j + 1}={e['sel'][k]} w{j + 1}={e['w'][k]}"
                                                 for j, k in enumerate(slots) if k is not None]
-        out.append({"name": e["name"], "model": "drvn",
+        out.append({"name": e["name"], "model": "drvn" if width == DRIVER_SLOTS else "drv6",
                     "nodes": [e["name"], "phs", "phf", "rst"] + [f"b_{n}" if n else "0" for n in names]
                     + [f"ca_{n}" if n else "0" for n in names], "params": " ".join(params)})
     return out
