@@ -74,7 +74,7 @@ def test_the_six_slot_driver_follows_its_formula_in_ngspice_through_osdi(tmp_pat
     for k in range(6):
         got = np.asarray(plot[f"i(vc{k + 1})"])[mid]
         np.testing.assert_allclose(np.abs(got), abs(W[k]) * current, rtol=1e-3, atol=1e-12)
-        assert on is False or np.all(np.sign(got) == np.sign(W[k]) * np.sign(plot[f"i(vc1)"][mid][0]))
+        assert on is False or np.all(np.sign(got) == np.sign(W[k]) * np.sign(plot["i(vc1)"][mid][0]))
     if on:
         np.testing.assert_allclose(plot["v(el4)"][-1], plot["v(el6)"][-1], rtol=1e-9)
         for k in range(4):
