@@ -191,15 +191,16 @@ def did_you_mean(value: str, choices: list[str]) -> str:
 
 def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None) -> list[dict]:
     """Per electrode: sense weights `w` and feedback pattern `sel`, one entry per channel. Derived
-    from the signs of dC_i/dq at rest: the first channel reads every electrode with the sign of
-    its dC/dq (the disk's z: top +1, bottom -1); each further channel reads the electrodes whose
-    scaled |dC/dq| is largest for it among the further channels (the disk's tilts: the sign of
+    from the signs of dC_i/dq at rest (sensing_gradient: round-off counts as 0): the first channel
+    reads every electrode with the sign of its dC/dq (the disk's z: top +1, bottom -1); each
+    further channel reads the electrodes whose scaled |dC/dq| is largest for it among the further
+    channels (the disk's tilts: the sign of
     dC/dtilt of the electrodes that sense that tilt). The feedback pattern is the sign pattern:
     an electrode is energised when every channel's bit equals its weight there. A channel of
     the loop description with explicit `sense` / `feedback` replaces its column."""
     names = names or channel_names(model, spec or LoopSpec())
     idx = [coord_index(model, n) for n in names]
-    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+    grad = sensing_gradient(model)
     out = []
     for k, e in enumerate(model.electrodes):
         w = [int(np.sign(grad[k, idx[0]]))] + [0] * (len(idx) - 1)
@@ -210,6 +211,19 @@ def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | N
     for j, ch in enumerate((spec.channels or ()) if spec else ()):
         explicit(model, spec, ch, j, out)
     return out
+
+
+# |dC_i/dq| below this fraction of the largest on coordinate q is round-off (the xyz proof mass's z
+# plates in x: 1e-15), not sensing: groups() gives such an electrode weight 0 for q, not a sign
+ROUNDOFF = 1e-6
+
+
+def sensing_gradient(model: MacroModel) -> np.ndarray:
+    """dC_i/dq at rest per touch amplitude (electrodes x coordinates), with the entries below
+    ROUNDOFF of their coordinate's largest set to 0: the signs groups() derives the weights from."""
+    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+    big = np.abs(grad).max(axis=0, initial=0.0)
+    return np.where(np.abs(grad) <= ROUNDOFF * big[None, :], 0.0, grad)
 
 
 def explicit(model: MacroModel, spec: LoopSpec, ch, j: int, out: list[dict]) -> None:
