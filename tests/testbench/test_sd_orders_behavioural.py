@@ -42,10 +42,11 @@ def model(tmp_path_factory):
 
 
 def loop_design(model, tmp_path: Path, kind: str, order: int):
-    """The Design of the accelerometer with a [loop] table of this filter kind and order, at RELTOL."""
+    """The Design of the accelerometer with a [loop] table of this filter kind and order, at RELTOL,
+    with the feedback ramps these back ends render (step=False, as runner.run designs for them)."""
     p = tmp_path / "loop.toml"
     p.write_text(LOOP.format(kind=kind, order=order), encoding="utf-8")
-    return sd.design(model, TS, spec=loopfile.read_loop_file(p), reltol=RELTOL), p
+    return sd.design(model, TS, spec=loopfile.read_loop_file(p), reltol=RELTOL, step=False), p
 
 
 def first_difference(a: np.ndarray, b: np.ndarray) -> int:
@@ -95,7 +96,7 @@ def test_the_behavioural_loop_restarts_the_filter_states_across_segments(tmp_pat
     s = json.loads((out / "summary.json").read_text())
     assert s["segments"]["ngspice_runs"] == 6 and {"u0_z", "u1_z", "m0_z", "m1_z"} <= set(s["segments"]["state_nodes"])
     m = sd.model_for(EXAMPLE, out / "model", progress=False)[0]
-    d = sd.design(m, TS, spec=loopfile.read_loop_file(p))
+    d = sd.design(m, TS, spec=loopfile.read_loop_file(p), step=False)
     ref = reference.simulate(filters.mechanics_of(m, d, "z"), filters.Filter.from_dict(d.channels[0]["filter"]), 120,
                              reference.Input(filters.dc_acceleration(m, d, "z")))
     assert first_difference(np.load(out / "bitstreams.npz")["bits_z"], ref["v"]) >= MATCH
