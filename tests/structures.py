@@ -45,3 +45,23 @@ def one_plate_disk(name: str, description: str) -> str:
     hold. The test adds its own [sampling] and [fit] tables."""
     return (disk(name, description, "300 um") + ring_electrode("bot", "below", "3 um", [("0 um", "300 um")])
             + table("[coordinates]", {"rigid": ["z", "tilt_x", "tilt_y"]}) + table("[electrostatics]", {"fringe": "none"}))
+
+
+# a 200 um square silicon piston over one electrode of its size, 2 um below, on z and both tilts;
+# the tests add their own [sampling], [fit] and [electrostatics] tables
+PISTON_3 = """
+name = "piston3"
+[conductor]
+kind = "piston"
+length = "200 um"
+thickness = "2 um"
+density = "2330 kg/m^3"
+stiffness = 2.0
+tilt_stiffness = 1e-7
+[[electrodes]]
+name = "drive"
+side = "below"
+gap = "2 um"
+[coordinates]
+rigid = ["z", "tilt_x", "tilt_y"]
+"""

@@ -13,6 +13,7 @@ from netgen.build import build
 from netgen.electrostatics.sampling import CORNER_REACH, box_range, corner_closure
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.structures import PISTON_3
 
 MODES = 7
 
@@ -50,22 +51,7 @@ def test_a_given_range_is_kept(narrowed):
     assert b.model.sampling["range"] == 0.2 and "range_narrowed_from" not in b.model.sampling
 
 
-PISTON = """
-name = "piston3"
-[conductor]
-kind = "piston"
-length = "200 um"
-thickness = "2 um"
-density = "2330 kg/m^3"
-stiffness = 2.0
-tilt_stiffness = 1e-7
-[[electrodes]]
-name = "drive"
-side = "below"
-gap = "2 um"
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
+PISTON = PISTON_3 + """[sampling]
 levels = 3
 [electrostatics]
 fringe = "none"

@@ -14,24 +14,10 @@ from netgen.electrostatics.sampling import Samples, design_points
 from netgen.fit.adaptive import SAFETY, adaptive_fits
 from netgen.fit.capacitance import fit_all
 from netgen.structure import parse_structure
+from tests.structures import PISTON_3
 
 SIDE, GAP = 200e-6, 2e-6
-PISTON = """
-name = "piston3"
-[conductor]
-kind = "piston"
-length = "200 um"
-thickness = "2 um"
-density = "2330 kg/m^3"
-stiffness = 2.0
-tilt_stiffness = 1e-7
-[[electrodes]]
-name = "drive"
-side = "below"
-gap = "2 um"
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
+PISTON = PISTON_3 + """[sampling]
 {sampling}
 range = 0.3
 [fit]
