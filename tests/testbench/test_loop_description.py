@@ -110,6 +110,11 @@ BAD = [
     ("[loop.input]\nforce = { coordinate = \"z\", amplitude = 0.1 }", "loop.input.force.frequency"),
     ("[loop.input]\nforce = { coordinate = \"z\", dc = 0.1 }\nacceleration = 1", "loop.input.force"),
     ("[loop.input]\nforce = { coordinate = \"z\", dc = 1e6 }", "loop.input"),
+    ("[loop.input]\nforce = []", "loop.input.force"),
+    ("[loop.input]\nforce = [1]", "loop.input.force[0]"),
+    ("[loop.input]\nforce = [{ coordinate = \"z\", dc = 0.1 }, { coordinate = \"z\", dc = 0.2 }]", "loop.input.force[1].coordinate"),
+    ("[loop.input]\nforce = [{ coordinate = \"z\", dc = 0.1 }, { coordinate = \"q\", dc = 0.1 }]", "loop.input.force.coordinate"),
+    ("[loop.input]\nforce = [{ coordinate = \"z\", dc = 0.1 }, { dc = 0.1 }]", "loop.input.force[1].coordinate"),
     ("[loop.input]\nwind = 1", "loop.input.wind"),
     ("[loop]\ninput = 9.81", "loop.input"),
     ("[loop.channels.z]\nsense = { top = 1, middle = -1 }", "loop.channels.z.sense.middle"),
@@ -160,3 +165,19 @@ def test_a_loop_file_parses_into_its_spec(tmp_path):
     assert spec.density == 0.4 and spec.sense_ratio is None and spec.filter == {"kind": "lead2", "lead": 0.75}
     assert spec.timing == {"cur": 0.27} and spec.input.dc == {"a_in": pytest.approx(0.5 * 9.81)}
     assert (spec.input.tone.coord, spec.input.tone.amplitude, spec.input.tone.freq) == ("a_in", 2.0, 1000.0)
+
+
+def test_a_force_list_gives_each_coordinate_its_dc_and_one_tone(tmp_path):
+    """force = [...]: one DC force per coordinate in its port unit (gravity's weight on z beside a
+    small torque on a tilt), the tone on the one that has it; two tones are refused."""
+    p = tmp_path / "loop.toml"
+    p.write_text('[loop.input]\nforce = [{ coordinate = "z", dc = -0.16 }, '
+                 '{ coordinate = "tilt_x", dc = 1e-4, amplitude = 2e-3, frequency = "2 kHz" }]\n')
+    spec = loopfile.read_loop_file(p)
+    assert spec.input.dc == {"f_z": -0.16, "f_tilt_x": 1e-4} and not spec.input.default
+    assert (spec.input.tone.coord, spec.input.tone.amplitude, spec.input.tone.freq) == ("tilt_x", 2e-3, 2000.0)
+    p.write_text('[loop.input]\nforce = [{ coordinate = "z", amplitude = 1, frequency = 1e3 }, '
+                 '{ coordinate = "tilt_x", amplitude = 1, frequency = 2e3 }]\n')
+    with pytest.raises(Exception) as err:
+        loopfile.read_loop_file(p)
+    assert "loop.input.force" in str(err.value) and "one" in str(err.value)

@@ -21,6 +21,8 @@ feedback can balance the input are checked against the model in loop.design().
     tone = { amplitude = "2 m/s^2", frequency = "1 kHz" }            # on a_in
     # or a generalized force on a coordinate, in its f_ port unit (uN, nN*m):
     # force = { coordinate = "z", dc = 0.0, amplitude = 0.02, frequency = "2 kHz" }
+    # or several, one per coordinate, at most one with a tone:
+    # force = [{ coordinate = "z", dc = -0.16 }, { coordinate = "tilt_x", dc = 4e-6 }]
     [loop.channels.z]                # per channel (optional): explicit electrodes, filter
     sense = { top = 1, bottom = -1 }      # readout weight per electrode
     feedback = { top = 1, bottom = -1 }   # +1: energised when the bit is 1, -1: when it is 0
@@ -289,13 +291,38 @@ def read_input(rd: Reader, t: dict) -> InputSpec:
                                      "> 0 and <= 1e7 m/s^2", required=True),
                     quantity(rd, tt, "loop.input.tone", "frequency", "frequency", 0.0, 1e12, "> 0", required=True))
     if "force" in table:
-        dc, tone = read_force(rd, subtable(rd, table, "loop.input", "force"))
+        dc, tone = read_forces(rd, table["force"])
     return InputSpec(dc, tone, default=False)
 
 
-def read_force(rd: Reader, t: dict) -> tuple[dict[str, float], object]:
+def read_forces(rd: Reader, value: object) -> tuple[dict[str, float], object]:
+    """force = {...}, or a list of them on different coordinates (e.g. gravity's -m g on z and a
+    small DC torque on a tilt); at most one of them carries a tone."""
+    if not isinstance(value, list):
+        return read_force(rd, subtable(rd, {"force": value}, "loop.input", "force"))
+    if not value:
+        raise rd.fail("loop.input.force", "the force list is empty", 'give force = { coordinate = "z", dc = 0.1 } '
+                      "or drop the key")
+    dc, tones = {}, []
+    for i, item in enumerate(value):
+        where = f"loop.input.force[{i}]"
+        if not isinstance(item, dict):
+            raise rd.fail(where, f"each force must be a table, got {type(item).__name__}",
+                          'write force = [{ coordinate = "z", dc = 0.1 }, { coordinate = "tilt_x", dc = 1e-4 }]')
+        one, tone = read_force(rd, item, where)
+        if set(one) & set(dc) or (tone is not None and any(t.coord == tone.coord for t in tones)):
+            raise rd.fail(f"{where}.coordinate", f"a second force on {escape(str(item.get('coordinate')))}",
+                          "give each coordinate one force table")
+        dc.update(one)
+        tones += [tone] if tone is not None else []
+    if len(tones) > 1:
+        raise rd.fail("loop.input.force", f"{len(tones)} forces carry a tone; the loop takes one",
+                      "keep amplitude and frequency on one force and give the others dc only")
+    return dc, (tones[0] if tones else None)
+
+
+def read_force(rd: Reader, t: dict, where: str = "loop.input.force") -> tuple[dict[str, float], object]:
     """force = {coordinate, dc, amplitude, frequency}: numbers in the coordinate's f_ port unit."""
-    where = "loop.input.force"
     check_keys(rd, where, t, ["coordinate", "dc", "amplitude", "frequency"])
     if "coordinate" not in t:
         raise rd.fail(f"{where}.coordinate", "missing required key 'coordinate'", 'add coordinate = "z"')
