@@ -36,6 +36,12 @@ def ring_electrode(name: str, side: str, gap: str, rings: list[tuple[str, str]],
                                     "sectors": sectors} | more)
 
 
+def plate_electrode(name: str, side: str, gap: str, x: tuple[str, str], y: tuple[str, str]) -> str:
+    """One rectangular `kind = "plate"` [[electrodes]] entry over x = [x0, x1], y = [y0, y1]."""
+    return table("[[electrodes]]", {"name": name, "kind": "plate", "side": side, "gap": gap, "x": list(x),
+                                    "y": list(y)})
+
+
 ONE_PLATE_RADIUS, ONE_PLATE_GAP = 300e-6, 3e-6         # m: the disk of one_plate_disk and its gap
 
 

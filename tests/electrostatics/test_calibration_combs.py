@@ -27,18 +27,13 @@ from netgen.mechanics import mechanics
 from netgen.model import MacroModel
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.structures import plate_electrode
 
 EXAMPLE = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
 CONDUCTOR = EXAMPLE[:EXAMPLE.index("# x: fingers")]                 # the proof mass on its crab legs
 COMBS = EXAMPLE[EXAMPLE.index("[[electrodes]]\nname = \"xp_t\""):EXAMPLE.index("[[electrodes]]\nname = \"xp_b\"")]
-PLATES = "".join(f'''[[electrodes]]
-name = "{name}"
-kind = "plate"
-side = "below"
-gap = "2 um"
-x = ["{x0} um", "{x1} um"]
-y = ["-150 um", "150 um"]
-''' for name, x0, x1 in (("zl", -150, -5), ("zr", 5, 150)))
+PLATES = "".join(plate_electrode(name, "below", "2 um", (f"{x0} um", f"{x1} um"), ("-150 um", "150 um"))
+                 for name, x0, x1 in (("zl", -150, -5), ("zr", 5, 150)))
 TEXT = CONDUCTOR + COMBS + PLATES + '''[coordinates]
 rigid = ["x", "z", "tilt_y"]
 [sampling]

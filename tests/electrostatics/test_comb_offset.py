@@ -19,6 +19,7 @@ from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE, Bench, using_ngspice
+from tests.structures import plate_electrode
 
 UM = 1e-6
 N, L, K, V, A = 20, 30 * UM, 2.0, 10.0, 1000.0       # fingers, overlap, N/m each axis, comb volts, m/s^2
@@ -52,14 +53,7 @@ k_x = {K}
 k_y = {K}
 k_z = {K}
 k_rot = 1e-6
-[[electrodes]]
-name = "zs"
-kind = "plate"
-side = "below"
-gap = "2 um"
-x = ["-50 um", "50 um"]
-y = ["-50 um", "50 um"]
-[coordinates]
+""" + plate_electrode("zs", "below", "2 um", ("-50 um", "50 um"), ("-50 um", "50 um")) + f"""[coordinates]
 rigid = ["x", "z"]
 acceleration_port = true
 [sampling]

@@ -19,6 +19,7 @@ from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics.rect_plate import EffectivePlate, rect_plate_modes
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT
+from tests.structures import plate_electrode
 from tests.mechanics.test_proof_mass import ring_down
 
 # lambda^2 = omega a^2 sqrt(rho h / D) of the square plate, nu = 0.3
@@ -101,14 +102,7 @@ poisson_ratio = 0.3
 [conductor.flexure]
 type = "given"
 k_z = 1.0
-[[electrodes]]
-name = "corner"
-kind = "plate"
-side = "below"
-gap = "2 um"
-x = ["20 um", "90 um"]
-y = ["20 um", "90 um"]
-[coordinates]
+""" + plate_electrode("corner", "below", "2 um", ("20 um", "90 um"), ("20 um", "90 um")) + """[coordinates]
 rigid = ["z"]
 modes = 2
 acceleration_port = true
