@@ -53,7 +53,7 @@ k_x = {K}
 k_y = {K}
 k_z = {K}
 k_rot = 1e-6
-""" + plate_electrode("zs", "below", "2 um", ("-50 um", "50 um"), ("-50 um", "50 um")) + f"""[coordinates]
+""" + plate_electrode("zs", "below", "2 um", ("-50 um", "50 um"), ("-50 um", "50 um")) + """[coordinates]
 rigid = ["x", "z"]
 acceleration_port = true
 [sampling]
