@@ -365,13 +365,6 @@ class BemExtractor:
         return prepared.maxwell(np.zeros(1)).coupling
 
 
-def maxwell_matrix(electrodes: Sequence[Electrode], plate: Plate, basis: Basis, q: ArrayLike, eps: float = EPS0,
-                   thickness: float = 0.0, settings: BemSettings | None = None) -> MaxwellMatrix:
-    """The Maxwell matrix of plate and electrodes at generalized coordinates q (one call)."""
-    ext = BemExtractor(eps, thickness, settings or BemSettings())
-    return ext.prepare(electrodes, plate, basis).maxwell(q)
-
-
 def settings_of(s) -> BemSettings:
     """BemSettings from the structure's [electrostatics.bem] table (netgen.structure.bem_table:
     types and ranges checked there), with the limits of the quadrature rules checked here: a

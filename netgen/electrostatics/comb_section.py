@@ -268,12 +268,6 @@ def substrate_section(gap: ArrayLike, offset: ArrayLike, cell) -> Array:
     return table(cell, "substrate").ev(gap, offset)
 
 
-def substrate_gradient(gap: ArrayLike, offset: ArrayLike, cell) -> Array:
-    """d substrate_section / d gap and / d offset, on a last axis of length 2."""
-    t = table(cell, "substrate")
-    return np.stack([t.ev(gap, offset, dgap=1), t.ev(gap, offset, doff=1)], axis=-1)
-
-
 def tip(gap: ArrayLike, offset: ArrayLike, cell) -> Array:
     """C (F) of one finger end: the tip facing the opposite base across the end gap `gap`, from
     the end cross-section's C' per unit width times the finger width."""
