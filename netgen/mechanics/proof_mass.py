@@ -20,7 +20,7 @@ from ..structure import Structure, mode_name
 from . import flexures
 from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, rigid_field
 from .plates import PLATE_MODES
-from .rect_plate import ELEMENTS, EffectivePlate
+from .rect_plate import ELEMENTS, conductor_plate
 
 
 def second_moments(c) -> tuple[float, float]:
@@ -119,7 +119,7 @@ def flexure_springs(c, modes, rigid: list[str]) -> tuple[np.ndarray, float] | No
 
 def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
     """What the internal modes are and how far to trust them."""
-    eff = EffectivePlate.of_holes(c.hole, c.hole_pitch)
+    eff = conductor_plate(c)
     flex = (f"none: no attachment points (flexure type {c.flexure.type})" if springs is None else
             {"stiffness_added_rel": [float(v) for v in springs[0] / modes.modal_stiffness],
              "coupling_to_z_and_tilts_max": springs[1],

@@ -23,7 +23,7 @@ Conventions
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from dataclasses import field as dataclass_field
 
 import numpy as np
@@ -265,8 +265,15 @@ def _offdiag(matrix: np.ndarray) -> float:
 ELEMENTS = 24               # BFS elements along the length of a proof mass (the first 12 free modes to ~1e-5)
 
 
+def conductor_plate(c) -> EffectivePlate:
+    """A proof mass's effective plate: the density factor is its actual solid fraction
+    (ProofMass.fill_factor, which its rigid mass and participation use too, also when the hole grid
+    does not fill whole pitches), the stiffness factor the hole grid's series strips."""
+    return replace(EffectivePlate.of_holes(c.hole, c.hole_pitch), density_factor=c.fill_factor)
+
+
 def conductor_modes(c, count: int) -> RectPlateModes:
     """The first `count` internal modes of a proof mass (free edges, etch holes as the effective
     plate of the module docstring)."""
     return rect_plate_modes(c.length, c.width, c.thickness, c.youngs_modulus, c.poisson_ratio, c.density, count,
-                            ELEMENTS, "free", EffectivePlate.of_holes(c.hole, c.hole_pitch))
+                            ELEMENTS, "free", conductor_plate(c))
