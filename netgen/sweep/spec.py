@@ -49,7 +49,7 @@ import numpy as np
 from ..errors import SweepError
 from ..files import toml_document
 from ..structure.reader import Reader, did_you_mean
-from ..testbench.sigma_delta import RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
+from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
 from ..text import text_problem
 from ..units import UNITS, UnitError, parse_quantity
 
@@ -57,7 +57,6 @@ METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_d
            "slope_db_per_decade")
 # result columns: <channel>.<metric> for any channel of the loop (the disk's z, tilt_x, tilt_y are
 # listed; figure_ok accepts every coordinate name) and the run's own figures
-CHANNELS = ("z", "tilt_x", "tilt_y")
 RUN_FIGURES = ("gravity_balance.ratio", "wall_s")
 FIGURES = tuple(f"{c}.{m}" for c in CHANNELS for m in METRICS) + RUN_FIGURES
 
