@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from ...errors import LoopError
-from ...files import did_you_mean, read_text, toml_document
+from ...files import read_text, toml_document
 from ...structure.reader import Reader, check_keys, choice
 from ...text import escape, is_identifier, text_problem
 from ...units import UnitError, parse_quantity
@@ -336,8 +336,3 @@ def read_force(rd: Reader, t: dict, where: str = "loop.input.force") -> tuple[di
         raise rd.fail(f"{where}.amplitude", "a frequency needs an amplitude", "add amplitude = 0.02 (f_ port unit)")
     tone = Tone(coord, amp, freq) if amp is not None else None
     return ({f"f_{coord}": dc} if dc is not None else {}), tone
-
-
-def did_you_mean_name(value: str, names: list[str]) -> str:
-    """'did you mean ...? ' for a name against the model's names."""
-    return did_you_mean(value, names)

@@ -59,11 +59,6 @@ def evaluate(ntf: signal.ZerosPolesGain, z: complex | np.ndarray) -> np.ndarray:
     return ntf.gain * num / den
 
 
-def max_gain(ntf: signal.ZerosPolesGain, points: int = 8192) -> float:
-    """||NTF||_inf on the unit circle (dense grid)."""
-    return float(np.max(np.abs(evaluate(ntf, np.exp(1j * np.linspace(0, np.pi, points))))))
-
-
 def flat_poles(order: int, x: float) -> np.ndarray:
     """Schreier's maximally flat lowpass pole set for the parameter x (> 0): the roots p of
     (p + 1/p)/2 = 1 - x^(2/order) e^{i w_k} / 2, w_k = (2k - 1) pi / order, inside the circle."""
