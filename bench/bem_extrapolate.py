@@ -168,35 +168,37 @@ def coupling_table(cpl: dict, results: list[dict]) -> list[str]:
 
 
 def cost(results: list[dict], memory_gb: float, seconds: float) -> list[str]:
-    """Elements, seconds and memory of the finest level against g/R (power laws through the runs),
-    and the smallest g/R whose solve (both levels) fits memory_gb (10 bytes per matrix entry,
-    netgen.electrostatics.bem.BYTES_PER_ENTRY, measured 10.1 at 16k elements, 8.9 at 24.6k) and `seconds`."""
+    """Elements (counted on the meshes: bem_reference_disk.elements), seconds (a power law in N
+    through the measured solves) and memory (netgen.electrostatics.bem.BYTES_PER_ENTRY per matrix
+    entry of the finest level; measured 8.9-10.1) against g/R, and the smallest g/R whose solve
+    (both levels) fits memory_gb and `seconds`."""
+    import bem_reference_disk as ref                # the script beside this one
+    from netgen.electrostatics.bem import BYTES_PER_ENTRY
     rows = []
     for r in results:                    # a derivative solve where there is one (the first solve pays the JIT)
         solves = sorted(r.get("all_solves", []), key=lambda s: s["what"] == "q=0")
         if solves:
             lv = solves[0]["levels"]
-            rows.append((r["g_over_R"], lv[-1]["elements"], lv[0]["elements"],
-                         sum(v["assembly_s"] + v["solve_s"] for v in lv)))
+            rows.append((r["g_over_R"], lv[-1]["elements"], sum(v["assembly_s"] + v["solve_s"] for v in lv)))
     if len(rows) < 2:
         return ["cost: needs the derivative solves of two gaps (their first solve pays the JIT)"]
-    g, n_fine, n_coarse, t = map(np.array, zip(*rows))
-    pn = np.polyfit(np.log(g), np.log(n_fine), 1)
+    g, n_fine, t = map(np.array, zip(*rows))
     pt = np.polyfit(np.log(n_fine), np.log(t), 1)
-    lines = [f"cost: finest-level elements ~ (g/R)^{pn[0]:.2f}, solve time (both levels) ~ N^{pt[0]:.2f} "
+    lines = [f"cost: solve time (both levels) ~ N^{pt[0]:.2f} over the finest level's N "
              f"(from {len(rows)} solves: " + ", ".join(f"{gi:g}: {ni} el {ti:.0f} s" for gi, ni, ti in zip(g, n_fine, t)) + ")"]
-    grid = np.exp(np.linspace(np.log(0.002), np.log(0.1), 400))
-    n = np.exp(np.polyval(pn, np.log(grid)))
-    mem = 10.0 * n ** 2 / 1e9
-    tt = np.exp(np.polyval(pt, np.log(n)))
-    ok = (mem <= memory_gb) & (tt <= seconds)
-    best = grid[ok].min() if ok.any() else None
-    lines.append(f"  smallest g/R within {memory_gb:g} GB and {seconds:g} s per solve: "
-                 + (f"{best:.4f} ({np.interp(best, grid, n):.0f} elements, {np.interp(best, grid, mem):.1f} GB, "
-                    f"{np.interp(best, grid, tt):.0f} s)" if best else "none"))
-    for x in (0.015, 0.0125, 0.01, TARGET):
-        k = int(np.argmin(np.abs(grid - x)))
-        lines.append(f"  g/R = {x:.4f}: {n[k]:.0f} elements, {mem[k]:.1f} GB, {tt[k]:.0f} s per solve on this machine's share")
+    settings = ref.settings_for()
+    grid = sorted({0.015, 0.0125, 0.012, 0.0115, 0.011, 0.0105, 0.01, 0.009, TARGET})
+    fits = []
+    for x in reversed(grid):
+        n = ref.elements(x, settings)[-1]
+        mem, tt = BYTES_PER_ENTRY * n * n / 1e9, float(np.exp(np.polyval(pt, np.log(n))))
+        ok = mem <= memory_gb and tt <= seconds
+        fits.append((x, ok))
+        lines.append(f"  g/R = {x:.4f}: {n} elements (finest level), {mem:.1f} GB, {tt:.0f} s per solve on this "
+                     f"machine's share{'' if ok else '  (over the budget)'}")
+    best = min((x for x, ok in fits if ok), default=None)
+    lines.insert(1, f"  smallest g/R within {memory_gb:g} GB and {seconds:g} s per solve: "
+                    + (f"{best:.4f}" if best else "none of " + ", ".join(f"{x:.4f}" for x in grid)))
     return lines
 
 
