@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.linalg import lu_factor, lu_solve
+from scipy.linalg import cholesky, lu_factor, lu_solve, solve_triangular
 
 from ..constants import EPS0
 from ..errors import SimulationError, SimulatorNotFound, StructureError
@@ -39,10 +39,19 @@ BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
 QUADRATURE: tuple[tuple[float, int], ...] = ((2.0, 4), (4.0, 8), (8.0, 12))
 SLACK = 1.1
 BYTES_PER_ENTRY = 10.0          # the dense matrix (factorised in place) and bempp's assembly buffers
+# largest system for LAPACK's LU (dense_solve). Measured with scipy 1.17.1 (OpenBLAS 0.3.31), 2
+# threads: getrf segfaults at 22k unknowns (random and BEM matrices), works at 20k and with one
+# thread; design.md saw potrf segfault at 20k. Above it the blocked Cholesky, whose threaded
+# parts are matrix products only.
+LU_LIMIT = 16000
 
 
 class BemBudgetError(SimulationError):
     """The requested accuracy needs a denser matrix than the memory budget allows."""
+
+
+class BemSolveError(SimulationError):
+    """The dense system could not be factorised (not positive definite)."""
 
 
 def quadrature_order(ratio: float) -> int:
@@ -163,11 +172,59 @@ def solve_surfaces(surfaces: Sequence[Surface], eps: float, order: int, singular
     areas, owner = np.asarray(grid.volumes), np.asarray(grid.domain_indices)
     B = np.zeros((n_el, len(surfaces)))
     B[np.arange(n_el), owner] = areas
-    # A.T is Fortran-ordered: getrf factorises it in place (no copy); trans=1 then solves A X = B
-    X = lu_solve(lu_factor(A.T, overwrite_a=True, check_finite=False), B, trans=1, check_finite=False)
+    X = dense_solve(A, B)
     C = eps * (B.T @ X)
     t2 = time.perf_counter()
     return C, {"elements": int(n_el), "order": int(order), "assembly_s": t1 - t0, "solve_s": t2 - t1}
+
+
+def dense_solve(A: Array, B: Array, limit: int = LU_LIMIT, block: int = 2048) -> Array:
+    """A^-1 B for the symmetric single-layer matrix A (C order, destroyed): LAPACK's LU up to
+    `limit` unknowns; above it a blocked Cholesky on matrix products (cholesky_blocked), since
+    OpenBLAS's threaded getrf and potrf segfault on larger matrices (LU_LIMIT)."""
+    if len(A) <= limit:
+        # A.T is Fortran-ordered: getrf factorises it in place (no copy); trans=1 then solves A X = B
+        return lu_solve(lu_factor(A.T, overwrite_a=True, check_finite=False), B, trans=1, check_finite=False)
+    return cholesky_solve(cholesky_blocked(A, block), B, block)
+
+
+def cholesky_blocked(A: Array, block: int = 2048) -> Array:
+    """A = L L^T in place (L in the lower triangle; the upper is left as it was), right-looking by
+    column blocks: LAPACK potrf only on block x block diagonal blocks, the panel by a triangular
+    solve, the trailing update by matrix products row block by row block (at most block x N of
+    temporaries); BemSolveError if A is not positive definite."""
+    n = len(A)
+    for k in range(0, n, block):
+        e = min(k + block, n)
+        try:
+            lkk = cholesky(A[k:e, k:e], lower=True, check_finite=False)
+        except np.linalg.LinAlgError:
+            raise BemSolveError(f"BEM: the single-layer matrix is not positive definite ({n} unknowns, block "
+                                f"at {k}): a mesh with overlapping or touching conductors; check the gaps") from None
+        A[k:e, k:e] = lkk
+        if e == n:
+            break
+        panel = solve_triangular(lkk, A[e:, k:e].T, lower=True, check_finite=False).T
+        A[e:, k:e] = panel
+        for j in range(e, n, block):
+            f = min(j + block, n)
+            A[j:f, e:f] -= panel[j - e:f - e] @ panel[:f - e].T
+    return A
+
+
+def cholesky_solve(L: Array, B: Array, block: int = 2048) -> Array:
+    """X = (L L^T)^-1 B by block forward and back substitution on cholesky_blocked's lower triangle."""
+    n = len(L)
+    Y = np.array(B, dtype=float)
+    starts = list(range(0, n, block))
+    for k in starts:
+        e = min(k + block, n)
+        Y[k:e] = solve_triangular(L[k:e, k:e], Y[k:e] - L[k:e, :k] @ Y[:k], lower=True, check_finite=False)
+    for k in reversed(starts):
+        e = min(k + block, n)
+        Y[k:e] = solve_triangular(L[k:e, k:e], Y[k:e] - L[e:, k:e].T @ Y[e:], lower=True, trans=1,
+                                  check_finite=False)
+    return Y
 
 
 def symmetrised(A: Array, block: int = 1024) -> Array:

@@ -144,3 +144,24 @@ def test_registry_and_quadrature_rule():
     assert [bem.quadrature_order(r) for r in (1.0, 2.0, 3.0, 4.0, 4.3, 4.5, 8.0)] == [4, 4, 8, 8, 8, 12, 12]
     with pytest.raises(bem.BemBudgetError, match="element_to_gap"):
         bem.quadrature_order(9.0)
+
+
+@pytest.mark.parametrize("n,block", [(700, 64), (1000, 300)])
+def test_blocked_cholesky_equals_lapack_lu(n, block):
+    """The blocked Cholesky (used above bem.LU_LIMIT unknowns, where OpenBLAS's threaded getrf
+    segfaults) against LAPACK's LU on a symmetric positive definite system, blocks not dividing n."""
+    from scipy.linalg import lu_factor, lu_solve
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((n, n))
+    A = M @ M.T / n + np.eye(n)
+    B = rng.standard_normal((n, 4))
+    ref = lu_solve(lu_factor(A), B)
+    X = bem.dense_solve(A.copy(), B, limit=0, block=block)
+    assert np.abs(X - ref).max() <= 1e-10 * np.abs(ref).max()
+
+
+def test_blocked_cholesky_refuses_an_indefinite_matrix():
+    """A matrix with a negative eigenvalue is not a single-layer matrix: a clear BemSolveError."""
+    A = np.diag([1.0, 2.0, -1.0, 3.0])
+    with pytest.raises(bem.BemSolveError, match="not positive definite"):
+        bem.dense_solve(A, np.ones((4, 1)), limit=0, block=2)
