@@ -8,7 +8,6 @@ quadrature rules are checked by netgen.electrostatics.bem.from_structure.
 from __future__ import annotations
 
 import math
-import re
 
 from ..errors import StructureError
 from ..files import did_you_mean
@@ -32,23 +31,9 @@ KEYS: dict[str, tuple[str, float, float, str]] = {
 }
 
 
-def line_of(rd: Reader, key: str | None) -> int | None:
-    """The line of `key` in the [electrostatics.bem] table (its header line if key is None or absent)."""
-    header, inside = None, False
-    for no, raw in enumerate(rd.lines, start=1):
-        line = raw.strip()
-        if re.match(r"^\[\[?", line):
-            inside = re.match(r"^\[\s*electrostatics\s*\.\s*bem\s*\]", line) is not None
-            header = no if inside else header
-            continue
-        if inside and key and re.match(rf"^{re.escape(key)}\s*=", line):
-            return no
-    return header
-
-
 def fail(rd: Reader, key: str | None, problem: str, fix: str) -> StructureError:
-    """A StructureError at electrostatics.bem[.key] with the key's line."""
-    return StructureError(rd.path, f"{WHERE}.{key}" if key else WHERE, problem, fix, line_of(rd, key))
+    """A StructureError at electrostatics.bem[.key], at the key's line (else the table's header)."""
+    return rd.fail(f"{WHERE}.{key}" if key else WHERE, problem, fix)
 
 
 def read_bem(rd: Reader, t: dict, extractor: str, couplings: str | None) -> tuple[tuple[str, float | int | None], ...]:

@@ -22,32 +22,78 @@ class Reader:
         return self.error(self.path, where, problem, fix, self.line_of(where))
 
     def line_of(self, where: str) -> int | None:
-        """Best-effort line number of a dotted key such as 'electrodes[1].gap'."""
-        parts = re.findall(r"[A-Za-z_][A-Za-z0-9_]*|\[\d+\]", where)
-        table, index, key = None, 0, None
-        if parts:
-            table = parts[0]
-            if len(parts) > 1 and parts[1].startswith("["):
-                index = int(parts[1][1:-1])
-                key = parts[2] if len(parts) > 2 else None
-            else:
-                key = parts[1] if len(parts) > 1 else None
-        current, seen, header_line = None, -1, None
-        for no, raw in enumerate(self.lines, start=1):
-            line = raw.strip()
-            head = re.match(r"^\[\[?\s*([A-Za-z0-9_.]+)\s*\]\]?", line)
-            if head:
-                current = head.group(1)
-                if current == table:
-                    seen += 1
-                    if seen == index:
-                        header_line = no
-                continue
-            target_key = key if current == table and seen == index else (
-                table if current is None and key is None else None)
-            if target_key and re.match(rf"^{re.escape(target_key)}\s*=", line):
-                return no
-        return header_line
+        """Best-effort line number of a dotted key such as 'electrodes[1].gap' or
+        'electrostatics.bem.levels': the line that sets it, else the header (or key) line of the
+        nearest table above it that the file writes; None if the file writes none of them."""
+        entries, arrays = toml_entries(self.lines)
+        want = key_target(where, arrays)
+        best, depth = None, 0
+        for no, path in entries:
+            if len(path) > depth and want[:len(path)] == path:
+                best, depth = no, len(path)
+        return best
+
+
+# a TOML key (bare, "basic" or 'literal'), a dotted key path, a [table] / [[array]] header, a key line
+KEY = r'"(?:[^"\\]|\\.)*"|\'[^\']*\'|[A-Za-z0-9_-]+'
+KEY_PATH = rf"(?:{KEY})(?:\s*\.\s*(?:{KEY}))*"
+HEADER = re.compile(rf"^\[(\[)?\s*({KEY_PATH})\s*\]\]?\s*(#.*)?$")
+ASSIGN = re.compile(rf"^({KEY_PATH})\s*=")
+
+
+def key_names(path: str) -> tuple[str, ...]:
+    """The names of a TOML key path ('a . "b" .c' -> a, b, c); a quoted name's dots split too,
+    since the `where` strings of the errors write every level with a dot."""
+    return tuple(n for m in re.finditer(KEY, path) for n in m.group(0).strip("\"'").split("."))
+
+
+def toml_entries(lines: list[str]) -> tuple[list[tuple[int, tuple]], set[tuple[str, ...]]]:
+    """(line, path) of every table header and key line of a TOML text, a path being the names
+    with the element index after each array of tables ([[electrodes]] twice: electrodes, 1); and
+    the name paths of the arrays of tables. Lines inside multi-line strings are passed over."""
+    entries, counts, table, in_string = [], {}, (), False
+    for no, raw in enumerate(lines, start=1):
+        line = raw.strip()
+        quotes = line.count('"""') + line.count("'''")
+        if in_string:
+            in_string = quotes % 2 == 0
+            continue
+        head, assign = HEADER.match(line), ASSIGN.match(line)
+        if head:
+            names = key_names(head.group(2))
+            if head.group(1):
+                counts[names] = counts.get(names, -1) + 1
+            table = indexed(names, counts)
+            entries.append((no, table))
+        elif assign:
+            entries.append((no, table + key_names(assign.group(1))))
+            in_string = quotes % 2 == 1
+    return entries, set(counts)
+
+
+def indexed(names: tuple[str, ...], counts: dict[tuple[str, ...], int]) -> tuple:
+    """A header's path: after each array of tables among its prefixes, that array's current
+    element (a [electrodes.x] after the second [[electrodes]] belongs to electrodes, 1)."""
+    out: list = []
+    for k, name in enumerate(names, start=1):
+        out += [name, counts[names[:k]]] if names[:k] in counts else [name]
+    return tuple(out)
+
+
+def key_target(where: str, arrays: set[tuple[str, ...]]) -> tuple:
+    """The path of an error's `where` ('electrodes[1].gap' -> electrodes, 1, gap; '[[electrodes]]'
+    -> electrodes, 0): an array of tables named without an index means its first element."""
+    parts = re.findall(r"\[\d+\]|[A-Za-z0-9_-]+", where)
+    out, names = [], ()
+    for k, part in enumerate(parts):
+        if part.startswith("["):
+            out.append(int(part[1:-1]))
+            continue
+        out.append(part)
+        names += (part,)
+        if names in arrays and not (k + 1 < len(parts) and parts[k + 1].startswith("[")):
+            out.append(0)
+    return tuple(out)
 
 
 def check_keys(rd: Reader, where: str, table: dict, allowed: list[str]) -> None:

@@ -68,6 +68,36 @@ def test_bad_input_names_file_key_and_fix(edit, words, line):
         assert info.value.line == expected, message
 
 
+DOTTED = [
+    # (example, edit, the line written with the bad key, expected words): each edit puts a bad key
+    # inside a dotted table header
+    ("accelerometer_xyz.toml", ('thigh_width = "2 um"', 'thigh_widht = "2 um"'), 'thigh_widht = "2 um"',
+     ["conductor.flexure.thigh_widht", "did you mean 'thigh_width'"]),
+    ("accelerometer_xyz.toml", ('width = "2 um"\nthigh', 'width = "-2 um"\nthigh'), 'width = "-2 um"',
+     ["conductor.flexure.width", "greater than zero"]),
+    ("levitated_disk.toml", ("[fem]", 'extractor = "bem"\n\n[electrostatics.bem]\ntolerance = 0.01\nlevels = 9\n\n[fem]'),
+     "levels = 9", ["electrostatics.bem.levels", "2..6"]),
+]
+
+
+@pytest.mark.parametrize("example,edit,bad,words", DOTTED)
+def test_bad_key_in_a_dotted_table_is_reported_at_its_line(example, edit, bad, words):
+    """A bad key under [conductor.flexure] or [electrostatics.bem] is reported at the line that
+    writes it, counted here in the edited text (the same key names stand in other tables above:
+    `width` under [conductor] and every [[electrodes]], `levels` under [sampling])."""
+    text = (ROOT / "examples" / example).read_text()
+    assert edit[0] in text, edit[0]
+    text = text.replace(*edit, 1)
+    expected = [no for no, t in enumerate(text.splitlines(), 1) if t.startswith(bad)]
+    assert len(expected) == 1, bad
+    with pytest.raises(StructureError) as info:
+        parse_structure(text, "bad.toml")
+    message = str(info.value)
+    assert info.value.line == expected[0] and message.startswith(f"bad.toml:{expected[0]}:"), message
+    for w in words:
+        assert w in message, message
+
+
 def test_units_are_converted_to_si():
     s = parse_structure(_replace("sector_start = \"-45 deg\"", "sector_start = \"-0.25 rad\""), "x.toml")
     assert s.electrode_sets[0].sector_start == pytest.approx(-0.25)
