@@ -41,7 +41,7 @@ from sigma_delta_orders import setup                                     # noqa:
 
 from scipy import linalg                                                  # noqa: E402
 
-from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, reference   # noqa: E402
+from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, psd, reference   # noqa: E402
 from netgen.testbench.sigma_delta.loop import selected                   # noqa: E402
 
 WINDOW = (0.47, 0.97)        # sense off .. reset off: only the feedback, springs and input act on the mass
@@ -106,7 +106,7 @@ OCTAVES = [244.0, 488.0, 977.0, 1953.0, 3906.0, 7812.0]
 
 def octaves(v: np.ndarray, ts: float, tone_hz: float) -> list[float]:
     """Median PSD per octave of OCTAVES (dB/Hz), the tone's bins left out, after the first eighth."""
-    f, p = metrics.spectrum(v[len(v) // 8:], ts, NPERSEG)
+    f, p = psd(v[len(v) // 8:], ts, NPERSEG)
     return [float(10 * np.log10(np.median(p[(f >= lo) & (f < hi) & (np.abs(f - tone_hz) > 400)])))
             for lo, hi in zip(OCTAVES, OCTAVES[1:])]
 
@@ -212,7 +212,7 @@ def model_slopes(model, d, coords: list[str]) -> dict:
 def floor(e: np.ndarray, ts: float) -> tuple[float, float]:
     """In-band PSD median over BAND (dB/Hz) after the first eighth, and the rms."""
     e = e[len(e) // 8:]
-    f, p = metrics.spectrum(e, ts, min(NPERSEG, len(e) // 4))
+    f, p = psd(e, ts, min(NPERSEG, len(e) // 4))
     sel = (f > BAND[0]) & (f < BAND[1])
     return float(10 * np.log10(np.median(p[sel]) + 1e-300)), float(np.std(e))
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from netgen.build import build_model
 from netgen.structure import load_structure
-from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, read_structure_loop
+from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, psd, read_structure_loop
 
 WINDOW = (0.47, 0.97)        # sense off .. reset off: only the feedback, springs and input act on the mass
 NPERSEG = 8192
@@ -60,7 +60,7 @@ def run(args) -> dict:
     t, u, xs = (np.asarray(plot[k]) for k in ("time", f"v({nodes[0]})", f"v({nodes[1]})"))
     bits = np.asarray(plot[f"v(b_{name})"])
     e, coef = impulse_error(t, u, xs, bits, d.ts, tone.freq)
-    f, p = metrics.spectrum(e, d.ts, min(NPERSEG, len(e) // 4))
+    f, p = psd(e, d.ts, min(NPERSEG, len(e) // 4))
     fb = 0.5 / d.ts / 64
     band = (f > fb / 10) & (f < fb)
     res = {"fb_edge": d.t.fb_ramp, "order": args.order, "periods": args.cycles,

@@ -39,6 +39,7 @@ from netgen.model import MacroModel
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import (Tone, design, filters, metrics, ngspice, read_loop_file, read_structure_loop,
                                           reference)
+from netgen.testbench.sigma_delta.analysis import band_metrics, psd
 from netgen.testbench.sigma_delta.kinds import FILTERS
 from netgen.testbench.sigma_delta.loopfile import LoopSpec
 
@@ -84,9 +85,9 @@ def dc_input(model: MacroModel, d, mech: filters.Mechanics) -> float:
 
 
 def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
-    """The metrics of a bitstream after its first eighth."""
-    f, p = metrics.spectrum(v[len(v) // 8:], ts, NPERSEG)
-    return metrics.band(f, p, 0.5 / ts / osr, tone_hz)
+    """The in-band figures of a bitstream after its first eighth (the band from metrics.DC_BINS)."""
+    f, p = psd(v[len(v) // 8:], ts, NPERSEG)
+    return band_metrics(f, p, ts, osr, tone_hz, metrics.DC_BINS)
 
 
 def run_reference(args, order: int) -> dict:
@@ -115,7 +116,7 @@ def dynamic_range(args, model, d, mech, f, tone: float) -> dict:
                                dither=d.channels[0]["dither_v"], dither_step=d.channels[0]["dither_step"])
         return r["v"], reference.stable(r, args.hold * gap)
     amps = [1e-3, 3e-3, 0.01, 0.03, 0.1, 0.2, 0.3, 0.4, 0.45, 0.5]
-    return metrics.dynamic_range(run, amps, args.ts, 0.5 / args.ts / args.osr, tone, NPERSEG // 2, skip=4096)
+    return metrics.dynamic_range(run, amps, args.ts, args.osr, tone, NPERSEG // 2, skip=4096)
 
 
 def run_circuit(args, order: int) -> dict:
@@ -178,16 +179,17 @@ def main() -> None:
 
 def report(results: dict, args) -> None:
     """One line per order and run, then the circuit - reference differences."""
-    keys = ("floor_db_per_hz", "noise_db", "sqnr_db", "slope_db_per_decade")
+    keys = ("noise_floor_db_per_hz", "inband_noise_db", "snr_db", "slope_db_per_decade")
     print(f"{args.cycles} periods, OSR {args.osr:g}, DC -6 dBFS (gravity) + tone {20 * np.log10(args.tone_fs):.1f} dBFS"
           + (f", circuit at reltol {args.reltol:g}" if args.circuit else ""))
     print(f"{'order':<6}{'run':<10}{'floor dB/Hz':>12}{'noise dB':>10}{'SQNR dB':>9}{'slope':>7}{'held':>6}"
           f"{'max|z|/gap':>12}{'wall s':>8}")
     for o, runs in results.items():
         for name, r in runs.items():
-            vals = "".join(f"{r[k]:>{w}.1f}" if k in r else f"{'-':>{w}}" for k, w in zip(keys, (12, 10, 9, 7)))
+            vals = "".join(f"{r[k]:>{w}.1f}" if r.get(k) is not None else f"{'-':>{w}}"
+                           for k, w in zip(keys, (12, 10, 9, 7)))
             print(f"{o:<6}{name:<10}{vals}{str(r['held']):>6}{r['max_z_over_gap']:>12.2e}{r['wall_s']:>8.1f}")
-        if "circuit" in runs and "sqnr_db" in runs["circuit"]:
+        if "circuit" in runs and "snr_db" in runs["circuit"]:
             c, ref = runs["circuit"], runs["reference"]
             print(f"{'':<6}{'c - ref':<10}" + "".join(f"{c[k] - ref[k]:>+{w}.1f}" for k, w in zip(keys, (12, 10, 9, 7))))
     for o, runs in results.items():

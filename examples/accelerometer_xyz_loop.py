@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from netgen.testbench.sigma_delta import metrics
+from netgen.testbench.sigma_delta.analysis import band_metrics, psd
 
 NPERSEG = 4096              # Welch segment: 244 Hz bins at T_s = 1 us, 29 in the decade below the band edge
 
@@ -41,11 +42,11 @@ def analyse(folder: Path) -> dict:
            "gravity_balance": summary["gravity_balance"]["ratio"], "channels": {}, "correlation": {}}
     tone = summary["tone"]["freq"] if summary.get("tone") else None
     for n in names:
-        f, p = metrics.spectrum(bits[n], ts, min(len(bits[n]), NPERSEG))
-        b = metrics.band(f, p, fb, tone)
-        out["channels"][n] = {"bit_mean": float(bits[n].mean()), "floor_db_per_hz": b["floor_db_per_hz"],
-                              "inband_noise_db": b["noise_db"], "slope_db_per_decade": b["slope_db_per_decade"],
-                              "tone_db": b.get("tone_db"),
+        f, p = psd(bits[n], ts, min(len(bits[n]), NPERSEG))
+        b = band_metrics(f, p, ts, osr, tone, metrics.DC_BINS)
+        out["channels"][n] = {"bit_mean": float(bits[n].mean()), "floor_db_per_hz": b["noise_floor_db_per_hz"],
+                              "inband_noise_db": b["inband_noise_db"], "slope_db_per_decade": b.get("slope_db_per_decade"),
+                              "tone_db": b.get("tone_level_db"),
                               "peak_um": max(abs(summary["coordinates"][n]["min"]),
                                                           abs(summary["coordinates"][n]["max"]))}
     for a, b in itertools.combinations(names, 2):

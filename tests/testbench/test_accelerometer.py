@@ -126,10 +126,10 @@ def test_a_tone_above_the_band_has_no_snr():
     rest of the band the noise."""
     f = np.linspace(0, 5e5, 1025)
     p = np.full_like(f, 1e-8)
-    far = analysis.band_metrics(f, p, TS, 64, sd.Tone("z", 1.0, 2e4))
+    far = analysis.band_metrics(f, p, TS, 64, 2e4)
     assert "snr_db" not in far and "tone_level_db" not in far and "20000" in far["tone_note"]
     k = int(np.argmin(np.abs(f - 3906.25)))
     p[k] = 1e-4
-    near = analysis.band_metrics(f, p, TS, 64, sd.Tone("z", 1.0, f[k]))
+    near = analysis.band_metrics(f, p, TS, 64, f[k])
     band = int(np.sum((f > 0) & (f <= 7812.5)))
     assert near["snr_db"] == pytest.approx(10 * np.log10((1e-4 + 6e-8) / (1e-8 * (band - 7))), abs=1e-9)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netgen.testbench.sigma_delta import filters, metrics, ntf, reference
+from netgen.testbench.sigma_delta import analysis, filters, metrics, ntf, reference
 
 # the levitated disk's z channel (bench/sigma_delta_ideal_loop.py): a free mass, 1 V of readout
 # per 1/34.57 um, the feedback pulse 0.50-0.94 T_s with 2 % edges, sampled at 0.34 T_s
@@ -87,7 +87,7 @@ def _shaping(f: filters.Filter, cycles: int = 2**15, amplitude: float = 0.5) -> 
     tone = metrics.tone_frequency(TS, 4096, 64)
     run = reference.simulate(DISK_Z, f, cycles, reference.Input(0.0, amplitude * DISK_Z.full_scale, tone))
     assert reference.stable(run, 1e-8)
-    return metrics.band(*metrics.spectrum(run["v"][cycles // 8:], TS, 4096), 0.5 / TS / 64, tone)
+    return analysis.band_metrics(*analysis.psd(run["v"][cycles // 8:], TS, 4096), TS, 64, tone, metrics.DC_BINS)
 
 
 def test_reference_noise_shaping_order2_and_order4():
@@ -98,8 +98,8 @@ def test_reference_noise_shaping_order2_and_order4():
     fourth = _shaping(filters.design(DISK_Z, 4, 64, 1.5, "cifb"))
     assert 34 <= second["slope_db_per_decade"] <= 46
     assert 70 <= fourth["slope_db_per_decade"] <= 90
-    assert fourth["sqnr_db"] >= second["sqnr_db"] + 15
-    assert second["tone_db"] == pytest.approx(10 * np.log10(0.5**2 / 2), abs=0.3)
+    assert fourth["snr_db"] >= second["snr_db"] + 15
+    assert second["tone_level_db"] == pytest.approx(10 * np.log10(0.5**2 / 2), abs=0.3)
 
 
 def test_dynamic_range_finds_the_overload():
@@ -110,7 +110,7 @@ def test_dynamic_range_finds_the_overload():
     def run(a: float):
         r = reference.simulate(DISK_Z, f, 2**14, reference.Input(0.0, a * DISK_Z.full_scale, tone))
         return r["v"], reference.stable(r, 1e-8)
-    dr = metrics.dynamic_range(run, [0.01, 0.1, 0.5, 2.0], TS, 0.5 / TS / 64, tone, 2048, skip=2048)
+    dr = metrics.dynamic_range(run, [0.01, 0.1, 0.5, 2.0], TS, 64, tone, 2048, skip=2048)
     rows = dr["rows"]
     assert rows[1]["sqnr_db"] - rows[0]["sqnr_db"] == pytest.approx(20, abs=3)
     assert not rows[-1]["held"] and dr["max_stable_amplitude"] == 0.5

@@ -53,21 +53,26 @@ def features(f: np.ndarray, p: np.ndarray, min_db: float = 6.0) -> tuple[list[di
     return notches, peaks
 
 
-def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone | None) -> dict:
-    """In-band noise floor (median, dB re F_fb^2/Hz), SNR of the tone, noise-shaping slope."""
+def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: float, tone_hz: float | None,
+                 dc_bins: int = 1) -> dict:
+    """In-band noise floor (median, dB re F_fb^2/Hz), noise power, SNR of the tone at `tone_hz`
+    (its +-3 bins: the Hann main lobe), noise-shaping slope over the decade below the band edge.
+    The band starts at bin `dc_bins`: 1, every bin above DC (the command's summary); the
+    loop-order bench starts at 2 (metrics.DC_BINS), since there the first bin holds the Hann
+    main lobe of the bitstream's large mean, a DC input's (gravity at a mean bit of 0.5)."""
     fb = 0.5 / ts / osr
-    band = (f > 0) & (f <= fb)
     df = f[1] - f[0]
+    band = (f >= dc_bins * df) & (f <= fb)
     mask = band.copy()
     if not band.any():                             # run too short: no PSD bin inside the band
         return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
                 "note": "band has no PSD bins: run more cycles"}
     out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
-    if tone and not tone.freq <= fb:              # above the band edge: no in-band tone to quote
-        out["tone_note"] = f"the tone at {tone.freq:g} Hz is above the band edge {fb:g} Hz: no tone level or SNR"
-        tone = None
-    if tone:
-        near = band & (np.abs(f - tone.freq) <= 3 * df)
+    if tone_hz and not tone_hz <= fb:              # above the band edge: no in-band tone to quote
+        out["tone_note"] = f"the tone at {tone_hz:g} Hz is above the band edge {fb:g} Hz: no tone level or SNR"
+        tone_hz = None
+    if tone_hz:
+        near = band & (np.abs(f - tone_hz) <= 3 * df)
         mask &= ~near
         sig = float(np.sum(p[near]) * df)
         out["tone_power"] = sig
@@ -78,7 +83,7 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: int, tone: Tone |
     noise = float(np.sum(p[mask]) * df)
     out["noise_floor_db_per_hz"] = float(10 * np.log10(np.median(p[mask])))
     out["inband_noise_db"] = float(10 * np.log10(noise))
-    if tone and out["tone_level_db"] is not None:
+    if tone_hz and out["tone_level_db"] is not None:
         out["snr_db"] = float(out["tone_level_db"] - out["inband_noise_db"])
     lo, hi = fb / 10, fb
     sel = (f >= lo) & (f <= hi) & mask
@@ -131,7 +136,7 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
         bits = clock[f"bits_{c}"][skip:]
         f, p = psd(bits, d.ts)
         notches, peaks = features(f, p)
-        m = band_metrics(f, p, d.ts, osr, tone)
+        m = band_metrics(f, p, d.ts, osr, tone.freq if tone else None)
         if tone:
             m |= tone_fit(bits, clock["time"][skip:], tone.freq, d.ts, osr)
         summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
