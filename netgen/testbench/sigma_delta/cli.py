@@ -14,10 +14,10 @@ from ...errors import SimulationError
 from ...folders import OutputFolder
 from ...model import MacroModel
 from ...units import parse_quantity
-from .loop import RELTOL_RANGE, RELTOL_TEXT, Tone, design
+from .loop import RELTOL_RANGE, RELTOL_TEXT, Tone
 from .loopfile import read_loop_file, read_structure_loop
 from .ngspice import MIN_SEGMENT, SEGMENT_S
-from .runner import BACKENDS, STEP_BACKENDS, TIMEOUT, check_backend, model_folder, model_for, run
+from .runner import BACKENDS, TIMEOUT, backend_design, model_folder, model_for, run
 
 
 # the run's result set in DIR (sigma-delta.manifest.json names it) and the caches it shares with
@@ -93,8 +93,7 @@ def cli(args) -> int:
         return 2
     choices = {"lead": args.lead, "dither": args.dither, "reltol": args.reltol}
     # the loop checked against the model before any output (LoopError: exit 2)
-    check_backend(design(model, args.ts, spec=loop, tone=tone or loop.input.tone, step=args.simulator in STEP_BACKENDS,
-                         **choices), loop, args.simulator)
+    d = backend_design(model, args.ts, loop, tone or loop.input.tone, args.simulator, **choices)
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,
@@ -102,7 +101,7 @@ def cli(args) -> int:
         try:
             s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
                     plots=not args.no_plots, simulator=args.simulator, segment=args.segment,
-                    timeout=args.timeout, loop=loop, **choices)
+                    timeout=args.timeout, loop=loop, designed=d, **choices)
         except SimulationError as exc:               # its paths: where the failed run's files are kept
             raise SimulationError(folder.failed_path(str(exc)) + f"; the last complete results are still in "
                                   f"{out} ({folder.manifest.name})") from None

@@ -162,11 +162,12 @@ def si_factor(model: MacroModel, index: int) -> tuple[float, float]:
     return f, float(round(inv)) if abs(inv - round(inv)) < 1e-6 * inv else inv
 
 
-def channel_names(model: MacroModel, spec: LoopSpec) -> list[str]:
+def channel_names(model: MacroModel, spec: LoopSpec, grad: np.ndarray | None = None) -> list[str]:
     """The loop's channels: as given, else the model's rigid-body coordinates that the electrodes
     can push both ways (dC_i/dq of both signs: the disk's z, tilt_x, tilt_y; the z accelerometer's
     z; the xyz proof mass's x and y), else the rigid ones some electrode senses (design() then says
-    why their feedback is one-sided), else the first coordinate (a beam's m1)."""
+    why their feedback is one-sided), else the first coordinate (a beam's m1). `grad`: the
+    model's scaled_gradient, if the caller has it."""
     names = [c.name for c in model.coordinates]
     if spec.channels is not None:
         for k, ch in enumerate(spec.channels):
@@ -175,7 +176,7 @@ def channel_names(model: MacroModel, spec: LoopSpec) -> list[str]:
                 raise spec.fail(where, f"model {model.name} has no coordinate {ch.name!r}",
                                 f"{did_you_mean(ch.name, names)}choose among {', '.join(names)}")
         return [ch.name for ch in spec.channels]
-    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+    grad = scaled_gradient(model) if grad is None else grad
     peak = np.abs(grad).max(initial=0.0)
     rigid = [k for k, c in enumerate(model.coordinates)
              if c.kind != "mode" and np.abs(grad[:, k]).max(initial=0.0) > 1e-9 * peak]
@@ -189,7 +190,8 @@ def did_you_mean(value: str, choices: list[str]) -> str:
     return near(value, choices)
 
 
-def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None) -> list[dict]:
+def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None,
+           grad: np.ndarray | None = None) -> list[dict]:
     """Per electrode: sense weights `w` and feedback pattern `sel`, one entry per channel. Derived
     from the signs of dC_i/dq at rest (sensing_gradient: round-off counts as 0): the first channel
     reads every electrode with the sign of its dC/dq (the disk's z: top +1, bottom -1); each
@@ -197,10 +199,12 @@ def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | N
     channels (the disk's tilts: the sign of
     dC/dtilt of the electrodes that sense that tilt). The feedback pattern is the sign pattern:
     an electrode is energised when every channel's bit equals its weight there. A channel of
-    the loop description with explicit `sense` / `feedback` replaces its column."""
-    names = names or channel_names(model, spec or LoopSpec())
+    the loop description with explicit `sense` / `feedback` replaces its column. `grad`: the
+    model's scaled_gradient, if the caller has it."""
+    grad = scaled_gradient(model) if grad is None else grad
+    names = names or channel_names(model, spec or LoopSpec(), grad)
     idx = [coord_index(model, n) for n in names]
-    grad = sensing_gradient(model)
+    grad = sensing_gradient(grad)
     out = []
     for k, e in enumerate(model.electrodes):
         w = [int(np.sign(grad[k, idx[0]]))] + [0] * (len(idx) - 1)
@@ -218,10 +222,15 @@ def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | N
 ROUNDOFF = 1e-6
 
 
-def sensing_gradient(model: MacroModel) -> np.ndarray:
-    """dC_i/dq at rest per touch amplitude (electrodes x coordinates), with the entries below
-    ROUNDOFF of their coordinate's largest set to 0: the signs groups() derives the weights from."""
-    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+def scaled_gradient(model: MacroModel) -> np.ndarray:
+    """dC_i/dq at rest per touch amplitude (electrodes x coordinates): what the loop senses,
+    computed once per design() and handed to the steps that read it."""
+    return model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+
+
+def sensing_gradient(grad: np.ndarray) -> np.ndarray:
+    """The scaled_gradient `grad` with the entries below ROUNDOFF of their coordinate's largest
+    set to 0: the signs groups() derives the weights from."""
     big = np.abs(grad).max(axis=0, initial=0.0)
     return np.where(np.abs(grad) <= ROUNDOFF * big[None, :], 0.0, grad)
 
@@ -364,9 +373,9 @@ def feedback_given(spec: LoopSpec, name: str) -> bool:
     return any(c.name == name and c.feedback for c in spec.channels or ())
 
 
-def check_sensing(model: MacroModel, spec: LoopSpec, electrodes: list[dict], names: list[str]) -> np.ndarray:
-    """The scaled dC/dq; a channel whose readout sum_i w_i dC_i/dq is not positive is a LoopError."""
-    grad = model.capacitance_gradient(np.zeros(model.ncoords))[0] * model.scales[None, :]
+def check_sensing(model: MacroModel, spec: LoopSpec, electrodes: list[dict], names: list[str],
+                  grad: np.ndarray) -> None:
+    """A channel whose readout sum_i w_i dC_i/dq (grad: the scaled_gradient) is not positive is a LoopError."""
     for j, n in enumerate(names):
         s = float(sum(e["w"][j] * grad[i, coord_index(model, n)] for i, e in enumerate(electrodes)))
         peak = float(np.abs(grad).max(initial=0.0))
@@ -377,7 +386,6 @@ def check_sensing(model: MacroModel, spec: LoopSpec, electrodes: list[dict], nam
                             f"channel {n}: {why} (sum_i w_i dC_i/dq = {s:.3g} F per touch amplitude)",
                             "close the loop on a coordinate the electrodes sense, or give sense weights with the sign "
                             "of dC/dq")
-    return grad
 
 
 def pick(given, spec: LoopSpec, key: str, default):
@@ -406,14 +414,15 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
     reltol = pick(reltol, spec, "reltol", 1e-3)
     t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
-    names = channel_names(model, spec)
+    grad = scaled_gradient(model)
+    names = channel_names(model, spec, grad)
     if step and timing is None and "fb_edge" not in spec.timing and any(
             FILTERS[channel_filter(spec, n, lead)["kind"]].design for n in names):
         t = replace(t, fb_edge=0.0)       # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
     check_timing(spec, t)
     idx = [coord_index(model, n) for n in names]
-    electrodes = groups(model, names, spec)
-    grad = check_sensing(model, spec, electrodes, names)
+    electrodes = groups(model, names, spec, grad)
+    check_sensing(model, spec, electrodes, names, grad)
     unit = force_table(model, electrodes, 1.0, names)
     drive = drive_forces(model, spec, unit, names)
     inputs, dc_si = dc_forces(model, spec, g)

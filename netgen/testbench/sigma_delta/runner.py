@@ -129,6 +129,16 @@ def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
                         "fb_edge = 0.02 (ramps)")
 
 
+def backend_design(model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str,
+                   **choices) -> Design:
+    """The loop's design (loop.design with the caller's choices) for this back end: a designed
+    filter gets the feedback step where the back end renders one; refused (LoopError) where it
+    cannot render the design (check_backend)."""
+    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **choices)
+    check_backend(d, loop, simulator)
+    return d
+
+
 def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: float | None) -> LoopSpec:
     """The loop description with a sweep's (or caller's) feedback voltage and DC acceleration on a_in."""
     if feedback_voltage is not None:
@@ -141,19 +151,21 @@ def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: flo
 
 def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
         progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        segment: int | None = None, timeout: float = TIMEOUT, loop: LoopSpec | None = None, **choices) -> dict:
+        segment: int | None = None, timeout: float = TIMEOUT, loop: LoopSpec | None = None,
+        designed: Design | None = None, **choices) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
     .va next to `lib` or else the module emitted from `model`); `loop`: the loop description
-    (defaults: the model's), `tone` (else the description's) its input tone."""
+    (defaults: the model's), `tone` (else the description's) its input tone; `designed`: the
+    caller's backend_design of the same model, loop, tone and choices (the command line checks
+    the loop before it opens the output folder), else designed here."""
     if simulator not in BACKENDS:
         raise ValueError(f"unknown simulator {simulator!r}; choose one of {', '.join(BACKENDS)}")
     backend = BACKENDS[simulator]
     loop = overridden(loop or LoopSpec(), choices.pop("feedback_voltage", None), choices.pop("acceleration", None))
     tone = tone or loop.input.tone
-    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **choices)
-    check_backend(d, loop, simulator)
+    d = designed if designed is not None else backend_design(model, ts, loop, tone, simulator, **choices)
     if len(d.channels) > vacask.MAX_CHANNELS and simulator in ("vacask", "ngspice-osdi"):
         raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most "
                         f"{vacask.MAX_CHANNELS}",
