@@ -30,7 +30,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from . import ntf as ntfs
-from .signals import duty, selected
+from .signals import Timing, duty, selected
 
 TOPOLOGIES = ("cifb", "crfb")
 ORDERS = (3, 4, 5)
@@ -343,10 +343,24 @@ def dc_acceleration(model, d, channel: str) -> float:
     return float(d.balance["dc_force_n"] / mass + sense + 0.5 * (up + down) * d.duty / mass)
 
 
+def filter_windows(t: Timing) -> dict[str, tuple[float, float]]:
+    """The behavioural loop's state-space filter clocks (period phases; ngspice.analog_filters):
+    the master window from one edge after the latch window to the middle of the rest of the
+    period, the slave window from one edge after it to one edge before the period ends. The
+    master computes the next state from the held sample, bit and state; the slave copies it, so
+    the state the latch sees changes once per period, after the latch and before the next one
+    (the compiled loop's update). blocks.va's sd_statefilter has windows of its own
+    (statefilter_params)."""
+    on, off = t.clk + t.sample + t.edge, 1.0 - t.edge
+    mid = 0.5 * (on + off)
+    return {"master": (on, mid - t.edge / 2), "slave": (mid + t.edge / 2, off)}
+
+
 def statefilter_params(channels: list[dict], d) -> dict[str, str]:
     """Per channel with a designed filter, the instance parameters of blocks.va's sd_statefilter
     (VACASK and OSDI loops): A, bx, bv, c, d of up to 3 states, its clock (master window 0.02 T_s
-    after the latch window, slave window at 0.60 T_s) and the sampler switches' C_s and g."""
+    after the latch window, slave window at 0.60 T_s, each one sample wide: shorter than the
+    behavioural loop's filter_windows) and the sampler switches' C_s and g."""
     out = {}
     for ch, f in zip(channels, channel_filters(channels)):
         if f is None:

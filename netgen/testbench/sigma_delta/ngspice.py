@@ -110,19 +110,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
                   inputs=input_text(model, d), drivers=drivers(d) if loop == "osdi" else [],
                   statefilters=(filters.statefilter_params(d.channels, d) if loop == "osdi"
                                 else analog_filters(d) if loop == "analog" else {}),
-                  windows=filter_windows(d), tie=TIE * d.vcmp)
-
-
-def filter_windows(d: Design) -> dict[str, tuple[float, float]]:
-    """The behavioural loop's state-space filter clocks (period phases): the master window from
-    one edge after the latch window to the middle of the rest of the period, the slave window from
-    one edge after it to one edge before the period ends. The master computes the next state from
-    the held sample, bit and state; the slave copies it, so the state the latch sees changes once
-    per period, after the latch and before the next one (the compiled loop's update)."""
-    t = d.t
-    on, off = t.clk + t.sample + t.edge, 1.0 - t.edge
-    mid = 0.5 * (on + off)
-    return {"master": (on, mid - t.edge / 2), "slave": (mid + t.edge / 2, off)}
+                  windows=filters.filter_windows(d.t), tie=TIE * d.vcmp)
 
 
 def analog_filters(d: Design) -> dict[str, dict]:
