@@ -5,6 +5,7 @@ structure's macromodel, with spectra (netgen.testbench.sigma_delta.runner)."""
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -96,10 +97,12 @@ def cli(args) -> int:
     d = backend_design(model, args.ts, loop, tone or loop.input.tone, args.simulator, **choices)
     info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED,
+    inside = lib_folder(lib, out)
+    with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED + ((inside,) if inside else ()),
                       legacy=RESULT_FILES + (f"{model.name}_xspice.lib", f"{model.name}_osdi.lib")) as folder:
+        staged = folder.stage / inside / Path(lib).name if inside else lib     # through the stage's link
         try:
-            s = run(model, lib, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
+            s = run(model, staged, folder.stage, args.ts, args.cycles, tone, progress=not args.quiet,
                     plots=not args.no_plots, simulator=args.simulator, segment=args.segment,
                     timeout=args.timeout, loop=loop, designed=d, **choices)
         except SimulationError as exc:               # its paths: where the failed run's files are kept
@@ -129,6 +132,14 @@ def cli(args) -> int:
               f"the stop.{lost_hint(s)} Results in {out}", file=sys.stderr)
         return 1
     return 0
+
+
+def lib_folder(lib: Path, out: Path) -> str | None:
+    """The sub-folder of DIR that holds the model's .lib (DIR/model..., model_folder), which the
+    staging folder links (OutputFolder shared), so the kept netlist `.include`s it relative to DIR
+    and reruns there by hand; None for a .lib elsewhere (--model's: included by its absolute path)."""
+    parent, base = Path(os.path.abspath(Path(lib).parent)), Path(os.path.abspath(out))
+    return parent.name if parent.parent == base and parent.name not in SHARED else None
 
 
 def lost_hint(s: dict) -> str:

@@ -79,13 +79,14 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", a
 def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
               tone: Tone | None = None, chunks: int = 50, start: int = 0,
               ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = (),
-              loop: str = "analog", klu: bool = False) -> str:
+              loop: str = "analog", klu: bool = False, folder: Path | None = None) -> str:
     """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
     long run, the periods from `start` on, from the node state `ic`, also saving `states`;
     `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
     quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
     "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them);
-    `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3."""
+    `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3; `folder`: the one it runs in
+    (the .include of a `lib` inside it relative, text.netlist_path)."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)                      # names outside comments; the paths below through netlist_path
@@ -103,7 +104,7 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  lib=netlist_path(lib), cycles=cycles, ports=[p["name"] for p in model.ports()],
+                  lib=netlist_path(lib, folder), cycles=cycles, ports=[p["name"] for p in model.ports()],
                   forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
                   progress=progress, selects=selection_nodes(d), start=start, ic=ic,
                   control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu,
@@ -287,8 +288,8 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     while n0 < cycles:
         n = min(length, cycles - n0)
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
-        bench = testbench(model, d, lib.resolve(), n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
-                          control=control, loop=loop, chunks=max(1, min(50, n // 100)), klu=klu)
+        bench = testbench(model, d, lib, n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
+                          control=control, loop=loop, chunks=max(1, min(50, n // 100)), klu=klu, folder=out)
         plot = simulate(bench, out, d.ts * n, progress, timeout,
                         span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
         runs += 1

@@ -50,7 +50,8 @@ def check(model: MacroModel) -> sim_ngspice.Version:
 
 def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
     """Refuse an ngspice without OSDI, then compile the model (the .va next to `lib`, else the
-    emitted module) and the loop blocks into out/osdi (cached by text) and write the _osdi.lib."""
+    emitted module) and the loop blocks into out/osdi (cached by text) and write the _osdi.lib;
+    the pre_osdi lines name them relative to `out`, where the bench runs and is kept."""
     version = check(model)
     va = Path(lib).with_suffix(".va")
     text = va.read_text(encoding="utf-8") if va.exists() else None
@@ -63,4 +64,4 @@ def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
     osdi_lib = out / f"{model.name}_osdi.lib"
     write_files_atomic({osdi_lib: osdi.subcircuit(model)})
     return {"lib": osdi_lib, "ngspice": version.label,
-            "control": [f"pre_osdi {netlist_path(p.resolve())}" for p in (model_osdi, blocks_osdi)] + [THREADS]}
+            "control": [f"pre_osdi {netlist_path(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS]}

@@ -132,15 +132,16 @@ def saves(model: MacroModel, d: Design) -> list[str]:
 
 
 def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path, cycles: int,
-              tone: Tone | None = None, options: str = "") -> str:
-    """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2)."""
+              tone: Tone | None = None, options: str = "", folder: Path | None = None) -> str:
+    """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
+    `folder`, where it runs, for what lies inside it (text.netlist_path), else absolute."""
     check_names(model)                      # names outside comments; the paths below through netlist_path
     if tone:
         tone.unit = tone_unit(model, tone)
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
     return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  model_osdi=netlist_path(Path(model_osdi).resolve()),
-                  blocks_osdi=netlist_path(Path(blocks_osdi).resolve()),
+                  model_osdi=netlist_path(model_osdi if folder else Path(model_osdi).resolve(), folder),
+                  blocks_osdi=netlist_path(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
                   cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
                   saves=saves(model, d), drivers=drivers(d), inputs=input_text(model, d),
                   statefilters=filters.statefilter_params(d.channels, d), step_rise=STEP_RISE,
@@ -161,5 +162,5 @@ def run_bench(model: MacroModel, d: Design, out: Path, cycles: int, tone: Tone |
     cache = cache or out / "osdi"
     model_osdi = compile_model(model, cache, va)
     blocks_osdi = compile_blocks(cache)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options)
+    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options, folder=out)
     return simulate(bench, out, d.ts * cycles, progress, timeout)
