@@ -108,20 +108,22 @@ class OutputFolder:
         return text.replace(str(self.stage), str(self.folder / f"{self.name}{FAILED}"))
 
     def _keep_failed(self, exc: BaseException) -> None:
-        """The failed run's files, for diagnosis, in <name>.failed/ (an earlier one replaced)."""
+        """The failed run's files, for diagnosis, in <name>.failed/ (an earlier one replaced), with
+        the links to the shared folders, so its netlist reruns there as netgen's message says."""
         failed = self.folder / f"{self.name}{FAILED}"
         if failed.exists() and (failed / FAILED_NOTE).exists():
             shutil.rmtree(failed, ignore_errors=True)
-        for sub in self.shared:
-            (self.stage / sub).unlink(missing_ok=True)
         if failed.exists():                                  # not ours: leave it, drop the run's files
             self._drop_stage()
             return
         (self.stage / FAILED_NOTE).write_text(f"this run failed; the folder above holds the last complete set "
                                               f"({self.manifest.name})\n\n{exc}\n", encoding="utf-8")
         self._unlock()
-        os.replace(self.stage, failed)
+        os.replace(self.stage, failed)      # its links ../<shared> resolve from there as from the stage
         self._clean_made()
+        for sub in self.shared:             # a link to a shared folder _clean_made removed
+            if not (failed / sub).exists():
+                (failed / sub).unlink(missing_ok=True)
 
     def _drop_stage(self) -> None:
         """Remove the staging folder (and the shared folders this run made and left empty)."""

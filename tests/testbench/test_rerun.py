@@ -87,3 +87,18 @@ def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, 
         assert len(bits) == 64 and np.array_equal(bits, recorded[f"bits_{c}"]), \
             (c, np.flatnonzero(bits != recorded[f"bits_{c}"]))
     print(f"{simulator} {release or ''}: run and rerun {time.perf_counter() - start:.1f} s")
+
+
+def test_a_failed_runs_netlist_reruns_in_its_failed_folder(compiled, tmp_path):
+    """A run stopped by --timeout keeps its netlist in DIR/sigma-delta.failed/, where netgen's
+    message says to reproduce it: VACASK runs it there to the end, the compiled models reached
+    through the kept link osdi -> ../osdi (netgen.folders.OutputFolder)."""
+    out = tmp_path / "run"
+    shutil.copytree(compiled, out / "osdi")
+    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--model",
+                     str(ROOT / "netlists" / MODEL[0]), "--simulator", "vacask", "--cycles", "64", "--timeout",
+                     "0.01", "-q", "-o", str(out)])
+    assert code == 1
+    failed = out / "sigma-delta.failed"
+    plot = read_raw(rerun(failed, "vacask", None))[0]
+    assert np.asarray(plot["time"])[-1] == pytest.approx(64e-6, rel=1e-6)     # --ts 1e-6, 64 periods
