@@ -58,7 +58,7 @@ def rerun(folder: Path, simulator: str, release: str | None) -> Path:
 
 
 @pytest.mark.parametrize("simulator, release", CASES, ids=[f"{s}-{r or 'vacask'}" for s, r in CASES])
-def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, compiled, tmp_path, monkeypatch):
+def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, request, tmp_path, monkeypatch):
     """The moved folder's netlist reruns and its bits equal bitstreams.npz, period by period."""
     if release:
         monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
@@ -67,7 +67,7 @@ def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, 
     for name in MODEL:
         shutil.copy(ROOT / "netlists" / name, out / "model" / name)
     if simulator in ("vacask", "ngspice-osdi"):
-        shutil.copytree(compiled, out / "osdi")
+        shutil.copytree(request.getfixturevalue("compiled"), out / "osdi")     # compiled only for these
     start = time.perf_counter()
     code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--model",
                      str(out / "model" / MODEL[0]), "--simulator", simulator, "--cycles", "64", "--no-plots",
