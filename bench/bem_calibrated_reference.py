@@ -6,7 +6,7 @@ sigma-delta comparison with and without them:
     .venv/bin/python bench/bem_calibrated_reference.py EXTRAPOLATION.json OUT [--transient]
 
 What the couplings file holds, and why it is one: BEM cannot solve the reference gap here (g/R =
-0.0063 needs ~48k elements, 23 GB: bench/bem_extrapolate.py's cost line), so OUT/maxwell_extrapolated.json
+0.0063 needs 104k elements on the finest level, ~100 GB: bench/bem_extrapolate.py's cost lines), so OUT/maxwell_extrapolated.json
 is not a field solution. It holds Maxwell matrices at q = 0 and +-h along z, tilt_x, tilt_y (h =
 5 % of each touching amplitude) built from the extrapolation: plate-electrode entries
 C_i(q) = C_pp,i(0) / (1 + y_C,i) + (C_pp,i(q) - C_pp,i(0)) / (1 + y_v,i), with y the extrapolated

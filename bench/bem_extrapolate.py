@@ -88,11 +88,46 @@ def summarise(values: dict[str, float], err: float = 0.0, floor: float | None = 
     return {"value": mid, "uncertainty": float(0.5 * (v.max() - v.min()) + err), "forms": values}
 
 
+COARSE_ONLY = "combined forward on the coarsest level only"
+
+
+def level_corrected(results: list[dict]) -> list[dict]:
+    """Results whose derivative step ran on the coarsest mesh level only (bem_reference_disk.py
+    --coarse-derivatives) corrected per electrode by the ratio (extrapolated / coarsest level) of
+    the nearest larger gap that has both (the meshes scale with the gap); the uncertainty of each
+    corrected derivative, `dC_level_uncertainty`, is that ratio's change to the next larger gap
+    (the whole correction when there is only one)."""
+    both = sorted((r for r in results if r.get("dC_bem_coarsest_level")), key=lambda r: r["g_over_R"])
+    out = []
+    for r in results:
+        if r.get("derivatives") != COARSE_ONLY:
+            out.append(r)
+            continue
+        refs = [b for b in both if b["g_over_R"] > r["g_over_R"]]
+        if not refs:
+            raise SystemExit(f"g/R {r['g_over_R']:g}: coarsest-level derivatives need a larger gap run with both levels")
+        r = dict(r, dC_bem={}, dC_level_uncertainty={}, dC_corrected_from=[b["g_over_R"] for b in refs[:2]])
+        for q, coarse in r["dC_bem_coarsest_level_step"].items():
+            ratios = [ratio(b["dC_bem"][q], b["dC_bem_coarsest_level"][q]) for b in refs[:2]]
+            r["dC_bem"][q] = (np.asarray(coarse) * ratios[0]).tolist()
+            r["dC_level_uncertainty"][q] = np.abs(ratios[0] - (ratios[1] if len(ratios) > 1 else 1.0)).tolist()
+        out.append(r)
+    return out
+
+
+def ratio(a, b) -> np.ndarray:
+    """a / b elementwise, 1 where b is zero (a derivative zero by symmetry on both levels)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return np.divide(a, b, out=np.ones_like(a), where=b != 0.0)
+
+
 def differences(results: list[dict]) -> dict:
     """Per electrode and quantity (C, dz, tilt_x): the relative difference at each gap and extrapolated."""
+    results = level_corrected(results)
     x = np.array([r["g_over_R"] for r in results])
     names = results[0]["names"]
     err = results[0]["error_bem"]
+    level = results[0].get("dC_level_uncertainty", {})
     out = {}
     for q in ("C", "z", "tilt_x"):
         series = []
@@ -111,7 +146,8 @@ def differences(results: list[dict]) -> dict:
             if not np.isfinite(y).all():
                 continue
             out[q][n] = {"at": dict(zip(map(float, xq), map(float, y))),
-                         **summarise(forms_difference(xq, y, TARGET), err)}
+                         **summarise(forms_difference(xq, y, TARGET),
+                                     err + (level[q][i] if q in level and np.isfinite(level[q][i]) else 0.0))}
     return out
 
 
@@ -176,7 +212,8 @@ def cost(results: list[dict], memory_gb: float, seconds: float) -> list[str]:
     from netgen.electrostatics.bem import BYTES_PER_ENTRY
     rows = []
     for r in results:                    # a derivative solve where there is one (the first solve pays the JIT)
-        solves = sorted(r.get("all_solves", []), key=lambda s: s["what"] == "q=0")
+        solves = sorted((s for s in r.get("all_solves", []) if len(s["levels"]) > 1),   # both levels
+                        key=lambda s: s["what"] == "q=0")
         if solves:
             lv = solves[0]["levels"]
             rows.append((r["g_over_R"], lv[-1]["elements"], sum(v["assembly_s"] + v["solve_s"] for v in lv)))
