@@ -68,3 +68,23 @@ def test_compare_simulators_and_tone_coupling_read_a_run(tone_run):
     assert pair.returncode == 0, pair.stderr[-3000:]
     for channel in ("z", "tilt_x", "tilt_y"):              # a run against itself: no bit differs, no line moves
         assert f"{channel:8s} differing bits: 0 of 512; line change +0.00 dB" in pair.stdout, pair.stdout
+
+
+def test_fit_derivatives_extractor_rows_meet_the_parallel_plate_limits():
+    """bench/fit_derivatives.py's extractor rows (its second derivatives are finite differences):
+    a gap electrode's dC/dz / C and d2C/dz2 / C, in units of the gap, are those of a parallel plate,
+    1 and 2, lowered a little by the edge fringe (it grows only as ln(1/g) when the gap closes);
+    the committed grid model follows within its fit tolerance in C."""
+    proc = subprocess.run([sys.executable, "bench/fit_derivatives.py", "examples/levitated_disk.toml",
+                           "netlists/levitated_disk.json", "--rows", "z"], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = proc.stdout.splitlines()
+    rows = [k for k, line in enumerate(lines) if re.match(r"^(top|bot)_r\ds\d\s+extractor", line)]
+    assert len(rows) == 16, proc.stdout[-2000:]
+    for k in rows:
+        c, dz, dzz = (float(v) for v in lines[k].split()[2:5])
+        assert c == 1.0 and 0.9 < abs(dz) < 1.0 and 1.8 < dzz < 2.0, lines[k]
+        model_c_error = float(lines[k + 1].split()[1])
+        assert abs(model_c_error) <= 2e-3, lines[k + 1]          # [fit] tolerance of the example
+    assert "stiffness row z" in proc.stdout
