@@ -16,8 +16,8 @@ takes dC/dz and dC/dtilt_x from one forward solve along both, split by the y-mir
 analytic extractor is differenced over the same step, so the one-sided bias cancels in the
 comparison. Each solve prints its mesh sizes, quadrature order, time and peak memory on stderr and
 is stored as it finishes (--store, default ~/.cache/netgen/bem_reference_disk): a rerun or an
-interrupted run recomputes only what is missing. bench/bem_extrapolate.py extrapolates several
---json files to the reference gap.
+interrupted run recomputes only what is missing. bench/bem_extrapolate.py (which imports this
+script, not the reverse) extrapolates several --json files to the reference gap.
 """
 
 from __future__ import annotations
@@ -292,15 +292,6 @@ def table(r: dict) -> str:
     return "\n".join(lines)
 
 
-def extrapolate(results: list[dict]) -> str:
-    """The trend to the reference g/R (bench/bem_extrapolate.py: its fit forms and uncertainty)."""
-    if len(results) < 2:
-        return "trend: needs two or more gaps (or bench/bem_extrapolate.py on several --json files)"
-    import bem_extrapolate                          # the script beside this one
-    ordered = sorted(results, key=lambda r: r["g_over_R"])
-    return "\n".join(bem_extrapolate.ring_table(bem_extrapolate.differences(ordered)))
-
-
 def main() -> None:
     """Run the gaps, print the tables and the trend."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -326,7 +317,8 @@ def main() -> None:
         print(table(results[-1]), flush=True)
         if a.json:
             a.json.write_text(json.dumps(results, indent=1))
-    print(extrapolate(results))
+    if a.json:
+        print(f"trend to the reference gap: .venv/bin/python bench/bem_extrapolate.py {a.json} [more runs' JSON]")
 
 
 if __name__ == "__main__":
