@@ -18,7 +18,7 @@ forms through the smallest computed gaps, each zero at g = 0:
   xlog   the same, least squares through the three smallest
   quad   y = alpha x + gamma x^2        (least squares, the three smallest)
 The value is their median, the uncertainty half their spread plus the smallest gap's BEM error
-estimate. Couplings (F) tend to a constant (the sheets' back-side field does not see the plate):
+estimate (for a derivative also its own: level_error). Couplings (F) tend to a constant (the sheets' back-side field does not see the plate):
   lin    c0 + c1 x (two smallest), quad c0 + c1 x + c2 x^2 (three smallest), xlog c0 + c1 x ln(1/x)
   (two smallest); median and half-spread again, clipped at 0.
 """
@@ -88,46 +88,23 @@ def summarise(values: dict[str, float], err: float = 0.0, floor: float | None = 
     return {"value": mid, "uncertainty": float(0.5 * (v.max() - v.min()) + err), "forms": values}
 
 
-COARSE_ONLY = "combined forward on the coarsest level only"
-
-
-def level_corrected(results: list[dict]) -> list[dict]:
-    """Results whose derivative step ran on the coarsest mesh level only (bem_reference_disk.py
-    --coarse-derivatives) corrected per electrode by the ratio (extrapolated / coarsest level) of
-    the nearest larger gap that has both (the meshes scale with the gap); the uncertainty of each
-    corrected derivative, `dC_level_uncertainty`, is that ratio's change to the next larger gap
-    (the whole correction when there is only one)."""
-    both = sorted((r for r in results if r.get("dC_bem_coarsest_level")), key=lambda r: r["g_over_R"])
-    out = []
-    for r in results:
-        if r.get("derivatives") != COARSE_ONLY:
-            out.append(r)
-            continue
-        refs = [b for b in both if b["g_over_R"] > r["g_over_R"]]
-        if not refs:
-            raise SystemExit(f"g/R {r['g_over_R']:g}: coarsest-level derivatives need a larger gap run with both levels")
-        r = dict(r, dC_bem={}, dC_level_uncertainty={}, dC_corrected_from=[b["g_over_R"] for b in refs[:2]])
-        for q, coarse in r["dC_bem_coarsest_level_step"].items():
-            ratios = [ratio(b["dC_bem"][q], b["dC_bem_coarsest_level"][q]) for b in refs[:2]]
-            r["dC_bem"][q] = (np.asarray(coarse) * ratios[0]).tolist()
-            r["dC_level_uncertainty"][q] = np.abs(ratios[0] - (ratios[1] if len(ratios) > 1 else 1.0)).tolist()
-        out.append(r)
-    return out
-
-
-def ratio(a, b) -> np.ndarray:
-    """a / b elementwise, 1 where b is zero (a derivative zero by symmetry on both levels)."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return np.divide(a, b, out=np.ones_like(a), where=b != 0.0)
+def level_error(r: dict, q: str) -> np.ndarray:
+    """Per electrode, the estimated relative error of a two-level BEM derivative: the finest
+    level's distance from the extrapolation, |coarsest / extrapolated - 1| / 2 (Richardson with
+    order 2 and levels sqrt(2) apart puts the finest level halfway); 0 where not recorded."""
+    coarse = (r.get("dC_bem_coarsest_level") or {}).get(q)
+    if coarse is None:
+        return np.zeros(len(r["names"]))
+    a, c = np.asarray(r["dC_bem"][q], float), np.asarray(coarse, float)
+    return 0.5 * np.abs(np.divide(c, a, out=np.ones_like(a), where=a != 0.0) - 1.0)
 
 
 def differences(results: list[dict]) -> dict:
     """Per electrode and quantity (C, dz, tilt_x): the relative difference at each gap and extrapolated."""
-    results = level_corrected(results)
     x = np.array([r["g_over_R"] for r in results])
     names = results[0]["names"]
     err = results[0]["error_bem"]
-    level = results[0].get("dC_level_uncertainty", {})
+    level = {q: level_error(results[0], q) for q in results[0].get("dC_bem", {})}
     out = {}
     for q in ("C", "z", "tilt_x"):
         series = []
@@ -147,7 +124,7 @@ def differences(results: list[dict]) -> dict:
                 continue
             out[q][n] = {"at": dict(zip(map(float, xq), map(float, y))),
                          **summarise(forms_difference(xq, y, TARGET),
-                                     err + (level[q][i] if q in level and np.isfinite(level[q][i]) else 0.0))}
+                                     err + (level[q][i] if q in level else 0.0))}
     return out
 
 

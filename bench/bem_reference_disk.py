@@ -77,24 +77,22 @@ class SolveStore:
         return self.keep(f, dq, m)
 
     def solve_levelwise(self, pb, gr: float, what: str, dq: np.ndarray, order: int) -> bem.MaxwellMatrix:
-        """pb.maxwell(dq, order) on two levels, each level stored as it finishes (a solve of the
-        coarsest level alone, --coarse-derivatives, is reused): the same extrapolation as
-        netgen.electrostatics.bem.converged with two levels."""
+        """pb.maxwell(dq, order) on two levels, each level stored as it finishes (an interrupted
+        run keeps its coarse level): the same extrapolation as netgen.electrostatics.bem.converged
+        with two levels."""
         f = None if self.folder is None else self.path(gr, what, order, pb.settings)
         if f is not None and f.exists():
             return self.solve(pb, gr, what, dq, order)
         t0 = time.perf_counter()
-        lv = [self.solve_coarse(pb, gr, what, dq, order, k) for k in range(2)]
+        lv = [self.solve_level(pb, gr, what, dq, order, k) for k in range(2)]
         best, p = bem.extrapolate([m.matrix for m in lv], pb.settings.refinement, pb.settings.richardson_order)
         err = bem.relative_change(best, lv[1].matrix) if p is not None else bem.relative_change(lv[1].matrix, lv[0].matrix)
         record = {"gap": pb.gap, "solves": [m.settings["solves"][0] for m in lv], "richardson_order": p,
                   "seconds": time.perf_counter() - t0, "levelwise": True}
         return bem.MaxwellMatrix(pb.names, best, lv[0].matrix, err, record)
 
-    def solve_coarse(self, pb, gr: float, what: str, dq: np.ndarray, order: int, level: int = 0) -> bem.MaxwellMatrix:
-        """One solve on mesh level `level` only (default the coarsest; matrix = coarse = that
-        level, error nan): the derivative step where two levels do not fit the time
-        (--coarse-derivatives)."""
+    def solve_level(self, pb, gr: float, what: str, dq: np.ndarray, order: int, level: int) -> bem.MaxwellMatrix:
+        """One solve on mesh level `level` only (matrix = coarse = that level, error nan), stored."""
         f = None if self.folder is None else self.path(gr, what + f"_level{level}", order, pb.settings)
         if f is not None and f.exists():
             d = np.load(f, allow_pickle=False)
@@ -175,10 +173,8 @@ def separate(dc: np.ndarray, mirror: list[int], steps: dict) -> dict:
 
 
 def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords: int = 3,
-            store: SolveStore = SolveStore(None), combined: bool = False, coarse_only: bool = False) -> dict:
-    """Analytic and BEM capacitances and rigid-coordinate derivatives at one g/R (coarse_only:
-    the combined derivative step on the coarsest level only, differenced against that level's
-    solution at rest)."""
+            store: SolveStore = SolveStore(None), combined: bool = False) -> dict:
+    """Analytic and BEM capacitances and rigid-coordinate derivatives at one g/R."""
     s = structure(gap_over_r)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
@@ -199,7 +195,7 @@ def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords:
     amp = np.abs(pb.geometry.probe.phi).max(axis=0)
     steps = {name: 0.01 * pb.gap / amp[m.names.index(name)] for name in RIGID[:coords]}
     grads_bem, grads_pp, exact_pp = {}, {}, {}
-    coarse_grads, coarse_step = None, None
+    coarse_grads = None
     for name in RIGID[:coords]:
         exact_pp[name] = pp.gradient(q0)[:, m.names.index(name)]
     if combined:                                        # one forward solve along z and tilt_x at once
@@ -207,17 +203,11 @@ def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords:
         for name in ("z", "tilt_x"):
             dq[m.names.index(name)] = steps[name]
         mirror = mirrors(shapes)
-        if coarse_only:
-            plus = store.solve_coarse(pb, gap_over_r, "+z+tilt_x", dq, order)
-            log(gap_over_r, "+z+tilt_x (coarsest level)", plus)
-            grads_bem.update(separate(plus.plate_electrode - (-centre.coarse[0, 1:]), mirror, steps))
-            coarse_step = {k: v.tolist() for k, v in grads_bem.items()}
-        else:
-            plus = store.solve_levelwise(pb, gap_over_r, "+z+tilt_x", dq, order)
-            log(gap_over_r, "+z+tilt_x", plus)
-            grads_bem.update(separate(plus.plate_electrode - centre.plate_electrode, mirror, steps))
-            # the same step on the coarsest level alone: what coarse_only measures at smaller gaps
-            coarse_grads = separate(-plus.coarse[0, 1:] + centre.coarse[0, 1:], mirror, steps)
+        plus = store.solve_levelwise(pb, gap_over_r, "+z+tilt_x", dq, order)
+        log(gap_over_r, "+z+tilt_x", plus)
+        grads_bem.update(separate(plus.plate_electrode - centre.plate_electrode, mirror, steps))
+        # the same step on the coarsest level alone: bem_extrapolate.level_error's estimate
+        coarse_grads = separate(-plus.coarse[0, 1:] + centre.coarse[0, 1:], mirror, steps)
         grads_pp.update(separate(pp.capacitance(dq) - c_pp, mirror, steps))
     for name in ([] if combined else RIGID[:coords]):
         v = m.names.index(name)
@@ -243,9 +233,7 @@ def run_gap(gap_over_r: float, settings: bem.BemSettings, forward: bool, coords:
             "dC_bem": {k: v.tolist() for k, v in grads_bem.items()},
             "adjacent_coupling_ratio": cpl, "pairs": pairs, "symmetry": asymmetry(centre.matrix),
             "dC_bem_coarsest_level": None if not coarse_grads else {k: v.tolist() for k, v in coarse_grads.items()},
-            "dC_bem_coarsest_level_step": coarse_step,      # coarse_only: dC_bem is this raw step (bem_extrapolate corrects it)
-            "derivatives": "combined forward on the coarsest level only" if coarse_only else
-            "combined forward (z + tilt_x in one solve, split by the y-mirror)" if combined
+            "derivatives": "combined forward (z + tilt_x in one solve, split by the y-mirror)" if combined
             else "forward" if forward else "central", "seconds": time.perf_counter() - t0,
             "solve": {k: v for k, v in centre.settings.items() if k != "solves"},
             "solves": centre.settings["solves"], "all_solves": [x for x in SOLVES if x["g_over_R"] == gap_over_r]}
@@ -303,17 +291,13 @@ def main() -> None:
     ap.add_argument("--coordinates", type=int, default=3, help="derivatives of the first N of z, tilt_x, tilt_y")
     ap.add_argument("--combined", action="store_true",
                     help="dC/dz and dC/dtilt_x from one forward solve along both (split by the y-mirror symmetry)")
-    ap.add_argument("--coarse-derivatives", action="store_true",
-                    help="with --combined: the derivative step on the coarsest mesh level only (a third of the time); "
-                         "the runs at larger gaps report what that level alone gives (dC_bem_coarsest_level)")
     ap.add_argument("--json", type=Path, help="write the results here")
     ap.add_argument("--store", type=Path, default=STORE, help=f"folder of the stored solves (default {STORE})")
     a = ap.parse_args()
     settings = settings_for(a.element_to_gap, a.edge_to_gap, a.budget_gb)
     results = []
     for gr in (float(g) for g in a.gaps.split(",")):
-        results.append(run_gap(gr, settings, a.forward, a.coordinates, SolveStore(a.store), a.combined,
-                               a.coarse_derivatives and a.combined))
+        results.append(run_gap(gr, settings, a.forward, a.coordinates, SolveStore(a.store), a.combined))
         print(table(results[-1]), flush=True)
         if a.json:
             a.json.write_text(json.dumps(results, indent=1))

@@ -89,22 +89,3 @@ def test_fit_derivatives_extractor_rows_meet_the_parallel_plate_limits():
         assert abs(model_c_error) <= 2e-3, lines[k + 1]          # [fit] tolerance of the example
     assert "stiffness row z" in proc.stdout
 
-
-def test_bem_extrapolate_corrects_a_coarsest_level_step_by_the_larger_gaps_level_ratio():
-    """bench/bem_extrapolate.level_corrected: a derivative step solved on the coarsest level only
-    takes each electrode's ratio (two-level / coarsest) of the nearest larger gap that has both,
-    and that ratio's change to the next gap as its uncertainty; a zero derivative (symmetry) stays 0."""
-    sys.path.insert(0, str(ROOT / "bench"))
-    import bem_extrapolate as ex
-    def two_level(g, ratio):
-        coarse = [1.0, 2.0, 0.0]
-        return {"g_over_R": g, "dC_bem": {"z": [c * r for c, r in zip(coarse, ratio)]},
-                "dC_bem_coarsest_level": {"z": coarse}}
-    step = {"g_over_R": 0.0115, "derivatives": ex.COARSE_ONLY, "dC_bem": {"z": [9.0, 9.0, 9.0]},
-            "dC_bem_coarsest_level_step": {"z": [3.0, 5.0, 0.0]}}
-    out = ex.level_corrected([step, two_level(0.02, [1.01, 0.99, 1.0]), two_level(0.05, [1.03, 0.98, 1.0])])
-    assert out[0]["dC_bem"]["z"] == pytest.approx([3.03, 4.95, 0.0])
-    assert out[0]["dC_level_uncertainty"]["z"] == pytest.approx([0.02, 0.01, 0.0])
-    assert out[0]["dC_corrected_from"] == [0.02, 0.05]
-    with pytest.raises(SystemExit, match="larger gap"):
-        ex.level_corrected([step])
