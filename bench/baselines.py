@@ -13,8 +13,18 @@ from __future__ import annotations
 import numpy as np
 
 from netgen.emit import ngspice
-from netgen.emit.common import (clamp_expr, contact_terms, dv2_node, force_gain, node, num, poly_expr, slope_expr,
-                                time_scale, y_node)
+from netgen.emit.common import (
+    clamp_expr,
+    contact_terms,
+    dv2_node,
+    force_gain,
+    node,
+    num,
+    poly_expr,
+    slope_expr,
+    time_scale,
+    y_node,
+)
 from netgen.model import MacroModel
 from netgen.templating import render
 
@@ -29,21 +39,37 @@ def nodes_subcircuit(model: MacroModel, noise: bool | None = False) -> str:
     clamps = model.term_clamps()
     for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
         cl = clamps[i] if clamps else [None] * len(f.polys)
-        row.update({
-            "nodes": [n for k, p in enumerate(f.polys) for n in term_nodes(f.electrode, k, poly_expr(p, state), cl[k])],
-            "dv2": {"name": dv2_node(f.electrode), "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})"},
-            "gs": [],
-            "ys": [] if f.target == "direct" else
-            [{"name": y_node(f.electrode, k), "expr": f"v({dv2_node(f.electrode)})"
-              + (f"*{slope_expr(f'v({node(f.electrode, k)})', *cl[k])}" if cl[k] else "")
-              + f"/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))"}
-             for k in range(len(f.polys))],
-            "charge_expr": ngspice.charge_expr(f, model.plate)})
+        row.update(
+            {
+                "nodes": [
+                    n for k, p in enumerate(f.polys) for n in term_nodes(f.electrode, k, poly_expr(p, state), cl[k])
+                ],
+                "dv2": {
+                    "name": dv2_node(f.electrode),
+                    "expr": f"v({f.electrode},{model.plate})*v({f.electrode},{model.plate})",
+                },
+                "gs": [],
+                "ys": []
+                if f.target == "direct"
+                else [
+                    {
+                        "name": y_node(f.electrode, k),
+                        "expr": f"v({dv2_node(f.electrode)})"
+                        + (f"*{slope_expr(f'v({node(f.electrode, k)})', *cl[k])}" if cl[k] else "")
+                        + f"/(v({node(f.electrode, k)})*v({node(f.electrode, k)}))",
+                    }
+                    for k in range(len(f.polys))
+                ],
+                "charge_expr": ngspice.charge_expr(f, model.plate),
+            }
+        )
     stops, per_coord = contact_terms(model)
     ngspice.add_stops(ctx, model, stops, per_coord)
-    return (f"* {model.name}: NODES benchmark baseline emission (bench/baselines.py nodes_subcircuit); the section\n"
-            "* comments below are the product template's (netgen.emit.ngspice), the B-sources are the baseline's\n"
-            + render(ngspice.TEMPLATE, **ctx))
+    return (
+        f"* {model.name}: NODES benchmark baseline emission (bench/baselines.py nodes_subcircuit); the section\n"
+        "* comments below are the product template's (netgen.emit.ngspice), the B-sources are the baseline's\n"
+        + render(ngspice.TEMPLATE, **ctx)
+    )
 
 
 BASELINES = {"naive": lambda model, noise=False: naive_subcircuit(model), "nodes": nodes_subcircuit}
@@ -58,8 +84,10 @@ def naive_subcircuit(model: MacroModel) -> str:
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]
     plate = model.plate
-    lines = [f"* {model.name}: NAIVE benchmark baseline emission (bench/baselines.py naive_subcircuit)",
-             f".subckt {model.name} " + " ".join(p["name"] for p in model.ports())]
+    lines = [
+        f"* {model.name}: NAIVE benchmark baseline emission (bench/baselines.py naive_subcircuit)",
+        f".subckt {model.name} " + " ".join(p["name"] for p in model.ports()),
+    ]
     dv = {f.electrode: f"v({f.electrode},{plate})" for f in model.capacitances}
     for v, c in enumerate(model.coordinates):
         a = force_gain(c, ws)
@@ -78,22 +106,31 @@ def naive_subcircuit(model: MacroModel) -> str:
                     parts.append(f"{num(g)}*({poly_expr(d, state)})*{dv[f.electrode]}*{dv[f.electrode]}")
                 else:
                     pe = poly_expr(poly, state)
-                    parts.append(f"{num(-g)}*({poly_expr(d, state)})*{dv[f.electrode]}*{dv[f.electrode]}"
-                                 f"/(({pe})*({pe}))")
-        lines += [f"Cx_{c.name} xs_{c.name} 0 {num(1.0 / ws)}", f"Bx_{c.name} 0 xs_{c.name} I=v(u_{c.name})",
-                  f"Cu_{c.name} u_{c.name} 0 {num(1.0 / ws)}",
-                  f"Bu_{c.name} 0 u_{c.name} I=" + " + ".join(parts).replace("+ -", "- "),
-                  f"Ex_{c.name} x_{c.name} 0 xs_{c.name} 0 {num(c.scale / c.port_units[1])}"]
+                    parts.append(
+                        f"{num(-g)}*({poly_expr(d, state)})*{dv[f.electrode]}*{dv[f.electrode]}/(({pe})*({pe}))"
+                    )
+        lines += [
+            f"Cx_{c.name} xs_{c.name} 0 {num(1.0 / ws)}",
+            f"Bx_{c.name} 0 xs_{c.name} I=v(u_{c.name})",
+            f"Cu_{c.name} u_{c.name} 0 {num(1.0 / ws)}",
+            f"Bu_{c.name} 0 u_{c.name} I=" + " + ".join(parts).replace("+ -", "- "),
+            f"Ex_{c.name} x_{c.name} 0 xs_{c.name} 0 {num(c.scale / c.port_units[1])}",
+        ]
     for f in model.capacitances:
         if f.target == "direct":
             cap = f"{num(f.c_ref)}*({poly_expr(f.polys[0], state)})"
         else:
             cap = f"{num(f.c_ref)}*(" + " + ".join(f"1/({poly_expr(p, state)})" for p in f.polys) + ")"
         lines.append(f"Cq_{f.electrode} {f.electrode} {plate} Q='{cap}*{dv[f.electrode]}'")
-    lines += [f"Cc_{names[0]}_{names[1]} {names[0]} {names[1]} {num(model.coupling[i, j])}"
-              for i, j, names in ((i, j, (model.electrodes[i].name, model.electrodes[j].name))
-                                  for i in range(len(model.electrodes)) for j in range(i + 1, len(model.electrodes)))
-              if model.coupling[i, j]]
+    lines += [
+        f"Cc_{names[0]}_{names[1]} {names[0]} {names[1]} {num(model.coupling[i, j])}"
+        for i, j, names in (
+            (i, j, (model.electrodes[i].name, model.electrodes[j].name))
+            for i in range(len(model.electrodes))
+            for j in range(i + 1, len(model.electrodes))
+        )
+        if model.coupling[i, j]
+    ]
     lines.append(f".ends {model.name}")
     return "\n".join(lines) + "\n"
 

@@ -41,7 +41,7 @@ from netgen.structure.parse import parse_structure
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "examples" / "levitated_disk.toml"
-STEP = 0.05                       # +-h: this fraction of each rigid coordinate's touching amplitude
+STEP = 0.05  # +-h: this fraction of each rigid coordinate's touching amplitude
 RIGID = ("z", "tilt_x", "tilt_y")
 
 
@@ -85,12 +85,16 @@ def maxwell_file(ex: dict, out: Path) -> Path:
         mx[0, 1:] = mx[1:, 0] = -c
         mx[1:, 1:] = -cc
         np.fill_diagonal(mx, 0.0)
-        np.fill_diagonal(mx, -mx.sum(axis=1) + 0.1 * np.abs(mx).max())    # a small capacitance to infinity each
+        np.fill_diagonal(mx, -mx.sum(axis=1) + 0.1 * np.abs(mx).max())  # a small capacitance to infinity each
         points.append({"q": {name: float(v) for name, v in zip(m.names, row) if v}, "maxwell": mx.tolist()})
-    doc = {"description": f"EXTRAPOLATED, not a field solution: BEM (bempp-cl, bench/bem_reference_disk.py) at "
-                          f"g/R = {', '.join(f'{g:g}' for g in ex['gaps'])}, extrapolated to {ex['target_g_over_R']:.4f} "
-                          "by bench/bem_extrapolate.py, written by bench/bem_calibrated_reference.py",
-           "solver": "bempp-cl 0.4.2 (extrapolated)", "conductors": ["plate"] + names, "points": points}
+    doc = {
+        "description": f"EXTRAPOLATED, not a field solution: BEM (bempp-cl, bench/bem_reference_disk.py) at "
+        f"g/R = {', '.join(f'{g:g}' for g in ex['gaps'])}, extrapolated to {ex['target_g_over_R']:.4f} "
+        "by bench/bem_extrapolate.py, written by bench/bem_calibrated_reference.py",
+        "solver": "bempp-cl 0.4.2 (extrapolated)",
+        "conductors": ["plate"] + names,
+        "points": points,
+    }
     path = out / "maxwell_extrapolated.json"
     path.write_text(json.dumps(doc, indent=1) + "\n")
     return path
@@ -100,9 +104,11 @@ def structure(out: Path) -> Path:
     """OUT/levitated_disk.toml: the reference structure, calibrated against the file."""
     text = REFERENCE.read_text()
     head, tail = text.split("[electrostatics]")
-    rest = tail[tail.index("\n[", 1):] if "\n[" in tail[1:] else ""
+    rest = tail[tail.index("\n[", 1) :] if "\n[" in tail[1:] else ""
     path = out / "levitated_disk.toml"
-    path.write_text(head + '[electrostatics]\nextractor = "calibrated"\ncouplings = "maxwell_extrapolated.json"\n' + rest)
+    path.write_text(
+        head + '[electrostatics]\nextractor = "calibrated"\ncouplings = "maxwell_extrapolated.json"\n' + rest
+    )
     return path
 
 
@@ -122,17 +128,28 @@ def report(model: MacroModel) -> None:
     """The fringes and couplings of the model, and C(0) against the uncalibrated reference model."""
     ref = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
     c, c_ref = model.capacitance(np.zeros(model.ncoords))[0], ref.capacitance(np.zeros(ref.ncoords))[0]
-    g, g_ref = model.capacitance_gradient(np.zeros(model.ncoords))[0], ref.capacitance_gradient(np.zeros(ref.ncoords))[0]
+    g, g_ref = (
+        model.capacitance_gradient(np.zeros(model.ncoords))[0],
+        ref.capacitance_gradient(np.zeros(ref.ncoords))[0],
+    )
     print(model.calibration["source"])
     for i, e in enumerate(model.electrodes):
         f = next(r for r in model.calibration["fringe"] if r["electrode"] == e.name)
-        print(f"  {e.name}: a {f['a']:.4f} b {f['b']:.4f}; C(0) {c[i] * 1e15:.2f} fF ({100 * (c[i] / c_ref[i] - 1):+.2f} % "
-              f"against the uncalibrated model), dC/dz {100 * (g[i, 0] / g_ref[i, 0] - 1):+.2f} %")
+        print(
+            f"  {e.name}: a {f['a']:.4f} b {f['b']:.4f}; C(0) {c[i] * 1e15:.2f} fF ({100 * (c[i] / c_ref[i] - 1):+.2f} % "
+            f"against the uncalibrated model), dC/dz {100 * (g[i, 0] / g_ref[i, 0] - 1):+.2f} %"
+        )
     names = [e.name for e in model.electrodes]
-    pairs = [(names[i], names[j], model.coupling[i, j]) for i in range(len(names)) for j in range(i + 1, len(names))
-             if model.coupling[i, j] > 0]
-    print(f"  {len(pairs)} couplings, largest: " + ", ".join(f"{a}-{b} {v * 1e15:.3f} fF"
-                                                          for a, b, v in sorted(pairs, key=lambda p: -p[2])[:6]))
+    pairs = [
+        (names[i], names[j], model.coupling[i, j])
+        for i in range(len(names))
+        for j in range(i + 1, len(names))
+        if model.coupling[i, j] > 0
+    ]
+    print(
+        f"  {len(pairs)} couplings, largest: "
+        + ", ".join(f"{a}-{b} {v * 1e15:.3f} fF" for a, b, v in sorted(pairs, key=lambda p: -p[2])[:6])
+    )
 
 
 def transient(model: MacroModel, folder: Path, work: Path) -> None:
@@ -142,26 +159,39 @@ def transient(model: MacroModel, folder: Path, work: Path) -> None:
     from netgen.sim.ngspice import run_ngspice
     from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
     from tests.fixtures import Bench, states, transient_drive
+
     float_el = "top_r2s2"
     drive = transient_drive() | {"top_r2s3": transient_drive()["top_r2s1"]}
     stop = 20e-6
     work.mkdir(parents=True, exist_ok=True)
     osdi, _ = compile_va(folder / f"{model.name}.va", work / "m.osdi")
-    bench = VacaskBench(model, osdi, sources={k: p.vacask() for k, p in drive.items()} | {"plate": "dc=0"},
-                        options="reltol=1e-5 chgtol=1e-20")
+    bench = VacaskBench(
+        model,
+        osdi,
+        sources={k: p.vacask() for k, p in drive.items()} | {"plate": "dc=0"},
+        options="reltol=1e-5 chgtol=1e-20",
+    )
     text = bench.netlist(f'analysis tran1 tran step=10n stop={stop!r} maxstep=10n icmode="uic"')
-    text = text.replace(f"v_{float_el} ({float_el} 0) vsource dc=0",
-                        f'model res resistor\nr_{float_el} ({float_el} 0) res r=1e9').replace(
-        "model vsource vsource", 'load "resistor.osdi"\nmodel vsource vsource', 1)
+    text = text.replace(
+        f"v_{float_el} ({float_el} 0) vsource dc=0", f"model res resistor\nr_{float_el} ({float_el} 0) res r=1e9"
+    ).replace("model vsource vsource", 'load "resistor.osdi"\nmodel vsource vsource', 1)
     vac = run_vacask(text, work / "vacask")
-    spice = Bench(model, folder / f"{model.name}.lib", sources={k: p.spice() for k, p in drive.items()} | {"plate": "0"},
-                  extra=[f"R{float_el} {float_el} 0 1e9"], driven_elsewhere={float_el}, options="reltol=1e-5 chgtol=1e-20")
+    spice = Bench(
+        model,
+        folder / f"{model.name}.lib",
+        sources={k: p.spice() for k, p in drive.items()} | {"plate": "0"},
+        extra=[f"R{float_el} {float_el} 0 1e9"],
+        driven_elsewhere={float_el},
+        options="reltol=1e-5 chgtol=1e-20",
+    )
     plot = run_ngspice(spice.netlist(f".tran 10n {stop!r} 0 10n uic"), work / "ngspice")[0]
     t = plot["time"]
     v_ng, v_vac = plot[f"v({float_el})"], np.interp(t, vac["time"], vac[float_el])
     peak = np.abs(v_ng).max()
-    print(f"transient, {float_el} floating on 1 Gohm beside driven neighbours: peak {peak:.4f} V, "
-          f"VACASK - ngspice max {np.abs(v_vac - v_ng).max() / peak:.2e} of the peak")
+    print(
+        f"transient, {float_el} floating on 1 Gohm beside driven neighbours: peak {peak:.4f} V, "
+        f"VACASK - ngspice max {np.abs(v_vac - v_ng).max() / peak:.2e} of the peak"
+    )
     x_ng, _ = states(plot, model)
     for v, c in enumerate(model.coordinates):
         x_vac = np.interp(t, vac["time"], vac[f"x1:xs_{c.name}"])
@@ -183,9 +213,13 @@ def main() -> None:
     if a.transient:
         transient(model, a.out / "model", a.out / "transient")
     for label in ("model", "plain"):
-        print(f"nice -n 10 .venv/bin/netgen sigma-delta examples/levitated_disk.toml --model {a.out / label}/levitated_disk.json "
-              f"--simulator ngspice-xspice --cycles 8192 --tone z:0.02:2000 -o {a.out}/sd_{label} -q --no-plots")
-    print(f".venv/bin/python bench/couplings_sigma_delta.py {a.out}/sd_plain {a.out}/sd_model --png {a.out}/couplings_sd.png")
+        print(
+            f"nice -n 10 .venv/bin/netgen sigma-delta examples/levitated_disk.toml --model {a.out / label}/levitated_disk.json "
+            f"--simulator ngspice-xspice --cycles 8192 --tone z:0.02:2000 -o {a.out}/sd_{label} -q --no-plots"
+        )
+    print(
+        f".venv/bin/python bench/couplings_sigma_delta.py {a.out}/sd_plain {a.out}/sd_model --png {a.out}/couplings_sd.png"
+    )
 
 
 if __name__ == "__main__":

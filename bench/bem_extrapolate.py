@@ -64,8 +64,8 @@ def forms_difference(x: np.ndarray, y: np.ndarray, target: float) -> dict[str, f
     xs, ys = x[:k], y[:k]
     a = np.column_stack([xs, xs * np.log(1 / xs)])
     out["xlog"] = float(at @ np.linalg.lstsq(a, ys, rcond=None)[0])
-    a = np.column_stack([xs, xs ** 2])
-    out["quad"] = float(np.array([target, target ** 2]) @ np.linalg.lstsq(a, ys, rcond=None)[0])
+    a = np.column_stack([xs, xs**2])
+    out["quad"] = float(np.array([target, target**2]) @ np.linalg.lstsq(a, ys, rcond=None)[0])
     return out
 
 
@@ -116,15 +116,16 @@ def differences(results: list[dict]) -> dict:
         if len(series) < 2:
             continue
         ys = np.array(series)
-        xq = x[:len(ys)] if q == "C" else np.array([r["g_over_R"] for r in results if q in r["dC_bem"]])
+        xq = x[: len(ys)] if q == "C" else np.array([r["g_over_R"] for r in results if q in r["dC_bem"]])
         out[q] = {}
         for i, n in enumerate(names):
             y = ys[:, i]
             if not np.isfinite(y).all():
                 continue
-            out[q][n] = {"at": dict(zip(map(float, xq), map(float, y))),
-                         **summarise(forms_difference(xq, y, TARGET),
-                                     err + (level[q][i] if q in level else 0.0))}
+            out[q][n] = {
+                "at": dict(zip(map(float, xq), map(float, y))),
+                **summarise(forms_difference(xq, y, TARGET), err + (level[q][i] if q in level else 0.0)),
+            }
     return out
 
 
@@ -138,8 +139,10 @@ def couplings(results: list[dict]) -> dict:
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
             y = 0.5 * (mats[:, i, j] + mats[:, j, i])
-            out[f"{names[i]}-{names[j]}"] = {"at": dict(zip(map(float, x), map(float, y))),
-                                             **summarise(forms_coupling(x, y, TARGET), floor=0.0)}
+            out[f"{names[i]}-{names[j]}"] = {
+                "at": dict(zip(map(float, x), map(float, y))),
+                **summarise(forms_coupling(x, y, TARGET), floor=0.0),
+            }
     return out
 
 
@@ -164,10 +167,15 @@ def ring_table(diff: dict) -> list[str]:
 def coupling_table(cpl: dict, results: list[dict]) -> list[str]:
     """The couplings of each kind (one representative pair) in fF and over C of its first electrode."""
     names = results[0]["names"]
-    kinds = {"adjacent, inner ring": "top_r1s1-top_r1s2", "adjacent, outer ring": "top_r2s1-top_r2s2",
-             "inner-outer, same sector": "top_r1s1-top_r2s1", "inner-outer, next sector": "top_r1s1-top_r2s2",
-             "opposite, inner ring": "top_r1s1-top_r1s3", "opposite, outer ring": "top_r2s1-top_r2s3",
-             "top-bottom, outer sector": "top_r2s1-bot_r2s1"}
+    kinds = {
+        "adjacent, inner ring": "top_r1s1-top_r1s2",
+        "adjacent, outer ring": "top_r2s1-top_r2s2",
+        "inner-outer, same sector": "top_r1s1-top_r2s1",
+        "inner-outer, next sector": "top_r1s1-top_r2s2",
+        "opposite, inner ring": "top_r1s1-top_r1s3",
+        "opposite, outer ring": "top_r2s1-top_r2s3",
+        "top-bottom, outer sector": "top_r2s1-bot_r2s1",
+    }
     c_small = {g: np.asarray(r["C_bem"]) for g, r in ((r["g_over_R"], r) for r in results)}
     lines = ["couplings (fF; % of the first electrode's plate capacitance C_bem at that gap):"]
     for label, pair in kinds.items():
@@ -185,12 +193,16 @@ def cost(results: list[dict], memory_gb: float, seconds: float) -> list[str]:
     through the measured solves) and memory (netgen.electrostatics.bem.BYTES_PER_ENTRY per matrix
     entry of the finest level; measured 8.9-10.1) against g/R, and the smallest g/R whose solve
     (both levels) fits memory_gb and `seconds`."""
-    import bem_reference_disk as ref                # the script beside this one
+    import bem_reference_disk as ref  # the script beside this one
+
     from netgen.electrostatics.bem import BYTES_PER_ENTRY
+
     rows = []
-    for r in results:                    # a derivative solve where there is one (the first solve pays the JIT)
-        solves = sorted((s for s in r.get("all_solves", []) if len(s["levels"]) > 1),   # both levels
-                        key=lambda s: s["what"] == "q=0")
+    for r in results:  # a derivative solve where there is one (the first solve pays the JIT)
+        solves = sorted(
+            (s for s in r.get("all_solves", []) if len(s["levels"]) > 1),  # both levels
+            key=lambda s: s["what"] == "q=0",
+        )
         if solves:
             lv = solves[0]["levels"]
             rows.append((r["g_over_R"], lv[-1]["elements"], sum(v["assembly_s"] + v["solve_s"] for v in lv)))
@@ -198,8 +210,12 @@ def cost(results: list[dict], memory_gb: float, seconds: float) -> list[str]:
         return ["cost: needs the derivative solves of two gaps (their first solve pays the JIT)"]
     g, n_fine, t = map(np.array, zip(*rows))
     pt = np.polyfit(np.log(n_fine), np.log(t), 1)
-    lines = [f"cost: solve time (both levels) ~ N^{pt[0]:.2f} over the finest level's N "
-             f"(from {len(rows)} solves: " + ", ".join(f"{gi:g}: {ni} el {ti:.0f} s" for gi, ni, ti in zip(g, n_fine, t)) + ")"]
+    lines = [
+        f"cost: solve time (both levels) ~ N^{pt[0]:.2f} over the finest level's N "
+        f"(from {len(rows)} solves: "
+        + ", ".join(f"{gi:g}: {ni} el {ti:.0f} s" for gi, ni, ti in zip(g, n_fine, t))
+        + ")"
+    ]
     settings = ref.settings_for()
     grid = sorted({0.015, 0.0125, 0.012, 0.0115, 0.011, 0.0105, 0.01, 0.009, TARGET})
     fits = []
@@ -208,11 +224,16 @@ def cost(results: list[dict], memory_gb: float, seconds: float) -> list[str]:
         mem, tt = BYTES_PER_ENTRY * n * n / 1e9, float(np.exp(np.polyval(pt, np.log(n))))
         ok = mem <= memory_gb and tt <= seconds
         fits.append((x, ok))
-        lines.append(f"  g/R = {x:.4f}: {n} elements (finest level), {mem:.1f} GB, {tt:.0f} s per solve on this "
-                     f"machine's share{'' if ok else '  (over the budget)'}")
+        lines.append(
+            f"  g/R = {x:.4f}: {n} elements (finest level), {mem:.1f} GB, {tt:.0f} s per solve on this "
+            f"machine's share{'' if ok else '  (over the budget)'}"
+        )
     best = min((x for x, ok in fits if ok), default=None)
-    lines.insert(1, f"  smallest g/R within {memory_gb:g} GB and {seconds:g} s per solve: "
-                    + (f"{best:.4f}" if best else "none of " + ", ".join(f"{x:.4f}" for x in grid)))
+    lines.insert(
+        1,
+        f"  smallest g/R within {memory_gb:g} GB and {seconds:g} s per solve: "
+        + (f"{best:.4f}" if best else "none of " + ", ".join(f"{x:.4f}" for x in grid)),
+    )
     return lines
 
 
@@ -229,9 +250,19 @@ def main() -> None:
     for line in ring_table(diff) + coupling_table(cpl, results) + cost(results, a.memory_gb, a.seconds):
         print(line)
     if a.json:
-        a.json.write_text(json.dumps({"target_g_over_R": TARGET, "gaps": [r["g_over_R"] for r in results],
-                                      "names": results[0]["names"], "differences": diff, "couplings": cpl,
-                                      "bem_error_smallest_gap": results[0]["error_bem"]}, indent=1))
+        a.json.write_text(
+            json.dumps(
+                {
+                    "target_g_over_R": TARGET,
+                    "gaps": [r["g_over_R"] for r in results],
+                    "names": results[0]["names"],
+                    "differences": diff,
+                    "couplings": cpl,
+                    "bem_error_smallest_gap": results[0]["error_bem"],
+                },
+                indent=1,
+            )
+        )
 
 
 if __name__ == "__main__":

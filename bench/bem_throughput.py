@@ -34,11 +34,14 @@ def problem(name: str, gap: float) -> tuple[bem.PreparedBem, np.ndarray]:
     """The prepared extractor and the coordinate scale of each sampled coordinate."""
     if name == "reduced":
         from test_bem_sampling import GAP, R, reduced
+
         return reduced(), np.array([GAP, GAP / R])
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bem_reference_disk import structure
+
     from netgen.geometry.layout import electrodes, plate_outline
     from netgen.mechanics import mechanics
+
     s = structure(gap)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
@@ -51,7 +54,7 @@ def rate(p: bem.PreparedBem, q: np.ndarray, spec: str) -> tuple[float, float]:
     """(solves per hour after warm-up, warm-up seconds) on the executor `spec`."""
     with executor(spec) as ex:
         t0 = time.perf_counter()
-        sample_maxwell(p, q[:ex.workers], executor=ex)  # one point per worker: the JIT
+        sample_maxwell(p, q[: ex.workers], executor=ex)  # one point per worker: the JIT
         warm = time.perf_counter() - t0
         t0 = time.perf_counter()
         sample_maxwell(p, q, executor=ex)
@@ -71,14 +74,16 @@ def main() -> None:
     rng = np.random.default_rng(1)
     x = np.zeros((a.points, p.ncoords))
     k = min(len(scale), 3)
-    x[:, :k] = sampling_grid(k, 3, 0.2)[rng.permutation(3 ** k)[:a.points] % 3 ** k]
+    x[:, :k] = sampling_grid(k, 3, 0.2)[rng.permutation(3**k)[: a.points] % 3**k]
     q = x * scale
     elements = [len(lv.plate.triangles) + sum(len(e.triangles) for e in lv.electrodes) for lv in p.levels[:2]]
     print(f"problem {a.problem}: {len(p.names)} conductors, {elements} elements per level, {a.points} points")
     for workers in (1, 2):
         r, warm = rate(p, q, f"{a.scheduler}:{workers}")
-        print(f"{workers} worker(s): {r:8.1f} solves/h (warm-up incl. JIT {warm:.0f} s); "
-              f"{PAPER_POINTS} points: {PAPER_POINTS / r:.2f} h")
+        print(
+            f"{workers} worker(s): {r:8.1f} solves/h (warm-up incl. JIT {warm:.0f} s); "
+            f"{PAPER_POINTS} points: {PAPER_POINTS / r:.2f} h"
+        )
 
 
 if __name__ == "__main__":

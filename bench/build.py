@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
 
 from netgen.build import assemble  # noqa: E402
 from netgen.electrostatics import extractor  # noqa: E402
@@ -29,8 +29,8 @@ from netgen.geometry.layout import electrodes, plate_outline  # noqa: E402
 from netgen.mechanics import mechanics  # noqa: E402
 from netgen.structure import load_structure  # noqa: E402
 
-BUDGET_S = 60.0          # the original target: a reference build within a minute
-GOAL_S = 20.0            # the later performance target
+BUDGET_S = 60.0  # the original target: a reference build within a minute
+GOAL_S = 20.0  # the later performance target
 
 
 def run_once(path: Path) -> dict[str, float]:
@@ -51,6 +51,7 @@ def run_once(path: Path) -> dict[str, float]:
         plate, shapes = plate_outline(s), electrodes(s)
         ext = extractor(s, plate)
         return plate, shapes, ext, ext.prepare(shapes, plate, m.basis)
+
     plate, shapes, ext, prepared = timed("electrodes + extractor quadrature", prepare)
     scales = timed("touching amplitudes", coordinate_scales, prepared, m.names, [e.gap for e in shapes])
     grid = timed(f"grid samples ({s.sampling.levels}^{len(scales)})", sample_grid, s, prepared, scales)
@@ -86,8 +87,10 @@ def main(argv: list[str] | None = None) -> int:
         med = statistics.median(v)
         print(f"{stage:<{width}}  {med:9.3f}  {min(v):8.3f}  {max(v):8.3f}  {med / total_median:6.1%}")
     print(f"{'total':<{width}}  {total_median:9.3f}  {min(totals):8.3f}  {max(totals):8.3f}")
-    print(f"budget {BUDGET_S:.0f} s: {total_median / BUDGET_S:.2f} of it;  "
-          f"goal {GOAL_S:.0f} s: {total_median / GOAL_S:.2f} of it")
+    print(
+        f"budget {BUDGET_S:.0f} s: {total_median / BUDGET_S:.2f} of it;  "
+        f"goal {GOAL_S:.0f} s: {total_median / GOAL_S:.2f} of it"
+    )
     return 0
 
 

@@ -66,6 +66,7 @@ def run_one(s, m, progress: bool = False) -> dict:
         spent["extractor"] += time.perf_counter() - t
         spent["points"] += len(x)
         return out
+
     t0 = time.perf_counter()
     grid = sample_grid(s, prepared, scales)
     holdout = sample_holdout(s, prepared, scales)
@@ -79,11 +80,20 @@ def run_one(s, m, progress: bool = False) -> dict:
     t_fit = time.perf_counter() - t0 - spent["extractor"]
     worst = max(fits, key=lambda f: f.max_rel_error)
     misses = [f.electrode for f in fits if f.max_rel_error > s.fit.tolerance]
-    return {"samples": int(len(grid.x)), "extractor_s": t_sample + spent["extractor"], "fit_s": t_fit,
-            "estimate_s": est.extractor_s + est.fit_s, "estimate_max_s": est.extractor_s + est.fit_max_s,
-            "estimate_calibration_s": t_est,
-            "max_rel_error": worst.max_rel_error, "worst_electrode": worst.electrode,
-            "misses": misses, "fit_warning": bool(misses), "range": s.sampling.range, **extra}
+    return {
+        "samples": int(len(grid.x)),
+        "extractor_s": t_sample + spent["extractor"],
+        "fit_s": t_fit,
+        "estimate_s": est.extractor_s + est.fit_s,
+        "estimate_max_s": est.extractor_s + est.fit_max_s,
+        "estimate_calibration_s": t_est,
+        "max_rel_error": worst.max_rel_error,
+        "worst_electrode": worst.electrode,
+        "misses": misses,
+        "fit_warning": bool(misses),
+        "range": s.sampling.range,
+        **extra,
+    }
 
 
 def parse_n(text: str) -> list[int]:
@@ -98,7 +108,7 @@ def growth(rows: list[dict], design: str) -> dict:
     if len(r) < 3:
         return {}
     n = np.array([x["n"] for x in r], float)
-    t = np.array([x["extractor_s"] + x["fit_s"] for x in r])          # the stages the design drives
+    t = np.array([x["extractor_s"] + x["fit_s"] for x in r])  # the stages the design drives
     b = np.polyfit(np.log(n), np.log(t), 1)[0]
     g = math.exp(np.polyfit(n, np.log(t), 1)[0])
     return {"power_exponent": float(b), "factor_per_coordinate": float(g), "n": [int(v) for v in n]}
@@ -106,38 +116,55 @@ def growth(rows: list[dict], design: str) -> dict:
 
 def table(rows: list[dict]) -> str:
     """The rows as a fixed-width table; a design that misses fit.tolerance says so on its row."""
-    head = (f"{'design':9} {'n':>3} {'range':>5} {'samples':>8} {'mech s':>7} {'extr s':>7} {'fit s':>7} {'est s':>7} "
-            f"{'max err':>9} {'worst':>9}  warning")
+    head = (
+        f"{'design':9} {'n':>3} {'range':>5} {'samples':>8} {'mech s':>7} {'extr s':>7} {'fit s':>7} {'est s':>7} "
+        f"{'max err':>9} {'worst':>9}  warning"
+    )
     lines = [head, "-" * len(head)]
     for r in rows:
         warn = f"MISSES tolerance: {len(r['misses'])} electrode(s)" if r["fit_warning"] else ""
         extra = " (extrapolated)" if r.get("extrapolated") else ""
         err = f"{r['max_rel_error']:9.2e}" if r.get("max_rel_error") is not None else f"{'-':>9}"
-        lines.append(f"{r['design']:9} {r['n']:3d} {r.get('range', float('nan')):5.3g} {r['samples']:8d} {r['mechanics_s']:7.1f} {r['extractor_s']:7.1f} "
-                     f"{r['fit_s']:7.1f} {r['estimate_s']:7.1f} {err} {r.get('worst_electrode', '-'):>9}  "
-                     f"{warn}{extra}")
+        lines.append(
+            f"{r['design']:9} {r['n']:3d} {r.get('range', float('nan')):5.3g} {r['samples']:8d} {r['mechanics_s']:7.1f} {r['extractor_s']:7.1f} "
+            f"{r['fit_s']:7.1f} {r['estimate_s']:7.1f} {err} {r.get('worst_electrode', '-'):>9}  "
+            f"{warn}{extra}"
+        )
     return "\n".join(lines)
 
 
 def figure(rows: list[dict], path: Path) -> None:
     """Time and held-out error against n, one line per design (the grid's extrapolation dashed)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
     for d in sorted({r["design"] for r in rows}):
         r = [x for x in rows if x["design"] == d and not x.get("extrapolated")]
         n = [x["n"] for x in r]
-        line, = a.semilogy(n, [x["extractor_s"] + x["fit_s"] for x in r], "o-", label=d)
+        (line,) = a.semilogy(n, [x["extractor_s"] + x["fit_s"] for x in r], "o-", label=d)
         b.semilogy(n, [x["max_rel_error"] for x in r], "o-", label=d, color=line.get_color())
         ex = [x for x in rows if x["design"] == d and x.get("extrapolated")]
         if ex:
-            a.semilogy([x["n"] for x in ex], [x["extractor_s"] + x["fit_s"] for x in ex], "x--", color=line.get_color(),
-                       label=f"{d} (extrapolated)")
+            a.semilogy(
+                [x["n"] for x in ex],
+                [x["extractor_s"] + x["fit_s"] for x in ex],
+                "x--",
+                color=line.get_color(),
+                label=f"{d} (extrapolated)",
+            )
     tol = rows[0]["tolerance"]
     b.axhline(tol, color="k", ls=":", label="fit.tolerance")
-    a.set_xlabel("coordinates n"); a.set_ylabel("sampling + fit time (s)"); a.legend(fontsize=8); a.grid(alpha=0.3)
-    b.set_xlabel("coordinates n"); b.set_ylabel("held-out max relative error"); b.legend(fontsize=8); b.grid(alpha=0.3)
+    a.set_xlabel("coordinates n")
+    a.set_ylabel("sampling + fit time (s)")
+    a.legend(fontsize=8)
+    a.grid(alpha=0.3)
+    b.set_xlabel("coordinates n")
+    b.set_ylabel("held-out max relative error")
+    b.legend(fontsize=8)
+    b.grid(alpha=0.3)
     fig.suptitle("netgen build cost and accuracy against the number of coordinates (free disk)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -149,8 +176,12 @@ def main() -> int:
     p.add_argument("--n", default="3-12", help="coordinate counts, e.g. 3-12 (n = 3 + modes)")
     p.add_argument("--designs", default="grid,sparse,adaptive")
     p.add_argument("--grid-max", type=int, default=8, help="largest n the grid is run at (above: extrapolated)")
-    p.add_argument("--range", default="0.2", help="[sampling] range, or 'auto' for none (the build's default: "
-                   "0.2, narrowed where the box's corners reach an electrode)")
+    p.add_argument(
+        "--range",
+        default="0.2",
+        help="[sampling] range, or 'auto' for none (the build's default: "
+        "0.2, narrowed where the box's corners reach an electrode)",
+    )
     args = p.parse_args()
     args.range = None if args.range == "auto" else float(args.range)
     out = Path(args.output)
@@ -176,17 +207,31 @@ def main() -> int:
         ref = next(r for r in rows if r["design"] == "grid" and r["n"] == last)
         for n in range(last + 1, max(parse_n(args.n)) + 1):
             f = g["factor_per_coordinate"] ** (n - last)
-            rows.append({"design": "grid", "n": n, "samples": 3**n, "mechanics_s": float("nan"),
-                         "extractor_s": ref["extractor_s"] * f, "fit_s": ref["fit_s"] * f, "estimate_s": float("nan"),
-                         "max_rel_error": None, "misses": [], "fit_warning": False, "extrapolated": True,
-                         "tolerance": ref["tolerance"]})
+            rows.append(
+                {
+                    "design": "grid",
+                    "n": n,
+                    "samples": 3**n,
+                    "mechanics_s": float("nan"),
+                    "extractor_s": ref["extractor_s"] * f,
+                    "fit_s": ref["fit_s"] * f,
+                    "estimate_s": float("nan"),
+                    "max_rel_error": None,
+                    "misses": [],
+                    "fit_warning": False,
+                    "extrapolated": True,
+                    "tolerance": ref["tolerance"],
+                }
+            )
     rows.sort(key=lambda r: (r["design"], r["n"]))
     print()
     print(table(rows))
     for d, f in fits.items():
         if f:
-            print(f"{d}: sampling + fit time ~ n^{f['power_exponent']:.2f} "
-                  f"(or {f['factor_per_coordinate']:.2f}^n) over n = {f['n'][0]}..{f['n'][-1]}")
+            print(
+                f"{d}: sampling + fit time ~ n^{f['power_exponent']:.2f} "
+                f"(or {f['factor_per_coordinate']:.2f}^n) over n = {f['n'][0]}..{f['n'][-1]}"
+            )
     (out / "build_scaling.json").write_text(json.dumps({"rows": rows, "growth": fits}, indent=1, default=str))
     figure(rows, out / "build_scaling.png")
     print(f"wrote {out / 'build_scaling.json'} and {out / 'build_scaling.png'}")

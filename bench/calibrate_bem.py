@@ -33,8 +33,11 @@ VANISHING = 1e-3
 def structure(gap: str, slot: str, rings: int, points: int) -> str:
     """The example's reduced disk at `gap`, `slot`, `rings` rings per side, calibrated at `points` BEM solves."""
     text = EXAMPLE.read_text().split("[electrostatics]")[0]
-    for old, new in (('gap = "3 um"', f'gap = "{gap}"'), ('slot = "10 um"', f'slot = "{slot}"'),
-                     ('rings = [["20 um", "473 um"]]', f"rings = {RINGS[rings]}")):
+    for old, new in (
+        ('gap = "3 um"', f'gap = "{gap}"'),
+        ('slot = "10 um"', f'slot = "{slot}"'),
+        ('rings = [["20 um", "473 um"]]', f"rings = {RINGS[rings]}"),
+    ):
         if old not in text:
             raise SystemExit(f"{EXAMPLE}: no line {old!r} to replace")
         text = text.replace(old, new)
@@ -53,9 +56,12 @@ def derivative_errors(r: dict, name: str, label: str) -> dict[str, str]:
         v = int(v)
         ks = [(k, j) for vv, k, j, _ in pairs(q) if vv == v]
         dc = np.array([c[k] - c[j] for k, j in ks])
-        largest = max(abs(np.asarray(x["c_field_F"])[k] - np.asarray(x["c_field_F"])[j])
-                      for x in r["electrodes"].values() for k, j in ks)
-        kept = [d for d in dc if abs(d) > 1e-6 * abs(c[0])]      # the differences comparison() kept
+        largest = max(
+            abs(np.asarray(x["c_field_F"])[k] - np.asarray(x["c_field_F"])[j])
+            for x in r["electrodes"].values()
+            for k, j in ks
+        )
+        kept = [d for d in dc if abs(d) > 1e-6 * abs(c[0])]  # the differences comparison() kept
         if all(abs(d) < VANISHING * largest for d in kept):
             err = max(abs(e * d) for e, d in zip(rel, kept)) / c[0]
             out[coords[v]] = f"{100 * err:.3f} % of C(0) (vanishes by symmetry)"
@@ -86,8 +92,10 @@ def main() -> None:
         before, after = derivative_errors(r, name, "analytic"), derivative_errors(r, name, "calibrated")
         dc = ", ".join(f"{c} {before[c]} -> {after[c]}" for c in before)
         cc = ", ".join(f"{k} {100 * v:.1f} %" for k, v in r["electrodes"][name]["coupling_over_c0"].items())
-        print(f"{name}: C {100 * s['analytic_c_max_abs_rel_error']:.2f} -> {100 * s['calibrated_c_max_abs_rel_error']:.3f} %; "
-              f"dC {dc}; a {f['a']:.4f} b {f['b']:.4f}; couplings/C(0): {cc}")
+        print(
+            f"{name}: C {100 * s['analytic_c_max_abs_rel_error']:.2f} -> {100 * s['calibrated_c_max_abs_rel_error']:.3f} %; "
+            f"dC {dc}; a {f['a']:.4f} b {f['b']:.4f}; couplings/C(0): {cc}"
+        )
 
 
 if __name__ == "__main__":

@@ -27,12 +27,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
+from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_control  # noqa: E402
+
 from netgen.model import MacroModel  # noqa: E402
 from netgen.sim import codemodel  # noqa: E402
 from netgen.sim.ngspice import ngspice_path  # noqa: E402
 from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
-from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_control  # noqa: E402
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
@@ -45,23 +46,38 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     control = codemodel.control_lines(*sdn.code_models(progress=False)) if cm else []
     # generic x86-64: valgrind 3.19 stops at the AVX-512 instructions openvaf-r's default (native) emits here
     control += osdi_control(model, variant, loop, folder / "osdi", cpu="generic")
-    net = sdn.testbench(model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1,
-                        control=control, loop=loop)
+    net = sdn.testbench(
+        model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1, control=control, loop=loop
+    )
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
-    with open(folder / "bench.log", "w") as log:        # ngspice -b may exit 1 after a complete run
+    with open(folder / "bench.log", "w") as log:  # ngspice -b may exit 1 after a complete run
         # --trace-children: NETGEN_NGSPICE may be a wrapper script that execs the binary (ngspice 46, .ci/setup)
-        subprocess.run(["valgrind", "--tool=callgrind", "--trace-children=yes", "--callgrind-out-file=callgrind.out",
-                        ngspice_path(), "-b",
-                        "bench.cir"], cwd=folder, stdout=log, stderr=subprocess.STDOUT)
+        subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                "--trace-children=yes",
+                "--callgrind-out-file=callgrind.out",
+                ngspice_path(),
+                "-b",
+                "bench.cir",
+            ],
+            cwd=folder,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
     found = re.search(r"Transient iterations\s*=\s*(\d+)", (folder / "bench.log").read_text())
     if not found:
         raise SystemExit(f"bench/callgrind.py: the {variant} run did not finish; see {folder / 'bench.log'}")
     iterations = int(found.group(1))
-    report = subprocess.run(["callgrind_annotate", "callgrind.out"], cwd=folder, capture_output=True, text=True,
-                            check=True).stdout
+    report = subprocess.run(
+        ["callgrind_annotate", "callgrind.out"], cwd=folder, capture_output=True, text=True, check=True
+    ).stdout
     total = int(re.search(r"([\d,]+) \(100.0%\)\s+PROGRAM TOTALS", report).group(1).replace(",", ""))
-    print(f"{variant} ({loop} loop): {total / 1e6:.0f}M instructions, {iterations} Newton iterations ({iterations / cycles:.0f} "
-          f"per period), {total / iterations / 1e3:.0f}k per iteration, {total / cycles / 1e6:.1f}M per period")
+    print(
+        f"{variant} ({loop} loop): {total / 1e6:.0f}M instructions, {iterations} Newton iterations ({iterations / cycles:.0f} "
+        f"per period), {total / iterations / 1e3:.0f}k per iteration, {total / cycles / 1e6:.1f}M per period"
+    )
     for line in report.splitlines():
         m = LINE.match(line)
         if m and float(m.group(2)) > 2.0 and "TOTALS" not in line:
@@ -76,9 +92,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cycles", type=int, default=16, help="clock periods (default 16; ~1-4 min per variant)")
     ap.add_argument("--variants", default="xspice,fast,floor", help=f"comma-separated subset of {','.join(VARIANTS)}")
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
-    ap.add_argument("--loops", default="analog", help="comma-separated testbench loops: analog (behavioural "
-                    "sources), xspice (the compiled netgen_sdloop) and/or osdi (blocks.va through OSDI, ngspice 45+); "
-                    "default analog")
+    ap.add_argument(
+        "--loops",
+        default="analog",
+        help="comma-separated testbench loops: analog (behavioural "
+        "sources), xspice (the compiled netgen_sdloop) and/or osdi (blocks.va through OSDI, ngspice 45+); "
+        "default analog",
+    )
     ap.add_argument("--keep", help="keep the run folders (netlists, callgrind.out) here")
     args = ap.parse_args(argv)
     variants = args.variants.split(",")

@@ -36,9 +36,19 @@ def bad_paths(work: Path) -> dict[str, list[str]]:
     binary = work / "binary.cir"
     binary.write_bytes(bytes(range(256)))
     (work / "a_dir").mkdir()
-    return {"output": ["", " ", str(a_file), str(a_file / "sub"), "/proc/netgen-x", "/sys/netgen-x", "/dev/null",
-                       "/proc/self/fd"],
-            "input": [str(work / "missing.toml"), str(work / "a_dir"), "", str(binary)]}
+    return {
+        "output": [
+            "",
+            " ",
+            str(a_file),
+            str(a_file / "sub"),
+            "/proc/netgen-x",
+            "/sys/netgen-x",
+            "/dev/null",
+            "/proc/self/fd",
+        ],
+        "input": [str(work / "missing.toml"), str(work / "a_dir"), "", str(binary)],
+    }
 
 
 def cases(work: Path) -> list[tuple[str, list[str], str]]:
@@ -54,8 +64,10 @@ def cases(work: Path) -> list[tuple[str, list[str], str]]:
     found += [("build", build + ["-o", p], "-o") for p in paths["output"]]
     found += [("build", ["build", p, "-o", out, "-q"], "structure") for p in paths["input"]]
     found += [("build", build + ["-o", out, "--sample-store", p], "--sample-store") for p in paths["output"]]
-    found += [("build", build + ["-o", out, "--scheduler", s], "--scheduler")
-              for s in ("processes:0", "processes:-2", "processes:x", "nowhere", "local:0", "")]
+    found += [
+        ("build", build + ["-o", out, "--scheduler", s], "--scheduler")
+        for s in ("processes:0", "processes:-2", "processes:x", "nowhere", "local:0", "")
+    ]
     found += [("build", build + ["-o", out, "--format", f], "--format") for f in ("spice3", "", "ALL")]
     sim = ["simulate", str(netlist)]
     found += [("simulate", sim + ["-o", p], "-o") for p in paths["output"]]
@@ -64,19 +76,30 @@ def cases(work: Path) -> list[tuple[str, list[str], str]]:
     found += [("simulate", sim + ["-o", out, "--simulator", s], "--simulator") for s in ("spice3", "")]
     sd = ["sigma-delta", disk, "--model", model, "-q", "--no-plots"]
     found += [("sigma-delta", sd + ["-o", p], "-o") for p in paths["output"]]
-    for option, values in (("--ts", NUMBERS), ("--cycles", INTEGERS), ("--segment", INTEGERS[1:]),
-                           ("--lead", ["nan", "inf", "abc", "", "100"]), ("--dither", ["nan", "-0.5", "2", "x"]),
-                           ("--reltol", ["0", "nan", "1", "x"]), ("--timeout", NUMBERS),
-                           ("--tone", ["z", "z:1", "z:x:5", "z:1:-5", "z:nan:5", "q:1:5", "z:1:1e9", ""]),
-                           ("--pressure", ["0", "-1", "nan", "inf", "1 furlong", ""]),
-                           ("--simulator", ["spice3"]), ("--film", ["gas"])):
+    for option, values in (
+        ("--ts", NUMBERS),
+        ("--cycles", INTEGERS),
+        ("--segment", INTEGERS[1:]),
+        ("--lead", ["nan", "inf", "abc", "", "100"]),
+        ("--dither", ["nan", "-0.5", "2", "x"]),
+        ("--reltol", ["0", "nan", "1", "x"]),
+        ("--timeout", NUMBERS),
+        ("--tone", ["z", "z:1", "z:x:5", "z:1:-5", "z:nan:5", "q:1:5", "z:1:1e9", ""]),
+        ("--pressure", ["0", "-1", "nan", "inf", "1 furlong", ""]),
+        ("--simulator", ["spice3"]),
+        ("--film", ["gas"]),
+    ):
         found += [("sigma-delta", sd + ["-o", out, option, v], option) for v in values]
     found += [("sigma-delta", ["sigma-delta", disk, "-o", out, "--model", p, "-q"], "--model") for p in paths["input"]]
     found += [("sweep", ["sweep", disk, sweep, "-o", p, "-q"], "-o") for p in paths["output"]]
-    found += [("sweep", ["sweep", disk, sweep, "-o", out, "-q", "--scheduler", s], "--scheduler")
-              for s in ("processes:0", "nowhere")]
-    found += [("codemodel", ["codemodel", "--no-such-option"], "--no-such-option"),
-              ("codemodel", ["codemodel", "extra"], "extra")]
+    found += [
+        ("sweep", ["sweep", disk, sweep, "-o", out, "-q", "--scheduler", s], "--scheduler")
+        for s in ("processes:0", "nowhere")
+    ]
+    found += [
+        ("codemodel", ["codemodel", "--no-such-option"], "--no-such-option"),
+        ("codemodel", ["codemodel", "extra"], "extra"),
+    ]
     return found
 
 
@@ -102,8 +125,12 @@ def main() -> None:
             code, err = attempt(argv)
             last = err.strip().splitlines()[-1] if err.strip() else ""
             named = what.lstrip("-") in err or any(a in err for a in argv[1:2]) or "argument" in err or "--help" in err
-            bad = {"traceback": "Traceback" in err, "accepted": code == 0, "wrong_exit": code not in (0, 2),
-                   "no_fix": code != 0 and not (named and FIX.search(err))}
+            bad = {
+                "traceback": "Traceback" in err,
+                "accepted": code == 0,
+                "wrong_exit": code not in (0, 2),
+                "no_fix": code != 0 and not (named and FIX.search(err)),
+            }
             row = rows.setdefault(command, {"tried": 0} | {k: 0 for k in bad})
             row["tried"] += 1
             for k, v in bad.items():
@@ -112,11 +139,15 @@ def main() -> None:
                 print(f"  {command} {what} {argv[-1]!r}: exit {code}: {last[:160]}", file=sys.stderr)
     print(f"{'command':<12} {'tried':>5} {'tracebacks':>10} {'accepted':>8} {'wrong exit':>10} {'no fix':>6}")
     for command, row in rows.items():
-        print(f"{command:<12} {row['tried']:>5} {row['traceback']:>10} {row['accepted']:>8} {row['wrong_exit']:>10} "
-              f"{row['no_fix']:>6}")
+        print(
+            f"{command:<12} {row['tried']:>5} {row['traceback']:>10} {row['accepted']:>8} {row['wrong_exit']:>10} "
+            f"{row['no_fix']:>6}"
+        )
     total = {k: sum(r[k] for r in rows.values()) for k in next(iter(rows.values()))}
-    print(f"{'all':<12} {total['tried']:>5} {total['traceback']:>10} {total['accepted']:>8} {total['wrong_exit']:>10} "
-          f"{total['no_fix']:>6}")
+    print(
+        f"{'all':<12} {total['tried']:>5} {total['traceback']:>10} {total['accepted']:>8} {total['wrong_exit']:>10} "
+        f"{total['no_fix']:>6}"
+    )
 
 
 if __name__ == "__main__":

@@ -35,13 +35,15 @@ def main() -> None:
     a = ap.parse_args()
     os.environ["NETGEN_CACHE"] = a.cache or tempfile.mkdtemp(prefix="comb_pull_in-")
     from comb_textbook import pull_in_ratio
+
     from netgen.build import build
     from netgen.constants import EPS0
     from netgen.electrostatics import comb_section
     from netgen.structure import parse_structure
-    from tests.electrostatics.test_comb import G, K, L0, N
+    from tests.electrostatics.test_comb import L0, G, K, N
     from tests.electrostatics.test_comb_pull_in import circuit_pull_in, model_pull_in, structure, table_pull_in
     from tests.fixtures import NGSPICE
+
     comb_section.GRID = dict(comb_section.GRID, offsets=a.offsets)
     print(f"settings {comb_section.SETTINGS}, grid {comb_section.GRID}, cache {os.environ['NETGEN_CACHE']}")
     for r in (float(x) for x in a.ratios.split(",")):
@@ -49,15 +51,20 @@ def main() -> None:
         b = build(parse_structure(structure(r), f"comb_t{r:g}.toml"))
         closed = math.sqrt(K * G**3 / (2 * EPS0 * N * r * G * L0))
         python, tables = model_pull_in(b.model), table_pull_in(b)
-        direct = pull_in_ratio(SimpleNamespace(width=2e-6, thickness=r * G, pitch=2e-6 + G, substrate_gap=2e-6,
-                                               eps=EPS0), 0.1 * G)
-        print(f"t/g = {r:g}: built in {time.process_time() - t0:.0f} s CPU; closed form {closed:.4f} V; "
-              f"Python {python / closed:.4f}, tables {tables / closed:.4f}, direct solves {direct:.4f} of it")
+        direct = pull_in_ratio(
+            SimpleNamespace(width=2e-6, thickness=r * G, pitch=2e-6 + G, substrate_gap=2e-6, eps=EPS0), 0.1 * G
+        )
+        print(
+            f"t/g = {r:g}: built in {time.process_time() - t0:.0f} s CPU; closed form {closed:.4f} V; "
+            f"Python {python / closed:.4f}, tables {tables / closed:.4f}, direct solves {direct:.4f} of it"
+        )
         for release in sorted(NGSPICE):
             with tempfile.TemporaryDirectory() as tmp:
                 circuit = circuit_pull_in(b.model, Path(tmp), release, 1.02 * closed)
-            print(f"  ngspice {release}: circuit {circuit:.4f} V = {circuit / closed:.4f} of the closed form, "
-                  f"circuit / Python - 1 = {circuit / python - 1:+.2e}")
+            print(
+                f"  ngspice {release}: circuit {circuit:.4f} V = {circuit / closed:.4f} of the closed form, "
+                f"circuit / Python - 1 = {circuit / python - 1:+.2e}"
+            )
 
 
 if __name__ == "__main__":

@@ -27,10 +27,11 @@ def main() -> None:
     examples = a.examples or [p for p in sorted((ROOT / "examples").glob("*.toml")) if "_comb" in p.read_text()]
     with tempfile.TemporaryDirectory() as cache:
         os.environ["NETGEN_CACHE"] = cache
-        from netgen.electrostatics import comb_section
         from netgen.build import build
+        from netgen.electrostatics import comb_section
         from netgen.structure import load_structure
-        comb_section.SHIPPED = Path(cache) / "none"          # solve, do not read the shipped copies
+
+        comb_section.SHIPPED = Path(cache) / "none"  # solve, do not read the shipped copies
         for path in examples:
             t0 = time.process_time()
             build(load_structure(path))

@@ -28,13 +28,17 @@ def main() -> None:
     ap.add_argument("--substrate-gap", type=float, default=2e-6)
     ap.add_argument("--ratios", default="1,2,5,20")
     a = ap.parse_args()
-    print(f"finger width {a.width:.3g} m, gap {a.gap:.3g} m, pitch {a.width + a.gap:.3g} m, "
-          f"substrate gap {a.substrate_gap:.3g} m; tol {comb_section.SETTINGS['tol']}")
+    print(
+        f"finger width {a.width:.3g} m, gap {a.gap:.3g} m, pitch {a.width + a.gap:.3g} m, "
+        f"substrate gap {a.substrate_gap:.3g} m; tol {comb_section.SETTINGS['tol']}"
+    )
     print(f"{'t/g':>6} {'C2D/textbook sub':>17} {'free':>8} {'V_pull 2D/closed sub':>21} {'free':>8} {'s':>6}")
     for r in (float(x) for x in a.ratios.split(",")):
         t0 = time.time()
-        cells = [SimpleNamespace(width=a.width, thickness=r * a.gap, pitch=a.width + a.gap, substrate_gap=sg, eps=EPS0)
-                 for sg in (a.substrate_gap, None)]
+        cells = [
+            SimpleNamespace(width=a.width, thickness=r * a.gap, pitch=a.width + a.gap, substrate_gap=sg, eps=EPS0)
+            for sg in (a.substrate_gap, None)
+        ]
         ratios = [comb_section.textbook_ratio(c) for c in cells]
         shifts = [pull_in_ratio(c, 0.1 * a.gap) for c in cells]
         print(f"{r:6g} {ratios[0]:17.4f} {ratios[1]:8.4f} {shifts[0]:21.4f} {shifts[1]:8.4f} {time.time() - t0:6.1f}")
@@ -44,9 +48,9 @@ def pull_in_ratio(cell, h: float) -> float:
     """V_pull(2-D) / V_pull(closed form) of a finger between two fixed fingers at the nominal gap."""
     g = comb_section.Geometry.of(cell)
     mid = sum(comb_section.solve_cell(g, g.gap, 0.0)[:2])
-    shifted = sum(comb_section.solve_cell(g, g.gap - h, 0.0)[:2])     # the cell at x = h: both faces
-    curvature = 2.0 * (shifted - mid) / h ** 2                         # C_cell(x) is even in x
-    return (4.0 * g.eps * g.thickness / g.gap ** 3 / curvature) ** 0.5
+    shifted = sum(comb_section.solve_cell(g, g.gap - h, 0.0)[:2])  # the cell at x = h: both faces
+    curvature = 2.0 * (shifted - mid) / h**2  # C_cell(x) is even in x
+    return (4.0 * g.eps * g.thickness / g.gap**3 / curvature) ** 0.5
 
 
 if __name__ == "__main__":

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen.testbench import sigma_delta as sd
 from netgen.model import MacroModel
+from netgen.testbench import sigma_delta as sd
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -36,11 +36,11 @@ def notch_near(channel: dict, f0: float, tol: float = 0.05) -> dict | None:
 def half_floors(folder: Path, summary: dict, channel: str) -> tuple[float, float]:
     """In-band floor (median PSD, dB re F_fb^2/Hz, as summary.json's) of each half of the analysed
     record, with the whole record's Welch segment length so both use the same bins."""
-    bits = np.load(folder / "bitstreams.npz")[f"bits_{channel}"][summary["skip"]:].astype(float)
+    bits = np.load(folder / "bitstreams.npz")[f"bits_{channel}"][summary["skip"] :].astype(float)
     n = min(len(bits), max(256, len(bits) // 8))
     fb = 0.5 / summary["ts"] / summary["osr"]
     out = []
-    for part in (bits[: len(bits) // 2], bits[len(bits) // 2:]):
+    for part in (bits[: len(bits) // 2], bits[len(bits) // 2 :]):
         f, p = sd.psd(part, summary["ts"], nperseg=min(n, len(part)))
         out.append(float(10 * np.log10(np.median(p[(f > 0) & (f <= fb)]))))
     return out[0], out[1]
@@ -56,17 +56,26 @@ def main() -> None:
     model = MacroModel.load_json(args.model)
     f0 = next(c.frequency_hz for c in model.coordinates if c.name == "m3_0c")
     names = [r.get("simulator", "ngspice") for r in runs]
-    print(f"runs: {names[0]} {runs[0]['cycles']} periods ({runs[0]['wall_s'] / runs[0]['cycles'] * 1e3:.1f} ms "
-          f"each), {names[1]} {runs[1]['cycles']} periods ({runs[1]['wall_s'] / runs[1]['cycles'] * 1e3:.1f} ms "
-          f"each); (3,0) mode {f0:.0f} Hz")
+    print(
+        f"runs: {names[0]} {runs[0]['cycles']} periods ({runs[0]['wall_s'] / runs[0]['cycles'] * 1e3:.1f} ms "
+        f"each), {names[1]} {runs[1]['cycles']} periods ({runs[1]['wall_s'] / runs[1]['cycles'] * 1e3:.1f} ms "
+        f"each); (3,0) mode {f0:.0f} Hz"
+    )
     print(f"{'channel':<8} {'floor ' + names[0]:>16} {'floor ' + names[1]:>16} {'diff dB':>8}   notches near (3,0)")
     for c in ("z", "tilt_x", "tilt_y"):
         a, b = (r["channels"][c] for r in runs)
         fa, fb = a["noise_floor_db_per_hz"], b["noise_floor_db_per_hz"]
         na, nb = notch_near(a, f0), notch_near(b, f0)
-        notch = "none in either" if not (na or nb) else (
-            f"{na['freq_hz']:.0f} Hz ({na['depth_db']:.1f} dB) / {nb['freq_hz']:.0f} Hz ({nb['depth_db']:.1f} dB), "
-            f"{(na['freq_hz'] / nb['freq_hz'] - 1) * 100:+.2f} %" if na and nb else f"only in one: {na or nb}")
+        notch = (
+            "none in either"
+            if not (na or nb)
+            else (
+                f"{na['freq_hz']:.0f} Hz ({na['depth_db']:.1f} dB) / {nb['freq_hz']:.0f} Hz ({nb['depth_db']:.1f} dB), "
+                f"{(na['freq_hz'] / nb['freq_hz'] - 1) * 100:+.2f} %"
+                if na and nb
+                else f"only in one: {na or nb}"
+            )
+        )
         print(f"{c:<8} {fa:16.1f} {fb:16.1f} {fa - fb:8.1f}   {notch}")
     print(f"{'channel':<8} {'halves ' + names[0]:>22} {'halves ' + names[1]:>22}")
     for c in ("z", "tilt_x", "tilt_y"):

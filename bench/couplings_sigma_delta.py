@@ -26,11 +26,16 @@ def measure(folder: Path, nperseg: int) -> dict:
     f0 = s["tone"]["freq"]
     out = {"summary": s, "bits": {c: bits[f"bits_{c}"] for c in CHANNELS}, "channels": {}}
     for c in CHANNELS:
-        f, pw = psd(bits[f"bits_{c}"][s["skip"]:], s["ts"], nperseg)
+        f, pw = psd(bits[f"bits_{c}"][s["skip"] :], s["ts"], nperseg)
         k = int(np.argmin(np.abs(f - f0)))
-        line = 10 * np.log10(np.sum(pw[k - 1:k + 2]) * (f[1] - f[0]))
-        out["channels"][c] = {"bit_mean": s["channels"][c]["bit_mean"], "floor": s["channels"][c]["noise_floor_db_per_hz"],
-                              "line_db": float(line), "f": f, "psd": pw}
+        line = 10 * np.log10(np.sum(pw[k - 1 : k + 2]) * (f[1] - f[0]))
+        out["channels"][c] = {
+            "bit_mean": s["channels"][c]["bit_mean"],
+            "floor": s["channels"][c]["noise_floor_db_per_hz"],
+            "line_db": float(line),
+            "f": f,
+            "psd": pw,
+        }
     return out
 
 
@@ -43,16 +48,24 @@ def main() -> None:
     args = p.parse_args()
     runs = {"without": measure(args.plain, args.nperseg), "with": measure(args.coupled, args.nperseg)}
     s = runs["without"]["summary"]
-    print(f"{s['cycles']} periods, T_s {s['ts']:g} s, tone {s['tone']['freq']:g} Hz on z, Welch segments of {args.nperseg}")
-    print(f"{'channel':8s} {'couplings':9s} {'bit mean':>9s} {'floor dB/Hz':>12s} {'tone line dB':>13s} {'re z dB':>8s}")
+    print(
+        f"{s['cycles']} periods, T_s {s['ts']:g} s, tone {s['tone']['freq']:g} Hz on z, Welch segments of {args.nperseg}"
+    )
+    print(
+        f"{'channel':8s} {'couplings':9s} {'bit mean':>9s} {'floor dB/Hz':>12s} {'tone line dB':>13s} {'re z dB':>8s}"
+    )
     for c in CHANNELS:
         for label, r in runs.items():
             ch, z = r["channels"][c], r["channels"]["z"]
             floor = "n/a" if ch["floor"] is None else f"{ch['floor']:.1f}"
-            print(f"{c:8s} {label:9s} {ch['bit_mean']:+9.4f} {floor:>12s} {ch['line_db']:13.2f} {ch['line_db'] - z['line_db']:+8.1f}")
+            print(
+                f"{c:8s} {label:9s} {ch['bit_mean']:+9.4f} {floor:>12s} {ch['line_db']:13.2f} {ch['line_db'] - z['line_db']:+8.1f}"
+            )
         diff = int(np.sum(runs["without"]["bits"][c] != runs["with"]["bits"][c]))
-        print(f"{c:8s} differing bits: {diff} of {len(runs['without']['bits'][c])}; line change "
-              f"{runs['with']['channels'][c]['line_db'] - runs['without']['channels'][c]['line_db']:+.2f} dB")
+        print(
+            f"{c:8s} differing bits: {diff} of {len(runs['without']['bits'][c])}; line change "
+            f"{runs['with']['channels'][c]['line_db'] - runs['without']['channels'][c]['line_db']:+.2f} dB"
+        )
     if args.png:
         fig, axes = plt.subplots(1, len(CHANNELS), figsize=(4.2 * len(CHANNELS), 3.4), sharey=True)
         for ax, c in zip(axes, CHANNELS):

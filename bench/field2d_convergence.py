@@ -30,12 +30,21 @@ def cases() -> dict:
     fa = Conductor("a", (Strip(-0.5, 0.0, -0.5, 20.0),))
     fb = Conductor("b", (Strip(0.5, 0.0, 0.5, 20.0),))
     return {
-        "coplanar strips w=s": (Problem((a, b), open_box((a, b)), OPEN), closed_forms.coplanar_strips(EPS0, 1.0, 1.0),
-                                lambda C: -C[0, 1]),
-        "wire over ground h/r=2": (Problem((w,), open_box((w,), ground_bottom=0.0), {**OPEN, "bottom": "ground"}),
-                                   closed_forms.wire_over_plane(EPS0, 1.0, 2.0), lambda C: C[0, 0]),
-        "finger pair t/g=20": (Problem((fa, fb), open_box((fa, fb)), OPEN), closed_forms.parallel_strips(EPS0, 20.0, 1.0),
-                               lambda C: -C[0, 1]),
+        "coplanar strips w=s": (
+            Problem((a, b), open_box((a, b)), OPEN),
+            closed_forms.coplanar_strips(EPS0, 1.0, 1.0),
+            lambda C: -C[0, 1],
+        ),
+        "wire over ground h/r=2": (
+            Problem((w,), open_box((w,), ground_bottom=0.0), {**OPEN, "bottom": "ground"}),
+            closed_forms.wire_over_plane(EPS0, 1.0, 2.0),
+            lambda C: C[0, 0],
+        ),
+        "finger pair t/g=20": (
+            Problem((fa, fb), open_box((fa, fb)), OPEN),
+            closed_forms.parallel_strips(EPS0, 20.0, 1.0),
+            lambda C: -C[0, 1],
+        ),
     }
 
 
@@ -48,7 +57,9 @@ def main() -> None:
     for name, (problem, exact, read) in cases().items():
         t0 = time.time()
         sol = solve(problem, tol=0.0, order=a.order, max_levels=a.levels, check_box=True)
-        print(f"\n{name}: exact C' = {exact:.6e} F/m (P{a.order}, box check {sol.box_change:.1e}, {time.time() - t0:.1f} s)")
+        print(
+            f"\n{name}: exact C' = {exact:.6e} F/m (P{a.order}, box check {sol.box_change:.1e}, {time.time() - t0:.1f} s)"
+        )
         print(f"{'level':>5} {'elements':>9} {'dofs':>8} {'C_prime F/m':>14} {'error':>10}")
         for k, lev in enumerate(sol.levels):
             c = read(lev.capacitance)

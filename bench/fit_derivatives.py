@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -34,21 +34,25 @@ from netgen.structure import load_structure  # noqa: E402
 from netgen.testbench.sigma_delta.loop import design  # noqa: E402
 from netgen.testbench.sigma_delta.signals import selected  # noqa: E402
 
-STEP = 1e-3          # scaled step of the second derivatives' central differences (and half of it)
+STEP = 1e-3  # scaled step of the second derivatives' central differences (and half of it)
 
-Gradient = Callable[[np.ndarray], np.ndarray]      # scaled x (npts, n) -> dC/dx (npts, nel, n)
+Gradient = Callable[[np.ndarray], np.ndarray]  # scaled x (npts, n) -> dC/dx (npts, nel, n)
 
 
 def hessian(grad: Gradient, n: int) -> np.ndarray:
     """d2C_i/dx_u dx_v at rest (nel, n, n), central differences of the gradient, Richardson."""
+
     def diff(u: int, h: float) -> np.ndarray:
         e = np.zeros((1, n))
         e[0, u] = h
         return (grad(e)[0] - grad(-e)[0]) / (2.0 * h)
+
     return np.stack([(4.0 * diff(u, STEP / 2) - diff(u, STEP)) / 3.0 for u in range(n)], axis=1)
 
 
-def per_electrode(names: list[str], cnames: list[str], c0: np.ndarray, ref: dict, models: dict, rows: list[int]) -> None:
+def per_electrode(
+    names: list[str], cnames: list[str], c0: np.ndarray, ref: dict, models: dict, rows: list[int]
+) -> None:
     """Per electrode: the extractor's values and each model's errors, relative to C(0)."""
     pairs = [(u, u) for u in rows] + [(u, v) for u in rows for v in rows if u < v]
     heads = ["C", *(f"dC/d{cnames[u]}" for u in rows), *(f"d2C/d{cnames[u]}d{cnames[v]}" for u, v in pairs)]
@@ -57,6 +61,7 @@ def per_electrode(names: list[str], cnames: list[str], c0: np.ndarray, ref: dict
 
     def values(c: np.ndarray, g: np.ndarray, h: np.ndarray, i: int) -> list[float]:
         return [c[i], *(g[i, u] for u in rows), *(h[i, u, v] for u, v in pairs)]
+
     for i, e in enumerate(names):
         r = values(*ref, i)
         print(f"{e:10} {'extractor':10} " + " ".join(f"{v / c0[i]:14.4e}" for v in r))
@@ -70,8 +75,10 @@ def loop_stiffness(grid: MacroModel, cnames: list[str], ref: np.ndarray, models:
     phases = [(r["bits"], d.vfb * selected(d.electrodes, r["pattern"])) for r in d.table]
     phases.append(("sense", np.full(len(d.electrodes), d.vs)))
     for u in rows:
-        print(f"\nstiffness row {cnames[u]} (scaled coordinates): model error / |K_ext[{cnames[u]},{cnames[u]}]| "
-              f"per column {', '.join(cnames)}")
+        print(
+            f"\nstiffness row {cnames[u]} (scaled coordinates): model error / |K_ext[{cnames[u]},{cnames[u]}]| "
+            f"per column {', '.join(cnames)}"
+        )
         for bits, v in phases:
             k_ext = 0.5 * np.einsum("i,iuv->uv", v**2, ref)
             unit = abs(k_ext[u, u]) or 1.0
@@ -86,15 +93,19 @@ def trajectory(run: Path, cnames: list[str], scales: np.ndarray, prepared, c0: n
     """Largest error of C and dC/dx (relative to C(0)) over the positions of a loop run."""
     b = np.load(run / "bitstreams.npz")
     x = np.stack([b[f"x_{n}"] for n in cnames], axis=1)
-    print(f"\ntrajectory of {run} ({len(x)} periods): x from {np.array2string(x.min(0), precision=2)} "
-          f"to {np.array2string(x.max(0), precision=2)}")
+    print(
+        f"\ntrajectory of {run} ({len(x)} periods): x from {np.array2string(x.min(0), precision=2)} "
+        f"to {np.array2string(x.max(0), precision=2)}"
+    )
     ce = prepared.capacitance(x * scales) / c0
     ge = prepared.gradient(x * scales) * scales[None, None, :] / c0[None, :, None]
     for k, m in models.items():
         c = m.capacitance(x) / c0
         g = m.capacitance_gradient(x) * scales[None, None, :] / c0[None, :, None]
-        print(f"{k:10} C max rel error {np.abs(c / ce - 1).max():.1e}; dC/dx max error / C(0) per coordinate "
-              + " ".join(f"{cn} {e:.1e}" for cn, e in zip(cnames, np.abs(g - ge).max(axis=(0, 1)))))
+        print(
+            f"{k:10} C max rel error {np.abs(c / ce - 1).max():.1e}; dC/dx max error / C(0) per coordinate "
+            + " ".join(f"{cn} {e:.1e}" for cn, e in zip(cnames, np.abs(g - ge).max(axis=(0, 1))))
+        )
 
 
 def main() -> int:
@@ -112,14 +123,14 @@ def main() -> int:
     first = next(iter(loaded.values()))
     scales, cnames, n = first.scales, [c.name for c in first.coordinates], first.ncoords
     rows = [cnames.index(r) for r in args.rows.split(",")]
-    ext_grad: Gradient = lambda x: prepared.gradient(x * scales) * scales[None, None, :]        # noqa: E731
+    ext_grad: Gradient = lambda x: prepared.gradient(x * scales) * scales[None, None, :]  # noqa: E731
     zero = np.zeros((1, n))
     ref = (prepared.capacitance(zero)[0], ext_grad(zero)[0], hessian(ext_grad, n))
     models = {}
     for k, mm in loaded.items():
         if not np.allclose(mm.scales, scales):
             raise SystemExit(f"{k}: other coordinate scales than the first model's: not the same structure")
-        grad: Gradient = lambda x, mm=mm: mm.capacitance_gradient(x) * scales[None, None, :]   # noqa: E731
+        grad: Gradient = lambda x, mm=mm: mm.capacitance_gradient(x) * scales[None, None, :]  # noqa: E731
         models[k] = (mm.capacitance(zero)[0], grad(zero)[0], hessian(grad, n))
     c0 = ref[0]
     per_electrode([e.name for e in shapes], cnames, c0, ref, models, rows)

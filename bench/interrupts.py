@@ -46,10 +46,11 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 NETGEN = [str(ROOT / ".venv/bin/netgen")]
-USER_FILE = "my_notes.txt"                     # a user's own file in the output folder: never touched
+USER_FILE = "my_notes.txt"  # a user's own file in the output folder: never touched
 
 
 # ----------------------------------------------------------------------------- the two commands
+
 
 def build_variants(work: Path) -> tuple[list[str], list[str]]:
     """The old and the new `netgen build` command lines (output folder appended by the caller)."""
@@ -63,8 +64,15 @@ def build_variants(work: Path) -> tuple[list[str], list[str]]:
 
 def sigma_delta_variants(work: Path) -> tuple[list[str], list[str]]:
     """The old and the new `netgen sigma-delta` command lines (short runs of the compiled loop)."""
-    base = ["sigma-delta", str(ROOT / "examples/levitated_disk.toml"), "--model",
-            str(ROOT / "netlists/levitated_disk.json"), "--simulator", "ngspice-xspice", "-q"]
+    base = [
+        "sigma-delta",
+        str(ROOT / "examples/levitated_disk.toml"),
+        "--model",
+        str(ROOT / "netlists/levitated_disk.json"),
+        "--simulator",
+        "ngspice-xspice",
+        "-q",
+    ]
     return base + ["--cycles", "64", "--no-plots"], base + ["--cycles", "128"]
 
 
@@ -81,6 +89,7 @@ def run(argv: list[str], out: Path, timeout: float = 600) -> subprocess.Complete
 
 # ----------------------------------------------------------------------------- what a folder holds
 
+
 def files(folder: Path) -> dict[str, bytes]:
     """Every regular file at the top of `folder` (not the user's) by name."""
     return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file() and p.name != USER_FILE}
@@ -88,8 +97,11 @@ def files(folder: Path) -> dict[str, bytes]:
 
 def leftovers(folder: Path) -> list[str]:
     """Temp, staging and probe files anywhere under `folder`."""
-    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*")
-                  if p.name.startswith(".") or p.name.endswith(".tmp") or ".tmp." in p.name)
+    return sorted(
+        str(p.relative_to(folder))
+        for p in folder.rglob("*")
+        if p.name.startswith(".") or p.name.endswith(".tmp") or ".tmp." in p.name
+    )
 
 
 def identity(command: str, name: str, data: bytes, refs: dict[str, dict[str, bytes]]) -> str | None:
@@ -111,7 +123,7 @@ def identity(command: str, name: str, data: bytes, refs: dict[str, dict[str, byt
             return cycles.get(json.loads(data)["arguments"]["cycles"])
     except (ValueError, KeyError, OSError):
         return None
-    return "both" if name in refs["old"] or name in refs["new"] else None      # the manifest's SHA-256 decides
+    return "both" if name in refs["old"] or name in refs["new"] else None  # the manifest's SHA-256 decides
 
 
 def classify(command: str, folder: Path, refs: dict[str, dict[str, bytes]], user: bytes) -> dict[str, bool]:
@@ -128,8 +140,9 @@ def classify(command: str, folder: Path, refs: dict[str, dict[str, bytes]], user
     wrong = [n for n, h in named.items() if n in have and hashlib.sha256(have[n]).hexdigest() != h]
     agrees = bool(named) and not wrong and all(n in have for n in named)
     mixed = len(kinds) > 1 or bool(wrong)
-    complete = any(set(have) == set(ref) for ref in refs.values()) and agrees \
-        and set(named) | {manifest.name} == set(have)
+    complete = (
+        any(set(have) == set(ref) for ref in refs.values()) and agrees and set(named) | {manifest.name} == set(have)
+    )
     stale = not mixed and not partial and not complete
     return {"mixed": mixed, "stale": stale, "partial": partial}
 
@@ -161,11 +174,11 @@ def prepared(work: Path, refs: dict[str, dict[str, bytes]], k: int) -> tuple[Pat
 
 # ----------------------------------------------------------------------------- the experiments
 
+
 def interrupted(command: str, work: Path, old, new, refs, sig: signal.Signals, delay: float, k: int) -> dict:
     """The new run into the old run's folder, stopped by `sig` after `delay` s."""
     out, user = prepared(work, refs, k)
-    proc = subprocess.Popen(NETGEN + new + ["-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = subprocess.Popen(NETGEN + new + ["-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(delay)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=600)
@@ -175,8 +188,10 @@ def interrupted(command: str, work: Path, old, new, refs, sig: signal.Signals, d
 def concurrent(command: str, work: Path, old, new, refs, k: int) -> dict:
     """The old and the new run into one folder (holding the old set) at the same time."""
     out, user = prepared(work, refs, k)
-    procs = [subprocess.Popen(NETGEN + argv + ["-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True) for argv in (new, old)]
+    procs = [
+        subprocess.Popen(NETGEN + argv + ["-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for argv in (new, old)
+    ]
     done = [(p.wait(timeout=600), p.communicate()[1]) for p in procs]
     return outcome(command, out, refs, user, done)
 
@@ -187,8 +202,11 @@ def before_netgen(rc: int, err: str) -> bool:
     import line)? Then no netgen code could act, and nothing was written."""
     frames = [ln for ln in err.splitlines() if ln.strip().startswith('File "')]
     own = [f for f in frames if "/netgen/" in f and "/bin/netgen" not in f]
-    return (rc in (-signal.SIGINT, -signal.SIGTERM) and not err.strip()) or "Fatal Python error" in err \
+    return (
+        (rc in (-signal.SIGINT, -signal.SIGTERM) and not err.strip())
+        or "Fatal Python error" in err
         or ("Traceback" in err and not own)
+    )
 
 
 def outcome(command: str, out: Path, refs, user: bytes, runs: list[tuple[int, str]]) -> dict:
@@ -198,8 +216,10 @@ def outcome(command: str, out: Path, refs, user: bytes, runs: list[tuple[int, st
     result["startup"] = any(early)
     result["traceback"] = any("Traceback" in err for (_, err), e in zip(runs, early) if not e)
     result["other_exit"] = any(rc not in (0, 130) for (rc, _), e in zip(runs, early) if not e)
-    result["detail"] = [f"rc {rc}: " + (err.strip() if "Traceback" in err else " ".join(err.strip().splitlines()[-1:]))
-                        for rc, err in runs]
+    result["detail"] = [
+        f"rc {rc}: " + (err.strip() if "Traceback" in err else " ".join(err.strip().splitlines()[-1:]))
+        for rc, err in runs
+    ]
     return result
 
 
@@ -217,6 +237,7 @@ def wall_time(command: str, work: Path, new: list[str], refs: dict[str, dict[str
 
 def selfcheck(command: str, work: Path, refs: dict[str, dict[str, bytes]]) -> None:
     """The classifier on folders made to be wrong: it must see each fault (else it cannot fail)."""
+
     def folder(name: str, content: dict[str, bytes]) -> Path:
         out = work / f"check_{name}"
         out.mkdir()
@@ -224,11 +245,12 @@ def selfcheck(command: str, work: Path, refs: dict[str, dict[str, bytes]]) -> No
             (out / f).write_bytes(data)
         (out / USER_FILE).write_bytes(b"mine\n")
         return out
+
     old, new = refs["old"], refs["new"]
     manifest = f"{SET_NAME[command]}.manifest.json"
     shared = sorted(set(old) & set(new) - {manifest})
     base, other = (new, old) if set(old) - set(new) else (old, new)
-    extra = sorted(set(other) - set(base))[0]             # a file only one of the runs writes
+    extra = sorted(set(other) - set(base))[0]  # a file only one of the runs writes
     cases = {
         "old": (dict(old), set()),
         "new": (dict(new), set()),
@@ -285,13 +307,18 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("-v", "--verbose", action="store_true", help="one line per experiment on stderr")
     args = p.parse_args()
-    print(f"{'command':<12} {'kind':<16} {'tried':>5} {'mixed':>5} {'stale':>5} {'partial':>7} {'tracebacks':>10} "
-          f"{'other exit':>10} {'before netgen':>13}")
+    print(
+        f"{'command':<12} {'kind':<16} {'tried':>5} {'mixed':>5} {'stale':>5} {'partial':>7} {'tracebacks':>10} "
+        f"{'other exit':>10} {'before netgen':>13}"
+    )
     for command in args.commands.split(","):
         start = time.perf_counter()
         for kind, row in measure(command, args.signals, args.pairs, args.seed, args.verbose).items():
-            print(f"{command:<12} {kind:<16} {row['tried']:>5} {row['mixed']:>5} {row['stale']:>5} "
-                  f"{row['partial']:>7} {row['traceback']:>10} {row['other_exit']:>10} {row['startup']:>13}", flush=True)
+            print(
+                f"{command:<12} {kind:<16} {row['tried']:>5} {row['mixed']:>5} {row['stale']:>5} "
+                f"{row['partial']:>7} {row['traceback']:>10} {row['other_exit']:>10} {row['startup']:>13}",
+                flush=True,
+            )
         print(f"{command}: {time.perf_counter() - start:.0f} s", file=sys.stderr)
 
 

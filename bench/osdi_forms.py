@@ -20,10 +20,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # run from a checkout
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import sigma_delta as bench  # noqa: E402
+
 from netgen.emit import osdi, veriloga  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
 from netgen.testbench.sigma_delta import osdi as sdo  # noqa: E402
@@ -45,20 +46,26 @@ def main() -> int:
 
         def control(text: str) -> list[str]:
             return [f"pre_osdi {osdi.compiled(text, model.name, base / 'osdi')}", blocks, sdo.THREADS]
-        cases = {"now": (osdi.subcircuit(model), control(veriloga.module(model, noise=False))),
-                 "other": (osdi.subcircuit(model), control(args.other.read_text(encoding="utf-8"))),
-                 "floor": (bench.library(model, "floor"), [blocks, sdo.THREADS])}
+
+        cases = {
+            "now": (osdi.subcircuit(model), control(veriloga.module(model, noise=False))),
+            "other": (osdi.subcircuit(model), control(args.other.read_text(encoding="utf-8"))),
+            "floor": (bench.library(model, "floor"), [blocks, sdo.THREADS]),
+        }
         runs: dict[str, list[dict]] = {k: [] for k in cases}
         for r in range(args.repeat):
-            for k in (list(cases) if r % 2 == 0 else list(cases)[::-1]):
+            for k in list(cases) if r % 2 == 0 else list(cases)[::-1]:
                 lib, ctl = cases[k]
-                runs[k].append(bench.run_once(model, lib, base / k, 1e-6, args.cycles, check=False, control=ctl,
-                                              loop="osdi"))
+                runs[k].append(
+                    bench.run_once(model, lib, base / k, 1e-6, args.cycles, check=False, control=ctl, loop="osdi")
+                )
     med = {k: {q: statistics.median(x[q] for x in v) for q in v[0]} for k, v in runs.items()}
     for k, m in med.items():
-        print(f"{k:6s} {1e3 * m['cpu_s'] / args.cycles:6.2f} ms CPU per period, {m['iterations'] / args.cycles:6.1f} "
-              f"Newton iterations, {m['accepted'] / args.cycles:5.1f} time points"
-              + ("" if k == "floor" else f", {m['cpu_s'] / med['floor']['cpu_s']:.2f}x the floor"))
+        print(
+            f"{k:6s} {1e3 * m['cpu_s'] / args.cycles:6.2f} ms CPU per period, {m['iterations'] / args.cycles:6.1f} "
+            f"Newton iterations, {m['accepted'] / args.cycles:5.1f} time points"
+            + ("" if k == "floor" else f", {m['cpu_s'] / med['floor']['cpu_s']:.2f}x the floor")
+        )
     print(f"load {os.getloadavg()[0]:.1f}, {args.repeat} rounds of {args.cycles} periods")
     return 0
 

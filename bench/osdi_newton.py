@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # run from a checkout
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from netgen import emit  # noqa: E402
 from netgen.emit import osdi
@@ -48,8 +48,10 @@ def main() -> None:
     sources = {k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity / 1e-6)}
     f_ext = np.zeros(model.ncoords)
     f_ext[0] = gravity
-    forms = {"osdi": (work / "levitated_disk_osdi.lib", [f"pre_osdi {module}", "set num_threads=1"]),
-             "lib": (ROOT / "netlists" / "levitated_disk.lib", [])}
+    forms = {
+        "osdi": (work / "levitated_disk_osdi.lib", [f"pre_osdi {module}", "set num_threads=1"]),
+        "lib": (ROOT / "netlists" / "levitated_disk.lib", []),
+    }
     for reltol in args.reltol.split(","):
         for tmax in args.tmax.split(","):
             for name, (lib, control) in forms.items():
@@ -61,8 +63,11 @@ def main() -> None:
                 x = np.stack([plot[node(f"xs_{c.name}")] for c in model.coordinates], axis=-1)
                 ref = _reference_transient(model, drive, f_ext, np.asarray(plot["time"]), stop)
                 errs = np.abs(x - ref).max(axis=0) / np.abs(ref).max(axis=0)
-                print(f"{name:5s} reltol={reltol} tmax={tmax} points={len(plot['time'])} wall={wall:.2f}s  "
-                      + " ".join(f"{c.name}={e:.2e}" for c, e in zip(model.coordinates, errs)), flush=True)
+                print(
+                    f"{name:5s} reltol={reltol} tmax={tmax} points={len(plot['time'])} wall={wall:.2f}s  "
+                    + " ".join(f"{c.name}={e:.2e}" for c, e in zip(model.coordinates, errs)),
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

@@ -79,11 +79,11 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
 
 import numpy as np  # noqa: E402
-
 from baselines import BASELINES  # noqa: E402
+
 from netgen.emit import ngspice, osdi, veriloga, xspice  # noqa: E402
 from netgen.emit.common import force_gain, num, time_scale  # noqa: E402
 from netgen.model import MacroModel  # noqa: E402
@@ -92,15 +92,20 @@ from netgen.sim.ngspice import ngspice_path, version  # noqa: E402
 from netgen.sim.rawfile import read_raw  # noqa: E402
 from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
-from netgen.testbench.sigma_delta import osdi as sdo, vacask as sdv  # noqa: E402
+from netgen.testbench.sigma_delta import osdi as sdo  # noqa: E402
+from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
 
 MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
 VARIANTS = ("xspice", "osdi", "fast", "nodes", "naive", "floor", "linear")
 SOLVERS = ("sparse", "klu")
-STATS = {"accepted": r"Accepted timepoints\s*=\s*(\d+)", "rejected": r"Rejected timepoints\s*=\s*(\d+)",
-         "iterations": r"Transient iterations\s*=\s*(\d+)",
-         "analysis_s": r"Total analysis time \(seconds\)\s*=\s*([0-9.]+)",
-         "load_s": r"Transient load time\s*=\s*([0-9.]+)", "equations": r"Circuit Equations\s*=\s*(\d+)"}
+STATS = {
+    "accepted": r"Accepted timepoints\s*=\s*(\d+)",
+    "rejected": r"Rejected timepoints\s*=\s*(\d+)",
+    "iterations": r"Transient iterations\s*=\s*(\d+)",
+    "analysis_s": r"Total analysis time \(seconds\)\s*=\s*([0-9.]+)",
+    "load_s": r"Transient load time\s*=\s*([0-9.]+)",
+    "equations": r"Circuit Equations\s*=\s*(\d+)",
+}
 
 
 def linearised_subcircuit(model: MacroModel, kind: str) -> str:
@@ -109,28 +114,37 @@ def linearised_subcircuit(model: MacroModel, kind: str) -> str:
     ws = time_scale(model)
     x0 = np.zeros(model.ncoords)
     c0 = model.capacitance(x0)[0]
-    grad = model.capacitance_gradient(x0)[0] * model.scales[None, :]       # F per unit xs
+    grad = model.capacitance_gradient(x0)[0] * model.scales[None, :]  # F per unit xs
     plate = model.plate
-    lines = [f"* {model.name}: linearised benchmark floor ({kind}), bench/sigma_delta.py",
-             f".subckt {model.name} " + " ".join(p["name"] for p in model.ports())]
+    lines = [
+        f"* {model.name}: linearised benchmark floor ({kind}), bench/sigma_delta.py",
+        f".subckt {model.name} " + " ".join(p["name"] for p in model.ports()),
+    ]
     for v, c in enumerate(model.coordinates):
         a = force_gain(c, ws)
         n = c.name
-        lines += [f"Cx_{n} xs_{n} 0 {num(1 / ws)}", f"Gx_{n} 0 xs_{n} u_{n} 0 1", f"Cu_{n} u_{n} 0 {num(1 / ws)}",
-                  f"Gf_{n} 0 u_{n} f_{n} 0 {num(a * c.port_units[3])}",
-                  f"Ex_{n} x_{n} 0 xs_{n} 0 {num(c.scale / c.port_units[1])}"]
+        lines += [
+            f"Cx_{n} xs_{n} 0 {num(1 / ws)}",
+            f"Gx_{n} 0 xs_{n} u_{n} 0 1",
+            f"Cu_{n} u_{n} 0 {num(1 / ws)}",
+            f"Gf_{n} 0 u_{n} f_{n} 0 {num(a * c.port_units[3])}",
+            f"Ex_{n} x_{n} 0 xs_{n} 0 {num(c.scale / c.port_units[1])}",
+        ]
         if c.stiffness:
             lines.append(f"Gk_{n} 0 u_{n} xs_{n} 0 {num(-c.stiffness / (c.mass * ws * ws))}")
-        if model.acceleration and model.acceleration[v]:   # the inertial load -G_v a_in, a force like f_<q>
+        if model.acceleration and model.acceleration[v]:  # the inertial load -G_v a_in, a force like f_<q>
             lines.append(f"Ga_{n} 0 u_{n} a_in 0 {num(-a * model.acceleration[v])}")
         if c.damping:
             lines.append(f"Gd_{n} 0 u_{n} u_{n} 0 {num(-c.damping / (c.mass * ws))}")
-        if kind == "linear":      # F_v = 1/2 sum_i dC_i/dq_v dv_i^2, scaled like every force of the u node
-            terms = [f"{num(0.5 * a * grad[i, v] / c.scale)}*v({e.name},{plate})*v({e.name},{plate})"
-                     for i, e in enumerate(model.electrodes) if grad[i, v]]
+        if kind == "linear":  # F_v = 1/2 sum_i dC_i/dq_v dv_i^2, scaled like every force of the u node
+            terms = [
+                f"{num(0.5 * a * grad[i, v] / c.scale)}*v({e.name},{plate})*v({e.name},{plate})"
+                for i, e in enumerate(model.electrodes)
+                if grad[i, v]
+            ]
             lines.append(f"Be_{n} 0 u_{n} I=" + " + ".join(terms).replace("+ -", "- "))
     for i, e in enumerate(model.electrodes):
-        if kind == "linear":      # C_i(0) linear, grad . xs on a charge node as the model's .lib does
+        if kind == "linear":  # C_i(0) linear, grad . xs on a charge node as the model's .lib does
             cref = float(np.abs(grad[i]).max()) or 1.0
             rest = "".join(f" + {num(grad[i, v] / cref)}*v(xs_{c.name})" for v, c in enumerate(model.coordinates))
             q = ngspice.charge_node(e.name, f"({rest[3:].replace('+ -', '- ')})", plate, cref)
@@ -167,8 +181,17 @@ def library(model: MacroModel, variant: str) -> str:
     return (xspice if variant == "xspice" else ngspice).subcircuit(model, noise=False)
 
 
-def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles: int, check: bool,
-             control: list[str] = (), loop: str = "analog", solver: str = "sparse") -> dict:
+def run_once(
+    model: MacroModel,
+    lib_text: str,
+    workdir: Path,
+    ts: float,
+    cycles: int,
+    check: bool,
+    control: list[str] = (),
+    loop: str = "analog",
+    solver: str = "sparse",
+) -> dict:
     """One ngspice -b run of the testbench with `lib_text` as the model; stats from `rusage all`."""
     workdir.mkdir(parents=True, exist_ok=True)
     lib = workdir / "model.lib"
@@ -184,8 +207,14 @@ def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles:
     # from this Python process would include the Python image copied before the exec)
     timer = ["/usr/bin/time", "-f", "netgen-maxrss-kb %M"] if Path("/usr/bin/time").exists() else []
     start = time.perf_counter()
-    proc = subprocess.Popen(timer + [ngspice_path(), "-b", "bench.cir"], cwd=workdir, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, stdin=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        timer + [ngspice_path(), "-b", "bench.cir"],
+        cwd=workdir,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        stdin=subprocess.DEVNULL,
+    )
     text = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -202,7 +231,7 @@ def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles:
     if check and cycles >= 32:
         clock = sd.per_clock(read_raw(workdir / "bench.raw")[0], d, cycles, model)
         skip = cycles // 8
-        out["bit_mean_z"] = float(clock["bits_z"][skip:].mean())          # +-1 bits; the design aims at 0.5
+        out["bit_mean_z"] = float(clock["bits_z"][skip:].mean())  # +-1 bits; the design aims at 0.5
         out["balance"] = sd.gravity_balance(clock, d, skip)["ratio"]
     (workdir / "bench.raw").unlink(missing_ok=True)
     return out
@@ -211,14 +240,21 @@ def run_once(model: MacroModel, lib_text: str, workdir: Path, ts: float, cycles:
 def summarise(runs: list[dict], cycles: int) -> dict:
     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
     pts = med["accepted"] + med["rejected"]
-    return {"cycles": cycles, "ms_per_cycle": 1e3 * med["wall_s"] / cycles,
-            "cpu_ms_per_cycle": 1e3 * med["cpu_s"] / cycles,
-            "pts_per_cycle": med["accepted"] / cycles, "all_pts_per_cycle": pts / cycles,
-            "it_per_pt": med["iterations"] / pts, "us_per_it": 1e6 * med["wall_s"] / med["iterations"],
-            "peak_mb": med["peak_mb"], "equations": med["equations"],
-            "load_pct": 100 * med["load_s"] / med["analysis_s"] if med["analysis_s"] else 0.0,
-            "bit_mean_z": med.get("bit_mean_z"), "balance": med.get("balance"),
-            "spread_ms": 1e3 * (max(r["wall_s"] for r in runs) - min(r["wall_s"] for r in runs)) / cycles}
+    return {
+        "cycles": cycles,
+        "ms_per_cycle": 1e3 * med["wall_s"] / cycles,
+        "cpu_ms_per_cycle": 1e3 * med["cpu_s"] / cycles,
+        "pts_per_cycle": med["accepted"] / cycles,
+        "all_pts_per_cycle": pts / cycles,
+        "it_per_pt": med["iterations"] / pts,
+        "us_per_it": 1e6 * med["wall_s"] / med["iterations"],
+        "peak_mb": med["peak_mb"],
+        "equations": med["equations"],
+        "load_pct": 100 * med["load_s"] / med["analysis_s"] if med["analysis_s"] else 0.0,
+        "bit_mean_z": med.get("bit_mean_z"),
+        "balance": med.get("balance"),
+        "spread_ms": 1e3 * (max(r["wall_s"] for r in runs) - min(r["wall_s"] for r in runs)) / cycles,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -227,22 +263,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--naive-cycles", type=int, default=64, help="periods for the slow naive baseline (default 64)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per variant; figures are medians (default 3)")
     ap.add_argument("--ts", type=float, default=1e-6, help="sampling period T_s in s (default 1e-6)")
-    ap.add_argument("--variants", default="xspice,fast,floor,linear,naive",
-                    help=f"comma-separated subset of {','.join(VARIANTS)} (default xspice,fast,floor,linear,naive)")
-    ap.add_argument("--loops", default="xspice,analog",
-                    help="comma-separated testbench loops: xspice (samplers, quantizers and drivers in the compiled "
-                         "netgen_sdloop, as --simulator ngspice-xspice runs it) and/or analog (behavioural sources, "
-                         "as --simulator ngspice); default both")
-    ap.add_argument("--solvers", default=None,
-                    help="comma-separated linear solvers: sparse and/or klu (default both if the ngspice has KLU)")
+    ap.add_argument(
+        "--variants",
+        default="xspice,fast,floor,linear,naive",
+        help=f"comma-separated subset of {','.join(VARIANTS)} (default xspice,fast,floor,linear,naive)",
+    )
+    ap.add_argument(
+        "--loops",
+        default="xspice,analog",
+        help="comma-separated testbench loops: xspice (samplers, quantizers and drivers in the compiled "
+        "netgen_sdloop, as --simulator ngspice-xspice runs it) and/or analog (behavioural sources, "
+        "as --simulator ngspice); default both",
+    )
+    ap.add_argument(
+        "--solvers",
+        default=None,
+        help="comma-separated linear solvers: sparse and/or klu (default both if the ngspice has KLU)",
+    )
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     loops = [lp for lp in args.loops.split(",") if lp]
     solvers = [x for x in (args.solvers or ("sparse,klu" if version().klu else "sparse")).split(",") if x]
-    bad = [v for v in variants if v not in VARIANTS] + [lp for lp in loops if lp not in sdn.LOOPS] + \
-        [x for x in solvers if x not in SOLVERS]
+    bad = (
+        [v for v in variants if v not in VARIANTS]
+        + [lp for lp in loops if lp not in sdn.LOOPS]
+        + [x for x in solvers if x not in SOLVERS]
+    )
     if bad or not loops or args.cycles < 64 or args.repeat < 1:
         ap.error(f"unknown variants or loops {bad}" if bad else "need a loop, --cycles >= 64 and --repeat >= 1")
     model = MacroModel.load_json(args.model)
@@ -259,56 +307,88 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.keep or tmp)
         for r in range(args.repeat):
-            order = cases[r % len(cases):] + cases[:r % len(cases)]
+            order = cases[r % len(cases) :] + cases[: r % len(cases)]
             for v, lp, x in order:
-                res = run_once(model, libs[v], base / f"{v}_{lp}_{x}", args.ts, cycles[v], check=v not in ("floor",),
-                               control=(control if needs_codemodel(v, lp) else []) + extra[(v, lp)], loop=lp,
-                               solver=x)
+                res = run_once(
+                    model,
+                    libs[v],
+                    base / f"{v}_{lp}_{x}",
+                    args.ts,
+                    cycles[v],
+                    check=v not in ("floor",),
+                    control=(control if needs_codemodel(v, lp) else []) + extra[(v, lp)],
+                    loop=lp,
+                    solver=x,
+                )
                 runs[(v, lp, x)].append(res)
-                print(f"  run {r + 1}/{args.repeat} {v} ({lp} loop, {x}): "
-                      f"{1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle", file=sys.stderr, flush=True)
+                print(
+                    f"  run {r + 1}/{args.repeat} {v} ({lp} loop, {x}): {1e3 * res['wall_s'] / cycles[v]:.1f} ms/cycle",
+                    file=sys.stderr,
+                    flush=True,
+                )
     load1 = os.getloadavg()
-    print(f"sigma-delta testbench, T_s = {args.ts:g} s, model {model.name}, median of {args.repeat} runs; "
-          f"ngspice {ngspice_path()} ({version().label}); load average {load0[0]:.1f} -> {load1[0]:.1f} "
-          f"on {os.cpu_count()} CPUs")
+    print(
+        f"sigma-delta testbench, T_s = {args.ts:g} s, model {model.name}, median of {args.repeat} runs; "
+        f"ngspice {ngspice_path()} ({version().label}); load average {load0[0]:.1f} -> {load1[0]:.1f} "
+        f"on {os.cpu_count()} CPUs"
+    )
     for lp in loops:
         for x in solvers:
             report(lp, {v: summarise(runs[(v, lp, x)], cycles[v]) for v in variants}, x)
     return 0
 
 
-RUNS_IN = {"xspice": ("--simulator ngspice-xspice", "xspice"), "analog": ("--simulator ngspice", "fast"),
-           "osdi": ("--simulator ngspice-osdi", "osdi")}
+RUNS_IN = {
+    "xspice": ("--simulator ngspice-xspice", "xspice"),
+    "analog": ("--simulator ngspice", "fast"),
+    "osdi": ("--simulator ngspice-osdi", "osdi"),
+}
 
 
 def report(loop: str, table: dict[str, dict], solver: str = "sparse") -> None:
     """The table, ratios and 2^16 projection of the variants run in one testbench loop and solver."""
     cmd, model = RUNS_IN[loop]
     print(f"\n{loop} loop, {solver} solver ({cmd} runs {model} in it)")
-    print(f"{'variant':8s} {'cycles':>7s} {'ms/cycle':>9s} {'cpu ms':>7s} {'pts/cyc':>8s} {'all pts':>8s} "
-          f"{'it/pt':>6s} {'us/it':>6s} {'load %':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}")
+    print(
+        f"{'variant':8s} {'cycles':>7s} {'ms/cycle':>9s} {'cpu ms':>7s} {'pts/cyc':>8s} {'all pts':>8s} "
+        f"{'it/pt':>6s} {'us/it':>6s} {'load %':>6s} {'eqs':>5s} {'peak MB':>8s} {'z bit':>6s} {'F/mg':>7s}"
+    )
     for v, s in table.items():
         bit = "-" if s["bit_mean_z"] is None else f"{s['bit_mean_z']:.3f}"
         bal = "-" if s["balance"] is None else f"{s['balance']:.4f}"
-        print(f"{v:8s} {s['cycles']:7d} {s['ms_per_cycle']:9.2f} {s['cpu_ms_per_cycle']:7.2f} "
-              f"{s['pts_per_cycle']:8.1f} {s['all_pts_per_cycle']:8.1f} {s['it_per_pt']:6.2f} {s['us_per_it']:6.0f} "
-              f"{s['load_pct']:6.0f} {s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}")
-    for a, b in (("osdi", "floor"), ("fast", "osdi"), ("xspice", "floor"), ("xspice", "linear"), ("fast", "xspice"),
-                 ("fast", "floor"),
-                 ("fast", "linear"), ("nodes", "fast"), ("naive", "fast")):
+        print(
+            f"{v:8s} {s['cycles']:7d} {s['ms_per_cycle']:9.2f} {s['cpu_ms_per_cycle']:7.2f} "
+            f"{s['pts_per_cycle']:8.1f} {s['all_pts_per_cycle']:8.1f} {s['it_per_pt']:6.2f} {s['us_per_it']:6.0f} "
+            f"{s['load_pct']:6.0f} {s['equations']:5.0f} {s['peak_mb']:8.1f} {bit:>6s} {bal:>7s}"
+        )
+    for a, b in (
+        ("osdi", "floor"),
+        ("fast", "osdi"),
+        ("xspice", "floor"),
+        ("xspice", "linear"),
+        ("fast", "xspice"),
+        ("fast", "floor"),
+        ("fast", "linear"),
+        ("nodes", "fast"),
+        ("naive", "fast"),
+    ):
         if a in table and b in table:
             x, y = table[a], table[b]
-            print(f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
-                  f"{x['cpu_ms_per_cycle'] / y['cpu_ms_per_cycle']:.2f} in CPU time, "
-                  f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration")
+            print(
+                f"ratio {a}/{b}: {x['ms_per_cycle'] / y['ms_per_cycle']:.2f} per period, "
+                f"{x['cpu_ms_per_cycle'] / y['cpu_ms_per_cycle']:.2f} in CPU time, "
+                f"{x['us_per_it'] / y['us_per_it']:.2f} per Newton iteration"
+            )
     for v in ("xspice", "osdi", "fast"):
         if v not in table:
             continue
         f = table[v]
         goal = 65536 * f["ms_per_cycle"] / 1e3
-        print(f"{v}: 2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
-              f"peak memory {f['peak_mb']:.0f} MB at {f['cycles']} periods (grows ~27 kB per period; "
-              f"goal < 2 GB at 2^16)")
+        print(
+            f"{v}: 2^16 periods at this rate: {goal / 60:.1f} min (goal < 10 min, < 9 ms/period); "
+            f"peak memory {f['peak_mb']:.0f} MB at {f['cycles']} periods (grows ~27 kB per period; "
+            f"goal < 2 GB at 2^16)"
+        )
 
 
 if __name__ == "__main__":

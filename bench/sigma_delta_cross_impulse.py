@@ -37,16 +37,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from sigma_delta_orders import setup                                     # noqa: E402
+from scipy import linalg  # noqa: E402
+from sigma_delta_orders import setup  # noqa: E402
 
-from scipy import linalg                                                  # noqa: E402
+from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, psd, reference  # noqa: E402
+from netgen.testbench.sigma_delta.loop import selected  # noqa: E402
 
-from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, psd, reference   # noqa: E402
-from netgen.testbench.sigma_delta.loop import selected                   # noqa: E402
-
-WINDOW = (0.47, 0.97)        # sense off .. reset off: only the feedback, springs and input act on the mass
+WINDOW = (0.47, 0.97)  # sense off .. reset off: only the feedback, springs and input act on the mass
 NPERSEG = 8192
-BAND = (400.0, 5000.0)       # where the disk's circuit spectrum was flat
+BAND = (400.0, 5000.0)  # where the disk's circuit spectrum was flat
 
 
 def run(args) -> dict:
@@ -57,42 +56,75 @@ def run(args) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
     tone_hz = metrics.tone_frequency(args.ts, NPERSEG, 64)
-    tone = Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz)        # uN on f_<q>
+    tone = Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz)  # uN on f_<q>
     nodes = [f"x1.u_{name}"] + [f"x1.xs_{c}" for c in coords]
-    net = ngspice.testbench(model, d, lib.resolve(), args.cycles, "sigma_delta.raw", tone, states=nodes,
-                            control=control, loop="xspice", chunks=1)
+    net = ngspice.testbench(
+        model,
+        d,
+        lib.resolve(),
+        args.cycles,
+        "sigma_delta.raw",
+        tone,
+        states=nodes,
+        control=control,
+        loop="xspice",
+        chunks=1,
+    )
     plot = ngspice.simulate(net, out, d.ts * args.cycles, False)
     t = np.asarray(plot["time"])
     per = periods(t, d.ts)
     du = window_mean(t, np.asarray(plot[nodes[0]]), per, d.ts, diff=True)
-    bits = {c: np.where(np.interp((per + 0.72) * d.ts, t, np.asarray(plot[f"v(b_{c})"])) > 0.5, 1.0, -1.0)
-            for c in d.names}
+    bits = {
+        c: np.where(np.interp((per + 0.72) * d.ts, t, np.asarray(plot[f"v(b_{c})"])) > 0.5, 1.0, -1.0) for c in d.names
+    }
     pos = {c: window_mean(t, np.asarray(plot[f"v(x1.xs_{c})"]), per, d.ts) for c in coords}
     groups, labels = regressors(model, d, bits, pos, per, d.ts, tone_hz)
     m = np.hstack([np.stack(g, axis=1) for g in groups.values()])
     owner = [k for k, g in groups.items() for _ in g]
     scale = np.where(np.std(m, axis=0) > 0, np.std(m, axis=0), 1.0)
     coef = np.linalg.lstsq(m / scale, du, rcond=None)[0] / scale
-    unit = coef[0]                                  # one bit's velocity change
-    res = {"model": args.model, "channels": d.names, "fb_edge": d.t.fb_ramp, "periods": args.cycles,
-           "max_abs_xs": {c: float(np.max(np.abs(plot[f"v(x1.xs_{c})"]))) for c in coords},
-           "floor_db_per_hz": {}, "rms": {}}
+    unit = coef[0]  # one bit's velocity change
+    res = {
+        "model": args.model,
+        "channels": d.names,
+        "fb_edge": d.t.fb_ramp,
+        "periods": args.cycles,
+        "max_abs_xs": {c: float(np.max(np.abs(plot[f"v(x1.xs_{c})"]))) for c in coords},
+        "floor_db_per_hz": {},
+        "rms": {},
+    }
     parts = {k: [k] for k in groups if k != "reference"}
     parts["all but the reference's"] = list(parts)
     parts["residual"] = []
     for k, g in parts.items():
-        e = (du - m @ coef) / unit if k == "residual" else m[:, [i for i, o in enumerate(owner) if o in g]] @ \
-            coef[[i for i, o in enumerate(owner) if o in g]] / unit
+        e = (
+            (du - m @ coef) / unit
+            if k == "residual"
+            else m[:, [i for i, o in enumerate(owner) if o in g]]
+            @ coef[[i for i, o in enumerate(owner) if o in g]]
+            / unit
+        )
         res["floor_db_per_hz"][k], res["rms"][k] = floor(e, d.ts)
     res["bits_floor_db_per_hz"] = floor(bits[name], d.ts)[0]
-    res["coefficients"] = {lab: float(c / unit * (WINDOW[1] - WINDOW[0]) * d.ts if "x" in lab.split(" ")[0:1]
-                                      else c / unit) for lab, c in zip(labels, coef)}
+    res["coefficients"] = {
+        lab: float(c / unit * (WINDOW[1] - WINDOW[0]) * d.ts if "x" in lab.split(" ")[0:1] else c / unit)
+        for lab, c in zip(labels, coef)
+    }
     res["model_dfdq"] = model_slopes(model, d, coords)
     own = np.array([o != "reference" and name in lab.split(" ")[-1].split("*") for o, lab in zip(owner, labels)])
     rest = np.array([o != "reference" for o in owner]) & ~own
     g, h = m[:, own] @ coef[own] / unit * bits[name][:], m[:, rest] @ coef[rest] / unit
-    res["injected_octaves_db_per_hz"] = injected(model, d, mech, f_filter(d), g, h, args, tone_hz,
-                                                 (du - m @ coef) / unit + m[:, own | rest] @ coef[own | rest] / unit)
+    res["injected_octaves_db_per_hz"] = injected(
+        model,
+        d,
+        mech,
+        f_filter(d),
+        g,
+        h,
+        args,
+        tone_hz,
+        (du - m @ coef) / unit + m[:, own | rest] @ coef[own | rest] / unit,
+    )
     return res
 
 
@@ -106,9 +138,11 @@ OCTAVES = [244.0, 488.0, 977.0, 1953.0, 3906.0, 7812.0]
 
 def octaves(v: np.ndarray, ts: float, tone_hz: float) -> list[float]:
     """Median PSD per octave of OCTAVES (dB/Hz), the tone's bins left out, after the first eighth."""
-    f, p = psd(v[len(v) // 8:], ts, NPERSEG)
-    return [float(10 * np.log10(np.median(p[(f >= lo) & (f < hi) & (np.abs(f - tone_hz) > 400)])))
-            for lo, hi in zip(OCTAVES, OCTAVES[1:])]
+    f, p = psd(v[len(v) // 8 :], ts, NPERSEG)
+    return [
+        float(10 * np.log10(np.median(p[(f >= lo) & (f < hi) & (np.abs(f - tone_hz) > 400)])))
+        for lo, hi in zip(OCTAVES, OCTAVES[1:])
+    ]
 
 
 def injected(model, d, mech, flt, g: np.ndarray, h: np.ndarray, args, tone_hz: float, e: np.ndarray) -> dict:
@@ -129,8 +163,12 @@ def injected(model, d, mech, flt, g: np.ndarray, h: np.ndarray, args, tone_hz: f
             u = flt.a @ u + flt.bx * (x - flt.x0) + flt.bv * v[k]
             s = phi @ s + gamma * (v[k] * (1 + on * gt[k]) + on * ht[k])
         return v
-    return {"reference": octaves(loop(0.0), d.ts, tone_hz), "reference + error": octaves(loop(1.0), d.ts, tone_hz),
-            "error": octaves(np.tile(e, 4), d.ts, tone_hz)}
+
+    return {
+        "reference": octaves(loop(0.0), d.ts, tone_hz),
+        "reference + error": octaves(loop(1.0), d.ts, tone_hz),
+        "error": octaves(np.tile(e, 4), d.ts, tone_hz),
+    }
 
 
 def periods(t: np.ndarray, ts: float) -> np.ndarray:
@@ -154,16 +192,28 @@ def regressors(model, d, bits: dict, pos: dict, n: np.ndarray, ts: float, tone_h
     b0 = bits[name]
     patterns = pattern_columns(d.names, bits)
     tc = (n + 0.5 * sum(WINDOW)) * ts
-    groups = {"reference": [b0, np.ones_like(b0), np.sin(2 * np.pi * tone_hz * tc), np.cos(2 * np.pi * tone_hz * tc),
-                            pos[name]],
-              "tilt bits": [bits[o] for o in others],
-              "bit products": [v for k, v in patterns.items() if "*" in k],
-              "own position x pattern": [pos[name] * v for k, v in patterns.items() if k != "1"],
-              "other positions x pattern": [pos[c] * v for c in others for v in patterns.values()],
-              "modes x pattern": [pos[c] * v for c in pos if c not in d.names for v in patterns.values()]}
-    labels = ([name, "1", "sin", "cos", f"x {name}"] + list(others) + [k for k in patterns if "*" in k]
-              + [f"x {name} {k}" for k in patterns if k != "1"] + [f"x {c} {k}" for c in others for k in patterns]
-              + [f"x {c} {k}" for c in pos if c not in d.names for k in patterns])
+    groups = {
+        "reference": [
+            b0,
+            np.ones_like(b0),
+            np.sin(2 * np.pi * tone_hz * tc),
+            np.cos(2 * np.pi * tone_hz * tc),
+            pos[name],
+        ],
+        "tilt bits": [bits[o] for o in others],
+        "bit products": [v for k, v in patterns.items() if "*" in k],
+        "own position x pattern": [pos[name] * v for k, v in patterns.items() if k != "1"],
+        "other positions x pattern": [pos[c] * v for c in others for v in patterns.values()],
+        "modes x pattern": [pos[c] * v for c in pos if c not in d.names for v in patterns.values()],
+    }
+    labels = (
+        [name, "1", "sin", "cos", f"x {name}"]
+        + list(others)
+        + [k for k in patterns if "*" in k]
+        + [f"x {name} {k}" for k in patterns if k != "1"]
+        + [f"x {c} {k}" for c in others for k in patterns]
+        + [f"x {c} {k}" for c in pos if c not in d.names for k in patterns]
+    )
     return {k: g for k, g in groups.items() if g}, [lab for lab, k in zip(labels, label_groups(groups)) if groups[k]]
 
 
@@ -211,7 +261,7 @@ def model_slopes(model, d, coords: list[str]) -> dict:
 
 def floor(e: np.ndarray, ts: float) -> tuple[float, float]:
     """In-band PSD median over BAND (dB/Hz) after the first eighth, and the rms."""
-    e = e[len(e) // 8:]
+    e = e[len(e) // 8 :]
     f, p = psd(e, ts, min(NPERSEG, len(e) // 4))
     sel = (f > BAND[0]) & (f < BAND[1])
     return float(10 * np.log10(np.median(p[sel]) + 1e-300)), float(np.std(e))
@@ -232,9 +282,18 @@ def main() -> None:
     print(f"{res['model']}: channels {res['channels']}, fb_edge {res['fb_edge']}, {res['periods']} periods")
     for k, v in res["floor_db_per_hz"].items():
         print(f"  {k:<28} floor {v:7.1f} dB/Hz  rms {res['rms'][k]:.3g}")
-    big = sorted(((abs(v), k) for k, v in res["coefficients"].items() if len(k.split()) == 3 or (not k.startswith("x ") and "*" in k)), reverse=True)[:4]
-    print("  largest terms (over one bit; position terms per normalised unit):",
-          ", ".join(f"{k} {res['coefficients'][k]:+.3g}" for _, k in big))
+    big = sorted(
+        (
+            (abs(v), k)
+            for k, v in res["coefficients"].items()
+            if len(k.split()) == 3 or (not k.startswith("x ") and "*" in k)
+        ),
+        reverse=True,
+    )[:4]
+    print(
+        "  largest terms (over one bit; position terms per normalised unit):",
+        ", ".join(f"{k} {res['coefficients'][k]:+.3g}" for _, k in big),
+    )
     print("  the model's at rest:", {k: f"{v:+.3g}" for k, v in res["model_dfdq"]["at rest"].items() if k != "1"})
     for c in res["channels"][1:]:
         s = res["model_dfdq"][f"d/d {c}"]

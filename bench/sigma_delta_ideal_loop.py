@@ -23,13 +23,19 @@ import argparse
 import numpy as np
 from scipy import signal
 
-MASS, TS, F_ON, G = 1.6377e-8, 1e-6, 0.7415e-6, 9.81     # kg, s, N while feedback is on, m/s^2
-SEGMENTS = [(0.22, 0.0), (0.44, 1.0), (0.34, 0.0)]          # (fraction of T_s, feedback on) from a sample
-METRES_PER_VOLT = 1e-6 / 34.57                               # z readout of the reference bench
+MASS, TS, F_ON, G = 1.6377e-8, 1e-6, 0.7415e-6, 9.81  # kg, s, N while feedback is on, m/s^2
+SEGMENTS = [(0.22, 0.0), (0.44, 1.0), (0.34, 0.0)]  # (fraction of T_s, feedback on) from a sample
+METRES_PER_VOLT = 1e-6 / 34.57  # z readout of the reference bench
 
 
-def run(cycles: int, vcmp: float | None, lead: float = 0.8, settle: float = np.exp(-5), g_scale: float = 1.0,
-        dither: float = 0.0) -> tuple[np.ndarray, int]:
+def run(
+    cycles: int,
+    vcmp: float | None,
+    lead: float = 0.8,
+    settle: float = np.exp(-5),
+    g_scale: float = 1.0,
+    dither: float = 0.0,
+) -> tuple[np.ndarray, int]:
     """Bits (+-1) of the loop and the count of soft decisions; vcmp None = exact sign. g_scale
     scales gravity (moves the operating point); dither is the comparator dither's amplitude as a
     fraction of a_fb T_s^2 (a sine at f_s (1/2 - 0.0218), as in the benches' z channel)."""
@@ -60,10 +66,10 @@ def main() -> None:
     p.add_argument("--cycles", type=int, default=65536)
     args = p.parse_args()
     bands = [(500, 2000), (2000, 8000), (8000, 16000), (16000, 64000)]
-    print(f"{'comparator':<12}" + "".join(f"{f'{lo/1e3:g}-{hi/1e3:g} kHz':>14}" for lo, hi in bands) + "  soft")
+    print(f"{'comparator':<12}" + "".join(f"{f'{lo / 1e3:g}-{hi / 1e3:g} kHz':>14}" for lo, hi in bands) + "  soft")
     for name, vcmp in (("exact sign", None), ("tanh 1 uV", 1e-6), ("tanh 1 nV", 1e-9)):
         bits, soft = run(args.cycles, vcmp)
-        f, psd = signal.welch(bits[args.cycles // 8:], fs=1 / TS, nperseg=min(8192, args.cycles // 8))
+        f, psd = signal.welch(bits[args.cycles // 8 :], fs=1 / TS, nperseg=min(8192, args.cycles // 8))
         cols = [10 * np.log10(np.median(psd[(f > lo) & (f < hi)])) for lo, hi in bands]
         print(f"{name:<12}" + "".join(f"{c:14.1f}" for c in cols) + f"  {soft}")
     print("\nslope dB/decade over f_s/640..f_s/64 (mean bit in brackets), exact sign:")
@@ -71,10 +77,10 @@ def main() -> None:
         row = []
         for g_scale in (0.85, 0.9, 1.0, 1.015, 1.1):
             bits, _ = run(args.cycles, None, g_scale=g_scale, dither=dither)
-            f, psd = signal.welch(bits[args.cycles // 8:], fs=1 / TS, nperseg=min(8192, args.cycles // 8))
+            f, psd = signal.welch(bits[args.cycles // 8 :], fs=1 / TS, nperseg=min(8192, args.cycles // 8))
             sel = (f >= 1 / (640 * TS)) & (f <= 1 / (64 * TS))
             slope = np.polyfit(np.log10(f[sel]), 10 * np.log10(psd[sel]), 1)[0]
-            row.append(f"{slope:5.1f} ({bits[args.cycles // 8:].mean():+.2f})")
+            row.append(f"{slope:5.1f} ({bits[args.cycles // 8 :].mean():+.2f})")
         print(f"dither {dither:<5}" + "  ".join(row))
 
 

@@ -34,7 +34,7 @@ from netgen.build import build_model
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, psd, read_structure_loop
 
-WINDOW = (0.47, 0.97)        # sense off .. reset off: only the feedback, springs and input act on the mass
+WINDOW = (0.47, 0.97)  # sense off .. reset off: only the feedback, springs and input act on the mass
 NPERSEG = 8192
 
 
@@ -54,8 +54,18 @@ def run(args) -> dict:
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
     tone = Tone("a_in", args.tone_fs * mech.full_scale, metrics.tone_frequency(args.ts, NPERSEG, 64))
     nodes = [f"x1.u_{name}", f"x1.xs_{name}"]
-    net = ngspice.testbench(model, d, lib.resolve(), args.cycles, "sigma_delta.raw", tone, states=nodes,
-                            control=control, loop="xspice", chunks=1)
+    net = ngspice.testbench(
+        model,
+        d,
+        lib.resolve(),
+        args.cycles,
+        "sigma_delta.raw",
+        tone,
+        states=nodes,
+        control=control,
+        loop="xspice",
+        chunks=1,
+    )
     plot = ngspice.simulate(net, out, d.ts * args.cycles, False)
     t, u, xs = (np.asarray(plot[k]) for k in ("time", f"v({nodes[0]})", f"v({nodes[1]})"))
     bits = np.asarray(plot[f"v(b_{name})"])
@@ -63,10 +73,15 @@ def run(args) -> dict:
     f, p = psd(e, d.ts, min(NPERSEG, len(e) // 4))
     fb = 0.5 / d.ts / 64
     band = (f > fb / 10) & (f < fb)
-    res = {"fb_edge": d.t.fb_ramp, "order": args.order, "periods": args.cycles,
-           "points_per_period": len(t) / args.cycles, "impulse_error_rms": float(np.std(e)),
-           "impulse_error_db_per_hz": float(10 * np.log10(np.median(p[band]))),
-           "bit_x_position_over_spring": float(coef[5] / coef[2])}
+    res = {
+        "fb_edge": d.t.fb_ramp,
+        "order": args.order,
+        "periods": args.cycles,
+        "points_per_period": len(t) / args.cycles,
+        "impulse_error_rms": float(np.std(e)),
+        "impulse_error_db_per_hz": float(10 * np.log10(np.median(p[band]))),
+        "bit_x_position_over_spring": float(coef[5] / coef[2]),
+    }
     (out / "impulse.json").write_text(json.dumps(res, indent=1) + "\n")
     return res
 
@@ -82,8 +97,10 @@ def impulse_error(t, u, xs, bits, ts: float, tone_hz: float) -> tuple[np.ndarray
     grid = (n[:, None] + np.linspace(a, b, 201)[None, :]) * ts
     xm = np.trapezoid(np.interp(grid, t, xs), grid, axis=1)
     tc = (n + 0.5 * (a + b)) * ts
-    x = np.stack([bit, np.ones_like(bit), xm, np.sin(2 * np.pi * tone_hz * tc), np.cos(2 * np.pi * tone_hz * tc),
-                  bit * xm], axis=1)
+    x = np.stack(
+        [bit, np.ones_like(bit), xm, np.sin(2 * np.pi * tone_hz * tc), np.cos(2 * np.pi * tone_hz * tc), bit * xm],
+        axis=1,
+    )
     coef = np.linalg.lstsq(x, du, rcond=None)[0]
     return (du - x @ coef) / coef[0], coef
 

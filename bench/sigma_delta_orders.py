@@ -28,22 +28,29 @@ import argparse
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from dataclasses import replace
-
 from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.structure import load_structure
-from netgen.testbench.sigma_delta import (Tone, design, filters, metrics, ngspice, read_loop_file, read_structure_loop,
-                                          reference)
+from netgen.testbench.sigma_delta import (
+    Tone,
+    design,
+    filters,
+    metrics,
+    ngspice,
+    read_loop_file,
+    read_structure_loop,
+    reference,
+)
 from netgen.testbench.sigma_delta.analysis import band_metrics, psd
 from netgen.testbench.sigma_delta.kinds import FILTERS
 from netgen.testbench.sigma_delta.loopfile import LoopSpec
 
-H_INF = {3: 1.5, 4: 1.4, 5: 1.5}          # the disk's (the accelerometer's order 5 needs 1.3: --h-inf 1.3)
+H_INF = {3: 1.5, 4: 1.4, 5: 1.5}  # the disk's (the accelerometer's order 5 needs 1.3: --h-inf 1.3)
 NPERSEG = 8192
 
 
@@ -58,8 +65,16 @@ def load(model_path: str, loop: str | None = None):
     return model, read_loop_file(loop) if loop else spec
 
 
-def setup(model_path: str, ts: float, order: int, osr: float, h_inf: float | None, reltol: float = 1e-3,
-          fb_edge: float | None = None, loop: str | None = None):
+def setup(
+    model_path: str,
+    ts: float,
+    order: int,
+    osr: float,
+    h_inf: float | None,
+    reltol: float = 1e-3,
+    fb_edge: float | None = None,
+    loop: str | None = None,
+):
     """Model, Design, mechanics, filter of the first channel at this order: lead2, or cifb through
     the [loop.filter] path (designed inside loop.design, no dither) on a structure's [loop]; on a
     model .json (the disk) only its first channel (z) gets the cifb filter, by the same design step.
@@ -86,7 +101,7 @@ def dc_input(model: MacroModel, d, mech: filters.Mechanics) -> float:
 
 def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
     """The in-band figures of a bitstream after its first eighth (the band from metrics.DC_BINS)."""
-    f, p = psd(v[len(v) // 8:], ts, NPERSEG)
+    f, p = psd(v[len(v) // 8 :], ts, NPERSEG)
     return band_metrics(f, p, ts, osr, tone_hz, metrics.DC_BINS)
 
 
@@ -95,13 +110,24 @@ def run_reference(args, order: int) -> dict:
     model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, fb_edge=args.fb_edge, loop=args.loop)
     tone = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
     start = time.perf_counter()
-    r = reference.simulate(mech, f, args.cycles, reference.Input(dc_input(model, d, mech),
-                           args.tone_fs * mech.full_scale, tone),
-                           dither=d.channels[0]["dither_v"], dither_step=d.channels[0]["dither_step"])
+    r = reference.simulate(
+        mech,
+        f,
+        args.cycles,
+        reference.Input(dc_input(model, d, mech), args.tone_fs * mech.full_scale, tone),
+        dither=d.channels[0]["dither_v"],
+        dither_step=d.channels[0]["dither_step"],
+    )
     gap = min(e.gap for e in model.electrodes)
-    out = {"wall_s": time.perf_counter() - start, "held": reference.stable(r, args.hold * gap),
-           "max_z_over_gap": float(np.max(np.abs(r["q"])) / gap), "bit_mean": float(r["v"].mean()),
-           **figures(r["v"], args.ts, args.osr, tone), "filter": f.as_dict(), "full_scale": mech.full_scale}
+    out = {
+        "wall_s": time.perf_counter() - start,
+        "held": reference.stable(r, args.hold * gap),
+        "max_z_over_gap": float(np.max(np.abs(r["q"])) / gap),
+        "bit_mean": float(r["v"].mean()),
+        **figures(r["v"], args.ts, args.osr, tone),
+        "filter": f.as_dict(),
+        "full_scale": mech.full_scale,
+    }
     if args.dr:
         out["dynamic_range"] = dynamic_range(args, model, d, mech, f, tone)
     return out
@@ -112,9 +138,16 @@ def dynamic_range(args, model, d, mech, f, tone: float) -> dict:
     gap = min(e.gap for e in model.electrodes)
 
     def run(a: float):
-        r = reference.simulate(mech, f, 2**15, reference.Input(dc_input(model, d, mech), a * mech.full_scale, tone),
-                               dither=d.channels[0]["dither_v"], dither_step=d.channels[0]["dither_step"])
+        r = reference.simulate(
+            mech,
+            f,
+            2**15,
+            reference.Input(dc_input(model, d, mech), a * mech.full_scale, tone),
+            dither=d.channels[0]["dither_v"],
+            dither_step=d.channels[0]["dither_step"],
+        )
         return r["v"], reference.stable(r, args.hold * gap)
+
     amps = [1e-3, 3e-3, 0.01, 0.03, 0.1, 0.2, 0.3, 0.4, 0.45, 0.5]
     return metrics.dynamic_range(run, amps, args.ts, args.osr, tone, NPERSEG // 2, skip=4096)
 
@@ -127,20 +160,30 @@ def run_circuit(args, order: int) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
     name = d.channels[0]["name"]
-    tone = (Tone("a_in", args.tone_fs * mech.full_scale, tone_hz) if model.acceleration    # m/s^2 on a_in
-            else Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz))     # uN on f_z
+    tone = (
+        Tone("a_in", args.tone_fs * mech.full_scale, tone_hz)
+        if model.acceleration  # m/s^2 on a_in
+        else Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz)
+    )  # uN on f_z
     start = time.perf_counter()
-    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, args.cycles, tone, False, args.segment,
-                                                        control, "xspice")
+    clock, breakpoints, segments = ngspice.run_segments(
+        model, d, lib, out, args.cycles, tone, False, args.segment, control, "xspice"
+    )
     wall = time.perf_counter() - start
     v = clock[f"bits_{name}"].astype(float)
     np.savez_compressed(out / "bitstreams.npz", **clock)
     gap = min(e.gap for e in model.electrodes)
-    zmax = float(np.max(np.abs(clock[f"x_{name}"])) * 1e-6)      # x_ port: 1 V = 1 um
-    res = {"wall_s": wall, "periods": int(len(v)), "max_z_over_gap": zmax / gap, "bit_mean": float(v.mean()),
-           "held": bool(len(v) == args.cycles and zmax <= args.hold * gap), "segments": segments["ngspice_runs"],
-           "missed_corner_cuts": len(breakpoints["segments_cut_at_a_missed_corner"]),
-           "missed_corners_kept": breakpoints["periods_with_a_missed_corner"]}
+    zmax = float(np.max(np.abs(clock[f"x_{name}"])) * 1e-6)  # x_ port: 1 V = 1 um
+    res = {
+        "wall_s": wall,
+        "periods": int(len(v)),
+        "max_z_over_gap": zmax / gap,
+        "bit_mean": float(v.mean()),
+        "held": bool(len(v) == args.cycles and zmax <= args.hold * gap),
+        "segments": segments["ngspice_runs"],
+        "missed_corner_cuts": len(breakpoints["segments_cut_at_a_missed_corner"]),
+        "missed_corners_kept": breakpoints["periods_with_a_missed_corner"],
+    }
     if len(v) >= 4 * NPERSEG:
         res.update(figures(v, args.ts, args.osr, tone_hz))
     return res
@@ -153,16 +196,23 @@ def main() -> None:
     p.add_argument("--cycles", type=int, default=65536)
     p.add_argument("--orders", default="2,3,4,5")
     p.add_argument("--osr", type=float, default=64)
-    p.add_argument("--h-inf", type=float, default=None, help="H_inf for every order (default per order: %s)" % H_INF)
+    p.add_argument("--h-inf", type=float, default=None, help=f"H_inf for every order (default per order: {H_INF})")
     p.add_argument("--tone-fs", type=float, default=0.1, help="tone amplitude, fraction of full scale")
     p.add_argument("--hold", type=float, default=0.01, help="the mass held: |z| below this fraction of the gap")
     p.add_argument("--circuit", action="store_true", help="also run the compiled ngspice loop")
     p.add_argument("--dr", action="store_true", help="the reference's dynamic-range curve")
     p.add_argument("--reltol", type=float, default=1e-3, help="the circuit simulator's relative tolerance")
-    p.add_argument("--fb-edge", type=float, default=None, help="feedback edge width, fraction of T_s (default: "
-                   "the design's, a step for orders 3-5; 0.02 gives the ramps that set the old flat floor)")
+    p.add_argument(
+        "--fb-edge",
+        type=float,
+        default=None,
+        help="feedback edge width, fraction of T_s (default: "
+        "the design's, a step for orders 3-5; 0.02 gives the ramps that set the old flat floor)",
+    )
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--segment", type=int, default=None, help="periods per ngspice segment (0: one run; default: the bench's)")
+    p.add_argument(
+        "--segment", type=int, default=None, help="periods per ngspice segment (0: one run; default: the bench's)"
+    )
     p.add_argument("--loop", default=None, help="a loop description (LOOP.toml) replacing the model's")
     p.add_argument("-o", "--out", default="out/sigma_delta_orders")
     args = p.parse_args()
@@ -180,25 +230,36 @@ def main() -> None:
 def report(results: dict, args) -> None:
     """One line per order and run, then the circuit - reference differences."""
     keys = ("noise_floor_db_per_hz", "inband_noise_db", "snr_db", "slope_db_per_decade")
-    print(f"{args.cycles} periods, OSR {args.osr:g}, DC -6 dBFS (gravity) + tone {20 * np.log10(args.tone_fs):.1f} dBFS"
-          + (f", circuit at reltol {args.reltol:g}" if args.circuit else ""))
-    print(f"{'order':<6}{'run':<10}{'floor dB/Hz':>12}{'noise dB':>10}{'SQNR dB':>9}{'slope':>7}{'held':>6}"
-          f"{'max|z|/gap':>12}{'wall s':>8}")
+    print(
+        f"{args.cycles} periods, OSR {args.osr:g}, DC -6 dBFS (gravity) + tone {20 * np.log10(args.tone_fs):.1f} dBFS"
+        + (f", circuit at reltol {args.reltol:g}" if args.circuit else "")
+    )
+    print(
+        f"{'order':<6}{'run':<10}{'floor dB/Hz':>12}{'noise dB':>10}{'SQNR dB':>9}{'slope':>7}{'held':>6}"
+        f"{'max|z|/gap':>12}{'wall s':>8}"
+    )
     for o, runs in results.items():
         for name, r in runs.items():
-            vals = "".join(f"{r[k]:>{w}.1f}" if r.get(k) is not None else f"{'-':>{w}}"
-                           for k, w in zip(keys, (12, 10, 9, 7)))
+            vals = "".join(
+                f"{r[k]:>{w}.1f}" if r.get(k) is not None else f"{'-':>{w}}" for k, w in zip(keys, (12, 10, 9, 7))
+            )
             print(f"{o:<6}{name:<10}{vals}{str(r['held']):>6}{r['max_z_over_gap']:>12.2e}{r['wall_s']:>8.1f}")
         if "circuit" in runs and "snr_db" in runs["circuit"]:
             c, ref = runs["circuit"], runs["reference"]
-            print(f"{'':<6}{'c - ref':<10}" + "".join(f"{c[k] - ref[k]:>+{w}.1f}" for k, w in zip(keys, (12, 10, 9, 7))))
+            print(
+                f"{'':<6}{'c - ref':<10}" + "".join(f"{c[k] - ref[k]:>+{w}.1f}" for k, w in zip(keys, (12, 10, 9, 7)))
+            )
     for o, runs in results.items():
         dr = runs["reference"].get("dynamic_range")
         if dr:
-            print(f"order {o} reference dynamic range: max stable tone {dr['max_stable_amplitude']} FS, peak SQNR "
-                  f"{dr['peak_sqnr_db']:.1f} dB, DR {dr['dynamic_range_db']:.1f} dB; "
-                  + ", ".join(f"{r['amplitude']:g}:{r['sqnr_db']:.0f}" if r["held"] else f"{r['amplitude']:g}:lost"
-                           for r in dr["rows"]))
+            print(
+                f"order {o} reference dynamic range: max stable tone {dr['max_stable_amplitude']} FS, peak SQNR "
+                f"{dr['peak_sqnr_db']:.1f} dB, DR {dr['dynamic_range_db']:.1f} dB; "
+                + ", ".join(
+                    f"{r['amplitude']:g}:{r['sqnr_db']:.0f}" if r["held"] else f"{r['amplitude']:g}:lost"
+                    for r in dr["rows"]
+                )
+            )
 
 
 if __name__ == "__main__":

@@ -40,13 +40,13 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))          # run from a checkout without installing too
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
 
+from netgen.model import MacroModel  # noqa: E402
+from netgen.sim.vacask import stats as vacask_stats  # noqa: E402
 from netgen.testbench import sigma_delta as sd  # noqa: E402
 from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
 from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
-from netgen.model import MacroModel  # noqa: E402
-from netgen.sim.vacask import stats as vacask_stats  # noqa: E402
 
 JSON = ROOT / "netlists" / "levitated_disk.json"
 LIB = ROOT / "netlists" / "levitated_disk.lib"
@@ -75,8 +75,14 @@ def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path,
         raw.unlink()
     skip = cycles // 8
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    return {"ms_per_cycle": 1e3 * wall / cycles, "pts_per_cycle": pts / cycles, "it_per_pt": its, "peak_mb": peak,
-            "z_bit": float(clock["bits_z"][skip:].mean()), "balance": sd.gravity_balance(clock, d, skip)["ratio"]}
+    return {
+        "ms_per_cycle": 1e3 * wall / cycles,
+        "pts_per_cycle": pts / cycles,
+        "it_per_pt": its,
+        "peak_mb": peak,
+        "z_bit": float(clock["bits_z"][skip:].mean()),
+        "balance": sd.gravity_balance(clock, d, skip)["ratio"],
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,28 +101,36 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, list[dict]] = {v: [] for v in variants}
     with tempfile.TemporaryDirectory(prefix="bench_sd_vacask_") as tmp:
         work, cache = Path(tmp), Path(tmp) / "osdi"
-        sdv.compile_model(model, cache, VA)                  # compile once, outside the timings
+        sdv.compile_model(model, cache, VA)  # compile once, outside the timings
         sdv.compile_blocks(cache)
         for r in range(a.repeat):
-            order = variants[r % len(variants):] + variants[:r % len(variants)]
+            order = variants[r % len(variants) :] + variants[: r % len(variants)]
             for v in order:
                 cycles = a.ngspice_cycles if VARIANTS[v] is None else a.cycles
                 res = run_one(model, v, a.ts, cycles, work, cache)
                 results[v].append(res)
-                print(f"  repeat {r + 1}: {v:12s} {cycles} periods, {res['ms_per_cycle']:.2f} ms/period", file=sys.stderr)
+                print(
+                    f"  repeat {r + 1}: {v:12s} {cycles} periods, {res['ms_per_cycle']:.2f} ms/period", file=sys.stderr
+                )
     load = os.getloadavg()
-    print(f"sigma-delta loop, {model.name}, T_s = {a.ts * 1e6:g} us; VACASK {a.cycles} / ngspice {a.ngspice_cycles} "
-          f"periods, median of {a.repeat}; load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} CPUs")
-    print(f"{'variant':12s} {'ms/cycle':>9s} {'pts/cycle':>10s} {'it/pt':>6s} {'peak MB':>8s} {'z bits':>7s} "
-          f"{'balance':>8s} {'2^16 periods':>13s}")
+    print(
+        f"sigma-delta loop, {model.name}, T_s = {a.ts * 1e6:g} us; VACASK {a.cycles} / ngspice {a.ngspice_cycles} "
+        f"periods, median of {a.repeat}; load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} CPUs"
+    )
+    print(
+        f"{'variant':12s} {'ms/cycle':>9s} {'pts/cycle':>10s} {'it/pt':>6s} {'peak MB':>8s} {'z bits':>7s} "
+        f"{'balance':>8s} {'2^16 periods':>13s}"
+    )
     med = {}
     for v in variants:
         rs = results[v]
         m = {k: statistics.median(r[k] for r in rs) if rs[0][k] is not None else None for k in rs[0]}
         med[v] = m
         its = f"{m['it_per_pt']:6.2f}" if m["it_per_pt"] is not None else f"{'-':>6s}"
-        print(f"{v:12s} {m['ms_per_cycle']:9.2f} {m['pts_per_cycle']:10.1f} {its} {m['peak_mb']:8.0f} "
-              f"{m['z_bit']:7.3f} {m['balance']:8.4f} {m['ms_per_cycle'] * 65536 / 6e4:10.1f} min")
+        print(
+            f"{v:12s} {m['ms_per_cycle']:9.2f} {m['pts_per_cycle']:10.1f} {its} {m['peak_mb']:8.0f} "
+            f"{m['z_bit']:7.3f} {m['balance']:8.4f} {m['ms_per_cycle'] * 65536 / 6e4:10.1f} min"
+        )
     if "ngspice" in med:
         for v in variants:
             if v != "ngspice":

@@ -90,9 +90,26 @@ def in_folder(folder: Path) -> list[int]:
 
 
 def start(sweep: Path, out: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "netgen.cli", "sweep", str(STRUCTURE), str(sweep), "-o", str(out),
-                             "-q", "--scheduler", "processes:2"], cwd=ROOT, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "netgen.cli",
+            "sweep",
+            str(STRUCTURE),
+            str(sweep),
+            "-o",
+            str(out),
+            "-q",
+            "--scheduler",
+            "processes:2",
+        ],
+        cwd=ROOT,
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def folder_problems(out: Path, ident: str) -> list[str]:
@@ -122,8 +139,18 @@ def interrupts(n: int, sig: int, group: bool, reference: dict, tmp: Path, tally:
     name = signal.Signals(sig).name + (" to the group" if group else "")
     out, k = tmp / f"{name}_0".replace(" ", "_"), 0
     ident = identity(STRUCTURE, plan(load_sweep(sweep), STRUCTURE, out))
-    t = tally.setdefault(name, {"tried": 0, "tracebacks": 0, "wrong exit": 0, "left running": 0, "bad folder": 0,
-                                "completed and equal": 0, "completed and different": 0})
+    t = tally.setdefault(
+        name,
+        {
+            "tried": 0,
+            "tracebacks": 0,
+            "wrong exit": 0,
+            "left running": 0,
+            "bad folder": 0,
+            "completed and equal": 0,
+            "completed and different": 0,
+        },
+    )
     for _ in range(n):
         p = start(sweep, out)
         seen: set = set()
@@ -154,7 +181,7 @@ def interrupts(n: int, sig: int, group: bool, reference: dict, tmp: Path, tally:
         t["bad folder"] += bool(problems)
         if left or problems:
             print(f"  {name} after {wait:.1f} s: left {left}, folder {problems}")
-        if p.returncode == 0:                          # complete: compare, then a fresh folder
+        if p.returncode == 0:  # complete: compare, then a fresh folder
             rows = list(csv.DictReader(open(out / "results.csv")))
             same = all(summary(Path(r["dir"]) / "summary.json") == reference[float(r["ts"])] for r in rows)
             t["completed and equal" if same else "completed and different"] += 1
@@ -174,8 +201,10 @@ def pairs(n: int, tmp: Path, tally: dict) -> None:
     a, b = tmp / "a.toml", tmp / "b.toml"
     a.write_text(SWEEP.format(extra="", values=repr(TS[0])))
     b.write_text(SWEEP.format(extra="", values=repr(TS[1])))
-    t = tally.setdefault("concurrent pairs", {"tried": 0, "tracebacks": 0, "both wrote": 0, "bad folder": 0,
-                                              "refused (lock or other sweep)": 0})
+    t = tally.setdefault(
+        "concurrent pairs",
+        {"tried": 0, "tracebacks": 0, "both wrote": 0, "bad folder": 0, "refused (lock or other sweep)": 0},
+    )
     for k in range(n):
         out = tmp / f"pair_{k}"
         other = a if k % 2 == 0 else b
@@ -196,8 +225,12 @@ def pairs(n: int, tmp: Path, tally: dict) -> None:
             continue
         rows = list(csv.DictReader(open(out / "results.csv")))
         ts = TS[0] if winner is a else TS[1]
-        ok = len(rows) == 1 and rows[0]["status"] == "ok" and float(rows[0]["ts"]) == ts and \
-            json.loads((out / MARKER).read_text())["id"] == ident
+        ok = (
+            len(rows) == 1
+            and rows[0]["status"] == "ok"
+            and float(rows[0]["ts"]) == ts
+            and json.loads((out / MARKER).read_text())["id"] == ident
+        )
         t["bad folder"] += not ok
         if not ok or rcs not in ([0, 0], [0, 2]):
             print(f"  pair {k}: exits {rcs}, rows {rows}, {[e[-200:] for e in errs]}")
@@ -206,16 +239,24 @@ def pairs(n: int, tmp: Path, tally: dict) -> None:
 def foreign(n: int, tmp: Path, tally: dict) -> None:
     """A sleep in a run folder across n resumes of a run that times out each time."""
     sweep = tmp / "f.toml"
-    sweep.write_text(SWEEP.replace("cycles = 128", "cycles = 4096").format(extra="", values=repr(TS[0]))
-                     .replace("[fixed]", 'timeout = "3 s"\n[fixed]'))
+    sweep.write_text(
+        SWEEP.replace("cycles = 128", "cycles = 4096")
+        .format(extra="", values=repr(TS[0]))
+        .replace("[fixed]", 'timeout = "3 s"\n[fixed]')
+    )
     out = tmp / "foreign"
-    t = tally.setdefault("foreign process / timeout", {"tried": 0, "foreign killed": 0, "timeout not enforced": 0,
-                                                       "simulator left": 0})
+    t = tally.setdefault(
+        "foreign process / timeout", {"tried": 0, "foreign killed": 0, "timeout not enforced": 0, "simulator left": 0}
+    )
     shell = None
     for k in range(n):
         start_s = time.monotonic()
-        p = subprocess.run([sys.executable, "-m", "netgen.cli", "sweep", str(STRUCTURE), str(sweep), "-o", str(out),
-                            "-q"], cwd=ROOT, capture_output=True, text=True)
+        p = subprocess.run(
+            [sys.executable, "-m", "netgen.cli", "sweep", str(STRUCTURE), str(sweep), "-o", str(out), "-q"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
         row = next(csv.DictReader(open(out / "results.csv")))
         t["tried"] += 1
         t["timeout not enforced"] += "did not finish within 3 s" not in row["error"]
@@ -233,8 +274,10 @@ def calibrate(tmp: Path) -> None:
     for rigid in (True, False):
         model, lib = sd.model_for(STRUCTURE, tmp / f"model_{rigid}", rigid, progress=False)
         s = sd.run(model, lib, tmp / f"cal_{rigid}", 1e-6, 128, progress=False, plots=False, skip=0)
-        print(f"calibrate: {'rigid' if rigid else 'full'} model: {s['wall_s'] / 128:.3f} s per period "
-              f"({s['wall_s']:.1f} s for 128)")
+        print(
+            f"calibrate: {'rigid' if rigid else 'full'} model: {s['wall_s'] / 128:.3f} s per period "
+            f"({s['wall_s']:.1f} s for 128)"
+        )
 
 
 def main() -> None:

@@ -29,10 +29,12 @@ def main() -> None:
     f0 = s["tone"]["freq"]
     level = {}
     for c in CHANNELS:
-        f, pw = psd(bits[f"bits_{c}"][s["skip"]:], s["ts"], args.nperseg)
+        f, pw = psd(bits[f"bits_{c}"][s["skip"] :], s["ts"], args.nperseg)
         k = int(np.argmin(np.abs(f - f0)))
-        level[c] = 10 * np.log10(np.sum(pw[k - 1:k + 2]) * (f[1] - f[0]))
-    print(f"{args.folder}: {s['cycles']} periods, tone {f0:g} Hz, Welch segments of {args.nperseg} ({f[1] - f[0]:.0f} Hz bins)")
+        level[c] = 10 * np.log10(np.sum(pw[k - 1 : k + 2]) * (f[1] - f[0]))
+    print(
+        f"{args.folder}: {s['cycles']} periods, tone {f0:g} Hz, Welch segments of {args.nperseg} ({f[1] - f[0]:.0f} Hz bins)"
+    )
     for c in CHANNELS:
         print(f"{c:8s} line {level[c]:7.1f} dB   {level[c] - level['z']:+6.1f} dB re z")
 

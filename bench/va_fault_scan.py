@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # run from a checkout
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
 
 from netgen import cli  # noqa: E402
 from tests.fixtures import ROOT  # noqa: E402
@@ -46,8 +46,10 @@ def main() -> int:
             text = va.read_text(encoding="utf-8")
             rows, n = scan(text), len(statements(text))
             total, found = total + n, found + len(rows)
-            print(f"{va.relative_to(out) if va.is_relative_to(out) else va.relative_to(ROOT)}: {n} statements, "
-                  f"{len(rows)} faulty products" + "".join(f"\n  {r.module}: {r.statement}" for r in rows))
+            print(
+                f"{va.relative_to(out) if va.is_relative_to(out) else va.relative_to(ROOT)}: {n} statements, "
+                f"{len(rows)} faulty products" + "".join(f"\n  {r.module}: {r.statement}" for r in rows)
+            )
         print(f"{found} faulty products in {total} analog statements of {len(files)} files")
     return 1 if found else 0
 

@@ -20,7 +20,7 @@ import numpy as np
 from netgen.testbench.sigma_delta import metrics
 from netgen.testbench.sigma_delta.analysis import band_metrics, psd
 
-NPERSEG = 4096              # Welch segment: 244 Hz bins at T_s = 1 us, 29 in the decade below the band edge
+NPERSEG = 4096  # Welch segment: 244 Hz bins at T_s = 1 us, 29 in the decade below the band edge
 
 
 def in_band(bits: np.ndarray, ts: float, fb: float) -> np.ndarray:
@@ -38,17 +38,26 @@ def analyse(folder: Path) -> dict:
     fb = 0.5 / (ts * osr)
     names = list(summary["channels"])
     bits = {n: np.asarray(data[f"bits_{n}"], float)[skip:] for n in names}
-    out = {"simulator": summary["simulator"], "cycles": summary["cycles"], "held": summary["levitation"]["held"],
-           "gravity_balance": summary["gravity_balance"]["ratio"], "channels": {}, "correlation": {}}
+    out = {
+        "simulator": summary["simulator"],
+        "cycles": summary["cycles"],
+        "held": summary["levitation"]["held"],
+        "gravity_balance": summary["gravity_balance"]["ratio"],
+        "channels": {},
+        "correlation": {},
+    }
     tone = summary["tone"]["freq"] if summary.get("tone") else None
     for n in names:
         f, p = psd(bits[n], ts, min(len(bits[n]), NPERSEG))
         b = band_metrics(f, p, ts, osr, tone, metrics.DC_BINS)
-        out["channels"][n] = {"bit_mean": float(bits[n].mean()), "floor_db_per_hz": b["noise_floor_db_per_hz"],
-                              "inband_noise_db": b["inband_noise_db"], "slope_db_per_decade": b.get("slope_db_per_decade"),
-                              "tone_db": b.get("tone_level_db"),
-                              "peak_um": max(abs(summary["coordinates"][n]["min"]),
-                                                          abs(summary["coordinates"][n]["max"]))}
+        out["channels"][n] = {
+            "bit_mean": float(bits[n].mean()),
+            "floor_db_per_hz": b["noise_floor_db_per_hz"],
+            "inband_noise_db": b["inband_noise_db"],
+            "slope_db_per_decade": b.get("slope_db_per_decade"),
+            "tone_db": b.get("tone_level_db"),
+            "peak_um": max(abs(summary["coordinates"][n]["min"]), abs(summary["coordinates"][n]["max"])),
+        }
     for a, b in itertools.combinations(names, 2):
         raw = float(np.corrcoef(bits[a], bits[b])[0, 1])
         band = float(np.corrcoef(in_band(bits[a], ts, fb), in_band(bits[b], ts, fb))[0, 1])

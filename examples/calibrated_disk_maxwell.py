@@ -28,7 +28,7 @@ HERE = Path(__file__).parent
 
 def main() -> None:
     """Compute the five matrices and write the JSON."""
-    text = (HERE / "calibrated_disk.toml").read_text()          # its geometry, without the file it names
+    text = (HERE / "calibrated_disk.toml").read_text()  # its geometry, without the file it names
     s = parse_structure(text.replace('extractor = "calibrated"', "").split("couplings =")[0], "calibrated_disk.toml")
     m, plate, els = mechanics(s), plate_outline(s), electrodes(s)
     ext = ParallelPlateExtractor(fringe=EdgeFringe.palmer(plate.size)).prepare(els, plate, m.basis)
@@ -46,10 +46,18 @@ def main() -> None:
                     mx[1 + i, 1 + j] = mx[1 + j, 1 + i] = -0.1 * c[0, i] * (1 + 0.05 * q[k, 0] / scales[0])
         np.fill_diagonal(mx, 0.0)
         np.fill_diagonal(mx, -mx.sum(axis=1) + 1e-15)
-        points.append({"q": {name: float(f"{v:.6g}") for name, v in zip(m.names, q[k]) if v},
-                       "maxwell": [[float(f"{v:.6g}") for v in row] for row in mx]})
-    doc = {"description": "synthetic example (examples/calibrated_disk_maxwell.py), not a field solution",
-           "unit": "F", "conductors": ["plate"] + [e.name for e in els], "points": points}
+        points.append(
+            {
+                "q": {name: float(f"{v:.6g}") for name, v in zip(m.names, q[k]) if v},
+                "maxwell": [[float(f"{v:.6g}") for v in row] for row in mx],
+            }
+        )
+    doc = {
+        "description": "synthetic example (examples/calibrated_disk_maxwell.py), not a field solution",
+        "unit": "F",
+        "conductors": ["plate"] + [e.name for e in els],
+        "points": points,
+    }
     (HERE / "calibrated_disk_maxwell.json").write_text(json.dumps(doc, indent=1) + "\n")
 
 

@@ -24,10 +24,12 @@ STOP, STEP = 20e-6, 10e-9
 def drive(mass: float) -> dict[str, float | str]:
     """1 MHz pulses on two electrodes, a step at 5 us on a third, gravity on z (SI numbers, or
     source specifications in port volts)."""
-    return {"top_r2s1": "PULSE(0 3 0 10n 10n 0.49u 1u)",
-            "top_r1s2": "PULSE(0 2 0.25u 10n 10n 0.3u 1u)",
-            "bot_r1s3": "PULSE(0 2 5u 10n 10n 1 2)",
-            "f_z": -mass * 9.81}                                    # N
+    return {
+        "top_r2s1": "PULSE(0 3 0 10n 10n 0.49u 1u)",
+        "top_r1s2": "PULSE(0 2 0.25u 10n 10n 0.3u 1u)",
+        "bot_r1s3": "PULSE(0 2 5u 10n 10n 1 2)",
+        "f_z": -mass * 9.81,
+    }  # N
 
 
 def main() -> None:
@@ -36,20 +38,31 @@ def main() -> None:
     args = ap.parse_args()
 
     model = load_model(LIB)
-    bench = ModelCircuit.build(model, LIB, drive=drive(model.coordinates[0].mass),
-                               nodes={"x_z": "z_out", "x_tilt_x": "tilt_x_out", "top_r2s1": "drive_a"})
+    bench = ModelCircuit.build(
+        model,
+        LIB,
+        drive=drive(model.coordinates[0].mass),
+        nodes={"x_z": "z_out", "x_tilt_x": "tilt_x_out", "top_r2s1": "drive_a"},
+    )
     run = bench.transient(STEP, STOP, max_step=STEP, options={"reltol": 1e-5})
     print(f"{run.release} through PySpice: transient to {run.axis[-1] * 1e6:.0f} us")
     for c in model.coordinates[:3]:
         q = run.q[c.name]
         scale = 1e9 if c.unit == "m" else 1e6
         unit = "nm" if c.unit == "m" else "urad"
-        print(f"{c.name:7s} peak |q| {np.abs(q).max() * scale:9.3f} {unit}   at {STOP * 1e6:.0f} us "
-              f"{q[-1] * scale:9.3f} {unit}")
+        print(
+            f"{c.name:7s} peak |q| {np.abs(q).max() * scale:9.3f} {unit}   at {STOP * 1e6:.0f} us "
+            f"{q[-1] * scale:9.3f} {unit}"
+        )
     print(f"top_r2s1 peak current {np.abs(run.current['top_r2s1']).max() * 1e6:.3f} uA")
     if args.save:
-        np.savez(args.save, time=run.axis, **{f"q_{k}": v for k, v in run.q.items()},
-                 **{f"v_{k}": v for k, v in run.velocity.items()}, **{f"i_{k}": v for k, v in run.current.items()})
+        np.savez(
+            args.save,
+            time=run.axis,
+            **{f"q_{k}": v for k, v in run.q.items()},
+            **{f"v_{k}": v for k, v in run.velocity.items()},
+            **{f"i_{k}": v for k, v in run.current.items()},
+        )
 
 
 if __name__ == "__main__":

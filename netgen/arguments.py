@@ -9,14 +9,32 @@ import argparse
 import math
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from .interrupts import held
 
 # file systems a run folder can never be on: kernel views and device nodes, not storage
-VIRTUAL = {"proc", "sysfs", "devtmpfs", "devpts", "cgroup", "cgroup2", "debugfs", "tracefs", "securityfs",
-           "pstore", "bpf", "configfs", "fusectl", "mqueue", "hugetlbfs", "binfmt_misc", "autofs", "efivarfs"}
+VIRTUAL = {
+    "proc",
+    "sysfs",
+    "devtmpfs",
+    "devpts",
+    "cgroup",
+    "cgroup2",
+    "debugfs",
+    "tracefs",
+    "securityfs",
+    "pstore",
+    "bpf",
+    "configfs",
+    "fusectl",
+    "mqueue",
+    "hugetlbfs",
+    "binfmt_misc",
+    "autofs",
+    "efivarfs",
+}
 
 
 def number(text: str) -> float:
@@ -32,17 +50,20 @@ def number(text: str) -> float:
 
 def positive(what: str, example: str, upper: float = math.inf) -> Callable[[str], float]:
     """The type of a number that must be > 0 (and <= upper): `what` it is, an `example`."""
+
     def check(text: str) -> float:
         value = number(text)
         if not 0 < value <= upper:
             limit = f" and at most {upper:g}" if upper < math.inf else ""
             raise argparse.ArgumentTypeError(f"{text!r}: {what} must be greater than 0{limit}; e.g. {example}")
         return value
+
     return check
 
 
 def integer(what: str, low: int, high: int, example: str, zero: str | None = None) -> Callable[[str], int]:
     """The type of an integer in [low, high] (or 0 when `zero` says what 0 means)."""
+
     def check(text: str) -> int:
         try:
             value = int(text)
@@ -52,14 +73,15 @@ def integer(what: str, low: int, high: int, example: str, zero: str | None = Non
             return 0
         if not low <= value <= high:
             also = f" (or 0: {zero})" if zero else ""
-            raise argparse.ArgumentTypeError(f"{value}: {what} must be between {low} and {high}{also}; "
-                                             f"e.g. {example}")
+            raise argparse.ArgumentTypeError(f"{value}: {what} must be between {low} and {high}{also}; e.g. {example}")
         return value
+
     return check
 
 
 def existing_file(what: str) -> Callable[[str], str]:
     """The type of an input file that must exist and be a readable regular file."""
+
     def check(text: str) -> str:
         if not text.strip():
             raise argparse.ArgumentTypeError(f"the {what} path is empty; give the file to read")
@@ -71,6 +93,7 @@ def existing_file(what: str) -> Callable[[str], str]:
         if not os.access(path, os.R_OK):
             raise argparse.ArgumentTypeError(f"{text} is not readable; check its permissions (chmod u+r)")
         return text
+
     return check
 
 
@@ -83,7 +106,7 @@ def mount_type(path: Path) -> str:
                 parts = line.split()
                 if len(parts) < 3:
                     continue
-                point = parts[1].encode().decode("unicode_escape")       # \040 for a space
+                point = parts[1].encode().decode("unicode_escape")  # \040 for a space
                 inside = str(path) == point or str(path).startswith(point.rstrip("/") + "/")
                 if inside and len(point) >= len(best):
                     best, kind = point, parts[2]
@@ -106,8 +129,9 @@ def output_folder(text: str) -> str:
 def _output_folder(text: str, path: Path) -> str:
     kind = mount_type(path)
     if kind in VIRTUAL:
-        raise argparse.ArgumentTypeError(f"{text} is on the kernel's {kind} file system, not storage; "
-                                         "choose a folder on disk")
+        raise argparse.ArgumentTypeError(
+            f"{text} is on the kernel's {kind} file system, not storage; choose a folder on disk"
+        )
     here = path
     while not here.exists():
         here = here.parent
@@ -116,15 +140,16 @@ def _output_folder(text: str, path: Path) -> str:
         raise argparse.ArgumentTypeError(f"{text} {what}; give a folder (a new or an existing one)")
     if not writable(here):
         which = "" if here == path else f" (it would be created in {here})"
-        raise argparse.ArgumentTypeError(f"{text} is not writable{which}; choose a folder you can write to, "
-                                         "or fix its permissions")
+        raise argparse.ArgumentTypeError(
+            f"{text} is not writable{which}; choose a folder you can write to, or fix its permissions"
+        )
     return text
 
 
 def writable(folder: Path) -> bool:
     """Can this process create a file in `folder`? Tried, not guessed (root passes os.access
     on read-only and kernel file systems)."""
-    with held():                                   # no probe file left behind by a signal
+    with held():  # no probe file left behind by a signal
         try:
             fd, probe = tempfile.mkstemp(prefix=".netgen-probe-", dir=folder)
         except OSError:
@@ -147,8 +172,10 @@ class Parser(argparse.ArgumentParser):
 
 def nonempty(what: str, example: str) -> Callable[[str], str]:
     """The type of a text argument that must not be empty."""
+
     def check(text: str) -> str:
         if not text.strip():
             raise argparse.ArgumentTypeError(f"{what} is empty; give one, e.g. {example}")
         return text
+
     return check

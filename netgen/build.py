@@ -19,11 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from .constants import EPS0
-from .electrostatics import CapacitanceExtractor, PreparedExtractor, extractor
-from .electrostatics import calibration_report
+from .electrostatics import CapacitanceExtractor, PreparedExtractor, calibration_report, extractor
 from .electrostatics import imported as imported_capacitance
-from .errors import StructureError
 from .electrostatics.sampling import Samples, box_range, coordinate_scales, sample_grid, sample_holdout, sample_points
+from .errors import StructureError
 from .fit import cost
 from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all
@@ -35,9 +34,7 @@ from .mechanics import Mechanics, mechanics, participation
 from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
-from .model import Coordinate, Electrode, MacroModel
-from .model import contact
-from .model import plots
+from .model import Coordinate, Electrode, MacroModel, contact, plots
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -45,6 +42,7 @@ from .structure.schema import Sampling
 @dataclass
 class Build:
     """Every stage's output of one pipeline run; `model` is what build_model returns."""
+
     structure: Structure
     mechanics: Mechanics
     electrodes: list[ShapeElectrode]
@@ -65,8 +63,11 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
     m = imported_mechanics.mechanics(s) if imp and imp.modes else mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
-    table = imported_capacitance.table(imp.capacitance, m.names, [e.name for e in shapes]) \
-        if imp and imp.capacitance else None
+    table = (
+        imported_capacitance.table(imp.capacitance, m.names, [e.name for e in shapes])
+        if imp and imp.capacitance
+        else None
+    )
     ext = extractor(s, plate)
     prepared = ext.prepare(shapes, plate, m.basis)
     scales = scales_of(s, prepared, m, shapes)
@@ -85,9 +86,16 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model, ext)
 
 
-def sample_and_fit(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode],
-                   scales: np.ndarray, progress: bool, max_minutes: float | None,
-                   **parallel) -> tuple[Samples, Samples, list[CapacitanceFit], dict]:
+def sample_and_fit(
+    s: Structure,
+    prepared: PreparedExtractor,
+    m: Mechanics,
+    shapes: list[ShapeElectrode],
+    scales: np.ndarray,
+    progress: bool,
+    max_minutes: float | None,
+    **parallel,
+) -> tuple[Samples, Samples, list[CapacitanceFit], dict]:
     """The structure's sample design (after the cost estimate, with `max_minutes`) and one fit per
     electrode; the adaptive design grows its samples while fitting (netgen.fit.adaptive). Returns
     the training and held-out samples, the fits and the design's report entries."""
@@ -101,12 +109,24 @@ def sample_and_fit(s: Structure, prepared: PreparedExtractor, m: Mechanics, shap
         say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
         return grid, holdout, fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
     say(progress, f"{s.name}: adaptive design from {len(grid.x)} samples, budget {s.sampling.points}")
-    result = adaptive_fits(s, shapes, m.basis, scales, grid,
-                           lambda x: sample_points(prepared, x, scales, False, "probes", **parallel), holdout, progress)
+    result = adaptive_fits(
+        s,
+        shapes,
+        m.basis,
+        scales,
+        grid,
+        lambda x: sample_points(prepared, x, scales, False, "probes", **parallel),
+        holdout,
+        progress,
+    )
     checked = [r["validation_max_rel_error"] for r in result.rounds if "validation_max_rel_error" in r]
-    return result.samples, holdout, result.fits, {"probes": result.probes, "rounds": len(result.rounds),
-                                                  "converged": result.converged} | \
-        ({"validation_max_rel_error": checked[-1]} if checked else {})
+    return (
+        result.samples,
+        holdout,
+        result.fits,
+        {"probes": result.probes, "rounds": len(result.rounds), "converged": result.converged}
+        | ({"validation_max_rel_error": checked[-1]} if checked else {}),
+    )
 
 
 def default_range(s: Structure, prepared: PreparedExtractor, scales: np.ndarray, progress: bool) -> Structure:
@@ -117,8 +137,11 @@ def default_range(s: Structure, prepared: PreparedExtractor, scales: np.ndarray,
     r = box_range(prepared, scales, s.sampling.range)
     if r == s.sampling.range:
         return s
-    say(progress, f"{s.name}: [sampling] range {r:g} (not {s.sampling.range:g}: at +-{s.sampling.range:g} the "
-                          f"corners of the {len(scales)}-coordinate box reach an electrode; give range to choose)")
+    say(
+        progress,
+        f"{s.name}: [sampling] range {r:g} (not {s.sampling.range:g}: at +-{s.sampling.range:g} the "
+        f"corners of the {len(scales)}-coordinate box reach an electrode; give range to choose)",
+    )
     return dataclasses.replace(s, sampling=dataclasses.replace(s.sampling, range=r))
 
 
@@ -129,8 +152,12 @@ def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: l
     except ValueError as exc:
         if not (s.imports and s.imports.modes):
             raise
-        raise StructureError(s.imports.modes, "import.modes", str(exc),
-                             "export the vertical displacement of each mode at the conductor's nodes") from None
+        raise StructureError(
+            s.imports.modes,
+            "import.modes",
+            str(exc),
+            "export the vertical displacement of each mode at the conductor's nodes",
+        ) from None
 
 
 def plate_estimates(s: Structure, shapes: list[ShapeElectrode], plate: Plate) -> np.ndarray:
@@ -145,12 +172,19 @@ def build_key(s: Structure) -> str:
     data files it names ([import], electrostatics.couplings) and netgen's version. A cached model
     with the same key is this build's output (netgen.testbench.sigma_delta.runner.model_for);
     file modification times play no part."""
-    files = [getattr(s.imports, f) for f in ("mass_matrix", "stiffness_matrix", "modes", "capacitance")] \
-        if s.imports else []
+    files = (
+        [getattr(s.imports, f) for f in ("mass_matrix", "stiffness_matrix", "modes", "capacitance")]
+        if s.imports
+        else []
+    )
     files.append(s.electrostatics.couplings)
     from . import __version__
-    doc = {"netgen": __version__, "structure": repr(s),
-           "files": {p: hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in files if p}}
+
+    doc = {
+        "netgen": __version__,
+        "structure": repr(s),
+        "files": {p: hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in files if p},
+    }
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
@@ -159,40 +193,77 @@ def build_model(s: Structure, progress: bool = False) -> MacroModel:
     return build(s, progress).model
 
 
-def assemble(s: Structure, m: Mechanics, plate: Plate, shapes: list[ShapeElectrode], ext: CapacitanceExtractor,
-             prepared: PreparedExtractor, scales: np.ndarray, grid: Samples, holdout: Samples,
-             fits: list[CapacitanceFit], design_extra: dict | None = None) -> MacroModel:
+def assemble(
+    s: Structure,
+    m: Mechanics,
+    plate: Plate,
+    shapes: list[ShapeElectrode],
+    ext: CapacitanceExtractor,
+    prepared: PreparedExtractor,
+    scales: np.ndarray,
+    grid: Samples,
+    holdout: Samples,
+    fits: list[CapacitanceFit],
+    design_extra: dict | None = None,
+) -> MacroModel:
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
     coupling = ext.coupling(shapes, plate)
     damp, damp_report = damping(s, m)
     film = damp_report.pop("branches", [()] * len(m.names))
-    coords = [Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab, br)
-              for n, k, u, L, ms, ks, d, f, lab, br in zip(m.names, m.kinds, m.units, scales, m.masses,
-                                                           m.stiffnesses, damp, m.frequencies, m.labels, film)]
+    coords = [
+        Coordinate(n, k, u, float(L), float(ms), float(ks), float(d), float(f), lab, br)
+        for n, k, u, L, ms, ks, d, f, lab, br in zip(
+            m.names, m.kinds, m.units, scales, m.masses, m.stiffnesses, damp, m.frequencies, m.labels, film
+        )
+    ]
     described = [Electrode(e.name, e.group, e.side, e.gap, overlap_area(e, plate)) for e in shapes]
-    sampling = {"levels": s.sampling.levels, "range": s.sampling.range, "samples": int(len(grid.x)),
-                "excluded_touching": grid.excluded, "holdout": int(len(holdout.x)),
-                "holdout_excluded_touching": holdout.excluded, "seed": int(s.fit.seed),
-                "target": s.fit.target, "degree": s.fit.degree, "tolerance": s.fit.tolerance}
-    if s.sampling.design != "grid":                            # the grid's JSON as before
+    sampling = {
+        "levels": s.sampling.levels,
+        "range": s.sampling.range,
+        "samples": int(len(grid.x)),
+        "excluded_touching": grid.excluded,
+        "holdout": int(len(holdout.x)),
+        "holdout_excluded_touching": holdout.excluded,
+        "seed": int(s.fit.seed),
+        "target": s.fit.target,
+        "degree": s.fit.degree,
+        "tolerance": s.fit.tolerance,
+    }
+    if s.sampling.design != "grid":  # the grid's JSON as before
         sampling = {k: v for k, v in sampling.items() if k != "levels"} | cost.design_report(s, design_extra or {})
-    if not s.sampling.range_given and s.sampling.range < Sampling.range:      # netgen.build.default_range
+    if not s.sampling.range_given and s.sampling.range < Sampling.range:  # netgen.build.default_range
         sampling["range_narrowed_from"] = Sampling.range
-    report = {"mechanics": m.report, "electrostatics": {
-        "extractor": ext.description,
-        "fringe": s.electrostatics.fringe, "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity}}
+    report = {
+        "mechanics": m.report,
+        "electrostatics": {
+            "extractor": ext.description,
+            "fringe": s.electrostatics.fringe,
+            "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity,
+        },
+    }
     if damp_report:
         report["damping"] = damp_report
-    if set(m.names) & {"x", "y", "rot_z"}:               # in-plane motion: where small angles stop holding
-        report["small_angle"] = small_angle_report(m.names, m.kinds, scales, s.sampling.range,
-                                                   farthest(plate, shapes), min(e.gap for e in shapes))
-    model = MacroModel(s.name, s.description, s.source, coords, described, fits, coupling,
-                       sampling, report, contact=stops(s, m, prepared, shapes, scales))
-    if hasattr(ext, "calibration"):                   # calibrated fringes / given couplings (netgen.electrostatics.calibrated)
+    if set(m.names) & {"x", "y", "rot_z"}:  # in-plane motion: where small angles stop holding
+        report["small_angle"] = small_angle_report(
+            m.names, m.kinds, scales, s.sampling.range, farthest(plate, shapes), min(e.gap for e in shapes)
+        )
+    model = MacroModel(
+        s.name,
+        s.description,
+        s.source,
+        coords,
+        described,
+        fits,
+        coupling,
+        sampling,
+        report,
+        contact=stops(s, m, prepared, shapes, scales),
+    )
+    if hasattr(ext, "calibration"):  # calibrated fringes / given couplings (netgen.electrostatics.calibrated)
         model.calibration = ext.calibration()
     if s.coordinates.acceleration_port:
         model.acceleration = participation(s, m)
-    if m.strain_energy is not None:                       # e.g. stress stiffening (netgen.mechanics.beam)
+    if m.strain_energy is not None:  # e.g. stress stiffening (netgen.mechanics.beam)
         poly, fit_report = fit_energy(m.strain_energy.energy, scales)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     return model
@@ -207,8 +278,9 @@ def farthest(plate: Plate, shapes: list[ShapeElectrode]) -> float:
     return max(corners + [e.shape.extent() for e in shapes if hasattr(e.shape, "extent")])
 
 
-def stops(s: Structure, m: Mechanics, prepared: PreparedExtractor, shapes: list[ShapeElectrode],
-          scales: np.ndarray) -> dict:
+def stops(
+    s: Structure, m: Mechanics, prepared: PreparedExtractor, shapes: list[ShapeElectrode], scales: np.ndarray
+) -> dict:
     """The contact model (netgen.model.contact): stop points from the extractor's probe points."""
     probe = prepared.probe_points()
     owner = [shapes[i].name for i in probe.electrode]
@@ -226,8 +298,13 @@ def say(progress: bool, text: str) -> None:
 def figure_names(name: str) -> tuple[str, ...]:
     """The files write_figures and write_calibration can write for model `name`: fit errors, mode
     shapes, small-angle errors, the calibration report (JSON and PNG)."""
-    return (f"{name}_fit_errors.png", f"{name}_modes.png", f"{name}_small_angle.png", f"{name}_calibration.json",
-            f"{name}_calibration.png")
+    return (
+        f"{name}_fit_errors.png",
+        f"{name}_modes.png",
+        f"{name}_small_angle.png",
+        f"{name}_calibration.json",
+        f"{name}_calibration.png",
+    )
 
 
 def write_calibration(b: Build, folder: Path, figure: bool = True) -> list[Path]:
@@ -247,6 +324,9 @@ def write_figures(b: Build, folder: Path) -> list[Path]:
     if "small_angle" in model.report:
         out.append(plots.small_angle(folder / angles, model.report["small_angle"]))
     if any(c.kind == "mode" for c in model.coordinates) and b.structure.conductor.outline_shape == "disk":
-        out.append(plots.mode_shapes(folder / modes, model, b.mechanics.basis,
-                                     b.structure.conductor.radius, electrode_outlines(b.structure)))
+        out.append(
+            plots.mode_shapes(
+                folder / modes, model, b.mechanics.basis, b.structure.conductor.radius, electrode_outlines(b.structure)
+            )
+        )
     return out

@@ -9,18 +9,19 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from . import __version__
 from .arguments import Parser, existing_file, output_folder, positive
 from .build import build, figure_names, write_calibration, write_figures
 from .emit import EMITTERS, refusal, requested, write_outputs
 from .errors import InputError, NetgenError, StructureError
-from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 from .executor import add_scheduler_option, executor
 from .folders import OutputFolder
+from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 from .model import FIT_FIX
 from .sim import SIMULATORS, codemodel, netlist_text, ngspice
 from .structure import load_structure
@@ -28,18 +29,19 @@ from .sweep import cli as sweep_cli
 from .testbench import TESTBENCHES
 from .testbench.sigma_delta.ngspice import LOOP_LIBRARY
 
-TIMEOUT_MAX = 1e7                                   # s (116 days): a limit, not a typo of one
+TIMEOUT_MAX = 1e7  # s (116 days): a limit, not a typo of one
 
 
 # ----------------------------------------------------------------------------- netgen build
 
+
 def _build(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     structure = load_structure(args.structure)
-    with sampling(args) as parallel:                # --scheduler / --sample-store (netgen.electrostatics.sampling)
+    with sampling(args) as parallel:  # --scheduler / --sample-store (netgen.electrostatics.sampling)
         result = build(structure, progress=not args.quiet, max_minutes=args.max_minutes, **parallel)
     model = result.model
-    if model.fit_warning():                          # a fit that misses [fit] tolerance (MacroModel.fit_misses)
+    if model.fit_warning():  # a fit that misses [fit] tolerance (MacroModel.fit_misses)
         if args.strict:
             raise StructureError(args.structure, "[fit] tolerance", f"{model.fit_problem()} (--strict)", FIT_FIX)
         print(f"netgen: warning: {args.structure}: {model.fit_warning()}", file=sys.stderr)
@@ -57,8 +59,10 @@ def _build(args: argparse.Namespace) -> int:
         for path in written:
             print(f"wrote {path}")
         worst = max(f.max_rel_error for f in model.capacitances)
-        print(f"{model.name}: {model.ncoords} coordinates, {len(model.electrodes)} electrodes, "
-              f"held-out max capacitance error {worst:.2e}, {time.perf_counter() - start:.1f} s")
+        print(
+            f"{model.name}: {model.ncoords} coordinates, {len(model.electrodes)} electrodes, "
+            f"held-out max capacitance error {worst:.2e}, {time.perf_counter() - start:.1f} s"
+        )
     return 0
 
 
@@ -94,32 +98,50 @@ def format_list(text: str) -> str:
 def _add_build(sub) -> None:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
     b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
-    b.add_argument("-o", "--output", required=True, type=output_folder,
-                   help="output folder for <name>.lib and <name>.json")
-    b.add_argument("--format", type=format_list, default="ngspice",
-                   help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
-                   + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
-                   + "; all: every dialect the model has but osdi")
+    b.add_argument(
+        "-o", "--output", required=True, type=output_folder, help="output folder for <name>.lib and <name>.json"
+    )
+    b.add_argument(
+        "--format",
+        type=format_list,
+        default="ngspice",
+        help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
+        + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
+        + "; all: every dialect the model has but osdi",
+    )
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
-    b.add_argument("--max-minutes", type=positive("--max-minutes", "--max-minutes 60"), default=60.0, metavar="MIN",
-                   help="refuse (exit 2) a sample design whose estimated sampling and fit time exceeds MIN "
-                   "minutes (default 60; the estimate is printed before the work)")
-    b.add_argument("--strict", action="store_true",
-                   help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance")
+    b.add_argument(
+        "--max-minutes",
+        type=positive("--max-minutes", "--max-minutes 60"),
+        default=60.0,
+        metavar="MIN",
+        help="refuse (exit 2) a sample design whose estimated sampling and fit time exceeds MIN "
+        "minutes (default 60; the estimate is printed before the work)",
+    )
+    b.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance",
+    )
     add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")
-    b.add_argument("--sample-store", metavar="DIR", type=output_folder,
-                   help="save finished sample chunks in DIR; a re-run with the same inputs reuses them")
+    b.add_argument(
+        "--sample-store",
+        metavar="DIR",
+        type=output_folder,
+        help="save finished sample chunks in DIR; a re-run with the same inputs reuses them",
+    )
     b.set_defaults(func=_build)
 
 
 # ----------------------------------------------------------------------------- netgen simulate
 
+
 def _simulate(args: argparse.Namespace) -> int:
-    netlist_text(args.netlist)                      # refuses binary input before the simulator sees it
+    netlist_text(args.netlist)  # refuses binary input before the simulator sees it
     plots = SIMULATORS[args.simulator].file(Path(args.netlist), Path(args.output), args.timeout)
     if not args.quiet:
-        if args.simulator == "ngspice":                  # its log's first line records the same
+        if args.simulator == "ngspice":  # its log's first line records the same
             print(f"ran {ngspice.version().label} ({ngspice.version().path})")
         for plot in plots:
             points = len(next(iter(plot.vectors.values()), ()))
@@ -129,35 +151,50 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _add_simulate(sub) -> None:
     r = sub.add_parser("simulate", help="run a netlist in a simulator (batch) and report failures clearly")
-    r.add_argument("netlist", type=existing_file("netlist"),
-                   help="netlist with its analyses (ngspice .cir, or a VACASK .sim)")
-    r.add_argument("-o", "--output", required=True, type=output_folder,
-                   help="run folder: the raw file and log")
-    r.add_argument("--simulator", choices=list(SIMULATORS), default="ngspice",
-                   help="; ".join(f"{k}: {s.help}" for k, s in SIMULATORS.items()))
-    r.add_argument("--timeout", type=positive("the time limit in seconds", "--timeout 600", TIMEOUT_MAX),
-                   default=3600.0, help="seconds of wall time before the run is stopped (default 3600)")
+    r.add_argument(
+        "netlist", type=existing_file("netlist"), help="netlist with its analyses (ngspice .cir, or a VACASK .sim)"
+    )
+    r.add_argument("-o", "--output", required=True, type=output_folder, help="run folder: the raw file and log")
+    r.add_argument(
+        "--simulator",
+        choices=list(SIMULATORS),
+        default="ngspice",
+        help="; ".join(f"{k}: {s.help}" for k, s in SIMULATORS.items()),
+    )
+    r.add_argument(
+        "--timeout",
+        type=positive("the time limit in seconds", "--timeout 600", TIMEOUT_MAX),
+        default=3600.0,
+        help="seconds of wall time before the run is stopped (default 3600)",
+    )
     r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
     r.set_defaults(func=_simulate)
 
 
 # ----------------------------------------------------------------------------- netgen codemodel
 
+
 def _codemodel(args: argparse.Namespace) -> int:
     say = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr))
     cm = codemodel.build(codemodel.MODEL, force=args.force, progress=say)
-    loop = codemodel.build(LOOP_LIBRARY, force=args.force, progress=say)     # the sigma-delta testbench's
+    loop = codemodel.build(LOOP_LIBRARY, force=args.force, progress=say)  # the sigma-delta testbench's
     print(cm)
     if not args.quiet:
         print("load it with these .control lines:\n  " + "\n  ".join(codemodel.control_lines(cm)), file=sys.stderr)
-        print(f"(the sigma-delta testbench's compiled loop: {loop}); built for "
-              f"{codemodel.record(cm)['ngspice']['version']}, recorded in {ngspice.build_record(cm)}", file=sys.stderr)
+        print(
+            f"(the sigma-delta testbench's compiled loop: {loop}); built for "
+            f"{codemodel.record(cm)['ngspice']['version']}, recorded in {ngspice.build_record(cm)}",
+            file=sys.stderr,
+        )
     return 0
 
 
 def _add_codemodel(sub) -> None:
-    p = sub.add_parser("codemodel", help="build the netgen_es XSPICE code model for the installed ngspice "
-                       "(needed by the xspice .lib and --simulator ngspice-xspice) and print its path")
+    p = sub.add_parser(
+        "codemodel",
+        help="build the netgen_es XSPICE code model for the installed ngspice "
+        "(needed by the xspice .lib and --simulator ngspice-xspice) and print its path",
+    )
     p.add_argument("--force", action="store_true", help="rebuild even if the cached build exists")
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors (and the path)")
     p.set_defaults(func=_codemodel)
@@ -165,11 +202,16 @@ def _add_codemodel(sub) -> None:
 
 # ----------------------------------------------------------------------------- the command
 
+
 def parser() -> argparse.ArgumentParser:
     p = Parser(prog="netgen", description=__doc__)
     p.add_argument("--version", action="version", version=f"netgen {__version__}")
-    p.add_argument("--ngspice", metavar="PATH", help="the ngspice to run and build code models for (default: "
-                   f"${ngspice.ENV}, else the ngspice on PATH), e.g. ~/.cache/netgen/ngspice-46/bin/ngspice")
+    p.add_argument(
+        "--ngspice",
+        metavar="PATH",
+        help="the ngspice to run and build code models for (default: "
+        f"${ngspice.ENV}, else the ngspice on PATH), e.g. ~/.cache/netgen/ngspice-46/bin/ngspice",
+    )
     sub = p.add_subparsers(dest="command", required=True)
     _add_build(sub)
     _add_simulate(sub)
@@ -188,9 +230,9 @@ def main(argv: list[str] | None = None) -> int:
     args = None
     try:
         args = parser().parse_args(argv)
-        with ngspice.selected(args.ngspice):        # --ngspice: the same setting as NETGEN_NGSPICE
+        with ngspice.selected(args.ngspice):  # --ngspice: the same setting as NETGEN_NGSPICE
             code = args.func(args)
-        check()                                     # a signal some library swallowed still stops it
+        check()  # a signal some library swallowed still stops it
         return code
     except InputError as exc:
         print(f"netgen: error in {exc.what} {exc}", file=sys.stderr)
@@ -201,14 +243,14 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except KeyboardInterrupt as exc:
         return report_interrupt(exc)
-    except BrokenPipeError:                         # `netgen ... | head`: the reader went away
+    except BrokenPipeError:  # `netgen ... | head`: the reader went away
         sys.stdout = open(os.devnull, "w")
         return 1
     except OSError as exc:
         print(f"netgen: {os_message(exc)}", file=sys.stderr)
         return 2
     except Exception as exc:
-        stop = interrupted(exc)                     # e.g. an import in a worker cut by the signal
+        stop = interrupted(exc)  # e.g. an import in a worker cut by the signal
         return report_interrupt(stop) if stop else internal_error(exc, output_of(args))
     finally:
         restore(previous)
@@ -228,8 +270,10 @@ def report_interrupt(exc: KeyboardInterrupt) -> int:
 def os_message(exc: OSError) -> str:
     """An OSError as one line with the path and the fix."""
     where = f"{exc.filename}: " if exc.filename else ""
-    return (f"{where}{exc.strerror or exc}; check that the path exists, that you may read or write it, "
-            "and that the disk has room")
+    return (
+        f"{where}{exc.strerror or exc}; check that the path exists, that you may read or write it, "
+        "and that the disk has room"
+    )
 
 
 def output_of(args: argparse.Namespace | None) -> Path | None:

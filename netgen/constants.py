@@ -20,12 +20,13 @@ ATMOSPHERE = 101325.0
 @dataclass(frozen=True)
 class Gas:
     """Dynamic viscosity (Pa s) and mean free path at 1 atm (m), both near 300 K."""
+
     name: str
     viscosity: float
     mean_free_path: float
 
 
-GASES = {   # viscosities: CRC handbook near 300 K; mean free paths at 1 atm (Veijola/Bao tables)
+GASES = {  # viscosities: CRC handbook near 300 K; mean free paths at 1 atm (Veijola/Bao tables)
     "air": Gas("air", 1.85e-5, 68e-9),
     "nitrogen": Gas("nitrogen", 1.78e-5, 66e-9),
     "argon": Gas("argon", 2.27e-5, 70e-9),

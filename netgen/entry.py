@@ -15,18 +15,19 @@ def main() -> int:
     install()
     try:
         from . import cli
-        check()                                     # a signal an import swallowed
+
+        check()  # a signal an import swallowed
     except KeyboardInterrupt:
         print("netgen: interrupted while starting; nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception as exc:                        # a broken installation: one line, a crash log
-        if interrupted(exc):                        # numpy/scipy turn a KeyboardInterrupt into these
+    except Exception as exc:  # a broken installation: one line, a crash log
+        if interrupted(exc):  # numpy/scipy turn a KeyboardInterrupt into these
             print("netgen: interrupted while starting; nothing was written", file=sys.stderr)
             return EXIT_INTERRUPTED
         return internal_error(exc)
     try:
         return cli.main()
-    except KeyboardInterrupt:                       # between the import and main's own boundary
+    except KeyboardInterrupt:  # between the import and main's own boundary
         print("netgen: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:

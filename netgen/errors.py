@@ -9,12 +9,14 @@ from __future__ import annotations
 
 class NetgenError(Exception):
     """Base of the errors the command line reports as a message with `exit_code`."""
+
     exit_code = 1
 
 
 class InputError(NetgenError):
     """A bad input file: file, location (line and key), problem and fix, for a one-line report.
     `what` names the kind of file in the command line's message."""
+
     exit_code = 2
     what = "input file"
 
@@ -26,11 +28,13 @@ class InputError(NetgenError):
 
 class StructureError(InputError):
     """Invalid structure file, or a file it names (an [import] table's data)."""
+
     what = "structure file"
 
 
 class SweepError(InputError):
     """Invalid sweep file."""
+
     what = "sweep file"
 
 
@@ -38,22 +42,26 @@ class LoopError(InputError):
     """Invalid sigma-delta loop description (a structure file's [loop] table or `--loop` file), or one
     the model cannot close (a channel no electrode senses or drives, feedback that cannot balance
     the input)."""
+
     what = "loop description"
 
 
 class ModelError(InputError):
     """Invalid model JSON (netgen.model.validate): a name that is not an identifier, text with
     control characters, a missing or malformed entry."""
+
     what = "model file"
 
 
 class SimulationError(NetgenError, RuntimeError):
     """A simulator run failed; the message names the cause and the saved netlist."""
+
     exit_code = 1
 
 
 class SimulatorNotFound(NetgenError, RuntimeError):
     """A simulator or tool is not installed; the message says how to install it."""
+
     exit_code = 3
 
 
@@ -63,4 +71,5 @@ class CodeModelError(SimulatorNotFound):
 
 class ExecutorError(NetgenError, OSError):
     """A scheduler that cannot be used (bad spec, Dask missing, scheduler unreachable)."""
+
     exit_code = 2

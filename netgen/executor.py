@@ -29,35 +29,39 @@ import threading
 import time
 import traceback
 import uuid
+from collections.abc import Callable, Iterable, Iterator
 from concurrent import futures as cf
-from contextlib import contextmanager
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
 
 from .arguments import nonempty
 from .errors import ExecutorError
 
 DASK_INSTALL = "pip install 'netgen[dask]'  (or: pip install 'dask[distributed]')"
-SCHEDULER_HELP = ("'processes[:N]' (local worker processes), 'serial', 'local:N' (a Dask LocalCluster "
-                  "of N workers) or a Dask scheduler address tcp://host:port")
+SCHEDULER_HELP = (
+    "'processes[:N]' (local worker processes), 'serial', 'local:N' (a Dask LocalCluster "
+    "of N workers) or a Dask scheduler address tcp://host:port"
+)
 
 
 @dataclass
 class Outcome:
     """What one task gave: its value, or the error it raised (type: message) and traceback."""
+
     value: Any = None
     error: str | None = None
     traceback: str = ""
-    attempts: int = 1               # times the task was started (> 1: its worker was lost)
+    attempts: int = 1  # times the task was started (> 1: its worker was lost)
 
     @property
     def ok(self) -> bool:
         return self.error is None
 
 
-_HELD: dict = {"depth": 0, "pending": None}     # main process: an interrupt held until a safe point
+_HELD: dict = {"depth": 0, "pending": None}  # main process: an interrupt held until a safe point
 
 
 @contextmanager
@@ -88,7 +92,7 @@ class WorkerStopped(BaseException):
     kill the simulators it started, netgen.sim.process.run) and then the worker exits."""
 
 
-_WORKER = {"local": False, "busy": False}        # per process: a ProcessExecutor worker? in a task?
+_WORKER = {"local": False, "busy": False}  # per process: a ProcessExecutor worker? in a task?
 
 
 def _worker_start(registry: str) -> None:
@@ -105,7 +109,7 @@ def _worker_signal(signum: int, frame: Any) -> None:
     """Idle: exit now. In a task: raise WorkerStopped through it; _call then exits."""
     if not _WORKER["busy"]:
         os._exit(128 + signum)
-    _WORKER["busy"] = False                           # a second signal exits at once
+    _WORKER["busy"] = False  # a second signal exits at once
     raise WorkerStopped(signum)
 
 
@@ -126,7 +130,7 @@ def _call(fn: Callable, shared: Any, item: Any) -> tuple[str, Any, str]:
         if _WORKER["local"]:
             os._exit(128 + stop.args[0])
         raise
-    except Exception as exc:                          # noqa: BLE001 - isolate every task failure
+    except Exception as exc:  # noqa: BLE001 - isolate every task failure
         return "error", f"{type(exc).__name__}: {exc}", traceback.format_exc()
     finally:
         _WORKER["busy"] = False
@@ -139,7 +143,7 @@ class _Nothing:
         return (_nothing, ())
 
 
-def _nothing() -> "_Nothing":
+def _nothing() -> _Nothing:
     return _NOTHING
 
 
@@ -152,21 +156,22 @@ _NOTHING = _Nothing()
 @dataclass(frozen=True)
 class _SharedFile:
     """Local processes: a large input pickled once to a file; each worker loads it once."""
+
     token: str
     path: str
 
 
-_LOADED: dict[str, Any] = {}                           # per worker process: token -> object
+_LOADED: dict[str, Any] = {}  # per worker process: token -> object
 
 
 def _resolve(handle: Any) -> Any:
     if isinstance(handle, _SharedFile):
         if handle.token not in _LOADED:
             with open(handle.path, "rb") as fh:
-                _LOADED.clear()                        # keep one shared input per worker
+                _LOADED.clear()  # keep one shared input per worker
                 _LOADED[handle.token] = pickle.load(fh)
         return _LOADED[handle.token]
-    return handle                                      # serial: the object; Dask: already resolved
+    return handle  # serial: the object; Dask: already resolved
 
 
 # ----------------------------------------------------------------------------- executors
@@ -174,6 +179,7 @@ def _resolve(handle: Any) -> Any:
 
 class Executor:
     """Common interface; see the module docstring."""
+
     name = "executor"
     workers = 1
 
@@ -183,8 +189,9 @@ class Executor:
     def scatter(self, obj: Any) -> Any:
         return obj
 
-    def imap_unordered(self, fn: Callable, items: Iterable[Any], shared: Any = _NOTHING,
-                       retries: int = 2) -> Iterator[tuple[int, Outcome]]:
+    def imap_unordered(
+        self, fn: Callable, items: Iterable[Any], shared: Any = _NOTHING, retries: int = 2
+    ) -> Iterator[tuple[int, Outcome]]:
         raise NotImplementedError
 
     def close(self) -> None:
@@ -194,7 +201,7 @@ class Executor:
         """Stop now (SIGTERM/SIGINT of the caller): running tasks end, no queued task starts."""
         self.close()
 
-    def __enter__(self) -> "Executor":
+    def __enter__(self) -> Executor:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -206,13 +213,14 @@ class Executor:
 
 class SerialExecutor(Executor):
     """Runs every task in this process, in order (debugging, tiny jobs)."""
+
     name = "serial"
 
     def submit(self, fn: Callable, *args: Any) -> cf.Future:
         f: cf.Future = cf.Future()
         try:
             f.set_result(fn(*args))
-        except Exception as exc:                      # noqa: BLE001
+        except Exception as exc:  # noqa: BLE001
             f.set_exception(exc)
         return f
 
@@ -238,6 +246,7 @@ def _start_forkserver_ignoring_sigint() -> None:
     ignored (no KeyboardInterrupt traceback from half-imported modules) until _worker_start
     installs the handler that stops the worker cleanly."""
     import multiprocessing.forkserver
+
     if threading.current_thread() is not threading.main_thread():
         multiprocessing.forkserver.ensure_running()
         return
@@ -251,6 +260,7 @@ def _start_forkserver_ignoring_sigint() -> None:
 class ProcessExecutor(Executor):
     """Local worker processes (concurrent.futures.ProcessPoolExecutor). A pool whose worker
     died is replaced and the tasks it lost are submitted again (up to `retries` times)."""
+
     name = "processes"
 
     def __init__(self, workers: int | None = None):
@@ -264,9 +274,11 @@ class ProcessExecutor(Executor):
     def pool(self) -> cf.ProcessPoolExecutor:
         if self._pool is None:
             import multiprocessing
+
             ctx = multiprocessing.get_context("forkserver" if sys.platform.startswith("linux") else None)
-            self._pool = cf.ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_worker_start,
-                                                initargs=(self._registry,))
+            self._pool = cf.ProcessPoolExecutor(
+                self.workers, mp_context=ctx, initializer=_worker_start, initargs=(self._registry,)
+            )
             if ctx.get_start_method() == "forkserver":
                 _start_forkserver_ignoring_sigint()
         return self._pool
@@ -325,7 +337,7 @@ class ProcessExecutor(Executor):
         attempts = dict.fromkeys(pending, 0)
         while pending:
             futs = {}
-            with uninterrupted():                      # a signal never lands inside the pool's locks
+            with uninterrupted():  # a signal never lands inside the pool's locks
                 pool = self.pool()
                 for i in sorted(pending):
                     attempts[i] += 1
@@ -339,17 +351,26 @@ class ProcessExecutor(Executor):
                     lost.append(i)
                     continue
                 pending.discard(i)
-                yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
-                                 attempts[i])
-            if lost:                                   # a worker died: new pool, resubmit its tasks
+                yield (
+                    i,
+                    Outcome(value if status == "ok" else None, value if status == "error" else None, tb, attempts[i]),
+                )
+            if lost:  # a worker died: new pool, resubmit its tasks
                 with uninterrupted():
                     self._pool.shutdown(wait=False, cancel_futures=True)
                     self._pool = None
                 for i in lost:
                     if attempts[i] > retries:
                         pending.discard(i)
-                        yield i, Outcome(None, f"WorkerLost: the worker process died {attempts[i]} times "
-                                         "running this task", "", attempts[i])
+                        yield (
+                            i,
+                            Outcome(
+                                None,
+                                f"WorkerLost: the worker process died {attempts[i]} times running this task",
+                                "",
+                                attempts[i],
+                            ),
+                        )
 
     def close(self):
         if self._pool is not None:
@@ -364,6 +385,7 @@ class ProcessExecutor(Executor):
 
 class DaskExecutor(Executor):
     """A dask.distributed Client: a LocalCluster ('local:N') or an existing scheduler address."""
+
     name = "dask"
 
     def __init__(self, address: str | None = None, workers: int | None = None, client: Any = None):
@@ -373,22 +395,30 @@ class DaskExecutor(Executor):
             self.client = client
         elif address is None:
             import logging
+
             self._environ = dict(os.environ)
-            self._cluster = distributed.LocalCluster(n_workers=workers or 2, threads_per_worker=1, processes=True,
-                                                     dashboard_address=None, silence_logs=logging.ERROR)
+            self._cluster = distributed.LocalCluster(
+                n_workers=workers or 2,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
             self.client = distributed.Client(self._cluster)
             restore_environ(self._environ)
         else:
             try:
                 self.client = distributed.Client(address, timeout="20s")
             except OSError as exc:
-                raise ExecutorError(f"cannot reach the Dask scheduler at {address}: {exc}; start one with "
-                                    "`dask scheduler` and workers with `dask worker ADDRESS`") from None
+                raise ExecutorError(
+                    f"cannot reach the Dask scheduler at {address}: {exc}; start one with "
+                    "`dask scheduler` and workers with `dask worker ADDRESS`"
+                ) from None
         self._own_client = client is None
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         self.name = f"dask ({self.client.scheduler.address})"
         self._scattered: dict[int, tuple[Any, Any]] = {}
-        self._live: dict = {}                          # imap_unordered's running futures (for stop)
+        self._live: dict = {}  # imap_unordered's running futures (for stop)
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -400,7 +430,7 @@ class DaskExecutor(Executor):
             fut = self._scattered[id(obj)][1]
             if fut.status == "finished":
                 return fut
-        fut = self.client.scatter([obj], hash=False, broadcast=True)[0]   # a list: a dict is per value
+        fut = self.client.scatter([obj], hash=False, broadcast=True)[0]  # a list: a dict is per value
         self._scattered[id(obj)] = (obj, fut)
         return fut
 
@@ -434,22 +464,21 @@ class DaskExecutor(Executor):
             i = futs.pop(f)
             try:
                 status, value, tb = f.result()
-            except Exception as exc:                  # noqa: BLE001 - KilledWorker, lost connection, ...
-                if attempts[i] <= retries:            # the scheduler gave up on it: submit it again
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, lost connection, ...
+                if attempts[i] <= retries:  # the scheduler gave up on it: submit it again
                     g = start(i)
                     futs[g] = i
                     done.add(g)
                     continue
                 status, value, tb = "error", f"WorkerLost: {type(exc).__name__}: {exc}", ""
-            yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb,
-                             attempts[i])
+            yield i, Outcome(value if status == "ok" else None, value if status == "error" else None, tb, attempts[i])
             f.release()
 
     def stop(self):
         """Cancel every task of this client; close (a LocalCluster takes its workers down)."""
         try:
             self.client.cancel(list(self._live), force=True)
-        except Exception:                             # noqa: BLE001 - a lost scheduler: close anyway
+        except Exception:  # noqa: BLE001 - a lost scheduler: close anyway
             pass
         self.close()
 
@@ -461,7 +490,7 @@ class DaskExecutor(Executor):
             self.client.close()
         if self._cluster is not None:
             self._cluster.close()
-            restore_environ(self._environ)             # also after nannies respawned lost workers
+            restore_environ(self._environ)  # also after nannies respawned lost workers
 
 
 def restore_environ(saved: dict[str, str]) -> None:
@@ -496,8 +525,9 @@ def executor(spec: str | None = None) -> Executor:
             except ValueError:
                 n = 0
             if n < 1:
-                raise ExecutorError(f"--scheduler {text!r}: the worker count must be a positive integer "
-                                    f"(e.g. {kind}:4)")
+                raise ExecutorError(
+                    f"--scheduler {text!r}: the worker count must be a positive integer (e.g. {kind}:4)"
+                )
         if kind == "serial":
             return SerialExecutor()
         if kind == "processes":
@@ -520,5 +550,9 @@ def planned_workers(spec: str | None) -> int | None:
 
 def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:
     """The shared --scheduler option of the build and sweep commands."""
-    parser.add_argument("--scheduler", metavar="SPEC", type=nonempty("--scheduler", "processes:2"),
-                        help=f"where {what}: {SCHEDULER_HELP}")
+    parser.add_argument(
+        "--scheduler",
+        metavar="SPEC",
+        type=nonempty("--scheduler", "processes:2"),
+        help=f"where {what}: {SCHEDULER_HELP}",
+    )

@@ -24,30 +24,55 @@ def export(b: Build, folder: str | Path, csv_too: bool = False) -> dict[str, Pat
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     m, s = b.mechanics, b.structure
-    out = {"mass_matrix": folder / "M.mtx", "stiffness_matrix": folder / "K.mtx",
-           "modes": folder / "modes.npz", "capacitance": folder / "capacitance.npz"}
+    out = {
+        "mass_matrix": folder / "M.mtx",
+        "stiffness_matrix": folder / "K.mtx",
+        "modes": folder / "modes.npz",
+        "capacitance": folder / "capacitance.npz",
+    }
     scipy.io.mmwrite(str(out["mass_matrix"]), np.diag(m.masses), precision=17, symmetry="symmetric")
     scipy.io.mmwrite(str(out["stiffness_matrix"]), np.diag(m.stiffnesses), precision=17, symmetry="symmetric")
     nodes, tri, unit = _export_nodes(s)
     vectors = m.basis(nodes[:, 0] * unit, nodes[:, 1] * unit)
-    if isinstance(s.conductor, FreeDisk) and s.coordinates.modes:   # the nonconforming elements' own values
+    if isinstance(s.conductor, FreeDisk) and s.coordinates.modes:  # the nonconforming elements' own values
         elastic = [k for k, kind in enumerate(m.kinds) if kind == "mode"]
         vectors[:, elastic] = _disk_mode_values(s)
     extra = {"triangles": tri} if tri is not None else {}
-    np.savez(out["modes"], nodes=nodes, vectors=vectors, names=np.array(m.names), labels=np.array(m.labels),
-             length_scale=unit, **extra)
+    np.savez(
+        out["modes"],
+        nodes=nodes,
+        vectors=vectors,
+        names=np.array(m.names),
+        labels=np.array(m.labels),
+        length_scale=unit,
+        **extra,
+    )
     grid_x, grid_c = _with_touching(b.grid, sampling_grid(len(b.scales), s.sampling.levels, s.sampling.range))
-    hold_x, hold_c = _with_touching(b.holdout, holdout_points(len(b.scales), s.fit.holdout, s.sampling.range,
-                                                              s.fit.seed))
-    np.savez(out["capacitance"], q=grid_x * b.scales, c=grid_c, holdout_q=hold_x * b.scales,
-             holdout_c=hold_c, coordinates=np.array(m.names),
-             electrodes=np.array([e.name for e in b.model.electrodes]))
+    hold_x, hold_c = _with_touching(
+        b.holdout, holdout_points(len(b.scales), s.fit.holdout, s.sampling.range, s.fit.seed)
+    )
+    np.savez(
+        out["capacitance"],
+        q=grid_x * b.scales,
+        c=grid_c,
+        holdout_q=hold_x * b.scales,
+        holdout_c=hold_c,
+        coordinates=np.array(m.names),
+        electrodes=np.array([e.name for e in b.model.electrodes]),
+    )
     if csv_too:
         out["modes_csv"], out["capacitance_csv"] = folder / "modes.csv", folder / "capacitance.csv"
-        np.savetxt(out["modes_csv"], np.column_stack([nodes * unit, vectors]), delimiter=",", comments="",
-                   header=",".join(["x", "y"] + list(m.names)), fmt="%.17g")
-        rows = np.vstack([np.column_stack([b.grid.x * b.scales, b.grid.c]),
-                          np.column_stack([b.holdout.x * b.scales, b.holdout.c])])
+        np.savetxt(
+            out["modes_csv"],
+            np.column_stack([nodes * unit, vectors]),
+            delimiter=",",
+            comments="",
+            header=",".join(["x", "y"] + list(m.names)),
+            fmt="%.17g",
+        )
+        rows = np.vstack(
+            [np.column_stack([b.grid.x * b.scales, b.grid.c]), np.column_stack([b.holdout.x * b.scales, b.holdout.c])]
+        )
         with open(out["capacitance_csv"], "w", newline="", encoding="utf-8") as fh:
             wr = csv.writer(fh)
             wr.writerow([f"q:{n}" for n in m.names] + [f"C:{e.name}" for e in b.model.electrodes] + ["set"])
@@ -84,10 +109,10 @@ def _export_nodes(s: Structure) -> tuple[np.ndarray, np.ndarray | None, float]:
     if isinstance(c, FreeDisk):
         mesh = free_disk.unit_disk(c.poisson_ratio, s.fem.refine).basis.mesh
         p, t = mesh.p, mesh.t
-        a = np.stack([p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]], axis=-1)      # (2, ne, 2)
-        pts = p[:, t[0]][:, :, None] + np.einsum("ien,nk->iek", a, P2_NODES)          # (2, ne, 6)
-        pts[:, :, 0], pts[:, :, 1], pts[:, :, 2] = p[:, t[0]], p[:, t[1]], p[:, t[2]]   # exact vertices
-        nodes = pts.transpose(1, 2, 0).reshape(-1, 2)                 # in units of the radius
+        a = np.stack([p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]], axis=-1)  # (2, ne, 2)
+        pts = p[:, t[0]][:, :, None] + np.einsum("ien,nk->iek", a, P2_NODES)  # (2, ne, 6)
+        pts[:, :, 0], pts[:, :, 1], pts[:, :, 2] = p[:, t[0]], p[:, t[1]], p[:, t[2]]  # exact vertices
+        nodes = pts.transpose(1, 2, 0).reshape(-1, 2)  # in units of the radius
         return nodes, np.arange(len(nodes)).reshape(-1, 6), c.radius
     x0, x1, y0, y1 = c.outline()
     if c.one_dimensional:

@@ -82,6 +82,7 @@ def toml_document(text: str, path: str, error: type[InputError] = StructureError
 class CsvTable:
     """A CSV table read by read_csv: the header, the numeric columns (`values`, one row per data
     line), the file line of each row (`lines`) and the text columns by name."""
+
     header: list[str]
     header_line: int
     values: np.ndarray
@@ -95,57 +96,91 @@ def read_text(path: str | Path, where: str, what: str, error: type[InputError] =
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
-        raise error(str(path), where, f"cannot read: {exc.strerror or exc}", "check that the file exists and is readable") from None
+        raise error(
+            str(path), where, f"cannot read: {exc.strerror or exc}", "check that the file exists and is readable"
+        ) from None
     nul = data.find(b"\0")
     if nul >= 0:
-        raise error(str(path), where, f"binary data (a NUL byte at offset {nul}), not {what}",
-                    f"give {what} as UTF-8 text")
+        raise error(
+            str(path), where, f"binary data (a NUL byte at offset {nul}), not {what}", f"give {what} as UTF-8 text"
+        )
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise error(str(path), where, f"not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})",
-                    f"save {what} as UTF-8 (e.g. from a spreadsheet: CSV UTF-8)") from None
+        raise error(
+            str(path),
+            where,
+            f"not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})",
+            f"save {what} as UTF-8 (e.g. from a spreadsheet: CSV UTF-8)",
+        ) from None
 
 
-def read_csv(path: str | Path, where: str, text_columns: tuple[str, ...] = (),
-             error: type[InputError] = StructureError) -> CsvTable:
+def read_csv(
+    path: str | Path, where: str, text_columns: tuple[str, ...] = (), error: type[InputError] = StructureError
+) -> CsvTable:
     """A CSV table with a header line, every column numeric except `text_columns`. Lines starting
     with '#' are comments. Errors (not text, no rows, a repeated or empty column name, a row of the
     wrong length, a cell that is no number) name the file, `where`, the line and the fix."""
     text = read_text(path, where, "a CSV table", error)
-    rows = [(no, r) for no, r in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
-            if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
+    rows = [
+        (no, r)
+        for no, r in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
+        if r and "".join(r).strip() and not r[0].lstrip().startswith("#")
+    ]
     if len(rows) < 2:
         raise error(str(path), where, "no data rows", "write a header line and one row per point")
     header_line, raw = rows[0]
     header = [h.strip() for h in raw]
     for k, h in enumerate(header):
         if not h:
-            raise error(str(path), where, f"column {k + 1} of the header has no name", "name every column",
-                        header_line)
+            raise error(str(path), where, f"column {k + 1} of the header has no name", "name every column", header_line)
         if header.index(h) != k:
-            raise error(str(path), where, f"column {h!r} appears twice in the header",
-                        "give each column once", header_line)
+            raise error(
+                str(path), where, f"column {h!r} appears twice in the header", "give each column once", header_line
+            )
     keep = [i for i, h in enumerate(header) if h not in text_columns]
     values = np.empty((len(rows) - 1, len(keep)))
     for r, (no, row) in enumerate(rows[1:]):
         if len(row) != len(header):
-            raise error(str(path), where, f"row has {len(row)} fields, the header {len(header)}",
-                        "give one value per column on every line", no)
+            raise error(
+                str(path),
+                where,
+                f"row has {len(row)} fields, the header {len(header)}",
+                "give one value per column on every line",
+                no,
+            )
         for j, i in enumerate(keep):
             try:
                 values[r, j] = float(row[i])
             except ValueError:
-                raise error(str(path), where, f"column {header[i]!r}: {row[i]!r} is not a number",
-                            "numbers only (SI units; nan marks a missing value)", no) from None
-    text_out = {name: np.array([row[header.index(name)].strip() for _, row in rows[1:]])
-                for name in text_columns if name in header}
-    return CsvTable([header[i] for i in keep] + [h for h in header if h in text_columns], header_line, values,
-                    np.array([no for no, _ in rows[1:]]), text_out)
+                raise error(
+                    str(path),
+                    where,
+                    f"column {header[i]!r}: {row[i]!r} is not a number",
+                    "numbers only (SI units; nan marks a missing value)",
+                    no,
+                ) from None
+    text_out = {
+        name: np.array([row[header.index(name)].strip() for _, row in rows[1:]])
+        for name in text_columns
+        if name in header
+    }
+    return CsvTable(
+        [header[i] for i in keep] + [h for h in header if h in text_columns],
+        header_line,
+        values,
+        np.array([no for no, _ in rows[1:]]),
+        text_out,
+    )
 
 
-def load_npz(path: str | Path, where: str, required: tuple[str, ...], allowed: tuple[str, ...],
-             error: type[InputError] = StructureError) -> dict[str, np.ndarray]:
+def load_npz(
+    path: str | Path,
+    where: str,
+    required: tuple[str, ...],
+    allowed: tuple[str, ...],
+    error: type[InputError] = StructureError,
+) -> dict[str, np.ndarray]:
     """The arrays of a NumPy .npz archive (no pickled objects): anything numpy cannot read (an
     empty or truncated file, garbage, a bare .npy), a missing or unknown array becomes `error`
     naming the file and the array."""
@@ -167,13 +202,21 @@ def load_npz(path: str | Path, where: str, required: tuple[str, ...], allowed: t
         out = {}
         for k in names:
             if k not in allowed:
-                raise error(str(path), where, f"unknown array {k!r}",
-                            f"{did_you_mean(k, list(allowed))}the arrays allowed: {', '.join(allowed)}")
+                raise error(
+                    str(path),
+                    where,
+                    f"unknown array {k!r}",
+                    f"{did_you_mean(k, list(allowed))}the arrays allowed: {', '.join(allowed)}",
+                )
             try:
                 out[k] = z[k]
             except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
-                raise error(str(path), where, f"array {k!r} cannot be read ({exc})",
-                            fix + " (plain numbers and strings, no Python objects)") from None
+                raise error(
+                    str(path),
+                    where,
+                    f"array {k!r} cannot be read ({exc})",
+                    fix + " (plain numbers and strings, no Python objects)",
+                ) from None
         return out
 
 

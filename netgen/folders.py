@@ -10,16 +10,16 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 from .files import umask, write_atomic
 from .interrupts import check, held
 
 STAGING = ".netgen-staging-"
-MANIFEST = ".manifest.json"          # <set name>.manifest.json: the complete set a run committed
-FAILED = ".failed"                   # <set name>.failed/: the files of the last run that failed
+MANIFEST = ".manifest.json"  # <set name>.manifest.json: the complete set a run committed
+FAILED = ".failed"  # <set name>.failed/: the files of the last run that failed
 FAILED_NOTE = "FAILED.txt"
 
 
@@ -38,21 +38,28 @@ class OutputFolder:
     `legacy`: the names this set's files have, replaced or removed as its own when the folder
     has no manifest yet (written by a netgen before manifests)."""
 
-    def __init__(self, folder: str | Path, name: str, info: dict | None = None, keep_failed: bool = False,
-                 shared: tuple[str, ...] = (), legacy: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        folder: str | Path,
+        name: str,
+        info: dict | None = None,
+        keep_failed: bool = False,
+        shared: tuple[str, ...] = (),
+        legacy: tuple[str, ...] = (),
+    ):
         self.folder, self.name, self.info = Path(folder), name, dict(info or {})
         self.keep_failed, self.shared, self.legacy = keep_failed, shared, legacy
         self.manifest = self.folder / f"{name}{MANIFEST}"
         self.stage: Path = self.folder
         self.committed = False
         self._created = False
-        self._made: list[Path] = []                  # shared sub-folders this run created
+        self._made: list[Path] = []  # shared sub-folders this run created
         self._lock: int | None = None
 
-    def __enter__(self) -> "OutputFolder":
+    def __enter__(self) -> OutputFolder:
         with held():
             self._created = not self.folder.exists()
-            with folder_lock(self.folder, create=True):     # against a run's clean-up of the same folder
+            with folder_lock(self.folder, create=True):  # against a run's clean-up of the same folder
                 remove_stale_stages(self.folder)
                 self.stage = Path(tempfile.mkdtemp(prefix=f"{STAGING}{self.name}-", dir=self.folder))
                 try:
@@ -72,19 +79,19 @@ class OutputFolder:
     def commit(self, written: list[Path] | None = None) -> list[Path]:
         """Move the staged files into the folder as one set (see the class); the final paths of
         `written` (staged paths), in their order."""
-        check()                                         # an interrupt a library swallowed: no commit
+        check()  # an interrupt a library swallowed: no commit
         with held(), folder_lock(self.folder):
             new = staged_files(self.stage)
             before = manifest_files(self.manifest) if self.manifest.exists() else list(self.legacy)
             old = set(before) - set(new)
-            self.manifest.unlink(missing_ok=True)           # no manifest names a set while it moves
+            self.manifest.unlink(missing_ok=True)  # no manifest names a set while it moves
             for rel in new:
                 os.replace(self.stage / rel, self.folder / rel)
             for rel in sorted(old):
                 (self.folder / rel).unlink(missing_ok=True)
             write_atomic(self.manifest, manifest_text(self.folder, self.name, new, self.info))
             failed = self.folder / f"{self.name}{FAILED}"
-            if (failed / FAILED_NOTE).exists():             # an earlier failure, superseded
+            if (failed / FAILED_NOTE).exists():  # an earlier failure, superseded
                 shutil.rmtree(failed, ignore_errors=True)
             self._drop_stage()
             self.committed = True
@@ -100,7 +107,7 @@ class OutputFolder:
             else:
                 self._drop_stage()
             if self._created and not any(self.folder.iterdir()):
-                self.folder.rmdir()                         # a folder this run made and left empty
+                self.folder.rmdir()  # a folder this run made and left empty
 
     def failed_path(self, text: str) -> str:
         """`text` (an error message) with the staging folder's paths replaced by the folder its
@@ -113,15 +120,17 @@ class OutputFolder:
         failed = self.folder / f"{self.name}{FAILED}"
         if failed.exists() and (failed / FAILED_NOTE).exists():
             shutil.rmtree(failed, ignore_errors=True)
-        if failed.exists():                                  # not ours: leave it, drop the run's files
+        if failed.exists():  # not ours: leave it, drop the run's files
             self._drop_stage()
             return
-        (self.stage / FAILED_NOTE).write_text(f"this run failed; the folder above holds the last complete set "
-                                              f"({self.manifest.name})\n\n{exc}\n", encoding="utf-8")
+        (self.stage / FAILED_NOTE).write_text(
+            f"this run failed; the folder above holds the last complete set ({self.manifest.name})\n\n{exc}\n",
+            encoding="utf-8",
+        )
         self._unlock()
-        os.replace(self.stage, failed)      # its links ../<shared> resolve from there as from the stage
+        os.replace(self.stage, failed)  # its links ../<shared> resolve from there as from the stage
         self._clean_made()
-        for sub in self.shared:             # a link to a shared folder _clean_made removed
+        for sub in self.shared:  # a link to a shared folder _clean_made removed
             if not (failed / sub).exists():
                 (failed / sub).unlink(missing_ok=True)
 
@@ -179,7 +188,7 @@ def remove_stale_stages(folder: Path) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            continue                                         # its run is alive
+            continue  # its run is alive
         finally:
             os.close(fd)
         shutil.rmtree(stage, ignore_errors=True)
@@ -202,8 +211,13 @@ def manifest_files(manifest: Path) -> list[str]:
 def manifest_text(folder: Path, name: str, files: list[str], info: dict) -> str:
     """The manifest of a committed set: what wrote it, and each file with its SHA-256."""
     from . import __version__
-    doc = {"generator": f"netgen {__version__}", "set": name, **info,
-           "files": {f: hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files}}
+
+    doc = {
+        "generator": f"netgen {__version__}",
+        "set": name,
+        **info,
+        "files": {f: hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files},
+    }
     return json.dumps(doc, indent=1) + "\n"
 
 

@@ -13,9 +13,9 @@ import threading
 from contextlib import contextmanager
 
 TYPE_CHECKING = False
-if TYPE_CHECKING:                                   # typing and pathlib cost ~10 ms at start-up
+if TYPE_CHECKING:  # typing and pathlib cost ~10 ms at start-up
+    from collections.abc import Iterator
     from pathlib import Path
-    from typing import Iterator
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 CRASH_LOG = "netgen-crash.log"
@@ -106,7 +106,7 @@ def quiet() -> None:
 
 
 @contextmanager
-def held() -> "Iterator[None]":
+def held() -> Iterator[None]:
     """Defer SIGINT/SIGTERM until the block is done (a commit's renames, a cleanup), then deliver
     the first one that came to the handler it had (install's raises Interrupted; the default
     one of SIGTERM ends the process). Outside the main thread: no deferral."""
@@ -132,7 +132,7 @@ def deliver(signum: int, handler) -> None:
         signal.raise_signal(signum)
 
 
-def crash_log(exc: BaseException, folder: "str | Path | None" = None) -> "Path | None":
+def crash_log(exc: BaseException, folder: str | Path | None = None) -> Path | None:
     """Write the traceback of `exc` (with the command line and time) to CRASH_LOG in `folder`,
     else the working folder, else the temp folder; the path written, None if none could be.
     (Its imports are here: the module loads before everything else and must load fast.)"""
@@ -141,9 +141,11 @@ def crash_log(exc: BaseException, folder: "str | Path | None" = None) -> "Path |
     import time
     import traceback
     from pathlib import Path
-    text = (f"netgen crashed at {time.strftime('%Y-%m-%d %H:%M:%S %z')}\n"
-            f"command: {' '.join(sys.argv)}\nworking folder: {os.getcwd()}\n\n"
-            + "".join(traceback.format_exception(exc)))
+
+    text = (
+        f"netgen crashed at {time.strftime('%Y-%m-%d %H:%M:%S %z')}\n"
+        f"command: {' '.join(sys.argv)}\nworking folder: {os.getcwd()}\n\n" + "".join(traceback.format_exception(exc))
+    )
     for place in (folder, ".", tempfile.gettempdir()):
         if place is None or not Path(place).is_dir():
             continue
@@ -156,11 +158,13 @@ def crash_log(exc: BaseException, folder: "str | Path | None" = None) -> "Path |
     return None
 
 
-def internal_error(exc: BaseException, folder: "str | Path | None" = None) -> int:
+def internal_error(exc: BaseException, folder: str | Path | None = None) -> int:
     """Report an unexpected exception in one line on stderr, its traceback in a crash log."""
     log = crash_log(exc, folder)
     where = f"the traceback is in {log}" if log else "no crash log could be written"
     first = (str(exc).splitlines() or [""])[0][:200]
-    print(f"netgen: internal error ({type(exc).__name__}: {first}); {where}; please report it with that file",
-          file=sys.stderr)
+    print(
+        f"netgen: internal error ({type(exc).__name__}: {first}); {where}; please report it with that file",
+        file=sys.stderr,
+    )
     return EXIT_INTERNAL

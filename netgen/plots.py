@@ -25,7 +25,7 @@ def save(fig, path: Path, dpi: int = 110) -> Path:
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=dpi, metadata=METADATA)
-        os.chmod(tmp, 0o666 & ~umask())                 # mkstemp's 0600 is not the user's choice
+        os.chmod(tmp, 0o666 & ~umask())  # mkstemp's 0600 is not the user's choice
         os.replace(tmp, path)
     finally:
         plt.close(fig)

@@ -16,8 +16,9 @@ def environment() -> jinja2.Environment:
     Text from input files goes through the filters `comment(marker)` (comment lines) and
     `comment_text(marker)` (inside a comment line): netgen.text."""
     loader = jinja2.FunctionLoader(_load)
-    env = jinja2.Environment(loader=loader, undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
-                             autoescape=False)
+    env = jinja2.Environment(
+        loader=loader, undefined=jinja2.StrictUndefined, keep_trailing_newline=True, autoescape=False
+    )
     env.filters.update(comment=comment_lines, comment_text=comment_text)
     return env
 

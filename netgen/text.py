@@ -22,11 +22,20 @@ from pathlib import Path
 from .errors import InputError
 
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
-OTHER = re.compile(r"[^ -~]")                  # anything but printable ASCII: the characters `allowed` looks at
-SPICE, C_LIKE = "*", "//"                       # the comment markers of the dialects netgen writes
-WIDTH = 100                                     # comment lines are wrapped at this many characters
-CONTROL_NAMES = {"\n": "line feed", "\r": "carriage return", "\t": "tab", "\x00": "NUL", "\x0b": "vertical tab",
-                 "\x0c": "form feed", "\x1b": "escape", "\x7f": "delete", "\x85": "next line"}
+OTHER = re.compile(r"[^ -~]")  # anything but printable ASCII: the characters `allowed` looks at
+SPICE, C_LIKE = "*", "//"  # the comment markers of the dialects netgen writes
+WIDTH = 100  # comment lines are wrapped at this many characters
+CONTROL_NAMES = {
+    "\n": "line feed",
+    "\r": "carriage return",
+    "\t": "tab",
+    "\x00": "NUL",
+    "\x0b": "vertical tab",
+    "\x0c": "form feed",
+    "\x1b": "escape",
+    "\x7f": "delete",
+    "\x85": "next line",
+}
 
 
 def is_identifier(name: object) -> bool:
@@ -56,14 +65,15 @@ def text_problem(text: object) -> str | None:
 
 def escape(text: str) -> str:
     """`text` with every character that is not `allowed` written as a Python-style escape."""
-    return OTHER.sub(lambda m: m.group() if allowed(m.group()) else m.group().encode("unicode_escape").decode("ascii"),
-                     text)
+    return OTHER.sub(
+        lambda m: m.group() if allowed(m.group()) else m.group().encode("unicode_escape").decode("ascii"), text
+    )
 
 
 def shown(value: object, limit: int = 60) -> str:
     """`value` for an error message: its repr, escaped (netgen.text.escape) and cut at `limit` characters."""
     text = escape(repr(value))
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def inert(line: str, marker: str) -> str:
@@ -87,8 +97,9 @@ def comment_lines(text: object, marker: str = SPICE, width: int = WIDTH) -> str:
     out = []
     for raw in str(text).splitlines() or [""]:
         line = comment_text(raw, marker)
-        wrapped = textwrap.wrap(line, width - len(marker) - 1, break_on_hyphens=False,
-                                replace_whitespace=False, drop_whitespace=True) or [""]
+        wrapped = textwrap.wrap(
+            line, width - len(marker) - 1, break_on_hyphens=False, replace_whitespace=False, drop_whitespace=True
+        ) or [""]
         out += [f"{marker} {inert(part, marker)}".rstrip() for part in wrapped]
     return "\n".join(out)
 
@@ -106,6 +117,10 @@ def netlist_path(path: object, folder: str | Path | None = None) -> str:
     quote = next((ch for ch in '"\\' if ch in text), None)
     problem = text_problem(text) or (f"contains {quote!r}" if quote else None)
     if problem:
-        raise InputError(escape(text), "path", f"the path {problem}, so it cannot be written into a netlist",
-                         "choose an output folder whose path has printable characters only, no quote or backslash")
+        raise InputError(
+            escape(text),
+            "path",
+            f"the path {problem}, so it cannot be written into a netlist",
+            "choose an output folder whose path has printable characters only, no quote or backslash",
+        )
     return text

@@ -16,16 +16,33 @@ UNITS: dict[str, dict[str, float]] = {
     "voltage": {"V": 1.0, "mV": 1e-3},
     "frequency": {"Hz": 1.0, "kHz": 1e3, "MHz": 1e6},
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9},
-    "pressure": {"Pa": 1.0, "kPa": 1e3, "mbar": 100.0, "bar": 1e5, "mTorr": 101325.0 / 760e3,
-                 "Torr": 101325.0 / 760, "atm": 101325.0},
+    "pressure": {
+        "Pa": 1.0,
+        "kPa": 1e3,
+        "mbar": 100.0,
+        "bar": 1e5,
+        "mTorr": 101325.0 / 760e3,
+        "Torr": 101325.0 / 760,
+        "atm": 101325.0,
+    },
     "temperature": {"K": 1.0},
     "dimensionless": {"": 1.0},
     "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "g": G},
 }
 
-SI_NAME = {"length": "m", "modulus": "Pa", "density": "kg/m^3", "angle": "rad",
-           "voltage": "V", "frequency": "Hz", "time": "s", "pressure": "Pa", "temperature": "K", "dimensionless": "",
-           "acceleration": "m/s^2"}
+SI_NAME = {
+    "length": "m",
+    "modulus": "Pa",
+    "density": "kg/m^3",
+    "angle": "rad",
+    "voltage": "V",
+    "frequency": "Hz",
+    "time": "s",
+    "pressure": "Pa",
+    "temperature": "K",
+    "dimensionless": "",
+    "acceleration": "m/s^2",
+}
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
 
@@ -41,8 +58,9 @@ def parse_quantity(value: object, kind: str) -> float:
     if isinstance(value, (int, float)):
         return float(value)
     if not isinstance(value, str):
-        raise UnitError(f"expected a number or a quantity string such as "
-                        f"'{example(kind)}', got {type(value).__name__} {value!r}")
+        raise UnitError(
+            f"expected a number or a quantity string such as '{example(kind)}', got {type(value).__name__} {value!r}"
+        )
     match = _QUANTITY.match(value)
     if not match:
         raise UnitError(f"cannot read {value!r} as a number with a unit (e.g. '{example(kind)}')")
@@ -56,7 +74,16 @@ def parse_quantity(value: object, kind: str) -> float:
 
 def example(kind: str) -> str:
     """A short example quantity string for error messages."""
-    return {"length": "473 um", "modulus": "160 GPa", "density": "2330 kg/m^3",
-            "angle": "45 deg", "voltage": "5 V", "frequency": "100 kHz",
-            "time": "1 us", "pressure": "1 Pa", "temperature": "300 K", "dimensionless": "0.22",
-            "acceleration": "9.81 m/s^2"}[kind]
+    return {
+        "length": "473 um",
+        "modulus": "160 GPa",
+        "density": "2330 kg/m^3",
+        "angle": "45 deg",
+        "voltage": "5 V",
+        "frequency": "100 kHz",
+        "time": "1 us",
+        "pressure": "1 Pa",
+        "temperature": "300 K",
+        "dimensionless": "0.22",
+        "acceleration": "9.81 m/s^2",
+    }[kind]

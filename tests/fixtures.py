@@ -18,7 +18,7 @@ from netgen.model import MacroModel
 from netgen.sim import codemodel, ngspice
 
 ROOT = Path(__file__).resolve().parents[1]
-REFERENCE = "examples/levitated_disk.toml"        # relative to ROOT: the path the netlist header names
+REFERENCE = "examples/levitated_disk.toml"  # relative to ROOT: the path the netlist header names
 NETLISTS = ROOT / "netlists"
 # the two ngspice releases the suite runs: Debian 12's (on PATH) and bookworm-backports' 46, which
 # .ci/setup unpacks into a private prefix; netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
@@ -71,6 +71,7 @@ def reference_model(reference_build):
 @dataclass
 class Pulse:
     """ngspice PULSE(v1 v2 td tr tf pw per), also evaluable in Python for reference solvers."""
+
     v1: float
     v2: float
     td: float
@@ -84,8 +85,10 @@ class Pulse:
 
     def vacask(self) -> str:
         """The same waveform as VACASK vsource parameters."""
-        return (f'type="pulse" val0={self.v1!r} val1={self.v2!r} delay={self.td!r} rise={self.tr!r} '
-                f'fall={self.tf!r} width={self.pw!r} period={self.per!r}')
+        return (
+            f'type="pulse" val0={self.v1!r} val1={self.v2!r} delay={self.td!r} rise={self.tr!r} '
+            f"fall={self.tf!r} width={self.pw!r} period={self.per!r}"
+        )
 
     def __call__(self, t: float) -> float:
         if t <= self.td:
@@ -109,33 +112,39 @@ class Pulse:
 
 def transient_drive() -> dict[str, Pulse]:
     """The transient cross-checks' drive: 1 MHz pulses on three electrodes, a step at 20 us on a fourth."""
-    return {"top_r2s1": Pulse(0, 3, 0, 10e-9, 10e-9, 0.49e-6, 1e-6),
-            "top_r1s2": Pulse(0, 2, 0.25e-6, 10e-9, 10e-9, 0.3e-6, 1e-6),
-            "bot_r2s2": Pulse(0, 3, 0, 10e-9, 10e-9, 0.99e-6, 2e-6),
-            "bot_r1s3": Pulse(0, 2, 20e-6, 10e-9, 10e-9, 1.0, 2.0)}          # a step at 20 us
+    return {
+        "top_r2s1": Pulse(0, 3, 0, 10e-9, 10e-9, 0.49e-6, 1e-6),
+        "top_r1s2": Pulse(0, 2, 0.25e-6, 10e-9, 10e-9, 0.3e-6, 1e-6),
+        "bot_r2s2": Pulse(0, 3, 0, 10e-9, 10e-9, 0.99e-6, 2e-6),
+        "bot_r1s3": Pulse(0, 2, 20e-6, 10e-9, 10e-9, 1.0, 2.0),
+    }  # a step at 20 us
 
 
 @dataclass
 class Bench:
     """A testbench around one instance X1 of the model: sources per port, analyses, options."""
+
     model: MacroModel
     lib: Path
-    sources: dict[str, str] = field(default_factory=dict)     # port -> source text (DC value or PULSE/SIN)
+    sources: dict[str, str] = field(default_factory=dict)  # port -> source text (DC value or PULSE/SIN)
     extra: list[str] = field(default_factory=list)
     options: str = ""
-    driven_elsewhere: set[str] = field(default_factory=set)   # ports the `extra` lines drive
-    control: list[str] = field(default_factory=list)          # .control lines (the code model of an xspice .lib)
+    driven_elsewhere: set[str] = field(default_factory=set)  # ports the `extra` lines drive
+    control: list[str] = field(default_factory=list)  # .control lines (the code model of an xspice .lib)
 
     def netlist(self, analysis: str) -> str:
         ports = [p["name"] for p in self.model.ports()]
-        lines = [f"* netgen test bench for {self.model.name}", f".include {self.lib}",
-                 "X1 " + " ".join(ports) + f" {self.model.name}"]
+        lines = [
+            f"* netgen test bench for {self.model.name}",
+            f".include {self.lib}",
+            "X1 " + " ".join(ports) + f" {self.model.name}",
+        ]
         for p in self.model.ports():
             name = p["name"]
             if name in self.sources:
                 lines.append(f"V{name} {name} 0 {self.sources[name]}")
             elif p["kind"] in ("force_in", "electrode", "acceleration_in") and name not in self.driven_elsewhere:
-                lines.append(f"V{name} {name} 0 0")          # grounded; the plate floats unless given
+                lines.append(f"V{name} {name} 0 0")  # grounded; the plate floats unless given
         lines += self.extra
         if self.options:
             lines.append(f".options {self.options}")
@@ -166,12 +175,13 @@ def emitted_library(model: MacroModel, style: str, folder: Path, committed: Path
 
 # ----------------------------------------------------------------------------- Verilog-A evaluation (openvaf-py)
 
+
 def va_residuals(va_module, volts: dict[str, float], params: dict[str, float]) -> dict[str, tuple[float, float]]:
     """(resistive, reactive) residual per node name of an openvaf-py compiled module for the given
     node voltages and parameters."""
     inputs = {}
     for name, kind in zip(va_module.param_names, va_module.param_kinds):
-        if kind == "voltage":                                     # V(a) or V(a,b)
+        if kind == "voltage":  # V(a) or V(a,b)
             hi, _, lo = name[2:-1].partition(",")
             inputs[name] = volts.get(hi.strip(), 0.0) - volts.get(lo.strip(), 0.0)
         elif kind == "param":
@@ -179,7 +189,7 @@ def va_residuals(va_module, volts: dict[str, float], params: dict[str, float]) -
         elif kind == "current":
             inputs[name] = 0.0
     for name in va_module.init_param_names:
-        inputs.setdefault(name, params.get(name, 1.0))          # mfactor = 1
+        inputs.setdefault(name, params.get(name, 1.0))  # mfactor = 1
     residuals, _ = va_module.run_init_eval(inputs)
     rows = va_module.get_dae_system()["residuals"]
     return {row["node_name"]: residuals[row["equation_idx"]] for row in rows}

@@ -32,25 +32,32 @@ def disk(name: str, description: str, radius: str, thickness: str = "5 um", kind
 def ring_electrode(name: str, side: str, gap: str, rings: list[tuple[str, str]], sectors: int = 1, **more: str) -> str:
     """One [[electrodes]] entry: `sectors` sectors over the rings (inner, outer radius), then any
     further keys (sector_start, slot, ...)."""
-    return table("[[electrodes]]", {"name": name, "side": side, "gap": gap, "rings": [list(r) for r in rings],
-                                    "sectors": sectors} | more)
+    return table(
+        "[[electrodes]]",
+        {"name": name, "side": side, "gap": gap, "rings": [list(r) for r in rings], "sectors": sectors} | more,
+    )
 
 
 def plate_electrode(name: str, side: str, gap: str, x: tuple[str, str], y: tuple[str, str]) -> str:
     """One rectangular `kind = "plate"` [[electrodes]] entry over x = [x0, x1], y = [y0, y1]."""
-    return table("[[electrodes]]", {"name": name, "kind": "plate", "side": side, "gap": gap, "x": list(x),
-                                    "y": list(y)})
+    return table(
+        "[[electrodes]]", {"name": name, "kind": "plate", "side": side, "gap": gap, "x": list(x), "y": list(y)}
+    )
 
 
-ONE_PLATE_RADIUS, ONE_PLATE_GAP = 300e-6, 3e-6         # m: the disk of one_plate_disk and its gap
+ONE_PLATE_RADIUS, ONE_PLATE_GAP = 300e-6, 3e-6  # m: the disk of one_plate_disk and its gap
 
 
 def one_plate_disk(name: str, description: str) -> str:
     """A rigid free disk (ONE_PLATE_RADIUS, 5 um thick) ONE_PLATE_GAP above one electrode "bot" under
     all of it, coordinates z, tilt_x and tilt_y, no fringe field: the parallel-plate closed forms
     hold. The test adds its own [sampling] and [fit] tables."""
-    return (disk(name, description, "300 um") + ring_electrode("bot", "below", "3 um", [("0 um", "300 um")])
-            + table("[coordinates]", {"rigid": ["z", "tilt_x", "tilt_y"]}) + table("[electrostatics]", {"fringe": "none"}))
+    return (
+        disk(name, description, "300 um")
+        + ring_electrode("bot", "below", "3 um", [("0 um", "300 um")])
+        + table("[coordinates]", {"rigid": ["z", "tilt_x", "tilt_y"]})
+        + table("[electrostatics]", {"fringe": "none"})
+    )
 
 
 # a 200 um square silicon piston over one electrode of its size, 2 um below, on z and both tilts;

@@ -16,11 +16,37 @@ import pytest
 from tests.fixtures import ROOT
 
 PACKAGE = ROOT / "netgen"
-SHARED = ("__init__", "constants", "errors", "interrupts", "arguments", "files", "folders", "units", "templating",
-          "plots", "executor", "text")
+SHARED = (
+    "__init__",
+    "constants",
+    "errors",
+    "interrupts",
+    "arguments",
+    "files",
+    "folders",
+    "units",
+    "templating",
+    "plots",
+    "executor",
+    "text",
+)
 # the pipeline's order: a stage may import the shared modules, itself and the stages before it
-STAGES = ("structure", "geometry", "mechanics", "electrostatics", "fit", "model", "build", "export",
-          "emit", "sim", "testbench", "sweep", "cli", "entry")
+STAGES = (
+    "structure",
+    "geometry",
+    "mechanics",
+    "electrostatics",
+    "fit",
+    "model",
+    "build",
+    "export",
+    "emit",
+    "sim",
+    "testbench",
+    "sweep",
+    "cli",
+    "entry",
+)
 
 
 def room(module: str) -> str:
@@ -46,7 +72,7 @@ def imports(tree: ast.AST, module: str, is_package: bool) -> list[tuple[str, lis
             out += [(alias.name, [], node.lineno) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
             if node.level:
-                target = ".".join(base[:len(base) - node.level + 1] + ([node.module] if node.module else []))
+                target = ".".join(base[: len(base) - node.level + 1] + ([node.module] if node.module else []))
             else:
                 target = node.module or ""
             out.append((target, [a.name for a in node.names], node.lineno))
@@ -56,15 +82,23 @@ def imports(tree: ast.AST, module: str, is_package: bool) -> list[tuple[str, lis
 def private_attributes(tree: ast.AST, aliases: dict[str, str]) -> list[tuple[str, str, int]]:
     """(module, private attribute, line) where a name bound to an imported netgen module is read
     with a leading underscore, e.g. `modes_module._field`."""
-    return [(aliases[n.value.id], n.attr, n.lineno) for n in ast.walk(tree)
-            if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id in aliases
-            and n.attr.startswith("_") and not n.attr.startswith("__")]
+    return [
+        (aliases[n.value.id], n.attr, n.lineno)
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Attribute)
+        and isinstance(n.value, ast.Name)
+        and n.value.id in aliases
+        and n.attr.startswith("_")
+        and not n.attr.startswith("__")
+    ]
 
 
 def read_package(root: Path) -> dict[str, tuple[ast.AST, bool]]:
     """module name -> (AST, is a package __init__) of every .py file under `root`."""
-    return {module_name(p, root): (ast.parse(p.read_text(encoding="utf-8"), str(p)), p.name == "__init__.py")
-            for p in sorted(root.rglob("*.py"))}
+    return {
+        module_name(p, root): (ast.parse(p.read_text(encoding="utf-8"), str(p)), p.name == "__init__.py")
+        for p in sorted(root.rglob("*.py"))
+    }
 
 
 def problems(modules: dict[str, tuple[ast.AST, bool]], top: str = "netgen") -> dict[str, list[str]]:
@@ -114,7 +148,7 @@ def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
         state[node] = "open"
         for nxt in sorted(edges.get(node, ())):
             if state.get(nxt) == "open":
-                out.append(path[path.index(nxt):] + [nxt])
+                out.append(path[path.index(nxt) :] + [nxt])
             elif nxt not in state:
                 visit(nxt, path + [nxt])
         state[node] = "done"
@@ -139,30 +173,57 @@ def synthetic(tmp_path: Path, files: dict[str, str]) -> dict[str, tuple[ast.AST,
 
 
 def test_checker_finds_a_circle_between_subpackages(tmp_path):
-    mods = synthetic(tmp_path, {"__init__.py": "", "structure/__init__.py": "from ..geometry import shapes\n",
-                                "geometry/__init__.py": "", "geometry/shapes.py": "from ..structure import x\n"})
+    mods = synthetic(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "structure/__init__.py": "from ..geometry import shapes\n",
+            "geometry/__init__.py": "",
+            "geometry/shapes.py": "from ..structure import x\n",
+        },
+    )
     found = problems(mods)
     assert found["circles"] == ["geometry -> structure -> geometry"]
-    assert found["upward"] == ["netgen.structure:1 imports netgen.geometry (structure -> geometry)",
-                               "netgen.structure:1 imports netgen.geometry.shapes (structure -> geometry)"]
+    assert found["upward"] == [
+        "netgen.structure:1 imports netgen.geometry (structure -> geometry)",
+        "netgen.structure:1 imports netgen.geometry.shapes (structure -> geometry)",
+    ]
 
 
 def test_checker_finds_private_names_across_packages(tmp_path):
-    mods = synthetic(tmp_path, {
-        "__init__.py": "", "mechanics/__init__.py": "", "mechanics/fields.py": "_P2 = 1\n",
-        "mechanics/free_disk.py": "from .fields import _P2\n",                     # same package: fine
-        "build.py": "from .mechanics.fields import _P2\nfrom .mechanics import fields\nfields._P2\n"})
+    mods = synthetic(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "mechanics/__init__.py": "",
+            "mechanics/fields.py": "_P2 = 1\n",
+            "mechanics/free_disk.py": "from .fields import _P2\n",  # same package: fine
+            "build.py": "from .mechanics.fields import _P2\nfrom .mechanics import fields\nfields._P2\n",
+        },
+    )
     found = problems(mods)
-    assert found["private"] == ["netgen.build:1 imports _P2 from netgen.mechanics.fields",
-                                "netgen.build:3 reads netgen.mechanics.fields._P2"]
+    assert found["private"] == [
+        "netgen.build:1 imports _P2 from netgen.mechanics.fields",
+        "netgen.build:3 reads netgen.mechanics.fields._P2",
+    ]
     assert not found["circles"] and not found["upward"]
 
 
 def test_checker_finds_an_import_of_a_later_stage_and_a_shared_module_importing_a_stage(tmp_path):
-    mods = synthetic(tmp_path, {"__init__.py": "", "fit/__init__.py": "from ..emit import x\n",
-                                "emit/__init__.py": "", "files.py": "from .model import m\n", "model/__init__.py": ""})
-    assert sorted(problems(mods)["upward"]) == ["netgen.files:1 imports netgen.model (files -> model)",
-                                                "netgen.fit:1 imports netgen.emit (fit -> emit)"]
+    mods = synthetic(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "fit/__init__.py": "from ..emit import x\n",
+            "emit/__init__.py": "",
+            "files.py": "from .model import m\n",
+            "model/__init__.py": "",
+        },
+    )
+    assert sorted(problems(mods)["upward"]) == [
+        "netgen.files:1 imports netgen.model (files -> model)",
+        "netgen.fit:1 imports netgen.emit (fit -> emit)",
+    ]
 
 
 # ----------------------------------------------------------------------------- the house itself
@@ -191,6 +252,9 @@ def test_no_private_names_across_packages(house):
 
 
 def test_no_module_is_over_600_lines():
-    long = {str(p.relative_to(ROOT)): n for p in PACKAGE.rglob("*.py")
-            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 600}
+    long = {
+        str(p.relative_to(ROOT)): n
+        for p in PACKAGE.rglob("*.py")
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > 600
+    }
     assert long == {}

@@ -28,7 +28,6 @@ from netgen.folders import OutputFolder, check_manifest
 from netgen.interrupts import Interrupted
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.rawfile import read_raw
-
 from tests.fixtures import NGSPICE, ROOT
 
 sys.path.insert(0, str(ROOT / "bench"))
@@ -86,22 +85,24 @@ RANGES = [
 
 
 @pytest.mark.parametrize("argv, argument, fix", RANGES, ids=[" ".join(a[0:1] + a[2:]) for a, _, _ in RANGES])
-def test_an_argument_out_of_range_is_exit_2_naming_it_and_the_fix(argv, argument, fix, tmp_path, capsys,
-                                                                   monkeypatch):
+def test_an_argument_out_of_range_is_exit_2_naming_it_and_the_fix(argv, argument, fix, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     err = refused(argv, capsys)
     assert f"argument {argument}:" in err and fix in err, err
     assert "Traceback" not in err and not (tmp_path / "OUT").exists() and os.listdir(tmp_path) == []
 
 
-@pytest.mark.parametrize("argv, fix", [
-    (["sigma-delta", DISK, "--model", MODEL, "--tone", "z:0.02:-5"], "between 0 and f_s/2"),
-    (["sigma-delta", DISK, "--model", MODEL, "--tone", "q:0.02:1000"], "choose one of z, tilt_x"),
-    (["sigma-delta", DISK, "--model", MODEL, "--pressure", "inf"], "positive, finite pressure"),
-    (["sigma-delta", DISK, "--model", MODEL, "--tone", ""], "give COORD:AMPLITUDE:FREQ"),
-    (["sigma-delta", DISK, "--model", A_FILE], "give the .json a build wrote"),
-    (["build", PISTON, "--scheduler", "processes:0"], "positive integer"),
-])
+@pytest.mark.parametrize(
+    "argv, fix",
+    [
+        (["sigma-delta", DISK, "--model", MODEL, "--tone", "z:0.02:-5"], "between 0 and f_s/2"),
+        (["sigma-delta", DISK, "--model", MODEL, "--tone", "q:0.02:1000"], "choose one of z, tilt_x"),
+        (["sigma-delta", DISK, "--model", MODEL, "--pressure", "inf"], "positive, finite pressure"),
+        (["sigma-delta", DISK, "--model", MODEL, "--tone", ""], "give COORD:AMPLITUDE:FREQ"),
+        (["sigma-delta", DISK, "--model", A_FILE], "give the .json a build wrote"),
+        (["build", PISTON, "--scheduler", "processes:0"], "positive integer"),
+    ],
+)
 def test_values_checked_after_parsing_are_exit_2_too(argv, fix, tmp_path, capsys):
     assert cli.main(argv + ["-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
@@ -115,7 +116,7 @@ def test_an_unwritable_folder_is_refused(tmp_path, capsys):
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)
     probe = subprocess.run(["touch", str(locked / "x")], capture_output=True)
-    if probe.returncode == 0:                      # root: writable after all, so it must be accepted
+    if probe.returncode == 0:  # root: writable after all, so it must be accepted
         (locked / "x").unlink()
         assert output_folder(str(locked / "run")) == str(locked / "run")
         return
@@ -125,12 +126,14 @@ def test_an_unwritable_folder_is_refused(tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- the error boundary
 
+
 def test_an_unexpected_exception_is_one_line_exit_70_and_a_crash_log(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     out.mkdir()
 
     def broken(path):
-        return {}["no such key"]                   # a bug, as netgen would have one
+        return {}["no such key"]  # a bug, as netgen would have one
+
     monkeypatch.setattr(cli, "load_structure", broken)
     assert cli.main(["build", PISTON, "-o", str(out)]) == 70
     err = capsys.readouterr().err
@@ -139,15 +142,22 @@ def test_an_unexpected_exception_is_one_line_exit_70_and_a_crash_log(tmp_path, c
     assert "Traceback" in log and "in broken" in log
 
 
-@pytest.mark.parametrize("exc, line", [
-    (KeyboardInterrupt(), "netgen: interrupted"),
-    (Interrupted(signal.SIGTERM), "netgen: interrupted (SIGTERM)"),
-    # a stage that cleaned up says what is left (netgen.sweep.run.run_sweep): its line, still exit 130
-    (Interrupted(signal.SIGTERM, "sweep stopped by SIGTERM: 1 of 2 runs finished"),
-     "netgen: sweep stopped by SIGTERM: 1 of 2 runs finished")])
+@pytest.mark.parametrize(
+    "exc, line",
+    [
+        (KeyboardInterrupt(), "netgen: interrupted"),
+        (Interrupted(signal.SIGTERM), "netgen: interrupted (SIGTERM)"),
+        # a stage that cleaned up says what is left (netgen.sweep.run.run_sweep): its line, still exit 130
+        (
+            Interrupted(signal.SIGTERM, "sweep stopped by SIGTERM: 1 of 2 runs finished"),
+            "netgen: sweep stopped by SIGTERM: 1 of 2 runs finished",
+        ),
+    ],
+)
 def test_a_keyboard_interrupt_inside_a_command_is_exit_130(exc, line, tmp_path, capsys, monkeypatch):
     def interrupted(path):
         raise exc
+
     monkeypatch.setattr(cli, "load_structure", interrupted)
     assert cli.main(["build", PISTON, "-o", str(tmp_path / "out")]) == 130
     assert capsys.readouterr().err == line + "\n"
@@ -169,8 +179,9 @@ def test_a_signal_while_the_command_starts_is_one_line_and_exit_130(sig, tmp_pat
     handlers, before the command runs): exit 130 and one line. (Before that line the interpreter
     itself is starting: Python's own reaction, measured by bench/interrupts.py.)"""
     for delay in (0.0, 0.2):
-        proc = subprocess.Popen([NETGEN, "build", PISTON, "-o", str(tmp_path / "out")], stderr=subprocess.PIPE,
-                                text=True)
+        proc = subprocess.Popen(
+            [NETGEN, "build", PISTON, "-o", str(tmp_path / "out")], stderr=subprocess.PIPE, text=True
+        )
         deadline = time.monotonic() + 60
         while not catches(proc.pid, signal.SIGTERM) and time.monotonic() < deadline:
             time.sleep(0.002)
@@ -182,6 +193,7 @@ def test_a_signal_while_the_command_starts_is_one_line_and_exit_130(sig, tmp_pat
 
 
 # ----------------------------------------------------------------------------- netgen simulate
+
 
 def simulate(argv: list[str], capsys) -> tuple[int, str, str]:
     code = cli.main(["simulate", *argv])
@@ -203,16 +215,18 @@ def test_a_relative_include_resolves_against_the_netlists_own_folder(version, tm
     assert code == 0, err
     plot = read_raw(tmp_path / "elsewhere/run/top.raw")[0]
     assert plot["i(v1)"][0] == pytest.approx(-2e-3, rel=1e-9)
-    assert sorted(os.listdir(tmp_path / "bench")) == ["sub", "top.cir"]           # nothing written beside it
+    assert sorted(os.listdir(tmp_path / "bench")) == ["sub", "top.cir"]  # nothing written beside it
 
 
 def test_a_relative_include_resolves_in_vacask_too(tmp_path, capsys):
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub/part.inc").write_text("r2 (a 0) resistor r=1k\n")
     sim = tmp_path / "top.sim"
-    sim.write_text('relative include\nload "resistor.osdi"\nground 0\nmodel resistor resistor\n'
-                   'model vsource vsource\nv1 (a 0) vsource dc=1\nr1 (a 0) resistor r=1k\ninclude "sub/part.inc"\n'
-                   "control\n  analysis op1 op\nendc\n")
+    sim.write_text(
+        'relative include\nload "resistor.osdi"\nground 0\nmodel resistor resistor\n'
+        'model vsource vsource\nv1 (a 0) vsource dc=1\nr1 (a 0) resistor r=1k\ninclude "sub/part.inc"\n'
+        "control\n  analysis op1 op\nendc\n"
+    )
     code, _, err = simulate([str(sim), "-o", str(tmp_path / "run"), "--simulator", "vacask"], capsys)
     assert code == 0, err
     assert read_raw(tmp_path / "run/op1.raw")[0]["v1:flow(br)"][0] == pytest.approx(-2e-3, rel=1e-9)
@@ -235,14 +249,18 @@ def test_a_latin1_comment_is_text(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("version", sorted(NGSPICE))
-@pytest.mark.parametrize("body, says", [
-    ("V1 a 0 1\nD1 a 0 nosuchmodel\n.op\n", "nosuchmodel"),
-    ("V1 a 0 1\nR1 a 0 1k\n.include nothere.lib\n.op\n", "nothere.lib"),
-    ("V1 a 0 1\nR1 a 0 1k\n.foo bar\n.op\n", ".foo bar"),
-    ("V1 a 0 1\nB1 b 0 V=v(a)*+*\nR1 b 0 1k\n.op\n", "syntax error"),
-    ("V1 a 0 1\nR1 a 0 1k\n.control\nop\nfrobnicate 3\n.endc\n", "frobnicate"),
-    ("V1 a 0 1\nR1 a 0 1k\n", "no analysis"),
-], ids=["unknown model", "missing include", "unknown card", "bad expression", "bad command", "no analysis"])
+@pytest.mark.parametrize(
+    "body, says",
+    [
+        ("V1 a 0 1\nD1 a 0 nosuchmodel\n.op\n", "nosuchmodel"),
+        ("V1 a 0 1\nR1 a 0 1k\n.include nothere.lib\n.op\n", "nothere.lib"),
+        ("V1 a 0 1\nR1 a 0 1k\n.foo bar\n.op\n", ".foo bar"),
+        ("V1 a 0 1\nB1 b 0 V=v(a)*+*\nR1 b 0 1k\n.op\n", "syntax error"),
+        ("V1 a 0 1\nR1 a 0 1k\n.control\nop\nfrobnicate 3\n.endc\n", "frobnicate"),
+        ("V1 a 0 1\nR1 a 0 1k\n", "no analysis"),
+    ],
+    ids=["unknown model", "missing include", "unknown card", "bad expression", "bad command", "no analysis"],
+)
 def test_a_netlist_ngspice_rejects_is_exit_1_with_its_message(body, says, version, tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[version])
     cir = tmp_path / "bad.cir"
@@ -254,8 +272,9 @@ def test_a_netlist_ngspice_rejects_is_exit_1_with_its_message(body, says, versio
 def test_a_hanging_ngspice_is_stopped_by_the_wall_clock_limit(tmp_path, capsys):
     """A .control loop that never ends prints nothing: the timer, not the output, stops it."""
     cir = tmp_path / "hang.cir"
-    cir.write_text("* never ends\nV1 a 0 1\nR1 a 0 1k\n.control\nlet i = 0\nwhile i < 1\n  let j = 1\nend\n"
-                   ".endc\n.end\n")
+    cir.write_text(
+        "* never ends\nV1 a 0 1\nR1 a 0 1k\n.control\nlet i = 0\nwhile i < 1\n  let j = 1\nend\n.endc\n.end\n"
+    )
     start = time.perf_counter()
     code, _, err = simulate([str(cir), "-o", str(tmp_path / "run"), "--timeout", "1.5"], capsys)
     assert code == 1 and "did not finish within 1.5 s" in err
@@ -281,12 +300,16 @@ def real_raw(tmp_path_factory) -> bytes:
 def test_a_garbage_or_truncated_raw_file_is_a_simulation_error(real_raw, tmp_path):
     raw = tmp_path / "x.raw"
     raw.write_bytes(real_raw)
-    assert len(read_raw(raw)[0]["time"]) > 10                       # the whole file reads
+    assert len(read_raw(raw)[0]["time"]) > 10  # the whole file reads
     header = real_raw.index(b"Binary:\n") + len(b"Binary:\n")
     cuts = [10, header - 30, header - 1, header + 8, (header + len(real_raw)) // 2, len(real_raw) - 3]
-    garbage = [os.urandom(5000), b"Title: x\nNo. Variables: 2\nNo. Points: 9\nVariables:\n", b"\x00" * 100,
-               real_raw.replace(b"No. Points: ", b"No. Points: 9999999"),
-               real_raw.replace(b"No. Variables: ", b"No. Variables: 7")]
+    garbage = [
+        os.urandom(5000),
+        b"Title: x\nNo. Variables: 2\nNo. Points: 9\nVariables:\n",
+        b"\x00" * 100,
+        real_raw.replace(b"No. Points: ", b"No. Points: 9999999"),
+        real_raw.replace(b"No. Variables: ", b"No. Variables: 7"),
+    ]
     for k, data in enumerate([real_raw[:c] for c in cuts] + garbage):
         raw.write_bytes(data)
         try:
@@ -294,10 +317,11 @@ def test_a_garbage_or_truncated_raw_file_is_a_simulation_error(real_raw, tmp_pat
         except SimulationError as exc:
             assert str(raw) in str(exc)
             continue
-        assert plots == [], k                      # nothing at all: the callers refuse an empty file
+        assert plots == [], k  # nothing at all: the callers refuse an empty file
 
 
 # ----------------------------------------------------------------------------- output folders
+
 
 @pytest.fixture(scope="module")
 def build_refs(tmp_path_factory):
@@ -360,7 +384,7 @@ def test_a_dead_runs_staging_folder_is_removed_and_a_live_ones_kept(tmp_path):
     (dead / "piston.lib").write_text("half")
     live.mkdir()
     fd = os.open(live, os.O_RDONLY)
-    fcntl.flock(fd, fcntl.LOCK_EX)                     # as the run that owns it does
+    fcntl.flock(fd, fcntl.LOCK_EX)  # as the run that owns it does
     try:
         with OutputFolder(tmp_path, "piston") as out:
             (out.stage / "piston.lib").write_text("new\n")
@@ -372,6 +396,7 @@ def test_a_dead_runs_staging_folder_is_removed_and_a_live_ones_kept(tmp_path):
 
 
 # ----------------------------------------------------------------------------- sigma-delta folders
+
 
 @pytest.fixture(scope="module")
 def sd_refs(tmp_path_factory):
@@ -404,7 +429,7 @@ def test_a_failed_sigma_delta_run_keeps_its_files_apart_from_the_last_results(sd
     the message points; the next good run removes that folder."""
     _, old, new, refs = sd_refs
     out, user = bench.prepared(tmp_path, refs, 1)
-    assert cli.main(new + ["-o", str(out), "--timeout", "0.01"]) == 1          # ngspice needs more to start
+    assert cli.main(new + ["-o", str(out), "--timeout", "0.01"]) == 1  # ngspice needs more to start
     err = capsys.readouterr().err
     failed = out / "sigma-delta.failed"
     assert "did not finish within 0.01 s" in err and f"cd {failed}" in err and "last complete results" in err
@@ -425,7 +450,7 @@ def test_two_runs_staging_at_once_share_a_cache_folder_and_commit_in_turn(tmp_pa
     (b.stage / "osdi" / "model.osdi").write_text("compiled by B\n")
     (b.stage / "summary.json").write_text("B\n")
     a.__exit__(RuntimeError, RuntimeError("A failed"), None)
-    assert (tmp_path / "out/osdi").is_dir()                 # B is still staging: its cache stays
+    assert (tmp_path / "out/osdi").is_dir()  # B is still staging: its cache stays
     b.commit()
     b.__exit__(None, None, None)
     assert (tmp_path / "out/summary.json").read_text() == "B\n"

@@ -23,7 +23,7 @@ import pytest
 from tests.fixtures import ROOT
 
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-SHARED = ("examples", "netlists", "bench", ".venv")          # what a command may read from the repository
+SHARED = ("examples", "netlists", "bench", ".venv")  # what a command may read from the repository
 NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?(?![\w.])")
 SECONDS = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d*)?(?= s\b)")
 
@@ -32,10 +32,10 @@ SECONDS = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d*)?(?= s\b)")
 class Block:
     page: Path
     line: int
-    mark: str                 # the comment before the fence ("" if none)
+    mark: str  # the comment before the fence ("" if none)
     lang: str
     text: str
-    output: tuple[str, str] | None = None     # (mode "numbers" or "text", expected text)
+    output: tuple[str, str] | None = None  # (mode "numbers" or "text", expected text)
 
     @property
     def name(self) -> str:
@@ -56,8 +56,11 @@ def blocks(page: Path) -> list[Block]:
         while end < len(lines) and lines[end] != "```":
             end += 1
         prev = next((lines[j].strip() for j in range(start - 1, -1, -1) if lines[j].strip()), "")
-        out.append(Block(page, start + 1, prev if prev.startswith("<!--") else "", m.group(1),
-                         "\n".join(lines[start + 1:end])))
+        out.append(
+            Block(
+                page, start + 1, prev if prev.startswith("<!--") else "", m.group(1), "\n".join(lines[start + 1 : end])
+            )
+        )
         k = end + 1
     for cmd, nxt in zip(out, out[1:]):
         if cmd.lang == "bash" and nxt.mark in ("<!-- output -->", "<!-- output: text -->"):
@@ -104,8 +107,7 @@ def same_line(want: str, got: str, mode: str) -> bool:
 
 def test_every_command_block_is_marked():
     """A command shown in the documentation is either run here or says why it is not."""
-    unmarked = [b.name for b in commands()
-                if b.mark != "<!-- tested -->" and not b.mark.startswith("<!-- not tested:")]
+    unmarked = [b.name for b in commands() if b.mark != "<!-- tested -->" and not b.mark.startswith("<!-- not tested:")]
     assert unmarked == []
     assert len(TESTED) >= 6
 
@@ -124,21 +126,28 @@ def test_output_comparison_sees_changes():
 def test_documented_command_runs(block, tmp_path):
     for name in SHARED:
         (tmp_path / name).symlink_to(ROOT / name)
-    proc = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", block.text], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=300)
+    proc = subprocess.run(
+        ["bash", "-e", "-o", "pipefail", "-c", block.text], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, f"{block.name}: exit {proc.returncode}\n{proc.stderr[-3000:]}"
     if block.output:
         mode, expected = block.output
-        assert matches(expected, proc.stdout, mode) is None, \
+        assert matches(expected, proc.stdout, mode) is None, (
             f"{block.name}: missing {matches(expected, proc.stdout, mode)!r} in\n{proc.stdout[-3000:]}"
+        )
 
 
 def test_site_builds_without_broken_links(tmp_path):
     """mkdocs build --strict: every page in the nav, every link found."""
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert (tmp_path / "site" / "index.html").read_text().count("Five-minute tutorial") >= 1   # the README
+    assert (tmp_path / "site" / "index.html").read_text().count("Five-minute tutorial") >= 1  # the README
 
 
 def test_site_build_fails_on_a_broken_link(tmp_path):
@@ -147,6 +156,11 @@ def test_site_build_fails_on_a_broken_link(tmp_path):
         (shutil.copytree if (ROOT / name).is_dir() else shutil.copy2)(ROOT / name, tmp_path / name)
     with open(tmp_path / "docs" / "contact.md", "a", encoding="utf-8") as fh:
         fh.write("\nSee [the missing page](missing.md).\n")
-    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(tmp_path / "site")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode != 0 and "missing.md" in proc.stderr

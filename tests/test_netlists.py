@@ -21,12 +21,14 @@ from tests.fixtures import ROOT
 from tests.pipeline.test_outputs import _compare_json, _compare_text
 
 NETLISTS = ROOT / "netlists"
-REFERENCE = "levitated_disk"                    # netlists/ itself (tests/pipeline/test_outputs.py)
-NOT_STRUCTURES = {"sweep_ts"}                  # a sweep file beside the structures
+REFERENCE = "levitated_disk"  # netlists/ itself (tests/pipeline/test_outputs.py)
+NOT_STRUCTURES = {"sweep_ts"}  # a sweep file beside the structures
 EXAMPLES = sorted(p.stem for p in (ROOT / "examples").glob("*.toml") if p.stem not in NOT_STRUCTURES | {REFERENCE})
-REGENERATE = ("for n in " + " ".join(EXAMPLES) + "; do .venv/bin/netgen build examples/$n.toml -o netlists/$n "
-              "--format all,osdi; done")
-COMMITTED = (".lib", ".json", ".va", "_calibration.json")       # text files; PNGs are not compared
+REGENERATE = (
+    "for n in " + " ".join(EXAMPLES) + "; do .venv/bin/netgen build examples/$n.toml -o netlists/$n "
+    "--format all,osdi; done"
+)
+COMMITTED = (".lib", ".json", ".va", "_calibration.json")  # text files; PNGs are not compared
 
 
 def rendered(name: str, tmp: Path) -> dict[str, str]:
@@ -57,14 +59,19 @@ def test_example_netlists_are_current(name, tmp_path):
     """netlists/<name>/ holds exactly the example's text forms, each equal to a fresh build's."""
     folder = NETLISTS / name
     new = rendered(name, tmp_path)
-    committed = sorted(p.name for p in folder.glob("*") if p.name.endswith(COMMITTED)
-                       and not p.name.endswith(".manifest.json")) if folder.is_dir() else []   # git ignores the manifest
+    committed = (
+        sorted(p.name for p in folder.glob("*") if p.name.endswith(COMMITTED) and not p.name.endswith(".manifest.json"))
+        if folder.is_dir()
+        else []
+    )  # git ignores the manifest
     problems = [] if committed == sorted(new) else [f"files: {committed} committed, {sorted(new)} built"]
     for file in sorted(set(new) & set(committed)):
         problems += problems_of(new[file], (folder / file).read_text(encoding="utf-8"), file)
     shown = "\n  ".join(problems[:8])
-    assert not problems, (f"netlists/{name} is stale ({len(problems)} differences):\n  {shown}\n"
-                          f"regenerate every example's netlists from the repository root with:\n    {REGENERATE}")
+    assert not problems, (
+        f"netlists/{name} is stale ({len(problems)} differences):\n  {shown}\n"
+        f"regenerate every example's netlists from the repository root with:\n    {REGENERATE}"
+    )
 
 
 def test_every_structure_example_is_covered():

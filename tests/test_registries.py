@@ -20,7 +20,6 @@ from netgen.structure import CONDUCTORS, load_structure, parse_structure
 from netgen.sweep import parse_sweep
 from netgen.testbench import TESTBENCHES
 from netgen.testbench.sigma_delta import BACKENDS
-
 from tests.fixtures import NETLISTS, ROOT
 
 PISTON = ROOT / "examples" / "piston.toml"
@@ -50,7 +49,9 @@ def test_unknown_conductor_kind_lists_the_known_ones():
 
 def test_a_kind_the_mechanics_stage_does_not_know_is_a_clear_error(monkeypatch):
     monkeypatch.delitem(mechanics.KINDS, "piston")
-    with pytest.raises(StructureError, match=r"(?s)conductor kind 'piston' has no mechanics.*fix: use one of free_disk"):
+    with pytest.raises(
+        StructureError, match=r"(?s)conductor kind 'piston' has no mechanics.*fix: use one of free_disk"
+    ):
         mechanics.mechanics(load_structure(PISTON))
 
 
@@ -58,7 +59,7 @@ def test_a_kind_the_mechanics_stage_does_not_know_is_a_clear_error(monkeypatch):
 
 
 def test_unknown_extractor_exits_2_naming_the_key_and_the_known_ones(tmp_path, capsys):
-    bad = tmp_path / "fastcap.toml"                 # an extractor netgen does not have
+    bad = tmp_path / "fastcap.toml"  # an extractor netgen does not have
     bad.write_text(piston_text(extractor='"fastcap"'))
     assert cli.main(["build", str(bad), "-o", str(tmp_path / "out"), "-q"]) == 2
     err = capsys.readouterr().err
@@ -70,8 +71,10 @@ def test_a_registered_extractor_is_the_one_the_build_uses(monkeypatch):
     """A second extractor, joined by one registry line: a parallel plate in a medium of twice the
     permittivity. The piston's rest capacitance is then 2 eps0 A / g (closed form) and the
     report names the extractor."""
+
     class Doubled(ParallelPlateExtractor):
         description = "parallel plate at 2 eps0, no fringe"
+
     monkeypatch.setitem(electrostatics.EXTRACTORS, "doubled", lambda s, plate: Doubled(eps=2 * EPS0, fringe=None))
     s = parse_structure(piston_text(extractor='"doubled"'), "piston.toml")
     model = build_model(s)
@@ -86,8 +89,9 @@ def test_a_registered_extractor_is_the_one_the_build_uses(monkeypatch):
 def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
     """An emitter of port lists, joined by one line: `netgen build --format ports` writes the
     piston's ports, its one electrode, the plate and z's force and displacement."""
-    ports = emit.Emitter(".ports", lambda m: "\n".join(p["name"] for p in m.ports()) + "\n", emit.always, "",
-                         "the port list")
+    ports = emit.Emitter(
+        ".ports", lambda m: "\n".join(p["name"] for p in m.ports()) + "\n", emit.always, "", "the port list"
+    )
     monkeypatch.setitem(emit.EMITTERS, "ports", ports)
     assert cli.main(["build", str(PISTON), "-o", str(tmp_path), "-q", "--no-plots", "--format", "ports"]) == 0
     assert (tmp_path / "piston.ports").read_text().split() == ["drive", "plate", "f_z", "x_z"]
@@ -96,8 +100,11 @@ def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
 
 def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
     model = MacroModel.load_json(NETLISTS / "levitated_disk.json")
-    with pytest.raises(ValueError, match=r"choose one or more \(joined by commas\) of ngspice, veriloga, xspice, "
-                                         r"osdi, all"):
+    with pytest.raises(
+        ValueError,
+        match=r"choose one or more \(joined by commas\) of ngspice, veriloga, xspice, "
+        r"osdi, all",
+    ):
         emit.write_outputs(model, tmp_path, "spectre")
     for bad in ("spectre", "ngspice,spectre", ""):
         with pytest.raises(SystemExit) as info:
@@ -112,7 +119,13 @@ def test_several_formats_are_one_build_and_one_set(tmp_path):
     set; a dialect named twice, or inside "all" too, is written once."""
     assert cli.main(["build", str(PISTON), "-o", str(tmp_path), "-q", "--no-plots", "--format", "ngspice,osdi"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "piston.json", "piston.lib", "piston.manifest.json", "piston.osdi", "piston.va", "piston_osdi.lib"]
+        "piston.json",
+        "piston.lib",
+        "piston.manifest.json",
+        "piston.osdi",
+        "piston.va",
+        "piston_osdi.lib",
+    ]
     model = MacroModel.load_json(tmp_path / "piston.json")
     assert emit.chosen(model, "all,ngspice,all") == emit.chosen(model, "all") == ["ngspice", "veriloga", "xspice"]
 
@@ -131,11 +144,13 @@ def test_a_refused_format_is_left_out_of_all():
 
 def test_netgen_simulate_runs_each_registered_simulator(tmp_path, capsys):
     """The same resistive divider in each simulator's netlist dialect: V(out) = 3/4 V(in)."""
-    netlists = {"ngspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",
-                "pyspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",     # libngspice, in process
-                "vacask": 'divider\nground 0\nload "resistor.osdi"\nmodel r resistor\nmodel vsource vsource\n'
-                          "v1 (in 0) vsource dc=1\nr1 (in out) r r=1k\nr2 (out 0) r r=3k\n"
-                          "control\n  analysis op1 op\nendc\n"}
+    netlists = {
+        "ngspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",
+        "pyspice": "divider\nV1 in 0 1\nR1 in out 1k\nR2 out 0 3k\n.op\n.end\n",  # libngspice, in process
+        "vacask": 'divider\nground 0\nload "resistor.osdi"\nmodel r resistor\nmodel vsource vsource\n'
+        "v1 (in 0) vsource dc=1\nr1 (in out) r r=1k\nr2 (out 0) r r=3k\n"
+        "control\n  analysis op1 op\nendc\n",
+    }
     assert set(netlists) == set(SIMULATORS)
     for name, text in netlists.items():
         path = tmp_path / f"divider_{name}.cir"
@@ -152,7 +167,7 @@ def test_every_testbench_is_a_subcommand():
 
 
 def test_sweep_simulator_values_come_from_the_backends():
-    text = ('[[parameters]]\nname = "simulator"\nvalues = ["ngspice", "spice3"]\n')
+    text = '[[parameters]]\nname = "simulator"\nvalues = ["ngspice", "spice3"]\n'
     with pytest.raises(SweepError, match=r"simulator = 'spice3' is not one of") as info:
         parse_sweep(text, "sweep.toml")
     assert all(b in str(info.value) for b in BACKENDS)

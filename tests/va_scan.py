@@ -19,10 +19,13 @@ import re
 from dataclasses import dataclass, field
 from itertools import product as cartesian
 
-STATEMENT = re.compile(r"^\s*(?:if\s*\((?P<cond>[^;]*?)\)\s*)?(?P<lhs>[A-Za-z_]\w*(?:\([^()]*\))?)\s*"
-                       r"(?P<op><\+|=)(?!=)\s*(?P<rhs>.*)$", re.S)
+STATEMENT = re.compile(
+    r"^\s*(?:if\s*\((?P<cond>[^;]*?)\)\s*)?(?P<lhs>[A-Za-z_]\w*(?:\([^()]*\))?)\s*"
+    r"(?P<op><\+|=)(?!=)\s*(?P<rhs>.*)$",
+    re.S,
+)
 MAX_ALTERNATIVES = 64
-EITHER = "either_"                                      # what `c ? a : b` becomes
+EITHER = "either_"  # what `c ? a : b` becomes
 
 
 @dataclass(frozen=True)
@@ -33,6 +36,7 @@ class Num:
 @dataclass(frozen=True)
 class Sum2:
     """a + b*t with numbers a and b."""
+
     a: float
     b: float
 
@@ -40,6 +44,7 @@ class Sum2:
 @dataclass(frozen=True)
 class Prod:
     """c times the (non-number) factors."""
+
     c: float
     factors: tuple = ()
 
@@ -70,7 +75,7 @@ class Scanner:
 
     def product(self, parts: list) -> object:
         """A product of abstract values: its number c and factors; each sum factor checked."""
-        c, factors, literal = 1.0, [], False              # literal: a number other than +-1 multiplies
+        c, factors, literal = 1.0, [], False  # literal: a number other than +-1 multiplies
         for p in parts:
             if isinstance(p, Num):
                 c, literal = c * p.value, literal or abs(p.value) != 1.0
@@ -97,7 +102,7 @@ class Scanner:
                     return Sum2(s_n * n.value, s_t * t.c)
                 if isinstance(t, Sum2):
                     return Sum2(s_n * n.value + s_t * t.a, s_t * t.b)
-                return Sum2(s_n * n.value, s_t)              # a + t: b = 1
+                return Sum2(s_n * n.value, s_t)  # a + t: b = 1
         return OTHER
 
     def eval(self, node: ast.AST) -> list:
@@ -121,10 +126,10 @@ class Scanner:
                 else:
                     out.append(OTHER)
             return out
-        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == EITHER:    # cond ? a : b
+        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == EITHER:  # cond ? a : b
             self.eval(node.args[0])
             return (self.eval(node.args[1]) + self.eval(node.args[2]))[:MAX_ALTERNATIVES]
-        for child in ast.iter_child_nodes(node):         # calls, comparisons: checked inside, opaque outside
+        for child in ast.iter_child_nodes(node):  # calls, comparisons: checked inside, opaque outside
             self.eval(child)
         return [OTHER]
 
@@ -141,7 +146,7 @@ def ternaries(text: str) -> str:
     while "?" in text:
         q = text.rindex("?")
         depth, start = 0, 0
-        for i in range(q - 1, -1, -1):                 # the parenthesis that holds the `?`
+        for i in range(q - 1, -1, -1):  # the parenthesis that holds the `?`
             depth += {")": 1, "(": -1}.get(text[i], 0)
             if depth < 0:
                 start = i + 1
@@ -156,15 +161,16 @@ def ternaries(text: str) -> str:
                 break
         if colon is None:
             raise ValueError(f"va_scan cannot read the conditional in {text!r}")
-        text = (f"{text[:start]}{EITHER}(({text[start:q]}), ({text[q + 1:colon]}), ({text[colon + 1:end]}))"
-                f"{text[end:]}")
+        text = (
+            f"{text[:start]}{EITHER}(({text[start:q]}), ({text[q + 1 : colon]}), ({text[colon + 1 : end]})){text[end:]}"
+        )
     return text
 
 
 def parse(expr: str) -> ast.AST:
     """A Verilog-A expression as a Python expression tree ($names, ||, &&, ! and ?: translated)."""
     expr = ternaries(expr)
-    text = re.sub(r"\b(" + "|".join(keyword.kwlist) + r")\b", r"\1_", expr)     # a port named `in`
+    text = re.sub(r"\b(" + "|".join(keyword.kwlist) + r")\b", r"\1_", expr)  # a port named `in`
     text = text.replace("$", "_sys_").replace("||", " or ").replace("&&", " and ")
     text = re.sub(r"!(?!=)", " not ", text)
     return ast.parse(" ".join(text.split()), mode="eval").body

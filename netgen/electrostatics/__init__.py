@@ -3,7 +3,7 @@ their registry, and the sampling of C(q) (netgen.electrostatics.sampling)."""
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from ..constants import EPS0
 from ..errors import StructureError
@@ -29,14 +29,16 @@ def extractor(s, plate: Plate) -> CapacitanceExtractor:
     comb electrodes (compose)."""
     name = s.electrostatics.extractor
     if name not in EXTRACTORS:
-        raise StructureError(s.source, "electrostatics.extractor", f"unknown extractor {name!r}",
-                             f"use one of {', '.join(EXTRACTORS)}")
+        raise StructureError(
+            s.source, "electrostatics.extractor", f"unknown extractor {name!r}", f"use one of {', '.join(EXTRACTORS)}"
+        )
     chosen = EXTRACTORS[name](s, plate)
-    if s.electrostatics.couplings is not None and not hasattr(chosen, "calibration"):   # the file's couplings beside it
+    if s.electrostatics.couplings is not None and not hasattr(chosen, "calibration"):  # the file's couplings beside it
         chosen = calibrated.with_file_couplings(s, chosen)
     if any(isinstance(e, CombElectrode) for e in s.electrode_sets):
-        chosen = compose(chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity,
-                                               s.electrostatics.comb_model, s.source))
+        chosen = compose(
+            chosen, CombExtractor(EPS0 * s.electrostatics.relative_permittivity, s.electrostatics.comb_model, s.source)
+        )
     return chosen
 
 

@@ -3,8 +3,9 @@ capacitance extractor (netgen.electrostatics.EXTRACTORS)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -16,9 +17,10 @@ from ..geometry.shapes import Array, Basis, Electrode, Plate
 class ProbePoints:
     """Points on the electrodes where the local gap is watched: the contact model's stop
     candidates (netgen.model.contact). The local gap at point j is gap_j - phi_j . q."""
-    gap: Array                 # (npts,) undeformed gap of the point's electrode
-    phi: Array                 # (npts, ncoords) signed basis: gap closed per unit of each coordinate
-    electrode: np.ndarray      # (npts,) index of the point's electrode
+
+    gap: Array  # (npts,) undeformed gap of the point's electrode
+    phi: Array  # (npts, ncoords) signed basis: gap closed per unit of each coordinate
+    electrode: np.ndarray  # (npts,) index of the point's electrode
 
 
 @runtime_checkable

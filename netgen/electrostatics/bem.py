@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -29,16 +29,16 @@ from scipy.linalg import cholesky, lu_factor, lu_solve, solve_triangular
 from ..constants import EPS0
 from ..errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
+from .base import ProbePoints
 from .bem_mesh import Sizes, Surface, electrode_sheet, thick_plate
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
-from .base import ProbePoints
 
 BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
 # largest element facing a gap, in gaps -> bempp's regular quadrature order (design.md); a rule
 # holds up to SLACK times its limit (a sample point closing a gap by a few % keeps its order)
 QUADRATURE: tuple[tuple[float, int], ...] = ((2.0, 4), (4.0, 8), (8.0, 12))
 SLACK = 1.1
-BYTES_PER_ENTRY = 10.0          # the dense matrix (factorised in place) and bempp's assembly buffers
+BYTES_PER_ENTRY = 10.0  # the dense matrix (factorised in place) and bempp's assembly buffers
 # largest system for LAPACK's LU (dense_solve). Measured with scipy 1.17.1 (OpenBLAS 0.3.31), 2
 # threads: getrf segfaults at 22k unknowns (random and BEM matrices), works at 20k and with one
 # thread; design.md saw potrf segfault at 20k. Above it the blocked Cholesky, whose threaded
@@ -59,9 +59,11 @@ def quadrature_order(ratio: float) -> int:
     for limit, order in QUADRATURE:
         if ratio <= limit * SLACK:
             return order
-    raise BemBudgetError(f"BEM: elements {ratio:.2f} times the gap they face exceed the largest quadrature "
-                         f"rule ({QUADRATURE[-1][0] * SLACK:g} gaps, order {QUADRATURE[-1][1]}); lower "
-                         "BemSettings.element_to_gap")
+    raise BemBudgetError(
+        f"BEM: elements {ratio:.2f} times the gap they face exceed the largest quadrature "
+        f"rule ({QUADRATURE[-1][0] * SLACK:g} gaps, order {QUADRATURE[-1][1]}); lower "
+        "BemSettings.element_to_gap"
+    )
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,7 @@ class BemSettings:
     quadrature_order: the regular order (None: the QUADRATURE rule; from_structure refuses one
     below the rule). A structure file sets them in [electrostatics.bem] (netgen.structure.bem_table).
     """
+
     element_to_gap: float = 4.0
     edge_to_gap: float = 0.5
     growth: float = 1.5
@@ -89,13 +92,13 @@ class BemSettings:
     memory_budget: float = 4e9
     singular_order: int = 4
     element_to_size: float = 0.2
-    quadrature_order: int | None = None     # regular quadrature order; None: QUADRATURE's rule for element_to_gap
+    quadrature_order: int | None = None  # regular quadrature order; None: QUADRATURE's rule for element_to_gap
 
     def sizes(self, gap: float, level: int, size: float = math.inf) -> Sizes:
         """Element sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap `gap` and
         a plate of `size` (radius or shorter side): elements are also at most element_to_size
         times the plate, so that a wide gap does not leave its outline unresolved."""
-        f = 1.0 / self.refinement ** level
+        f = 1.0 / self.refinement**level
         h_max = min(self.element_to_gap * gap, self.element_to_size * size)
         return Sizes(min(self.edge_to_gap * gap, h_max / 2.0) * f, h_max * f, self.growth)
 
@@ -104,10 +107,11 @@ class BemSettings:
 class MaxwellMatrix:
     """One BEM solve: the Maxwell (short-circuit) matrix, Q = matrix @ V, in F; conductor 0 is
     the moving plate, then the electrodes in the order given."""
+
     names: tuple[str, ...]
-    matrix: Array                 # (n+1, n+1) best estimate (Richardson-extrapolated)
-    coarse: Array                 # (n+1, n+1) the next coarser level's solution
-    error: float                  # estimated relative error of plate_electrode (max over electrodes)
+    matrix: Array  # (n+1, n+1) best estimate (Richardson-extrapolated)
+    coarse: Array  # (n+1, n+1) the next coarser level's solution
+    error: float  # estimated relative error of plate_electrode (max over electrodes)
     settings: dict = field(default_factory=dict)
 
     @property
@@ -142,17 +146,21 @@ def check_budget(unknowns: int, budget: float, what: str = "") -> None:
     """BemBudgetError when the dense system of `unknowns` does not fit `budget` bytes."""
     need = BYTES_PER_ENTRY * unknowns * unknowns
     if need > budget:
-        raise BemBudgetError(f"BEM{what}: {unknowns} unknowns need {need / 1e9:.1f} GB for the dense matrix, above "
-                             f"the memory budget of {budget / 1e9:.1f} GB; raise BemSettings.memory_budget, "
-                             "loosen tolerance or element_to_gap, or use a calibrated analytic extractor")
+        raise BemBudgetError(
+            f"BEM{what}: {unknowns} unknowns need {need / 1e9:.1f} GB for the dense matrix, above "
+            f"the memory budget of {budget / 1e9:.1f} GB; raise BemSettings.memory_budget, "
+            "loosen tolerance or element_to_gap, or use a calibrated analytic extractor"
+        )
 
 
-def solve_surfaces(surfaces: Sequence[Surface], eps: float, order: int, singular_order: int = 4,
-                   budget: float = 4e9) -> tuple[Array, dict]:
+def solve_surfaces(
+    surfaces: Sequence[Surface], eps: float, order: int, singular_order: int = 4, budget: float = 4e9
+) -> tuple[Array, dict]:
     """Maxwell matrix (n, n) in F of conductors given as triangulated surfaces, with bempp's
     dense single layer at quadrature `order`; and what the solve cost (elements, seconds)."""
     bempp = _bempp()
     from bempp_cl.api.utils.parameters import DefaultParameters
+
     n_el = sum(len(s.triangles) for s in surfaces)
     check_budget(n_el, budget)
     t0 = time.perf_counter()
@@ -164,8 +172,9 @@ def solve_surfaces(surfaces: Sequence[Surface], eps: float, order: int, singular
     space = bempp.function_space(grid, "DP", 0)
     params = DefaultParameters()
     params.quadrature.regular, params.quadrature.singular = order, singular_order
-    op = bempp.operators.boundary.laplace.single_layer(space, space, space, parameters=params, assembler="dense",
-                                                       device_interface="numba", precision="double")
+    op = bempp.operators.boundary.laplace.single_layer(
+        space, space, space, parameters=params, assembler="dense", device_interface="numba", precision="double"
+    )
     A = symmetrised(np.asarray(op.weak_form().to_dense()))
     t1 = time.perf_counter()
     # element i of the grid is element i of the concatenation (bempp keeps the given order)
@@ -199,8 +208,10 @@ def cholesky_blocked(A: Array, block: int = 2048) -> Array:
         try:
             lkk = cholesky(A[k:e, k:e], lower=True, check_finite=False)
         except np.linalg.LinAlgError:
-            raise BemSolveError(f"BEM: the single-layer matrix is not positive definite ({n} unknowns, block "
-                                f"at {k}): a mesh with overlapping or touching conductors; check the gaps") from None
+            raise BemSolveError(
+                f"BEM: the single-layer matrix is not positive definite ({n} unknowns, block "
+                f"at {k}): a mesh with overlapping or touching conductors; check the gaps"
+            ) from None
         A[k:e, k:e] = lkk
         if e == n:
             break
@@ -208,7 +219,7 @@ def cholesky_blocked(A: Array, block: int = 2048) -> Array:
         A[e:, k:e] = panel
         for j in range(e, n, block):
             f = min(j + block, n)
-            A[j:f, e:f] -= panel[j - e:f - e] @ panel[:f - e].T
+            A[j:f, e:f] -= panel[j - e : f - e] @ panel[: f - e].T
     return A
 
 
@@ -222,8 +233,7 @@ def cholesky_solve(L: Array, B: Array, block: int = 2048) -> Array:
         Y[k:e] = solve_triangular(L[k:e, k:e], Y[k:e] - L[k:e, :k] @ Y[:k], lower=True, check_finite=False)
     for k in reversed(starts):
         e = min(k + block, n)
-        Y[k:e] = solve_triangular(L[k:e, k:e], Y[k:e] - L[e:, k:e].T @ Y[e:], lower=True, trans=1,
-                                  check_finite=False)
+        Y[k:e] = solve_triangular(L[k:e, k:e], Y[k:e] - L[e:, k:e].T @ Y[e:], lower=True, trans=1, check_finite=False)
     return Y
 
 
@@ -234,9 +244,9 @@ def symmetrised(A: Array, block: int = 1024) -> Array:
     n = len(A)
     for i in range(0, n, block):
         for j in range(i, n, block):
-            m = 0.5 * (A[i:i + block, j:j + block] + A[j:j + block, i:i + block].T)
-            A[i:i + block, j:j + block] = m
-            A[j:j + block, i:i + block] = m.T
+            m = 0.5 * (A[i : i + block, j : j + block] + A[j : j + block, i : i + block].T)
+            A[i : i + block, j : j + block] = m
+            A[j : j + block, i : i + block] = m.T
     return A
 
 
@@ -254,7 +264,7 @@ def extrapolate(levels: Sequence[Array], ratio: float, order: float | None) -> t
             if r > 1.0:
                 observed = math.log(r) / math.log(ratio)
                 p = observed if 0.5 <= observed <= 4.0 else order
-    best = fine if p is None else fine + (fine - coarse) / (ratio ** p - 1.0)
+    best = fine if p is None else fine + (fine - coarse) / (ratio**p - 1.0)
     return best, p
 
 
@@ -266,8 +276,15 @@ def relative_change(a: Array, b: Array) -> float:
     return float(np.max(np.abs(ra[keep] - rb[keep]) / np.abs(ra[keep]))) if keep.any() else 0.0
 
 
-def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], eps: float, gap: float,
-              settings: BemSettings, h_max: float | None = None, order: int | None = None) -> MaxwellMatrix:
+def converged(
+    meshes: Callable[[int], Sequence[Surface]],
+    names: Sequence[str],
+    eps: float,
+    gap: float,
+    settings: BemSettings,
+    h_max: float | None = None,
+    order: int | None = None,
+) -> MaxwellMatrix:
     """The Maxwell matrix on `settings.levels` or more mesh levels (meshes(level): the surfaces,
     level 0 coarsest, its largest element h_max (default element_to_gap * gap); `gap`: the
     smallest gap they face), extrapolated; BemBudgetError if the tolerance needs more than the
@@ -283,8 +300,9 @@ def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], 
         except BemBudgetError as exc:
             if len(sols) < 2:
                 raise
-            raise BemBudgetError(f"{exc} (the error estimate is {err:.2%} after {len(sols)} levels, "
-                                 f"tolerance {settings.tolerance:.2%})") from None
+            raise BemBudgetError(
+                f"{exc} (the error estimate is {err:.2%} after {len(sols)} levels, tolerance {settings.tolerance:.2%})"
+            ) from None
         sols.append(C)
         info.append(cost)
         if len(sols) >= settings.levels:
@@ -293,9 +311,11 @@ def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], 
             if err <= settings.tolerance:
                 break
     else:
-        raise BemBudgetError(f"BEM: the error estimate {err:.2%} is above the tolerance {settings.tolerance:.2%} "
-                             f"after {settings.max_levels} mesh levels; raise BemSettings.max_levels (and the "
-                             "memory budget) or loosen the tolerance")
+        raise BemBudgetError(
+            f"BEM: the error estimate {err:.2%} is above the tolerance {settings.tolerance:.2%} "
+            f"after {settings.max_levels} mesh levels; raise BemSettings.max_levels (and the "
+            "memory budget) or loosen the tolerance"
+        )
     record = {**asdict(settings), "gap": gap, "solves": info, "richardson_order": p}
     return MaxwellMatrix(tuple(names), best, sols[-2], err, record)
 
@@ -304,6 +324,7 @@ def converged(meshes: Callable[[int], Sequence[Surface]], names: Sequence[str], 
 class _Level:
     """One mesh level of a prepared structure: the undeformed plate, its basis at the plate
     vertices (nv, ncoords) and the electrode sheets."""
+
     plate: Surface
     phi: Array
     electrodes: tuple[Surface, ...]
@@ -313,13 +334,21 @@ class PreparedBem:
     """BemExtractor bound to electrodes, plate and basis: meshes and basis values are computed
     once per level (numpy only, so it pickles to executor workers); every q is a BEM solve."""
 
-    def __init__(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis, eps: float, thickness: float,
-                 settings: BemSettings):
+    def __init__(
+        self,
+        electrodes: Sequence[Electrode],
+        plate: Plate,
+        basis: Basis,
+        eps: float,
+        thickness: float,
+        settings: BemSettings,
+    ):
         """Mesh every level; the parallel-plate geometry answers min_gap and probe_points."""
         self.electrodes = tuple(electrodes)
         self.eps, self.thickness, self.settings = eps, thickness, settings
         self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=eps, fringe=None).prepare(
-            electrodes, plate, basis)
+            electrodes, plate, basis
+        )
         self.ncoords = self.geometry.ncoords
         self.gap = min(e.gap for e in electrodes)
         self.plate_size = plate.size
@@ -353,8 +382,15 @@ class PreparedBem:
         if gap <= 0.0:
             raise ValueError("the plate touches an electrode at this q")
         t0 = time.perf_counter()
-        m = converged(lambda k: self.surfaces(q, k), self.names, self.eps, min(gap, self.gap), self.settings,
-                      h_max=self.settings.sizes(self.gap, 0, self.plate_size).h_max, order=order)
+        m = converged(
+            lambda k: self.surfaces(q, k),
+            self.names,
+            self.eps,
+            min(gap, self.gap),
+            self.settings,
+            h_max=self.settings.sizes(self.gap, 0, self.plate_size).h_max,
+            order=order,
+        )
         m.settings["seconds"] = time.perf_counter() - t0
         return m
 
@@ -407,10 +443,12 @@ class BemExtractor:
         """What it computes and with which settings (the model report's extractor line)."""
         st = self.settings
         order = st.quadrature_order or "by element_to_gap"
-        return (f"boundary elements (bempp-cl, Galerkin P0, {st.levels}..{st.max_levels} mesh levels + Richardson): "
-                f"element_to_gap {st.element_to_gap:g}, edge_to_gap {st.edge_to_gap:g}, refinement {st.refinement:.3g}, "
-                f"tolerance {st.tolerance:g}, quadrature {order}/{st.singular_order}, "
-                f"memory budget {st.memory_budget / 1e9:g} GB")
+        return (
+            f"boundary elements (bempp-cl, Galerkin P0, {st.levels}..{st.max_levels} mesh levels + Richardson): "
+            f"element_to_gap {st.element_to_gap:g}, edge_to_gap {st.edge_to_gap:g}, refinement {st.refinement:.3g}, "
+            f"tolerance {st.tolerance:g}, quadrature {order}/{st.singular_order}, "
+            f"memory budget {st.memory_budget / 1e9:g} GB"
+        )
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedBem:
         """Mesh the structure once (every level); each sample is then a solve."""
@@ -433,15 +471,23 @@ def settings_of(s) -> BemSettings:
     where = "electrostatics.bem"
     limit = QUADRATURE[-1][0] * SLACK
     if st.element_to_gap > limit:
-        raise StructureError(s.source, f"{where}.element_to_gap", f"element_to_gap = {st.element_to_gap:g}: no "
-                             f"quadrature rule is measured for elements above {limit:g} gaps (QUADRATURE)",
-                             f"write element_to_gap = {QUADRATURE[-1][0]:g} or less")
+        raise StructureError(
+            s.source,
+            f"{where}.element_to_gap",
+            f"element_to_gap = {st.element_to_gap:g}: no "
+            f"quadrature rule is measured for elements above {limit:g} gaps (QUADRATURE)",
+            f"write element_to_gap = {QUADRATURE[-1][0]:g} or less",
+        )
     need = quadrature_order(st.element_to_gap)
     if st.quadrature_order is not None and st.quadrature_order < need:
-        raise StructureError(s.source, f"{where}.quadrature_order", f"quadrature_order = {st.quadrature_order} is below "
-                             f"the order {need} that elements of {st.element_to_gap:g} gaps need (coarse quadrature "
-                             "overestimates C by 3-23 %)", f"write quadrature_order = {need} or more, or lower "
-                             "element_to_gap, or drop quadrature_order")
+        raise StructureError(
+            s.source,
+            f"{where}.quadrature_order",
+            f"quadrature_order = {st.quadrature_order} is below "
+            f"the order {need} that elements of {st.element_to_gap:g} gaps need (coarse quadrature "
+            "overestimates C by 3-23 %)",
+            f"write quadrature_order = {need} or more, or lower element_to_gap, or drop quadrature_order",
+        )
     return st
 
 

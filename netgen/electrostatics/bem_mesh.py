@@ -22,6 +22,7 @@ from ..geometry.shapes import AnnularSector, Array, DiskPlate, Electrode, Plate,
 @dataclass(frozen=True)
 class Sizes:
     """Element sizes of one mesh level (m): `h_edge` at free edges, at most `h_max` elsewhere."""
+
     h_edge: float
     h_max: float
     growth: float = 1.5
@@ -34,6 +35,7 @@ class Sizes:
 @dataclass(frozen=True)
 class Surface:
     """Flat triangles of one conductor: vertices (nv, 3) in m and triangles (nt, 3) indices."""
+
     vertices: Array
     triangles: np.ndarray
 
@@ -130,7 +132,7 @@ def _ring_sheet(radii: Array, sizes: Sizes, z: float, aspect: float = 10.0) -> S
         pts.extend(zip(r * np.cos(t), r * np.sin(t)))
     xy = np.array(pts)
     tri = _delaunay(xy)
-    if radii[0] > 0.0:                     # an annulus: drop the triangles over the hole
+    if radii[0] > 0.0:  # an annulus: drop the triangles over the hole
         c = xy[tri].mean(axis=1)
         tri = tri[np.hypot(c[:, 0], c[:, 1]) > radii[0]]
     return Surface(np.column_stack([xy, np.full(len(xy), z)]), tri)
@@ -222,11 +224,42 @@ def electrode_sheet(e: Electrode, sizes: Sizes, z: float) -> Surface:
 def icosphere(radius: float, level: int) -> Surface:
     """A sphere as the level-times subdivided icosahedron, vertices projected onto the sphere."""
     p = (1.0 + math.sqrt(5.0)) / 2.0
-    v = [(-1, p, 0), (1, p, 0), (-1, -p, 0), (1, -p, 0), (0, -1, p), (0, 1, p), (0, -1, -p), (0, 1, -p),
-         (p, 0, -1), (p, 0, 1), (-p, 0, -1), (-p, 0, 1)]
-    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
-         (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
-         (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    v = [
+        (-1, p, 0),
+        (1, p, 0),
+        (-1, -p, 0),
+        (1, -p, 0),
+        (0, -1, p),
+        (0, 1, p),
+        (0, -1, -p),
+        (0, 1, -p),
+        (p, 0, -1),
+        (p, 0, 1),
+        (-p, 0, -1),
+        (-p, 0, 1),
+    ]
+    f = [
+        (0, 11, 5),
+        (0, 5, 1),
+        (0, 1, 7),
+        (0, 7, 10),
+        (0, 10, 11),
+        (1, 5, 9),
+        (5, 11, 4),
+        (11, 10, 2),
+        (10, 7, 6),
+        (7, 1, 8),
+        (3, 9, 4),
+        (3, 4, 2),
+        (3, 2, 6),
+        (3, 6, 8),
+        (3, 8, 9),
+        (4, 9, 5),
+        (2, 4, 11),
+        (6, 2, 10),
+        (8, 6, 7),
+        (9, 8, 1),
+    ]
     verts = [np.array(x, dtype=float) / np.linalg.norm(x) for x in v]
     faces = f
     for _ in range(level):

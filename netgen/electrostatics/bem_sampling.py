@@ -28,13 +28,14 @@ EXTRA = ("error", "elements", "order", "seconds")
 @dataclass
 class MaxwellSamples:
     """Maxwell matrices at sample points, the solver's record of each, and what was reused."""
-    q: np.ndarray                  # (npts, ncoords)
-    matrix: np.ndarray             # (npts, n, n) F, conductor 0 the plate
-    coarse: np.ndarray             # (npts, n, n) the coarser level
-    error: np.ndarray              # (npts,) estimated relative error
-    elements: np.ndarray           # (npts,) unknowns of the finest level
-    order: np.ndarray              # (npts,) regular quadrature order
-    seconds: np.ndarray            # (npts,) wall time of the solve
+
+    q: np.ndarray  # (npts, ncoords)
+    matrix: np.ndarray  # (npts, n, n) F, conductor 0 the plate
+    coarse: np.ndarray  # (npts, n, n) the coarser level
+    error: np.ndarray  # (npts,) estimated relative error
+    elements: np.ndarray  # (npts,) unknowns of the finest level
+    order: np.ndarray  # (npts,) regular quadrature order
+    seconds: np.ndarray  # (npts,) wall time of the solve
     names: tuple[str, ...]
     settings: dict = field(default_factory=dict)
     computed: list[int] = field(default_factory=list)
@@ -59,21 +60,31 @@ def maxwell_point(prepared: PreparedBem, item: tuple[np.ndarray, int | None]) ->
     if threads is None or threads == blas_threads():
         return pack(prepared.maxwell(q))
     from threadpoolctl import threadpool_limits
+
     with threadpool_limits(limits=threads, user_api="blas"):
         return pack(prepared.maxwell(q))
 
 
 def key_of(prepared: PreparedBem, q: np.ndarray) -> str:
     """The store folder's name: a hash of meshes, basis values, settings, permittivity and points."""
-    arrays = [a for lv in prepared.levels for a in (lv.plate.vertices, lv.plate.triangles, lv.phi,
-                                                     *[s.vertices for s in lv.electrodes])]
-    return "bem-maxwell-" + fingerprint(prepared.names, asdict(prepared.settings), prepared.eps, prepared.thickness,
-                                        *arrays, q)
+    arrays = [
+        a
+        for lv in prepared.levels
+        for a in (lv.plate.vertices, lv.plate.triangles, lv.phi, *[s.vertices for s in lv.electrodes])
+    ]
+    return "bem-maxwell-" + fingerprint(
+        prepared.names, asdict(prepared.settings), prepared.eps, prepared.thickness, *arrays, q
+    )
 
 
-def sample_maxwell(prepared: PreparedBem, Q: np.ndarray, executor: Executor | None = None,
-                   store: ChunkStore | str | Path | None = None, progress: bool = False,
-                   desc: str = "BEM samples") -> MaxwellSamples:
+def sample_maxwell(
+    prepared: PreparedBem,
+    Q: np.ndarray,
+    executor: Executor | None = None,
+    store: ChunkStore | str | Path | None = None,
+    progress: bool = False,
+    desc: str = "BEM samples",
+) -> MaxwellSamples:
     """The Maxwell matrix at every row of Q (npts, ncoords): tasks on `executor` (None: in this
     process), each finished point saved in `store` and reused by a rerun; a progress bar on stderr."""
     q = np.ascontiguousarray(np.atleast_2d(Q), dtype=float)
@@ -84,8 +95,10 @@ def sample_maxwell(prepared: PreparedBem, Q: np.ndarray, executor: Executor | No
     rows: dict[int, np.ndarray] = {}
     folder = None
     if store is not None:
-        folder = store.folder(key_of(prepared, q), {"what": desc, "points": len(q), "conductors": ", ".join(prepared.names),
-                                                    **asdict(prepared.settings)})
+        folder = store.folder(
+            key_of(prepared, q),
+            {"what": desc, "points": len(q), "conductors": ", ".join(prepared.names), **asdict(prepared.settings)},
+        )
         for k in range(len(q)):
             a = store.load(folder, k, 1)
             if a is not None and a.shape == (1, width):
@@ -111,13 +124,24 @@ def sample_maxwell(prepared: PreparedBem, Q: np.ndarray, executor: Executor | No
     return unpack(q, [rows[k] for k in range(len(q))], prepared, todo, reused)
 
 
-def unpack(q: np.ndarray, rows: list[np.ndarray], prepared: PreparedBem, computed: list[int],
-           reused: list[int]) -> MaxwellSamples:
+def unpack(
+    q: np.ndarray, rows: list[np.ndarray], prepared: PreparedBem, computed: list[int], reused: list[int]
+) -> MaxwellSamples:
     """MaxwellSamples from the stored rows (pack's layout)."""
     n = len(prepared.names)
     a = np.concatenate(rows, axis=0) if rows else np.zeros((0, 2 * n * n + len(EXTRA)))
     nn = n * n
     settings = {**asdict(prepared.settings), "eps": prepared.eps, "thickness": prepared.thickness}
-    return MaxwellSamples(q, a[:, :nn].reshape(-1, n, n), a[:, nn:2 * nn].reshape(-1, n, n), a[:, 2 * nn],
-                          a[:, 2 * nn + 1].astype(int), a[:, 2 * nn + 2].astype(int), a[:, 2 * nn + 3],
-                          prepared.names, settings, sorted(computed), reused)
+    return MaxwellSamples(
+        q,
+        a[:, :nn].reshape(-1, n, n),
+        a[:, nn : 2 * nn].reshape(-1, n, n),
+        a[:, 2 * nn],
+        a[:, 2 * nn + 1].astype(int),
+        a[:, 2 * nn + 2].astype(int),
+        a[:, 2 * nn + 3],
+        prepared.names,
+        settings,
+        sorted(computed),
+        reused,
+    )

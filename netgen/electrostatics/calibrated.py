@@ -11,8 +11,9 @@ its Maxwell matrix at given generalized coordinates), or the Maxwell matrices of
 from __future__ import annotations
 
 import importlib.util
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar, Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -24,10 +25,12 @@ from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 from .parallel_plate import from_structure as parallel_plate_from_structure
 from .sampling import touch_amplitudes
 
+
 def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> MaxwellSource:
     """The BEM extractor's Maxwell matrix at q (netgen.electrostatics.bem: PreparedBem.maxwell(q).matrix,
     conductors [plate, *electrodes]); each solve's estimated error is kept in `source.errors`."""
-    from . import bem                                  # optional: needs bempp-cl (pip install -e '.[bem]')
+    from . import bem  # optional: needs bempp-cl (pip install -e '.[bem]')
+
     prepared = bem.from_structure(s, plate).prepare(electrodes, plate, basis)
     errors: list[float] = []
 
@@ -35,7 +38,8 @@ def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -
         m = prepared.maxwell(q)
         errors.append(float(m.error))
         return np.asarray(m.matrix, dtype=float)
-    source.errors = errors                             # type: ignore[attr-defined]
+
+    source.errors = errors  # type: ignore[attr-defined]
     return source
 
 
@@ -55,13 +59,14 @@ BEM_SOURCE: list[Callable[..., MaxwellSource]] = [bem_source] if bem_available()
 class CalibratedExtractor:
     """Parallel plate + per-electrode fringe + couplings, calibrated when prepared (see the module)."""
 
-    description: ClassVar[str] = "parallel-plate over the local gap + edge fringe, calibrated per electrode " \
-                                 "against a field solution"
+    description: ClassVar[str] = (
+        "parallel-plate over the local gap + edge fringe, calibrated per electrode against a field solution"
+    )
     base: ParallelPlateExtractor
     coordinates: list[str]
-    points: int = 0                             # BEM points (0 with a file)
-    span: float = 0.2                           # the design's box, a fraction of the touching amplitudes
-    file: str | None = None                     # a Maxwell-matrix file instead of BEM
+    points: int = 0  # BEM points (0 with a file)
+    span: float = 0.2  # the design's box, a fraction of the touching amplitudes
+    file: str | None = None  # a Maxwell-matrix file instead of BEM
     source: Callable[..., MaxwellSource] | None = None
     structure: object = None
     result: dict = field(default_factory=dict)  # the Calibration, once prepared
@@ -72,22 +77,41 @@ class CalibratedExtractor:
         scales = plate_scales(analytic, self.coordinates, electrodes)
         if self.file is not None:
             f = read_checked(self.file, self.coordinates, electrodes, analytic, scales, need_plate=True)
-            cal = calibrate(None, electrodes, plate, basis, f.q, self.base, f"Maxwell matrices of {f.path}",
-                            maxwell=f.ordered([e.name for e in electrodes], plate=True))
+            cal = calibrate(
+                None,
+                electrodes,
+                plate,
+                basis,
+                f.q,
+                self.base,
+                f"Maxwell matrices of {f.path}",
+                maxwell=f.ordered([e.name for e in electrodes], plate=True),
+            )
         else:
             if self.source is None:
-                raise StructureError(getattr(self.structure, "source", "<structure>"), "electrostatics.extractor",
-                                     "extractor = \"calibrated\" needs a field solution: the BEM extractor "
-                                     "(netgen.electrostatics.bem) is not installed in this netgen",
-                                     "give the field solver's Maxwell matrices instead: couplings = \"maxwell.json\"")
+                raise StructureError(
+                    getattr(self.structure, "source", "<structure>"),
+                    "electrostatics.extractor",
+                    'extractor = "calibrated" needs a field solution: the BEM extractor '
+                    "(netgen.electrostatics.bem) is not installed in this netgen",
+                    'give the field solver\'s Maxwell matrices instead: couplings = "maxwell.json"',
+                )
             maxwell = self.source(self.structure, electrodes, plate, basis)
-            cal = calibrate(maxwell, electrodes, plate, basis, design(self.points, scales, self.span), self.base,
-                            f"BEM at {self.points} point(s)")
+            cal = calibrate(
+                maxwell,
+                electrodes,
+                plate,
+                basis,
+                design(self.points, scales, self.span),
+                self.base,
+                f"BEM at {self.points} point(s)",
+            )
             self.result["field_errors"] = list(getattr(maxwell, "errors", []))
         self.result["calibration"] = cal
         self.result["names"] = [e.name for e in electrodes]
-        return ParallelPlateExtractor(eps=self.base.eps, fringes=cal.fringes, order=self.base.order,
-                                      edge_order=self.base.edge_order).prepare(electrodes, plate, basis)
+        return ParallelPlateExtractor(
+            eps=self.base.eps, fringes=cal.fringes, order=self.base.order, edge_order=self.base.edge_order
+        ).prepare(electrodes, plate, basis)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """The calibrated constant couplings (nel, nel) in F (prepare() first)."""
@@ -103,9 +127,13 @@ class CalibratedExtractor:
     def report(self) -> dict:
         """The calibration against its field solution (netgen.electrostatics.calibration.comparison)."""
         cal: Calibration = self.result["calibration"]
-        return {"source": cal.source, "points_si": cal.points.tolist(), "coordinates": list(self.coordinates),
-                "field_solution_rel_errors": self.result.get("field_errors", []),
-                "electrodes": cal.comparison} | {"calibration": self.calibration()}
+        return {
+            "source": cal.source,
+            "points_si": cal.points.tolist(),
+            "coordinates": list(self.coordinates),
+            "field_solution_rel_errors": self.result.get("field_errors", []),
+            "electrodes": cal.comparison,
+        } | {"calibration": self.calibration()}
 
 
 @dataclass(frozen=True)
@@ -125,8 +153,13 @@ class FileCoupledExtractor:
         scales = plate_scales(prepared, self.coordinates, electrodes)
         f = read_checked(self.file, self.coordinates, electrodes, prepared, scales, need_plate=False)
         cc = pad_plate(f.ordered([e.name for e in electrodes], plate=False))
-        self.result.update(coupling=cc.mean(axis=0), spread=cc.std(axis=0), points=len(f.q), path=f.path,
-                           names=[e.name for e in electrodes])
+        self.result.update(
+            coupling=cc.mean(axis=0),
+            spread=cc.std(axis=0),
+            points=len(f.q),
+            path=f.path,
+            names=[e.name for e in electrodes],
+        )
         return prepared
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
@@ -136,10 +169,17 @@ class FileCoupledExtractor:
     def calibration(self) -> dict:
         """The MacroModel's calibration entry: the file and the couplings' spread over its points."""
         names, c, s = self.result["names"], self.result["coupling"], self.result["spread"]
-        spread = [{"pair": [names[i], names[j]], "mean": float(c[i, j]), "std": float(s[i, j])}
-                  for i in range(len(names)) for j in range(i + 1, len(names)) if c[i, j]]
-        return {"source": f"couplings from {self.result['path']}", "points": int(self.result["points"]),
-                "coupling_spread": spread}
+        spread = [
+            {"pair": [names[i], names[j]], "mean": float(c[i, j]), "std": float(s[i, j])}
+            for i in range(len(names))
+            for j in range(i + 1, len(names))
+            if c[i, j]
+        ]
+        return {
+            "source": f"couplings from {self.result['path']}",
+            "points": int(self.result["points"]),
+            "coupling_spread": spread,
+        }
 
 
 def plate_scales(analytic, coordinates: list[str], electrodes: Sequence[Electrode]) -> np.ndarray:
@@ -156,8 +196,9 @@ def pad_plate(m: np.ndarray) -> np.ndarray:
     return electrode_couplings(padded)
 
 
-def read_checked(path: str, coordinates: list[str], electrodes: Sequence[Electrode], analytic, scales: np.ndarray,
-                 need_plate: bool) -> coupling_file.MaxwellFile:
+def read_checked(
+    path: str, coordinates: list[str], electrodes: Sequence[Electrode], analytic, scales: np.ndarray, need_plate: bool
+) -> coupling_file.MaxwellFile:
     """A Maxwell-matrix file read and checked against the electrodes, eps A / g at rest and the scales."""
     f = coupling_file.read(path, coordinates)
     estimates = np.asarray(analytic.capacitance(np.zeros(len(coordinates))), dtype=float)
@@ -171,11 +212,15 @@ def from_structure(s, plate: Plate) -> CalibratedExtractor:
     names = list(s.conductor.coordinate_names(s.coordinates))
     base = parallel_plate_from_structure(s, plate)
     if o.couplings is None and o.calibration_points < 1:
-        raise StructureError(s.source, "electrostatics.calibration_points", "extractor = \"calibrated\" needs "
-                             "calibration points or a couplings file",
-                             "write calibration_points = 9 (BEM solves), or couplings = \"maxwell.json\"")
-    return CalibratedExtractor(base, names, o.calibration_points, s.sampling.range, o.couplings,
-                               BEM_SOURCE[0] if BEM_SOURCE else None, s)
+        raise StructureError(
+            s.source,
+            "electrostatics.calibration_points",
+            'extractor = "calibrated" needs calibration points or a couplings file',
+            'write calibration_points = 9 (BEM solves), or couplings = "maxwell.json"',
+        )
+    return CalibratedExtractor(
+        base, names, o.calibration_points, s.sampling.range, o.couplings, BEM_SOURCE[0] if BEM_SOURCE else None, s
+    )
 
 
 def with_file_couplings(s, base: ParallelPlateExtractor) -> FileCoupledExtractor:

@@ -20,8 +20,8 @@ amplitude), then seeded random points in that box.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -30,7 +30,7 @@ from .parallel_plate import EdgeFringe, ParallelPlateExtractor
 
 # q (ncoords,) in SI -> Maxwell matrix (1 + nel, 1 + nel) in F, conductors [plate, *electrodes]
 MaxwellSource = Callable[[np.ndarray], np.ndarray]
-SEED = 20261201           # the random points beyond the star design
+SEED = 20261201  # the random points beyond the star design
 
 
 @dataclass(frozen=True)
@@ -38,24 +38,39 @@ class Calibration:
     """The result: points (npts, ncoords) SI, each point's Maxwell matrix, the fitted per-electrode
     fringes, the coupling matrix (mean over the points) and its spread, and the comparison of
     the uncalibrated and calibrated analytic extractor against the field solution."""
+
     source: str
     points: Array
-    maxwell: Array                      # (npts, 1 + nel, 1 + nel)
+    maxwell: Array  # (npts, 1 + nel, 1 + nel)
     fringes: tuple[EdgeFringe, ...]
-    coupling: Array                     # (nel, nel), zero diagonal
-    spread: Array                       # (nel, nel) standard deviation over the points
+    coupling: Array  # (nel, nel), zero diagonal
+    spread: Array  # (nel, nel) standard deviation over the points
     comparison: dict
 
     def record(self, names: Sequence[str]) -> dict:
         """The MacroModel's calibration entry (netgen.model.validate.check_calibration)."""
         n = len(names)
-        spread = [{"pair": [names[i], names[j]], "mean": float(self.coupling[i, j]), "std": float(self.spread[i, j]),
-                   "min": float(-self.maxwell[:, 1 + i, 1 + j].max()), "max": float(-self.maxwell[:, 1 + i, 1 + j].min())}
-                  for i in range(n) for j in range(i + 1, n) if self.coupling[i, j]]
-        return {"source": self.source, "points": int(len(self.points)),
-                "fringe": [{"electrode": e, "a": float(f.a), "b": float(f.b), "length": float(f.length)}
-                           for e, f in zip(names, self.fringes)],
-                "coupling_spread": spread}
+        spread = [
+            {
+                "pair": [names[i], names[j]],
+                "mean": float(self.coupling[i, j]),
+                "std": float(self.spread[i, j]),
+                "min": float(-self.maxwell[:, 1 + i, 1 + j].max()),
+                "max": float(-self.maxwell[:, 1 + i, 1 + j].min()),
+            }
+            for i in range(n)
+            for j in range(i + 1, n)
+            if self.coupling[i, j]
+        ]
+        return {
+            "source": self.source,
+            "points": int(len(self.points)),
+            "fringe": [
+                {"electrode": e, "a": float(f.a), "b": float(f.b), "length": float(f.length)}
+                for e, f in zip(names, self.fringes)
+            ],
+            "coupling_spread": spread,
+        }
 
 
 def design(n: int, scales: Array, span: float) -> Array:
@@ -66,8 +81,8 @@ def design(n: int, scales: Array, span: float) -> Array:
     if n < 1:
         raise ValueError("calibration needs at least one point")
     nc = len(scales)
-    finite = np.isfinite(np.asarray(scales, dtype=float))      # an in-plane coordinate never closes a plate gap:
-    h = np.where(finite, span * np.asarray(scales, dtype=float), 0.0)    # it stays at 0 (nothing to fit along it)
+    finite = np.isfinite(np.asarray(scales, dtype=float))  # an in-plane coordinate never closes a plate gap:
+    h = np.where(finite, span * np.asarray(scales, dtype=float), 0.0)  # it stays at 0 (nothing to fit along it)
     star = [np.zeros(nc)] + [s * h[v] * np.eye(nc)[v] for v in range(nc) if finite[v] for s in (1.0, -1.0)]
     extra = np.random.default_rng(SEED).uniform(-1.0, 1.0, (max(0, n - len(star)), nc)) * h
     return np.vstack(star[:n] + list(extra))
@@ -100,8 +115,9 @@ def pairs(points: Array) -> list[tuple[int, int, int, float]]:
     return out
 
 
-def terms(base: ParallelPlateExtractor, electrodes: Sequence[Electrode], plate: Plate, basis: Basis,
-          q: Array) -> tuple[Array, Array, Array]:
+def terms(
+    base: ParallelPlateExtractor, electrodes: Sequence[Electrode], plate: Plate, basis: Basis, q: Array
+) -> tuple[Array, Array, Array]:
     """The three parts of the analytic capacitance at the points q, each (npts, nel) in F:
     eps int dA/g (no fringe), eps int ds (a = 1, b = 0 minus that), eps int ln(L/g) ds (a = 0, b = 1)."""
     length = (base.fringe.length if base.fringe is not None else None) or plate.size
@@ -109,6 +125,7 @@ def terms(base: ParallelPlateExtractor, electrodes: Sequence[Electrode], plate: 
     def part(fringe):
         ext = ParallelPlateExtractor(eps=base.eps, fringe=fringe, order=base.order, edge_order=base.edge_order)
         return ext.prepare(electrodes, plate, basis).capacitance(q)
+
     area = part(None)
     return area, part(EdgeFringe(1.0, 0.0, length)) - area, part(EdgeFringe(0.0, 1.0, length)) - area
 
@@ -135,23 +152,34 @@ def fit_fringe(area: Array, edge: Array, log: Array, c: Array, diffs: list, b_de
     return float(sol[0]), float(sol[1])
 
 
-def calibrate(source: MaxwellSource | None, electrodes: Sequence[Electrode], plate: Plate, basis: Basis,
-              points: Array, base: ParallelPlateExtractor, name: str, maxwell: Array | None = None) -> Calibration:
+def calibrate(
+    source: MaxwellSource | None,
+    electrodes: Sequence[Electrode],
+    plate: Plate,
+    basis: Basis,
+    points: Array,
+    base: ParallelPlateExtractor,
+    name: str,
+    maxwell: Array | None = None,
+) -> Calibration:
     """Calibrate `base` at `points` (npts, ncoords) SI against `source` (or the given Maxwell
     matrices, e.g. from a file): per-electrode fringes, couplings, and the comparison report."""
     q = np.atleast_2d(np.asarray(points, dtype=float))
     m = np.stack([np.asarray(source(p), dtype=float) for p in q]) if maxwell is None else np.asarray(maxwell, float)
     nel = len(electrodes)
     if m.shape != (len(q), nel + 1, nel + 1):
-        raise ValueError(f"the field solution gave Maxwell matrices of shape {m.shape[1:]}, expected "
-                         f"{(nel + 1, nel + 1)} (the plate and {nel} electrodes)")
+        raise ValueError(
+            f"the field solution gave Maxwell matrices of shape {m.shape[1:]}, expected "
+            f"{(nel + 1, nel + 1)} (the plate and {nel} electrodes)"
+        )
     c = plate_capacitances(m)
     area, edge, log = terms(base, electrodes, plate, basis, q)
     diffs = pairs(q)
     b0 = base.fringe.b if base.fringe is not None else EdgeFringe().b
     length = (base.fringe.length if base.fringe is not None else None) or plate.size
-    fringes = tuple(EdgeFringe(*fit_fringe(area[:, i], edge[:, i], log[:, i], c[:, i], diffs, b0), length)
-                    for i in range(nel))
+    fringes = tuple(
+        EdgeFringe(*fit_fringe(area[:, i], edge[:, i], log[:, i], c[:, i], diffs, b0), length) for i in range(nel)
+    )
     cc = electrode_couplings(m)
     mean, spread = cc.mean(axis=0), cc.std(axis=0)
     calibrated = ParallelPlateExtractor(eps=base.eps, fringes=fringes, order=base.order, edge_order=base.edge_order)
@@ -175,7 +203,8 @@ def comparison(analytic: list[Array], c: Array, diffs: list, names: list[str], c
                 if abs(dc) > 1e-6 * abs(c[0, i]):
                     per.setdefault(str(v), []).append(float(((a[k, i] - a[j, i]) - dc) / dc))
             row[f"{label}_dc_rel_error"] = per
-        row["coupling_over_c0"] = {names[j]: float(coupling[i, j] / c[0, i]) for j in range(len(names))
-                                   if coupling[i, j]}
+        row["coupling_over_c0"] = {
+            names[j]: float(coupling[i, j] / c[0, i]) for j in range(len(names)) if coupling[i, j]
+        }
         out[name] = row
     return out

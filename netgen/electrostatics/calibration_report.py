@@ -23,8 +23,9 @@ def summary(report: dict) -> dict:
         entry = {}
         for label in ("analytic", "calibrated"):
             entry[f"{label}_c_max_abs_rel_error"] = float(np.max(np.abs(row[f"{label}_c_rel_error"])))
-            entry[f"{label}_dc_max_abs_rel_error"] = {coords[int(v)]: float(np.max(np.abs(e)))
-                                                      for v, e in row[f"{label}_dc_rel_error"].items()}
+            entry[f"{label}_dc_max_abs_rel_error"] = {
+                coords[int(v)]: float(np.max(np.abs(e))) for v, e in row[f"{label}_dc_rel_error"].items()
+            }
         out[name] = entry
     return out
 
@@ -52,8 +53,9 @@ def figure(doc: dict, path: Path) -> Path:
     for j, c in enumerate(coords):
         for k, label in enumerate(("analytic", "calibrated")):
             vals = [100 * s[n][f"{label}_dc_max_abs_rel_error"].get(c, np.nan) for n in names]
-            axes[1].bar(x - 0.4 + (2 * j + k + 0.5) * width, vals, width, label=f"{c} {label}",
-                        hatch="" if k == 0 else "//")
+            axes[1].bar(
+                x - 0.4 + (2 * j + k + 0.5) * width, vals, width, label=f"{c} {label}", hatch="" if k == 0 else "//"
+            )
     axes[1].set_ylabel("max |dC - dC_field| / |dC_field| (%)")
     axes[1].set_yscale("symlog", linthresh=1e-3)
     axes[1].legend(fontsize=6, ncol=max(1, len(coords)))

@@ -134,8 +134,14 @@ def parallel_strips(eps: float, width: float, gap: float) -> float:
         c = special.ellipe(1.0 - beta) / special.ellipkm1(beta)
         h = 2.0 * c * special.ellipk(beta) - 2.0 * (special.ellipk(beta) - special.ellipe(beta))
         top = math.acosh(math.sqrt(c / beta))
-        a, _ = quad(lambda u: 2.0 * (c - beta * math.cosh(u) ** 2) / math.sqrt(1.0 - beta * math.cosh(u) ** 2),
-                    0.0, top, limit=400, epsabs=1e-12 * c, epsrel=1e-9)
+        a, _ = quad(
+            lambda u: 2.0 * (c - beta * math.cosh(u) ** 2) / math.sqrt(1.0 - beta * math.cosh(u) ** 2),
+            0.0,
+            top,
+            limit=400,
+            epsabs=1e-12 * c,
+            epsrel=1e-9,
+        )
         return a / h - ratio
 
     s = brentq(lambda s: shape(math.exp(-s)), 1e-9, 700.0, xtol=1e-14)

@@ -20,8 +20,8 @@ fringe, no out-of-plane dependence, no tip term, so no vertical force).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -32,7 +32,7 @@ from ..geometry.shapes import Array, Basis, Electrode, Plate
 from . import comb_section
 from .base import ProbePoints
 
-NODES = 4       # Gauss-Legendre points along each face's overlap (exact for the textbook form to ~1e-9)
+NODES = 4  # Gauss-Legendre points along each face's overlap (exact for the textbook form to ~1e-9)
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,7 @@ class CombCell:
     centre distance of a moving finger and its neighbouring fixed finger (half the moving fingers'
     period, CombShape.pitch), the fixed fingers' bottom to the substrate (inf: none given),
     permittivity (F/m); netgen.electrostatics.comb_section's conventions."""
+
     width: float
     thickness: float
     pitch: float
@@ -62,6 +63,7 @@ def textbook_tip(gap: np.ndarray, offset: np.ndarray, cell: CombCell) -> np.ndar
 class CombModel:
     """A per-length face capacitance SECTION(gap, offset, cell) (F/m), a finger-end TIP (F) and
     the line the model report shows."""
+
     section: Callable[[np.ndarray, np.ndarray, CombCell], np.ndarray]
     tip: Callable[[np.ndarray, np.ndarray, CombCell], np.ndarray]
     description: str
@@ -69,29 +71,36 @@ class CombModel:
 
 # [electrostatics] comb_model -> the cross-section model (one line per model)
 MODELS = {
-    "field2d": CombModel(comb_section.section, comb_section.tip,
-                         "comb fingers: 2-D field solve of the periodic finger cell over the substrate per face and "
-                         "unit overlap + finger-end section (netgen.electrostatics.comb_section)"),
-    "textbook": CombModel(textbook_section, textbook_tip,
-                          "comb fingers: parallel plate eps t / g per face and unit overlap (textbook, no fringe)"),
+    "field2d": CombModel(
+        comb_section.section,
+        comb_section.tip,
+        "comb fingers: 2-D field solve of the periodic finger cell over the substrate per face and "
+        "unit overlap + finger-end section (netgen.electrostatics.comb_section)",
+    ),
+    "textbook": CombModel(
+        textbook_section,
+        textbook_tip,
+        "comb fingers: parallel plate eps t / g per face and unit overlap (textbook, no fringe)",
+    ),
 }
 
 
 @dataclass(frozen=True)
 class CombGeometry:
     """One comb electrode's faces and tips with the coordinates' motion there (per unit q)."""
-    gap0: Array         # (F,) face gaps at rest
+
+    gap0: Array  # (F,) face gaps at rest
     overlap0: float
-    close: Array        # (F, nc): n . u at the tip: gap closed
-    slope: Array        # (F, nc): n . (e . grad) u: gap change per unit length back from the tip
-    grow: Array         # (F, nc): e . u at the tip: overlap growth
-    lift: Array         # (F, nc): u_z at the tip
-    tilt: Array         # (F, nc): (e . grad) u_z
-    clearance0: float   # finger length - overlap
-    tip_close: Array    # (T, nc): e . u at each finger tip
-    tip_lift: Array     # (T, nc)
-    probe_gap: Array    # (P,) rest gaps of the stop candidates (face ends, tips; finger ends over the substrate)
-    probe_phi: Array    # (P, nc) closing per unit q
+    close: Array  # (F, nc): n . u at the tip: gap closed
+    slope: Array  # (F, nc): n . (e . grad) u: gap change per unit length back from the tip
+    grow: Array  # (F, nc): e . u at the tip: overlap growth
+    lift: Array  # (F, nc): u_z at the tip
+    tilt: Array  # (F, nc): (e . grad) u_z
+    clearance0: float  # finger length - overlap
+    tip_close: Array  # (T, nc): e . u at each finger tip
+    tip_lift: Array  # (T, nc)
+    probe_gap: Array  # (P,) rest gaps of the stop candidates (face ends, tips; finger ends over the substrate)
+    probe_phi: Array  # (P, nc) closing per unit q
     cell: CombCell
     model: CombModel
 
@@ -123,15 +132,26 @@ def geometry(shape: CombShape, basis: Basis, nc: int, eps: float, model: CombMod
     clearance = shape.length - shape.overlap
     probe_gap = np.concatenate([[f.gap for f in faces] * 2, np.full(len(tips), clearance)])
     probe_phi = np.concatenate([close, np.einsum("fk,fkv->fv", n, ur), tip_close])
-    if shape.substrate_gap:                       # the fingers' tips and roots bottom out on the substrate
+    if shape.substrate_gap:  # the fingers' tips and roots bottom out on the substrate
         _, wr = motion(basis, tips - e[None, :] * shape.length, nc)
         probe_gap = np.concatenate([probe_gap, np.full(2 * len(tips), shape.substrate_gap)])
         probe_phi = np.concatenate([probe_phi, -wt, -wr])
-    return CombGeometry(np.array([f.gap for f in faces]), shape.overlap, close,
-                        np.einsum("fk,fkv->fv", n, u1 - u0), np.einsum("k,fkv->fv", e, u0), w0, w1 - w0,
-                        clearance, tip_close, wt, probe_gap, probe_phi,
-                        CombCell(shape.width, shape.thickness, shape.pitch / 2,
-                                 shape.substrate_gap or float("inf"), eps), model)
+    return CombGeometry(
+        np.array([f.gap for f in faces]),
+        shape.overlap,
+        close,
+        np.einsum("fk,fkv->fv", n, u1 - u0),
+        np.einsum("k,fkv->fv", e, u0),
+        w0,
+        w1 - w0,
+        clearance,
+        tip_close,
+        wt,
+        probe_gap,
+        probe_phi,
+        CombCell(shape.width, shape.thickness, shape.pitch / 2, shape.substrate_gap or float("inf"), eps),
+        model,
+    )
 
 
 def comb_capacitance(g: CombGeometry, q: np.ndarray) -> np.ndarray:
@@ -139,13 +159,13 @@ def comb_capacitance(g: CombGeometry, q: np.ndarray) -> np.ndarray:
     the fingers bottom out or disengage."""
     t, w = np.polynomial.legendre.leggauss(NODES)
     t, w = (t + 1) / 2, w / 2
-    length = g.overlap0 + q @ g.grow.T                             # (ns, F)
+    length = g.overlap0 + q @ g.grow.T  # (ns, F)
     close, slope = q @ g.close.T, q @ g.slope.T
     lift, tilt = q @ g.lift.T, q @ g.tilt.T
     c = np.zeros(q.shape[0])
     bad = np.any(length <= 0, axis=1)
     for tk, wk in zip(t, w):
-        back = (1 - tk) * length                                   # distance back from the tip
+        back = (1 - tk) * length  # distance back from the tip
         gap = g.gap0[None, :] - close + back * slope
         bad |= np.any(gap <= 0, axis=1)
         c += np.sum(wk * length * g.model.section(np.where(gap > 0, gap, 1.0), lift - back * tilt, g.cell), axis=1)
@@ -170,7 +190,7 @@ class PreparedComb:
 
     def __init__(self, electrodes: Sequence[Electrode], geoms: list[CombGeometry], nc: int, source: str = ""):
         self.electrodes, self.geoms, self.ncoords, self.source = tuple(electrodes), geoms, nc, source
-        self.capacitance(np.zeros(nc))     # the cross-section tables loaded or solved now, not in a timed sample
+        self.capacitance(np.zeros(nc))  # the cross-section tables loaded or solved now, not in a timed sample
 
     def capacitance(self, Q: ArrayLike) -> Array:
         """Comb capacitances (nsamples, nelectrodes) in F; nan where touching."""
@@ -184,9 +204,12 @@ class PreparedComb:
         try:
             return comb_capacitance(g, q)
         except comb_section.OutsideTable as err:
-            raise StructureError(self.source, f"electrode {e.name}", f"the sampled motion leaves the comb's 2-D "
-                                 f"section tables ({err})", "narrow [sampling] range, or set [electrostatics] "
-                                 'comb_model = "textbook"') from None
+            raise StructureError(
+                self.source,
+                f"electrode {e.name}",
+                f"the sampled motion leaves the comb's 2-D section tables ({err})",
+                'narrow [sampling] range, or set [electrostatics] comb_model = "textbook"',
+            ) from None
 
     def gradient(self, Q: ArrayLike) -> Array:
         """dC/dq (nsamples, nelectrodes, ncoords) by central differences (steps 1e-6 of each
@@ -206,25 +229,32 @@ class PreparedComb:
         stop candidate at rest gap g_j closing by phi_j . q reads gap (1 - phi_j . q / g_j), so a
         tip clearance longer than the finger gap counts as the distance it really has to go."""
         q, single = as_samples(Q, self.ncoords)
-        out = np.stack([e.gap * np.min(1.0 - (q @ g.probe_phi.T) / g.probe_gap[None, :], axis=1)
-                        for e, g in zip(self.electrodes, self.geoms)], axis=1)
+        out = np.stack(
+            [
+                e.gap * np.min(1.0 - (q @ g.probe_phi.T) / g.probe_gap[None, :], axis=1)
+                for e, g in zip(self.electrodes, self.geoms)
+            ],
+            axis=1,
+        )
         return out[0] if single else out
 
     def probe_points(self) -> ProbePoints:
         """Face ends (at rest), finger tips and, over a substrate, the fingers' two ends going down
         onto it: the contact model's stop candidates (and the sampling's touching amplitudes)."""
         owner = np.concatenate([np.full(len(g.probe_gap), i) for i, g in enumerate(self.geoms)]).astype(int)
-        return ProbePoints(np.concatenate([g.probe_gap for g in self.geoms]),
-                           np.concatenate([g.probe_phi for g in self.geoms]), owner)
+        return ProbePoints(
+            np.concatenate([g.probe_gap for g in self.geoms]), np.concatenate([g.probe_phi for g in self.geoms]), owner
+        )
 
 
 @dataclass(frozen=True)
 class CombExtractor:
     """Capacitances of comb electrodes (netgen.geometry.combs.CombShape) from the cross-section
     model `model` names in MODELS (the 2-D field solve by default, the textbook as an option)."""
+
     eps: float
     model: str = "field2d"
-    source: str = ""                    # the structure file, for errors
+    source: str = ""  # the structure file, for errors
 
     @property
     def description(self) -> str:
@@ -235,8 +265,9 @@ class CombExtractor:
         """The faces and tips of every comb with the basis evaluated there."""
         nc = np.asarray(basis(np.zeros(1), np.zeros(1))).reshape(1, -1).shape[1]
         model = MODELS[self.model]
-        return PreparedComb(electrodes, [geometry(e.shape, basis, nc, self.eps, model) for e in electrodes], nc,
-                            self.source)
+        return PreparedComb(
+            electrodes, [geometry(e.shape, basis, nc, self.eps, model) for e in electrodes], nc, self.source
+        )
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """No constant comb-to-comb or comb-to-plate couplings in this model."""

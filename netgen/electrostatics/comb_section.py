@@ -44,18 +44,19 @@ from .field2d import Conductor, Problem, solve
 from .mesh2d import Rect
 
 Array = np.ndarray
-VERSION = 2                      # bump when the solver, the cell or the grids change what a table holds
-GAP_RANGE = (0.1, 1.9)           # x nominal gap (pitch - width)
-OFFSET_RANGE = (-1.0, 1.0)       # x thickness (down at most 0.8 substrate gaps): fingers apart at +-1
-END_RANGE = (0.2, 20.0)          # x nominal gap, log-spaced
+VERSION = 2  # bump when the solver, the cell or the grids change what a table holds
+GAP_RANGE = (0.1, 1.9)  # x nominal gap (pitch - width)
+OFFSET_RANGE = (-1.0, 1.0)  # x thickness (down at most 0.8 substrate gaps): fingers apart at +-1
+END_RANGE = (0.2, 20.0)  # x nominal gap, log-spaced
 SETTINGS = {"tol": 2e-3, "max_levels": 3, "mesh_scale": 1.5, "order": 2}
 GRID = {"gaps": 13, "offsets": 9, "ends": 6}
-SHIPPED = Path(__file__).with_name("comb_tables")   # converged tables of the examples' combs, read before a solve
+SHIPPED = Path(__file__).with_name("comb_tables")  # converged tables of the examples' combs, read before a solve
 
 
 @dataclass(frozen=True)
 class Geometry:
     """The numbers of a comb cell that enter the 2-D solves (m, F/m); substrate_gap inf: none."""
+
     width: float
     thickness: float
     pitch: float
@@ -66,8 +67,13 @@ class Geometry:
     def of(cls, cell) -> Geometry:
         """The geometry of any object with width, thickness, pitch, substrate_gap, eps."""
         sg = getattr(cell, "substrate_gap", None)
-        g = cls(float(cell.width), float(cell.thickness), float(cell.pitch),
-                math.inf if sg is None else float(sg), float(cell.eps))
+        g = cls(
+            float(cell.width),
+            float(cell.thickness),
+            float(cell.pitch),
+            math.inf if sg is None else float(sg),
+            float(cell.eps),
+        )
         if not (g.width > 0 and g.thickness > 0 and g.pitch > g.width and g.substrate_gap > 0 and g.eps > 0):
             raise ValueError(f"comb_section: need width, thickness, substrate_gap, eps > 0 and pitch > width, got {g}")
         return g
@@ -79,16 +85,25 @@ class Geometry:
 
     def key(self, kind: str) -> str:
         """The content hash naming a table of this geometry (kind, grid and settings included)."""
-        text = json.dumps({"kind": kind, "geometry": [self.width, self.thickness, self.pitch, self.substrate_gap,
-                           self.eps], "grid": GRID, "settings": SETTINGS, "version": VERSION,
-                           "ranges": [GAP_RANGE, OFFSET_RANGE, END_RANGE]}, sort_keys=True)
+        text = json.dumps(
+            {
+                "kind": kind,
+                "geometry": [self.width, self.thickness, self.pitch, self.substrate_gap, self.eps],
+                "grid": GRID,
+                "settings": SETTINGS,
+                "version": VERSION,
+                "ranges": [GAP_RANGE, OFFSET_RANGE, END_RANGE],
+            },
+            sort_keys=True,
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
 def cache_dir() -> Path:
     """Where the tables live: NETGEN_CACHE, else $XDG_CACHE_HOME/netgen (~/.cache/netgen), comb_sections/."""
     base = os.environ.get("NETGEN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen")
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen"
+    )
     return Path(base) / "comb_sections"
 
 
@@ -144,7 +159,7 @@ def grids(g: Geometry) -> tuple[Array, Array, Array]:
     if min(GRID.values()) < 4:
         raise ValueError(f"comb_section.GRID needs at least 4 points per axis, got {GRID}")
     gaps = g.gap * np.linspace(*GAP_RANGE, GRID["gaps"])
-    low = max(OFFSET_RANGE[0] * g.thickness, -0.8 * g.substrate_gap)    # the finger stays off the substrate
+    low = max(OFFSET_RANGE[0] * g.thickness, -0.8 * g.substrate_gap)  # the finger stays off the substrate
     offsets = offset_grid(low, OFFSET_RANGE[1] * g.thickness, GRID["offsets"])
     ends = g.gap * np.geomspace(*END_RANGE, GRID["ends"])
     return gaps, offsets, ends
@@ -176,8 +191,12 @@ def section_values(g: Geometry) -> dict[str, Array]:
 def end_values(g: Geometry) -> dict[str, Array]:
     """The tip C' per unit finger width on the (end gap, offset) grid."""
     _, offsets, ends = grids(g)
-    tip = np.array([[solve(end_problem(g, float(e), float(dz)), **SETTINGS).mutual("moving", "fixed")
-                     for dz in offsets] for e in ends])
+    tip = np.array(
+        [
+            [solve(end_problem(g, float(e), float(dz)), **SETTINGS).mutual("moving", "fixed") for dz in offsets]
+            for e in ends
+        ]
+    )
     return {"ends": ends, "offsets": offsets, "tip": tip}
 
 
@@ -207,6 +226,7 @@ class OutsideTable(ValueError):
 class Table:
     """A bicubic spline over (u, offset) of gap * C (`scaled`, for the side: smooth where C ~ 1/gap),
     C (the substrate) or, `log`, gap * C over u = log(end gap) (the tip)."""
+
     spline: RectBivariateSpline
     u: Array
     offsets: Array
@@ -220,14 +240,17 @@ class Table:
         u = np.log(gap) if self.log else gap
         lo, hi = self.u[0], self.u[-1]
         if np.any(~((u >= lo - 1e-12 * abs(lo)) & (u <= hi + 1e-12 * abs(hi)))) or np.any(
-                (offset < self.offsets[0] - 1e-15) | (offset > self.offsets[-1] + 1e-15)):
-            span = (np.exp([lo, hi]) if self.log else np.array([lo, hi]))
-            raise OutsideTable(f"comb_section: {self.what} asked outside its table: gap in [{span[0]:.4g}, "
-                             f"{span[1]:.4g}] m, offset in [{self.offsets[0]:.4g}, {self.offsets[-1]:.4g}] m")
+            (offset < self.offsets[0] - 1e-15) | (offset > self.offsets[-1] + 1e-15)
+        ):
+            span = np.exp([lo, hi]) if self.log else np.array([lo, hi])
+            raise OutsideTable(
+                f"comb_section: {self.what} asked outside its table: gap in [{span[0]:.4g}, "
+                f"{span[1]:.4g}] m, offset in [{self.offsets[0]:.4g}, {self.offsets[-1]:.4g}] m"
+            )
         v = self.spline.ev(u, offset, dx=dgap, dy=doff)
-        if self.log:                                  # spline of gap * C over log(gap)
+        if self.log:  # spline of gap * C over log(gap)
             return (v if not dgap else v - self.spline.ev(u, offset)) / gap ** (1 + dgap)
-        if self.scaled:                               # spline of gap * C over gap
+        if self.scaled:  # spline of gap * C over gap
             return (v if not dgap else v - self.spline.ev(u, offset) / gap) / gap
         return v
 
@@ -245,8 +268,14 @@ def table(cell, what: str) -> Table:
         gap = np.exp(u) if kind == "end" else v["gaps"]
         scaled = what != "substrate"
         z = v[what] * gap[:, None] if scaled else v[what]
-        _TABLES[g, what] = Table(RectBivariateSpline(u, v["offsets"], z, kx=3, ky=3), u, v["offsets"],
-                                 what, kind == "end", scaled and kind != "end")
+        _TABLES[g, what] = Table(
+            RectBivariateSpline(u, v["offsets"], z, kx=3, ky=3),
+            u,
+            v["offsets"],
+            what,
+            kind == "end",
+            scaled and kind != "end",
+        )
     return _TABLES[g, what]
 
 

@@ -13,8 +13,16 @@ from scipy.stats import qmc
 
 from ..structure.schema import DESIGNS, default_design, smolyak_count
 
-__all__ = ["DESIGNS", "default_design", "smolyak_count", "full_grid", "smolyak_points", "smolyak_quadrature",
-           "latin_hypercube", "sobol"]
+__all__ = [
+    "DESIGNS",
+    "default_design",
+    "smolyak_count",
+    "full_grid",
+    "smolyak_points",
+    "smolyak_quadrature",
+    "latin_hypercube",
+    "sobol",
+]
 
 
 def full_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
@@ -52,7 +60,7 @@ def cc_weights(i: int) -> np.ndarray:
     k = np.arange(m)
     even = k % 2 == 0
     moments = np.zeros(m)
-    moments[even] = 1.0 / (1.0 - k[even].astype(float) ** 2)         # mean of T_k over [-1, 1]
+    moments[even] = 1.0 / (1.0 - k[even].astype(float) ** 2)  # mean of T_k over [-1, 1]
     return np.linalg.solve(np.polynomial.chebyshev.chebvander(x, m - 1).T, moments)
 
 

@@ -18,8 +18,8 @@ before meshing, so any unit (m, um) gives the same C' in F/m.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,6 +39,7 @@ GROUND = "ground"
 @dataclass(frozen=True)
 class Conductor:
     """A named conductor made of one or more shapes (mesh2d.Rect, Disk, Strip)."""
+
     name: str
     shapes: tuple[Shape, ...]
 
@@ -51,6 +52,7 @@ class Problem:
     right (their conditions are then ignored). eps: permittivity in F/m. A conductor named
     "ground" is held at 0 V with the grounded sides and is not a row of the matrix.
     """
+
     conductors: tuple[Conductor, ...]
     box: tuple[float, float, float, float]
     sides: dict[str, str] = field(default_factory=lambda: dict.fromkeys(SIDES, "open"))
@@ -69,6 +71,7 @@ class Problem:
 @dataclass(frozen=True)
 class Level:
     """One mesh of a convergence run: its size and the matrix found on it."""
+
     elements: int
     dofs: int
     capacitance: Array
@@ -82,6 +85,7 @@ class Solution:
     change: the last level's largest relative entry change (the convergence measure);
     box_change: the relative change when the open box is doubled (None: not checked).
     """
+
     names: tuple[str, ...]
     capacitance: Array
     levels: list[Level]
@@ -89,7 +93,7 @@ class Solution:
     change: float
     settings: dict
     box_change: float | None = None
-    state: "Discrete | None" = None
+    state: Discrete | None = None
 
     def mutual(self, a: str, b: str) -> float:
         """The two-terminal capacitance between conductors a and b: -C_ab (F/m)."""
@@ -109,6 +113,7 @@ class Solution:
 @dataclass
 class Discrete:
     """The finest level's assembled system: reduced stiffness, solutions, dof positions, sets."""
+
     K: sp.csr_matrix
     U: Array
     x: Array
@@ -123,8 +128,9 @@ class Discrete:
         return float((r[d] * weight(self.x[d] * self.scale, self.y[d] * self.scale)).sum())
 
 
-def open_box(conductors: tuple[Conductor, ...], margin: float = 100.0,
-             ground_bottom: float | None = None) -> tuple[float, float, float, float]:
+def open_box(
+    conductors: tuple[Conductor, ...], margin: float = 100.0, ground_bottom: float | None = None
+) -> tuple[float, float, float, float]:
     """A box `margin` times the conductors' extent around them; with ground_bottom, the box's
     bottom is that y (a ground plane) and it extends margin * extent above the top."""
     pts = np.concatenate([mesh2d.boundary_samples(s, 8) for c in conductors for s in c.shapes])
@@ -137,10 +143,12 @@ def open_box(conductors: tuple[Conductor, ...], margin: float = 100.0,
 
 def scaled(problem: Problem, s: float) -> Problem:
     """The problem with every length divided by s (capacitances per length are unchanged)."""
+
     def shape(q: Shape) -> Shape:
         if isinstance(q, Disk):
             return Disk(q.cx / s, q.cy / s, q.r / s)
         return type(q)(q.x0 / s, q.y0 / s, q.x1 / s, q.y1 / s)
+
     conductors = tuple(Conductor(c.name, tuple(shape(q) for q in c.shapes)) for c in problem.conductors)
     return Problem(conductors, tuple(b / s for b in problem.box), problem.sides, problem.periodic, problem.eps)
 
@@ -193,7 +201,7 @@ def dof_sets(problem: Problem, basis: Basis, tol: float) -> tuple[list[Array], A
         facets = mesh.facets_satisfying(test)
         return np.unique(basis.get_dofs(facets=facets).all()) if facets.size else np.zeros(0, dtype=int)
 
-    ends = mesh.p[:, mesh.facets]                                  # (2, 2 ends, nfacets)
+    ends = mesh.p[:, mesh.facets]  # (2, 2 ends, nfacets)
     boundary = np.zeros(mesh.nfacets, dtype=bool)
     boundary[mesh.boundary_facets()] = True
     sets = {}
@@ -201,15 +209,19 @@ def dof_sets(problem: Problem, basis: Basis, tol: float) -> tuple[list[Array], A
         hit = np.zeros(mesh.nfacets, dtype=bool)
         mid = 0.5 * (ends[:, 0] + ends[:, 1])
         for q in c.shapes:
-            if isinstance(q, Disk):        # chords of the circle: both ends on it, on the mesh boundary
+            if isinstance(q, Disk):  # chords of the circle: both ends on it, on the mesh boundary
                 hit |= boundary & on_shape(q, ends[0, 0], ends[1, 0], tol) & on_shape(q, ends[0, 1], ends[1, 1], tol)
             else:
                 hit |= on_shape(q, mid[0], mid[1], tol)
         f = np.flatnonzero(hit)
         sets[c.name] = np.unique(basis.get_dofs(facets=f).all()) if f.size else np.zeros(0, dtype=int)
     x0, y0, x1, y1 = problem.box
-    where = {"bottom": lambda x: np.abs(x[1] - y0) < tol, "top": lambda x: np.abs(x[1] - y1) < tol,
-             "left": lambda x: np.abs(x[0] - x0) < tol, "right": lambda x: np.abs(x[0] - x1) < tol}
+    where = {
+        "bottom": lambda x: np.abs(x[1] - y0) < tol,
+        "top": lambda x: np.abs(x[1] - y1) < tol,
+        "left": lambda x: np.abs(x[0] - x0) < tol,
+        "right": lambda x: np.abs(x[0] - x1) < tol,
+    }
     ground = [sets.pop(GROUND, np.zeros(0, dtype=int))]
     for side, kind in problem.sides.items():
         if kind == "ground" and not (problem.periodic and side in ("left", "right")):
@@ -267,7 +279,10 @@ def doubled_box(problem: Problem) -> Problem:
     pts = np.concatenate([mesh2d.boundary_samples(q, 8) for q in problem.shapes()])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     x0, y0, x1, y1 = problem.box
-    grow = lambda side, v, edge: v + (v - edge) if problem.sides.get(side) == "open" else v
+
+    def grow(side: str, v: float, edge: float) -> float:
+        return v + (v - edge) if problem.sides.get(side) == "open" else v
+
     if problem.periodic:
         box = (x0, y0, x1, grow("top", y1, hi[1]))
         box = (x0, grow("bottom", y0, lo[1]), x1, box[3])
@@ -276,8 +291,15 @@ def doubled_box(problem: Problem) -> Problem:
     return Problem(problem.conductors, box, problem.sides, problem.periodic, problem.eps)
 
 
-def solve(problem: Problem, tol: float = 1e-3, order: int = 2, max_levels: int = 4, mesh_scale: float = 1.0,
-          grade: float = 0.25, check_box: bool = False) -> Solution:
+def solve(
+    problem: Problem,
+    tol: float = 1e-3,
+    order: int = 2,
+    max_levels: int = 4,
+    mesh_scale: float = 1.0,
+    grade: float = 0.25,
+    check_box: bool = False,
+) -> Solution:
     """The Maxwell matrix of `problem`: meshes of scale mesh_scale * 2^-k (mesh2d.sizing: the
     corner size shrinks 8x, the edge size 2x per level) until the largest relative entry change
     is below tol (at most max_levels meshes); check_box also solves the first level in the
@@ -287,7 +309,7 @@ def solve(problem: Problem, tol: float = 1e-3, order: int = 2, max_levels: int =
     levels: list[Level] = []
     prev, change, state = None, math.inf, None
     for k in range(max_levels):
-        mesh = initial_mesh(p, mesh_scale * 0.5 ** k, grade)
+        mesh = initial_mesh(p, mesh_scale * 0.5**k, grade)
         C, state = discrete_solve(p, mesh, order, L)
         levels.append(Level(int(mesh.nelements), int(state.K.shape[0]), C))
         if prev is not None:
@@ -300,6 +322,15 @@ def solve(problem: Problem, tol: float = 1e-3, order: int = 2, max_levels: int =
         big = scaled(doubled_box(problem), L)
         Cb, _ = discrete_solve(big, initial_mesh(big, mesh_scale, grade), order, L)
         box_change = relative_change(Cb, levels[0].capacitance)
-    settings = {"order": order, "tol": tol, "max_levels": max_levels, "mesh_scale": mesh_scale, "grade": grade,
-                "reference_length": L, "box": problem.box, "periodic": problem.periodic, "sides": dict(problem.sides)}
+    settings = {
+        "order": order,
+        "tol": tol,
+        "max_levels": max_levels,
+        "mesh_scale": mesh_scale,
+        "grade": grade,
+        "reference_length": L,
+        "box": problem.box,
+        "periodic": problem.periodic,
+        "sides": dict(problem.sides),
+    }
     return Solution(problem.names(), levels[-1].capacitance, levels, change < tol, change, settings, box_change, state)

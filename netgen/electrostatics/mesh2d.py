@@ -24,6 +24,7 @@ Array = np.ndarray
 @dataclass(frozen=True)
 class Rect:
     """A solid rectangular conductor [x0, x1] x [y0, y1] (a hole in the mesh)."""
+
     x0: float
     y0: float
     x1: float
@@ -50,6 +51,7 @@ class Rect:
 @dataclass(frozen=True)
 class Disk:
     """A solid round conductor of radius r centred at (cx, cy)."""
+
     cx: float
     cy: float
     r: float
@@ -64,7 +66,7 @@ class Disk:
 
     def inside(self, x: Array, y: Array) -> Array:
         """True strictly inside."""
-        return (x - self.cx) ** 2 + (y - self.cy) ** 2 < self.r ** 2
+        return (x - self.cx) ** 2 + (y - self.cy) ** 2 < self.r**2
 
     def size(self) -> float:
         """The radius."""
@@ -74,6 +76,7 @@ class Disk:
 @dataclass(frozen=True)
 class Strip:
     """A zero-thickness conductor along the segment (x0, y0)-(x1, y1) (both faces in the domain)."""
+
     x0: float
     y0: float
     x1: float
@@ -104,14 +107,15 @@ Shape = Rect | Disk | Strip
 class Sizing:
     """Mesh size h(p) = min(h_max, min_f (h_f + grade * dist(p, f))): h_corner at corners and
     strip ends, h_edge along edges and circles, growing by `grade` per unit distance."""
+
     h_corner: float
     h_edge: float
     grade: float
     h_max: float
-    corners: Array            # (nc, 2)
-    seg_a: Array              # (ns, 2) starts of straight edges
-    seg_b: Array              # (ns, 2) ends
-    circles: Array            # (nd, 3) cx, cy, r
+    corners: Array  # (nc, 2)
+    seg_a: Array  # (ns, 2) starts of straight edges
+    seg_b: Array  # (ns, 2) ends
+    circles: Array  # (nd, 3) cx, cy, r
 
     def __call__(self, p: Array) -> Array:
         """h at the points p (n, 2)."""
@@ -130,14 +134,15 @@ class Sizing:
 def segment_distance(p: Array, a: Array, b: Array) -> Array:
     """Distance of each point p (n, 2) to the nearest of the segments a-b (m, 2): (n,)."""
     ab = b - a
-    L2 = np.maximum((ab ** 2).sum(-1), 1e-300)
+    L2 = np.maximum((ab**2).sum(-1), 1e-300)
     s = np.clip(((p[:, None, :] - a[None]) * ab[None]).sum(-1) / L2, 0.0, 1.0)
     q = a[None] + s[..., None] * ab[None]
     return np.sqrt(((p[:, None, :] - q) ** 2).sum(-1)).min(axis=1)
 
 
-def sizing(shapes: tuple[Shape, ...], box: tuple[float, float, float, float], scale: float = 1.0,
-           grade: float = 0.25) -> Sizing:
+def sizing(
+    shapes: tuple[Shape, ...], box: tuple[float, float, float, float], scale: float = 1.0, grade: float = 0.25
+) -> Sizing:
     """The sizing of a level `scale` (1, 1/2, 1/4, ...): h_corner = scale^3 L/100 (the corner and
     strip-end singularities need the geometric grading to reach far down), h_edge = scale L/6,
     grade * sqrt(scale), where L is the smallest conductor size or conductor-to-conductor gap;
@@ -147,10 +152,16 @@ def sizing(shapes: tuple[Shape, ...], box: tuple[float, float, float, float], sc
     segs = [seg for s in shapes for seg in s.segments()]
     circles = [(s.cx, s.cy, s.r) for s in shapes if isinstance(s, Disk)]
     x0, y0, x1, y1 = box
-    return Sizing(scale ** 3 * L / 100.0, scale * L / 6.0, grade * math.sqrt(scale), max(x1 - x0, y1 - y0) / 10.0,
-                  np.concatenate(corners) if corners else np.zeros((0, 2)),
-                  np.array([a for a, _ in segs]).reshape(-1, 2), np.array([b for _, b in segs]).reshape(-1, 2),
-                  np.array(circles).reshape(-1, 3))
+    return Sizing(
+        scale**3 * L / 100.0,
+        scale * L / 6.0,
+        grade * math.sqrt(scale),
+        max(x1 - x0, y1 - y0) / 10.0,
+        np.concatenate(corners) if corners else np.zeros((0, 2)),
+        np.array([a for a, _ in segs]).reshape(-1, 2),
+        np.array([b for _, b in segs]).reshape(-1, 2),
+        np.array(circles).reshape(-1, 3),
+    )
 
 
 def min_gap(shapes: tuple[Shape, ...]) -> float:
@@ -225,12 +236,14 @@ def quadtree_points(box: tuple[float, float, float, float], h: Sizing) -> Array:
 @dataclass(frozen=True)
 class MeshData:
     """A triangulation: points (n, 2), triangles (m, 3) counter-clockwise."""
+
     p: Array
     t: Array
 
 
-def build(shapes: tuple[Shape, ...], box: tuple[float, float, float, float], h: Sizing,
-          periodic: bool = False) -> MeshData:
+def build(
+    shapes: tuple[Shape, ...], box: tuple[float, float, float, float], h: Sizing, periodic: bool = False
+) -> MeshData:
     """The graded conforming triangulation of the box minus the conductors (see the module docstring)."""
     x0, y0, x1, y1 = box
     tol = 1e-9 * max(x1 - x0, y1 - y0)
@@ -280,8 +293,9 @@ def unique(p: Array, tol: float) -> Array:
     return p[np.sort(first)]
 
 
-def boundary_segments(shapes: tuple[Shape, ...], box: tuple[float, float, float, float], h: Sizing,
-                      periodic: bool) -> list[list[Array]]:
+def boundary_segments(
+    shapes: tuple[Shape, ...], box: tuple[float, float, float, float], h: Sizing, periodic: bool
+) -> list[list[Array]]:
     """Chains of boundary points (each a list of point arrays along one edge or circle, closed
     circles repeat their first point): conductor edges, strips and the four box sides."""
     x0, y0, x1, y1 = box
@@ -331,8 +345,9 @@ def missing_segments(t: Array, pts: Array, chains: list[list[Array]], tol: float
     return out
 
 
-def recover(pts: Array, chains: list[list[Array]], missing: list[tuple[int, int]], shapes: tuple[Shape, ...],
-            tol: float) -> Array:
+def recover(
+    pts: Array, chains: list[list[Array]], missing: list[tuple[int, int]], shapes: tuple[Shape, ...], tol: float
+) -> Array:
     """Split the missing boundary segments at their midpoints (on the arc for circles) and drop
     the free points inside their diametral circles; returns the new point set (chains updated)."""
     by_chain: dict[int, list[int]] = {}

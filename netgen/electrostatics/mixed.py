@@ -7,8 +7,8 @@ calibrated plate extractor keeps its calibration beside the combs."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -56,13 +56,17 @@ class PreparedMixed:
 
     def probe_points(self) -> ProbePoints:
         pts = [(idx, p.probe_points()) for idx, p in self.parts]
-        return ProbePoints(np.concatenate([p.gap for _, p in pts]), np.concatenate([p.phi for _, p in pts]),
-                           np.concatenate([np.asarray(idx)[p.electrode] for idx, p in pts]).astype(int))
+        return ProbePoints(
+            np.concatenate([p.gap for _, p in pts]),
+            np.concatenate([p.phi for _, p in pts]),
+            np.concatenate([np.asarray(idx)[p.electrode] for idx, p in pts]).astype(int),
+        )
 
 
 @dataclass(frozen=True)
 class MixedExtractor:
     """A plate extractor and the comb extractor side by side."""
+
     plates: CapacitanceExtractor
     combs: CombExtractor
 
@@ -82,8 +86,11 @@ class MixedExtractor:
         AttributeError, so hasattr(pair, hook) says whether a part has it."""
         if name not in OPTIONAL:
             raise AttributeError(name)
-        owners = [getattr(p, name) for p in (self.__dict__.get("plates"), self.__dict__.get("combs"))
-                  if p is not None and hasattr(p, name)]
+        owners = [
+            getattr(p, name)
+            for p in (self.__dict__.get("plates"), self.__dict__.get("combs"))
+            if p is not None and hasattr(p, name)
+        ]
         if not owners:
             raise AttributeError(name)
         return owners[0] if len(owners) == 1 or name != "calibration" else (lambda: merged([f() for f in owners]))

@@ -18,8 +18,9 @@ The Gauss rules come from netgen.geometry.shapes.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar, Iterator, Sequence
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -121,7 +122,7 @@ class _PointSet:
         stops = np.cumsum([0] + sizes)
         W = np.zeros((int(stops[-1]), len(sizes)))
         for i, w in enumerate(weights):
-            W[stops[i]:stops[i + 1], i] = w
+            W[stops[i] : stops[i + 1], i] = w
         phi = np.concatenate(phis) if phis else np.zeros((0, ncoords))
         gap = np.repeat(np.asarray(gaps, dtype=float), sizes)
         return cls(gap, phi.reshape(-1, ncoords), W, tuple(slice(a, b) for a, b in zip(stops[:-1], stops[1:])))
@@ -156,8 +157,16 @@ class PreparedParallelPlate:
     node) give nan for that electrode; check min_gap() to keep samples in range.
     """
 
-    def __init__(self, electrodes: Sequence[Electrode], area: _PointSet, edge: _PointSet, probe: _PointSet,
-                 eps: float, fringe: EdgeFringe | PointFringe | None, chunk_elements: int) -> None:
+    def __init__(
+        self,
+        electrodes: Sequence[Electrode],
+        area: _PointSet,
+        edge: _PointSet,
+        probe: _PointSet,
+        eps: float,
+        fringe: EdgeFringe | PointFringe | None,
+        chunk_elements: int,
+    ) -> None:
         """Store the precomputed point sets; use ParallelPlateExtractor.prepare to build one."""
         self.electrodes = tuple(electrodes)
         self.area, self.edge, self.probe = area, edge, probe
@@ -169,7 +178,7 @@ class PreparedParallelPlate:
     def _blocks(self, q: Array) -> Iterator[tuple[slice, Array, Array, Array, Array | None]]:
         """Yield (sample slice, q chunk, area gaps, edge gaps, touching mask or None) per chunk."""
         for s in range(0, q.shape[0], self.chunk):
-            qc = q[s:s + self.chunk]
+            qc = q[s : s + self.chunk]
             ga, ge = self.area.gaps(qc), self.edge.gaps(qc)
             touch = None
             if (ga.size and ga.min() <= 0.0) or (ge.size and ge.min() <= 0.0):
@@ -222,13 +231,14 @@ class PreparedParallelPlate:
         q, single = _as_samples(Q, self.ncoords)
         out = np.empty((q.shape[0], len(self.electrodes)))
         for s in range(0, q.shape[0], self.chunk):
-            out[s:s + self.chunk] = self.probe.per_electrode_min(self.probe.gaps(q[s:s + self.chunk]))
+            out[s : s + self.chunk] = self.probe.per_electrode_min(self.probe.gaps(q[s : s + self.chunk]))
         return out[0] if single else out
 
     def probe_points(self) -> ProbePoints:
         """The points min_gap() watches: quadrature nodes, edge points and boundary vertices."""
-        owner = np.concatenate([np.full(sl.stop - sl.start, i) for i, sl in enumerate(self.probe.slices)]
-                               or [np.zeros(0, dtype=int)]).astype(int)
+        owner = np.concatenate(
+            [np.full(sl.stop - sl.start, i) for i, sl in enumerate(self.probe.slices)] or [np.zeros(0, dtype=int)]
+        ).astype(int)
         return ProbePoints(self.probe.gap, self.probe.phi, owner)
 
 
@@ -277,7 +287,7 @@ class ParallelPlateExtractor:
         for g in groups:
             blocks = []
             for e, pts in zip(electrodes, g):
-                blocks.append(e.sign * phi[k:k + pts[0].size])
+                blocks.append(e.sign * phi[k : k + pts[0].size])
                 k += pts[0].size
             weights = [p[2] if len(p) == 3 else np.zeros(p[0].size) for p in g]
             sets.append(_PointSet.build(gaps, blocks, weights, nc))
@@ -295,8 +305,9 @@ class ParallelPlateExtractor:
         sizes = [pts[0].size for pts in edge]
         if len(sizes) != len(fringes):
             raise ValueError(f"{len(fringes)} per-electrode fringes for {len(sizes)} electrodes")
-        return PointFringe(np.repeat([f.a for f in fringes], sizes), np.repeat([f.b for f in fringes], sizes),
-                           lengths.pop())
+        return PointFringe(
+            np.repeat([f.a for f in fringes], sizes), np.repeat([f.b for f in fringes], sizes), lengths.pop()
+        )
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """Electrode-to-electrode capacitances (nel, nel) in F: coupling_per_length x shared slot edge.
@@ -332,5 +343,6 @@ def from_structure(s, plate: Plate) -> ParallelPlateExtractor:
         fringe = EdgeFringe.palmer(plate.width)
     else:
         fringe = EdgeFringe(o.fringe_a, o.fringe_b, plate.size)
-    return ParallelPlateExtractor(eps=EPS0 * o.relative_permittivity, fringe=fringe,
-                                  coupling_per_length=o.coupling_per_length)
+    return ParallelPlateExtractor(
+        eps=EPS0 * o.relative_permittivity, fringe=fringe, coupling_per_length=o.coupling_per_length
+    )

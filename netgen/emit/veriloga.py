@@ -17,13 +17,27 @@ from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
 from ..templating import render
-from .common import (clamp_expr, contact_terms, dv2_node, force_gain, header_context, node, noise_enabled,
-                     nonlinear_forces, num, poly_expr, slope_expr, time_scale, y_node)
+from .common import (
+    clamp_expr,
+    contact_terms,
+    dv2_node,
+    force_gain,
+    header_context,
+    node,
+    noise_enabled,
+    nonlinear_forces,
+    num,
+    poly_expr,
+    slope_expr,
+    time_scale,
+    y_node,
+)
 
 TEMPLATE = "veriloga/module.va.j2"
-VA = "V({})"                      # node voltage access in Verilog-A
+VA = "V({})"  # node voltage access in Verilog-A
 IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-KEYWORDS = frozenset("""
+KEYWORDS = frozenset(
+    """
     above abs absdelay absdelta abstol access acos acosh ac_stim aliasparam always analog analysis and
     asin asinh assert assign atan atan2 atanh automatic begin branch buf bufif0 bufif1 case casex casez
     ceil cell cmos config connect connectmodule connectrules continuous cos cosh cross ddt ddt_nature ddx
@@ -41,7 +55,8 @@ KEYWORDS = frozenset("""
     tranif0 tranif1 transition tri tri0 tri1 triand trior trireg unsigned use uwire vectored wait wand
     weak0 weak1 while white_noise wire wor wreal xnor xor zi_nd zi_np zi_zd zi_zp
     electrical voltage current V I
-    """.split())
+    """.split()
+)
 
 
 def _sum(terms: list[str]) -> str:
@@ -76,8 +91,11 @@ def charge(f: CapacitanceFit, plate: str, state: list[str]) -> str:
     """Charge of one plate-electrode capacitor, C(q) * (V_e - V_plate), in C (c_ref folded into the
     polynomial where openvaf-r would miscompile c_ref * P, `misfolds`)."""
     if f.target == "direct":
-        cap = (times(f.c_ref, f.polys[0], state) if misfolds(f.c_ref, f.polys[0])
-               else f"{num(f.c_ref)} * {node(f.electrode, 0)}")
+        cap = (
+            times(f.c_ref, f.polys[0], state)
+            if misfolds(f.c_ref, f.polys[0])
+            else f"{num(f.c_ref)} * {node(f.electrode, 0)}"
+        )
     else:
         cap = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(f.electrode, k)}" for k in range(len(f.polys))) + ")"
     return f"{cap} * V({f.electrode}, {plate})"
@@ -95,7 +113,7 @@ def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
                 continue
             if f.target == "direct":
                 terms.append(f"{times(g, dpoly, state)} * {dv2_node(f.electrode)}")
-            elif dpoly.exponents.sum() == 0:                      # affine P_k: constant slope
+            elif dpoly.exponents.sum() == 0:  # affine P_k: constant slope
                 terms.append(f"{num(-g * float(dpoly.coeffs.sum()))} * {y_node(f.electrode, k)}")
             else:
                 terms.append(f"{times(-g, dpoly, state)} * {y_node(f.electrode, k)}")
@@ -129,12 +147,23 @@ def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list
     for v, (row, c) in enumerate(zip(rows, model.coordinates)):
         row["fcon"] = f"fcon_{c.name}" if has_contact else ""
         row["fcon_sum"] = _sum([f"{num(g)} * {n}" for n, g in per_coord[v]])
-        row.update({"f": f"f_{c.name}", "x": f"x_{c.name}", "xs": f"xs_{c.name}", "u": f"u_{c.name}",
-                    "d": f"d_{c.name}", "fel": f"fel_{c.name}", "damping": num(c.damping),
-                    "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
-                    "force_sum": force_sum(model, v, state), "rhs": _rhs(c, ws),
-                    "fn": f"fn_{c.name}", "fn_expr": _force_node(c, has_contact),
-                    "out_gain": num(c.scale / c.port_units[1])})
+        row.update(
+            {
+                "f": f"f_{c.name}",
+                "x": f"x_{c.name}",
+                "xs": f"xs_{c.name}",
+                "u": f"u_{c.name}",
+                "d": f"d_{c.name}",
+                "fel": f"fel_{c.name}",
+                "damping": num(c.damping),
+                "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
+                "force_sum": force_sum(model, v, state),
+                "rhs": _rhs(c, ws),
+                "fn": f"fn_{c.name}",
+                "fn_expr": _force_node(c, has_contact),
+                "out_gain": num(c.scale / c.port_units[1]),
+            }
+        )
 
 
 def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
@@ -143,16 +172,32 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
     for i, (row, f) in enumerate(zip(rows, model.capacitances)):
         dv2 = dv2_node(f.electrode)
         cl = clamps[i] if clamps else [None] * len(f.polys)
-        row.update({
-            "polys": [{"name": node(f.electrode, k),
-                       "expr": clamp_va(poly_expr(p, state, access=VA), *cl[k]) if cl[k] else poly_expr(p, state, access=VA)}
-                      for k, p in enumerate(f.polys)],
-            "dv2": dv2, "charge": charge(f, model.plate, state),
-            "ys": [] if f.target == "direct" else
-            [{"name": y_node(f.electrode, k), "expr": f"{dv2}"
-              + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
-              + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})"}
-             for k in range(len(f.polys))]})
+        row.update(
+            {
+                "polys": [
+                    {
+                        "name": node(f.electrode, k),
+                        "expr": clamp_va(poly_expr(p, state, access=VA), *cl[k])
+                        if cl[k]
+                        else poly_expr(p, state, access=VA),
+                    }
+                    for k, p in enumerate(f.polys)
+                ],
+                "dv2": dv2,
+                "charge": charge(f, model.plate, state),
+                "ys": []
+                if f.target == "direct"
+                else [
+                    {
+                        "name": y_node(f.electrode, k),
+                        "expr": f"{dv2}"
+                        + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
+                        + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})",
+                    }
+                    for k in range(len(f.polys))
+                ],
+            }
+        )
 
 
 def clamp_va(expr: str, knee: float, floor: float) -> str:
@@ -165,8 +210,10 @@ def check_identifiers(names: list[str]) -> None:
     """Every port, state and variable name must be a distinct, legal Verilog-A identifier."""
     bad = [n for n in names if not IDENT.match(n) or n in KEYWORDS]
     if bad:
-        raise ValueError(f"names not usable as Verilog-A identifiers: {', '.join(sorted(set(bad)))}; "
-                         "rename the electrodes/coordinates (letters, digits, '_'; no keywords)")
+        raise ValueError(
+            f"names not usable as Verilog-A identifiers: {', '.join(sorted(set(bad)))}; "
+            "rename the electrodes/coordinates (letters, digits, '_'; no keywords)"
+        )
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ValueError(f"Verilog-A names clash: {', '.join(dup)}; rename the electrodes/coordinates")
@@ -189,7 +236,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     ctx["film"] = film_rows(model, ws)
     ctx["accel_port"] = "a_in" if model.acceleration else ""
     for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
-        if g != 0.0:                                    # inertial load -G a_in (netgen.mechanics.participation)
+        if g != 0.0:  # inertial load -G a_in (netgen.mechanics.participation)
             row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
@@ -197,21 +244,39 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     y_vars = [y["name"] for f in ctx["fits"] for y in f["ys"]]
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
-    check_identifiers([model.name] + [p["name"] for p in ctx["ports"]] + states + p_vars + dv2_vars + y_vars
-                      + [c[k] for c in ctx["coords"] for k in ("d", "fel", "fn")] + ["fel_scale"] + stop_vars
-                      + [n["var"] for n in ctx["nonlinear"]])
+    check_identifiers(
+        [model.name]
+        + [p["name"] for p in ctx["ports"]]
+        + states
+        + p_vars
+        + dv2_vars
+        + y_vars
+        + [c[k] for c in ctx["coords"] for k in ("d", "fel", "fn")]
+        + ["fel_scale"]
+        + stop_vars
+        + [n["var"] for n in ctx["nonlinear"]]
+    )
     if noise_enabled(model, noise):
         noise_rows(model, ctx["coords"], ws)
         ctx["noise"] = True
     return render_module(ctx, states, p_vars, dv2_vars, y_vars, ws)
 
 
-def render_module(ctx: dict, states: list[str], p_vars: list[str],
-                  dv2_vars: list[str], y_vars: list[str], ws: float) -> str:
+def render_module(
+    ctx: dict, states: list[str], p_vars: list[str], dv2_vars: list[str], y_vars: list[str], ws: float
+) -> str:
     """Render the template with the prepared rows."""
     terminals = [p["name"] for p in ctx["ports"] if p["kind"] in ("electrode", "conductor")]
-    return render(TEMPLATE, terminals=terminals, states=states,
-                  p_vars=p_vars, dv2_vars=dv2_vars, y_vars=y_vars, cint=num(1.0 / ws), **ctx)
+    return render(
+        TEMPLATE,
+        terminals=terminals,
+        states=states,
+        p_vars=p_vars,
+        dv2_vars=dv2_vars,
+        y_vars=y_vars,
+        cint=num(1.0 / ws),
+        **ctx,
+    )
 
 
 def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) -> None:
@@ -233,8 +298,16 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
     rows = []
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
-            rows.append({"coord": c.name, "u": f"u_{c.name}", "node": f"w_{c.name}_{j + 1}",
-                         "g_in": num(corner / ws), "g_force": num(r / (c.mass * ws)),
-                         "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
-                         "corner_hz": f"{corner / (2 * math.pi):.6g}", "damping": f"{r:.6g}"})
+            rows.append(
+                {
+                    "coord": c.name,
+                    "u": f"u_{c.name}",
+                    "node": f"w_{c.name}_{j + 1}",
+                    "g_in": num(corner / ws),
+                    "g_force": num(r / (c.mass * ws)),
+                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                    "corner_hz": f"{corner / (2 * math.pi):.6g}",
+                    "damping": f"{r:.6g}",
+                }
+            )
     return rows

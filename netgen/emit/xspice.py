@@ -27,8 +27,14 @@ def vector(values) -> str:
 def refusal(model: MacroModel) -> str | None:
     """Why the model has no xspice form, or None: the code model takes 1/P plate fits only."""
     direct = [f.electrode for f in model.capacitances if f.target == "direct"]
-    return (f"electrode {direct[0]} has a 'direct' capacitance fit and the xspice emission needs 1/P fits "
-            "(fit target 'plates')") if direct else None
+    return (
+        (
+            f"electrode {direct[0]} has a 'direct' capacitance fit and the xspice emission needs 1/P fits "
+            "(fit target 'plates')"
+        )
+        if direct
+        else None
+    )
 
 
 def fit_rows(model: MacroModel, f) -> dict:
@@ -36,8 +42,11 @@ def fit_rows(model: MacroModel, f) -> dict:
     1 ohm), C_i(0) as a linear capacitor, the rest of the charge on the node qn_i (charge_node)."""
     c0 = rest_capacitance(f, model.ncoords)
     cs = c_node(f.electrode)
-    return {"sums": [f"R{cs} {cs} 0 1"], "c0": num(f.c_ref * c0),
-            "charge": ngspice.charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref)}
+    return {
+        "sums": [f"R{cs} {cs} 0 1"],
+        "c0": num(f.c_ref * c0),
+        "charge": ngspice.charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref),
+    }
 
 
 def code_model_context(model: MacroModel, ws: float) -> dict:
@@ -63,7 +72,7 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     gains = [force_gain(c, ws) for c in model.coordinates]
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
     stops = stop_constants(model)
-    nstop = len(stops["a"]) if stops else 1             # the model card needs the vectors even without stops
+    nstop = len(stops["a"]) if stops else 1  # the model card needs the vectors even without stops
     sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
@@ -75,10 +84,14 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     us = " ".join(f"u_{c.name}" for c in model.coordinates)
     ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
     cs = " ".join(c_node(f.electrode) for f in model.capacitances)
-    return {"name": f"{model.name}_es", "c_instance": f"[{xs}] NULL NULL NULL [{cs}]",
-            "f_instance": f"[{xs}] [{ve}] [{us}] [{us}] NULL",
-            "params": [(k, vector(v)) for k, v in p.items()] + [("stop_delta", num(delta)), ("stop_damp", num(damp))],
-            "terms": len(p["knee"]), "stops": len(stops["a"]) if stops else 0}
+    return {
+        "name": f"{model.name}_es",
+        "c_instance": f"[{xs}] NULL NULL NULL [{cs}]",
+        "f_instance": f"[{xs}] [{ve}] [{us}] [{us}] NULL",
+        "params": [(k, vector(v)) for k, v in p.items()] + [("stop_delta", num(delta)), ("stop_damp", num(damp))],
+        "terms": len(p["knee"]),
+        "stops": len(stops["a"]) if stops else 0,
+    }
 
 
 def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
@@ -89,10 +102,10 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
     ctx = ngspice.mechanics_context(model, noise)
     ws = time_scale(model)
-    for v, row in enumerate(ctx["coords"]):     # every mechanical term is linear here: VCCS, no parse trees
+    for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees
         row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})
     for row, f in zip(ctx["fits"], model.capacitances):
         row.update(fit_rows(model, f))
-    ctx["xspice"] = code_model_context(model, ws)   # the stops are evaluated inside the code model
+    ctx["xspice"] = code_model_context(model, ws)  # the stops are evaluated inside the code model
     ngspice.add_stops(ctx, model, [], [[] for _ in model.coordinates])
     return render(ngspice.TEMPLATE, **ctx)

@@ -12,8 +12,8 @@ only stops when that pool meets the bound too (else the fresh pool joins the pro
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -21,22 +21,30 @@ from ..electrostatics import designs
 from ..electrostatics.sampling import Samples
 from ..geometry.shapes import Electrode
 from ..structure import Structure
-from .capacitance import PATCH_GRIDS, CapacitanceFit, check_determined, fit_electrode, refuse_unphysical, rest_of, with_errors
+from .capacitance import (
+    PATCH_GRIDS,
+    CapacitanceFit,
+    check_determined,
+    fit_electrode,
+    refuse_unphysical,
+    rest_of,
+    with_errors,
+)
 
-
-STALL = 4            # rounds without progress before the design stops short of its budget
-OVERSAMPLE = 2.0     # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
-SAFETY = 0.5         # stop when every probe error is below half fit.tolerance: a max over a few hundred
-                     # random points is itself uncertain, and the held-out points are other points
-VALIDATIONS = 4      # fresh pools the design may draw to confirm a stop (each failed one joins the probes)
+STALL = 4  # rounds without progress before the design stops short of its budget
+OVERSAMPLE = 2.0  # at least two samples per fitted coefficient: fewer would let a plate sum interpolate
+SAFETY = 0.5  # stop when every probe error is below half fit.tolerance: a max over a few hundred
+# random points is itself uncertain, and the held-out points are other points
+VALIDATIONS = 4  # fresh pools the design may draw to confirm a stop (each failed one joins the probes)
 
 
 @dataclass
 class AdaptiveResult:
     """The grown training set, the final fits and the history of each round."""
+
     samples: Samples
     fits: list[CapacitanceFit]
-    probes: int                                  # extractor calls spent on probe points
+    probes: int  # extractor calls spent on probe points
     rounds: list[dict] = field(default_factory=list)
     converged: bool = False
 
@@ -50,21 +58,28 @@ class ProbeStream:
         self.next = 0
 
     def take(self, k: int) -> np.ndarray:
-        out = self.points[self.next:self.next + k]
+        out = self.points[self.next : self.next + k]
         self.next += len(out)
         return out
 
 
-def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, start: Samples,
-                  evaluate: Callable[[np.ndarray], Samples], holdout: Samples,
-                  progress: bool = False) -> AdaptiveResult:
+def adaptive_fits(
+    s: Structure,
+    shapes: list[Electrode],
+    basis,
+    scales: np.ndarray,
+    start: Samples,
+    evaluate: Callable[[np.ndarray], Samples],
+    holdout: Samples,
+    progress: bool = False,
+) -> AdaptiveResult:
     """Grow `start` by the probe points of largest relative error (over all electrodes, in units
     of fit.tolerance) until every probe error is below SAFETY x fit.tolerance or len(train) reaches
     [sampling] points. Each electrode keeps the fit of the last round that refitted it (errors on
     the held-out points at the end). `evaluate(x)` samples the extractor at scaled points x."""
     n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
     check_determined(s, start.x)
-    batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))   # probes: twice the held-out points
+    batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))  # probes: twice the held-out points
     stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))
     spent, validations, since = len(probes.points), 0, 0
@@ -73,12 +88,16 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
     while True:
         err = errors(fits, probes)
         worst = err.max(axis=0)
-        result.rounds.append({"samples": len(train.x), "probe_max_rel_error": float(worst.max()),
-                              "failing": int(np.sum(worst > tol))})
-        say(progress, f"adaptive: {len(train.x)} samples, probe max error {worst.max():.2e} "
-                      f"({int(np.sum(worst > tol))} electrode(s) above {tol:g})")
+        result.rounds.append(
+            {"samples": len(train.x), "probe_max_rel_error": float(worst.max()), "failing": int(np.sum(worst > tol))}
+        )
+        say(
+            progress,
+            f"adaptive: {len(train.x)} samples, probe max error {worst.max():.2e} "
+            f"({int(np.sum(worst > tol))} electrode(s) above {tol:g})",
+        )
         if worst.max() <= SAFETY * tol and validations < VALIDATIONS and len(stream.points) - stream.next >= pool_size:
-            fresh = evaluate(stream.take(pool_size))            # points no patch or point choice has seen
+            fresh = evaluate(stream.take(pool_size))  # points no patch or point choice has seen
             spent, validations = spent + len(fresh.points), validations + 1
             fresh_worst = errors(fits, fresh).max(axis=0)
             result.rounds[-1]["validation_max_rel_error"] = float(fresh_worst.max())
@@ -86,13 +105,17 @@ def adaptive_fits(s: Structure, shapes: list[Electrode], basis, scales: np.ndarr
             probes = probes + Samples(fresh.x, fresh.c, 0, fresh.x)
             if fresh_worst.max() > SAFETY * tol:
                 err, worst = errors(fits, probes), np.maximum(worst, fresh_worst)
-                since = len(result.rounds)               # progress is judged on the larger pool from here
+                since = len(result.rounds)  # progress is judged on the larger pool from here
             else:
                 result.converged = True
                 break
-        if worst.max() <= SAFETY * tol or len(train.points) >= budget or stream.next >= len(stream.points) \
-                or (stalled(result.rounds[since:]) and form_limited(s, worst, used)):
-            result.converged = bool(worst.max() <= SAFETY * tol) and not validations    # unconfirmed else
+        if (
+            worst.max() <= SAFETY * tol
+            or len(train.points) >= budget
+            or stream.next >= len(stream.points)
+            or (stalled(result.rounds[since:]) and form_limited(s, worst, used))
+        ):
+            result.converged = bool(worst.max() <= SAFETY * tol) and not validations  # unconfirmed else
             break
         score = (err / (SAFETY * tol)).max(axis=1)
         pick = np.argsort(-score, kind="stable")[: min(batch, budget - len(train.points))]
@@ -131,15 +154,35 @@ def stalled(rounds: list[dict]) -> bool:
     return min(r["probe_max_rel_error"] for r in rounds[-STALL:]) > 0.9 * best_before
 
 
-def fit_round(s: Structure, shapes: list[Electrode], basis, scales: np.ndarray, train: Samples,
-              check: Samples, which, used: list[int],
-              previous: list[CapacitanceFit] | None = None) -> tuple[list[CapacitanceFit], list[int]]:
+def fit_round(
+    s: Structure,
+    shapes: list[Electrode],
+    basis,
+    scales: np.ndarray,
+    train: Samples,
+    check: Samples,
+    which,
+    used: list[int],
+    previous: list[CapacitanceFit] | None = None,
+) -> tuple[list[CapacitanceFit], list[int]]:
     """Refit the electrodes `which` on `train` (their patch count starting where the last round
     ended: a warm start), keep the others; errors against `check`."""
     fits, used = list(previous) if previous else [None] * len(shapes), list(used)
     for i in which:
-        fit, used[i] = fit_electrode(s, shapes[i], shapes[i].name, basis, scales, train.x, train.c[:, i],
-                                     check.x, check.c[:, i], used[i], OVERSAMPLE, rest_of(train, i))
+        fit, used[i] = fit_electrode(
+            s,
+            shapes[i],
+            shapes[i].name,
+            basis,
+            scales,
+            train.x,
+            train.c[:, i],
+            check.x,
+            check.c[:, i],
+            used[i],
+            OVERSAMPLE,
+            rest_of(train, i),
+        )
         fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])
     return fits, used
 

@@ -17,16 +17,15 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from ..constants import EPS0
-from ..errors import StructureError
 from ..electrostatics.sampling import Samples
+from ..errors import StructureError
 from ..geometry.layout import plate_outline
 from ..geometry.shapes import Electrode
 from ..structure import Structure
 from .polynomial import Polynomial, fit_polynomial, monomial_exponents, monomials, span
 
-
-MAX_NFEV = 60            # Levenberg-Marquardt evaluations per plate fit (netgen.fit.cost uses it too)
-REST_WEIGHT = 3.0        # the rest residuals weigh as REST_WEIGHT^2 times all the samples together
+MAX_NFEV = 60  # Levenberg-Marquardt evaluations per plate fit (netgen.fit.cost uses it too)
+REST_WEIGHT = 3.0  # the rest residuals weigh as REST_WEIGHT^2 times all the samples together
 
 
 @dataclass(frozen=True)
@@ -36,13 +35,14 @@ class CapacitanceFit:
     target "plates": C = c_ref * sum_k 1 / P_k(x) (K effective parallel plates; K = 1 is the
     plain fit of 1/C); "inverse": the same with K = 1; "direct": C = c_ref * P_0(x).
     """
+
     electrode: str
-    c_ref: float                        # F, capacitance at x = 0 (sampled)
+    c_ref: float  # F, capacitance at x = 0 (sampled)
     target: str
     polys: tuple[Polynomial, ...]
-    max_rel_error: float                # on held-out random points inside the sampled box
+    max_rel_error: float  # on held-out random points inside the sampled box
     rms_rel_error: float
-    grid_max_rel_error: float           # on the sampling grid itself
+    grid_max_rel_error: float  # on the sampling grid itself
 
     def value(self, x: np.ndarray) -> np.ndarray:
         """C(x) in farad."""
@@ -70,17 +70,26 @@ def reference(x: np.ndarray, c: np.ndarray) -> float:
     return float(c[np.argmin(np.sum(x * x, axis=1))])
 
 
-def with_errors(fit: CapacitanceFit, x: np.ndarray, c: np.ndarray, x_check: np.ndarray,
-                c_check: np.ndarray) -> CapacitanceFit:
+def with_errors(
+    fit: CapacitanceFit, x: np.ndarray, c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray
+) -> CapacitanceFit:
     """The same fit with its held-out and grid errors filled in."""
     held = np.abs(fit.value(x_check) / c_check - 1.0)
     grid = np.abs(fit.value(x) / c - 1.0)
-    return CapacitanceFit(fit.electrode, fit.c_ref, fit.target, fit.polys, float(held.max()),
-                          float(np.sqrt(np.mean(held**2))), float(grid.max()))
+    return CapacitanceFit(
+        fit.electrode,
+        fit.c_ref,
+        fit.target,
+        fit.polys,
+        float(held.max()),
+        float(np.sqrt(np.mean(held**2))),
+        float(grid.max()),
+    )
 
 
-def fit_capacitance(name: str, x: np.ndarray, c: np.ndarray, degree: int, target: str,
-                    x_check: np.ndarray, c_check: np.ndarray) -> CapacitanceFit:
+def fit_capacitance(
+    name: str, x: np.ndarray, c: np.ndarray, degree: int, target: str, x_check: np.ndarray, c_check: np.ndarray
+) -> CapacitanceFit:
     """Fit one capacitance as a single polynomial of C or of 1/C; report held-out errors."""
     c_ref = reference(x, c)
     if target == "direct":
@@ -91,9 +100,17 @@ def fit_capacitance(name: str, x: np.ndarray, c: np.ndarray, degree: int, target
     return with_errors(draft, x, c, x_check, c_check)
 
 
-def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, degree: int,
-               x_check: np.ndarray, c_check: np.ndarray, max_nfev: int = MAX_NFEV,
-               rest: tuple[float, np.ndarray] | None = None) -> CapacitanceFit:
+def fit_plates(
+    name: str,
+    x: np.ndarray,
+    c: np.ndarray,
+    initial: np.ndarray,
+    degree: int,
+    x_check: np.ndarray,
+    c_check: np.ndarray,
+    max_nfev: int = MAX_NFEV,
+    rest: tuple[float, np.ndarray] | None = None,
+) -> CapacitanceFit:
     """Fit C = c_ref sum_k 1/P_k(x) by least squares on the relative error.
 
     `initial` (K, 1 + ncoords) holds affine first guesses of the P_k (from physical patches
@@ -104,7 +121,7 @@ def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, deg
     c_ref = reference(x, c)
     exps = monomial_exponents(x.shape[1], degree)
     sp = span(x)
-    basis = monomials(x / sp, exps)                       # well-scaled design matrix
+    basis = monomials(x / sp, exps)  # well-scaled design matrix
     k_terms, nterm = initial.shape[0], exps.shape[0]
     start = np.zeros((k_terms, nterm))
     start[:, : 1 + x.shape[1]] = initial * np.concatenate([[1.0], sp])[None, :]
@@ -114,12 +131,12 @@ def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, deg
         return out if rest is None else np.concatenate([out, rest_residual(a.reshape(k_terms, nterm))])
 
     def jacobian(a: np.ndarray) -> np.ndarray:
-        p = basis @ a.reshape(k_terms, nterm).T                # (npts, K)
-        w = -c_ref / (p * p) / c[:, None]                      # d residual / d P_k
+        p = basis @ a.reshape(k_terms, nterm).T  # (npts, K)
+        w = -c_ref / (p * p) / c[:, None]  # d residual / d P_k
         jac = (w[:, :, None] * basis[:, None, :]).reshape(len(c), k_terms * nterm)
         return jac if rest is None else np.concatenate([jac, rest_jacobian(a.reshape(k_terms, nterm))])
 
-    lin = 1 + np.arange(x.shape[1])                           # the linear monomials' columns (graded order)
+    lin = 1 + np.arange(x.shape[1])  # the linear monomials' columns (graded order)
     weight = REST_WEIGHT * math.sqrt(len(c))
 
     def rest_residual(a: np.ndarray) -> np.ndarray:
@@ -151,10 +168,20 @@ def fit_plates(name: str, x: np.ndarray, c: np.ndarray, initial: np.ndarray, deg
 PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5)]
 
 
-def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarray, x: np.ndarray,
-                  c: np.ndarray, x_check: np.ndarray, c_check: np.ndarray,
-                  first: int = 0, oversample: float = 1.0,
-                  rest: tuple[float, np.ndarray] | None = None) -> tuple[CapacitanceFit, int]:
+def fit_electrode(
+    s: Structure,
+    e: Electrode,
+    name: str,
+    basis,
+    scales: np.ndarray,
+    x: np.ndarray,
+    c: np.ndarray,
+    x_check: np.ndarray,
+    c_check: np.ndarray,
+    first: int = 0,
+    oversample: float = 1.0,
+    rest: tuple[float, np.ndarray] | None = None,
+) -> tuple[CapacitanceFit, int]:
     """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
     starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
     term limit is reached: at most len(x) / oversample coefficients). Returns the fit and the
@@ -165,9 +192,10 @@ def fit_electrode(s: Structure, e: Electrode, name: str, basis, scales: np.ndarr
     best, used, best_ok = None, first, False
     for k in range(first, len(PATCH_GRIDS)):
         grid = PATCH_GRIDS[k]
-        if grid[0] * grid[1] > o.max_terms or \
-                grid[0] * grid[1] * math.comb(x.shape[1] + o.degree, o.degree) * oversample > len(x):
-            break                              # more plate terms than the samples determine
+        if grid[0] * grid[1] > o.max_terms or grid[0] * grid[1] * math.comb(
+            x.shape[1] + o.degree, o.degree
+        ) * oversample > len(x):
+            break  # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
         fit = fit_plates(name, x, c, init, o.degree, x_check, c_check, rest=rest)
         ok = physical(fit, x, x_check)
@@ -191,23 +219,28 @@ def refuse_unphysical(s: Structure, fits: list[CapacitanceFit], x: np.ndarray, x
     check point (no physical patch grid was found): it has a pole inside the sampled box."""
     bad = [f.electrode for f in fits if f.target == "plates" and not physical(f, x, x_check)]
     if bad:
-        raise StructureError(s.source, "sampling.range", f"the capacitance fit of electrode {bad[0]}"
-                             f"{f' (and {len(bad) - 1} more)' if len(bad) > 1 else ''} has a plate term 1/P_k that "
-                             f"turns negative inside the sampled box (+-{s.sampling.range:g}): a pole between the samples",
-                             "narrow [sampling] range (without the key the build narrows it where the box's corners "
-                             "reach an electrode), or use fewer coordinates")
+        raise StructureError(
+            s.source,
+            "sampling.range",
+            f"the capacitance fit of electrode {bad[0]}"
+            f"{f' (and {len(bad) - 1} more)' if len(bad) > 1 else ''} has a plate term 1/P_k that "
+            f"turns negative inside the sampled box (+-{s.sampling.range:g}): a pole between the samples",
+            "narrow [sampling] range (without the key the build narrows it where the box's corners "
+            "reach an electrode), or use fewer coordinates",
+        )
 
 
-def patch_guess(s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tuple[int, int],
-                c_ref: float) -> np.ndarray:
+def patch_guess(
+    s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tuple[int, int], c_ref: float
+) -> np.ndarray:
     """Affine first guesses P_k(x) for K = nr x nt patches of the electrode (equal-area bins in
     r and theta): each patch a parallel plate at its mean local displacement."""
     px, py, w = e.shape.quadrature(plate_outline(s))
     r, theta = np.hypot(px, py), np.unwrap(np.arctan2(py, px))
-    phi = basis(px, py) * scales[None, :] * e.sign          # gap closed per unit x
+    phi = basis(px, py) * scales[None, :] * e.sign  # gap closed per unit x
     ids = _bins(r, w, grid[0]) * grid[1] + _bins(theta, w, grid[1])
     if s.conductor.one_dimensional:
-        ids = _bins(px, w, grid[0] * grid[1])              # beams: all patches along the beam axis
+        ids = _bins(px, w, grid[0] * grid[1])  # beams: all patches along the beam axis
     eps = EPS0 * s.electrostatics.relative_permittivity
     rows, caps = [], []
     for k in range(grid[0] * grid[1]):
@@ -218,7 +251,7 @@ def patch_guess(s: Structure, e: Electrode, basis, scales: np.ndarray, grid: tup
         mean_phi = np.sum(w[sel, None] * phi[sel], axis=0) / area
         rows.append(np.concatenate([[e.gap], -mean_phi]) / (eps * area))
         caps.append(eps * area / e.gap)
-    lam = c_ref / sum(caps)                                  # absorbs the edge fringe
+    lam = c_ref / sum(caps)  # absorbs the edge fringe
     return np.array(rows) * c_ref / lam
 
 
@@ -239,28 +272,49 @@ def rest_of(samples: Samples, i: int) -> tuple[float, np.ndarray] | None:
 def check_determined(s: Structure, x: np.ndarray) -> None:
     """Refuse a design whose samples cannot determine the fit's polynomial terms (rank of the
     monomial matrix below the term count), e.g. a degree-2 fit on a level-1 sparse grid."""
-    degree = s.fit.degree if s.fit.target != "plates" else 1        # a plate term: affine in x
+    degree = s.fit.degree if s.fit.target != "plates" else 1  # a plate term: affine in x
     exps = monomial_exponents(x.shape[1], degree)
     rank = np.linalg.matrix_rank(monomials(x / span(x), exps)) if len(x) else 0
     if rank < len(exps):
-        raise StructureError(s.source, "fit.degree", f"the {len(x)} samples of the {s.sampling.design} design "
-                             f"determine only {rank} of the {len(exps)} terms of a polynomial of total degree {degree} "
-                             f"in {x.shape[1]} coordinates",
-                             "lower [fit] degree or use a richer design ([sampling] levels, level or points; a "
-                             "level-L sparse grid determines total degree L)")
+        raise StructureError(
+            s.source,
+            "fit.degree",
+            f"the {len(x)} samples of the {s.sampling.design} design "
+            f"determine only {rank} of the {len(exps)} terms of a polynomial of total degree {degree} "
+            f"in {x.shape[1]} coordinates",
+            "lower [fit] degree or use a richer design ([sampling] levels, level or points; a "
+            "level-L sparse grid determines total degree L)",
+        )
 
 
-def fit_all(s: Structure, electrodes: list[Electrode], basis, scales: np.ndarray, grid: Samples,
-            holdout: Samples, progress: bool = False) -> list[CapacitanceFit]:
+def fit_all(
+    s: Structure,
+    electrodes: list[Electrode],
+    basis,
+    scales: np.ndarray,
+    grid: Samples,
+    holdout: Samples,
+    progress: bool = False,
+) -> list[CapacitanceFit]:
     """One capacitance fit per electrode, in port order (refused when the samples cannot
     determine the fit's terms)."""
     check_determined(s, grid.x)
     fits, start = [], {}
-    for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr,
-                               leave=False)):
-        ring = e.name.rsplit("s", 1)[0]            # electrodes of one ring share a patch grid
-        fit, start[ring] = fit_electrode(s, e, e.name, basis, scales, grid.x, grid.c[:, i],
-                                         holdout.x, holdout.c[:, i], start.get(ring, 0), rest=rest_of(grid, i))
+    for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr, leave=False)):
+        ring = e.name.rsplit("s", 1)[0]  # electrodes of one ring share a patch grid
+        fit, start[ring] = fit_electrode(
+            s,
+            e,
+            e.name,
+            basis,
+            scales,
+            grid.x,
+            grid.c[:, i],
+            holdout.x,
+            holdout.c[:, i],
+            start.get(ring, 0),
+            rest=rest_of(grid, i),
+        )
         fits.append(fit)
     refuse_unphysical(s, fits, grid.x, holdout.x)
     return fits

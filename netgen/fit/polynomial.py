@@ -35,13 +35,14 @@ def monomials(x: np.ndarray, exponents: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class Polynomial:
     """Sparse multivariate polynomial sum_k coeffs[k] * prod_v x_v**exponents[k, v]."""
+
     exponents: np.ndarray
     coeffs: np.ndarray
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return monomials(x, self.exponents) @ self.coeffs
 
-    def derivative(self, v: int) -> "Polynomial":
+    def derivative(self, v: int) -> Polynomial:
         """Analytic partial derivative with respect to x_v."""
         keep = self.exponents[:, v] > 0
         exps = self.exponents[keep].copy()

@@ -17,6 +17,7 @@ from .shapes import Array, Plate, empty
 class Face:
     """One side of one moving finger facing a fixed finger: the moving finger's tip (at rest),
     the unit normal toward the fixed finger, the gap at rest and the overlap at rest."""
+
     tip: tuple[float, float]
     normal: tuple[float, float]
     gap: float
@@ -60,9 +61,12 @@ class CombShape(CombElectrode):
     def faces(self) -> list[Face]:
         """Every facing pair of sidewalls: a lateral comb both sides of each finger at `gap`; a
         transverse comb its `side` at `gap` and the other side at `anti_gap` (if any)."""
-        sides = [(1.0, self.gap), (-1.0, self.gap)] if self.kind == "lateral_comb" else \
-            [(1.0 if self.side == "+" else -1.0, self.gap)] + \
-            ([(-1.0 if self.side == "+" else 1.0, self.anti_gap)] if self.anti_gap else [])
+        sides = (
+            [(1.0, self.gap), (-1.0, self.gap)]
+            if self.kind == "lateral_comb"
+            else [(1.0 if self.side == "+" else -1.0, self.gap)]
+            + ([(-1.0 if self.side == "+" else 1.0, self.anti_gap)] if self.anti_gap else [])
+        )
         out = []
         for tip in self.finger_tips():
             for sign, gap in sides:

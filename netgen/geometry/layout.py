@@ -8,7 +8,7 @@ SHAPES, one line per kind.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -31,8 +31,11 @@ def ring_sectors(eset: ElectrodeSet) -> list[Electrode]:
             width = 2 * math.pi / eset.sectors
             start = eset.sector_start + k * width
             slot = eset.slot if eset.sectors > 1 else 0.0
-            out.append(Electrode(AnnularSector(next(names), r_in, r_out, start, start + width, slot),
-                                 eset.side, eset.gap, eset.name))
+            out.append(
+                Electrode(
+                    AnnularSector(next(names), r_in, r_out, start, start + width, slot), eset.side, eset.gap, eset.name
+                )
+            )
     return out
 
 
@@ -76,7 +79,10 @@ def electrode_outlines(s: Structure, points: int = 40) -> list[tuple[np.ndarray,
             r_out = min(r_out, s.conductor.radius)
             for k in range(eset.sectors):
                 t0 = eset.sector_start + k * width
-                half = (lambda r: math.asin(min(1.0, eset.slot / (2 * r))) if eset.sectors > 1 and r > 0 else 0.0)
+
+                def half(r: float, eset=eset) -> float:
+                    return math.asin(min(1.0, eset.slot / (2 * r))) if eset.sectors > 1 and r > 0 else 0.0
+
                 lo_o, hi_o = t0 + half(r_out), t0 + width - half(r_out)
                 r_lo = max(r_in, eset.slot / 2 + 1e-12) if eset.sectors > 1 else r_in
                 lo_i, hi_i = t0 + half(r_lo), t0 + width - half(r_lo)

@@ -9,9 +9,10 @@ rules on the exact overlap region, so the rules are exact to high order for smoo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Callable, Literal, Protocol, Sequence, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -417,8 +418,12 @@ class Rectangle:
         """Rectangle sides clipped to the disk, plus the rim arcs lying inside the rectangle."""
         R = plate.radius
         pieces: list[Piece] = []
-        for c, a0, a1, vertical in ((self.y0, self.x0, self.x1, False), (self.y1, self.x0, self.x1, False),
-                                    (self.x0, self.y0, self.y1, True), (self.x1, self.y0, self.y1, True)):
+        for c, a0, a1, vertical in (
+            (self.y0, self.x0, self.x1, False),
+            (self.y1, self.x0, self.x1, False),
+            (self.x0, self.y0, self.y1, True),
+            (self.x1, self.y0, self.y1, True),
+        ):
             if abs(c) >= R:
                 continue
             m = math.sqrt(R * R - c * c)

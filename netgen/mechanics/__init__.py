@@ -30,8 +30,9 @@ def mechanics(s: Structure) -> Mechanics:
     that have mechanics."""
     kind = s.conductor.kind
     if kind not in KINDS:
-        raise StructureError(s.source, "conductor.kind", f"conductor kind {kind!r} has no mechanics",
-                             f"use one of {', '.join(KINDS)}")
+        raise StructureError(
+            s.source, "conductor.kind", f"conductor kind {kind!r} has no mechanics", f"use one of {', '.join(KINDS)}"
+        )
     return KINDS[kind].mechanics(s)
 
 

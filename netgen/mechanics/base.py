@@ -5,8 +5,8 @@ optionally a nonlinear strain energy; plus the rigid-body fields and the inertia
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -14,16 +14,24 @@ from ..geometry.layout import plate_outline
 from ..structure import Structure
 
 # rigid-body coordinate -> (kind, SI unit); every other coordinate is an eigenmode in m
-RIGID = {"x": ("translation", "m"), "y": ("translation", "m"), "z": ("translation", "m"),
-         "rot_z": ("rotation", "rad"), "tilt_x": ("rotation", "rad"), "tilt_y": ("rotation", "rad")}
+RIGID = {
+    "x": ("translation", "m"),
+    "y": ("translation", "m"),
+    "z": ("translation", "m"),
+    "rot_z": ("rotation", "rad"),
+    "tilt_x": ("rotation", "rad"),
+    "tilt_y": ("rotation", "rad"),
+}
 
 # Small-angle kinematics of the rigid-body coordinates, for a point (x, y) of the mid-plane:
 # displacement (u_x, u_y, u_z) = (X - rot_z y, Y + rot_z x, Z + tilt_x y - tilt_y x), i.e. the
 # rotation matrix to first order in the angles (tilt_x about +x, tilt_y about +y, rot_z about +z;
 # the in-plane motion of the mid-plane under the tilts, and every product of angles, are dropped).
 # netgen.mechanics.proof_mass reports where this is off by more than 0.1 % (small_angle_report).
-KINEMATICS = ("small-angle rigid-body kinematics at the mid-plane: u_x = x - rot_z*Y, u_y = y + rot_z*X, "
-              "u_z = z + tilt_x*Y - tilt_y*X (X, Y: the point's rest position; first order in the angles)")
+KINEMATICS = (
+    "small-angle rigid-body kinematics at the mid-plane: u_x = x - rot_z*Y, u_y = y + rot_z*X, "
+    "u_z = z + tilt_x*Y - tilt_y*X (X, Y: the point's rest position; first order in the angles)"
+)
 
 
 def rigid_field(name: str, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -58,8 +66,10 @@ class RigidBasis:
 
 def rigid_basis(names: list[str] | tuple[str, ...] = ("z", "tilt_x", "tilt_y")) -> Callable:
     """basis(x, y) -> (npts, len(names)) of the rigid-body fields."""
+
     def basis(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return np.stack([rigid_field(n, x, y) for n in names], axis=-1)
+
     return basis
 
 
@@ -67,6 +77,7 @@ def rigid_basis(names: list[str] | tuple[str, ...] = ("z", "tilt_x", "tilt_y")) 
 class StrainEnergy:
     """Strain energy beyond 1/2 K q^2: U(q) in J at coordinates q (npts, ncoords) in SI; the
     model stage fits it over the sampled box (netgen.fit.energy)."""
+
     energy: Callable[[np.ndarray], np.ndarray]
     description: str
 
@@ -74,6 +85,7 @@ class StrainEnergy:
 @dataclass
 class Mechanics:
     """Stage output: coordinates (without scales yet) and the vertical displacement basis."""
+
     names: list[str]
     kinds: list[str]
     units: list[str]
@@ -93,7 +105,7 @@ def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
     perforated proof mass's areal density carries its solid fraction (`fill_factor`)."""
     plate = plate_outline(s)
     x, y, weights = plate.area_rule(order)
-    phi = m.basis(x, y)                                                  # (points, ncoords)
+    phi = m.basis(x, y)  # (points, ncoords)
     rho_h = s.conductor.density * s.conductor.thickness * getattr(s.conductor, "fill_factor", 1.0)
     gam = rho_h * (weights @ phi)
     total = rho_h * plate.area()

@@ -28,7 +28,7 @@ from .base import Mechanics, StrainEnergy
 
 def _hermite(s: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """Hermite cubic shape functions and their x-derivatives at local coordinates s in [0, 1]."""
-    n = np.stack([1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-s**2 + s**3)], -1)
+    n = np.stack([1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-(s**2) + s**3)], -1)
     d = np.stack([(-6 * s + 6 * s**2) / h, 1 - 4 * s + 3 * s**2, (6 * s - 6 * s**2) / h, -2 * s + 3 * s**2], -1)
     return n, d
 
@@ -36,12 +36,13 @@ def _hermite(s: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class BeamModes:
     """The first bending modes of a beam: shapes (peak 1), modal mass/stiffness, frequencies."""
+
     kind: str
     length: float
     frequencies_hz: np.ndarray
     modal_mass: np.ndarray
     modal_stiffness: np.ndarray
-    vectors: np.ndarray              # (ndof, nmodes) nodal (w, w') values, peak-normalised
+    vectors: np.ndarray  # (ndof, nmodes) nodal (w, w') values, peak-normalised
     elements: int
 
     def _locate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -53,8 +54,8 @@ class BeamModes:
     def _eval(self, x: np.ndarray, derivative: bool) -> np.ndarray:
         e, s, h = self._locate(x)
         n, d = _hermite(s, h)
-        f = d if derivative else n                                         # (npts, 4)
-        dofs = 2 * e[:, None] + np.arange(4)[None, :]                       # (npts, 4)
+        f = d if derivative else n  # (npts, 4)
+        dofs = 2 * e[:, None] + np.arange(4)[None, :]  # (npts, 4)
         return np.einsum("pk,pkm->pm", f, self.vectors[dofs])
 
     def shape(self, x: np.ndarray) -> np.ndarray:
@@ -66,18 +67,58 @@ class BeamModes:
         return self._eval(x, True)
 
 
-def beam_modes(kind: str, length: float, width: float, thickness: float, youngs_modulus: float,
-               density: float, count: int, residual_stress: float = 0.0, elements: int = 60) -> BeamModes:
+def beam_modes(
+    kind: str,
+    length: float,
+    width: float,
+    thickness: float,
+    youngs_modulus: float,
+    density: float,
+    count: int,
+    residual_stress: float = 0.0,
+    elements: int = 60,
+) -> BeamModes:
     """The first `count` bending modes of a clamped-clamped beam or a cantilever (Hermite FE)."""
     h = length / elements
     area, inertia = width * thickness, width * thickness**3 / 12.0
     ei, rho_a, n0 = youngs_modulus * inertia, density * area, residual_stress * area
-    kb = ei / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h],
-                               [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    kg = n0 / (30 * h) * np.array([[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h],
-                                   [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]])
-    me = rho_a * h / 420 * np.array([[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h],
-                                     [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    kb = (
+        ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    kg = (
+        n0
+        / (30 * h)
+        * np.array(
+            [
+                [36, 3 * h, -36, 3 * h],
+                [3 * h, 4 * h * h, -3 * h, -h * h],
+                [-36, -3 * h, 36, -3 * h],
+                [3 * h, -h * h, -3 * h, 4 * h * h],
+            ]
+        )
+    )
+    me = (
+        rho_a
+        * h
+        / 420
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
+    )
     ndof = 2 * elements + 2
     K, M = np.zeros((ndof, ndof)), np.zeros((ndof, ndof))
     for e in range(elements):
@@ -93,10 +134,14 @@ def beam_modes(kind: str, length: float, width: float, thickness: float, youngs_
     xs = np.linspace(0.0, length, 40 * elements + 1)
     shapes = probe.shape(xs)
     peak = np.empty(count)
-    for k, i in enumerate(np.argmax(np.abs(shapes), axis=0)):             # refine the grid maximum
+    for k, i in enumerate(np.argmax(np.abs(shapes), axis=0)):  # refine the grid maximum
         lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
-        best = minimize_scalar(lambda x: -abs(probe.shape(np.array([x]))[0, k]), bounds=(lo, hi),
-                               method="bounded", options={"xatol": 1e-12 * length})
+        best = minimize_scalar(
+            lambda x: -abs(probe.shape(np.array([x]))[0, k]),
+            bounds=(lo, hi),
+            method="bounded",
+            options={"xatol": 1e-12 * length},
+        )
         peak[k] = probe.shape(np.array([best.x]))[0, k]
         peak[k] = peak[k] if abs(peak[k]) >= abs(shapes[i, k]) else shapes[i, k]
     vectors = vectors / peak[None, :]
@@ -107,8 +152,9 @@ def beam_modes(kind: str, length: float, width: float, thickness: float, youngs_
     return BeamModes(kind, length, np.sqrt(stiff / mass) / (2 * math.pi), mass, stiff, vectors, elements)
 
 
-def euler_bernoulli_frequency(kind: str, length: float, width: float, thickness: float,
-                              youngs_modulus: float, density: float) -> float:
+def euler_bernoulli_frequency(
+    kind: str, length: float, width: float, thickness: float, youngs_modulus: float, density: float
+) -> float:
     """Closed-form fundamental frequency (Hz): (beta L)^2 / (2 pi L^2) sqrt(E I / (rho A))."""
     beta_l = {"clamped_clamped_beam": 4.730040744862704, "cantilever": 1.875104068711961}[kind]
     ei, rho_a = youngs_modulus * width * thickness**3 / 12.0, density * width * thickness
@@ -120,15 +166,16 @@ def stretching_energy(modes: BeamModes, axial_rigidity: float, q: np.ndarray, po
     dL = integral (sqrt(1 + w'^2) - 1) dx by Gauss-Legendre quadrature over the beam."""
     t, w = np.polynomial.legendre.leggauss(points)
     x, w = (t + 1) * modes.length / 2, w * modes.length / 2
-    slope = np.atleast_2d(q) @ modes.slope(x).T                               # (npts, nx)
+    slope = np.atleast_2d(q) @ modes.slope(x).T  # (npts, nx)
     stretch = (np.sqrt(1.0 + slope * slope) - 1.0) @ w
     return axial_rigidity * stretch**2 / (2 * modes.length)
 
 
 # ------------------------------------------------------------------ the stage
 
-STRETCHING = ("mid-plane stretching of the clamped-clamped beam: U = E A dL^2 / (2 L), "
-              "dL = integral (sqrt(1 + w'^2) - 1) dx")
+STRETCHING = (
+    "mid-plane stretching of the clamped-clamped beam: U = E A dL^2 / (2 L), dL = integral (sqrt(1 + w'^2) - 1) dx"
+)
 
 
 def mechanics(s: Structure) -> Mechanics:
@@ -136,19 +183,36 @@ def mechanics(s: Structure) -> Mechanics:
     clamped-clamped beam with `stretching` also carries its stretching energy."""
     c = s.conductor
     count = s.coordinates.modes
-    modes = beam_modes(c.kind, c.length, c.width, c.thickness, c.youngs_modulus, c.density, count,
-                       c.residual_stress, c.elements)
+    modes = beam_modes(
+        c.kind, c.length, c.width, c.thickness, c.youngs_modulus, c.density, count, c.residual_stress, c.elements
+    )
 
     def basis(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return modes.shape(x)
 
     names = [mode_name(str(k + 1)) for k in range(count)]
     ref = euler_bernoulli_frequency(c.kind, c.length, c.width, c.thickness, c.youngs_modulus, c.density)
-    report = {"kind": c.kind, "mass_kg": c.mass, "elements": c.elements,
-              "residual_stress_Pa": c.residual_stress, "axial_force_N": c.residual_stress * c.width * c.thickness,
-              "euler_bernoulli_f1_unstressed_hz": ref, "mode_normalisation": "peak deflection 1"}
+    report = {
+        "kind": c.kind,
+        "mass_kg": c.mass,
+        "elements": c.elements,
+        "residual_stress_Pa": c.residual_stress,
+        "axial_force_N": c.residual_stress * c.width * c.thickness,
+        "euler_bernoulli_f1_unstressed_hz": ref,
+        "mode_normalisation": "peak deflection 1",
+    }
     energy = None
     if c.kind == "clamped_clamped_beam" and c.stretching:
         energy = StrainEnergy(partial(stretching_energy, modes, c.youngs_modulus * c.width * c.thickness), STRETCHING)
-    return Mechanics(names, ["mode"] * count, ["m"] * count, [str(k + 1) for k in range(count)],
-                     modes.modal_mass, modes.modal_stiffness, modes.frequencies_hz, basis, report, energy)
+    return Mechanics(
+        names,
+        ["mode"] * count,
+        ["m"] * count,
+        [str(k + 1) for k in range(count)],
+        modes.modal_mass,
+        modes.modal_stiffness,
+        modes.frequencies_hz,
+        basis,
+        report,
+        energy,
+    )

@@ -32,20 +32,24 @@ def damping(s: Structure, m: Mechanics) -> tuple[np.ndarray, dict]:
         out = out + film["diagonal"]
     report = _damping_report(s, out, film)
     if film.get("branches"):
-        report["branches"] = film["branches"]        # popped by netgen.build.assemble into Coordinate.film
+        report["branches"] = film["branches"]  # popped by netgen.build.assemble into Coordinate.film
     return out, report
 
 
 def _modal_ratios(s: Structure, names: list[str], kinds: list[str]) -> np.ndarray:
     """Damping ratio zeta per coordinate from q_factor / damping_ratio entries (0 if none)."""
     d = s.damping
-    ratios = {k: 1 / (2 * v) for k, v in d.q_factor} | dict(d.damping_ratio)     # Q = 1 / (2 zeta)
+    ratios = {k: 1 / (2 * v) for k, v in d.q_factor} | dict(d.damping_ratio)  # Q = 1 / (2 zeta)
     default = ratios.pop("*", 0.0)
     given = ratios
     unknown = sorted(set(given) - set(names))
     if unknown:
-        raise StructureError(s.source, "damping", f"damping given for unknown coordinate(s) {unknown}",
-                             f"use the coordinate names {names} (modes = <count> names them only after the FEM)")
+        raise StructureError(
+            s.source,
+            "damping",
+            f"damping given for unknown coordinate(s) {unknown}",
+            f"use the coordinate names {names} (modes = <count> names them only after the FEM)",
+        )
     return np.array([given.get(nm, default if kind == "mode" else 0.0) for nm, kind in zip(names, kinds)])
 
 
@@ -55,37 +59,53 @@ def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
     gas = GASES[d.gas]
     gaps = {}
     for e in s.electrode_sets:
-        if getattr(e, "side", None) in ("above", "below"):       # comb fingers have no film of their own
+        if getattr(e, "side", None) in ("above", "below"):  # comb fingers have no film of their own
             gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
     if c.outline_shape == "disk":
         radius = c.radius
         mesh = sf.disk_mesh(radius, d.fem_refine)
-        reynolds = {gap: sf.reynolds_matrix(mesh, m.basis) for gap in set(gaps.values())}   # shared by all gaps
-    else:                                                        # a proof mass: its rectangle, with its holes
+        reynolds = {gap: sf.reynolds_matrix(mesh, m.basis) for gap in set(gaps.values())}  # shared by all gaps
+    else:  # a proof mass: its rectangle, with its holes
         radius = min(c.length, c.width) / 2
-        mesh = sf.centred_rectangle_mesh(c.length, c.width, 2 ** d.fem_refine)
-        reynolds = {gap: sf.reynolds_matrix(mesh, m.basis, sf.perforation_leak(gap, c.thickness, c.hole, c.hole_pitch)
-                                            if c.hole else 0.0) for gap in set(gaps.values())}
+        mesh = sf.centred_rectangle_mesh(c.length, c.width, 2**d.fem_refine)
+        reynolds = {
+            gap: sf.reynolds_matrix(
+                mesh, m.basis, sf.perforation_leak(gap, c.thickness, c.hole, c.hole_pitch) if c.hole else 0.0
+            )
+            for gap in set(gaps.values())
+        }
     total, sides = np.zeros((len(m.names), len(m.names))), {}
     for side, gap in sorted(gaps.items()):
         mu = sf.effective_viscosity(gas, d.pressure, gap)
         total += 12.0 * mu / gap**3 * reynolds[gap]
         sigma = [sf.squeeze_number(mu, 2 * np.pi * f, radius, d.pressure, gap) for f in m.frequencies]
-        sides[side] = {"gap_m": gap, "knudsen": sf.knudsen(gas, d.pressure, gap), "mu_eff_Pa_s": mu,
-                       "squeeze_number_at_f0": [float(v) for v in sigma],
-                       "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)
-                       if c.outline_shape == "disk" else "not computed for a perforated proof mass"}
+        sides[side] = {
+            "gap_m": gap,
+            "knudsen": sf.knudsen(gas, d.pressure, gap),
+            "mu_eff_Pa_s": mu,
+            "squeeze_number_at_f0": [float(v) for v in sigma],
+            "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)
+            if c.outline_shape == "disk"
+            else "not computed for a perforated proof mass",
+        }
     worst = max(v for side in sides.values() for v in side["squeeze_number_at_f0"])
     if d.film_model == "compressible":
         return compressible_film(s, m, mesh, gaps, total, sides)
-    note = ("incompressible model valid (squeeze number < 1 at every modal frequency)" if worst < 1 else
-            f"squeeze number up to {worst:.3g} > 1: the film also stiffens and the incompressible "
-            "damping overestimates the real one at those modes (compressible model not implemented)")
-    return {"diagonal": np.diag(total).copy(), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
-            "validity": note}
+    note = (
+        "incompressible model valid (squeeze number < 1 at every modal frequency)"
+        if worst < 1
+        else f"squeeze number up to {worst:.3g} > 1: the film also stiffens and the incompressible "
+        "damping overestimates the real one at those modes (compressible model not implemented)"
+    )
+    return {
+        "diagonal": np.diag(total).copy(),
+        "off_diagonal_ratio": sf.off_diagonal_ratio(total),
+        "sides": sides,
+        "validity": note,
+    }
 
 
-FILM_POLES = 60          # Dirichlet eigenpairs of the gap region behind the compressible network
+FILM_POLES = 60  # Dirichlet eigenpairs of the gap region behind the compressible network
 
 
 def film_max_frequency(s: Structure, m: Mechanics) -> float:
@@ -101,8 +121,10 @@ def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.nd
     within 1 % up to film_max_frequency; the dropped fast poles join the plain damper."""
     d = s.damping
     gas = GASES[d.gas]
-    solved = {gap: sf.pole_residues(mesh, m.basis, gap, sf.effective_viscosity(gas, d.pressure, gap), d.pressure,
-                                    FILM_POLES) for gap in sorted(set(gaps.values()))}   # equal gaps: one solve
+    solved = {
+        gap: sf.pole_residues(mesh, m.basis, gap, sf.effective_viscosity(gas, d.pressure, gap), d.pressure, FILM_POLES)
+        for gap in sorted(set(gaps.values()))
+    }  # equal gaps: one solve
     per_side = [solved[gap] for _, gap in sorted(gaps.items())]
     omega_max = 2 * np.pi * film_max_frequency(s, m)
     remainders, branches, errors = [], [], []
@@ -112,14 +134,24 @@ def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.nd
         remainders.append(reduced.remainder)
         branches.append(tuple((float(r), float(w)) for r, w in zip(reduced.residues, reduced.poles)))
         errors.append(err)
-    note = (f"compressible film: Maxwell branches (damper r in series with a gas spring r*omega_p) per "
-            f"coordinate, within {max(errors):.2%} of the {FILM_POLES}-pole expansion up to "
-            f"{omega_max / (2 * np.pi):.4g} Hz")
-    return {"diagonal": np.array(remainders), "off_diagonal_ratio": sf.off_diagonal_ratio(total), "sides": sides,
-            "validity": note, "branches": branches,
-            "network": {"max_frequency_hz": omega_max / (2 * np.pi), "poles_solved": FILM_POLES,
-                        "max_rel_error": errors,
-                        "branches": [[{"damping": r, "corner_hz": w / (2 * np.pi)} for r, w in b] for b in branches]}}
+    note = (
+        f"compressible film: Maxwell branches (damper r in series with a gas spring r*omega_p) per "
+        f"coordinate, within {max(errors):.2%} of the {FILM_POLES}-pole expansion up to "
+        f"{omega_max / (2 * np.pi):.4g} Hz"
+    )
+    return {
+        "diagonal": np.array(remainders),
+        "off_diagonal_ratio": sf.off_diagonal_ratio(total),
+        "sides": sides,
+        "validity": note,
+        "branches": branches,
+        "network": {
+            "max_frequency_hz": omega_max / (2 * np.pi),
+            "poles_solved": FILM_POLES,
+            "max_rel_error": errors,
+            "branches": [[{"damping": r, "corner_hz": w / (2 * np.pi)} for r, w in b] for b in branches],
+        },
+    }
 
 
 def _compressible_at_f0(mesh, m: Mechanics, gap: float, mu: float, pressure: float) -> dict:
@@ -138,9 +170,15 @@ def _damping_report(s: Structure, out: np.ndarray, film: dict) -> dict:
     d = s.damping
     rep = {"temperature_K": d.temperature, "noise": d.noise, "per_coordinate": [float(v) for v in out]}
     if film:
-        rep["squeeze_film"] = {"gas": d.gas, "pressure_Pa": d.pressure, "fem_refine": d.fem_refine,
-                               "diagonal": [float(v) for v in film["diagonal"]],
-                               "off_diagonal_ratio": film["off_diagonal_ratio"], "sides": film["sides"],
-                               "validity": film["validity"], **({"network": film["network"]} if "network" in film else {}),
-                               "model": "incompressible linearised Reynolds, Veijola mu_eff, p = 0 at the plate rim"}
+        rep["squeeze_film"] = {
+            "gas": d.gas,
+            "pressure_Pa": d.pressure,
+            "fem_refine": d.fem_refine,
+            "diagonal": [float(v) for v in film["diagonal"]],
+            "off_diagonal_ratio": film["off_diagonal_ratio"],
+            "sides": film["sides"],
+            "validity": film["validity"],
+            **({"network": film["network"]} if "network" in film else {}),
+            "model": "incompressible linearised Reynolds, Veijola mu_eff, p = 0 at the plate rim",
+        }
     return rep

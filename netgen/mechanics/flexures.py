@@ -22,14 +22,14 @@ import numpy as np
 from ..structure.flexures import Flexure
 from .frame import Frame, Section
 
-AXES = ("x", "y", "z", "tilt_x", "tilt_y", "rot_z")        # frame DOF order: u, v, w, rx, ry, rz
+AXES = ("x", "y", "z", "tilt_x", "tilt_y", "rot_z")  # frame DOF order: u, v, w, rx, ry, rz
 SOURCES = {
     "clamped_guided": "Senturia, Microsystem Design (2001), ch. 9: four clamped-guided beams, 12 E I / L^3 each "
-                      "across, E A / L along",
+    "across, E A / L along",
     "folded": "Fedder, PhD thesis (UC Berkeley, 1994), ch. 3 / Tang's folded flexure: eight beams on two rigid "
-              "trusses, inner and outer beams in series",
+    "trusses, inner and outer beams in series",
     "crab_leg": "Fedder, PhD thesis (1994), ch. 3: crab legs by Castigliano's theorem (bending and torsion of "
-                "shin and thigh, mass end guided, rigid knee)",
+    "shin and thigh, mass end guided, rigid knee)",
 }
 
 
@@ -43,8 +43,15 @@ def place(axis: str, along: float, across: float) -> tuple[float, float]:
     return (along, across) if axis == "x" else (across, along)
 
 
-def suspension(f: Flexure, half_length: float, half_width: float, youngs_modulus: float, poisson_ratio: float,
-               rigid_truss: bool = False, elements: int = 8) -> Frame:
+def suspension(
+    f: Flexure,
+    half_length: float,
+    half_width: float,
+    youngs_modulus: float,
+    poisson_ratio: float,
+    rigid_truss: bool = False,
+    elements: int = 8,
+) -> Frame:
     """The flexure as a frame around a mass of half sizes (x, y), attached at its edges facing
     the beam axis; `rigid_truss` makes trusses and knees 1e4 times stiffer (the closed forms' limit)."""
     frame = Frame()
@@ -53,8 +60,10 @@ def suspension(f: Flexure, half_length: float, half_width: float, youngs_modulus
     for s_along in (1.0, -1.0):
         if f.type == "clamped_guided":
             for s_across in (1.0, -1.0):
-                a, b = place(f.axis, s_along * edge, s_across * side / 2), place(f.axis, s_along * (edge + f.length),
-                                                                               s_across * side / 2)
+                a, b = (
+                    place(f.axis, s_along * edge, s_across * side / 2),
+                    place(f.axis, s_along * (edge + f.length), s_across * side / 2),
+                )
                 frame.member(a, b, beam, elements)
                 frame.tied.add(frame.node(*a))
                 frame.clamped.add(frame.node(*b))
@@ -62,10 +71,18 @@ def suspension(f: Flexure, half_length: float, half_width: float, youngs_modulus
             truss = section(f, f.truss_width, youngs_modulus * (1e4 if rigid_truss else 1.0), poisson_ratio)
             inner, outer, top = side / 2, side / 2 + f.spacing, s_along * (edge + f.length)
             for s_across in (1.0, -1.0):
-                frame.member(place(f.axis, s_along * edge, s_across * inner), place(f.axis, top, s_across * inner), beam,
-                             elements)
-                frame.member(place(f.axis, s_along * edge, s_across * outer), place(f.axis, top, s_across * outer), beam,
-                             elements)
+                frame.member(
+                    place(f.axis, s_along * edge, s_across * inner),
+                    place(f.axis, top, s_across * inner),
+                    beam,
+                    elements,
+                )
+                frame.member(
+                    place(f.axis, s_along * edge, s_across * outer),
+                    place(f.axis, top, s_across * outer),
+                    beam,
+                    elements,
+                )
                 frame.tied.add(frame.node(*place(f.axis, s_along * edge, s_across * inner)))
                 frame.clamped.add(frame.node(*place(f.axis, s_along * edge, s_across * outer)))
                 frame.member(place(f.axis, top, s_across * inner), place(f.axis, top, s_across * outer), truss, 2)
@@ -83,8 +100,14 @@ def suspension(f: Flexure, half_length: float, half_width: float, youngs_modulus
     return frame
 
 
-def frame_stiffness(f: Flexure, half_length: float, half_width: float, youngs_modulus: float, poisson_ratio: float,
-                    rigid_truss: bool = False) -> dict[str, float]:
+def frame_stiffness(
+    f: Flexure,
+    half_length: float,
+    half_width: float,
+    youngs_modulus: float,
+    poisson_ratio: float,
+    rigid_truss: bool = False,
+) -> dict[str, float]:
     """Diagonal stiffness per rigid-body coordinate from the frame solve (N/m, N*m/rad), and
     the largest off-diagonal coupling (relative) as 'coupling'."""
     k = suspension(f, half_length, half_width, youngs_modulus, poisson_ratio, rigid_truss).body_stiffness()
@@ -120,34 +143,50 @@ def _guided(flex: np.ndarray, translations: list[int]) -> np.ndarray:
     d_R = 0 gives d_T = (C_TT - C_TR C_RR^-1 C_RT) f_T."""
     rot = [i for i in range(len(flex)) if i not in translations]
     t = np.ix_(translations, translations)
-    reduced = flex[t] - flex[np.ix_(translations, rot)] @ np.linalg.solve(flex[np.ix_(rot, rot)],
-                                                                            flex[np.ix_(rot, translations)])
+    reduced = flex[t] - flex[np.ix_(translations, rot)] @ np.linalg.solve(
+        flex[np.ix_(rot, rot)], flex[np.ix_(rot, translations)]
+    )
     return np.linalg.inv(reduced)
 
 
-def crab_leg_leg(shin: float, thigh: float, s_shin: Section, s_thigh: Section, e: float,
-                 g: float) -> tuple[float, float, float]:
+def crab_leg_leg(
+    shin: float, thigh: float, s_shin: Section, s_thigh: Section, e: float, g: float
+) -> tuple[float, float, float]:
     """One crab leg's guided-end stiffnesses (along the shin, across it, vertical), by
     Castigliano: the shin runs from the loaded mass end B along +a for `shin`, the thigh from
     the knee across (+c) for `thigh` to the clamped anchor. Moments at a point P from the end
     loads: M = M_B + (B - P) x F, each component affine in the arc length."""
     # in plane: loads (F_a, F_c, M_z); shin points P = (s, 0), thigh points P = (shin, u)
     # bending moment m_z(P) = M_z + (B - P) x F |_z with B = (0, 0): -(P_a F_c - P_c F_a)
-    shin_m = [(0.0, 0.0), (0.0, -1.0), (1.0, 0.0)]                # m_z per unit F_a, F_c, M_z: (const, slope in s)
-    thigh_m = [(0.0, 1.0), (-shin, 0.0), (1.0, 0.0)]              # P = (shin, u): -(shin F_c - u F_a)
-    flex = np.array([[_integral(shin_m[i], shin_m[j], shin) / (e * s_shin.i_inplane)
-                      + _integral(thigh_m[i], thigh_m[j], thigh) / (e * s_thigh.i_inplane)
-                      for j in range(3)] for i in range(3)])
+    shin_m = [(0.0, 0.0), (0.0, -1.0), (1.0, 0.0)]  # m_z per unit F_a, F_c, M_z: (const, slope in s)
+    thigh_m = [(0.0, 1.0), (-shin, 0.0), (1.0, 0.0)]  # P = (shin, u): -(shin F_c - u F_a)
+    flex = np.array(
+        [
+            [
+                _integral(shin_m[i], shin_m[j], shin) / (e * s_shin.i_inplane)
+                + _integral(thigh_m[i], thigh_m[j], thigh) / (e * s_thigh.i_inplane)
+                for j in range(3)
+            ]
+            for i in range(3)
+        ]
+    )
     k_in = _guided(flex, [0, 1])
     # out of plane: loads (F_z, M_a, M_c); M(P) = M_B + (B - P) x (0, 0, F_z) = M_B + (-P_c F_z, P_a F_z, 0)
     # shin (axis a): torsion = M_a = M_a_B, bending = M_c = M_c_B + s F_z
     # thigh (axis c): torsion = M_c = M_c_B + shin F_z, bending = M_a = M_a_B - u F_z
     shin_t, shin_b = [(0.0, 0.0), (1.0, 0.0), (0.0, 0.0)], [(0.0, 1.0), (0.0, 0.0), (1.0, 0.0)]
     thigh_t, thigh_b = [(shin, 0.0), (0.0, 0.0), (1.0, 0.0)], [(0.0, -1.0), (1.0, 0.0), (0.0, 0.0)]
-    flex_z = np.array([[_integral(shin_t[i], shin_t[j], shin) / (g * s_shin.torsion)
-                        + _integral(shin_b[i], shin_b[j], shin) / (e * s_shin.i_vertical)
-                        + _integral(thigh_t[i], thigh_t[j], thigh) / (g * s_thigh.torsion)
-                        + _integral(thigh_b[i], thigh_b[j], thigh) / (e * s_thigh.i_vertical)
-                        for j in range(3)] for i in range(3)])
+    flex_z = np.array(
+        [
+            [
+                _integral(shin_t[i], shin_t[j], shin) / (g * s_shin.torsion)
+                + _integral(shin_b[i], shin_b[j], shin) / (e * s_shin.i_vertical)
+                + _integral(thigh_t[i], thigh_t[j], thigh) / (g * s_thigh.torsion)
+                + _integral(thigh_b[i], thigh_b[j], thigh) / (e * s_thigh.i_vertical)
+                for j in range(3)
+            ]
+            for i in range(3)
+        ]
+    )
     k_z = _guided(flex_z, [0])
     return float(k_in[0, 0]), float(k_in[1, 1]), float(k_z[0, 0])

@@ -26,6 +26,7 @@ def torsion_constant(a: float, b: float) -> float:
 class Section:
     """A rectangular cross-section: in-plane width w (along the local y axis) and thickness t
     (along global z), Young's modulus E and shear modulus G."""
+
     width: float
     thickness: float
     youngs_modulus: float
@@ -55,12 +56,18 @@ def local_stiffness(s: Section, length: float) -> np.ndarray:
     e, g, L = s.youngs_modulus, s.shear_modulus, length
     k = np.zeros((12, 12))
     ea, gj = e * s.area / L, g * s.torsion / L
-    for a, v in ((0, ea), (3, gj)):                       # axial u, torsion rx
+    for a, v in ((0, ea), (3, gj)):  # axial u, torsion rx
         k[a, a] = k[a + 6, a + 6] = v
         k[a, a + 6] = k[a + 6, a] = -v
-    for (w, r, ei, sign) in ((1, 5, e * s.i_inplane, 1.0), (2, 4, e * s.i_vertical, -1.0)):
-        a = np.array([[12, 6 * L * sign, -12, 6 * L * sign], [6 * L * sign, 4 * L * L, -6 * L * sign, 2 * L * L],
-                      [-12, -6 * L * sign, 12, -6 * L * sign], [6 * L * sign, 2 * L * L, -6 * L * sign, 4 * L * L]])
+    for w, r, ei, sign in ((1, 5, e * s.i_inplane, 1.0), (2, 4, e * s.i_vertical, -1.0)):
+        a = np.array(
+            [
+                [12, 6 * L * sign, -12, 6 * L * sign],
+                [6 * L * sign, 4 * L * L, -6 * L * sign, 2 * L * L],
+                [-12, -6 * L * sign, 12, -6 * L * sign],
+                [6 * L * sign, 2 * L * L, -6 * L * sign, 4 * L * L],
+            ]
+        )
         dofs = [w, r, w + 6, r + 6]
         k[np.ix_(dofs, dofs)] += ei / L**3 * a
     return k
@@ -77,6 +84,7 @@ def rotation(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
 @dataclass
 class Frame:
     """Nodes (m), members (node pairs, sections, subdivisions), clamped and body-tied nodes."""
+
     nodes: list[np.ndarray] = field(default_factory=list)
     members: list[tuple[int, int, Section]] = field(default_factory=list)
     clamped: set[int] = field(default_factory=set)
@@ -106,7 +114,7 @@ class Frame:
             r = rotation(self.nodes[i], self.nodes[j])
             t = np.kron(np.eye(4), r)
             ke = t.T @ local_stiffness(s, float(np.linalg.norm(self.nodes[j] - self.nodes[i]))) @ t
-            dofs = np.r_[6 * i:6 * i + 6, 6 * j:6 * j + 6]
+            dofs = np.r_[6 * i : 6 * i + 6, 6 * j : 6 * j + 6]
             k[np.ix_(dofs, dofs)] += ke
         return k
 
@@ -122,9 +130,9 @@ class Frame:
             r = self.nodes[i] - c
             link = np.eye(6)
             link[:3, 3:] = -np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])  # u = u0 + theta x r
-            p[6 * i:6 * i + 6, :6] = link
+            p[6 * i : 6 * i + 6, :6] = link
         for k, i in enumerate(free):
-            p[6 * i:6 * i + 6, 6 + 6 * k:12 + 6 * k] = np.eye(6)
+            p[6 * i : 6 * i + 6, 6 + 6 * k : 12 + 6 * k] = np.eye(6)
         kr = p.T @ self.stiffness() @ p
         kmm, kmf, kff = kr[:6, :6], kr[:6, 6:], kr[6:, 6:]
         return kmm - kmf @ np.linalg.solve(kff, kmf.T) if kff.size else kmm

@@ -18,9 +18,6 @@ Conventions
 
 from __future__ import annotations
 
-
-from __future__ import annotations
-
 import re
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
@@ -37,13 +34,14 @@ from .fields import P2Field, p2_field
 from .kirchhoff import free_edge_roots, free_plate_lambda2_exact
 
 _LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")
-_RIM_SAMPLES = 256          # angular samples on circles used to classify and align modes
-_RADIAL_SAMPLES = 200       # radial samples used to count nodal circles
-_OUTSIDE_TOL = 1e-6         # relative distance beyond the rim still accepted by shape()
-_MAX_EIGENPAIRS = 240       # refuse requests that would need more eigenpairs than this
+_RIM_SAMPLES = 256  # angular samples on circles used to classify and align modes
+_RADIAL_SAMPLES = 200  # radial samples used to count nodal circles
+_OUTSIDE_TOL = 1e-6  # relative distance beyond the rim still accepted by shape()
+_MAX_EIGENPAIRS = 240  # refuse requests that would need more eigenpairs than this
 
 
 # ----------------------------------------------------------------------------- rigid body
+
 
 @dataclass(frozen=True)
 class RigidBody:
@@ -64,6 +62,7 @@ def rigid_disk(radius: float, thickness: float, density: float) -> RigidBody:
 
 # --------------------------------------------------------------------- unit-disk FEM model
 
+
 @dataclass(frozen=True)
 class UnitDisk:
     """Morley discretisation of the unit disk: D = 1 stiffness, rho h = 1 mass, moments."""
@@ -71,15 +70,17 @@ class UnitDisk:
     basis: CellBasis
     stiffness: object
     mass: object
-    moments: np.ndarray          # (3, ndofs): integral of v, x v, y v over the disk
-    rigid_norms: np.ndarray      # (3,): M-norms of the rigid fields 1, x, y
+    moments: np.ndarray  # (3, ndofs): integral of v, x v, y v over the disk
+    rigid_norms: np.ndarray  # (3,): M-norms of the rigid fields 1, x, y
 
 
 def bending_form(nu: float) -> BilinearForm:
     """Kirchhoff bending energy per unit D; the free edge is the natural condition."""
+
     @BilinearForm
     def form(u, v, _):
         return (1 - nu) * ddot(dd(u), dd(v)) + nu * trace(dd(u)) * trace(dd(v))
+
     return form
 
 
@@ -93,11 +94,9 @@ def unit_disk(nu: float, refine: int) -> UnitDisk:
     """Assemble the unit-disk plate model at mesh refinement ``refine``."""
     basis = CellBasis(MeshTri.init_circle(refine), ElementTriMorley())
     weights = (lambda w: 1.0 + 0 * w.x[0], lambda w: w.x[0], lambda w: w.x[1])
-    moments = np.stack([LinearForm(lambda v, w, f=f: f(w) * v).assemble(basis)
-                        for f in weights])
+    moments = np.stack([LinearForm(lambda v, w, f=f: f(w) * v).assemble(basis) for f in weights])
     norms = np.sqrt([Functional(lambda w, f=f: f(w) ** 2).assemble(basis) for f in weights])
-    return UnitDisk(basis, bending_form(nu).assemble(basis), mass_form.assemble(basis),
-                    moments, norms)
+    return UnitDisk(basis, bending_form(nu).assemble(basis), mass_form.assemble(basis), moments, norms)
 
 
 def _eigenpairs(disk: UnitDisk, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -113,6 +112,7 @@ def _eigenpairs(disk: UnitDisk, count: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------ classification and alignment
+
 
 def _circle(radius: float, samples: int = _RIM_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
     """Equally spaced angles and points on a circle of the unit disk."""
@@ -134,7 +134,7 @@ def _cos_sin(coeffs: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 def _classify(field: P2Field) -> list[tuple[int, int]]:
     """(n, s) of each column: dominant rim harmonic and sign changes along a radius."""
     _, rim = _circle(1.0)
-    rim_coeffs = _fourier(field(*rim).T)                                  # (ncols, nh)
+    rim_coeffs = _fourier(field(*rim).T)  # (ncols, nh)
     radii = np.linspace(0.0, 1.0, _RADIAL_SAMPLES + 1)[1:]
     pts = np.concatenate([_circle(r)[1] for r in radii], axis=1)
     coeffs = _fourier(field(*pts).T.reshape(-1, len(radii), _RIM_SAMPLES))  # (ncols, nr, nh)
@@ -190,8 +190,7 @@ def _organise(field: P2Field, mu: np.ndarray) -> tuple[np.ndarray, list[str]]:
     blocks, labels = [], []
     for (n, s), cols in sorted(groups.items(), key=lambda kv: mu[kv[1]].mean()):
         if len(cols) > (2 if n else 1):
-            raise RuntimeError(f"mode identification failed: {len(cols)} modes look like "
-                               f"({n},{s}); refine the mesh")
+            raise RuntimeError(f"mode identification failed: {len(cols)} modes look like ({n},{s}); refine the mesh")
         if n and len(cols) == 1 and cols[0] == len(mu) - 1:
             continue
         q, suffixes = _align(field, n, cols)
@@ -204,18 +203,23 @@ def _organise(field: P2Field, mu: np.ndarray) -> tuple[np.ndarray, list[str]]:
 
 # --------------------------------------------------------------------------- mode requests
 
+
 def _parse_labels(modes: list[str] | tuple[str, ...]) -> list[tuple[str, int, int]]:
     """Validate labels; return (canonical label, n, s) for each, in request order."""
     parsed = []
     for raw in modes:
         match = _LABEL.match(str(raw).replace(" ", ""))
         if not match:
-            raise ValueError(f"bad mode label {raw!r}: expected 'n,s' + 'c'/'s' "
-                             "(e.g. '2,0c', '3,0s') or 'n,s' for n = 0 (e.g. '0,1')")
+            raise ValueError(
+                f"bad mode label {raw!r}: expected 'n,s' + 'c'/'s' "
+                "(e.g. '2,0c', '3,0s') or 'n,s' for n = 0 (e.g. '0,1')"
+            )
         n, s, suffix = int(match[1]), int(match[2]), match[3]
         if n < 2 and s == 0:
-            raise ValueError(f"mode {raw!r} is a rigid-body motion (translation/tilt) of "
-                             "the free disk, not an eigenmode: use the rigid coordinates")
+            raise ValueError(
+                f"mode {raw!r} is a rigid-body motion (translation/tilt) of "
+                "the free disk, not an eigenmode: use the rigid coordinates"
+            )
         if (n == 0) != (suffix == ""):
             hint = f"'{n},{s}'" if n == 0 else f"'{n},{s}c' or '{n},{s}s'"
             raise ValueError(f"mode {raw!r}: write {hint} (c/s orientation only for n > 0)")
@@ -237,6 +241,7 @@ def _eigenpairs_needed(parsed: list[tuple[str, int, int]], nu: float) -> int:
 
 
 # --------------------------------------------------------------------------- public result
+
 
 @dataclass(frozen=True)
 class PlateModes:
@@ -271,14 +276,20 @@ class PlateModes:
             raise ValueError(f"x and y must have the same size, got {x.size} and {y.size}")
         r = np.hypot(x, y)
         if x.size and r.max() > 1 + _OUTSIDE_TOL:
-            raise ValueError(f"points outside the disk: max radius {r.max() * self.radius:.6g} m"
-                             f" > {self.radius:.6g} m")
+            raise ValueError(f"points outside the disk: max radius {r.max() * self.radius:.6g} m > {self.radius:.6g} m")
         return self.field(x, y)
 
 
-def free_disk_modes(radius: float, thickness: float, youngs_modulus: float,
-                    poisson_ratio: float, density: float, modes: int | list[str],
-                    refine: int = 6, reference_amplitude: float | None = None) -> PlateModes:
+def free_disk_modes(
+    radius: float,
+    thickness: float,
+    youngs_modulus: float,
+    poisson_ratio: float,
+    density: float,
+    modes: int | list[str],
+    refine: int = 6,
+    reference_amplitude: float | None = None,
+) -> PlateModes:
     """Eigenmodes of the free Kirchhoff disk (Morley FEM), as the paper's modal coordinates.
 
     ``modes``: an int (the first N elastic modes in frequency order) or labels such as
@@ -325,6 +336,7 @@ def _select(labels: list[str], wanted: int | list[str]) -> list[int]:
 
 # ------------------------------------------------------------------- physical quantities
 
+
 @dataclass(frozen=True)
 class _Plate:
     """Physical plate data."""
@@ -346,8 +358,9 @@ class _Plate:
         return self.density * self.thickness
 
 
-def _plate_modes(plate: _Plate, disk: UnitDisk, phi: np.ndarray, shapes: P2Field,
-                 labels: list[str], amplitude: float) -> PlateModes:
+def _plate_modes(
+    plate: _Plate, disk: UnitDisk, phi: np.ndarray, shapes: P2Field, labels: list[str], amplitude: float
+) -> PlateModes:
     """Scale unit-disk shapes to the plate and collect modal data and side conditions."""
     r, rho_h = plate.radius, plate.areal_density
     mass = rho_h * r**2 * (phi.T @ (disk.mass @ phi))
@@ -358,21 +371,30 @@ def _plate_modes(plate: _Plate, disk: UnitDisk, phi: np.ndarray, shapes: P2Field
     arrays = [omega / (2 * np.pi), m, k, lambda2]
     for a in arrays:
         a.flags.writeable = False
-    return PlateModes(labels=tuple(labels), frequencies_hz=arrays[0], modal_mass=arrays[1],
-                      modal_stiffness=arrays[2], lambda2=arrays[3],
-                      orthogonality=_orthogonality(disk, phi, mass, stiff),
-                      coupling=_coupling(plate, disk, phi, mass, amplitude),
-                      radius=float(r), field=shapes)
+    return PlateModes(
+        labels=tuple(labels),
+        frequencies_hz=arrays[0],
+        modal_mass=arrays[1],
+        modal_stiffness=arrays[2],
+        lambda2=arrays[3],
+        orthogonality=_orthogonality(disk, phi, mass, stiff),
+        coupling=_coupling(plate, disk, phi, mass, amplitude),
+        radius=float(r),
+        field=shapes,
+    )
 
 
-def _orthogonality(disk: UnitDisk, phi: np.ndarray, mass: np.ndarray,
-                   stiff: np.ndarray) -> dict[str, float]:
+def _orthogonality(disk: UnitDisk, phi: np.ndarray, mass: np.ndarray, stiff: np.ndarray) -> dict[str, float]:
     """Side conditions (M-cosines with rigid fields) and modal cross terms, max over modes."""
     norms = np.sqrt(np.einsum("dm,dm->m", phi, disk.mass @ phi))
     cos = np.abs(disk.moments @ phi) / np.outer(disk.rigid_norms, norms)
-    return {"phi": float(cos[0].max()), "x_phi": float(cos[1].max()),
-            "y_phi": float(cos[2].max()),
-            "mass_offdiag": _offdiag(mass), "stiffness_offdiag": _offdiag(stiff)}
+    return {
+        "phi": float(cos[0].max()),
+        "x_phi": float(cos[1].max()),
+        "y_phi": float(cos[2].max()),
+        "mass_offdiag": _offdiag(mass),
+        "stiffness_offdiag": _offdiag(stiff),
+    }
 
 
 def _offdiag(matrix: np.ndarray) -> float:
@@ -382,8 +404,7 @@ def _offdiag(matrix: np.ndarray) -> float:
     return float(np.abs(rel).max())
 
 
-def _coupling(plate: _Plate, disk: UnitDisk, phi: np.ndarray, mass: np.ndarray,
-              amplitude: float) -> dict[str, float]:
+def _coupling(plate: _Plate, disk: UnitDisk, phi: np.ndarray, mass: np.ndarray, amplitude: float) -> dict[str, float]:
     """Paper's A = rho int x x G dV and Theta(m) - Theta_undef, relative to rigid inertia.
 
     Thin plate, vertical-only G = (0, 0, phi): A_i = rho h int (y phi, -x phi, 0) dA (the
@@ -397,19 +418,22 @@ def _coupling(plate: _Plate, disk: UnitDisk, phi: np.ndarray, mass: np.ndarray,
     """
     r, rho_h = plate.radius, plate.areal_density
     i_xx = rigid_disk(r, plate.thickness, plate.density).inertia[0, 0]
-    first = rho_h * r**3 * (disk.moments[1:] @ phi)                   # (2, nmodes): x, y
+    first = rho_h * r**3 * (disk.moments[1:] @ phi)  # (2, nmodes): x, y
     a_matrix = np.stack([first[1], -first[0], np.zeros(phi.shape[1])])
     a_rel = np.linalg.norm(a_matrix, axis=0) / np.sqrt(i_xx * np.diag(mass))
     xw, yw = amplitude * first.sum(axis=1)
     w2 = amplitude**2 * mass.sum()
     delta = np.array([[w2, 0.0, -xw], [0.0, w2, -yw], [-xw, -yw, 0.0]])
-    return {"A_rel_max": float(a_rel.max()),
-            "inertia_correction_rel_max": float(np.abs(delta).max() / i_xx),
-            "inertia_correction_linear_rel_max": float(max(abs(xw), abs(yw)) / i_xx),
-            "reference_amplitude_m": float(amplitude)}
+    return {
+        "A_rel_max": float(a_rel.max()),
+        "inertia_correction_rel_max": float(np.abs(delta).max() / i_xx),
+        "inertia_correction_linear_rel_max": float(max(abs(xw), abs(yw)) / i_xx),
+        "reference_amplitude_m": float(amplitude),
+    }
 
 
 # ------------------------------------------------------------------- the stage
+
 
 def floats(d: dict) -> dict:
     """A report dict with numpy scalars as plain floats (JSON)."""
@@ -423,10 +447,16 @@ def mechanics(s: Structure) -> Mechanics:
     rigid_mass = {"z": body.mass, "tilt_x": body.inertia[0, 0], "tilt_y": body.inertia[1, 1]}
     modes = None
     if s.coordinates.modes:
-        modes = free_disk_modes(d.radius, d.thickness, d.youngs_modulus, d.poisson_ratio, d.density,
-                                list(s.coordinates.modes) if not isinstance(s.coordinates.modes, int)
-                                else s.coordinates.modes, refine=s.fem.refine,
-                                reference_amplitude=s.sampling.range * min(e.gap for e in s.electrode_sets))
+        modes = free_disk_modes(
+            d.radius,
+            d.thickness,
+            d.youngs_modulus,
+            d.poisson_ratio,
+            d.density,
+            list(s.coordinates.modes) if not isinstance(s.coordinates.modes, int) else s.coordinates.modes,
+            refine=s.fem.refine,
+            reference_amplitude=s.sampling.range * min(e.gap for e in s.electrode_sets),
+        )
     rigid = list(s.coordinates.rigid)
     labels = list(modes.labels) if modes else []
     names = rigid + [mode_name(lab) for lab in labels]
@@ -446,14 +476,26 @@ def mechanics(s: Structure) -> Mechanics:
 
     report = {"mass_kg": body.mass, "inertia_kg_m2": np.asarray(body.inertia).tolist()}
     if modes is not None:
-        report.update({"fem_refine": s.fem.refine, "lambda2": [float(v) for v in modes.lambda2],
-                       "side_conditions": floats(modes.orthogonality), "rotation_mode_coupling": floats(modes.coupling)})
+        report.update(
+            {
+                "fem_refine": s.fem.refine,
+                "lambda2": [float(v) for v in modes.lambda2],
+                "side_conditions": floats(modes.orthogonality),
+                "rotation_mode_coupling": floats(modes.coupling),
+            }
+        )
     return Mechanics(names, kinds, units, [""] * len(rigid) + labels, masses, stiff, freqs, basis, report)
 
 
 def selected_modes(s: Structure) -> PlateModes:
     """The structure's selected eigenmodes alone (the exporter's per-element node values)."""
     d = s.conductor
-    return free_disk_modes(d.radius, d.thickness, d.youngs_modulus, d.poisson_ratio, d.density,
-                           list(s.coordinates.modes) if not isinstance(s.coordinates.modes, int)
-                           else s.coordinates.modes, refine=s.fem.refine)
+    return free_disk_modes(
+        d.radius,
+        d.thickness,
+        d.youngs_modulus,
+        d.poisson_ratio,
+        d.density,
+        list(s.coordinates.modes) if not isinstance(s.coordinates.modes, int) else s.coordinates.modes,
+        refine=s.fem.refine,
+    )

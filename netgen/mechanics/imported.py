@@ -36,8 +36,16 @@ from ..structure.reader import identifier
 from ..text import shown, text_problem
 from .base import RIGID, Mechanics, rigid_field
 from .fields import P2Field
-from .import_checks import (check_duplicate_nodes, check_full, check_nodes, fail, line_of, modal_values,
-                            read_matrix, where_row)
+from .import_checks import (
+    check_duplicate_nodes,
+    check_full,
+    check_nodes,
+    fail,
+    line_of,
+    modal_values,
+    read_matrix,
+    where_row,
+)
 
 WHERE = "import.modes"
 
@@ -52,8 +60,13 @@ def read_modes(path: str | Path) -> dict:
     if path.suffix == ".csv":
         t = read_csv(path, WHERE)
         if t.header[:2] != ["x", "y"] or len(t.header) < 3:
-            raise fail(path, WHERE, f"header {t.header[:3]} does not start with x, y, <coordinate>",
-                       "write a header line: x,y,z,tilt_x,m1,... (one column per coordinate)", t.header_line)
+            raise fail(
+                path,
+                WHERE,
+                f"header {t.header[:3]} does not start with x, y, <coordinate>",
+                "write a header line: x,y,z,tilt_x,m1,... (one column per coordinate)",
+                t.header_line,
+            )
         data = {"nodes": t.values[:, :2], "vectors": t.values[:, 2:], "names": t.header[2:], "lines": t.lines}
     else:
         data = load_npz(path, WHERE, ("nodes", "vectors", "names"), MODES_ARRAYS)
@@ -72,8 +85,12 @@ def text_array(path: Path, data: dict, key: str) -> list[str]:
     """A 1-D array of strings of an .npz (names, labels)."""
     a = data[key]
     if a.ndim != 1 or a.dtype.kind not in "US":
-        raise fail(path, WHERE, f"{key} is a {a.dtype} array of shape {a.shape}, not a list of strings",
-                   f"save {key}=np.array(['z', 'm1', ...]) (one string per coordinate)")
+        raise fail(
+            path,
+            WHERE,
+            f"{key} is a {a.dtype} array of shape {a.shape}, not a list of strings",
+            f"save {key}=np.array(['z', 'm1', ...]) (one string per coordinate)",
+        )
     return [x.decode("utf-8", "replace") if isinstance(x, bytes) else str(x) for x in a]
 
 
@@ -81,8 +98,12 @@ def numeric(path: Path, data: dict, key: str, kinds: str = "iuf") -> np.ndarray:
     """An array of an .npz (or CSV) that must hold plain numbers."""
     a = np.asarray(data[key])
     if a.dtype.kind not in kinds:
-        raise fail(path, WHERE, f"{key} holds {a.dtype} values, not {'integers' if kinds == 'iu' else 'numbers'}",
-                   f"save {key} as a {'integer' if kinds == 'iu' else 'float'} array")
+        raise fail(
+            path,
+            WHERE,
+            f"{key} holds {a.dtype} values, not {'integers' if kinds == 'iu' else 'numbers'}",
+            f"save {key} as a {'integer' if kinds == 'iu' else 'float'} array",
+        )
     return a
 
 
@@ -94,39 +115,65 @@ def check_arrays(path: Path, data: dict) -> None:
     if nodes.ndim != 2 or nodes.shape[1] != 2 or len(nodes) == 0:
         raise fail(path, WHERE, f"nodes has shape {nodes.shape}, expected (npts, 2)", "give x, y per node in m")
     if vectors.ndim != 2 or vectors.shape[1] != len(names):
-        raise fail(path, WHERE, f"vectors has shape {vectors.shape} for {len(names)} names",
-                   "one column per coordinate name")
+        raise fail(
+            path, WHERE, f"vectors has shape {vectors.shape} for {len(names)} names", "one column per coordinate name"
+        )
     for n in names:
         if not identifier(n) or "error" in n.lower():
-            raise fail(path, WHERE, f"coordinate name {shown(n)} is not a simple identifier",
-                       "use letters, digits and _ (e.g. m1, m2)")
+            raise fail(
+                path,
+                WHERE,
+                f"coordinate name {shown(n)} is not a simple identifier",
+                "use letters, digits and _ (e.g. m1, m2)",
+            )
         if names.count(n) > 1:
             raise fail(path, WHERE, f"coordinate {n!r} is named twice", "give each coordinate one column")
     if "labels" in data and len(np.ravel(data["labels"])) != len(names):
-        raise fail(path, WHERE, f"{len(np.ravel(data['labels']))} labels for {len(names)} coordinates",
-                   "give one label per coordinate (or none)")
+        raise fail(
+            path,
+            WHERE,
+            f"{len(np.ravel(data['labels']))} labels for {len(names)} coordinates",
+            "give one label per coordinate (or none)",
+        )
     for k, label in enumerate(np.ravel(data.get("labels", ()))):
         if text_problem(str(label)):
-            raise fail(path, f"{WHERE}.labels[{k}]", f"label {shown(str(label))} {text_problem(str(label))}",
-                       "write each label as one line of printable text (e.g. '2,0c'; no line breaks or other "
-                       "control characters): labels are copied into the netlist headers")
+            raise fail(
+                path,
+                f"{WHERE}.labels[{k}]",
+                f"label {shown(str(label))} {text_problem(str(label))}",
+                "write each label as one line of printable text (e.g. '2,0c'; no line breaks or other "
+                "control characters): labels are copied into the netlist headers",
+            )
     for key, a in (("nodes", nodes), ("vectors", vectors)):
         bad = np.argwhere(~np.isfinite(a))
         if len(bad):
             r, k = bad[0]
             col = (["x", "y"] if key == "nodes" else names)[k]
-            raise fail(path, WHERE, f"{key} {where_row(int(r), lines)}, column {col!r}, is {a[r, k]}",
-                       "export finite node coordinates and displacements", line_of(int(r), lines))
+            raise fail(
+                path,
+                WHERE,
+                f"{key} {where_row(int(r), lines)}, column {col!r}, is {a[r, k]}",
+                "export finite node coordinates and displacements",
+                line_of(int(r), lines),
+            )
     data["nodes"], data["vectors"] = nodes, vectors
     check_optional(path, data, len(nodes), len(vectors))
     if "w_rows" not in data and len(vectors) != len(nodes):
-        raise fail(path, WHERE, f"{len(vectors)} vector rows for {len(nodes)} nodes",
-                   "give one row per node, or full eigenvectors with w_rows")
+        raise fail(
+            path,
+            WHERE,
+            f"{len(vectors)} vector rows for {len(nodes)} nodes",
+            "give one row per node, or full eigenvectors with w_rows",
+        )
     w = vectors[data["w_rows"]] if "w_rows" in data else vectors
     for k, n in enumerate(names):
         if not np.any(w[:, k]):
-            raise fail(path, WHERE, f"coordinate {n!r} has zero displacement at every node",
-                       "export the mode shape (vertical displacement per unit amplitude), or drop the column")
+            raise fail(
+                path,
+                WHERE,
+                f"coordinate {n!r} has zero displacement at every node",
+                "export the mode shape (vertical displacement per unit amplitude), or drop the column",
+            )
 
 
 def check_optional(path: Path, data: dict, npts: int, nrows: int) -> None:
@@ -134,20 +181,35 @@ def check_optional(path: Path, data: dict, npts: int, nrows: int) -> None:
     if "length_scale" in data:
         unit = numeric(path, data, "length_scale")
         if unit.size != 1 or not math.isfinite(float(unit.ravel()[0])) or not float(unit.ravel()[0]) > 0:
-            raise fail(path, WHERE, f"length_scale = {unit.tolist()} is not one positive number",
-                       "save length_scale = metres per unit of the node coordinates (1.0 for m)")
+            raise fail(
+                path,
+                WHERE,
+                f"length_scale = {unit.tolist()} is not one positive number",
+                "save length_scale = metres per unit of the node coordinates (1.0 for m)",
+            )
         data["length_scale"] = float(unit.ravel()[0])
     for key, shape, hi in (("w_rows", (npts,), nrows), ("triangles", (None, 6), npts)):
         if key not in data:
             continue
         a = numeric(path, data, key, "iu")
-        if a.ndim != len(shape) or any(want is not None and got != want for got, want in zip(a.shape, shape)) \
-                or a.size == 0:
-            raise fail(path, WHERE, f"{key} has shape {a.shape}, expected {tuple('n' if d is None else d for d in shape)}",
-                       "w_rows: the vertical-DOF row of each node; triangles: 6 node indices per quadratic triangle")
+        if (
+            a.ndim != len(shape)
+            or any(want is not None and got != want for got, want in zip(a.shape, shape))
+            or a.size == 0
+        ):
+            raise fail(
+                path,
+                WHERE,
+                f"{key} has shape {a.shape}, expected {tuple('n' if d is None else d for d in shape)}",
+                "w_rows: the vertical-DOF row of each node; triangles: 6 node indices per quadratic triangle",
+            )
         if a.min() < 0 or a.max() >= hi:
-            raise fail(path, WHERE, f"{key} holds index {int(a.max() if a.max() >= hi else a.min())} outside 0..{hi - 1}",
-                       f"give 0-based indices below {hi}")
+            raise fail(
+                path,
+                WHERE,
+                f"{key} holds index {int(a.max() if a.max() >= hi else a.min())} outside 0..{hi - 1}",
+                f"give 0-based indices below {hi}",
+            )
         data[key] = a.astype(int)
 
 
@@ -170,6 +232,7 @@ def shape_function(s: Structure, data: dict):
             if elastic:
                 out[:, elastic] = inner(x, y)
             return out
+
         return basis
     return _shapes(s, data, nodes, w, unit)
 
@@ -182,18 +245,26 @@ def _check_rigid(data: dict, nodes: np.ndarray, w: np.ndarray, rigid: list[int])
         name = data["names"][k]
         ref = exact[name]
         if np.abs(w[:, k] - ref).max() > 1e-6 * max(np.abs(ref).max(), 1e-300):
-            raise fail(data.get("path", "modes"), WHERE, f"column {name!r} is not the rigid-body field "
-                        f"({'1' if name == 'z' else 'y' if name == 'tilt_x' else '-x'} per unit, x, y in m)",
-                        "rename the column if it is an eigenmode, or export the rigid motion per unit amplitude")
+            raise fail(
+                data.get("path", "modes"),
+                WHERE,
+                f"column {name!r} is not the rigid-body field "
+                f"({'1' if name == 'z' else 'y' if name == 'tilt_x' else '-x'} per unit, x, y in m)",
+                "rename the column if it is an eigenmode, or export the rigid motion per unit amplitude",
+            )
 
 
 def _shapes(s: Structure, data: dict, nodes: np.ndarray, w: np.ndarray, unit: float):
     """Interpolation of elastic mode shapes w (npts, k) given at the nodes (m)."""
     if "triangles" in data and np.shape(data["triangles"])[1] == 6 and s.conductor.outline_shape == "disk":
-        ratio = unit / s.conductor.radius          # nodes in units of the radius stay bit-exact
-        return _p2_disk(data["nodes"] if ratio == 1.0 else data["nodes"] * ratio, w,
-                        np.asarray(data["triangles"], int), s.conductor.radius)
-    if s.conductor.one_dimensional:                       # beams: the shapes vary along x only
+        ratio = unit / s.conductor.radius  # nodes in units of the radius stay bit-exact
+        return _p2_disk(
+            data["nodes"] if ratio == 1.0 else data["nodes"] * ratio,
+            w,
+            np.asarray(data["triangles"], int),
+            s.conductor.radius,
+        )
+    if s.conductor.one_dimensional:  # beams: the shapes vary along x only
         xs, inv = np.unique(nodes[:, 0], return_inverse=True)
         mean = np.zeros((len(xs), w.shape[1]))
         np.add.at(mean, inv, w)
@@ -207,9 +278,10 @@ def _shapes(s: Structure, data: dict, nodes: np.ndarray, w: np.ndarray, unit: fl
         pts = np.stack([np.ravel(x), np.ravel(y)], axis=1)
         out = interp(pts)
         bad = np.isnan(out).any(axis=1)
-        if bad.any():                                      # outside the node hull: nearest node
+        if bad.any():  # outside the node hull: nearest node
             out[bad] = w[tree.query(pts[bad])[1]]
         return out
+
     return basis
 
 
@@ -223,13 +295,19 @@ def _p2_disk(p: np.ndarray, w: np.ndarray, tri: np.ndarray, radius: float):
     rim = verts[ConvexHull(verts).vertices]
     angles = np.mod(np.arctan2(rim[:, 1], rim[:, 0]), 2 * np.pi)
     order = np.argsort(angles)
-    field = P2Field(origin=v0, inverse=inverse, nodes=w[tri], tree=cKDTree(p[tri[:, :3]].mean(axis=1)),
-                    rim_angles=np.append(angles[order], angles[order[0]] + 2 * np.pi),
-                    rim_points=np.vstack([rim[order], rim[order][:1]]))
+    field = P2Field(
+        origin=v0,
+        inverse=inverse,
+        nodes=w[tri],
+        tree=cKDTree(p[tri[:, :3]].mean(axis=1)),
+        rim_angles=np.append(angles[order], angles[order[0]] + 2 * np.pi),
+        rim_points=np.vstack([rim[order], rim[order][:1]]),
+    )
     return lambda x, y: field(np.ravel(x) / radius, np.ravel(y) / radius)
 
 
 # ------------------------------------------------------------------ the stage
+
 
 def mechanics(s: Structure) -> Mechanics:
     """The Mechanics stage from imported M, K and modes, each checked before it is used."""
@@ -245,8 +323,12 @@ def mechanics(s: Structure) -> Mechanics:
     M = read_matrix(imp.mass_matrix, "import.mass_matrix", sizes)
     K = read_matrix(imp.stiffness_matrix, "import.stiffness_matrix", sizes)
     if M.shape != K.shape:
-        raise fail(imp.stiffness_matrix, "import.stiffness_matrix", f"K is {K.shape}, M is {M.shape}",
-                   "export M and K of the same model")
+        raise fail(
+            imp.stiffness_matrix,
+            "import.stiffness_matrix",
+            f"K is {K.shape}, M is {M.shape}",
+            "export M and K of the same model",
+        )
     if M.shape[0] == n:
         mr, kr, form = M, K, "modal"
     else:
@@ -254,19 +336,32 @@ def mechanics(s: Structure) -> Mechanics:
         phi = data["vectors"]
         mr, kr, form = phi.T @ M @ phi, phi.T @ K @ phi, "full (projected on the eigenvectors)"
     mass, stiff = np.diag(mr).copy(), np.diag(kr).copy()
-    off = max(diagonal(mr, imp.mass_matrix, "import.mass_matrix", form, imp.modes),
-              diagonal(kr, imp.stiffness_matrix, "import.stiffness_matrix", form, imp.modes))
+    off = max(
+        diagonal(mr, imp.mass_matrix, "import.mass_matrix", form, imp.modes),
+        diagonal(kr, imp.stiffness_matrix, "import.stiffness_matrix", form, imp.modes),
+    )
     stiff = modal_values(s, names, mass, stiff, imp.mass_matrix, imp.stiffness_matrix)
     kinds = [RIGID.get(nm, ("mode", "m")) for nm in names]
-    labels = [str(x) for x in np.ravel(data["labels"])] if "labels" in data else [
-        "" if nm in RIGID_COORDINATES else nm for nm in names]
+    labels = (
+        [str(x) for x in np.ravel(data["labels"])]
+        if "labels" in data
+        else ["" if nm in RIGID_COORDINATES else nm for nm in names]
+    )
     freqs = np.sqrt(stiff / mass) / (2 * math.pi)
     basis = shape_function(s, data)
-    report = {"imported": {"mass_matrix": Path(imp.mass_matrix).name, "stiffness_matrix": Path(imp.stiffness_matrix).name,
-                           "modes": Path(imp.modes).name, "matrices": form, "nodes": int(len(data["nodes"])),
-                           "modal_offdiagonal_max": off}}
-    return Mechanics(list(names), [k for k, _ in kinds], [u for _, u in kinds], labels, mass, stiff, freqs,
-                     basis, report)
+    report = {
+        "imported": {
+            "mass_matrix": Path(imp.mass_matrix).name,
+            "stiffness_matrix": Path(imp.stiffness_matrix).name,
+            "modes": Path(imp.modes).name,
+            "matrices": form,
+            "nodes": int(len(data["nodes"])),
+            "modal_offdiagonal_max": off,
+        }
+    }
+    return Mechanics(
+        list(names), [k for k, _ in kinds], [u for _, u in kinds], labels, mass, stiff, freqs, basis, report
+    )
 
 
 def diagonal(a: np.ndarray, path: str, where: str, form: str, modes: str) -> float:
@@ -279,11 +374,13 @@ def diagonal(a: np.ndarray, path: str, where: str, form: str, modes: str) -> flo
         r = np.where(d > 0, off / d, np.where(off > 0, np.inf, 0.0))
     worst = float(r.max()) if r.size else 0.0
     if worst > 1e-6:
-        j, i = sorted(np.unravel_index(np.argmax(r), r.shape))          # the lower triangle, as stored
+        j, i = sorted(np.unravel_index(np.argmax(r), r.shape))  # the lower triangle, as stored
         modal = form == "modal"
-        raise fail(path if modal else modes, where if modal else WHERE,
-                   f"the modal matrix is not diagonal: entry ({i + 1}, {j + 1}) = {a[i, j]:.4g} is {worst:.2e} "
-                   "of sqrt(a_ii a_jj)"
-                   + ("" if modal else " (after projection on the eigenvectors)"),
-                   "export mass-orthogonal eigenvectors and the diagonal modal matrices (both tools' default)")
+        raise fail(
+            path if modal else modes,
+            where if modal else WHERE,
+            f"the modal matrix is not diagonal: entry ({i + 1}, {j + 1}) = {a[i, j]:.4g} is {worst:.2e} "
+            "of sqrt(a_ii a_jj)" + ("" if modal else " (after projection on the eigenvectors)"),
+            "export mass-orthogonal eigenvectors and the diagonal modal matrices (both tools' default)",
+        )
     return worst

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from scipy.optimize import brentq
 
-LIMIT = 1e-3         # the relative error the report flags
+LIMIT = 1e-3  # the relative error the report flags
 
 
 def relative_error(theta: np.ndarray | float) -> np.ndarray:
@@ -30,8 +30,9 @@ def threshold(limit: float = LIMIT) -> float:
     return float(brentq(lambda t: relative_error(t) - limit, 1e-9, 1.0))
 
 
-def small_angle_report(names: list[str], kinds: list[str], scales: np.ndarray, sampled: float,
-                       r_max: float, min_gap: float) -> dict:
+def small_angle_report(
+    names: list[str], kinds: list[str], scales: np.ndarray, sampled: float, r_max: float, min_gap: float
+) -> dict:
     """Per rotation coordinate: its sampled and touching amplitudes against the 0.1 % threshold,
     and the farthest point's second-order position error there as a fraction of the smallest gap."""
     limit_angle = threshold()
@@ -40,15 +41,28 @@ def small_angle_report(names: list[str], kinds: list[str], scales: np.ndarray, s
         if kind != "rotation":
             continue
         s, touch = sampled * float(scale), float(scale)
-        rows.append({"coordinate": name, "sampled_rad": s, "touching_rad": touch,
-                     "error_at_sampled": float(relative_error(s)), "error_at_touching": float(relative_error(touch)),
-                     "position_error_over_gap_at_sampled": r_max * (1 - math.cos(s)) / min_gap,
-                     "position_error_over_gap_at_touching": r_max * (1 - math.cos(touch)) / min_gap,
-                     "exceeds_0p1_percent": bool(relative_error(touch) > LIMIT or
-                                                 r_max * (1 - math.cos(touch)) / min_gap > LIMIT)})
-    return {"model": "first order in the angles (netgen.mechanics.base.KINEMATICS)",
-            "threshold_rad": limit_angle, "limit": LIMIT, "farthest_point_m": r_max, "smallest_gap_m": min_gap,
-            "rotations": rows,
-            "note": f"the displacement error of the small-angle model exceeds {LIMIT:.1%} of the displacement beyond "
-                    f"|angle| = {limit_angle:.4g} rad; translations are exact; two rotations together are off "
-                    "by their product (second order) as well"}
+        rows.append(
+            {
+                "coordinate": name,
+                "sampled_rad": s,
+                "touching_rad": touch,
+                "error_at_sampled": float(relative_error(s)),
+                "error_at_touching": float(relative_error(touch)),
+                "position_error_over_gap_at_sampled": r_max * (1 - math.cos(s)) / min_gap,
+                "position_error_over_gap_at_touching": r_max * (1 - math.cos(touch)) / min_gap,
+                "exceeds_0p1_percent": bool(
+                    relative_error(touch) > LIMIT or r_max * (1 - math.cos(touch)) / min_gap > LIMIT
+                ),
+            }
+        )
+    return {
+        "model": "first order in the angles (netgen.mechanics.base.KINEMATICS)",
+        "threshold_rad": limit_angle,
+        "limit": LIMIT,
+        "farthest_point_m": r_max,
+        "smallest_gap_m": min_gap,
+        "rotations": rows,
+        "note": f"the displacement error of the small-angle model exceeds {LIMIT:.1%} of the displacement beyond "
+        f"|angle| = {limit_angle:.4g} rad; translations are exact; two rotations together are off "
+        "by their product (second order) as well",
+    }

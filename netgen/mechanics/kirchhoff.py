@@ -18,15 +18,14 @@ def free_edge_determinant(lam: float | np.ndarray, n: int, nu: float) -> float |
     j, dj = jv(n, lam), jvp(n, lam)
     i = ive(n, lam)
     di = 0.5 * (ive(n - 1, lam) + ive(n + 1, lam))
-    m_j = -lam**2 * j - (1 - nu) * (lam * dj - n**2 * j)
+    m_j = -(lam**2) * j - (1 - nu) * (lam * dj - n**2 * j)
     m_i = lam**2 * i - (1 - nu) * (lam * di - n**2 * i)
-    v_j = -lam**3 * dj - (1 - nu) * n**2 * (lam * dj - j)
+    v_j = -(lam**3) * dj - (1 - nu) * n**2 * (lam * dj - j)
     v_i = lam**3 * di - (1 - nu) * n**2 * (lam * di - i)
     return m_j * v_i - m_i * v_j
 
 
-def free_edge_roots(n: int, nu: float, count: int | None = None,
-                    stop: float | None = None) -> list[float]:
+def free_edge_roots(n: int, nu: float, count: int | None = None, stop: float | None = None) -> list[float]:
     """Positive roots lambda of the free-edge equation: the first ``count``, or all below ``stop``.
 
     Scans lambda on a 0.02 grid (roots are ~pi apart) from 0.05, above the rigid-body root
@@ -38,9 +37,9 @@ def free_edge_roots(n: int, nu: float, count: int | None = None,
         grid = lo + step * np.arange(block + 1)
         f = free_edge_determinant(grid, n, nu)
         for i in np.flatnonzero((f[:-1] * f[1:] < 0) | (f[:-1] == 0)):
-            roots.append(grid[i] if f[i] == 0 else
-                         brentq(free_edge_determinant, grid[i], grid[i + 1], args=(n, nu),
-                                xtol=1e-14))
+            roots.append(
+                grid[i] if f[i] == 0 else brentq(free_edge_determinant, grid[i], grid[i + 1], args=(n, nu), xtol=1e-14)
+            )
         lo = grid[-1]
     roots = [r for r in roots if stop is None or r <= stop]
     return roots if count is None else roots[:count]

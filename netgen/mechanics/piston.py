@@ -19,7 +19,19 @@ def mechanics(s: Structure) -> Mechanics:
     springs = {"z": c.stiffness, "tilt_x": c.tilt_stiffness, "tilt_y": c.tilt_stiffness}
     masses = np.array([inertia[r] for r in rigid])
     stiff = np.array([springs[r] for r in rigid])
-    return Mechanics(rigid, [RIGID[r][0] for r in rigid], [RIGID[r][1] for r in rigid], [""] * len(rigid),
-                     masses, stiff, np.sqrt(stiff / masses) / (2 * math.pi), rigid_basis(rigid),
-                     {"kind": "piston", "mass_kg": c.mass, "spring_N_per_m": c.stiffness,
-                      "tilt_spring_N_m_per_rad": c.tilt_stiffness})
+    return Mechanics(
+        rigid,
+        [RIGID[r][0] for r in rigid],
+        [RIGID[r][1] for r in rigid],
+        [""] * len(rigid),
+        masses,
+        stiff,
+        np.sqrt(stiff / masses) / (2 * math.pi),
+        rigid_basis(rigid),
+        {
+            "kind": "piston",
+            "mass_kg": c.mass,
+            "spring_N_per_m": c.stiffness,
+            "tilt_spring_N_m_per_rad": c.tilt_stiffness,
+        },
+    )

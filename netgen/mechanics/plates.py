@@ -4,7 +4,7 @@ and stiffness, frequencies and labels. A new plate shape is a new module and one
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from . import rect_plate
 

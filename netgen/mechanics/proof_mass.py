@@ -42,8 +42,14 @@ def inertia(c) -> dict[str, float]:
     rho_t = c.density * c.thickness
     ix, iy = second_moments(c)
     m = c.mass
-    return {"x": m, "y": m, "z": m, "rot_z": rho_t * (ix + iy),
-            "tilt_x": rho_t * iy + m * c.thickness**2 / 12, "tilt_y": rho_t * ix + m * c.thickness**2 / 12}
+    return {
+        "x": m,
+        "y": m,
+        "z": m,
+        "rot_z": rho_t * (ix + iy),
+        "tilt_x": rho_t * iy + m * c.thickness**2 / 12,
+        "tilt_y": rho_t * ix + m * c.thickness**2 / 12,
+    }
 
 
 def stiffness(c) -> tuple[dict[str, float], dict]:
@@ -59,19 +65,27 @@ def stiffness(c) -> tuple[dict[str, float], dict]:
     solved = flexures.frame_stiffness(f, *half, c.youngs_modulus, c.poisson_ratio)
     rigid = flexures.frame_stiffness(f, *half, c.youngs_modulus, c.poisson_ratio, rigid_truss=True)
     closed = flexures.closed_form(f, c.youngs_modulus, c.poisson_ratio)
-    report = {"type": f.type, "source": "3-D Euler-Bernoulli frame solve of the suspension (netgen.mechanics.frame)",
-              "frame_N_per_m": {k: solved[k] for k in flexures.AXES}, "coupling_max": solved["coupling"],
-              "closed_form_N_per_m": closed, "closed_form_source": flexures.SOURCES[f.type],
-              "frame_rigid_truss_over_closed_form": {k: rigid[k] / closed[k] for k in closed},
-              "flexure_mass_fraction": flexure_mass(c) / c.mass}
+    report = {
+        "type": f.type,
+        "source": "3-D Euler-Bernoulli frame solve of the suspension (netgen.mechanics.frame)",
+        "frame_N_per_m": {k: solved[k] for k in flexures.AXES},
+        "coupling_max": solved["coupling"],
+        "closed_form_N_per_m": closed,
+        "closed_form_source": flexures.SOURCES[f.type],
+        "frame_rigid_truss_over_closed_form": {k: rigid[k] / closed[k] for k in closed},
+        "flexure_mass_fraction": flexure_mass(c) / c.mass,
+    }
     return {k: solved[k] for k in flexures.AXES}, report
 
 
 def flexure_mass(c) -> float:
     """The beams' mass (kg): left out of the model, reported beside the proof mass."""
     f = c.flexure
-    beams = {"clamped_guided": 4 * f.length * f.width, "folded": 8 * f.length * f.width,
-             "crab_leg": 4 * (f.length * f.width + f.thigh_length * f.thigh_width)}.get(f.type, 0.0)
+    beams = {
+        "clamped_guided": 4 * f.length * f.width,
+        "folded": 8 * f.length * f.width,
+        "crab_leg": 4 * (f.length * f.width + f.thigh_length * f.thigh_width),
+    }.get(f.type, 0.0)
     return beams * f.thickness * c.density
 
 
@@ -120,18 +134,30 @@ def flexure_springs(c, modes, rigid: list[str]) -> tuple[np.ndarray, float] | No
 def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
     """What the internal modes are and how far to trust them."""
     eff = conductor_plate(c)
-    flex = (f"none: no attachment points (flexure type {c.flexure.type})" if springs is None else
-            {"stiffness_added_rel": [float(v) for v in springs[0] / modes.modal_stiffness],
-             "coupling_to_z_and_tilts_max": springs[1],
-             "model": "k_z / (attachment points) at each, added to each mode's stiffness; couplings dropped"})
-    return {"source": "Kirchhoff plate, free edges, scikit-fem Bogner-Fox-Schmit elements (netgen.mechanics.rect_plate)",
-            "elements_along_length": ELEMENTS, "labels": list(modes.labels),
-            "free_plate_frequencies_hz": [float(v) for v in modes.frequencies_hz],
-            "lambda2_leissa": [float(v) for v in modes.lambda2],
-            "effective_plate": {"density_factor": eff.density_factor, "bending_stiffness_factor": eff.stiffness_factor,
-                                "model": "etch holes as an effective plate: mass fraction; D of a series strip"},
-            "side_conditions": modes.orthogonality, "normalisation": "peak deflection 1 over the mesh nodes",
-            "flexure_springs": flex}
+    flex = (
+        f"none: no attachment points (flexure type {c.flexure.type})"
+        if springs is None
+        else {
+            "stiffness_added_rel": [float(v) for v in springs[0] / modes.modal_stiffness],
+            "coupling_to_z_and_tilts_max": springs[1],
+            "model": "k_z / (attachment points) at each, added to each mode's stiffness; couplings dropped",
+        }
+    )
+    return {
+        "source": "Kirchhoff plate, free edges, scikit-fem Bogner-Fox-Schmit elements (netgen.mechanics.rect_plate)",
+        "elements_along_length": ELEMENTS,
+        "labels": list(modes.labels),
+        "free_plate_frequencies_hz": [float(v) for v in modes.frequencies_hz],
+        "lambda2_leissa": [float(v) for v in modes.lambda2],
+        "effective_plate": {
+            "density_factor": eff.density_factor,
+            "bending_stiffness_factor": eff.stiffness_factor,
+            "model": "etch holes as an effective plate: mass fraction; D of a series strip",
+        },
+        "side_conditions": modes.orthogonality,
+        "normalisation": "peak deflection 1 over the mesh nodes",
+        "flexure_springs": flex,
+    }
 
 
 def mechanics(s: Structure) -> Mechanics:
@@ -148,12 +174,25 @@ def mechanics(s: Structure) -> Mechanics:
     stiff = np.array([springs[n] for n in rigid] + list(modal))
     freqs = np.sqrt(stiff / masses) / (2 * math.pi)
     labels = list(modes.labels) if modes else []
-    report = {"kind": "proof_mass", "mass_kg": c.mass, "holes": list(c.holes()),
-              "inertia_kg_m2": {k: v for k, v in inert.items() if k in ("rot_z", "tilt_x", "tilt_y")},
-              "flexure": spring_report, "kinematics": KINEMATICS}
+    report = {
+        "kind": "proof_mass",
+        "mass_kg": c.mass,
+        "holes": list(c.holes()),
+        "inertia_kg_m2": {k: v for k, v in inert.items() if k in ("rot_z", "tilt_x", "tilt_y")},
+        "flexure": spring_report,
+        "kinematics": KINEMATICS,
+    }
     if modes:
         report["internal_modes"] = modes_report(c, modes, attached)
     names = rigid + [mode_name(lab) for lab in labels]
-    return Mechanics(names, [RIGID[n][0] for n in rigid] + ["mode"] * count,
-                     [RIGID[n][1] for n in rigid] + ["m"] * count, [""] * len(rigid) + labels,
-                     masses, stiff, freqs, ModalBasis(rigid, modes) if modes else RigidBasis(rigid), report)
+    return Mechanics(
+        names,
+        [RIGID[n][0] for n in rigid] + ["mode"] * count,
+        [RIGID[n][1] for n in rigid] + ["m"] * count,
+        [""] * len(rigid) + labels,
+        masses,
+        stiff,
+        freqs,
+        ModalBasis(rigid, modes) if modes else RigidBasis(rigid),
+        report,
+    )

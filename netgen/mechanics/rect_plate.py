@@ -34,17 +34,18 @@ from skfem.element import ElementQuadBFS
 from .free_disk import bending_form, mass_form
 
 BOUNDARIES = ("free", "clamped", "simply_supported")
-DEGENERATE = 1e-6           # relative eigenvalue spread treated as one degenerate group
+DEGENERATE = 1e-6  # relative eigenvalue spread treated as one degenerate group
 
 
 @dataclass(frozen=True)
 class EffectivePlate:
     """The homogenised perforated plate: factors on rho and on D (1 without holes)."""
+
     density_factor: float
     stiffness_factor: float
 
     @classmethod
-    def of_holes(cls, hole: float, pitch: float) -> "EffectivePlate":
+    def of_holes(cls, hole: float, pitch: float) -> EffectivePlate:
         """Mass fraction and series-strip bending stiffness of a square hole grid (module docstring)."""
         if not hole:
             return cls(1.0, 1.0)
@@ -57,6 +58,7 @@ class RectPlateModes:
     """The first eigenmodes of a rectangular plate [-a/2, a/2] x [-b/2, b/2]: labels, modal mass
     (kg) and stiffness (N/m) per unit peak deflection, frequencies, lambda^2 = omega a^2
     sqrt(rho h / D) (Leissa's frequency parameter on the side a along x), shapes."""
+
     labels: tuple[str, ...]
     frequencies_hz: np.ndarray
     modal_mass: np.ndarray
@@ -78,8 +80,12 @@ class RectPlateModes:
         if x.size == 0:
             return np.zeros((0, len(self.labels)))
         inner = 0.5 * (1.0 - 1e-12)
-        pts = np.stack([np.clip(x / self.length, -inner, inner),
-                        np.clip(y / self.length, -inner * self.width / self.length, inner * self.width / self.length)])
+        pts = np.stack(
+            [
+                np.clip(x / self.length, -inner, inner),
+                np.clip(y / self.length, -inner * self.width / self.length, inner * self.width / self.length),
+            ]
+        )
         return np.asarray(self.basis.probes(pts) @ self.vectors)
 
 
@@ -102,8 +108,9 @@ def plate_basis(length: float, width: float, elements: int, holes: tuple[float, 
         mesh = mesh.remove_elements(np.flatnonzero(cut)).remove_unused_nodes()
     else:
         ny = max(2, int(round(elements * width / length)))
-        mesh = MeshQuad.init_tensor(np.linspace(-length / 2, length / 2, elements + 1),
-                                    np.linspace(-width / 2, width / 2, ny + 1))
+        mesh = MeshQuad.init_tensor(
+            np.linspace(-length / 2, length / 2, elements + 1), np.linspace(-width / 2, width / 2, ny + 1)
+        )
     return CellBasis(mesh, ElementQuadBFS())
 
 
@@ -114,8 +121,11 @@ def _hole_lines(size: float, count: int, pitch: float, hole: float, per: int) ->
     seg = np.array([0.0, (pitch - hole) / 2, (pitch + hole) / 2, pitch])
     cell = np.concatenate([np.linspace(seg[i], seg[i + 1], per + 1)[:-1] for i in range(3)])
     lines = (start + pitch * np.arange(count)[:, None] + cell[None, :]).ravel()
-    return np.concatenate([[-size / 2], lines[lines > -size / 2], [start + count * pitch], [size / 2]]) \
-        if count * pitch < size else np.append(lines, size / 2)
+    return (
+        np.concatenate([[-size / 2], lines[lines > -size / 2], [start + count * pitch], [size / 2]])
+        if count * pitch < size
+        else np.append(lines, size / 2)
+    )
 
 
 def _in_hole(c: np.ndarray, size: float, count: int, pitch: float, hole: float) -> np.ndarray:
@@ -138,16 +148,27 @@ def constrained_dofs(basis: CellBasis, boundary: str) -> np.ndarray:
     mesh = basis.mesh
     nodes = np.unique(mesh.facets[:, mesh.boundary_facets()])
     xs, ys = mesh.p[0, nodes], mesh.p[1, nodes]
-    on = {"u_y": np.isclose(np.abs(xs), np.abs(mesh.p[0]).max()),      # edges x = +-a/2: w_y = 0 along them
-          "u_x": np.isclose(np.abs(ys), np.abs(mesh.p[1]).max())}      # edges y = +-b/2: w_x = 0
+    on = {
+        "u_y": np.isclose(np.abs(xs), np.abs(mesh.p[0]).max()),  # edges x = +-a/2: w_y = 0 along them
+        "u_x": np.isclose(np.abs(ys), np.abs(mesh.p[1]).max()),
+    }  # edges y = +-b/2: w_x = 0
     out = [dofs.nodal["u"]] + [basis.nodal_dofs[basis.elem.dofnames.index(n), nodes[m]] for n, m in on.items()]
     return np.unique(np.concatenate(out))
 
 
-def rect_plate_modes(length: float, width: float, thickness: float, youngs_modulus: float, poisson_ratio: float,
-                     density: float, count: int, elements: int = 24, boundary: str = "free",
-                     effective: EffectivePlate = EffectivePlate(1.0, 1.0),
-                     holes: tuple[float, float] = (0.0, 0.0)) -> RectPlateModes:
+def rect_plate_modes(
+    length: float,
+    width: float,
+    thickness: float,
+    youngs_modulus: float,
+    poisson_ratio: float,
+    density: float,
+    count: int,
+    elements: int = 24,
+    boundary: str = "free",
+    effective: EffectivePlate = EffectivePlate(1.0, 1.0),
+    holes: tuple[float, float] = (0.0, 0.0),
+) -> RectPlateModes:
     """The first `count` elastic eigenmodes (free edges: after the three rigid ones) of the
     rectangular plate, effective density and stiffness applied; `holes` = (side, pitch) cuts the
     holes out of the mesh instead (the check of the effective plate)."""
@@ -159,7 +180,7 @@ def rect_plate_modes(length: float, width: float, thickness: float, youngs_modul
     fixed = constrained_dofs(basis, boundary)
     free = np.setdiff1d(np.arange(basis.N), fixed)
     rigid = 3 if boundary == "free" else 0
-    v0 = np.random.default_rng(0).standard_normal(len(free))      # ARPACK's default start is random
+    v0 = np.random.default_rng(0).standard_normal(len(free))  # ARPACK's default start is random
     mu, vec = eigsh(K[free][:, free], k=count + rigid + 2, M=M[free][:, free], sigma=-1.0, which="LM", v0=v0)
     order = np.argsort(mu)
     mu, vec = mu[order][rigid:], vec[:, order][:, rigid:]
@@ -169,13 +190,23 @@ def rect_plate_modes(length: float, width: float, thickness: float, youngs_modul
     full = _normalise(basis, full)
     rho_h = density * effective.density_factor * thickness
     d = youngs_modulus * effective.stiffness_factor * thickness**3 / (12 * (1 - poisson_ratio**2))
-    mass = rho_h * length**2 * (full.T @ (M @ full))          # the mesh is in units of `length`
+    mass = rho_h * length**2 * (full.T @ (M @ full))  # the mesh is in units of `length`
     stiff = d / length**2 * (full.T @ (K @ full))
     m, k = np.diag(mass).copy(), np.diag(stiff).copy()
     omega = np.sqrt(k / m)
-    return RectPlateModes(tuple(str(i + 1) for i in range(count)), omega / (2 * math.pi), m, k,
-                          omega * length**2 * math.sqrt(rho_h / d), length, width, boundary,
-                          _orthogonality(basis, M, full, mass, stiff), basis, full)
+    return RectPlateModes(
+        tuple(str(i + 1) for i in range(count)),
+        omega / (2 * math.pi),
+        m,
+        k,
+        omega * length**2 * math.sqrt(rho_h / d),
+        length,
+        width,
+        boundary,
+        _orthogonality(basis, M, full, mass, stiff),
+        basis,
+        full,
+    )
 
 
 def _align(basis: CellBasis, mu: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -196,13 +227,14 @@ def _parity_split(basis: CellBasis, group: np.ndarray) -> np.ndarray:
     """A degenerate group rotated onto the eigenvectors of the x-reflection (+1 first), each
     sub-space of one x-parity in turn onto those of the y-reflection (on the nodal values: the
     tensor mesh is symmetric)."""
-    w = group[basis.nodal_dofs[basis.elem.dofnames.index("u")]]            # (nnodes, g)
+    w = group[basis.nodal_dofs[basis.elem.dofnames.index("u")]]  # (nnodes, g)
     result = []
     for sign in (1.0, -1.0):
         sub = _reflection_space(w, w[_mirror(basis.mesh.p, 0)], sign)
         if sub.shape[1] > 1:
-            sub = sub @ np.hstack([_reflection_space(w @ sub, w[_mirror(basis.mesh.p, 1)] @ sub, s)
-                                   for s in (1.0, -1.0)])
+            sub = sub @ np.hstack(
+                [_reflection_space(w @ sub, w[_mirror(basis.mesh.p, 1)] @ sub, s) for s in (1.0, -1.0)]
+            )
         result.append(sub)
     return group @ np.hstack(result)
 
@@ -226,7 +258,7 @@ def _reflection_space(here: np.ndarray, mirrored: np.ndarray, sign: float) -> np
 def _normalise(basis: CellBasis, vectors: np.ndarray) -> np.ndarray:
     """Peak |w| = 1 over the mesh nodes; sign from the node of largest |w| (ties: largest x, y)."""
     nodal = basis.nodal_dofs[basis.elem.dofnames.index("u")]
-    w = vectors[nodal]                                        # (nnodes, nmodes)
+    w = vectors[nodal]  # (nnodes, nmodes)
     p = basis.mesh.p
     out = vectors.copy()
     for k in range(w.shape[1]):
@@ -252,8 +284,13 @@ def _orthogonality(basis: CellBasis, M, phi: np.ndarray, mass: np.ndarray, stiff
     mr = np.sqrt(np.einsum("dk,dk->k", rigid, M @ rigid))
     mp = np.sqrt(np.einsum("dk,dk->k", phi, M @ phi))
     cos = np.abs(rigid.T @ (M @ phi)) / np.outer(mr, mp)
-    return {"phi": float(cos[0].max()), "x_phi": float(cos[1].max()), "y_phi": float(cos[2].max()),
-            "mass_offdiag": _offdiag(mass), "stiffness_offdiag": _offdiag(stiff)}
+    return {
+        "phi": float(cos[0].max()),
+        "x_phi": float(cos[1].max()),
+        "y_phi": float(cos[2].max()),
+        "mass_offdiag": _offdiag(mass),
+        "stiffness_offdiag": _offdiag(stiff),
+    }
 
 
 def _offdiag(matrix: np.ndarray) -> float:
@@ -262,7 +299,7 @@ def _offdiag(matrix: np.ndarray) -> float:
     return float(np.abs(np.abs(matrix) / np.outer(d, d) - np.eye(len(d))).max())
 
 
-ELEMENTS = 24               # BFS elements along the length of a proof mass (the first 12 free modes to ~1e-5)
+ELEMENTS = 24  # BFS elements along the length of a proof mass (the first 12 free modes to ~1e-5)
 
 
 def conductor_plate(c) -> EffectivePlate:
@@ -275,5 +312,15 @@ def conductor_plate(c) -> EffectivePlate:
 def conductor_modes(c, count: int) -> RectPlateModes:
     """The first `count` internal modes of a proof mass (free edges, etch holes as the effective
     plate of the module docstring)."""
-    return rect_plate_modes(c.length, c.width, c.thickness, c.youngs_modulus, c.poisson_ratio, c.density, count,
-                            ELEMENTS, "free", conductor_plate(c))
+    return rect_plate_modes(
+        c.length,
+        c.width,
+        c.thickness,
+        c.youngs_modulus,
+        c.poisson_ratio,
+        c.density,
+        count,
+        ELEMENTS,
+        "free",
+        conductor_plate(c),
+    )

@@ -25,8 +25,8 @@ Discretisation: scikit-fem P2 triangles; the load phi_v is evaluated at the quad
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from scipy.sparse.linalg import eigsh, splu, spsolve
@@ -93,8 +93,9 @@ def perforation_leak(gap: float, thickness: float, hole: float, pitch: float) ->
     return 12.0 * hole**4 / (28.45 * gap**3 * thickness * pitch**2)
 
 
-def rectangular_plate_leaky_series(mu: float, length: float, width: float, gap: float, leak: float,
-                                   terms: int = 200) -> float:
+def rectangular_plate_leaky_series(
+    mu: float, length: float, width: float, gap: float, leak: float, terms: int = 200
+) -> float:
     """Rigid rectangular plate, -lap p + leak p = 12 mu v / g^3, p = 0 on the edges: the double sine
     series b = (12 mu / g^3) sum_{m,n odd} 64 L W / (pi^4 m^2 n^2 (pi^2 (m^2/L^2 + n^2/W^2) + leak))."""
     m = np.arange(1, 2 * terms, 2, dtype=float)[:, None]
@@ -105,9 +106,11 @@ def rectangular_plate_leaky_series(mu: float, length: float, width: float, gap: 
 
 def _load(basis: Basis, shapes: Shapes, k: int) -> np.ndarray:
     """Load vector int phi_k psi_i dA with phi_k evaluated at the quadrature points."""
+
     def form(v, w):
         x, y = w.x[0], w.x[1]
         return shapes(x.ravel(), y.ravel())[..., k].reshape(x.shape) * v
+
     return LinearForm(form).assemble(basis)
 
 
@@ -157,6 +160,7 @@ def thermal_force_psd(damping: float, temperature: float) -> float:
 class PoleResidue:
     """B(omega) = remainder + sum_j residues_j / (1 + i omega / poles_j) for one coordinate
     (N s/m, rad/s); `remainder` = B(0) - sum residues: the truncated fast poles as a plain damper."""
+
     residues: np.ndarray
     poles: np.ndarray
     remainder: float = 0.0
@@ -175,8 +179,9 @@ def _p2_matrices(mesh: MeshTri) -> tuple[Basis, object, object, np.ndarray]:
     return basis, stiffness, mass, basis.complement_dofs(basis.get_dofs())
 
 
-def compressible_admittance(mesh: MeshTri, shapes: Shapes, k: int, gap: float, mu_eff: float,
-                            pressure: float, omega: float) -> complex:
+def compressible_admittance(
+    mesh: MeshTri, shapes: Shapes, k: int, gap: float, mu_eff: float, pressure: float, omega: float
+) -> complex:
     """B(omega) of coordinate k from the complex Reynolds solve (N s/m per unit^2)."""
     basis, stiffness, mass, interior = _p2_matrices(mesh)
     load = _load(basis, shapes, k)
@@ -186,15 +191,17 @@ def compressible_admittance(mesh: MeshTri, shapes: Shapes, k: int, gap: float, m
     return complex(12.0 * mu_eff / gap**3 * load[interior] @ p)
 
 
-def pole_residue(mesh: MeshTri, shapes: Shapes, k: int, gap: float, mu_eff: float, pressure: float,
-                 poles: int = 40) -> PoleResidue:
+def pole_residue(
+    mesh: MeshTri, shapes: Shapes, k: int, gap: float, mu_eff: float, pressure: float, poles: int = 40
+) -> PoleResidue:
     """The `poles` slowest terms of the exact eigen-expansion of B(omega) for coordinate k
     (`pole_residues` of all coordinates, this one taken)."""
     return pole_residues(mesh, shapes, gap, mu_eff, pressure, poles)[k]
 
 
-def rectangular_plate_blech_complex(mu: float, length: float, width: float, gap: float, pressure: float,
-                                    omega: float, terms: int = 200) -> complex:
+def rectangular_plate_blech_complex(
+    mu: float, length: float, width: float, gap: float, pressure: float, omega: float, terms: int = 200
+) -> complex:
     """Blech's compressible rectangular-plate series as complex B(omega) (rigid plate, p = 0 at edges)."""
     m = np.arange(1, 2 * terms, 2, dtype=float)[:, None]
     n = np.arange(1, 2 * terms, 2, dtype=float)[None, :]
@@ -204,13 +211,14 @@ def rectangular_plate_blech_complex(mu: float, length: float, width: float, gap:
     return complex(12.0 * mu / gap**3 * s)
 
 
-def pole_residues(mesh: MeshTri, shapes: Shapes, gap: float, mu_eff: float, pressure: float,
-                  poles: int = 40) -> list[PoleResidue]:
+def pole_residues(
+    mesh: MeshTri, shapes: Shapes, gap: float, mu_eff: float, pressure: float, poles: int = 40
+) -> list[PoleResidue]:
     """`pole_residue` of every coordinate of `shapes`, sharing one Dirichlet eigen-solve."""
     basis, stiffness, mass, interior = _p2_matrices(mesh)
     kk = stiffness.tocsr()[interior][:, interior].tocsc()
     mm = mass.tocsr()[interior][:, interior].tocsc()
-    v0 = np.ones(kk.shape[0])                              # seeded: same input, same output
+    v0 = np.ones(kk.shape[0])  # seeded: same input, same output
     lam, psi = eigsh(kk, k=poles, M=mm, sigma=0.0, which="LM", v0=v0)
     lu = splu(kk)
     c = 12.0 * mu_eff / gap**3
@@ -247,8 +255,9 @@ def max_relative_error(model: PoleResidue, reference: PoleResidue, omega_max: fl
     return float(np.max(np.abs(model.admittance(w) - ref) / np.abs(ref)))
 
 
-def maxwell_network(full: PoleResidue, omega_max: float, tol: float = 0.01,
-                    max_branches: int = 8) -> tuple[PoleResidue, float]:
+def maxwell_network(
+    full: PoleResidue, omega_max: float, tol: float = 0.01, max_branches: int = 8
+) -> tuple[PoleResidue, float]:
     """The fewest Maxwell branches (largest residues first) that reproduce `full` within `tol`
     up to omega_max; the dropped poles join the plain damper (exact at omega << their pole).
     Returns the reduced network and its error (the last tried if `max_branches` is not enough)."""
@@ -258,8 +267,7 @@ def maxwell_network(full: PoleResidue, omega_max: float, tol: float = 0.01,
     for n in range(0, min(max_branches, len(order)) + 1):
         keep = np.sort(order[:n])
         drop = np.setdiff1d(np.arange(len(order)), keep)
-        reduced = PoleResidue(full.residues[keep], full.poles[keep],
-                              full.remainder + float(full.residues[drop].sum()))
+        reduced = PoleResidue(full.residues[keep], full.poles[keep], full.remainder + float(full.residues[drop].sum()))
         err = max_relative_error(reduced, full, omega_max)
         best = (reduced, err)
         if err <= tol or total <= 0:

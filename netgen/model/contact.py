@@ -39,11 +39,11 @@ from __future__ import annotations
 
 import numpy as np
 
-KNEE = 0.05          # gap fraction P/P(0) where the clamp starts
-FLOOR = 0.02         # gap fraction the clamped term never goes below
-SMOOTH = 1e-3        # penalty onset ramp, fraction of the local gap
-RATIO = 10.0         # contact frequency / model time scale
-DIRECTIONS = 2000    # random directions over which the late contact of combined motions is measured
+KNEE = 0.05  # gap fraction P/P(0) where the clamp starts
+FLOOR = 0.02  # gap fraction the clamped term never goes below
+SMOOTH = 1e-3  # penalty onset ramp, fraction of the local gap
+RATIO = 10.0  # contact frequency / model time scale
+DIRECTIONS = 2000  # random directions over which the late contact of combined motions is measured
 SEED = 0
 
 
@@ -63,7 +63,7 @@ def penetration(p: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
 def stop_points(a: np.ndarray) -> list[int]:
     """Indices of the probe points (rows of a: gap closed per unit xs) where each lone coordinate
     touches first, for either sign (at most 2 per coordinate, ties to the lowest index)."""
-    a = np.round(a, 9)                     # rounding-level differences must not change the choice
+    a = np.round(a, 9)  # rounding-level differences must not change the choice
     ends = set(np.argmax(a, axis=0).tolist()) | set(np.argmin(a, axis=0).tolist())
     return sorted(j for j in ends if np.any(a[j] != 0.0))
 
@@ -74,20 +74,27 @@ def cover_miss(a: np.ndarray, chosen: list[int]) -> float:
     d = np.random.default_rng(SEED).normal(size=(DIRECTIONS, a.shape[1]))
     m = a @ d.T
     best = m.max(axis=0)
-    touching = best > 0                    # directions that reach an electrode at all (one-sided: not all do)
+    touching = best > 0  # directions that reach an electrode at all (one-sided: not all do)
     if not touching.any():
         return 0.0
     # a direction that no stop point approaches counts as 1 (never stopped), not as more
     return float(np.max(1.0 - np.maximum(m[chosen][:, touching].max(axis=0), 0.0) / best[touching]))
 
 
-def contact_model(gap: np.ndarray, phi: np.ndarray, owner: list[str], scales: np.ndarray,
-                  mass: float, ws: float) -> dict:
+def contact_model(
+    gap: np.ndarray, phi: np.ndarray, owner: list[str], scales: np.ndarray, mass: float, ws: float
+) -> dict:
     """The MacroModel's contact dict from probe points (gap, signed basis phi, electrode names)."""
-    a = np.round(phi * scales[None, :] / gap[:, None], 9)   # 1e-9 of the gap: no last-bit noise in the JSON
+    a = np.round(phi * scales[None, :] / gap[:, None], 9)  # 1e-9 of the gap: no last-bit noise in the JSON
     chosen = stop_points(a)
     points = [{"electrode": owner[j], "gap": float(gap[j]), "a": [float(v) for v in a[j]]} for j in chosen]
-    return {"model": "clamped plate terms + penalty spring-damper at stop points (netgen.model.contact)",
-            "knee": KNEE, "floor": FLOOR, "smoothing": SMOOTH,
-            "stiffness": mass * (RATIO * ws) ** 2, "damping": 2 * mass * RATIO * ws,
-            "late_contact_max": round(cover_miss(a, chosen), 6), "points": points}
+    return {
+        "model": "clamped plate terms + penalty spring-damper at stop points (netgen.model.contact)",
+        "knee": KNEE,
+        "floor": FLOOR,
+        "smoothing": SMOOTH,
+        "stiffness": mass * (RATIO * ws) ** 2,
+        "damping": 2 * mass * RATIO * ws,
+        "late_contact_max": round(cover_miss(a, chosen), 6),
+        "points": points,
+    }

@@ -34,25 +34,28 @@ PORT_UNITS = {
 
 
 # what to change when a capacitance fit misses [fit] tolerance (MacroModel.fit_problem)
-FIT_FIX = ("allow more plate terms ([fit] max_terms), more samples ([sampling] levels, or the level / points "
-           "of its design), a higher [fit] degree "
-           "or a narrower [sampling] range, or accept the error with a larger [fit] tolerance")
+FIT_FIX = (
+    "allow more plate terms ([fit] max_terms), more samples ([sampling] levels, or the level / points "
+    "of its design), a higher [fit] degree "
+    "or a narrower [sampling] range, or accept the error with a larger [fit] tolerance"
+)
 
-ACCEL_PORT = "a_in"       # the inertial-load port (MacroModel.acceleration)
+ACCEL_PORT = "a_in"  # the inertial-load port (MacroModel.acceleration)
 
 
 @dataclass(frozen=True)
 class Coordinate:
     """One generalized coordinate and its mechanics (diagonal: mass-orthogonal basis)."""
+
     name: str
-    kind: str            # "translation", "rotation" or "mode"
-    unit: str            # "m" or "rad": SI unit of q
-    scale: float         # SI units of q per unit of the scaled state x (touching amplitude)
-    mass: float          # kg (translation, mode) or kg*m^2 (rotation)
-    stiffness: float     # N/m or N*m/rad (0 for rigid-body motions)
+    kind: str  # "translation", "rotation" or "mode"
+    unit: str  # "m" or "rad": SI unit of q
+    scale: float  # SI units of q per unit of the scaled state x (touching amplitude)
+    mass: float  # kg (translation, mode) or kg*m^2 (rotation)
+    stiffness: float  # N/m or N*m/rad (0 for rigid-body motions)
     damping: float = 0.0  # N*s/m or N*m*s/rad (placeholder until damping models land)
     frequency_hz: float = 0.0
-    label: str = ""      # (n,s) label of an eigenmode
+    label: str = ""  # (n,s) label of an eigenmode
     # compressible squeeze film: Maxwell branches (damping N*s/m, corner rad/s), each a damper in
     # series with a gas spring damping*corner, in parallel with `damping` (netgen.mechanics.squeeze_film)
     film: tuple[tuple[float, float], ...] = ()
@@ -71,6 +74,7 @@ class Coordinate:
 @dataclass(frozen=True)
 class Electrode:
     """One fixed electrode facing the moving conductor."""
+
     name: str
     group: str
     side: str
@@ -81,15 +85,16 @@ class Electrode:
 @dataclass
 class MacroModel:
     """Coordinates, mechanics, fitted capacitances and ports of one structure."""
+
     name: str
     description: str
     source: str
     coordinates: list[Coordinate]
     electrodes: list[Electrode]
-    capacitances: list[CapacitanceFit]          # plate-electrode, one per electrode, same order
-    coupling: np.ndarray                         # F, constant electrode-electrode capacitances (symmetric)
-    sampling: dict                               # levels, range, samples, grid point count
-    report: dict = field(default_factory=dict)   # mechanics/electrostatics facts for humans
+    capacitances: list[CapacitanceFit]  # plate-electrode, one per electrode, same order
+    coupling: np.ndarray  # F, constant electrode-electrode capacitances (symmetric)
+    sampling: dict  # levels, range, samples, grid point count
+    report: dict = field(default_factory=dict)  # mechanics/electrostatics facts for humans
     plate: str = "plate"
     generator: str = f"netgen {__version__}"
     contact: dict = field(default_factory=dict)  # pull-in/contact model (netgen.model.contact), {} = none
@@ -131,8 +136,8 @@ class MacroModel:
         else:
             exps, coef, dcoef, owner = self._stacked()
             mono = monomials(x, exps)
-            p, slope = self._clamped(mono @ coef.T)                    # (npts, nterms)
-            dp = np.einsum("pm,vtm->ptv", mono, dcoef) * slope[:, :, None]   # (npts, nterms, ncoords)
+            p, slope = self._clamped(mono @ coef.T)  # (npts, nterms)
+            dp = np.einsum("pm,vtm->ptv", mono, dcoef) * slope[:, :, None]  # (npts, nterms, ncoords)
             g = np.einsum("et,ptv->pev", owner, -dp / (p * p)[:, :, None])
         return g / self.scales[None, None, :]
 
@@ -141,8 +146,10 @@ class MacroModel:
         if not self.contact or any(f.target == "direct" for f in self.capacitances):
             return []
         zero = np.zeros((1, self.ncoords))
-        return [[(self.contact["knee"] * float(p(zero)[0]), self.contact["floor"] * float(p(zero)[0]))
-                 for p in f.polys] for f in self.capacitances]
+        return [
+            [(self.contact["knee"] * float(p(zero)[0]), self.contact["floor"] * float(p(zero)[0])) for p in f.polys]
+            for f in self.capacitances
+        ]
 
     def _clamped(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clamped plate terms and dP_eff/dP (netgen.model.contact); unchanged without a contact model."""
@@ -205,12 +212,21 @@ class MacroModel:
         mutual = v * self.coupling.sum(axis=1)[None, :] - v @ self.coupling.T
         return self.capacitance(x) * dv + mutual
 
-    def accelerations(self, x: np.ndarray, xdot: np.ndarray, v_el: np.ndarray, v_plate: float,
-                      f_ext: np.ndarray | None = None, a_frame: float = 0.0) -> np.ndarray:
+    def accelerations(
+        self,
+        x: np.ndarray,
+        xdot: np.ndarray,
+        v_el: np.ndarray,
+        v_plate: float,
+        f_ext: np.ndarray | None = None,
+        a_frame: float = 0.0,
+    ) -> np.ndarray:
         """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext - G a_frame (diagonal M, D, K)."""
         c = self.coordinates
-        m = np.array([k.mass for k in c]); d = np.array([k.damping for k in c])
-        k = np.array([k.stiffness for k in c]); s = self.scales
+        m = np.array([k.mass for k in c])
+        d = np.array([k.damping for k in c])
+        k = np.array([k.stiffness for k in c])
+        s = self.scales
         force = self.electrostatic_force(x, v_el, v_plate)[0] + self.contact_force(x, xdot)
         if self.nonlinear:
             force = force + self.nonlinear_force(x)[0]
@@ -225,8 +241,9 @@ class MacroModel:
         if not self.nonlinear:
             return None
         e = self.nonlinear["energy_J"]
-        return Polynomial(np.array(e["exponents"], dtype=int).reshape(-1, self.ncoords),
-                          np.array(e["coeffs"], dtype=float))
+        return Polynomial(
+            np.array(e["exponents"], dtype=int).reshape(-1, self.ncoords), np.array(e["coeffs"], dtype=float)
+        )
 
     def nonlinear_force(self, x: np.ndarray) -> np.ndarray:
         """Nonlinear restoring forces -dU/dq (SI), shape (npoints, ncoords), at scaled coordinates x."""
@@ -243,9 +260,13 @@ class MacroModel:
         if self.nonlinear:
             out["nonlinear_stiffness"] = self.nonlinear
         if self.acceleration:
-            out["acceleration_port"] = {"port": ACCEL_PORT, "unit": "m/s^2", "meaning": "frame acceleration along "
-                                        "+z; coordinate v feels -participation_v * a_in (a_in = 9.81: gravity)",
-                                        "participation": list(self.acceleration)}
+            out["acceleration_port"] = {
+                "port": ACCEL_PORT,
+                "unit": "m/s^2",
+                "meaning": "frame acceleration along "
+                "+z; coordinate v feels -participation_v * a_in (a_in = 9.81: gravity)",
+                "participation": list(self.acceleration),
+            }
         if self.calibration:
             out["calibration"] = self.calibration
         return out
@@ -256,8 +277,11 @@ class MacroModel:
         tol = self.sampling.get("tolerance")
         if tol is None:
             return []
-        return [{"electrode": f.electrode, "max_rel_error": f.max_rel_error, "tolerance": tol}
-                for f in self.capacitances if f.max_rel_error > tol]
+        return [
+            {"electrode": f.electrode, "max_rel_error": f.max_rel_error, "tolerance": tol}
+            for f in self.capacitances
+            if f.max_rel_error > tol
+        ]
 
     def fit_problem(self) -> str:
         """What a fit that misses fit.tolerance means, in one sentence of names and numbers; "" when
@@ -267,9 +291,11 @@ class MacroModel:
             return ""
         worst = max(misses, key=lambda m: m["max_rel_error"])
         others = f" (and {len(misses) - 1} more electrode(s))" if len(misses) > 1 else ""
-        return (f"the capacitance fit of electrode {worst['electrode']} misses fit.tolerance: held-out max "
-                f"relative error {worst['max_rel_error']:.3e} > {worst['tolerance']:.3e}{others}; charges and "
-                "forces are only that accurate")
+        return (
+            f"the capacitance fit of electrode {worst['electrode']} misses fit.tolerance: held-out max "
+            f"relative error {worst['max_rel_error']:.3e} > {worst['tolerance']:.3e}{others}; charges and "
+            "forces are only that accurate"
+        )
 
     def fit_warning(self) -> str:
         """fit_problem with its fix (FIT_FIX); "" when every fit meets fit.tolerance."""
@@ -284,21 +310,34 @@ class MacroModel:
             "source": self.source,
             "plate": self.plate,
             "coordinates": [_coordinate_dict(c) for c in self.coordinates],
-            "modes": [{"name": c.name, "label": c.label, "frequency_hz": c.frequency_hz,
-                       "modal_mass": c.mass, "modal_stiffness": c.stiffness}
-                      for c in self.coordinates if c.kind == "mode"],
+            "modes": [
+                {
+                    "name": c.name,
+                    "label": c.label,
+                    "frequency_hz": c.frequency_hz,
+                    "modal_mass": c.mass,
+                    "modal_stiffness": c.stiffness,
+                }
+                for c in self.coordinates
+                if c.kind == "mode"
+            ],
             "electrodes": [asdict(e) for e in self.electrodes],
             "capacitances": [_fit_dict(f, self.plate) for f in self.capacitances],
-            "coupling": [{"pair": [self.electrodes[i].name, self.electrodes[j].name],
-                          "capacitance": float(self.coupling[i, j])}
-                         for i in range(len(self.electrodes)) for j in range(i + 1, len(self.electrodes))
-                         if self.coupling[i, j] != 0.0],
+            "coupling": [
+                {"pair": [self.electrodes[i].name, self.electrodes[j].name], "capacitance": float(self.coupling[i, j])}
+                for i in range(len(self.electrodes))
+                for j in range(i + 1, len(self.electrodes))
+                if self.coupling[i, j] != 0.0
+            ],
             "ports": self.ports(),
             "sampling": self.sampling,
-            "validity": {"warning": f"the capacitance fits are accurate only inside the sampled box |xs| <= "
-                                    f"{self.sampling.get('range')} (xs = q / touching amplitude); outside it "
-                                    "they extrapolate, and near contact the clamped terms and stop points of "
-                                    "'contact' take over"} | self._fit_validity(),
+            "validity": {
+                "warning": f"the capacitance fits are accurate only inside the sampled box |xs| <= "
+                f"{self.sampling.get('range')} (xs = q / touching amplitude); outside it "
+                "they extrapolate, and near contact the clamped terms and stop points of "
+                "'contact' take over"
+            }
+            | self._fit_validity(),
             "contact": self.contact,
             "report": self.report,
         }
@@ -330,38 +369,72 @@ class MacroModel:
         write_atomic(path, self.json_text())
 
     @classmethod
-    def from_dict(cls, d: dict, path: str = "<model>") -> "MacroModel":
+    def from_dict(cls, d: dict, path: str = "<model>") -> MacroModel:
         """Rebuild a model from its JSON dict (the emitters' input), validated first
         (netgen.model.validate: names, text, choices); ModelError names `path` and the entry."""
         validate.check(d, path, tuple(PORT_UNITS))
         try:
             return cls._from_dict(d)
         except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise ModelError(path, "(document)", f"the model JSON is incomplete or malformed ({type(exc).__name__}: "
-                             f"{exc})", validate.FIX) from None
+            raise ModelError(
+                path,
+                "(document)",
+                f"the model JSON is incomplete or malformed ({type(exc).__name__}: {exc})",
+                validate.FIX,
+            ) from None
 
     @classmethod
-    def _from_dict(cls, d: dict) -> "MacroModel":
-        coords = [Coordinate(**{k: v for k, v in c.items() if k not in ("port_units", "film")},
-                             film=tuple(tuple(b) for b in c.get("film", ()))) for c in d["coordinates"]]
+    def _from_dict(cls, d: dict) -> MacroModel:
+        coords = [
+            Coordinate(
+                **{k: v for k, v in c.items() if k not in ("port_units", "film")},
+                film=tuple(tuple(b) for b in c.get("film", ())),
+            )
+            for c in d["coordinates"]
+        ]
         electrodes = [Electrode(**e) for e in d["electrodes"]]
-        fits = [CapacitanceFit(f["electrode"], f["c_ref"], f["target"],
-                               tuple(Polynomial(np.array(t["exponents"], dtype=int).reshape(-1, len(coords)),
-                                                np.array(t["coeffs"], dtype=float)) for t in f["terms"]),
-                               f["max_rel_error"], f["rms_rel_error"], f["grid_max_rel_error"])
-                for f in d["capacitances"]]
+        fits = [
+            CapacitanceFit(
+                f["electrode"],
+                f["c_ref"],
+                f["target"],
+                tuple(
+                    Polynomial(
+                        np.array(t["exponents"], dtype=int).reshape(-1, len(coords)), np.array(t["coeffs"], dtype=float)
+                    )
+                    for t in f["terms"]
+                ),
+                f["max_rel_error"],
+                f["rms_rel_error"],
+                f["grid_max_rel_error"],
+            )
+            for f in d["capacitances"]
+        ]
         names = [e.name for e in electrodes]
         coupling = np.zeros((len(names), len(names)))
         for c in d["coupling"]:
             i, j = names.index(c["pair"][0]), names.index(c["pair"][1])
             coupling[i, j] = coupling[j, i] = c["capacitance"]
-        return cls(d["name"], d["description"], d["source"], coords, electrodes, fits, coupling,
-                   d["sampling"], d["report"], d["plate"], d["generator"], d.get("contact", {}),
-                   d.get("nonlinear_stiffness", {}), d.get("acceleration_port", {}).get("participation", []),
-                   d.get("calibration", {}))
+        return cls(
+            d["name"],
+            d["description"],
+            d["source"],
+            coords,
+            electrodes,
+            fits,
+            coupling,
+            d["sampling"],
+            d["report"],
+            d["plate"],
+            d["generator"],
+            d.get("contact", {}),
+            d.get("nonlinear_stiffness", {}),
+            d.get("acceleration_port", {}).get("participation", []),
+            d.get("calibration", {}),
+        )
 
     @classmethod
-    def load_json(cls, path: str | Path) -> "MacroModel":
+    def load_json(cls, path: str | Path) -> MacroModel:
         """Read and validate a model JSON file; unreadable or invalid files are ModelError (exit 2)."""
         where = validate.escape(str(path))
         try:
@@ -389,11 +462,16 @@ def _port_dict(c: Coordinate) -> dict:
 
 
 def _fit_dict(f: CapacitanceFit, plate: str) -> dict:
-    return {"pair": [plate, f.electrode], "electrode": f.electrode, "c_ref": f.c_ref, "target": f.target,
-            "max_rel_error": f.max_rel_error, "rms_rel_error": f.rms_rel_error,
-            "grid_max_rel_error": f.grid_max_rel_error,
-            "terms": [{"exponents": p.exponents.tolist(), "coeffs": [float(c) for c in p.coeffs]}
-                      for p in f.polys]}
+    return {
+        "pair": [plate, f.electrode],
+        "electrode": f.electrode,
+        "c_ref": f.c_ref,
+        "target": f.target,
+        "max_rel_error": f.max_rel_error,
+        "rms_rel_error": f.rms_rel_error,
+        "grid_max_rel_error": f.grid_max_rel_error,
+        "terms": [{"exponents": p.exponents.tolist(), "coeffs": [float(c) for c in p.coeffs]} for p in f.polys],
+    }
 
 
 def finite(value: float) -> float:

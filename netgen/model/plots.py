@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -11,8 +11,13 @@ from ..plots import plt, save
 from .macromodel import MacroModel
 
 
-def mode_shapes(path: Path, model: MacroModel, basis: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                radius: float, outlines: Sequence[tuple[np.ndarray, np.ndarray]]) -> Path:
+def mode_shapes(
+    path: Path,
+    model: MacroModel,
+    basis: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    radius: float,
+    outlines: Sequence[tuple[np.ndarray, np.ndarray]],
+) -> Path:
     """Vertical displacement of every mode coordinate on the disk, electrode outlines on top."""
     modes = [(v, c) for v, c in enumerate(model.coordinates) if c.kind == "mode"]
     n = max(len(modes), 1)
@@ -43,8 +48,11 @@ def fit_errors(path: Path, model: MacroModel) -> Path:
     ax.bar(idx + 0.2, [100 * f.rms_rel_error for f in model.capacitances], 0.4, label="rms (held-out)")
     ax.set_xticks(idx, names, rotation=60, fontsize=8)
     ax.set_ylabel("relative error (%)")
-    ax.set_title(f"{model.name}: capacitance fit error on {model.sampling['holdout']} random points "
-                 f"in +-{model.sampling['range']:g} L", fontsize=10)
+    ax.set_title(
+        f"{model.name}: capacitance fit error on {model.sampling['holdout']} random points "
+        f"in +-{model.sampling['range']:g} L",
+        fontsize=10,
+    )
     ax.legend(fontsize=8)
     fig.tight_layout()
     return save(fig, path)
@@ -61,7 +69,9 @@ def small_angle(path: Path, report: dict) -> Path:
     for k, row in enumerate(report["rotations"]):
         color = f"C{k}"
         ax.axvline(row["sampled_rad"] * 1e3, color=color, lw=0.8, ls=":")
-        ax.axvline(row["touching_rad"] * 1e3, color=color, lw=0.8, label=f"{row['coordinate']}: sampled (dotted), touching")
+        ax.axvline(
+            row["touching_rad"] * 1e3, color=color, lw=0.8, label=f"{row['coordinate']}: sampled (dotted), touching"
+        )
     ax.set_xlabel("angle (mrad)")
     ax.set_ylabel("relative error")
     ax.set_title(f"small-angle kinematics: 0.1 % beyond {report['threshold_rad'] * 1e3:.3g} mrad", fontsize=9)

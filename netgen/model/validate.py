@@ -8,15 +8,27 @@ the entry (e.g. coordinates[2].label) and the fix."""
 from __future__ import annotations
 
 import math
-from typing import Any, Iterator, NoReturn
+from collections.abc import Iterator
+from typing import Any, NoReturn
 
 from ..errors import ModelError
 from ..text import escape, is_identifier, shown, text_problem
 
 KINDS = ("translation", "rotation", "mode")
 TARGETS = ("plates", "inverse", "direct")
-REQUIRED = {"name": str, "description": str, "source": str, "plate": str, "generator": str, "coordinates": list,
-            "electrodes": list, "capacitances": list, "coupling": list, "sampling": dict, "report": dict}
+REQUIRED = {
+    "name": str,
+    "description": str,
+    "source": str,
+    "plate": str,
+    "generator": str,
+    "coordinates": list,
+    "electrodes": list,
+    "capacitances": list,
+    "coupling": list,
+    "sampling": dict,
+    "report": dict,
+}
 FIX = "rebuild the model with `netgen build STRUCTURE.toml -o DIR` rather than editing its JSON"
 
 
@@ -46,8 +58,11 @@ class Checker:
     def name(self, where: str, value: Any) -> None:
         """A name written outside comments (subcircuit, module, node, port)."""
         if not is_identifier(value):
-            self.fail(where, f"{shown(value)} is not a netlist name",
-                      "use letters, digits and _ starting with a letter; " + FIX)
+            self.fail(
+                where,
+                f"{shown(value)} is not a netlist name",
+                "use letters, digits and _ starting with a letter; " + FIX,
+            )
 
     def choice(self, where: str, value: Any, options: tuple[str, ...]) -> None:
         if value not in options:
@@ -76,12 +91,15 @@ def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) 
             c.fail(key, f"missing, or not a JSON {'string' if kind is str else kind.__name__}")
     for where, value in leaves(d):
         if isinstance(value, str) and text_problem(value):
-            c.fail(where, f"text {text_problem(value)}",
-                   "write it as one line of printable text (no line breaks or other control characters); " + FIX)
+            c.fail(
+                where,
+                f"text {text_problem(value)}",
+                "write it as one line of printable text (no line breaks or other control characters); " + FIX,
+            )
         if isinstance(value, float) and not math.isfinite(value):
             c.fail(where, f"{value} is not a finite number")
     check_names(c, d)
-    for key in ("samples", "levels", "excluded_touching", "holdout"):      # printed in the headers as they are
+    for key in ("samples", "levels", "excluded_touching", "holdout"):  # printed in the headers as they are
         if key in d["sampling"]:
             c.number(f"sampling.{key}", d["sampling"][key], integer=True)
     if "range" in d["sampling"]:
@@ -121,18 +139,27 @@ def check_couplings(c: Checker, d: dict, names: tuple[str, ...]) -> None:
         for k, e in enumerate(pair):
             c.choice(f"coupling[{i}].pair[{k}]", e, names)
         if pair[0] == pair[1]:
-            c.fail(f"coupling[{i}].pair", f"couples electrode {pair[0]} to itself",
-                   "a coupling joins two different electrodes; " + FIX)
+            c.fail(
+                f"coupling[{i}].pair",
+                f"couples electrode {pair[0]} to itself",
+                "a coupling joins two different electrodes; " + FIX,
+            )
         key = frozenset(pair)
         if key in seen:
-            c.fail(f"coupling[{i}].pair", f"the pair {pair[0]}-{pair[1]} is given twice (also coupling[{seen[key]}])",
-                   "give each pair once; " + FIX)
+            c.fail(
+                f"coupling[{i}].pair",
+                f"the pair {pair[0]}-{pair[1]} is given twice (also coupling[{seen[key]}])",
+                "give each pair once; " + FIX,
+            )
         seen[key] = i
         value = row.get("capacitance")
         c.number(f"coupling[{i}].capacitance", value)
         if value < 0:
-            c.fail(f"coupling[{i}].capacitance", f"{value!r} F is negative",
-                   "give the two-terminal capacitance (the negative of the Maxwell matrix's off-diagonal entry); " + FIX)
+            c.fail(
+                f"coupling[{i}].capacitance",
+                f"{value!r} F is negative",
+                "give the two-terminal capacitance (the negative of the Maxwell matrix's off-diagonal entry); " + FIX,
+            )
 
 
 def check_calibration(c: Checker, cal: Any, names: tuple[str, ...]) -> None:

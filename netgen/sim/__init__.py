@@ -6,9 +6,9 @@ simulator is one module on top of process and rawfile and one line here."""
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from ..errors import InputError
 from . import ngspice, pyspice, vacask
@@ -23,6 +23,7 @@ class Simulator:
     """run(netlist text, run folder, name, timeout s) -> the plots of its analyses;
     run_file(netlist file, run folder, timeout s): the same for a file, run where it is (None:
     its text is run, so relative includes resolve as the simulator resolves them for text)."""
+
     run: Callable[[str, Path, str, float], list[Plot]]
     help: str
     run_file: Callable[[Path, Path, float], list[Plot]] | None = None
@@ -40,13 +41,18 @@ def netlist_text(path: str | Path) -> str:
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
-        raise InputError(str(path), "file", f"cannot read it: {exc.strerror or exc}",
-                         "check the path and its permissions") from None
+        raise InputError(
+            str(path), "file", f"cannot read it: {exc.strerror or exc}", "check the path and its permissions"
+        ) from None
     bad = BINARY.search(data)
     if bad:
-        raise InputError(str(path), f"byte {bad.start()}", f"binary data (byte 0x{data[bad.start()]:02x}), "
-                         "not a text netlist", "give the netlist's text file (.cir/.sp for ngspice, .sim for VACASK), "
-                         "not a raw file, an archive or an executable")
+        raise InputError(
+            str(path),
+            f"byte {bad.start()}",
+            f"binary data (byte 0x{data[bad.start()]:02x}), not a text netlist",
+            "give the netlist's text file (.cir/.sp for ngspice, .sim for VACASK), "
+            "not a raw file, an archive or an executable",
+        )
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError:
@@ -68,12 +74,15 @@ def run_vacask_file(path: Path, workdir: Path, timeout: float) -> list[Plot]:
 
 
 SIMULATORS: dict[str, Simulator] = {
-    "ngspice": Simulator(ngspice.run_ngspice, "ngspice in batch mode (a SPICE netlist with its analyses)",
-                         ngspice.run_file),
-    "pyspice": Simulator(pyspice.run_netlist, "ngspice's shared library through PySpice, in this process "
-                                              "(the libngspice of the selected ngspice, or $NETGEN_LIBNGSPICE)"),
-    "vacask": Simulator(run_vacask_netlist, "VACASK (a Spectre-like netlist with a control block)",
-                        run_vacask_file),
+    "ngspice": Simulator(
+        ngspice.run_ngspice, "ngspice in batch mode (a SPICE netlist with its analyses)", ngspice.run_file
+    ),
+    "pyspice": Simulator(
+        pyspice.run_netlist,
+        "ngspice's shared library through PySpice, in this process "
+        "(the libngspice of the selected ngspice, or $NETGEN_LIBNGSPICE)",
+    ),
+    "vacask": Simulator(run_vacask_netlist, "VACASK (a Spectre-like netlist with a control block)", run_vacask_file),
 }
 
 __all__ = ["SIMULATORS", "Plot", "Simulator", "netlist_text", "read_raw"]

@@ -9,11 +9,11 @@ import os
 import re
 import shutil
 import subprocess
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Callable, Iterator
 
 from ..errors import CodeModelError, SimulationError, SimulatorNotFound
 from . import process
@@ -22,15 +22,23 @@ from .rawfile import Plot, read_raw
 INSTALL_HINT = "install it with: apt-get install -y ngspice libngspice0   (Debian/Ubuntu, as root)"
 
 FAILURES = [
-    (re.compile(r"timestep too small.*?(?:time\s*=\s*([0-9.eE+-]+))?.*?(?:timestep\s*=\s*[0-9.eE+-]+)?"
-                r"(?:.*?trouble with node\s*\"?([\w.#:]+)\"?)?", re.I | re.S), "timestep too small"),
+    (
+        re.compile(
+            r"timestep too small.*?(?:time\s*=\s*([0-9.eE+-]+))?.*?(?:timestep\s*=\s*[0-9.eE+-]+)?"
+            r"(?:.*?trouble with node\s*\"?([\w.#:]+)\"?)?",
+            re.I | re.S,
+        ),
+        "timestep too small",
+    ),
     (re.compile(r"singular matrix:?\s*check nodes?\s*([\w.#:]+)?", re.I), "singular matrix"),
-    (re.compile(r"no convergence in dc|gmin stepping failed|source stepping failed", re.I),
-     "no DC convergence"),
+    (re.compile(r"no convergence in dc|gmin stepping failed|source stepping failed", re.I), "no DC convergence"),
 ]
 # a batch analysis that failed (the raw file may still exist); a .control run that aborted
-FAILED = re.compile(r"simulation\(s\) aborted|analysis .*failed|no convergence|no such command available|"
-                    r"circuit not parsed|simulation interrupted due to error|fatal error in ngspice", re.I)
+FAILED = re.compile(
+    r"simulation\(s\) aborted|analysis .*failed|no convergence|no such command available|"
+    r"circuit not parsed|simulation interrupted due to error|fatal error in ngspice",
+    re.I,
+)
 ABORTED = re.compile(r"simulation\(s\) aborted|timestep too small", re.I)
 
 
@@ -44,9 +52,11 @@ def ngspice_path() -> str:
     if chosen:
         path = shutil.which(os.path.expanduser(chosen))
         if not path:
-            raise SimulatorNotFound(f"{ENV}={chosen!r} (or --ngspice) is not an executable ngspice; point it at one "
-                                    f"(e.g. ~/.cache/netgen/ngspice-46/bin/ngspice) or unset it to use "
-                                    f"the ngspice on PATH")
+            raise SimulatorNotFound(
+                f"{ENV}={chosen!r} (or --ngspice) is not an executable ngspice; point it at one "
+                f"(e.g. ~/.cache/netgen/ngspice-46/bin/ngspice) or unset it to use "
+                f"the ngspice on PATH"
+            )
         return path
     path = shutil.which("ngspice")
     if not path:
@@ -87,8 +97,9 @@ def version(path: str | None = None) -> Version:
 @lru_cache(maxsize=8)
 def _version(path: str, mtime: int) -> Version:
     try:
-        out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=30,
-                             stdin=subprocess.DEVNULL).stdout
+        out = subprocess.run(
+            [path, "--version"], capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL
+        ).stdout
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise SimulatorNotFound(f"{path} --version failed ({exc}); is it an ngspice?") from exc
     match = re.search(r"ngspice-(\d+)(?:\.(\d+))?", out)
@@ -124,8 +135,9 @@ def has_osdi(path: str) -> bool:
 @lru_cache(maxsize=8)
 def _has_osdi(path: str, mtime: int) -> bool:
     try:
-        done = subprocess.run([path, "-b"], input="osdi probe\n.control\nosdi\n.endc\n.end\n",
-                              capture_output=True, text=True, timeout=30)
+        done = subprocess.run(
+            [path, "-b"], input="osdi probe\n.control\nosdi\n.endc\n.end\n", capture_output=True, text=True, timeout=30
+        )
         out = done.stdout + done.stderr
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise SimulatorNotFound(f"{path} -b failed ({exc}); is it an ngspice?") from exc
@@ -136,8 +148,14 @@ def identity(path: str | None = None) -> dict:
     """What a run used, for the outputs that record it: the ngspice's path, release label and
     the build switches (KLU, OSDI) that a compiled code model depends on."""
     v = version(path)
-    return {"path": v.path, "version": v.label, "major": v.major, "minor": v.minor, "klu": v.klu,
-            "osdi": has_osdi(v.path)}
+    return {
+        "path": v.path,
+        "version": v.label,
+        "major": v.major,
+        "minor": v.minor,
+        "klu": v.klu,
+        "osdi": has_osdi(v.path),
+    }
 
 
 def same_build(a: dict, b: dict) -> bool:
@@ -165,9 +183,11 @@ def check_code_models(netlist: str, workdir: Path) -> None:
         record = build_record(cm)
         if not record.exists():
             if cm.name.startswith("netgen_"):
-                raise CodeModelError(f"{cm} has no build record ({record.name}): netgen cannot tell which "
-                                     f"ngspice it was built for, and one built for another crashes ngspice; "
-                                     f"rebuild it with: netgen codemodel")
+                raise CodeModelError(
+                    f"{cm} has no build record ({record.name}): netgen cannot tell which "
+                    f"ngspice it was built for, and one built for another crashes ngspice; "
+                    f"rebuild it with: netgen codemodel"
+                )
             continue
         built = json.loads(record.read_text()).get("ngspice", {})
         here = here or identity()
@@ -177,15 +197,26 @@ def check_code_models(netlist: str, workdir: Path) -> None:
 
 def refusal(cm: Path, built: dict, here: dict) -> str:
     """Why a code model built for `built` is not loaded into `here`, and the alternatives."""
+
     def name(r: dict) -> str:
-        return f"{r.get('version')} ({r.get('path')}" + (", KLU" if r.get("klu") else "") + \
-            (", OSDI" if r.get("osdi") else "") + ")"
-    fast = ("on it the compiled path is OSDI: netgen build --format osdi (the _osdi.lib)" if here.get("osdi")
-            else "on it use the B-source .lib")
-    return (f"{cm.name} was built for {name(built)} and this run uses {name(here)}: a code model built for "
-            f"another ngspice crashes it, so it is not loaded. Run it on the ngspice it was built for "
-            f"(--ngspice {built.get('path')} or NETGEN_NGSPICE), or rebuild it for this one with netgen codemodel "
-            f"where its sources are reachable; {fast}")
+        return (
+            f"{r.get('version')} ({r.get('path')}"
+            + (", KLU" if r.get("klu") else "")
+            + (", OSDI" if r.get("osdi") else "")
+            + ")"
+        )
+
+    fast = (
+        "on it the compiled path is OSDI: netgen build --format osdi (the _osdi.lib)"
+        if here.get("osdi")
+        else "on it use the B-source .lib"
+    )
+    return (
+        f"{cm.name} was built for {name(built)} and this run uses {name(here)}: a code model built for "
+        f"another ngspice crashes it, so it is not loaded. Run it on the ngspice it was built for "
+        f"(--ngspice {built.get('path')} or NETGEN_NGSPICE), or rebuild it for this one with netgen codemodel "
+        f"where its sources are reachable; {fast}"
+    )
 
 
 def diagnose(log: str) -> str | None:
@@ -194,9 +225,10 @@ def diagnose(log: str) -> str | None:
         match = pattern.search(log)
         if match:
             details = []
-            node = re.search(r"trouble with node\s*\"?([\w.#:]+)", log, re.I) or \
-                re.search(r"check node[s]?\s*([\w.#:]+)", log, re.I)
-            when = re.search(r"time\s*=\s*([0-9.eE+-]+)", log[match.start():], re.I)
+            node = re.search(r"trouble with node\s*\"?([\w.#:]+)", log, re.I) or re.search(
+                r"check node[s]?\s*([\w.#:]+)", log, re.I
+            )
+            when = re.search(r"time\s*=\s*([0-9.eE+-]+)", log[match.start() :], re.I)
             if node:
                 details.append(f"node {node.group(1)}")
             if when and what == "timestep too small":
@@ -204,10 +236,12 @@ def diagnose(log: str) -> str | None:
             return what + (f" ({', '.join(details)})" if details else "")
     lines = [ln.strip() for ln in log.splitlines()]
     for i, line in enumerate(lines):
-        if re.search(r"\berror\b|fatal|unknown (?:subckt|model|device)|no such command|can't find model", line, re.I) \
-                and "no error" not in line.lower():
+        if (
+            re.search(r"\berror\b|fatal|unknown (?:subckt|model|device)|no such command|can't find model", line, re.I)
+            and "no error" not in line.lower()
+        ):
             # "Error on line 4 or its substitute:" says what in the lines after it
-            after = [ln for ln in lines[i + 1:i + 3] if ln and not ln.lower().startswith("simulation interrupted")]
+            after = [ln for ln in lines[i + 1 : i + 3] if ln and not ln.lower().startswith("simulation interrupted")]
             return " ".join([line] + after[:2]) if line.endswith(":") else line
     return None
 
@@ -236,7 +270,7 @@ def run_file(netlist: str | Path, workdir: str | Path, timeout: float = 3600.0) 
     `workdir` (also the working folder: what its .control block writes lands there)."""
     exe = ngspice_path()
     source, workdir = Path(netlist).resolve(), Path(workdir).resolve()
-    check_code_models(source.read_bytes().decode("latin-1"), workdir)    # before any folder is made
+    check_code_models(source.read_bytes().decode("latin-1"), workdir)  # before any folder is made
     workdir.mkdir(parents=True, exist_ok=True)
     raw, log = workdir / f"{source.stem}.raw", workdir / f"{source.stem}.log"
     raw.unlink(missing_ok=True)
@@ -251,20 +285,31 @@ def checked(done: process.Finished, raw: Path, log: Path, reproduce: str) -> lis
     log.write_text(log_header() + done.output)
     problem = diagnose(done.output)
     if done.returncode == 0 and not raw.exists() and not problem:
-        problem = ("no raw file: the netlist has no analysis outside a .control block (add e.g. .op or .tran; "
-                   "a .control block writes its own results)")
+        problem = (
+            "no raw file: the netlist has no analysis outside a .control block (add e.g. .op or .tran; "
+            "a .control block writes its own results)"
+        )
     if done.returncode != 0 or not raw.exists() or FAILED.search(done.output) or (problem and fatal(problem)):
-        raise SimulationError(f"ngspice failed: {problem or f'exit code {done.returncode}'}; "
-                              f"log {log}; reproduce with: {reproduce}")
+        raise SimulationError(
+            f"ngspice failed: {problem or f'exit code {done.returncode}'}; log {log}; reproduce with: {reproduce}"
+        )
     plots = read_raw(raw)
     if not plots:
-        raise SimulationError(f"ngspice wrote no results into {raw} (does the netlist have an analysis, "
-                              f"e.g. .op or .tran?); log {log}; reproduce with: {reproduce}")
+        raise SimulationError(
+            f"ngspice wrote no results into {raw} (does the netlist have an analysis, "
+            f"e.g. .op or .tran?); log {log}; reproduce with: {reproduce}"
+        )
     return plots
 
 
-def run_control(netlist: str, workdir: str | Path, name: str, raw_name: str, timeout: float = 36000.0,
-                on_line: Callable[[str], None] | None = None) -> Plot:
+def run_control(
+    netlist: str,
+    workdir: str | Path,
+    name: str,
+    raw_name: str,
+    timeout: float = 36000.0,
+    on_line: Callable[[str], None] | None = None,
+) -> Plot:
     """Run a netlist whose .control block runs its analyses and writes `raw_name` itself (e.g.
     pausing for progress lines, which `on_line` sees as they are printed); return that plot.
     ngspice exits 1 after a paused-and-resumed run: success is a complete raw file."""
@@ -272,20 +317,25 @@ def run_control(netlist: str, workdir: str | Path, name: str, raw_name: str, tim
     check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, raw_name)
     reproduce = f"cd {workdir} && {exe} -b {cir.name}"
-    done = process.run(process.line_buffered([exe, "-b", cir.name]), workdir, timeout, reproduce,
-                       "ngspice", on_line=on_line)
+    done = process.run(
+        process.line_buffered([exe, "-b", cir.name]), workdir, timeout, reproduce, "ngspice", on_line=on_line
+    )
     log.write_text(log_header() + done.output)
     if not raw.exists() or ABORTED.search(done.output):
-        raise SimulationError(f"ngspice failed: {diagnose(done.output) or f'exit code {done.returncode}'}; "
-                              f"log {log}; reproduce with: {reproduce}")
+        raise SimulationError(
+            f"ngspice failed: {diagnose(done.output) or f'exit code {done.returncode}'}; "
+            f"log {log}; reproduce with: {reproduce}"
+        )
     return read_raw(raw)[0]
 
 
 def log_header() -> str:
     """The first line of every ngspice log netgen writes: which ngspice ran (identity())."""
     who = identity()
-    return f"netgen: ran {who['version']} ({who['path']}; KLU {'yes' if who['klu'] else 'no'}, " \
-           f"OSDI {'yes' if who['osdi'] else 'no'})\n"
+    return (
+        f"netgen: ran {who['version']} ({who['path']}; KLU {'yes' if who['klu'] else 'no'}, "
+        f"OSDI {'yes' if who['osdi'] else 'no'})\n"
+    )
 
 
 def _files(workdir: Path, name: str, netlist: str, raw_name: str) -> tuple[Path, Path, Path]:

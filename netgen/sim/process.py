@@ -11,10 +11,10 @@ import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
 
 from ..errors import SimulationError
 
@@ -22,12 +22,13 @@ from ..errors import SimulationError
 @dataclass
 class Finished:
     """A run that ended by itself: its exit code, its output and its wall time."""
+
     returncode: int
     output: str
     wall: float
 
 
-_WATCHERS = threading.local()                    # per thread: callbacks told of each process run() starts
+_WATCHERS = threading.local()  # per thread: callbacks told of each process run() starts
 
 
 @contextmanager
@@ -59,18 +60,36 @@ def line_buffered(argv: list[str]) -> list[str]:
     return ([stdbuf, "-oL", "-eL"] if stdbuf else []) + list(argv)
 
 
-def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: str = "",
-        on_line: Callable[[str], None] | None = None, on_tick: Callable[[float], None] | None = None,
-        tick: float = 2.0, env: dict[str, str] | None = None) -> Finished:
+def run(
+    argv: list[str],
+    cwd: str | Path,
+    timeout: float,
+    reproduce: str,
+    name: str = "",
+    on_line: Callable[[str], None] | None = None,
+    on_tick: Callable[[float], None] | None = None,
+    tick: float = 2.0,
+    env: dict[str, str] | None = None,
+) -> Finished:
     """Run argv in cwd with stdin closed; on_line(line) for each output line as it arrives,
     on_tick(wall seconds) every `tick` s while it runs. Past `timeout` s the process group is
     killed and a SimulationError names the program (`name`, default argv[0]) and the command
     that reproduces the run; an interrupt of the caller kills it too. `env`: its environment
     (default: this process's)."""
-    late = SimulationError(f"{name or Path(argv[0]).name} did not finish within {timeout:g} s; "
-                           f"reproduce with: {reproduce}")
-    proc = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env,
-                            stdin=subprocess.DEVNULL, text=True, errors="replace", start_new_session=True)
+    late = SimulationError(
+        f"{name or Path(argv[0]).name} did not finish within {timeout:g} s; reproduce with: {reproduce}"
+    )
+    proc = subprocess.Popen(
+        argv,
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        errors="replace",
+        start_new_session=True,
+    )
     try:
         for callback in getattr(_WATCHERS, "callbacks", ()):
             callback(proc.pid)
@@ -95,7 +114,7 @@ def run(argv: list[str], cwd: str | Path, timeout: float, reproduce: str, name: 
                 line = lines.get(timeout=min(tick, max(timeout - wall, 0.0) + 1e-3))
             except queue.Empty:
                 continue
-            if line is None:                       # output closed: the process is ending
+            if line is None:  # output closed: the process is ending
                 break
             out.append(line)
             if on_line is not None:

@@ -23,13 +23,12 @@ import contextlib
 import logging
 import os
 import re
-import sysconfig
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
@@ -39,66 +38,15 @@ from ..errors import InputError, SimulationError, SimulatorNotFound
 from ..model import MacroModel
 from ..text import comment_text
 from . import ngspice
+from .libngspice import ENV, INSTALL_HINT, Library, library
 from .rawfile import Plot
 
-ENV = "NETGEN_LIBNGSPICE"
-INSTALL_HINT = ("install it with: apt-get install -y libngspice0   (Debian/Ubuntu, as root), or set "
-                f"{ENV} to the libngspice.so of your ngspice")
-NAMES = ("libngspice.so.0", "libngspice.so")
-POLL = 0.01            # s between checks of a background run
-
-
-@dataclass(frozen=True)
-class Library:
-    """One libngspice and the folders it must read: its code models and its spinit."""
-
-    path: str
-    lib_dir: str | None        # SPICE_LIB_DIR (its folder of code models, *.cm)
-    scripts: str | None        # SPICE_SCRIPTS (holds spinit)
-    binary: str | None         # the ngspice it was found beside (None: given by NETGEN_LIBNGSPICE)
-
-
-def library() -> Library:
-    """The libngspice to load: $NETGEN_LIBNGSPICE, else the one of the selected ngspice binary
-    (its prefix's lib folders); SimulatorNotFound with the fix when there is none."""
-    chosen = os.environ.get(ENV, "").strip()
-    if chosen:
-        path = Path(os.path.expanduser(chosen))
-        if not path.is_file():
-            raise SimulatorNotFound(f"{ENV}={chosen!r} is not a file; point it at a libngspice.so "
-                                    f"(e.g. /usr/lib/x86_64-linux-gnu/libngspice.so.0) or unset it")
-        return Library(str(path), *support_folders(path), None)
-    binary = ngspice.ngspice_path()
-    folders = library_folders(binary)
-    for folder in folders:
-        for name in NAMES:
-            if (folder / name).is_file():
-                return Library(str(folder / name), *support_folders(folder / name), binary)
-    raise SimulatorNotFound(f"libngspice (ngspice's shared library, which PySpice runs) not found beside "
-                            f"{binary} (looked in {', '.join(map(str, folders))}); {INSTALL_HINT}")
-
-
-def library_folders(binary: str) -> list[Path]:
-    """Where the libngspice of an ngspice at <prefix>/bin/ngspice lives: <prefix>/lib (with the
-    multiarch and lib64 variants), and <prefix>/usr/lib for a wrapper over an unpacked package."""
-    prefix = Path(binary).absolute().parent.parent
-    arch = sysconfig.get_config_var("MULTIARCH") or "x86_64-linux-gnu"
-    return [prefix / sub for sub in (f"lib/{arch}", "lib64", "lib", f"usr/lib/{arch}", "usr/lib64", "usr/lib")]
-
-
-def support_folders(lib: Path) -> tuple[str | None, str | None]:
-    """(SPICE_LIB_DIR, SPICE_SCRIPTS) of a libngspice: <libdir>/ngspice and <root>/share/ngspice/
-    scripts where <root> holds the lib folder; None where a folder is missing."""
-    folder = lib.absolute().parent
-    root = next((p.parent for p in (folder, *folder.parents) if p.name in ("lib", "lib64")), folder.parent)
-    codemodels, scripts = folder / "ngspice", root / "share" / "ngspice" / "scripts"
-    return (str(codemodels) if codemodels.is_dir() else None,
-            str(scripts) if (scripts / "spinit").is_file() else None)
+POLL = 0.01  # s between checks of a background run
 
 
 # ----------------------------------------------------------------------------- the shared library
 
-LOADED: dict = {}          # "library": the Library of this process, "shared": its NgSpiceShared
+LOADED: dict = {}  # "library": the Library of this process, "shared": its NgSpiceShared
 
 
 @contextlib.contextmanager
@@ -123,8 +71,10 @@ def shared():
     if not LOADED:
         LOADED.update(library=lib, shared=load_library(lib))
     elif LOADED["library"].path != lib.path:
-        raise SimulatorNotFound(f"this process already runs {LOADED['library'].path}; PySpice loads one "
-                                f"libngspice per process: run {lib.path} in a separate process")
+        raise SimulatorNotFound(
+            f"this process already runs {LOADED['library'].path}; PySpice loads one "
+            f"libngspice per process: run {lib.path} in a separate process"
+        )
     check_release(lib, LOADED["shared"].ngspice_version)
     return LOADED["shared"]
 
@@ -138,6 +88,7 @@ def load_library(lib: Library):
     class Recorder(NgSpiceShared):
         """NgSpiceShared keeping every output line ((stream, text)) for netgen's own diagnosis, and
         the end of each background run (PySpice 1.5's own callback returns no int)."""
+
         lines: list[tuple[str, str]] = []
         ended = threading.Event()
 
@@ -153,8 +104,9 @@ def load_library(lib: Library):
             return 0
 
     saved = {var: os.environ.get(var) for var in ("SPICE_LIB_DIR", "SPICE_SCRIPTS")}
-    os.environ.update({var: value for var, value in (("SPICE_LIB_DIR", lib.lib_dir), ("SPICE_SCRIPTS", lib.scripts))
-                       if value})
+    os.environ.update(
+        {var: value for var, value in (("SPICE_LIB_DIR", lib.lib_dir), ("SPICE_SCRIPTS", lib.scripts)) if value}
+    )
     NgSpiceShared.LIBRARY_PATH = lib.path
     try:
         with quiet():
@@ -176,8 +128,10 @@ def check_release(lib: Library, major: int | None) -> None:
         return
     want = ngspice.version(lib.binary)
     if major != want.major:
-        raise SimulatorNotFound(f"{lib.path} is ngspice-{major}, but the selected ngspice {lib.binary} is "
-                                f"{want.label}; set {ENV} to the libngspice of {want.label}")
+        raise SimulatorNotFound(
+            f"{lib.path} is ngspice-{major}, but the selected ngspice {lib.binary} is "
+            f"{want.label}; set {ENV} to the libngspice of {want.label}"
+        )
 
 
 def release() -> str:
@@ -186,6 +140,7 @@ def release() -> str:
 
 
 # ----------------------------------------------------------------------------- running a netlist
+
 
 def command(ng, text: str) -> None:
     """One ngspice command; PySpice's exception for a line with "error" or any stderr line is
@@ -204,8 +159,9 @@ def output(lines: list[tuple[str, str]], start: int = 0) -> str:
     return "\n".join(text for _, text in lines[start:])
 
 
-def run_text(netlist: str, workdir: str | Path | None = None, name: str = "circuit",
-             timeout: float = 3600.0) -> list[Plot]:
+def run_text(
+    netlist: str, workdir: str | Path | None = None, name: str = "circuit", timeout: float = 3600.0
+) -> list[Plot]:
     """Load `netlist` into the shared ngspice, run its analyses (a .control block runs as it loads),
     and return the new plots, oldest first, named as in a raw file (v(node), i(source)). With
     `workdir` the netlist is saved there as name.cir and sourced (.include paths resolve from it,
@@ -238,8 +194,10 @@ def save(netlist: str, workdir: Path, name: str) -> Path:
     """workdir/name.cir with the netlist, for ngspice's `source` (a path without spaces)."""
     cir = workdir / f"{name}.cir"
     if len(str(cir)) > 1000 or re.search(r"\s", str(cir)):
-        raise SimulationError(f"{cir}: ngspice's source command takes a path without spaces of under "
-                              f"1000 characters; use another run folder")
+        raise SimulationError(
+            f"{cir}: ngspice's source command takes a path without spaces of under "
+            f"1000 characters; use another run folder"
+        )
     workdir.mkdir(parents=True, exist_ok=True)
     cir.write_text(netlist)
     return cir
@@ -260,15 +218,16 @@ def check_load(lines: list[tuple[str, str]], cir: Path | None, log: str) -> None
     """A netlist ngspice refused (an unknown subcircuit or model, a bad line): its stderr "Error" line."""
     refused = [text for stream, text in lines if stream == "stderr" and re.match(r"\s*error\b", text, re.I)]
     if refused:
-        raise SimulationError(f"ngspice (libngspice via PySpice) refused the netlist: {refused[0].strip()}; "
-                              f"log {log}{reproduce(cir)}")
+        raise SimulationError(
+            f"ngspice (libngspice via PySpice) refused the netlist: {refused[0].strip()}; log {log}{reproduce(cir)}"
+        )
 
 
 def background_run(ng, timeout: float, cir: Path | None) -> None:
     """`bg_run` and wait for its thread to end: past `timeout` s, or on an interrupt, the run is halted."""
     ng.ended.clear()
     began = time.perf_counter()
-    with quiet():                     # the run's stderr lines arrive from ngspice's thread
+    with quiet():  # the run's stderr lines arrive from ngspice's thread
         command(ng, "bg_run")
         wait(ng, began, timeout, cir)
 
@@ -279,8 +238,9 @@ def wait(ng, began: float, timeout: float, cir: Path | None) -> None:
         while not ng.ended.wait(POLL):
             if time.perf_counter() - began > timeout:
                 halt(ng)
-                raise SimulationError(f"ngspice (libngspice via PySpice) did not finish within {timeout:.0f} s"
-                                      f"{reproduce(cir)}")
+                raise SimulationError(
+                    f"ngspice (libngspice via PySpice) did not finish within {timeout:.0f} s{reproduce(cir)}"
+                )
     except KeyboardInterrupt:
         halt(ng)
         raise
@@ -297,8 +257,9 @@ def check(text: str, plots: list[Plot], cir: Path | None, log: str) -> None:
     or none that produced a plot."""
     problem = ngspice.diagnose(text)
     if not plots or ngspice.FAILED.search(text) or (problem and ngspice.fatal(problem)):
-        raise SimulationError(f"ngspice (libngspice via PySpice) failed: {problem or 'no analysis ran'}; "
-                              f"log {log}{reproduce(cir)}")
+        raise SimulationError(
+            f"ngspice (libngspice via PySpice) failed: {problem or 'no analysis ran'}; log {log}{reproduce(cir)}"
+        )
 
 
 def reproduce(cir: Path | None) -> str:
@@ -330,12 +291,12 @@ def run_netlist(netlist: str, workdir: Path, name: str, timeout: float) -> list[
 
 # ----------------------------------------------------------------------------- a macromodel in a Circuit
 
-INPUTS = ("electrode", "conductor", "force_in", "acceleration_in")     # port kinds a source drives or ties
+INPUTS = ("electrode", "conductor", "force_in", "acceleration_in")  # port kinds a source drives or ties
 ELECTRICAL = ("electrode", "conductor")
 NODE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*$")
 SOURCE_WORDS = {"dc", "ac", "pulse", "sin", "pwl", "exp", "sffm", "am"}
 SOURCE_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?[a-z]*$", re.I)
-OPTIONS = {"chgtol": 1e-18}          # the model header's advice for fF*mV charges
+OPTIONS = {"chgtol": 1e-18}  # the model header's advice for fF*mV charges
 
 
 def load_model(lib: str | Path) -> MacroModel:
@@ -346,13 +307,20 @@ def load_model(lib: str | Path) -> MacroModel:
     found = lib.with_suffix(".json")
     for form in ("_xspice", "_osdi"):
         if lib.stem.endswith(form):
-            raise InputError(str(lib), "library", f"the {form}.lib form loads a code model or OSDI device "
-                             "in .control lines, which this runner does not give", f"give the B-source "
-                             f"{lib.stem[:-len(form)]}.lib (`netgen build --format ngspice`)")
+            raise InputError(
+                str(lib),
+                "library",
+                f"the {form}.lib form loads a code model or OSDI device "
+                "in .control lines, which this runner does not give",
+                f"give the B-source {lib.stem[: -len(form)]}.lib (`netgen build --format ngspice`)",
+            )
     if not found.is_file():
-        raise InputError(str(lib), "model JSON", f"{found.name} is not beside it (it holds the ports and the "
-                         "scaling of every state)", "build with `netgen build STRUCTURE -o DIR`, which writes "
-                         "both, or pass the MacroModel with its .lib")
+        raise InputError(
+            str(lib),
+            "model JSON",
+            f"{found.name} is not beside it (it holds the ports and the scaling of every state)",
+            "build with `netgen build STRUCTURE -o DIR`, which writes both, or pass the MacroModel with its .lib",
+        )
     return MacroModel.load_json(found)
 
 
@@ -374,10 +342,13 @@ def source_spec(model: MacroModel, port: str, value: float | str, where: str) ->
     tokens = re.split(r"[\s(),]+", value) if isinstance(value, str) else [None]
     bad = [t for t in tokens if t and not (t.lower() in SOURCE_WORDS or SOURCE_NUMBER.match(t))]
     if not isinstance(value, str) or bad or re.search(r"[\r\n]", value) or not value.strip():
-        raise InputError(where, f"drive[{port!r}]", f"{value!r} is not a number or a source specification "
-                         f"(bad part: {bad[0] if bad else value!r})",
-                         "give a number in SI units or e.g. \"PULSE(0 3 0 10n 10n 0.49u 1u)\", \"SIN(0 1 50k)\", "
-                         "\"DC 0 AC 1\" (keywords DC AC PULSE SIN PWL EXP SFFM AM and numbers)")
+        raise InputError(
+            where,
+            f"drive[{port!r}]",
+            f"{value!r} is not a number or a source specification (bad part: {bad[0] if bad else value!r})",
+            'give a number in SI units or e.g. "PULSE(0 3 0 10n 10n 0.49u 1u)", "SIN(0 1 50k)", '
+            '"DC 0 AC 1" (keywords DC AC PULSE SIN PWL EXP SFFM AM and numbers)',
+        )
     return value.strip()
 
 
@@ -409,16 +380,24 @@ class ModelCircuit:
 
     model: MacroModel
     lib: Path
-    circuit: object                   # PySpice.Spice.Netlist.Circuit
+    circuit: object  # PySpice.Spice.Netlist.Circuit
     nodes: dict[str, str]
-    sources: dict[str, str]           # port -> voltage source name
+    sources: dict[str, str]  # port -> voltage source name
     instance: str
 
     @classmethod
-    def build(cls, model: MacroModel | str | Path, lib: str | Path | None = None, *,
-              nodes: dict[str, str] | None = None, drive: dict[str, float | str] | None = None,
-              floating: tuple[str, ...] = (), instance: str = "1", title: str | None = None,
-              workdir: str | Path | None = None) -> "ModelCircuit":
+    def build(
+        cls,
+        model: MacroModel | str | Path,
+        lib: str | Path | None = None,
+        *,
+        nodes: dict[str, str] | None = None,
+        drive: dict[str, float | str] | None = None,
+        floating: tuple[str, ...] = (),
+        instance: str = "1",
+        title: str | None = None,
+        workdir: str | Path | None = None,
+    ) -> ModelCircuit:
         """The circuit of `model` (a MacroModel, or the path of the .lib `netgen build` wrote, its
         JSON beside it). A MacroModel without `lib` is emitted (netgen.emit.ngspice) into `workdir`
         (default: a new temporary folder)."""
@@ -434,18 +413,30 @@ class ModelCircuit:
         lib = Path(lib).absolute()
         where = str(lib)
         if re.search(r"\s", where):
-            raise InputError(where, "library path", "ngspice's .include takes a path without spaces",
-                             "move the .lib to a folder without spaces")
+            raise InputError(
+                where,
+                "library path",
+                "ngspice's .include takes a path without spaces",
+                "move the .lib to a folder without spaces",
+            )
         node_of = check_nodes(model, nodes or {}, where)
         drive = drive or {}
         known = {p["name"]: p["kind"] for p in model.ports()}
         for port in [*drive, *floating]:
             if known.get(port) not in INPUTS:
-                raise InputError(where, f"drive/floating[{port!r}]", "not an input port of the model",
-                                 f"use one of {[p for p, k in known.items() if k in INPUTS]}")
+                raise InputError(
+                    where,
+                    f"drive/floating[{port!r}]",
+                    "not an input port of the model",
+                    f"use one of {[p for p, k in known.items() if k in INPUTS]}",
+                )
         if not re.fullmatch(r"\w+", instance) or "error" in instance.lower():
-            raise InputError(where, "instance", f"{instance!r} is not a simple name",
-                             "use letters, digits and _ (not the word 'error')")
+            raise InputError(
+                where,
+                "instance",
+                f"{instance!r} is not a simple name",
+                "use letters, digits and _ (not the word 'error')",
+            )
         # the title is the deck's first card: one line, its controls escaped (netgen.text)
         circuit = Circuit(comment_text(title) if title else f"netgen {model.name} through PySpice")
         circuit.include(str(lib))
@@ -475,17 +466,32 @@ class ModelCircuit:
         .op converges to the pulled-in contact state (docs/embedding.md)."""
         deck.node_set(**{f"{self.instance}.xs_{c.name}": 0 for c in self.model.coordinates})
 
-    def transient(self, step: float, stop: float, *, max_step: float | None = None, start: float = 0.0,
-                  uic: bool = True, options: dict | None = None, workdir: str | Path | None = None,
-                  timeout: float = 3600.0) -> Result:
+    def transient(
+        self,
+        step: float,
+        stop: float,
+        *,
+        max_step: float | None = None,
+        start: float = 0.0,
+        uic: bool = True,
+        options: dict | None = None,
+        workdir: str | Path | None = None,
+        timeout: float = 3600.0,
+    ) -> Result:
         """.tran step stop start max_step [uic]: with uic (default) every state starts at 0, as the
         model header advises for free-floating coordinates."""
         deck = self.simulation(options)
         deck.transient(step, stop, start, max_step, uic)
         return self.run(deck, "tran", workdir, timeout)
 
-    def operating_point(self, *, nodeset: bool = True, options: dict | None = None,
-                        workdir: str | Path | None = None, timeout: float = 3600.0) -> Result:
+    def operating_point(
+        self,
+        *,
+        nodeset: bool = True,
+        options: dict | None = None,
+        workdir: str | Path | None = None,
+        timeout: float = 3600.0,
+    ) -> Result:
         """.op, by default from the undeflected structure (`nodeset`)."""
         deck = self.simulation(options)
         if nodeset:
@@ -493,8 +499,18 @@ class ModelCircuit:
         deck.operating_point()
         return self.run(deck, "op", workdir, timeout)
 
-    def ac(self, start: float, stop: float, points: int = 20, variation: str = "dec", *, nodeset: bool = True,
-           options: dict | None = None, workdir: str | Path | None = None, timeout: float = 3600.0) -> Result:
+    def ac(
+        self,
+        start: float,
+        stop: float,
+        points: int = 20,
+        variation: str = "dec",
+        *,
+        nodeset: bool = True,
+        options: dict | None = None,
+        workdir: str | Path | None = None,
+        timeout: float = 3600.0,
+    ) -> Result:
         """.ac variation points start stop around the operating point; the excitation is the AC part of
         a drive (e.g. drive={"f_z": "DC 0 AC 1"}: 1 port volt, i.e. 1 uN)."""
         deck = self.simulation(options)
@@ -517,8 +533,11 @@ class ModelCircuit:
             q[c.name] = plot[f"v({self.nodes[f'x_{c.name}']})"] * c.port_units[1]
             velocity[c.name] = plot[f"v({self.instance}.u_{c.name})"] * (c.scale * ws)
             units[c.name] = c.unit
-        current = {p: -plot[f"i({s})"] for p, s in self.sources.items()
-                   if p in {e.name for e in self.model.electrodes} | {self.model.plate}}
+        current = {
+            p: -plot[f"i({s})"]
+            for p, s in self.sources.items()
+            if p in {e.name for e in self.model.electrodes} | {self.model.plate}
+        }
         axis = {"tran": "time", "ac": "frequency"}.get(analysis)
         x = np.real(plot[axis]) if axis else np.zeros(1)
         voltage = {k[2:-1]: v for k, v in plot.vectors.items() if k.startswith("v(")}
@@ -534,7 +553,11 @@ def check_nodes(model: MacroModel, nodes: dict[str, str], where: str) -> dict[st
             raise InputError(where, f"nodes[{port!r}]", "not a port of the model", f"use one of {list(ports)}")
         ok = isinstance(node, str) and (node == "0" or NODE.match(node)) and "error" not in node.lower()
         if not ok or (node == "0" and ports[port] == "displacement_out"):
-            raise InputError(where, f"nodes[{port!r}]", f"{node!r} is not a node name for this port",
-                             "use letters, digits and _ (not the word 'error', which PySpice takes for a "
-                             "simulator failure); \"0\" is ground, for input ports only")
+            raise InputError(
+                where,
+                f"nodes[{port!r}]",
+                f"{node!r} is not a node name for this port",
+                "use letters, digits and _ (not the word 'error', which PySpice takes for a "
+                'simulator failure); "0" is ground, for input ports only',
+            )
     return {p: nodes.get(p, p) for p in ports}

@@ -17,6 +17,7 @@ from ..errors import SimulationError
 @dataclass
 class Plot:
     """One analysis result: vector name (lower case, as the simulator wrote it) -> array."""
+
     title: str
     name: str
     vectors: dict[str, np.ndarray]
@@ -42,8 +43,10 @@ def read_raw(path: str | Path, mapped: bool = False) -> list[Plot]:
     except SimulationError:
         raise
     except (ValueError, IndexError, KeyError, TypeError, UnicodeDecodeError, OverflowError, MemoryError) as exc:
-        raise SimulationError(f"{path} is not a complete raw file ({type(exc).__name__}: {exc}); the simulator "
-                              "wrote garbage or was stopped while writing it: rerun it") from None
+        raise SimulationError(
+            f"{path} is not a complete raw file ({type(exc).__name__}: {exc}); the simulator "
+            "wrote garbage or was stopped while writing it: rerun it"
+        ) from None
     except OSError as exc:
         raise SimulationError(f"cannot read the raw file {path}: {exc.strerror or exc}") from None
 

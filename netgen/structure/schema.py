@@ -7,16 +7,20 @@ import re
 from dataclasses import dataclass, field
 from typing import Protocol
 
-RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")      # out of plane: every conductor kind
-IN_PLANE_COORDINATES = ("x", "y", "rot_z")        # in plane: proof masses (netgen.structure.conductors.ProofMass)
+RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")  # out of plane: every conductor kind
+IN_PLANE_COORDINATES = ("x", "y", "rot_z")  # in plane: proof masses (netgen.structure.conductors.ProofMass)
 ALL_RIGID = IN_PLANE_COORDINATES + RIGID_COORDINATES
-MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")      # \Z: "2,0c\n" is not a label
+MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")  # \Z: "2,0c\n" is not a label
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*\Z")
-MAX_GRID_POINTS = 2_000_000      # capacitance samples levels ** ncoords the pipeline accepts
-DESIGNS = ("grid", "sparse", "lhs", "sobol", "adaptive")     # [sampling] design (netgen.electrostatics.designs)
-DESIGN_KEYS = {"levels": ("grid",), "level": ("sparse",), "points": ("lhs", "sobol", "adaptive"),
-               "seed": ("lhs", "sobol", "adaptive")}          # the [sampling] keys each design reads
-GRID_DEFAULT_MAX = 7             # the full grid is the default design up to 7 coordinates (3^7 = 2187)
+MAX_GRID_POINTS = 2_000_000  # capacitance samples levels ** ncoords the pipeline accepts
+DESIGNS = ("grid", "sparse", "lhs", "sobol", "adaptive")  # [sampling] design (netgen.electrostatics.designs)
+DESIGN_KEYS = {
+    "levels": ("grid",),
+    "level": ("sparse",),
+    "points": ("lhs", "sobol", "adaptive"),
+    "seed": ("lhs", "sobol", "adaptive"),
+}  # the [sampling] keys each design reads
+GRID_DEFAULT_MAX = 7  # the full grid is the default design up to 7 coordinates (3^7 = 2187)
 
 
 def default_design(ncoords: int) -> str:
@@ -43,6 +47,7 @@ def smolyak_count(ncoords: int, level: int) -> int:
         if n == 0:
             return 1
         return sum(sizes[i] * count(n - 1, budget - i) for i in range(budget + 1))
+
     return count(ncoords, level)
 
 
@@ -53,11 +58,12 @@ def mode_name(label: str) -> str:
 
 class Conductor(Protocol):
     """What every conductor kind (netgen.structure.conductors) offers the later stages."""
+
     kind: str
     thickness: float
     density: float
-    outline_shape: str           # "disk" (centred at the origin, `radius`) or "rect" (`outline()`)
-    one_dimensional: bool        # mode shapes vary along x only (beams)
+    outline_shape: str  # "disk" (centred at the origin, `radius`) or "rect" (`outline()`)
+    one_dimensional: bool  # mode shapes vary along x only (beams)
 
     @property
     def mass(self) -> float: ...
@@ -66,9 +72,10 @@ class Conductor(Protocol):
 @dataclass(frozen=True)
 class Coordinates:
     """Generalized coordinates: rigid-body motions then eigenmodes (count or (n,s) labels)."""
+
     rigid: tuple[str, ...]
     modes: int | tuple[str, ...]
-    acceleration_port: bool = False    # an a_in port: frame acceleration along +z (inertial load)
+    acceleration_port: bool = False  # an a_in port: frame acceleration along +z (inertial load)
 
     @property
     def count(self) -> int:
@@ -83,11 +90,12 @@ class Sampling:
     `seed`) or "adaptive" (refined until fit.tolerance or a budget of `points`, `seed`).
     `range_given` False: the file has no `range`, and the build narrows the default 0.2 where the
     box's corners would reach an electrode (netgen.electrostatics.sampling.box_range)."""
+
     levels: int = 3
     range: float = 0.2
     design: str = "grid"
     level: int = 2
-    points: int = 0              # lhs / sobol size, adaptive budget (0 before the parser's default)
+    points: int = 0  # lhs / sobol size, adaptive budget (0 before the parser's default)
     seed: int = 1
     range_given: bool = True
 
@@ -100,6 +108,7 @@ class FitOptions:
     `degree`), K refined until the held-out max relative error <= `tolerance` or K > max_terms;
     "inverse": one polynomial of 1/C; "direct": one polynomial of C.
     """
+
     degree: int = 1
     target: str = "plates"
     holdout: int = 500
@@ -112,21 +121,23 @@ class FitOptions:
 class ElectrostaticsOptions:
     """Extractor choice and settings: edge-fringe model and constant electrode-electrode coupling.
     `extractor` names an entry of netgen.electrostatics.EXTRACTORS (checked when the model is built)."""
+
     fringe: str = "plate_between"
     fringe_a: float = 0.42
     fringe_b: float = 0.06
     relative_permittivity: float = 1.0
     coupling_per_length: float = 0.0
     extractor: str = "parallel_plate"
-    couplings: str | None = None         # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
-    calibration_points: int = 0          # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
-    comb_model: str = "field2d"          # netgen.electrostatics.comb.MODELS: "field2d" or "textbook"
-    bem: tuple = ()                      # [electrostatics.bem] (key, value) pairs: netgen.electrostatics.bem.BemSettings
+    couplings: str | None = None  # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
+    calibration_points: int = 0  # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
+    comb_model: str = "field2d"  # netgen.electrostatics.comb.MODELS: "field2d" or "textbook"
+    bem: tuple = ()  # [electrostatics.bem] (key, value) pairs: netgen.electrostatics.bem.BemSettings
 
 
 @dataclass(frozen=True)
 class FemOptions:
     """Eigenmode FEM settings (scikit-fem Morley plate on a refined circle mesh)."""
+
     refine: int = 6
 
 
@@ -134,23 +145,25 @@ class FemOptions:
 class Damping:
     """Mechanical damping: per-coordinate Q or damping ratio (a number applies to every eigenmode),
     Rayleigh D = alpha M + beta K, squeeze-film gas damping, and thermal force noise."""
-    q_factor: tuple[tuple[str, float], ...] = ()         # (coordinate, Q); "*" = every eigenmode
-    damping_ratio: tuple[tuple[str, float], ...] = ()    # (coordinate, zeta); "*" = every eigenmode
-    rayleigh_alpha: float = 0.0                          # 1/s
-    rayleigh_beta: float = 0.0                           # s
+
+    q_factor: tuple[tuple[str, float], ...] = ()  # (coordinate, Q); "*" = every eigenmode
+    damping_ratio: tuple[tuple[str, float], ...] = ()  # (coordinate, zeta); "*" = every eigenmode
+    rayleigh_alpha: float = 0.0  # 1/s
+    rayleigh_beta: float = 0.0  # s
     squeeze_film: bool = False
-    pressure: float = 101325.0                           # Pa
+    pressure: float = 101325.0  # Pa
     gas: str = "air"
-    temperature: float = 300.0                           # K, of the gas and of the thermal noise
-    noise: bool = False                                  # emit thermal force noise sources
-    fem_refine: int = 5                                  # Reynolds mesh refinement
-    film_model: str = "incompressible"                   # or "compressible": Maxwell branches (pole-residue)
-    film_max_frequency: float = 0.0                      # Hz the compressible network must cover (0: auto)
+    temperature: float = 300.0  # K, of the gas and of the thermal noise
+    noise: bool = False  # emit thermal force noise sources
+    fem_refine: int = 5  # Reynolds mesh refinement
+    film_model: str = "incompressible"  # or "compressible": Maxwell branches (pole-residue)
+    film_max_frequency: float = 0.0  # Hz the compressible network must cover (0: auto)
 
     def enabled(self) -> bool:
         """True when any damping contribution is requested."""
-        return bool(self.q_factor or self.damping_ratio or self.rayleigh_alpha or self.rayleigh_beta
-                    or self.squeeze_film)
+        return bool(
+            self.q_factor or self.damping_ratio or self.rayleigh_alpha or self.rayleigh_beta or self.squeeze_film
+        )
 
 
 @dataclass(frozen=True)
@@ -159,15 +172,17 @@ class Imports:
     netgen.electrostatics.imported), paths resolved against the structure file's folder.
     Mechanics needs all three of mass_matrix, stiffness_matrix and modes; capacitance alone
     replaces the extractor's samples."""
-    mass_matrix: str | None = None         # Matrix Market (.mtx): M, full (with modes) or modal
-    stiffness_matrix: str | None = None    # Matrix Market (.mtx): K, same size as M
-    modes: str | None = None               # .npz or .csv: node coordinates + eigenvectors (vertical)
-    capacitance: str | None = None         # .npz or .csv: coordinates q -> plate-electrode capacitances
+
+    mass_matrix: str | None = None  # Matrix Market (.mtx): M, full (with modes) or modal
+    stiffness_matrix: str | None = None  # Matrix Market (.mtx): K, same size as M
+    modes: str | None = None  # .npz or .csv: node coordinates + eigenvectors (vertical)
+    capacitance: str | None = None  # .npz or .csv: coordinates q -> plate-electrode capacitances
 
 
 @dataclass(frozen=True)
 class Structure:
     """A validated structure description; `source` is the file it came from."""
+
     name: str
     description: str
     source: str
@@ -179,7 +194,7 @@ class Structure:
     electrostatics: ElectrostaticsOptions = field(default_factory=ElectrostaticsOptions)
     fem: FemOptions = field(default_factory=FemOptions)
     damping: Damping | None = None
-    imports: Imports | None = None     # [import]: mechanics and/or capacitances from external tools
+    imports: Imports | None = None  # [import]: mechanics and/or capacitances from external tools
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]

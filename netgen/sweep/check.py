@@ -31,9 +31,13 @@ def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: li
     """Refuse (SweepError: sweep file, key, run, fix) any run that could only fail once started."""
     missing = [c for c in RIGID_COORDINATES if c not in structure.coordinates.rigid]
     if missing:
-        raise SweepError(structure_path, "coordinates.rigid", f"the sigma-delta loop needs the coordinates "
-                         f"{', '.join(RIGID_COORDINATES)}; the structure has {list(structure.coordinates.rigid)}",
-                         "sweep a structure with rigid = [\"z\", \"tilt_x\", \"tilt_y\"] (e.g. examples/levitated_disk.toml)")
+        raise SweepError(
+            structure_path,
+            "coordinates.rigid",
+            f"the sigma-delta loop needs the coordinates "
+            f"{', '.join(RIGID_COORDINATES)}; the structure has {list(structure.coordinates.rigid)}",
+            'sweep a structure with rigid = ["z", "tilt_x", "tilt_y"] (e.g. examples/levitated_disk.toml)',
+        )
     rd = _reader(sweep.path)
     drawn = [p for p in sweep.parameters if p.distribution]
     parsed: dict[str, Structure] = {}
@@ -44,9 +48,13 @@ def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: li
             try:
                 check_value(rd, f"parameters[{k}]", p.name, value)
             except SweepError as exc:
-                raise SweepError(sweep.path, f"parameters[{k}]", f"{run.name} draws {p.name} = {value:.4g}, out of "
-                                 f"range: {exc.problem}", "narrow the distribution (a smaller std, or "
-                                 "distribution = \"uniform\" within the range)", exc.line) from None
+                raise SweepError(
+                    sweep.path,
+                    f"parameters[{k}]",
+                    f"{run.name} draws {p.name} = {value:.4g}, out of range: {exc.problem}",
+                    'narrow the distribution (a smaller std, or distribution = "uniform" within the range)',
+                    exc.line,
+                ) from None
         s = structure
         if run.structure_text is not None:
             if run.structure_text not in parsed:
@@ -69,14 +77,18 @@ def _run_structure(sweep: Sweep, run: RunSpec, structure_path: str) -> Structure
     try:
         return parse_structure(run.structure_text, str(Path(run.dir) / "structure.toml"))
     except StructureError as exc:
-        keys = [k for k in run.params if k.startswith("structure.")] + \
-            [k for k in sweep.fixed if k.startswith("structure.")]
+        keys = [k for k in run.params if k.startswith("structure.")] + [
+            k for k in sweep.fixed if k.startswith("structure.")
+        ]
         settings = ", ".join(f"{k} = {run.params.get(k, sweep.fixed.get(k))!r}" for k in keys)
         where = " / ".join(f"{_where(sweep, k)} ({k})" for k in keys) or "structure"
-        raise SweepError(sweep.path, where, f"{run.name} ({settings}) makes {structure_path} invalid: "
-                         f"{exc.where}: {exc.problem}",
-                         f"give {' / '.join(keys)} values the structure file accepts ({exc.fix})",
-                         _reader(sweep.path).line_of(_where(sweep, keys[0])) if keys else None) from None
+        raise SweepError(
+            sweep.path,
+            where,
+            f"{run.name} ({settings}) makes {structure_path} invalid: {exc.where}: {exc.problem}",
+            f"give {' / '.join(keys)} values the structure file accepts ({exc.fix})",
+            _reader(sweep.path).line_of(_where(sweep, keys[0])) if keys else None,
+        ) from None
 
 
 def _check_tone(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
@@ -88,15 +100,21 @@ def _check_tone(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
     where = _where(sweep, "tone")
     names, complete = coordinates(s, run.rigid_only)
     if coord != "a_in" and coord not in names and (complete or not coord.startswith("m")):
-        raise rd.fail(where, f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names}"
-                      f"{' (rigid_only = true drops the modes)' if run.rigid_only else ''}",
-                      f"name one of {', '.join(names)} in the tone (COORD:AMPLITUDE:FREQ)")
+        raise rd.fail(
+            where,
+            f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names}"
+            f"{' (rigid_only = true drops the modes)' if run.rigid_only else ''}",
+            f"name one of {', '.join(names)} in the tone (COORD:AMPLITUDE:FREQ)",
+        )
     nyquist = 0.5 / run.testbench["ts"]
     if float(freq) >= nyquist:
         key = "tone_freq" if _where(sweep, "tone_freq") else "tone"
-        raise rd.fail(_where(sweep, key), f"{run.name}: {key}: the tone at {float(freq):g} Hz is not below the Nyquist frequency "
-                      f"1/(2 T_s) = {nyquist:g} Hz of T_s = {run.testbench['ts']:g} s",
-                      "give a tone frequency below 1/(2 ts) (in band: below 1/(128 ts))")
+        raise rd.fail(
+            _where(sweep, key),
+            f"{run.name}: {key}: the tone at {float(freq):g} Hz is not below the Nyquist frequency "
+            f"1/(2 T_s) = {nyquist:g} Hz of T_s = {run.testbench['ts']:g} s",
+            "give a tone frequency below 1/(2 ts) (in band: below 1/(128 ts))",
+        )
 
 
 def _where(sweep: Sweep, name: str) -> str:
@@ -116,5 +134,8 @@ def check_model_tones(sweep: Sweep, runs: list[RunSpec], names: dict[bool, list[
         if text and run.structure_text is None and run.rigid_only in names:
             coord = text.split(":")[0]
             if coord != "a_in" and coord not in names[run.rigid_only]:
-                raise rd.fail("tone", f"{run.name}: the tone's coordinate {coord!r} is not one of the model's "
-                              f"{names[run.rigid_only]}", f"name one of {', '.join(names[run.rigid_only])}")
+                raise rd.fail(
+                    "tone",
+                    f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names[run.rigid_only]}",
+                    f"name one of {', '.join(names[run.rigid_only])}",
+                )

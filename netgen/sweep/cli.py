@@ -17,7 +17,7 @@ from .run import figure_path, run_sweep
 from .size import check_size, estimate
 from .spec import MAX_RUNS, load_sweep
 
-RUNS_CEILING = 1_000_000               # --max-runs at most: a planned run takes about 1 kB
+RUNS_CEILING = 1_000_000  # --max-runs at most: a planned run takes about 1 kB
 
 
 def positive_int(text: str) -> int:
@@ -27,8 +27,10 @@ def positive_int(text: str) -> int:
     except ValueError:
         value = 0
     if not 1 <= value <= RUNS_CEILING:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer between 1 and {RUNS_CEILING} (every run is "
-                                         f"planned in memory first; the default is {MAX_RUNS})")
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an integer between 1 and {RUNS_CEILING} (every run is "
+            f"planned in memory first; the default is {MAX_RUNS})"
+        )
     return value
 
 
@@ -41,11 +43,11 @@ def cli(args) -> int:
     sweep = load_sweep(args.sweep, args.max_runs)
     structure = load_structure(args.structure)
     workers = planned_workers(args.scheduler) or os.cpu_count() or 1
-    check_size(sweep, args.max_runs, workers)               # before any list of runs is made
-    runs = plan(sweep, args.structure, out)                 # path errors before any work
-    check_runs(sweep, structure, args.structure, runs)      # every run, before any runs
+    check_size(sweep, args.max_runs, workers)  # before any list of runs is made
+    runs = plan(sweep, args.structure, out)  # path errors before any work
+    check_runs(sweep, structure, args.structure, runs)  # every run, before any runs
     line = f"sweep: {estimate(sweep, workers, out).text(workers)}"
-    if args.dry_run:                                        # the answer of a dry run: on stdout
+    if args.dry_run:  # the answer of a dry run: on stdout
         print(line)
         return 0
     if not args.quiet:
@@ -67,12 +69,21 @@ def add_parser(sub) -> None:
     p = sub.add_parser("sweep", help="parameter sweep / Monte Carlo of the sigma-delta loop (local processes or Dask)")
     p.add_argument("structure", help="structure description (TOML)")
     p.add_argument("sweep", help="sweep description (TOML), e.g. examples/sweep_ts.toml")
-    p.add_argument("-o", "--output", required=True, type=output_folder,
-                   help="output folder (results.csv, runs/, the figure PNG)")
+    p.add_argument(
+        "-o", "--output", required=True, type=output_folder, help="output folder (results.csv, runs/, the figure PNG)"
+    )
     add_scheduler_option(p, what="the runs run (default: one local process per core)")
-    p.add_argument("--max-runs", type=positive_int, default=MAX_RUNS, metavar="N",
-                   help=f"refuse a sweep of more than N runs (default {MAX_RUNS})")
-    p.add_argument("--dry-run", action="store_true",
-                   help="check the sweep file and every run, print the run count and time estimate, run nothing")
+    p.add_argument(
+        "--max-runs",
+        type=positive_int,
+        default=MAX_RUNS,
+        metavar="N",
+        help=f"refuse a sweep of more than N runs (default {MAX_RUNS})",
+    )
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the sweep file and every run, print the run count and time estimate, run nothing",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     p.set_defaults(func=cli)

@@ -10,9 +10,9 @@ import fcntl
 import hashlib
 import json
 import os
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 from ..errors import InputError
 from ..files import write_atomic
@@ -24,6 +24,7 @@ LOCK = ".lock"
 
 class FolderError(InputError):
     """An output folder a sweep may not write into (another sweep's, or in use)."""
+
     what = "output folder"
 
 
@@ -52,12 +53,22 @@ def _check(out: Path, ident: str) -> dict | None:
         raise FolderError(str(out), "-o", "is a file, not a folder", "give a folder path for -o")
     owner = _owner(out) if out.is_dir() else None
     if out.is_dir() and owner is None and any(p.name != LOCK for p in out.iterdir()):
-        raise FolderError(str(out), "-o", "the folder is not empty and holds no sweep of netgen "
-                          f"(no {MARKER}); results written there would mix with its files", move)
+        raise FolderError(
+            str(out),
+            "-o",
+            "the folder is not empty and holds no sweep of netgen "
+            f"(no {MARKER}); results written there would mix with its files",
+            move,
+        )
     if owner is not None and owner.get("id") != ident:
-        raise FolderError(str(out), "-o", f"the folder holds another sweep ({owner.get('sweep')} on "
-                          f"{owner.get('structure')}, {owner.get('runs')} runs); a different structure file or "
-                          "sweep settings would leave its results beside this sweep's runs", move)
+        raise FolderError(
+            str(out),
+            "-o",
+            f"the folder holds another sweep ({owner.get('sweep')} on "
+            f"{owner.get('structure')}, {owner.get('runs')} runs); a different structure file or "
+            "sweep settings would leave its results beside this sweep's runs",
+            move,
+        )
     return owner
 
 
@@ -65,7 +76,7 @@ def _check(out: Path, ident: str) -> dict | None:
 def claim(out: Path, ident: str, sweep_path: str, structure_path: str, runs: int) -> Iterator[None]:
     """Hold DIR for this sweep: refuse a folder that is another sweep's, is not a sweep folder
     (and not empty), or is locked by a running sweep; write the marker; keep the lock."""
-    _check(out, ident)                                 # before anything is created there
+    _check(out, ident)  # before anything is created there
     out.mkdir(parents=True, exist_ok=True)
     fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
     try:
@@ -73,14 +84,23 @@ def claim(out: Path, ident: str, sweep_path: str, structure_path: str, runs: int
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             pid = os.pread(fd, 32, 0).decode(errors="replace").strip()
-            raise FolderError(str(out), "-o", f"another netgen sweep (pid {pid or '?'}) is writing into the folder",
-                              "wait for it to finish (or stop it), or give another -o") from None
-        owner = _check(out, ident)                     # again under the lock: a sweep may just have finished
+            raise FolderError(
+                str(out),
+                "-o",
+                f"another netgen sweep (pid {pid or '?'}) is writing into the folder",
+                "wait for it to finish (or stop it), or give another -o",
+            ) from None
+        owner = _check(out, ident)  # again under the lock: a sweep may just have finished
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         if owner is None:
-            write_atomic(out / MARKER, json.dumps({"id": ident, "sweep": str(sweep_path),
-                                                   "structure": str(structure_path), "runs": runs}, indent=1) + "\n")
+            write_atomic(
+                out / MARKER,
+                json.dumps(
+                    {"id": ident, "sweep": str(sweep_path), "structure": str(structure_path), "runs": runs}, indent=1
+                )
+                + "\n",
+            )
         yield
     finally:
-        os.close(fd)                                   # releases the lock
+        os.close(fd)  # releases the lock

@@ -26,6 +26,7 @@ from .spec import TESTBENCH, Sweep, timeout_for
 @dataclass
 class RunSpec:
     """One run: its folder, parameter values (as shown), testbench options and structure text."""
+
     index: int
     name: str
     dir: str
@@ -35,21 +36,25 @@ class RunSpec:
     structure_text: str | None = None
     plots: bool = False
     key: str = ""
-    timeout: float = 0.0                   # s, wall-clock limit of each simulator call
-    owner: dict | None = None              # the sweep process that runs it (netgen.sweep.processes.me)
+    timeout: float = 0.0  # s, wall-clock limit of each simulator call
+    owner: dict | None = None  # the sweep process that runs it (netgen.sweep.processes.me)
 
 
 def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
     """The runs of a sweep: grid/zip of the value lists x `samples` Monte Carlo draws (seeded)."""
     lists = [p for p in sweep.parameters if p.values is not None]
     random = [p for p in sweep.parameters if p.distribution]
-    combos = list(itertools.product(*[p.values for p in lists])) if sweep.mode == "grid" \
+    combos = (
+        list(itertools.product(*[p.values for p in lists]))
+        if sweep.mode == "grid"
         else list(zip(*[p.values for p in lists]))
+    )
     rng = np.random.default_rng(sweep.seed)
     base_text = Path(structure_path).read_text(encoding="utf-8")
     base_doc = tomllib.loads(base_text)
-    for name in [n for n in sweep.fixed if n.startswith("structure.")] + \
-            [p.name for p in sweep.parameters if p.structure]:
+    for name in [n for n in sweep.fixed if n.startswith("structure.")] + [
+        p.name for p in sweep.parameters if p.structure
+    ]:
         _set_path(json.loads(json.dumps(base_doc)), name, 0, str(structure_path), sweep.path)
     width = len(str(len(combos) * sweep.samples - 1))
     runs = []
@@ -64,8 +69,9 @@ def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
     return runs
 
 
-def _spec(index: int, name: str, out: Path, sweep: Sweep, params: dict, base_doc: dict,
-          structure_path: str | Path) -> RunSpec:
+def _spec(
+    index: int, name: str, out: Path, sweep: Sweep, params: dict, base_doc: dict, structure_path: str | Path
+) -> RunSpec:
     values = {**sweep.fixed, **params}
     tb: dict[str, Any] = {"ts": 1e-6, "cycles": 4096}
     tone = None
@@ -98,16 +104,26 @@ def _spec(index: int, name: str, out: Path, sweep: Sweep, params: dict, base_doc
             _set_path(doc, n, v, str(structure_path), sweep.path)
         note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())}", "#")
         text = f"# {note}\n" + to_toml(doc)
-    spec = RunSpec(index, name, str(out / "runs" / name), params, tb, rigid, text, sweep.plots,
-                   timeout=sweep.timeout or timeout_for(tb["cycles"]))
-    spec.key = hashlib.sha256(json.dumps([tb, rigid, text, sweep.plots], sort_keys=True,
-                                         default=str).encode()).hexdigest()[:16]
+    spec = RunSpec(
+        index,
+        name,
+        str(out / "runs" / name),
+        params,
+        tb,
+        rigid,
+        text,
+        sweep.plots,
+        timeout=sweep.timeout or timeout_for(tb["cycles"]),
+    )
+    spec.key = hashlib.sha256(
+        json.dumps([tb, rigid, text, sweep.plots], sort_keys=True, default=str).encode()
+    ).hexdigest()[:16]
     return spec
 
 
 def _set_path(doc: dict, name: str, value: Any, structure: str, sweep: str) -> None:
     """Set structure.<path> in the TOML document (a list without [i]: every entry)."""
-    parts = re.findall(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?", name[len("structure."):])
+    parts = re.findall(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?", name[len("structure.") :])
     targets = [doc]
     for depth, (key, idx) in enumerate(parts):
         last = depth == len(parts) - 1
@@ -115,15 +131,25 @@ def _set_path(doc: dict, name: str, value: Any, structure: str, sweep: str) -> N
         for t in targets:
             if not isinstance(t, dict) or key not in t:
                 have = sorted(t) if isinstance(t, dict) else []
-                raise SweepError(sweep, name, f"{structure} has no key '{key}' here (has {', '.join(have)})",
-                                 f"{did_you_mean(key, have)}give a path that exists in the structure file (to sweep "
-                                 "an optional key, write it there first with its base value)", _line(sweep, name))
+                raise SweepError(
+                    sweep,
+                    name,
+                    f"{structure} has no key '{key}' here (has {', '.join(have)})",
+                    f"{did_you_mean(key, have)}give a path that exists in the structure file (to sweep "
+                    "an optional key, write it there first with its base value)",
+                    _line(sweep, name),
+                )
             if last:
                 if idx:
                     seq = t.get(key)
                     if not isinstance(seq, list) or int(idx) >= len(seq):
-                        raise SweepError(sweep, name, f"{structure}: {key} has no entry {idx}",
-                                         "use an index that exists (counting from 0)", _line(sweep, name))
+                        raise SweepError(
+                            sweep,
+                            name,
+                            f"{structure}: {key} has no entry {idx}",
+                            "use an index that exists (counting from 0)",
+                            _line(sweep, name),
+                        )
                     seq[int(idx)] = value
                 else:
                     t[key] = value
@@ -131,12 +157,16 @@ def _set_path(doc: dict, name: str, value: Any, structure: str, sweep: str) -> N
             v = t[key]
             if idx:
                 if not isinstance(v, list) or int(idx) >= len(v):
-                    raise SweepError(sweep, name, f"{structure}: {key} has no entry {idx}",
-                                     f"{key} has {len(v) if isinstance(v, list) else 0} entries (counting from 0)",
-                                     _line(sweep, name))
+                    raise SweepError(
+                        sweep,
+                        name,
+                        f"{structure}: {key} has no entry {idx}",
+                        f"{key} has {len(v) if isinstance(v, list) else 0} entries (counting from 0)",
+                        _line(sweep, name),
+                    )
                 nxt.append(v[int(idx)])
             elif isinstance(v, list):
-                nxt.extend(v)                          # e.g. every [[electrodes]] table
+                nxt.extend(v)  # e.g. every [[electrodes]] table
             else:
                 nxt.append(v)
         targets = nxt
@@ -155,6 +185,7 @@ def _line(path: str, text: str) -> int | None:
 
 def to_toml(doc: dict) -> str:
     """A TOML document (tables, arrays of tables, scalars and arrays) as text."""
+
     def scalar(v: Any) -> str:
         if isinstance(v, bool):
             return "true" if v else "false"
@@ -181,6 +212,7 @@ def to_toml(doc: dict) -> str:
                 for item in v:
                     out += [f"[[{sub}]]"] + table(item, sub)[1:]
         return out
+
     return "\n".join(table(doc, "")) + "\n"
 
 

@@ -15,9 +15,9 @@ import signal
 import socket
 import threading
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 from ..executor import raise_or_hold
 from ..interrupts import Interrupted
@@ -33,8 +33,11 @@ def me() -> dict:
 
 def is_running(rec: dict) -> bool:
     """Is the recorded process still the same process (same host, PID and start time)?"""
-    return rec.get("host") == socket.gethostname() and rec.get("start") is not None and \
-        start_time(int(rec["pid"])) == rec["start"]
+    return (
+        rec.get("host") == socket.gethostname()
+        and rec.get("start") is not None
+        and start_time(int(rec["pid"])) == rec["start"]
+    )
 
 
 def record(folder: Path, pid: int, role: str, owner: dict | None = None) -> None:
@@ -43,7 +46,7 @@ def record(folder: Path, pid: int, role: str, owner: dict | None = None) -> None
     try:
         rec["pgid"] = os.getpgid(pid)
     except OSError:
-        return                                         # already gone: nothing to record
+        return  # already gone: nothing to record
     if owner:
         rec["owner"] = owner
     with open(folder / RECORDS, "a", encoding="utf-8") as fh:
@@ -78,7 +81,7 @@ def reap(folder: Path, workers: bool = False) -> list[int]:
         if rec["pid"] == os.getpid() or not is_running(rec):
             continue
         if rec.get("role") == "worker" and not workers and is_running(rec.get("owner") or {}):
-            continue                                   # a live worker of a live sweep: not ours to stop here
+            continue  # a live worker of a live sweep: not ours to stop here
         try:
             if rec.get("role") == "simulator" and os.getpgid(rec["pid"]) == rec.get("pgid") == rec["pid"]:
                 os.killpg(rec["pid"], signal.SIGKILL)  # the simulator and whatever it started
@@ -101,7 +104,8 @@ def stop_on_signals() -> Iterator[None]:
         return
 
     def handler(signum: int, frame: object) -> None:
-        raise_or_hold(Interrupted(signum))                    # held while the executor holds its pool's locks
+        raise_or_hold(Interrupted(signum))  # held while the executor holds its pool's locks
+
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
         yield

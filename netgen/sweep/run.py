@@ -23,17 +23,18 @@ from ..emit import write_outputs
 from ..files import write_atomic
 from ..interrupts import Interrupted
 from ..sim import process as sim_process
-from ..sim.ngspice import identity as ngspice_build, same_build
+from ..sim.ngspice import identity as ngspice_build
+from ..sim.ngspice import same_build
 from ..structure import parse_structure
 from ..testbench import sigma_delta as sd
 from . import processes
-from .folder import claim, identity
 from .check import check_model_tones
+from .folder import claim, identity
 from .plan import RunSpec, plan
 from .plots import plot
 from .spec import METRICS, Sweep, timeout_for
 
-DONE = ".done"                 # in a run folder: the run's key, written when the run completed
+DONE = ".done"  # in a run folder: the run's key, written when the run completed
 
 
 def run_one(models: dict, spec: RunSpec) -> dict:
@@ -49,18 +50,23 @@ def run_one(models: dict, spec: RunSpec) -> dict:
         attempts = int(marker.read_text()) + 1 if same else 1
     except (OSError, ValueError):
         attempts = 1
-    processes.reap(folder)                             # a simulator an earlier attempt left running
-    for p in folder.iterdir():                         # a previous attempt's files
+    processes.reap(folder)  # a simulator an earlier attempt left running
+    for p in folder.iterdir():  # a previous attempt's files
         if p.name != ".attempts":
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
     marker.write_text(str(attempts))
     processes.record(folder, os.getpid(), "worker", spec.owner)
-    (folder / "run.json").write_text(json.dumps({"params": spec.params, "testbench": spec.testbench,
-                                                 "rigid_only": spec.rigid_only, "key": spec.key},
-                                                indent=1, default=str) + "\n")
+    (folder / "run.json").write_text(
+        json.dumps(
+            {"params": spec.params, "testbench": spec.testbench, "rigid_only": spec.rigid_only, "key": spec.key},
+            indent=1,
+            default=str,
+        )
+        + "\n"
+    )
     with sim_process.watched(lambda pid: processes.record(folder, pid, "simulator")):
         _simulate(models, spec, folder)
-    write_atomic(folder / DONE, spec.key + "\n")        # last: the run is complete
+    write_atomic(folder / DONE, spec.key + "\n")  # last: the run is complete
     return {"summary": json.loads((folder / "summary.json").read_text()), "attempts": attempts}
 
 
@@ -83,8 +89,19 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
     tb = dict(spec.testbench)
     tone = sd.Tone.parse(tb.pop("tone")) if tb.get("tone") else None
     ts, cycles = tb.pop("ts"), tb.pop("cycles")
-    sd.run(model, lib, folder, ts, int(cycles), tone, progress=False, plots=spec.plots,
-           timeout=spec.timeout or timeout_for(int(cycles)), loop=loop, **tb)
+    sd.run(
+        model,
+        lib,
+        folder,
+        ts,
+        int(cycles),
+        tone,
+        progress=False,
+        plots=spec.plots,
+        timeout=spec.timeout or timeout_for(int(cycles)),
+        loop=loop,
+        **tb,
+    )
 
 
 def _attempts(folder: Path) -> int:
@@ -110,7 +127,7 @@ def _row(spec: RunSpec, record: dict) -> dict:
             row[f"{c}.{m}"] = ch.get(m)
     row["gravity_balance.ratio"] = (s.get("gravity_balance") or {}).get("ratio")
     row["wall_s"] = s.get("wall_s")
-    row["ngspice"] = (s.get("ngspice") or {}).get("version")        # the ngspice the run ran in (None: VACASK)
+    row["ngspice"] = (s.get("ngspice") or {}).get("version")  # the ngspice the run ran in (None: VACASK)
     row["error"] = record.get("error") or ""
     row["dir"] = spec.dir
     return row
@@ -132,16 +149,19 @@ def _reused(runs: list[RunSpec]) -> dict[int, dict]:
     return records
 
 
-def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool = True,
-              runs: list[RunSpec] | None = None) -> list[dict]:
+def run_sweep(
+    structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool = True, runs: list[RunSpec] | None = None
+) -> list[dict]:
     """Plan, run (through the executor `ex`), gather: the rows of results.csv, in run order.
     The folder must be new, empty or this sweep's (netgen.sweep.folder); SIGTERM or SIGINT stops
     the workers and their simulators, writes what finished and raises netgen.interrupts.Interrupted with a line
     saying how many runs finished and how to resume (exit 130)."""
     out = Path(out)
     runs = runs if runs is not None else plan(sweep, structure_path, out)
-    with claim(out, identity(structure_path, runs), sweep.path, str(structure_path), len(runs)), \
-            processes.stop_on_signals():
+    with (
+        claim(out, identity(structure_path, runs), sweep.path, str(structure_path), len(runs)),
+        processes.stop_on_signals(),
+    ):
         records = _reused(runs)
         try:
             _run(structure_path, sweep, out, ex, progress, runs, records)
@@ -149,33 +169,43 @@ def run_sweep(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress:
             _stop(ex, runs, records)
             rows = _gather(structure_path, sweep, out, runs, records)
             done = sum(r["status"] == "ok" for r in rows)
-            raise Interrupted(stop.signum, f"sweep stopped by {stop}: {done} of {len(runs)} runs finished "
-                              f"(in {out / 'results.csv'}); run the same command again to run the rest") from None
+            raise Interrupted(
+                stop.signum,
+                f"sweep stopped by {stop}: {done} of {len(runs)} runs finished "
+                f"(in {out / 'results.csv'}); run the same command again to run the rest",
+            ) from None
         return _gather(structure_path, sweep, out, runs, records)
 
 
-def _run(structure_path: str | Path, sweep: Sweep, out: Path, ex, progress: bool, runs: list[RunSpec],
-         records: dict[int, dict]) -> None:
+def _run(
+    structure_path: str | Path,
+    sweep: Sweep,
+    out: Path,
+    ex,
+    progress: bool,
+    runs: list[RunSpec],
+    records: dict[int, dict],
+) -> None:
     """Build the shared models, then run every run not yet in `records` (filled as runs end)."""
     todo = [replace(r, owner=processes.me()) for r in runs if r.index not in records]
-    models: dict = {"loop": sd.read_structure_loop(structure_path)}     # the structure's [loop] table
+    models: dict = {"loop": sd.read_structure_loop(structure_path)}  # the structure's [loop] table
     for rigid in sorted({r.rigid_only for r in todo if r.structure_text is None}):
-        model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid,
-                                  progress=progress)
+        model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid, progress=progress)
         models[rigid] = (model, lib.read_text(encoding="utf-8"))
-    check_model_tones(sweep, todo, {rigid: [c.name for c in m[0].coordinates]
-                                    for rigid, m in models.items() if rigid != "loop"})
+    check_model_tones(
+        sweep, todo, {rigid: [c.name for c in m[0].coordinates] for rigid, m in models.items() if rigid != "loop"}
+    )
     if progress and todo:
-        print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""),
-              file=sys.stderr)
-    with tqdm(total=len(runs), initial=len(records), desc="sweep runs", unit="run", disable=not progress,
-              file=sys.stderr) as bar:
+        print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""), file=sys.stderr)
+    with tqdm(
+        total=len(runs), initial=len(records), desc="sweep runs", unit="run", disable=not progress, file=sys.stderr
+    ) as bar:
         for j, outcome in ex.imap_unordered(run_one, todo, shared=models, retries=sweep.retries):
             spec = todo[j]
             rundir = Path(spec.dir)
             if outcome.ok:
                 rec = {"status": "ok", **outcome.value}
-                if not (rundir / "summary.json").exists():      # worker on another file system
+                if not (rundir / "summary.json").exists():  # worker on another file system
                     rundir.mkdir(parents=True, exist_ok=True)
                     (rundir / "summary.json").write_text(json.dumps(rec["summary"], indent=1) + "\n")
             else:
@@ -202,20 +232,42 @@ def _stop(ex, runs: list[RunSpec], records: dict[int, dict]) -> None:
             signal.signal(s, h)
 
 
-def _gather(structure_path: str | Path, sweep: Sweep, out: Path, runs: list[RunSpec],
-            records: dict[int, dict]) -> list[dict]:
+def _gather(
+    structure_path: str | Path, sweep: Sweep, out: Path, runs: list[RunSpec], records: dict[int, dict]
+) -> list[dict]:
     """results.csv, sweep.json and the figure, each written atomically, from the runs that
     ended (a run that did not: status "not run", empty figures)."""
     missing = {"status": "not run", "attempts": 0}
     rows = [_row(spec, records.get(spec.index, missing)) for spec in runs]
     write_csv(out / "results.csv", rows)
-    write_atomic(out / "sweep.json", json.dumps({
-        "structure": str(structure_path), "sweep": sweep.path, "figure": sweep.figure, "x": sweep.x,
-        "mode": sweep.mode, "samples": sweep.samples, "seed": sweep.seed, "fixed": sweep.fixed,
-        "parameters": [asdict(p) for p in sweep.parameters],
-        "runs": [{**asdict(spec), "structure_text": None, "owner": None,
-                  **{k: v for k, v in records.get(spec.index, missing).items() if k != "summary"}}
-                 for spec in runs]}, indent=1, default=str) + "\n")
+    write_atomic(
+        out / "sweep.json",
+        json.dumps(
+            {
+                "structure": str(structure_path),
+                "sweep": sweep.path,
+                "figure": sweep.figure,
+                "x": sweep.x,
+                "mode": sweep.mode,
+                "samples": sweep.samples,
+                "seed": sweep.seed,
+                "fixed": sweep.fixed,
+                "parameters": [asdict(p) for p in sweep.parameters],
+                "runs": [
+                    {
+                        **asdict(spec),
+                        "structure_text": None,
+                        "owner": None,
+                        **{k: v for k, v in records.get(spec.index, missing).items() if k != "summary"},
+                    }
+                    for spec in runs
+                ],
+            },
+            indent=1,
+            default=str,
+        )
+        + "\n",
+    )
     plot(figure_path(out, sweep), rows, sweep)
     return rows
 

@@ -16,13 +16,14 @@ from .spec import Sweep
 # period), per model kind, for the levitated disk on this 2-core machine under load
 # (bench/sweep_processes.py --calibrate: rigid 0.020, full 0.071; idle about 25 % less)
 SECONDS_PER_PERIOD = {"rigid": 0.02, "full": 0.07}
-RUN_SECONDS = 5.0              # per run besides the periods: ngspice start, netlist, analysis, files
-BUILD_SECONDS = 60.0           # a run with structure parameters builds its own model first
+RUN_SECONDS = 5.0  # per run besides the periods: ngspice start, netlist, analysis, files
+BUILD_SECONDS = 60.0  # a run with structure parameters builds its own model first
 
 
 @dataclass
 class Estimate:
     """The run count, the seconds of one run, the whole sweep's wall time and what it rests on."""
+
     runs: int
     per_run_s: float
     wall_s: float
@@ -30,8 +31,10 @@ class Estimate:
 
     def text(self, workers: int) -> str:
         """One line for the user: '12 runs, about 3.1 min each, about 19 min on 2 workers (...)'."""
-        return (f"{self.runs} run(s), about {duration(self.per_run_s)} each, about {duration(self.wall_s)} "
-                f"on {workers} worker(s) ({self.basis})")
+        return (
+            f"{self.runs} run(s), about {duration(self.per_run_s)} each, about {duration(self.wall_s)} "
+            f"on {workers} worker(s) ({self.basis})"
+        )
 
 
 def run_count(sweep: Sweep) -> int:
@@ -99,9 +102,12 @@ def check_size(sweep: Sweep, max_runs: int, workers: int) -> Estimate:
     est = estimate(sweep, workers)
     if est.runs > max_runs:
         lists = ", ".join(f"{p.name}: {len(p.values)}" for p in sweep.parameters if p.values is not None)
-        raise SweepError(sweep.path, "runs", f"the sweep has {est.runs} runs ({sweep.mode} of {lists or 'no lists'}"
-                         f"{f', x {sweep.samples} samples' if sweep.samples > 1 else ''}; {est.text(workers)}), "
-                         f"more than --max-runs {max_runs}",
-                         "use fewer values (num) or samples, mode = \"zip\" for paired lists, or raise "
-                         "--max-runs if you mean it")
+        raise SweepError(
+            sweep.path,
+            "runs",
+            f"the sweep has {est.runs} runs ({sweep.mode} of {lists or 'no lists'}"
+            f"{f', x {sweep.samples} samples' if sweep.samples > 1 else ''}; {est.text(workers)}), "
+            f"more than --max-runs {max_runs}",
+            'use fewer values (num) or samples, mode = "zip" for paired lists, or raise --max-runs if you mean it',
+        )
     return est

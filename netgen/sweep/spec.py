@@ -53,8 +53,7 @@ from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULAT
 from ..text import text_problem
 from ..units import UNITS, UnitError, parse_quantity
 
-METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db",
-           "slope_db_per_decade")
+METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db", "slope_db_per_decade")
 # result columns: <channel>.<metric> for any channel of the loop (the disk's z, tilt_x, tilt_y are
 # listed; figure_ok accepts every coordinate name) and the run's own figures
 RUN_FIGURES = ("gravity_balance.ratio", "wall_s")
@@ -66,34 +65,49 @@ def figure_ok(name: str) -> bool:
     c, dot, m = name.partition(".")
     return name in RUN_FIGURES or (bool(dot) and m in METRICS and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", c) is not None)
 
+
 # the ranges a sweep file may ask for: outside them a run cannot succeed (or means nothing)
-TS_RANGE = (1e-9, 1.0)                 # s: the loop's sampling period
-MAX_CYCLES = 1 << 20                   # periods per run (about 3 days of ngspice each)
+TS_RANGE = (1e-9, 1.0)  # s: the loop's sampling period
+MAX_CYCLES = 1 << 20  # periods per run (about 3 days of ngspice each)
 MAX_RETRIES = 10
-MAX_RUNS = 10_000                      # default of `netgen sweep --max-runs`
+MAX_RUNS = 10_000  # default of `netgen sweep --max-runs`
 
 
 def _between(lo: float, hi: float, unit: str = "", closed: bool = True) -> Any:
     """A check: None inside [lo, hi] (or [lo, hi) when not `closed`), else the problem."""
+
     def check(v: float) -> str | None:
         inside = lo <= v <= hi if closed else lo <= v < hi
         return None if inside else f"must be between {lo:g}{unit} and {hi:g}{unit}" + ("" if closed else " (excluded)")
+
     return check
 
 
 # testbench parameter: (kind, check -> problem or None, what it is)
 TESTBENCH: dict[str, tuple[str, Any, str]] = {
     "ts": ("time", _between(*TS_RANGE, " s"), "sampling period T_s"),
-    "cycles": ("int", lambda v: None if 64 <= v <= MAX_CYCLES else f"must be between 64 and {MAX_CYCLES}",
-               "number of sampling periods"),
+    "cycles": (
+        "int",
+        lambda v: None if 64 <= v <= MAX_CYCLES else f"must be between 64 and {MAX_CYCLES}",
+        "number of sampling periods",
+    ),
     "skip": ("int", lambda v: None if v >= 0 else "must be >= 0", "periods skipped before the spectra"),
     "lead": ("dimensionless", _between(0.0, 1.0, closed=False), "lead-compensator coefficient (default 0.8)"),
-    "density": ("dimensionless", lambda v: None if 0 < v < 1 else "must be between 0 and 1",
-                "mean z bit that balances gravity"),
-    "sense_ratio": ("dimensionless", lambda v: None if 0 < v <= 10 else "must be > 0 and <= 10",
-                    "V_s / V_fb (default 0.25)"),
-    "full_scale": ("dimensionless", lambda v: None if 0 < v <= 1 else "must be > 0 and <= 1",
-                   "readout full scale, a fraction of the touch amplitude (default 0.01)"),
+    "density": (
+        "dimensionless",
+        lambda v: None if 0 < v < 1 else "must be between 0 and 1",
+        "mean z bit that balances gravity",
+    ),
+    "sense_ratio": (
+        "dimensionless",
+        lambda v: None if 0 < v <= 10 else "must be > 0 and <= 10",
+        "V_s / V_fb (default 0.25)",
+    ),
+    "full_scale": (
+        "dimensionless",
+        lambda v: None if 0 < v <= 1 else "must be > 0 and <= 1",
+        "readout full scale, a fraction of the touch amplitude (default 0.01)",
+    ),
     "dither": ("dimensionless", _between(0.0, 1.0), "comparator dither, fraction of a_fb T_s^2 (default 0.2)"),
     "tone": ("tone", None, "test tone COORD:AMPLITUDE:FREQ"),
     "tone_amplitude": ("dimensionless", lambda v: None, "tone amplitude (f_ port unit)"),
@@ -101,12 +115,19 @@ TESTBENCH: dict[str, tuple[str, Any, str]] = {
     "rigid_only": ("bool", None, "drop the eigenmodes"),
     "simulator": ("str", None, f"circuit simulator of the run ({', '.join(SIMULATORS)})"),
     "reltol": ("dimensionless", lambda v: _reltol_problem(v), "relative tolerance of the simulator"),
-    "feedback_voltage": ("voltage", _between(1e-3, 1e4, " V"), "feedback voltage V_fb (default: from the loop's input)"),
-    "acceleration": ("acceleration", _between(-1e7, 1e7, " m/s^2"), "DC frame acceleration through a_in (a DC sweep: "
-                     "the scale factor and linearity)"),
+    "feedback_voltage": (
+        "voltage",
+        _between(1e-3, 1e4, " V"),
+        "feedback voltage V_fb (default: from the loop's input)",
+    ),
+    "acceleration": (
+        "acceleration",
+        _between(-1e7, 1e7, " m/s^2"),
+        "DC frame acceleration through a_in (a DC sweep: the scale factor and linearity)",
+    ),
 }
 DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
-LOOP_CHOICES = ("feedback_voltage", "acceleration")      # netgen.testbench.sigma_delta.runner.run: into its LoopSpec
+LOOP_CHOICES = ("feedback_voltage", "acceleration")  # netgen.testbench.sigma_delta.runner.run: into its LoopSpec
 
 
 def _reltol_problem(value: float) -> str | None:
@@ -121,11 +142,12 @@ def _reltol_problem(value: float) -> str | None:
 @dataclass
 class Parameter:
     """One swept quantity: a list of values (grid / zip) or a distribution (Monte Carlo)."""
+
     name: str
-    values: list | None = None             # raw values (as written) for lists, SI numbers for ranges
-    distribution: str | None = None        # "normal" or "uniform"
-    a: float = 0.0                         # mean or low (SI)
-    b: float = 0.0                         # std or high (SI)
+    values: list | None = None  # raw values (as written) for lists, SI numbers for ranges
+    distribution: str | None = None  # "normal" or "uniform"
+    a: float = 0.0  # mean or low (SI)
+    b: float = 0.0  # std or high (SI)
     kind: str = ""
 
     @property
@@ -145,7 +167,7 @@ class Sweep:
     seed: int = 1
     retries: int = 2
     plots: bool = False
-    timeout: float | None = None           # s per simulator call; None: timeout_for(cycles)
+    timeout: float | None = None  # s per simulator call; None: timeout_for(cycles)
 
 
 def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
@@ -154,16 +176,28 @@ def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise SweepError(str(path), "file", f"cannot read the sweep file ({exc.strerror or exc})",
-                         "give the path of an existing SWEEP.toml (see examples/sweep_ts.toml)") from None
+        raise SweepError(
+            str(path),
+            "file",
+            f"cannot read the sweep file ({exc.strerror or exc})",
+            "give the path of an existing SWEEP.toml (see examples/sweep_ts.toml)",
+        ) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise SweepError(str(path), "file", f"not UTF-8 text (byte {exc.start} is 0x{data[exc.start]:02x})",
-                         "save the sweep file as UTF-8 TOML (see examples/sweep_ts.toml)") from None
+        raise SweepError(
+            str(path),
+            "file",
+            f"not UTF-8 text (byte {exc.start} is 0x{data[exc.start]:02x})",
+            "save the sweep file as UTF-8 TOML (see examples/sweep_ts.toml)",
+        ) from None
     if "\x00" in text:
-        raise SweepError(str(path), "file", f"a NUL byte at offset {text.index(chr(0))}: not a text file",
-                         "give a TOML sweep file (see examples/sweep_ts.toml)")
+        raise SweepError(
+            str(path),
+            "file",
+            f"a NUL byte at offset {text.index(chr(0))}: not a text file",
+            "give a TOML sweep file (see examples/sweep_ts.toml)",
+        )
     return parse_sweep(text, str(path), max_runs)
 
 
@@ -174,27 +208,39 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
     doc = toml_document(text, path, SweepError, "correct the TOML syntax at that line")
     for key in doc:
         if key not in ("sweep", "fixed", "parameters"):
-            raise rd.fail(key, f"unknown key or table '{key}'",
-                          f"{did_you_mean(key, ['sweep', 'fixed', 'parameters'])}use the tables [sweep], [fixed] "
-                          "and [[parameters]]")
+            raise rd.fail(
+                key,
+                f"unknown key or table '{key}'",
+                f"{did_you_mean(key, ['sweep', 'fixed', 'parameters'])}use the tables [sweep], [fixed] "
+                "and [[parameters]]",
+            )
     head = doc.get("sweep", {})
     if not isinstance(head, dict):
         raise rd.fail("sweep", "'sweep' must be a table", "write it as a [sweep] section")
     allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots", "timeout"]
     for key in head:
         if key not in allowed:
-            raise rd.fail(f"sweep.{key}", f"unknown key '{key}'",
-                          f"{did_you_mean(key, allowed)}allowed keys in [sweep]: {', '.join(allowed)}")
+            raise rd.fail(
+                f"sweep.{key}",
+                f"unknown key '{key}'",
+                f"{did_you_mean(key, allowed)}allowed keys in [sweep]: {', '.join(allowed)}",
+            )
     sweep = Sweep(path, [], {})
     if "figure" in head:
         if not isinstance(head["figure"], str) or not figure_ok(head["figure"]):
-            raise rd.fail("sweep.figure", f"figure {head['figure']!r} is not a result column",
-                          f"{did_you_mean(str(head['figure']), FIGURES)}use one of {', '.join(FIGURES)}")
+            raise rd.fail(
+                "sweep.figure",
+                f"figure {head['figure']!r} is not a result column",
+                f"{did_you_mean(str(head['figure']), FIGURES)}use one of {', '.join(FIGURES)}",
+            )
         sweep.figure = head["figure"]
     if "mode" in head:
         if not isinstance(head["mode"], str) or head["mode"] not in ("grid", "zip"):
-            raise rd.fail("sweep.mode", f"mode {head['mode']!r} is not 'grid' or 'zip'",
-                          "grid runs every combination of the value lists, zip pairs their k-th values")
+            raise rd.fail(
+                "sweep.mode",
+                f"mode {head['mode']!r} is not 'grid' or 'zip'",
+                "grid runs every combination of the value lists, zip pairs their k-th values",
+            )
         sweep.mode = head["mode"]
     for key, lo, hi in (("samples", 1, None), ("seed", 0, None), ("retries", 0, MAX_RETRIES)):
         if key in head:
@@ -218,8 +264,11 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
 
     params = doc.get("parameters", [])
     if not isinstance(params, list) or not all(isinstance(p, dict) for p in params) or not params:
-        raise rd.fail("parameters", "no [[parameters]] entries",
-                      'add at least one [[parameters]] table with name = "ts" and values = ["1 us", "2 us"]')
+        raise rd.fail(
+            "parameters",
+            "no [[parameters]] entries",
+            'add at least one [[parameters]] table with name = "ts" and values = ["1 us", "2 us"]',
+        )
     for k, p in enumerate(params):
         sweep.parameters.append(_parameter(rd, f"parameters[{k}]", p, max_runs))
     names = [p.name for p in sweep.parameters]
@@ -230,25 +279,35 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
             raise rd.fail(f"fixed.{n}", f"{n!r} is both fixed and swept", "remove it from [fixed] or [[parameters]]")
     lists = [p for p in sweep.parameters if p.values is not None]
     if sweep.mode == "zip" and not lists:
-        raise rd.fail("sweep.mode", "zip pairs the k-th values of the value lists, and there is none "
-                      "(a distribution alone would give 0 runs)",
-                      'write mode = "grid" (samples = N draws of the distributions), or give a parameter values = [...]')
+        raise rd.fail(
+            "sweep.mode",
+            "zip pairs the k-th values of the value lists, and there is none (a distribution alone would give 0 runs)",
+            'write mode = "grid" (samples = N draws of the distributions), or give a parameter values = [...]',
+        )
     if sweep.mode == "zip" and len({len(p.values) for p in lists}) > 1:
-        raise rd.fail("sweep.mode", "zip needs value lists of equal length (got "
-                      f"{', '.join(f'{p.name}: {len(p.values)}' for p in lists)})",
-                      "give every list the same number of values, or use mode = \"grid\"")
+        raise rd.fail(
+            "sweep.mode",
+            f"zip needs value lists of equal length (got {', '.join(f'{p.name}: {len(p.values)}' for p in lists)})",
+            'give every list the same number of values, or use mode = "grid"',
+        )
     random = [p for p in sweep.parameters if p.distribution]
     if sweep.samples > 1 and not random:
-        raise rd.fail("sweep.samples", f"samples = {sweep.samples} repeats identical runs (no distribution)",
-                      "drop samples, or give a parameter a distribution = \"normal\" (mean, std)")
+        raise rd.fail(
+            "sweep.samples",
+            f"samples = {sweep.samples} repeats identical runs (no distribution)",
+            'drop samples, or give a parameter a distribution = "normal" (mean, std)',
+        )
     sweep.x = head.get("x", names[0])
     if not isinstance(sweep.x, str) or sweep.x not in names:
         raise rd.fail("sweep.x", f"x = {sweep.x!r} is not a swept parameter", f"use one of {names}")
     tone = sweep.fixed.get("tone") or next((p.values[0] for p in lists if p.name == "tone"), None)
     for n in ("tone_amplitude", "tone_freq"):
         if (n in names or n in sweep.fixed) and not tone:
-            raise rd.fail(n, f"{n} changes the test tone, but no tone is given",
-                          'add tone = "z:0.02:2000" (COORD:AMPLITUDE:FREQ) to [fixed]')
+            raise rd.fail(
+                n,
+                f"{n} changes the test tone, but no tone is given",
+                'add tone = "z:0.02:2000" (COORD:AMPLITUDE:FREQ) to [fixed]',
+            )
     _check_skip(rd, sweep)
     return sweep
 
@@ -260,8 +319,11 @@ def _timeout(rd: Reader, value: Any) -> float:
     except UnitError as exc:
         raise rd.fail("sweep.timeout", f"timeout: {exc}", 'write timeout = "2 h" (or seconds: 7200)') from None
     if not (math.isfinite(t) and t > 0):
-        raise rd.fail("sweep.timeout", f"timeout = {value!r} must be a finite time > 0",
-                      'write timeout = "2 h" (each simulator call is stopped after it)')
+        raise rd.fail(
+            "sweep.timeout",
+            f"timeout = {value!r} must be a finite time > 0",
+            'write timeout = "2 h" (each simulator call is stopped after it)',
+        )
     return t
 
 
@@ -274,16 +336,28 @@ def timeout_for(cycles: int) -> float:
 
 def _check_skip(rd: Reader, sweep: Sweep) -> None:
     """skip must leave half the periods: the runner would silently clip it to cycles // 2."""
-    cycles = [sweep.fixed.get("cycles", 4096)] if "cycles" in sweep.fixed else \
-        next((p.values for p in sweep.parameters if p.name == "cycles"), [4096])
-    skips = [sweep.fixed["skip"]] if "skip" in sweep.fixed else \
-        next((p.values for p in sweep.parameters if p.name == "skip"), [])
-    where = "fixed.skip" if "skip" in sweep.fixed else \
-        next((f"parameters[{k}].values" for k, p in enumerate(sweep.parameters) if p.name == "skip"), "skip")
+    cycles = (
+        [sweep.fixed.get("cycles", 4096)]
+        if "cycles" in sweep.fixed
+        else next((p.values for p in sweep.parameters if p.name == "cycles"), [4096])
+    )
+    skips = (
+        [sweep.fixed["skip"]]
+        if "skip" in sweep.fixed
+        else next((p.values for p in sweep.parameters if p.name == "skip"), [])
+    )
+    where = (
+        "fixed.skip"
+        if "skip" in sweep.fixed
+        else next((f"parameters[{k}].values" for k, p in enumerate(sweep.parameters) if p.name == "skip"), "skip")
+    )
     for s in skips:
         if s > min(cycles) // 2:
-            raise rd.fail(where, f"skip = {s} is more than half of cycles = {min(cycles)}",
-                          f"give skip <= {min(cycles) // 2} (periods left out at the start of the spectra)")
+            raise rd.fail(
+                where,
+                f"skip = {s} is more than half of cycles = {min(cycles)}",
+                f"give skip <= {min(cycles) // 2} (periods left out at the start of the spectra)",
+            )
 
 
 def _flatten(table: dict, prefix: str = "") -> list[tuple[str, Any]]:
@@ -313,28 +387,41 @@ def kind_of(value: Any) -> str:
 def check_name(rd: Reader, where: str, name: str) -> None:
     if name.startswith("structure."):
         if not re.fullmatch(r"structure(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?)+", name):
-            raise rd.fail(where, f"structure parameter {name!r} is not a dotted path",
-                          "write e.g. structure.electrodes.gap or structure.electrodes[0].gap")
+            raise rd.fail(
+                where,
+                f"structure parameter {name!r} is not a dotted path",
+                "write e.g. structure.electrodes.gap or structure.electrodes[0].gap",
+            )
         return
     if name not in TESTBENCH:
-        raise rd.fail(where, f"unknown parameter {name!r}",
-                      f"{did_you_mean(name, TESTBENCH)}use a testbench parameter ({', '.join(TESTBENCH)}) "
-                      "or structure.<table>.<key>")
+        raise rd.fail(
+            where,
+            f"unknown parameter {name!r}",
+            f"{did_you_mean(name, TESTBENCH)}use a testbench parameter ({', '.join(TESTBENCH)}) "
+            "or structure.<table>.<key>",
+        )
 
 
 def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, float | None]:
     """Validate one value of parameter `name`; return (value to use, SI number or None)."""
     check_name(rd, where, name)
-    if isinstance(value, str) and text_problem(value):        # e.g. structure.description: header text
-        raise rd.fail(where, f"{name}: the value {text_problem(value)}",
-                      "write it as one line of printable text (no line breaks, tabs or other control characters)")
+    if isinstance(value, str) and text_problem(value):  # e.g. structure.description: header text
+        raise rd.fail(
+            where,
+            f"{name}: the value {text_problem(value)}",
+            "write it as one line of printable text (no line breaks, tabs or other control characters)",
+        )
     if name.startswith("structure."):
         if isinstance(value, (dict, list)):
-            raise rd.fail(where, f"{name}: a structure value must be a number, string or boolean",
-                          'write e.g. "3 um" or 3e-6')
+            raise rd.fail(
+                where, f"{name}: a structure value must be a number, string or boolean", 'write e.g. "3 um" or 3e-6'
+            )
         if isinstance(value, str) and any(ord(ch) < 32 or ord(ch) == 127 for ch in value):
-            raise rd.fail(where, f"{name}: the value {value!r} holds control characters (a newline, tab, ...)",
-                          "write the value on one line, printable characters only")
+            raise rd.fail(
+                where,
+                f"{name}: the value {value!r} holds control characters (a newline, tab, ...)",
+                "write the value on one line, printable characters only",
+            )
         num = None
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             num = float(value)
@@ -350,25 +437,39 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
         if not isinstance(value, str) or not value:
             raise rd.fail(where, f"{name} = {value!r} must be a name", f'write {name} = "ngspice"')
         if name == "simulator" and value not in SIMULATORS:
-            raise rd.fail(where, f"simulator = {value!r} is not one of {list(SIMULATORS)}",
-                          f"{did_you_mean(value, list(SIMULATORS))}use one of {', '.join(SIMULATORS)}")
+            raise rd.fail(
+                where,
+                f"simulator = {value!r} is not one of {list(SIMULATORS)}",
+                f"{did_you_mean(value, list(SIMULATORS))}use one of {', '.join(SIMULATORS)}",
+            )
         return value, None
     if kind == "tone":
         if value in ("", None):
             return "", None
         if not isinstance(value, str):
-            raise rd.fail(where, f"tone = {value!r} must be a string COORD:AMPLITUDE:FREQ",
-                          'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
+            raise rd.fail(
+                where,
+                f"tone = {value!r} must be a string COORD:AMPLITUDE:FREQ",
+                'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)',
+            )
         try:
             tone = Tone.parse(value)
         except ValueError as exc:
-            raise rd.fail(where, str(exc), 'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
+            raise rd.fail(
+                where, str(exc), 'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)'
+            ) from None
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", tone.coord):
-            raise rd.fail(where, f"tone {value!r}: {tone.coord!r} is not a coordinate name",
-                          'name a coordinate of the model, e.g. "z:0.02:2000" or "tilt_x:0.5:1000"')
+            raise rd.fail(
+                where,
+                f"tone {value!r}: {tone.coord!r} is not a coordinate name",
+                'name a coordinate of the model, e.g. "z:0.02:2000" or "tilt_x:0.5:1000"',
+            )
         if not (math.isfinite(tone.amplitude) and math.isfinite(tone.freq) and tone.freq > 0):
-            raise rd.fail(where, f"tone {value!r}: the amplitude must be finite and the frequency finite and > 0",
-                          'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)')
+            raise rd.fail(
+                where,
+                f"tone {value!r}: the amplitude must be finite and the frequency finite and > 0",
+                'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)',
+            )
         return value, None
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
@@ -378,11 +479,13 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
         try:
             num = parse_quantity(value, kind)
         except UnitError as exc:
-            raise rd.fail(where, f"{name}: {exc}", f"write {name} as a number in SI units or a {kind} "
-                          f"string ({what})")
+            raise rd.fail(
+                where, f"{name}: {exc}", f"write {name} as a number in SI units or a {kind} string ({what})"
+            ) from None
     if not math.isfinite(num) or (check and check(num)):
-        raise rd.fail(where, f"{name} = {value!r} {check(num) if math.isfinite(num) else 'is not finite'}",
-                      f"give a valid {what}")
+        raise rd.fail(
+            where, f"{name} = {value!r} {check(num) if math.isfinite(num) else 'is not finite'}", f"give a valid {what}"
+        )
     return (int(value) if kind == "int" else num), num
 
 
@@ -391,17 +494,26 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
     allowed = ["name", "values", "start", "stop", "num", "scale", "distribution", "mean", "std", "low", "high"]
     for key in p:
         if key not in allowed:
-            raise rd.fail(f"{where}.{key}", f"unknown key '{key}'",
-                          f"{did_you_mean(key, allowed)}allowed keys: {', '.join(allowed)}")
+            raise rd.fail(
+                f"{where}.{key}",
+                f"unknown key '{key}'",
+                f"{did_you_mean(key, allowed)}allowed keys: {', '.join(allowed)}",
+            )
     name = p.get("name")
     if not isinstance(name, str) or not name:
         raise rd.fail(f"{where}.name", "missing parameter name", 'add name = "ts" (or structure.electrodes.gap)')
     check_name(rd, f"{where}.name", name)
-    forms = [f for f, keys in (("values", ["values"]), ("range", ["start", "stop", "num"]),
-                               ("distribution", ["distribution"])) if any(k in p for k in keys)]
+    forms = [
+        f
+        for f, keys in (("values", ["values"]), ("range", ["start", "stop", "num"]), ("distribution", ["distribution"]))
+        if any(k in p for k in keys)
+    ]
     if len(forms) != 1:
-        raise rd.fail(where, f"parameter {name!r} needs exactly one of values, start/stop/num or distribution "
-                      f"(got {forms or 'none'})", 'e.g. values = ["1 us", "2 us"]')
+        raise rd.fail(
+            where,
+            f"parameter {name!r} needs exactly one of values, start/stop/num or distribution (got {forms or 'none'})",
+            'e.g. values = ["1 us", "2 us"]',
+        )
     kind = TESTBENCH[name][0] if name in TESTBENCH else None
     if forms[0] == "values":
         vals = p["values"]
@@ -409,8 +521,9 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
             raise rd.fail(f"{where}.values", "values must be a non-empty list", 'write values = ["1 us", "2 us"]')
         return Parameter(name, [check_value(rd, f"{where}.values", name, v)[0] for v in vals], kind=kind or "")
     if kind in ("bool", "str", "tone"):
-        raise rd.fail(where, f"{name} takes a list of values, not a range or distribution",
-                      f"write values = [...] for {name}")
+        raise rd.fail(
+            where, f"{name} takes a list of values, not a range or distribution", f"write values = [...] for {name}"
+        )
     if kind is None:
         sample = p.get("start", p.get("mean", p.get("low")))
         kind = kind_of(sample)
@@ -419,10 +532,13 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
         if key not in p:
             raise rd.fail(f"{where}.{key}", f"missing key '{key}'", f"add {key} = <number or quantity>")
         try:
-            v = float(p[key]) if isinstance(p[key], (int, float)) and not isinstance(p[key], bool) else \
-                parse_quantity(p[key], "dimensionless" if kind == "int" else kind)
+            v = (
+                float(p[key])
+                if isinstance(p[key], (int, float)) and not isinstance(p[key], bool)
+                else parse_quantity(p[key], "dimensionless" if kind == "int" else kind)
+            )
         except UnitError as exc:
-            raise rd.fail(f"{where}.{key}", str(exc), f"write {key} in the unit of {name}")
+            raise rd.fail(f"{where}.{key}", str(exc), f"write {key} in the unit of {name}") from None
         if not math.isfinite(v):
             raise rd.fail(f"{where}.{key}", f"{key} is not finite", f"give a finite {key}")
         return v
@@ -433,8 +549,11 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise rd.fail(f"{where}.num", f"num = {num!r} must be an integer >= 1", "write num = 4")
         if num > max_runs:
-            raise rd.fail(f"{where}.num", f"num = {num} values alone exceed the sweep's limit of {max_runs} runs",
-                          f"give num <= {max_runs} (or raise the limit with --max-runs)")
+            raise rd.fail(
+                f"{where}.num",
+                f"num = {num} values alone exceed the sweep's limit of {max_runs} runs",
+                f"give num <= {max_runs} (or raise the limit with --max-runs)",
+            )
         scale = p.get("scale", "linear")
         if scale not in ("linear", "log"):
             raise rd.fail(f"{where}.scale", f"scale {scale!r} is not 'linear' or 'log'", 'write scale = "log"')
@@ -446,13 +565,22 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
         return Parameter(name, [check_value(rd, where, name, v)[0] for v in vals], kind=kind)
     dist = p["distribution"]
     if dist not in ("normal", "uniform"):
-        raise rd.fail(f"{where}.distribution", f"distribution {dist!r} is not 'normal' or 'uniform'",
-                      'write distribution = "normal" (mean, std) or "uniform" (low, high)')
+        raise rd.fail(
+            f"{where}.distribution",
+            f"distribution {dist!r} is not 'normal' or 'uniform'",
+            'write distribution = "normal" (mean, std) or "uniform" (low, high)',
+        )
     if kind == "int":
-        raise rd.fail(f"{where}.distribution", f"{name} is an integer; it cannot be drawn from a distribution",
-                      "give it values = [...]")
+        raise rd.fail(
+            f"{where}.distribution",
+            f"{name} is an integer; it cannot be drawn from a distribution",
+            "give it values = [...]",
+        )
     a, b = (number("mean"), number("std")) if dist == "normal" else (number("low"), number("high"))
     if (dist == "normal" and b < 0) or (dist == "uniform" and b < a):
-        raise rd.fail(where, "std must be >= 0" if dist == "normal" else "high must be >= low",
-                      "correct the distribution's parameters")
+        raise rd.fail(
+            where,
+            "std must be >= 0" if dist == "normal" else "high must be >= low",
+            "correct the distribution's parameters",
+        )
     return Parameter(name, None, dist, a, b, kind)

@@ -21,16 +21,19 @@ from netgen.electrostatics.bem_mesh import Surface, disk_sheet, icosphere, recta
 from netgen.electrostatics.closed_forms import kirchhoff_disk, love_disks, palmer_rectangle  # noqa: E402
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
 
-COARSE = bem.BemSettings(element_to_gap=4.0, edge_to_gap=0.25, element_to_size=0.125, levels=2, max_levels=2,
-                         tolerance=1.0)
+COARSE = bem.BemSettings(
+    element_to_gap=4.0, edge_to_gap=0.25, element_to_size=0.125, levels=2, max_levels=2, tolerance=1.0
+)
 MM, UM = 1e-3, 1e-6
 
 
 def two_disks(kappa: float) -> bem.MaxwellMatrix:
     """Two coaxial unit disks at distance kappa (eps = 1)."""
+
     def meshes(k):
         s = COARSE.sizes(kappa, k, 1.0)
         return [disk_sheet(1.0, s), disk_sheet(1.0, s, kappa)]
+
     return bem.converged(meshes, ["a", "b"], 1.0, kappa, COARSE, h_max=COARSE.sizes(kappa, 0, 1.0).h_max)
 
 
@@ -38,7 +41,7 @@ def two_disks(kappa: float) -> bem.MaxwellMatrix:
 def test_two_disks_against_love(kappa):
     """C11 - C12 (disks at +1/-1) and C11 + C12 (both at +1) within 0.5 % of Love's equation."""
     m = two_disks(kappa)
-    assert m.settings["solves"][0]["order"] <= 8          # elements up to 4 gaps
+    assert m.settings["solves"][0]["order"] <= 8  # elements up to 4 gaps
     c = m.matrix
     assert (c[0, 0] - c[0, 1]) == pytest.approx(love_disks(kappa), rel=5e-3)
     assert (c[0, 0] + c[0, 1]) == pytest.approx(love_disks(kappa, same_potential=True), rel=5e-3)
@@ -60,11 +63,13 @@ def test_two_squares_against_palmer(g, best, palmer_tol):
     """Two 1 mm squares: Palmer's first-order formula is +2.1 % / +1.2 % above the converged BEM
     of design.md at g = 50 / 20 um (its neglected corner terms); the coarse BEM is within that of
     Palmer, below it, and within 0.5 % of design.md's converged value (eps0*mm)."""
+
     def meshes(k):
         s = COARSE.sizes(g, k, MM)
         return [rectangle_sheet(0, MM, 0, MM, s), rectangle_sheet(0, MM, 0, MM, s, g)]
+
     c = bem.converged(meshes, ["a", "b"], EPS0, g, COARSE, h_max=COARSE.sizes(g, 0, MM).h_max).matrix
-    two_terminal = (c[0, 0] - c[0, 1]) / 2.0    # Q at +-1/2 V
+    two_terminal = (c[0, 0] - c[0, 1]) / 2.0  # Q at +-1/2 V
     palmer = palmer_rectangle(EPS0, MM, MM, g)
     assert 0.0 < 1.0 - two_terminal / palmer < palmer_tol
     assert two_terminal / (EPS0 * MM) == pytest.approx(best, rel=5e-3)
@@ -86,9 +91,11 @@ def rigid_z(x, y):
 def sandwich() -> bem.PreparedBem:
     """A 100 um disk between a full disk above and an 8-slot-split pair of half rings below."""
     plate = DiskPlate(100 * UM)
-    els = [Electrode(AnnularSector("top", 0.0, 100 * UM, 0.0, 2 * math.pi), "above", 10 * UM),
-           Electrode(AnnularSector("b1", 20 * UM, 110 * UM, 0.0, math.pi, 8 * UM), "below", 10 * UM),
-           Electrode(AnnularSector("b2", 20 * UM, 110 * UM, math.pi, 2 * math.pi, 8 * UM), "below", 10 * UM)]
+    els = [
+        Electrode(AnnularSector("top", 0.0, 100 * UM, 0.0, 2 * math.pi), "above", 10 * UM),
+        Electrode(AnnularSector("b1", 20 * UM, 110 * UM, 0.0, math.pi, 8 * UM), "below", 10 * UM),
+        Electrode(AnnularSector("b2", 20 * UM, 110 * UM, math.pi, 2 * math.pi, 8 * UM), "below", 10 * UM),
+    ]
     ext = bem.BemExtractor(eps=EPS0, thickness=4 * UM, settings=bem.BemSettings(edge_to_gap=1.0, tolerance=1.0))
     return ext.prepare(els, plate, rigid_z)
 
@@ -112,8 +119,14 @@ def test_maxwell_symmetric_and_rows(prepared):
     for k in range(2):
         parts = prepared.surfaces(np.zeros(1), k)
         off = np.cumsum([0] + [len(p.vertices) for p in parts])
-        joined.append([Surface(np.concatenate([p.vertices for p in parts]),
-                               np.concatenate([p.triangles + o for p, o in zip(parts, off)]))])
+        joined.append(
+            [
+                Surface(
+                    np.concatenate([p.vertices for p in parts]),
+                    np.concatenate([p.triangles + o for p, o in zip(parts, off)]),
+                )
+            ]
+        )
     whole = bem.converged(lambda k: joined[k], ["all"], EPS0, prepared.gap, st)
     assert whole.matrix[0, 0] == pytest.approx(c.sum(), rel=1e-9)
     # electrode-electrode coupling of the two slotted halves is what the extractor's coupling gives
@@ -126,7 +139,7 @@ def test_translation_toward_electrode_is_monotone(prepared):
     c = prepared.capacitance(zs[:, None])
     assert (np.diff(c[:, 0]) > 0).all()
     assert (np.diff(c[:, 1]) < 0).all() and (np.diff(c[:, 2]) < 0).all()
-    assert c[0, 1] == pytest.approx(c[0, 2], rel=1e-6)          # the two halves are mirror images
+    assert c[0, 1] == pytest.approx(c[0, 2], rel=1e-6)  # the two halves are mirror images
 
 
 def test_memory_budget_stops_with_a_clear_error():
@@ -151,6 +164,7 @@ def test_blocked_cholesky_equals_lapack_lu(n, block):
     """The blocked Cholesky (used above bem.LU_LIMIT unknowns, where OpenBLAS's threaded getrf
     segfaults) against LAPACK's LU on a symmetric positive definite system, blocks not dividing n."""
     from scipy.linalg import lu_factor, lu_solve
+
     rng = np.random.default_rng(3)
     M = rng.standard_normal((n, n))
     A = M @ M.T / n + np.eye(n)

@@ -36,8 +36,10 @@ def rigid(x, y):
 
 def reduced() -> bem.PreparedBem:
     """The reduced problem: small coarse meshes (a few hundred elements), a solve in ~0.1 s."""
-    els = [Electrode(AnnularSector("top", 0.0, R, 0.0, 2 * math.pi), "above", GAP),
-           Electrode(AnnularSector("bot", 0.0, R, 0.0, 2 * math.pi), "below", GAP)]
+    els = [
+        Electrode(AnnularSector("top", 0.0, R, 0.0, 2 * math.pi), "above", GAP),
+        Electrode(AnnularSector("bot", 0.0, R, 0.0, 2 * math.pi), "below", GAP),
+    ]
     st = bem.BemSettings(element_to_gap=2.0, edge_to_gap=1.0, element_to_size=0.5, tolerance=1.0, max_levels=2)
     return bem.BemExtractor(eps=EPS0, settings=st).prepare(els, DiskPlate(R), rigid)
 

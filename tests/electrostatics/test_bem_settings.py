@@ -18,7 +18,7 @@ from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
 
 # a 100 um disk between two full-disk electrodes at 20 um: a few hundred elements per level
-DISK = '''name = "small_bem"
+DISK = """name = "small_bem"
 [conductor]
 kind = "free_disk"
 radius = "100 um"
@@ -43,8 +43,8 @@ rigid = ["z"]
 [electrostatics]
 extractor = "{extractor}"
 {extra}
-'''
-SETTINGS = '''[electrostatics.bem]
+"""
+SETTINGS = """[electrostatics.bem]
 element_to_gap = 2.0
 edge_to_gap = 1.0
 element_to_size = 0.5
@@ -54,7 +54,7 @@ quadrature_order = 12
 singular_order = 5
 refinement = 1.5
 memory_budget_gb = 0.5
-'''
+"""
 
 
 def structure(extra: str = SETTINGS, extractor: str = "bem"):
@@ -65,8 +65,17 @@ def structure(extra: str = SETTINGS, extractor: str = "bem"):
 def test_table_values_reach_the_settings():
     """Every key written is the BemSettings field (memory in bytes); absent keys keep the defaults."""
     st = bem.settings_of(structure())
-    want = {"element_to_gap": 2.0, "edge_to_gap": 1.0, "element_to_size": 0.5, "max_levels": 2, "tolerance": 1.0,
-            "quadrature_order": 12, "singular_order": 5, "refinement": 1.5, "memory_budget": 0.5e9}
+    want = {
+        "element_to_gap": 2.0,
+        "edge_to_gap": 1.0,
+        "element_to_size": 0.5,
+        "max_levels": 2,
+        "tolerance": 1.0,
+        "quadrature_order": 12,
+        "singular_order": 5,
+        "refinement": 1.5,
+        "memory_budget": 0.5e9,
+    }
     for key, value in want.items():
         assert getattr(st, key) == value, key
     assert st.levels == bem.BemSettings().levels and st.growth == bem.BemSettings().growth
@@ -78,6 +87,7 @@ def test_settings_are_used_and_recorded_in_the_samples():
     """A solve on the file's settings: the quadrature order written (12, where the rule gives 4 for
     elements of 2 gaps) is the one used, and the sample records every setting."""
     from netgen.electrostatics.bem_sampling import sample_maxwell
+
     s = structure()
     m, plate = mechanics(s), plate_outline(s)
     prepared = bem.from_structure(s, plate).prepare(electrodes(s), plate, m.basis)
@@ -101,21 +111,49 @@ def build(tmp_path, text: str) -> tuple[int, str]:
 
 
 BAD = {
-    "unknown key": ("[electrostatics.bem]\ntolerence = 0.01\n", "bem", "electrostatics.bem.tolerence",
-                    "did you mean 'tolerance'"),
-    "not a number": ("[electrostatics.bem]\ntolerance = \"small\"\n", "bem", "electrostatics.bem.tolerance",
-                     "not a number in (0, 1]"),
-    "levels not integer": ("[electrostatics.bem]\nlevels = 2.5\n", "bem", "electrostatics.bem.levels",
-                           "not an integer in 2..6"),
+    "unknown key": (
+        "[electrostatics.bem]\ntolerence = 0.01\n",
+        "bem",
+        "electrostatics.bem.tolerence",
+        "did you mean 'tolerance'",
+    ),
+    "not a number": (
+        '[electrostatics.bem]\ntolerance = "small"\n',
+        "bem",
+        "electrostatics.bem.tolerance",
+        "not a number in (0, 1]",
+    ),
+    "levels not integer": (
+        "[electrostatics.bem]\nlevels = 2.5\n",
+        "bem",
+        "electrostatics.bem.levels",
+        "not an integer in 2..6",
+    ),
     "growth 1": ("[electrostatics.bem]\ngrowth = 1.0\n", "bem", "electrostatics.bem.growth", "number above 1"),
-    "max below levels": ("[electrostatics.bem]\nlevels = 3\nmax_levels = 2\n", "bem", "electrostatics.bem.max_levels",
-                         "make max_levels at least levels"),
-    "no BEM solve": ("[electrostatics.bem]\ntolerance = 0.01\n", "parallel_plate", "electrostatics.bem",
-                     "drop [electrostatics.bem]"),
-    "beyond quadrature": ("[electrostatics.bem]\nelement_to_gap = 12.0\n", "bem", "electrostatics.bem.element_to_gap",
-                          "element_to_gap = 8 or less"),
-    "quadrature too low": ("[electrostatics.bem]\nelement_to_gap = 4.0\nquadrature_order = 4\n", "bem",
-                           "electrostatics.bem.quadrature_order", "quadrature_order = 8 or more"),
+    "max below levels": (
+        "[electrostatics.bem]\nlevels = 3\nmax_levels = 2\n",
+        "bem",
+        "electrostatics.bem.max_levels",
+        "make max_levels at least levels",
+    ),
+    "no BEM solve": (
+        "[electrostatics.bem]\ntolerance = 0.01\n",
+        "parallel_plate",
+        "electrostatics.bem",
+        "drop [electrostatics.bem]",
+    ),
+    "beyond quadrature": (
+        "[electrostatics.bem]\nelement_to_gap = 12.0\n",
+        "bem",
+        "electrostatics.bem.element_to_gap",
+        "element_to_gap = 8 or less",
+    ),
+    "quadrature too low": (
+        "[electrostatics.bem]\nelement_to_gap = 4.0\nquadrature_order = 4\n",
+        "bem",
+        "electrostatics.bem.quadrature_order",
+        "quadrature_order = 8 or more",
+    ),
 }
 
 
@@ -128,7 +166,12 @@ def test_bad_bem_tables_exit_2(tmp_path, case):
     assert code == 2, err
     assert "small_bem.toml" in err and key in err and fix in err and "fix:" in err, err
     assert "Traceback" not in err and not (tmp_path / "out").exists()
-    if case not in ("beyond quadrature", "quadrature too low"):          # the parser's own errors have the line
-        line = next(i for i, t in enumerate(text.splitlines(), 1) if t.startswith(key.split(".")[-1] + " =")
-                    or t.startswith("[electrostatics.bem]") and key == "electrostatics.bem")
+    if case not in ("beyond quadrature", "quadrature too low"):  # the parser's own errors have the line
+        line = next(
+            i
+            for i, t in enumerate(text.splitlines(), 1)
+            if t.startswith(key.split(".")[-1] + " =")
+            or t.startswith("[electrostatics.bem]")
+            and key == "electrostatics.bem"
+        )
         assert f"small_bem.toml:{line}:" in err, err

@@ -49,13 +49,17 @@ CALIBRATED = DISK + '[electrostatics]\nextractor = "calibrated"\ncouplings = "ma
 
 def squares(g: float):
     """A 1 mm square plate under a 1 mm square electrode at gap g, moving in z."""
-    return [Electrode(Rectangle("top", 0, MM, 0, MM), "above", g)], RectPlate(0, MM, 0, MM), \
-        (lambda x, y: np.ones((x.size, 1)))
+    return (
+        [Electrode(Rectangle("top", 0, MM, 0, MM), "above", g)],
+        RectPlate(0, MM, 0, MM),
+        (lambda x, y: np.ones((x.size, 1))),
+    )
 
 
 def palmer_source(g: float, corner: bool):
     """Maxwell matrix of the two squares from Palmer's formula at gap g - z (with or without its
     second-order corner term eps A/g eps1^2, which no edge fringe has)."""
+
     def maxwell(q):
         gap = g - q[0]
         c = palmer_rectangle(EPS0, MM, MM, gap)
@@ -63,6 +67,7 @@ def palmer_source(g: float, corner: bool):
             eps1 = gap / (math.pi * MM) * (1 + math.log(2 * math.pi * MM / gap))
             c -= EPS0 * MM**2 / gap * eps1**2
         return np.array([[c, -c], [-c, c]])
+
     return maxwell
 
 
@@ -70,8 +75,15 @@ def palmer_source(g: float, corner: bool):
 def test_recovers_palmers_edge_coefficients(g):
     """Palmer without its corner term, 5 points over +-30 % of the gap: (a, b) to 1e-9."""
     els, plate, basis = squares(g)
-    cal = calibrate(palmer_source(g, corner=False), els, plate, basis, design(5, np.array([g]), 0.3),
-                    ParallelPlateExtractor(fringe=EdgeFringe(length=MM)), "Palmer")
+    cal = calibrate(
+        palmer_source(g, corner=False),
+        els,
+        plate,
+        basis,
+        design(5, np.array([g]), 0.3),
+        ParallelPlateExtractor(fringe=EdgeFringe(length=MM)),
+        "Palmer",
+    )
     want = EdgeFringe.palmer(MM)
     assert cal.fringes[0].a == pytest.approx(want.a, rel=1e-9)
     assert cal.fringes[0].b == pytest.approx(want.b, rel=1e-9)
@@ -104,6 +116,7 @@ def test_design_is_centre_then_star_then_random():
 
 # ----------------------------------------------------------------------------- the reduced disk, built
 
+
 def truth(tmp_path: Path, npts: int = 7) -> dict:
     """Write tmp_path/maxwell.json: the synthetic field solution of the reduced disk, and return
     its known fringes, coupling matrix at rest and the coupling values at every point."""
@@ -122,16 +135,17 @@ def truth(tmp_path: Path, npts: int = 7) -> dict:
                 c0[i, j] = c0[j, i] = 0.1 * c[0, i]
     points, values = [], []
     for k in range(len(q)):
-        cc = c0 * (1 + 0.05 * q[k, 0] / scales[0])            # +-1 % at the z points
+        cc = c0 * (1 + 0.05 * q[k, 0] / scales[0])  # +-1 % at the z points
         values.append(cc)
         mx = np.zeros((n + 1, n + 1))
         mx[0, 1:] = mx[1:, 0] = -c[k]
         mx[1:, 1:] = -cc
         np.fill_diagonal(mx, 0.0)
-        np.fill_diagonal(mx, -mx.sum(axis=1) + 1e-15)          # + 1 fF to infinity each
+        np.fill_diagonal(mx, -mx.sum(axis=1) + 1e-15)  # + 1 fF to infinity each
         points.append({"q": dict(zip(m.names, q[k].tolist())), "maxwell": mx.tolist()})
-    (tmp_path / "maxwell.json").write_text(json.dumps({"conductors": ["plate"] + [e.name for e in els],
-                                                       "points": points}))
+    (tmp_path / "maxwell.json").write_text(
+        json.dumps({"conductors": ["plate"] + [e.name for e in els], "points": points})
+    )
     return {"fringes": fringes, "names": [e.name for e in els], "couplings": np.array(values), "q": q}
 
 
@@ -159,11 +173,15 @@ def test_calibrated_build_recovers_fringes_and_couplings(tmp_path):
     assert len(spread) == 8
     for (a, b), r in spread.items():
         i, j = t["names"].index(a), t["names"].index(b)
-        assert r["std"] == pytest.approx(std[i, j], rel=1e-9) and r["max"] == pytest.approx(t["couplings"][:, i, j].max())
+        assert r["std"] == pytest.approx(std[i, j], rel=1e-9) and r["max"] == pytest.approx(
+            t["couplings"][:, i, j].max()
+        )
     lib = (tmp_path / "out" / "calibrated_disk.lib").read_text()
     assert "Constant electrode-electrode couplings: 8 capacitor(s)" in lib and lib.count("\nCc_") == 8
     report = json.loads((tmp_path / "out" / "calibrated_disk_calibration.json").read_text())
-    assert set(report["electrodes"]) == set(t["names"]) and (tmp_path / "out" / "calibrated_disk_calibration.png").exists()
+    assert (
+        set(report["electrodes"]) == set(t["names"]) and (tmp_path / "out" / "calibrated_disk_calibration.png").exists()
+    )
     worst = max(v["calibrated_c_max_abs_rel_error"] for v in report["summary"].values())
     assert worst < 1e-9
 
@@ -193,12 +211,19 @@ def _swap(doc, i, j, value):
 BAD_FILES = {
     "asymmetric": (lambda d: _swap(d, 1, 2, d["points"][0]["maxwell"][1][2] * 1.5), "not symmetric"),
     "positive off-diagonal": (lambda d: [_swap(d, 1, 2, 1e-14), _swap(d, 2, 1, 1e-14)], "is positive"),
-    "missing electrode": (lambda d: [d["conductors"].pop(),
-                                     [r.pop() for p in d["points"] for r in p["maxwell"]],
-                                     [p["maxwell"].pop() for p in d["points"]]], "no row for bot_r1s4"),
+    "missing electrode": (
+        lambda d: [
+            d["conductors"].pop(),
+            [r.pop() for p in d["points"] for r in p["maxwell"]],
+            [p["maxwell"].pop() for p in d["points"]],
+        ],
+        "no row for bot_r1s4",
+    ),
     "unknown conductor": (lambda d: d["conductors"].__setitem__(1, "top_r9s1"), "neither the plate nor an electrode"),
-    "pF": (lambda d: [p.__setitem__("maxwell", (np.array(p["maxwell"]) * 1e12).tolist()) for p in d["points"]],
-           "multiply by 1e-12"),
+    "pF": (
+        lambda d: [p.__setitem__("maxwell", (np.array(p["maxwell"]) * 1e12).tolist()) for p in d["points"]],
+        "multiply by 1e-12",
+    ),
     "unknown coordinate": (lambda d: d["points"][0]["q"].__setitem__("zz", 0.0), "no coordinate 'zz'"),
     "beyond touch": (lambda d: d["points"][1]["q"].__setitem__("z", 1e-5), "beyond the touching amplitude"),
     "not square": (lambda d: d["points"][0]["maxwell"].pop(), "not a 9 x 9 matrix"),
@@ -240,16 +265,19 @@ def test_csv_matrix_gives_the_couplings(tmp_path):
     np.testing.assert_allclose(model.coupling, t["couplings"][0], rtol=1e-12)
 
 
-@pytest.mark.parametrize("section, problem", [
-    ('extractor = "calibrated"\n', "needs a field solution"),
-    ('calibration_points = 5\n', "calibration_points with extractor = 'parallel_plate'"),
-    ('extractor = "calibrated"\ncalibration_points = 5\ncouplings = "maxwell.json"\n', "two calibration sources"),
-    ('couplings = "maxwell.json"\ncoupling_per_length = 1e-9\n', "both set"),
-    ('couplings = "nothere.json"\n', "no such file"),
-    ('couplings = "maxwell.txt"\n', "is not a .json or .csv file name"),
-    ('extractor = "bem_typo"\n', "unknown extractor"),
-    ('extractor = "bem"\ncouplings = "maxwell.json"\n', "takes no couplings file"),
-])
+@pytest.mark.parametrize(
+    "section, problem",
+    [
+        ('extractor = "calibrated"\n', "needs a field solution"),
+        ("calibration_points = 5\n", "calibration_points with extractor = 'parallel_plate'"),
+        ('extractor = "calibrated"\ncalibration_points = 5\ncouplings = "maxwell.json"\n', "two calibration sources"),
+        ('couplings = "maxwell.json"\ncoupling_per_length = 1e-9\n', "both set"),
+        ('couplings = "nothere.json"\n', "no such file"),
+        ('couplings = "maxwell.txt"\n', "is not a .json or .csv file name"),
+        ('extractor = "bem_typo"\n', "unknown extractor"),
+        ('extractor = "bem"\ncouplings = "maxwell.json"\n', "takes no couplings file"),
+    ],
+)
 def test_bad_electrostatics_keys_exit_2(tmp_path, section, problem):
     """Bad [electrostatics] calibration keys: exit 2 naming the key and the fix."""
     truth(tmp_path)
@@ -261,9 +289,11 @@ def test_calibrated_without_bem_says_what_to_do(tmp_path):
     """extractor = "calibrated" with BEM points on a netgen whose bempp-cl cannot be imported (a
     fresh interpreter with the import blocked): exit 2, the fix names the file alternative."""
     (tmp_path / "disk.toml").write_text(DISK + '[electrostatics]\nextractor = "calibrated"\ncalibration_points = 3\n')
-    code = ("import sys; sys.modules['bempp_cl'] = None\n"
-            "from netgen.cli import main\n"
-            "sys.exit(main(['build', 'disk.toml', '-o', 'out', '-q']))")
+    code = (
+        "import sys; sys.modules['bempp_cl'] = None\n"
+        "from netgen.cli import main\n"
+        "sys.exit(main(['build', 'disk.toml', '-o', 'out', '-q']))"
+    )
     run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     err = run.stderr
     assert run.returncode == 2 and "not installed" in err and "couplings" in err, err

@@ -17,8 +17,8 @@ import pytest
 from netgen.cli import main
 from netgen.constants import EPS0
 from netgen.electrostatics import compose, extractor
-from netgen.electrostatics.comb import CombExtractor
 from netgen.electrostatics.calibration import design
+from netgen.electrostatics.comb import CombExtractor
 from netgen.electrostatics.mixed import split
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
 from netgen.electrostatics.sampling import touch_amplitudes
@@ -30,11 +30,17 @@ from tests.fixtures import ROOT
 from tests.structures import plate_electrode
 
 EXAMPLE = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
-CONDUCTOR = EXAMPLE[:EXAMPLE.index("# x: fingers")]                 # the proof mass on its crab legs
-COMBS = EXAMPLE[EXAMPLE.index("[[electrodes]]\nname = \"xp_t\""):EXAMPLE.index("[[electrodes]]\nname = \"xp_b\"")]
-PLATES = "".join(plate_electrode(name, "below", "2 um", (f"{x0} um", f"{x1} um"), ("-150 um", "150 um"))
-                 for name, x0, x1 in (("zl", -150, -5), ("zr", 5, 150)))
-TEXT = CONDUCTOR + COMBS + PLATES + '''[coordinates]
+CONDUCTOR = EXAMPLE[: EXAMPLE.index("# x: fingers")]  # the proof mass on its crab legs
+COMBS = EXAMPLE[EXAMPLE.index('[[electrodes]]\nname = "xp_t"') : EXAMPLE.index('[[electrodes]]\nname = "xp_b"')]
+PLATES = "".join(
+    plate_electrode(name, "below", "2 um", (f"{x0} um", f"{x1} um"), ("-150 um", "150 um"))
+    for name, x0, x1 in (("zl", -150, -5), ("zr", 5, 150))
+)
+TEXT = (
+    CONDUCTOR
+    + COMBS
+    + PLATES
+    + """[coordinates]
 rigid = ["x", "z", "tilt_y"]
 [sampling]
 levels = 3
@@ -43,10 +49,11 @@ range = 0.2
 holdout = 50
 [electrostatics]
 comb_model = "textbook"
-'''
+"""
+)
 CALIBRATED = TEXT + 'extractor = "calibrated"\ncouplings = "maxwell.json"\n'
 FRINGES = (EdgeFringe(0.47, 0.071, 400e-6), EdgeFringe(0.39, 0.052, 400e-6))
-COUPLING = 2.5e-15                     # F between the two plates
+COUPLING = 2.5e-15  # F between the two plates
 
 
 def write_maxwell(tmp_path) -> None:
@@ -58,7 +65,7 @@ def write_maxwell(tmp_path) -> None:
     plates = [shapes[i] for i in ip]
     ext = ParallelPlateExtractor(fringes=FRINGES).prepare(plates, plate, m.basis)
     scales = touch_amplitudes(ext, len(m.names), np.array([e.gap for e in plates]))
-    assert not np.isfinite(scales[0]) and np.isfinite(scales[1:]).all()      # x closes no plate gap
+    assert not np.isfinite(scales[0]) and np.isfinite(scales[1:]).all()  # x closes no plate gap
     q = design(1 + 2 * len(m.names), scales, 0.2)
     points = []
     for row, c in zip(q, ext.capacitance(q)):

@@ -72,7 +72,7 @@ def test_comb_extractor_against_the_parallel_plate_closed_forms(lateral):
     assert np.allclose(p.capacitance(q)[:, 0], N * EPS0 * T * L0 * (1 / (G - y) + 1 / (G + y)), rtol=1e-12)
     assert np.allclose(p.gradient(np.zeros(2))[0], [2 * N * EPS0 * T / G, 0.0], rtol=1e-6, atol=1e-15)
     scales = [c.scale for c in lateral.model.coordinates]
-    assert scales == pytest.approx([20e-6, G], rel=1e-9)          # tip clearance, finger gap
+    assert scales == pytest.approx([20e-6, G], rel=1e-9)  # tip clearance, finger gap
 
 
 def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
@@ -83,13 +83,13 @@ def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
     assert model.capacitance_gradient(x0)[0, 0, 0] == pytest.approx(2 * N * EPS0 * T / G, rel=0.01)
     lib = tmp_path / "comb.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
-    v = 30.0                                                  # below the side instability (43 V)
+    v = 30.0  # below the side instability (43 V)
     bench = Bench(model, lib, sources={"drive": f"DC {v}", "plate": "0"})
     plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
     xs = float(plot["x1.xs_x"][0])
     force = 0.5 * v**2 * model.capacitance_gradient(np.array([[xs, 0.0]]))[0, 0, 0]
     assert K * xs * model.coordinates[0].scale == pytest.approx(force, rel=0.005)
-    assert xs > 1e-3                                          # the comb pulls the fingers in
+    assert xs > 1e-3  # the comb pulls the fingers in
 
 
 @pytest.mark.parametrize("release", ["39", "46"])
@@ -102,12 +102,13 @@ def test_side_instability_in_an_ngspice_dc_sweep(tmp_path, release, monkeypatch)
     Only y is a coordinate: 1/C = (g^2 - y^2) / (2 n eps t L g) is then a polynomial the fit holds
     exactly (with x too, 1/C is rational in x and a degree-3 fit misses the curvature in y by ~2 %)."""
     from netgen.sim import ngspice as sim_ngspice
+
     monkeypatch.setenv(sim_ngspice.ENV, NGSPICE[release])
     model = build(parse_structure(LATERAL.replace('rigid = ["x", "y"]', 'rigid = ["y"]'), "comb.toml")).model
     v_ref = math.sqrt(K * G**3 / (2 * EPS0 * N * T * L0))
     lib = tmp_path / "comb.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
-    nudge = 1e-6 * G * K / 1e-6                             # uN: a 1e-6 g static offset
+    nudge = 1e-6 * G * K / 1e-6  # uN: a 1e-6 g static offset
     bench = Bench(model, lib, sources={"drive": "DC 0", "plate": "0", "f_y": f"DC {nudge!r}"})
     v_max, points = 1.02 * v_ref, 2040
     plot = run_ngspice(bench.netlist(f".dc Vdrive 0 {v_max!r} {v_max / points!r}"), tmp_path)[0]

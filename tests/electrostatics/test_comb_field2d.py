@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from netgen.build import build
-from netgen.emit import ngspice as emit_ngspice
 from netgen.electrostatics import comb_section
 from netgen.electrostatics.field2d import solve
+from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
-from tests.electrostatics.test_comb import K, LATERAL, N
+from tests.electrostatics.test_comb import LATERAL, K, N
 from tests.fixtures import Bench
 
 FIELD = LATERAL.replace('comb_model = "textbook"', 'comb_model = "field2d"')
@@ -42,12 +42,14 @@ def test_lateral_dcdx_is_the_finger_count_times_the_2d_solves(lateral):
     assert (g.width, g.thickness, g.gap, g.substrate_gap) == (2 * UM, 2 * UM, 2 * UM, float("inf"))
     face = comb_section.solve_cell(g, g.gap, 0.0)[0]
     e0, h = 20 * UM, 1 * UM
-    ends = [solve(comb_section.end_problem(g, e, 0.0), **comb_section.SETTINGS).mutual("moving", "fixed")
-            for e in (e0 - h, e0 + h)]
+    ends = [
+        solve(comb_section.end_problem(g, e, 0.0), **comb_section.SETTINGS).mutual("moving", "fixed")
+        for e in (e0 - h, e0 + h)
+    ]
     expect = N * (2 * face - 2 * g.width * (ends[1] - ends[0]) / (2 * h))
     dcdx = lateral.prepared.gradient(np.zeros(2))[0, 0]
     assert dcdx == pytest.approx(expect, rel=0.01)
-    assert dcdx > 1.2 * 2 * N * g.eps * g.thickness / g.gap            # fringe at t/g = 1
+    assert dcdx > 1.2 * 2 * N * g.eps * g.thickness / g.gap  # fringe at t/g = 1
 
 
 def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
@@ -55,7 +57,8 @@ def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
     V gives k x = (1/2) V^2 dC/dx of the Python model within 0.5 %."""
     model = lateral.model
     assert model.capacitance_gradient(np.zeros((1, 2)))[0, 0, 0] == pytest.approx(
-        lateral.prepared.gradient(np.zeros(2))[0, 0], rel=0.01)
+        lateral.prepared.gradient(np.zeros(2))[0, 0], rel=0.01
+    )
     lib = tmp_path / "comb.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
     v = 25.0
@@ -72,6 +75,7 @@ def test_motion_outside_the_tables_is_a_structure_error_naming_the_electrode(lat
     table's lower edge of 0.1 gap) is a StructureError naming the file, the electrode and the fix,
     not a ValueError that would exit 70 as an internal error."""
     from netgen.errors import StructureError
+
     combs = [p for _, p in lateral.prepared.parts if hasattr(p, "geoms")]
     with pytest.raises(StructureError) as err:
         combs[0].capacitance(np.array([0.0, 1.9 * UM]))

@@ -22,7 +22,7 @@ from tests.fixtures import NGSPICE, Bench, using_ngspice
 from tests.structures import plate_electrode
 
 UM = 1e-6
-N, L, K, V, A = 20, 30 * UM, 2.0, 10.0, 1000.0       # fingers, overlap, N/m each axis, comb volts, m/s^2
+N, L, K, V, A = 20, 30 * UM, 2.0, 10.0, 1000.0  # fingers, overlap, N/m each axis, comb volts, m/s^2
 COMB = """
 [[electrodes]]
 name = "{name}"
@@ -39,7 +39,8 @@ pitch = "10.5 um"
 substrate_gap = "2 um"
 center = ["0 um", "125 um"]
 """
-MASS = f"""
+MASS = (
+    f"""
 name = "offset_comb"
 [conductor]
 kind = "proof_mass"
@@ -53,7 +54,9 @@ k_x = {K}
 k_y = {K}
 k_z = {K}
 k_rot = 1e-6
-""" + plate_electrode("zs", "below", "2 um", ("-50 um", "50 um"), ("-50 um", "50 um")) + """[coordinates]
+"""
+    + plate_electrode("zs", "below", "2 um", ("-50 um", "50 um"), ("-50 um", "50 um"))
+    + """[coordinates]
 rigid = ["x", "z"]
 acceleration_port = true
 [sampling]
@@ -62,6 +65,7 @@ range = 0.2
 [fit]
 degree = 5
 """
+)
 
 
 def structure(gap_p: float, gap_n: float) -> str:
@@ -79,8 +83,10 @@ def builds(tmp_path_factory):
         mp.setenv("NETGEN_CACHE", str(tmp_path_factory.mktemp("cache")))
         mp.setattr(comb_section, "_TABLES", {})
         mp.setattr(comb_section, "solve", lambda *a, **k: pytest.fail("solved a table the package ships"))
-        yield {"offset": build(parse_structure(structure(1.3, 1.7), "offset.toml")),
-               "centred": build(parse_structure(structure(1.5, 1.5), "centred.toml"))}
+        yield {
+            "offset": build(parse_structure(structure(1.3, 1.7), "offset.toml")),
+            "centred": build(parse_structure(structure(1.5, 1.5), "centred.toml")),
+        }
 
 
 def operating_points(b, tmp_path, release: str) -> np.ndarray:
@@ -91,8 +97,12 @@ def operating_points(b, tmp_path, release: str) -> np.ndarray:
     out = []
     with using_ngspice(release):
         for a in (0.0, A):
-            bench = Bench(model, lib, sources={"xp": f"DC {V}", "xn": f"DC {V}", "plate": "0", "a_in": f"DC {a}"},
-                          options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+            bench = Bench(
+                model,
+                lib,
+                sources={"xp": f"DC {V}", "xn": f"DC {V}", "plate": "0", "a_in": f"DC {a}"},
+                options="reltol=1e-9 vntol=1e-12 abstol=1e-18",
+            )
             plot = run_ngspice(bench.netlist(".op"), tmp_path / f"op{a:g}")[0]
             out.append([float(plot[f"x1.xs_{c.name}"][0]) * c.scale for c in model.coordinates])
     return np.array(out)
@@ -105,8 +115,12 @@ def python_points(model) -> np.ndarray:
     w2 = np.array([c.stiffness / c.mass for c in model.coordinates])
     out = []
     for a in (0.0, A):
-        x, _, ok, msg = fsolve(lambda x: model.accelerations(x, np.zeros_like(x), v, 0.0, a_frame=a) / w2,
-                               np.zeros(model.ncoords), xtol=1e-13, full_output=True)
+        x, _, ok, msg = fsolve(
+            lambda x: model.accelerations(x, np.zeros_like(x), v, 0.0, a_frame=a) / w2,
+            np.zeros(model.ncoords),
+            xtol=1e-13,
+            full_output=True,
+        )
         assert ok == 1, msg
         out.append(x * model.scales)
     return np.array(out)
@@ -117,10 +131,10 @@ def table_derivatives(b, x: float, z: float) -> tuple[float, float]:
     differences of comb_section.section: C_xp = N L S(g_p - x, z), C_xn = N L S(g_n + x, z)
     (rigid x and z: the gap and the offset uniform along the overlap; the tips do not see x)."""
     cell = next(p for _, p in b.prepared.parts if hasattr(p, "geoms")).geoms[0].cell
-    s = lambda g, o: float(comb_section.section(g, o, cell))             # noqa: E731
+    s = lambda g, o: float(comb_section.section(g, o, cell))  # noqa: E731
     h = 2e-9
     e_xz = e_xx = 0.0
-    for g0, sign in ((1.3 * UM, -1.0), (1.7 * UM, 1.0)):                # xp closes with x, xn opens
+    for g0, sign in ((1.3 * UM, -1.0), (1.7 * UM, 1.0)):  # xp closes with x, xn opens
         g = g0 + sign * x
         s_go = (s(g + h, z + h) - s(g + h, z - h) - s(g - h, z + h) + s(g - h, z - h)) / (4 * h * h)
         s_gg = (s(g + h, z) - 2 * s(g, z) + s(g - h, z)) / (h * h)
@@ -139,14 +153,18 @@ def test_offset_mass_couples_z_into_x_as_the_tables_predict(builds, tmp_path, re
     ng, py = operating_points(b, tmp_path, release), python_points(b.model)
     (dx_ng, dz_ng), (dx_py, dz_py) = ng[1] - ng[0], py[1] - py[0]
     own = next(c for c in b.model.coordinates if c.name == "x").mass * A / K
-    print(f"ngspice {release}: dx {dx_ng:.4e} m, dz {dz_ng:.4e} m; Python dx {dx_py:.4e}, dz {dz_py:.4e}; "
-          f"dx / (m a / k) = {dx_ng / own:.3e}; ngspice / Python - 1: dx {dx_ng / dx_py - 1:+.1e}, dz {dz_ng / dz_py - 1:+.1e}")
+    print(
+        f"ngspice {release}: dx {dx_ng:.4e} m, dz {dz_ng:.4e} m; Python dx {dx_py:.4e}, dz {dz_py:.4e}; "
+        f"dx / (m a / k) = {dx_ng / own:.3e}; ngspice / Python - 1: dx {dx_ng / dx_py - 1:+.1e}, dz {dz_ng / dz_py - 1:+.1e}"
+    )
     assert dx_ng == pytest.approx(dx_py, rel=0.02)
     assert dz_ng == pytest.approx(dz_py, rel=0.02)
     assert abs(dx_ng) > 2e-3 * own
     e_xz, e_xx = table_derivatives(b, *(0.5 * (ng[0] + ng[1])))
-    print(f"dx/dz: ngspice {dx_ng / dz_ng:.5e}, tables {e_xz / (K - e_xx):.5e} (E_xz {e_xz:.4e}, E_xx {e_xx:.4e} N/m), "
-          f"ngspice / tables - 1 {dx_ng / dz_ng / (e_xz / (K - e_xx)) - 1:+.2e}")
+    print(
+        f"dx/dz: ngspice {dx_ng / dz_ng:.5e}, tables {e_xz / (K - e_xx):.5e} (E_xz {e_xz:.4e}, E_xx {e_xx:.4e} N/m), "
+        f"ngspice / tables - 1 {dx_ng / dz_ng / (e_xz / (K - e_xx)) - 1:+.2e}"
+    )
     assert dx_ng / dz_ng == pytest.approx(e_xz / (K - e_xx), rel=0.02)
 
 
@@ -170,4 +188,4 @@ def test_centred_mass_leaves_x_alone(builds, tmp_path):
     ng = operating_points(b, tmp_path, "39")
     own = next(c for c in b.model.coordinates if c.name == "x").mass * A / K
     assert abs(ng[1, 0] - ng[0, 0]) < 1e-3 * own
-    assert abs(ng[1, 1] - ng[0, 1]) > 0.5 * own                      # z itself moves
+    assert abs(ng[1, 1] - ng[0, 1]) > 0.5 * own  # z itself moves

@@ -20,16 +20,18 @@ from netgen.electrostatics import comb_section
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
-from tests.electrostatics.test_comb import G, K, L0, LATERAL, N
+from tests.electrostatics.test_comb import L0, LATERAL, G, K, N
 from tests.fixtures import NGSPICE, Bench, using_ngspice
 
 
 def structure(ratio: float) -> str:
     """test_comb's lateral comb, y only, fingers ratio * g thick over a substrate 2 um below, field2d."""
-    return (LATERAL.replace('rigid = ["x", "y"]', 'rigid = ["y"]')
-            .replace('comb_model = "textbook"', 'comb_model = "field2d"')
-            .replace('thickness = "2 um"', f'thickness = "{ratio * G * 1e6:g} um"')
-            .replace('overlap = "20 um"', 'overlap = "20 um"\nsubstrate_gap = "2 um"'))
+    return (
+        LATERAL.replace('rigid = ["x", "y"]', 'rigid = ["y"]')
+        .replace('comb_model = "textbook"', 'comb_model = "field2d"')
+        .replace('thickness = "2 um"', f'thickness = "{ratio * G * 1e6:g} um"')
+        .replace('overlap = "20 um"', 'overlap = "20 um"\nsubstrate_gap = "2 um"')
+    )
 
 
 @pytest.fixture(scope="module")
@@ -84,9 +86,11 @@ def test_pull_in_on_the_2d_tables_in_an_ngspice_dc_sweep(builds, tmp_path, relea
     closed = math.sqrt(K * G**3 / (2 * EPS0 * N * ratio * G * L0))
     python, tables = model_pull_in(b.model), table_pull_in(b)
     circuit = circuit_pull_in(b.model, tmp_path, release, 1.02 * closed)
-    print(f"t/g = {ratio}, ngspice {release}: circuit {circuit:.4f} V, Python {python:.4f} V, tables {tables:.4f} V, "
-          f"closed form {closed:.4f} V; circuit / closed {circuit / closed:.4f}, circuit / Python - 1 "
-          f"{circuit / python - 1:+.2e}")
+    print(
+        f"t/g = {ratio}, ngspice {release}: circuit {circuit:.4f} V, Python {python:.4f} V, tables {tables:.4f} V, "
+        f"closed form {closed:.4f} V; circuit / closed {circuit / closed:.4f}, circuit / Python - 1 "
+        f"{circuit / python - 1:+.2e}"
+    )
     assert circuit == pytest.approx(python, rel=0.005)
     assert python == pytest.approx(tables, rel=0.01)
     assert 0.90 < circuit / closed < 0.95

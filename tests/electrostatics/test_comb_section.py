@@ -50,8 +50,8 @@ def test_table_matches_direct_solves_and_is_cached(coarse, monkeypatch):
     3 % of a central difference of direct solves; a second use reads the disk and never solves."""
     c = cell()
     g = comb_section.Geometry.of(c)
-    gap = 1.4 * UM                                    # between the grid's gaps 1.1 and 2.0 um
-    off = float(comb_section.grids(g)[1][-1])         # on the offset grid (-1.6 .. +2 um)
+    gap = 1.4 * UM  # between the grid's gaps 1.1 and 2.0 um
+    off = float(comb_section.grids(g)[1][-1])  # on the offset grid (-1.6 .. +2 um)
     direct = comb_section.solve_cell(g, gap, off)[0]
     assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2)
     h = 0.05 * UM

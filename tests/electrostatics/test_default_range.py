@@ -37,25 +37,28 @@ def test_corner_closure_of_n_cantilever_modes_is_n(narrowed):
 
 
 def test_range_without_a_key_shrinks_so_the_corners_just_reach(narrowed):
-    expected = int(100 * CORNER_REACH / MODES) / 100          # 1/7 rounded down to two digits: 0.14
+    expected = int(100 * CORNER_REACH / MODES) / 100  # 1/7 rounded down to two digits: 0.14
     assert narrowed.model.sampling["range"] == expected == 0.14
     assert narrowed.model.sampling["range_narrowed_from"] == 0.2
-    assert abs(narrowed.holdout.x).max() <= expected            # the held-out points follow the box
+    assert abs(narrowed.holdout.x).max() <= expected  # the held-out points follow the box
 
 
 def test_a_given_range_is_kept(narrowed):
     s = parse_structure(cantilever("range = 0.2"), "cantilever7.toml")
     assert s.sampling.range_given
-    assert box_range(narrowed.prepared, narrowed.scales, 0.2) == 0.14     # what the default would be
+    assert box_range(narrowed.prepared, narrowed.scales, 0.2) == 0.14  # what the default would be
     b = build(s)
     assert b.model.sampling["range"] == 0.2 and "range_narrowed_from" not in b.model.sampling
 
 
-PISTON = PISTON_3 + """[sampling]
+PISTON = (
+    PISTON_3
+    + """[sampling]
 levels = 3
 [electrostatics]
 fringe = "none"
 """
+)
 
 
 def test_a_box_whose_corners_stay_clear_keeps_the_default():

@@ -8,14 +8,12 @@ defining stratification of Latin hypercubes and of Sobol (0, m, s)-nets.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from netgen.electrostatics import designs
 from netgen.electrostatics.sampling import design_points
 from netgen.structure import StructureError, parse_structure
-
 from tests.fixtures import ROOT
 
 # Gerstner and Griebel (1998), Numerical integration using sparse grids, table 1 (CC, levels 0..4)
@@ -84,7 +82,7 @@ def test_sobol_points_form_a_net():
 
 def _structure(sampling: str, modes: str = '["2,0c", "2,0s", "3,0c", "3,0s"]'):
     text = (ROOT / "examples/levitated_disk.toml").read_text()
-    text = text.replace('levels = 3        # 3^7 = 2187 samples, as in the paper\n', sampling + "\n")
+    text = text.replace("levels = 3        # 3^7 = 2187 samples, as in the paper\n", sampling + "\n")
     text = text.replace('modes = ["2,0c", "2,0s", "3,0c", "3,0s"]', f"modes = {modes}")
     return parse_structure(text, "designs.toml")
 
@@ -97,15 +95,18 @@ def test_the_default_design_is_the_grid_up_to_seven_coordinates_and_sparse_above
     assert len(design_points(sparse.sampling, 11)) == 2 * 11**2 + 2 * 11 + 1
 
 
-@pytest.mark.parametrize("sampling,key,words", [
-    ('design = "random"', "sampling.design", "grid"),
-    ('design = "sparse"\nlevels = 5', "sampling.levels", 'set design = "grid"'),
-    ('design = "grid"\nlevel = 3', "sampling.level", 'set design = "sparse"'),
-    ('design = "lhs"\nlevel = 3', "sampling.level", "does not apply"),
-    ('design = "sobol"\npoints = 300', "sampling.points", "points = 256 or 512"),
-    ('design = "sparse"\nlevel = 6', "sampling.level", "2098753 points"),
-    ('design = "adaptive"\npoints = 3', "sampling.points", "8.."),
-])
+@pytest.mark.parametrize(
+    "sampling,key,words",
+    [
+        ('design = "random"', "sampling.design", "grid"),
+        ('design = "sparse"\nlevels = 5', "sampling.levels", 'set design = "grid"'),
+        ('design = "grid"\nlevel = 3', "sampling.level", 'set design = "sparse"'),
+        ('design = "lhs"\nlevel = 3', "sampling.level", "does not apply"),
+        ('design = "sobol"\npoints = 300', "sampling.points", "points = 256 or 512"),
+        ('design = "sparse"\nlevel = 6', "sampling.level", "2098753 points"),
+        ('design = "adaptive"\npoints = 3', "sampling.points", "8.."),
+    ],
+)
 def test_bad_sampling_keys_name_the_key_and_the_fix(sampling, key, words):
     with pytest.raises(StructureError) as info:
         _structure(sampling, modes="13")

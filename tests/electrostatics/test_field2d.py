@@ -71,6 +71,8 @@ def test_finger_pair_parallel_plate_limit(ratio):
 def test_exact_two_strips_against_its_asymptote():
     """closed_forms.parallel_strips tends to Palmer's two-term asymptote as W/g grows (the relative
     gap shrinks ~5x from W/g = 20 to 50) and is above eps W/g + eps/pi everywhere."""
-    gaps = [abs(closed_forms.palmer_strips(1.0, r, 1.0) / closed_forms.parallel_strips(1.0, r, 1.0) - 1) for r in (20, 50)]
+    gaps = [
+        abs(closed_forms.palmer_strips(1.0, r, 1.0) / closed_forms.parallel_strips(1.0, r, 1.0) - 1) for r in (20, 50)
+    ]
     assert gaps[1] < gaps[0] / 4
     assert all(closed_forms.parallel_strips(1.0, r, 1.0) > r + 1 / math.pi for r in (1.0, 5.0, 20.0))

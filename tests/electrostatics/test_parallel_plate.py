@@ -18,7 +18,6 @@ from netgen.electrostatics.closed_forms import kirchhoff_disk, palmer_rectangle,
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate
 from netgen.mechanics import rigid_basis
-
 from tests.geometry.references import SLOT, corner_radius, green_area, quadrants, side_point
 
 R = 500e-6  # plate radius
@@ -42,11 +41,14 @@ def tilt_x(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("side", ["above", "below"])
-@pytest.mark.parametrize("shape", [
-    AnnularSector("quadrant", 0.0, 0.55 * R, 0.0, math.pi / 2, SLOT),
-    AnnularSector("outer", 0.55 * R + SLOT, R, math.pi / 4, 3 * math.pi / 4, SLOT),
-    AnnularSector("clipped", 0.7 * R, 1.2 * R, -1.0, 0.5, SLOT),
-])
+@pytest.mark.parametrize(
+    "shape",
+    [
+        AnnularSector("quadrant", 0.0, 0.55 * R, 0.0, math.pi / 2, SLOT),
+        AnnularSector("outer", 0.55 * R + SLOT, R, math.pi / 4, 3 * math.pi / 4, SLOT),
+        AnnularSector("clipped", 0.7 * R, 1.2 * R, -1.0, 0.5, SLOT),
+    ],
+)
 def test_rigid_translation_is_parallel_plate(shape, side):
     """Rigid z, fringe off: C = eps A / (g -+ z) with A from Green's theorem."""
     r_lo = max(shape.r_in, corner_radius(shape.theta_start, shape.theta_end, SLOT / 2))
@@ -75,18 +77,22 @@ def test_closed_form_tilted_sector_matches_dblquad():
 
 @pytest.mark.parametrize("side", ["above", "below"])
 @pytest.mark.parametrize("frac", [0.2, 0.5, 0.8])
-@pytest.mark.parametrize("shape", [
-    AnnularSector("quadrant", 0.0, 0.55 * R, 0.0, math.pi / 2, SLOT),
-    AnnularSector("outer", 0.55 * R + SLOT, R, math.pi / 4, 3 * math.pi / 4, SLOT),
-    AnnularSector("clipped", 0.5 * R, 1.3 * R, 1.0, 2.5, SLOT),
-    AnnularSector("ring", 0.3 * R, 0.8 * R, 0.0, 2 * math.pi),
-])
+@pytest.mark.parametrize(
+    "shape",
+    [
+        AnnularSector("quadrant", 0.0, 0.55 * R, 0.0, math.pi / 2, SLOT),
+        AnnularSector("outer", 0.55 * R + SLOT, R, math.pi / 4, 3 * math.pi / 4, SLOT),
+        AnnularSector("clipped", 0.5 * R, 1.3 * R, 1.0, 2.5, SLOT),
+        AnnularSector("ring", 0.3 * R, 0.8 * R, 0.0, 2 * math.pi),
+    ],
+)
 def test_tilted_plate_against_reference(shape, frac, side):
     """Rigid tilt (edge gap down to (1-frac) g), fringe off: C vs the closed-form/quad reference."""
     tilt = frac * G / R
     ref_tilt = tilt if side == "above" else -tilt  # below: g + theta y = g - (-theta) y
-    ref = tilted_sector_exact(EPS0, shape.r_in, shape.r_out, shape.theta_start, shape.theta_end, shape.slot, G,
-                              ref_tilt, radius=R)
+    ref = tilted_sector_exact(
+        EPS0, shape.r_in, shape.r_out, shape.theta_start, shape.theta_end, shape.slot, G, ref_tilt, radius=R
+    )
     ex = ParallelPlateExtractor(fringe=None).prepare([Electrode(shape, side, G)], PLATE, tilt_x)
     assert ex.capacitance(np.array([tilt]))[0] == pytest.approx(ref, rel=1e-6)
 
@@ -94,15 +100,18 @@ def test_tilted_plate_against_reference(shape, frac, side):
 def test_min_gap_of_tilted_quadrant_is_at_its_corner():
     """min gap = g - theta * max(y) over the slotted quadrant; max y = sqrt(r^2 - h^2) at its arc end."""
     r1, tilt = 0.55 * R, 0.7 * G / R
-    ex = ParallelPlateExtractor().prepare([Electrode(AnnularSector("q", 0, r1, 0, math.pi / 2, SLOT), "above", G)],
-                                          PLATE, tilt_x)
+    ex = ParallelPlateExtractor().prepare(
+        [Electrode(AnnularSector("q", 0, r1, 0, math.pi / 2, SLOT), "above", G)], PLATE, tilt_x
+    )
     assert ex.min_gap(np.array([tilt]))[0] == pytest.approx(G - tilt * math.sqrt(r1**2 - (SLOT / 2) ** 2), rel=1e-12)
 
 
 def test_touching_sample_is_nan_only_for_that_electrode():
     """A sample pushing the plate through one electrode gives nan there and finite values elsewhere."""
-    els = [Electrode(AnnularSector("up", 0, R, 0, 2 * math.pi), "above", G),
-           Electrode(AnnularSector("down", 0, R, 0, 2 * math.pi), "below", G)]
+    els = [
+        Electrode(AnnularSector("up", 0, R, 0, 2 * math.pi), "above", G),
+        Electrode(AnnularSector("down", 0, R, 0, 2 * math.pi), "below", G),
+    ]
     ex = ParallelPlateExtractor().prepare(els, PLATE, z_only)
     c = ex.capacitance(np.array([[0.0], [1.2 * G]]))
     assert np.all(np.isfinite(c[0])) and np.isnan(c[1, 0]) and np.isfinite(c[1, 1])
@@ -128,8 +137,10 @@ def random_polynomial_basis(ncoords: int, seed: int = 1):
 
 def test_gradient_matches_central_differences():
     """Analytic dC/dq (area and fringe terms, both sides, rim-clipped and rectangular shapes) vs FD."""
-    shapes = quadrants(0.0, 0.55 * R, tag="i") + [AnnularSector("clip", 0.6 * R, 1.2 * R, 0.5, 2.0, SLOT),
-                                                  Rectangle("rect", -0.8 * R, 0.2 * R, -1.5 * R, -0.4 * R)]
+    shapes = quadrants(0.0, 0.55 * R, tag="i") + [
+        AnnularSector("clip", 0.6 * R, 1.2 * R, 0.5, 2.0, SLOT),
+        Rectangle("rect", -0.8 * R, 0.2 * R, -1.5 * R, -0.4 * R),
+    ]
     els = [Electrode(s, side, G) for s in shapes for side in ("above", "below")]
     nc = 5
     ex = ParallelPlateExtractor().prepare(els, PLATE, random_polynomial_basis(nc))
@@ -167,7 +178,8 @@ BEM_SQUARES = {50 * UM: 23.40, 20 * UM: 53.75, 5 * UM: 205.0}  # design.md, eps0
 def two_squares(g: float, fringe: EdgeFringe | None) -> float:
     """Model capacitance of two aligned 1 mm squares at distance g (plate = lower square)."""
     ex = ParallelPlateExtractor(fringe=fringe).prepare(
-        [Electrode(Rectangle("top", 0, MM, 0, MM), "above", g)], RectPlate(0, MM, 0, MM), rigid_basis())
+        [Electrode(Rectangle("top", 0, MM, 0, MM), "above", g)], RectPlate(0, MM, 0, MM), rigid_basis()
+    )
     return float(ex.capacitance(np.zeros(3))[0])
 
 
@@ -215,8 +227,11 @@ def test_default_fringe_represents_bem_calibration():
     model = default.resolved(1.0).per_length(g_over_l)
     np.testing.assert_allclose(model, bem, rtol=0.02)
     np.testing.assert_allclose(model[:2], bem[:2], rtol=0.002)
-    els = [Electrode(s, side, G) for s in quadrants(0.0, 0.55 * R) + quadrants(0.55 * R + SLOT, R, math.pi / 4)
-           for side in ("above", "below")]
+    els = [
+        Electrode(s, side, G)
+        for s in quadrants(0.0, 0.55 * R) + quadrants(0.55 * R + SLOT, R, math.pi / 4)
+        for side in ("above", "below")
+    ]
     c_def = ParallelPlateExtractor().prepare(els, PLATE, z_only).capacitance(np.zeros(1))
     c_fit = ParallelPlateExtractor(fringe=EdgeFringe(a_fit, b_fit)).prepare(els, PLATE, z_only).capacitance(np.zeros(1))
     np.testing.assert_allclose(c_def, c_fit, rtol=1e-3)

@@ -52,11 +52,13 @@ def test_veriloga_matches_the_python_model_at_200_points(emitted, tmp_path):
     q_va, f_va = np.zeros_like(v_el), np.zeros_like(x)
     for p in range(len(x)):
         full = va_residuals(compiled, va_volts(model, x[p], v_el[p], v_plate[p]), params)
-        base = va_residuals(compiled, va_volts(model, x[p], np.full(len(model.electrodes), v_plate[p]), v_plate[p]),
-                            params)
+        base = va_residuals(
+            compiled, va_volts(model, x[p], np.full(len(model.electrodes), v_plate[p]), v_plate[p]), params
+        )
         q_va[p] = [full[e.name][1] for e in model.electrodes]
-        f_va[p] = [-unit[v] * (full[f"fn_{c.name}"][0] - base[f"fn_{c.name}"][0])
-                   for v, c in enumerate(model.coordinates)]
+        f_va[p] = [
+            -unit[v] * (full[f"fn_{c.name}"][0] - base[f"fn_{c.name}"][0]) for v, c in enumerate(model.coordinates)
+        ]
     q_py = model.electrode_charges(x, v_el, v_plate)
     f_py = model.electrostatic_force(x, v_el, v_plate)
     q_err = np.abs(q_va - q_py).max() / np.abs(q_py).max()
@@ -65,8 +67,11 @@ def test_veriloga_matches_the_python_model_at_200_points(emitted, tmp_path):
     assert q_err < 1e-9 and f_err.max() < 1e-9
 
 
-DRIVE = {"xp_t": Pulse(0, 6, 10e-6, 1e-7, 1e-7, 1.0, 2.0), "yn_l": Pulse(0, 6, 30e-6, 1e-7, 1e-7, 1.0, 2.0),
-         "zs": Pulse(0, 3, 50e-6, 1e-7, 1e-7, 1.0, 2.0)}
+DRIVE = {
+    "xp_t": Pulse(0, 6, 10e-6, 1e-7, 1e-7, 1.0, 2.0),
+    "yn_l": Pulse(0, 6, 30e-6, 1e-7, 1e-7, 1.0, 2.0),
+    "zs": Pulse(0, 3, 50e-6, 1e-7, 1e-7, 1.0, 2.0),
+}
 
 
 def test_vacask_transient_matches_ngspice(emitted, tmp_path):
@@ -75,11 +80,21 @@ def test_vacask_transient_matches_ngspice(emitted, tmp_path):
     model, folder = emitted
     stop = 150e-6
     osdi, _ = compile_va(folder / "accelerometer_xyz.va", tmp_path / "acc.osdi")
-    vac = run_vacask(VacaskBench(model, osdi, sources={k: p.vacask() for k, p in DRIVE.items()} | {"plate": "dc=0"},
-                                 options="reltol=1e-5 chgtol=1e-18").netlist(
-        f'analysis tran1 tran step=50n stop={stop!r} maxstep=50n icmode="uic"'), tmp_path / "vacask")
-    spice = Bench(model, folder / "accelerometer_xyz.lib", sources={k: p.spice() for k, p in DRIVE.items()}
-                  | {"plate": "0"}, options="reltol=1e-5 chgtol=1e-18")
+    vac = run_vacask(
+        VacaskBench(
+            model,
+            osdi,
+            sources={k: p.vacask() for k, p in DRIVE.items()} | {"plate": "dc=0"},
+            options="reltol=1e-5 chgtol=1e-18",
+        ).netlist(f'analysis tran1 tran step=50n stop={stop!r} maxstep=50n icmode="uic"'),
+        tmp_path / "vacask",
+    )
+    spice = Bench(
+        model,
+        folder / "accelerometer_xyz.lib",
+        sources={k: p.spice() for k, p in DRIVE.items()} | {"plate": "0"},
+        options="reltol=1e-5 chgtol=1e-18",
+    )
     plot = run_ngspice(spice.netlist(f".tran 50n {stop!r} 0 50n uic"), tmp_path / "ngspice")[0]
     x_ng, _ = states(plot, model)
     t = plot["time"]
@@ -104,9 +119,9 @@ def test_z_acceleration_leaves_x_and_y_alone(emitted):
     push = run_ngspice(Bench(model, lib, sources=volts | {"a_in": "DC 1000"}).netlist(".op"), folder / "op1")[0]
     for name in ("x", "y"):
         c = next(c for c in model.coordinates if c.name == name)
-        own = c.mass * 1000 / c.stiffness                                # m: the in-plane sensitivity
+        own = c.mass * 1000 / c.stiffness  # m: the in-plane sensitivity
         moved = abs(float(push[f"x1.xs_{name}"][0]) - float(base[f"x1.xs_{name}"][0])) * c.scale
         assert moved < 1e-3 * own, name
     z = next(c for c in model.coordinates if c.name == "z")
     dz = (float(push["x1.xs_z"][0]) - float(base["x1.xs_z"][0])) * z.scale
-    assert dz < -z.mass * 1000 / z.stiffness          # z itself moves, further than m a / k (the bias softens it)
+    assert dz < -z.mass * 1000 / z.stiffness  # z itself moves, further than m a / k (the bias softens it)

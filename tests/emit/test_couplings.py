@@ -28,11 +28,21 @@ from netgen.emit import write_outputs
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
-from tests.fixtures import EMISSIONS, ROOT, Bench, emission_id, emitted_library, states, transient_drive, using_ngspice
-from tests.fixtures import va_residuals, va_volts
+from tests.fixtures import (
+    EMISSIONS,
+    ROOT,
+    Bench,
+    emission_id,
+    emitted_library,
+    states,
+    transient_drive,
+    using_ngspice,
+    va_residuals,
+    va_volts,
+)
 
 JSON = ROOT / "netlists" / "levitated_disk.json"
-FLOAT = "top_r2s2"           # the floating electrode of the VACASK comparison (neighbours top_r2s1, top_r2s3, top_r1s2)
+FLOAT = "top_r2s2"  # the floating electrode of the VACASK comparison (neighbours top_r2s1, top_r2s3, top_r1s2)
 
 
 def hand_matrix(model: MacroModel) -> np.ndarray:
@@ -68,7 +78,7 @@ def test_json_round_trip_keeps_the_matrix(coupled):
     """The couplings survive the JSON (pairs, upper triangle) as the symmetric hand-made matrix."""
     model, _ = coupled
     np.testing.assert_array_equal(model.coupling, hand_matrix(MacroModel.load_json(JSON)))
-    assert np.count_nonzero(np.triu(model.coupling)) == 24          # 2 sides x (2 rings x 4 + 4 sectors)
+    assert np.count_nonzero(np.triu(model.coupling)) == 24  # 2 sides x (2 rings x 4 + 4 sectors)
 
 
 @pytest.mark.parametrize("suffix, marker", [(".lib", "*"), ("_xspice.lib", "*"), (".va", "//")])
@@ -80,8 +90,10 @@ def test_headers_list_every_coupling(coupled, suffix, marker):
     listed = dict(re.findall(rf"^{re.escape(marker)}     Cc_(\w+) = ([0-9.e+-]+) fF", text, re.M))
     assert "Constant electrode-electrode couplings: 24 capacitor(s)" in text
     if suffix == ".va":
-        body = {(a, b): float(v) for a, b, v in
-                re.findall(r"I\((\w+), (\w+)\) <\+ ddt\(([0-9.e+-]+) \* V\(\1, \2\)\);", text)}
+        body = {
+            (a, b): float(v)
+            for a, b, v in re.findall(r"I\((\w+), (\w+)\) <\+ ddt\(([0-9.e+-]+) \* V\(\1, \2\)\);", text)
+        }
     else:
         body = {(a, b): float(v) for a, b, v in re.findall(r"^Cc_\w+ (\w+) (\w+) ([0-9.e+-]+)$", text, re.M)}
     assert len(listed) == len(body) == 24
@@ -111,11 +123,16 @@ def test_ngspice_current_is_coupling_times_slope(coupled, emission, tmp_path):
     model, folder = coupled
     names = [e.name for e in model.electrodes]
     cc = model.coupling[names.index("top_r2s1"), names.index(FLOAT)]
-    slope = 1e6                                                         # V/s
+    slope = 1e6  # V/s
     with using_ngspice(release):
         lib, control = emitted_library(model, style, tmp_path, folder / f"{model.name}.lib")
-        bench = Bench(model, lib, sources={"top_r2s1": f"PWL(0 0 1e-6 {slope * 1e-6!r})", "plate": "0"},
-                      options="reltol=1e-6 chgtol=1e-20", control=control)
+        bench = Bench(
+            model,
+            lib,
+            sources={"top_r2s1": f"PWL(0 0 1e-6 {slope * 1e-6!r})", "plate": "0"},
+            options="reltol=1e-6 chgtol=1e-20",
+            control=control,
+        )
         plot = run_ngspice(bench.netlist(".tran 2n 1e-6 0 2n uic"), tmp_path / "ng")[0]
     t, i = plot["time"], plot[f"i(v{FLOAT})"]
     late = t > 0.2e-6
@@ -129,8 +146,11 @@ def _random_points(model: MacroModel, n: int = 200):
     """States inside the sampled box, electrode voltages +-25 V, plate +-5 V."""
     rng = np.random.default_rng(22)
     r = model.sampling["range"]
-    return (rng.uniform(-r, r, (n, model.ncoords)), rng.uniform(-25.0, 25.0, (n, len(model.electrodes))),
-            rng.uniform(-5.0, 5.0, n))
+    return (
+        rng.uniform(-r, r, (n, model.ncoords)),
+        rng.uniform(-25.0, 25.0, (n, len(model.electrodes))),
+        rng.uniform(-5.0, 5.0, n),
+    )
 
 
 def test_va_charges_include_the_couplings(coupled):
@@ -148,8 +168,9 @@ def test_va_charges_include_the_couplings(coupled):
         rc, r0 = va_residuals(with_c, volts, params), va_residuals(without, volts, params)
         q_c[p] = [rc[e.name][1] for e in model.electrodes]
         q_0[p] = [r0[e.name][1] for e in model.electrodes]
-    hand = np.array([[sum(model.coupling[i, j] * (v[i] - v[j]) for j in range(len(v))) for i in range(len(v))]
-                     for v in v_el])
+    hand = np.array(
+        [[sum(model.coupling[i, j] * (v[i] - v[j]) for j in range(len(v))) for i in range(len(v))] for v in v_el]
+    )
     q_py = model.electrode_charges(x, v_el, v_plate)
     assert np.abs(q_c - q_py).max() / np.abs(q_py).max() < 1e-9
     assert np.abs((q_c - q_0) - hand).max() / np.abs(hand).max() < 1e-9
@@ -165,15 +186,25 @@ def test_vacask_and_ngspice_agree_with_couplings(coupled, tmp_path):
     drive = transient_drive() | {"top_r2s3": transient_drive()["top_r2s1"]}
     stop = 20e-6
     osdi, _ = compile_va(folder / f"{model.name}.va", tmp_path / "m.osdi")
-    bench = VacaskBench(model, osdi, sources={k: p.vacask() for k, p in drive.items()} | {"plate": "dc=0"},
-                        options="reltol=1e-5 chgtol=1e-20")
+    bench = VacaskBench(
+        model,
+        osdi,
+        sources={k: p.vacask() for k, p in drive.items()} | {"plate": "dc=0"},
+        options="reltol=1e-5 chgtol=1e-20",
+    )
     text = bench.netlist(f'analysis tran1 tran step=10n stop={stop!r} maxstep=10n icmode="uic"')
-    text = text.replace(f"v_{FLOAT} ({FLOAT} 0) vsource dc=0",
-                        f'model res resistor\nr_{FLOAT} ({FLOAT} 0) res r=1e9').replace(
-        "model vsource vsource", 'load "resistor.osdi"\nmodel vsource vsource', 1)
+    text = text.replace(
+        f"v_{FLOAT} ({FLOAT} 0) vsource dc=0", f"model res resistor\nr_{FLOAT} ({FLOAT} 0) res r=1e9"
+    ).replace("model vsource vsource", 'load "resistor.osdi"\nmodel vsource vsource', 1)
     vac = run_vacask(text, tmp_path / "vacask")
-    spice = Bench(model, folder / f"{model.name}.lib", sources={k: p.spice() for k, p in drive.items()} | {"plate": "0"},
-                  extra=[f"R{FLOAT} {FLOAT} 0 1e9"], driven_elsewhere={FLOAT}, options="reltol=1e-5 chgtol=1e-20")
+    spice = Bench(
+        model,
+        folder / f"{model.name}.lib",
+        sources={k: p.spice() for k, p in drive.items()} | {"plate": "0"},
+        extra=[f"R{FLOAT} {FLOAT} 0 1e9"],
+        driven_elsewhere={FLOAT},
+        options="reltol=1e-5 chgtol=1e-20",
+    )
     plot = run_ngspice(spice.netlist(f".tran 10n {stop!r} 0 10n uic"), tmp_path / "ngspice")[0]
     t = plot["time"]
     v_ng = plot[f"v({FLOAT})"]

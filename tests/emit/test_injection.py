@@ -46,7 +46,7 @@ from tests.fixtures import NETLISTS, NGSPICE, ROOT
 
 PISTON = ROOT / "examples" / "piston.toml"
 BREAKS = ["\n", "\r", "\r\n", "\u2028", "\u2029", "\x85", "\x0b", "\x0c", "\x1c"]
-BAD_CATEGORIES = {"Cc", "Cf", "Zl", "Zp", "Co", "Cs", "Cn"}      # control, format, separators, private, unassigned
+BAD_CATEGORIES = {"Cc", "Cf", "Zl", "Zp", "Co", "Cs", "Cn"}  # control, format, separators, private, unassigned
 
 
 def hostile(flag: Path) -> list[str]:
@@ -54,15 +54,33 @@ def hostile(flag: Path) -> list[str]:
     directives and comment ends, quotes and shell characters, each alone (printable: accepted as
     free text) and wrapped in every kind of line break (refused), NUL, and very long strings."""
     touch = f"shell touch {flag}"
-    payloads = [f".control\n{touch}\n.endc", ".param vdd=99", ".options reltol=0.5", "Rinj drive 0 1",
-                f"*#{touch}", f"#{touch}", "+ drive 0 1", EVIL_VA,
-                '`include "/etc/hostname"', "`define piston evil_module", "module evil_module; endmodule",
-                "\"quoted\" 'single' $HOME ; $(touch x) `x` trailing \\"]
+    payloads = [
+        f".control\n{touch}\n.endc",
+        ".param vdd=99",
+        ".options reltol=0.5",
+        "Rinj drive 0 1",
+        f"*#{touch}",
+        f"#{touch}",
+        "+ drive 0 1",
+        EVIL_VA,
+        '`include "/etc/hostname"',
+        "`define piston evil_module",
+        "module evil_module; endmodule",
+        "\"quoted\" 'single' $HOME ; $(touch x) `x` trailing \\",
+    ]
     out = [p for p in payloads if "\n" not in p]
     out += [b + p.replace("\n", b) + b for p in payloads for b in BREAKS]
-    out += [f"\x00{touch}", f"a\x00\n{touch}", "\t.param vdd=99", "\x1b[2J\x1b[31mred",
-            "\u202e.param vdd=99", "µ 日本 ü ∂ –", "A b " * 25_000, (f".control {touch} .endc ") * 2_000,
-            (f"\n.control\n{touch}\n.endc") * 500]
+    out += [
+        f"\x00{touch}",
+        f"a\x00\n{touch}",
+        "\t.param vdd=99",
+        "\x1b[2J\x1b[31mred",
+        "\u202e.param vdd=99",
+        "µ 日本 ü ∂ –",
+        "A b " * 25_000,
+        (f".control {touch} .endc ") * 2_000,
+        (f"\n.control\n{touch}\n.endc") * 500,
+    ]
     return out
 
 
@@ -81,12 +99,16 @@ def refusable(text: str) -> bool:
 
 def toml_string(text: str) -> str:
     """`text` as a TOML basic string (the escapes TOML requires for quotes, backslash, controls)."""
-    body = re.sub(r'["\\]|[\x00-\x1f\x7f-\x9f]',
-                  lambda m: "\\" + m.group() if m.group() in '"\\' else f"\\u{ord(m.group()):04x}", text)
+    body = re.sub(
+        r'["\\]|[\x00-\x1f\x7f-\x9f]',
+        lambda m: "\\" + m.group() if m.group() in '"\\' else f"\\u{ord(m.group()):04x}",
+        text,
+    )
     return f'"{body}"'
 
 
 # ----------------------------------------------------------------------------- each dialect's code lines
+
 
 def spice_code(text: str) -> list[str]:
     """The lines ngspice reads as cards: split at newlines only (what ngspice does), without the
@@ -172,8 +194,9 @@ def run_ngspice(libs: list[str], folder: Path, flag: Path) -> None:
     for release, exe in NGSPICE.items():
         if release != "39" and not Path(exe).exists():
             pytest.fail(f"ngspice {release} is missing at {exe}: run .ci/setup")
-        done = subprocess.run([exe, "-b", str(folder / "driver.cir")], cwd=folder, capture_output=True,
-                              text=True, timeout=120)
+        done = subprocess.run(
+            [exe, "-b", str(folder / "driver.cir")], cwd=folder, capture_output=True, text=True, timeout=120
+        )
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
         blocks = done.stdout.split("netgen-variant ")[1:]
         assert len(blocks) == len(libs), f"ngspice {release}: {len(blocks)} of {len(libs)} benches ran"
@@ -195,6 +218,7 @@ def compile_vas(vas: list[str], folder: Path) -> None:
 
 # ----------------------------------------------------------------------------- fixtures
 
+
 @pytest.fixture(scope="module")
 def piston_build():
     """The piston's build (0.1 s): the tiny model every variant starts from."""
@@ -214,11 +238,17 @@ def flag(tmp_path) -> Path:
 def with_text(model: MacroModel, text: str) -> MacroModel:
     """The model with `text` in every free-text field at once (description, source, generator,
     every coordinate's label): the emitters' guard with no reader in front of it."""
-    return replace(model, description=text, source=text, generator=text,
-                   coordinates=[replace(c, label=text) for c in model.coordinates])
+    return replace(
+        model,
+        description=text,
+        source=text,
+        generator=text,
+        coordinates=[replace(c, label=text) for c in model.coordinates],
+    )
 
 
 # ----------------------------------------------------------------------------- the emitters' own guard
+
 
 def test_emitters_write_any_text_inert_without_the_readers(piston, flag, tmp_path):
     """Every hostile string in every free-text field of a MacroModel: every format's code lines
@@ -228,7 +258,7 @@ def test_emitters_write_any_text_inert_without_the_readers(piston, flag, tmp_pat
     strings = hostile(flag)
     base = emitted(piston)
     texts = assert_inert([with_text(piston, h) for h in strings], base)
-    assert any("shell touch" in t[f"{piston.name}.lib"] for t in texts)           # the payloads are there
+    assert any("shell touch" in t[f"{piston.name}.lib"] for t in texts)  # the payloads are there
     run_ngspice([base[f"{piston.name}.lib"]] + [t[f"{piston.name}.lib"] for t in texts], tmp_path / "ng", flag)
     # openvaf-r (0.1-0.3 s each) on the Verilog-A payloads as they are, and one per kind of line break
     va_payloads = [EVIL_VA, '`include "/etc/hostname"', "`define piston evil_module", "module evil_module; endmodule"]
@@ -241,6 +271,7 @@ def test_emitters_write_any_text_inert_without_the_readers(piston, flag, tmp_pat
 
 
 # ----------------------------------------------------------------------------- read time: structure files
+
 
 def test_structure_description_and_file_name_are_refused_or_inert(piston, flag, tmp_path):
     """The description (a TOML string) and the structure file's own name: refused with the field
@@ -272,17 +303,23 @@ def test_structure_description_and_file_name_are_refused_or_inert(piston, flag, 
         accepted.append(replace(piston, source=s.source))
     assert refused == sum(map(refusable, hostile(flag))) + sum(map(refusable, names))
     texts = assert_inert(accepted, emitted(piston))
-    run_ngspice([emitted(piston)[f"{piston.name}.lib"]] + [t[f"{piston.name}.lib"] for t in texts],
-                tmp_path / "ng", flag)
+    run_ngspice(
+        [emitted(piston)[f"{piston.name}.lib"]] + [t[f"{piston.name}.lib"] for t in texts], tmp_path / "ng", flag
+    )
 
 
 def test_build_command_refuses_a_hostile_description_and_writes_nothing(flag, tmp_path, capsys):
     """`netgen build` of a structure whose description carries a .control block: exit 2, the
     message names the file, the line and the field, and no output folder appears."""
     evil = tmp_path / "evil.toml"
-    evil.write_text(re.sub(r"(?m)^description = .*$",
-                           lambda _: "description = " + toml_string(control_block(flag)),
-                           PISTON.read_text(encoding="utf-8")), encoding="utf-8")
+    evil.write_text(
+        re.sub(
+            r"(?m)^description = .*$",
+            lambda _: "description = " + toml_string(control_block(flag)),
+            PISTON.read_text(encoding="utf-8"),
+        ),
+        encoding="utf-8",
+    )
     assert cli.main(["build", str(evil), "-o", str(tmp_path / "out"), "-q", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert f"{evil}:4: description:" in err and "fix:" in err
@@ -300,7 +337,7 @@ def test_imported_mode_labels_are_refused_or_inert(piston_build, piston, flag, t
     accepted = []
     for h in hostile(flag):
         np.savez(tmp_path / "modes.npz", **(arrays | {"labels": np.array([h])}))
-        label = str(np.array([h])[0])                    # numpy drops trailing NULs
+        label = str(np.array([h])[0])  # numpy drops trailing NULs
         try:
             data = read_modes(tmp_path / "modes.npz")
         except StructureError as err:
@@ -316,18 +353,35 @@ def test_imported_mode_labels_are_refused_or_inert(piston_build, piston, flag, t
     lib = emitted(model)[f"{piston.name}.lib"]
     assert "translation */ module evil_module" in lib
     assert_inert(accepted, emitted(piston))
-    mode = replace(model.coordinates[0], kind="mode", label="$\\undefinedcmd$ $x^$")     # mathtext would fail
-    png = mode_shapes(tmp_path / "modes.png", replace(model, coordinates=[mode]), piston_build.mechanics.basis,
-                      100e-6, [])
+    mode = replace(model.coordinates[0], kind="mode", label="$\\undefinedcmd$ $x^$")  # mathtext would fail
+    png = mode_shapes(
+        tmp_path / "modes.png", replace(model, coordinates=[mode]), piston_build.mechanics.basis, 100e-6, []
+    )
     assert png.stat().st_size > 0
 
 
 # ----------------------------------------------------------------------------- read time: model JSON
 
-NAME_FIELDS = ["name", "plate", "coordinates.0.name", "coordinates.0.kind", "coordinates.0.unit",
-               "electrodes.0.name", "capacitances.0.electrode", "capacitances.0.target", "sampling.samples"]
-TEXT_FIELDS = ["description", "source", "generator", "coordinates.0.label", "electrodes.0.group",
-               "report.electrostatics.extractor", "contact.points.0.electrode"]
+NAME_FIELDS = [
+    "name",
+    "plate",
+    "coordinates.0.name",
+    "coordinates.0.kind",
+    "coordinates.0.unit",
+    "electrodes.0.name",
+    "capacitances.0.electrode",
+    "capacitances.0.target",
+    "sampling.samples",
+]
+TEXT_FIELDS = [
+    "description",
+    "source",
+    "generator",
+    "coordinates.0.label",
+    "electrodes.0.group",
+    "report.electrostatics.extractor",
+    "contact.points.0.electrode",
+]
 
 
 def set_field(doc: dict, field: str, value: str) -> dict:
@@ -351,7 +405,7 @@ def test_model_json_names_and_text_are_refused_or_inert(piston, flag, tmp_path):
         where = re.sub(r"\.(\d+)", r"[\1]", field)
         for h in hostile(flag):
             try:
-                model = MacroModel.from_dict(set_field(doc, field, h), "piston.json")   # load_json's check
+                model = MacroModel.from_dict(set_field(doc, field, h), "piston.json")  # load_json's check
             except ModelError as err:
                 assert err.where == where and err.fix and (field in NAME_FIELDS or refusable(h)), str(err)
                 continue
@@ -359,8 +413,9 @@ def test_model_json_names_and_text_are_refused_or_inert(piston, flag, tmp_path):
             accepted.append(model)
     assert len(accepted) == len(TEXT_FIELDS) * sum(not refusable(h) for h in hostile(flag))
     texts = assert_inert(accepted, emitted(piston))
-    run_ngspice([emitted(piston)[f"{piston.name}.lib"]] + [t[f"{piston.name}.lib"] for t in texts],
-                tmp_path / "ng", flag)
+    run_ngspice(
+        [emitted(piston)[f"{piston.name}.lib"]] + [t[f"{piston.name}.lib"] for t in texts], tmp_path / "ng", flag
+    )
 
 
 def test_sigma_delta_refuses_a_hostile_model_json(flag, tmp_path, capsys):
@@ -378,6 +433,7 @@ def test_sigma_delta_refuses_a_hostile_model_json(flag, tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- testbench netlists and sweeps
 
+
 def test_sigma_delta_netlists_write_text_and_paths_inert(flag, tmp_path):
     """The sigma-delta ngspice and VACASK netlists around the reference model: hostile text in the
     model changes no code line; a hostile .lib or OSDI path is refused (InputError naming the
@@ -387,8 +443,10 @@ def test_sigma_delta_netlists_write_text_and_paths_inert(flag, tmp_path):
     lib, osdi, blocks = tmp_path / "m" / "levitated_disk.lib", tmp_path / "m.osdi", tmp_path / "b.osdi"
 
     def benches(m: MacroModel, lib: Path, osdi: Path) -> dict[str, str]:
-        return {"tb.cir": sd_ngspice.testbench(m, d, lib, 64, "sd.raw"),
-                "tb.sim": sd_vacask.testbench(m, d, osdi, blocks, 64)}
+        return {
+            "tb.cir": sd_ngspice.testbench(m, d, lib, 64, "sd.raw"),
+            "tb.sim": sd_vacask.testbench(m, d, osdi, blocks, 64),
+        }
 
     base = benches(model, lib, osdi)
     for h in hostile(flag):
@@ -409,8 +467,9 @@ def test_sigma_delta_netlists_write_text_and_paths_inert(flag, tmp_path):
             assert err.where == "path" and (refusable(h) or '"' in h or "\\" in h), str(err)
         else:
             assert not refusable(h) and '"' not in h and "\\" not in h and printable(sim)
-            assert code("tb.sim", sim) == [ln.replace(str(osdi), str(tmp_path / f"o{k}{h}.osdi"))
-                                           for ln in code("tb.sim", base["tb.sim"])]
+            assert code("tb.sim", sim) == [
+                ln.replace(str(osdi), str(tmp_path / f"o{k}{h}.osdi")) for ln in code("tb.sim", base["tb.sim"])
+            ]
 
 
 SWEEP = """[fixed]
@@ -464,8 +523,8 @@ def test_comment_writer_by_hand():
     assert comment_lines("#shell ls", "*") == "* #shell ls" and comment_lines("", "*") == "*"
     assert comment_text("x\x00y\tz\u202e", "*") == "x\\x00y\\tz\\u202e"
     assert comment_text("*/ m `define /*/ q \\", "//") == "* / m 'define / * / q \\x5c"
-    assert comment_text("*/ `x`", "*") == "*/ `x`"                         # nothing to neutralise in SPICE
-    assert comment_lines("w " * 120, "//").split("\n") == ["//" + " w" * 49] * 2 + ["//" + " w" * 22]   # 100 wide
+    assert comment_text("*/ `x`", "*") == "*/ `x`"  # nothing to neutralise in SPICE
+    assert comment_lines("w " * 120, "//").split("\n") == ["//" + " w" * 49] * 2 + ["//" + " w" * 22]  # 100 wide
     assert is_identifier("piston") and not is_identifier("piston\n") and not is_identifier("p\u00e9")
 
 

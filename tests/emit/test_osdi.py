@@ -42,8 +42,9 @@ def built(model, tmp_path_factory) -> Path:
     """`--format osdi` of the reference model (compiles the .va: ~2-3 s)."""
     folder = tmp_path_factory.mktemp("osdi")
     written = emit.write_outputs(model, folder, "osdi")
-    assert sorted(p.name for p in written) == sorted(f"levitated_disk{s}" for s in
-                                                     ("_osdi.lib", ".va", ".osdi", ".json"))
+    assert sorted(p.name for p in written) == sorted(
+        f"levitated_disk{s}" for s in ("_osdi.lib", ".va", ".osdi", ".json")
+    )
     return folder
 
 
@@ -69,9 +70,15 @@ def _header(text: str) -> list[str]:
     lines = text.split("\n.subckt", 1)[0].splitlines()
     start = next(i for i, ln in enumerate(lines) if ln.startswith("* Usage:"))
     end = next(i for i, ln in enumerate(lines) if ln.startswith("*         X1 "))
-    return [ln for ln in lines[:start] + lines[end:] if ln.startswith("*") and not ln.startswith("*   netgen build")
-            and not ln.startswith("* The states are") and not ln.startswith("*   (.save and")
-            and not ln.startswith("*   .ic cannot")]
+    return [
+        ln
+        for ln in lines[:start] + lines[end:]
+        if ln.startswith("*")
+        and not ln.startswith("*   netgen build")
+        and not ln.startswith("* The states are")
+        and not ln.startswith("*   (.save and")
+        and not ln.startswith("*   .ic cannot")
+    ]
 
 
 def test_outputs_are_the_module_its_compiled_form_and_the_subcircuit(model, built):
@@ -86,7 +93,10 @@ def test_subcircuit_has_the_lib_s_ports_header_and_usage(model):
     """Same .subckt ports in the same order as the .lib, the same header tables, one OSDI
     instance on those ports, and the lines a user needs: pre_osdi, num_threads=1, ngspice 45+."""
     text, lib = osdi.subcircuit(model), LIB.read_text()
-    card = lambda t: t.split("\n.subckt ", 1)[1].split("\n", 1)[0] + t.split("\n.subckt ", 1)[1].split("\n")[1]
+
+    def card(t):
+        return t.split("\n.subckt ", 1)[1].split("\n", 1)[0] + t.split("\n.subckt ", 1)[1].split("\n")[1]
+
     ports = [p["name"] for p in model.ports()]
     sub = text.split("\n.subckt ", 1)[1]
     assert sub.replace("\n+ ", " ").split("\n")[0].split()[1:] == ports
@@ -112,8 +122,11 @@ def test_transient_matches_scipy_and_the_b_source_lib(model, built, ngspice46, t
     for name, lib, control in (("osdi", built / "levitated_disk_osdi.lib", _control(built)), ("lib", LIB, [])):
         bench = Bench(model, lib, control=control, sources=sources, options="reltol=1e-5 chgtol=1e-18")
         plot = run_ngspice(bench.netlist(f".tran 10n {stop} 0 10n uic"), tmp_path / name)[0]
-        x = _states(plot, model)[0] if name == "osdi" else \
-            np.stack([plot[f"v(x1.xs_{c.name})"] for c in model.coordinates], axis=-1)
+        x = (
+            _states(plot, model)[0]
+            if name == "osdi"
+            else np.stack([plot[f"v(x1.xs_{c.name})"] for c in model.coordinates], axis=-1)
+        )
         runs[name] = (np.asarray(plot["time"]), x)
     t, x = runs["osdi"]
     f_ext = np.zeros(model.ncoords)
@@ -134,10 +147,16 @@ def test_dc_operating_point_is_the_static_equilibrium(model, built, ngspice46, t
     volts = np.round(np.random.default_rng(3).uniform(15, 25, len(names)), 2)
     loads = {"f_z": 0.5, "f_tilt_x": -0.3, "f_tilt_y": 0.2}
     f_ext = np.array([loads.get(f"f_{c.name}", 0.0) * c.port_units[3] for c in model.coordinates])
-    sources = {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | \
-        {k: repr(v) for k, v in loads.items()}
-    bench = Bench(model, built / "levitated_disk_osdi.lib", control=_control(built), sources=sources,
-                  options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+    sources = (
+        {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | {k: repr(v) for k, v in loads.items()}
+    )
+    bench = Bench(
+        model,
+        built / "levitated_disk_osdi.lib",
+        control=_control(built),
+        sources=sources,
+        options="reltol=1e-9 vntol=1e-12 abstol=1e-18",
+    )
     plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
     x_spice = np.array([plot[f"v({osdi.state_node(f'xs_{c.name}')})"][0] for c in model.coordinates])
     mass = np.array([c.mass for c in model.coordinates])
@@ -156,12 +175,20 @@ def test_floating_plate_conserves_charge(model, built, ngspice46, tmp_path):
     sum C_i V_i / sum C_i (zero total charge) within 1e-4 of the swing."""
     names, amp, period = [e.name for e in model.electrodes], 5.0, 200e-9
     stop = 2000 / (2 * len(names)) * period
-    drive = {n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
-             for i, n in enumerate(names)}
+    drive = {
+        n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
+        for i, n in enumerate(names)
+    }
     springs = [f"Bspring_{c.name} f_{c.name} 0 V=-100*v(x_{c.name})" for c in model.coordinates[:3]]
-    bench = Bench(model, built / "levitated_disk_osdi.lib", control=_control(built),
-                  sources={k: p.spice() for k, p in drive.items()}, extra=springs, options="reltol=1e-4 chgtol=1e-20",
-                  driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]})
+    bench = Bench(
+        model,
+        built / "levitated_disk_osdi.lib",
+        control=_control(built),
+        sources={k: p.spice() for k, p in drive.items()},
+        extra=springs,
+        options="reltol=1e-4 chgtol=1e-20",
+        driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]},
+    )
     plot = run_ngspice(bench.netlist(f".tran 20n {stop} 0 20n uic"), tmp_path)[0]
     x, _ = _states(plot, model)
     v_el = np.stack([plot[f"v({n})"] for n in names], axis=-1)

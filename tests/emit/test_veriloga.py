@@ -64,7 +64,7 @@ def test_openvaf_py_compiles_without_warnings(capfd):
     assert len(modules) == 1
     assert "warning" not in (out + err).lower(), out + err
     ports = [p["name"] for p in MacroModel.load_json(JSON).ports()]
-    assert modules[0].get_dae_system()["terminals"] == ports          # same ports, same order as the .lib
+    assert modules[0].get_dae_system()["terminals"] == ports  # same ports, same order as the .lib
 
 
 def _random_points(model: MacroModel, n: int = 200):
@@ -83,12 +83,12 @@ def test_charges_and_forces_match_the_python_model(model, compiled):
     of the force node fn_<q> (V(fn) - F/unit, read at V(fn) = 0), and 1 V on fn_<q> moves the
     velocity equation exactly as 1 V on the port f_<q> does."""
     params = {f"d_{c.name}": c.damping for c in model.coordinates} | {"fel_scale": 1.0, "mfactor": 1.0}
-    unit = np.array([c.port_units[3] for c in model.coordinates])          # SI force per volt on f_<q>
+    unit = np.array([c.port_units[3] for c in model.coordinates])  # SI force per volt on f_<q>
     x, v_el, v_plate = _random_points(model)
     q_va, f_va = np.zeros_like(v_el), np.zeros_like(x)
     for p in range(len(x)):
         full = va_residuals(compiled, va_volts(model, x[p], v_el[p], v_plate[p]), params)
-        still = np.full(len(model.electrodes), v_plate[p])                  # no field: F_el = 0
+        still = np.full(len(model.electrodes), v_plate[p])  # no field: F_el = 0
         base = va_residuals(compiled, va_volts(model, x[p], still, v_plate[p]), params)
         pushed = va_residuals(compiled, va_volts(model, x[p], still, v_plate[p], force=1.0), params)
         nodes = va_volts(model, x[p], still, v_plate[p]) | {f"fn_{c.name}": 1.0 for c in model.coordinates}
@@ -112,16 +112,25 @@ def test_vacask_transient_matches_ngspice(model, tmp_path):
     """The drive of test_ngspice's transient (pulses, a step, gravity on z), 105 us with a 10 ns
     maximum step in both simulators: every coordinate within 1 % of its peak."""
     drive, stop = transient_drive(), 105e-6
-    gravity_port = -model.coordinates[0].mass * 9.81 / model.coordinates[0].port_units[3]   # V on f_z
+    gravity_port = -model.coordinates[0].mass * 9.81 / model.coordinates[0].port_units[3]  # V on f_z
     osdi, _ = compile_va(VA, tmp_path / "levitated_disk.osdi")
-    bench = VacaskBench(model, osdi, sources={k: p.vacask() for k, p in drive.items()}
-                        | {"plate": "dc=0", "f_z": f"dc={gravity_port!r}"}, options="reltol=1e-5 chgtol=1e-18")
+    bench = VacaskBench(
+        model,
+        osdi,
+        sources={k: p.vacask() for k, p in drive.items()} | {"plate": "dc=0", "f_z": f"dc={gravity_port!r}"},
+        options="reltol=1e-5 chgtol=1e-18",
+    )
     start = time.perf_counter()
-    vac = run_vacask(bench.netlist(f'analysis tran1 tran step=10n stop={stop!r} maxstep=10n icmode="uic"'),
-                     tmp_path / "vacask")
+    vac = run_vacask(
+        bench.netlist(f'analysis tran1 tran step=10n stop={stop!r} maxstep=10n icmode="uic"'), tmp_path / "vacask"
+    )
     t_vacask = time.perf_counter() - start
-    spice = Bench(model, LIB, sources={k: p.spice() for k, p in drive.items()}
-                  | {"plate": "0", "f_z": repr(gravity_port)}, options="reltol=1e-5 chgtol=1e-18")
+    spice = Bench(
+        model,
+        LIB,
+        sources={k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity_port)},
+        options="reltol=1e-5 chgtol=1e-18",
+    )
     start = time.perf_counter()
     plot = run_ngspice(spice.netlist(f".tran 10n {stop!r} 0 10n uic"), tmp_path / "ngspice")[0]
     t_ngspice = time.perf_counter() - start
@@ -135,7 +144,7 @@ def test_vacask_transient_matches_ngspice(model, tmp_path):
         err = np.abs(x_vac - x_ng[:, v]).max() / peak
         print(f"{c.name}: peak {peak:.3e} (units of L), max difference {err:.2e} of peak")
         assert peak > 0 and err < 0.01, c.name
-        out = np.interp(t, vac["time"], vac[f"x_{c.name}"])            # the buffered port, in its unit
+        out = np.interp(t, vac["time"], vac[f"x_{c.name}"])  # the buffered port, in its unit
         assert np.allclose(out, x_vac * c.scale / c.port_units[1], rtol=1e-9, atol=1e-12 * peak)
 
 

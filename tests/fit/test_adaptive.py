@@ -17,7 +17,9 @@ from netgen.structure import parse_structure
 from tests.structures import PISTON_3
 
 SIDE, GAP = 200e-6, 2e-6
-PISTON = PISTON_3 + """[sampling]
+PISTON = (
+    PISTON_3
+    + """[sampling]
 {sampling}
 range = 0.3
 [fit]
@@ -25,6 +27,7 @@ holdout = 300
 [electrostatics]
 fringe = "none"
 """
+)
 
 
 def plate_integral(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -35,6 +38,7 @@ def plate_integral(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     def big_h(u):
         return u * np.log(u) - u
+
     out = np.empty_like(c)
     for k in range(len(c)):
         ck, ak, bk = c[k], a[k], b[k]
@@ -45,7 +49,7 @@ def plate_integral(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         elif abs(bk) * h < 1e-9 * ck:
             out[k] = SIDE * 2 * np.arctanh(ak * h / ck) / ak
         elif min(ck - ak * sx * h - bk * sy * h for sx in (-1, 1) for sy in (-1, 1)) <= 0:
-            out[k] = np.nan                                     # a corner touches the electrode
+            out[k] = np.nan  # a corner touches the electrode
         else:
             corners = [(sx, sy) for sx in (-1, 1) for sy in (-1, 1)]
             out[k] = sum(sx * sy * big_h(ck - ak * sx * h - bk * sy * h) for sx, sy in corners) / (ak * bk)
@@ -59,8 +63,9 @@ def piston():
     sign = b.electrodes[0].sign
 
     def analytic(x: np.ndarray) -> np.ndarray:
-        q = x * b.scales                               # z, tilt_x, tilt_y: w = z + tilt_x y - tilt_y x
+        q = x * b.scales  # z, tilt_x, tilt_y: w = z + tilt_x y - tilt_y x
         return EPS0 * plate_integral(GAP - sign * q[:, 0], sign * q[:, 2], -sign * q[:, 1])[:, None]
+
     return b, analytic
 
 
@@ -77,10 +82,11 @@ def test_adaptive_reaches_the_tolerance_with_fewer_points_than_the_grid(piston):
     5-level grid (125 points) is the coarsest full grid that does (3 levels, 27 points, misses)."""
     b, analytic = piston
 
-    def evaluate(x):                                   # touching points dropped, as the sampling does
+    def evaluate(x):  # touching points dropped, as the sampling does
         c = analytic(x)
         keep = ~np.isnan(c[:, 0])
         return Samples(x[keep], c[keep], int((~keep).sum()), x)
+
     s = parse_structure(PISTON.format(sampling='design = "adaptive"\npoints = 120'), "piston3.toml")
     hold_x = np.random.default_rng(9).uniform(-0.3, 0.3, (300, 3))
     holdout = evaluate(hold_x)
@@ -89,7 +95,7 @@ def test_adaptive_reaches_the_tolerance_with_fewer_points_than_the_grid(piston):
     assert result.converged
     assert result.fits[0].max_rel_error <= s.fit.tolerance
     checked = [r["validation_max_rel_error"] for r in result.rounds if "validation_max_rel_error" in r]
-    assert checked and checked[-1] <= SAFETY * s.fit.tolerance      # the stop was confirmed on fresh points
+    assert checked and checked[-1] <= SAFETY * s.fit.tolerance  # the stop was confirmed on fresh points
     grids = {}
     for levels in (3, 5):
         g = parse_structure(PISTON.format(sampling=f"levels = {levels}"), "piston3.toml")

@@ -22,11 +22,10 @@ from netgen.fit.capacitance import CapacitanceFit, fit_capacitance, fit_plates
 from netgen.fit.polynomial import Polynomial, monomial_exponents, monomials
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.structure import parse_structure
-
 from tests.fixtures import REFERENCE, ROOT
 
-ACCEPTANCE = 5e-3          # acceptance: max relative C error on held-out points < 0.5 %
-SEED = 20240611            # our own points, not the pipeline's (seed 1)
+ACCEPTANCE = 5e-3  # acceptance: max relative C error on held-out points < 0.5 %
+SEED = 20240611  # our own points, not the pipeline's (seed 1)
 
 
 # ----------------------------------------------------------------------------- reference example
@@ -39,7 +38,7 @@ def fresh_points(reference_build):
     n = reference_build.model.ncoords
     x = np.random.default_rng(SEED).uniform(-half, half, size=(300, n))
     c = reference_build.prepared.capacitance(x * reference_build.model.scales)
-    keep = ~np.isnan(c).any(axis=1)                       # the extractor reports contact as nan
+    keep = ~np.isnan(c).any(axis=1)  # the extractor reports contact as nan
     assert keep.sum() >= 250, "most of the box must be free of contact"
     return x[keep], c[keep]
 
@@ -61,7 +60,7 @@ def test_reported_errors_consistent_with_measured(reference_model, fresh_points)
     uniform samples, so they should agree within a small factor (measured: 0.6-1.4)."""
     x, c = fresh_points
     measured = np.abs(reference_model.capacitance(x) / c - 1.0).max(axis=0)
-    reported_fits = reference_model.to_dict()["capacitances"]          # what the JSON says
+    reported_fits = reference_model.to_dict()["capacitances"]  # what the JSON says
     reported = np.array([d["max_rel_error"] for d in reported_fits])
     ratio = measured / reported
     assert np.all((ratio > 1 / 3) & (ratio < 3)), f"measured / reported max error: {np.round(ratio, 2)}"
@@ -77,15 +76,16 @@ def interior_gradients(reference_build):
     b, m = reference_build, reference_build.model
     half = b.structure.sampling.range
     x = np.random.default_rng(SEED + 1).uniform(-0.8 * half, 0.8 * half, size=(20, m.ncoords))
-    h = 1e-4    # of the touching amplitude: truncation ~h^2 C''' ~ 1e-8 C, rounding ~1e-16/h ~ 1e-12 C
+    h = 1e-4  # of the touching amplitude: truncation ~h^2 C''' ~ 1e-8 C, rounding ~1e-16/h ~ 1e-12 C
     fd = np.empty((len(x), len(m.electrodes), m.ncoords))
     for v in range(m.ncoords):
         step = np.zeros(m.ncoords)
         step[v] = h
-        fd[:, :, v] = (b.prepared.capacitance((x + step) * m.scales)
-                       - b.prepared.capacitance((x - step) * m.scales)) / (2 * h)
-    analytic = b.prepared.gradient(x * m.scales) * m.scales           # dC/dq * dq/dx
-    model = m.capacitance_gradient(x) * m.scales                       # SI gradient back to dC/dx
+        fd[:, :, v] = (
+            b.prepared.capacitance((x + step) * m.scales) - b.prepared.capacitance((x - step) * m.scales)
+        ) / (2 * h)
+    analytic = b.prepared.gradient(x * m.scales) * m.scales  # dC/dq * dq/dx
+    model = m.capacitance_gradient(x) * m.scales  # SI gradient back to dC/dx
     assert np.isfinite(fd).all() and np.isfinite(analytic).all()
     return fd, analytic, model
 
@@ -143,16 +143,16 @@ def test_monomial_exponents_count_and_content():
         for d in range(0, 4):
             e = monomial_exponents(n, d)
             assert len(e) == math.comb(n + d, d)
-            assert len({tuple(r) for r in e}) == len(e)                 # no duplicates
+            assert len({tuple(r) for r in e}) == len(e)  # no duplicates
             assert e.min() >= 0 and e.sum(axis=1).max(initial=0) <= d
-            assert list(e.sum(axis=1)) == sorted(e.sum(axis=1))        # graded order
+            assert list(e.sum(axis=1)) == sorted(e.sum(axis=1))  # graded order
 
 
 def test_monomials_are_products_of_powers():
     rng = np.random.default_rng(0)
     e = monomial_exponents(3, 3)
     x = rng.uniform(-1, 1, size=(5, 3))
-    direct = np.array([[np.prod(xi ** ek) for ek in e] for xi in x])
+    direct = np.array([[np.prod(xi**ek) for ek in e] for xi in x])
     np.testing.assert_allclose(monomials(x, e), direct, rtol=1e-14, atol=1e-15)
 
 
@@ -174,8 +174,8 @@ def test_polynomial_derivative_and_gradient_vs_finite_differences():
 def test_inverse_fit_recovers_one_parallel_plate_exactly():
     """C = eps A / (g - a.q) is c_ref / (affine): degree-1 "inverse" fit is exact."""
     eps_a, g = EPS0 * 1e-7, 3e-6
-    tilt = np.array([0.9, -0.3, 0.2]) * g                 # gap closed per unit x
-    c_true = lambda x: eps_a / (g - x @ tilt)             # noqa: E731
+    tilt = np.array([0.9, -0.3, 0.2]) * g  # gap closed per unit x
+    c_true = lambda x: eps_a / (g - x @ tilt)  # noqa: E731
     x, x_check = _box(3)
     fit = fit_capacitance("e", x, c_true(x), 1, "inverse", x_check, c_true(x_check))
     assert fit.max_rel_error < 1e-10 and fit.grid_max_rel_error < 1e-10
@@ -206,7 +206,7 @@ def test_plates_fit_recovers_two_parallel_plates():
     def c_true(x):
         return c1 / (a1 + x @ b1) + c2 / (a2 + x @ b2)
 
-    c_ref = c_true(np.zeros((1, 2)))[0]                   # the grid contains the origin
+    c_ref = c_true(np.zeros((1, 2)))[0]  # the grid contains the origin
     # exact P_k = c_ref (a_k + b_k.x) / c_k; start 10-20 % off
     exact = np.array([np.concatenate([[a1], b1]) * c_ref / c1, np.concatenate([[a2], b2]) * c_ref / c2])
     start = exact * np.array([[1.1, 0.8, 1.2], [0.9, 1.15, 0.85]])
@@ -217,14 +217,16 @@ def test_plates_fit_recovers_two_parallel_plates():
     got = sorted((p.coeffs for p in fit.polys), key=lambda r: r[1])
     np.testing.assert_allclose(np.array(got), exact[np.argsort(exact[:, 1])], rtol=1e-6)
     # analytic gradient of the plate sum vs closed form
-    grad = -(c1 * b1[None, :] / ((a1 + x_new @ b1) ** 2)[:, None] + c2 * b2[None, :] / ((a2 + x_new @ b2) ** 2)[:, None])
+    grad = -(
+        c1 * b1[None, :] / ((a1 + x_new @ b1) ** 2)[:, None] + c2 * b2[None, :] / ((a2 + x_new @ b2) ** 2)[:, None]
+    )
     np.testing.assert_allclose(fit.gradient(x_new), grad, rtol=1e-7)
 
 
 def test_fit_errors_are_measured_on_the_given_points():
     """max/rms errors are those of value() against the data passed in (computed here)."""
     x, x_check = _box(2)
-    c = 1e-13 / (1 + 0.5 * x[:, 0]) * (1 + 0.01 * x[:, 1] ** 3)     # not exactly representable
+    c = 1e-13 / (1 + 0.5 * x[:, 0]) * (1 + 0.01 * x[:, 1] ** 3)  # not exactly representable
     c_check = 1e-13 / (1 + 0.5 * x_check[:, 0]) * (1 + 0.01 * x_check[:, 1] ** 3)
     fit = fit_capacitance("e", x, c, 1, "inverse", x_check, c_check)
     held = np.abs(fit.value(x_check) / c_check - 1)
@@ -257,7 +259,7 @@ def test_inverse_degree2_builds_and_reports_errors(inverse_quadratic_build, tmp_
     np.testing.assert_allclose(m.scales, [g, g / r, g / r], rtol=1e-6)
     # the reported held-out errors, recomputed with an independent basis (rigid: 1, y, -x)
     plate = plate_outline(s)
-    rigid = lambda x, y: np.column_stack([np.ones_like(x), y, -x])      # noqa: E731
+    rigid = lambda x, y: np.column_stack([np.ones_like(x), y, -x])  # noqa: E731
     prepared = extractor(s, plate).prepare(electrodes(s), plate, rigid)
     x_check = holdout_points(3, s.fit.holdout, s.sampling.range, s.fit.seed)
     c_check = prepared.capacitance(x_check * m.scales)
@@ -268,6 +270,7 @@ def test_inverse_degree2_builds_and_reports_errors(inverse_quadratic_build, tmp_
     assert m.sampling["samples"] == 27 and m.sampling["target"] == "inverse" and m.sampling["degree"] == 2
     # and it emits: the JSON carries the errors, the .lib lists them
     from netgen.emit import write_outputs
+
     lib, js = write_outputs(m, tmp_path)
     text = lib.read_text()
     for f in m.capacitances:

@@ -29,14 +29,14 @@ def test_a_term_crossing_zero_inside_the_points_is_not():
     """1 - x/2 is negative at x = 3: the term's pole at x = 2 lies among the points."""
     x = np.linspace(0, 3, 7)[:, None]
     f = fit_of([1.0, -0.5], [2.0, 0.3])
-    assert not physical(f, x[:4], x[4:])             # the check points alone reveal it
+    assert not physical(f, x[:4], x[4:])  # the check points alone reveal it
     assert physical(f, x[:4], x[:4])
 
 
 def test_a_model_with_such_a_term_is_refused_naming_the_electrode_and_the_fix():
     s = parse_structure(PISTON.format(sampling="levels = 3"), "piston3.toml")
     x = np.linspace(0, 3, 7)[:, None]
-    refuse_unphysical(s, [fit_of([2.0, 0.3])], x, x)                  # physical: nothing said
+    refuse_unphysical(s, [fit_of([2.0, 0.3])], x, x)  # physical: nothing said
     try:
         refuse_unphysical(s, [fit_of([1.0, -0.5])], x[:4], x[4:])
     except StructureError as exc:

@@ -24,7 +24,7 @@ def adaptive_build():
 def test_rest_gradient_is_the_parallel_plate_slope(adaptive_build):
     b = adaptive_build
     rest = rest_of(b.prepared, b.scales)
-    slope = EPS0 * SIDE**2 / GAP**2 * b.scales[0]                # per unit of the scaled z
+    slope = EPS0 * SIDE**2 / GAP**2 * b.scales[0]  # per unit of the scaled z
     assert rest.c[0] == pytest.approx(EPS0 * SIDE**2 / GAP, rel=1e-9)
     assert abs(rest.grad[0, 0]) == pytest.approx(slope, rel=1e-9)
     assert np.all(np.abs(rest.grad[0, 1:]) < 1e-9 * slope)

@@ -48,5 +48,7 @@ def disk_minus_cross(radius: float, slot: float) -> float:
 
 def quadrants(r_in: float, r_out: float, offset: float = 0.0, slot: float = SLOT, tag: str = "") -> list[AnnularSector]:
     """Four slotted quadrant sectors."""
-    return [AnnularSector(f"{tag}{k}", r_in, r_out, offset + k * math.pi / 2, offset + (k + 1) * math.pi / 2, slot)
-            for k in range(4)]
+    return [
+        AnnularSector(f"{tag}{k}", r_in, r_out, offset + k * math.pi / 2, offset + (k + 1) * math.pi / 2, slot)
+        for k in range(4)
+    ]

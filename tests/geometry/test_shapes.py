@@ -9,7 +9,6 @@ import math
 import pytest
 
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Rectangle
-
 from tests.geometry.references import SLOT, corner_radius, disk_minus_cross, green_area, quadrants
 
 R = 500e-6  # plate radius

@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netgen.constants import GASES
-from netgen.mechanics import squeeze_film as sf
-from netgen.emit.ngspice import subcircuit
-from netgen.model import MacroModel
 from netgen.build import build_model
+from netgen.constants import GASES
+from netgen.emit.ngspice import subcircuit
+from netgen.mechanics import squeeze_film as sf
+from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT, Bench
@@ -34,14 +34,19 @@ from tests.structures import disk, ring_electrode
 K_B = 1.380649e-23
 MU_AIR = 1.85e-5
 
-SMALL = disk("damped_disk", "one-mode disk for the damping tests", "473 um", "10 um", kind=None) + "".join(
-    ring_electrode(name, side, "3 um", [("20 um", "473 um")], sectors=4, slot="10 um")
-    for name, side in (("top", "above"), ("bot", "below"))) + """[coordinates]
+SMALL = (
+    disk("damped_disk", "one-mode disk for the damping tests", "473 um", "10 um", kind=None)
+    + "".join(
+        ring_electrode(name, side, "3 um", [("20 um", "473 um")], sectors=4, slot="10 um")
+        for name, side in (("top", "above"), ("bot", "below"))
+    )
+    + """[coordinates]
 rigid = ["z"]
 modes = ["2,0c"]
 [fem]
 refine = 5
 """
+)
 
 
 def small_model(damping: str) -> MacroModel:
@@ -55,6 +60,7 @@ def uniform(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ Reynolds solver
+
 
 @pytest.mark.parametrize("radius, gap", [(473e-6, 3e-6), (100e-6, 1e-6)])
 def test_reynolds_circular_plate(radius, gap):
@@ -87,7 +93,7 @@ def test_compressible_reynolds_vs_blech(sigma):
     fem = sf.compressible_admittance(mesh, uniform, 0, gap, MU_AIR, pa, omega)
     ref = sf.rectangular_plate_blech_complex(MU_AIR, length, width, gap, pa, omega)
     assert abs(fem - ref) < 0.02 * abs(ref)
-    assert ref.imag < 0 and abs(ref.imag) > 0.05 * ref.real          # the film is also a spring here
+    assert ref.imag < 0 and abs(ref.imag) > 0.05 * ref.real  # the film is also a spring here
 
 
 def test_pole_residue_model_vs_blech():
@@ -106,6 +112,7 @@ def circular_plate_compressible(mu: float, radius: float, gap: float, pressure: 
     -lap p + i k p = 12 mu / g^3 gives B = (12 mu / (i k g^3)) pi a^2 (1 - 2 I1(s a) / (s a I0(s a))),
     s = sqrt(i k), k = 12 mu omega / (g^2 p_a); its k -> 0 limit is 3 pi mu a^4 / (2 g^3)."""
     from scipy.special import iv
+
     kappa = 12.0 * mu * omega / (gap**2 * pressure)
     x = np.sqrt(1j * kappa) * radius
     return complex(12.0 * mu / (1j * kappa * gap**3) * math.pi * radius**2 * (1 - 2 * iv(1, x) / (x * iv(0, x))))
@@ -143,6 +150,7 @@ def test_compressible_network_mode_vs_direct_solve(film_model):
     spring (2.8 kN/m) exceeds the plate's modal stiffness (1.2 kN/m): the incompressible model
     would be badly wrong there."""
     from netgen.mechanics import mechanics
+
     s = parse_structure(SMALL + "[damping]\n" + COMPRESSIBLE, "damped_disk.toml")
     m = mechanics(s)
     mesh = sf.disk_mesh(473e-6, 5)
@@ -153,14 +161,14 @@ def test_compressible_network_mode_vs_direct_solve(film_model):
         ref = 2 * sf.compressible_admittance(mesh, m.basis, 1, 3e-6, mu, 101325.0, w)
         assert abs(mode.admittance(w) - ref) < 0.02 * abs(ref), freq
     w0 = 2 * math.pi * mode.frequency_hz
-    assert -w0 * mode.admittance(w0).imag > mode.stiffness      # at 1 atm the gas spring outweighs the plate's
+    assert -w0 * mode.admittance(w0).imag > mode.stiffness  # at 1 atm the gas spring outweighs the plate's
 
 
 def test_compressible_network_round_trips_json(film_model):
     """The branches survive the JSON (the emitters' input); incompressible models carry none."""
     again = MacroModel.from_dict(film_model.to_dict())
     assert again.coordinates == film_model.coordinates
-    assert all(not c.film for c in small_model('squeeze_film = true\n').coordinates)
+    assert all(not c.film for c in small_model("squeeze_film = true\n").coordinates)
 
 
 def test_compressible_network_in_ngspice_ac(film_model, tmp_path):
@@ -174,11 +182,16 @@ def test_compressible_network_in_ngspice_ac(film_model, tmp_path):
     lib = tmp_path / "film.lib"
     lib.write_text(subcircuit(film_model, noise=False))
     freqs = [5e3, 20e3, 100e3, 300e3]
-    bench = Bench(film_model, lib, sources={"plate": "0"}, driven_elsewhere={"f_z"},
-                  extra=["Vac f_z fsp DC 0 AC 1", f"Bsp fsp 0 V={-k * xf / ff!r}*v(x_z)"])
+    bench = Bench(
+        film_model,
+        lib,
+        sources={"plate": "0"},
+        driven_elsewhere={"f_z"},
+        extra=["Vac f_z fsp DC 0 AC 1", f"Bsp fsp 0 V={-k * xf / ff!r}*v(x_z)"],
+    )
     plot = run_ngspice(bench.netlist(".ac dec 40 1k 400k"), tmp_path)[0]
     f = np.real(plot["frequency"])
-    h = plot["v(x_z)"] * xf / ff                                   # m per N
+    h = plot["v(x_z)"] * xf / ff  # m per N
     mu = sf.effective_viscosity(GASES["air"], 101325.0, 3e-6)
     for freq in freqs:
         w = 2 * math.pi * freq
@@ -205,11 +218,19 @@ def test_compressible_network_veriloga_matches_ngspice(film_model, tmp_path):
     lib = tmp_path / "film.lib"
     lib.write_text(subcircuit(film_model, noise=False))
     step = "PULSE(0 1 1u 10n 10n 1 2)"
-    spice = run_ngspice(Bench(film_model, lib, sources={"plate": "0", "f_m2_0c": step}, options="reltol=1e-5")
-                        .netlist(".tran 20n 40u 0 20n uic"), tmp_path)[0]
+    spice = run_ngspice(
+        Bench(film_model, lib, sources={"plate": "0", "f_m2_0c": step}, options="reltol=1e-5").netlist(
+            ".tran 20n 40u 0 20n uic"
+        ),
+        tmp_path,
+    )[0]
     vsrc = 'type="pulse" val0=0 val1=1 delay=1u rise=10n fall=10n width=1 period=2'
-    vac = run_vacask(VacaskBench(film_model, osdi, sources={"plate": "dc=0", "f_m2_0c": vsrc})
-                     .netlist('analysis tran1 tran step=20n stop=40u maxstep=20n icmode="uic"'), tmp_path)
+    vac = run_vacask(
+        VacaskBench(film_model, osdi, sources={"plate": "dc=0", "f_m2_0c": vsrc}).netlist(
+            'analysis tran1 tran step=20n stop=40u maxstep=20n icmode="uic"'
+        ),
+        tmp_path,
+    )
     t = np.linspace(0, 40e-6, 801)
     a = np.interp(t, spice["time"], spice["v(x1.xs_m2_0c)"])
     b = np.interp(t, vac["time"], vac["x1:xs_m2_0c"])
@@ -228,17 +249,21 @@ def test_pipeline_squeeze_film_z():
 
 # ------------------------------------------------------------------ structure file
 
-@pytest.mark.parametrize("table, message", [
-    ("q_factor = {m2_0x = 100}", "did you mean 'm2_0c'"),
-    ("qfactor = 100", "did you mean 'q_factor'"),
-    ("q_factor = {z = 100}", "rigid coordinate"),
-    ("q_factor = 0.2", "must exceed 0.5"),
-    ("damping_ratio = {m2_0c = 0.1}\nq_factor = {m2_0c = 5}", "both q_factor and damping_ratio"),
-    ('gas = "aire"', "did you mean 'air'"),
-    ('pressure = "1 psi"', "not a pressure unit"),
-    ("rayleigh = {alpha = 1, gama = 2}", "unknown key 'gama'"),
-    ("noise = 1", "true or false"),
-])
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ("q_factor = {m2_0x = 100}", "did you mean 'm2_0c'"),
+        ("qfactor = 100", "did you mean 'q_factor'"),
+        ("q_factor = {z = 100}", "rigid coordinate"),
+        ("q_factor = 0.2", "must exceed 0.5"),
+        ("damping_ratio = {m2_0c = 0.1}\nq_factor = {m2_0c = 5}", "both q_factor and damping_ratio"),
+        ('gas = "aire"', "did you mean 'air'"),
+        ('pressure = "1 psi"', "not a pressure unit"),
+        ("rayleigh = {alpha = 1, gama = 2}", "unknown key 'gama'"),
+        ("noise = 1", "true or false"),
+    ],
+)
 def test_damping_table_errors(table, message):
     """Mistakes in [damping] are StructureErrors naming the key and a fix."""
     with pytest.raises(StructureError, match=message):
@@ -251,12 +276,14 @@ def test_modal_and_rayleigh_damping_in_model():
     z, mode = model.coordinates
     w0 = 2 * math.pi * mode.frequency_hz
     assert z.damping == pytest.approx(100.0 * z.mass, rel=1e-12)
-    assert mode.damping == pytest.approx(2 * 0.01 * mode.mass * w0 + 100.0 * mode.mass + 1e-9 * mode.stiffness,
-                                         rel=1e-12)
+    assert mode.damping == pytest.approx(
+        2 * 0.01 * mode.mass * w0 + 100.0 * mode.mass + 1e-9 * mode.stiffness, rel=1e-12
+    )
     assert MacroModel.from_dict(model.to_dict()).coordinates[1].damping == mode.damping
 
 
 # ------------------------------------------------------------------ ngspice
+
 
 def ringdown(model: MacroModel, tmp_path: Path, periods: int = 60) -> tuple[float, float]:
     """Free decay of mode m2_0c from xs = 0.01 in ngspice; envelope decay rate (1/s) and w0."""
@@ -277,7 +304,7 @@ def decay_rate(t: np.ndarray, x: np.ndarray) -> float:
     denom = y0 - 2 * y1 + y2
     peaks = y1 - (y2 - y0) ** 2 / (8 * denom)
     tp = t[i] + (t[i + 1] - t[i]) * 0.5 * (y0 - y2) / denom
-    keep = slice(1, None)                                     # skip the start-up peak
+    keep = slice(1, None)  # skip the start-up peak
     return -np.polyfit(tp[keep], np.log(peaks[keep]), 1)[0]
 
 
@@ -298,7 +325,7 @@ def test_ringdown_matches_reynolds(tmp_path):
 def test_thermal_noise_equipartition(tmp_path):
     """Noise on, no drive, Q = 1: variance of the mode amplitude over 5 ms (~1500 decay times,
     expected scatter ~3 %) is k_B T / k within 10 %."""
-    model = small_model("q_factor = 1\nnoise = true\ntemperature = \"300 K\"\n")
+    model = small_model('q_factor = 1\nnoise = true\ntemperature = "300 K"\n')
     mode = model.coordinates[1]
     lib = tmp_path / "noisy.lib"
     lib.write_text(subcircuit(model))
@@ -306,7 +333,7 @@ def test_thermal_noise_equipartition(tmp_path):
     bench = Bench(model, lib, sources={"plate": "0"}, options="vntol=1e-15 abstol=1e-20 seed=1")
     plot = run_ngspice(bench.netlist(f".tran {dt} 5m 0 {dt} uic"), tmp_path)[0]
     t, q = plot["time"], plot["v(x1.xs_m2_0c)"] * mode.scale
-    settled = np.arange(20 * 2 * mode.mass / mode.damping, t[-1], dt)     # past 20 decay times
+    settled = np.arange(20 * 2 * mode.mass / mode.damping, t[-1], dt)  # past 20 decay times
     variance = np.var(np.interp(settled, t, q))
     assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10)
 
@@ -331,6 +358,7 @@ def test_compressible_film_noise_equipartition(film_model, tmp_path):
 def noise_dt(lib_text: str) -> str:
     """The noise sample interval the emitter chose (subcircuit parameter noise_dt)."""
     import re
+
     return re.search(r"noise_dt=([0-9.eE+-]+)", lib_text).group(1)
 
 
@@ -338,7 +366,7 @@ def test_noise_sources_follow_damping():
     """One trnoise source per damped coordinate, rms sqrt(2 k_B T b / dt); none when switched off."""
     model = small_model("q_factor = 2\nnoise = true\n")
     text = subcircuit(model)
-    assert text.count("TRNOISE(") == 1 and "params: noise=1" in text      # z is undamped
+    assert text.count("TRNOISE(") == 1 and "params: noise=1" in text  # z is undamped
     assert "TRNOISE(" not in subcircuit(model, noise=False)
 
 
@@ -358,6 +386,7 @@ def test_veriloga_white_noise_compiles(tmp_path):
 
 # ------------------------------------------------------------------ sigma-delta options (gas, noise)
 
+
 def test_sigma_delta_gas_and_noise_options(tmp_path):
     """`netgen sigma-delta --pressure --noise` rebuilds the model with the film at that pressure
     and trnoise sources, runs the loop (rigid-only, 128 cycles), and summary.json gives the
@@ -370,8 +399,22 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     from netgen.testbench.sigma_delta import runner as sd_runner
 
     out = tmp_path / "sd"
-    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--rigid-only",
-                     "--pressure", "100 Pa", "--noise", "--cycles", "128", "-o", str(out), "-q", "--no-plots"])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(ROOT / "examples" / "levitated_disk.toml"),
+            "--rigid-only",
+            "--pressure",
+            "100 Pa",
+            "--noise",
+            "--cycles",
+            "128",
+            "-o",
+            str(out),
+            "-q",
+            "--no-plots",
+        ]
+    )
     assert code == 0
     folder = sd_runner.model_folder(out, True, 100.0, None, True)
     assert "TRNOISE(" in (folder / "levitated_disk.lib").read_text()
@@ -387,22 +430,26 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     assert summary["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.05)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--noise", "--simulator", "vacask"], "--noise needs --simulator ngspice"),
-    (["--pressure", "1 psi"], "not a pressure unit"),
-    (["--pressure", "-5"], "must be a positive, finite pressure"),
-    (["--dither", "-0.1"], "--dither -0.1 must be between 0"),
-    (["--segment", "8"], "argument --segment: 8: periods per segment must be between 16"),
-    (["--reltol", "0.5"], "--reltol 0.5 is outside 1e-7..1e-2"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--noise", "--simulator", "vacask"], "--noise needs --simulator ngspice"),
+        (["--pressure", "1 psi"], "not a pressure unit"),
+        (["--pressure", "-5"], "must be a positive, finite pressure"),
+        (["--dither", "-0.1"], "--dither -0.1 must be between 0"),
+        (["--segment", "8"], "argument --segment: 8: periods per segment must be between 16"),
+        (["--reltol", "0.5"], "--reltol 0.5 is outside 1e-7..1e-2"),
+    ],
+)
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
     """Bad gas, noise, dither, segment or tolerance options: exit 2 with the reason, no traceback,
     nothing built."""
     from netgen import cli
+
     out = tmp_path / "sd"
     try:
         code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "-o", str(out), *args])
-    except SystemExit as exc:                       # argparse's own range checks (netgen.arguments)
+    except SystemExit as exc:  # argparse's own range checks (netgen.arguments)
         code = exc.code
     assert code == 2 and message in capsys.readouterr().err
     assert not out.exists()

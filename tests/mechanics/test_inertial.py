@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen.build import build_model
 from netgen.emit.ngspice import subcircuit
 from netgen.emit.veriloga import module
-from netgen.build import build_model
 from netgen.sim.ngspice import run_ngspice
-from netgen.structure import StructureError, load_structure, parse_structure
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
+from netgen.structure import StructureError, load_structure, parse_structure
 from tests.fixtures import ROOT, Bench
 
-ACCEL = 100.0                                                     # m/s^2 (about 10 g)
+ACCEL = 100.0  # m/s^2 (about 10 g)
 
 
 def with_port(name: str) -> str:
@@ -57,7 +57,7 @@ def test_cantilever_tip_deflection_under_uniform_inertial_load(tmp_path):
     c = s.conductor
     model = build_model(parse_structure(with_port("cantilever.toml"), "cantilever.toml"))
     q = op_positions(model, tmp_path, ACCEL)
-    tip = sum(q.values())                       # modes normalised to a tip (peak) deflection of 1
+    tip = sum(q.values())  # modes normalised to a tip (peak) deflection of 1
     inertia = c.width * c.thickness**3 / 12
     expected = -c.density * c.width * c.thickness * ACCEL * c.length**4 / (8 * c.youngs_modulus * inertia)
     assert tip == pytest.approx(expected, rel=0.01)
@@ -105,5 +105,6 @@ def test_acceleration_port_must_be_a_flag():
 def test_reference_model_has_no_acceleration_port():
     """Off by default: the committed reference netlists keep their port list."""
     from netgen.model import MacroModel
+
     model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
     assert not model.acceleration and "a_in" not in [p["name"] for p in model.ports()]

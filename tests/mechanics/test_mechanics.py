@@ -15,8 +15,7 @@ from netgen.mechanics.kirchhoff import free_plate_lambda2_exact
 
 # design.md, free circular Kirchhoff plate, lambda^2 for (2,0), (0,1), (3,0), (1,1), (4,0)
 TABLE_NS = [(2, 0), (0, 1), (3, 0), (1, 1), (4, 0)]
-TABLE = {0.30: [5.3583, 9.0031, 12.4390, 20.4746, 21.8352],
-         0.33: [5.2620, 9.0689, 12.2439, 20.5131, 21.5272]}
+TABLE = {0.30: [5.3583, 9.0031, 12.4390, 20.4746, 21.8352], 0.33: [5.2620, 9.0689, 12.2439, 20.5131, 21.5272]}
 
 # the paper's plate (design.md "Reference example")
 R, H, E, NU, RHO = 473e-6, 10e-6, 160e9, 0.22, 2330.0
@@ -56,6 +55,7 @@ def analytic_radial(n, s, nu, r):
 
 # ------------------------------------------------------------------ exact frequency equation
 
+
 @pytest.mark.parametrize("nu", sorted(TABLE))
 def test_exact_equation_matches_design_table(nu):
     got = [free_plate_lambda2_exact(n, s, nu) for n, s in TABLE_NS]
@@ -93,6 +93,7 @@ def test_exact_equation_rejects_rigid_motions():
 
 # -------------------------------------------------------------------------- FEM vs table
 
+
 def test_fem_lambda2_matches_design_table(table_modes):
     nu, modes = table_modes
     expected = {f"{n},{s}": v for (n, s), v in zip(TABLE_NS, TABLE[nu])}
@@ -100,17 +101,17 @@ def test_fem_lambda2_matches_design_table(table_modes):
         key = label.rstrip("cs")
         assert lam2 == pytest.approx(expected[key], rel=5e-3), label
     lam = dict(zip(modes.labels, modes.lambda2))
-    for n in ("2,0", "3,0", "1,1", "4,0"):   # degenerate pairs: both members, same lambda^2
+    for n in ("2,0", "3,0", "1,1", "4,0"):  # degenerate pairs: both members, same lambda^2
         assert lam[n + "c"] == pytest.approx(lam[n + "s"], rel=1e-3)
 
 
 def test_fem_int_request_labels_pairs_in_order(table_modes):
     _, modes = table_modes
-    assert modes.labels == ("2,0c", "2,0s", "0,1", "3,0c", "3,0s",
-                            "1,1c", "1,1s", "4,0c", "4,0s")
+    assert modes.labels == ("2,0c", "2,0s", "0,1", "3,0c", "3,0s", "1,1c", "1,1s", "4,0c", "4,0s")
 
 
 # ---------------------------------------------------------------------- reference example
+
 
 def test_reference_frequencies_match_paper(ref):
     f = dict(zip(ref.labels, ref.frequencies_hz))
@@ -129,12 +130,13 @@ def test_reference_lambda2_matches_exact_equation(ref):
 def test_reference_frequency_from_lambda2_definition(ref):
     """f = lambda^2 / (2 pi a^2) sqrt(D / (rho h)), D = E h^3 / (12 (1 - nu^2))."""
     d = E * H**3 / (12 * (1 - NU**2))
-    np.testing.assert_allclose(ref.frequencies_hz,
-                               ref.lambda2 / (2 * np.pi * R**2) * np.sqrt(d / (RHO * H)),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        ref.frequencies_hz, ref.lambda2 / (2 * np.pi * R**2) * np.sqrt(d / (RHO * H)), rtol=1e-12
+    )
 
 
 # ------------------------------------------------------------------------ masses, stiffness
+
 
 def test_rigid_disk_against_volume_quadrature():
     radius, h, rho = 473e-6, 10e-6, 2330.0
@@ -172,6 +174,7 @@ def test_modal_stiffness_is_omega_squared_modal_mass(ref):
 
 # ------------------------------------------------------------- side conditions and shapes
 
+
 def test_modes_orthogonal_to_rigid_motions(ref):
     assert max(ref.orthogonality[k] for k in ("phi", "x_phi", "y_phi")) < 1e-8
     assert ref.orthogonality["mass_offdiag"] < 1e-8
@@ -183,24 +186,32 @@ def test_side_conditions_by_independent_quadrature(ref):
     x, y, w = polar_grid(R)
     phi = ref.shape(x, y).reshape(*x.shape, -1)
     norm = np.sqrt(np.einsum("rt,rtm->m", w, phi**2))
-    for weight, scale in ((1.0, np.sqrt(np.pi * R**2)), (x, np.sqrt(np.pi * R**4 / 4)),
-                          (y, np.sqrt(np.pi * R**4 / 4))):
+    for weight, scale in ((1.0, np.sqrt(np.pi * R**2)), (x, np.sqrt(np.pi * R**4 / 4)), (y, np.sqrt(np.pi * R**4 / 4))):
         moment = np.einsum("rt,rtm->m", w * weight, phi)
         assert np.all(np.abs(moment) / (scale * norm) < 1e-3)
 
 
-@pytest.mark.parametrize("label,n,func", [("2,0c", 2, np.cos), ("2,0s", 2, np.sin),
-                                          ("3,0c", 3, np.cos), ("3,0s", 3, np.sin),
-                                          ("1,1c", 1, np.cos), ("1,1s", 1, np.sin)])
+@pytest.mark.parametrize(
+    "label,n,func",
+    [
+        ("2,0c", 2, np.cos),
+        ("2,0s", 2, np.sin),
+        ("3,0c", 3, np.cos),
+        ("3,0s", 3, np.sin),
+        ("1,1c", 1, np.cos),
+        ("1,1s", 1, np.sin),
+    ],
+)
 def test_cos_sin_alignment_on_rim(ref, label, n, func):
     theta = np.linspace(0, 2 * np.pi, 361)[:-1]
     w = ref.shape(0.99 * R * np.cos(theta), 0.99 * R * np.sin(theta))[:, ref.labels.index(label)]
-    assert np.corrcoef(w, func(n * theta))[0, 1] > 0.999   # also fixes the sign
+    assert np.corrcoef(w, func(n * theta))[0, 1] > 0.999  # also fixes the sign
 
 
 def test_sign_convention_at_reference_points(ref):
     def at(label, angle):
         return ref.shape([R * np.cos(angle)], [R * np.sin(angle)])[0, ref.labels.index(label)]
+
     assert at("2,0c", 0) > 0.99 and at("3,0c", 0) > 0.99
     assert at("2,0s", np.pi / 4) > 0.99 and at("3,0s", np.pi / 6) > 0.99
     assert at("0,1", 1.0) > 0
@@ -209,24 +220,24 @@ def test_sign_convention_at_reference_points(ref):
 def test_shapes_are_max_normalised(ref):
     x, y, _ = polar_grid(R, nr=120, nt=720)
     peak = np.abs(ref.shape(x, y)).max(axis=0)
-    rim = np.abs(ref.shape(R * np.cos(np.linspace(0, 6.3, 2000)),
-                           R * np.sin(np.linspace(0, 6.3, 2000)))).max(axis=0)
+    rim = np.abs(ref.shape(R * np.cos(np.linspace(0, 6.3, 2000)), R * np.sin(np.linspace(0, 6.3, 2000)))).max(axis=0)
     np.testing.assert_allclose(np.maximum(peak, rim), 1.0, atol=1e-3)
 
 
-@pytest.mark.parametrize("label,angle", [("2,0c", 0.0), ("2,0s", np.pi / 4), ("3,0s", np.pi / 6),
-                                         ("0,1", 0.7), ("1,1c", 0.0)])
+@pytest.mark.parametrize(
+    "label,angle", [("2,0c", 0.0), ("2,0s", np.pi / 4), ("3,0s", np.pi / 6), ("0,1", 0.7), ("1,1c", 0.0)]
+)
 def test_shape_matches_analytic_bessel_mode(ref, label, angle):
     n, s = (int(v) for v in label.rstrip("cs").split(","))
     r = np.linspace(0, 1, 201)
     exact = analytic_radial(n, s, NU, r)
-    exact *= np.sign(exact[-1]) / np.abs(exact).max()   # max-normalised, positive rim
+    exact *= np.sign(exact[-1]) / np.abs(exact).max()  # max-normalised, positive rim
     fem = ref.shape(R * r * np.cos(angle), R * r * np.sin(angle))[:, ref.labels.index(label)]
     assert np.abs(fem - exact).max() < 0.02
 
 
 def test_shape_accepts_rim_points_between_mesh_vertices(ref):
-    theta = np.linspace(0, 2 * np.pi, 1001)   # almost never on a boundary vertex
+    theta = np.linspace(0, 2 * np.pi, 1001)  # almost never on a boundary vertex
     on_rim = ref.shape(R * np.cos(theta), R * np.sin(theta))
     inside = ref.shape(0.999 * R * np.cos(theta), 0.999 * R * np.sin(theta))
     assert np.all(np.isfinite(on_rim))
@@ -236,6 +247,7 @@ def test_shape_accepts_rim_points_between_mesh_vertices(ref):
 
 
 # ----------------------------------------------------------------------- paper coupling terms
+
 
 def test_rotation_mode_coupling_vanishes(ref):
     """Paper: A = rho int x x G dV vanishes for vertical-only G by the side conditions."""
@@ -258,12 +270,14 @@ def test_inertia_correction_is_second_order_mode_mass(ref):
 
 
 def test_inertia_correction_below_paper_bound_within_sampling_range():
-    modes = free_disk_modes(R, H, E, NU, RHO, ["2,0c", "2,0s", "3,0c", "3,0s"], refine=4,
-                            reference_amplitude=0.2 * 3e-6)
+    modes = free_disk_modes(
+        R, H, E, NU, RHO, ["2,0c", "2,0s", "3,0c", "3,0s"], refine=4, reference_amplitude=0.2 * 3e-6
+    )
     assert modes.coupling["inertia_correction_rel_max"] < 1e-5
 
 
 # ------------------------------------------------------------------------------ requests
+
 
 @pytest.mark.parametrize("bad", ["1,0c", "0,0", "2,0", "0,1c", "x", "2,0q"])
 def test_bad_labels_raise(bad):

@@ -64,7 +64,7 @@ def test_flexure_closed_forms_match_the_frame_solve(name):
     if n:
         assert closed[across] == pytest.approx(n * E * f.thickness * f.width**3 / f.length**3, rel=1e-12)
         assert closed["z"] == pytest.approx(n * E * f.width * f.thickness**3 / f.length**3, rel=1e-12)
-    assert solved["coupling"] < 1e-6              # four mirrored units: no coupling between coordinates
+    assert solved["coupling"] < 1e-6  # four mirrored units: no coupling between coordinates
 
 
 def test_crab_leg_limits():
@@ -95,8 +95,9 @@ def test_perforated_mass_inertia_against_a_brute_force_integral():
     inert = proof_mass.inertia(c)
     assert c.mass == pytest.approx(m, rel=1e-3)
     assert inert["rot_z"] == pytest.approx(RHO * c.thickness * da * np.sum(solid * (X**2 + Y**2)), rel=1e-3)
-    assert inert["tilt_x"] == pytest.approx(RHO * c.thickness * da * np.sum(solid * Y**2) + m * c.thickness**2 / 12,
-                                            rel=1e-3)
+    assert inert["tilt_x"] == pytest.approx(
+        RHO * c.thickness * da * np.sum(solid * Y**2) + m * c.thickness**2 / 12, rel=1e-3
+    )
 
 
 STRUCTURE = """
@@ -141,8 +142,12 @@ def ring_down(model, lib: Path, workdir: Path, coordinate: str, freq: float, per
     c = next(c for c in model.coordinates if c.name == coordinate)
     force = 0.05 * c.scale * c.stiffness / c.port_units[3]
     t_end = periods / freq
-    bench = Bench(model, lib, sources={f"f_{coordinate}": f"PWL(0 {force!r} 10n {force!r} 11n 0)", "plate": "0"},
-                  options="reltol=1e-7 abstol=1e-15 vntol=1e-12")
+    bench = Bench(
+        model,
+        lib,
+        sources={f"f_{coordinate}": f"PWL(0 {force!r} 10n {force!r} 11n 0)", "plate": "0"},
+        options="reltol=1e-7 abstol=1e-15 vntol=1e-12",
+    )
     plot = run_ngspice(bench.netlist(f".tran {t_end / 4000!r} {t_end!r} 0 {t_end / 4000!r}"), workdir)[0]
     t, x = plot["time"], plot[f"x1.xs_{coordinate}"]
     s = np.sign(x)
@@ -158,6 +163,7 @@ def test_in_plane_modes_ring_down_at_sqrt_k_over_m(tmp_path, release, monkeypatc
     4 E w t / L, rot_z against the model's k_rot / I_zz with I_zz = m (L^2 + W^2) / 12 by hand."""
     from netgen.sim import ngspice as sim_ngspice
     from tests.fixtures import NGSPICE
+
     monkeypatch.setenv(sim_ngspice.ENV, NGSPICE[release])
     b = build(parse_structure(STRUCTURE, "pm.toml"))
     lib = tmp_path / "pm.lib"
@@ -165,21 +171,27 @@ def test_in_plane_modes_ring_down_at_sqrt_k_over_m(tmp_path, release, monkeypatc
     m = RHO * 300e-6 * 200e-6 * 2e-6
     k = {"x": 4 * E * 2e-6 * (2e-6) ** 3 / (100e-6) ** 3, "y": 4 * E * 2e-6 * 2e-6 / 100e-6}
     rot = next(c for c in b.model.coordinates if c.name == "rot_z")
-    expected = {"x": math.sqrt(k["x"] / m), "y": math.sqrt(k["y"] / m),
-                "rot_z": math.sqrt(rot.stiffness / (m * ((300e-6) ** 2 + (200e-6) ** 2) / 12))}
+    expected = {
+        "x": math.sqrt(k["x"] / m),
+        "y": math.sqrt(k["y"] / m),
+        "rot_z": math.sqrt(rot.stiffness / (m * ((300e-6) ** 2 + (200e-6) ** 2) / 12)),
+    }
     for name, w in expected.items():
         f = ring_down(b.model, lib, tmp_path, name, w / (2 * math.pi))
         assert f == pytest.approx(w / (2 * math.pi), rel=1e-3), name
 
 
-@pytest.mark.parametrize("edit, where, word", [
-    (('type = "clamped_guided"', 'type = "spring"'), "conductor.flexure.type", "spring"),
-    (('rigid = ["x", "y", "rot_z"]', 'rigid = ["x", "spin"]'), "coordinates.rigid", "spin"),
-    (('overlap = "25 um"', 'overlap = "45 um"'), "electrodes[0].overlap", "shorter"),
-    (('side = "+"', 'side = "up"'), "electrodes[0].side", "up"),
-    (('hole = "0 um"', 'hole = "12 um"'), "conductor.hole_pitch", "hole grid"),
-    (('kind = "transverse_comb"', 'kind = "comb"'), "electrodes[0].kind", "comb"),
-])
+@pytest.mark.parametrize(
+    "edit, where, word",
+    [
+        (('type = "clamped_guided"', 'type = "spring"'), "conductor.flexure.type", "spring"),
+        (('rigid = ["x", "y", "rot_z"]', 'rigid = ["x", "spin"]'), "coordinates.rigid", "spin"),
+        (('overlap = "25 um"', 'overlap = "45 um"'), "electrodes[0].overlap", "shorter"),
+        (('side = "+"', 'side = "up"'), "electrodes[0].side", "up"),
+        (('hole = "0 um"', 'hole = "12 um"'), "conductor.hole_pitch", "hole grid"),
+        (('kind = "transverse_comb"', 'kind = "comb"'), "electrodes[0].kind", "comb"),
+    ],
+)
 def test_proof_mass_input_errors(edit, where, word):
     """Mistakes in a proof mass or its combs: StructureError naming the file, key and fix."""
     with pytest.raises(StructureError) as err:
@@ -196,12 +208,16 @@ def test_squeeze_film_of_the_perforated_mass(hole):
     from netgen.mechanics import mechanics
     from netgen.mechanics import squeeze_film as sf
     from netgen.mechanics.damping import damping
+
     plate = '[[electrodes]]\nname = "zs"\nside = "below"\ngap = "2 um"\n[coordinates]'
-    text = STRUCTURE.replace('rigid = ["x", "y", "rot_z"]', 'rigid = ["x", "z"]').replace("[coordinates]", plate) \
-        + '[damping]\nsqueeze_film = true\nq_factor = { x = 30 }\n'
+    text = (
+        STRUCTURE.replace('rigid = ["x", "y", "rot_z"]', 'rigid = ["x", "z"]').replace("[coordinates]", plate)
+        + "[damping]\nsqueeze_film = true\nq_factor = { x = 30 }\n"
+    )
     if hole:
-        text = text.replace('hole = "0 um"', f'hole = "{hole * 1e6:g} um"').replace('hole_pitch = "0 um"',
-                                                                                  'hole_pitch = "10 um"')
+        text = text.replace('hole = "0 um"', f'hole = "{hole * 1e6:g} um"').replace(
+            'hole_pitch = "0 um"', 'hole_pitch = "10 um"'
+        )
     s = parse_structure(text, "pm.toml")
     m = mechanics(s)
     d, _ = damping(s, m)
@@ -212,7 +228,7 @@ def test_squeeze_film_of_the_perforated_mass(hole):
     print(f"hole {hole:g} m: FEM {d[iz]:.6e} N*s/m, series {ref:.6e}, ratio {d[iz] / ref - 1:+.2e}")
     assert d[iz] == pytest.approx(ref, rel=0.01)
     ix = m.names.index("x")
-    assert d[ix] == pytest.approx(2 * m.masses[ix] * 2 * math.pi * m.frequencies[ix] / 60, rel=1e-9)   # Q only
+    assert d[ix] == pytest.approx(2 * m.masses[ix] * 2 * math.pi * m.frequencies[ix] / 60, rel=1e-9)  # Q only
     if hole:
         assert ref < 0.5 * sf.rectangular_plate_series(mu, 300e-6, 200e-6, 2e-6)
 
@@ -221,15 +237,16 @@ def test_free_body_accelerates_as_newton_says(tmp_path):
     """type = "none": a free proof mass, no springs; a constant force on f_x in ngspice moves it by
     F t^2 / (2 m) (m by hand) within 0.1 % over 20 us, and nothing else moves."""
     import re
+
     text = re.sub(r"\[conductor.flexure\][^\[]*", '[conductor.flexure]\ntype = "none"\n', STRUCTURE)
     model = build(parse_structure(text, "free.toml")).model
     assert all(c.stiffness == 0.0 for c in model.coordinates)
     lib = tmp_path / "free.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
-    m, force, stop = RHO * 300e-6 * 200e-6 * 2e-6, 0.1e-6, 20e-6                  # kg, N (0.1 V on f_x), s
+    m, force, stop = RHO * 300e-6 * 200e-6 * 2e-6, 0.1e-6, 20e-6  # kg, N (0.1 V on f_x), s
     bench = Bench(model, lib, sources={"f_x": "DC 0.1", "plate": "0"}, options="reltol=1e-7")
     plot = run_ngspice(bench.netlist(f".tran 20n {stop!r} 0 20n uic"), tmp_path)[0]
     x = plot["x1.xs_x"][-1] * model.coordinates[0].scale
     assert x == pytest.approx(force * stop**2 / (2 * m), rel=1e-3)
-    assert x < 0.2 * model.coordinates[0].scale                                  # inside the sampled box
+    assert x < 0.2 * model.coordinates[0].scale  # inside the sampled box
     assert abs(plot["x1.xs_y"]).max() < 1e-9 and abs(plot["x1.xs_rot_z"]).max() < 1e-9

@@ -19,13 +19,13 @@ from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics.rect_plate import EffectivePlate, rect_plate_modes
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT
-from tests.structures import plate_electrode
 from tests.mechanics.test_proof_mass import ring_down
+from tests.structures import plate_electrode
 
 # lambda^2 = omega a^2 sqrt(rho h / D) of the square plate, nu = 0.3
-LEISSA_CCCC = [35.992, 73.413, 73.413, 108.27, 131.64, 132.24]       # Leissa 1973, C-C-C-C, a/b = 1
-LEISSA_FFFF = [13.489, 19.789, 24.432, 35.024, 35.024]               # Leissa 1973, F-F-F-F, a/b = 1 (Ritz)
-GORMAN_FFFF = [13.468, 19.596, 24.270, 34.801, 34.801, 61.093]       # Gorman 1978, superposition
+LEISSA_CCCC = [35.992, 73.413, 73.413, 108.27, 131.64, 132.24]  # Leissa 1973, C-C-C-C, a/b = 1
+LEISSA_FFFF = [13.489, 19.789, 24.432, 35.024, 35.024]  # Leissa 1973, F-F-F-F, a/b = 1 (Ritz)
+GORMAN_FFFF = [13.468, 19.596, 24.270, 34.801, 34.801, 61.093]  # Gorman 1978, superposition
 
 
 def square(boundary: str, count: int, elements: int = 24, **kw):
@@ -67,8 +67,8 @@ def test_degenerate_pair_has_definite_parity_and_peak_one():
     rng = np.random.default_rng(3)
     x, y = rng.uniform(-0.5, 0.5, 50), rng.uniform(-0.5, 0.5, 50)
     here, mirror = m.shape(x, y), m.shape(-x, y)
-    assert np.abs(mirror[:, 3] - here[:, 3]).max() < 1e-8           # even
-    assert np.abs(mirror[:, 4] + here[:, 4]).max() < 1e-8           # odd
+    assert np.abs(mirror[:, 3] - here[:, 3]).max() < 1e-8  # even
+    assert np.abs(mirror[:, 4] + here[:, 4]).max() < 1e-8  # odd
     grid = np.linspace(-0.5, 0.5, 41)
     gx, gy = np.meshgrid(grid, grid)
     assert np.abs(m.shape(gx, gy)).max(axis=0) == pytest.approx(1.0, abs=1e-6)
@@ -89,7 +89,8 @@ def test_effective_perforated_plate_against_the_holes_in_the_mesh():
     assert abs(err[2]) < 0.08
 
 
-STRUCTURE = """
+STRUCTURE = (
+    """
 name = "pm_modes"
 [conductor]
 kind = "proof_mass"
@@ -102,7 +103,9 @@ poisson_ratio = 0.3
 [conductor.flexure]
 type = "given"
 k_z = 1.0
-""" + plate_electrode("corner", "below", "2 um", ("20 um", "90 um"), ("20 um", "90 um")) + """[coordinates]
+"""
+    + plate_electrode("corner", "below", "2 um", ("20 um", "90 um"), ("20 um", "90 um"))
+    + """[coordinates]
 rigid = ["z"]
 modes = 2
 acceleration_port = true
@@ -111,6 +114,7 @@ fringe = "none"
 [sampling]
 levels = 3
 """
+)
 
 
 @pytest.mark.parametrize("release", ["39", "46"])
@@ -120,6 +124,7 @@ def test_first_internal_mode_rings_down_at_gorman_frequency(tmp_path, release, m
     the free modes take no frame acceleration (orthogonal to the translation)."""
     from netgen.sim import ngspice as sim_ngspice
     from tests.fixtures import NGSPICE
+
     monkeypatch.setenv(sim_ngspice.ENV, NGSPICE[release])
     b = build(parse_structure(STRUCTURE, "pm_modes.toml"))
     assert [c.name for c in b.model.coordinates] == ["z", "m1", "m2"]
@@ -135,7 +140,7 @@ def test_first_internal_mode_rings_down_at_gorman_frequency(tmp_path, release, m
 def test_perforated_mass_takes_the_frame_acceleration_of_its_own_mass():
     """With etch holes, the a_in participation of z is the perforated mass (solid fraction 0.84
     of the rectangle's), the mass the dynamics carries: no 1/0.84 error in the sensitivity."""
-    text = STRUCTURE.replace('poisson_ratio = 0.3', 'poisson_ratio = 0.3\nhole = "4 um"\nhole_pitch = "10 um"')
+    text = STRUCTURE.replace("poisson_ratio = 0.3", 'poisson_ratio = 0.3\nhole = "4 um"\nhole_pitch = "10 um"')
     text = text.replace("modes = 2", "modes = 0")
     s = parse_structure(text, "pm_holes.toml")
     b = build(s)
@@ -161,9 +166,12 @@ def test_flexure_springs_on_the_modes_against_the_plate_with_point_springs():
 
     from netgen.mechanics import flexures, mechanics, rect_plate
     from netgen.mechanics.free_disk import bending_form, mass_form
+
     text = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
-    text = text.replace('rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]',
-                        'rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]\nmodes = 3')
+    text = text.replace(
+        'rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]',
+        'rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]\nmodes = 3',
+    )
     s = parse_structure(text, "accelerometer_xyz.toml")
     m, c = mechanics(s), s.conductor
     got = m.frequencies[-3:]

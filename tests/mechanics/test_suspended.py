@@ -23,10 +23,10 @@ import pytest
 from netgen.build import build
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
+from netgen.mechanics.beam import euler_bernoulli_frequency
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import StructureError, parse_structure
-from netgen.mechanics.beam import euler_bernoulli_frequency
 from tests.fixtures import ROOT, Bench, va_residuals, va_volts
 
 EPS0 = 8.8541878128e-12
@@ -43,8 +43,9 @@ def _build(tmp_path: Path, name: str, edit=None):
     return b, lib
 
 
-def dc_pull_in(model: MacroModel, lib: Path, workdir: Path, v_max: float, coordinate: str,
-               points: int = 2000) -> tuple[float, float, float]:
+def dc_pull_in(
+    model: MacroModel, lib: Path, workdir: Path, v_max: float, coordinate: str, points: int = 2000
+) -> tuple[float, float, float]:
     """ngspice DC sweep of the electrode voltage 0..v_max: (V_PI, travel xs at the fold from the
     vertex of V^2(x) through the last 8 stable points, the last stable sweep voltage)."""
     electrode = model.electrodes[0].name
@@ -54,12 +55,13 @@ def dc_pull_in(model: MacroModel, lib: Path, workdir: Path, v_max: float, coordi
     jumps = np.flatnonzero(np.diff(x) < -0.05)
     assert len(jumps), "no pull-in inside the sweep"
     j = int(jumps[0])
-    c = np.polyfit(x[j - 7:j + 1], v[j - 7:j + 1] ** 2, 2)
+    c = np.polyfit(x[j - 7 : j + 1], v[j - 7 : j + 1] ** 2, 2)
     x_pi = -c[1] / (2 * c[0])
     return math.sqrt(np.polyval(c, x_pi)), float(x_pi), float(v[j])
 
 
 # ------------------------------------------------------------------ piston
+
 
 def test_piston_pull_in_ngspice_dc_sweep(tmp_path):
     """Rigid plate on a spring, pure parallel plate (fringe off): V_PI = sqrt(8 k g^3 / (27 eps A))
@@ -79,8 +81,12 @@ def test_piston_pull_in_ngspice_dc_sweep(tmp_path):
 def test_piston_mechanics_and_tilt_coordinates():
     """Mass, spring and frequency of the piston; tilts need a tilt spring (StructureError otherwise)."""
     text = (ROOT / "examples" / "piston.toml").read_text()
-    s = parse_structure(text.replace("# tilt_stiffness = 1e-7", "tilt_stiffness = 1e-7")
-                        .replace('rigid = ["z"]', 'rigid = ["z", "tilt_x", "tilt_y"]'), "p.toml")
+    s = parse_structure(
+        text.replace("# tilt_stiffness = 1e-7", "tilt_stiffness = 1e-7").replace(
+            'rigid = ["z"]', 'rigid = ["z", "tilt_x", "tilt_y"]'
+        ),
+        "p.toml",
+    )
     m = mechanics(s)
     mass = 200e-6 * 200e-6 * 2e-6 * 2330
     assert m.masses == pytest.approx([mass, mass * (200e-6) ** 2 / 12, mass * (200e-6) ** 2 / 12], rel=1e-12)
@@ -93,8 +99,10 @@ def test_piston_mechanics_and_tilt_coordinates():
 # ------------------------------------------------------------------ beams: frequencies
 
 # Euler-Bernoulli roots beta_n L: clamped-clamped cosh cos = 1, cantilever cosh cos = -1
-BETA_L = {"clamped_clamped_beam": [4.730040744862704, 7.853204624095838, 10.995607838001671],
-          "cantilever": [1.875104068711961, 4.694091132974175, 7.854757438237613]}
+BETA_L = {
+    "clamped_clamped_beam": [4.730040744862704, 7.853204624095838, 10.995607838001671],
+    "cantilever": [1.875104068711961, 4.694091132974175, 7.854757438237613],
+}
 
 
 @pytest.mark.parametrize("name", ["cc_beam", "cantilever"])
@@ -115,38 +123,67 @@ def test_beam_frequencies_match_euler_bernoulli(name):
 
 # ------------------------------------------------------------------ beams: pull-in
 
-def distributed_pull_in(kind: str, length: float, width: float, thickness: float, modulus: float,
-                        gap: float, stress: float = 0.0, stretching: bool = False,
-                        elements: int = 48) -> tuple[float, float]:
+
+def distributed_pull_in(
+    kind: str,
+    length: float,
+    width: float,
+    thickness: float,
+    modulus: float,
+    gap: float,
+    stress: float = 0.0,
+    stretching: bool = False,
+    elements: int = 48,
+) -> tuple[float, float]:
     """Pull-in (V, peak deflection / gap) of the distributed beam EI w'''' - N w'' = eps0 b V^2 /
     (2 (g - w)^2), N = N0 + E A / (2 L) int w'^2 (stretching), by Hermite finite elements and
     displacement-controlled Newton continuation on the peak deflection: an independent
     discretisation (no modal truncation, no capacitance fit, no circuit simulator)."""
     h, n = length / elements, elements
     ei, ea, n0 = modulus * width * thickness**3 / 12, modulus * width * thickness, stress * width * thickness
-    kb = ei / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h],
-                               [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    kg = 1 / (30 * h) * np.array([[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h],
-                                  [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]])
+    kb = (
+        ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    kg = (
+        1
+        / (30 * h)
+        * np.array(
+            [
+                [36, 3 * h, -36, 3 * h],
+                [3 * h, 4 * h * h, -3 * h, -h * h],
+                [-36, -3 * h, 36, -3 * h],
+                [3 * h, -h * h, -3 * h, 4 * h * h],
+            ]
+        )
+    )
     nd = 2 * n + 2
     K, G = np.zeros((nd, nd)), np.zeros((nd, nd))
     for e in range(n):
-        K[2 * e:2 * e + 4, 2 * e:2 * e + 4] += kb
-        G[2 * e:2 * e + 4, 2 * e:2 * e + 4] += kg
+        K[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += kb
+        G[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += kg
     s, wq = np.polynomial.legendre.leggauss(8)
     s, wq = (s + 1) / 2, wq / 2
-    shp = np.stack([1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-s**2 + s**3)], 1)
+    shp = np.stack([1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-(s**2) + s**3)], 1)
     fixed = [0, 1] + ([nd - 2, nd - 1] if kind == "clamped_clamped_beam" else [])
     free = np.array([i for i in range(nd) if i not in fixed])
-    probe = n if kind == "clamped_clamped_beam" else 2 * n          # mid-span or tip deflection dof
+    probe = n if kind == "clamped_clamped_beam" else 2 * n  # mid-span or tip deflection dof
     k_probe = int(np.flatnonzero(free == probe)[0])
 
-    dofs = 2 * np.arange(n)[:, None] + np.arange(4)[None, :]         # (elements, 4)
+    dofs = 2 * np.arange(n)[:, None] + np.arange(4)[None, :]  # (elements, 4)
     rows, cols = np.broadcast_to(dofs[:, :, None], (n, 4, 4)), np.broadcast_to(dofs[:, None, :], (n, 4, 4))
     weight = EPS0 * width / 2 * wq * h
 
-    def load(u):                      # electrostatic load per unit V^2 and its tangent
-        gl = gap - u[dofs] @ shp.T                                       # (elements, gauss)
+    def load(u):  # electrostatic load per unit V^2 and its tangent
+        gl = gap - u[dofs] @ shp.T  # (elements, gauss)
         f, J = np.zeros(nd), np.zeros((nd, nd))
         np.add.at(f, dofs, (weight / gl**2) @ shp)
         np.add.at(J, (rows, cols), np.einsum("eg,gi,gj->eij", 2 * weight / gl**3, shp, shp))
@@ -174,7 +211,7 @@ def distributed_pull_in(kind: str, length: float, width: float, thickness: float
         u, p = solve(dc, u, p)
         if p > best[0]:
             best = (p, dc, u.copy(), p)
-    lo, hi = best[1] - 0.02 * gap, best[1] + 0.02 * gap          # golden section on the fold
+    lo, hi = best[1] - 0.02 * gap, best[1] + 0.02 * gap  # golden section on the fold
     gr = (math.sqrt(5) - 1) / 2
     for _ in range(24):
         a, b = hi - gr * (hi - lo), lo + gr * (hi - lo)
@@ -207,11 +244,14 @@ def _published(kind: str, c, gap: float) -> float:
     return math.sqrt(lam / 6 * c.youngs_modulus * c.thickness**3 * gap**3 / (EPS0 * c.length**4))
 
 
-@pytest.mark.parametrize("name,stress,stretching", [
-    ("cantilever", None, False),
-    ("cc_beam", 0.0, False),
-    ("cc_beam", 10e6, True),
-])
+@pytest.mark.parametrize(
+    "name,stress,stretching",
+    [
+        ("cantilever", None, False),
+        ("cc_beam", 0.0, False),
+        ("cc_beam", 10e6, True),
+    ],
+)
 def test_beam_pull_in_ngspice_dc_sweep(tmp_path, name, stress, stretching):
     """Beams over a full-length electrode (3 modes, pure parallel plate), ngspice DC sweep:
     - without stress stiffening: V_PI against the published numbers (see the test above) within 3 %;
@@ -219,19 +259,22 @@ def test_beam_pull_in_ngspice_dc_sweep(tmp_path, name, stress, stretching):
       nonlinear stiffness): against the distributed solver with the same physics within 3 %, and
       stiffer than the unstressed beam by the same factor within 1 %.
     Measured: cantilever and unstressed fixed-fixed beam within 0.1 % of the published values."""
+
     def edit(text):
         if stress is not None:
             text = text.replace('residual_stress = "0 MPa"', f'residual_stress = "{stress / 1e6:g} MPa"')
             text = text.replace("stretching = true", f"stretching = {str(stretching).lower()}")
         return text
+
     b, lib = _build(tmp_path, name, edit)
     c, gap = b.structure.conductor, b.structure.electrode_sets[0].gap
     assert bool(b.model.nonlinear) == stretching
     if not stretching and not stress:
         ref = _published(c.kind, c, gap)
     else:
-        ref, _ = distributed_pull_in(c.kind, c.length, c.width, c.thickness, c.youngs_modulus, gap,
-                                     stress or 0.0, stretching)
+        ref, _ = distributed_pull_in(
+            c.kind, c.length, c.width, c.thickness, c.youngs_modulus, gap, stress or 0.0, stretching
+        )
     v_pi, x_pi, v_last = dc_pull_in(b.model, lib, tmp_path, 1.1 * ref, "m1")
     assert v_pi == pytest.approx(ref, rel=0.03)
     assert v_last == pytest.approx(ref, rel=0.03)
@@ -256,10 +299,11 @@ def test_nonlinear_stiffness_round_trips_and_matches_the_stretching_energy(tmp_p
     energy = c.youngs_modulus * c.width * c.thickness / (8 * c.length) * (s11 * q * q) ** 2
     assert model.nonlinear_energy_polynomial()(np.array([[0.5, 0, 0]]))[0] == pytest.approx(energy, rel=1e-3)
     f = again.nonlinear_force(np.array([[-0.4, 0.0, 0.0]]))[0]
-    assert f[0] > 0                                                      # restoring: pushes back up
+    assert f[0] > 0  # restoring: pushes back up
     lib = emit_ngspice.subcircuit(model)
     assert lib.count("Bnl_m") == 3
     from netgen.emit.veriloga import module
+
     assert "fnl_m1 = " in module(model)
 
 
@@ -269,11 +313,17 @@ def test_suspended_structure_errors():
     cases = [
         (text.replace('x = ["0 um", "300 um"]', 'x = ["310 um", "400 um"]'), "electrodes[0].x", "outside"),
         (text.replace("modes = 3 ", "modes = 30 "), "coordinates.modes", "modes"),
-        (text.replace('residual_stress = "0 MPa"', 'residual_stress = "-1 GPa"'), "conductor.residual_stress",
-         "buckles"),
+        (
+            text.replace('residual_stress = "0 MPa"', 'residual_stress = "-1 GPa"'),
+            "conductor.residual_stress",
+            "buckles",
+        ),
         (text.replace('kind = "clamped_clamped_beam"', 'kind = "clamped_beam"'), "conductor.kind", "did you mean"),
-        ((ROOT / "examples" / "cantilever.toml").read_text().replace("elements = 60", 'residual_stress = "5 MPa"'),
-         "conductor.residual_stress", "free end"),
+        (
+            (ROOT / "examples" / "cantilever.toml").read_text().replace("elements = 60", 'residual_stress = "5 MPa"'),
+            "conductor.residual_stress",
+            "free end",
+        ),
     ]
     for bad, where, word in cases:
         with pytest.raises(StructureError) as err:
@@ -288,8 +338,10 @@ def test_veriloga_nonlinear_restoring_force_matches_the_python_model(tmp_path):
     penalty where a state reaches them) of the Python model within 1e-9 relative: -K q in the
     velocity equation, the rest in the force node fn_<q> (netgen.emit.veriloga)."""
     import openvaf_py
+
     from netgen.emit.veriloga import module
     from netgen.sim.vacask import compile_va
+
     b, _ = _build(tmp_path, "cc_beam")
     model = b.model
     va = tmp_path / "cc_beam.va"
@@ -308,10 +360,13 @@ def test_veriloga_nonlinear_restoring_force_matches_the_python_model(tmp_path):
         res = va_residuals(compiled, va_volts(model, x[p], [0.0], 0.0), params)
         # the linear spring acts in the velocity equation; the nonlinear force (strain energy,
         # contact) is the force node fn_<q>'s residual V(fn) - F/unit, read at V(fn) = 0
-        f_va = [unit[v] * (res[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
-                / (pushed[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
-                - unit[v] * (res[f"fn_{c.name}"][0] - base[f"fn_{c.name}"][0])
-                for v, c in enumerate(model.coordinates)]
-        f_py = -k * model.scales * x[p] + model.nonlinear_force(x[p:p + 1])[0] + model.contact_force(x[p], 0 * x[p])
+        f_va = [
+            unit[v]
+            * (res[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
+            / (pushed[f"u_{c.name}"][0] - base[f"u_{c.name}"][0])
+            - unit[v] * (res[f"fn_{c.name}"][0] - base[f"fn_{c.name}"][0])
+            for v, c in enumerate(model.coordinates)
+        ]
+        f_py = -k * model.scales * x[p] + model.nonlinear_force(x[p : p + 1])[0] + model.contact_force(x[p], 0 * x[p])
         assert np.allclose(f_va, f_py, rtol=1e-9, atol=1e-12 * np.abs(f_py).max())
     assert np.abs(model.nonlinear_force(x)).max() > 1e-3 * np.abs(k * model.scales * x).max()

@@ -10,21 +10,18 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from netgen.model import contact
-from netgen.model import MacroModel
-from netgen.sim.ngspice import run_ngspice
+from netgen.model import MacroModel, contact
+from netgen.sim.ngspice import ENV, run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
-from netgen.sim.ngspice import ENV
 from tests.fixtures import EMISSIONS, NGSPICE, ROOT, Bench, emission_id, emitted_library, states
 
 NETLISTS = ROOT / "netlists"
 VOLTS = 20.0
-STOP = 30e-6          # the plate reaches the stop after about 21 us
+STOP = 30e-6  # the plate reaches the stop after about 21 us
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +41,7 @@ def test_clamp_is_identity_above_the_knee_c1_and_bounded():
     np.testing.assert_array_equal(pe[above], p[above])
     assert np.all(pe >= floor) and np.all(np.diff(pe) >= 0)
     numeric = np.gradient(pe, p)
-    assert np.abs(numeric - slope)[1:-1].max() < 1e-3                     # slope is dP_eff/dP, continuous
+    assert np.abs(numeric - slope)[1:-1].max() < 1e-3  # slope is dP_eff/dP, continuous
     pen, w = contact.penetration(p, 0.1)
     assert np.all(pen[p <= 0] == 0) and np.abs(np.gradient(pen, p) - w)[1:-1].max() < 1e-3
 
@@ -62,15 +59,17 @@ def test_lone_coordinates_stop_at_their_touching_amplitude(model):
     a = np.array([p["a"] for p in model.contact["points"]])
     np.testing.assert_allclose(a.max(axis=0), 1.0, rtol=1e-9)
     np.testing.assert_allclose(a.min(axis=0), -1.0, rtol=1e-9)
-    assert len(a) < 100                                                     # a compact stop set
+    assert len(a) < 100  # a compact stop set
 
 
 def _rest_reference(model: MacroModel, x_end: np.ndarray) -> float:
     """xs_z where clamped electrostatic pull and contact push balance (other coordinates as simulated)."""
+
     def net(z: float) -> float:
         x = x_end.copy()
         x[0] = z
         return model.electrostatic_force(x, _drive(model), 0.0)[0][0] + model.contact_force(x, np.zeros_like(x))[0]
+
     return brentq(net, 1.0, 1.05, xtol=1e-12)
 
 
@@ -78,8 +77,8 @@ def _check_rest(model: MacroModel, time: np.ndarray, x: np.ndarray) -> None:
     rest = time > STOP - 5e-6
     assert np.isfinite(x).all()
     z_ref = _rest_reference(model, x[-1])
-    assert 1.0 < z_ref < 1.002                                              # touch-down + tiny penetration
-    assert np.abs(x[rest, 0] - z_ref).max() < 1e-4                         # at rest, on the static balance
+    assert 1.0 < z_ref < 1.002  # touch-down + tiny penetration
+    assert np.abs(x[rest, 0] - z_ref).max() < 1e-4  # at rest, on the static balance
     # the plate rests on the few stop points of the upper side: the undamped modes ring and the
     # tilts follow at a few 1e-3 of their touching amplitudes, never more than 1 %
     assert np.abs(x[rest, 1:]).max() < 1e-2
@@ -95,7 +94,7 @@ def test_ngspice_plate_pulled_in_rests_at_the_stop(model, release, style, tmp_pa
     bench = Bench(model, lib, sources=sources, options="reltol=1e-4 chgtol=1e-18", control=control)
     plot = run_ngspice(bench.netlist(f".tran 100n {STOP} 0 100n uic"), tmp_path)[0]
     x, _ = states(plot, model)
-    assert plot["time"][-1] == pytest.approx(STOP)                          # the run finished
+    assert plot["time"][-1] == pytest.approx(STOP)  # the run finished
     _check_rest(model, plot["time"], x)
 
 
@@ -103,8 +102,7 @@ def test_vacask_plate_pulled_in_rests_at_the_stop(model, tmp_path):
     osdi, _ = compile_va(NETLISTS / "levitated_disk.va", tmp_path / "levitated_disk.osdi")
     sources = {e.name: f"dc={VOLTS}" for e in model.electrodes if e.name.startswith("top")} | {"plate": "dc=0"}
     bench = VacaskBench(model, osdi, sources=sources)
-    plot = run_vacask(bench.netlist(f'analysis tran1 tran step=100n stop={STOP} maxstep=100n icmode="uic"'),
-                      tmp_path)
+    plot = run_vacask(bench.netlist(f'analysis tran1 tran step=100n stop={STOP} maxstep=100n icmode="uic"'), tmp_path)
     x = np.stack([plot[f"x1:xs_{c.name}"] for c in model.coordinates], axis=-1)
     assert plot["time"][-1] == pytest.approx(STOP)
     _check_rest(model, plot["time"], x)

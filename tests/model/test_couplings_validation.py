@@ -20,8 +20,11 @@ def doc() -> dict:
     d = MacroModel.load_json(JSON).to_dict()
     a, b = d["electrodes"][0]["name"], d["electrodes"][1]["name"]
     d["coupling"] = [{"pair": [a, b], "capacitance": 1e-14}]
-    d["calibration"] = {"source": "test", "points": 3,
-                        "fringe": [{"electrode": a, "a": 0.4, "b": 0.06, "length": 4.73e-4}]}
+    d["calibration"] = {
+        "source": "test",
+        "points": 3,
+        "fringe": [{"electrode": a, "a": 0.4, "b": 0.06, "length": 4.73e-4}],
+    }
     return d
 
 
@@ -38,21 +41,34 @@ def _set(path, value):
         for k in head:
             d = d[k]
         d[last] = value
+
     return change
 
 
 BAD = {
     "negative": (_set(["coupling", 0, "capacitance"], -1e-15), "coupling[0].capacitance", "negative"),
-    "self": (lambda d: d["coupling"][0]["pair"].__setitem__(1, d["coupling"][0]["pair"][0]), "coupling[0].pair",
-             "to itself"),
-    "twice": (lambda d: d["coupling"].append({"pair": d["coupling"][0]["pair"][::-1], "capacitance": 1e-14}),
-              "coupling[1].pair", "given twice"),
+    "self": (
+        lambda d: d["coupling"][0]["pair"].__setitem__(1, d["coupling"][0]["pair"][0]),
+        "coupling[0].pair",
+        "to itself",
+    ),
+    "twice": (
+        lambda d: d["coupling"].append({"pair": d["coupling"][0]["pair"][::-1], "capacitance": 1e-14}),
+        "coupling[1].pair",
+        "given twice",
+    ),
     "string value": (_set(["coupling", 0, "capacitance"], "1e-14"), "coupling[0].capacitance", "not a finite number"),
     "unknown electrode": (_set(["coupling", 0, "pair", 1], "nowhere"), "coupling[0].pair[1]", "not one of"),
-    "fringe electrode": (_set(["calibration", "fringe", 0, "electrode"], "nowhere"), "calibration.fringe[0].electrode",
-                         "not one of"),
-    "fringe length": (_set(["calibration", "fringe", 0, "length"], 0.0), "calibration.fringe[0].length",
-                      "not a positive"),
+    "fringe electrode": (
+        _set(["calibration", "fringe", 0, "electrode"], "nowhere"),
+        "calibration.fringe[0].electrode",
+        "not one of",
+    ),
+    "fringe length": (
+        _set(["calibration", "fringe", 0, "length"], 0.0),
+        "calibration.fringe[0].length",
+        "not a positive",
+    ),
     "fringe b": (_set(["calibration", "fringe", 0, "b"], None), "calibration.fringe[0].b", "not a finite number"),
     "record": (_set(["calibration"], []), "calibration", "must be an object"),
 }

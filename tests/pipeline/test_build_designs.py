@@ -11,14 +11,13 @@ import pytest
 
 from netgen.build import build
 from netgen.structure import StructureError, parse_structure
-
 from tests.fixtures import ROOT
 
 PISTON = (ROOT / "examples/piston.toml").read_text()
 
 
 def _piston(sampling: str, fit: str = "") -> str:
-    text = PISTON.replace("rigid = [\"z\"]", 'rigid = ["z", "tilt_x", "tilt_y"]')
+    text = PISTON.replace('rigid = ["z"]', 'rigid = ["z", "tilt_x", "tilt_y"]')
     text = text.replace("# tilt_stiffness = 1e-7", "tilt_stiffness = 1e-7")
     text = text.replace("levels = 5\nrange = 0.6", sampling + "\nrange = 0.3")
     return text + (f"\n[fit]\n{fit}\n" if fit else "")
@@ -41,8 +40,12 @@ def test_a_design_over_max_minutes_is_refused_with_the_fix(tmp_path):
     path = tmp_path / "p.toml"
     path.write_text(_piston("levels = 9"))
     out = tmp_path / "out"
-    run = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(path), "-o", str(out),
-                          "--max-minutes", "1e-6"], capture_output=True, text=True, cwd=ROOT)
+    run = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "build", str(path), "-o", str(out), "--max-minutes", "1e-6"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert run.returncode == 2, run.stderr
     assert "[sampling] design" in run.stderr and "729 samples" in run.stderr and 'design = "sparse"' in run.stderr
     assert "over --max-minutes 1e-06" in run.stderr and "Traceback" not in run.stderr
@@ -52,8 +55,12 @@ def test_a_design_over_max_minutes_is_refused_with_the_fix(tmp_path):
 def test_the_estimate_is_printed_and_the_design_recorded(tmp_path):
     path = tmp_path / "p.toml"
     path.write_text(_piston('design = "lhs"\npoints = 64\nseed = 5'))
-    run = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(path), "-o", str(tmp_path / "o"),
-                          "--no-plots"], capture_output=True, text=True, cwd=ROOT)
+    run = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "build", str(path), "-o", str(tmp_path / "o"), "--no-plots"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert run.returncode == 0, run.stderr
     assert "lhs design: 64 samples + 500 check points; estimated extractor" in run.stderr
     sampling = json.loads((tmp_path / "o" / "piston.json").read_text())["sampling"]

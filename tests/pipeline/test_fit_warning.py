@@ -19,13 +19,16 @@ from tests.fixtures import ROOT
 from tests.structures import ONE_PLATE_GAP, ONE_PLATE_RADIUS, one_plate_disk
 
 RADIUS, GAP = ONE_PLATE_RADIUS, ONE_PLATE_GAP
-MISSES = one_plate_disk("one_plate", "Rigid free disk over one electrode under the whole disk, one plate term: misses 2e-3") + """[sampling]
+MISSES = (
+    one_plate_disk("one_plate", "Rigid free disk over one electrode under the whole disk, one plate term: misses 2e-3")
+    + """[sampling]
 levels = 3
 range = 0.2
 [fit]
 max_terms = 1
 tolerance = 2e-3
 """
+)
 WARNING = "WARNING: the capacitance fit of electrode bot_r1s1 misses fit.tolerance"
 
 
@@ -51,7 +54,7 @@ def test_a_missed_tolerance_warns_everywhere(tmp_path, capsys):
     x = np.random.default_rng(0).uniform(-0.2, 0.2, (300, 3))
     closed = np.array([tilted_disk(model, p) for p in x])
     independent = float(np.abs(model.capacitance(x)[:, 0] / closed - 1).max())
-    assert independent > 2e-3                                  # the warning is true
+    assert independent > 2e-3  # the warning is true
     validity = json.loads((out / "one_plate.json").read_text())["validity"]
     missed = validity["fit_tolerance_missed"]
     assert [m["electrode"] for m in missed] == ["bot_r1s1"] and missed[0]["tolerance"] == 2e-3
@@ -79,8 +82,22 @@ def test_strict_refuses_a_missed_tolerance(tmp_path, capsys):
 def test_a_met_tolerance_is_silent(tmp_path, capsys):
     """The piston (its fit is exact) builds under --strict without a warning anywhere."""
     out = tmp_path / "out"
-    assert main(["build", str(ROOT / "examples" / "piston.toml"), "-o", str(out), "--strict", "--no-plots",
-                 "-q", "--format", "all"]) == 0
+    assert (
+        main(
+            [
+                "build",
+                str(ROOT / "examples" / "piston.toml"),
+                "-o",
+                str(out),
+                "--strict",
+                "--no-plots",
+                "-q",
+                "--format",
+                "all",
+            ]
+        )
+        == 0
+    )
     assert "warning" not in capsys.readouterr().err
     assert "fit_warning" not in (out / "piston.json").read_text()
     assert all("misses fit.tolerance" not in p.read_text() for p in out.iterdir())

@@ -18,12 +18,13 @@ from netgen.build import build
 from netgen.emit.ngspice import subcircuit
 from netgen.emit.veriloga import module
 from netgen.structure import StructureError, parse_structure
-
 from tests.fixtures import ROOT
 
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
-IMPORT_ALL = ('\n[import]\nmass_matrix = "M.mtx"\nstiffness_matrix = "K.mtx"\nmodes = "modes.npz"\n'
-              'capacitance = "capacitance.npz"\n')
+IMPORT_ALL = (
+    '\n[import]\nmass_matrix = "M.mtx"\nstiffness_matrix = "K.mtx"\nmodes = "modes.npz"\n'
+    'capacitance = "capacitance.npz"\n'
+)
 
 
 def _numbers(text: str) -> np.ndarray:
@@ -56,8 +57,10 @@ def test_csv_formats_on_a_beam(tmp_path):
     text = (ROOT / "examples" / "cantilever.toml").read_text()
     native = build(parse_structure(text, "cantilever.toml"))
     importers.export(native, tmp_path, csv_too=True)
-    imp = ('\n[import]\nmass_matrix = "M.mtx"\nstiffness_matrix = "K.mtx"\nmodes = "modes.csv"\n'
-           'capacitance = "capacitance.csv"\n')
+    imp = (
+        '\n[import]\nmass_matrix = "M.mtx"\nstiffness_matrix = "K.mtx"\nmodes = "modes.csv"\n'
+        'capacitance = "capacitance.csv"\n'
+    )
     b = build(parse_structure(text + imp, str(tmp_path / "cantilever.toml")))
     for p, q in zip(b.model.coordinates, native.model.coordinates):
         assert (p.name, p.kind, p.unit) == (q.name, q.kind, q.unit)
@@ -87,11 +90,18 @@ def test_bad_import_files_name_file_key_and_fix(tmp_path):
     s = parse_structure(text + IMPORT_ALL, where)
     with pytest.raises(StructureError) as err:
         build(s)
-    assert err.value.where == "import.stiffness_matrix" and "2 x 2" in err.value.problem and "1 x 1" in err.value.problem
+    assert (
+        err.value.where == "import.stiffness_matrix" and "2 x 2" in err.value.problem and "1 x 1" in err.value.problem
+    )
     assert err.value.path.endswith("K.mtx")
     importers.export(native, tmp_path)
-    np.savez(tmp_path / "capacitance.npz", q=native.grid.x, c=native.grid.c, coordinates=np.array(["zz"]),
-             electrodes=np.array(["drive"]))
+    np.savez(
+        tmp_path / "capacitance.npz",
+        q=native.grid.x,
+        c=native.grid.c,
+        coordinates=np.array(["zz"]),
+        electrodes=np.array(["drive"]),
+    )
     with pytest.raises(StructureError) as err:
         build(s)
     assert err.value.where == "import.capacitance" and "'z'" in err.value.problem and err.value.fix

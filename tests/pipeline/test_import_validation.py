@@ -16,9 +16,9 @@ import io
 import re
 import sys
 import traceback
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -29,12 +29,13 @@ from netgen import export
 from netgen.build import build
 from netgen.cli import main
 from netgen.structure import parse_structure
-
 from tests.fixtures import ROOT
 from tests.structures import disk, ring_electrode
 
-DISK = disk("disk", "free disk, rigid coordinates only", "200 um") + ring_electrode(
-    "bot", "below", "3 um", [("0 um", "200 um")], sectors=2, sector_start="0 deg", slot="10 um") + '''[coordinates]
+DISK = (
+    disk("disk", "free disk, rigid coordinates only", "200 um")
+    + ring_electrode("bot", "below", "3 um", [("0 um", "200 um")], sectors=2, sector_start="0 deg", slot="10 um")
+    + """[coordinates]
 rigid = ["z", "tilt_x"]
 [sampling]
 levels = 3
@@ -45,7 +46,8 @@ holdout = 50
 fringe = "none"
 [fem]
 refine = 3
-'''
+"""
+)
 KEYS = ("mass_matrix", "stiffness_matrix", "modes", "capacitance")
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
@@ -53,6 +55,7 @@ NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 @dataclass
 class Base:
     """One good exported set: the structure text, its folder and the good files' bytes."""
+
     name: str
     text: str
     folder: Path
@@ -67,24 +70,28 @@ class Base:
 class Case:
     """One bad file: its class, the base it corrupts, which [import] key it replaces, its bytes
     and a text the message must contain (the row or entry), if any."""
+
     cls: str
     base: str
     key: str
     suffix: str
     data: bytes
     expect: str | None = None
-    others: tuple[tuple[str, str, bytes], ...] = ()     # good replacements of other keys: (key, suffix, bytes)
+    others: tuple[tuple[str, str, bytes], ...] = ()  # good replacements of other keys: (key, suffix, bytes)
 
 
 def make_bases(root: Path) -> dict[str, Base]:
     """Native builds of the three structures, exported in every import format."""
     out = {}
-    for name, text in (("beam", (ROOT / "examples" / "cantilever.toml").read_text()),
-                       ("piston", (ROOT / "examples" / "piston.toml").read_text()), ("disk", DISK)):
+    for name, text in (
+        ("beam", (ROOT / "examples" / "cantilever.toml").read_text()),
+        ("piston", (ROOT / "examples" / "piston.toml").read_text()),
+        ("disk", DISK),
+    ):
         native = build(parse_structure(text, f"{name}.toml"))
         folder = root / name
         files = export.export(native, folder, csv_too=True)
-        for key in ("mass_matrix", "stiffness_matrix"):          # the coordinate format too
+        for key in ("mass_matrix", "stiffness_matrix"):  # the coordinate format too
             a = scipy.io.mmread(str(files[key]))
             files[key + "_coo"] = folder / f"{key}_coo.mtx"
             scipy.io.mmwrite(str(files[key + "_coo"]), scipy.sparse.coo_matrix(a), precision=17, symmetry="symmetric")
@@ -99,6 +106,7 @@ def structure_text(base: Base, replace: dict[str, str], modes: str = "modes.npz"
 
 
 # ------------------------------------------------------------------ the corruptions
+
 
 def npz(**arrays) -> bytes:
     """An .npz archive's bytes (object arrays pickled, as np.savez does)."""
@@ -123,43 +131,65 @@ def garbage(seed: int, size: int = 400) -> bytes:
 def matrix_cases(b: Base) -> Iterator[Case]:
     """Header, size, entry and physics corruptions of M and K (array and coordinate formats)."""
     for key, short in (("mass_matrix", "M"), ("stiffness_matrix", "K")):
-        dense = np.asarray(scipy.io.mmread(str(b.files[key])).todense() if scipy.sparse.issparse(
-            scipy.io.mmread(str(b.files[key]))) else scipy.io.mmread(str(b.files[key])))
+        dense = np.asarray(
+            scipy.io.mmread(str(b.files[key])).todense()
+            if scipy.sparse.issparse(scipy.io.mmread(str(b.files[key])))
+            else scipy.io.mmread(str(b.files[key]))
+        )
         n = dense.shape[0]
         for fmt in ("", "_coo"):
             lines = b.read(key + fmt).decode().splitlines(keepends=True)
             size = next(k for k, ln in enumerate(lines) if not ln.startswith("%"))
-            body = lines[size + 1:]
-            if not body:                                   # a zero matrix has no coordinate entries
+            body = lines[size + 1 :]
+            if not body:  # a zero matrix has no coordinate entries
                 continue
 
             def case(data, expect=None, cls="mtx header/size"):
-                return Case(cls, b.name, key, ".mtx", data if isinstance(data, bytes) else "".join(data).encode(), expect)
+                return Case(
+                    cls, b.name, key, ".mtx", data if isinstance(data, bytes) else "".join(data).encode(), expect
+                )
+
             yield case(lines[:-1], "truncated")
             yield case(lines + body[:1], "too long")
-            yield case([lines[0].replace("real", "pattern")] + lines[1:size + 1] + [" ".join(x.split()[:-1]) + "\n" for x in body], "pattern")
-            yield case([lines[0].replace("real", "complex")] + lines[1:size + 1] + [x.rstrip() + " 0\n" for x in body], "complex")
+            yield case(
+                [lines[0].replace("real", "pattern")]
+                + lines[1 : size + 1]
+                + [" ".join(x.split()[:-1]) + "\n" for x in body],
+                "pattern",
+            )
+            yield case(
+                [lines[0].replace("real", "complex")] + lines[1 : size + 1] + [x.rstrip() + " 0\n" for x in body],
+                "complex",
+            )
             yield case([lines[0].replace("symmetric", "skew-symmetric")] + lines[1:], "skew")
             yield case([lines[0].replace("symmetric", "hermitian")] + lines[1:], "hermitian")
             yield case(lines[1:], "Matrix Market")
-            yield case(lines[:size] + [lines[size].replace(f"{n} {n}", f"{n + 1} {n + 1}", 1)] + body, f"{n + 1} x {n + 1}")
+            yield case(
+                lines[:size] + [lines[size].replace(f"{n} {n}", f"{n + 1} {n + 1}", 1)] + body, f"{n + 1} x {n + 1}"
+            )
             yield case(lines[:size] + [lines[size].replace(f"{n} {n}", f"{n} {n + 1}", 1)] + body, "square")
             yield case(lines[:size] + ["1000000 1000000 1\n", "1 1 1.0\n"], "1000000 x 1000000" if fmt else None)
             yield case(b"", "Matrix Market")
             yield case(garbage(len(lines) + n), "Matrix Market")
             yield case(b.read(key + fmt)[: len(b.read(key + fmt)) * 2 // 3], None)
             for bad in ("abc", "1.0.0", "--1"):
-                yield case(lines[:-1] + [lines[-1].rsplit(" ", 1)[0] + " " + bad + "\n" if fmt else bad + "\n"], f":{len(lines)}:")
+                yield case(
+                    lines[:-1] + [lines[-1].rsplit(" ", 1)[0] + " " + bad + "\n" if fmt else bad + "\n"],
+                    f":{len(lines)}:",
+                )
             for bad in ("nan", "inf", "-inf"):
-                yield case(lines[:-1] + [lines[-1].rsplit(" ", 1)[0] + " " + bad + "\n" if fmt else bad + "\n"],
-                           f"entry ({n}, {n})", "mtx values")
+                yield case(
+                    lines[:-1] + [lines[-1].rsplit(" ", 1)[0] + " " + bad + "\n" if fmt else bad + "\n"],
+                    f"entry ({n}, {n})",
+                    "mtx values",
+                )
             if fmt:
                 yield case(lines[:-1] + [f"{n + 1} {n + 1} 1.0\n"], f":{len(lines)}:")
                 yield case(lines[:-1] + ["0 0 1.0\n"], f":{len(lines)}:")
                 yield case(lines[:size] + [f"{n} {n} {len(body) + 1}\n"] + body + body[-1:], f"entry ({n}, {n})")
         # physics of the modal values
         for k in range(n):
-            for factor in ((-1.0, 0.0) if short == "M" else (-1.0,)):
+            for factor in (-1.0, 0.0) if short == "M" else (-1.0,):
                 a = dense.copy()
                 a[k, k] *= factor
                 if short == "K" and a[k, k] == 0:
@@ -167,18 +197,20 @@ def matrix_cases(b: Base) -> Iterator[Case]:
                 yield Case("mtx physics", b.name, key, ".mtx", mtx(a), f"entry ({k + 1}, {k + 1})")
             if short == "K":
                 a = dense.copy()
-                if b.name == "beam":                       # an eigenmode at 0 Hz
+                if b.name == "beam":  # an eigenmode at 0 Hz
                     a[k, k] = 0.0
                     yield Case("mtx physics", b.name, key, ".mtx", mtx(a), f"entry ({k + 1}, {k + 1})")
-                elif b.name == "disk":                     # a free rigid body with a spring
+                elif b.name == "disk":  # a free rigid body with a spring
                     a[k, k] = 1e-3 * (k + 1)
                     yield Case("mtx physics", b.name, key, ".mtx", mtx(a), f"entry ({k + 1}, {k + 1})")
-                else:                                      # the piston's spring lost
+                else:  # the piston's spring lost
                     a[k, k] = 0.0
                     yield Case("mtx physics", b.name, key, ".mtx", mtx(a), f"entry ({k + 1}, {k + 1})")
         if n > 1:
             a = dense.copy()
-            a[1, 0] = a[0, 1] = 0.3 * np.sqrt(abs(dense[0, 0] * dense[1, 1])) + 1e-3 * (short == "K" and b.name == "disk")
+            a[1, 0] = a[0, 1] = 0.3 * np.sqrt(abs(dense[0, 0] * dense[1, 1])) + 1e-3 * (
+                short == "K" and b.name == "disk"
+            )
             yield Case("mtx physics", b.name, key, ".mtx", mtx(a), "entry (2, 1)")
             a = dense.copy()
             a[1, 0] = 0.5 * np.sqrt(abs(dense[0, 0] * dense[1, 1])) + 1.0
@@ -194,6 +226,7 @@ def modes_npz_cases(b: Base) -> Iterator[Case]:
     def case(cls, expect=None, **change):
         arrays = {k: v for k, v in (good | change).items() if v is not None}
         return Case(cls, b.name, "modes", ".npz", npz(**arrays), expect)
+
     for k in ("nodes", "vectors", "names"):
         yield case("npz keys/shapes", k, **{k: None})
     yield case("npz keys/shapes", "node", node=nodes)
@@ -260,10 +293,11 @@ def csv_cases(b: Base, key: str, cls_file: str) -> Iterator[Case]:
     """File-level corruptions shared by the CSV tables: text, header and row syntax."""
     text = b.files[key + "_csv"].read_text()
     header, *rows = [ln.split(",") for ln in text.splitlines()]
-    last = len(rows) + 1                                  # the line of the last row
+    last = len(rows) + 1  # the line of the last row
 
     def case(data, expect=None, cls=cls_file):
         return Case(cls, b.name, key, ".csv", data, expect)
+
     yield case(b"", "no data rows")
     yield case(csv_bytes(header, []), "no data rows")
     yield case(garbage(3), "binary")
@@ -271,14 +305,14 @@ def csv_cases(b: Base, key: str, cls_file: str) -> Iterator[Case]:
     yield case(text.encode("utf-16"), "binary")
     yield case(b"\xff\xfe" + text.encode()[:200], "UTF-8")
     for r in (1, len(rows) // 2, len(rows)):
-        yield case(csv_bytes(header, rows[:r - 1] + [rows[r - 1][:-1]] + rows[r:]), f":{r + 1}:")
-        yield case(csv_bytes(header, rows[:r - 1] + [rows[r - 1] + ["1"]] + rows[r:]), f":{r + 1}:")
+        yield case(csv_bytes(header, rows[: r - 1] + [rows[r - 1][:-1]] + rows[r:]), f":{r + 1}:")
+        yield case(csv_bytes(header, rows[: r - 1] + [rows[r - 1] + ["1"]] + rows[r:]), f":{r + 1}:")
         bad = list(rows[r - 1])
         bad[1] = "1,5e-6".replace(",", ";")
-        yield case(csv_bytes(header, rows[:r - 1] + [bad] + rows[r:]), f":{r + 1}:")
+        yield case(csv_bytes(header, rows[: r - 1] + [bad] + rows[r:]), f":{r + 1}:")
         bad = list(rows[r - 1])
         bad[0] = "one"
-        yield case(csv_bytes(header, rows[:r - 1] + [bad] + rows[r:]), f":{r + 1}:")
+        yield case(csv_bytes(header, rows[: r - 1] + [bad] + rows[r:]), f":{r + 1}:")
     yield case(csv_bytes(header[:1] + header[:1] + header[2:], rows), ":1:", "csv header")
     yield case(csv_bytes([""] + header[1:], rows), ":1:", "csv header")
     del last
@@ -293,6 +327,7 @@ def modes_csv_cases(b: Base) -> Iterator[Case]:
 
     def case(cls, h, t, expect=None):
         return Case(cls, b.name, "modes", ".csv", csv_bytes(h, [[repr(float(v)) for v in r] for r in t]), expect)
+
     yield case("csv header", ["X", "Y"] + header[2:], table, ":1:")
     yield case("csv header", header[:2], table[:, :2], ":1:")
     for bad in ("m-1", "1m", "error_mode", "m 1"):
@@ -338,8 +373,14 @@ def capacitance_csv_cases(b: Base) -> Iterator[Case]:
     def case(cls, t, expect=None, h=None, s=sets):
         rows = [[repr(float(v)) for v in r] + [x] for r, x in zip(t, s)]
         return Case(cls, b.name, "capacitance", ".csv", csv_bytes(h or full, rows), expect)
+
     fit_rows = np.flatnonzero(sets == "fit")
-    picks = [int(fit_rows[0]), int(fit_rows[len(fit_rows) // 2]), int(fit_rows[-1]), int(np.flatnonzero(sets == "check")[0])]
+    picks = [
+        int(fit_rows[0]),
+        int(fit_rows[len(fit_rows) // 2]),
+        int(fit_rows[-1]),
+        int(np.flatnonzero(sets == "check")[0]),
+    ]
     for r in picks:
         for bad in (-t[r, nq], 0.0, np.inf, -np.inf):
             u = t.copy()
@@ -353,25 +394,25 @@ def capacitance_csv_cases(b: Base) -> Iterator[Case]:
         u[r, nq] *= 1e12
         yield case("capacitance units", u, f":{r + 2}:")
         u = t.copy()
-        u[r, :nq] *= 1e6                                  # coordinates in um
+        u[r, :nq] *= 1e6  # coordinates in um
         if np.any(u[r, :nq]):
             yield case("capacitance units", u, f":{r + 2}:")
     for factor in (1e12, 1e15, 1e9, 1e3, 1e-4, 1e-12):
         u = t.copy()
         u[:, nq:] *= factor
         yield case("capacitance units", u, "multiply by")
-    for r in picks[:3]:                                     # conflicting repeats
-        u = np.vstack([t, t[r:r + 1]])
+    for r in picks[:3]:  # conflicting repeats
+        u = np.vstack([t, t[r : r + 1]])
         u[-1, nq] *= 1.01
         yield case("duplicates", u, f":{len(t) + 2}:", s=np.append(sets, "fit"))
-        u = np.vstack([t[:r + 1], t[r:r + 1] * np.array([1.0] * nq + [1.1]), t[r + 1:]])
+        u = np.vstack([t[: r + 1], t[r : r + 1] * np.array([1.0] * nq + [1.1]), t[r + 1 :]])
         yield case("duplicates", u, f":{r + 3}:", s=np.insert(sets, r + 1, sets[r]))
     need = 2 * (nq + 1)
     for count in sorted({1, 2, need - 1, max(need - 2, 1)}):
         keep = np.concatenate([fit_rows[:count], np.flatnonzero(sets == "check")[:3]])
         yield case("sample count", t[keep], str(need), s=sets[keep])
     if nq > 1:
-        for k in range(nq):                               # a coordinate that never varies
+        for k in range(nq):  # a coordinate that never varies
             keep = np.flatnonzero((t[:, k] == 0) | (sets == "check"))
             yield case("sample count", t[keep], "never vary", s=sets[keep])
     yield case("capacitance values", t, "check", s=np.array(["fit"] * len(t)))
@@ -380,10 +421,17 @@ def capacitance_csv_cases(b: Base) -> Iterator[Case]:
     yield case("capacitance columns", t, ":6:", s=u)
     yield case("capacitance columns", t, header[-1][2:], h=header[:-1] + ["C:drve", "set"])
     yield case("capacitance columns", t, ":1:", h=["Q:" + header[0][2:]] + header[1:] + ["set"])
-    yield case("capacitance columns", t[:, 1:], "no column", h=header[1:] + ["set"]) if nq > 1 else \
-        case("capacitance columns", t[:, 1:], "no q:", h=header[1:] + ["set"])
-    yield case("capacitance columns", np.column_stack([t[:, :nq], 0 * t[:, :1], t[:, nq:]]), "does not have",
-               h=header[:nq] + ["q:m9"] + header[nq:] + ["set"])
+    yield (
+        case("capacitance columns", t[:, 1:], "no column", h=header[1:] + ["set"])
+        if nq > 1
+        else case("capacitance columns", t[:, 1:], "no q:", h=header[1:] + ["set"])
+    )
+    yield case(
+        "capacitance columns",
+        np.column_stack([t[:, :nq], 0 * t[:, :1], t[:, nq:]]),
+        "does not have",
+        h=header[:nq] + ["q:m9"] + header[nq:] + ["set"],
+    )
     yield case("capacitance columns", np.column_stack([t, t[:, -1:]]), "does not have", h=header + ["C:other", "set"])
     yield case("capacitance columns", t[:, :nq], "no q:", h=header[:nq] + ["set"])
 
@@ -397,6 +445,7 @@ def capacitance_npz_cases(b: Base) -> Iterator[Case]:
     def case(cls, expect=None, **change):
         arrays = {k: v for k, v in (good | change).items() if v is not None}
         return Case(cls, b.name, "capacitance", ".npz", npz(**arrays), expect)
+
     for k in ("q", "c", "coordinates", "electrodes"):
         yield case("npz keys/shapes", k, **{k: None})
     yield case("npz keys/shapes", "holdout", holdout_c=None)
@@ -436,9 +485,13 @@ def full_piston(b: Base, n: int = 21) -> dict[str, bytes]:
     nodes = np.column_stack([x.ravel(), y.ravel()])
     c = b.native.model.coordinates[0]
     eye = np.eye(len(nodes))
-    return {"modes": npz(nodes=nodes, vectors=np.ones((len(nodes), 1)), names=np.array(["z"])),
-            "mass_matrix": mtx(eye * c.mass / len(nodes)), "stiffness_matrix": mtx(eye * c.stiffness / len(nodes)),
-            "M": eye * c.mass / len(nodes), "K": eye * c.stiffness / len(nodes)}
+    return {
+        "modes": npz(nodes=nodes, vectors=np.ones((len(nodes), 1)), names=np.array(["z"])),
+        "mass_matrix": mtx(eye * c.mass / len(nodes)),
+        "stiffness_matrix": mtx(eye * c.stiffness / len(nodes)),
+        "M": eye * c.mass / len(nodes),
+        "K": eye * c.stiffness / len(nodes),
+    }
 
 
 def full_matrix_cases(b: Base) -> Iterator[Case]:
@@ -449,12 +502,26 @@ def full_matrix_cases(b: Base) -> Iterator[Case]:
         for factor, expect in ((0.0, "positive definite"), (-1.0, "positive definite")):
             a = M.copy()
             a[k, k] *= factor
-            yield Case("mtx physics", b.name, "mass_matrix", ".mtx", mtx(a), expect,
-                       (("modes", ".npz", f["modes"]), ("stiffness_matrix", ".mtx", f["stiffness_matrix"])))
+            yield Case(
+                "mtx physics",
+                b.name,
+                "mass_matrix",
+                ".mtx",
+                mtx(a),
+                expect,
+                (("modes", ".npz", f["modes"]), ("stiffness_matrix", ".mtx", f["stiffness_matrix"])),
+            )
         a = K.copy()
         a[k, k] *= -1.0
-        yield Case("mtx physics", b.name, "stiffness_matrix", ".mtx", mtx(a), "semidefinite",
-                   (("modes", ".npz", f["modes"]), ("mass_matrix", ".mtx", f["mass_matrix"])))
+        yield Case(
+            "mtx physics",
+            b.name,
+            "stiffness_matrix",
+            ".mtx",
+            mtx(a),
+            "semidefinite",
+            (("modes", ".npz", f["modes"]), ("mass_matrix", ".mtx", f["mass_matrix"])),
+        )
 
 
 def cases(bases: dict[str, Base]) -> list[Case]:
@@ -474,9 +541,11 @@ def cases(bases: dict[str, Base]) -> list[Case]:
 
 # ------------------------------------------------------------------ running them
 
+
 @dataclass
 class Outcome:
     """What a build of one case did: exit code (None: an exception escaped), stderr, output files."""
+
     code: int | None
     message: str
     outputs: list[str]
@@ -500,7 +569,7 @@ def run(bases: dict[str, Base], k: int, c: Case) -> tuple[Outcome, Path]:
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         try:
             code = main(["build", str(toml), "-o", str(out), "-q", "--no-plots"])
-        except BaseException:                              # noqa: BLE001 (a traceback is what we count)
+        except BaseException:  # noqa: BLE001 (a traceback is what we count)
             code, _ = None, err.write(traceback.format_exc())
     return Outcome(code, err.getvalue(), sorted(p.name for p in out.glob("*")) if out.exists() else []), bad
 
@@ -563,8 +632,9 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     assert main(["build", str(tmp_path / "native.toml"), "-o", str(tmp_path / "native"), "-q", "--no-plots"]) == 0
     with np.load(b.files["capacitance"]) as z:
         good = {k: z[k] for k in z.files}
-    (b.folder / "repeated.npz").write_bytes(npz(**(good | {"q": np.vstack([good["q"], good["q"]]),
-                                                         "c": np.vstack([good["c"], good["c"]])})))
+    (b.folder / "repeated.npz").write_bytes(
+        npz(**(good | {"q": np.vstack([good["q"], good["q"]]), "c": np.vstack([good["c"], good["c"]])}))
+    )
     libs = []
     for cap in ("capacitance.npz", "repeated.npz"):
         toml = b.folder / f"good_{cap}.toml"
@@ -591,8 +661,13 @@ def test_full_matrices_build_the_native_piston(bases, tmp_path):
     for key, suffix in (("modes", ".npz"), ("mass_matrix", ".mtx"), ("stiffness_matrix", ".mtx")):
         (b.folder / f"full_{key}{suffix}").write_bytes(f[key])
     toml = b.folder / "full.toml"
-    toml.write_text(structure_text(b, {k: f"full_{k}{x}" for k, x in (("mass_matrix", ".mtx"), ("stiffness_matrix", ".mtx"))},
-                                   modes="full_modes.npz"))
+    toml.write_text(
+        structure_text(
+            b,
+            {k: f"full_{k}{x}" for k, x in (("mass_matrix", ".mtx"), ("stiffness_matrix", ".mtx"))},
+            modes="full_modes.npz",
+        )
+    )
     (tmp_path / "native.toml").write_text(b.text)
     assert main(["build", str(tmp_path / "native.toml"), "-o", str(tmp_path / "native"), "-q", "--no-plots"]) == 0
     assert main(["build", str(toml), "-o", str(tmp_path / "full"), "-q", "--no-plots"]) == 0
@@ -602,9 +677,13 @@ def test_full_matrices_build_the_native_piston(bases, tmp_path):
 
 def table(tally: dict[str, dict[str, int]]) -> str:
     """The per-class markdown table."""
-    rows = ["| class | tried | tracebacks | accepted (exit 0) | refused without file/row/fix |", "|---|---|---|---|---|"]
-    for cls, t in sorted(tally.items()) + [("all", {k: sum(t[k] for t in tally.values())
-                                                     for k in ("tried", "traceback", "accepted", "other")})]:
+    rows = [
+        "| class | tried | tracebacks | accepted (exit 0) | refused without file/row/fix |",
+        "|---|---|---|---|---|",
+    ]
+    for cls, t in sorted(tally.items()) + [
+        ("all", {k: sum(t[k] for t in tally.values()) for k in ("tried", "traceback", "accepted", "other")})
+    ]:
         rows.append(f"| {cls} | {t['tried']} | {t['traceback']} | {t['accepted']} | {t['other']} |")
     return "\n".join(rows)
 
@@ -626,5 +705,6 @@ def survey(root: Path, show: Callable[[str], None] = print) -> dict[str, dict[st
 
 if __name__ == "__main__":
     import tempfile
+
     with tempfile.TemporaryDirectory() as tmp:
         print(table(survey(Path(tmp))))

@@ -23,7 +23,6 @@ from netgen import cli, emit
 from netgen.emit import osdi, xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.model import MacroModel
-
 from tests.fixtures import REFERENCE, ROOT
 
 NETLISTS = ROOT / "netlists"
@@ -56,8 +55,7 @@ def _logical_lines(text: str) -> list[str]:
     return out
 
 
-def _compare_text(new: str, old: str, what: str, rounded_lines: str | None = None,
-                  numbers: bool = True) -> list[str]:
+def _compare_text(new: str, old: str, what: str, rounded_lines: str | None = None, numbers: bool = True) -> list[str]:
     """Problems between two texts: text with every number masked must match exactly, and (if
     `numbers`) the numbers within RTOL. On `rounded_lines` (comments of a netlist: numbers printed with a few
     digits) a number may also flip its last printed digit (not more than 1e-3 relative), which a
@@ -116,8 +114,10 @@ def _compare_json(new, old, path: str = "") -> list[str]:
 
 def _stale(problems: list[str]) -> str:
     shown = "\n  ".join(problems[:8]) + (f"\n  ... {len(problems) - 8} more" if len(problems) > 8 else "")
-    return (f"the committed netlists are stale ({len(problems)} differences):\n  {shown}\n"
-            f"regenerate them from the repository root with:\n    {REGENERATE}")
+    return (
+        f"the committed netlists are stale ({len(problems)} differences):\n  {shown}\n"
+        f"regenerate them from the repository root with:\n    {REGENERATE}"
+    )
 
 
 # ----------------------------------------------------------------------------- committed netlists
@@ -153,12 +153,14 @@ def test_staleness_check_sees_small_changes_and_tolerates_rounding():
     assert not _compare_text("* top_r1s1  2  1.669e-03", "* top_r1s1  2  1.670e-03", "t", rounded_lines="*")
     assert _compare_text("* top_r1s1  2  1.669e-03", "* top_r1s1  2  1.671e-03", "t", rounded_lines="*")
     assert _compare_text("* z  3e-06 m", "* z  4e-06 m", "t", rounded_lines="*")
-    wrapped = ".model m x (\n+ p=[1.25 2.5\n+ 3.75])"          # a vector wrapped at another value
+    wrapped = ".model m x (\n+ p=[1.25 2.5\n+ 3.75])"  # a vector wrapped at another value
     assert not _compare_text(wrapped, ".model m x (\n+ p=[1.25\n+ 2.5 3.75])", "t")
     assert _compare_text(wrapped, ".model m x (\n+ p=[1.25\n+ 2.5 3.76])", "t")
     assert _compare_json({"a": [1.0, 2]}, {"a": [1.0 + 1e-6, 2]})
-    assert not _compare_json({"report": {"mechanics": {"side_conditions": {"phi": 3e-12}}}},
-                             {"report": {"mechanics": {"side_conditions": {"phi": 8e-13}}}})
+    assert not _compare_json(
+        {"report": {"mechanics": {"side_conditions": {"phi": 3e-12}}}},
+        {"report": {"mechanics": {"side_conditions": {"phi": 8e-13}}}},
+    )
     assert "regenerate" in _stale(["x"]) and REGENERATE in _stale(["x"])
 
 
@@ -180,8 +182,13 @@ def fresh_builds(tmp_path_factory):
     runs = []
     for k in range(FRESH_RUNS):
         out = tmp_path_factory.mktemp(f"build{k}")
-        proc = subprocess.Popen([sys.executable, "-m", "netgen.cli", "build", REFERENCE, "-o", str(out)],
-                                cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "netgen.cli", "build", REFERENCE, "-o", str(out)],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         runs.append((out, proc))
     results = []
     for out, proc in runs:
@@ -213,11 +220,14 @@ def test_cli_shows_progress_and_files_written(fresh_builds):
     lines = stdout.splitlines()
     assert lines[:2] == [f"wrote {out / (NAME + '.lib')}", f"wrote {out / (NAME + '.json')}"]
     for line in lines[:-1]:
-        assert line.startswith("wrote ") and Path(line[len("wrote "):]).is_file(), line
+        assert line.startswith("wrote ") and Path(line[len("wrote ") :]).is_file(), line
     worst = max(f["max_rel_error"] for f in json.loads((out / f"{NAME}.json").read_text())["capacitances"])
-    assert re.fullmatch(rf"{NAME}: 7 coordinates, 16 electrodes, held-out max capacitance error "
-                        rf"{worst:.2e}, \d+\.\d s", lines[-1]), lines[-1]
-    assert "%|" not in stdout                             # progress stays off stdout
+    assert re.fullmatch(
+        rf"{NAME}: 7 coordinates, 16 electrodes, held-out max capacitance error "
+        rf"{worst:.2e}, \d+\.\d s",
+        lines[-1],
+    ), lines[-1]
+    assert "%|" not in stdout  # progress stays off stdout
 
 
 # ----------------------------------------------------------------------------- JSON content
@@ -233,12 +243,12 @@ def test_json_has_coordinates_modes_capacitances_ports(committed):
     coords = d["coordinates"]
     assert [c["name"] for c in coords] == ["z", "tilt_x", "tilt_y", "m2_0c", "m2_0s", "m3_0c", "m3_0s"]
     assert [c["kind"] for c in coords] == ["translation", "rotation", "rotation"] + ["mode"] * 4
-    gap, radius = 3e-6, 473e-6                             # examples/levitated_disk.toml
+    gap, radius = 3e-6, 473e-6  # examples/levitated_disk.toml
     scale = {c["name"]: c["scale"] for c in coords}
-    assert scale["z"] == pytest.approx(gap, rel=1e-9)     # a rigid lift touches at z = g
-    for tilt in ("tilt_x", "tilt_y"):                      # the rim touches at R * angle = g
+    assert scale["z"] == pytest.approx(gap, rel=1e-9)  # a rigid lift touches at z = g
+    for tilt in ("tilt_x", "tilt_y"):  # the rim touches at R * angle = g
         assert scale[tilt] == pytest.approx(gap / radius, rel=1e-6)
-    for m in ("m2_0c", "m2_0s", "m3_0c", "m3_0s"):         # peak deflection 1: touches at >= g
+    for m in ("m2_0c", "m2_0s", "m3_0c", "m3_0s"):  # peak deflection 1: touches at >= g
         assert gap * (1 - 1e-9) <= scale[m] <= 1.01 * gap
 
     modes = d["modes"]
@@ -248,8 +258,9 @@ def test_json_has_coordinates_modes_capacitances_ports(committed):
         paper, tol = (97.6e3, 0.01) if m["label"].startswith("2,0") else (225.3e3, 0.015)
         assert m["frequency_hz"] == pytest.approx(paper, rel=tol), m["label"]
         assert 0 < m["modal_mass"] < mass
-        assert m["frequency_hz"] == pytest.approx(math.sqrt(m["modal_stiffness"] / m["modal_mass"]) / (2 * math.pi),
-                                                  rel=1e-9)
+        assert m["frequency_hz"] == pytest.approx(
+            math.sqrt(m["modal_stiffness"] / m["modal_mass"]) / (2 * math.pi), rel=1e-9
+        )
 
     electrodes = {e["name"]: e for e in d["electrodes"]}
     assert len(electrodes) == 16
@@ -318,6 +329,7 @@ def _assert_internal_error(capsys, cwd: Path, text: str) -> None:
 def test_failing_emitter_leaves_nothing(cli_with_model, monkeypatch, tmp_path, capsys):
     def broken(model):
         raise RuntimeError("emitter failed")
+
     monkeypatch.setitem(emit.EMITTERS, "ngspice", dataclasses.replace(emit.EMITTERS["ngspice"], render=broken))
     monkeypatch.chdir(tmp_path)
     assert cli_with_model(tmp_path / "out") == 70
@@ -327,8 +339,10 @@ def test_failing_emitter_leaves_nothing(cli_with_model, monkeypatch, tmp_path, c
 
 def test_failing_json_after_netlist_leaves_nothing(cli_with_model, monkeypatch, tmp_path, capsys):
     """The .lib renders fine, then the model's JSON fails: no .lib may remain on its own."""
+
     def broken(self):
         raise ValueError("model not serialisable")
+
     monkeypatch.setattr(MacroModel, "to_dict", broken)
     monkeypatch.chdir(tmp_path)
     assert cli_with_model(tmp_path / "out") == 70
@@ -352,6 +366,7 @@ def test_failing_write_leaves_no_temp_files_and_keeps_old_outputs(cli_with_model
             fh.close()
             raise OSError(28, "No space left on device")
         return fh
+
     monkeypatch.setattr("netgen.files.os.fdopen", fdopen)
     assert cli_with_model(out) == 2
     assert "No space left on device" in capsys.readouterr().err
@@ -374,13 +389,18 @@ def test_invalid_structure_file_exits_2_with_file_key_and_fix(tmp_path):
     bad.write_text(text.replace('gap = "3 um"', 'gap = "-3 um"', 1), encoding="utf-8")
     line = 1 + bad.read_text().splitlines().index('gap = "-3 um"')
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(out)],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(out)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and proc.stdout == ""
-    assert f"{bad}:{line}" in proc.stderr                  # file and line
-    assert "electrodes[0].gap" in proc.stderr              # key
-    assert "\n  fix: " in proc.stderr                      # and how to fix it
+    assert f"{bad}:{line}" in proc.stderr  # file and line
+    assert "electrodes[0].gap" in proc.stderr  # key
+    assert "\n  fix: " in proc.stderr  # and how to fix it
     assert not out.exists()
 
 
@@ -406,36 +426,61 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
     for f in ("pyproject.toml", "README.md"):
         shutil.copy2(ROOT / f, src / f)
     dist = tmp_path / "dist"
-    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", str(src), "--no-deps", "--no-build-isolation",
-                           "--no-index", "-q", "-w", str(dist)], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            str(src),
+            "--no-deps",
+            "--no-build-isolation",
+            "--no-index",
+            "-q",
+            "-w",
+            str(dist),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     (wheel,) = dist.glob("netgen-*.whl")
     with zipfile.ZipFile(wheel) as z:
         names = set(z.namelist())
         # every module of every package, the code models' sources (netgen.sim.codemodel builds them
         # on the user's machine), the Verilog-A loop blocks, and every template under netgen/templates
-        shipped = {f"netgen/{f.relative_to(ROOT / 'netgen').as_posix()}" for f in (ROOT / "netgen").rglob("*")
-                   if f.suffix in (".py", ".lst", ".ifs", ".mod", ".va") and "__pycache__" not in f.parts}
-        shipped |= {f"netgen/templates/{f.relative_to(ROOT / 'templates').as_posix()}"
-                    for f in (ROOT / "templates").rglob("*.j2")}
-        assert "netgen/templates/ngspice/subckt.lib.j2" in shipped and "netgen/sim/codemodel/netgen_es/cfunc.mod" in shipped
+        shipped = {
+            f"netgen/{f.relative_to(ROOT / 'netgen').as_posix()}"
+            for f in (ROOT / "netgen").rglob("*")
+            if f.suffix in (".py", ".lst", ".ifs", ".mod", ".va") and "__pycache__" not in f.parts
+        }
+        shipped |= {
+            f"netgen/templates/{f.relative_to(ROOT / 'templates').as_posix()}"
+            for f in (ROOT / "templates").rglob("*.j2")
+        }
+        assert (
+            "netgen/templates/ngspice/subckt.lib.j2" in shipped
+            and "netgen/sim/codemodel/netgen_es/cfunc.mod" in shipped
+        )
         assert not shipped - names, sorted(shipped - names)
         entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
         assert "netgen = netgen.entry:main" in z.read(entry).decode()
         z.extractall(tmp_path / "site")
     work = tmp_path / "elsewhere"
     work.mkdir()
-    script = ("import sys, netgen\n"
-              "from netgen.model import MacroModel\n"
-              "from netgen.emit.ngspice import subcircuit\n"
-              "print(netgen.__file__)\n"
-              f"sys.stdout.write(subcircuit(MacroModel.load_json({str(NETLISTS / (NAME + '.json'))!r})))\n")
+    script = (
+        "import sys, netgen\n"
+        "from netgen.model import MacroModel\n"
+        "from netgen.emit.ngspice import subcircuit\n"
+        "print(netgen.__file__)\n"
+        f"sys.stdout.write(subcircuit(MacroModel.load_json({str(NETLISTS / (NAME + '.json'))!r})))\n"
+    )
     env = dict(os.environ, PYTHONPATH=str(tmp_path / "site"))
-    run = subprocess.run([sys.executable, "-c", script], cwd=work, env=env, capture_output=True, text=True,
-                         timeout=60)
+    run = subprocess.run([sys.executable, "-c", script], cwd=work, env=env, capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr[-3000:]
     where, _, text = run.stdout.partition("\n")
-    assert Path(where).is_relative_to(tmp_path / "site"), where       # the wheel's copy, not the repo's
+    assert Path(where).is_relative_to(tmp_path / "site"), where  # the wheel's copy, not the repo's
     assert text == subcircuit(MacroModel.load_json(NETLISTS / f"{NAME}.json"))
     assert f".subckt {NAME} " in text and ".ends" in text
 
@@ -445,6 +490,7 @@ def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path, 
     the electrode and the fix (emitter and `netgen build --format xspice`: exit 2, nothing
     written), and `all` leaves the xspice .lib out for such a model (and writes the rest)."""
     import types
+
     model = MacroModel.load_json(NETLISTS / f"{NAME}.json")
     fits = [dataclasses.replace(model.capacitances[0], target="direct"), *model.capacitances[1:]]
     bad = dataclasses.replace(model, capacitances=fits)

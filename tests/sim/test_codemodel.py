@@ -29,7 +29,7 @@ from netgen.sim.ngspice import ENV, build_record, identity, run_ngspice
 from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY
 from tests.fixtures import NGSPICE
 
-X, V, FGAIN, CREF, C0, VP = 0.2, 2.0, 0.7, 1.5, 0.25, 0.7     # VP: the plate's potential
+X, V, FGAIN, CREF, C0, VP = 0.2, 2.0, 0.7, 1.5, 0.25, 0.7  # VP: the plate's potential
 # P_1 = 1 + 0.5 x (above its knee), P_2 = 0.3 - 0.4 x + 0.1 x^2 (= 0.224 at x = 0.2, below its knee 0.25)
 TERMS = [([1.0, 0.5, 0.0], 0.1, 0.04), ([0.3, -0.4, 0.1], 0.25, 0.1)]
 
@@ -48,12 +48,13 @@ def cold_build(tmp_path_factory):
         mp.delenv("NETGEN_NGSPICE_SOURCE", raising=False)
         cm = codemodel.build(progress=lambda m: None)
         assert cm.parent == cache / "codemodel" and cm.exists()
-        assert codemodel.build(progress=lambda m: pytest.fail("rebuilt")) == cm        # cached
+        assert codemodel.build(progress=lambda m: pytest.fail("rebuilt")) == cm  # cached
     return cm
 
 
 def _reference() -> tuple[float, float, float]:
     """c = sum g - c0, F = -fgain cref V^2 sum g^2 s dP/dx, dF/dx, from netgen.model.contact.clamp."""
+
     def parts(x):
         c, f = -C0, 0.0
         for (a0, a1, a2), knee, floor in TERMS:
@@ -62,6 +63,7 @@ def _reference() -> tuple[float, float, float]:
             c += 1 / pe
             f -= FGAIN * CREF * V * V * s / pe**2 * dp
         return float(c), float(f)
+
     c, f = parts(X)
     h = 1e-6
     return c, f, (parts(X + h)[1] - parts(X - h)[1]) / (2 * h)
@@ -69,25 +71,45 @@ def _reference() -> tuple[float, float, float]:
 
 def test_cold_build_evaluates_clamped_plate_terms(cold_build, tmp_path):
     mono_exp = "0 1 2 0 1 2"
-    card = (f".model es netgen_es (term_elec=[0 0] mono_term=[0 0 0 1 1 1] "
-            f"mono_coef=[{' '.join(str(a) for t in TERMS for a in t[0])}] mono_exp=[{mono_exp}] "
-            f"knee=[{TERMS[0][1]} {TERMS[1][1]}] floor=[{TERMS[0][2]} {TERMS[1][2]}] fgain=[{FGAIN}] "
-            f"cref=[{CREF}] c0=[{C0}] stop_a=[0] stop_rate=[0] stop_gain=[0])")
-    netlist = "\n".join([
-        "netgen_es: one electrode, two plate terms", f"Vx xs 0 DC {X} AC 1", "Vu us 0 0", f"Ve e 0 {V + VP}",
-        f"Vp p 0 {VP}", "Rf f 0 1", "Rc c 0 1", "A1 [xs] [%vd(e p)] [us] [f] NULL es", "A2 [xs] NULL NULL NULL [c] es",
-        card,
-        ".control", *codemodel.control_lines(cold_build), ".endc", ".ac lin 1 1k 1k", ".end", ""])
+    card = (
+        f".model es netgen_es (term_elec=[0 0] mono_term=[0 0 0 1 1 1] "
+        f"mono_coef=[{' '.join(str(a) for t in TERMS for a in t[0])}] mono_exp=[{mono_exp}] "
+        f"knee=[{TERMS[0][1]} {TERMS[1][1]}] floor=[{TERMS[0][2]} {TERMS[1][2]}] fgain=[{FGAIN}] "
+        f"cref=[{CREF}] c0=[{C0}] stop_a=[0] stop_rate=[0] stop_gain=[0])"
+    )
+    netlist = "\n".join(
+        [
+            "netgen_es: one electrode, two plate terms",
+            f"Vx xs 0 DC {X} AC 1",
+            "Vu us 0 0",
+            f"Ve e 0 {V + VP}",
+            f"Vp p 0 {VP}",
+            "Rf f 0 1",
+            "Rc c 0 1",
+            "A1 [xs] [%vd(e p)] [us] [f] NULL es",
+            "A2 [xs] NULL NULL NULL [c] es",
+            card,
+            ".control",
+            *codemodel.control_lines(cold_build),
+            ".endc",
+            ".ac lin 1 1k 1k",
+            ".end",
+            "",
+        ]
+    )
     plot = run_ngspice(netlist, tmp_path)[0]
     op = run_ngspice(netlist.replace(".ac lin 1 1k 1k", ".op"), tmp_path, name="op")[0]
-    plate = run_ngspice(netlist.replace(f"DC {X} AC 1", f"DC {X}").replace(f"Vp p 0 {VP}", f"Vp p 0 DC {VP} AC 1"),
-                        tmp_path, name="plate")[0]
+    plate = run_ngspice(
+        netlist.replace(f"DC {X} AC 1", f"DC {X}").replace(f"Vp p 0 {VP}", f"Vp p 0 DC {VP} AC 1"),
+        tmp_path,
+        name="plate",
+    )[0]
     c, f, dfdx = _reference()
-    assert TERMS[1][0][0] - 0.4 * X + 0.1 * X * X < TERMS[1][1]           # the second term is clamped
+    assert TERMS[1][0][0] - 0.4 * X + 0.1 * X * X < TERMS[1][1]  # the second term is clamped
     assert op["v(c)"][0] == pytest.approx(c, rel=1e-9)
-    assert op["v(f)"][0] == pytest.approx(f, rel=1e-9)                     # with V = V_e - V_plate
-    assert plot["v(f)"][0].real == pytest.approx(dfdx, rel=1e-5)              # AC gain = the partial
-    assert plate["v(f)"][0].real == pytest.approx(-2 * f / V, rel=1e-9)       # F ~ (V_e - V_p)^2
+    assert op["v(f)"][0] == pytest.approx(f, rel=1e-9)  # with V = V_e - V_plate
+    assert plot["v(f)"][0].real == pytest.approx(dfdx, rel=1e-5)  # AC gain = the partial
+    assert plate["v(f)"][0].real == pytest.approx(-2 * f / V, rel=1e-9)  # F ~ (V_e - V_p)^2
 
 
 def test_missing_sources_stop_with_the_fix(tmp_path, monkeypatch, capsys):
@@ -102,8 +124,10 @@ def test_missing_sources_stop_with_the_fix(tmp_path, monkeypatch, capsys):
 
 # what each release's binary is, from its banner (ngspice --version: "ngspice-46 ... Compiled with
 # KLU") and its commands (39: "osdi: no such command available in ngspice")
-BUILDS = {"39": {"version": "ngspice-39", "major": 39, "minor": 0, "klu": False, "osdi": False},
-          "46": {"version": "ngspice-46", "major": 46, "minor": 0, "klu": True, "osdi": True}}
+BUILDS = {
+    "39": {"version": "ngspice-39", "major": 39, "minor": 0, "klu": False, "osdi": False},
+    "46": {"version": "ngspice-46", "major": 46, "minor": 0, "klu": True, "osdi": True},
+}
 
 
 def test_target_is_the_binarys_own_release_and_switches(ngspice_version):
@@ -137,11 +161,14 @@ def test_a_source_tree_of_another_release_is_refused(tmp_path, monkeypatch, caps
     the real cache holds 39's builds (which the cache key on dpkg's version used to return); then
     `netgen codemodel` exits 3 and the cache gains no .cm."""
     tree = _tree_39(tmp_path)
-    assert codemodel.build(progress=lambda m: None).exists()                 # the cached 39 build
+    assert codemodel.build(progress=lambda m: None).exists()  # the cached 39 build
     monkeypatch.setenv(ENV, NGSPICE["46"])
     monkeypatch.setenv("NETGEN_NGSPICE_SOURCE", str(tree))
-    with pytest.raises(codemodel.CodeModelError, match="is the source of ngspice-39 and the target ngspice .* is "
-                       "ngspice-46: a code model built from another release crashes ngspice"):
+    with pytest.raises(
+        codemodel.CodeModelError,
+        match="is the source of ngspice-39 and the target ngspice .* is "
+        "ngspice-46: a code model built from another release crashes ngspice",
+    ):
         codemodel.build(progress=lambda m: pytest.fail("built"))
     monkeypatch.setenv("NETGEN_CACHE", str(tmp_path / "cache"))
     assert cli.main(["codemodel"]) == 3
@@ -185,6 +212,5 @@ def test_ifs_files_pass_the_rule_of_cmpp_43_and_later():
     are clean, and the rule catches such a table."""
     for lib in (codemodel.MODEL, LOOP_LIBRARY):
         assert codemodel.ifs_problems((lib.sources / lib.name / "ifspec.ifs").read_text()) == [], lib.name
-    table = ("PARAMETER_TABLE:\nParameter_Name: a b c\nDefault_Value: 0 - 1.0\n"
-             "Null_Allowed: no no yes\n")
+    table = "PARAMETER_TABLE:\nParameter_Name: a b c\nDefault_Value: 0 - 1.0\nNull_Allowed: no no yes\n"
     assert codemodel.ifs_problems(table) == ["a"]

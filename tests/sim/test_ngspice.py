@@ -21,10 +21,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from netgen.model import MacroModel
-from netgen.sim.ngspice import run_ngspice
-from netgen.sim.ngspice import ENV
-from tests.fixtures import (EMISSIONS, NGSPICE, ROOT, Bench, Pulse, emission_id, emitted_library, states,
-                            transient_drive)
+from netgen.sim.ngspice import ENV, run_ngspice
+from tests.fixtures import EMISSIONS, NGSPICE, ROOT, Bench, Pulse, emission_id, emitted_library, states, transient_drive
 
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 
@@ -52,17 +50,21 @@ def _names(model: MacroModel) -> list[str]:
 def test_motional_current_is_v_dc_dt(model, lib, tmp_path):
     """Electrode at constant 2 V, tilt driven by a 50 kHz torque: I = V sum_v dC/dq_v dq_v/dt."""
     electrode, volts = "top_r2s1", 2.0
-    bench = Bench(model, lib[0], control=lib[1], sources={electrode: f"DC {volts}", "plate": "0",
-                                                          "f_tilt_y": "SIN(0 28.5 50k 0 0 90)"},   # nN*m
-                  options="reltol=1e-5 chgtol=1e-18")
+    bench = Bench(
+        model,
+        lib[0],
+        control=lib[1],
+        sources={electrode: f"DC {volts}", "plate": "0", "f_tilt_y": "SIN(0 28.5 50k 0 0 90)"},  # nN*m
+        options="reltol=1e-5 chgtol=1e-18",
+    )
     plot = run_ngspice(bench.netlist(".tran 10n 60u 0 10n uic"), tmp_path)[0]
     x, xdot = states(plot, model)
     grad = model.capacitance_gradient(x)[:, _names(model).index(electrode), :]
     expected = volts * np.einsum("pv,pv->p", grad, xdot * model.scales)
-    current = -plot[f"i(v{electrode})"]                      # into the electrode terminal
-    settled = plot["time"] > 20e-6                           # past the first period of the drive
+    current = -plot[f"i(v{electrode})"]  # into the electrode terminal
+    settled = plot["time"] > 20e-6  # past the first period of the drive
     peak = np.abs(expected[settled]).max()
-    assert np.abs(x[:, 2]).max() > 0.05                      # the tilt really moved (5 % of touch)
+    assert np.abs(x[:, 2]).max() > 0.05  # the tilt really moved (5 % of touch)
     assert np.abs(current - expected)[settled].max() < 5e-3 * peak
 
 
@@ -93,7 +95,7 @@ def test_transient_matches_scipy_integration(model, lib, tmp_path):
     """Steps and 1 MHz pulses on four electrodes plus gravity, 105 us (> 10 periods of the
     97.6 kHz mode): every coordinate within 1 % of its peak of the scipy solution."""
     drive = transient_drive()
-    gravity = -model.coordinates[0].mass * 9.81                              # N on z
+    gravity = -model.coordinates[0].mass * 9.81  # N on z
     stop = 105e-6
     sources = {k: p.spice() for k, p in drive.items()} | {"plate": "0", "f_z": repr(gravity / 1e-6)}
     bench = Bench(model, lib[0], control=lib[1], sources=sources, options="reltol=1e-5 chgtol=1e-18")
@@ -106,7 +108,7 @@ def test_transient_matches_scipy_integration(model, lib, tmp_path):
         peak = np.abs(ref[:, v]).max()
         assert peak > 0, c.name
         assert np.abs(x[:, v] - ref[:, v]).max() < 0.01 * peak, c.name
-    assert np.abs(ref).max() < model.sampling["range"]                      # stayed in the fitted box
+    assert np.abs(ref).max() < model.sampling["range"]  # stayed in the fitted box
 
 
 def test_dc_operating_point_is_the_static_equilibrium(model, lib, tmp_path):
@@ -114,17 +116,17 @@ def test_dc_operating_point_is_the_static_equilibrium(model, lib, tmp_path):
     root of F_el(q) + F_ext - K q = 0 (electrostatic spring softening included)."""
     names = _names(model)
     volts = np.round(np.random.default_rng(3).uniform(15, 25, len(names)), 2)
-    loads = {"f_z": 0.5, "f_tilt_x": -0.3, "f_tilt_y": 0.2}                  # uN, nN*m, nN*m
+    loads = {"f_z": 0.5, "f_tilt_x": -0.3, "f_tilt_y": 0.2}  # uN, nN*m, nN*m
     f_ext = np.zeros(model.ncoords)
     for v, c in enumerate(model.coordinates):
         f_ext[v] = loads.get(f"f_{c.name}", 0.0) * c.port_units[3]
-    sources = {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | \
-        {k: repr(v) for k, v in loads.items()}
+    sources = (
+        {n: repr(float(v)) for n, v in zip(names, volts)} | {"plate": "0"} | {k: repr(v) for k, v in loads.items()}
+    )
     # the in-range equilibrium of the free plate is unstable (no spring on z) and the contact model
     # adds the stable pulled-in state at the stop; a plain .op (no .nodeset) starts at the
     # undeflected plate (every internal node is 0 at rest) and finds the in-range root
-    bench = Bench(model, lib[0], control=lib[1], sources=sources,
-                  options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+    bench = Bench(model, lib[0], control=lib[1], sources=sources, options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
     plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
     x_spice = np.array([plot[f"v(x1.xs_{c.name})"][0] for c in model.coordinates])
 
@@ -136,8 +138,8 @@ def test_dc_operating_point_is_the_static_equilibrium(model, lib, tmp_path):
 
     x_ref = fsolve(residual, np.zeros(model.ncoords), xtol=1e-13)
     assert np.abs(residual(x_ref)).max() < 1e-12 * np.abs(f_ext).max() + 1e-18
-    assert np.abs(x_spice - x_ref).max() < 1e-6                             # scaled units (1 = contact)
-    assert 0.01 < np.abs(x_ref[:3]).max() < model.sampling["range"]        # a real, in-range deflection
+    assert np.abs(x_spice - x_ref).max() < 1e-6  # scaled units (1 = contact)
+    assert 0.01 < np.abs(x_ref[:3]).max() < model.sampling["range"]  # a real, in-range deflection
     # softening matters: the stiffness-only estimate of the driven modes is off by > 5 %
     modes = stiffness > 0
     force0 = model.electrostatic_force(np.zeros(model.ncoords), volts, 0.0)[0] + f_ext
@@ -153,18 +155,26 @@ def test_floating_plate_conserves_charge(model, lib, tmp_path):
     names, amp, period = _names(model), 5.0, 200e-9
     events, per_period = 10_000, 2 * len(names)
     stop = events / per_period * period
-    drive = {n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
-             for i, n in enumerate(names)}
+    drive = {
+        n: Pulse(0, amp, (i % 2) * period / 4, 5e-9, 5e-9, period / 2 - 5e-9 - (i % 3 == 0) * 20e-9, period)
+        for i, n in enumerate(names)
+    }
     springs = [f"Bspring_{c.name} f_{c.name} 0 V=-100*v(x_{c.name})" for c in model.coordinates[:3]]
-    bench = Bench(model, lib[0], control=lib[1], sources={k: p.spice() for k, p in drive.items()}, extra=springs,
-                  options="reltol=1e-4 chgtol=1e-20",
-                  driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]})
+    bench = Bench(
+        model,
+        lib[0],
+        control=lib[1],
+        sources={k: p.spice() for k, p in drive.items()},
+        extra=springs,
+        options="reltol=1e-4 chgtol=1e-20",
+        driven_elsewhere={f"f_{c.name}" for c in model.coordinates[:3]},
+    )
     plot = run_ngspice(bench.netlist(f".tran 20n {stop} 0 20n uic"), tmp_path)[0]
     x, _ = states(plot, model)
     v_el = np.stack([plot[f"v({n})"] for n in names], axis=-1)
     caps = model.capacitance(x)
     expected = np.sum(caps * v_el, axis=1) / np.sum(caps, axis=1)
-    assert np.abs(x).max() > 1e-4                                           # the plate moved
+    assert np.abs(x).max() > 1e-4  # the plate moved
     assert abs(plot["v(plate)"][-1] - expected[-1]) < 1e-4 * amp
     assert np.abs(plot["v(plate)"] - expected).max() < 1e-4 * amp
 
@@ -188,15 +198,22 @@ def test_ac_compliance_includes_the_electrostatic_spring(model, lib, tmp_path):
         held.add(f"f_{c.name}")
     springs.append("Vac f_z fsp DC 0 AC 1")
     sources = {e.name: "15" for e in model.electrodes} | {"plate": "0"}
-    bench = Bench(model, lib[0], control=lib[1], sources=sources, extra=springs, driven_elsewhere=held,
-                  options="reltol=1e-9 vntol=1e-12 abstol=1e-18")
+    bench = Bench(
+        model,
+        lib[0],
+        control=lib[1],
+        sources=sources,
+        extra=springs,
+        driven_elsewhere=held,
+        options="reltol=1e-9 vntol=1e-12 abstol=1e-18",
+    )
     plot = run_ngspice(bench.netlist(".ac dec 5 2k 500k"), tmp_path)[0]
     freqs = np.real(plot["frequency"])
     op = run_ngspice(bench.netlist(".op"), tmp_path, name="op")[0]
     x0 = np.array([op[f"v(x1.xs_{c.name})"][0] for c in model.coordinates])
     mass = np.array([c.mass for c in model.coordinates])
     stiff = np.array([c.stiffness for c in model.coordinates]) + k_ext
-    jac = np.zeros((n, n))                                   # dF_el/dq, SI
+    jac = np.zeros((n, n))  # dF_el/dq, SI
     for v in range(n):
         h = np.zeros(n)
         h[v] = 1e-4
@@ -206,7 +223,7 @@ def test_ac_compliance_includes_the_electrostatic_spring(model, lib, tmp_path):
     f_unit = z.port_units[3]
     for i, freq in enumerate(freqs):
         w = 2 * np.pi * freq
-        ref = np.linalg.solve(np.diag(stiff - mass * w**2) - jac, np.eye(n)[0])     # q per N of F_z
+        ref = np.linalg.solve(np.diag(stiff - mass * w**2) - jac, np.eye(n)[0])  # q per N of F_z
         for v, c in enumerate(model.coordinates):
             got = plot[f"v(x_{c.name})"][i] * c.port_units[1] / f_unit
             assert abs(got - ref[v]) < 5e-3 * np.abs(ref).max(), (freq, c.name)
@@ -223,14 +240,16 @@ def test_code_model_takes_non_affine_plate_terms(model, tmp_path):
     import dataclasses
 
     from netgen.fit import Polynomial
+
     extra = np.zeros((3, model.ncoords), dtype=int)
-    extra[0, 0] = 2                                   # x_z^2
-    extra[1, 0] = extra[1, 1] = 1                     # x_z x_tilt_x
-    extra[2, 2] = 2                                   # x_tilt_y^2
+    extra[0, 0] = 2  # x_z^2
+    extra[1, 0] = extra[1, 1] = 1  # x_z x_tilt_x
+    extra[2, 2] = 2  # x_tilt_y^2
     fits = []
     for f in model.capacitances:
-        polys = [Polynomial(np.vstack([p.exponents, extra]), np.concatenate([p.coeffs, [8.0, 6.0, -4.0]]))
-                 for p in f.polys]
+        polys = [
+            Polynomial(np.vstack([p.exponents, extra]), np.concatenate([p.coeffs, [8.0, 6.0, -4.0]])) for p in f.polys
+        ]
         fits.append(dataclasses.replace(f, polys=polys))
     curved = dataclasses.replace(model, capacitances=fits)
     folder = tmp_path / "lib"
@@ -249,8 +268,10 @@ def test_code_model_takes_non_affine_plate_terms(model, tmp_path):
     plain = _reference_transient(model, drive, f_ext, plot["time"], stop)
     for v, c in enumerate(curved.coordinates):
         peak = np.abs(ref[:, v]).max()
-        print(f"{c.name}: |ngspice - scipy| {np.abs(x[:, v] - ref[:, v]).max() / peak:.1e}, "
-              f"|unmodified - modified| {np.abs(plain[:, v] - ref[:, v]).max() / peak:.1e} of the peak")
+        print(
+            f"{c.name}: |ngspice - scipy| {np.abs(x[:, v] - ref[:, v]).max() / peak:.1e}, "
+            f"|unmodified - modified| {np.abs(plain[:, v] - ref[:, v]).max() / peak:.1e} of the peak"
+        )
         assert np.abs(x[:, v] - ref[:, v]).max() < 2e-3 * peak, c.name
     # the added curvature matters: the unmodified model's motion differs by 10x the tolerance
     assert max(np.abs(plain[:, v] - ref[:, v]).max() / np.abs(ref[:, v]).max() for v in range(3)) > 0.02

@@ -46,12 +46,18 @@ def test_lines_arrive_as_printed_and_ticks_run_in_the_silences(tmp_path):
     code = "import time; print('a', flush=True); time.sleep(1.5); print('b', flush=True)"
     seen, ticks = [], []
     start = time.monotonic()
-    done = process.run([sys.executable, "-c", code], tmp_path, 30.0, "x",
-                       on_line=lambda line: seen.append((line.strip(), time.monotonic() - start)),
-                       on_tick=ticks.append, tick=0.25)
+    done = process.run(
+        [sys.executable, "-c", code],
+        tmp_path,
+        30.0,
+        "x",
+        on_line=lambda line: seen.append((line.strip(), time.monotonic() - start)),
+        on_tick=ticks.append,
+        tick=0.25,
+    )
     assert done.returncode == 0 and done.output == "a\nb\n"
-    assert [s for s, _ in seen] == ["a", "b"] and seen[0][1] < 1.0 <= seen[1][1]     # 'a' before the sleep
-    assert len(ticks) >= 3 and ticks == sorted(ticks)                                 # ticks during the sleep
+    assert [s for s, _ in seen] == ["a", "b"] and seen[0][1] < 1.0 <= seen[1][1]  # 'a' before the sleep
+    assert len(ticks) >= 3 and ticks == sorted(ticks)  # ticks during the sleep
 
 
 def test_exit_code_and_merged_output(tmp_path):

@@ -52,7 +52,9 @@ def env_for(version: str, **extra: str) -> dict[str, str]:
 
 def python(code_or_file: str | Path, *args: str, env: dict[str, str], cwd: Path = ROOT) -> subprocess.CompletedProcess:
     """A fresh Python process (its own libngspice), a script file or inline code."""
-    argv = [sys.executable, str(code_or_file)] if isinstance(code_or_file, Path) else [sys.executable, "-c", code_or_file]
+    argv = (
+        [sys.executable, str(code_or_file)] if isinstance(code_or_file, Path) else [sys.executable, "-c", code_or_file]
+    )
     return subprocess.run(argv + list(args), cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
 
 
@@ -62,6 +64,7 @@ def disk() -> MacroModel:
 
 
 # ----------------------------------------------------------------------------- the example against batch mode
+
 
 @pytest.mark.parametrize("version", VERSIONS)
 def test_example_transient_equals_the_batch_run(version, disk, tmp_path, monkeypatch):
@@ -75,9 +78,14 @@ def test_example_transient_equals_the_batch_run(version, disk, tmp_path, monkeyp
     got = np.load(saved)
 
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[version])
-    gravity = repr(-disk.coordinates[0].mass * 9.81 / 1e-6)                  # uN, 1 V = 1 uN
-    sources = {"top_r2s1": "PULSE(0 3 0 10n 10n 0.49u 1u)", "top_r1s2": "PULSE(0 2 0.25u 10n 10n 0.3u 1u)",
-               "bot_r1s3": "PULSE(0 2 5u 10n 10n 1 2)", "f_z": gravity, "plate": "0"}
+    gravity = repr(-disk.coordinates[0].mass * 9.81 / 1e-6)  # uN, 1 V = 1 uN
+    sources = {
+        "top_r2s1": "PULSE(0 3 0 10n 10n 0.49u 1u)",
+        "top_r1s2": "PULSE(0 2 0.25u 10n 10n 0.3u 1u)",
+        "bot_r1s3": "PULSE(0 2 5u 10n 10n 1 2)",
+        "f_z": gravity,
+        "plate": "0",
+    }
     bench = Bench(disk, LIB, sources=sources, options="reltol=1e-5 chgtol=1e-18")
     plot = run_ngspice(bench.netlist(".tran 10n 20u 0 10n uic"), tmp_path / "batch")[0]
     x, xdot = states(plot, disk)
@@ -91,7 +99,7 @@ def test_example_transient_equals_the_batch_run(version, disk, tmp_path, monkeyp
         assert np.abs(got[f"v_{c.name}"] - u_batch).max() <= 1e-6 * np.abs(u_batch).max(), c.name
     i_batch = np.interp(got["time"], time, -plot["i(vtop_r2s1)"])
     assert np.abs(got["i_top_r2s1"] - i_batch).max() <= 1e-6 * np.abs(i_batch).max()
-    assert len(got["time"]) == len(time)                                    # the same steps, not only close
+    assert len(got["time"]) == len(time)  # the same steps, not only close
 
 
 # ----------------------------------------------------------------------------- physics: the piston
@@ -138,23 +146,25 @@ def test_piston_statics_and_ac_against_parallel_plate(version, piston):
 
     travel = brentq(lambda z: c.stiffness * z - EPS0 * area * volts**2 / (2 * (gap - z) ** 2), 0, gap / 3)
     assert -got["z"] == pytest.approx(travel, rel=1e-5)
-    assert travel > 0.1 * gap                                                 # a real deflection, not a linear one
-    assert abs(got["i_dc"]) < 1e-15                                           # no DC through a capacitor
+    assert travel > 0.1 * gap  # a real deflection, not a linear one
+    assert abs(got["i_dc"]) < 1e-15  # no DC through a capacitor
 
     w = 2 * np.pi * np.array(got["f"])
     mass = c.length * c.width * c.thickness * c.density
     x = np.array(got["x_re"]) + 1j * np.array(got["x_im"])
     assert x == pytest.approx(1e-6 / (c.stiffness - mass * w**2), rel=1e-8)
-    assert math.sqrt(c.stiffness / mass) / (2 * np.pi) < got["f"][-1]         # the sweep crosses resonance
+    assert math.sqrt(c.stiffness / mass) / (2 * np.pi) < got["f"][-1]  # the sweep crosses resonance
     i = np.array(got["i_re"]) + 1j * np.array(got["i_im"])
     assert i == pytest.approx(1j * w * EPS0 * area / gap, rel=1e-8)
 
 
 # ----------------------------------------------------------------------------- failures and their messages
 
+
 def cli(args: list[str], env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "netgen.cli", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "netgen.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+    )
 
 
 def test_missing_library_is_exit_3_with_the_install_command(tmp_path):
@@ -165,20 +175,27 @@ def test_missing_library_is_exit_3_with_the_install_command(tmp_path):
     fake.chmod(0o755)
     cir = tmp_path / "r.cir"
     cir.write_text("* divider\nV1 a 0 1\nR1 a 0 1k\n.op\n.end\n")
-    proc = cli(["simulate", str(cir), "-o", str(tmp_path / "run"), "--simulator", "pyspice"],
-               env_for("39", NETGEN_NGSPICE=str(fake)), tmp_path)
+    proc = cli(
+        ["simulate", str(cir), "-o", str(tmp_path / "run"), "--simulator", "pyspice"],
+        env_for("39", NETGEN_NGSPICE=str(fake)),
+        tmp_path,
+    )
     assert proc.returncode == 3, proc.stderr
     assert "libngspice" in proc.stderr and "apt-get install -y libngspice0" in proc.stderr
     assert str(tmp_path / "prefix" / "lib") in proc.stderr and "Traceback" not in proc.stderr
-    code = ("from netgen.sim import pyspice\ntry:\n    pyspice.shared()\nexcept pyspice.SimulatorNotFound as e:\n"
-            "    print(e.exit_code, e)")
+    code = (
+        "from netgen.sim import pyspice\ntry:\n    pyspice.shared()\nexcept pyspice.SimulatorNotFound as e:\n"
+        "    print(e.exit_code, e)"
+    )
     proc = python(code, env=env_for("39", NETGEN_LIBNGSPICE=str(tmp_path / "nosuch.so")))
     assert proc.stdout.startswith(f"3 NETGEN_LIBNGSPICE={str(tmp_path / 'nosuch.so')!r} is not a file"), proc.stderr
 
 
 BLOW_UP = "* finite-time blow-up\nC1 n 0 1\nB1 0 n I=v(n)*v(n)\n.ic v(n)=1\n.tran 1m 2 uic\n.end\n"
-ERROR_WORD = ("error budget: the word error in the title and a node name\n"
-              "V1 in 0 1\nR1 in error_node 1k\nR2 error_node 0 3k\n.op\n.end\n")
+ERROR_WORD = (
+    "error budget: the word error in the title and a node name\n"
+    "V1 in 0 1\nR1 in error_node 1k\nR2 error_node 0 3k\n.op\n.end\n"
+)
 
 
 RUNS = """
@@ -203,24 +220,32 @@ def test_runner_reports_failures_and_keeps_its_files(version, disk, tmp_path):
     wall-clock limit is halted and the next run works; nothing of PySpice's log is printed."""
     ports = [p["name"] for p in disk.ports()]
     sources = "\n".join(f"V{p} {p} 0 0" for p in ports if not p.startswith("x_"))
-    cases = {"w": ERROR_WORD, "ctl": "* control\nV1 a 0 2\nR1 a 0 1k\n.control\nop\n.endc\n.end\n",
-             "blow": BLOW_UP, "bad": "* bad\nV1 a 0 1\nX1 a 0 nosuch\n.op\n.end\n",
-             "slow": SLOW.format(lib=LIB, ports=" ".join(ports), sources=sources)}
+    cases = {
+        "w": ERROR_WORD,
+        "ctl": "* control\nV1 a 0 2\nR1 a 0 1k\n.control\nop\n.endc\n.end\n",
+        "blow": BLOW_UP,
+        "bad": "* bad\nV1 a 0 1\nX1 a 0 nosuch\n.op\n.end\n",
+        "slow": SLOW.format(lib=LIB, ports=" ".join(ports), sources=sources),
+    }
     for name, text in cases.items():
         (tmp_path / f"{name}.cir").write_text(text)
     proc = python(RUNS, "run", "w", "ctl", "blow", "bad", "slow", "w", env=env_for(version), cwd=tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     word, ctl, blow, bad, slow, again = proc.stdout.splitlines()
-    assert word.startswith("w ok op1 ") and json.loads(word.split(" ", 3)[3]) == \
-        pytest.approx({"v(in)": 1.0, "v(error_node)": 0.75, "i(v1)": -1 / 4000}, rel=1e-12)
-    assert ctl.startswith("ctl ok op1 ") and json.loads(ctl.split(" ", 3)[3]) == \
-        pytest.approx({"v(a)": 2.0, "i(v1)": -2 / 1000}, rel=1e-12)
+    assert word.startswith("w ok op1 ") and json.loads(word.split(" ", 3)[3]) == pytest.approx(
+        {"v(in)": 1.0, "v(error_node)": 0.75, "i(v1)": -1 / 4000}, rel=1e-12
+    )
+    assert ctl.startswith("ctl ok op1 ") and json.loads(ctl.split(" ", 3)[3]) == pytest.approx(
+        {"v(a)": 2.0, "i(v1)": -2 / 1000}, rel=1e-12
+    )
     assert "timestep too small" in blow and "node n" in blow
     assert 0.99 < float(blow.split("at t = ")[1].split()[0]) < 1.0
     assert "reproduce with: ngspice -b run/blow.cir" in blow and "log run/blow.log" in blow
     assert "Timestep too small" in (tmp_path / "run" / "blow.log").read_text()
     assert (tmp_path / "run" / "blow.cir").read_text() == BLOW_UP
-    assert "failed" in bad and "unknown subckt" in bad and "unknown subckt" in (tmp_path / "run" / "bad.log").read_text()
+    assert (
+        "failed" in bad and "unknown subckt" in bad and "unknown subckt" in (tmp_path / "run" / "bad.log").read_text()
+    )
     assert "failed" in slow and "did not finish within 0 s" in slow
     assert again == word
 
@@ -235,9 +260,11 @@ def test_simulate_cli_exit_code_of_a_failed_run(tmp_path):
 
 def test_one_library_per_process(tmp_path):
     """After 39 is loaded, asking for 46 in the same process is a clear refusal, not a crash."""
-    code = ("import os; from netgen.sim import pyspice; from netgen.errors import SimulatorNotFound\n"
-            f"print(pyspice.release()); os.environ['NETGEN_NGSPICE'] = {NGSPICE['46']!r}\n"
-            "try:\n    pyspice.shared()\nexcept SimulatorNotFound as e:\n    print(e)\n")
+    code = (
+        "import os; from netgen.sim import pyspice; from netgen.errors import SimulatorNotFound\n"
+        f"print(pyspice.release()); os.environ['NETGEN_NGSPICE'] = {NGSPICE['46']!r}\n"
+        "try:\n    pyspice.shared()\nexcept SimulatorNotFound as e:\n    print(e)\n"
+    )
     proc = python(code, env=env_for("39"))
     assert proc.returncode == 0, proc.stderr
     first, message = proc.stdout.splitlines()[:2]
@@ -249,11 +276,16 @@ def test_library_beside_each_ngspice():
     named by NETGEN_LIBNGSPICE (46's, with 39 selected as the binary): no loading, no release check."""
     prefix46 = str(Path(NGSPICE["46"]).parent.parent / "usr/lib/x86_64-linux-gnu")
     code = "from netgen.sim import pyspice; l = pyspice.library(); print(l.path, l.lib_dir, l.scripts, l.binary)"
-    for env, folder in ((env_for("39"), "/usr/lib/x86_64-linux-gnu"), (env_for("46"), prefix46),
-                        (env_for("39", NETGEN_LIBNGSPICE=f"{prefix46}/libngspice.so.0"), prefix46)):
+    for env, folder in (
+        (env_for("39"), "/usr/lib/x86_64-linux-gnu"),
+        (env_for("46"), prefix46),
+        (env_for("39", NETGEN_LIBNGSPICE=f"{prefix46}/libngspice.so.0"), prefix46),
+    ):
         path, lib_dir, scripts, binary = python(code, env=env).stdout.split()
         assert path == f"{folder}/libngspice.so.0" and lib_dir == f"{folder}/ngspice"
-        assert Path(scripts, "spinit").is_file() and scripts == str(Path(folder).parent.parent / "share/ngspice/scripts")
+        assert Path(scripts, "spinit").is_file() and scripts == str(
+            Path(folder).parent.parent / "share/ngspice/scripts"
+        )
         assert (binary == "None") == (pyspice.ENV in env)
 
 
@@ -272,5 +304,5 @@ def test_drive_and_node_names_are_data(disk):
         pyspice.ModelCircuit.build(ROOT / "netlists" / "levitated_disk_xspice.lib")
     bench = pyspice.ModelCircuit.build(LIB, drive={"f_z": -1.6e-7, "top_r2s1": "SIN(0 1 50k)"}, nodes={"plate": "0"})
     deck = str(bench.simulation())
-    assert "Vf_z f_z 0 -0.16" in deck and "Vtop_r2s1 top_r2s1 0 SIN(0 1 50k)" in deck    # N -> uN port volts
+    assert "Vf_z f_z 0 -0.16" in deck and "Vtop_r2s1 top_r2s1 0 SIN(0 1 50k)" in deck  # N -> uN port volts
     assert "Vplate" not in deck and " plate " not in deck.split("\n")[2]

@@ -28,7 +28,7 @@ B1 0 n I=v(n)*v(n)
 
 
 def test_missing_ngspice_names_the_install_command(tmp_path, monkeypatch):
-    monkeypatch.setenv("PATH", str(tmp_path))                     # an empty folder: no ngspice on PATH
+    monkeypatch.setenv("PATH", str(tmp_path))  # an empty folder: no ngspice on PATH
     with pytest.raises(SimulatorNotFound, match=r"apt-get install -y ngspice"):
         run_ngspice(BLOW_UP, tmp_path)
 
@@ -38,8 +38,13 @@ def test_missing_ngspice_in_a_fresh_process_is_a_message_not_a_traceback(tmp_pat
     cir = tmp_path / "x.cir"
     cir.write_text(BLOW_UP)
     env = dict(os.environ, PATH=str(tmp_path))
-    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
-                          capture_output=True, text=True, env=env, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
     assert proc.returncode == 3, proc.stderr
     assert "apt-get install -y ngspice" in proc.stderr and "Traceback" not in proc.stderr
 
@@ -50,7 +55,7 @@ def test_timestep_too_small_names_node_time_and_saved_netlist(tmp_path):
     message = str(info.value)
     assert "timestep too small" in message and "node n" in message
     t = float(message.split("at t = ")[1].split()[0])
-    assert 0.99 < t < 1.0                                          # the analytic blow-up time is 1 s
+    assert 0.99 < t < 1.0  # the analytic blow-up time is 1 s
     saved = tmp_path / "blow.cir"
     assert f"ngspice -b {saved}" in message and saved.read_text() == BLOW_UP
 
@@ -61,8 +66,10 @@ def test_unknown_subcircuit_is_reported(tmp_path):
 
 
 def test_the_word_error_in_titles_and_nodes_is_not_a_failure(tmp_path):
-    netlist = ("error budget: the word error in the title and a node name\n"
-               "V1 in 0 1\nR1 in error_node 1k\nR2 error_node 0 3k\n.op\n.end\n")
+    netlist = (
+        "error budget: the word error in the title and a node name\n"
+        "V1 in 0 1\nR1 in error_node 1k\nR2 error_node 0 3k\n.op\n.end\n"
+    )
     plot = run_ngspice(netlist, tmp_path)[0]
     assert np.isclose(plot["error_node"][0], 0.75)
 
@@ -70,8 +77,12 @@ def test_the_word_error_in_titles_and_nodes_is_not_a_failure(tmp_path):
 def test_cli_reports_a_failed_simulation_with_exit_1(tmp_path):
     cir = tmp_path / "blow.cir"
     cir.write_text(BLOW_UP)
-    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 1
     assert "timestep too small" in proc.stderr and "node n" in proc.stderr and "Traceback" not in proc.stderr
 

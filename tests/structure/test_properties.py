@@ -52,8 +52,11 @@ def _value(v) -> str:
 
 def toml_text(doc: dict) -> str:
     """A structure document (top keys, tables, arrays of tables) as TOML text."""
-    lines = [f"{k} = {_value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list)) or
-             (isinstance(v, list) and not all(isinstance(x, dict) for x in v))]
+    lines = [
+        f"{k} = {_value(v)}"
+        for k, v in doc.items()
+        if not isinstance(v, (dict, list)) or (isinstance(v, list) and not all(isinstance(x, dict) for x in v))
+    ]
     for k, v in doc.items():
         if isinstance(v, dict):
             lines += ["", f"[{k}]"] + [f"{kk} = {_value(vv)}" for kk, vv in v.items()]
@@ -72,42 +75,83 @@ def valid_docs(draw) -> dict:
     radius = draw(st.floats(150, 800))
     nrings = draw(st.integers(1, 2))
     edges = sorted(draw(st.lists(st.floats(0.0, 0.98), min_size=2 * nrings, max_size=2 * nrings, unique=True)))
-    rings = [[f"{edges[2 * k] * radius:.3f} um", f"{max(edges[2 * k + 1], edges[2 * k] + 0.05) * radius:.3f} um"]
-             for k in range(nrings)]
+    rings = [
+        [f"{edges[2 * k] * radius:.3f} um", f"{max(edges[2 * k + 1], edges[2 * k] + 0.05) * radius:.3f} um"]
+        for k in range(nrings)
+    ]
     if nrings == 2 and float(rings[1][0].split()[0]) < float(rings[0][1].split()[0]):
         rings = rings[:1]
     sides = draw(st.sampled_from([["above"], ["below"], ["above", "below"]]))
     sectors = draw(st.integers(1, 4))
-    sets = [{"name": f"s{side[0]}", "side": side, "gap": f"{draw(st.floats(0.5, 8)):.3f} um",
-             "rings": rings, "sectors": sectors, "slot": f"{draw(st.floats(0, 0.02)) * radius:.3f} um"}
-            for side in sides]
+    sets = [
+        {
+            "name": f"s{side[0]}",
+            "side": side,
+            "gap": f"{draw(st.floats(0.5, 8)):.3f} um",
+            "rings": rings,
+            "sectors": sectors,
+            "slot": f"{draw(st.floats(0, 0.02)) * radius:.3f} um",
+        }
+        for side in sides
+    ]
     rigid = draw(st.lists(st.sampled_from(["z", "tilt_x", "tilt_y"]), min_size=1, max_size=3, unique=True))
-    return {"name": draw(st.sampled_from(["disk", "plate_a", "m1"])),
-            "conductor": {"radius": f"{radius:.3f} um", "thickness": f"{draw(st.floats(2, 20)):.3f} um",
-                          "youngs_modulus": f"{draw(st.floats(50, 300)):.2f} GPa",
-                          "poisson_ratio": draw(st.floats(-0.5, 0.45)), "density": draw(st.floats(1000, 20000))},
-            "electrodes": sets,
-            "coordinates": {"rigid": rigid, "modes": 0},
-            "sampling": {"levels": 3, "range": draw(st.floats(0.05, 0.4))},
-            "fit": {"max_terms": 2, "holdout": 20}}
+    return {
+        "name": draw(st.sampled_from(["disk", "plate_a", "m1"])),
+        "conductor": {
+            "radius": f"{radius:.3f} um",
+            "thickness": f"{draw(st.floats(2, 20)):.3f} um",
+            "youngs_modulus": f"{draw(st.floats(50, 300)):.2f} GPa",
+            "poisson_ratio": draw(st.floats(-0.5, 0.45)),
+            "density": draw(st.floats(1000, 20000)),
+        },
+        "electrodes": sets,
+        "coordinates": {"rigid": rigid, "modes": 0},
+        "sampling": {"levels": 3, "range": draw(st.floats(0.05, 0.4))},
+        "fit": {"max_terms": 2, "holdout": 20},
+    }
 
 
-BASE = {"name": "disk",
-        "conductor": {"radius": "473 um", "thickness": "10 um", "youngs_modulus": "160 GPa",
-                      "poisson_ratio": 0.22, "density": "2330 kg/m^3"},
-        "electrodes": [{"name": "top", "side": "above", "gap": "3 um", "rings": [["20 um", "230 um"], ["240 um", "473 um"]],
-                        "sectors": 4, "sector_start": "-45 deg", "slot": "10 um"},
-                       {"name": "bot", "side": "below", "gap": "3 um", "rings": [["20 um", "473 um"]], "sectors": 2}],
-        "coordinates": {"rigid": ["z", "tilt_x", "tilt_y"], "modes": 4},
-        "sampling": {"levels": 3, "range": 0.2},
-        "fit": {"degree": 1, "target": "plates", "tolerance": 2e-3, "holdout": 50},
-        "fem": {"refine": 4}}
+BASE = {
+    "name": "disk",
+    "conductor": {
+        "radius": "473 um",
+        "thickness": "10 um",
+        "youngs_modulus": "160 GPa",
+        "poisson_ratio": 0.22,
+        "density": "2330 kg/m^3",
+    },
+    "electrodes": [
+        {
+            "name": "top",
+            "side": "above",
+            "gap": "3 um",
+            "rings": [["20 um", "230 um"], ["240 um", "473 um"]],
+            "sectors": 4,
+            "sector_start": "-45 deg",
+            "slot": "10 um",
+        },
+        {"name": "bot", "side": "below", "gap": "3 um", "rings": [["20 um", "473 um"]], "sectors": 2},
+    ],
+    "coordinates": {"rigid": ["z", "tilt_x", "tilt_y"], "modes": 4},
+    "sampling": {"levels": 3, "range": 0.2},
+    "fit": {"degree": 1, "target": "plates", "tolerance": 2e-3, "holdout": 50},
+    "fem": {"refine": 4},
+}
 
 # (table, key) paths of the base document, with a mutation that makes each invalid
-NUMERIC = [("conductor", "radius"), ("conductor", "thickness"), ("conductor", "youngs_modulus"),
-           ("conductor", "density"), ("electrodes.0", "gap"), ("electrodes.1", "gap")]
-BAD_VALUES = st.one_of(st.sampled_from([0, -1.5, "-3 um", "0 um", "3 kg", "abc", "", "nan um", True, [1, 2], "1e999 um"]),
-                       st.floats(max_value=0.0), st.text(alphabet="xyz!@# ", max_size=6))
+NUMERIC = [
+    ("conductor", "radius"),
+    ("conductor", "thickness"),
+    ("conductor", "youngs_modulus"),
+    ("conductor", "density"),
+    ("electrodes.0", "gap"),
+    ("electrodes.1", "gap"),
+]
+BAD_VALUES = st.one_of(
+    st.sampled_from([0, -1.5, "-3 um", "0 um", "3 kg", "abc", "", "nan um", True, [1, 2], "1e999 um"]),
+    st.floats(max_value=0.0),
+    st.text(alphabet="xyz!@# ", max_size=6),
+)
 
 
 def _get(doc: dict, table: str) -> dict:
@@ -119,10 +163,28 @@ def _get(doc: dict, table: str) -> dict:
 def invalid_docs(draw) -> str:
     """TOML text of the base document with one mutation the validator must reject."""
     import copy
+
     doc = copy.deepcopy(BASE)
-    kind = draw(st.sampled_from(["bad_value", "missing", "unknown", "poisson", "syntax", "overlap_sets",
-                                 "ring_outside", "too_many_modes", "huge_grid", "range", "bad_name",
-                                 "duplicate_set", "wrong_type", "mode_label"]))
+    kind = draw(
+        st.sampled_from(
+            [
+                "bad_value",
+                "missing",
+                "unknown",
+                "poisson",
+                "syntax",
+                "overlap_sets",
+                "ring_outside",
+                "too_many_modes",
+                "huge_grid",
+                "range",
+                "bad_name",
+                "duplicate_set",
+                "wrong_type",
+                "mode_label",
+            ]
+        )
+    )
     if kind == "bad_value":
         table, key = draw(st.sampled_from(NUMERIC))
         _get(doc, table)[key] = draw(BAD_VALUES)
@@ -132,9 +194,27 @@ def invalid_docs(draw) -> str:
     elif kind == "unknown":
         table = draw(st.sampled_from(["conductor", "electrodes.0", "coordinates", "sampling", "fit", "fem"]))
         key = draw(st.from_regex(r"[a-z][a-z_]{0,10}", fullmatch=True))
-        assume(key not in _get(doc, table) and key not in ("kind", "sector_start", "slot", "sectors", "modes",
-                                                           "rigid", "levels", "range", "degree", "target",
-                                                           "holdout", "seed", "tolerance", "max_terms", "refine"))
+        assume(
+            key not in _get(doc, table)
+            and key
+            not in (
+                "kind",
+                "sector_start",
+                "slot",
+                "sectors",
+                "modes",
+                "rigid",
+                "levels",
+                "range",
+                "degree",
+                "target",
+                "holdout",
+                "seed",
+                "tolerance",
+                "max_terms",
+                "refine",
+            )
+        )
         _get(doc, table)[key] = 1
     elif kind == "poisson":
         doc["conductor"]["poisson_ratio"] = draw(st.one_of(st.floats(0.5, 10), st.floats(-10, -1)))
@@ -158,8 +238,17 @@ def invalid_docs(draw) -> str:
     elif kind == "duplicate_set":
         doc["electrodes"][1]["name"] = "top"
     elif kind == "wrong_type":
-        table, key = draw(st.sampled_from([("sampling", "levels"), ("fit", "degree"), ("fem", "refine"),
-                                           ("electrodes.0", "sectors"), ("coordinates", "rigid")]))
+        table, key = draw(
+            st.sampled_from(
+                [
+                    ("sampling", "levels"),
+                    ("fit", "degree"),
+                    ("fem", "refine"),
+                    ("electrodes.0", "sectors"),
+                    ("coordinates", "rigid"),
+                ]
+            )
+        )
         _get(doc, table)[key] = draw(st.sampled_from(["three", 2.5, True, [3], -4, 10**9]))
     elif kind == "mode_label":
         doc["coordinates"]["modes"] = [draw(st.sampled_from(["2,0", "0,1c", "x", "2;0c", "9,0c", "2,9c"]))]
@@ -176,7 +265,7 @@ def _run_cli(text: str) -> None:
         try:
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
                 code = cli.main(["build", str(path), "-o", str(out), "-q", "--no-plots"])
-        except BaseException as exc:          # an escaping exception is a traceback for the user
+        except BaseException as exc:  # an escaping exception is a traceback for the user
             TALLY["traceback"] += 1
             raise AssertionError(f"traceback {exc!r} on:\n{text}") from exc
         message = err.getvalue()
@@ -206,9 +295,11 @@ def test_invalid_structures_exit_2_without_traceback_or_output():
     for key in TALLY:
         TALLY[key] = 0
     _invalid_structure_property()
-    print(f"\ninvalid structure files tried: {TALLY['tried']}, tracebacks: {TALLY['traceback']}, "
-          f"wrong exit codes: {TALLY['wrong_exit']}, partial outputs: {TALLY['partial_output']}, "
-          f"messages without file/fix: {TALLY['no_fix']}")
+    print(
+        f"\ninvalid structure files tried: {TALLY['tried']}, tracebacks: {TALLY['traceback']}, "
+        f"wrong exit codes: {TALLY['wrong_exit']}, partial outputs: {TALLY['partial_output']}, "
+        f"messages without file/fix: {TALLY['no_fix']}"
+    )
     assert TALLY["tried"] >= 100
     assert TALLY["traceback"] == TALLY["wrong_exit"] == TALLY["partial_output"] == TALLY["no_fix"] == 0
 
@@ -221,8 +312,12 @@ def test_fresh_process_reports_a_bad_file_with_exit_2(tmp_path):
     bad = tmp_path / "bad.toml"
     doc = dict(BASE, coordinates={"rigid": ["z"], "modes": 30})
     bad.write_text(toml_text(doc))
-    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(tmp_path / "out")],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "fem.refine" in proc.stderr
     assert not (tmp_path / "out").exists()
 
@@ -239,6 +334,7 @@ def _rejects(doc: dict, *words: str) -> None:
 
 def test_sets_on_the_same_side_must_not_overlap():
     import copy
+
     doc = copy.deepcopy(BASE)
     doc["electrodes"][1]["side"] = "above"
     _rejects(doc, "electrodes[1].rings", "overlaps set 'top'")
@@ -249,8 +345,10 @@ def test_sets_on_the_same_side_must_not_overlap():
 def test_modes_beyond_the_mesh_resolution_are_refused():
     _rejects(dict(BASE, coordinates={"rigid": ["z"], "modes": 17}), "coordinates.modes", "fem.refine = 4")
     _rejects(dict(BASE, coordinates={"rigid": ["z"], "modes": ["9,0c"]}), "'9,0c'", "n <= 8")
-    parse_structure(toml_text(dict(BASE, coordinates={"rigid": ["z"], "modes": 16},
-                                   sampling={"levels": 2, "range": 0.2})), "ok.toml")
+    parse_structure(
+        toml_text(dict(BASE, coordinates={"rigid": ["z"], "modes": 16}, sampling={"levels": 2, "range": 0.2})),
+        "ok.toml",
+    )
 
 
 def test_sampling_grid_size_and_contact_range_are_checked():
@@ -261,8 +359,9 @@ def test_sampling_grid_size_and_contact_range_are_checked():
 # ----------------------------------------------------------------------------- valid structures
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 @given(doc=valid_docs())
 def test_valid_rigid_structures_build_and_run_in_ngspice(doc, tmp_path_factory):
     """Build, emit, and a 1 us ngspice transient: electrodes ramp 0 -> 5 V in 1 us with the
@@ -273,14 +372,19 @@ def test_valid_rigid_structures_build_and_run_in_ngspice(doc, tmp_path_factory):
     work = tmp_path_factory.mktemp("prop")
     lib = work / f"{model.name}.lib"
     lib.write_text(subcircuit(model))
-    bench = Bench(model, lib, sources={e.name: "PWL(0 0 1u 5)" for e in model.electrodes} | {"plate": "0"},
-                  options="reltol=1e-6 chgtol=1e-20")
+    bench = Bench(
+        model,
+        lib,
+        sources={e.name: "PWL(0 0 1u 5)" for e in model.electrodes} | {"plate": "0"},
+        options="reltol=1e-6 chgtol=1e-20",
+    )
     plot = run_ngspice(bench.netlist(".tran 10n 1u 0 10n uic"), work)[0]
     k = int(np.argmin(np.abs(plot["time"] - 0.5e-6)))
-    x, xdot = (a[k:k + 1] for a in states(plot, model))
+    x, xdot = (a[k : k + 1] for a in states(plot, model))
     volts = 5.0 * plot["time"][k] / 1e-6
-    expected = (model.capacitance(x)[0] * 5.0 / 1e-6
-                + volts * np.einsum("ev,v->e", model.capacitance_gradient(x)[0], xdot[0] * model.scales))
+    expected = model.capacitance(x)[0] * 5.0 / 1e-6 + volts * np.einsum(
+        "ev,v->e", model.capacitance_gradient(x)[0], xdot[0] * model.scales
+    )
     assert np.abs(x).max() < model.sampling["range"]
     for e, i_exp in zip(model.electrodes, expected):
         assert -plot[f"i(v{e.name})"][k] == pytest.approx(i_exp, rel=1e-2), e.name

@@ -7,7 +7,6 @@ import sys
 import pytest
 
 from netgen.structure import StructureError, load_structure, parse_structure
-
 from tests.fixtures import ROOT
 
 EXAMPLE = ROOT / "examples" / "levitated_disk.toml"
@@ -32,24 +31,30 @@ def _replace(old: str, new: str) -> str:
 
 BAD = [
     # (edit, expected words in the message, expected line or None)
-    (("radius = \"473 um\"", "radius = \"-473 um\""), ["conductor.radius", "greater than zero"], True),
-    (("thickness = \"10 um\"", "thickness = 0"), ["conductor.thickness", "greater than zero"], True),
+    (('radius = "473 um"', 'radius = "-473 um"'), ["conductor.radius", "greater than zero"], True),
+    (('thickness = "10 um"', "thickness = 0"), ["conductor.thickness", "greater than zero"], True),
     (("poisson_ratio = 0.22", "poisson_ratio = 0.7"), ["poisson_ratio", "(-1, 0.5)"], True),
-    (("radius = \"473 um\"", "radius = \"473 uF\""), ["radius", "not a length unit"], True),
-    (("radius = \"473 um\"", "radus = \"473 um\""), ["unknown key 'radus'", "did you mean 'radius'"], True),
-    (("gap = \"3 um\"", "gap = \"-3 um\""), ["electrodes[0].gap", "greater than zero"], True),
-    (("side = \"above\"", "side = \"abve\""), ["side", "did you mean 'above'"], True),
-    (("[[\"20 um\", \"230 um\"], [\"240 um\", \"473 um\"]]", "[[\"20 um\", \"250 um\"], [\"240 um\", \"473 um\"]]"),
-     ["overlaps"], None),
-    (("[[\"20 um\", \"230 um\"], [\"240 um\", \"473 um\"]]", "[[\"20 um\", \"230 um\"], [\"500 um\", \"600 um\"]]"),
-     ["outside the plate"], None),
+    (('radius = "473 um"', 'radius = "473 uF"'), ["radius", "not a length unit"], True),
+    (('radius = "473 um"', 'radus = "473 um"'), ["unknown key 'radus'", "did you mean 'radius'"], True),
+    (('gap = "3 um"', 'gap = "-3 um"'), ["electrodes[0].gap", "greater than zero"], True),
+    (('side = "above"', 'side = "abve"'), ["side", "did you mean 'above'"], True),
+    (
+        ('[["20 um", "230 um"], ["240 um", "473 um"]]', '[["20 um", "250 um"], ["240 um", "473 um"]]'),
+        ["overlaps"],
+        None,
+    ),
+    (
+        ('[["20 um", "230 um"], ["240 um", "473 um"]]', '[["20 um", "230 um"], ["500 um", "600 um"]]'),
+        ["outside the plate"],
+        None,
+    ),
     (("range = 0.2", "range = 1.0"), ["sampling.range", "touch"], None),
-    (("modes = [\"2,0c\", \"2,0s\", \"3,0c\", \"3,0s\"]", "modes = [\"2,0\"]"), ["mode label"], None),
-    (("rigid = [\"z\", \"tilt_x\", \"tilt_y\"]", "rigid = [\"z\", \"tilt_xx\"]"), ["did you mean 'tilt_x'"], None),
-    (("degree = 1", "degree = \"two\""), ["fit.degree", "integer"], None),
-    (("name = \"levitated_disk\"", "name = \"levitated disk\""), ["name", "identifier"], None),
+    (('modes = ["2,0c", "2,0s", "3,0c", "3,0s"]', 'modes = ["2,0"]'), ["mode label"], None),
+    (('rigid = ["z", "tilt_x", "tilt_y"]', 'rigid = ["z", "tilt_xx"]'), ["did you mean 'tilt_x'"], None),
+    (("degree = 1", 'degree = "two"'), ["fit.degree", "integer"], None),
+    (('name = "levitated_disk"', 'name = "levitated disk"'), ["name", "identifier"], None),
     (("[conductor]", "[conductor"), ["TOML syntax"], None),
-    (("slot = \"10 um\"", "slot = \"900 um\""), ["slot"], None),
+    (('slot = "10 um"', 'slot = "900 um"'), ["slot"], None),
 ]
 
 
@@ -71,12 +76,24 @@ def test_bad_input_names_file_key_and_fix(edit, words, line):
 DOTTED = [
     # (example, edit, the line written with the bad key, expected words): each edit puts a bad key
     # inside a dotted table header
-    ("accelerometer_xyz.toml", ('thigh_width = "2 um"', 'thigh_widht = "2 um"'), 'thigh_widht = "2 um"',
-     ["conductor.flexure.thigh_widht", "did you mean 'thigh_width'"]),
-    ("accelerometer_xyz.toml", ('width = "2 um"\nthigh', 'width = "-2 um"\nthigh'), 'width = "-2 um"',
-     ["conductor.flexure.width", "greater than zero"]),
-    ("levitated_disk.toml", ("[fem]", 'extractor = "bem"\n\n[electrostatics.bem]\ntolerance = 0.01\nlevels = 9\n\n[fem]'),
-     "levels = 9", ["electrostatics.bem.levels", "2..6"]),
+    (
+        "accelerometer_xyz.toml",
+        ('thigh_width = "2 um"', 'thigh_widht = "2 um"'),
+        'thigh_widht = "2 um"',
+        ["conductor.flexure.thigh_widht", "did you mean 'thigh_width'"],
+    ),
+    (
+        "accelerometer_xyz.toml",
+        ('width = "2 um"\nthigh', 'width = "-2 um"\nthigh'),
+        'width = "-2 um"',
+        ["conductor.flexure.width", "greater than zero"],
+    ),
+    (
+        "levitated_disk.toml",
+        ("[fem]", 'extractor = "bem"\n\n[electrostatics.bem]\ntolerance = 0.01\nlevels = 9\n\n[fem]'),
+        "levels = 9",
+        ["electrostatics.bem.levels", "2..6"],
+    ),
 ]
 
 
@@ -99,17 +116,18 @@ def test_bad_key_in_a_dotted_table_is_reported_at_its_line(example, edit, bad, w
 
 
 def test_units_are_converted_to_si():
-    s = parse_structure(_replace("sector_start = \"-45 deg\"", "sector_start = \"-0.25 rad\""), "x.toml")
+    s = parse_structure(_replace('sector_start = "-45 deg"', 'sector_start = "-0.25 rad"'), "x.toml")
     assert s.electrode_sets[0].sector_start == pytest.approx(-0.25)
     assert load_structure(EXAMPLE).electrode_sets[0].sector_start == pytest.approx(-math.pi / 4)
 
 
 def test_cli_reports_bad_file_with_exit_2_and_no_output(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text(_replace("gap = \"3 um\"", "gap = \"0 um\""))
+    bad.write_text(_replace('gap = "3 um"', 'gap = "0 um"'))
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(out)],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "netgen.cli", "build", str(bad), "-o", str(out)], capture_output=True, text=True
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert "gap" in proc.stderr and "fix:" in proc.stderr

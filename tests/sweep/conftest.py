@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from netgen.testbench import sigma_delta as sd
-
 from tests.fixtures import ROOT
 
 STRUCTURE = ROOT / "examples" / "levitated_disk.toml"
@@ -35,5 +34,6 @@ def serial_runs(tmp_path_factory):
     def one(ts):
         sd.run(model, lib, out / f"ts_{ts:g}", ts, CYCLES, progress=False, plots=False, skip=0)
         return summary(out / f"ts_{ts:g}" / "summary.json")
+
     with ThreadPoolExecutor(2) as pool:
         return dict(zip(TS, pool.map(one, TS)))

@@ -27,15 +27,14 @@ import numpy as np
 import pytest
 
 from netgen import cli
+from netgen import sweep as sw
 from netgen.electrostatics import extractor as structure_extractor
 from netgen.electrostatics import sampling
-from netgen.geometry.layout import electrodes, plate_outline
-from netgen.mechanics import mechanics
-from netgen import sweep as sw
 from netgen.electrostatics.sampling import ChunkStore
 from netgen.executor import DaskExecutor, executor, restore_environ
+from netgen.geometry.layout import electrodes, plate_outline
+from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
-
 from tests.fixtures import ROOT
 from tests.sweep.conftest import CYCLES, STRUCTURE, TS
 from tests.sweep.conftest import summary as _summary
@@ -46,9 +45,10 @@ distributed = pytest.importorskip("distributed")
 @pytest.fixture(scope="module")
 def cluster():
     """A LocalCluster of 2 worker processes with 1 thread each, and a client of the test's own."""
-    environ = dict(os.environ)     # the nannies' worker settings must not leak into later tests
-    c = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                 silence_logs=logging.ERROR)
+    environ = dict(os.environ)  # the nannies' worker settings must not leak into later tests
+    c = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    )
     client = distributed.Client(c)
     restore_environ(environ)
     yield c, client
@@ -76,8 +76,10 @@ def test_dask_samples_equal_serial_bit_for_bit(cluster, extractor, tmp_path):
     serial = [sampling.sample_grid(s, prepared, scales), sampling.sample_holdout(s, prepared, scales)]
     with DaskExecutor(client=cluster[1]) as ex:
         store = ChunkStore(tmp_path / "store")
-        dask = [sampling.sample_grid(s, prepared, scales, executor=ex, store=store),
-                sampling.sample_holdout(s, prepared, scales, executor=ex, store=store)]
+        dask = [
+            sampling.sample_grid(s, prepared, scales, executor=ex, store=store),
+            sampling.sample_holdout(s, prepared, scales, executor=ex, store=store),
+        ]
     for a, b in zip(serial, dask):
         assert a.c.shape == b.c.shape and a.excluded == b.excluded
         assert a.c.tobytes() == b.c.tobytes() and a.x.tobytes() == b.x.tobytes()
@@ -95,14 +97,14 @@ def test_resumed_sampling_computes_only_missing_chunks(cluster, extractor, tmp_p
         folder = store.log[0]["folder"]
         files = sorted(folder.glob("chunk_*.npy"))
         assert len(files) == 9
-        lost = [2, 5, 8]                              # as if the first run stopped before these finished
+        lost = [2, 5, 8]  # as if the first run stopped before these finished
         for k in lost:
             files[k].unlink()
         kept = {f.name: (f.stat().st_ino, f.stat().st_mtime_ns) for f in folder.glob("chunk_*.npy")}
         again = sampling.sample_grid(s, prepared, scales, executor=ex, store=store)
     assert store.log[1]["folder"] == folder
     assert store.log[1]["computed"] == lost and store.log[1]["reused"] == [0, 1, 3, 4, 6, 7]
-    for f in folder.glob("chunk_*.npy"):             # finished chunks were read, not rewritten
+    for f in folder.glob("chunk_*.npy"):  # finished chunks were read, not rewritten
         if f.name in kept:
             assert (f.stat().st_ino, f.stat().st_mtime_ns) == kept[f.name]
     assert again.c.tobytes() == reference.c.tobytes()
@@ -157,15 +159,17 @@ def dask_sweep(cluster, tmp_path_factory):
     result = {}
 
     def go():
-        result["rc"] = cli.main(["sweep", str(STRUCTURE), str(tmp / "sweep.toml"), "-o", str(out),
-                                 "--scheduler", c.scheduler_address, "-q"])
+        result["rc"] = cli.main(
+            ["sweep", str(STRUCTURE), str(tmp / "sweep.toml"), "-o", str(out), "--scheduler", c.scheduler_address, "-q"]
+        )
+
     t = threading.Thread(target=go)
     t.start()
     killed = None
     deadline = time.monotonic() + 120
     while t.is_alive() and killed is None and time.monotonic() < deadline:
         worker = _worker_running_ngspice(out / "runs", set(client.run(os.getpid).values()))
-        if worker is not None:                     # a worker mid-run (its run folder is written)
+        if worker is not None:  # a worker mid-run (its run folder is written)
             os.kill(worker, signal.SIGKILL)
             killed = worker
         time.sleep(0.2)
@@ -190,7 +194,7 @@ def test_killed_worker_loses_no_run(dask_sweep):
     rows = dask_sweep["rows"]
     assert dask_sweep["killed"] is not None, "no worker was killed: the sweep finished first"
     assert len(rows) == 4 and all(r["status"] == "ok" for r in rows) and dask_sweep["rc"] == 0
-    assert [int(r["attempts"]) for r in rows].count(2) == 1         # the killed run started again, once
+    assert [int(r["attempts"]) for r in rows].count(2) == 1  # the killed run started again, once
     record = json.loads((dask_sweep["out"] / "sweep.json").read_text())
     assert [r["status"] for r in record["runs"]] == ["ok"] * 4
 
@@ -209,8 +213,11 @@ def test_sweep_file_errors_name_file_line_key_and_fix(tmp_path, capsys):
         ('[[parameters]]\nname = "ts"\nvalues = ["1 uV"]\n', "parameters[0].values", "time unit"),
         ('[[parameters]]\nname = "cycles"\nvalues = [32]\n', "parameters[0].values", "must be between 64 and"),
         ('[[parameters]]\nname = "reltol"\nvalues = [0.1]\n', "parameters[0].values", "between 1e-7 and 1e-2"),
-        ('[[parameters]]\nname = "structure.electrodes.gapp"\nvalues = ["3 um"]\n', "structure.electrodes.gapp",
-         "did you mean 'gap'"),
+        (
+            '[[parameters]]\nname = "structure.electrodes.gapp"\nvalues = ["3 um"]\n',
+            "structure.electrodes.gapp",
+            "did you mean 'gap'",
+        ),
     ]:
         bad.write_text(text)
         assert cli.main(["sweep", str(STRUCTURE), str(bad), "-o", str(tmp_path / "o")]) == 2
@@ -237,9 +244,9 @@ std = "30 nm"
     runs = sw.plan(sweep, STRUCTURE, tmp_path)
     assert [r.testbench["ts"] for r in runs] == [1e-6] * 3 + [2e-6] * 3
     gaps = [r.params["structure.electrodes[1].gap"] for r in runs]
-    assert gaps == list(np.random.default_rng(7).normal(3e-6, 30e-9, 6))      # seeded draws in run order
+    assert gaps == list(np.random.default_rng(7).normal(3e-6, 30e-9, 6))  # seeded draws in run order
     assert [g.name for g in runs] == [f"run_{k}" for k in range(6)]
-    s = parse_structure(runs[0].structure_text, "run.toml")          # a valid structure file
+    s = parse_structure(runs[0].structure_text, "run.toml")  # a valid structure file
     with contextlib.chdir(ROOT):
         base = parse_structure(STRUCTURE.read_text(), "base.toml")
     assert s.electrode_sets[0] == base.electrode_sets[0]
@@ -248,11 +255,12 @@ std = "30 nm"
 
 def test_scheduler_errors_are_one_line_with_the_fix(monkeypatch, tmp_path, capsys):
     from netgen.errors import ExecutorError
+
     with pytest.raises(ExecutorError, match="positive integer"):
         executor("local:zero")
     with pytest.raises(ExecutorError, match="not understood"):
         executor("cluster")
-    monkeypatch.setitem(__import__("sys").modules, "distributed", None)      # as if Dask were not installed
+    monkeypatch.setitem(__import__("sys").modules, "distributed", None)  # as if Dask were not installed
     with pytest.raises(ExecutorError, match=r"pip install 'netgen\[dask\]'"):
         executor("local:2")
     sweep = tmp_path / "s.toml"
@@ -284,11 +292,11 @@ def test_lost_shared_input_is_scattered_again(cluster):
     for i, outcome in ex.imap_unordered(_scaled_sum, items, shared=shared):
         out[i] = outcome
         if len(out) == 1:
-            client.restart(timeout=600)             # every copy of the shared input is gone
+            client.restart(timeout=600)  # every copy of the shared input is gone
     assert sorted(out) == list(range(len(items)))
     assert all(o.ok for o in out.values()), [o.error for o in out.values()]
     assert [out[i].value for i in range(len(items))] == [_scaled_sum(shared, x) for x in items]
-    assert max(o.attempts for o in out.values()) >= 2          # some tasks did start again
+    assert max(o.attempts for o in out.values()) >= 2  # some tasks did start again
     ex.close()
 
 

@@ -14,7 +14,6 @@ import pytest
 from netgen import cli
 from netgen.sweep import parse_sweep
 from netgen.sweep.size import RUN_SECONDS, SECONDS_PER_PERIOD, estimate, run_count
-
 from tests.fixtures import ROOT
 from tests.sweep.bad_sweeps import GOOD, cases
 
@@ -33,7 +32,7 @@ def test_the_good_file_is_accepted(tmp_path, capsys):
     err = capsys.readouterr().out
     # 2 runs of 128 periods at the stated rough figure for a rigid model
     assert rc == 0 and "2 run(s)" in err and f"{SECONDS_PER_PERIOD['rigid'] * 128 + RUN_SECONDS:.3g} s each" in err, err
-    assert not (tmp_path / "out").exists()                    # a dry run writes nothing
+    assert not (tmp_path / "out").exists()  # a dry run writes nothing
 
 
 def test_every_generated_bad_file_is_refused_with_file_key_and_fix(tmp_path, capsys):
@@ -55,9 +54,10 @@ def test_every_generated_bad_file_is_refused_with_file_key_and_fix(tmp_path, cap
 def test_a_billion_run_grid_is_refused_from_the_spec_alone(tmp_path, capsys):
     text = "[fixed]\ncycles = 128\n" + "".join(
         f'[[parameters]]\nname = "{n}"\nstart = {a}\nstop = {b}\nnum = 1000\n'
-        for n, a, b in [("ts", 1e-6, 2e-6), ("lead", 0.1, 0.9), ("density", 0.3, 0.7)])
+        for n, a, b in [("ts", 1e-6, 2e-6), ("lead", 0.1, 0.9), ("density", 0.3, 0.7)]
+    )
     start = time.perf_counter()
-    assert run_count(parse_sweep(text, "big.toml")) == 1000**3       # counted, never listed
+    assert run_count(parse_sweep(text, "big.toml")) == 1000**3  # counted, never listed
     rc, _ = _sweep(tmp_path, text.encode())
     err = capsys.readouterr().err
     assert rc == 2 and "1000000000 runs" in err and "--max-runs 10000" in err and "fix:" in err
@@ -70,8 +70,8 @@ def test_the_estimate_uses_runs_measured_in_the_folder(tmp_path):
     run.mkdir(parents=True)
     (run / "summary.json").write_text('{"wall_s": 64.0, "requested_cycles": 128}')
     est = estimate(sweep, workers=1, out=tmp_path)
-    per_run = 0.5 * 128 + RUN_SECONDS                       # the measured 0.5 s per period, 128 periods
-    assert est.per_run_s == pytest.approx(per_run) and est.wall_s == pytest.approx(2 * per_run)   # 2 runs, 1 worker
+    per_run = 0.5 * 128 + RUN_SECONDS  # the measured 0.5 s per period, 128 periods
+    assert est.per_run_s == pytest.approx(per_run) and est.wall_s == pytest.approx(2 * per_run)  # 2 runs, 1 worker
     assert "measured" in est.basis
 
 

@@ -28,10 +28,8 @@ import pytest
 
 from netgen import cli
 from netgen.sim.process import start_time
-from netgen.sweep import processes
-from netgen.sweep import load_sweep, plan
+from netgen.sweep import load_sweep, plan, processes
 from netgen.sweep.folder import claim, identity
-
 from tests.fixtures import ROOT
 from tests.sweep.conftest import CYCLES, STRUCTURE, TS, summary
 
@@ -76,8 +74,12 @@ def _alive(procs: set[tuple[int, int]]) -> set[tuple[int, int]]:
 
 
 def _running_simulators(out: Path) -> list[dict]:
-    return [r for f in (out / "runs").glob("*") for r in processes.records(f)
-            if r["role"] == "simulator" and processes.is_running(r)]
+    return [
+        r
+        for f in (out / "runs").glob("*")
+        for r in processes.records(f)
+        if r["role"] == "simulator" and processes.is_running(r)
+    ]
 
 
 def _foreign(cwd: Path, **kw) -> subprocess.Popen:
@@ -88,21 +90,31 @@ def test_timeout_and_resume_spare_processes_the_sweep_did_not_start(tmp_path, ca
     sweep = _write(tmp_path / "s.toml", [1e-6], cycles=4096, head='timeout = "3 s"')
     out = tmp_path / "out"
     args = ["sweep", str(STRUCTURE), str(sweep), "-o", str(out), "-q", "--scheduler", "serial"]
-    assert cli.main(args) == 1                                  # the run failed, the sweep reported it
+    assert cli.main(args) == 1  # the run failed, the sweep reported it
     run = out / "runs" / "run_0"
     row = next(csv.DictReader(open(out / "results.csv")))
     assert row["status"] == "failed" and "ngspice did not finish within 3 s" in row["error"], row
     sims = [r for r in processes.records(run) if r["role"] == "simulator"]
-    assert len(sims) == 1 and not processes.is_running(sims[0])    # stopped by the timer
-    shell = _foreign(run)                                       # a user's shell in the run folder
-    reused = _foreign(run, start_new_session=True)              # a PID the record names, but not its process
-    orphan = _foreign(run, start_new_session=True)              # a simulator an attempt left running
+    assert len(sims) == 1 and not processes.is_running(sims[0])  # stopped by the timer
+    shell = _foreign(run)  # a user's shell in the run folder
+    reused = _foreign(run, start_new_session=True)  # a PID the record names, but not its process
+    orphan = _foreign(run, start_new_session=True)  # a simulator an attempt left running
     with open(run / processes.RECORDS, "a") as fh:
-        fh.write(json.dumps({**processes.me(), "pid": reused.pid, "pgid": reused.pid, "role": "simulator",
-                             "start": start_time(reused.pid) - 1}) + "\n")
+        fh.write(
+            json.dumps(
+                {
+                    **processes.me(),
+                    "pid": reused.pid,
+                    "pgid": reused.pid,
+                    "role": "simulator",
+                    "start": start_time(reused.pid) - 1,
+                }
+            )
+            + "\n"
+        )
     processes.record(run, orphan.pid, "simulator")
     try:
-        assert cli.main(args) == 1                              # resumed: run_0 ran (and timed out) again
+        assert cli.main(args) == 1  # resumed: run_0 ran (and timed out) again
         assert orphan.wait(timeout=10) == -signal.SIGKILL
         assert shell.poll() is None and reused.poll() is None  # never signalled
         assert int(next(csv.DictReader(open(out / "results.csv")))["attempts"]) == 2
@@ -114,9 +126,25 @@ def test_timeout_and_resume_spare_processes_the_sweep_did_not_start(tmp_path, ca
 
 
 def _start(sweep: Path, out: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "netgen.cli", "sweep", str(STRUCTURE), str(sweep), "-o", str(out),
-                             "-q", "--scheduler", "processes:2"], cwd=ROOT, start_new_session=True,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "netgen.cli",
+            "sweep",
+            str(STRUCTURE),
+            str(sweep),
+            "-o",
+            str(out),
+            "-q",
+            "--scheduler",
+            "processes:2",
+        ],
+        cwd=ROOT,
+        start_new_session=True,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _interrupt(sweep: Path, out: Path, sig: int, group: bool) -> tuple[int, str, set]:
@@ -132,7 +160,7 @@ def _interrupt(sweep: Path, out: Path, sig: int, group: bool) -> tuple[int, str,
     seen |= _descendants(p.pid)
     os.killpg(p.pid, sig) if group else p.send_signal(sig)
     _, err = p.communicate(timeout=60)
-    end = time.monotonic() + 10                                 # the forkserver exits once its parent has
+    end = time.monotonic() + 10  # the forkserver exits once its parent has
     while _alive(seen) and time.monotonic() < end:
         time.sleep(0.1)
     return p.returncode, err, _alive(seen)
@@ -155,7 +183,7 @@ def test_sigterm_and_ctrl_c_leave_no_process_and_a_folder_that_resumes(tmp_path,
         assert r["status"] == "ok" and summary(Path(r["dir"]) / "summary.json") == serial_runs[ts]
     before = {p: p.read_bytes() for p in out.iterdir() if p.is_file()}
 
-    other = _write(tmp_path / "b.toml", TS[2:3])                # sweep B into A's folder
+    other = _write(tmp_path / "b.toml", TS[2:3])  # sweep B into A's folder
     assert cli.main(["sweep", str(STRUCTURE), str(other), "-o", str(out), "-q"]) == 2
     assert "holds another sweep" in capsys.readouterr().err
     assert {p: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
@@ -171,7 +199,7 @@ def test_a_foreign_or_busy_folder_is_refused(tmp_path, capsys):
     assert "holds no sweep" in capsys.readouterr().err and sorted(os.listdir(mine)) == ["notes.txt"]
     busy = tmp_path / "busy"
     ident = identity(STRUCTURE, plan(load_sweep(sweep), STRUCTURE, busy))
-    with claim(busy, ident, str(sweep), str(STRUCTURE), 1):     # the same sweep, writing there now
+    with claim(busy, ident, str(sweep), str(STRUCTURE), 1):  # the same sweep, writing there now
         assert cli.main(["sweep", str(STRUCTURE), str(sweep), "-o", str(busy), "-q"]) == 2
     assert f"another netgen sweep (pid {os.getpid()})" in capsys.readouterr().err
     assert not (busy / "runs").exists()

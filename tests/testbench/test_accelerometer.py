@@ -17,7 +17,6 @@ from netgen.emit import write_outputs
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import analysis, loopfile
-
 from tests.fixtures import ROOT
 
 TS = 1e-6
@@ -64,9 +63,21 @@ def test_explicit_electrodes_give_the_derived_design(built):
 def runs(built, tmp_path_factory):
     """512 periods in the compiled ngspice loop and in VACASK."""
     model, lib, loop = built
-    return {sim: sd.run(model, lib, tmp_path_factory.mktemp(sim), TS, 512, progress=False, plots=False,
-                        simulator=sim, loop=loop, skip=64)
-            for sim in ("ngspice-xspice", "vacask")}
+    return {
+        sim: sd.run(
+            model,
+            lib,
+            tmp_path_factory.mktemp(sim),
+            TS,
+            512,
+            progress=False,
+            plots=False,
+            simulator=sim,
+            loop=loop,
+            skip=64,
+        )
+        for sim in ("ngspice-xspice", "vacask")
+    }
 
 
 @pytest.mark.parametrize("sim", ["ngspice-xspice", "vacask"])
@@ -97,8 +108,19 @@ def test_a_tone_through_a_in_appears_at_the_scale_factor(built, tmp_path):
     fit at the tone's frequency); the SQNR is its power B^2/2 over the in-band noise."""
     model, lib, loop = built
     tone = sd.Tone("a_in", 2.0, 1e6 / 512)
-    s = sd.run(model, lib, tmp_path, TS, 4096, tone, progress=False, plots=False, simulator="ngspice-xspice",
-               loop=loop, skip=512)
+    s = sd.run(
+        model,
+        lib,
+        tmp_path,
+        TS,
+        4096,
+        tone,
+        progress=False,
+        plots=False,
+        simulator="ngspice-xspice",
+        loop=loop,
+        skip=512,
+    )
     d = sd.design(model, TS, spec=loop)
     b = MASS * 2.0 / d.channels[0]["full_scale_force_si"]
     ch = s["channels"]["z"]
@@ -114,7 +136,9 @@ def test_scale_factor_fit():
     y = 0.1 * x + 0.02
     y[4] += 0.003
     fit = analysis.scale_factor(x, y, full_scale=10.0)
-    assert fit["scale_factor"] == pytest.approx(0.1, rel=1e-3) and fit["offset"] == pytest.approx(0.02 + 0.003 / 9, rel=1e-6)
+    assert fit["scale_factor"] == pytest.approx(0.1, rel=1e-3) and fit["offset"] == pytest.approx(
+        0.02 + 0.003 / 9, rel=1e-6
+    )
     resid = 0.003 - 0.003 / 9
     assert fit["max_nonlinearity_pct_fs"] == pytest.approx(resid / 0.1 / 10 * 100, rel=1e-6)
 

@@ -14,7 +14,6 @@ import pytest
 from netgen.emit import osdi
 from netgen.sim import ngspice as sim_ngspice
 from netgen.testbench.sigma_delta import vacask
-
 from tests.fixtures import using_ngspice
 
 VS, VFB, CEL, RAMP = 0.5, 2.0, 1e-12, 1e-6
@@ -26,15 +25,21 @@ def design(channels: int, used: int) -> SimpleNamespace:
     """The parts of a Design that vacask.drivers reads: one electrode serving `used` of `channels`."""
     sel = [S[k] if k < used else 0 for k in range(channels)]
     w = [W[k] if k < used else 0.0 for k in range(channels)]
-    return SimpleNamespace(vs=VS, vfb=VFB, channels=[{"name": f"c{k}"} for k in range(channels)],
-                           electrodes=[{"name": "el", "w": w, "sel": sel}])
+    return SimpleNamespace(
+        vs=VS,
+        vfb=VFB,
+        channels=[{"name": f"c{k}"} for k in range(channels)],
+        electrodes=[{"name": "el", "w": w, "sel": sel}],
+    )
 
 
 @pytest.mark.parametrize("used, model, slots", [(3, "drvn", 4), (4, "drvn", 4), (5, "drv6", 6), (6, "drv6", 6)])
 def test_an_electrode_serving_five_or_six_channels_gets_the_six_slot_driver(used, model, slots):
     (drv,) = vacask.drivers(design(6, used))
     assert drv["model"] == model and len(drv["nodes"]) == 4 + 2 * slots
-    assert drv["nodes"][4:4 + used] == [f"b_c{k}" for k in range(used)] and set(drv["nodes"][4 + used:4 + slots]) <= {"0"}
+    assert drv["nodes"][4 : 4 + used] == [f"b_c{k}" for k in range(used)] and set(
+        drv["nodes"][4 + used : 4 + slots]
+    ) <= {"0"}
 
 
 def netlist(blocks: str, bits: list[int]) -> str:
@@ -42,16 +47,38 @@ def netlist(blocks: str, bits: list[int]) -> str:
     feedback phase ramped 0 -> 1 over RAMP, the charge-amplifier nodes on 0 V ammeters."""
     params = " ".join(f"s{k + 1}={S[k]} w{k + 1}={W[k]}" for k in range(6))
     params4 = " ".join(f"s{k + 1}={S[k]} w{k + 1}={W[k]}" for k in range(4))
-    lines = ["* sd_driver6 against the hand formula", ".model drv6 sd_driver6", ".model drv4 sd_driver4",
-             "Vphs phs 0 1", f"Vphf phf 0 PWL(0 0 {RAMP} 1)", "Vrst rst 0 0"]
+    lines = [
+        "* sd_driver6 against the hand formula",
+        ".model drv6 sd_driver6",
+        ".model drv4 sd_driver4",
+        "Vphs phs 0 1",
+        f"Vphf phf 0 PWL(0 0 {RAMP} 1)",
+        "Vrst rst 0 0",
+    ]
     lines += [f"Vb{k + 1} b{k + 1} 0 {b}" for k, b in enumerate(bits)]
-    lines += [f"N6 el6 phs phf rst {' '.join(f'b{k + 1}' for k in range(6))} {' '.join(f'c{k + 1}' for k in range(6))} "
-              f"drv6 vs={VS} vfb={VFB} {params}", f"C6 el6 0 {CEL}",
-              f"N4 el4 phs phf rst b1 b2 b3 b4 d1 d2 d3 d4 drv4 vs={VS} vfb={VFB} {params4}", f"C4 el4 0 {CEL}"]
+    lines += [
+        f"N6 el6 phs phf rst {' '.join(f'b{k + 1}' for k in range(6))} {' '.join(f'c{k + 1}' for k in range(6))} "
+        f"drv6 vs={VS} vfb={VFB} {params}",
+        f"C6 el6 0 {CEL}",
+        f"N4 el4 phs phf rst b1 b2 b3 b4 d1 d2 d3 d4 drv4 vs={VS} vfb={VFB} {params4}",
+        f"C4 el4 0 {CEL}",
+    ]
     lines += [f"Vc{k + 1} c{k + 1} 0 0" for k in range(6)] + [f"Vd{k + 1} d{k + 1} 0 0" for k in range(4)]
-    saves = "v(el6) v(el4) " + " ".join(f"i(vc{k + 1})" for k in range(6)) + " " + " ".join(f"i(vd{k + 1})" for k in range(4))
-    lines += [".control", "set noaskquit", f"pre_osdi {blocks}", f"tran {RAMP / 100} {RAMP} 0 {RAMP / 100}",
-              f"write drv.raw {saves}", ".endc", ".end"]
+    saves = (
+        "v(el6) v(el4) "
+        + " ".join(f"i(vc{k + 1})" for k in range(6))
+        + " "
+        + " ".join(f"i(vd{k + 1})" for k in range(4))
+    )
+    lines += [
+        ".control",
+        "set noaskquit",
+        f"pre_osdi {blocks}",
+        f"tran {RAMP / 100} {RAMP} 0 {RAMP / 100}",
+        f"write drv.raw {saves}",
+        ".endc",
+        ".end",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -70,7 +97,7 @@ def test_the_six_slot_driver_follows_its_formula_in_ngspice_through_osdi(tmp_pat
     mid = (t > 0.3 * RAMP) & (t < 0.9 * RAMP)
     sel = 1.0 if on else 0.0
     np.testing.assert_allclose(plot["v(el6)"][-1], VS + VFB * sel, rtol=1e-6, atol=1e-9)
-    current = CEL * VFB * sel / RAMP                         # into the electrode capacitor
+    current = CEL * VFB * sel / RAMP  # into the electrode capacitor
     for k in range(6):
         got = np.asarray(plot[f"i(vc{k + 1})"])[mid]
         np.testing.assert_allclose(np.abs(got), abs(W[k]) * current, rtol=1e-3, atol=1e-12)
@@ -78,5 +105,6 @@ def test_the_six_slot_driver_follows_its_formula_in_ngspice_through_osdi(tmp_pat
     if on:
         np.testing.assert_allclose(plot["v(el4)"][-1], plot["v(el6)"][-1], rtol=1e-9)
         for k in range(4):
-            np.testing.assert_allclose(np.asarray(plot[f"i(vd{k + 1})"])[mid], np.asarray(plot[f"i(vc{k + 1})"])[mid],
-                                       rtol=1e-6, atol=1e-15)
+            np.testing.assert_allclose(
+                np.asarray(plot[f"i(vd{k + 1})"])[mid], np.asarray(plot[f"i(vc{k + 1})"])[mid], rtol=1e-6, atol=1e-15
+            )

@@ -20,14 +20,15 @@ from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile, ngspice
 from netgen.testbench.sigma_delta.signals import duty, selected
-
 from tests.fixtures import ROOT
 
 TS = 1e-6
 EXAMPLE = ROOT / "examples" / "accelerometer_z.toml"
-CIFB4 = '[loop]\nchannels = ["z"]\n[loop.filter]\nkind = "cifb"\norder = 4\nosr = 64\n[loop.input]\nacceleration = 9.81\n'
+CIFB4 = (
+    '[loop]\nchannels = ["z"]\n[loop.filter]\nkind = "cifb"\norder = 4\nosr = 64\n[loop.input]\nacceleration = 9.81\n'
+)
 PERIODS = 300
-WINDOW = (0.47, 0.97)          # sense off .. reset off: only the feedback, the spring and gravity act
+WINDOW = (0.47, 0.97)  # sense off .. reset off: only the feedback, the spring and gravity act
 
 
 @pytest.fixture(scope="module")
@@ -52,8 +53,11 @@ def window_impulse(model, d, t: np.ndarray, xs: np.ndarray, bit: int, n: int, on
     c = model.coordinates[i]
     volts = d.vfb * selected(d.electrodes, (bit,)) * (1.0 if on else 0.0)
     total = 0.0
-    for lo, hi, v in ((WINDOW[0], d.t.fb_on, 0.0 * volts), (d.t.fb_on, d.t.fb_off, volts),
-                      (d.t.fb_off, WINDOW[1], 0.0 * volts)):
+    for lo, hi, v in (
+        (WINDOW[0], d.t.fb_on, 0.0 * volts),
+        (d.t.fb_on, d.t.fb_off, volts),
+        (d.t.fb_off, WINDOW[1], 0.0 * volts),
+    ):
         grid = (n + np.linspace(lo, hi, 41)) * d.ts
         q = np.zeros((len(grid), model.ncoords))
         q[:, i] = np.interp(grid, t, xs)
@@ -75,12 +79,22 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
     assert d.t.fb_ramp == 0 and model.coordinates[0].admittance(0.0).real == 0.0
     lib, control = ngspice.xspice_library(model, tmp_path, ngspice.code_models(False))
     nodes = ["x1.u_z", "x1.xs_z"]
-    net = ngspice.testbench(model, d, lib.resolve(), PERIODS, "sigma_delta.raw", None, states=nodes,
-                            control=control, loop="xspice", chunks=1)
+    net = ngspice.testbench(
+        model,
+        d,
+        lib.resolve(),
+        PERIODS,
+        "sigma_delta.raw",
+        None,
+        states=nodes,
+        control=control,
+        loop="xspice",
+        chunks=1,
+    )
     plot = ngspice.simulate(net, tmp_path, d.ts * PERIODS, False)
     t, u, xs, b = (np.asarray(plot[k]) for k in ("time", "v(x1.u_z)", "v(x1.xs_z)", "v(b_z)"))
     w_s = 1.0 / float(re.search(r"^Cu_z u_z 0 (\S+)", lib.read_text(), re.M).group(1))
-    scale = model.coordinates[0].scale * w_s                        # m/s per unit u
+    scale = model.coordinates[0].scale * w_s  # m/s per unit u
     bit_impulse = filters.mechanics_of(model, d, "z").force * duty(d.t) * d.ts / model.coordinates[0].mass
     errors, bits = [], []
     for n in range(2, PERIODS - 1):
@@ -89,9 +103,9 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
         errors.append((du * scale - window_impulse(model, d, t, xs, bit, n)) / bit_impulse)
         bits.append(bit)
     errors, bits = np.array(errors), np.array(bits)
-    assert np.abs(np.asarray(xs)).max() < 0.01 and len(set(bits)) == 2            # held near rest, both bits
-    gain = np.mean(errors * bits)                   # a scale error, the same every period: no noise
-    spread = np.std(errors - gain * bits)           # what changes from period to period
+    assert np.abs(np.asarray(xs)).max() < 0.01 and len(set(bits)) == 2  # held near rest, both bits
+    gain = np.mean(errors * bits)  # a scale error, the same every period: no noise
+    spread = np.std(errors - gain * bits)  # what changes from period to period
     assert abs(gain) < 1e-4 and spread < 1e-6, (gain, spread)
 
 
@@ -105,19 +119,38 @@ def test_the_designed_filters_default_to_the_step_and_lead2_keeps_its_ramps(mode
     assert duty(t) == pytest.approx(t.fb_off - t.fb_on) and {t.fb_on, t.fb_off} <= set(d.corners())
     lead = sd.design(model, TS, spec=sd.read_structure_loop(EXAMPLE))
     assert lead.t.fb_ramp == 0.02 == lead.t.edge and lead.t.fb_edge is None
-    ramp = sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4 + "[loop.timing]\nfb_edge = 0.02\n")))
+    ramp = sd.design(
+        model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4 + "[loop.timing]\nfb_edge = 0.02\n"))
+    )
     assert ramp.t.fb_ramp == 0.02 and len(filters.mechanics_of(model, ramp, "z").pulse) == 2 * filters.RAMP_PIECES + 1
     # a back end without the step (runner.STEP_BACKENDS) keeps a designed filter on the ramps
     assert sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4)), step=False).t.fb_ramp == 0.02
 
 
-@pytest.mark.parametrize("sim,text,key", [
-    ("ngspice", '[loop]\nchannels = ["z"]\n[loop.timing]\nfb_edge = 0\n', "loop.timing.fb_edge"),
-    ("ngspice-xspice", '[loop]\nchannels = ["z"]\n[loop.timing]\nfb_edge = 0.2\n', "loop.timing.fb_edge")])
+@pytest.mark.parametrize(
+    "sim,text,key",
+    [
+        ("ngspice", '[loop]\nchannels = ["z"]\n[loop.timing]\nfb_edge = 0\n', "loop.timing.fb_edge"),
+        ("ngspice-xspice", '[loop]\nchannels = ["z"]\n[loop.timing]\nfb_edge = 0.2\n', "loop.timing.fb_edge"),
+    ],
+)
 def test_a_feedback_step_where_it_cannot_run_exits_2(sim, text, key, tmp_path, capsys):
     """A step on the behavioural ngspice loop, or an edge wider than 0.1 T_s: exit 2 naming the
     file and loop.timing.fb_edge, no traceback."""
-    code = cli.main(["sigma-delta", str(EXAMPLE), "--loop", str(loop_file(tmp_path, text)), "--simulator", sim,
-                     "--cycles", "64", "-o", str(tmp_path / "sd"), "-q"])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(EXAMPLE),
+            "--loop",
+            str(loop_file(tmp_path, text)),
+            "--simulator",
+            sim,
+            "--cycles",
+            "64",
+            "-o",
+            str(tmp_path / "sd"),
+            "-q",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err and key in err and "loop.toml" in err, err

@@ -18,14 +18,15 @@ from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile, reference
 from netgen.testbench.sigma_delta.loop import duty
-
 from tests.fixtures import ROOT
 
 TS = 1e-6
 SIDE, GAP, RHO, THICK, K_SPRING = 500e-6, 2e-6, 2330.0, 20e-6, 0.3
 MASS = SIDE * SIDE * THICK * RHO
 EXAMPLE = ROOT / "examples" / "accelerometer_z.toml"
-CIFB4 = '[loop]\nchannels = ["z"]\n[loop.filter]\nkind = "cifb"\norder = 4\nosr = 64\n[loop.input]\nacceleration = 9.81\n'
+CIFB4 = (
+    '[loop]\nchannels = ["z"]\n[loop.filter]\nkind = "cifb"\norder = 4\nosr = 64\n[loop.input]\nacceleration = 9.81\n'
+)
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +66,11 @@ def test_a_loop_table_selects_a_designed_filter(model, tmp_path, kind):
     order's state-space loop (order - 2 states), no dither, the NTF of the table's H_inf, and its
     linearised NTF (the loop as realised with the accelerometer's mechanics) peaks at H_inf
     within 5 % and has DC zeros (|NTF| at f_s/1000 below -60 dB at order 4)."""
-    d = sd.design(model, TS, spec=spec_of(tmp_path, CIFB4.replace('"cifb"', f'"{kind}"').replace("osr = 64", "osr = 64\nh_inf = 1.5")))
+    d = sd.design(
+        model,
+        TS,
+        spec=spec_of(tmp_path, CIFB4.replace('"cifb"', f'"{kind}"').replace("osr = 64", "osr = 64\nh_inf = 1.5")),
+    )
     ch = d.channels[0]
     f = filters.Filter.from_dict(ch["filter"])
     assert (f.kind, f.order, f.states, ch["dither_v"]) == (kind, 4, 2, 0.0)
@@ -121,7 +126,7 @@ def test_a_bad_filter_table_exits_2_naming_the_file_and_the_key(text, key, tmp_p
 
 
 CIRCUIT_PERIODS = 400
-MATCH_PERIODS = 50          # bit for bit (measured: the first 77; the first difference at |y| = 2 mV)
+MATCH_PERIODS = 50  # bit for bit (measured: the first 77; the first difference at |y| = 2 mV)
 
 
 def test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop(model, tmp_path, capsys):
@@ -135,8 +140,21 @@ def test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop(model, tmp_
     loop = tmp_path / "loop.toml"
     loop.write_text(CIFB4, encoding="utf-8")
     out = tmp_path / "sd"
-    code = cli.main(["sigma-delta", str(EXAMPLE), "--loop", str(loop), "--simulator", "ngspice-xspice",
-                     "--cycles", str(CIRCUIT_PERIODS), "-o", str(out), "-q"])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(EXAMPLE),
+            "--loop",
+            str(loop),
+            "--simulator",
+            "ngspice-xspice",
+            "--cycles",
+            str(CIRCUIT_PERIODS),
+            "-o",
+            str(out),
+            "-q",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     clock = np.load(out / "bitstreams.npz")
     bits = clock["bits_z"].astype(float)
@@ -145,7 +163,7 @@ def test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop(model, tmp_
     inp = reference.Input(filters.dc_acceleration(model, d, "z"))
     ref = reference.simulate(mech, filters.Filter.from_dict(d.channels[0]["filter"]), CIRCUIT_PERIODS, inp)
     assert len(bits) == CIRCUIT_PERIODS and reference.stable(ref, 0.01 * GAP)
-    assert np.abs(clock["x_z"]).max() * 1e-6 < 0.01 * GAP                 # x_z port: 1 V = 1 um
+    assert np.abs(clock["x_z"]).max() * 1e-6 < 0.01 * GAP  # x_z port: 1 V = 1 um
     same = bits == ref["v"]
     assert same[:MATCH_PERIODS].all(), f"first difference at period {int(np.argmin(same))}"
     assert abs(bits.mean() - ref["v"].mean()) < 0.02

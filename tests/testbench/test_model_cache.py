@@ -13,7 +13,6 @@ import pytest
 from netgen.build import build_key
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import model_for
-
 from tests.fixtures import ROOT
 
 EXAMPLE = ROOT / "examples" / "accelerometer_z.toml"
@@ -42,9 +41,12 @@ def test_editing_only_the_loop_table_reuses_the_model(structure, tmp_path):
     folder = tmp_path / "model"
     model_for(structure, folder, progress=False)
     first = built(folder)
-    structure.write_text(structure.read_text().replace("lead = 0.8", "lead = 0.7")
-                         .replace('acceleration = "9.81 m/s^2"', 'acceleration = "5 m/s^2"'))
-    later(structure)                                   # newer than the model: mtimes would rebuild
+    structure.write_text(
+        structure.read_text()
+        .replace("lead = 0.8", "lead = 0.7")
+        .replace('acceleration = "9.81 m/s^2"', 'acceleration = "5 m/s^2"')
+    )
+    later(structure)  # newer than the model: mtimes would rebuild
     model, _ = model_for(structure, folder, progress=False)
     assert built(folder) == first
     assert model.electrodes[0].gap == pytest.approx(2e-6)
@@ -54,10 +56,12 @@ def test_editing_a_geometry_value_rebuilds_the_model(structure, tmp_path):
     folder = tmp_path / "model"
     model_for(structure, folder, progress=False)
     first = built(folder)
-    structure.write_text(structure.read_text().replace('gap = "2 um"\n\n[[electrodes]]', 'gap = "2.5 um"\n\n[[electrodes]]'))
+    structure.write_text(
+        structure.read_text().replace('gap = "2 um"\n\n[[electrodes]]', 'gap = "2.5 um"\n\n[[electrodes]]')
+    )
     model, _ = model_for(structure, folder, progress=False)
     assert built(folder) != first
-    assert sorted(e.gap for e in model.electrodes) == pytest.approx([2e-6, 2.5e-6])   # the edited file's gaps
+    assert sorted(e.gap for e in model.electrodes) == pytest.approx([2e-6, 2.5e-6])  # the edited file's gaps
 
 
 def test_an_altered_cached_file_rebuilds(structure, tmp_path):
@@ -66,7 +70,7 @@ def test_an_altered_cached_file_rebuilds(structure, tmp_path):
     lib = folder / "accelerometer_z.lib"
     lib.write_text(lib.read_text() + "* edited\n")
     model_for(structure, folder, progress=False)
-    assert "* edited" not in lib.read_text()           # the manifest's checksum no longer matched
+    assert "* edited" not in lib.read_text()  # the manifest's checksum no longer matched
 
 
 def test_the_key_follows_a_named_data_file(tmp_path):

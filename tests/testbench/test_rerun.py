@@ -63,15 +63,28 @@ def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, 
     if release:
         monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE[release])
     out = tmp_path / "run"
-    (out / "model").mkdir(parents=True)                  # the model where a build puts it: DIR/model
+    (out / "model").mkdir(parents=True)  # the model where a build puts it: DIR/model
     for name in MODEL:
         shutil.copy(ROOT / "netlists" / name, out / "model" / name)
     if simulator in ("vacask", "ngspice-osdi"):
-        shutil.copytree(request.getfixturevalue("compiled"), out / "osdi")     # compiled only for these
+        shutil.copytree(request.getfixturevalue("compiled"), out / "osdi")  # compiled only for these
     start = time.perf_counter()
-    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--model",
-                     str(out / "model" / MODEL[0]), "--simulator", simulator, "--cycles", "64", "--no-plots",
-                     "-q", "-o", str(out)])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(ROOT / "examples" / "levitated_disk.toml"),
+            "--model",
+            str(out / "model" / MODEL[0]),
+            "--simulator",
+            simulator,
+            "--cycles",
+            "64",
+            "--no-plots",
+            "-q",
+            "-o",
+            str(out),
+        ]
+    )
     assert code == 0
     kept = (out / ("sigma_delta.sim" if simulator == "vacask" else "sigma_delta.cir")).read_text()
     assert STAGING not in kept, "the kept netlist names the run's staging folder"
@@ -84,8 +97,10 @@ def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, 
     for c in channels:
         level = np.interp(recorded["time"], np.asarray(plot["time"]), np.asarray(plot[f"v(b_{c})"]))
         bits = np.where(level > 0.5, 1, -1)
-        assert len(bits) == 64 and np.array_equal(bits, recorded[f"bits_{c}"]), \
-            (c, np.flatnonzero(bits != recorded[f"bits_{c}"]))
+        assert len(bits) == 64 and np.array_equal(bits, recorded[f"bits_{c}"]), (
+            c,
+            np.flatnonzero(bits != recorded[f"bits_{c}"]),
+        )
     print(f"{simulator} {release or ''}: run and rerun {time.perf_counter() - start:.1f} s")
 
 
@@ -95,10 +110,24 @@ def test_a_failed_runs_netlist_reruns_in_its_failed_folder(compiled, tmp_path):
     through the kept link osdi -> ../osdi (netgen.folders.OutputFolder)."""
     out = tmp_path / "run"
     shutil.copytree(compiled, out / "osdi")
-    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--model",
-                     str(ROOT / "netlists" / MODEL[0]), "--simulator", "vacask", "--cycles", "64", "--timeout",
-                     "0.01", "-q", "-o", str(out)])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(ROOT / "examples" / "levitated_disk.toml"),
+            "--model",
+            str(ROOT / "netlists" / MODEL[0]),
+            "--simulator",
+            "vacask",
+            "--cycles",
+            "64",
+            "--timeout",
+            "0.01",
+            "-q",
+            "-o",
+            str(out),
+        ]
+    )
     assert code == 1
     failed = out / "sigma-delta.failed"
     plot = read_raw(rerun(failed, "vacask", None))[0]
-    assert np.asarray(plot["time"])[-1] == pytest.approx(64e-6, rel=1e-6)     # --ts 1e-6, 64 periods
+    assert np.asarray(plot["time"])[-1] == pytest.approx(64e-6, rel=1e-6)  # --ts 1e-6, 64 periods

@@ -15,15 +15,23 @@ from netgen.testbench.sigma_delta import analysis, filters, metrics, ntf, refere
 TS = 1e-6
 DISK_Z = filters.Mechanics(1.6377e-8, 0.0, 0.0, 0.7415e-6, 34.57e6, TS, 0.34, filters.trapezoid_pulse(0.5, 0.94, 0.02))
 # a proof mass on springs (resonance 2 kHz, Q 50), the same readout and timing
-SPRUNG = filters.Mechanics(1e-8, 1e-8 * (2 * np.pi * 2e3) ** 2, 1e-8 * 2 * np.pi * 2e3 / 50, 0.7e-6, 3e7, TS, 0.34,
-                           filters.trapezoid_pulse(0.5, 0.94, 0.02))
+SPRUNG = filters.Mechanics(
+    1e-8,
+    1e-8 * (2 * np.pi * 2e3) ** 2,
+    1e-8 * 2 * np.pi * 2e3 / 50,
+    0.7e-6,
+    3e7,
+    TS,
+    0.34,
+    filters.trapezoid_pulse(0.5, 0.94, 0.02),
+)
 
 
 def test_order5_osr32_ntf_is_the_toolbox_example():
     """synthesizeNTF(5, 32, 1) of Schreier's toolbox (its documentation's example):
     (z - 1)(z^2 - 1.997 z + 1)(z^2 - 1.992 z + 1) / ((z - 0.7778)(z^2 - 1.613 z + 0.6649)(z^2 - 1.796 z + 0.8549))."""
     h = ntf.synthesize_ntf(5, 32, 1, 1.5)
-    quad = lambda r: np.real(np.poly([r, np.conj(r)]))[1:]          # noqa: E731
+    quad = lambda r: np.real(np.poly([r, np.conj(r)]))[1:]  # noqa: E731
     zq = sorted(tuple(np.round(quad(q), 3)) for q in h.zeros if q.imag > 1e-9)
     pq = sorted(tuple(np.round(quad(p), 4)) for p in h.poles if p.imag > 1e-9)
     assert zq == sorted([(-1.997, 1.0), (-1.992, 1.0)])
@@ -78,8 +86,10 @@ def test_coefficients_reproduce_the_ntf(order, topology, mech):
     assert np.max(np.abs(filters.realised_ntf(mech, f, z) - want)) < 1e-6
     assert np.max(np.abs(want)) == pytest.approx(1.5, rel=1e-3)
     phi, _ = mech.period_map()
-    assert np.allclose(np.sort_complex(filters.target_ntf(f).zeros),
-                       np.sort_complex(np.concatenate([np.linalg.eigvals(phi), np.linalg.eigvals(f.a)])))
+    assert np.allclose(
+        np.sort_complex(filters.target_ntf(f).zeros),
+        np.sort_complex(np.concatenate([np.linalg.eigvals(phi), np.linalg.eigvals(f.a)])),
+    )
 
 
 def _shaping(f: filters.Filter, cycles: int = 2**15, amplitude: float = 0.5) -> dict:
@@ -87,7 +97,7 @@ def _shaping(f: filters.Filter, cycles: int = 2**15, amplitude: float = 0.5) -> 
     tone = metrics.tone_frequency(TS, 4096, 64)
     run = reference.simulate(DISK_Z, f, cycles, reference.Input(0.0, amplitude * DISK_Z.full_scale, tone))
     assert reference.stable(run, 1e-8)
-    return analysis.band_metrics(*analysis.psd(run["v"][cycles // 8:], TS, 4096), TS, 64, tone, metrics.DC_BINS)
+    return analysis.band_metrics(*analysis.psd(run["v"][cycles // 8 :], TS, 4096), TS, 64, tone, metrics.DC_BINS)
 
 
 def test_reference_noise_shaping_order2_and_order4():
@@ -110,6 +120,7 @@ def test_dynamic_range_finds_the_overload():
     def run(a: float):
         r = reference.simulate(DISK_Z, f, 2**14, reference.Input(0.0, a * DISK_Z.full_scale, tone))
         return r["v"], reference.stable(r, 1e-8)
+
     dr = metrics.dynamic_range(run, [0.01, 0.1, 0.5, 2.0], TS, 64, tone, 2048, skip=2048)
     rows = dr["rows"]
     assert rows[1]["sqnr_db"] - rows[0]["sqnr_db"] == pytest.approx(20, abs=3)

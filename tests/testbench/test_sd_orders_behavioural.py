@@ -21,7 +21,6 @@ from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile, ngspice, reference
 from netgen.testbench.sigma_delta.analysis import per_clock
-
 from tests.fixtures import ROOT, using_ngspice
 
 TS, GAP, PERIODS, RELTOL = 1e-6, 2e-6, 100, 1e-4
@@ -70,7 +69,7 @@ def test_the_behavioural_loop_runs_the_state_space_filter(model, tmp_path, relea
         net = ngspice.testbench(m, d, lib.resolve(), PERIODS, "sigma_delta.raw", states=states + ["cur_z"])
         plot = ngspice.simulate(net, tmp_path, TS * PERIODS, False)
     t = np.asarray(plot["time"])
-    at = (np.arange(PERIODS) + d.t.clk) * TS                      # the latch: cur and u held
+    at = (np.arange(PERIODS) + d.t.clk) * TS  # the latch: cur and u held
     cur = np.interp(at, t, plot["v(cur_z)"])
     u_ckt = np.stack([np.interp(at, t, plot[f"v({n})"]) for n in states], 1)
     bits = per_clock(plot, d, PERIODS, m)["bits_z"].astype(float)
@@ -80,7 +79,7 @@ def test_the_behavioural_loop_runs_the_state_space_filter(model, tmp_path, relea
     mech = filters.mechanics_of(m, d, "z")
     ref = reference.simulate(mech, f, PERIODS, reference.Input(filters.dc_acceleration(m, d, "z")))
     assert first_difference(bits, ref["v"]) >= MATCH
-    assert np.abs(per_clock(plot, d, PERIODS, m)["x_z"]).max() * 1e-6 < 0.01 * GAP       # x_z: 1 V = 1 um
+    assert np.abs(per_clock(plot, d, PERIODS, m)["x_z"]).max() * 1e-6 < 0.01 * GAP  # x_z: 1 V = 1 um
 
 
 def test_the_behavioural_loop_restarts_the_filter_states_across_segments(tmp_path, capsys):
@@ -90,15 +89,37 @@ def test_the_behavioural_loop_restarts_the_filter_states_across_segments(tmp_pat
     p = tmp_path / "loop.toml"
     p.write_text(LOOP.format(kind="cifb", order=4), encoding="utf-8")
     out = tmp_path / "sd"
-    code = cli.main(["sigma-delta", str(EXAMPLE), "--loop", str(p), "--simulator", "ngspice", "--cycles", "120",
-                     "--segment", "20", "--reltol", str(RELTOL), "--no-plots", "-q", "-o", str(out)])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(EXAMPLE),
+            "--loop",
+            str(p),
+            "--simulator",
+            "ngspice",
+            "--cycles",
+            "120",
+            "--segment",
+            "20",
+            "--reltol",
+            str(RELTOL),
+            "--no-plots",
+            "-q",
+            "-o",
+            str(out),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     s = json.loads((out / "summary.json").read_text())
     assert s["segments"]["ngspice_runs"] == 6 and {"u0_z", "u1_z", "m0_z", "m1_z"} <= set(s["segments"]["state_nodes"])
     m = sd.model_for(EXAMPLE, out / "model", progress=False)[0]
     d = sd.design(m, TS, spec=loopfile.read_loop_file(p), step=False)
-    ref = reference.simulate(filters.mechanics_of(m, d, "z"), filters.Filter.from_dict(d.channels[0]["filter"]), 120,
-                             reference.Input(filters.dc_acceleration(m, d, "z")))
+    ref = reference.simulate(
+        filters.mechanics_of(m, d, "z"),
+        filters.Filter.from_dict(d.channels[0]["filter"]),
+        120,
+        reference.Input(filters.dc_acceleration(m, d, "z")),
+    )
     assert first_difference(np.load(out / "bitstreams.npz")["bits_z"], ref["v"]) >= MATCH
 
 
@@ -110,10 +131,30 @@ def test_the_osdi_loop_runs_the_state_space_filter(model, tmp_path, capsys):
     d, p = loop_design(m, tmp_path, "cifb", 4)
     out = tmp_path / "sd"
     with using_ngspice("46"):
-        code = cli.main(["sigma-delta", str(EXAMPLE), "--loop", str(p), "--simulator", "ngspice-osdi", "--cycles",
-                         str(PERIODS), "--reltol", str(RELTOL), "--no-plots", "-q", "-o", str(out)])
+        code = cli.main(
+            [
+                "sigma-delta",
+                str(EXAMPLE),
+                "--loop",
+                str(p),
+                "--simulator",
+                "ngspice-osdi",
+                "--cycles",
+                str(PERIODS),
+                "--reltol",
+                str(RELTOL),
+                "--no-plots",
+                "-q",
+                "-o",
+                str(out),
+            ]
+        )
     assert code == 0, capsys.readouterr().err
     assert "sfilt" in (out / "sigma_delta.cir").read_text()
-    ref = reference.simulate(filters.mechanics_of(m, d, "z"), filters.Filter.from_dict(d.channels[0]["filter"]), PERIODS,
-                             reference.Input(filters.dc_acceleration(m, d, "z")))
+    ref = reference.simulate(
+        filters.mechanics_of(m, d, "z"),
+        filters.Filter.from_dict(d.channels[0]["filter"]),
+        PERIODS,
+        reference.Input(filters.dc_acceleration(m, d, "z")),
+    )
     assert first_difference(np.load(out / "bitstreams.npz")["bits_z"], ref["v"]) >= MATCH

@@ -12,7 +12,6 @@ import pytest
 
 from netgen.model import MacroModel
 from netgen.testbench.sigma_delta import design, filters, ngspice, reference
-
 from tests.fixtures import ROOT
 
 TS, CYCLES, SEGMENT = 1e-6, 192, 96
@@ -31,8 +30,16 @@ def run(tmp_path_factory) -> dict:
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
     clock, _, segments = ngspice.run_segments(model, d, lib, out, CYCLES, None, False, SEGMENT, control, "xspice")
     dc = filters.dc_acceleration(model, d, "z")
-    return {"model": model, "d": d, "mech": mech, "f": f, "clock": clock, "segments": segments,
-            "ref": reference.simulate(mech, f, CYCLES, reference.Input(dc)), "dc": dc}
+    return {
+        "model": model,
+        "d": d,
+        "mech": mech,
+        "f": f,
+        "clock": clock,
+        "segments": segments,
+        "ref": reference.simulate(mech, f, CYCLES, reference.Input(dc)),
+        "dc": dc,
+    }
 
 
 def test_circuit_bits_are_the_reference_bits_over_the_first_periods(run):
@@ -57,7 +64,7 @@ def test_circuit_mechanics_follow_its_own_bits(run):
     against the linear reference's)."""
     clock, d = run["clock"], run["d"]
     z = reference.positions(run["mech"], clock["bits_z"], reference.Input(run["dc"]), 0.5 * (d.t.fb_on + d.t.fb_off))
-    got = clock["x_z"] * 1e-6                                   # x_z port: 1 V = 1 um
+    got = clock["x_z"] * 1e-6  # x_z port: 1 V = 1 um
     want = np.diff(z, 2)
     assert np.max(np.abs(np.diff(got, 2) - want)) < 0.01 * np.max(np.abs(want))
 
@@ -76,8 +83,14 @@ def vacask_run(tmp_path_factory) -> dict:
     out = tmp_path_factory.mktemp("sd_order4_vacask")
     plot = vacask.run_bench(model, d, out, CYCLES, None, False, va=ROOT / "netlists" / "levitated_disk.va")
     dc = filters.dc_acceleration(model, d, "z")
-    return {"model": model, "d": d, "mech": mech, "clock": per_clock(plot, d, CYCLES, model), "dc": dc,
-            "ref": reference.simulate(mech, f, CYCLES, reference.Input(dc))}
+    return {
+        "model": model,
+        "d": d,
+        "mech": mech,
+        "clock": per_clock(plot, d, CYCLES, model),
+        "dc": dc,
+        "ref": reference.simulate(mech, f, CYCLES, reference.Input(dc)),
+    }
 
 
 def test_vacask_fourth_order_loop_is_the_reference_loop(vacask_run):

@@ -15,7 +15,7 @@ from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY
 from .test_sd_orders import DISK_Z
 
 TS, T_SAMPLE, T_LATCH, LEAD = 1e-6, 0.34, 0.42, 0.8
-CA = [(0.02, 37e3, 0.0, 0.001), (0.5, 91e3, 0.3, 0.1)]          # amplitude, frequency, phase, offset
+CA = [(0.02, 37e3, 0.0, 0.001), (0.5, 91e3, 0.3, 0.1)]  # amplitude, frequency, phase, offset
 
 
 @pytest.fixture(scope="module")
@@ -26,16 +26,29 @@ def cold_build():
 
 def _netlist(cm, f: filters.Filter, u0: list[float], periods: int) -> str:
     """One instance: channel 0 with the state-space filter f (flt_n = K), channel 1 lead (flt_n 0)."""
-    vec = lambda xs: "[" + " ".join(repr(float(x)) for x in xs) + "]"      # noqa: E731
-    card = (f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} lead={LEAD} "
-            f"sel=[1 0 -1 1] ph_sense=[0.5] ph_fb=[2] ph_pulse=[0 1 0 1e-8 1e-8 1e-7 1e-6] "
-            "dither_amp=[0 0] dither_step=[0 0] cur0=[0 0] prev0=[0 0] b0=[0 0] "
-            f"flt_n=[{f.states} 0] flt_a={vec(f.a.ravel())} flt_bx={vec(f.bx)} flt_bv={vec(f.bv)} "
-            f"flt_c={vec(f.c)} flt_d=[{f.d!r} 0] u0={vec(u0)})")
+    vec = lambda xs: "[" + " ".join(repr(float(x)) for x in xs) + "]"  # noqa: E731
+    card = (
+        f".model lp netgen_sdloop (ts={TS} t_sample={T_SAMPLE} t_latch={T_LATCH} lead={LEAD} "
+        f"sel=[1 0 -1 1] ph_sense=[0.5] ph_fb=[2] ph_pulse=[0 1 0 1e-8 1e-8 1e-7 1e-6] "
+        "dither_amp=[0 0] dither_step=[0 0] cur0=[0 0] prev0=[0 0] b0=[0 0] "
+        f"flt_n=[{f.states} 0] flt_a={vec(f.a.ravel())} flt_bx={vec(f.bx)} flt_bv={vec(f.bv)} "
+        f"flt_c={vec(f.c)} flt_d=[{f.d!r} 0] u0={vec(u0)})"
+    )
     sources = [f"Vca{i} ca{i} 0 SIN({o} {a} {fr} 0 0 {np.degrees(p)})" for i, (a, fr, p, o) in enumerate(CA)]
-    return "\n".join(["netgen_sdloop: a state-space channel and a lead channel", *sources,
-                      f"A1 [ca0 ca1] NULL [d0 d1] [b0 b1] [cur0 cur1] NULL [{' '.join(f'u{i}' for i in range(f.states))}] lp", card, ".control",
-                      *codemodel.control_lines(cm), ".endc", f".tran {TS / 50} {periods * TS} 0 {TS / 20}", ".end", ""])
+    return "\n".join(
+        [
+            "netgen_sdloop: a state-space channel and a lead channel",
+            *sources,
+            f"A1 [ca0 ca1] NULL [d0 d1] [b0 b1] [cur0 cur1] NULL [{' '.join(f'u{i}' for i in range(f.states))}] lp",
+            card,
+            ".control",
+            *codemodel.control_lines(cm),
+            ".endc",
+            f".tran {TS / 50} {periods * TS} 0 {TS / 20}",
+            ".end",
+            "",
+        ]
+    )
 
 
 def test_state_space_channel_is_the_filter_definition(cold_build, tmp_path):
@@ -59,7 +72,7 @@ def test_state_space_channel_is_the_filter_definition(cold_build, tmp_path):
         want.append(v > 0)
         ys.append(y)
         us.append(u)
-    assert np.min(np.abs(ys)) > 1e-4 * np.max(np.abs(ys))      # no decision the interpolation could flip
+    assert np.min(np.abs(ys)) > 1e-4 * np.max(np.abs(ys))  # no decision the interpolation could flip
     assert 0.2 < np.mean(want) < 0.8
     assert np.array_equal(got[:, 0] > 0.5, np.array(want))
     states = np.array([np.interp(at, t, plot[f"v(u{i})"]) for i in range(f.states)]).T

@@ -9,12 +9,11 @@ import numpy as np
 
 from netgen.model import MacroModel
 from netgen.testbench.sigma_delta import loop
-
 from tests.fixtures import ROOT
 
 MODEL = ROOT / "netlists" / "accelerometer_xyz" / "accelerometer_xyz.json"
-PLATES = {"zs": -1, "zt": +1}          # below and above the mass: dC/dz < 0 and > 0
-COMBS = {"xp_t": +1, "xn_t": -1, "xp_b": +1, "xn_b": -1}     # x combs, signs of dC/dx
+PLATES = {"zs": -1, "zt": +1}  # below and above the mass: dC/dz < 0 and > 0
+COMBS = {"xp_t": +1, "xn_t": -1, "xp_b": +1, "xn_b": -1}  # x combs, signs of dC/dx
 
 
 def test_round_off_derivatives_give_no_weight():
@@ -29,7 +28,7 @@ def test_round_off_derivatives_give_no_weight():
         assert out[name]["w"][0] == sign
     grad = model.capacitance_gradient(np.zeros(model.ncoords))[0]
     x = [c.name for c in model.coordinates].index("x")
-    assert np.abs(grad[[e.name for e in model.electrodes].index("zs"), x]) > 0     # not exactly 0: round-off
+    assert np.abs(grad[[e.name for e in model.electrodes].index("zs"), x]) > 0  # not exactly 0: round-off
 
 
 def test_the_disk_keeps_its_groups():

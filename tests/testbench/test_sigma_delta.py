@@ -19,21 +19,20 @@ import numpy as np
 import pytest
 
 from netgen import cli
+from netgen.model import MacroModel
 from netgen.sim import codemodel
+from netgen.sim.ngspice import ngspice_path
+from netgen.sim.rawfile import read_raw
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import cli as sd_cli
 from netgen.testbench.sigma_delta import ngspice as sdn
-from netgen.model import MacroModel
-from netgen.sim.ngspice import ngspice_path
-from netgen.sim.rawfile import read_raw
 from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY
-
 from tests.fixtures import NGSPICE, ROOT, using_ngspice
 
-CHANNELS = ("z", "tilt_x", "tilt_y")     # the levitated disk's default channels (loop.channel_names)
+CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
 CYCLES, SKIP, TS = 160, 32, 1e-6
-SEGMENT = 64            # the run goes in 3 segments (64, 64, 32), as long runs do (sdn.run_segments)
+SEGMENT = 64  # the run goes in 3 segments (64, 64, 32), as long runs do (sdn.run_segments)
 
 
 @pytest.fixture(scope="module")
@@ -58,8 +57,18 @@ def loop(model, tmp_path_factory, request) -> dict:
     release, simulator = request.param
     out = tmp_path_factory.mktemp("sigma_delta")
     with using_ngspice(release):
-        s = sd.run(model, ROOT / "netlists" / "levitated_disk.lib", out, TS, CYCLES, progress=False,
-                   plots=False, skip=SKIP, segment=SEGMENT, simulator=simulator)
+        s = sd.run(
+            model,
+            ROOT / "netlists" / "levitated_disk.lib",
+            out,
+            TS,
+            CYCLES,
+            progress=False,
+            plots=False,
+            skip=SKIP,
+            segment=SEGMENT,
+            simulator=simulator,
+        )
     return s | {"release": release, "written": json.loads((out / "summary.json").read_text())}
 
 
@@ -70,7 +79,7 @@ def test_design_follows_the_model(model):
     assert d.names == list(CHANNELS)
     assert sorted(e["w"][0] for e in d.electrodes) == [-1] * 8 + [1] * 8
     assert sum(e["w"][1] != 0 for e in d.electrodes) == 8 and sum(e["w"][2] != 0 for e in d.electrodes) == 8
-    assert all(e["sel"] == e["w"] for e in d.electrodes)          # the feedback pattern is the sign pattern
+    assert all(e["sel"] == e["w"] for e in d.electrodes)  # the feedback pattern is the sign pattern
     for row in d.table:
         bz, bx, by = row["pattern"]
         f = row["f"]
@@ -89,7 +98,7 @@ def test_plate_stays_levitated(loop, model):
     coords = loop["coordinates"]
     for c in model.coordinates:
         _, xf, _, _ = c.port_units
-        touch = c.scale / xf                              # touching amplitude in port units
+        touch = c.scale / xf  # touching amplitude in port units
         limit = 0.003 if c.name == "z" else 0.01
         assert max(abs(coords[c.name]["min"]), abs(coords[c.name]["max"])) < limit * touch, c.name
     assert abs(coords["z"]["mean"]) < 1e-3 * model.coordinates[0].scale / 1e-6
@@ -100,7 +109,7 @@ def test_bitstream_balances_gravity(loop):
     model's force of each bit pattern x duty) = m g + m dv/dt over the window, within 1 %
     (one bit flip in the window is 3 %)."""
     assert loop["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
-    assert 0.3 < loop["channels"]["z"]["bit_mean"] < 0.7        # the designed density is 0.5
+    assert 0.3 < loop["channels"]["z"]["bit_mean"] < 0.7  # the designed density is 0.5
 
 
 def test_vertical_spectrum_is_noise_shaped(loop):
@@ -122,7 +131,7 @@ def test_levitation_check_reports_the_first_period_past_the_limit(model, loop):
     touch = z.scale / z.port_units[1]
     clock = {f"x_{c.name}": np.zeros(20) for c in model.coordinates} | {"time": np.arange(20) * TS}
     clock["x_z"][7:] = -0.03 * touch
-    clock["x_z"][3] = 0.015 * touch                              # inside the limit
+    clock["x_z"][3] = 0.015 * touch  # inside the limit
     lost = sd.levitation(clock, model)
     assert not lost["held"] and lost["lost_at_period"] == 7 and lost["coordinate"] == "z"
 
@@ -150,7 +159,9 @@ def test_feedback_phase_is_rebuilt_from_delay_free_pulses(model):
     fb_on -+ edge/2, 1, a linear ramp down over fb_off -+ edge/2, 0 (to 1e-12 over 3 periods)."""
     d = sd.design(model, TS)
     fb, t = d.feedback_basis, np.linspace(0, 3 * TS, 30001)
-    got = fb["k1"] * _pulse(t, fb["tr1"], fb["tf"], fb["pw1"], TS) - fb["k2"] * _pulse(t, fb["tr2"], fb["tf"], fb["pw2"], TS)
+    got = fb["k1"] * _pulse(t, fb["tr1"], fb["tf"], fb["pw1"], TS) - fb["k2"] * _pulse(
+        t, fb["tr2"], fb["tf"], fb["pw2"], TS
+    )
     ph, h = np.mod(t / TS, 1.0), d.t.edge / 2
     want = np.clip(np.minimum((ph - (d.t.fb_on - h)) / d.t.edge, ((d.t.fb_off + h) - ph) / d.t.edge), 0.0, 1.0)
     assert np.abs(got - want).max() < 1e-12
@@ -170,7 +181,7 @@ def test_run_went_in_segments(loop):
     assert seg["ngspice_runs"] >= 3 and seg["periods"] == SEGMENT and seg["periods_run"] == CYCLES
     assert sum(n.startswith("x1.") for n in seg["state_nodes"]) == 14 and len(seg["state_nodes"]) == 26
     assert loop["simulator"] in ("ngspice", "ngspice-xspice") and loop["design"]["reltol"] == 1e-3
-    ran = loop["written"]["ngspice"]                         # summary.json names the ngspice it ran in
+    ran = loop["written"]["ngspice"]  # summary.json names the ngspice it ran in
     assert ran["version"] == f"ngspice-{loop['release']}" and ran["path"] == shutil.which(NGSPICE[loop["release"]])
 
 
@@ -178,11 +189,25 @@ def test_compiled_loop_is_refused_on_an_ngspice_without_its_code_model(model, tm
     """`--simulator ngspice-xspice` in ngspice 46 (no source of 46 is reachable, so no code model
     for it): exit 3 before ngspice starts and before any output, naming 46, the release the code
     models are built for (39, as the other tests here built them) and the alternatives."""
-    assert codemodel.build(LOOP_LIBRARY, progress=lambda m: None).exists()          # the 39 build
+    assert codemodel.build(LOOP_LIBRARY, progress=lambda m: None).exists()  # the 39 build
     out = tmp_path / "run"
-    code = cli.main(["--ngspice", NGSPICE["46"], "sigma-delta", "examples/levitated_disk.toml", "--model",
-                     str(ROOT / "netlists" / "levitated_disk.json"), "--simulator", "ngspice-xspice",
-                     "-o", str(out), "--cycles", "64", "-q"])
+    code = cli.main(
+        [
+            "--ngspice",
+            NGSPICE["46"],
+            "sigma-delta",
+            "examples/levitated_disk.toml",
+            "--model",
+            str(ROOT / "netlists" / "levitated_disk.json"),
+            "--simulator",
+            "ngspice-xspice",
+            "-o",
+            str(out),
+            "--cycles",
+            "64",
+            "-q",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 3 and not out.exists(), err
     assert "ngspice-46" in err and "built for ngspice-39" in err and "--simulator ngspice-osdi" in err
@@ -196,12 +221,17 @@ def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_pa
     lib = (ROOT / "netlists" / "levitated_disk.lib").resolve()
     d = sd.design(model, TS)
     states = sdn.state_nodes(lib, model, d)
-    first = sdn.simulate(sdn.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a",
-                         24 * TS, False)
+    first = sdn.simulate(
+        sdn.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a", 24 * TS, False
+    )
     ic = {n: float(first[f"v({n})"][-1]) for n in states}
-    assert max(abs(v) for v in ic.values()) > 1e-4             # a state worth restarting from
-    second = sdn.simulate(sdn.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
-                          tmp_path / "b", 2 * TS, False)
+    assert max(abs(v) for v in ic.values()) > 1e-4  # a state worth restarting from
+    second = sdn.simulate(
+        sdn.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
+        tmp_path / "b",
+        2 * TS,
+        False,
+    )
     for n in states:
         end, v = ic[n], second[f"v({n})"]
         assert abs(v[0] - end) <= 1.5 * abs(v[1] - v[0]) + 1e-12 * abs(end) + 1e-18, n
@@ -213,8 +243,9 @@ def test_tone_continues_across_a_restart(model, tmp_path):
     d = sd.design(model, TS)
     tone, t0 = sd.Tone("z", 0.02, 2000.0), 8191 * TS
     src = next(s["source"] for s in sdn.force_sources(model, d, tone, t0) if s["port"] == "f_z")
-    (tmp_path / "tone.cir").write_text(f"tone\nV1 a 0 {src}\nR1 a 0 1\n.control\ntran 1e-6 2e-4\n"
-                                       "write tone.raw v(a)\n.endc\n.end\n")
+    (tmp_path / "tone.cir").write_text(
+        f"tone\nV1 a 0 {src}\nR1 a 0 1\n.control\ntran 1e-6 2e-4\nwrite tone.raw v(a)\n.endc\n.end\n"
+    )
     subprocess.run([ngspice_path(), "-b", "tone.cir"], cwd=tmp_path, capture_output=True, check=False)
     plot = read_raw(tmp_path / "tone.raw")[0]
     t, v = np.asarray(plot["time"]), np.asarray(plot["v(a)"])
@@ -226,8 +257,18 @@ def test_a_segmented_run_stops_after_the_segment_that_lost_the_plate(model, tmp_
     """V_fb designed for a z bit density of 2 (impossible: all-up bits give m g / 2) lets the plate
     fall at g / 2 from the start: it leaves 2 % of the gap after sqrt(4 * 0.02 gap / g) (156 us,
     kinematics). The run stops after the segment in which that happens, and says so."""
-    s = sd.run(model, ROOT / "netlists" / "levitated_disk.lib", tmp_path, TS, 320, progress=False,
-               plots=False, segment=64, density=2.0, balance_check=False)   # (design() refuses it otherwise)
+    s = sd.run(
+        model,
+        ROOT / "netlists" / "levitated_disk.lib",
+        tmp_path,
+        TS,
+        320,
+        progress=False,
+        plots=False,
+        segment=64,
+        density=2.0,
+        balance_check=False,
+    )  # (design() refuses it otherwise)
     lev, z = s["levitation"], model.coordinates[0]
     fall = np.sqrt(4 * 0.02 * z.scale / 9.81) / TS
     assert not lev["held"] and lev["coordinate"] == "z" and lev["value"] < 0
@@ -248,10 +289,20 @@ def test_a_segment_is_cut_at_a_missed_corner_and_the_run_continues_from_there(mo
     def first_segment_misses_period_20(t, d, cycles):
         calls.append(cycles)
         return {"periods_with_a_missed_corner": 1, "first_period": 20} if len(calls) == 1 else real(t, d, cycles)
+
     monkeypatch.setattr(sdn, "missed_corners", first_segment_misses_period_20)
-    s = sd.run(model, ROOT / "netlists" / "levitated_disk.lib", tmp_path, TS, 160, progress=False,
-               plots=False, skip=SKIP, segment=64)
+    s = sd.run(
+        model,
+        ROOT / "netlists" / "levitated_disk.lib",
+        tmp_path,
+        TS,
+        160,
+        progress=False,
+        plots=False,
+        skip=SKIP,
+        segment=64,
+    )
     assert s["breakpoints"]["segments_cut_at_a_missed_corner"] == [{"start": 0, "missed_at": 20}]
-    assert calls[:2] == [64, 64] and s["segments"]["ngspice_runs"] == 4           # 0-19, 20-83, 84-147, 148-159
+    assert calls[:2] == [64, 64] and s["segments"]["ngspice_runs"] == 4  # 0-19, 20-83, 84-147, 148-159
     assert np.allclose(np.diff(s["clock"]["time"]), TS) and s["cycles"] == 160
     assert s["levitation"]["held"] and s["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)

@@ -17,14 +17,14 @@ from netgen import cli
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
-
-CHANNELS = ("z", "tilt_x", "tilt_y")     # the levitated disk's default channels (loop.channel_names)
 from tests.testbench.test_sigma_delta_vacask import replay
+
+CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 TS = 1e-6
-CYCLES, SKIP = 512, 64            # as the VACASK test: ~3 s in ngspice 46 through OSDI
-REPLAY = 32                       # clocks of the independent integration (~6 s)
+CYCLES, SKIP = 512, 64  # as the VACASK test: ~3 s in ngspice 46 through OSDI
+REPLAY = 32  # clocks of the independent integration (~6 s)
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +104,10 @@ def test_agrees_with_vacask(osdi_run, vacask_run):
     for c in ("tilt_x", "tilt_y"):
         ratio = np.ptp(a[f"x_{c}"][window]) / np.ptp(b[f"x_{c}"][window])
         assert 1 / 3 < ratio < 3.0, c
-    print(f"wall per clock: ngspice-osdi {osdi_run['wall'] / CYCLES * 1e3:.2f} ms, "
-          f"VACASK {vacask_run['wall'] / CYCLES * 1e3:.2f} ms")
+    print(
+        f"wall per clock: ngspice-osdi {osdi_run['wall'] / CYCLES * 1e3:.2f} ms, "
+        f"VACASK {vacask_run['wall'] / CYCLES * 1e3:.2f} ms"
+    )
 
 
 def test_ngspice_39_is_refused_with_exit_3(tmp_path, monkeypatch, capsys):
@@ -113,9 +115,21 @@ def test_ngspice_39_is_refused_with_exit_3(tmp_path, monkeypatch, capsys):
     any output is written."""
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["39"])
     out = tmp_path / "sd"
-    code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--model",
-                     str(ROOT / "netlists" / "levitated_disk.json"), "--simulator", "ngspice-osdi",
-                     "--cycles", "64", "-o", str(out), "-q"])
+    code = cli.main(
+        [
+            "sigma-delta",
+            str(ROOT / "examples" / "levitated_disk.toml"),
+            "--model",
+            str(ROOT / "netlists" / "levitated_disk.json"),
+            "--simulator",
+            "ngspice-osdi",
+            "--cycles",
+            "64",
+            "-o",
+            str(out),
+            "-q",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 3, err
     assert "ngspice-39" in err and "--simulator ngspice" in err and "vacask" in err and "45 or later" in err

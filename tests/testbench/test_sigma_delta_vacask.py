@@ -20,20 +20,19 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import loop as sd_loop
 from netgen.testbench.sigma_delta import vacask as sdv
-from netgen.model import MacroModel
-
 from tests.fixtures import ROOT
 
-CHANNELS = ("z", "tilt_x", "tilt_y")     # the levitated disk's default channels (loop.channel_names)
+CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 TS = 1e-6
-CYCLES, SKIP = 512, 64            # VACASK: ~10 s; long enough for a momentum balance within 1 %
-NG_CYCLES, NG_SKIP = 160, 32      # the ngspice comparison run (as tests/testbench/test_sigma_delta.py): ~1 min
-REPLAY = 48                       # clocks of the independent integration (~10 s)
+CYCLES, SKIP = 512, 64  # VACASK: ~10 s; long enough for a momentum balance within 1 %
+NG_CYCLES, NG_SKIP = 160, 32  # the ngspice comparison run (as tests/testbench/test_sigma_delta.py): ~1 min
+REPLAY = 48  # clocks of the independent integration (~10 s)
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +50,7 @@ def _run(model, out, simulator, cycles, skip):
 def vacask(model, tmp_path_factory) -> dict:
     """The VACASK run (compiles the model and the blocks: ~20 s once, the run a few s)."""
     out = tmp_path_factory.mktemp("sd_vacask")
-    sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")     # compile outside the timing
+    sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")  # compile outside the timing
     sdv.compile_blocks(out / "osdi")
     return _run(model, out, "vacask", CYCLES, SKIP)
 
@@ -76,7 +75,7 @@ def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
     text = sdv.testbench(model, d, tmp_path / "m.osdi", tmp_path / "b.osdi", 64)
     for e in d.electrodes:
         line = next(ln for ln in text.splitlines() if ln.startswith(f"xd_{e['name']} "))
-        axis = "tilt_x" if e["w"][1] else "tilt_y"           # the tilt this electrode senses (loop.groups)
+        axis = "tilt_x" if e["w"][1] else "tilt_y"  # the tilt this electrode senses (loop.groups)
         assert f"b_{axis} ca_z ca_{axis})" in line
         assert f"vs={d.vs} vfb={d.vfb} side={e['w'][0]} sign={e['w'][1] or e['w'][2]}" in line
     for ch in d.channels:
@@ -130,19 +129,32 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndar
     damp = np.array([c.damping for c in model.coordinates])
     scale = model.scales
     f_ext = np.zeros(n)
-    f_ext[0] = -d.mass * 9.81                   # gravity on z (the design's default input)
+    f_ext[0] = -d.mass * 9.81  # gravity on z (the design's default input)
 
     def rhs(time_, y):
         k = min(int(time_ / d.ts), cycles - 1)
-        v = d.vs * _phase(time_, t.sense_on, t.sense_off, t.edge, d.ts) \
+        v = (
+            d.vs * _phase(time_, t.sense_on, t.sense_off, t.edge, d.ts)
             + d.vfb * _phase(time_, t.fb_on, t.fb_off, t.edge, d.ts) * sel[k]
+        )
         f = model.electrostatic_force(y[:n] / scale, v)[0] + f_ext
         return np.concatenate([y[n:], (f - damp * y[n:] - stiff * y[:n]) / mass])
 
     # integrate between the corners of the voltage waveform (smooth inside each piece)
-    corners = [(k + f) * d.ts for k in range(cycles) for f in
-               (t.sense_on - t.edge / 2, t.sense_on + t.edge / 2, t.sense_off - t.edge / 2, t.sense_off + t.edge / 2,
-                t.fb_on - t.edge / 2, t.fb_on + t.edge / 2, t.fb_off - t.edge / 2, t.fb_off + t.edge / 2)]
+    corners = [
+        (k + f) * d.ts
+        for k in range(cycles)
+        for f in (
+            t.sense_on - t.edge / 2,
+            t.sense_on + t.edge / 2,
+            t.sense_off - t.edge / 2,
+            t.sense_off + t.edge / 2,
+            t.fb_on - t.edge / 2,
+            t.fb_on + t.edge / 2,
+            t.fb_off - t.edge / 2,
+            t.fb_off + t.edge / 2,
+        )
+    ]
     corners = np.unique(np.clip([0.0, *corners, cycles * d.ts], 0.0, cycles * d.ts))
     at = clock["time"][:cycles]
     y, out = np.zeros(2 * n), np.zeros((cycles, n))

@@ -12,7 +12,6 @@ import pytest
 
 from netgen import cli
 from netgen.model import MacroModel
-
 from tests.fixtures import ROOT
 
 EXAMPLE = ROOT / "examples" / "accelerometer_xyz.toml"
@@ -23,8 +22,10 @@ OWN = {"x": {"xp_t", "xn_t", "xp_b", "xn_b"}, "y": {"yp_r", "yn_r", "yp_l", "yn_
 def xspice_run(tmp_path_factory):
     """The example built and run for 64 periods in the compiled ngspice loop."""
     out = tmp_path_factory.mktemp("xyz") / "sd"
-    assert cli.main(["sigma-delta", str(EXAMPLE), "--simulator", "ngspice-xspice", "--cycles", "64", "-o", str(out),
-                     "-q"]) == 0
+    assert (
+        cli.main(["sigma-delta", str(EXAMPLE), "--simulator", "ngspice-xspice", "--cycles", "64", "-o", str(out), "-q"])
+        == 0
+    )
     return out
 
 
@@ -72,8 +73,24 @@ def test_three_channels_in_vacask(xspice_run, tmp_path):
     within 0.01 um (or mrad) of rest, the weight balanced by the z feedback within 5 %."""
     out = tmp_path / "vac"
     model = xspice_run / "model" / "accelerometer_xyz.json"
-    assert cli.main(["sigma-delta", str(EXAMPLE), "--simulator", "vacask", "--model", str(model), "--cycles", "64",
-                     "-o", str(out), "-q"]) == 0
+    assert (
+        cli.main(
+            [
+                "sigma-delta",
+                str(EXAMPLE),
+                "--simulator",
+                "vacask",
+                "--model",
+                str(model),
+                "--cycles",
+                "64",
+                "-o",
+                str(out),
+                "-q",
+            ]
+        )
+        == 0
+    )
     s = json.loads((out / "summary.json").read_text())
     assert s["levitation"]["held"] and list(s["channels"]) == ["x", "y", "z"]
     assert max(max(abs(c["min"]), abs(c["max"])) for c in s["coordinates"].values()) < 0.01

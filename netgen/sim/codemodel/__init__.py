@@ -47,6 +47,7 @@ from . import source
 class Library:
     """A code-model library: `sources` holds modpath.lst (the models, one per line),
     udnpath.lst and one folder per model; `name` is the stem of the built .cm."""
+
     name: str
     sources: Path
 
@@ -60,14 +61,22 @@ MODEL = Library("netgen_es", Path(__file__).resolve().parent)
 # --enable-pss) that change the layout of the device tables a code model hands to ngspice; the
 # target's KLU and OSDI are added where its headers test them (defines()).
 BASE_DEFINES = ("XSPICE", "CIDER", "WITH_PSS", "SIMULATOR")
-CFLAGS = ["-O3", "-fPIC", "-fvisibility=hidden", "-fno-math-errno", "-fno-trapping-math",
-          "-fassociative-math", "-fno-signed-zeros"]
+CFLAGS = [
+    "-O3",
+    "-fPIC",
+    "-fvisibility=hidden",
+    "-fno-math-errno",
+    "-fno-trapping-math",
+    "-fassociative-math",
+    "-fno-signed-zeros",
+]
 
 
 def cache_dir() -> Path:
     """Where built code models and the ngspice source live (NETGEN_CACHE, else XDG cache)."""
     base = os.environ.get("NETGEN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen")
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen"
+    )
     return Path(base) / "codemodel"
 
 
@@ -99,8 +108,11 @@ def defines(tree: Path, tgt: dict) -> list[str]:
     and OSDI where the source's headers test them (they add members to IFdevice and SPICEdev)."""
     headers = [*(tree / "src/include/ngspice").glob("*.h"), tree / "src/xspice/icm/dlmain.c"]
     text = "\n".join(f.read_text(errors="replace") for f in headers if f.is_file())
-    extra = [name for name in ("KLU", "OSDI") if tgt.get(name.lower())
-             and re.search(rf"^\s*#\s*if(?:def\s+{name}\b|.*defined\s*\(?\s*{name}\b)", text, re.M)]
+    extra = [
+        name
+        for name in ("KLU", "OSDI")
+        if tgt.get(name.lower()) and re.search(rf"^\s*#\s*if(?:def\s+{name}\b|.*defined\s*\(?\s*{name}\b)", text, re.M)
+    ]
     return [*BASE_DEFINES, *extra]
 
 
@@ -112,8 +124,11 @@ def ifs_problems(ifs_text: str) -> list[str]:
     for table in ifs_text.split("PARAMETER_TABLE:")[1:]:
         rows = {m.group(1): m.group(2).split() for m in re.finditer(r"^(\w+):\s*(.*)$", table, re.M)}
         names = rows.get("Parameter_Name", [])
-        bad += [n for n, d, null in zip(names, rows.get("Default_Value", []), rows.get("Null_Allowed", []))
-                if d != "-" and null == "no"]
+        bad += [
+            n
+            for n, d, null in zip(names, rows.get("Default_Value", []), rows.get("Null_Allowed", []))
+            if d != "-" and null == "no"
+        ]
     return bad
 
 
@@ -123,8 +138,10 @@ def _check_ifs(library: Library) -> None:
         ifs = library.sources / name / "ifspec.ifs"
         bad = ifs_problems(ifs.read_text())
         if bad:
-            raise CodeModelError(f"{ifs}: parameters {', '.join(bad)} have a Default_Value and Null_Allowed: no, "
-                                 f"which cmpp 43 and later reject; give them Default_Value: - (or allow null)")
+            raise CodeModelError(
+                f"{ifs}: parameters {', '.join(bad)} have a Default_Value and Null_Allowed: no, "
+                f"which cmpp 43 and later reject; give them Default_Value: - (or allow null)"
+            )
 
 
 def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 900.0) -> None:
@@ -148,8 +165,20 @@ def _cmpp(tree: Path, work: Path) -> Path:
     for name in ("ifs", "mod"):
         _run(["flex", "-o", f"{name}_lex.c", f"{name}_lex.l"], out)
         _run(["bison", "-d", "-o", f"{name}_yacc.c", f"{name}_yacc.y"], out)
-    files = ["main.c", "file_buffer.c", "pp_ifs.c", "pp_lst.c", "pp_mod.c", "read_ifs.c", "writ_ifs.c", "util.c",
-             "ifs_lex.c", "ifs_yacc.c", "mod_lex.c", "mod_yacc.c"]
+    files = [
+        "main.c",
+        "file_buffer.c",
+        "pp_ifs.c",
+        "pp_lst.c",
+        "pp_mod.c",
+        "read_ifs.c",
+        "writ_ifs.c",
+        "util.c",
+        "ifs_lex.c",
+        "ifs_yacc.c",
+        "mod_lex.c",
+        "mod_yacc.c",
+    ]
     _run(["gcc", "-O2", "-I.", "-o", "cmpp", *files], out)
     return out / "cmpp"
 
@@ -163,7 +192,7 @@ def build(library: Library = MODEL, force: bool = False, progress=print) -> Path
     if _complete(cm) and not force:
         return cm
     cm.parent.mkdir(parents=True, exist_ok=True)
-    with open(cm.parent / "build.lock", "w") as lock:   # parallel test workers build it once
+    with open(cm.parent / "build.lock", "w") as lock:  # parallel test workers build it once
         fcntl.flock(lock, fcntl.LOCK_EX)
         if _complete(cm) and not force:
             return cm
@@ -205,11 +234,18 @@ def _build(cm: Path, library: Library, tgt: dict, src: source.Source, progress) 
             objs.append(str(obj))
         tmp_cm = cm.with_suffix(f".{os.getpid()}.tmp")
         _run(["gcc", "-shared", *CFLAGS, *objs, "-lm", "-o", str(tmp_cm)], gen)
-        record = {"library": library.name, "models": list(library.models), "ngspice": tgt, "source": src.label,
-                  "defines": switches, "cflags": CFLAGS, "netgen": __version__}
+        record = {
+            "library": library.name,
+            "models": list(library.models),
+            "ngspice": tgt,
+            "source": src.label,
+            "defines": switches,
+            "cflags": CFLAGS,
+            "netgen": __version__,
+        }
         tmp_record = build_record(cm).with_suffix(f".{os.getpid()}.json.tmp")
         tmp_record.write_text(json.dumps(record, indent=1) + "\n")
-        os.replace(tmp_record, build_record(cm))      # the record first: a .cm never stands without one
+        os.replace(tmp_record, build_record(cm))  # the record first: a .cm never stands without one
         os.replace(tmp_cm, cm)
     progress(f"codemodel: {cm} (built for {tgt['version']}, {' '.join(switches)})")
     return cm

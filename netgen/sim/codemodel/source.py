@@ -10,9 +10,9 @@ import os
 import re
 import subprocess
 import tarfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from ...errors import CodeModelError
 
@@ -25,6 +25,7 @@ NEEDED = ("configure.ac", "src/include/", "src/xspice/cmpp/", "src/xspice/icm/dl
 class Source:
     """label: what the build record names and the cache key hashes; tree: an unpacked tree
     (NETGEN_NGSPICE_SOURCE), or debian: the Debian source version to fetch."""
+
     label: str
     tree: Path | None = None
     debian: str | None = None
@@ -41,15 +42,17 @@ def tree_release(root: Path) -> str:
     minor = re.search(r"m4_define\(\[ngspice_minor_version\],\s*\[([^\]]+)\]", text)
     if not major:
         raise CodeModelError(f"{root}/configure.ac names no ngspice_major_version")
-    m = (minor.group(1).strip() if minor else "0")
+    m = minor.group(1).strip() if minor else "0"
     return "ngspice-" + major.group(1).strip() + ("" if m == "0" else f".{m}")
 
 
 def fast_path(target: dict) -> str:
     """The alternative to a code model on the target ngspice, as a sentence."""
     if target.get("osdi"):
-        return (f"On {target['version']} the compiled path is OSDI: netgen build --format osdi (the _osdi.lib; "
-                f"netgen sigma-delta --simulator ngspice-osdi).")
+        return (
+            f"On {target['version']} the compiled path is OSDI: netgen build --format osdi (the _osdi.lib; "
+            f"netgen sigma-delta --simulator ngspice-osdi)."
+        )
     return f"On {target['version']} use the B-source .lib (netgen build --format ngspice)."
 
 
@@ -64,18 +67,22 @@ def find(target: dict) -> Source:
             raise CodeModelError(f"{ENV}={given} is not an ngspice source tree (no src/xspice/cmpp/main.c)")
         have = tree_release(root)
         if have != want:
-            raise CodeModelError(f"{ENV}={given} is the source of {have} and the target ngspice ({target['path']}) "
-                                 f"is {want}: a code model built from another release crashes ngspice (its device "
-                                 f"tables differ), so none is built. Point {ENV} at an unpacked {want} source tree, "
-                                 f"or unset it. {fast_path(target)}")
+            raise CodeModelError(
+                f"{ENV}={given} is the source of {have} and the target ngspice ({target['path']}) "
+                f"is {want}: a code model built from another release crashes ngspice (its device "
+                f"tables differ), so none is built. Point {ENV} at an unpacked {want} source tree, "
+                f"or unset it. {fast_path(target)}"
+            )
         return Source(f"{ENV} {root.resolve()} ({have}, headers {headers_digest(root)})", tree=root)
     package = debian_package(target["path"])
     if package is None:
-        raise CodeModelError(f"no source of {want} ({target['path']}) is reachable: netgen builds a code model from "
-                             f"the Debian source package of the ngspice it will run in, and this one is not a "
-                             f"Debian package; a code model built from another release's source crashes it. "
-                             f"{fast_path(target)} Or set {ENV} to an unpacked {want} source tree; the code "
-                             f"model itself runs on Debian's packaged ngspice (--ngspice /usr/bin/ngspice).")
+        raise CodeModelError(
+            f"no source of {want} ({target['path']}) is reachable: netgen builds a code model from "
+            f"the Debian source package of the ngspice it will run in, and this one is not a "
+            f"Debian package; a code model built from another release's source crashes it. "
+            f"{fast_path(target)} Or set {ENV} to an unpacked {want} source tree; the code "
+            f"model itself runs on Debian's packaged ngspice (--ngspice /usr/bin/ngspice)."
+        )
     return Source(f"Debian source package ngspice {package}", debian=package)
 
 
@@ -86,8 +93,9 @@ def debian_package(path: str) -> str | None:
         if owner.returncode != 0:
             return None
         pkg = owner.stdout.split(":", 1)[0].strip()
-        out = subprocess.run(["dpkg-query", "-W", "-f=${source:Package} ${source:Version}", pkg],
-                             capture_output=True, text=True)
+        out = subprocess.run(
+            ["dpkg-query", "-W", "-f=${source:Package} ${source:Version}", pkg], capture_output=True, text=True
+        )
     except FileNotFoundError:
         return None
     name, _, ver = out.stdout.strip().partition(" ")
@@ -117,8 +125,9 @@ def unpack(source: Source, target: dict, work: Path, cache: Path, run: Callable[
     root = work / "src" / tops.pop()
     want, have = target["version"], tree_release(root)
     if have != want:
-        raise CodeModelError(f"{tarball} is the source of {have}, not of the target {want} ({target['path']}). "
-                             f"{fast_path(target)}")
+        raise CodeModelError(
+            f"{tarball} is the source of {have}, not of the target {want} ({target['path']}). {fast_path(target)}"
+        )
     return root
 
 
@@ -134,23 +143,40 @@ def fetch(version: str, dest: Path, run: Callable[..., None], target: dict) -> P
     have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
     if have:
         return have[0]
-    suite = subprocess.run(["sh", "-c", ". /etc/os-release && echo $VERSION_CODENAME"],
-                           capture_output=True, text=True).stdout.strip() or "bookworm"
+    suite = (
+        subprocess.run(
+            ["sh", "-c", ". /etc/os-release && echo $VERSION_CODENAME"], capture_output=True, text=True
+        ).stdout.strip()
+        or "bookworm"
+    )
     suites = [suite] + ([f"{suite}-backports"] if "~bpo" in version else [])
     lists = dest / "apt-lists"
     (lists / "partial").mkdir(parents=True, exist_ok=True)
     src = dest / "deb-src.list"
     src.write_text("".join(f"deb-src http://deb.debian.org/debian {s} main\n" for s in suites))
-    opts = ["-o", f"Dir::Etc::sourcelist={src}", "-o", "Dir::Etc::sourceparts=-",
-            "-o", f"Dir::State::Lists={lists}", "-o", "APT::Get::List-Cleanup=0", "-qq"]
+    opts = [
+        "-o",
+        f"Dir::Etc::sourcelist={src}",
+        "-o",
+        "Dir::Etc::sourceparts=-",
+        "-o",
+        f"Dir::State::Lists={lists}",
+        "-o",
+        "APT::Get::List-Cleanup=0",
+        "-qq",
+    ]
     try:
         run(["apt-get", *opts, "update"], dest)
         run(["apt-get", *opts, "source", "--download-only", f"ngspice={version}"], dest)
     except CodeModelError as exc:
-        raise CodeModelError(f"Debian's source of ngspice {version} is not reachable ({str(exc)[-300:].strip()}); "
-                             f"set {ENV} to an unpacked source tree of that release. {fast_path(target)}") from None
+        raise CodeModelError(
+            f"Debian's source of ngspice {version} is not reachable ({str(exc)[-300:].strip()}); "
+            f"set {ENV} to an unpacked source tree of that release. {fast_path(target)}"
+        ) from None
     have = sorted(dest.glob(f"ngspice_{upstream}.orig.tar.*"))
     if not have:
-        raise CodeModelError(f"apt-get source ngspice={version} gave no orig tarball in {dest}; fix: set "
-                             f"{ENV} to an unpacked ngspice source tree of that version")
+        raise CodeModelError(
+            f"apt-get source ngspice={version} gave no orig tarball in {dest}; fix: set "
+            f"{ENV} to an unpacked ngspice source tree of that version"
+        )
     return have[0]

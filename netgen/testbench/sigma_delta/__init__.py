@@ -16,6 +16,29 @@ from .runner import BACKENDS, SIMULATORS, model_for, run, with_damping
 # a run's channels are its Design.names and summary["channels"]
 CHANNELS = ("z", "tilt_x", "tilt_y")
 
-__all__ = ["BACKENDS", "CHANNELS", "FILTERS", "RELTOL_RANGE", "RELTOL_TEXT", "SIMULATORS", "Design", "LoopSpec", "Timing", "Tone",
-           "analyse", "design", "duty", "gravity_balance", "groups", "levitation", "model_for", "per_clock", "psd",
-           "read_loop_file", "read_structure_loop", "run", "thermal_floor", "with_damping"]
+__all__ = [
+    "BACKENDS",
+    "CHANNELS",
+    "FILTERS",
+    "RELTOL_RANGE",
+    "RELTOL_TEXT",
+    "SIMULATORS",
+    "Design",
+    "LoopSpec",
+    "Timing",
+    "Tone",
+    "analyse",
+    "design",
+    "duty",
+    "gravity_balance",
+    "groups",
+    "levitation",
+    "model_for",
+    "per_clock",
+    "psd",
+    "read_loop_file",
+    "read_structure_loop",
+    "run",
+    "thermal_floor",
+    "with_damping",
+]

@@ -24,7 +24,7 @@ def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.n
     for c in d.names:
         level = np.interp(at, t, plot[f"v(b_{c})"])
         out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
-        out[f"latch_{c}"] = level           # the held latch level (ideally 0 or 1): soft decisions
+        out[f"latch_{c}"] = level  # the held latch level (ideally 0 or 1): soft decisions
     for c in model.coordinates:
         out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
     out["time"] = at
@@ -53,8 +53,7 @@ def features(f: np.ndarray, p: np.ndarray, min_db: float = 6.0) -> tuple[list[di
     return notches, peaks
 
 
-def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: float, tone_hz: float | None,
-                 dc_bins: int = 1) -> dict:
+def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: float, tone_hz: float | None, dc_bins: int = 1) -> dict:
     """In-band noise floor (median, dB re F_fb^2/Hz), noise power, SNR of the tone at `tone_hz`
     (its +-3 bins: the Hann main lobe), noise-shaping slope over the decade below the band edge.
     The band starts at bin `dc_bins`: 1, every bin above DC (the command's summary); the
@@ -64,11 +63,15 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: float, tone_hz: f
     df = f[1] - f[0]
     band = (f >= dc_bins * df) & (f <= fb)
     mask = band.copy()
-    if not band.any():                             # run too short: no PSD bin inside the band
-        return {"band_hz": [None, float(fb)], "noise_floor_db_per_hz": None, "inband_noise_db": None,
-                "note": "band has no PSD bins: run more cycles"}
+    if not band.any():  # run too short: no PSD bin inside the band
+        return {
+            "band_hz": [None, float(fb)],
+            "noise_floor_db_per_hz": None,
+            "inband_noise_db": None,
+            "note": "band has no PSD bins: run more cycles",
+        }
     out: dict = {"band_hz": [float(f[band][0]), float(fb)]}
-    if tone_hz and not tone_hz <= fb:              # above the band edge: no in-band tone to quote
+    if tone_hz and not tone_hz <= fb:  # above the band edge: no in-band tone to quote
         out["tone_note"] = f"the tone at {tone_hz:g} Hz is above the band edge {fb:g} Hz: no tone level or SNR"
         tone_hz = None
     if tone_hz:
@@ -77,7 +80,7 @@ def band_metrics(f: np.ndarray, p: np.ndarray, ts: float, osr: float, tone_hz: f
         sig = float(np.sum(p[near]) * df)
         out["tone_power"] = sig
         out["tone_level_db"] = float(10 * np.log10(sig)) if sig > 0 else None
-    if mask.sum() < 2:                             # run too short to resolve the band
+    if mask.sum() < 2:  # run too short to resolve the band
         out.update({"noise_floor_db_per_hz": None, "inband_noise_db": None, "note": "band has < 2 bins"})
         return out
     noise = float(np.sum(p[mask]) * df)
@@ -105,9 +108,12 @@ def tone_fit(bits: np.ndarray, t: np.ndarray, freq: float, ts: float, osr: int) 
     f, p = psd(bits - a @ c, ts)
     band = (f > 0) & (f <= 0.5 / ts / osr)
     noise = float(np.sum(p[band]) * (f[1] - f[0]))
-    out = {"tone_amplitude_bits": amp, "tone_fit_db": float(10 * np.log10(amp * amp / 2 + 1e-300)),
-           "residual_inband_noise_db": float(10 * np.log10(noise + 1e-300))}
-    if freq <= 0.5 / ts / osr and noise > 0:       # an SQNR is of an in-band tone
+    out = {
+        "tone_amplitude_bits": amp,
+        "tone_fit_db": float(10 * np.log10(amp * amp / 2 + 1e-300)),
+        "residual_inband_noise_db": float(10 * np.log10(noise + 1e-300)),
+    }
+    if freq <= 0.5 / ts / osr and noise > 0:  # an SQNR is of an in-band tone
         out["sqnr_db"] = out["tone_fit_db"] - out["residual_inband_noise_db"]
     return out
 
@@ -123,15 +129,29 @@ def scale_factor(inputs: np.ndarray, bit_means: np.ndarray, full_scale: float | 
     slope, offset = np.polyfit(x, y, 1)
     fs = full_scale or 1.0 / abs(slope)
     resid = y - (slope * x + offset)
-    return {"scale_factor": float(slope), "offset": float(offset), "full_scale_input": float(fs),
-            "max_nonlinearity_pct_fs": float(np.max(np.abs(resid)) / abs(slope) / fs * 100),
-            "residuals": resid.tolist()}
+    return {
+        "scale_factor": float(slope),
+        "offset": float(offset),
+        "full_scale_input": float(fs),
+        "max_nonlinearity_pct_fs": float(np.max(np.abs(resid)) / abs(slope) / fs * 100),
+        "residuals": resid.tolist(),
+    }
 
 
 def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, skip: int = 0) -> dict:
     """Summary per channel: spectra features, noise floor, SNR, bit mean and force balance."""
-    summary: dict = {"ts": d.ts, "fs_hz": 1 / d.ts, "osr": osr, "cycles": int(len(clock["time"])), "skip": skip,
-                     "vfb": d.vfb, "vs": d.vs, "lead": d.lead, "channels": {}, "spectra": {}}
+    summary: dict = {
+        "ts": d.ts,
+        "fs_hz": 1 / d.ts,
+        "osr": osr,
+        "cycles": int(len(clock["time"])),
+        "skip": skip,
+        "vfb": d.vfb,
+        "vs": d.vs,
+        "lead": d.lead,
+        "channels": {},
+        "spectra": {},
+    }
     for c in d.names:
         bits = clock[f"bits_{c}"][skip:]
         f, p = psd(bits, d.ts)
@@ -139,14 +159,23 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
         m = band_metrics(f, p, d.ts, osr, tone.freq if tone else None)
         if tone:
             m |= tone_fit(bits, clock["time"][skip:], tone.freq, d.ts, osr)
-        summary["channels"][c] = {"bit_mean": float(bits.mean()), "fed_back_level_si": d.level(c),
-                                  "bit_mean_needed": d.channel(c)["bit_mean_needed"], "filter": d.channel(c)["filter"],
-                                  **m, "notches": notches, "peaks": peaks, **latch_quality(clock, c, skip)}
+        summary["channels"][c] = {
+            "bit_mean": float(bits.mean()),
+            "fed_back_level_si": d.level(c),
+            "bit_mean_needed": d.channel(c)["bit_mean_needed"],
+            "filter": d.channel(c)["filter"],
+            **m,
+            "notches": notches,
+            "peaks": peaks,
+            **latch_quality(clock, c, skip),
+        }
         summary["spectra"][c] = (f, p)
     summary["gravity_balance"] = gravity_balance(clock, d, skip)
-    summary["coordinates"] = {k[2:]: {"mean": float(v[skip:].mean()), "min": float(v[skip:].min()),
-                                      "max": float(v[skip:].max())}
-                              for k, v in clock.items() if k.startswith("x_")}
+    summary["coordinates"] = {
+        k[2:]: {"mean": float(v[skip:].mean()), "min": float(v[skip:].min()), "max": float(v[skip:].max())}
+        for k, v in clock.items()
+        if k.startswith("x_")
+    }
     return summary
 
 
@@ -159,7 +188,7 @@ def latch_quality(clock: dict, channel: str, skip: int = 0) -> dict:
     if level is None:
         return {}
     err = np.minimum(np.abs(level[skip:]), np.abs(level[skip:] - 1.0))
-    restored = 0.5 - 0.5 * np.tanh(40.0 * (0.5 - err))          # drive error of bit() at that level
+    restored = 0.5 - 0.5 * np.tanh(40.0 * (0.5 - err))  # drive error of bit() at that level
     return {"partial_latches": int(np.sum(restored > 1e-3)), "max_latch_error": float(err.max(initial=0.0))}
 
 
@@ -172,8 +201,13 @@ def levitation(clock: dict, model: MacroModel, limit: float = 0.02) -> dict:
         for c in model.coordinates:
             touch = c.scale / c.port_units[1]
             if abs(clock[f"x_{c.name}"][n]) > limit * touch:
-                return {"held": False, "lost_at_period": n, "coordinate": c.name,
-                        "value": float(clock[f"x_{c.name}"][n]), "limit": limit * touch}
+                return {
+                    "held": False,
+                    "lost_at_period": n,
+                    "coordinate": c.name,
+                    "value": float(clock[f"x_{c.name}"][n]),
+                    "limit": limit * touch,
+                }
     return {"held": True, "limit_fraction_of_touch": limit}
 
 
@@ -197,8 +231,8 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     weights = np.ones(b - a + 1)
     weights[[0, -1]] = 0.5
     sense = d.sense_force[d.balance["coord"]] * duty(d.t, d.t.sense_on, d.t.sense_off)
-    mean = float(np.dot(weights, fz[a:b + 1]) / (b - a) * d.duty + sense)
-    x = clock[f"x_{name}"] * d.balance["x_unit_si"]   # the port: 1 V = 1 um (or 1 mrad)
+    mean = float(np.dot(weights, fz[a : b + 1]) / (b - a) * d.duty + sense)
+    x = clock[f"x_{name}"] * d.balance["x_unit_si"]  # the port: 1 V = 1 um (or 1 mrad)
     v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
     inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
     damping = d.damping * (x[b] - x[a]) / ((b - a) * d.ts)
@@ -207,8 +241,16 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     # no DC input: the ratio of two near-zero forces says nothing; the residual force does
     full = d.channels[d.balance["index"]]["full_scale_force_si"]
     ratio = float(mean / need) if abs(weight) > 1e-3 * full else None
-    return {"channel": name, "mean_force_n": mean, "weight_n": weight, "inertial_n": float(inertia),
-            "damping_n": float(damping), "ratio": ratio, "residual_n": float(mean - need), "window": [a, b]}
+    return {
+        "channel": name,
+        "mean_force_n": mean,
+        "weight_n": weight,
+        "inertial_n": float(inertia),
+        "damping_n": float(damping),
+        "ratio": ratio,
+        "residual_n": float(mean - need),
+        "window": [a, b],
+    }
 
 
 def thermal_floor(model: MacroModel, d: Design) -> dict:
@@ -218,11 +260,17 @@ def thermal_floor(model: MacroModel, d: Design) -> dict:
     damping = model.report.get("damping", {})
     temp = float(damping.get("temperature_K", 300.0))
     noise = bool(damping.get("noise", False))
-    out = {"noise_sources_emitted": noise, "temperature_K": temp,
-           "pressure_Pa": damping.get("squeeze_film", {}).get("pressure_Pa"), "channels": {}}
-    if noise:   # measured: `setseed`, `set rndseed` and `.options seed` all leave TRNOISE unseeded
-        out["reproducibility"] = ("statistical only: ngspice 39 fills the Gaussian pool of TRNOISE from its "
-                                  "process id (trannoise/wallace.c initw) and no seed option reaches it")
+    out = {
+        "noise_sources_emitted": noise,
+        "temperature_K": temp,
+        "pressure_Pa": damping.get("squeeze_film", {}).get("pressure_Pa"),
+        "channels": {},
+    }
+    if noise:  # measured: `setseed`, `set rndseed` and `.options seed` all leave TRNOISE unseeded
+        out["reproducibility"] = (
+            "statistical only: ngspice 39 fills the Gaussian pool of TRNOISE from its "
+            "process id (trannoise/wallace.c initw) and no seed option reaches it"
+        )
     for c in d.names:
         b = float(model.coordinates[d.channel(c)["coord"]].admittance(0.0).real)
         floor = 10 * np.log10(4 * K_B * temp * b / d.level(c) ** 2) if b > 0 else None

@@ -45,6 +45,7 @@ class Mechanics:
     the feedback force F = force x v x pulse(t) (pulse: (start, end, weight) phases of a period,
     after the sample), read out as x = gain q + offset at the phase `sample` of every period
     (offset: the readout at rest, e.g. unequal electrode capacitances)."""
+
     mass: float
     stiffness: float
     damping: float
@@ -77,8 +78,9 @@ class Mechanics:
         return np.array([self.gain, 0.0])
 
 
-def step_map(a: np.ndarray, b: np.ndarray, ts: float, sample: float,
-             pulse: tuple[tuple[float, float, float], ...]) -> tuple[np.ndarray, np.ndarray]:
+def step_map(
+    a: np.ndarray, b: np.ndarray, ts: float, sample: float, pulse: tuple[tuple[float, float, float], ...]
+) -> tuple[np.ndarray, np.ndarray]:
     """(Phi, Gamma) of x' = a x + b u(t) from the sample instant to the next one, with u the
     sum of the `pulse` pieces (weight over [start, end] in period phases) times v."""
     n = len(a)
@@ -90,12 +92,14 @@ def step_map(a: np.ndarray, b: np.ndarray, ts: float, sample: float,
             raise ValueError(f"feedback piece [{start}, {end}] is not within the period after the sample at {sample}")
         m = np.zeros((n + 1, n + 1))
         m[:n, :n], m[:n, n] = a, b * weight
-        piece = linalg.expm(m * (t1 - t0))[:n, n]            # the state a constant input leaves at t1
+        piece = linalg.expm(m * (t1 - t0))[:n, n]  # the state a constant input leaves at t1
         gamma += linalg.expm(a * (ts - t1)) @ piece
     return phi, gamma
 
 
-def trapezoid_pulse(on: float, off: float, edge: float, pieces: int = RAMP_PIECES) -> tuple[tuple[float, float, float], ...]:
+def trapezoid_pulse(
+    on: float, off: float, edge: float, pieces: int = RAMP_PIECES
+) -> tuple[tuple[float, float, float], ...]:
     """The force pulse of a voltage trapezoid (linear edges of width `edge` centred on `on` and
     `off`): force ~ V^2, so a ramp is `pieces` constant pieces, each with the mean of the squared
     ramp over it (its exact impulse), and the flat top weight 1; edge 0: one piece (a step)."""
@@ -103,7 +107,7 @@ def trapezoid_pulse(on: float, off: float, edge: float, pieces: int = RAMP_PIECE
         return ((on, off, 1.0),)
     out = []
     h = edge / pieces
-    for k in range(pieces):                                  # mean of s^2 over [k, k+1] / pieces
+    for k in range(pieces):  # mean of s^2 over [k, k+1] / pieces
         w = ((k + 1) ** 3 - k**3) / (3.0 * pieces**2)
         out.append((on - edge / 2 + k * h, on - edge / 2 + (k + 1) * h, w))
     out.append((on + edge / 2, off - edge / 2, 1.0))
@@ -117,6 +121,7 @@ def trapezoid_pulse(on: float, off: float, edge: float, pieces: int = RAMP_PIECE
 class Filter:
     """A loop filter of one channel (module docstring): kind, order, the state-space
     coefficients, and for designed kinds the NTF they realise."""
+
     kind: str
     order: int
     a: np.ndarray
@@ -138,19 +143,34 @@ class Filter:
 
     def as_dict(self) -> dict:
         """JSON-able form (summary.json, the netlist header, Design.channels[i]["filter"])."""
-        return {"kind": self.kind, "order": self.order, "A": self.a.tolist(), "bx": self.bx.tolist(),
-                "bv": self.bv.tolist(), "c": self.c.tolist(), "d": float(self.d), **self.design}
+        return {
+            "kind": self.kind,
+            "order": self.order,
+            "A": self.a.tolist(),
+            "bx": self.bx.tolist(),
+            "bv": self.bv.tolist(),
+            "c": self.c.tolist(),
+            "d": float(self.d),
+            **self.design,
+        }
 
     @classmethod
-    def from_dict(cls, spec: dict) -> "Filter":
+    def from_dict(cls, spec: dict) -> Filter:
         """The filter of a channel's `filter` dict: lead2 ({"kind": "lead2", "lead": L}) or a
         designed kind with its coefficients."""
         if spec.get("kind") == "lead2":
             return lead2(float(spec.get("lead", 0.8)))
         rest = {k: v for k, v in spec.items() if k not in ("kind", "order", "A", "bx", "bv", "c", "d")}
-        return cls(spec["kind"], int(spec["order"]), np.array(spec["A"], dtype=float).reshape(len(spec["c"]), -1),
-                   np.array(spec["bx"], float), np.array(spec["bv"], float), np.array(spec["c"], float),
-                   float(spec["d"]), rest)
+        return cls(
+            spec["kind"],
+            int(spec["order"]),
+            np.array(spec["A"], dtype=float).reshape(len(spec["c"]), -1),
+            np.array(spec["bx"], float),
+            np.array(spec["bv"], float),
+            np.array(spec["c"], float),
+            float(spec["d"]),
+            rest,
+        )
 
 
 def lead2(lead: float = 0.8) -> Filter:
@@ -170,7 +190,7 @@ def chain(kind: str, k: int, g: float) -> tuple[np.ndarray, np.ndarray]:
     if kind == "crfb" and k >= 2:
         ia, ib = k - 2, k - 1
         a[ia, ib] = -g
-        a[ib, :] = a[ib, :] + a[ia, :] - np.eye(k)[ia]      # u_b' = u_b + u_a' (u_a' substituted)
+        a[ib, :] = a[ib, :] + a[ia, :] - np.eye(k)[ia]  # u_b' = u_b + u_a' (u_a' substituted)
         m[ib, :] += m[ia, :]
     return a, m
 
@@ -207,8 +227,9 @@ def realised_ntf(mech: Mechanics, f: Filter, z: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 - t)
 
 
-def design(mech: Mechanics, order: int, osr: float = 64, h_inf: float = 1.5, topology: str = "cifb",
-           samples: int | None = None) -> Filter:
+def design(
+    mech: Mechanics, order: int, osr: float = 64, h_inf: float = 1.5, topology: str = "cifb", samples: int | None = None
+) -> Filter:
     """The electronic integrators' coefficients of an electromechanical loop of `order` (3-5) for
     `mech`: bx (position into the first two integrators), bv = M theta_v (the bit into
     each; with one integrator the position also goes straight to the quantizer, d), fitted by least squares so that the loop's
@@ -243,28 +264,45 @@ def design(mech: Mechanics, order: int, osr: float = 64, h_inf: float = 1.5, top
     scale = np.max(np.abs(cols), axis=0)
     theta = np.linalg.lstsq(cols[1:] / scale, want[1:], rcond=None)[0] / scale
     nx = len(xin)
-    fit = Filter(topology, order, a, np.stack(xin, axis=1) @ theta[:nx], m @ theta[nx:nx + k], c,
-                 float(theta[-1]) if k == 1 else 0.0,
-                 {"osr": osr, "h_inf": h_inf, "resonator_g": g,
-                  "ntf": {"zeros": [[float(q.real), float(q.imag)] for q in target.zeros],
-                          "poles": [[float(p.real), float(p.imag)] for p in target.poles]}})
-    fit.design["impulse_error"] = float(np.max(np.abs(loop_impulse(mech, fit, n)[1:] - want[1:]))
-                                        / np.max(np.abs(want[1:])))
+    fit = Filter(
+        topology,
+        order,
+        a,
+        np.stack(xin, axis=1) @ theta[:nx],
+        m @ theta[nx : nx + k],
+        c,
+        float(theta[-1]) if k == 1 else 0.0,
+        {
+            "osr": osr,
+            "h_inf": h_inf,
+            "resonator_g": g,
+            "ntf": {
+                "zeros": [[float(q.real), float(q.imag)] for q in target.zeros],
+                "poles": [[float(p.real), float(p.imag)] for p in target.poles],
+            },
+        },
+    )
+    fit.design["impulse_error"] = float(
+        np.max(np.abs(loop_impulse(mech, fit, n)[1:] - want[1:])) / np.max(np.abs(want[1:]))
+    )
     return fit
 
 
 def target_ntf(f: Filter) -> signal.ZerosPolesGain:
     """The NTF a designed filter was fitted to (from its design record)."""
     spec = f.design["ntf"]
-    return signal.ZerosPolesGain(np.array([complex(*q) for q in spec["zeros"]]),
-                                 np.array([complex(*p) for p in spec["poles"]]), 1.0, dt=1)
+    return signal.ZerosPolesGain(
+        np.array([complex(*q) for q in spec["zeros"]]), np.array([complex(*p) for p in spec["poles"]]), 1.0, dt=1
+    )
 
 
 def channel_filters(channels: list[dict]) -> list[Filter | None]:
     """The state-space filter of each Design channel whose `filter` is a designed kind (None for
     lead2 or no filter: the compiled loop's lead path)."""
-    return [Filter.from_dict(ch["filter"]) if ch.get("filter", {}).get("kind", "lead2") != "lead2" else None
-            for ch in channels]
+    return [
+        Filter.from_dict(ch["filter"]) if ch.get("filter", {}).get("kind", "lead2") != "lead2" else None
+        for ch in channels
+    ]
 
 
 def state_nodes(channels: list[dict]) -> list[str]:
@@ -279,13 +317,26 @@ def sdloop_params(channels: list[dict], ic: dict[str, float]) -> dict:
     fs = channel_filters(channels)
     if not any(fs):
         zero = [0.0]
-        return {"flt_n": [0] * len(channels), "flt_a": zero, "flt_bx": zero, "flt_bv": zero, "flt_c": zero,
-                "flt_d": [0.0] * len(channels), "u0": zero}
-    cat = lambda get: [float(v) for f in fs if f for v in get(f)]   # noqa: E731
-    return {"flt_n": [f.states if f else 0 for f in fs], "flt_a": cat(lambda f: f.a.ravel()),
-            "flt_bx": cat(lambda f: f.bx), "flt_bv": cat(lambda f: f.bv), "flt_c": cat(lambda f: f.c),
-            "flt_d": [float(f.d) if f else 0.0 for f in fs], "u0": [ic.pop(n, 0.0) for n in state_nodes(channels)],
-            "flt_x0": [f.x0 if f else 0.0 for f in fs]}
+        return {
+            "flt_n": [0] * len(channels),
+            "flt_a": zero,
+            "flt_bx": zero,
+            "flt_bv": zero,
+            "flt_c": zero,
+            "flt_d": [0.0] * len(channels),
+            "u0": zero,
+        }
+    cat = lambda get: [float(v) for f in fs if f for v in get(f)]  # noqa: E731
+    return {
+        "flt_n": [f.states if f else 0 for f in fs],
+        "flt_a": cat(lambda f: f.a.ravel()),
+        "flt_bx": cat(lambda f: f.bx),
+        "flt_bv": cat(lambda f: f.bv),
+        "flt_c": cat(lambda f: f.c),
+        "flt_d": [float(f.d) if f else 0.0 for f in fs],
+        "u0": [ic.pop(n, 0.0) for n in state_nodes(channels)],
+        "flt_x0": [f.x0 if f else 0.0 for f in fs],
+    }
 
 
 def mechanics_of(model, d, channel: str) -> Mechanics:
@@ -300,10 +351,17 @@ def mechanics_of(model, d, channel: str) -> Mechanics:
     t = d.t
     rest = model.capacitance(np.zeros(model.ncoords))[0]
     offset = d.vs * sum(e["w"][ch["index"]] * rest[i] for i, e in enumerate(d.electrodes)) / ch["cf"]
-    return Mechanics(coord.mass, coord.stiffness + electrostatic_spring(model, d, names.index(channel)),
-                     float(coord.admittance(0.0).real), d.level(channel) / d.duty,
-                     ch["sensitivity"] / ch["cf"] / coord.scale, d.ts, t.cur + t.sample,
-                     trapezoid_pulse(t.fb_on, t.fb_off, t.fb_ramp), float(offset))
+    return Mechanics(
+        coord.mass,
+        coord.stiffness + electrostatic_spring(model, d, names.index(channel)),
+        float(coord.admittance(0.0).real),
+        d.level(channel) / d.duty,
+        ch["sensitivity"] / ch["cf"] / coord.scale,
+        d.ts,
+        t.cur + t.sample,
+        trapezoid_pulse(t.fb_on, t.fb_off, t.fb_ramp),
+        float(offset),
+    )
 
 
 def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:
@@ -320,6 +378,7 @@ def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:
     def spring(volts: np.ndarray) -> float:
         f = model.electrostatic_force(np.stack([dx, -dx]), np.stack([volts, volts]))[:, index]
         return -float(f[0] - f[1]) / (2 * h * scale)
+
     fb = np.mean([spring(d.vfb * selected(d.electrodes, tuple(r["pattern"]))) for r in d.table])
     sense = spring(np.full(len(d.electrodes), d.vs))
     return float(fb * d.duty + sense * duty(d.t, d.t.sense_on, d.t.sense_off))
@@ -327,12 +386,12 @@ def electrostatic_spring(model, d, index: int, h: float = 1e-3) -> float:
 
 def dc_acceleration(model, d, channel: str) -> float:
     """The channel's DC input acceleration in the Design's bench: gravity on z (the -m g on f_z
-    of loop.mechanical_inputs), the sense phase's mean force at the centre, and on z the
+    of inputs.mechanical_inputs), the sense phase's mean force at the centre, and on z the
     feedback's asymmetry (F_up + F_down) / 2 x the feedback duty (F_up, F_down: the mean z force
     of the patterns with the z bit +1 / -1, d.table; unequal by 0.2 % on the disk, 4e-4 g) — the
     rest, (F_up - F_down) / 2, is Mechanics.force x v."""
 
-    ch = d.channel(channel)                               # the balanced channel: the disk's z
+    ch = d.channel(channel)  # the balanced channel: the disk's z
     index, j, unit = ch["coord"], ch["index"], ch["force_unit_si"]
     mass = model.coordinates[index].mass
     sense = d.sense_force[index] * duty(d.t, d.t.sense_on, d.t.sense_off) / mass
@@ -366,7 +425,9 @@ def statefilter_params(channels: list[dict], d) -> dict[str, str]:
         if f is None:
             continue
         if f.states > 3:
-            raise ValueError(f"channel {ch['name']}: blocks.va's sd_statefilter holds 3 states, the filter has {f.states}")
+            raise ValueError(
+                f"channel {ch['name']}: blocks.va's sd_statefilter holds 3 states, the filter has {f.states}"
+            )
         k, p = f.states, {}
         for i in range(3):
             for j in range(3):
@@ -374,7 +435,18 @@ def statefilter_params(channels: list[dict], d) -> dict[str, str]:
             for name, vec in (("bx", f.bx), ("bv", f.bv), ("c", f.c)):
                 p[f"{name}{i + 1}"] = vec[i] if i < k else 0.0
         t = d.t
-        p.update({"d": f.d, "x0": f.x0, "ts": d.ts, "w": t.edge / 8, "on1": t.clk + t.sample + 0.02, "on2": 0.60,
-                  "width": t.sample, "cs": d.cs, "g": d.g_switch})
+        p.update(
+            {
+                "d": f.d,
+                "x0": f.x0,
+                "ts": d.ts,
+                "w": t.edge / 8,
+                "on1": t.clk + t.sample + 0.02,
+                "on2": 0.60,
+                "width": t.sample,
+                "cs": d.cs,
+                "g": d.g_switch,
+            }
+        )
         out[ch["name"]] = " ".join(f"{key}={float(val)!r}" for key, val in p.items())
     return out

@@ -18,10 +18,24 @@ import numpy as np
 from ...constants import G
 from ...model import MacroModel
 from . import kinds
+from .balance import (
+    ONE_SIDED_FIX,
+    check_balance,
+    check_sensing,
+    check_step,
+    coord_index,
+    drive_forces,
+    feedback_voltage,
+    one_sided,
+    si_factor,
+    step_volts,
+    tone_forces,
+    volts,
+)
 from .loopfile import LoopSpec
 from .signals import Timing, Tone, duty, selected
 
-FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind      # the loop-filter registry (kinds.py), by its old name
+FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind  # the loop-filter registry (kinds.py), by its old name
 
 
 # per channel (in order; the disk's z, tilt_x, tilt_y take the first three): the dither sits at
@@ -40,6 +54,7 @@ class Design:
     feedback pattern `sel` (one entry per channel); table: the generalized forces of every bit
     pattern; inputs: DC value per input port (port units); balance: the DC force balance of the
     channel whose input needs the largest mean bit."""
+
     ts: float
     vs: float
     vfb: float
@@ -98,14 +113,31 @@ class Design:
             return {"tr1": on, "pw1": off, "tr2": on, "pw2": off, "tf": (1.0 - t.fb_off) * ts, "k1": 0.0, "k2": 0.0}
         a, b = t.fb_on - t.fb_ramp / 2, t.fb_on + t.fb_ramp / 2
         c, e = t.fb_off - t.fb_ramp / 2, t.fb_off + t.fb_ramp / 2
-        return {"tr1": b * ts, "pw1": (c - b) * ts, "tr2": a * ts, "pw2": (c - a) * ts, "tf": (e - c) * ts,
-                "k1": b / (b - a), "k2": a / (b - a)}
+        return {
+            "tr1": b * ts,
+            "pw1": (c - b) * ts,
+            "tr2": a * ts,
+            "pw2": (c - a) * ts,
+            "tf": (e - c) * ts,
+            "k1": b / (b - a),
+            "k2": a / (b - a),
+        }
 
     def corners(self) -> list[float]:
         """Period phases of the electrode-phase corners (the breakpoints the ramps need)."""
         t, h, hf = self.t, self.t.edge / 2, self.t.fb_ramp / 2
-        return sorted({t.sense_on - h, t.sense_on + h, t.sense_off - h, t.sense_off + h,
-                       t.fb_on - hf, t.fb_on + hf, t.fb_off - hf, t.fb_off + hf})
+        return sorted(
+            {
+                t.sense_on - h,
+                t.sense_on + h,
+                t.sense_off - h,
+                t.sense_off + h,
+                t.fb_on - hf,
+                t.fb_on + hf,
+                t.fb_off - hf,
+                t.fb_off + hf,
+            }
+        )
 
     @property
     def g_latch(self) -> float:
@@ -146,22 +178,6 @@ class Design:
         return float(np.mean([abs(r["f"][channel]) for r in self.table])) * ch["force_unit_si"] * self.duty
 
 
-def coord_index(model: MacroModel, name: str) -> int:
-    """Index of a coordinate, or a clear error."""
-    names = [c.name for c in model.coordinates]
-    if name not in names:
-        raise ValueError(f"model {model.name} has no coordinate {name!r} (has {names})")
-    return names.index(name)
-
-
-def si_factor(model: MacroModel, index: int) -> tuple[float, float]:
-    """(SI per f_ port unit, port units per SI) of a coordinate's force port: (1e-6, 1e6) for uN.
-    The second is rounded to an integer where it is one (1/1e-9 is not 1e9 in floating point)."""
-    f = model.coordinates[index].port_units[3]
-    inv = 1.0 / f
-    return f, float(round(inv)) if abs(inv - round(inv)) < 1e-6 * inv else inv
-
-
 def channel_names(model: MacroModel, spec: LoopSpec, grad: np.ndarray | None = None) -> list[str]:
     """The loop's channels: as given, else the model's rigid-body coordinates that the electrodes
     can push both ways (dC_i/dq of both signs: the disk's z, tilt_x, tilt_y; the z accelerometer's
@@ -173,13 +189,19 @@ def channel_names(model: MacroModel, spec: LoopSpec, grad: np.ndarray | None = N
         for k, ch in enumerate(spec.channels):
             if ch.name not in names:
                 where = "loop.channels" + (f".{ch.name}" if ch.sense or ch.feedback or ch.filter else f"[{k}]")
-                raise spec.fail(where, f"model {model.name} has no coordinate {ch.name!r}",
-                                f"{did_you_mean(ch.name, names)}choose among {', '.join(names)}")
+                raise spec.fail(
+                    where,
+                    f"model {model.name} has no coordinate {ch.name!r}",
+                    f"{did_you_mean(ch.name, names)}choose among {', '.join(names)}",
+                )
         return [ch.name for ch in spec.channels]
     grad = scaled_gradient(model) if grad is None else grad
     peak = np.abs(grad).max(initial=0.0)
-    rigid = [k for k, c in enumerate(model.coordinates)
-             if c.kind != "mode" and np.abs(grad[:, k]).max(initial=0.0) > 1e-9 * peak]
+    rigid = [
+        k
+        for k, c in enumerate(model.coordinates)
+        if c.kind != "mode" and np.abs(grad[:, k]).max(initial=0.0) > 1e-9 * peak
+    ]
     both = [k for k in rigid if grad[:, k].max() > 1e-6 * np.abs(grad[:, k]).max() < -grad[:, k].min()]
     return [names[k] for k in (both or rigid)][:4] or names[:1]
 
@@ -187,11 +209,13 @@ def channel_names(model: MacroModel, spec: LoopSpec, grad: np.ndarray | None = N
 def did_you_mean(value: str, choices: list[str]) -> str:
     """'did you mean X? ' (netgen.files.did_you_mean)."""
     from ...files import did_you_mean as near
+
     return near(value, choices)
 
 
-def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None,
-           grad: np.ndarray | None = None) -> list[dict]:
+def groups(
+    model: MacroModel, names: list[str] | None = None, spec: LoopSpec | None = None, grad: np.ndarray | None = None
+) -> list[dict]:
     """Per electrode: sense weights `w` and feedback pattern `sel`, one entry per channel. Derived
     from the signs of dC_i/dq at rest (sensing_gradient: round-off counts as 0): the first channel
     reads every electrode with the sign of its dC/dq (the disk's z: top +1, bottom -1); each
@@ -209,7 +233,7 @@ def groups(model: MacroModel, names: list[str] | None = None, spec: LoopSpec | N
     for k, e in enumerate(model.electrodes):
         w = [int(np.sign(grad[k, idx[0]]))] + [0] * (len(idx) - 1)
         if len(idx) > 1:
-            j = 1 + int(np.argmax([abs(grad[k, i]) for i in idx[1:]]))     # ties: the first (tilt_x)
+            j = 1 + int(np.argmax([abs(grad[k, i]) for i in idx[1:]]))  # ties: the first (tilt_x)
             w[j] = int(np.sign(grad[k, idx[j]]))
         out.append({"name": e.name, "w": w, "sel": list(w)})
     for j, ch in enumerate((spec.channels or ()) if spec else ()):
@@ -244,8 +268,11 @@ def explicit(model: MacroModel, spec: LoopSpec, ch, j: int, out: list[dict]) -> 
             continue
         for el in given:
             if el not in names:
-                raise spec.fail(f"loop.channels.{ch.name}.{key}.{el}", f"model {model.name} has no electrode {el!r}",
-                                f"{did_you_mean(el, names)}choose among {', '.join(names)}")
+                raise spec.fail(
+                    f"loop.channels.{ch.name}.{key}.{el}",
+                    f"model {model.name} has no electrode {el!r}",
+                    f"{did_you_mean(el, names)}choose among {', '.join(names)}",
+                )
         for e in out:
             e["w" if key == "sense" else "sel"][j] = given.get(e["name"], 0)
 
@@ -257,8 +284,14 @@ def force_table(model: MacroModel, electrodes: list[dict], vfb: float, names: li
     rows = []
     for bits in itertools.product((1, -1), repeat=len(names)):
         f = model.electrostatic_force(np.zeros(model.ncoords), vfb * selected(electrodes, bits))[0]
-        rows.append({"bits": "".join("+" if b > 0 else "-" for b in bits), "pattern": list(bits),
-                     "f": {n: f[i] * si_factor(model, i)[1] for n, i in zip(names, idx)}, "all": f.tolist()})
+        rows.append(
+            {
+                "bits": "".join("+" if b > 0 else "-" for b in bits),
+                "pattern": list(bits),
+                "f": {n: f[i] * si_factor(model, i)[1] for n, i in zip(names, idx)},
+                "all": f.tolist(),
+            }
+        )
     return rows
 
 
@@ -279,9 +312,12 @@ def dc_forces(model: MacroModel, spec: LoopSpec, g: float) -> tuple[dict[str, fl
     for port, value in spec.input.dc.items():
         if port == "a_in":
             if not model.acceleration:
-                raise spec.fail("loop.input.acceleration", f"model {model.name} has no a_in port",
-                                "add acceleration_port = true to the structure's [coordinates], or give "
-                                "force = {coordinate, dc} instead")
+                raise spec.fail(
+                    "loop.input.acceleration",
+                    f"model {model.name} has no a_in port",
+                    "add acceleration_port = true to the structure's [coordinates], or give "
+                    "force = {coordinate, dc} instead",
+                )
             si -= np.array(model.acceleration) * value
         else:
             i = coord_index_for(model, spec, port[2:], "loop.input.force.coordinate")
@@ -293,38 +329,39 @@ def coord_index_for(model: MacroModel, spec: LoopSpec, name: str, where: str) ->
     """coord_index with the loop description's error."""
     names = [c.name for c in model.coordinates]
     if name not in names:
-        raise spec.fail(where, f"model {model.name} has no coordinate {name!r}",
-                        f"{did_you_mean(name, names)}choose among {', '.join(names)}")
+        raise spec.fail(
+            where,
+            f"model {model.name} has no coordinate {name!r}",
+            f"{did_you_mean(name, names)}choose among {', '.join(names)}",
+        )
     return names.index(name)
-
-
-def tone_forces(model: MacroModel, tone: Tone | None) -> np.ndarray:
-    """Amplitude of the tone's generalized force per coordinate (SI)."""
-    out = np.zeros(model.ncoords)
-    if tone is None:
-        return out
-    if tone.coord == "a_in":
-        return np.abs(np.array(model.acceleration or [0.0] * model.ncoords)) * abs(tone.amplitude)
-    i = coord_index(model, tone.coord)
-    out[i] = abs(tone.amplitude) * si_factor(model, i)[0]
-    return out
 
 
 def check_timing(spec: LoopSpec, t: Timing) -> None:
     """The period's events in order, each edge inside the period (else LoopError on [loop.timing])."""
     h, hf = t.edge / 2, t.fb_ramp / 2
-    order = [("edge", 0 < t.edge <= 0.1), ("fb_edge", 0 <= t.fb_ramp <= 0.1), ("sense_on", t.sense_on - h >= 0),
-             ("prev", t.sense_on < t.prev),
-             ("cur", t.prev + t.sample <= t.cur + 1e-12), ("clk", t.cur + t.sample <= t.clk + 1e-12),
-             ("sample", 0 < t.sample and t.clk + t.sample <= t.sense_off),
-             ("sense_off", t.sense_off + h <= t.fb_on - hf), ("rst_on", t.sense_off + h <= t.rst_on <= t.fb_on - hf),
-             ("fb_off", t.fb_on + hf < t.fb_off - hf and t.fb_off + hf <= 1.0),
-             ("rst_off", t.fb_off + hf - 1.0 <= t.rst_off <= t.sense_on - h)]
+    order = [
+        ("edge", 0 < t.edge <= 0.1),
+        ("fb_edge", 0 <= t.fb_ramp <= 0.1),
+        ("sense_on", t.sense_on - h >= 0),
+        ("prev", t.sense_on < t.prev),
+        ("cur", t.prev + t.sample <= t.cur + 1e-12),
+        ("clk", t.cur + t.sample <= t.clk + 1e-12),
+        ("sample", 0 < t.sample and t.clk + t.sample <= t.sense_off),
+        ("sense_off", t.sense_off + h <= t.fb_on - hf),
+        ("rst_on", t.sense_off + h <= t.rst_on <= t.fb_on - hf),
+        ("fb_off", t.fb_on + hf < t.fb_off - hf and t.fb_off + hf <= 1.0),
+        ("rst_off", t.fb_off + hf - 1.0 <= t.rst_off <= t.sense_on - h),
+    ]
     for key, ok in order:
         if not ok:
-            raise spec.fail(f"loop.timing.{key}", f"{key} = {getattr(t, key)} breaks the period's order "
-                            "(sense on < prev < cur < latch < sense off < reset on < feedback on < feedback off, "
-                            "edges inside the period)", f"keep the order of the defaults ({Timing()})")
+            raise spec.fail(
+                f"loop.timing.{key}",
+                f"{key} = {getattr(t, key)} breaks the period's order "
+                "(sense on < prev < cur < latch < sense off < reset on < feedback on < feedback off, "
+                "edges inside the period)",
+                f"keep the order of the defaults ({Timing()})",
+            )
 
 
 def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
@@ -337,57 +374,6 @@ def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
     return f
 
 
-MAX_VFB = 1e4          # V: the derived feedback voltage's limit (a [loop] feedback_voltage's range)
-MAX_BIT_MEAN = 0.95     # |mean bit| an input may need (DC + tone peak): beyond it the loop overloads
-ONE_SIDED_FIX = ("add an electrode on the other side (force feedback pulls both ways: "
-                 "examples/accelerometer_z.toml), or give an input the feedback can balance")
-
-
-def one_sided(fp: float, fm: float) -> str:
-    """Why a channel's feedback is one-sided, in words."""
-    return (f"its feedback is one-sided (the electrodes only push towards {'-' if fp <= 0 else '+'}q: "
-            f"{fp:.3g} N with the bit 1, {fm:.3g} N with 0)")
-
-
-def drive_forces(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str]) -> list[tuple[float, float]]:
-    """(f+, f-) per channel, SI: its mean feedback force over the patterns with its bit +1 / -1;
-    a channel whose bit does not push towards +q (f+ <= f-) is a LoopError."""
-    out = []
-    for j, n in enumerate(names):
-        unit = si_factor(model, coord_index(model, n))[0]
-        fp = float(np.mean([r["f"][n] for r in table if r["pattern"][j] > 0])) * unit
-        fm = float(np.mean([r["f"][n] for r in table if r["pattern"][j] < 0])) * unit
-        if not fp - fm > 1e-9 * max(abs(fp), abs(fm), 1e-300):
-            where = f"loop.channels.{n}.feedback" if feedback_given(spec, n) else "loop.channels"
-            why = ("no electrode drives it" if max(abs(fp), abs(fm)) == 0 else
-                   "its feedback pushes towards -q when its bit is 1" if fp < fm else "its bit does not change its force")
-            raise spec.fail(where, f"channel {n}: {why} (feedback force {fp:.3g} N with the bit 1, {fm:.3g} N with 0, "
-                            "at 1 V)", "close the loop on a coordinate the electrodes can push both ways, or "
-                            f"give [loop.channels.{n}] feedback = {{electrode = +1 or -1}} that does")
-        out.append((fp, fm))
-    return out
-
-
-def feedback_given(spec: LoopSpec, name: str) -> bool:
-    """Did the loop description give this channel's feedback pattern?"""
-    return any(c.name == name and c.feedback for c in spec.channels or ())
-
-
-def check_sensing(model: MacroModel, spec: LoopSpec, electrodes: list[dict], names: list[str],
-                  grad: np.ndarray) -> None:
-    """A channel whose readout sum_i w_i dC_i/dq (grad: the scaled_gradient) is not positive is a LoopError."""
-    for j, n in enumerate(names):
-        s = float(sum(e["w"][j] * grad[i, coord_index(model, n)] for i, e in enumerate(electrodes)))
-        peak = float(np.abs(grad).max(initial=0.0))
-        if not s > 1e-9 * peak:
-            given = any(c.name == n and c.sense for c in spec.channels or ())
-            why = "no electrode senses it" if abs(s) <= 1e-9 * peak else "its sense weights read -q"
-            raise spec.fail(f"loop.channels.{n}.sense" if given else "loop.channels",
-                            f"channel {n}: {why} (sum_i w_i dC_i/dq = {s:.3g} F per touch amplitude)",
-                            "close the loop on a coordinate the electrodes sense, or give sense weights with the sign "
-                            "of dC/dq")
-
-
 def pick(given, spec: LoopSpec, key: str, default):
     """A design choice: the caller's (CLI, sweep), else the loop description's, else the default."""
     if given is not None:
@@ -396,10 +382,22 @@ def pick(given, spec: LoopSpec, key: str, default):
     return default if value is None else value
 
 
-def design(model: MacroModel, ts: float, density: float | None = None, sense_ratio: float | None = None,
-           lead: float | None = None, full_scale: float | None = None, g: float = G, timing: Timing | None = None,
-           dither: float | None = None, reltol: float | None = None, spec: LoopSpec | None = None,
-           tone: Tone | None = None, balance_check: bool = True, step: bool = True) -> Design:
+def design(
+    model: MacroModel,
+    ts: float,
+    density: float | None = None,
+    sense_ratio: float | None = None,
+    lead: float | None = None,
+    full_scale: float | None = None,
+    g: float = G,
+    timing: Timing | None = None,
+    dither: float | None = None,
+    reltol: float | None = None,
+    spec: LoopSpec | None = None,
+    tone: Tone | None = None,
+    balance_check: bool = True,
+    step: bool = True,
+) -> Design:
     """Loop design from the model and the loop description `spec`: V_fb so that the DC input needs
     a mean bit of `density` on the channel it loads most (the disk: gravity on z), V_s =
     sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V; `reltol` is
@@ -410,15 +408,19 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     gets unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
     spec = spec or LoopSpec()
     density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
-    dither_given = dither is not None or spec.dither is not None      # a designed kind runs without, unless given
+    dither_given = dither is not None or spec.dither is not None  # a designed kind runs without, unless given
     full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
     reltol = pick(reltol, spec, "reltol", 1e-3)
     t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
     grad = scaled_gradient(model)
     names = channel_names(model, spec, grad)
-    if step and timing is None and "fb_edge" not in spec.timing and any(
-            FILTERS[channel_filter(spec, n, lead)["kind"]].design for n in names):
-        t = replace(t, fb_edge=0.0)       # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
+    if (
+        step
+        and timing is None
+        and "fb_edge" not in spec.timing
+        and any(FILTERS[channel_filter(spec, n, lead)["kind"]].design for n in names)
+    ):
+        t = replace(t, fb_edge=0.0)  # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
     check_timing(spec, t)
     idx = [coord_index(model, n) for n in names]
     electrodes = groups(model, names, spec, grad)
@@ -430,12 +432,16 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     load = [abs(dc_si[i]) / p for i, p in zip(idx, per_v2)]
     jb = int(np.argmax(load))
     if not spec.feedback_voltage and not (abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
-        for n, (fp, fm) in zip(names, drive):        # no input: a one-sided loop has nothing to balance against
+        for n, (fp, fm) in zip(names, drive):  # no input: a one-sided loop has nothing to balance against
             if fp <= 0 or fm >= 0:
-                raise spec.fail("loop.channels", f"channel {n}: {one_sided(fp, fm)} and the loop has no input to "
-                                "balance it against", ONE_SIDED_FIX)
-    vfb = spec.feedback_voltage or feedback_voltage(spec, abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]],
-                                                    density * duty(t) * per_v2[jb])
+                raise spec.fail(
+                    "loop.channels",
+                    f"channel {n}: {one_sided(fp, fm)} and the loop has no input to balance it against",
+                    ONE_SIDED_FIX,
+                )
+    vfb = spec.feedback_voltage or feedback_voltage(
+        spec, abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]], density * duty(t) * per_v2[jb]
+    )
     vs = volts(sense_ratio * vfb)
     sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
     needed = check_balance(model, spec, names, drive, dc_si, sense, tone, vfb, t, balance_check)
@@ -444,119 +450,52 @@ def design(model: MacroModel, ts: float, density: float | None = None, sense_rat
     channels = []
     for k, (name, i) in enumerate(zip(names, idx)):
         sens = vs * float(sum(e["w"][k] * grad[j, i] for j, e in enumerate(electrodes)))
-        channels.append({"name": name, "index": k, "coord": i, "sensitivity": sens, "cf": float(f"{sens * full_scale:.4g}"),
-                         "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
-                         "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k]), "filter": channel_filter(spec, name, lead),
-                         "force_unit_si": si_factor(model, i)[0], "bit_mean_needed": needed[k],
-                         "full_scale_force_si": 0.5 * (drive[k][0] - drive[k][1]) * vfb**2 * duty(t),
-                         "bit_node": {"z": "bz", "tilt_x": "bx", "tilt_y": "by"}.get(name, f"bit_{name}")})
+        channels.append(
+            {
+                "name": name,
+                "index": k,
+                "coord": i,
+                "sensitivity": sens,
+                "cf": float(f"{sens * full_scale:.4g}"),
+                "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
+                "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k]),
+                "filter": channel_filter(spec, name, lead),
+                "force_unit_si": si_factor(model, i)[0],
+                "bit_mean_needed": needed[k],
+                "full_scale_force_si": 0.5 * (drive[k][0] - drive[k][1]) * vfb**2 * duty(t),
+                "bit_node": {"z": "bz", "tilt_x": "bx", "tilt_y": "by"}.get(name, f"bit_{name}"),
+            }
+        )
     c = model.coordinates[idx[jb]]
-    balance = {"channel": names[jb], "index": jb, "coord": idx[jb], "mass": c.mass, "dc_force_n": float(dc_si[idx[jb]]),
-               "damping": float(c.admittance(0.0).real), "x_unit_si": c.port_units[1]}
+    balance = {
+        "channel": names[jb],
+        "index": jb,
+        "coord": idx[jb],
+        "mass": c.mass,
+        "dc_force_n": float(dc_si[idx[jb]]),
+        "damping": float(c.admittance(0.0).real),
+        "x_unit_si": c.port_units[1],
+    }
     first = channels[0]["filter"]
-    d = Design(ts, vs, vfb, first.get("lead"), full_scale, electrodes, channels, table, inputs, balance,
-               duty(t), sense.tolist(), t, damping=balance["damping"], dither=dither, reltol=reltol)
-    for ch in (c for c in channels if FILTERS[c["filter"]["kind"]].design):   # designed kinds (kinds.py)
+    d = Design(
+        ts,
+        vs,
+        vfb,
+        first.get("lead"),
+        full_scale,
+        electrodes,
+        channels,
+        table,
+        inputs,
+        balance,
+        duty(t),
+        sense.tolist(),
+        t,
+        damping=balance["damping"],
+        dither=dither,
+        reltol=reltol,
+    )
+    for ch in (c for c in channels if FILTERS[c["filter"]["kind"]].design):  # designed kinds (kinds.py)
         ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
-        ch["dither_v"] = ch["dither_v"] if dither_given else 0.0      # no idle tones to break
+        ch["dither_v"] = ch["dither_v"] if dither_given else 0.0  # no idle tones to break
     return d
-
-
-MAX_STEP = 0.01         # one period's feedback displacement a_fb T_s^2 / touch amplitude (the disk: 1.5e-5)
-
-
-def check_step(model: MacroModel, spec: LoopSpec, table: list[dict], names: list[str], ts: float) -> None:
-    """One period of feedback must move each channel's coordinate by less than MAX_STEP of its
-    touching amplitude (the loop holds it within 2 %: analysis.levitation); else a LoopError."""
-    for n in names:
-        step = step_volts(model, table, n, ts, 1.0)
-        if step > MAX_STEP:
-            raise spec.fail("loop.feedback_voltage" if spec.feedback_voltage else "loop.input",
-                            f"channel {n}: one period of feedback moves it {step:.3g} of its touching amplitude "
-                            f"(at most {MAX_STEP}: the loop could not hold it near rest)",
-                            "lower the input or the feedback voltage, or shorten --ts")
-
-
-def volts(v: float) -> float:
-    """A voltage rounded for the netlist: to 1 mV (the disk's 2.12 V), 4 digits below 1 V."""
-    return round(v, 3) if v >= 1.0 else float(f"{v:.4g}")
-
-
-def feedback_voltage(spec: LoopSpec, force: float, per_v2: float) -> float:
-    """V_fb from the input the feedback must carry at the design's mean bit (force: SI)."""
-    if not force > 0:
-        raise spec.fail("loop.feedback_voltage", "the loop has no input to size the feedback from (no DC "
-                        "input or tone on its channels)", 'give feedback_voltage = "5 V" in [loop], or an input')
-    v = volts(float(np.sqrt(force / per_v2)))
-    if v > MAX_VFB:
-        raise spec.fail("loop.input", f"the input needs a feedback voltage of {v:.4g} V (more than {MAX_VFB:g} V)",
-                        "lower the input, or give a device with more electrode area or smaller gaps")
-    return v
-
-
-def check_balance(model: MacroModel, spec: LoopSpec, names: list[str], drive: list[tuple[float, float]],
-                  dc_si: np.ndarray, sense: np.ndarray, tone: Tone | None, vfb: float, t: Timing,
-                  refuse: bool = True) -> list[float]:
-    """The mean bit each channel needs for its DC input (with the sense phase's force), and a
-    LoopError when DC + tone peak need more than MAX_BIT_MEAN of the feedback's range."""
-    sduty, fduty, amp = duty(t, t.sense_on, t.sense_off), duty(t), tone_forces(model, tone)
-    out = []
-    for j, n in enumerate(names):
-        i = coord_index(model, n)
-        fp, fm = drive[j][0] * vfb**2, drive[j][1] * vfb**2
-        need = -(dc_si[i] + sense[i] * sduty) / fduty
-        bit = 2 * (need - fm) / (fp - fm) - 1
-        swing = 2 * amp[i] / fduty / (fp - fm)
-        if refuse and abs(bit) + swing > MAX_BIT_MEAN:
-            v = vfb * np.sqrt((abs(bit) + swing) / (0.9 * MAX_BIT_MEAN))     # the forces go as V^2
-            where = "loop.feedback_voltage" if spec.feedback_voltage else "loop.input"
-            if (fp <= 0 and need > 0) or (fm >= 0 and need < 0):
-                raise spec.fail(where, f"channel {n}: the feedback cannot balance the input at any voltage: "
-                                f"{one_sided(fp, fm)}, and the input needs a force towards "
-                                f"{'+' if need > 0 else '-'}q ({need * fduty:.4g} N)", ONE_SIDED_FIX)
-            raise spec.fail(where, f"channel {n}: the feedback cannot balance the input: it needs a mean bit of "
-                            f"{bit:+.3f}" + (f" +- {swing:.3f} (tone)" if swing else "") + f" at V_fb = {vfb:g} V "
-                            f"(at most +-{MAX_BIT_MEAN}; full-scale force {0.5 * (fp - fm) * fduty:.4g} N, DC input "
-                            f"{-dc_si[i]:.4g} N)", f"raise feedback_voltage to about {v:.3g} V or more, or lower the input")
-        out.append(float(bit))
-    return out
-
-
-def step_volts(model: MacroModel, table: list[dict], channel: str, ts: float, full_scale: float) -> float:
-    """The channel's one-period feedback displacement a_fb T_s^2 (a_fb: mean |fed-back force or
-    torque| while on, over the mass or inertia) in readout volts (1 V = full_scale x touch)."""
-    i = coord_index(model, channel)
-    c = model.coordinates[i]
-    force = float(np.mean([abs(r["f"][channel]) for r in table])) * si_factor(model, i)[0]
-    return force / c.mass * ts**2 / (c.scale * full_scale)
-
-
-def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
-    """(port, DC value, tone or None) per input port of the model: the design's DC inputs (the
-    disk: gravity on f_z), the optional tone on its port (f_<q>, or a_in), 0 on the others.
-    Both benches format these in their own source syntax."""
-    port = None if tone is None else ("a_in" if tone.coord == "a_in" else f"f_{tone.coord}")
-    out = [(f"f_{c.name}", d.inputs.get(f"f_{c.name}", 0.0), tone if port == f"f_{c.name}" else None)
-           for c in model.coordinates]
-    driven = {p for p, _, _ in out}
-    return out + [(p["name"], d.inputs.get(p["name"], 0.0), tone if port == p["name"] else None)
-                  for p in model.ports() if p["kind"].endswith("_in") and p["name"] not in driven]
-
-
-def tone_unit(model: MacroModel, tone: Tone) -> str:
-    """The unit of a tone's amplitude: its f_ port's, or m/s^2 on a_in (a ValueError if the model
-    has no such input)."""
-    if tone.coord == "a_in":
-        if not model.acceleration:
-            raise ValueError(f"model {model.name} has no a_in port (structure: [coordinates] acceleration_port = true)")
-        return "m/s^2"
-    return model.coordinates[coord_index(model, tone.coord)].port_units[2]
-
-
-def input_text(model: MacroModel, d: Design) -> str:
-    """One comment line on the DC inputs and the channel they load, for the netlist headers."""
-    units = {f"f_{c.name}": c.port_units[2] for c in model.coordinates} | {"a_in": "m/s^2"}
-    dc = ", ".join(f"{p} = {v:.6g} {units.get(p, '')}" for p, v in d.inputs.items()) or "none"
-    b = d.balance
-    return (f"DC inputs: {dc}; balanced on {b['channel']} by a mean bit of "
-            f"{d.channels[b['index']]['bit_mean_needed']:+.4f} (m = {b['mass']:.6g} SI, DC force {b['dc_force_n']:.6g} N).")

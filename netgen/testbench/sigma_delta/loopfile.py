@@ -43,25 +43,41 @@ from ...units import UnitError, parse_quantity
 from .kinds import FILTERS
 from .signals import Timing, Tone
 
-LOOP_KEYS = ["channels", "feedback_voltage", "sense_ratio", "full_scale", "density", "dither", "readout",
-             "filter", "timing", "input", "reltol"]
+LOOP_KEYS = [
+    "channels",
+    "feedback_voltage",
+    "sense_ratio",
+    "full_scale",
+    "density",
+    "dither",
+    "readout",
+    "filter",
+    "timing",
+    "input",
+    "reltol",
+]
 CHANNEL_KEYS = ["sense", "feedback", "filter"]
 INPUT_KEYS = ["acceleration", "tone", "force", "gravity"]
 READOUTS = ["charge_amplifier"]
-MAX_CHANNELS = 6                      # 2^6 feedback patterns in the force table
+MAX_CHANNELS = 6  # 2^6 feedback patterns in the force table
 FIX = "see the [loop] reference in docs/sigma-delta.md"
 # ranges of the numbers (the CLI's and sweep files' ranges where they exist)
-RANGES = {"sense_ratio": (0.0, 10.0, "> 0 and <= 10"), "full_scale": (0.0, 1.0, "> 0 and <= 1"),
-          "density": (0.0, 1.0, "between 0 and 1 (exclusive)"), "dither": (-1e-300, 1.0, "between 0 and 1"),
-          "reltol": (1e-7 * (1 - 1e-9), 1e-2, "between 1e-7 and 1e-2")}
+RANGES = {
+    "sense_ratio": (0.0, 10.0, "> 0 and <= 10"),
+    "full_scale": (0.0, 1.0, "> 0 and <= 1"),
+    "density": (0.0, 1.0, "between 0 and 1 (exclusive)"),
+    "dither": (-1e-300, 1.0, "between 0 and 1"),
+    "reltol": (1e-7 * (1 - 1e-9), 1e-2, "between 1e-7 and 1e-2"),
+}
 
 
 @dataclass(frozen=True)
 class InputSpec:
     """The loop's mechanical input: DC values per input port (f_<q> in its port unit, a_in in
     m/s^2) and an optional tone; `default` when the file gave none (gravity, derived in design)."""
+
     dc: dict[str, float] = field(default_factory=dict)
-    tone: object = None                 # a loop.Tone (coord "a_in" for the frame acceleration)
+    tone: object = None  # a loop.Tone (coord "a_in" for the frame acceleration)
     default: bool = True
 
 
@@ -69,6 +85,7 @@ class InputSpec:
 class ChannelSpec:
     """One channel as written: its coordinate and, optionally, explicit sense weights and
     feedback pattern per electrode and its loop filter."""
+
     name: str
     sense: dict[str, float] | None = None
     feedback: dict[str, int] | None = None
@@ -78,6 +95,7 @@ class ChannelSpec:
 @dataclass(frozen=True)
 class LoopSpec:
     """A validated loop description (every field None = derived from the model)."""
+
     source: str = "<defaults>"
     channels: tuple[ChannelSpec, ...] | None = None
     feedback_voltage: float | None = None
@@ -125,18 +143,27 @@ def read_loop(rd: Reader, t: object) -> LoopSpec:
     check_keys(rd, "loop", t, LOOP_KEYS)
     nums = {k: number(rd, t, "loop", k, *RANGES[k][:2], RANGES[k][2]) for k in RANGES}
     vfb = quantity(rd, t, "loop", "feedback_voltage", "voltage", 0.0, 1e4, "> 0 and <= 10 kV")
-    return LoopSpec(source=rd.path, channels=read_channels(rd, t), feedback_voltage=vfb,
-                    readout=choice(rd, t, "loop", "readout", READOUTS, "charge_amplifier"),
-                    filter=read_filter(rd, t, "loop.filter") if "filter" in t else None,
-                    timing=read_timing(rd, t), input=read_input(rd, t), **nums)
+    return LoopSpec(
+        source=rd.path,
+        channels=read_channels(rd, t),
+        feedback_voltage=vfb,
+        readout=choice(rd, t, "loop", "readout", READOUTS, "charge_amplifier"),
+        filter=read_filter(rd, t, "loop.filter") if "filter" in t else None,
+        timing=read_timing(rd, t),
+        input=read_input(rd, t),
+        **nums,
+    )
 
 
 def subtable(rd: Reader, t: dict, where: str, key: str) -> dict:
     """t[key] as a table, or the error naming it."""
     value = t[key]
     if not isinstance(value, dict):
-        raise rd.fail(f"{where}.{key}", f"'{key}' must be a table, got {type(value).__name__}",
-                      f"write it as [{where}.{key}] or {key} = {{ ... }} ({FIX})")
+        raise rd.fail(
+            f"{where}.{key}",
+            f"'{key}' must be a table, got {type(value).__name__}",
+            f"write it as [{where}.{key}] or {key} = {{ ... }} ({FIX})",
+        )
     return value
 
 
@@ -155,13 +182,26 @@ def number(rd: Reader, t: dict, where: str, key: str, lo: float, hi: float, text
         return None
     v = t[key]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo < v <= hi:
-        raise rd.fail(f"{where}.{key}", f"{key} = {escape(repr(v))} must be a number {text}",
-                      f"write {key} = <number {text}> ({FIX})")
+        raise rd.fail(
+            f"{where}.{key}",
+            f"{key} = {escape(repr(v))} must be a number {text}",
+            f"write {key} = <number {text}> ({FIX})",
+        )
     return float(v)
 
 
-def quantity(rd: Reader, t: dict, where: str, key: str, kind: str, lo: float, hi: float, text: str,
-             required: bool = False, signed: bool = False) -> float | None:
+def quantity(
+    rd: Reader,
+    t: dict,
+    where: str,
+    key: str,
+    kind: str,
+    lo: float,
+    hi: float,
+    text: str,
+    required: bool = False,
+    signed: bool = False,
+) -> float | None:
     """An optional quantity (number in SI, or a string with a unit of `kind`) with lo < |v| <= hi
     (signed: lo <= |v|)."""
     if key not in t:
@@ -190,16 +230,19 @@ def read_channels(rd: Reader, t: dict) -> tuple[ChannelSpec, ...] | None:
         names = [name(rd, f"loop.channels[{i}]", v, "channel") for i, v in enumerate(raw)]
         specs = [ChannelSpec(n) for n in names]
     elif isinstance(raw, dict):
-        specs = [read_channel(rd, name(rd, f"loop.channels.{escape(str(k))}", k, "channel"), v)
-                 for k, v in raw.items()]
+        specs = [read_channel(rd, name(rd, f"loop.channels.{escape(str(k))}", k, "channel"), v) for k, v in raw.items()]
     else:
-        raise rd.fail("loop.channels", f"channels must be a list of coordinate names or a table, got "
-                      f"{type(raw).__name__}", f'write channels = ["z"] or [loop.channels.z] tables ({FIX})')
+        raise rd.fail(
+            "loop.channels",
+            f"channels must be a list of coordinate names or a table, got {type(raw).__name__}",
+            f'write channels = ["z"] or [loop.channels.z] tables ({FIX})',
+        )
     if not specs:
         raise rd.fail("loop.channels", "channels is empty", 'name at least one coordinate, e.g. channels = ["z"]')
     if len(specs) > MAX_CHANNELS:
-        raise rd.fail("loop.channels", f"{len(specs)} channels: at most {MAX_CHANNELS}",
-                      "close the loop on fewer coordinates")
+        raise rd.fail(
+            "loop.channels", f"{len(specs)} channels: at most {MAX_CHANNELS}", "close the loop on fewer coordinates"
+        )
     seen = [s.name for s in specs]
     dup = next((n for n in seen if seen.count(n) > 1), None)
     if dup:
@@ -211,8 +254,11 @@ def read_channel(rd: Reader, key: str, t: object) -> ChannelSpec:
     """One [loop.channels.<q>] table."""
     where = f"loop.channels.{key}"
     if not isinstance(t, dict):
-        raise rd.fail(where, f"'{key}' must be a table, got {type(t).__name__}",
-                      f"write [loop.channels.{key}] with sense, feedback and filter ({FIX})")
+        raise rd.fail(
+            where,
+            f"'{key}' must be a table, got {type(t).__name__}",
+            f"write [loop.channels.{key}] with sense, feedback and filter ({FIX})",
+        )
     check_keys(rd, where, t, CHANNEL_KEYS)
     sense = weights(rd, t, where, "sense", False) if "sense" in t else None
     feedback = weights(rd, t, where, "feedback", True) if "feedback" in t else None
@@ -231,14 +277,19 @@ def weights(rd: Reader, t: dict, where: str, key: str, pattern: bool) -> dict:
         name(rd, loc, el, "electrode")
         if pattern:
             if isinstance(w, bool) or w not in (1, -1):
-                raise rd.fail(loc, f"feedback {escape(repr(w))} is not +1 or -1",
-                              "write +1 (energised when the channel's bit is 1: pushes towards +q) or -1")
+                raise rd.fail(
+                    loc,
+                    f"feedback {escape(repr(w))} is not +1 or -1",
+                    "write +1 (energised when the channel's bit is 1: pushes towards +q) or -1",
+                )
             out[el] = int(w)
         else:
-            if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w == 0 \
-                    or abs(w) > 1e3:
-                raise rd.fail(loc, f"sense weight {escape(repr(w))} must be a non-zero number (|w| <= 1000)",
-                              "write +1 or -1 (the sign of dC/dq), or another weight")
+            if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w == 0 or abs(w) > 1e3:
+                raise rd.fail(
+                    loc,
+                    f"sense weight {escape(repr(w))} must be a non-zero number (|w| <= 1000)",
+                    "write +1 or -1 (the sign of dC/dq), or another weight",
+                )
             out[el] = int(w) if float(w).is_integer() else float(w)
     return out
 
@@ -258,8 +309,7 @@ def read_timing(rd: Reader, t: dict) -> dict[str, float]:
     table = subtable(rd, t, "loop", "timing")
     allowed = [f.name for f in fields(Timing)]
     check_keys(rd, "loop.timing", table, allowed)
-    return {k: number(rd, table, "loop.timing", k, -0.5, 1.0, "between -0.5 and 1 (a fraction of T_s)")
-            for k in table}
+    return {k: number(rd, table, "loop.timing", k, -0.5, 1.0, "between -0.5 and 1 (a fraction of T_s)") for k in table}
 
 
 def read_input(rd: Reader, t: dict) -> InputSpec:
@@ -269,27 +319,49 @@ def read_input(rd: Reader, t: dict) -> InputSpec:
     table = subtable(rd, t, "loop", "input")
     check_keys(rd, "loop.input", table, INPUT_KEYS)
     if "force" in table and ("acceleration" in table or "tone" in table):
-        raise rd.fail("loop.input.force", "force and acceleration/tone are both given",
-                      "give either the acceleration input (acceleration, tone) or a force on a coordinate")
+        raise rd.fail(
+            "loop.input.force",
+            "force and acceleration/tone are both given",
+            "give either the acceleration input (acceleration, tone) or a force on a coordinate",
+        )
     dc, tone = {}, None
     if "gravity" in table:
         if not isinstance(table["gravity"], bool):
-            raise rd.fail("loop.input.gravity", f"gravity must be true or false, got {escape(repr(table['gravity']))}",
-                          "write gravity = false for no gravity (the default is the model's gravity input)")
+            raise rd.fail(
+                "loop.input.gravity",
+                f"gravity must be true or false, got {escape(repr(table['gravity']))}",
+                "write gravity = false for no gravity (the default is the model's gravity input)",
+            )
         if table["gravity"] and len(table) > 1:
-            raise rd.fail("loop.input.gravity", "gravity = true is the default input; it does not combine with "
-                          "the other input keys", "drop gravity, or write acceleration = 9.81 with the tone")
+            raise rd.fail(
+                "loop.input.gravity",
+                "gravity = true is the default input; it does not combine with the other input keys",
+                "drop gravity, or write acceleration = 9.81 with the tone",
+            )
         if table["gravity"]:
             return InputSpec()
     if "acceleration" in table:
-        dc["a_in"] = quantity(rd, table, "loop.input", "acceleration", "acceleration", 0.0, 1e7,
-                              "a finite acceleration up to 1e7 m/s^2", signed=True)
+        dc["a_in"] = quantity(
+            rd,
+            table,
+            "loop.input",
+            "acceleration",
+            "acceleration",
+            0.0,
+            1e7,
+            "a finite acceleration up to 1e7 m/s^2",
+            signed=True,
+        )
     if "tone" in table:
         tt = subtable(rd, table, "loop.input", "tone")
         check_keys(rd, "loop.input.tone", tt, ["amplitude", "frequency"])
-        tone = Tone("a_in", quantity(rd, tt, "loop.input.tone", "amplitude", "acceleration", 0.0, 1e7,
-                                     "> 0 and <= 1e7 m/s^2", required=True),
-                    quantity(rd, tt, "loop.input.tone", "frequency", "frequency", 0.0, 1e12, "> 0", required=True))
+        tone = Tone(
+            "a_in",
+            quantity(
+                rd, tt, "loop.input.tone", "amplitude", "acceleration", 0.0, 1e7, "> 0 and <= 1e7 m/s^2", required=True
+            ),
+            quantity(rd, tt, "loop.input.tone", "frequency", "frequency", 0.0, 1e12, "> 0", required=True),
+        )
     if "force" in table:
         dc, tone = read_forces(rd, table["force"])
     return InputSpec(dc, tone, default=False)
@@ -301,23 +373,33 @@ def read_forces(rd: Reader, value: object) -> tuple[dict[str, float], object]:
     if not isinstance(value, list):
         return read_force(rd, subtable(rd, {"force": value}, "loop.input", "force"))
     if not value:
-        raise rd.fail("loop.input.force", "the force list is empty", 'give force = { coordinate = "z", dc = 0.1 } '
-                      "or drop the key")
+        raise rd.fail(
+            "loop.input.force", "the force list is empty", 'give force = { coordinate = "z", dc = 0.1 } or drop the key'
+        )
     dc, tones = {}, []
     for i, item in enumerate(value):
         where = f"loop.input.force[{i}]"
         if not isinstance(item, dict):
-            raise rd.fail(where, f"each force must be a table, got {type(item).__name__}",
-                          'write force = [{ coordinate = "z", dc = 0.1 }, { coordinate = "tilt_x", dc = 1e-4 }]')
+            raise rd.fail(
+                where,
+                f"each force must be a table, got {type(item).__name__}",
+                'write force = [{ coordinate = "z", dc = 0.1 }, { coordinate = "tilt_x", dc = 1e-4 }]',
+            )
         one, tone = read_force(rd, item, where)
         if set(one) & set(dc) or (tone is not None and any(t.coord == tone.coord for t in tones)):
-            raise rd.fail(f"{where}.coordinate", f"a second force on {escape(str(item.get('coordinate')))}",
-                          "give each coordinate one force table")
+            raise rd.fail(
+                f"{where}.coordinate",
+                f"a second force on {escape(str(item.get('coordinate')))}",
+                "give each coordinate one force table",
+            )
         dc.update(one)
         tones += [tone] if tone is not None else []
     if len(tones) > 1:
-        raise rd.fail("loop.input.force", f"{len(tones)} forces carry a tone; the loop takes one",
-                      "keep amplitude and frequency on one force and give the others dc only")
+        raise rd.fail(
+            "loop.input.force",
+            f"{len(tones)} forces carry a tone; the loop takes one",
+            "keep amplitude and frequency on one force and give the others dc only",
+        )
     return dc, (tones[0] if tones else None)
 
 

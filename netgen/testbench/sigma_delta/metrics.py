@@ -6,7 +6,7 @@ Used by the loop-order bench (bench/sigma_delta_orders.py) for circuit and numpy
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -24,8 +24,15 @@ def tone_frequency(ts: float, nperseg: int, osr: float, fraction: float = 0.25) 
     return df * max(3, round(fraction * 0.5 / (ts * osr) / df))
 
 
-def dynamic_range(run: Callable[[float], tuple[np.ndarray, bool]], amplitudes: np.ndarray, ts: float,
-                  osr: float, tone_hz: float, nperseg: int | None = None, skip: int = 0) -> dict:
+def dynamic_range(
+    run: Callable[[float], tuple[np.ndarray, bool]],
+    amplitudes: np.ndarray,
+    ts: float,
+    osr: float,
+    tone_hz: float,
+    nperseg: int | None = None,
+    skip: int = 0,
+) -> dict:
     """SNR against input amplitude (fractions of full scale): `run(a)` gives the bitstream and
     whether the loop held; the maximum stable amplitude is the largest held amplitude below the
     first that was lost; the dynamic range is the amplitude span from SNR = 0 dB (extrapolated on
@@ -33,9 +40,16 @@ def dynamic_range(run: Callable[[float], tuple[np.ndarray, bool]], amplitudes: n
     rows, max_stable, lost = [], None, False
     for a in np.asarray(amplitudes, dtype=float):
         v, held = run(float(a))
-        m = band_metrics(*psd(v[skip:], ts, nperseg), ts, osr, tone_hz, DC_BINS) if held else {}   # lost: no SNR
-        rows.append({"amplitude": float(a), "amplitude_dbfs": float(20 * np.log10(a)), "held": held,
-                     "sqnr_db": m.get("snr_db"), "noise_db": m.get("inband_noise_db")})
+        m = band_metrics(*psd(v[skip:], ts, nperseg), ts, osr, tone_hz, DC_BINS) if held else {}  # lost: no SNR
+        rows.append(
+            {
+                "amplitude": float(a),
+                "amplitude_dbfs": float(20 * np.log10(a)),
+                "held": held,
+                "sqnr_db": m.get("snr_db"),
+                "noise_db": m.get("inband_noise_db"),
+            }
+        )
         lost = lost or not held
         if held and not lost:
             max_stable = float(a)
@@ -44,6 +58,10 @@ def dynamic_range(run: Callable[[float], tuple[np.ndarray, bool]], amplitudes: n
         return {"rows": rows, "max_stable_amplitude": None, "peak_sqnr_db": None, "dynamic_range_db": None}
     best = max(held, key=lambda r: r["sqnr_db"])
     low = min(held, key=lambda r: r["amplitude"])
-    zero_db = low["amplitude_dbfs"] - low["sqnr_db"]          # input level of SNR = 0 dB
-    return {"rows": rows, "max_stable_amplitude": max_stable, "peak_sqnr_db": best["sqnr_db"],
-            "dynamic_range_db": float(best["amplitude_dbfs"] - zero_db)}
+    zero_db = low["amplitude_dbfs"] - low["sqnr_db"]  # input level of SNR = 0 dB
+    return {
+        "rows": rows,
+        "max_stable_amplitude": max_stable,
+        "peak_sqnr_db": best["sqnr_db"],
+        "dynamic_range_db": float(best["amplitude_dbfs"] - zero_db),
+    }

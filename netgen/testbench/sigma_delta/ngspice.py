@@ -17,16 +17,17 @@ import numpy as np
 from ... import __version__
 from ...emit import osdi, xspice
 from ...emit.common import check_names
+from ...errors import CodeModelError
 from ...files import write_files_atomic
 from ...model import MacroModel
 from ...sim import codemodel
-from ...errors import CodeModelError
 from ...sim.ngspice import run_control, same_build
 from ...templating import render
 from ...text import netlist_path
 from . import filters
 from .analysis import levitation, per_clock
-from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
+from .inputs import input_text, mechanical_inputs, tone_unit
+from .loop import Design, Tone
 from .vacask import drivers
 
 TEMPLATE = "sigma_delta/tb.cir.j2"
@@ -46,11 +47,14 @@ TIE = 5.0
 def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
     """ngspice source text per input port (`mechanical_inputs`); a tone continues from time t0
     (a segment restarted at t = 0) through the SIN phase, in degrees."""
+
     def sin(dc: float, t: Tone) -> str:
         phase = 360.0 * math.fmod(t.freq * t0, 1.0)
         return f"SIN({dc!r} {t.amplitude!r} {t.freq!r}" + (f" 0 0 {phase!r})" if phase else ")")
-    return [{"port": port, "source": sin(dc, t) if t else f"DC {dc!r}"}
-            for port, dc, t in mechanical_inputs(model, d, tone)]
+
+    return [
+        {"port": port, "source": sin(dc, t) if t else f"DC {dc!r}"} for port, dc, t in mechanical_inputs(model, d, tone)
+    ]
 
 
 def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", analog: bool = False) -> list[str]:
@@ -65,21 +69,40 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", a
     bench += filters.state_nodes(d.channels)
     if analog:
         bench += [s["m"] for f in analog_filters(d).values() for s in f["states"]]
-    if any(line.startswith("n1 ") for line in body.splitlines()):   # the _osdi.lib: the module's internal nodes
+    if any(line.startswith("n1 ") for line in body.splitlines()):  # the _osdi.lib: the module's internal nodes
         return [osdi.state_node(s, instance) for s in osdi.states(model)] + bench
     ports = {p["name"].lower() for p in model.ports()}
     # a capacitor node on a voltage source (the charge nodes qn_i behind their 0 V ammeters) is set
     # by that source, not a state
     driven = {n for line in body.splitlines() if line.startswith("v") for n in line.split()[1:3]}
-    inner = sorted({n for line in body.splitlines() if line.startswith("c")
-                    for n in line.split()[1:3] if n != "0" and n not in ports and n not in driven})
+    inner = sorted(
+        {
+            n
+            for line in body.splitlines()
+            if line.startswith("c")
+            for n in line.split()[1:3]
+            if n != "0" and n not in ports and n not in driven
+        }
+    )
     return [f"{instance}.{n}" for n in inner] + bench
 
 
-def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: str,
-              tone: Tone | None = None, chunks: int = 50, start: int = 0,
-              ic: dict[str, float] | None = None, states: list[str] = (), control: list[str] = (),
-              loop: str = "analog", klu: bool = False, folder: Path | None = None) -> str:
+def testbench(
+    model: MacroModel,
+    d: Design,
+    lib: str | Path,
+    cycles: int,
+    raw: str,
+    tone: Tone | None = None,
+    chunks: int = 50,
+    start: int = 0,
+    ic: dict[str, float] | None = None,
+    states: list[str] = (),
+    control: list[str] = (),
+    loop: str = "analog",
+    klu: bool = False,
+    folder: Path | None = None,
+) -> str:
     """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
     long run, the periods from `start` on, from the node state `ic`, also saving `states`;
     `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
@@ -89,10 +112,12 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     (the .include of a `lib` inside it relative, text.netlist_path)."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
-    check_names(model)                      # names outside comments; the paths below through netlist_path
+    check_names(model)  # names outside comments; the paths below through netlist_path
     if loop != "xspice" and d.t.fb_ramp == 0:
-        raise ValueError(f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
-                         f"not in the {loop!r} loop")
+        raise ValueError(
+            f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
+            f"not in the {loop!r} loop"
+        )
     ic = dict(ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
@@ -103,15 +128,40 @@ def testbench(model: MacroModel, d: Design, lib: str | Path, cycles: int, raw: s
     saves += [f"v({n})" for n in states]
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
-    return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  lib=netlist_path(lib, folder), cycles=cycles, ports=[p["name"] for p in model.ports()],
-                  forces=force_sources(model, d, tone, start * d.ts), tone=tone, saves=saves, raw=raw,
-                  progress=progress, selects=selection_nodes(d), start=start, ic=ic,
-                  control=list(control), sdloop=card, pulses=phase_pulses(d), osdi=loop == "osdi", klu=klu,
-                  inputs=input_text(model, d), drivers=drivers(d) if loop == "osdi" else [],
-                  statefilters=(filters.statefilter_params(d.channels, d) if loop == "osdi"
-                                else analog_filters(d) if loop == "analog" else {}),
-                  windows=filters.filter_windows(d.t), tie=TIE * d.vcmp)
+    return render(
+        TEMPLATE,
+        bench="sigma_delta",
+        version=__version__,
+        model=model,
+        d=d,
+        lib=netlist_path(lib, folder),
+        cycles=cycles,
+        ports=[p["name"] for p in model.ports()],
+        forces=force_sources(model, d, tone, start * d.ts),
+        tone=tone,
+        saves=saves,
+        raw=raw,
+        progress=progress,
+        selects=selection_nodes(d),
+        start=start,
+        ic=ic,
+        control=list(control),
+        sdloop=card,
+        pulses=phase_pulses(d),
+        osdi=loop == "osdi",
+        klu=klu,
+        inputs=input_text(model, d),
+        drivers=drivers(d) if loop == "osdi" else [],
+        statefilters=(
+            filters.statefilter_params(d.channels, d)
+            if loop == "osdi"
+            else analog_filters(d)
+            if loop == "analog"
+            else {}
+        ),
+        windows=filters.filter_windows(d.t),
+        tie=TIE * d.vcmp,
+    )
 
 
 def analog_filters(d: Design) -> dict[str, dict]:
@@ -135,11 +185,22 @@ def analog_filters(d: Design) -> dict[str, dict]:
 
         def terms(row, extra):
             return " + ".join([f"{float(a)!r}*v({n})" for a, n in zip(row, u) if a] + extra) or "0"
-        states = [{"m": f"m{j}_{name}", "u": u[j],
-                   "next": terms(f.a[j], [f"{float(f.bx[j])!r}*{x}", f"{float(f.bv[j])!r}*{v}"])} for j in range(k)]
+
+        states = [
+            {
+                "m": f"m{j}_{name}",
+                "u": u[j],
+                "next": terms(f.a[j], [f"{float(f.bx[j])!r}*{x}", f"{float(f.bv[j])!r}*{v}"]),
+            }
+            for j in range(k)
+        ]
         tie = [f"{-TIE * d.vcmp!r}"]
-        out[name] = {"kind": f.kind, "order": f.order, "states": states,
-                     "y": terms(f.c, ([f"{float(f.d)!r}*{x}"] if f.d else []) + tie)}
+        out[name] = {
+            "kind": f.kind,
+            "order": f.order,
+            "states": states,
+            "y": terms(f.c, ([f"{float(f.d)!r}*{x}"] if f.d else []) + tie),
+        }
     return out
 
 
@@ -147,10 +208,19 @@ def phase_pulses(d: Design) -> dict[str, tuple[float, ...]]:
     """PULSE(v1 v2 td tr tf pw per) of the three electrode-phase sources (seconds): phs, the
     sense phase, and fb1, fb2, the feedback phase's basis (Design.feedback_basis)."""
     t, ts, fb = d.t, d.ts, d.feedback_basis
-    return {"phs": (0, 1, ts * (t.sense_on - t.edge / 2), ts * t.edge, ts * t.edge,
-                    ts * (t.sense_off - t.sense_on - t.edge), ts),
-            "fb1": (0, 1, 0, fb["tr1"], fb["tf"], fb["pw1"], ts),
-            "fb2": (0, 1, 0, fb["tr2"], fb["tf"], fb["pw2"], ts)}
+    return {
+        "phs": (
+            0,
+            1,
+            ts * (t.sense_on - t.edge / 2),
+            ts * t.edge,
+            ts * t.edge,
+            ts * (t.sense_off - t.sense_on - t.edge),
+            ts,
+        ),
+        "fb1": (0, 1, 0, fb["tr1"], fb["tf"], fb["pw1"], ts),
+        "fb2": (0, 1, 0, fb["tr2"], fb["tf"], fb["pw2"], ts),
+    }
 
 
 def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
@@ -162,23 +232,36 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
     init = {kind: [ic.pop(f"{kind}_{n}", 0.0) for n in names] for kind in ("cur", "prev", "b")}
     # an electrode is energised when each channel's bit equals its feedback entry there (loop.groups,
     # loop.selected); one lead coefficient for all channels, or one per channel (leads)
-    leads = [c["filter"].get("lead", 0.0) for c in d.channels]      # (a state-space channel: its flt_* path)
+    leads = [c["filter"].get("lead", 0.0) for c in d.channels]  # (a state-space channel: its flt_* path)
     lead = {"lead": leads[0]} if len(set(leads)) == 1 else {"lead": 0.0, "leads": leads}
-    params = {"ts": d.ts, "t_sample": d.t.cur + d.t.sample, "t_latch": d.t.clk + d.t.sample, **lead,
-              "start": float(start), "sel": [s for e in d.electrodes for s in e["sel"]],
-              "ph_sense": [d.vs, 0.0, 0.0], "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
-              # a feedback step (Timing.fb_ramp 0): V_fb on (fb_on, fb_off], with its own breakpoints
-              **({"fb_level": d.vfb, "fb_on": d.t.fb_on, "fb_off": d.t.fb_off} if d.t.fb_ramp == 0 else {}),
-              "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
-              "dither_amp": [c["dither_v"] for c in d.channels],
-              "dither_step": [float(c["dither_step"]) for c in d.channels],
-              "cur0": init["cur"], "prev0": init["prev"], "b0": init["b"],
-              **filters.sdloop_params(d.channels, ic)}      # the higher-order channels' filter states
+    params = {
+        "ts": d.ts,
+        "t_sample": d.t.cur + d.t.sample,
+        "t_latch": d.t.clk + d.t.sample,
+        **lead,
+        "start": float(start),
+        "sel": [s for e in d.electrodes for s in e["sel"]],
+        "ph_sense": [d.vs, 0.0, 0.0],
+        "ph_fb": [0.0, d.vfb * fb["k1"], -d.vfb * fb["k2"]],
+        # a feedback step (Timing.fb_ramp 0): V_fb on (fb_on, fb_off], with its own breakpoints
+        **({"fb_level": d.vfb, "fb_on": d.t.fb_on, "fb_off": d.t.fb_off} if d.t.fb_ramp == 0 else {}),
+        "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
+        "dither_amp": [c["dither_v"] for c in d.channels],
+        "dither_step": [float(c["dither_step"]) for c in d.channels],
+        "cur0": init["cur"],
+        "prev0": init["prev"],
+        "b0": init["b"],
+        **filters.sdloop_params(d.channels, ic),
+    }  # the higher-order channels' filter states
     text = [(k, f"[{' '.join(repr(x) for x in v)}]" if isinstance(v, list) else repr(v)) for k, v in params.items()]
-    nodes = [[f"ca_{n}" for n in names], None, [f"drv_{e['name']}" for e in d.electrodes],
-             *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev")), filters.state_nodes(d.channels) or None]
-    return {"params": params, "text": text,
-            "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
+    nodes = [
+        [f"ca_{n}" for n in names],
+        None,
+        [f"drv_{e['name']}" for e in d.electrodes],
+        *([f"{kind}_{n}" for n in names] for kind in ("b", "cur", "prev")),
+        filters.state_nodes(d.channels) or None,
+    ]
+    return {"params": params, "text": text, "instance": " ".join(f"[{' '.join(g)}]" if g else "NULL" for g in nodes)}
 
 
 def selection_nodes(d: Design) -> dict[str, dict[str, str]]:
@@ -197,8 +280,14 @@ def selection_nodes(d: Design) -> dict[str, dict[str, str]]:
     return {"nodes": nodes, "of": of}
 
 
-def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0,
-             span: tuple[float, float, float] | None = None):
+def simulate(
+    netlist: str,
+    workdir: Path,
+    stop: float,
+    progress: bool = True,
+    timeout: float = 36000.0,
+    span: tuple[float, float, float] | None = None,
+):
     """Run ngspice on the bench, report simulated/wall time from its progress lines; return the plot.
     span (t0, total, wall0): this run continues a segmented one at t0 of total, wall0 s after its start."""
     shown = [0.0]
@@ -211,8 +300,13 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
             shown[0] = wall
             t0, total, wall0 = span or (0.0, stop, 0.0)
             t, w = t0 + float(m.group(1)), wall0 + wall
-            print(f"sigma-delta: simulated {t * 1e3:.3f} / {total * 1e3:.3f} ms, wall {w:.1f} s, "
-                  f"eta {w * (total / t - 1):.0f} s", file=sys.stderr, flush=True)
+            print(
+                f"sigma-delta: simulated {t * 1e3:.3f} / {total * 1e3:.3f} ms, wall {w:.1f} s, "
+                f"eta {w * (total / t - 1):.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+
     return run_control(netlist, workdir, "sigma_delta", "sigma_delta.raw", timeout, on_line=report)
 
 
@@ -221,15 +315,14 @@ def missed_corners(t: np.ndarray, d: Design, cycles: int) -> dict:
     The periods where one is missing (none expected; a lost breakpoint chain lets the
     trapezoidal electrode currents ring after each ramp, which the readout integrates)."""
     tc = ((np.arange(cycles)[:, None] + np.array(d.corners())[None, :]) * d.ts).ravel()
-    tc = tc[(tc > 0) & (tc < t[-1])]                 # t = 0: the start, not a corner
+    tc = tc[(tc > 0) & (tc < t[-1])]  # t = 0: the start, not a corner
     j = np.clip(np.searchsorted(t, tc), 1, len(t) - 1)
     gap = np.minimum(np.abs(t[j] - tc), np.abs(t[j - 1] - tc))
     # a point within 1e-3 of the ramp time counts as a hit: the kink then falls inside a step at a
     # fraction gap/step of it, and so does the ringing it leaves (ngspice also lands points a few
     # ps short of a corner and keeps its chains: measured, 1.2 ps short at 1 us, chains intact)
     missed = np.unique((tc[gap > 1e-3 * d.ts * d.t.edge] / d.ts).astype(int))
-    return {"periods_with_a_missed_corner": int(len(missed)),
-            "first_period": int(missed[0]) if len(missed) else None}
+    return {"periods_with_a_missed_corner": int(len(missed)), "first_period": int(missed[0]) if len(missed) else None}
 
 
 def segment_periods(ts: float, segment: int | None, cycles: int) -> int:
@@ -254,12 +347,20 @@ def code_models(progress: bool) -> list[Path]:
     except CodeModelError as exc:
         here = codemodel.target()
         there = [w for w in codemodel.built_for(LOOP_LIBRARY) if not same_build(w, here)]
-        where = ("; netgen's code models here are built for " + ", ".join(f"{w['version']} ({w['path']}): run on "
-                 f"it with --ngspice {w['path']}" for w in there)) if there else ""
+        where = (
+            (
+                "; netgen's code models here are built for "
+                + ", ".join(f"{w['version']} ({w['path']}): run on it with --ngspice {w['path']}" for w in there)
+            )
+            if there
+            else ""
+        )
         osdi = " or --simulator ngspice-osdi (the compiled path of this ngspice)" if here["osdi"] else ""
-        raise CodeModelError(f"--simulator ngspice-xspice loads compiled code models into {here['version']} "
-                             f"({here['path']}) and none can be built for it{where}; or use --simulator ngspice "
-                             f"(the .lib){osdi}. Why: {exc}") from None
+        raise CodeModelError(
+            f"--simulator ngspice-xspice loads compiled code models into {here['version']} "
+            f"({here['path']}) and none can be built for it{where}; or use --simulator ngspice "
+            f"(the .lib){osdi}. Why: {exc}"
+        ) from None
 
 
 def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path, list[str]]:
@@ -270,9 +371,20 @@ def xspice_library(model: MacroModel, out: Path, cms: list[Path]) -> tuple[Path,
     return lib, codemodel.control_lines(*cms)
 
 
-def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
-                 progress: bool, segment: int | None, control: list[str] = (),
-                 loop: str = "analog", klu: bool = False, timeout: float = 36000.0) -> tuple[dict, dict, dict]:
+def run_segments(
+    model: MacroModel,
+    d: Design,
+    lib: Path,
+    out: Path,
+    cycles: int,
+    tone: Tone | None,
+    progress: bool,
+    segment: int | None,
+    control: list[str] = (),
+    loop: str = "analog",
+    klu: bool = False,
+    timeout: float = 36000.0,
+) -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
     reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
     missed an electrode-phase corner is cut at the start of that period, and the next segment
@@ -288,17 +400,32 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     while n0 < cycles:
         n = min(length, cycles - n0)
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
-        bench = testbench(model, d, lib, n, "sigma_delta.raw", tone, start=n0, ic=ic, states=states,
-                          control=control, loop=loop, chunks=max(1, min(50, n // 100)), klu=klu, folder=out)
-        plot = simulate(bench, out, d.ts * n, progress, timeout,
-                        span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0))
+        bench = testbench(
+            model,
+            d,
+            lib,
+            n,
+            "sigma_delta.raw",
+            tone,
+            start=n0,
+            ic=ic,
+            states=states,
+            control=control,
+            loop=loop,
+            chunks=max(1, min(50, n // 100)),
+            klu=klu,
+            folder=out,
+        )
+        plot = simulate(
+            bench, out, d.ts * n, progress, timeout, span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0)
+        )
         runs += 1
         t = np.asarray(plot["time"])
         first = missed_corners(t, d, n)["first_period"]
         keep = n if first is None or not states else max(first, 1)
         if keep < n:
             cuts.append({"start": n0, "missed_at": n0 + first})
-        if first is not None and first < keep:          # a miss in the first period is kept: progress
+        if first is not None and first < keep:  # a miss in the first period is kept: progress
             accepted_misses.append(n0 + first)
         part = per_clock(plot, d, keep, model)
         part["time"] = part["time"] + n0 * d.ts
@@ -311,8 +438,10 @@ def run_segments(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
         if not levitation(part, model)["held"]:
             break
     clock = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    breakpoints = {"periods_with_a_missed_corner": len(accepted_misses),
-                   "first_period": accepted_misses[0] if accepted_misses else None,
-                   "segments_cut_at_a_missed_corner": cuts}
+    breakpoints = {
+        "periods_with_a_missed_corner": len(accepted_misses),
+        "first_period": accepted_misses[0] if accepted_misses else None,
+        "segments_cut_at_a_missed_corner": cuts,
+    }
     plan = {"periods": length, "ngspice_runs": runs, "periods_run": int(n0), "state_nodes": states}
     return clock, breakpoints, plan

@@ -36,9 +36,13 @@ def optimal_zeros(order: int, fixed_dc: int = 0) -> np.ndarray:
     def noise(a: np.ndarray) -> float:
         poly = x ** (2 * (fixed_dc + single)) * np.prod([(x**2 - ai**2) ** 2 for ai in a], axis=0)
         return float(np.trapezoid(poly, x))
+
     start = np.linspace(0.5, 0.9, pairs) if pairs else np.array([])
-    a = optimize.minimize(noise, start, method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-16}).x \
-        if pairs else start
+    a = (
+        optimize.minimize(noise, start, method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-16}).x
+        if pairs
+        else start
+    )
     return np.sort(np.concatenate([np.zeros(fixed_dc + single), np.abs(a), -np.abs(a)]))
 
 
@@ -80,8 +84,9 @@ def pair(p: np.ndarray) -> np.ndarray:
     return np.concatenate([real, *[[q, np.conj(q)] for q in upper]])
 
 
-def synthesize_ntf(order: int, osr: float = 64, opt: int = 0, h_inf: float = 1.5,
-                   zeros: np.ndarray | None = None) -> signal.ZerosPolesGain:
+def synthesize_ntf(
+    order: int, osr: float = 64, opt: int = 0, h_inf: float = 1.5, zeros: np.ndarray | None = None
+) -> signal.ZerosPolesGain:
     """A lowpass NTF of `order` (synthesizeNTF(order, OSR, opt, H_inf, 0)): the zeros of
     `zeros_for` (or the given ones), the poles iterated (secant on x) until NTF(-1) = h_inf.
     If h_inf is not reachable (at or above the FIR limit prod |-1 - z_i|) the poles are all at

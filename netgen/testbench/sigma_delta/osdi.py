@@ -26,8 +26,10 @@ from ...sim import ngspice as sim_ngspice
 from ...text import netlist_path
 from .vacask import blocks_source, compile_model
 
-ALTERNATIVES = ("use --simulator ngspice (the B-source .lib, any ngspice) or --simulator vacask, "
-                f"or point {sim_ngspice.ENV} at ngspice 45 or later")
+ALTERNATIVES = (
+    "use --simulator ngspice (the B-source .lib, any ngspice) or --simulator vacask, "
+    f"or point {sim_ngspice.ENV} at ngspice 45 or later"
+)
 # set before the analysis: ngspice's spinit sets 8 threads, and OSDI's load then runs a parallel
 # region per call, 10-15x slower on a 2-core machine (design notes, ngspice 44 and 46)
 THREADS = "set num_threads=1"
@@ -38,13 +40,17 @@ def check(model: MacroModel) -> sim_ngspice.Version:
     (exit 3) naming its version and the alternatives."""
     v = sim_ngspice.version()
     if not v.osdi:
-        raise SimulatorNotFound(f"{v.label} ({v.path}) cannot load openvaf-r's OSDI 0.5 modules "
-                                f"(ngspice 39-43 load only OSDI 0.3; 44 and later do); {ALTERNATIVES}")
+        raise SimulatorNotFound(
+            f"{v.label} ({v.path}) cannot load openvaf-r's OSDI 0.5 modules "
+            f"(ngspice 39-43 load only OSDI 0.3; 44 and later do); {ALTERNATIVES}"
+        )
     limit, n = v.osdi_node_limit, osdi.nodes(model)
     if limit is not None and n > limit:
-        raise SimulatorNotFound(f"{v.label} ({v.path}) caps an OSDI instance at {limit} nodes and "
-                                f"{model.name} has {n} ({len(model.ports())} ports, {n - len(model.ports())} "
-                                f"internal); the cap is gone from ngspice 45 on; {ALTERNATIVES}")
+        raise SimulatorNotFound(
+            f"{v.label} ({v.path}) caps an OSDI instance at {limit} nodes and "
+            f"{model.name} has {n} ({len(model.ports())} ports, {n - len(model.ports())} "
+            f"internal); the cap is gone from ngspice 45 on; {ALTERNATIVES}"
+        )
     return v
 
 
@@ -56,12 +62,17 @@ def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
     va = Path(lib).with_suffix(".va")
     text = va.read_text(encoding="utf-8") if va.exists() else None
     if progress:
-        print(f"sigma-delta (ngspice-osdi): compiling the model and the loop blocks with openvaf-r "
-              f"for {version.label}", file=sys.stderr)
-    cache = out / "osdi"                                   # the model text VACASK compiles too
+        print(
+            f"sigma-delta (ngspice-osdi): compiling the model and the loop blocks with openvaf-r for {version.label}",
+            file=sys.stderr,
+        )
+    cache = out / "osdi"  # the model text VACASK compiles too
     model_osdi = compile_model(model, cache, va if text is not None else None)
     blocks_osdi = osdi.compiled(blocks_source(), "sigma_delta_blocks", cache)
     osdi_lib = out / f"{model.name}_osdi.lib"
     write_files_atomic({osdi_lib: osdi.subcircuit(model)})
-    return {"lib": osdi_lib, "ngspice": version.label,
-            "control": [f"pre_osdi {netlist_path(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS]}
+    return {
+        "lib": osdi_lib,
+        "ngspice": version.label,
+        "control": [f"pre_osdi {netlist_path(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS],
+    }

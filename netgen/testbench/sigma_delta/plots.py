@@ -45,8 +45,9 @@ def annotate(ax, ch: dict) -> None:
     ax.text(0.01, 0.95, ", ".join(text), transform=ax.transAxes, va="top", fontsize=8)
 
 
-def plot_linearity(inputs: np.ndarray, bit_means: np.ndarray, fit: dict, path: Path, title: str,
-                   unit: str = "m/s^2") -> Path:
+def plot_linearity(
+    inputs: np.ndarray, bit_means: np.ndarray, fit: dict, path: Path, title: str, unit: str = "m/s^2"
+) -> Path:
     """PNG of the bitstream mean against the applied DC input, with the scale-factor line and the
     residuals in % of full scale (analysis.scale_factor)."""
     x = np.asarray(inputs, float)

@@ -21,6 +21,7 @@ from .filters import Filter, Mechanics, step_map
 class Input:
     """The input acceleration on the channel's coordinate (SI per unit mass): dc + amplitude
     sin(2 pi freq t), t = 0 at the start of period 0 (the benches' SIN source)."""
+
     dc: float = 0.0
     amplitude: float = 0.0
     freq: float = 0.0
@@ -38,8 +39,15 @@ def augmented(mech: Mechanics, inp: Input) -> tuple[np.ndarray, np.ndarray]:
     return a, np.concatenate([b2 * mech.force, np.zeros(3)])
 
 
-def simulate(mech: Mechanics, f: Filter, cycles: int, inp: Input | None = None, dither: float = 0.0,
-             dither_step: float = 0.0, u0: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def simulate(
+    mech: Mechanics,
+    f: Filter,
+    cycles: int,
+    inp: Input | None = None,
+    dither: float = 0.0,
+    dither_step: float = 0.0,
+    u0: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
     """Run the loop for `cycles` periods from rest at t = 0: per period n the sample x[n] = gain
     q((n + sample) T_s) + offset, y[n] = c.u + d (x - x0) + dither sin(dither_step n), v[n] = sign(y), the filter
     update (with x - x0: the filter's trim, Filter.x0) and the force pulse v[n] F. Returns v (+-1), x, q, y, u (per period) and the max |u|."""
@@ -74,7 +82,7 @@ def positions(mech: Mechanics, v: np.ndarray, inp: Input | None = None, phase: f
     coordinates (netgen.testbench.sigma_delta.analysis.per_clock samples them mid-feedback)."""
     a, b = augmented(mech, inp or Input())
     edges = sorted({0.0, 1.0, phase, *(p for piece in mech.pulse for p in piece[:2])})
-    weight = lambda lo, hi: sum(w for p0, p1, w in mech.pulse if p0 <= lo and hi <= p1)   # noqa: E731
+    weight = lambda lo, hi: sum(w for p0, p1, w in mech.pulse if p0 <= lo and hi <= p1)  # noqa: E731
     cache: dict[float, list[tuple[float, np.ndarray]]] = {}
 
     def steps(level: float) -> list[tuple[float, np.ndarray]]:
@@ -85,6 +93,7 @@ def positions(mech: Mechanics, v: np.ndarray, inp: Input | None = None, phase: f
                 m[:5, :5], m[:5, 5] = a, b * weight(lo, hi) * level
                 cache[level].append((hi, linalg.expm(m * (hi - lo) * mech.ts)))
         return cache[level]
+
     s, out = np.array([0.0, 0.0, 1.0, 0.0, 1.0, 1.0]), np.empty(len(v))
     for n, level in enumerate(np.asarray(v, dtype=float)):
         for hi, step in steps(float(level)):

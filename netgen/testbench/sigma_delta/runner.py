@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -33,8 +33,7 @@ from .loop import FILTERS, Design, Tone, design
 from .loopfile import InputSpec, LoopSpec
 from .plots import plot_spectra, plot_states
 
-
-TIMEOUT = 36000.0           # s: the default wall-clock limit of one simulator run (netgen.sim.process)
+TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.sim.process)
 
 
 @dataclass(frozen=True)
@@ -42,6 +41,7 @@ class Backend:
     """prepare(model, lib, out, progress) -> state: what must exist before the timed run (code
     models built, Verilog-A compiled), failing before any output; run(model, design, lib, out,
     cycles, tone, progress, segment, state) -> (clock, extra summary entries)."""
+
     prepare: Callable[..., dict]
     run: Callable[..., tuple[dict, dict]]
     help: str
@@ -55,8 +55,17 @@ def _code_models(model: MacroModel, lib: Path, out: Path, progress: bool) -> dic
     return {"cms": ngspice.code_models(progress)}
 
 
-def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
-                 progress: bool, segment: int | None, state: dict) -> tuple[dict, dict]:
+def _run_ngspice(
+    model: MacroModel,
+    d: Design,
+    lib: Path,
+    out: Path,
+    cycles: int,
+    tone: Tone | None,
+    progress: bool,
+    segment: int | None,
+    state: dict,
+) -> tuple[dict, dict]:
     """The behavioural-source loop around the .lib, or (with code models) the compiled loop around
     the xspice .lib, or (osdi) the blocks.va loop around the _osdi.lib, in segments
     (ngspice.run_segments). The B-source .lib runs with KLU where the ngspice has it (25 % less
@@ -65,15 +74,20 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int
     if "cms" in state:
         lib, control = ngspice.xspice_library(model, out, state["cms"])
         loop = "xspice"
-    elif "osdi" in state:                                   # osdi.prepare: the _osdi.lib and its pre_osdi lines
+    elif "osdi" in state:  # osdi.prepare: the _osdi.lib and its pre_osdi lines
         lib, control, loop = state["osdi"]["lib"], state["osdi"]["control"], "osdi"
-        segment = 0                                         # one run: .ic cannot reach the module's states (osdi.py)
+        segment = 0  # one run: .ic cannot reach the module's states (osdi.py)
     else:
         klu = ngspice_version().klu
-    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, segment,
-                                                        control, loop, klu, timeout=state.get("timeout", TIMEOUT))
-    return clock, {"breakpoints": breakpoints, "segments": segments, "ngspice": ngspice_identity(),
-                   "solver": "klu" if klu else "sparse"}
+    clock, breakpoints, segments = ngspice.run_segments(
+        model, d, lib, out, cycles, tone, progress, segment, control, loop, klu, timeout=state.get("timeout", TIMEOUT)
+    )
+    return clock, {
+        "breakpoints": breakpoints,
+        "segments": segments,
+        "ngspice": ngspice_identity(),
+        "solver": "klu" if klu else "sparse",
+    }
 
 
 def _compile_osdi(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
@@ -91,10 +105,21 @@ def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> 
     return {"va": va, "compile_s": time.perf_counter() - start}
 
 
-def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int, tone: Tone | None,
-                progress: bool, segment: int | None, state: dict) -> tuple[dict, dict]:
+def _run_vacask(
+    model: MacroModel,
+    d: Design,
+    lib: Path,
+    out: Path,
+    cycles: int,
+    tone: Tone | None,
+    progress: bool,
+    segment: int | None,
+    state: dict,
+) -> tuple[dict, dict]:
     """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
-    plot = vacask.run_bench(model, d, out, cycles, tone, progress, va=state["va"], timeout=state.get("timeout", TIMEOUT))
+    plot = vacask.run_bench(
+        model, d, out, cycles, tone, progress, va=state["va"], timeout=state.get("timeout", TIMEOUT)
+    )
     extra = {"compile_s": state["compile_s"], "vacask": vacask_stats(out / vacask.LOG)}
     clock = per_clock(plot, d, cycles, model)
     del plot
@@ -104,11 +129,18 @@ def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, cycles: int,
 
 BACKENDS: dict[str, Backend] = {
     "ngspice": Backend(_no_preparation, _run_ngspice, "ngspice with the .lib (behavioural sources)"),
-    "ngspice-xspice": Backend(_code_models, _run_ngspice, "ngspice with the model's plate terms in the compiled "
-                              "XSPICE code model and the loop compiled too (netgen codemodel)"),
+    "ngspice-xspice": Backend(
+        _code_models,
+        _run_ngspice,
+        "ngspice with the model's plate terms in the compiled "
+        "XSPICE code model and the loop compiled too (netgen codemodel)",
+    ),
     "vacask": Backend(_compile_vacask, _run_vacask, "VACASK with the compiled Verilog-A module"),
-    "ngspice-osdi": Backend(_compile_osdi, _run_ngspice, "ngspice 45+ with the model and the loop's blocks as "
-                            "Verilog-A compiled by openvaf-r, loaded through OSDI"),
+    "ngspice-osdi": Backend(
+        _compile_osdi,
+        _run_ngspice,
+        "ngspice 45+ with the model and the loop's blocks as Verilog-A compiled by openvaf-r, loaded through OSDI",
+    ),
 }
 SIMULATORS = tuple(BACKENDS)
 # the back ends that render a feedback step (Timing.fb_edge = 0; netgen_sdloop's fb_level, VACASK's pulse)
@@ -121,16 +153,22 @@ def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
     for ch in d.channels:
         kind = FILTERS[ch["filter"]["kind"]]
         if simulator not in kind.backends:
-            raise spec.fail(f"loop.channels.{ch['name']}.filter.kind", f"loop filter {ch['filter']['kind']!r} is not "
-                            f"implemented for --simulator {simulator}", f"use --simulator {' or '.join(kind.backends)}")
+            raise spec.fail(
+                f"loop.channels.{ch['name']}.filter.kind",
+                f"loop filter {ch['filter']['kind']!r} is not implemented for --simulator {simulator}",
+                f"use --simulator {' or '.join(kind.backends)}",
+            )
     if d.t.fb_ramp == 0 and simulator not in STEP_BACKENDS:
-        raise spec.fail("loop.timing.fb_edge", f"a feedback step (fb_edge = 0) is not implemented for --simulator "
-                        f"{simulator}", f"use --simulator {' or '.join(STEP_BACKENDS)}, or give [loop.timing] "
-                        "fb_edge = 0.02 (ramps)")
+        raise spec.fail(
+            "loop.timing.fb_edge",
+            f"a feedback step (fb_edge = 0) is not implemented for --simulator {simulator}",
+            f"use --simulator {' or '.join(STEP_BACKENDS)}, or give [loop.timing] fb_edge = 0.02 (ramps)",
+        )
 
 
-def backend_design(model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str,
-                   **choices) -> Design:
+def backend_design(
+    model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str, **choices
+) -> Design:
     """The loop's design (loop.design with the caller's choices) for this back end: a designed
     filter gets the feedback step where the back end renders one; refused (LoopError) where it
     cannot render the design (check_backend)."""
@@ -149,10 +187,23 @@ def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: flo
     return loop
 
 
-def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: Tone | None = None,
-        progress: bool = True, plots: bool = True, skip: int | None = None, simulator: str = "ngspice",
-        segment: int | None = None, timeout: float = TIMEOUT, loop: LoopSpec | None = None,
-        designed: Design | None = None, **choices) -> dict:
+def run(
+    model: MacroModel,
+    lib: Path,
+    out: Path,
+    ts: float,
+    cycles: int,
+    tone: Tone | None = None,
+    progress: bool = True,
+    plots: bool = True,
+    skip: int | None = None,
+    simulator: str = "ngspice",
+    segment: int | None = None,
+    timeout: float = TIMEOUT,
+    loop: LoopSpec | None = None,
+    designed: Design | None = None,
+    **choices,
+) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
@@ -167,38 +218,64 @@ def run(model: MacroModel, lib: Path, out: Path, ts: float, cycles: int, tone: T
     tone = tone or loop.input.tone
     d = designed if designed is not None else backend_design(model, ts, loop, tone, simulator, **choices)
     if len(d.channels) > vacask.MAX_CHANNELS and simulator in ("vacask", "ngspice-osdi"):
-        raise LoopError(loop.source, "loop.channels", f"{len(d.channels)} channels: the Verilog-A loop takes at most "
-                        f"{vacask.MAX_CHANNELS}",
-                        "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice")
-    state = backend.prepare(model, lib, out, progress)      # fails before any output
-    state["timeout"] = timeout                               # the wall-clock limit of each simulator run
+        raise LoopError(
+            loop.source,
+            "loop.channels",
+            f"{len(d.channels)} channels: the Verilog-A loop takes at most {vacask.MAX_CHANNELS}",
+            "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice",
+        )
+    state = backend.prepare(model, lib, out, progress)  # fails before any output
+    state["timeout"] = timeout  # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     clock, extra = backend.run(model, d, lib, out, cycles, tone, progress, segment, state)
     wall = time.perf_counter() - start
     np.savez_compressed(out / "bitstreams.npz", **clock)
-    done = len(clock["time"])                         # fewer than `cycles` if a segment lost the plate
+    done = len(clock["time"])  # fewer than `cycles` if a segment lost the plate
     skip = done // 8 if skip is None else min(skip, done // 2)
     summary = analyse(clock, d, tone, skip=skip)
     summary["levitation"] = levitation(clock, model)
     spectra = summary.pop("spectra")
-    np.savez_compressed(out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items()
-                                                for k, v in (("f", fr), ("psd", p))})
-    summary.update({"requested_cycles": cycles, "model": model.name, "coordinates_in_model": [c.name for c in model.coordinates],
-                    "thermal_noise": thermal_floor(model, d), "simulator": simulator, **extra, "wall_s": wall, "tone": asdict(tone) if tone else None,
-                    "design": {"channels": d.names, "electrodes": d.electrodes, "table": d.table,
-                               "cf": {c["name"]: c["cf"] for c in d.channels},
-                               "filters": {c["name"]: c["filter"] for c in d.channels}, "inputs": d.inputs,
-                               "balance": d.balance, "timing": asdict(d.t), "duty": d.duty, "reltol": d.reltol}})
+    np.savez_compressed(
+        out / "spectra.npz", **{f"{c}_{k}": v for c, (fr, p) in spectra.items() for k, v in (("f", fr), ("psd", p))}
+    )
+    summary.update(
+        {
+            "requested_cycles": cycles,
+            "model": model.name,
+            "coordinates_in_model": [c.name for c in model.coordinates],
+            "thermal_noise": thermal_floor(model, d),
+            "simulator": simulator,
+            **extra,
+            "wall_s": wall,
+            "tone": asdict(tone) if tone else None,
+            "design": {
+                "channels": d.names,
+                "electrodes": d.electrodes,
+                "table": d.table,
+                "cf": {c["name"]: c["cf"] for c in d.channels},
+                "filters": {c["name"]: c["filter"] for c in d.channels},
+                "inputs": d.inputs,
+                "balance": d.balance,
+                "timing": asdict(d.t),
+                "duty": d.duty,
+                "reltol": d.reltol,
+            },
+        }
+    )
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     if plots:
-        plot_spectra(summary | {"spectra": spectra}, out / "spectra.png",
-                     f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})")
+        plot_spectra(
+            summary | {"spectra": spectra},
+            out / "spectra.png",
+            f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})",
+        )
         plot_states(clock, out / "coordinates.png")
     return summary | {"spectra": spectra, "clock": clock}
 
 
 # ----------------------------------------------------------------------------- the run's model
+
 
 def with_damping(structure, pressure: float | None, film: str | None, noise: bool):
     """The structure with the sigma-delta command's gas and noise options applied to [damping]."""
@@ -214,14 +291,26 @@ def with_damping(structure, pressure: float | None, film: str | None, noise: boo
 
 def model_folder(out: Path, rigid_only: bool, pressure: float | None, film: str | None, noise: bool) -> Path:
     """DIR/model..., one folder per option set, so a cached model never answers for other options."""
-    tags = ["model"] + (["rigid"] if rigid_only else []) + ([f"p{pressure:g}Pa"] if pressure is not None else []) \
-        + ([film] if film else []) + (["noise"] if noise else [])
+    tags = (
+        ["model"]
+        + (["rigid"] if rigid_only else [])
+        + ([f"p{pressure:g}Pa"] if pressure is not None else [])
+        + ([film] if film else [])
+        + (["noise"] if noise else [])
+    )
     return out / "_".join(tags)
 
 
-def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False, rebuild: bool = False,
-              progress: bool = True, pressure: float | None = None, film: str | None = None,
-              noise: bool = False) -> tuple[MacroModel, Path]:
+def model_for(
+    structure_path: str | Path,
+    folder: Path,
+    rigid_only: bool = False,
+    rebuild: bool = False,
+    progress: bool = True,
+    pressure: float | None = None,
+    film: str | None = None,
+    noise: bool = False,
+) -> tuple[MacroModel, Path]:
     """Build the structure's model into `folder` (rigid-body only: modes = 0; gas film at
     `pressure`, thermal noise sources with `noise`), or reuse the .json/.lib (and .va) there
     when the set there was built from the same content (netgen.build.build_key, kept in the
@@ -234,8 +323,10 @@ def model_for(structure_path: str | Path, folder: Path, rigid_only: bool = False
     if not rebuild and cached_key(folder, structure.name) == key and js.exists() and lib.exists():
         return MacroModel.load_json(js), lib
     model = build_model(structure, progress=progress)
-    with OutputFolder(folder, model.name, info={"build_key": key}) as out:   # all or nothing, also against a concurrent run
-        write_outputs(model, out.stage, "all")        # .lib for ngspice, .va for the VACASK path
+    with OutputFolder(
+        folder, model.name, info={"build_key": key}
+    ) as out:  # all or nothing, also against a concurrent run
+        write_outputs(model, out.stage, "all")  # .lib for ngspice, .va for the VACASK path
         out.commit()
     return model, lib
 

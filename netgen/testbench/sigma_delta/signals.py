@@ -20,6 +20,7 @@ class Timing:
     the previous one); the reset switches inside the gaps where every electrode is static and the
     charge amplifier is near 0 (sense off -> feedback on, feedback off -> next sense on), so it
     is a smooth window without breakpoints. The samplers and the latch sit in the sense phase."""
+
     edge: float = 0.02
     sense_on: float = 0.01
     prev: float = 0.20
@@ -48,13 +49,14 @@ class Timing:
 class Tone:
     """A sinusoidal input: a generalized force on coordinate `coord` (amplitude in its f_ port
     unit), or with coord "a_in" the frame acceleration (m/s^2) through the model's a_in port."""
+
     coord: str
     amplitude: float
     freq: float
     unit: str = ""
 
     @classmethod
-    def parse(cls, text: str) -> "Tone":
+    def parse(cls, text: str) -> Tone:
         """Parse COORD:AMPLITUDE:FREQ, e.g. z:0.02:1e3 (uN on z at 1 kHz) or a_in:2:1e3 (m/s^2)."""
         parts = text.split(":")
         if len(parts) != 3:
@@ -76,5 +78,6 @@ def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:
 def selected(electrodes: list[dict], bits: tuple[int, ...]) -> np.ndarray:
     """0/1 per electrode: energised for the bit pattern (one +-1 per channel): every channel's bit
     equals the electrode's feedback entry where that is non-zero (all zero: never fed back)."""
-    return np.array([float(any(e["sel"]) and all(s == 0 or s == b for s, b in zip(e["sel"], bits)))
-                     for e in electrodes])
+    return np.array(
+        [float(any(e["sel"]) and all(s == 0 or s == b for s, b in zip(e["sel"], bits))) for e in electrodes]
+    )

@@ -27,7 +27,8 @@ from ...sim.vacask import compiled, print_progress, run_vacask
 from ...templating import render
 from ...text import netlist_path
 from . import filters
-from .loop import Design, Tone, input_text, mechanical_inputs, tone_unit
+from .inputs import input_text, mechanical_inputs, tone_unit
+from .loop import Design, Tone
 
 BLOCKS = Path(__file__).resolve().parent / "blocks.va"
 TEMPLATE = "sigma_delta/tb.vacask.j2"
@@ -72,10 +73,14 @@ def compile_blocks(cache: Path) -> Path:
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
-    """VACASK vsource parameters per input port (loop.mechanical_inputs)."""
-    return [{"port": port, "source": (f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t
-                                      else f"dc={dc!r}")}
-            for port, dc, t in mechanical_inputs(model, d, tone)]
+    """VACASK vsource parameters per input port (inputs.mechanical_inputs)."""
+    return [
+        {
+            "port": port,
+            "source": (f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}"),
+        }
+        for port, dc, t in mechanical_inputs(model, d, tone)
+    ]
 
 
 def merge_options(*texts: str) -> str:
@@ -92,7 +97,7 @@ def merge_options(*texts: str) -> str:
 
 # the general electrode driver of blocks.va: up to this many channels per electrode
 DRIVER_SLOTS = 4
-WIDE_SLOTS = 6              # sd_driver6 (model drv6): an electrode that serves five or six channels
+WIDE_SLOTS = 6  # sd_driver6 (model drv6): an electrode that serves five or six channels
 MAX_CHANNELS = WIDE_SLOTS
 
 
@@ -107,57 +112,108 @@ def drivers(d: Design) -> list[dict]:
         used = [k for k, c in enumerate(d.channels) if e["w"][k] or e["sel"][k]]
         if len(used) == 2 and all(e["w"][k] == e["sel"][k] and e["sel"][k] in (1, -1) for k in used):
             a, b = (d.channels[k]["name"] for k in used)
-            out.append({"name": e["name"], "model": "drv",
-                        "nodes": [e["name"], "phs", "phf", "rst", f"b_{a}", f"b_{b}", f"ca_{a}", f"ca_{b}"],
-                        "params": f"vs={d.vs} vfb={d.vfb} side={e['sel'][used[0]]} sign={e['sel'][used[1]]}"})
+            out.append(
+                {
+                    "name": e["name"],
+                    "model": "drv",
+                    "nodes": [e["name"], "phs", "phf", "rst", f"b_{a}", f"b_{b}", f"ca_{a}", f"ca_{b}"],
+                    "params": f"vs={d.vs} vfb={d.vfb} side={e['sel'][used[0]]} sign={e['sel'][used[1]]}",
+                }
+            )
             continue
         if len(used) > WIDE_SLOTS:
-            raise ValueError(f"electrode {e['name']} serves {len(used)} channels; the Verilog-A driver takes at "
-                             f"most {WIDE_SLOTS}")
+            raise ValueError(
+                f"electrode {e['name']} serves {len(used)} channels; the Verilog-A driver takes at most {WIDE_SLOTS}"
+            )
         width = DRIVER_SLOTS if len(used) <= DRIVER_SLOTS else WIDE_SLOTS
         slots = used + [None] * (width - len(used))
         names = [d.channels[k]["name"] if k is not None else None for k in slots]
-        params = [f"vs={d.vs} vfb={d.vfb}"] + [f"s{j + 1}={e['sel'][k]} w{j + 1}={e['w'][k]}"
-                                                for j, k in enumerate(slots) if k is not None]
-        out.append({"name": e["name"], "model": "drvn" if width == DRIVER_SLOTS else "drv6",
-                    "nodes": [e["name"], "phs", "phf", "rst"] + [f"b_{n}" if n else "0" for n in names]
-                    + [f"ca_{n}" if n else "0" for n in names], "params": " ".join(params)})
+        params = [f"vs={d.vs} vfb={d.vfb}"] + [
+            f"s{j + 1}={e['sel'][k]} w{j + 1}={e['w'][k]}" for j, k in enumerate(slots) if k is not None
+        ]
+        out.append(
+            {
+                "name": e["name"],
+                "model": "drvn" if width == DRIVER_SLOTS else "drv6",
+                "nodes": [e["name"], "phs", "phf", "rst"]
+                + [f"b_{n}" if n else "0" for n in names]
+                + [f"ca_{n}" if n else "0" for n in names],
+                "params": " ".join(params),
+            }
+        )
     return out
 
 
 def saves(model: MacroModel, d: Design) -> list[str]:
     """Node voltages per_clock() and the comparisons need: bits, lead-filter outputs, coordinates."""
     names = [f"b_{c}" for c in d.names] + [f"y_{c}" for c in d.names] + [f"x_{c.name}" for c in model.coordinates]
-    return [f"v({n})" for n in names]               # bare node names would be ignored (all nodes saved)
+    return [f"v({n})" for n in names]  # bare node names would be ignored (all nodes saved)
 
 
-def testbench(model: MacroModel, d: Design, model_osdi: Path, blocks_osdi: Path, cycles: int,
-              tone: Tone | None = None, options: str = "", folder: Path | None = None) -> str:
+def testbench(
+    model: MacroModel,
+    d: Design,
+    model_osdi: Path,
+    blocks_osdi: Path,
+    cycles: int,
+    tone: Tone | None = None,
+    options: str = "",
+    folder: Path | None = None,
+) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
     `folder`, where it runs, for what lies inside it (text.netlist_path), else absolute."""
-    check_names(model)                      # names outside comments; the paths below through netlist_path
+    check_names(model)  # names outside comments; the paths below through netlist_path
     if tone:
         tone.unit = tone_unit(model, tone)
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
-    return render(TEMPLATE, bench="sigma_delta", version=__version__, model=model, d=d,
-                  model_osdi=netlist_path(model_osdi if folder else Path(model_osdi).resolve(), folder),
-                  blocks_osdi=netlist_path(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
-                  cycles=cycles, ports=ports, forces=force_sources(model, d, tone), tone=tone,
-                  saves=saves(model, d), drivers=drivers(d), inputs=input_text(model, d),
-                  statefilters=filters.statefilter_params(d.channels, d), step_rise=STEP_RISE,
-                  options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options))
+    return render(
+        TEMPLATE,
+        bench="sigma_delta",
+        version=__version__,
+        model=model,
+        d=d,
+        model_osdi=netlist_path(model_osdi if folder else Path(model_osdi).resolve(), folder),
+        blocks_osdi=netlist_path(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
+        cycles=cycles,
+        ports=ports,
+        forces=force_sources(model, d, tone),
+        tone=tone,
+        saves=saves(model, d),
+        drivers=drivers(d),
+        inputs=input_text(model, d),
+        statefilters=filters.statefilter_params(d.channels, d),
+        step_rise=STEP_RISE,
+        options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options),
+    )
 
 
 def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, timeout: float = 36000.0) -> Plot:
     """Run VACASK on the bench in workdir, report simulated/wall time (from the raw file VACASK
     streams); return the memory-mapped plot of tran1.raw."""
-    return run_vacask(netlist, workdir, "tran1", "sigma_delta", timeout, LOG,
-                      print_progress("sigma-delta (vacask)", stop) if progress else None, mapped=True)
+    return run_vacask(
+        netlist,
+        workdir,
+        "tran1",
+        "sigma_delta",
+        timeout,
+        LOG,
+        print_progress("sigma-delta (vacask)", stop) if progress else None,
+        mapped=True,
+    )
 
 
-def run_bench(model: MacroModel, d: Design, out: Path, cycles: int, tone: Tone | None = None,
-              progress: bool = True, va: Path | None = None, cache: Path | None = None, options: str = "",
-              timeout: float = 36000.0) -> Plot:
+def run_bench(
+    model: MacroModel,
+    d: Design,
+    out: Path,
+    cycles: int,
+    tone: Tone | None = None,
+    progress: bool = True,
+    va: Path | None = None,
+    cache: Path | None = None,
+    options: str = "",
+    timeout: float = 36000.0,
+) -> Plot:
     """Compile (cached), render and run the VACASK bench in `out`; return its plot."""
     cache = cache or out / "osdi"
     model_osdi = compile_model(model, cache, va)
