@@ -197,7 +197,9 @@ def save(netlist: str, workdir: Path, name: str) -> Path:
     cir = workdir / f"{name}.cir"
     spice_command(cir)  # refused (exit 2) before anything is written
     if len(str(cir)) > 1000:
-        raise SimulationError(f"{cir}: ngspice's source command takes a path of under 1000 characters; use another run folder")
+        raise SimulationError(
+            f"{cir}: ngspice's source command takes a path of under 1000 characters; use another run folder"
+        )
     workdir.mkdir(parents=True, exist_ok=True)
     cir.write_text(netlist)
     return cir
