@@ -3,7 +3,8 @@ a VACASK netlist names (.include, pre_codemodel, pre_osdi, source, VACASK load) 
 one function per dialect here, so it reaches the simulator as exactly that path or is refused
 (InputError, exit 2, naming the path, the characters and the fix).
 
-What each dialect reads back unchanged (measured on ngspice 39 and 46 and VACASK 0.3):
+What each dialect reads back unchanged (measured on ngspice 39 and 46; VACASK: a folder with a
+space, tests/test_trust_paths.py):
 - ngspice cards (`.include "PATH"`): inside double quotes any printable text but `;` (ngspice 39
   cuts the card there as an inline comment; 46 does not) and `$` (an inline comment before a
   space on 39); `"` and `\\` cannot be written inside the quotes.
