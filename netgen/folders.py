@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from .errors import InputError
 from .files import umask, write_atomic
 from .interrupts import check, held
 
@@ -82,8 +83,9 @@ class OutputFolder:
         check()  # an interrupt a library swallowed: no commit
         with held(), folder_lock(self.folder):
             new = staged_files(self.stage)
+            check_owners(self.folder, self.name, new)
             before = manifest_files(self.manifest) if self.manifest.exists() else list(self.legacy)
-            old = set(before) - set(new)
+            old = set(before) - set(new) - owned_by_others(self.folder, self.name)
             self.manifest.unlink(missing_ok=True)  # no manifest names a set while it moves
             for rel in new:
                 os.replace(self.stage / rel, self.folder / rel)
@@ -219,6 +221,32 @@ def manifest_text(folder: Path, name: str, files: list[str], info: dict) -> str:
         "files": {f: hashlib.sha256((folder / f).read_bytes()).hexdigest() for f in files},
     }
     return json.dumps(doc, indent=1) + "\n"
+
+
+def check_owners(folder: Path, name: str, files: list[str] | tuple[str, ...]) -> None:
+    """Refuse (InputError, exit 2) a set `name` that would write a file another set's manifest
+    in `folder` names, or a manifest file itself: each set owns its files, so one run never
+    replaces or removes another's (a model `summary` and a sigma-delta run's summary.json, models
+    `a` with --format all and `a_xspice` both writing a_xspice.lib)."""
+    own = folder / f"{name}{MANIFEST}"
+    for manifest in sorted(folder.glob(f"*{MANIFEST}")):
+        other = manifest.name[: -len(MANIFEST)]
+        taken = sorted(set(files) & ({manifest.name} | set(manifest_files(manifest)))) if manifest != own else []
+        if taken:
+            raise InputError(
+                str(folder),
+                "output folder",
+                f"the set {name!r} would write {', '.join(taken)}, which the set {other!r} there owns "
+                f"(its {manifest.name})",
+                f"write {name!r} into another -o folder, or rename the model so its files do not "
+                f"collide with {other!r}'s",
+            )
+
+
+def owned_by_others(folder: Path, name: str) -> set[str]:
+    """The files the manifests of sets other than `name` in `folder` name (never removed as this set's)."""
+    own = folder / f"{name}{MANIFEST}"
+    return {f for m in folder.glob(f"*{MANIFEST}") if m != own for f in [m.name, *manifest_files(m)]}
 
 
 def check_manifest(folder: str | Path, name: str) -> list[str]:

@@ -13,13 +13,9 @@ comment, start a SPICE card, a `.control` block, a `*#` command line or a Verilo
 
 from __future__ import annotations
 
-import os
 import re
 import textwrap
 import unicodedata
-from pathlib import Path
-
-from .errors import InputError
 
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 OTHER = re.compile(r"[^ -~]")  # anything but printable ASCII: the characters `allowed` looks at
@@ -103,24 +99,3 @@ def comment_lines(text: object, marker: str = SPICE, width: int = WIDTH) -> str:
         out += [f"{marker} {inert(part, marker)}".rstrip() for part in wrapped]
     return "\n".join(out)
 
-
-def netlist_path(path: object, folder: str | Path | None = None) -> str:
-    """A file path to write into a netlist card (`.include PATH`, VACASK `load "PATH"`): refused
-    when it holds a character that would end the card or the quoted string. `folder`: the one the
-    netlist runs in; a path inside it (links not followed, e.g. a staging folder's osdi -> ../osdi,
-    netgen.folders.OutputFolder) is written relative to it, so the kept netlist reruns from the
-    folder the run is moved to; any other path absolute (symlinks resolved)."""
-    text = str(path)
-    if folder is not None:
-        inside, base = Path(os.path.abspath(path)), Path(os.path.abspath(folder))
-        text = str(inside.relative_to(base)) if inside.is_relative_to(base) else str(Path(path).resolve())
-    quote = next((ch for ch in '"\\' if ch in text), None)
-    problem = text_problem(text) or (f"contains {quote!r}" if quote else None)
-    if problem:
-        raise InputError(
-            escape(text),
-            "path",
-            f"the path {problem}, so it cannot be written into a netlist",
-            "choose an output folder whose path has printable characters only, no quote or backslash",
-        )
-    return text

@@ -29,6 +29,8 @@ SHARED = (
     "plots",
     "executor",
     "text",
+    "names",  # the name policy every reader and emitter shares
+    "paths",  # the writer of paths into simulator input (emit, sim, testbench)
 )
 # the pipeline's order: a stage may import the shared modules, itself and the stages before it
 STAGES = (

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from typing import Any, NoReturn
 
 from ..errors import ModelError
+from ..names import GROUND, duplicate, model_problem, rename_fix, reserved
 from ..text import escape, is_identifier, shown, text_problem
 
 KINDS = ("translation", "rotation", "mode")
@@ -119,6 +120,7 @@ def check_names(c: Checker, d: dict) -> None:
     for i, row in enumerate(electrodes):
         c.name(f"electrodes[{i}].name", row.get("name"))
     names = [e["name"] for e in electrodes]
+    check_policy(c, d["name"], d["plate"], names)
     for i, row in enumerate(c.entries(d, "capacitances")):
         c.choice(f"capacitances[{i}].electrode", row.get("electrode"), tuple(names))
         c.choice(f"capacitances[{i}].target", row.get("target"), TARGETS)
@@ -126,6 +128,24 @@ def check_names(c: Checker, d: dict) -> None:
     check_calibration(c, d.get("calibration", {}), tuple(names))
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
+
+
+def check_policy(c: Checker, model: str, plate: str, electrodes: list[str]) -> None:
+    """The name policy (netgen.names): a model name no dialect or run file reserves, a plate
+    that is not ground, electrode names no dialect reserves, all distinct case-insensitively."""
+    problem = model_problem(model)
+    if problem:
+        c.fail("name", f"model name {problem}", rename_fix(model) + "; " + FIX)
+    if plate.lower() in GROUND:
+        c.fail("plate", f"plate {plate!r} is ground in ngspice (0, gnd)", FIX)
+    seen = {plate.lower(): plate}
+    for i, name in enumerate(electrodes):
+        problem = reserved(name)
+        earlier = duplicate(name, seen)
+        if earlier is not None:
+            problem = f"{name!r} is also the name of {earlier!r} (case-insensitive in SPICE)"
+        if problem:
+            c.fail(f"electrodes[{i}].name", f"electrode name {problem}", rename_fix(name) + "; " + FIX)
 
 
 def check_couplings(c: Checker, d: dict, names: tuple[str, ...]) -> None:

@@ -168,7 +168,8 @@ def build_record(cm: str | Path) -> Path:
     return Path(cm).with_suffix(".json")
 
 
-CODEMODEL_LINE = re.compile(r"^\s*(?:pre_)?codemodel\s+(\S+)", re.I | re.M)
+# the path as netgen.paths.spice_command writes it ('quoted'), or a bare word
+CODEMODEL_LINE = re.compile(r"^\s*(?:pre_)?codemodel\s+(?:'([^']*)'|(\S+))", re.I | re.M)
 
 
 def check_code_models(netlist: str, workdir: Path) -> None:
@@ -177,8 +178,8 @@ def check_code_models(netlist: str, workdir: Path) -> None:
     switches). Code models without netgen's build record beside them are not netgen's to judge,
     except netgen's own library names, whose record a build always writes."""
     here = None
-    for text in CODEMODEL_LINE.findall(netlist):
-        cm = Path(os.path.expanduser(text))
+    for quoted, bare in CODEMODEL_LINE.findall(netlist):
+        cm = Path(os.path.expanduser(quoted or bare))
         cm = cm if cm.is_absolute() else Path(workdir) / cm
         record = build_record(cm)
         if not record.exists():

@@ -36,6 +36,7 @@ from ..emit import ngspice as emit_ngspice
 from ..emit.common import time_scale
 from ..errors import InputError, SimulationError, SimulatorNotFound
 from ..model import MacroModel
+from ..paths import spice_card, spice_command
 from ..text import comment_text
 from . import ngspice
 from .libngspice import ENV, INSTALL_HINT, Library, library
@@ -174,7 +175,7 @@ def run_text(
     where = str(log) if log is not None else "(pass workdir to keep it)"
     try:
         if cir is not None:
-            command(ng, f"source {cir}")
+            command(ng, f"source {spice_command(cir)}")
         else:
             load(ng, netlist)
         check_load(ng.lines[start:], cir, where)
@@ -191,12 +192,13 @@ def run_text(
 
 
 def save(netlist: str, workdir: Path, name: str) -> Path:
-    """workdir/name.cir with the netlist, for ngspice's `source` (a path without spaces)."""
+    """workdir/name.cir with the netlist, for ngspice's `source` (a path netgen.paths.spice_command
+    writes, under 1000 characters)."""
     cir = workdir / f"{name}.cir"
-    if len(str(cir)) > 1000 or re.search(r"\s", str(cir)):
+    spice_command(cir)  # refused (exit 2) before anything is written
+    if len(str(cir)) > 1000:
         raise SimulationError(
-            f"{cir}: ngspice's source command takes a path without spaces of under "
-            f"1000 characters; use another run folder"
+            f"{cir}: ngspice's source command takes a path of under 1000 characters; use another run folder"
         )
     workdir.mkdir(parents=True, exist_ok=True)
     cir.write_text(netlist)
@@ -412,13 +414,7 @@ class ModelCircuit:
             lib.write_text(emit_ngspice.subcircuit(model))
         lib = Path(lib).absolute()
         where = str(lib)
-        if re.search(r"\s", where):
-            raise InputError(
-                where,
-                "library path",
-                "ngspice's .include takes a path without spaces",
-                "move the .lib to a folder without spaces",
-            )
+        include = f".include {spice_card(lib)}"  # the path quoted, or refused (netgen.paths)
         node_of = check_nodes(model, nodes or {}, where)
         drive = drive or {}
         known = {p["name"]: p["kind"] for p in model.ports()}
@@ -439,7 +435,7 @@ class ModelCircuit:
             )
         # the title is the deck's first card: one line, its controls escaped (netgen.text)
         circuit = Circuit(comment_text(title) if title else f"netgen {model.name} through PySpice")
-        circuit.include(str(lib))
+        circuit.raw_spice = include  # not Circuit.include: it writes the path unquoted
         circuit.X(instance, model.name, *[node_of[p["name"]] for p in model.ports()])
         sources = {}
         for p in model.ports():

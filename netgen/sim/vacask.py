@@ -17,7 +17,7 @@ from pathlib import Path
 from ..emit.osdi import ANSI, INSTALL_HINT, compile_va, compiled, openvaf
 from ..errors import SimulationError, SimulatorNotFound
 from ..model import MacroModel
-from ..text import netlist_path
+from ..paths import vacask_string
 from . import process
 from .rawfile import Plot, last_time, read_raw
 
@@ -55,7 +55,7 @@ class VacaskBench:
         lines = [
             f"netgen test bench for {self.model.name}",
             "ground 0",
-            f'load "{netlist_path(Path(self.osdi).resolve())}"',
+            f"load {vacask_string(Path(self.osdi).resolve())}",
             f"model mems {self.model.name}",
             "model vsource vsource",
             "x1 (" + " ".join(ports) + ") mems",

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..names import rename_fix, reserved
 from ..units import UnitError, parse_quantity
 from .reader import Reader, check_keys, choice, identifier, integer, nonnegative, positive, quantity
 
@@ -55,13 +56,22 @@ def electrode_tables(rd: Reader, doc: dict, missing: str, fix: str, each: str) -
 def unique_name(
     rd: Reader, t: dict, where: str, seen: set[str], what: str, each: str, fix: str, forbidden: tuple[str, ...] = ()
 ) -> str:
-    """An [[electrodes]] table's name: an identifier (not one of `forbidden`) not used before."""
+    """An [[electrodes]] table's name: an identifier (not one of `forbidden`) that no emitted
+    dialect reserves (netgen.names.reserved) and not used before, case-insensitively (`seen`
+    holds the lower-case names)."""
     name = t.get("name")
     if not identifier(name) or name in forbidden:
         raise rd.fail(f"{where}.name", f"name {name!r} is not a simple identifier", fix)
-    if name in seen:
-        raise rd.fail(f"{where}.name", f"{what} name {name!r} used twice", f"give each {each} its own name")
-    seen.add(name)
+    problem = reserved(name)
+    if problem:
+        raise rd.fail(f"{where}.name", f"{what} name {problem}", rename_fix(name))
+    if name.lower() in seen:
+        raise rd.fail(
+            f"{where}.name",
+            f"{what} name {name!r} used twice (names are compared case-insensitively: SPICE reads drv and DRV as one)",
+            f"give each {each} its own name",
+        )
+    seen.add(name.lower())
     return name
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 from ..constants import GASES
 from ..errors import StructureError
 from ..files import toml_document
+from ..names import duplicate, model_problem, rename_fix, reserved
 from ..text import escape, text_problem
 from .bem_table import read_bem
 from .conductors import CONDUCTORS
@@ -104,7 +105,9 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     t = table(rd, doc, "conductor", required=True)
     kind = choice(rd, t, "conductor", "kind", list(CONDUCTORS), default="free_disk")
     conductor = CONDUCTORS[kind].read(rd, t, kind)
+    model_name(rd, name)
     sets = conductor.read_electrodes(rd, doc)
+    electrode_names(rd, sets)
     coords = conductor.read_coordinates(rd, doc)
     sampling, fit = read_sampling(rd, doc, coords.count), read_fit(rd, doc)
     if sampling.design == "grid" and fit.degree >= sampling.levels:
@@ -137,6 +140,27 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
         damping=read_damping(rd, doc, conductor.coordinate_names(coords), getattr(conductor, "sprung_rigid", False)),
         imports=read_imports(rd, doc),
     )
+
+
+def model_name(rd: Reader, name: str) -> None:
+    """Refuse a model name an emitted dialect or a run's own files reserve (netgen.names)."""
+    problem = model_problem(name)
+    if problem:
+        raise rd.fail("name", f"model name {problem}", rename_fix(name))
+
+
+def electrode_names(rd: Reader, sets: list) -> None:
+    """Refuse electrode names (a set's derived <set>_r<i>s<j> too) that a dialect reserves or that
+    repeat another set's case-insensitively (netgen.names)."""
+    seen: dict[str, str] = {}
+    for i, s in enumerate(sets):
+        for name in s.electrode_names():
+            problem = reserved(name)
+            earlier = duplicate(name, seen)
+            if earlier is not None:
+                problem = f"{name!r} is also the name of electrode {earlier!r} (case-insensitive in SPICE)"
+            if problem:
+                raise rd.fail(f"electrodes[{i}].name", f"electrode name {problem}", rename_fix(s.name))
 
 
 def load_structure(path: str | Path) -> Structure:

@@ -38,6 +38,7 @@ from pathlib import Path
 
 from ... import __version__
 from ...errors import CodeModelError, SimulationError
+from ...paths import spice_command
 from .. import process
 from ..ngspice import build_record, identity
 from . import source
@@ -273,4 +274,4 @@ def control_lines(*cms: Path) -> list[str]:
     """The .control lines a netlist using code-model libraries needs: load them before the
     circuit is parsed, and keep ngspice's trtol (an XSPICE 'A' device otherwise lowers it to 1
     for the whole circuit: several times the time points)."""
-    return [f"pre_codemodel {cm}" for cm in cms] + ["pre_set xtrtol=7"]
+    return [f"pre_codemodel {spice_command(cm)}" for cm in cms] + ["pre_set xtrtol=7"]

@@ -20,10 +20,10 @@ from ...emit.common import check_names
 from ...errors import CodeModelError
 from ...files import write_files_atomic
 from ...model import MacroModel
+from ...paths import spice_card
 from ...sim import codemodel
 from ...sim.ngspice import run_control, same_build
 from ...templating import render
-from ...text import netlist_path
 from . import filters
 from .analysis import levitation, per_clock
 from .inputs import input_text, mechanical_inputs, tone_unit
@@ -109,10 +109,10 @@ def testbench(
     quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
     "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them);
     `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3; `folder`: the one it runs in
-    (the .include of a `lib` inside it relative, text.netlist_path)."""
+    (the .include of a `lib` inside it relative, netgen.paths.spice_card)."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
-    check_names(model)  # names outside comments; the paths below through netlist_path
+    check_names(model)  # names outside comments; the paths below through netgen.paths
     if loop != "xspice" and d.t.fb_ramp == 0:
         raise ValueError(
             f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
@@ -134,7 +134,7 @@ def testbench(
         version=__version__,
         model=model,
         d=d,
-        lib=netlist_path(lib, folder),
+        lib=spice_card(lib, folder),
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
         forces=force_sources(model, d, tone, start * d.ts),

@@ -22,8 +22,8 @@ from ...emit import osdi
 from ...errors import SimulatorNotFound
 from ...files import write_files_atomic
 from ...model import MacroModel
+from ...paths import spice_command
 from ...sim import ngspice as sim_ngspice
-from ...text import netlist_path
 from .vacask import blocks_source, compile_model
 
 ALTERNATIVES = (
@@ -74,5 +74,5 @@ def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
     return {
         "lib": osdi_lib,
         "ngspice": version.label,
-        "control": [f"pre_osdi {netlist_path(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS],
+        "control": [f"pre_osdi {spice_command(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS],
     }

@@ -22,10 +22,10 @@ from ... import __version__
 from ...emit import veriloga
 from ...emit.common import check_names
 from ...model import MacroModel
+from ...paths import vacask_string
 from ...sim.rawfile import Plot
 from ...sim.vacask import compiled, print_progress, run_vacask
 from ...templating import render
-from ...text import netlist_path
 from . import filters
 from .inputs import input_text, mechanical_inputs, tone_unit
 from .loop import Design, Tone
@@ -161,8 +161,8 @@ def testbench(
     folder: Path | None = None,
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
-    `folder`, where it runs, for what lies inside it (text.netlist_path), else absolute."""
-    check_names(model)  # names outside comments; the paths below through netlist_path
+    `folder`, where it runs, for what lies inside it (netgen.paths.vacask_string), else absolute."""
+    check_names(model)  # names outside comments; the paths below through netgen.paths
     if tone:
         tone.unit = tone_unit(model, tone)
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
@@ -172,8 +172,8 @@ def testbench(
         version=__version__,
         model=model,
         d=d,
-        model_osdi=netlist_path(model_osdi if folder else Path(model_osdi).resolve(), folder),
-        blocks_osdi=netlist_path(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
+        model_osdi=vacask_string(model_osdi if folder else Path(model_osdi).resolve(), folder),
+        blocks_osdi=vacask_string(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
         cycles=cycles,
         ports=ports,
         forces=force_sources(model, d, tone),
