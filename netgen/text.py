@@ -98,4 +98,3 @@ def comment_lines(text: object, marker: str = SPICE, width: int = WIDTH) -> str:
         ) or [""]
         out += [f"{marker} {inert(part, marker)}".rstrip() for part in wrapped]
     return "\n".join(out)
-
