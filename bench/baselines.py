@@ -2,7 +2,7 @@
 (netgen.emit.ngspice) is measured against in bench/sigma_delta.py and bench/callgrind.py:
 
   naive   every charge and force written out inline (no shared nodes, no contact model, no
-          noise): design.md's "cost of naive emission";
+          noise): docs/performance.md, 'Where it started: the cost of naive emission';
   nodes   the previous shared-node emission: each P_k (and its contact clamp) and each force
           node y = dv2 slope / P^2 as a B-source, the charges as `C ... Q=` capacitors; the rest
           (mechanics, stops, film, inertial loads) as in the product .lib.
@@ -76,7 +76,7 @@ BASELINES = {"naive": lambda model, noise=False: naive_subcircuit(model), "nodes
 
 
 def naive_subcircuit(model: MacroModel) -> str:
-    """The benchmark baseline (design.md "cost of naive emission"): the same
+    """The benchmark baseline (docs/performance.md, 'the cost of naive emission'): the same
     ports and states, but every charge written out as c_ref * sum_k 1/P_k(xs) with the polynomials
     inline and every generalized force as one B-source holding the derivative polynomials of all
     terms, -c_ref/(2 L) sum_i dv_i^2 sum_k dP_k/dxs / P_k^2: no shared nodes, no contact model,

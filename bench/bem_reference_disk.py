@@ -2,7 +2,7 @@
 electrodes, 10 um slots) at enlarged gaps: the analytic extractor (parallel plate over the
 local gap + edge fringe, netgen.electrostatics.parallel_plate) against the BEM extractor
 (netgen.electrostatics.bem) for each plate-electrode capacitance and its z and tilt
-derivatives; the adjacent-sector couplings against design.md's 5-15 %; the trend of the
+derivatives; the adjacent-sector couplings against the earlier 5-15 % (docs/bem.md); the trend of the
 differences extrapolated to the reference g/R = 3/473 = 0.0063.
 
     .venv/bin/python bench/bem_reference_disk.py                    # g/R = 0.05 and 0.02
@@ -346,7 +346,7 @@ def table(r: dict) -> str:
         lines.append(row)
     c = np.array(r["adjacent_coupling_ratio"])
     lines.append(
-        f"adjacent-sector coupling / plate-sector C: {100 * c.min():.1f} .. {100 * c.max():.1f} % (design.md: 5-15 %)"
+        f"adjacent-sector coupling / plate-sector C: {100 * c.min():.1f} .. {100 * c.max():.1f} % (earlier BEM check: 5-15 %)"
     )
     return "\n".join(lines)
 

@@ -2,7 +2,8 @@
 examples/calibrated_disk.toml, in the format a field solver's export is converted to
 (netgen.electrostatics.coupling_file). The values are synthetic, not a field solution: the
 plate-electrode entries are the parallel-plate extractor with Palmer's edge fringe, adjacent
-sectors couple at 10 % of the sector capacitance (design.md's BEM check: 5-15 %), varying by
+sectors couple at 10 % of the sector capacitance (docs/bem.md, 'A disk between 8 + 8 sector
+electrodes': 5-15 %), varying by
 +-1 % with z, and every conductor has 1 fF to infinity; 5 points (rest, +-z, +-tilt_x), printed
 to 6 significant digits as a solver would. Run from the repository root:
 

@@ -4,10 +4,10 @@ every fixed electrode, from bempp-cl's Laplace single layer (Galerkin, piecewise
 Each conductor is a graded triangulation (netgen.electrostatics.bem_mesh): the plate is moved
 by its generalized coordinates q (rigid motion and mode shapes, w = basis(x, y) q, applied to
 every plate vertex), electrodes are sheets at their gaps. One dense matrix A (V sigma = u), one
-LU factorisation (design.md: OpenBLAS Cholesky segfaulted at 20k unknowns; LU does not), one
-right-hand side per conductor: C = eps B^T A^-1 B, B the element areas of each conductor.
+LU factorisation (blocked Cholesky above LU_LIMIT unknowns: dense_solve), one right-hand side
+per conductor: C = eps B^T A^-1 B, B the element areas of each conductor.
 
-Accuracy (design.md, "Measured: boundary-element check"): bempp uses one quadrature rule for
+Accuracy (docs/bem.md, 'Quadrature and element size'): bempp uses one quadrature rule for
 all non-touching element pairs, so the element size facing a gap g sets the order: elements up
 to 2g need order 4, 4g order 8, 8g order 12 (QUADRATURE). Every solve runs on two mesh levels
 (sizes in the ratio BemSettings.refinement) and Richardson-extrapolates; the correction is the
@@ -34,15 +34,15 @@ from .bem_mesh import Sizes, Surface, electrode_sheet, thick_plate
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 
 BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
-# largest element facing a gap, in gaps -> bempp's regular quadrature order (design.md); a rule
+# largest element facing a gap, in gaps -> bempp's regular quadrature order (docs/bem.md); a rule
 # holds up to SLACK times its limit (a sample point closing a gap by a few % keeps its order)
 QUADRATURE: tuple[tuple[float, int], ...] = ((2.0, 4), (4.0, 8), (8.0, 12))
 SLACK = 1.1
 BYTES_PER_ENTRY = 10.0  # the dense matrix (factorised in place) and bempp's assembly buffers
 # largest system for LAPACK's LU (dense_solve). Measured with scipy 1.17.1 (OpenBLAS 0.3.31), 2
 # threads: getrf segfaults at 22k unknowns (random and BEM matrices), works at 20k and with one
-# thread; design.md saw potrf segfault at 20k. Above it the blocked Cholesky, whose threaded
-# parts are matrix products only.
+# thread; an earlier OpenBLAS's threaded potrf segfaulted at 20k (docs/bem.md, 'Costs'). Above it
+# the blocked Cholesky, whose threaded parts are matrix products only.
 LU_LIMIT = 16000
 
 

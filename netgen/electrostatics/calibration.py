@@ -12,7 +12,7 @@ diagonal. From it:
   coordinate (the forces are derivatives of C);
 - the constant electrode-electrode coupling matrix is the mean of -M[i, j] over the points, with
   its spread (standard deviation, min, max) recorded: the couplings barely move with the plate
-  (design.md, "Measured: boundary-element check").
+  (docs/bem.md, 'A disk between 8 + 8 sector electrodes').
 
 Points (`design`): the centre, then +-h along each coordinate in turn (h = `span` x touching
 amplitude), then seeded random points in that box.

@@ -1,6 +1,6 @@
 """The parallel-plate extractor: plate-to-electrode capacitances C_i(q) of a vertically deforming
-plate between fixed electrodes (design.md, "Measured: boundary-element check of the capacitance
-extractor").
+plate between fixed electrodes (its accuracy: docs/bem.md, 'The field checks behind the analytic
+extractor').
 
 The plate surface moves only vertically, w(x, y; q) = sum_v q_v phi_v(x, y).  An electrode on
 side s (+1 above, -1 below) at surface gap g sees the local gap g_loc = g - s w.  Its capacitance
@@ -36,7 +36,7 @@ from .base import ProbePoints
 class EdgeFringe:
     """Fringe capacitance per unit edge length, eps * (a + b ln(L/g)), at local gap g.
 
-    The default (a=0.42, b=0.06) is design.md's boundary-element calibration for a plate
+    The default (a=0.42, b=0.06) is the boundary-element calibration for a plate
     between two electrodes (0.600 / 0.656 / 0.685 eps0 at g/L = 0.05 / 0.02 / 0.01; the
     defaults pass through the first two points and are 1.7 % high at the third).
     `length` None means "the plate's size" (DiskPlate: radius; RectPlate: shorter side).
@@ -251,7 +251,7 @@ class ParallelPlateExtractor:
     overrides `fringe`).  coupling: a given constant coupling matrix (nel, nel) in F (a calibration's
     or a file's, netgen.electrostatics.coupling_file; overrides coupling_per_length).  coupling_per_length: F/m of
     shared slot edge between neighbouring coplanar electrodes (a calibration value, e.g. from
-    one BEM run; design.md finds 5-15 % of the disk-sector capacitance, nearly position
+    one BEM run; docs/bem.md finds 5-15 % of the disk-sector capacitance, nearly position
     independent).  neighbour_gap: largest edge separation counted as "neighbouring"
     (None: the larger slot of the two shapes).  order / edge_order: Gauss points per panel.
     chunk_elements: samples are processed in chunks of about this many (sample, point) pairs.

@@ -87,7 +87,7 @@ class DiskPlate:
 
     @property
     def size(self) -> float:
-        """Reference length L for the edge fringe: the radius (design.md's ln(R/g))."""
+        """Reference length L for the edge fringe: the radius (the ln(R/g) of docs/bem.md)."""
         return self.radius
 
     @property

@@ -1,6 +1,6 @@
 """The BEM extractor (netgen.electrostatics.bem) against independent solutions: two coaxial
 disks against Love's integral equation (solved by Nystrom in closed_forms.love_disks), two
-squares against Palmer's formula and design.md's earlier converged BEM, a sphere against
+squares against Palmer's formula and the earlier converged BEM (docs/bem.md, 'Two 1 mm squares'), a sphere against
 4 pi eps R; the Maxwell matrix's symmetry and row sums; monotone capacitance under a rigid
 translation; the memory budget. Coarse meshes (two levels + Richardson) that meet the stated
 tolerances; the converged runs are in bench/bem_reference_disk.py.
@@ -61,8 +61,8 @@ def test_love_reference_is_converged():
 @pytest.mark.parametrize("g, best, palmer_tol", [(50 * UM, 23.40, 0.025), (20 * UM, 53.75, 0.015)])
 def test_two_squares_against_palmer(g, best, palmer_tol):
     """Two 1 mm squares: Palmer's first-order formula is +2.1 % / +1.2 % above the converged BEM
-    of design.md at g = 50 / 20 um (its neglected corner terms); the coarse BEM is within that of
-    Palmer, below it, and within 0.5 % of design.md's converged value (eps0*mm)."""
+    (docs/bem.md, 'Two 1 mm squares') at g = 50 / 20 um (its neglected corner terms); the coarse BEM
+    is within that of Palmer, below it, and within 0.5 % of the converged value (eps0*mm)."""
 
     def meshes(k):
         s = COARSE.sizes(g, k, MM)
@@ -151,8 +151,8 @@ def test_memory_budget_stops_with_a_clear_error():
 
 
 def test_registry_and_quadrature_rule():
-    """[electrostatics] extractor = "bem" is registered; the quadrature order follows design.md's
-    element-to-gap rule and refuses elements over 8 gaps."""
+    """[electrostatics] extractor = "bem" is registered; the quadrature order follows the
+    element-to-gap rule of docs/bem.md, 'Quadrature and element size', and refuses elements over 8 gaps."""
     assert EXTRACTORS["bem"] is bem.from_structure
     assert [bem.quadrature_order(r) for r in (1.0, 2.0, 3.0, 4.0, 4.3, 4.5, 8.0)] == [4, 4, 8, 8, 8, 12, 12]
     with pytest.raises(bem.BemBudgetError, match="element_to_gap"):

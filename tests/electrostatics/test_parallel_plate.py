@@ -2,7 +2,8 @@
 
 References: closed forms (parallel plate, Palmer 1937, Kirchhoff, circle/strip geometry,
 Green's-theorem areas), scipy adaptive quadrature, central finite differences, and the
-boundary-element figures recorded in design.md.  None compares the code with its own output.
+boundary-element figures of docs/bem.md, 'The field checks behind the analytic extractor'.  None
+compares the code with its own output.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from netgen.mechanics import rigid_basis
 from tests.geometry.references import SLOT, corner_radius, green_area, quadrants, side_point
 
 R = 500e-6  # plate radius
-G = R / 200  # gap, the reference geometry of design.md
+G = R / 200  # gap, the reference geometry of docs/bem.md's field checks (g/L = 1/200)
 PLATE = DiskPlate(R)
 MM = 1e-3
 UM = 1e-6
@@ -172,7 +173,7 @@ def test_single_sample_and_chunking_agree():
 # ----------------------------------------------------------------------------- fringe
 
 
-BEM_SQUARES = {50 * UM: 23.40, 20 * UM: 53.75, 5 * UM: 205.0}  # design.md, eps0 * mm, two 1 mm squares
+BEM_SQUARES = {50 * UM: 23.40, 20 * UM: 53.75, 5 * UM: 205.0}  # docs/bem.md, 'Two 1 mm squares', eps0 * mm
 
 
 def two_squares(g: float, fringe: EdgeFringe | None) -> float:
@@ -196,10 +197,10 @@ def test_two_squares_against_palmer(g):
 
 @pytest.mark.parametrize("g", sorted(BEM_SQUARES))
 def test_two_squares_against_bem(g):
-    """Against design.md's BEM: within 1.5 % (model is +1.35 / +1.02 / +0.09 % at 50 / 20 / 5 um)."""
+    """Against the converged BEM: within 1.5 % (model is +1.35 / +1.02 / +0.09 % at 50 / 20 / 5 um)."""
     bem = BEM_SQUARES[g] * EPS0 * MM
     assert two_squares(g, EdgeFringe.palmer(MM)) == pytest.approx(bem, rel=0.015)
-    assert palmer_rectangle(EPS0, MM, MM, g) > bem  # design.md: Palmer lies above BEM
+    assert palmer_rectangle(EPS0, MM, MM, g) > bem  # docs/bem.md: Palmer lies above BEM
     assert two_squares(g, None) < 0.98 * bem  # without fringe, eps A / g is 2.4-14.5 % low
 
 
@@ -211,7 +212,8 @@ def test_disk_with_kirchhoff_fringe():
 
 
 def test_default_fringe_represents_bem_calibration():
-    """Default a, b vs design.md's plate-between-electrodes BEM: least-squares fit and pointwise error.
+    """Default a, b vs the plate-between-electrodes BEM (docs/bem.md, 'A plate between two electrodes:
+    the default fringe'): least-squares fit and pointwise error.
 
     BEM: 0.600 / 0.656 / 0.685 eps0 per unit edge length at g/L = 0.05 / 0.02 / 0.01.  The
     least-squares fit of a + b ln(L/g) is a = 0.443, b = 0.053; the defaults 0.42 / 0.06 pass

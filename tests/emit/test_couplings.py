@@ -1,7 +1,7 @@
 """Constant electrode-electrode couplings through every emitted form (netgen.emit; the MacroModel's
 coupling matrix), on the reference model with a hand-made coupling matrix: adjacent sectors of a
 ring couple at 10 % of the electrode's capacitance at rest, the inner and outer electrode of a
-sector at 5 % (design.md's BEM check found 5-15 %).
+sector at 5 % (the BEM check of docs/bem.md, 'A disk between 8 + 8 sector electrodes', found 5-15 %).
 
 - the .lib, _xspice.lib and .va headers list every capacitor with its value, and the netlists hold
   one linear capacitor (or ddt contribution) per pair with exactly that value;

@@ -1,7 +1,7 @@
 """Physics checks of netgen.mechanics against independent references.
 
-References: the free-plate lambda^2 table in design.md (from Leissa's exact frequency
-equation), the paper's eigenfrequencies, closed-form rigid-body integrals, the analytic
+References: the free-plate lambda^2 table (docs/structure-files.md, 'Free-plate frequencies';
+Leissa's exact frequency equation), the paper's eigenfrequencies, closed-form rigid-body integrals, the analytic
 Bessel mode shape, and quadratures of ``shape()`` written here (polar Gauss grid).
 """
 
@@ -13,11 +13,12 @@ from scipy.special import iv, ivp, jv, jvp
 from netgen.mechanics.free_disk import free_disk_modes, rigid_disk
 from netgen.mechanics.kirchhoff import free_plate_lambda2_exact
 
-# design.md, free circular Kirchhoff plate, lambda^2 for (2,0), (0,1), (3,0), (1,1), (4,0)
+# free circular Kirchhoff plate, lambda^2 for (2,0), (0,1), (3,0), (1,1), (4,0) (Leissa, NASA SP-160;
+# docs/structure-files.md, 'Free-plate frequencies')
 TABLE_NS = [(2, 0), (0, 1), (3, 0), (1, 1), (4, 0)]
 TABLE = {0.30: [5.3583, 9.0031, 12.4390, 20.4746, 21.8352], 0.33: [5.2620, 9.0689, 12.2439, 20.5131, 21.5272]}
 
-# the paper's plate (design.md "Reference example")
+# the paper's plate (docs/structure-files.md, 'The reference disk')
 R, H, E, NU, RHO = 473e-6, 10e-6, 160e9, 0.22, 2330.0
 REF_LABELS = ["2,0c", "2,0s", "3,0c", "3,0s", "0,1", "1,1c", "1,1s"]
 

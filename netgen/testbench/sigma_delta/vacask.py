@@ -33,7 +33,8 @@ from .loop import Design, Tone
 BLOCKS = Path(__file__).resolve().parent / "blocks.va"
 TEMPLATE = "sigma_delta/tb.vacask.j2"
 LOG = "sigma_delta.vacask.log"
-# VACASK options: the ngspice bench's reltol and chgtol (maxstep is given on the analysis, design.md).
+# VACASK options: the ngspice bench's reltol and chgtol (maxstep is given on the analysis:
+# docs/simulators.md, 'VACASK netlists').
 # tran_fbr=0.1: after every pulse corner VACASK restarts with a backward-Euler step, by default up
 # to 0.25 of the distance to the next corner; at the bench's reltol and maxstep that made every
 # feedback impulse 0.45 % short (a pulse drive of the model alone against solve_ivp); 0.1 leaves
