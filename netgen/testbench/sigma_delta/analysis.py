@@ -14,21 +14,37 @@ from ...model import MacroModel
 from .loop import Design, Tone, duty
 
 
-def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
-    """Bits (+-1) and coordinates sampled once per period, in the feedback phase."""
+def per_clock(plot, d: Design, cycles: int, model: MacroModel, start: int = 0) -> dict[str, np.ndarray]:
+    """Bits (+-1) and coordinates sampled once per period, in the feedback phase; where the plot
+    has the lead-filter outputs v(y_<c>), the comparator input y + dither at the end of the latch
+    window (`cmp_<c>`, V; `start`: the first period's index, for the dither's phase)."""
     t = np.asarray(plot["time"])
     if t[-1] < 0.999 * cycles * d.ts:
         raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
     at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
+    n = np.arange(cycles)
     out: dict[str, np.ndarray] = {}
-    for c in d.names:
+    for ch in d.channels:
+        c = ch["name"]
         level = np.interp(at, t, plot[f"v(b_{c})"])
         out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
         out[f"latch_{c}"] = level  # the held latch level (ideally 0 or 1): soft decisions
+        y = _optional(plot, f"v(y_{c})")
+        if y is not None:
+            y = np.interp((n + d.t.clk + d.t.sample) * d.ts, t, y)
+            out[f"cmp_{c}"] = y + ch["dither_v"] * np.sin(ch["dither_step"] * (n + start))
     for c in model.coordinates:
         out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
     out["time"] = at
     return out
+
+
+def _optional(plot, name: str) -> np.ndarray | None:
+    """A vector the plot may lack (the lead-filter outputs of a run that did not save them)."""
+    try:
+        return plot[name]
+    except KeyError:
+        return None
 
 
 def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
