@@ -14,6 +14,7 @@ import itertools
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
+from scipy import integrate, optimize
 
 from ...constants import G
 from ...model import MacroModel
@@ -98,6 +99,14 @@ class Design:
     # it rang: held levels up to 0.53 off 0/1 in 16 % of the periods, i.e. partial feedback forces
     # while the bitstream recorded +-1 (measured in a 160-period window of a 2300-period run).
     latch_settle: float = 2.0
+    # regeneration (blocks.va's sd_quantizer): while the latch clock is low, positive feedback
+    # I(b) += g_regen (1 - clk) (V(b) - f(V(b))), f(v) = (1 + tanh(latch_gain (v - 1/2))) / 2, the
+    # cross-coupled pair of a real latch: stable at 0 and 1 (within 2 e^-latch_gain), unstable at
+    # 1/2 with growth rate (latch_gain / 2 - 1) / tau_r, tau_r = C_s / g_regen = latch_regen T_s.
+    # Without it the held level kept e^-2 of the previous one (the track above) and ngspice's time
+    # steps over the latch window up to 0.31 (bench/sigma_delta_latch.py): partial forces.
+    latch_gain: float = 12.0
+    latch_regen: float = 0.01
 
     @property
     def feedback_basis(self) -> dict:
@@ -143,6 +152,24 @@ class Design:
     def g_latch(self) -> float:
         """Latch-switch conductance: C_s settles `latch_settle` time constants within the clock pulse."""
         return self.latch_settle * self.cs / (self.t.sample * self.ts)
+
+    @property
+    def g_regen(self) -> float:
+        """Latch regeneration conductance: C_s / (latch_regen T_s)."""
+        return self.cs / (self.latch_regen * self.ts)
+
+    @property
+    def latch_hold(self) -> float:
+        """The regeneration time the latch has (s): from the end of its window (plus half a clock
+        edge) to the start of the feedback phase's edge, where the electrode drive reads the bit."""
+        t = self.t
+        return (t.fb_on - t.fb_ramp / 2 - t.clk - t.sample - t.edge / 2) * self.ts
+
+    @property
+    def latch_resolution(self) -> float:
+        """The comparator's resolution (V): the smallest |y + dither| that the latch holds within
+        1e-3 of 0 or 1 by the feedback phase, whatever it held before (latch_resolution())."""
+        return latch_resolution(self.vcmp, self.latch_settle, self.latch_gain, self.latch_regen * self.ts, self.latch_hold)
 
     @property
     def g_switch(self) -> float:
@@ -380,6 +407,24 @@ def pick(given, spec: LoopSpec, key: str, default):
         return given
     value = getattr(spec, key)
     return default if value is None else value
+
+
+def latch_resolution(vcmp: float, settle: float, gain: float, tau: float, hold: float, clean: float = 1e-3) -> float:
+    """Smallest |y| (V) the quantizer resolves to within `clean` of 0 or 1 in `hold` seconds.
+    The track leaves u0 = b - 1/2 = ((1 - m) tanh(y / vcmp) - m) / 2 with the previous decision
+    on the other rail (m = e^-settle: its share left after the track); regeneration then takes
+    tau int_u0^(1/2 - clean) du / (tanh(gain u) / 2 - u) to reach the rail. The resolution is the
+    y whose u0 just makes it: a hysteresis of about m vcmp plus the regeneration's own need."""
+    m = float(np.exp(-settle))
+
+    def time_from(u0: float) -> float:
+        return tau * integrate.quad(lambda u: 1.0 / (0.5 * np.tanh(gain * u) - u), u0, 0.5 - clean, limit=200)[0]
+
+    if time_from(0.5 * (1 - 2 * m)) > hold:  # not even a saturated input resolves
+        return float("inf")
+    lo = 1e-15
+    u_min = lo if time_from(lo) <= hold else optimize.brentq(lambda u: time_from(u) - hold, lo, 0.5 * (1 - 2 * m))
+    return float(vcmp * np.arctanh((2 * u_min + m) / (1 - m)))
 
 
 def design(
