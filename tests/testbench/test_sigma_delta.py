@@ -28,6 +28,7 @@ from netgen.testbench.sigma_delta import cli as sd_cli
 from netgen.testbench.sigma_delta import ngspice as sdn
 from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY
 from tests.fixtures import NGSPICE, ROOT, using_ngspice
+from tests.testbench.test_sigma_delta_latch import check_latches
 
 CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
@@ -137,14 +138,12 @@ def test_levitation_check_reports_the_first_period_past_the_limit(model, loop):
 
 
 def test_latches_hold_clean_decisions(loop):
-    """A 1-bit quantizer: in every feedback phase each latch holds (nearly) 0 or 1 V. The electrode
-    drive restores the level with bit(x) = (1 + tanh(40 (x - 0.5))) / 2, so a level within 0.3 of a
-    rail applies the full force (to 1e-7) and the bitstream records the force that acted. The latch
-    settles to e^-2 (0.135) by design; with the trapezoidal rule ringing on a stiffer latch switch
-    (settle e^-5), levels were up to 0.53 off in 16 % of the periods."""
-    for channel in CHANNELS:
-        ch = loop["channels"][channel]
-        assert ch["partial_latches"] == 0 and ch["max_latch_error"] < 0.3, channel
+    """A 1-bit quantizer: in every feedback phase each latch holds 0 or 1 V within 1e-3, unless its
+    comparator input at the latch instant was below the stated resolution (Design.latch_resolution;
+    check_latches): the regenerative latch of the stated model (blocks.va's sd_quantizer, the
+    B-source Breg lines; the compiled loop decides exactly). Before regeneration the track's
+    leftover e^-2 and ngspice's steps over the window left levels up to 0.31 off."""
+    check_latches(loop, CHANNELS)
 
 
 def _pulse(t: np.ndarray, tr: float, tf: float, pw: float, per: float) -> np.ndarray:

@@ -11,24 +11,40 @@ from scipy import signal
 from ...constants import K_B
 from ...errors import SimulationError
 from ...model import MacroModel
-from .loop import Design, Tone, duty
+from .loop import CLEAN_LATCH, Design, Tone, duty
 
 
-def per_clock(plot, d: Design, cycles: int, model: MacroModel) -> dict[str, np.ndarray]:
-    """Bits (+-1) and coordinates sampled once per period, in the feedback phase."""
+def per_clock(plot, d: Design, cycles: int, model: MacroModel, start: int = 0) -> dict[str, np.ndarray]:
+    """Bits (+-1) and coordinates sampled once per period, in the feedback phase; where the plot
+    has the lead-filter outputs v(y_<c>), the comparator input y + dither at the end of the latch
+    window (`cmp_<c>`, V; `start`: the first period's index, for the dither's phase)."""
     t = np.asarray(plot["time"])
     if t[-1] < 0.999 * cycles * d.ts:
         raise SimulationError(f"ngspice stopped at t = {t[-1]:.4g} s of {cycles * d.ts:.4g} s")
     at = (np.arange(cycles) + 0.5 * (d.t.fb_on + d.t.fb_off)) * d.ts
+    n = np.arange(cycles)
     out: dict[str, np.ndarray] = {}
-    for c in d.names:
+    for ch in d.channels:
+        c = ch["name"]
         level = np.interp(at, t, plot[f"v(b_{c})"])
         out[f"bits_{c}"] = np.where(level > 0.5, 1, -1).astype(np.int8)
         out[f"latch_{c}"] = level  # the held latch level (ideally 0 or 1): soft decisions
+        y = _optional(plot, f"v(y_{c})")
+        if y is not None:
+            y = np.interp((n + d.t.clk + d.t.sample) * d.ts, t, y)
+            out[f"cmp_{c}"] = y + ch["dither_v"] * np.sin(ch["dither_step"] * (n + start))
     for c in model.coordinates:
         out[f"x_{c.name}"] = np.interp(at, t, plot[f"v(x_{c.name})"])
     out["time"] = at
     return out
+
+
+def _optional(plot, name: str) -> np.ndarray | None:
+    """A vector the plot may lack (the lead-filter outputs of a run that did not save them)."""
+    try:
+        return plot[name]
+    except KeyError:
+        return None
 
 
 def psd(bits: np.ndarray, ts: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -167,7 +183,7 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
             **m,
             "notches": notches,
             "peaks": peaks,
-            **latch_quality(clock, c, skip),
+            **latch_quality(clock, c, skip, d.latch_resolution),
         }
         summary["spectra"][c] = (f, p)
     summary["gravity_balance"] = gravity_balance(clock, d, skip)
@@ -179,17 +195,34 @@ def analyse(clock: dict, d: Design, tone: Tone | None = None, osr: int = 64, ski
     return summary
 
 
-def latch_quality(clock: dict, channel: str, skip: int = 0) -> dict:
-    """How cleanly the latch held its decision: the worst distance of the held level from 0 or 1,
-    and the periods where the electrode drive's restoring bit(x) = (1 + tanh(40 (x - 1/2))) / 2
-    is more than 1e-3 off 0/1 (distance > 0.41): a partial feedback force while the bitstream
-    records +-1. Empty for clocks without latch levels (older bitstream files)."""
+def latch_quality(clock: dict, channel: str, skip: int = 0, resolution: float | None = None) -> dict:
+    """How cleanly the latch held its decision: the worst distance of the held level from 0 or 1;
+    the periods where the electrode drive's restoring bit(x) = (1 + tanh(40 (x - 1/2))) / 2 is
+    more than 1e-3 off 0/1 (distance > 0.41): a partial feedback force while the bitstream records
+    +-1; the held levels more than CLEAN_LATCH off 0/1 (`unclean_latches`) and of those the ones the
+    comparator's stated `resolution` (V, Design.latch_resolution) does not explain: |y + dither| at
+    the latch instant (cmp_<c>) at or above it, or not recorded (`unexplained_latches`). Empty for
+    clocks without latch levels (older bitstream files)."""
     level = clock.get(f"latch_{channel}")
     if level is None:
         return {}
     err = np.minimum(np.abs(level[skip:]), np.abs(level[skip:] - 1.0))
     restored = 0.5 - 0.5 * np.tanh(40.0 * (0.5 - err))  # drive error of bit() at that level
-    return {"partial_latches": int(np.sum(restored > 1e-3)), "max_latch_error": float(err.max(initial=0.0))}
+    unclean = err > CLEAN_LATCH
+    out = {
+        "partial_latches": int(np.sum(restored > 1e-3)),
+        "max_latch_error": float(err.max(initial=0.0)),
+        "unclean_latches": int(unclean.sum()),
+    }
+    y = clock.get(f"cmp_{channel}")
+    if y is None or resolution is None:
+        return out | {"unexplained_latches": out["unclean_latches"]}
+    y = np.abs(y[skip:])
+    return out | {
+        "below_resolution": int(np.sum(y < resolution)),
+        "unexplained_latches": int(np.sum(unclean & (y >= resolution))),
+        "min_cmp_over_resolution": float(y.min(initial=np.inf) / resolution),
+    }
 
 
 def levitation(clock: dict, model: MacroModel, limit: float = 0.02) -> dict:

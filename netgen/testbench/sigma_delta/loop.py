@@ -10,10 +10,12 @@ drives, feedback that cannot balance the input) is a LoopError naming the file a
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
+from scipy import integrate, optimize
 
 from ...constants import G
 from ...model import MacroModel
@@ -44,6 +46,9 @@ DITHER_DELTA = (0.0218, 0.0274, 0.0331, 0.0388, 0.0445, 0.0502)
 # the simulators' relative tolerance: range accepted from the CLI and sweep files
 RELTOL_RANGE = (1e-7, 1e-2)
 RELTOL_TEXT = "1e-7..1e-2"
+# the comparator's stated model (Design.latch_resolution): above its resolution a held level is
+# regenerated to within this of 0 or 1 (to 0.5 (1 - tanh(latch_gain / 2)) = 6e-6 at the default gain)
+CLEAN_LATCH = 1e-3
 
 
 @dataclass
@@ -98,6 +103,16 @@ class Design:
     # it rang: held levels up to 0.53 off 0/1 in 16 % of the periods, i.e. partial feedback forces
     # while the bitstream recorded +-1 (measured in a 160-period window of a 2300-period run).
     latch_settle: float = 2.0
+    # regeneration (blocks.va's sd_quantizer): while the latch clock is low, positive feedback
+    # I(b) += g_regen (1 - clk) (V(b) - f(V(b))), f(v) = (1 + tanh(latch_gain (v - 1/2))) / 2, the
+    # cross-coupled pair of a real latch: stable at 0 and 1 (within 2 e^-latch_gain), unstable at
+    # 1/2 with growth rate (latch_gain / 2 - 1) / tau_r, tau_r = C_s / g_regen = latch_regen T_s,
+    # at least half of tmax so that the trapezoidal rule cannot ring on it (at 0.01 T_s held levels
+    # overshot the rail by 1.8e-3 in ngspice at the feedback phase's start).
+    # Without it the held level kept e^-2 of the previous one (the track above) and ngspice's time
+    # steps over the latch window up to 0.31 (bench/sigma_delta_latch.py): partial forces.
+    latch_gain: float = 12.0
+    latch_regen: float = 0.025
 
     @property
     def feedback_basis(self) -> dict:
@@ -143,6 +158,20 @@ class Design:
     def g_latch(self) -> float:
         """Latch-switch conductance: C_s settles `latch_settle` time constants within the clock pulse."""
         return self.latch_settle * self.cs / (self.t.sample * self.ts)
+
+    @property
+    def g_regen(self) -> float:
+        """Latch regeneration conductance: C_s / (latch_regen T_s)."""
+        return self.cs / (self.latch_regen * self.ts)
+
+    @property
+    def latch_resolution(self) -> float:
+        """The comparator's resolution (V): the smallest |y + dither| that the latch holds within
+        CLEAN_LATCH of 0 or 1 where per_clock() reads it, whatever it held before (latch_resolution())."""
+        t = self.t
+        return latch_resolution(
+            self.vcmp, self.latch_settle, self.latch_gain, self.latch_regen, t, 0.5 * (t.fb_on + t.fb_off)
+        )
 
     @property
     def g_switch(self) -> float:
@@ -380,6 +409,37 @@ def pick(given, spec: LoopSpec, key: str, default):
         return given
     value = getattr(spec, key)
     return default if value is None else value
+
+
+@functools.lru_cache(maxsize=64)
+def latch_resolution(
+    vcmp: float, settle: float, gain: float, regen: float, t: Timing, read: float, clean: float = CLEAN_LATCH
+) -> float:
+    """Smallest |y| (V) that sd_quantizer holds within `clean` of its rail at the period phase
+    `read`, starting from the other rail (the worst previous decision): bisection on y of the
+    latch's own equation in the period phase p, db/dp = -settle / sample clk(p) (b - q(y))
+    - (1 - clk(p)) (b - f(b)) / regen (clk: sd_clocks' tanh window, q: the comparator's tanh of
+    y / vcmp, f: the regeneration's tanh of `gain`), integrated to 1e-8. It is the hysteresis of
+    the incomplete track (about e^-settle vcmp) plus what regeneration needs; inf when even a
+    saturated input does not make it."""
+    w = t.edge / 8
+
+    def held(x: float) -> float:
+        q = 0.5 + 0.5 * np.tanh(x)
+
+        def rate(p: float, b: np.ndarray) -> np.ndarray:
+            clk = 0.5 * (np.tanh((p - t.clk) / w) - np.tanh((p - t.clk - t.sample) / w))
+            f = 0.5 + 0.5 * np.tanh(gain * (b - 0.5))
+            return -settle / t.sample * clk * (b - q) - (1.0 - clk) * (b - f) / regen
+
+        sol = integrate.solve_ivp(
+            rate, (t.clk - 10 * w, read), [0.0], method="LSODA", rtol=1e-8, atol=1e-10, max_step=w
+        )
+        return float(sol.y[0, -1])
+
+    if held(30.0) < 1.0 - clean:
+        return float("inf")
+    return float(vcmp * optimize.brentq(lambda x: held(x) - (1.0 - clean), 0.0, 30.0, xtol=1e-6))
 
 
 def design(

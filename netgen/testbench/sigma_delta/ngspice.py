@@ -42,6 +42,10 @@ LOOPS = ("analog", "xspice", "osdi")
 # y > 0): y is offset by this many comparator widths, so the tanh comparator gives e^-10 there and
 # not the half-way level that fed back 0.94 of a bit (measured: the first state 6 % off)
 TIE = 5.0
+# the comparator inputs v(y_<c>) are saved (per_clock: the latch check against the comparator's
+# resolution, analysis.latch_quality) in segments of up to this many periods: 3 more vectors, about
+# 7 kB per period in ngspice's memory, which the longest one-segment (OSDI) runs cannot spare
+SAVE_Y_PERIODS = 8192
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0.0) -> list[dict]:
@@ -126,6 +130,8 @@ def testbench(
     # period with these 11, 1.8 GB for 2^16 periods; with the 3 lead-filter outputs too, over 2 GB)
     saves = ["time"] + [f"v(b_{c})" for c in d.names] + [f"v(x_{c.name})" for c in model.coordinates]
     saves += [f"v({n})" for n in states]
+    if loop != "xspice" and cycles <= SAVE_Y_PERIODS:
+        saves += [f"v(y_{c})" for c in d.names]
     stop = d.ts * cycles
     progress = [f"{stop * k / chunks:.6e}" for k in range(1, chunks)]
     return render(
@@ -427,7 +433,7 @@ def run_segments(
             cuts.append({"start": n0, "missed_at": n0 + first})
         if first is not None and first < keep:  # a miss in the first period is kept: progress
             accepted_misses.append(n0 + first)
-        part = per_clock(plot, d, keep, model)
+        part = per_clock(plot, d, keep, model, start=n0)
         part["time"] = part["time"] + n0 * d.ts
         parts.append(part)
         if states:
