@@ -181,7 +181,22 @@ def header_context(model: MacroModel) -> dict:
         "tie": num(PORT_TIE),
         "tie_text": tie_text,
         "fit_warning": model.fit_warning(),
+        "damping_text": damping_text(model),
     }
+
+
+def damping_text(model: MacroModel) -> str:
+    """The header's damping state: a model without [damping] is undamped (Q infinite), which a
+    testbench must know (free ringing, a bang-bang loop lets the mass wander)."""
+    damped = [c for c in model.coordinates if c.damping > 0 or c.film]
+    if not damped:
+        return "Damping: none ([damping] not given): every coordinate is undamped, Q infinite."
+    parts = []
+    for c in damped:
+        q = math.sqrt(c.stiffness * c.mass) / c.damping if c.damping > 0 and c.stiffness > 0 else math.inf
+        film = f" + {len(c.film)} squeeze-film branch(es)" if c.film else ""
+        parts.append(f"{c.name} {c.damping:.4g}{film} (Q {q:.4g})")
+    return "Damping (N*s/m or N*m*s/rad, Q at zero bias): " + ", ".join(parts) + "."
 
 
 def kinematics_text(model: MacroModel) -> str:
