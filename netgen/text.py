@@ -18,6 +18,7 @@ import re
 import textwrap
 import unicodedata
 from pathlib import Path
+from typing import TypeGuard
 
 from .errors import InputError
 
@@ -38,7 +39,7 @@ CONTROL_NAMES = {
 }
 
 
-def is_identifier(name: object) -> bool:
+def is_identifier(name: object) -> TypeGuard[str]:
     """A netlist name: ASCII letters, digits and _, starting with a letter (the whole string:
     a trailing newline is not part of a name)."""
     return isinstance(name, str) and IDENTIFIER.fullmatch(name) is not None
@@ -104,7 +105,7 @@ def comment_lines(text: object, marker: str = SPICE, width: int = WIDTH) -> str:
     return "\n".join(out)
 
 
-def netlist_path(path: object, folder: str | Path | None = None) -> str:
+def netlist_path(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """A file path to write into a netlist card (`.include PATH`, VACASK `load "PATH"`): refused
     when it holds a character that would end the card or the quoted string. `folder`: the one the
     netlist runs in; a path inside it (links not followed, e.g. a staging folder's osdi -> ../osdi,
