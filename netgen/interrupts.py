@@ -51,7 +51,7 @@ def _raise(signum: int, frame) -> None:
 def interrupted(exc: BaseException) -> Interrupted | None:
     """The interrupt behind `exc`: itself, one in its chain of causes, or (for an exception raised
     while a signal was being handled, e.g. an import cut short) the signal that arrived."""
-    seen = exc
+    seen: BaseException | None = exc
     while seen is not None:
         if isinstance(seen, KeyboardInterrupt):
             return seen if isinstance(seen, Interrupted) else Interrupted(signal.SIGINT)
@@ -121,7 +121,7 @@ def held() -> Iterator[None]:
         for s, handler in previous.items():
             signal.signal(s, handler)
         if arrived:
-            deliver(arrived[0], previous[arrived[0]])
+            deliver(arrived[0], previous[signal.Signals(arrived[0])])
 
 
 def deliver(signum: int, handler) -> None:

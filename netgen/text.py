@@ -16,6 +16,7 @@ from __future__ import annotations
 import re
 import textwrap
 import unicodedata
+from typing import TypeGuard
 
 IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 OTHER = re.compile(r"[^ -~]")  # anything but printable ASCII: the characters `allowed` looks at
@@ -34,7 +35,7 @@ CONTROL_NAMES = {
 }
 
 
-def is_identifier(name: object) -> bool:
+def is_identifier(name: object) -> TypeGuard[str]:
     """A netlist name: ASCII letters, digits and _, starting with a letter (the whole string:
     a trailing newline is not part of a name)."""
     return isinstance(name, str) and IDENTIFIER.fullmatch(name) is not None

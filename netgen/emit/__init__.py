@@ -100,11 +100,12 @@ def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list
     return the paths written."""
     chosen_ = chosen(model, fmt)
     # render everything before writing anything: a failing emitter or model leaves no output
-    texts: dict[Path, str | bytes] = {}
+    texts: dict[str | Path, str | bytes] = {}  # every key a Path (write_files_atomic takes str too)
     for f in chosen_:
-        texts[folder / f"{model.name}{EMITTERS[f].suffix}"] = EMITTERS[f].render(model)
-        extra = EMITTERS[f].extra(model) if EMITTERS[f].extra else {}
+        emitter = EMITTERS[f]
+        texts[folder / f"{model.name}{emitter.suffix}"] = emitter.render(model)
+        extra = emitter.extra(model) if emitter.extra else {}
         texts.update({folder / f"{model.name}{suffix}": content for suffix, content in extra.items()})
     texts[folder / f"{model.name}.json"] = model.json_text()
     write_files_atomic(texts)
-    return list(texts)
+    return [Path(p) for p in texts]

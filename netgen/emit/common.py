@@ -150,14 +150,14 @@ def header_context(model: MacroModel) -> dict:
     }[model.capacitances[0].target]
     degree = max(f.degree for f in model.capacitances)
     couplings = coupling_rows(model)
-    c = model.contact
+    ct = model.contact
     contact_text = (
         ""
-        if not c
+        if not ct
         else (
-            f"Contact: below {c['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
-            f"{c['floor']:g}), and {len(c.get('points', []))} stop points carry a penalty spring "
-            f"{c['stiffness']:.4g} N/m with damping {c['damping']:.4g} N*s/m, engaged over {c['smoothing']:g} of the gap"
+            f"Contact: below {ct['knee']:g} of its value at xs = 0 each P_k is clamped smoothly (never under "
+            f"{ct['floor']:g}), and {len(ct.get('points', []))} stop points carry a penalty spring "
+            f"{ct['stiffness']:.4g} N/m with damping {ct['damping']:.4g} N*s/m, engaged over {ct['smoothing']:g} of the gap"
             " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits)."
         )
     )
@@ -326,7 +326,8 @@ def contact_terms(
 ) -> tuple[list[dict], list[list[tuple[str, float]]]]:
     """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
     per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta."""
-    points, per_coord = [], [[] for _ in model.coordinates]
+    points: list[dict] = []
+    per_coord: list[list[tuple[str, float]]] = [[] for _ in model.coordinates]
     k = stop_constants(model)
     if k is None:
         return points, per_coord

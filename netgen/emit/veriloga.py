@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -151,17 +152,15 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
     clamps = model.term_clamps()
     for i, (row, f) in enumerate(zip(rows, model.capacitances)):
         dv2 = dv2_node(f.electrode)
-        cl = clamps[i] if clamps else [None] * len(f.polys)
+        cl: Sequence[tuple[float, float] | None] = clamps[i] if clamps else [None] * len(f.polys)
         row.update(
             {
                 "polys": [
                     {
                         "name": node(f.electrode, k),
-                        "expr": clamp_va(poly_expr(p, state, access=VA), *cl[k])
-                        if cl[k]
-                        else poly_expr(p, state, access=VA),
+                        "expr": clamp_va(poly_expr(p, state, access=VA), *ck) if ck else poly_expr(p, state, access=VA),
                     }
-                    for k, p in enumerate(f.polys)
+                    for k, (p, ck) in enumerate(zip(f.polys, cl))
                 ],
                 "dv2": dv2,
                 "charge": charge(f, model.plate, state),
@@ -171,10 +170,10 @@ def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
                     {
                         "name": y_node(f.electrode, k),
                         "expr": f"{dv2}"
-                        + (f" * {slope_expr(node(f.electrode, k), *cl[k])}" if cl[k] else "")
+                        + (f" * {slope_expr(node(f.electrode, k), *ck)}" if ck else "")
                         + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})",
                     }
-                    for k in range(len(f.polys))
+                    for k, ck in enumerate(cl)
                 ],
             }
         )

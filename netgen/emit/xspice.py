@@ -4,6 +4,8 @@ scaling and header as the B-source .lib (netgen.emit.ngspice), whose template it
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..model import MacroModel
@@ -54,7 +56,9 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form)."""
     n = model.ncoords
     clamps = model.term_clamps()
-    p = {k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")}
+    p: dict[str, Any] = {
+        k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
+    }
     for i, f in enumerate(model.capacitances):
         p["cref"].append(f.c_ref)
         p["c0"].append(rest_capacitance(f, n))

@@ -82,7 +82,7 @@ def adaptive_fits(
     batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))  # probes: twice the held-out points
     stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))
-    spent, validations, since = len(probes.points), 0, 0
+    spent, validations, since = design_size(probes), 0, 0
     fits, used = fit_round(s, shapes, basis, scales, train, probes, range(len(shapes)), [0] * len(shapes))
     result = AdaptiveResult(train, fits, spent)
     while True:
@@ -98,7 +98,7 @@ def adaptive_fits(
         )
         if worst.max() <= SAFETY * tol and validations < VALIDATIONS and len(stream.points) - stream.next >= pool_size:
             fresh = evaluate(stream.take(pool_size))  # points no patch or point choice has seen
-            spent, validations = spent + len(fresh.points), validations + 1
+            spent, validations = spent + design_size(fresh), validations + 1
             fresh_worst = errors(fits, fresh).max(axis=0)
             result.rounds[-1]["validation_max_rel_error"] = float(fresh_worst.max())
             say(progress, f"adaptive: fresh validation pool max error {fresh_worst.max():.2e}")
@@ -111,19 +111,19 @@ def adaptive_fits(
                 break
         if (
             worst.max() <= SAFETY * tol
-            or len(train.points) >= budget
+            or design_size(train) >= budget
             or stream.next >= len(stream.points)
             or (stalled(result.rounds[since:]) and form_limited(s, worst, used))
         ):
             result.converged = bool(worst.max() <= SAFETY * tol) and not validations  # unconfirmed else
             break
         score = (err / (SAFETY * tol)).max(axis=1)
-        pick = np.argsort(-score, kind="stable")[: min(batch, budget - len(train.points))]
+        pick = np.argsort(-score, kind="stable")[: min(batch, budget - design_size(train))]
         pick = pick[score[pick] > 1.0]
         keep = np.setdiff1d(np.arange(len(probes.x)), pick)
         train = train + Samples(probes.x[pick], probes.c[pick], 0, probes.x[pick])
         fresh = evaluate(stream.take(len(pick)))
-        spent += len(fresh.points)
+        spent += design_size(fresh)
         probes = Samples(probes.x[keep], probes.c[keep], 0, probes.x[keep]) + fresh
         failing = [i for i in range(len(shapes)) if worst[i] > SAFETY * tol]
         fits, used = fit_round(s, shapes, basis, scales, train, probes, failing, used, fits)
@@ -167,7 +167,8 @@ def fit_round(
 ) -> tuple[list[CapacitanceFit], list[int]]:
     """Refit the electrodes `which` on `train` (their patch count starting where the last round
     ended: a warm start), keep the others; errors against `check`."""
-    fits, used = list(previous) if previous else [None] * len(shapes), list(used)
+    fits: list[CapacitanceFit | None] = list(previous) if previous else [None] * len(shapes)
+    used = list(used)
     for i in which:
         fit, used[i] = fit_electrode(
             s,
@@ -184,7 +185,15 @@ def fit_round(
             rest_of(train, i),
         )
         fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])
-    return fits, used
+    done = [f for f in fits if f is not None]
+    assert len(done) == len(fits)  # the first round (no previous fits) refits every electrode
+    return done, used
+
+
+def design_size(samples: Samples) -> int:
+    """Every design point of `samples`, touching ones included (the point budget counts them)."""
+    assert samples.points is not None  # sample_points and the rounds below keep every design point
+    return len(samples.points)
 
 
 def say(progress: bool, text: str) -> None:

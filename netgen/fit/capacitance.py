@@ -48,13 +48,13 @@ class CapacitanceFit:
         """C(x) in farad."""
         if self.target == "direct":
             return self.c_ref * self.polys[0](x)
-        return self.c_ref * sum(1.0 / p(x) for p in self.polys)
+        return self.c_ref * sum((1.0 / p(x) for p in self.polys), np.zeros(len(x)))
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dC/dx in farad per unit of scaled coordinate, shape (npoints, ncoords)."""
         if self.target == "direct":
             return self.c_ref * self.polys[0].gradient(x)
-        out = 0.0
+        out = np.zeros(x.shape)
         for p in self.polys:
             v = p(x)
             out = out - p.gradient(x) / (v * v)[:, None]
@@ -141,12 +141,14 @@ def fit_plates(
 
     def rest_residual(a: np.ndarray) -> np.ndarray:
         """C(0) and dC/dx(0) against the extractor's, relative to C(0); in the basis x / span."""
+        assert rest is not None  # residual calls it only with a rest
         c0, g0 = rest
         a0 = a[:, 0]
         grad = -c_ref * np.sum(a[:, lin] / (a0 * a0)[:, None], axis=0) / sp
         return weight * np.concatenate([[c_ref * np.sum(1.0 / a0) / c0 - 1.0], (grad - g0) / c0])
 
     def rest_jacobian(a: np.ndarray) -> np.ndarray:
+        assert rest is not None  # jacobian calls it only with a rest
         c0, _ = rest
         a0 = a[:, 0]
         jac = np.zeros((1 + len(lin), k_terms, nterm))
@@ -189,7 +191,8 @@ def fit_electrode(
     o = s.fit
     if o.target != "plates":
         return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
-    best, used, best_ok = None, first, False
+    best: CapacitanceFit | None = None
+    used, best_ok = first, False
     for k in range(first, len(PATCH_GRIDS)):
         grid = PATCH_GRIDS[k]
         if grid[0] * grid[1] > o.max_terms or grid[0] * grid[1] * math.comb(
@@ -203,6 +206,9 @@ def fit_electrode(
             best, used, best_ok = fit, k, ok
         if ok and fit.max_rel_error <= o.tolerance:
             break
+    # check_determined and the adaptive start design (centre, axis ends and 16 (n + 1) Sobol points)
+    # give the first grid enough samples
+    assert best is not None, f"{name}: too few samples for {PATCH_GRIDS[first]} plate patches"
     return best, used
 
 
@@ -299,7 +305,8 @@ def fit_all(
     """One capacitance fit per electrode, in port order (refused when the samples cannot
     determine the fit's terms)."""
     check_determined(s, grid.x)
-    fits, start = [], {}
+    fits: list[CapacitanceFit] = []
+    start: dict[str, int] = {}
     for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr, leave=False)):
         ring = e.name.rsplit("s", 1)[0]  # electrodes of one ring share a patch grid
         fit, start[ring] = fit_electrode(

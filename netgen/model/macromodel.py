@@ -64,9 +64,10 @@ class Coordinate:
     def port_units(self) -> tuple[str, float, str, float]:
         return PORT_UNITS[self.unit]
 
-    def admittance(self, omega: float | np.ndarray) -> np.ndarray:
+    def admittance(self, omega: float | np.ndarray) -> np.ndarray | complex:
         """Complex damping B(omega) = damping + sum r / (1 + i omega / corner): the force per
-        unit velocity; Re B is the damping, -omega Im B the gas-spring stiffness."""
+        unit velocity; Re B is the damping, -omega Im B the gas-spring stiffness (a number for a
+        scalar omega, and the float damping itself without a film)."""
         w = np.asarray(omega, dtype=float)
         return self.damping + sum(r / (1.0 + 1j * w / c) for r, c in self.film)
 

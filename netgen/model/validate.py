@@ -69,15 +69,17 @@ class Checker:
         if value not in options:
             self.fail(where, f"{shown(value)} is not one of {', '.join(options)}")
 
-    def number(self, where: str, value: Any, integer: bool = False) -> None:
+    def number(self, where: str, value: Any, integer: bool = False) -> float:
+        """`value` itself, once it is a finite number (an integer if `integer`)."""
         ok = isinstance(value, int) if integer else isinstance(value, (int, float))
         if isinstance(value, bool) or not ok or not math.isfinite(value):
             self.fail(where, f"{shown(value)} is not a finite {'integer' if integer else 'number'}")
+        return value
 
     def entries(self, d: dict, key: str) -> list[dict]:
         """The list d[key] of JSON objects."""
         rows = d.get(key)
-        if not all(isinstance(r, dict) for r in rows):
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             self.fail(key, f"{key} must be a list of objects")
         return rows
 
@@ -172,8 +174,7 @@ def check_couplings(c: Checker, d: dict, names: tuple[str, ...]) -> None:
                 "give each pair once; " + FIX,
             )
         seen[key] = i
-        value = row.get("capacitance")
-        c.number(f"coupling[{i}].capacitance", value)
+        value = c.number(f"coupling[{i}].capacitance", row.get("capacitance"))
         if value < 0:
             c.fail(
                 f"coupling[{i}].capacitance",

@@ -133,6 +133,7 @@ def run(
 def _pump(proc: subprocess.Popen, lines: queue.Queue) -> None:
     """Reader thread: every output line into the queue, then None."""
     try:
+        assert proc.stdout is not None  # run opens it with stdout=PIPE
         for line in proc.stdout:
             lines.put(line)
     finally:

@@ -53,18 +53,20 @@ def read_bem(rd: Reader, t: dict, extractor: str, couplings: str | None) -> tupl
             + ": no BEM solve runs",
             'use extractor = "bem", or "calibrated" with calibration_points, or drop [electrostatics.bem]',
         )
-    out = {}
+    out: dict[str, float | int | None] = {}
     for key, value in table.items():
         if key not in KEYS:
             raise fail(
                 rd, key, f"unknown key '{key}'", f"{did_you_mean(key, list(KEYS))}allowed keys here: {', '.join(KEYS)}"
             )
         out[key] = number(rd, key, value)
-    if out.get("max_levels", 3) < out.get("levels", 2):
+    levels, max_levels = out.get("levels", 2), out.get("max_levels", 3)
+    assert isinstance(levels, int) and isinstance(max_levels, int)  # "int" keys in KEYS: number() gives int
+    if max_levels < levels:
         raise fail(
             rd,
             "max_levels",
-            f"max_levels = {out.get('max_levels', 3)} is below levels = {out.get('levels', 2)}",
+            f"max_levels = {max_levels} is below levels = {levels}",
             "make max_levels at least levels",
         )
     return tuple((k, out[k]) for k in KEYS if k in out)

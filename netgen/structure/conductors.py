@@ -149,7 +149,9 @@ class FreeDisk:
             )
         if not isinstance(coords.modes, int):
             for m in coords.modes:
-                n, s_ = (int(v) for v in MODE_LABEL.match(m).groups()[:2])
+                label = MODE_LABEL.match(m)
+                assert label is not None  # read_coordinates refused labels that do not match
+                n, s_ = (int(v) for v in label.groups()[:2])
                 if n > edges // 8 or s_ > edges // 32:
                     raise rd.fail(
                         "coordinates.modes",
@@ -170,6 +172,10 @@ class Suspended:
 
     outline_shape: ClassVar[str] = "rect"
     one_dimensional: ClassVar[bool] = False
+
+    def outline(self) -> tuple[float, float, float, float]:
+        """The body's rectangle (x0, x1, y0, y1), m: each suspended kind defines it."""
+        raise NotImplementedError
 
     def read_electrodes(self, rd: Reader, doc: dict) -> tuple:
         return rectangles(rd, doc, self.outline())
@@ -380,6 +386,7 @@ class Beam(Suspended):
         return Coordinates((), modes, accel)
 
     def coordinate_names(self, coords: Coordinates) -> list[str]:
+        assert isinstance(coords.modes, int)  # read_coordinates: a count (labelled modes are the free disk's)
         return [mode_name(str(k + 1)) for k in range(coords.modes)]
 
 
@@ -534,12 +541,13 @@ class ProofMass(Suspended):
         return self.flexure.type != "none"
 
     def coordinate_names(self, coords: Coordinates) -> list[str]:
+        assert isinstance(coords.modes, int)  # read_coordinates: a count (labelled modes are the free disk's)
         return list(coords.rigid) + [mode_name(str(k + 1)) for k in range(coords.modes)]
 
 
 # kind -> conductor class; a new kind is a dataclass with read / read_electrodes / read_coordinates /
 # read_fem / check / coordinate_names, one line here, and its mechanics (netgen.mechanics.KINDS)
-CONDUCTORS: dict[str, type] = {
+CONDUCTORS: dict[str, type[FreeDisk | Piston | Beam | ProofMass]] = {
     "free_disk": FreeDisk,
     "piston": Piston,
     "clamped_clamped_beam": Beam,

@@ -121,7 +121,8 @@ def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
         "add one [[electrodes]] table per side (see examples/levitated_disk.toml)",
         "set",
     )
-    sets, names = [], set()
+    sets: list[ElectrodeSet] = []
+    names: set[str] = set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
         check_keys(rd, where, t, ["name", "side", "gap", "rings", "sectors", "sector_start", "slot"])
@@ -207,7 +208,8 @@ def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]
         rd, doc, "missing electrodes", "add an [[electrodes]] table (see examples/cc_beam.toml)", "electrode"
     )
     x0, x1, y0, y1 = outline
-    out, names = [], set()
+    out: list[RectElectrode] = []
+    names: set[str] = set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
         check_keys(rd, where, t, ["name", "side", "gap", "x", "y"])
@@ -407,7 +409,8 @@ def plates_and_combs(rd: Reader, doc: dict, outline: tuple[float, float, float, 
     raw = electrode_tables(
         rd, doc, "missing electrodes", "add [[electrodes]] tables (see examples/accelerometer_xyz.toml)", "electrode"
     )
-    out, names = [], set()
+    out: list[RectElectrode | CombElectrode] = []
+    names: set[str] = set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
         name = unique_name(

@@ -4,6 +4,7 @@ or given stiffnesses (netgen.mechanics.flexures turns it into k_x ... k_rot)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from .reader import Reader, check_keys, choice, nonnegative, positive, quantity
 
@@ -75,7 +76,9 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
     q = lambda key, what, default=None: quantity(rd, raw, where, key, "length", default, positive, what)  # noqa: E731
     length, width = q("length", "beam length (crab leg: shin length)"), q("width", "beam width")
     axis = choice(rd, raw, where, "axis", ["x", "y"], "y")
-    out = dict(type=kind, length=length, width=width, thickness=q("thickness", "beam thickness", thickness), axis=axis)
+    out: dict[str, Any] = dict(
+        type=kind, length=length, width=width, thickness=q("thickness", "beam thickness", thickness), axis=axis
+    )
     if kind == "folded":
         out |= dict(
             truss_width=q("truss_width", "truss width", 4 * width), spacing=q("spacing", "beam spacing", 4 * width)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
+from typing import TypeGuard
 
 from ..errors import StructureError
 from ..files import did_you_mean
@@ -51,7 +52,10 @@ def toml_entries(lines: list[str]) -> tuple[list[tuple[int, tuple]], set[tuple[s
     """(line, path) of every table header and key line of a TOML text, a path being the names
     with the element index after each array of tables ([[electrodes]] twice: electrodes, 1); and
     the name paths of the arrays of tables. Lines inside multi-line strings are passed over."""
-    entries, counts, table, in_string = [], {}, (), False
+    entries: list[tuple[int, tuple]] = []
+    counts: dict[tuple[str, ...], int] = {}
+    table: tuple = ()
+    in_string = False
     for no, raw in enumerate(lines, start=1):
         line = raw.strip()
         quotes = line.count('"""') + line.count("'''")
@@ -84,7 +88,8 @@ def key_target(where: str, arrays: set[tuple[str, ...]]) -> tuple:
     """The path of an error's `where` ('electrodes[1].gap' -> electrodes, 1, gap; '[[electrodes]]'
     -> electrodes, 0): an array of tables named without an index means its first element."""
     parts = re.findall(r"\[\d+\]|[A-Za-z0-9_-]+", where)
-    out, names = [], ()
+    out: list = []
+    names: tuple[str, ...] = ()
     for k, part in enumerate(parts):
         if part.startswith("["):
             out.append(int(part[1:-1]))
@@ -199,7 +204,7 @@ def flag(rd: Reader, t: dict, where: str, key: str, default: bool, fix: str | No
     return value
 
 
-def identifier(name: object) -> bool:
+def identifier(name: object) -> TypeGuard[str]:
     """A simple name for netlists: letters, digits and _ (starting with a letter), not 'error'
     (PySpice treats any output line with that word as a simulator error)."""
     return is_identifier(name) and "error" not in name.lower()
@@ -216,4 +221,5 @@ def free_text(rd: Reader, where: str, value: object, what: str) -> str:
             f"write {what} as one line of printable text "
             "(no line breaks, tabs or other control characters): it is copied into the netlist headers",
         )
+    assert isinstance(value, str)  # text_problem refused every non-string
     return value

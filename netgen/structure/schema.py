@@ -57,13 +57,27 @@ def mode_name(label: str) -> str:
 
 
 class Conductor(Protocol):
-    """What every conductor kind (netgen.structure.conductors) offers the later stages."""
+    """What every conductor kind (netgen.structure.conductors) offers the later stages (read-only
+    properties: the kinds are frozen dataclasses)."""
 
-    kind: str
-    thickness: float
-    density: float
-    outline_shape: str  # "disk" (centred at the origin, `radius`) or "rect" (`outline()`)
-    one_dimensional: bool  # mode shapes vary along x only (beams)
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def thickness(self) -> float: ...
+
+    @property
+    def density(self) -> float: ...
+
+    @property
+    def outline_shape(self) -> str:
+        """ "disk" (centred at the origin, `radius`) or "rect" (`outline()`)."""
+        ...
+
+    @property
+    def one_dimensional(self) -> bool:
+        """Mode shapes vary along x only (beams)."""
+        ...
 
     @property
     def mass(self) -> float: ...

@@ -115,6 +115,7 @@ def unpack(source: Source, target: dict, work: Path, cache: Path, run: Callable[
     """The source tree (given, or Debian's unpacked into `work`), checked to be the target's release."""
     if source.tree is not None:
         return source.tree
+    assert source.debian is not None  # find: a Source is a tree or a Debian version
     tarball = fetch(source.debian, cache / "ngspice-source", run, target)
     with tarfile.open(tarball) as tar:
         members = [m for m in tar.getmembers() if _needed(m.name) and ".." not in m.name and not m.issym()]
