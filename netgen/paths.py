@@ -34,7 +34,7 @@ FIX = (
 )
 
 
-def placed(path: object, folder: str | Path | None = None) -> str:
+def placed(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """The text of `path` as the simulator should see it: relative to `folder` (where the
     netlist runs; links not followed, e.g. a staging folder's osdi -> ../osdi,
     netgen.folders.OutputFolder) when it lies inside it, so the kept netlist reruns from the
@@ -66,17 +66,17 @@ def checked(text: str, refused: str, dialect: str, collapse: bool = False) -> st
     return text
 
 
-def spice_card(path: object, folder: str | Path | None = None) -> str:
+def spice_card(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """`path` for an ngspice card, quoted: `.include {spice_card(lib)}`."""
     return '"' + checked(placed(path, folder), CARD, "an ngspice .include card") + '"'
 
 
-def spice_command(path: object, folder: str | Path | None = None) -> str:
+def spice_command(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """`path` for an ngspice .control command, quoted: `pre_codemodel {spice_command(cm)}`,
     `pre_osdi`, `codemodel`, `osdi`, `source`."""
     return "'" + checked(placed(path, folder), COMMAND, "an ngspice .control command", collapse=True) + "'"
 
 
-def vacask_string(path: object, folder: str | Path | None = None) -> str:
+def vacask_string(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """`path` for a VACASK netlist, quoted: `load {vacask_string(osdi)}`, `include ...`."""
     return '"' + checked(placed(path, folder), VACASK, "a VACASK netlist") + '"'

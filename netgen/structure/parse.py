@@ -8,7 +8,7 @@ tables whose form depends on it; this module reads the rest and the checks acros
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..constants import GASES
@@ -149,7 +149,7 @@ def model_name(rd: Reader, name: str) -> None:
         raise rd.fail("name", f"model name {problem}", rename_fix(name))
 
 
-def electrode_names(rd: Reader, sets: list) -> None:
+def electrode_names(rd: Reader, sets: Sequence) -> None:
     """Refuse electrode names (a set's derived <set>_r<i>s<j> too) that a dialect reserves or that
     repeat another set's case-insensitively (netgen.names)."""
     seen: dict[str, str] = {}
