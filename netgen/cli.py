@@ -17,7 +17,7 @@ from typing import Any
 from . import __version__
 from .arguments import Parser, existing_file, output_folder, positive
 from .build import build, figure_names, write_calibration, write_figures
-from .emit import EMITTERS, refusal, requested, write_outputs
+from .emit import EMITTERS, compiles, osdi, refusal, requested, write_outputs
 from .errors import InputError, NetgenError, StructureError
 from .executor import add_scheduler_option, executor
 from .folders import OutputFolder
@@ -49,8 +49,10 @@ def _build(args: argparse.Namespace) -> int:
         if fmt != "all" and refusal(model, fmt):
             print(f"netgen: {args.structure}: --format {fmt}: {refusal(model, fmt)}", file=sys.stderr)
             return 2
-    with OutputFolder(args.output, model.name, legacy=build_files(model.name)) as out:
-        written = write_outputs(model, out.stage, args.format)
+    cpu = osdi.target_cpu(args.native)
+    info = {"osdi": {"compiler": "openvaf-r", "target_cpu": cpu}} if compiles(args.format) else {}
+    with OutputFolder(args.output, model.name, info, legacy=build_files(model.name)) as out:
+        written = write_outputs(model, out.stage, args.format, cpu)
         if not args.no_plots:
             written += write_figures(result, out.stage)
         written += write_calibration(result, out.stage, figure=not args.no_plots)
@@ -108,6 +110,12 @@ def _add_build(sub) -> None:
         help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
         + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
         + "; all: every dialect the model has but osdi",
+    )
+    b.add_argument(
+        "--native",
+        action="store_true",
+        help="compile the .osdi for this machine's CPU (openvaf-r --target_cpu native: faster, but it may not "
+        "load elsewhere); default: the x86-64 baseline, which runs anywhere (the manifest names the target)",
     )
     b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
     b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")

@@ -31,8 +31,9 @@ class Emitter:
     refusal: Callable[[MacroModel], str | None]
     fix: str  # what to do about a refusal
     help: str
-    # files written beside it: suffix -> text or bytes (e.g. a compiled module)
-    extra: Callable[[MacroModel], dict[str, str | bytes]] | None = None
+    # files written beside it: suffix -> text or bytes (e.g. a compiled module); called as
+    # extra(model, cpu) with the compiler's target cpu (netgen.emit.osdi.GENERIC or NATIVE)
+    extra: Callable[[MacroModel, str], dict[str, str | bytes]] | None = None
     in_all: bool = True  # part of --format all
 
 
@@ -58,6 +59,11 @@ EMITTERS: dict[str, Emitter] = {
         in_all=False,
     ),
 }
+
+
+def compiles(fmt: str) -> bool:
+    """Whether a --format value writes a compiled module (an extra file such as the .osdi)."""
+    return any(EMITTERS[f].extra is not None for f in requested(fmt) if f != "all")
 
 
 def formats() -> list[str]:
@@ -95,16 +101,16 @@ def chosen(model: MacroModel, fmt: str) -> list[str]:
     return names
 
 
-def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice") -> list[Path]:
+def write_outputs(model: MacroModel, folder: Path, fmt: str = "ngspice", cpu: str = osdi.GENERIC) -> list[Path]:
     """Emit the requested dialects (see chosen) and the model JSON into `folder` (all or nothing);
-    return the paths written."""
+    return the paths written. cpu: the target of compiled forms (netgen.emit.osdi.target_cpu)."""
     chosen_ = chosen(model, fmt)
     # render everything before writing anything: a failing emitter or model leaves no output
     texts: dict[str | Path, str | bytes] = {}  # every key a Path (write_files_atomic takes str too)
     for f in chosen_:
         emitter = EMITTERS[f]
         texts[folder / f"{model.name}{emitter.suffix}"] = emitter.render(model)
-        extra = emitter.extra(model) if emitter.extra else {}
+        extra = emitter.extra(model, cpu) if emitter.extra else {}
         texts.update({folder / f"{model.name}{suffix}": content for suffix, content in extra.items()})
     texts[folder / f"{model.name}.json"] = model.json_text()
     write_files_atomic(texts)

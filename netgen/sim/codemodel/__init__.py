@@ -62,8 +62,12 @@ MODEL = Library("netgen_es", Path(__file__).resolve().parent)
 # --enable-pss) that change the layout of the device tables a code model hands to ngspice; the
 # target's KLU and OSDI are added where its headers test them (defines()).
 BASE_DEFINES = ("XSPICE", "CIDER", "WITH_PSS", "SIMULATOR")
+# -march/-mtune spelled out: the x86-64 baseline whatever the compiler's default (no -march=native),
+# so a code model built on one machine loads on another; the build record names these flags
 CFLAGS = [
     "-O3",
+    "-march=x86-64",
+    "-mtune=generic",
     "-fPIC",
     "-fvisibility=hidden",
     "-fno-math-errno",

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...errors import CodeModelError
+from . import aptsources
 
 ENV = "NETGEN_NGSPICE_SOURCE"
 # Members of the ngspice source tarball the build reads (configure.ac: the release it is).
@@ -154,7 +155,15 @@ def fetch(version: str, dest: Path, run: Callable[..., None], target: dict) -> P
     lists = dest / "apt-lists"
     (lists / "partial").mkdir(parents=True, exist_ok=True)
     src = dest / "deb-src.list"
-    src.write_text("".join(f"deb-src http://deb.debian.org/debian {s} main\n" for s in suites))
+    # the mirror(s) apt already uses for this release (netgen.sim.codemodel.aptsources)
+    release = suite.split("-")[0]
+    lines = aptsources.source_lines("deb-src", release, suites)
+    if not lines:
+        raise CodeModelError(
+            f"Debian's source of ngspice {version} is not reachable: {aptsources.missing(release)}; or set "
+            f"{ENV} to an unpacked source tree of that release. {fast_path(target)}"
+        )
+    src.write_text("".join(f"{ln}\n" for ln in lines))
     opts = [
         "-o",
         f"Dir::Etc::sourcelist={src}",

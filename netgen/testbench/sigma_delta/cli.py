@@ -154,6 +154,7 @@ def cli(args) -> int:
                 timeout=args.timeout,
                 loop=loop,
                 designed=d,
+                native=args.native,
                 **choices,
             )
         except SimulationError as exc:  # its paths: where the failed run's files are kept
@@ -333,6 +334,12 @@ def add_parser(sub) -> None:
         default=TIMEOUT,
         help=f"wall-clock limit of each simulator run in s (default {TIMEOUT:g}); a run past it is "
         "stopped and reported",
+    )
+    p.add_argument(
+        "--native",
+        action="store_true",
+        help="compile the Verilog-A (vacask, ngspice-osdi) for this machine's CPU (openvaf-r --target_cpu native: "
+        "faster on long runs); default: the x86-64 baseline (summary.json names the target)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")

@@ -54,25 +54,27 @@ def check(model: MacroModel) -> sim_ngspice.Version:
     return v
 
 
-def prepare(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+def prepare(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: str = osdi.GENERIC) -> dict:
     """Refuse an ngspice without OSDI, then compile the model (the .va next to `lib`, else the
-    emitted module) and the loop blocks into out/osdi (cached by text) and write the _osdi.lib;
-    the pre_osdi lines name them relative to `out`, where the bench runs and is kept."""
+    emitted module) and the loop blocks into out/osdi (cached by text and target `cpu`) and write
+    the _osdi.lib; the pre_osdi lines name them relative to `out`, where the bench runs and is kept."""
     version = check(model)
     va = Path(lib).with_suffix(".va")
     text = va.read_text(encoding="utf-8") if va.exists() else None
     if progress:
         print(
-            f"sigma-delta (ngspice-osdi): compiling the model and the loop blocks with openvaf-r for {version.label}",
+            f"sigma-delta (ngspice-osdi): compiling the model and the loop blocks with openvaf-r (target cpu "
+            f"{cpu}) for {version.label}",
             file=sys.stderr,
         )
     cache = out / "osdi"  # the model text VACASK compiles too
-    model_osdi = compile_model(model, cache, va if text is not None else None)
-    blocks_osdi = osdi.compiled(blocks_source(), "sigma_delta_blocks", cache)
+    model_osdi = compile_model(model, cache, va if text is not None else None, cpu)
+    blocks_osdi = osdi.compiled(blocks_source(), "sigma_delta_blocks", cache, cpu)
     osdi_lib = out / f"{model.name}_osdi.lib"
     write_files_atomic({osdi_lib: osdi.subcircuit(model)})
     return {
         "lib": osdi_lib,
         "ngspice": version.label,
+        "target_cpu": cpu,
         "control": [f"pre_osdi {spice_command(p, out)}" for p in (model_osdi, blocks_osdi)] + [THREADS],
     }

@@ -20,6 +20,7 @@ import numpy as np
 
 from ...build import build_key, build_model
 from ...emit import write_outputs
+from ...emit.osdi import target_cpu
 from ...errors import LoopError
 from ...folders import MANIFEST, OutputFolder, check_manifest
 from ...model import MacroModel
@@ -38,8 +39,8 @@ TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netge
 
 @dataclass(frozen=True)
 class Backend:
-    """prepare(model, lib, out, progress) -> state: what must exist before the timed run (code
-    models built, Verilog-A compiled), failing before any output; run(model, design, lib, out,
+    """prepare(model, lib, out, progress, cpu) -> state: what must exist before the timed run (code
+    models built, Verilog-A compiled for openvaf-r's target `cpu`), failing before any output; run(model, design, lib, out,
     cycles, tone, progress, segment, state) -> (clock, extra summary entries)."""
 
     prepare: Callable[..., dict]
@@ -47,11 +48,11 @@ class Backend:
     help: str
 
 
-def _no_preparation(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+def _no_preparation(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: str) -> dict:
     return {}
 
 
-def _code_models(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
+def _code_models(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: str) -> dict:
     return {"cms": ngspice.code_models(progress)}
 
 
@@ -87,22 +88,23 @@ def _run_ngspice(
         "segments": segments,
         "ngspice": ngspice_identity(),
         "solver": "klu" if klu else "sparse",
+        **({"target_cpu": state["target_cpu"]} if "target_cpu" in state else {}),
     }
 
 
-def _compile_osdi(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
-    return {"osdi": osdi.prepare(model, lib, out, progress)}
+def _compile_osdi(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: str) -> dict:
+    return {"osdi": osdi.prepare(model, lib, out, progress, cpu), "target_cpu": cpu}
 
 
-def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool) -> dict:
-    """Compile the model (the .va next to `lib`, else the emitted module) and the loop blocks,
-    cached in out/osdi, outside the run's wall time."""
+def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: str) -> dict:
+    """Compile the model (the .va next to `lib`, else the emitted module) and the loop blocks for
+    openvaf-r's target `cpu`, cached in out/osdi, outside the run's wall time."""
     va = Path(lib).with_suffix(".va")
     va = va if va.exists() else None
     start = time.perf_counter()
-    vacask.compile_model(model, out / "osdi", va)
-    vacask.compile_blocks(out / "osdi")
-    return {"va": va, "compile_s": time.perf_counter() - start}
+    vacask.compile_model(model, out / "osdi", va, cpu)
+    vacask.compile_blocks(out / "osdi", cpu)
+    return {"va": va, "compile_s": time.perf_counter() - start, "target_cpu": cpu}
 
 
 def _run_vacask(
@@ -118,9 +120,21 @@ def _run_vacask(
 ) -> tuple[dict, dict]:
     """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
     plot = vacask.run_bench(
-        model, d, out, cycles, tone, progress, va=state["va"], timeout=state.get("timeout", TIMEOUT)
+        model,
+        d,
+        out,
+        cycles,
+        tone,
+        progress,
+        va=state["va"],
+        timeout=state.get("timeout", TIMEOUT),
+        cpu=state["target_cpu"],
     )
-    extra = {"compile_s": state["compile_s"], "vacask": vacask_stats(out / vacask.LOG)}
+    extra = {
+        "compile_s": state["compile_s"],
+        "target_cpu": state["target_cpu"],
+        "vacask": vacask_stats(out / vacask.LOG),
+    }
     clock = per_clock(plot, d, cycles, model)
     del plot
     (out / "tran1.raw").unlink(missing_ok=True)
@@ -202,9 +216,12 @@ def run(
     timeout: float = TIMEOUT,
     loop: LoopSpec | None = None,
     designed: Design | None = None,
+    native: bool = False,
     **choices,
 ) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
+    native: compile the Verilog-A (vacask, ngspice-osdi) for this machine's CPU, not the x86-64
+    baseline (netgen.emit.osdi.target_cpu; the summary names the target).
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
     .va next to `lib` or else the module emitted from `model`); `loop`: the loop description
@@ -224,7 +241,7 @@ def run(
             f"{len(d.channels)} channels: the Verilog-A loop takes at most {vacask.MAX_CHANNELS}",
             "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice",
         )
-    state = backend.prepare(model, lib, out, progress)  # fails before any output
+    state = backend.prepare(model, lib, out, progress, target_cpu(native))  # fails before any output
     state["timeout"] = timeout  # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()

@@ -21,6 +21,7 @@ from pathlib import Path
 from ... import __version__
 from ...emit import veriloga
 from ...emit.common import check_names
+from ...emit.osdi import GENERIC
 from ...model import MacroModel
 from ...paths import vacask_string
 from ...sim.rawfile import Plot
@@ -58,19 +59,20 @@ def blocks_source() -> str:
     return BLOCKS.read_text(encoding="utf-8")
 
 
-def compile_model(model: MacroModel, cache: Path, va: Path | None = None) -> Path:
+def compile_model(model: MacroModel, cache: Path, va: Path | None = None, cpu: str = GENERIC) -> Path:
     """OSDI of the macromodel: the given .va, or the module netgen.emit.veriloga renders from the
-    model (the same text the build writes; the Verilog-A tests keep the two identical)."""
+    model (the same text the build writes; the Verilog-A tests keep the two identical), for
+    openvaf-r's target `cpu` (netgen.emit.osdi.target_cpu)."""
     if va is not None and Path(va).exists():
         text = Path(va).read_text(encoding="utf-8")
     else:
         text = veriloga.module(model)
-    return compiled(text, model.name, cache)
+    return compiled(text, model.name, cache, cpu)
 
 
-def compile_blocks(cache: Path) -> Path:
-    """OSDI of the loop-circuitry modules."""
-    return compiled(blocks_source(), "sigma_delta_blocks", cache)
+def compile_blocks(cache: Path, cpu: str = GENERIC) -> Path:
+    """OSDI of the loop-circuitry modules (for openvaf-r's target `cpu`)."""
+    return compiled(blocks_source(), "sigma_delta_blocks", cache, cpu)
 
 
 def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
@@ -214,10 +216,12 @@ def run_bench(
     cache: Path | None = None,
     options: str = "",
     timeout: float = 36000.0,
+    cpu: str = GENERIC,
 ) -> Plot:
-    """Compile (cached), render and run the VACASK bench in `out`; return its plot."""
+    """Compile (cached, for openvaf-r's target `cpu`), render and run the VACASK bench in `out`;
+    return its plot."""
     cache = cache or out / "osdi"
-    model_osdi = compile_model(model, cache, va)
-    blocks_osdi = compile_blocks(cache)
+    model_osdi = compile_model(model, cache, va, cpu)
+    blocks_osdi = compile_blocks(cache, cpu)
     bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options, folder=out)
     return simulate(bench, out, d.ts * cycles, progress, timeout)
