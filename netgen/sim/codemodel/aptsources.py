@@ -49,7 +49,9 @@ def one_line_entries(text: str) -> list[dict]:
 
 def deb822_entries(text: str) -> list[dict]:
     """The enabled `deb` stanzas of a deb822 .sources file."""
-    entries, fields, key = [], {}, None
+    entries: list[dict] = []
+    fields: dict[str, str] = {}
+    key: str | None = None
     for raw in [*text.splitlines(), ""]:
         if raw.startswith("#"):
             continue
