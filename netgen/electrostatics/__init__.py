@@ -3,19 +3,28 @@ their registry, and the sampling of C(q) (netgen.electrostatics.sampling)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import Protocol, runtime_checkable
 
 from ..constants import EPS0
 from ..errors import StructureError
 from ..geometry.shapes import Plate
-from ..structure import CombElectrode
+from ..structure import CombElectrode, Structure
 from . import bem, calibrated, parallel_plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
 from .comb import CombExtractor
 from .mixed import MixedExtractor
 
+
+@runtime_checkable
+class ExtractorBuilder(Protocol):
+    """An extractor's `from_structure`: the extractor a structure's [electrostatics] settings and
+    plate outline describe (s: netgen.structure.Structure)."""
+
+    def __call__(self, s: Structure, plate: Plate, /) -> CapacitanceExtractor: ...
+
+
 # [electrostatics] extractor -> builder(structure, plate outline): one line per extractor
-EXTRACTORS: dict[str, Callable[..., CapacitanceExtractor]] = {
+EXTRACTORS: dict[str, ExtractorBuilder] = {
     "parallel_plate": parallel_plate.from_structure,
     "calibrated": calibrated.from_structure,
     "bem": bem.from_structure,

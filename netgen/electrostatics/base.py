@@ -41,7 +41,8 @@ class CapacitanceExtractor(Protocol):
     `coupling` gives the constant electrode-electrode capacitances (nel, nel); `description`
     says in a line what it computes (the model report)."""
 
-    description: str
+    @property
+    def description(self) -> str: ...
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedExtractor: ...
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array: ...

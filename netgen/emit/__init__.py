@@ -8,13 +8,32 @@ is one module here, its template under templates/, and one line in EMITTERS; the
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 from ..files import write_files_atomic
 from ..model import MacroModel
 from . import ngspice, osdi, veriloga, xspice
+
+
+class Render(Protocol):
+    """A dialect's text of a model (the MacroModel is the contract: no physics here)."""
+
+    def __call__(self, model: MacroModel, /) -> str: ...
+
+
+class Refusal(Protocol):
+    """Why a model has no form in a dialect (None: it has)."""
+
+    def __call__(self, model: MacroModel, /) -> str | None: ...
+
+
+class Outputs(Protocol):
+    """Files written beside a dialect's main file: suffix -> text or bytes; `cpu` is the target
+    of anything compiled (netgen.emit.osdi.GENERIC or NATIVE)."""
+
+    def __call__(self, model: MacroModel, cpu: str, /) -> dict[str, str | bytes]: ...
 
 
 def always(model: MacroModel) -> str | None:
@@ -27,13 +46,13 @@ class Emitter:
     """One dialect: `render(model)` is the file's text, written as <name><suffix>."""
 
     suffix: str
-    render: Callable[[MacroModel], str]
-    refusal: Callable[[MacroModel], str | None]
+    render: Render
+    refusal: Refusal
     fix: str  # what to do about a refusal
     help: str
     # files written beside it: suffix -> text or bytes (e.g. a compiled module); called as
     # extra(model, cpu) with the compiler's target cpu (netgen.emit.osdi.GENERIC or NATIVE)
-    extra: Callable[[MacroModel, str], dict[str, str | bytes]] | None = None
+    extra: Outputs | None = None
     in_all: bool = True  # part of --format all
 
 

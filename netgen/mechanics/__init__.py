@@ -8,15 +8,24 @@ netgen.mechanics.imported (chosen by netgen.build).
 
 from __future__ import annotations
 
-from types import ModuleType
+from typing import Protocol, runtime_checkable
 
 from ..errors import StructureError
 from ..structure import Structure
 from . import beam, free_disk, piston, proof_mass
 from .base import Mechanics, StrainEnergy, participation, rigid_basis
 
+
+@runtime_checkable
+class MechanicsKind(Protocol):
+    """A conductor kind's mechanics: its coordinates with masses, stiffnesses, damping and shapes
+    (a module with this function satisfies it)."""
+
+    def mechanics(self, s: Structure) -> Mechanics: ...
+
+
 # conductor kind -> module with mechanics(structure) -> Mechanics: one line per kind
-KINDS: dict[str, ModuleType] = {
+KINDS: dict[str, MechanicsKind] = {
     "free_disk": free_disk,
     "piston": piston,
     "clamped_clamped_beam": beam,
@@ -36,4 +45,4 @@ def mechanics(s: Structure) -> Mechanics:
     return KINDS[kind].mechanics(s)
 
 
-__all__ = ["KINDS", "Mechanics", "StrainEnergy", "mechanics", "participation", "rigid_basis"]
+__all__ = ["KINDS", "Mechanics", "MechanicsKind", "StrainEnergy", "mechanics", "participation", "rigid_basis"]

@@ -6,9 +6,9 @@ simulator is one module on top of process and rawfile and one line here."""
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 from ..errors import InputError
 from . import ngspice, pyspice, vacask
@@ -18,15 +18,27 @@ from .rawfile import Plot, read_raw
 BINARY = re.compile(rb"[\x00-\x08\x0e-\x1a\x1c-\x1f]")
 
 
+class RunNetlist(Protocol):
+    """A simulator's run of netlist text in a run folder: the plots of its analyses."""
+
+    def __call__(self, netlist: str, workdir: Path, name: str, timeout: float, /) -> list[Plot]: ...
+
+
+class RunFile(Protocol):
+    """A simulator's run of a netlist file where it is (relative includes resolve against it)."""
+
+    def __call__(self, path: Path, workdir: Path, timeout: float, /) -> list[Plot]: ...
+
+
 @dataclass(frozen=True)
 class Simulator:
     """run(netlist text, run folder, name, timeout s) -> the plots of its analyses;
     run_file(netlist file, run folder, timeout s): the same for a file, run where it is (None:
     its text is run, so relative includes resolve as the simulator resolves them for text)."""
 
-    run: Callable[[str, Path, str, float], list[Plot]]
+    run: RunNetlist
     help: str
-    run_file: Callable[[Path, Path, float], list[Plot]] | None = None
+    run_file: RunFile | None = None
 
     def file(self, path: Path, workdir: Path, timeout: float) -> list[Plot]:
         """Run a netlist file (`netgen simulate`)."""

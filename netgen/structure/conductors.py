@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, Protocol, runtime_checkable
 
 from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
 from .flexures import Flexure, read_flexure
 from .reader import Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity, table
-from .schema import ALL_RIGID, MODE_LABEL, RIGID_COORDINATES, Coordinates, FemOptions, mode_name
+from .schema import ALL_RIGID, MODE_LABEL, RIGID_COORDINATES, Conductor, Coordinates, FemOptions, mode_name
 
 MAX_PLATE_MODES = 12  # internal modes of a proof mass (the plate mesh resolves them: netgen.mechanics.rect_plate)
 
@@ -545,9 +545,29 @@ class ProofMass(Suspended):
         return list(coords.rigid) + [mode_name(str(k + 1)) for k in range(coords.modes)]
 
 
-# kind -> conductor class; a new kind is a dataclass with read / read_electrodes / read_coordinates /
-# read_fem / check / coordinate_names, one line here, and its mechanics (netgen.mechanics.KINDS)
-CONDUCTORS: dict[str, type[FreeDisk | Piston | Beam | ProofMass]] = {
+@runtime_checkable
+class ConductorKind(Conductor, Protocol):
+    """What a conductor kind's dataclass provides to the structure reader (netgen.structure.parse):
+    itself from its [conductor] table, its electrodes, coordinates and FEM options, the checks
+    across them, and its coordinates' names (None: the reader's default)."""
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> ConductorKind: ...
+
+    def read_electrodes(self, rd: Reader, doc: dict) -> tuple: ...
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates: ...
+
+    def read_fem(self, rd: Reader, doc: dict) -> FemOptions: ...
+
+    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None: ...
+
+    def coordinate_names(self, coords: Coordinates) -> list[str] | None: ...
+
+
+# kind -> conductor class; a new kind is a dataclass satisfying ConductorKind, one line here, and
+# its mechanics (netgen.mechanics.KINDS)
+CONDUCTORS: dict[str, type[ConductorKind]] = {
     "free_disk": FreeDisk,
     "piston": Piston,
     "clamped_clamped_beam": Beam,

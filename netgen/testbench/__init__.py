@@ -7,10 +7,21 @@ sigma_delta/ (design, back ends on netgen.sim, analysis, cli) and one line here.
 
 from __future__ import annotations
 
-from types import ModuleType
+from typing import Any, Protocol, runtime_checkable
 
 from .sigma_delta import cli as sigma_delta_cli
 
-TESTBENCHES: dict[str, ModuleType] = {
+
+@runtime_checkable
+class TestbenchCommand(Protocol):
+    """A testbench's command-line module: `add_parser(subparsers)` adds its subcommand, whose
+    handler `cli(args)` returns the exit code."""
+
+    def add_parser(self, sub: Any) -> None: ...
+
+    def cli(self, args: Any) -> int: ...
+
+
+TESTBENCHES: dict[str, TestbenchCommand] = {
     "sigma-delta": sigma_delta_cli,
 }
