@@ -54,17 +54,26 @@ def test_heldout_accuracy_every_electrode(reference_model, fresh_points):
 
 
 def test_reported_errors_consistent_with_measured(reference_model, fresh_points):
-    """The JSON's max_rel_error (pipeline's 500 points) is of the order we measure on ours.
+    """The JSON's max_rel_error (the maximum over the pipeline's n_p held-out points) against our
+    own fresh uniform points in the same box, by order statistics rather than a measured ratio.
 
-    Both are maxima of the same smooth error function over the same box from a few hundred
-    uniform samples, so they should agree within a small factor (measured: 0.6-1.4)."""
+    Both maxima sample the same error |e(x)| under the same uniform law F. A maximum of n_p
+    independent draws stays below the F-quantile q only with probability F(q)^n_p, so the reported
+    maximum is at least our errors' quantile at level alpha^(1/n_p) except with probability alpha
+    (alpha = 1e-4 per electrode, 1.6e-3 for all 16; n_p = 474: our 98.1st percentile). Upward
+    nothing is derivable from samples: 300 random points in the 7-D box are ~0.9 r apart
+    ((1/300)^(1/7) of the box edge 2 r), so the error's supremum, which the reported maximum may
+    approach, can exceed our maximum by any factor a smooth error allows; the upper bound 3 M
+    stays a plausibility check resting on one machine's ratios (0.6-1.4), not a derivation."""
     x, c = fresh_points
-    measured = np.abs(reference_model.capacitance(x) / c - 1.0).max(axis=0)
+    errors = np.abs(reference_model.capacitance(x) / c - 1.0)
+    measured = errors.max(axis=0)
     reported_fits = reference_model.to_dict()["capacitances"]  # what the JSON says
     reported = np.array([d["max_rel_error"] for d in reported_fits])
-    ratio = measured / reported
-    assert np.all((ratio > 1 / 3) & (ratio < 3)), f"measured / reported max error: {np.round(ratio, 2)}"
-    assert 0.5 < measured.max() / reported.max() < 2
+    n_p = reference_model.sampling["holdout"]
+    floor = np.quantile(errors, 1e-4 ** (1.0 / n_p), axis=0)
+    assert np.all(reported >= floor), f"reported / floor: {np.round(reported / floor, 2)}"
+    assert np.all(reported < 3 * measured), f"reported / measured: {np.round(reported / measured, 2)}"
     rms = np.array([d["rms_rel_error"] for d in reported_fits])
     assert np.all(rms <= reported) and np.all(rms > reported / 20)
 

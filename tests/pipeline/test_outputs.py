@@ -22,94 +22,28 @@ import pytest
 from netgen import cli, emit
 from netgen.emit import osdi, xspice
 from netgen.emit.ngspice import subcircuit
+from netgen.fit.capacitance import PATCH_GRIDS
 from netgen.model import MacroModel
 from tests.fixtures import REFERENCE, ROOT
+from tests.staleness import (
+    FIT_SHARE,
+    RTOL,
+    coefficient_change,
+    compare_functions,
+    compare_json,
+    compare_text,
+    model_problems,
+    refit,
+    text_problems,
+    with_fit,
+    with_fits,
+)
 
 NETLISTS = ROOT / "netlists"
 NAME = "levitated_disk"
 REGENERATE = ".venv/bin/netgen build examples/levitated_disk.toml -o netlists --format all,osdi"
-RTOL = 1e-9
-
-# Standalone numbers (not digits inside names such as top_r1s1 or p_top_r1s1_2).
-NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?(?![\w.])")
-
-
-# ----------------------------------------------------------------------------- comparison helpers
-
-
-def _display_ulp(token: str) -> float:
-    """One unit in the last printed digit of a rounded number (e.g. '1.669e-03' -> 1e-6)."""
-    mantissa, _, exp = token.lower().partition("e")
-    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
-    return 10.0 ** (int(exp or 0) - decimals)
-
-
-def _logical_lines(text: str) -> list[str]:
-    """Lines with SPICE continuation lines ('+' first) appended to the line they continue."""
-    out: list[str] = []
-    for line in text.splitlines():
-        if line.startswith("+") and out:
-            out[-1] += " " + line[1:].strip()
-        else:
-            out.append(line)
-    return out
-
-
-def _compare_text(new: str, old: str, what: str, rounded_lines: str | None = None, numbers: bool = True) -> list[str]:
-    """Problems between two texts: text with every number masked must match exactly, and (if
-    `numbers`) the numbers within RTOL. On `rounded_lines` (comments of a netlist: numbers printed with a few
-    digits) a number may also flip its last printed digit (not more than 1e-3 relative), which a
-    1e-12 BLAS difference can do at a rounding boundary. SPICE continuation lines ("+ ...") are
-    joined to their line first: a long parameter vector wraps where its digits make it reach the
-    width, so a last-digit change can move a value to the next line."""
-    problems = []
-    new_lines, old_lines = _logical_lines(new), _logical_lines(old)
-    if len(new_lines) != len(old_lines):
-        problems.append(f"{what}: {len(new_lines)} lines now, {len(old_lines)} committed")
-    for k, (a, b) in enumerate(zip(new_lines, old_lines), start=1):
-        if NUMBER.sub("#", a) != NUMBER.sub("#", b):
-            problems.append(f"{what}:{k}: text differs\n    now:       {a[:160]}\n    committed: {b[:160]}")
-            continue
-        if not numbers:
-            continue
-        rounded = rounded_lines is not None and a.startswith(rounded_lines)
-        for ta, tb in zip(NUMBER.findall(a), NUMBER.findall(b)):
-            va, vb = float(ta), float(tb)
-            tol = RTOL * max(abs(va), abs(vb))
-            if rounded:
-                tol += min(_display_ulp(ta), _display_ulp(tb), 1e-3 * max(abs(va), abs(vb)))
-            if abs(va - vb) > tol:
-                problems.append(f"{what}:{k}: {ta} now, {tb} committed")
-                break
-    return problems
-
-
-# Dimensionless residual diagnostics of the FEM (orthogonality of the side conditions, the
-# rotation-mode coupling that should vanish): rounding noise at 1e-12..1e-17 that no
-# relative tolerance can compare; they must only stay negligible.
-NOISE = re.compile(r"^report\.mechanics\.(side_conditions\.\w+|rotation_mode_coupling\.(A|\w+_linear)_rel_max)$")
-
-
-def _compare_json(new, old, path: str = "") -> list[str]:
-    """Problems between two parsed JSON trees: same structure, strings and integers equal,
-    floats within RTOL (NOISE diagnostics: both below 1e-9)."""
-    if isinstance(old, dict):
-        if not isinstance(new, dict) or list(new) != list(old):
-            return [f"{path or 'top'}: keys {list(new) if isinstance(new, dict) else type(new)} vs {list(old)}"]
-        return [p for k in old for p in _compare_json(new[k], old[k], f"{path}.{k}" if path else k)]
-    if isinstance(old, list):
-        if not isinstance(new, list) or len(new) != len(old):
-            return [f"{path}: length {len(new) if isinstance(new, list) else type(new)} vs {len(old)}"]
-        return [p for i, (a, b) in enumerate(zip(new, old)) for p in _compare_json(a, b, f"{path}[{i}]")]
-    if isinstance(old, float) or isinstance(new, float):
-        if isinstance(new, bool) or not isinstance(new, (int, float)):
-            return [f"{path}: {new!r} vs {old!r}"]
-        if NOISE.match(path):
-            ok = abs(new) < 1e-9 and abs(old) < 1e-9
-        else:
-            ok = abs(new - old) <= RTOL * max(abs(new), abs(old))
-        return [] if ok else [f"{path}: {new!r} now, {old!r} committed"]
-    return [] if new == old and type(new) is type(old) else [f"{path}: {new!r} vs {old!r}"]
+# The comparison lives in tests/staleness.py (tests/test_netlists.py uses it too); these names stay.
+_compare_text, _compare_json = compare_text, compare_json
 
 
 def _stale(problems: list[str]) -> str:
@@ -123,24 +57,63 @@ def _stale(problems: list[str]) -> str:
 # ----------------------------------------------------------------------------- committed netlists
 
 
-def test_committed_netlists_are_current(reference_model):
+def test_committed_netlists_are_current(reference_build):
     """A fresh build of the reference example (the session build, loaded from the repository
-    root with the same relative path) matches netlists/ up to BLAS-level rounding."""
-    assert reference_model.source == REFERENCE
-    lib_new, json_new = subcircuit(reference_model), reference_model.json_text()
-    lib_old = (NETLISTS / f"{NAME}.lib").read_text(encoding="utf-8")
+    root with the same relative path) computes what the committed netlists/ compute: words and
+    layout identical, every number but the fit coefficients within rounding, the fitted C and
+    dC/dq within a hundredth of the fit's own held-out error (tests/staleness.py derives both)."""
+    model = reference_build.model
+    assert model.source == REFERENCE
+    x = np.vstack([reference_build.grid.x, reference_build.holdout.x])  # the samples and check points
     json_old = (NETLISTS / f"{NAME}.json").read_text(encoding="utf-8")
-    problems = _compare_text(lib_new, lib_old, f"{NAME}.lib", rounded_lines="*")
-    xspice_new = xspice.subcircuit(reference_model)
-    xspice_old = (NETLISTS / f"{NAME}_xspice.lib").read_text(encoding="utf-8")
-    problems += _compare_text(xspice_new, xspice_old, f"{NAME}_xspice.lib", rounded_lines="*")
+    problems = model_problems(model, json_old, x, f"{NAME}.json")
+    hybrid = with_fits(model, MacroModel.load_json(NETLISTS / f"{NAME}.json"))
     # the _osdi.lib (its .osdi is not committed: a platform binary that differs between compiles)
-    osdi_old = (NETLISTS / f"{NAME}_osdi.lib").read_text(encoding="utf-8")
-    problems += _compare_text(osdi.subcircuit(reference_model), osdi_old, f"{NAME}_osdi.lib", rounded_lines="*")
-    # the JSON: its text with numbers masked, then its numbers by key path (see NOISE)
-    problems += _compare_text(json_new, json_old, f"{NAME}.json", numbers=False) if not problems else []
-    problems += _compare_json(json.loads(json_new), json.loads(json_old)) if not problems else []
+    for suffix, render in ((".lib", subcircuit), ("_xspice.lib", xspice.subcircuit), ("_osdi.lib", osdi.subcircuit)):
+        old = (NETLISTS / f"{NAME}{suffix}").read_text(encoding="utf-8")
+        problems += text_problems(render(model), old, render(hybrid), f"{NAME}{suffix}")
     assert not problems, _stale(problems)
+
+
+def test_staleness_check_tolerates_refits_and_sees_real_changes(reference_build):
+    """The model comparison on planted changes of the reference build. Tolerated: each fit redone
+    from samples perturbed by 1e-9 relative (a rounding-level change: the coefficients move along
+    their ill-determined directions by far more than RTOL, so a coefficient-by-coefficient check
+    fails). Flagged: a mass 1e-6 relative (1000 RTOL) in the JSON and the netlist, one plate
+    term's constant coefficient 1e-3 relative (C moves by ~1e-3 / K ~ 2.5e-4, 100 times the
+    disk's tolerance FIT_SHARE * e ~ 2e-6), and another fit (the next patch grid), which differs
+    by about the fits' own error."""
+    b, model = reference_build, reference_build.model
+    x = np.vstack([b.grid.x, b.holdout.x])
+    committed = model.json_text()
+    moved = model
+    for i in range(len(model.capacitances)):
+        moved = with_fit(moved, i, refit(b, i, 1e-9, seed=i))
+    assert coefficient_change(moved, model) > 100 * RTOL  # the old coefficient check fails ...
+    assert compare_json(json.loads(moved.json_text()), json.loads(committed))
+    assert not model_problems(moved, committed, x, "t")  # ... this one does not
+    lib = subcircuit(model)
+    assert not text_problems(subcircuit(moved), lib, subcircuit(with_fits(moved, model)), "t.lib")
+
+    heavier = dataclasses.replace(model.coordinates[0], mass=model.coordinates[0].mass * (1 + 1e-6))
+    changed = dataclasses.replace(model, coordinates=[heavier, *model.coordinates[1:]])
+    assert model_problems(changed, committed, x, "t")
+    assert text_problems(subcircuit(changed), lib, subcircuit(with_fits(changed, model)), "t.lib")
+
+    f = model.capacitances[1]
+    first = f.polys[0]
+    bumped = type(first)(first.exponents, first.coeffs * np.r_[1 + 1e-3, np.ones(len(first.coeffs) - 1)])
+    assert any(
+        "C of" in p
+        for p in model_problems(
+            with_fit(model, 1, dataclasses.replace(f, polys=(bumped, *f.polys[1:]))), committed, x, "t"
+        )
+    )
+    k = next(k for k, g in enumerate(PATCH_GRIDS) if g[0] * g[1] == len(f.polys))
+    other = refit(b, 1, 0.0, grid=k + 1)
+    assert model_problems(with_fit(model, 1, other), committed, x, "t")  # other terms, and another C:
+    assert any("C of" in p for p in compare_functions(with_fit(model, 1, other), model, x))
+    assert FIT_SHARE * f.max_rel_error < 1e-5  # the disk's fits: tolerances of a few 1e-6
 
 
 def test_staleness_check_sees_small_changes_and_tolerates_rounding():
