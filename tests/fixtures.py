@@ -21,8 +21,9 @@ ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = "examples/levitated_disk.toml"  # relative to ROOT: the path the netlist header names
 NETLISTS = ROOT / "netlists"
 # the two ngspice releases the suite runs: Debian 12's (on PATH) and bookworm-backports' 46, which
-# .ci/setup unpacks into a private prefix; netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
-NGSPICE = {"39": "ngspice", "46": str(Path.home() / ".cache/netgen/ngspice-46/bin/ngspice")}
+# .ci/setup unpacks into a private prefix in netgen's cache ($XDG_CACHE_HOME/netgen, else
+# ~/.cache/netgen: codemodel.cache_dir); netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
+NGSPICE = {"39": "ngspice", "46": str(codemodel.cache_dir() / "ngspice-46" / "bin" / "ngspice")}
 # the ngspice emissions the physics tests run, per release: the B-source .lib on both, the xspice
 # .lib (the netgen_es code model) on 39 only, where its source is reachable; on 46 the code model
 # is refused with exit 3 (tests/sim/test_codemodel.py, tests/testbench/test_sigma_delta.py)
