@@ -6,6 +6,7 @@ Test modules import the helpers from here; conftest.py registers the fixtures.""
 from __future__ import annotations
 
 import contextlib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,9 +22,14 @@ ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = "examples/levitated_disk.toml"  # relative to ROOT: the path the netlist header names
 NETLISTS = ROOT / "netlists"
 # the two ngspice releases the suite runs: Debian 12's (on PATH) and bookworm-backports' 46, which
-# .ci/setup unpacks into a private prefix in netgen's cache ($XDG_CACHE_HOME/netgen, else
-# ~/.cache/netgen: codemodel.cache_dir); netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
-NGSPICE = {"39": "ngspice", "46": str(codemodel.cache_dir() / "ngspice-46" / "bin" / "ngspice")}
+# .ci/setup unpacks into a private prefix, ${XDG_CACHE_HOME:-~/.cache}/netgen/ngspice-46;
+# netgen.sim.ngspice.ngspice_path() takes it from NETGEN_NGSPICE
+NGSPICE = {
+    "39": "ngspice",
+    "46": os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen/ngspice-46/bin/ngspice"
+    ),
+}
 # the ngspice emissions the physics tests run, per release: the B-source .lib on both, the xspice
 # .lib (the netgen_es code model) on 39 only, where its source is reachable; on 46 the code model
 # is refused with exit 3 (tests/sim/test_codemodel.py, tests/testbench/test_sigma_delta.py)
