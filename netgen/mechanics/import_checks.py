@@ -17,6 +17,7 @@ import scipy.io
 from scipy.spatial import cKDTree
 
 from ..errors import StructureError
+from ..files import read_bytes
 from ..geometry.layout import plate_outline
 from ..structure import RIGID_COORDINATES, Structure
 
@@ -36,14 +37,18 @@ def fail(path: str | Path, where: str, problem: str, fix: str, line: int | None 
 
 def read_matrix(path: str | Path, where: str, sizes: dict[int, str]) -> np.ndarray:
     """A square, symmetric, finite Matrix Market matrix as a dense array; `sizes` maps each size
-    the model accepts to what it means (checked before any value is read)."""
+    the model accepts to what it means (checked before any value is read). A file that does not
+    start with the %%MatrixMarket banner is refused without quoting it (it may be any file)."""
+    head = read_bytes(path, where, "a Matrix Market file", StructureError, "table")[:14]
     try:
+        if head.lower() != b"%%matrixmarket":
+            raise ValueError("no %%MatrixMarket banner on the first line")
         rows, cols, entries, fmt, field, symmetry = scipy.io.mminfo(str(path))
     except Exception as exc:  # noqa: BLE001 (any header failure is the user's file)
         raise fail(
             path,
             where,
-            f"not a Matrix Market file ({exc})",
+            f"not a Matrix Market file ({exc if head.lower() == b'%%matrixmarket' else 'no %%MatrixMarket banner'})",
             EXPORT_FIX + "; the first line must be '%%MatrixMarket matrix coordinate real symmetric'",
         ) from None
     if field not in ("real", "integer", "double"):

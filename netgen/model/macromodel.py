@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import ModelError
-from ..files import write_atomic
+from ..files import json_document, read_text, write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from . import contact, validate
@@ -437,13 +437,8 @@ class MacroModel:
     def load_json(cls, path: str | Path) -> MacroModel:
         """Read and validate a model JSON file; unreadable or invalid files are ModelError (exit 2)."""
         where = validate.escape(str(path))
-        try:
-            d = json.loads(Path(path).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ModelError(where, "file", f"cannot read: {exc}", "give the .json a build wrote") from None
-        except json.JSONDecodeError as exc:
-            raise ModelError(where, "file", f"not JSON: {exc}", "give the .json a build wrote") from None
-        return cls.from_dict(d, where)
+        text = read_text(path, "file", "a model .json", ModelError, "json")  # regular file, size cap
+        return cls.from_dict(json_document(text, where, ModelError, "give the .json a build wrote"), where)
 
 
 def _coordinate_dict(c: Coordinate) -> dict:
