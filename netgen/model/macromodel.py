@@ -23,7 +23,7 @@ from ..errors import ModelError
 from ..files import json_document, read_text, write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
-from . import contact, validate
+from . import contact, schema, validate
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
 #                                  display unit of generalized force, factor SI per display unit)
@@ -373,6 +373,7 @@ class MacroModel:
         """Rebuild a model from its JSON dict (the emitters' input), validated first
         (netgen.model.validate: names, text, choices); ModelError names `path` and the entry."""
         validate.check(d, path, tuple(PORT_UNITS))
+        schema.check(validate.Checker(path, tuple(PORT_UNITS)), d)  # ranges and shapes
         try:
             return cls._from_dict(d)
         except (KeyError, TypeError, ValueError, IndexError) as exc:

@@ -144,6 +144,8 @@ def check_policy(c: Checker, model: str, plate: str, electrodes: list[str]) -> N
         earlier = duplicate(name, seen)
         if earlier is not None:
             problem = f"{name!r} is also the name of {earlier!r} (case-insensitive in SPICE)"
+            if earlier == plate:
+                problem = f"{name!r} is also the plate's name (the plate would be shorted to it)"
         if problem:
             c.fail(f"electrodes[{i}].name", f"electrode name {problem}", rename_fix(name) + "; " + FIX)
 
