@@ -116,17 +116,20 @@ def read_bytes(path: str | Path, where: str, what: str, error: type[InputError],
     limit = LIMITS[kind]
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except ValueError:  # a NUL character in the path
+        raise error(repr(str(path)), where, "the path holds a NUL character", f"give the path of {what}") from None
     except OSError as exc:
         raise error(str(path), where, f"cannot read: {os_reason(exc)}", f"give the path of {what}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise error(
+            str(path),
+            where,
+            f"{FILE_KINDS.get(stat.S_IFMT(mode), 'not a regular file')}, not {what}",
+            f"give the path of {what} (a regular file)",
+        )
     with os.fdopen(fd, "rb") as fh:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise error(
-                str(path),
-                where,
-                f"{FILE_KINDS.get(stat.S_IFMT(mode), 'not a regular file')}, not {what}",
-                f"give the path of {what} (a regular file)",
-            )
         try:
             data = fh.read(limit + 1)
         except OSError as exc:

@@ -39,6 +39,10 @@ FIELDS: tuple[tuple[str, str, float, bool, float, str], ...] = (
 def check(c: Checker, d: dict) -> None:
     """Ranges (FIELDS), choices and shapes of a model document validate.check has passed."""
     ncoords = len(d["coordinates"])
+    sampling = d["sampling"]
+    c.number("sampling.samples", sampling.get("samples"), integer=True)
+    if not isinstance(sampling.get("design"), str):  # the headers print the design, else the grid's levels
+        c.number("sampling.levels", sampling.get("levels"), integer=True)
     if ncoords == 0:
         c.fail("coordinates", "no coordinates", FIX)
     for e, row in enumerate(d["electrodes"]):
@@ -55,15 +59,15 @@ def check(c: Checker, d: dict) -> None:
             c.fail(f"capacitances[{e}].terms", "must be a non-empty list of polynomials", FIX)
         for t, term in enumerate(terms):
             polynomial(c, f"capacitances[{e}].terms[{t}]", term, ncoords)
+    contact = d.get("contact") or {}
+    if not isinstance(contact, dict):
+        c.fail("contact", "must be an object (empty: no contact model)", FIX)
     for lst, key, low, closed, high, meaning in FIELDS:
-        rows = [d[lst]] if lst == "contact" else d[lst]
-        if lst == "contact" and not d["contact"]:
-            continue
+        rows = ([contact] if contact else []) if lst == "contact" else d[lst]
         for i, row in enumerate(rows):
             where = f"{lst}.{key}" if lst == "contact" else f"{lst}[{i}].{key}"
-            if key in row or lst != "contact":
-                ranged(c, where, row.get(key), low, closed, high, meaning)
-    points(c, d.get("contact") or {}, ncoords, [e["name"] for e in d["electrodes"]])
+            ranged(c, where, row.get(key), low, closed, high, meaning)
+    points(c, contact, ncoords)
     nonlinear = d.get("nonlinear_stiffness")
     if nonlinear:
         if not isinstance(nonlinear, dict) or not isinstance(nonlinear.get("energy_J"), dict):
@@ -112,14 +116,14 @@ def polynomial(c: Checker, where: str, term: Any, ncoords: int) -> None:
         c.number(f"{where}.coeffs[{k}]", x)
 
 
-def points(c: Checker, contact: dict, ncoords: int, electrodes: list[str]) -> None:
-    """Each stop point: an electrode of the model, a gap > 0 and a direction of ncoords numbers."""
+def points(c: Checker, contact: dict, ncoords: int) -> None:
+    """Each stop point: a gap > 0 and a direction of ncoords numbers (its electrode is a label,
+    checked as text by netgen.model.validate)."""
     pts = contact.get("points", [])
     if not isinstance(pts, list) or not all(isinstance(p, dict) for p in pts):
         c.fail("contact.points", "must be a list of objects", FIX)
     for i, p in enumerate(pts):
         where = f"contact.points[{i}]"
-        c.choice(f"{where}.electrode", p.get("electrode"), tuple(electrodes))
         ranged(c, f"{where}.gap", p.get("gap"), 0.0, False, 10.0, "the stop's gap in m, > 0")
         a = p.get("a")
         if not isinstance(a, list) or len(a) != ncoords:
