@@ -120,8 +120,16 @@ def output_folder(text: str) -> str:
     writable (the folder, or the nearest existing folder it would be created in)."""
     if not text.strip():
         raise argparse.ArgumentTypeError("the folder is empty (''); give a folder to write into, e.g. out")
+    link = Path(text).expanduser()
     try:
-        return _output_folder(text, Path(text).expanduser().resolve())
+        if link.is_symlink() and not link.exists():  # dangling, or a loop of links
+            raise argparse.ArgumentTypeError(
+                f"{text} is a symbolic link to {os.readlink(link)}, which is missing or a loop of links; "
+                "remove the link, point it at a folder, or give another folder"
+            )
+        return _output_folder(text, link.resolve())
+    except RuntimeError:  # pathlib's 'Symlink loop' in a folder above it
+        raise argparse.ArgumentTypeError(f"{text}: a loop of symbolic links; give another folder") from None
     except OSError as exc:
         raise argparse.ArgumentTypeError(f"{text}: {exc.strerror}; choose a folder you can write to") from None
 

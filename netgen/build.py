@@ -243,6 +243,8 @@ def assemble(
     }
     if damp_report:
         report["damping"] = damp_report
+    if s.warnings:  # assumptions near their limits (netgen.structure.validity), also on stderr
+        report["validity_warnings"] = list(s.warnings)
     if set(m.names) & {"x", "y", "rot_z"}:  # in-plane motion: where small angles stop holding
         report["small_angle"] = small_angle_report(
             m.names, m.kinds, scales, s.sampling.range, farthest(plate, shapes), min(e.gap for e in shapes)

@@ -41,6 +41,8 @@ def _build(args: argparse.Namespace) -> int:
     with sampling(args) as parallel:  # --scheduler / --sample-store (netgen.electrostatics.sampling)
         result = build(structure, progress=not args.quiet, max_minutes=args.max_minutes, **parallel)
     model = result.model
+    for warning in structure.warnings:  # netgen.structure.validity
+        print(f"netgen: warning: {args.structure}: {warning}", file=sys.stderr)
     if model.fit_warning():  # a fit that misses [fit] tolerance (MacroModel.fit_misses)
         if args.strict:
             raise StructureError(args.structure, "[fit] tolerance", f"{model.fit_problem()} (--strict)", FIT_FIX)

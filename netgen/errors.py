@@ -53,6 +53,14 @@ class ModelError(InputError):
     what = "model file"
 
 
+class DiskFullError(NetgenError, OSError):
+    """A run's output could not be written (a full disk, a quota, a read-only file system): its
+    partial files are removed; the message names the folder and the fix. Exit 2, like the other
+    OSErrors of a run's paths: the fix is the user's (free space or another -o), not netgen's."""
+
+    exit_code = 2
+
+
 class SimulationError(NetgenError, RuntimeError):
     """A simulator run failed; the message names the cause and the saved netlist."""
 

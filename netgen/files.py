@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import csv
 import difflib
+import errno
 import io
+import json
 import os
 import re
+import stat
 import tempfile
 import tomllib
 import zipfile
@@ -69,10 +72,13 @@ TOML_FIX = "correct the TOML syntax at that line (strings need quotes, tables [n
 
 
 def toml_document(text: str, path: str, error: type[InputError] = StructureError, fix: str = TOML_FIX) -> dict:
-    """tomllib.loads, with a syntax error raised as `error` naming the file, the line and the
+    """tomllib.loads after the nesting check (check_depth), with a syntax error raised as `error` naming the file, the line and the
     fix; shared by the structure and sweep files."""
+    check_depth(text, path, error)
     try:
         return tomllib.loads(text)
+    except RecursionError:
+        raise error(path, "nesting", "nested too deeply to parse", fix) from None
     except tomllib.TOMLDecodeError as exc:
         line = re.search(r"line (\d+)", str(exc))
         raise error(path, "TOML syntax", str(exc), fix, int(line.group(1)) if line else None) from None
@@ -90,15 +96,68 @@ class CsvTable:
     text: dict[str, np.ndarray]
 
 
-def read_text(path: str | Path, where: str, what: str, error: type[InputError] = StructureError) -> str:
-    """A data file's text: binary data (NUL bytes) and non-UTF-8 bytes become `error` naming the
-    file and the byte offset, instead of a UnicodeDecodeError."""
+# what one input file may hold (bytes): a structure, loop or sweep file is a page of TOML; a model
+# JSON or a couplings file a few MB; an imported table or matrix (CSV, .npz, .mtx) a FEM mesh's data
+LIMITS = {"toml": 4 << 20, "json": 64 << 20, "table": 512 << 20}
+MAX_DEPTH = 64  # nesting of arrays/tables/objects in a TOML or JSON input (examples: at most 4)
+FILE_KINDS = {
+    stat.S_IFIFO: "a named pipe (FIFO)",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+    stat.S_IFDIR: "a folder",
+}
+
+
+def read_bytes(path: str | Path, where: str, what: str, error: type[InputError], kind: str = "toml") -> bytes:
+    """The one reader of input files: a regular file only (a FIFO, device or folder is refused
+    before it can block or stream forever), at most LIMITS[kind] bytes (checked on the size and
+    again on what is read), errors naming the file and the fix."""
+    limit = LIMITS[kind]
     try:
-        data = Path(path).read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except ValueError:  # a NUL character in the path
+        raise error(repr(str(path)), where, "the path holds a NUL character", f"give the path of {what}") from None
     except OSError as exc:
+        raise error(str(path), where, f"cannot read: {os_reason(exc)}", f"give the path of {what}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
         raise error(
-            str(path), where, f"cannot read: {exc.strerror or exc}", "check that the file exists and is readable"
-        ) from None
+            str(path),
+            where,
+            f"{FILE_KINDS.get(stat.S_IFMT(mode), 'not a regular file')}, not {what}",
+            f"give the path of {what} (a regular file)",
+        )
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            data = fh.read(limit + 1)
+        except OSError as exc:
+            raise error(str(path), where, f"cannot read: {os_reason(exc)}", f"give the path of {what}") from None
+    if len(data) > limit:
+        raise error(
+            str(path),
+            where,
+            f"larger than {limit} bytes ({limit >> 20} MiB), the limit for {what}",
+            f"give {what} of at most {limit >> 20} MiB (docs/structure-files.md, Limits)",
+        )
+    return data
+
+
+def os_reason(exc: OSError) -> str:
+    """An OSError's reason in words (a symlink loop, a missing file), without a traceback."""
+    if exc.errno == errno.ELOOP:
+        return "a loop of symbolic links"
+    return exc.strerror or str(exc)
+
+
+def read_text(
+    path: str | Path, where: str, what: str, error: type[InputError] = StructureError, kind: str = "toml"
+) -> str:
+    """A data file's text (read_bytes' limits; a UTF-8 byte-order mark is accepted): binary data
+    (NUL bytes) and non-UTF-8 bytes become `error` naming the file and the byte offset, instead of
+    a UnicodeDecodeError."""
+    data = read_bytes(path, where, what, error, kind)
     nul = data.find(b"\0")
     if nul >= 0:
         raise error(
@@ -115,13 +174,54 @@ def read_text(path: str | Path, where: str, what: str, error: type[InputError] =
         ) from None
 
 
+# strings and comments (whose brackets do not nest) and the brackets that do
+TOML_TOKENS = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'|#[^\n]*|[\[\]{}]')
+JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def nesting_depth(text: str, tokens: re.Pattern = TOML_TOKENS) -> int:
+    """The deepest nesting of [ ] and { } outside strings and comments (before any parser recurses)."""
+    depth = deepest = 0
+    for m in tokens.finditer(text):
+        c = m.group(0)
+        if c in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in "]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def check_depth(text: str, path: str, error: type[InputError], tokens: re.Pattern = TOML_TOKENS) -> None:
+    """Refuse nesting deeper than MAX_DEPTH, naming the depth and the limit."""
+    depth = nesting_depth(text, tokens)
+    if depth > MAX_DEPTH:
+        raise error(
+            str(path),
+            "nesting",
+            f"arrays/tables nested {depth} deep, more than the limit of {MAX_DEPTH}",
+            f"flatten the document to at most {MAX_DEPTH} levels (netgen's files need at most 4)",
+        )
+
+
+def json_document(text: str, path: str, error: type[InputError], fix: str) -> object:
+    """json.loads after the nesting check, a syntax error raised as `error` naming the file and line."""
+    check_depth(text, path, error, JSON_TOKENS)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise error(str(path), "JSON syntax", f"not JSON: {exc.msg}", fix, exc.lineno) from None
+    except RecursionError:
+        raise error(str(path), "nesting", "nested too deeply to parse", fix) from None
+
+
 def read_csv(
     path: str | Path, where: str, text_columns: tuple[str, ...] = (), error: type[InputError] = StructureError
 ) -> CsvTable:
     """A CSV table with a header line, every column numeric except `text_columns`. Lines starting
     with '#' are comments. Errors (not text, no rows, a repeated or empty column name, a row of the
     wrong length, a cell that is no number) name the file, `where`, the line and the fix."""
-    text = read_text(path, where, "a CSV table", error)
+    text = read_text(path, where, "a CSV table", error, "table")
     rows = [
         (no, r)
         for no, r in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
@@ -185,8 +285,9 @@ def load_npz(
     empty or truncated file, garbage, a bare .npy), a missing or unknown array becomes `error`
     naming the file and the array."""
     fix = f"save the arrays with numpy.savez(path, {', '.join(f'{k}=...' for k in required)})"
+    data = read_bytes(path, where, "a NumPy .npz archive", error, "table")
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(io.BytesIO(data), allow_pickle=False)
     except PermissionError as exc:
         raise error(str(path), where, f"cannot read: {exc.strerror}", "check that the file is readable") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:

@@ -4,6 +4,7 @@ and commits the set under a lock, with a manifest naming every file and its SHA-
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import hashlib
 import json
@@ -14,7 +15,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import InputError
+from .errors import DiskFullError, InputError
 from .files import umask, write_atomic
 from .interrupts import check, held
 
@@ -102,14 +103,21 @@ class OutputFolder:
     def __exit__(self, kind, exc, tb) -> None:
         if self.committed:
             return
+        full = disk_problem(exc, self.stage)
         with held(), folder_lock(self.folder):
-            keep = self.keep_failed and exc is not None and not isinstance(exc, KeyboardInterrupt)
+            keep = self.keep_failed and exc is not None and not isinstance(exc, KeyboardInterrupt) and not full
             if keep and staged_files(self.stage):
                 self._keep_failed(exc)
             else:
                 self._drop_stage()
             if self._created and not any(self.folder.iterdir()):
                 self.folder.rmdir()  # a folder this run made and left empty
+        if full:
+            raise DiskFullError(
+                f"{self.folder}: {full} while writing the run's files (the partial set was removed, the folder "
+                "holds what it held before); fix: free space on that file system (or raise the quota, or make it "
+                "writable), or give another output folder with -o, then run again"
+            ) from exc
 
     def failed_path(self, text: str) -> str:
         """`text` (an error message) with the staging folder's paths replaced by the folder its
@@ -155,6 +163,23 @@ class OutputFolder:
         if self._lock is not None:
             os.close(self._lock)
             self._lock = None
+
+
+FULL = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded", errno.EROFS: "read-only"}
+
+
+def disk_problem(exc: BaseException | None, stage: Path) -> str:
+    """Why a failed run could not write its files: an OSError of a full disk, an exceeded quota or a
+    read-only file system, or any failure (a simulator's, whose writes failed in another process)
+    while the staging folder's file system has no free blocks; '' otherwise."""
+    if exc is None or isinstance(exc, KeyboardInterrupt):
+        return ""
+    if isinstance(exc, OSError) and exc.errno in FULL:
+        return FULL[exc.errno]
+    try:
+        return FULL[errno.ENOSPC] if os.statvfs(stage).f_bavail == 0 else ""
+    except OSError:
+        return ""
 
 
 @contextmanager

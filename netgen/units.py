@@ -28,6 +28,27 @@ UNITS: dict[str, dict[str, float]] = {
     "temperature": {"K": 1.0},
     "dimensionless": {"": 1.0},
     "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "g": G},
+    "stiffness": {"N/m": 1.0, "mN/m": 1e-3, "uN/m": 1e-6, "kN/m": 1e3},
+    "torsional stiffness": {"N*m/rad": 1.0, "N m/rad": 1.0, "Nm/rad": 1.0, "uN*m/rad": 1e-6, "nN*m/rad": 1e-9},
+}
+
+# the physical range of each kind (SI): a nonzero magnitude outside [low, high] is a typo or a
+# unit mistake (a 1e300 m plate, a 1e-300 m gap), refused by parse_quantity before any physics
+# sees it; the sign and zero are left to each key's own check (docs/structure-files.md, Limits)
+RANGES: dict[str, tuple[float, float]] = {
+    "length": (1e-12, 10.0),
+    "modulus": (1e3, 1e13),
+    "density": (1e-3, 1e5),
+    "angle": (1e-12, 4 * math.pi),
+    "voltage": (1e-12, 1e6),
+    "frequency": (1e-6, 1e13),
+    "time": (1e-18, 1e7),
+    "pressure": (1e-9, 1e10),
+    "temperature": (1e-3, 1e5),
+    "dimensionless": (0.0, math.inf),  # each key checks its own range
+    "acceleration": (1e-12, 1e9),
+    "stiffness": (1e-12, 1e12),
+    "torsional stiffness": (1e-24, 1e6),
 }
 
 SI_NAME = {
@@ -42,9 +63,11 @@ SI_NAME = {
     "temperature": "K",
     "dimensionless": "",
     "acceleration": "m/s^2",
+    "stiffness": "N/m",
+    "torsional stiffness": "N*m/rad",
 }
 
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*(?: m/rad)?)\s*$")
 
 
 class UnitError(ValueError):
@@ -56,7 +79,7 @@ def parse_quantity(value: object, kind: str) -> float:
     if isinstance(value, bool):
         raise UnitError(f"expected a number or a quantity string, got {value!r}")
     if isinstance(value, (int, float)):
-        return float(value)
+        return in_range(float(value), kind, repr(value))
     if not isinstance(value, str):
         raise UnitError(
             f"expected a number or a quantity string such as '{example(kind)}', got {type(value).__name__} {value!r}"
@@ -69,7 +92,19 @@ def parse_quantity(value: object, kind: str) -> float:
     if unit not in table:
         accepted = ", ".join(u for u in table if u) or "no unit"
         raise UnitError(f"unit {unit!r} is not a {kind} unit (accepted: {accepted})")
-    return float(number) * table[unit]
+    return in_range(float(number) * table[unit], kind, repr(value))
+
+
+def in_range(value: float, kind: str, shown: str) -> float:
+    """`value` (SI), refused when its nonzero magnitude lies outside RANGES[kind] (see there)."""
+    low, high = RANGES[kind]
+    if value != 0 and math.isfinite(value) and not low <= abs(value) <= high:
+        unit = SI_NAME[kind]
+        raise UnitError(
+            f"{shown} = {value:g} {unit} is outside the physical range of a {kind}, "
+            f"{low:g} to {high:g} {unit} in magnitude (is the unit right?)".replace("  ", " ")
+        )
+    return value
 
 
 def example(kind: str) -> str:
@@ -86,4 +121,6 @@ def example(kind: str) -> str:
         "temperature": "300 K",
         "dimensionless": "0.22",
         "acceleration": "9.81 m/s^2",
+        "stiffness": "2 N/m",
+        "torsional stiffness": "1e-7 N*m/rad",
     }[kind]

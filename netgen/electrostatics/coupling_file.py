@@ -101,7 +101,7 @@ def read_csv_matrix(path: Path, ncoords: int) -> MaxwellFile:
 def read_json(path: Path, coordinates: list[str]) -> MaxwellFile:
     """A JSON file of Maxwell matrices at named coordinate points."""
     try:
-        doc = json.loads(read_text(path, WHERE, "a JSON document"))
+        doc = json.loads(read_text(path, WHERE, "a JSON document", kind="json"))
     except json.JSONDecodeError as exc:
         raise StructureError(str(path), WHERE, f"not JSON: {exc}", FIX_FORMAT, exc.lineno) from None
     if not isinstance(doc, dict) or "conductors" not in doc or ("points" in doc) == ("maxwell" in doc):

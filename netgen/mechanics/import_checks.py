@@ -17,6 +17,7 @@ import scipy.io
 from scipy.spatial import cKDTree
 
 from ..errors import StructureError
+from ..files import read_bytes
 from ..geometry.layout import plate_outline
 from ..structure import RIGID_COORDINATES, Structure
 
@@ -36,14 +37,18 @@ def fail(path: str | Path, where: str, problem: str, fix: str, line: int | None 
 
 def read_matrix(path: str | Path, where: str, sizes: dict[int, str]) -> np.ndarray:
     """A square, symmetric, finite Matrix Market matrix as a dense array; `sizes` maps each size
-    the model accepts to what it means (checked before any value is read)."""
+    the model accepts to what it means (checked before any value is read). A file that does not
+    start with the %%MatrixMarket banner is refused without quoting it (it may be any file)."""
+    head = read_bytes(path, where, "a Matrix Market file", StructureError, "table")[:14]
     try:
+        if head.lower() != b"%%matrixmarket":
+            raise ValueError("no %%MatrixMarket banner on the first line")
         rows, cols, entries, fmt, field, symmetry = scipy.io.mminfo(str(path))
     except Exception as exc:  # noqa: BLE001 (any header failure is the user's file)
         raise fail(
             path,
             where,
-            f"not a Matrix Market file ({exc})",
+            f"not a Matrix Market file ({exc if head.lower() == b'%%matrixmarket' else 'no %%MatrixMarket banner'})",
             EXPORT_FIX + "; the first line must be '%%MatrixMarket matrix coordinate real symmetric'",
         ) from None
     if field not in ("real", "integer", "double"):
@@ -84,19 +89,13 @@ def read_matrix(path: str | Path, where: str, sizes: dict[int, str]) -> np.ndarr
     return a
 
 
-def read_bytes(path: str | Path, where: str) -> bytes:
-    """A file's bytes, an unreadable file as a StructureError."""
-    try:
-        return Path(path).read_bytes()
-    except OSError as exc:
-        raise fail(path, where, f"cannot read: {exc.strerror or exc}", "check that the file is readable") from None
-
-
 def scan_entries(path: str | Path, where: str, fmt: str, symmetry: str, n: int, entries: int) -> None:
     """Every data line after the size line is one entry ('row column value' or 'value'), each
     number whole (scipy reads '1.0.0' as 1 and fills a short array-format file with zeros), and
     there are as many as the header declares."""
-    raw = read_bytes(path, where).decode("utf-8", "replace").splitlines()
+    raw = (
+        read_bytes(path, where, "a Matrix Market file", StructureError, "table").decode("utf-8", "replace").splitlines()
+    )
     data = [(no, ln.split()) for no, ln in enumerate(raw, start=1) if ln.strip() and not ln.startswith("%")][1:]
     declared = entries if fmt == "coordinate" else n * (n + 1) // 2 if symmetry == "symmetric" else n * n
     fix = "re-export the file: one 'row column value' (coordinate) or 'value' (array) per line, 1-based indices"

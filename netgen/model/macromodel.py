@@ -20,10 +20,10 @@ import numpy as np
 
 from .. import __version__
 from ..errors import ModelError
-from ..files import write_atomic
+from ..files import json_document, read_text, write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
-from . import contact, validate
+from . import contact, schema, validate
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
 #                                  display unit of generalized force, factor SI per display unit)
@@ -374,6 +374,7 @@ class MacroModel:
         """Rebuild a model from its JSON dict (the emitters' input), validated first
         (netgen.model.validate: names, text, choices); ModelError names `path` and the entry."""
         validate.check(d, path, tuple(PORT_UNITS))
+        schema.check(validate.Checker(path, tuple(PORT_UNITS)), d)  # ranges and shapes
         try:
             return cls._from_dict(d)
         except (KeyError, TypeError, ValueError, IndexError) as exc:
@@ -438,13 +439,8 @@ class MacroModel:
     def load_json(cls, path: str | Path) -> MacroModel:
         """Read and validate a model JSON file; unreadable or invalid files are ModelError (exit 2)."""
         where = validate.escape(str(path))
-        try:
-            d = json.loads(Path(path).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ModelError(where, "file", f"cannot read: {exc}", "give the .json a build wrote") from None
-        except json.JSONDecodeError as exc:
-            raise ModelError(where, "file", f"not JSON: {exc}", "give the .json a build wrote") from None
-        return cls.from_dict(d, where)
+        text = read_text(path, "file", "a model .json", ModelError, "json")  # regular file, size cap
+        return cls.from_dict(json_document(text, where, ModelError, "give the .json a build wrote"), where)
 
 
 def _coordinate_dict(c: Coordinate) -> dict:

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from typing import Any, NoReturn
 
 from ..errors import ModelError
-from ..names import GROUND, duplicate, model_problem, rename_fix, reserved
+from ..names import GROUND, duplicate, keyword, model_problem, rename_fix, reserved
 from ..text import escape, is_identifier, shown, text_problem
 
 KINDS = ("translation", "rotation", "mode")
@@ -116,6 +116,8 @@ def check_names(c: Checker, d: dict) -> None:
     c.name("plate", d["plate"])
     for i, row in enumerate(c.entries(d, "coordinates")):
         c.name(f"coordinates[{i}].name", row.get("name"))
+        if keyword(row["name"]):  # the coordinate names its ports and the module's variables
+            c.fail(f"coordinates[{i}].name", f"coordinate name {keyword(row['name'])}", FIX)
         c.choice(f"coordinates[{i}].kind", row.get("kind"), KINDS)
         c.choice(f"coordinates[{i}].unit", row.get("unit"), c.units)
     electrodes = c.entries(d, "electrodes")
@@ -140,12 +142,16 @@ def check_policy(c: Checker, model: str, plate: str, electrodes: list[str]) -> N
         c.fail("name", f"model name {problem}", rename_fix(model) + "; " + FIX)
     if plate.lower() in GROUND:
         c.fail("plate", f"plate {plate!r} is ground in ngspice (0, gnd)", FIX)
+    if keyword(plate):
+        c.fail("plate", f"plate name {keyword(plate)}", FIX)
     seen = {plate.lower(): plate}
     for i, name in enumerate(electrodes):
         problem = reserved(name)
         earlier = duplicate(name, seen)
         if earlier is not None:
             problem = f"{name!r} is also the name of {earlier!r} (case-insensitive in SPICE)"
+            if earlier == plate:
+                problem = f"{name!r} is also the plate's name (the plate would be shorted to it)"
         if problem:
             c.fail(f"electrodes[{i}].name", f"electrode name {problem}", rename_fix(name) + "; " + FIX)
 

@@ -233,14 +233,14 @@ class Piston(Suspended):
             rd, t, "conductor", "density", "density", check=positive, what="mass density (polysilicon: 2330 kg/m^3)"
         )
         k = quantity(
-            rd, t, "conductor", "stiffness", "dimensionless", check=positive, what="vertical spring stiffness in N/m"
+            rd, t, "conductor", "stiffness", "stiffness", check=positive, what="vertical spring stiffness in N/m"
         )
         kt = quantity(
             rd,
             t,
             "conductor",
             "tilt_stiffness",
-            "dimensionless",
+            "torsional stiffness",
             default=0.0,
             check=nonnegative,
             what="tilt spring stiffness in N*m/rad",

@@ -61,7 +61,7 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
                     raw,
                     where,
                     k,
-                    "dimensionless",
+                    "stiffness" if k in ("k_x", "k_y", "k_z") else "torsional stiffness",
                     0.0,
                     nonnegative,
                     f"{k} in N/m (translations) or N*m/rad (rotations)",

@@ -13,9 +13,10 @@ from pathlib import Path
 
 from ..constants import GASES
 from ..errors import StructureError
-from ..files import toml_document
+from ..files import read_text, toml_document
 from ..names import duplicate, model_problem, rename_fix, reserved
 from ..text import escape, text_problem
+from . import validity
 from .bem_table import read_bem
 from .conductors import CONDUCTORS
 from .reader import (
@@ -126,6 +127,8 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
             f"capacitance samples exceed {MAX_GRID_POINTS}",
             'lower sampling.levels, use fewer coordinates or set design = "sparse"',
         )
+    electrostatics = read_electrostatics(rd, doc)
+    warnings = validity.check(rd, conductor, sets, electrostatics)
     return Structure(
         name=name,
         description=description,
@@ -135,10 +138,11 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
         coordinates=coords,
         sampling=sampling,
         fit=fit,
-        electrostatics=read_electrostatics(rd, doc),
+        electrostatics=electrostatics,
         fem=fem,
         damping=read_damping(rd, doc, conductor.coordinate_names(coords), getattr(conductor, "sprung_rigid", False)),
         imports=read_imports(rd, doc),
+        warnings=warnings,
     )
 
 
@@ -166,13 +170,9 @@ def electrode_names(rd: Reader, sets: Sequence) -> None:
 def load_structure(path: str | Path) -> Structure:
     """Read and validate a structure file; unreadable files become StructureError too."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise StructureError(str(path), "file", "no such file", "check the path to the structure file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise StructureError(str(path), "file", f"cannot read: {exc}", "give a readable UTF-8 TOML file") from None
-    return parse_structure(text, str(path))
+    if not path.exists() and not path.is_symlink():
+        raise StructureError(str(path), "file", "no such file", "check the path to the structure file")
+    return parse_structure(read_text(path, "file", "a TOML structure file"), str(path))
 
 
 # ---------------------------------------------------------------- sections of every kind

@@ -105,8 +105,9 @@ def check_keys(rd: Reader, where: str, table: dict, allowed: list[str]) -> None:
     """Refuse keys outside `allowed`, with the closest allowed key."""
     for key in table:
         if key not in allowed:
+            shown = key or '""'  # an empty key still names a location
             raise rd.fail(
-                f"{where}.{key}" if where else key,
+                f"{where}.{shown}" if where else shown,
                 f"unknown key '{key}'",
                 f"{did_you_mean(key, allowed)}allowed keys here: {', '.join(allowed)}",
             )

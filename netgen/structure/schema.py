@@ -209,6 +209,7 @@ class Structure:
     fem: FemOptions = field(default_factory=FemOptions)
     damping: Damping | None = None
     imports: Imports | None = None  # [import]: mechanics and/or capacitances from external tools
+    warnings: tuple[str, ...] = ()  # model assumptions near their limits (netgen.structure.validity)
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SweepError
-from ..files import toml_document
+from ..files import read_bytes, toml_document
 from ..structure.reader import Reader, did_you_mean
 from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
 from ..text import text_problem
@@ -174,7 +174,7 @@ def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
     """Read and validate a sweep file; raises SweepError naming file, line, key and fix."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_bytes(path, "file", "a sweep file", SweepError)  # regular file, size cap
     except OSError as exc:
         raise SweepError(
             str(path),
@@ -183,7 +183,7 @@ def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
             "give the path of an existing SWEEP.toml (see examples/sweep_ts.toml)",
         ) from None
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise SweepError(
             str(path),

@@ -11,9 +11,9 @@ import time
 from pathlib import Path
 
 from ...arguments import existing_file, integer, number, output_folder, positive
+from ...emit.paired import load_pair
 from ...errors import SimulationError
 from ...folders import OutputFolder
-from ...model import MacroModel
 from ...units import parse_quantity
 from .loop import RELTOL_RANGE, RELTOL_TEXT, Tone
 from .loopfile import read_loop_file, read_structure_loop
@@ -102,7 +102,7 @@ def cli(args) -> int:
         return 2
     loop = read_loop_file(args.loop) if args.loop else read_structure_loop(args.structure)  # LoopError: exit 2
     if args.model:
-        model, lib = MacroModel.load_json(args.model), Path(args.model).with_suffix(".lib")
+        model, lib = load_pair(args.model)  # the .json and its .lib, checked to match (exit 2)
     else:
         model, lib = model_for(
             args.structure,
