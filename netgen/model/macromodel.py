@@ -440,7 +440,10 @@ class MacroModel:
         """Read and validate a model JSON file; unreadable or invalid files are ModelError (exit 2)."""
         where = validate.escape(str(path))
         text = read_text(path, "file", "a model .json", ModelError, "json")  # regular file, size cap
-        return cls.from_dict(json_document(text, where, ModelError, "give the .json a build wrote"), where)
+        doc = json_document(text, where, ModelError, "give the .json a build wrote")
+        if not isinstance(doc, dict):
+            raise ModelError(where, "file", "the file holds no JSON object", "give the .json a build wrote")
+        return cls.from_dict(doc, where)
 
 
 def _coordinate_dict(c: Coordinate) -> dict:

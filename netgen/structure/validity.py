@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from .electrodes import CombElectrode
 from .reader import Reader
 
 GAP_WARN, GAP_REFUSE = 0.1, 0.5  # gap / lateral size of the conductor (parallel plate: gap << size)
@@ -61,7 +62,7 @@ def check(rd: Reader, conductor: object, sets: tuple, electrostatics: object) ->
     return tuple(warnings)
 
 
-def comb(rd: Reader, where: str, s: object, size: float) -> None:
+def comb(rd: Reader, where: str, s: CombElectrode, size: float) -> None:
     """A comb's fingers no longer than COMB_LENGTH mass sizes, its overlap at the mass's edge."""
     if s.length > COMB_LENGTH * size:
         raise rd.fail(
