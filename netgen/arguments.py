@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .interrupts import held
-from .options import Option, OptionError
+from .options import Option, OptionError, as_written
 
 # file systems a run folder can never be on: kernel views and device nodes, not storage
 VIRTUAL = {
@@ -188,7 +188,7 @@ def option_type(option: Option) -> Callable[[str], object]:
 
     def check(text: str) -> object:
         try:
-            return option.read(text, option.flag or option.name)
+            return option.read(as_written(option, text), option.flag or option.name)
         except OptionError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
 

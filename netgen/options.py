@@ -36,6 +36,12 @@ def shown(value: object) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def as_written(option: Option, text: str) -> object:
+    """Command-line text as the value a file would hold: a whole number for an int option (strictly),
+    else the text itself (numbers and quantity strings are read by Option.read)."""
+    return int(text) if option.type == "int" and INTEGER.fullmatch(text.strip()) else text
+
+
 def number(text: str) -> float | None:
     """A plain number written as text (strictly: no underscores, inf or nan), else None."""
     return float(text) if NUMBER.fullmatch(text.strip()) else None
@@ -129,8 +135,8 @@ class Option:
         if isinstance(value, bool) or not isinstance(value, (str, int, float)):
             raise bad
         if self.type == "int":
-            if isinstance(value, int) or (isinstance(value, str) and INTEGER.fullmatch(value.strip())):
-                return int(value)
+            if isinstance(value, int):  # a file's integer (a quoted "128" is text; the command line: as_written)
+                return value
             raise bad
         if self.type == "choice":
             if value in self.choices:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ...options import Option, OptionError, by_name
+from ...options import Option, OptionError, by_name, markdown_table
 
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (ngspice.run_segments)
 SEGMENT_S = 5e-4
@@ -302,3 +302,12 @@ def read_tone(text: object, named: str, ts: float | None = None, amplitude: Opti
                 f"give {option.help} in {option.range_text()}, e.g. {OPTIONS['tone'].example_as(named)}",
             ) from None
     return coord, out[0], out[1]
+
+
+def markdown_tables() -> dict[str, str]:
+    """The docs' option tables by page (tests/test_options.py checks the pages hold them): every
+    option of `netgen sigma-delta` and the [loop] table, and the sweep's testbench parameters."""
+    return {
+        "sigma-delta.md": markdown_table(o for o in _options if o.flag or o.loop_key),
+        "sweeps.md": markdown_table((o for o in _options if o.sweep), ("sweep",)),
+    }
