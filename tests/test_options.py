@@ -91,11 +91,13 @@ def sweep_verdict(o: Option, v: float, tmp_path, capsys) -> bool | None:
     """Accepted by `netgen sweep --dry-run` with the value in [fixed] (None: no sweep parameter)."""
     if not o.sweep:
         return None
-    fixed = ("" if o.name == "ts" else f"ts = {TS!r}\n") + ('tone = "z:0.02:1000"\n' if o.name.startswith("tone_") else "")
+    fixed = ("" if o.name == "ts" else f"ts = {TS!r}\n") + (
+        'tone = "z:0.02:1000"\n' if o.name.startswith("tone_") else ""
+    )
     fixed += "" if o.name == "cycles" else "cycles = 128\n"
     f = tmp_path / "sweep.toml"
     swept = "lead" if o.name != "lead" else "dither"
-    f.write_text(f"[fixed]\n{fixed}{o.sweep} = {toml(v)}\n[[parameters]]\nname = \"{swept}\"\nvalues = [0.5]\n")
+    f.write_text(f'[fixed]\n{fixed}{o.sweep} = {toml(v)}\n[[parameters]]\nname = "{swept}"\nvalues = [0.5]\n')
     rc = cli.main(["sweep", DISK, str(f), "-o", str(tmp_path / "s"), "--dry-run"])
     capsys.readouterr()
     return rc == 0
