@@ -119,7 +119,8 @@ class Option:
         written (command-line text, or a TOML value) at `named` (the flag or the key), or OptionError."""
         parsed = self.parse(value, named)
         if self.type in ("float", "int") and not self.inside(parsed):
-            raise OptionError(f"{named} = {shown(value)} is outside {self.range_text()}", self.fix(named))
+            outside = "is not" if self.type == "int" else "is outside"
+            raise OptionError(f"{named} = {shown(value)} {outside} {self.range_text()}", self.fix(named))
         problem = self.cross(parsed, context or {}) if self.cross else None
         if problem:
             raise OptionError(f"{named} = {shown(value)}: {problem}", self.fix(named))
