@@ -272,8 +272,8 @@ def foreign(n: int, tmp: Path, tally: dict) -> None:
 def calibrate(tmp: Path) -> None:
     """Seconds of ngspice per period for the rigid and the full disk model (128 periods)."""
     for rigid in (True, False):
-        model, lib = sd.model_for(STRUCTURE, tmp / f"model_{rigid}", rigid, progress=False)
-        s = sd.run(model, lib, tmp / f"cal_{rigid}", 1e-6, 128, progress=False, plots=False, skip=0)
+        model, lib = sd.model_for(STRUCTURE, tmp / f"model_{rigid}", sd.BuildOptions(rigid_only=rigid), progress=False)
+        s = sd.run(model, lib, tmp / f"cal_{rigid}", sd.RunRequest(1e-6, 128, progress=False, plots=False, skip=0))
         print(
             f"calibrate: {'rigid' if rigid else 'full'} model: {s['wall_s'] / 128:.3f} s per period "
             f"({s['wall_s']:.1f} s for 128)"
@@ -295,10 +295,10 @@ def main() -> None:
         if args.calibrate:
             calibrate(tmp)
         tally: dict = {}
-        model, lib = sd.model_for(STRUCTURE, tmp / "model_rigid", True, progress=False)
+        model, lib = sd.model_for(STRUCTURE, tmp / "model_rigid", sd.BuildOptions(rigid_only=True), progress=False)
         reference = {}
         for ts in TS:
-            sd.run(model, lib, tmp / f"ref_{ts:g}", ts, 128, progress=False, plots=False, skip=0)
+            sd.run(model, lib, tmp / f"ref_{ts:g}", sd.RunRequest(ts, 128, progress=False, plots=False, skip=0))
             reference[ts] = summary(tmp / f"ref_{ts:g}" / "summary.json")
         foreign(args.foreign, tmp, tally)
         interrupts(args.term, signal.SIGTERM, False, reference, tmp, tally)

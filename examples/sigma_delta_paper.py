@@ -46,14 +46,17 @@ def one(
         if s.get("cycles") == cycles and s.get("simulator", "ngspice") == simulator:
             return s
     if rigid:
-        model, lib = sd.model_for(STRUCTURE, out / "model_rigid", rigid_only=True, progress=False)
+        model, lib = sd.model_for(STRUCTURE, out / "model_rigid", sd.BuildOptions(rigid_only=True), progress=False)
     else:
         model, lib = (
             MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json"),
             ROOT / "netlists" / "levitated_disk.lib",
         )
     s = sd.run(
-        model, lib, folder, ts, cycles, sd.Tone.parse(tone) if tone else None, progress=False, simulator=simulator
+        model,
+        lib,
+        folder,
+        sd.RunRequest(ts, cycles, sd.Tone.parse(tone) if tone else None, progress=False, simulator=simulator),
     )
     s.pop("clock"), s.pop("spectra")
     return json.loads(json.dumps(s))
@@ -119,7 +122,7 @@ def main() -> int:
     if unknown:
         p.error(f"unknown runs {unknown}; choose from {list(RUNS)}")
     if "rigid" in chosen:  # build once, before the pool forks
-        sd.model_for(STRUCTURE, out / "model_rigid", rigid_only=True, progress=False)
+        sd.model_for(STRUCTURE, out / "model_rigid", sd.BuildOptions(rigid_only=True), progress=False)
     with ProcessPoolExecutor(a.jobs) as pool:
         futures = {
             k: pool.submit(one, k, *RUNS[k][:1], a.cycles, out, RUNS[k][1], RUNS[k][2], a.simulator, a.rerun)

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .interrupts import held
+from .options import Option, OptionError, as_written
 
 # file systems a run folder can never be on: kernel views and device nodes, not storage
 VIRTUAL = {
@@ -187,3 +188,34 @@ def nonempty(what: str, example: str) -> Callable[[str], str]:
         return text
 
     return check
+
+
+def option_type(option: Option) -> Callable[[str], object]:
+    """The argparse `type=` of a declared option: its own check (netgen.options.Option.read), so
+    the flag gets the verdict and message its file keys get."""
+
+    def check(text: str) -> object:
+        try:
+            return option.read(as_written(option, text), option.flag or option.name)
+        except OptionError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    check.__name__ = option.name  # argparse names the type in its "invalid <name> value" message
+    return check
+
+
+def add_option(parser: argparse.ArgumentParser, option: Option, **extra) -> None:
+    """The argument of a declared option: its flag, type, default and help (choices and the range
+    in the help); `extra` goes to add_argument as is (e.g. default=None where the file decides)."""
+    default = option.default_text or option.default
+    rng = "" if option.type in ("bool", "text", "choice") else f"; {option.range_text()}"
+    kwargs: dict = {"help": f"{option.help}{rng} (default: {default})" if default is not None else option.help}
+    if option.type == "bool":
+        kwargs["action"] = "store_true"
+    else:
+        kwargs["type"] = option_type(option)
+        kwargs["default"] = option.default
+        if option.type == "choice":
+            kwargs["choices"] = list(option.choices)
+            kwargs["type"] = str  # argparse's choices message; the cross check runs where the context is known
+    parser.add_argument(option.flag, **(kwargs | extra))

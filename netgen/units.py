@@ -15,7 +15,7 @@ UNITS: dict[str, dict[str, float]] = {
     "angle": {"rad": 1.0, "deg": math.pi / 180.0},
     "voltage": {"V": 1.0, "mV": 1e-3},
     "frequency": {"Hz": 1.0, "kHz": 1e3, "MHz": 1e6},
-    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9},
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0, "h": 3600.0},
     "pressure": {
         "Pa": 1.0,
         "kPa": 1e3,

@@ -25,6 +25,7 @@ SHARED = (
     "files",
     "folders",
     "units",
+    "options",
     "templating",
     "plots",
     "executor",

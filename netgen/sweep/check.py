@@ -1,16 +1,20 @@
 """The checks of a planned sweep that need the structure file or the drawn values: every run is
 checked here, before any runs, so that nothing a sweep file says fails only at run time. The
 Monte Carlo draws (seeded, so known now) must lie in their parameter's range, a tone must name a
-coordinate of the model and lie below the Nyquist frequency, every run's structure (with its
-overrides) must be a valid structure file, and the loop needs the coordinates z, tilt_x, tilt_y."""
+coordinate of the model and lie below the Nyquist frequency (the structure's [loop.input] tone
+too), every run's structure (with its overrides) must be a valid structure file, and every
+simulator a run names must be installed here in a version that runs it."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import StructureError, SweepError
-from ..structure import RIGID_COORDINATES, Structure, mode_name, parse_structure
+from ..errors import LoopError, StructureError, SweepError
+from ..options import OptionError
+from ..structure import Structure, mode_name, parse_structure
 from ..structure.reader import Reader
+from ..testbench import sigma_delta as sd
+from ..testbench.sigma_delta import read_tone
 from .plan import RunSpec
 from .spec import Sweep, check_value
 
@@ -29,16 +33,9 @@ def coordinates(s: Structure, rigid_only: bool) -> tuple[list[str], bool]:
 
 def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: list[RunSpec]) -> None:
     """Refuse (SweepError: sweep file, key, run, fix) any run that could only fail once started."""
-    missing = [c for c in RIGID_COORDINATES if c not in structure.coordinates.rigid]
-    if missing:
-        raise SweepError(
-            structure_path,
-            "coordinates.rigid",
-            f"the sigma-delta loop needs the coordinates "
-            f"{', '.join(RIGID_COORDINATES)}; the structure has {list(structure.coordinates.rigid)}",
-            'sweep a structure with rigid = ["z", "tilt_x", "tilt_y"] (e.g. examples/levitated_disk.toml)',
-        )
     rd = _reader(sweep.path)
+    _check_simulators(rd, sweep, runs)
+    loop = sd.read_structure_loop(structure_path)  # LoopError: exit 2
     drawn = [p for p in sweep.parameters if p.distribution]
     parsed: dict[str, Structure] = {}
     for run in runs:
@@ -61,6 +58,30 @@ def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: li
                 parsed[run.structure_text] = _run_structure(sweep, run, structure_path)
             s = parsed[run.structure_text]
         _check_tone(rd, sweep, run, s)
+        _check_loop_tone(rd, sweep, run, loop)
+
+
+def _check_simulators(rd: Reader, sweep: Sweep, runs: list[RunSpec]) -> None:
+    """Each simulator the runs name runs here (the installed ngspice's version, VACASK present)."""
+    for name in sorted({run.testbench.get("simulator", "ngspice") for run in runs}):
+        problem = sd.simulator_problem(name)
+        if problem:
+            where = _where(sweep, "simulator") or "simulator"
+            raise rd.fail(where, f"simulator = {name!r}: {problem}", "sweep a simulator installed here")
+
+
+def _check_loop_tone(rd: Reader, sweep: Sweep, run: RunSpec, loop) -> None:
+    """The structure's [loop.input] tone lies below f_s/2 at the run's ts (a tone of the sweep replaces it)."""
+    if run.testbench.get("tone") or loop.input.tone is None:
+        return
+    try:
+        sd.check_input_tone(loop, run.testbench["ts"])
+    except LoopError as exc:
+        raise rd.fail(
+            _where(sweep, "ts") or "ts",
+            f"{run.name}: ts = {run.testbench['ts']:g} s puts the structure's {exc.where} above f_s/2: {exc.problem}",
+            "give a shorter ts, or a lower tone frequency in the structure's [loop.input]",
+        ) from None
 
 
 def _reader(path: str) -> Reader:
@@ -106,15 +127,13 @@ def _check_tone(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
             f"{' (rigid_only = true drops the modes)' if run.rigid_only else ''}",
             f"name one of {', '.join(names)} in the tone (COORD:AMPLITUDE:FREQ)",
         )
-    nyquist = 0.5 / run.testbench["ts"]
-    if float(freq) >= nyquist:
-        key = "tone_freq" if _where(sweep, "tone_freq") else "tone"
+    key = "tone_freq" if _where(sweep, "tone_freq") else "tone"
+    try:
+        read_tone(text, key, run.testbench["ts"])  # the amplitude as the run reads it, and f_s/2
+    except OptionError as exc:
         raise rd.fail(
-            _where(sweep, key),
-            f"{run.name}: {key}: the tone at {float(freq):g} Hz is not below the Nyquist frequency "
-            f"1/(2 T_s) = {nyquist:g} Hz of T_s = {run.testbench['ts']:g} s",
-            "give a tone frequency below 1/(2 ts) (in band: below 1/(128 ts))",
-        )
+            _where(sweep, key), f"{run.name}: {exc.problem}", f"{exc.fix} (in band: below 1/(128 ts))"
+        ) from None
 
 
 def _where(sweep: Sweep, name: str) -> str:

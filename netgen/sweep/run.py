@@ -32,7 +32,7 @@ from .check import check_model_tones
 from .folder import claim, identity
 from .plan import RunSpec, plan
 from .plots import plot
-from .spec import METRICS, Sweep, timeout_for
+from .spec import DESIGN_CHOICES, METRICS, Sweep, timeout_for
 
 DONE = ".done"  # in a run folder: the run's key, written when the run completed
 
@@ -86,20 +86,24 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
         (folder / "model").mkdir(exist_ok=True)
         (folder / "model" / f"{model.name}.lib").write_text(lib_text, encoding="utf-8")
     lib = folder / "model" / f"{model.name}.lib"
+    sd.run(model, lib, folder, request(spec, loop))
+
+
+def request(spec: RunSpec, loop) -> sd.RunRequest:
+    """The run's RunRequest from its testbench settings (spec.DESIGN_CHOICES and LOOP_CHOICES)."""
     tb = dict(spec.testbench)
     tone = sd.Tone.parse(tb.pop("tone")) if tb.get("tone") else None
-    ts, cycles = tb.pop("ts"), tb.pop("cycles")
-    sd.run(
-        model,
-        lib,
-        folder,
-        ts,
-        int(cycles),
+    choices = sd.Choices(**{k: tb.pop(k) for k in DESIGN_CHOICES if k in tb})
+    cycles = int(tb.pop("cycles"))
+    return sd.RunRequest(
+        tb.pop("ts"),
+        cycles,
         tone,
         progress=False,
         plots=spec.plots,
-        timeout=spec.timeout or timeout_for(int(cycles)),
+        timeout=spec.timeout or timeout_for(cycles),
         loop=loop,
+        choices=choices,
         **tb,
     )
 
@@ -190,7 +194,8 @@ def _run(
     todo = [replace(r, owner=processes.me()) for r in runs if r.index not in records]
     models: dict = {"loop": sd.read_structure_loop(structure_path)}  # the structure's [loop] table
     for rigid in sorted({r.rigid_only for r in todo if r.structure_text is None}):
-        model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), rigid, progress=progress)
+        build = sd.BuildOptions(rigid_only=rigid)
+        model, lib = sd.model_for(structure_path, out / ("model_rigid" if rigid else "model"), build, progress=progress)
         models[rigid] = (model, lib.read_text(encoding="utf-8"))
     check_model_tones(
         sweep, todo, {rigid: [c.name for c in m[0].coordinates] for rigid, m in models.items() if rigid != "loop"}

@@ -48,8 +48,9 @@ import numpy as np
 
 from ..errors import SweepError
 from ..files import read_bytes, toml_document
+from ..options import Option, OptionError
 from ..structure.reader import Reader, did_you_mean
-from ..testbench.sigma_delta import CHANNELS, RELTOL_RANGE, RELTOL_TEXT, SIMULATORS, Tone
+from ..testbench.sigma_delta import CHANNELS, OPTIONS, SWEEP, read_tone
 from ..text import text_problem
 from ..units import UNITS, UnitError, parse_quantity
 
@@ -66,74 +67,18 @@ def figure_ok(name: str) -> bool:
     return name in RUN_FIGURES or (bool(dot) and m in METRICS and re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", c) is not None)
 
 
-# the ranges a sweep file may ask for: outside them a run cannot succeed (or means nothing)
-TS_RANGE = (1e-9, 1.0)  # s: the loop's sampling period
-MAX_CYCLES = 1 << 20  # periods per run (about 3 days of ngspice each)
 MAX_RETRIES = 10
 MAX_RUNS = 10_000  # default of `netgen sweep --max-runs`
-
-
-def _between(lo: float, hi: float, unit: str = "", closed: bool = True) -> Any:
-    """A check: None inside [lo, hi] (or [lo, hi) when not `closed`), else the problem."""
-
-    def check(v: float) -> str | None:
-        inside = lo <= v <= hi if closed else lo <= v < hi
-        return None if inside else f"must be between {lo:g}{unit} and {hi:g}{unit}" + ("" if closed else " (excluded)")
-
-    return check
-
-
-# testbench parameter: (kind, check -> problem or None, what it is)
-TESTBENCH: dict[str, tuple[str, Any, str]] = {
-    "ts": ("time", _between(*TS_RANGE, " s"), "sampling period T_s"),
-    "cycles": (
-        "int",
-        lambda v: None if 64 <= v <= MAX_CYCLES else f"must be between 64 and {MAX_CYCLES}",
-        "number of sampling periods",
-    ),
-    "skip": ("int", lambda v: None if v >= 0 else "must be >= 0", "periods skipped before the spectra"),
-    "lead": ("dimensionless", _between(0.0, 1.0, closed=False), "lead-compensator coefficient (default 0.8)"),
-    "density": (
-        "dimensionless",
-        lambda v: None if 0 < v < 1 else "must be between 0 and 1",
-        "mean z bit that balances gravity",
-    ),
-    "sense_ratio": (
-        "dimensionless",
-        lambda v: None if 0 < v <= 10 else "must be > 0 and <= 10",
-        "V_s / V_fb (default 0.25)",
-    ),
-    "full_scale": (
-        "dimensionless",
-        lambda v: None if 0 < v <= 1 else "must be > 0 and <= 1",
-        "readout full scale, a fraction of the touch amplitude (default 0.01)",
-    ),
-    "dither": ("dimensionless", _between(0.0, 1.0), "comparator dither, fraction of a_fb T_s^2 (default 0.2)"),
-    "tone": ("tone", None, "test tone COORD:AMPLITUDE:FREQ"),
-    "tone_amplitude": ("dimensionless", lambda v: None, "tone amplitude (f_ port unit)"),
-    "tone_freq": ("frequency", lambda v: None if v > 0 else "must be > 0", "tone frequency"),
-    "rigid_only": ("bool", None, "drop the eigenmodes"),
-    "simulator": ("str", None, f"circuit simulator of the run ({', '.join(SIMULATORS)})"),
-    "reltol": ("dimensionless", lambda v: _reltol_problem(v), "relative tolerance of the simulator"),
-    "feedback_voltage": (
-        "voltage",
-        _between(1e-3, 1e4, " V"),
-        "feedback voltage V_fb (default: from the loop's input)",
-    ),
-    "acceleration": (
-        "acceleration",
-        _between(-1e7, 1e7, " m/s^2"),
-        "DC frame acceleration through a_in (a DC sweep: the scale factor and linearity)",
-    ),
+# the parameter kinds of the sweep's table: a quantity kind (units.UNITS), or these
+KINDS = {"int": "int", "choice": "str", "text": "tone", "bool": "bool"}
+# testbench parameter: (kind, its declared option, what it is); derived from the sigma-delta
+# options (netgen.testbench.sigma_delta.options: the flags and [loop] keys of the same settings)
+TESTBENCH: dict[str, tuple[str, Option, str]] = {
+    name: (KINDS.get(o.type, o.quantity), o, o.help) for name, o in SWEEP.items()
 }
+SWEEP_TIMEOUT = OPTIONS["timeout"]  # [sweep] timeout: each simulator call's limit, as --timeout
 DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
-LOOP_CHOICES = ("feedback_voltage", "acceleration")  # netgen.testbench.sigma_delta.runner.run: into its LoopSpec
-
-
-def _reltol_problem(value: float) -> str | None:
-    """The range `netgen sigma-delta --reltol` accepts (netgen.testbench.sigma_delta.RELTOL_RANGE)."""
-    lo, hi = RELTOL_RANGE
-    return None if lo <= value <= hi else f"must be between {RELTOL_TEXT.replace('..', ' and ')}"
+LOOP_CHOICES = ("feedback_voltage", "acceleration")  # netgen.testbench.sigma_delta.RunRequest: over its LoopSpec
 
 
 # ----------------------------------------------------------------------------- sweep file
@@ -313,18 +258,11 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
 
 
 def _timeout(rd: Reader, value: Any) -> float:
-    """[sweep] timeout: the wall-clock limit of each simulator call, a time > 0."""
+    """[sweep] timeout: the wall-clock limit of each simulator call (the --timeout option's check)."""
     try:
-        t = parse_quantity(value, "time")
-    except UnitError as exc:
-        raise rd.fail("sweep.timeout", f"timeout: {exc}", 'write timeout = "2 h" (or seconds: 7200)') from None
-    if not (math.isfinite(t) and t > 0):
-        raise rd.fail(
-            "sweep.timeout",
-            f"timeout = {value!r} must be a finite time > 0",
-            'write timeout = "2 h" (each simulator call is stopped after it)',
-        )
-    return t
+        return SWEEP_TIMEOUT.read(value, "timeout")
+    except OptionError as exc:
+        raise rd.fail("sweep.timeout", exc.problem, exc.fix) from None
 
 
 def timeout_for(cycles: int) -> float:
@@ -428,65 +366,31 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
         elif isinstance(value, str) and kind_of(value) != "dimensionless":
             num = parse_quantity(value, kind_of(value))
         return value, num
-    kind, check, what = TESTBENCH[name]
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise rd.fail(where, f"{name} = {value!r} must be true or false", f"write {name} = false")
-        return value, float(value)
-    if kind == "str":
-        if not isinstance(value, str) or not value:
-            raise rd.fail(where, f"{name} = {value!r} must be a name", f'write {name} = "ngspice"')
-        if name == "simulator" and value not in SIMULATORS:
-            raise rd.fail(
-                where,
-                f"simulator = {value!r} is not one of {list(SIMULATORS)}",
-                f"{did_you_mean(value, list(SIMULATORS))}use one of {', '.join(SIMULATORS)}",
-            )
-        return value, None
+    kind, option, _ = TESTBENCH[name]
     if kind == "tone":
-        if value in ("", None):
-            return "", None
-        if not isinstance(value, str):
-            raise rd.fail(
-                where,
-                f"tone = {value!r} must be a string COORD:AMPLITUDE:FREQ",
-                'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)',
-            )
-        try:
-            tone = Tone.parse(value)
-        except ValueError as exc:
-            raise rd.fail(
-                where, str(exc), 'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)'
-            ) from None
-        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", tone.coord):
-            raise rd.fail(
-                where,
-                f"tone {value!r}: {tone.coord!r} is not a coordinate name",
-                'name a coordinate of the model, e.g. "z:0.02:2000" or "tilt_x:0.5:1000"',
-            )
-        if not (math.isfinite(tone.amplitude) and math.isfinite(tone.freq) and tone.freq > 0):
-            raise rd.fail(
-                where,
-                f"tone {value!r}: the amplitude must be finite and the frequency finite and > 0",
-                'write tone = "z:0.02:2000" (coordinate, amplitude, frequency in Hz)',
-            )
-        return value, None
-    if kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise rd.fail(where, f"{name} = {value!r} must be an integer", f"write {name} = <integer> ({what})")
-        num = float(value)
-    else:
-        try:
-            num = parse_quantity(value, kind)
-        except UnitError as exc:
-            raise rd.fail(
-                where, f"{name}: {exc}", f"write {name} as a number in SI units or a {kind} string ({what})"
-            ) from None
-    if not math.isfinite(num) or (check and check(num)):
+        return _tone(rd, where, value), None
+    try:
+        v = option.read(value, name)
+    except OptionError as exc:
+        raise rd.fail(where, exc.problem, exc.fix) from None
+    return v, (None if kind == "str" else float(v))
+
+
+def _tone(rd: Reader, where: str, value: Any) -> str:
+    """A tone COORD:AMPLITUDE:FREQ checked as --tone is (options.read_tone; f_s/2 in check.py)."""
+    if value in ("", None):
+        return ""
+    try:
+        coord, _, _ = read_tone(value, "tone")
+    except OptionError as exc:
+        raise rd.fail(where, exc.problem, exc.fix) from None
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", coord):
         raise rd.fail(
-            where, f"{name} = {value!r} {check(num) if math.isfinite(num) else 'is not finite'}", f"give a valid {what}"
+            where,
+            f"tone {value!r}: {coord!r} is not a coordinate name",
+            'name a coordinate of the model, e.g. "z:0.02:2000" or "tilt_x:0.5:1000"',
         )
-    return (int(value) if kind == "int" else num), num
+    return value
 
 
 def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Parameter:

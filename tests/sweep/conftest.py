@@ -29,10 +29,10 @@ def serial_runs(tmp_path_factory):
     """The reference: direct sigma_delta.run calls (rigid model, CYCLES periods, skip 0), two
     at a time, per T_s in TS."""
     out = tmp_path_factory.mktemp("serial")
-    model, lib = sd.model_for(STRUCTURE, out / "model_rigid", rigid_only=True, progress=False)
+    model, lib = sd.model_for(STRUCTURE, out / "model_rigid", sd.BuildOptions(rigid_only=True), progress=False)
 
     def one(ts):
-        sd.run(model, lib, out / f"ts_{ts:g}", ts, CYCLES, progress=False, plots=False, skip=0)
+        sd.run(model, lib, out / f"ts_{ts:g}", sd.RunRequest(ts, CYCLES, progress=False, plots=False, skip=0))
         return summary(out / f"ts_{ts:g}" / "summary.json")
 
     with ThreadPoolExecutor(2) as pool:

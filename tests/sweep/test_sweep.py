@@ -211,8 +211,8 @@ def test_sweep_file_errors_name_file_line_key_and_fix(tmp_path, capsys):
     for text, where, words in [
         ('[[parameters]]\nname = "tss"\nvalues = [1e-6]\n', "parameters[0].name", "did you mean 'ts'"),
         ('[[parameters]]\nname = "ts"\nvalues = ["1 uV"]\n', "parameters[0].values", "time unit"),
-        ('[[parameters]]\nname = "cycles"\nvalues = [32]\n', "parameters[0].values", "must be between 64 and"),
-        ('[[parameters]]\nname = "reltol"\nvalues = [0.1]\n', "parameters[0].values", "between 1e-7 and 1e-2"),
+        ('[[parameters]]\nname = "cycles"\nvalues = [32]\n', "parameters[0].values", "is not between 64 and"),
+        ('[[parameters]]\nname = "reltol"\nvalues = [0.1]\n', "parameters[0].values", "is outside [1e-07, 0.01]"),
         (
             '[[parameters]]\nname = "structure.electrodes.gapp"\nvalues = ["3 um"]\n',
             "structure.electrodes.gapp",

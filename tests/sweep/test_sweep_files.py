@@ -15,7 +15,7 @@ from netgen import cli
 from netgen.sweep import parse_sweep
 from netgen.sweep.size import RUN_SECONDS, SECONDS_PER_PERIOD, estimate, run_count
 from tests.fixtures import ROOT
-from tests.sweep.bad_sweeps import GOOD, cases
+from tests.sweep.bad_sweeps import FIXED, GOOD, PARAM, cases
 
 STRUCTURE = ROOT / "examples" / "levitated_disk.toml"
 
@@ -80,3 +80,33 @@ def test_max_runs_refuses_a_sweep_one_over_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "2 runs" in err and "--max-runs 1" in err
     assert _sweep(tmp_path, GOOD.encode(), "--max-runs", "2")[0] == 0
+
+
+def test_a_dry_run_refuses_what_every_run_would_refuse(tmp_path, capsys):
+    """A tone amplitude beyond the declared range, and a simulator the installed ngspice cannot
+    run (ngspice-osdi needs OSDI 0.5: ngspice 44 and later), are refused by the dry run with the
+    key and the fix, so no run fails on them."""
+    from netgen.testbench.sigma_delta import simulator_problem
+
+    rc, path = _sweep(tmp_path, GOOD.replace(FIXED, FIXED + 'tone = "z:0.02:2000"\ntone_amplitude = 1e30\n').encode())
+    err = capsys.readouterr().err
+    assert rc == 2 and "tone_amplitude = 1e+30 is outside (0, 1e+12]" in err and "fix:" in err, err
+    rc, _ = _sweep(tmp_path, GOOD.replace(FIXED, FIXED + 'simulator = "ngspice-osdi"\n').encode())
+    err = capsys.readouterr().err
+    if simulator_problem("ngspice-osdi"):  # ngspice 39-43 (the PATH's ngspice here)
+        assert rc == 2 and "fixed.simulator" in err and "OSDI 0.5" in err and "fix:" in err, err
+    else:
+        assert rc == 0, err
+
+
+def test_a_timeout_in_hours_and_any_device_with_a_loop(tmp_path, capsys):
+    """timeout = "2 h" is 7200 s; the z accelerometer (no tilts) is swept like the disk."""
+    assert parse_sweep(GOOD, "s.toml").timeout is None
+    sweep = parse_sweep('[sweep]\ntimeout = "2 h"\n' + FIXED + PARAM, "s.toml")
+    assert sweep.timeout == 7200.0
+    f = tmp_path / "s.toml"
+    f.write_text(FIXED + PARAM)
+    acc = ROOT / "examples" / "accelerometer_z.toml"
+    rc = cli.main(["sweep", str(acc), str(f), "-o", str(tmp_path / "out"), "--dry-run"])
+    out, err = capsys.readouterr()
+    assert rc == 0 and "2 run(s)" in out, err

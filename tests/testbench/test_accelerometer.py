@@ -68,13 +68,7 @@ def runs(built, tmp_path_factory):
             model,
             lib,
             tmp_path_factory.mktemp(sim),
-            TS,
-            512,
-            progress=False,
-            plots=False,
-            simulator=sim,
-            loop=loop,
-            skip=64,
+            sd.RunRequest(TS, 512, progress=False, plots=False, simulator=sim, loop=loop, skip=64),
         )
         for sim in ("ngspice-xspice", "vacask")
     }
@@ -112,14 +106,7 @@ def test_a_tone_through_a_in_appears_at_the_scale_factor(built, tmp_path):
         model,
         lib,
         tmp_path,
-        TS,
-        4096,
-        tone,
-        progress=False,
-        plots=False,
-        simulator="ngspice-xspice",
-        loop=loop,
-        skip=512,
+        sd.RunRequest(TS, 4096, tone, progress=False, plots=False, simulator="ngspice-xspice", loop=loop, skip=512),
     )
     d = sd.design(model, TS, spec=loop)
     b = MASS * 2.0 / d.channels[0]["full_scale_force_si"]

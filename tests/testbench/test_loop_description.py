@@ -106,6 +106,8 @@ BAD = [
     ("[loop]\nfeedback_voltage = 1.381\n[loop.input]\nacceleration = -300", "loop.feedback_voltage"),
     ('[loop.input]\ntone = { amplitude = "2 m/s^2" }', "loop.input.tone.frequency"),
     ('[loop.input]\ntone = { frequency = "1 kHz" }', "loop.input.tone.amplitude"),
+    ('[loop.input]\ntone = { amplitude = 1, frequency = "600 kHz" }', "loop.input.tone.frequency"),  # > f_s/2
+    ('[loop.input]\nforce = { coordinate = "z", amplitude = 0.02, frequency = 5e5 }', "loop.input.force.frequency"),
     ("[loop.input]\ntone = { amplitude = -2, frequency = 1000 }", "loop.input.tone.amplitude"),
     ("[loop.input]\ntone = { amplitude = 2, frequency = 1000, phase = 1 }", "loop.input.tone.phase"),
     ("[loop.input]\nacceleration = 9.81\ntone = { amplitude = 15, frequency = 1000 }", "loop.input"),  # DC + tone > FS
@@ -212,3 +214,35 @@ def test_a_force_list_gives_each_coordinate_its_dc_and_one_tone(tmp_path):
     with pytest.raises(Exception) as err:
         loopfile.read_loop_file(p)
     assert "loop.input.force" in str(err.value) and "one" in str(err.value)
+
+
+# (structure example, extra arguments, the flag the message names, the text of its fix)
+HOSTILE = [
+    ("accelerometer_z", ["--pressure", "100 Pa"], "--pressure", "drop --pressure"),
+    ("cantilever_fb", ["--pressure", "100 Pa"], "--pressure", "drop --pressure"),
+    ("accelerometer_xyz", ["--pressure", "100 Pa", "--film", "compressible"], "--film", "drop --film"),
+    ("accelerometer_z", ["--film", "incompressible"], "--film", "drop --film"),
+    ("levitated_disk", ["--ts", "1e-300"], "--ts", "e.g. --ts 1e-6"),
+    ("levitated_disk", ["--tone", "z:1_0:1000"], "--tone", "e.g. --tone z:0.02:1000"),
+    ("levitated_disk", ["--tone", "z:inf:1000"], "--tone", "e.g. --tone z:0.02:1000"),
+    ("levitated_disk", ["--tone", "z:1e30:1000"], "--tone", "(0, 1e+12]"),
+    ("levitated_disk", ["--tone", "z:0.02:5e5"], "--tone", "f_s/2"),
+    ("levitated_disk", ["--cycles", "1_000"], "--cycles", "e.g. --cycles 4096"),
+]
+
+
+@pytest.mark.parametrize("example, extra, flag, fix", HOSTILE, ids=[f"{e} {' '.join(x)}" for e, x, _, _ in HOSTILE])
+def test_a_flag_gets_the_check_of_its_file_key(example, extra, flag, fix, tmp_path, capsys):
+    """The structure file refuses squeeze_film on a suspended device and the compressible film on a
+    proof mass: --pressure / --film on them are refused alike (exit 2, before any model is built),
+    as are the values the file keys refuse (a period below 1 ns, tone numbers with underscores,
+    non-finite or out of range, a tone at f_s/2)."""
+    out = tmp_path / "sd"
+    argv = ["sigma-delta", str(ROOT / "examples" / f"{example}.toml"), "-o", str(out), "--cycles", "64", *extra]
+    try:
+        code = cli.main(argv)
+    except SystemExit as exc:  # argparse's own exit 2
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and flag in err and fix in err and "Traceback" not in err, err
+    assert not out.exists()

@@ -62,13 +62,7 @@ def loop(model, tmp_path_factory, request) -> dict:
             model,
             ROOT / "netlists" / "levitated_disk.lib",
             out,
-            TS,
-            CYCLES,
-            progress=False,
-            plots=False,
-            skip=SKIP,
-            segment=SEGMENT,
-            simulator=simulator,
+            sd.RunRequest(TS, CYCLES, progress=False, plots=False, skip=SKIP, segment=SEGMENT, simulator=simulator),
         )
     return s | {"release": release, "written": json.loads((out / "summary.json").read_text())}
 
@@ -256,18 +250,13 @@ def test_a_segmented_run_stops_after_the_segment_that_lost_the_plate(model, tmp_
     """V_fb designed for a z bit density of 2 (impossible: all-up bits give m g / 2) lets the plate
     fall at g / 2 from the start: it leaves 2 % of the gap after sqrt(4 * 0.02 gap / g) (156 us,
     kinematics). The run stops after the segment in which that happens, and says so."""
+    d = sd.design(model, TS, density=2.0, balance_check=False, step=False)  # (design() refuses it otherwise)
     s = sd.run(
         model,
         ROOT / "netlists" / "levitated_disk.lib",
         tmp_path,
-        TS,
-        320,
-        progress=False,
-        plots=False,
-        segment=64,
-        density=2.0,
-        balance_check=False,
-    )  # (design() refuses it otherwise)
+        sd.RunRequest(TS, 320, progress=False, plots=False, segment=64, designed=d),
+    )
     lev, z = s["levitation"], model.coordinates[0]
     fall = np.sqrt(4 * 0.02 * z.scale / 9.81) / TS
     assert not lev["held"] and lev["coordinate"] == "z" and lev["value"] < 0
@@ -294,12 +283,7 @@ def test_a_segment_is_cut_at_a_missed_corner_and_the_run_continues_from_there(mo
         model,
         ROOT / "netlists" / "levitated_disk.lib",
         tmp_path,
-        TS,
-        160,
-        progress=False,
-        plots=False,
-        skip=SKIP,
-        segment=64,
+        sd.RunRequest(TS, 160, progress=False, plots=False, skip=SKIP, segment=64),
     )
     assert s["breakpoints"]["segments_cut_at_a_missed_corner"] == [{"start": 0, "missed_at": 20}]
     assert calls[:2] == [64, 64] and s["segments"]["ngspice_runs"] == 4  # 0-19, 20-83, 84-147, 148-159

@@ -35,7 +35,7 @@ def model() -> MacroModel:
 
 def _run(model, out, simulator):
     start = time.perf_counter()
-    s = sd.run(model, LIB, out, TS, CYCLES, progress=False, plots=False, skip=SKIP, simulator=simulator)
+    s = sd.run(model, LIB, out, sd.RunRequest(TS, CYCLES, progress=False, plots=False, skip=SKIP, simulator=simulator))
     return s | {"wall": time.perf_counter() - start}
 
 

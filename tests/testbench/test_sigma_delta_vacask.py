@@ -43,7 +43,7 @@ def model() -> MacroModel:
 
 def _run(model, out, simulator, cycles, skip):
     start = time.perf_counter()
-    s = sd.run(model, LIB, out, TS, cycles, progress=False, plots=False, skip=skip, simulator=simulator)
+    s = sd.run(model, LIB, out, sd.RunRequest(TS, cycles, progress=False, plots=False, skip=skip, simulator=simulator))
     return s | {"wall": time.perf_counter() - start}
 
 

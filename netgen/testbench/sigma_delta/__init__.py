@@ -8,9 +8,20 @@ analysis: bitstreams to spectra and figures; plots; cli: `netgen sigma-delta`.
 """
 
 from .analysis import analyse, gravity_balance, levitation, per_clock, psd, thermal_floor
-from .loop import FILTERS, RELTOL_RANGE, RELTOL_TEXT, Design, Timing, Tone, design, duty, groups
-from .loopfile import LoopSpec, read_loop_file, read_structure_loop
-from .runner import BACKENDS, SIMULATORS, model_for, run, with_damping
+from .loop import FILTERS, Design, Timing, Tone, design, duty, groups
+from .loopfile import LoopSpec, check_input_tone, read_loop_file, read_structure_loop
+from .options import OPTIONS, SWEEP, read_tone
+from .runner import (
+    BACKENDS,
+    SIMULATORS,
+    BuildOptions,
+    Choices,
+    RunRequest,
+    model_for,
+    run,
+    simulator_problem,
+    with_damping,
+)
 
 # the levitated disk's channels (its default loop: loop.channel_names), for the disk's scripts;
 # a run's channels are its Design.names and summary["channels"]
@@ -20,14 +31,19 @@ __all__ = [
     "BACKENDS",
     "CHANNELS",
     "FILTERS",
-    "RELTOL_RANGE",
-    "RELTOL_TEXT",
+    "OPTIONS",
+    "SWEEP",
+    "BuildOptions",
+    "Choices",
+    "RunRequest",
     "SIMULATORS",
     "Design",
     "LoopSpec",
     "Timing",
     "Tone",
     "analyse",
+    "check_input_tone",
+    "simulator_problem",
     "design",
     "duty",
     "gravity_balance",
@@ -38,6 +54,7 @@ __all__ = [
     "psd",
     "read_loop_file",
     "read_structure_loop",
+    "read_tone",
     "run",
     "thermal_floor",
     "with_damping",

@@ -10,8 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...options import OptionError
 from ...structure.reader import Reader, check_keys
 from . import filters
+from .options import OPTIONS
 
 
 @dataclass(frozen=True)
@@ -33,14 +35,13 @@ def read_lead2(rd: Reader, where: str, t: dict) -> dict:
     """lead2: y[n] = lead prev[n] - cur[n] (lead None: the design's `lead`, --lead, default 0.8)."""
     check_keys(rd, where, t, ["kind", "lead"])
     lead = t.get("lead")
-    if lead is not None and (
-        isinstance(lead, bool) or not isinstance(lead, (int, float)) or not np.isfinite(lead) or abs(lead) > 10
-    ):
-        raise rd.fail(
-            f"{where}.lead",
-            f"lead = {lead!r} must be a number in [-10, 10]",
-            "write lead = 0.8 (the zero of the lead compensator, y = lead*prev - cur)",
-        )
+    if lead is not None:
+        try:
+            lead = OPTIONS["lead"].read(lead, f"{where}.lead")
+        except OptionError as exc:
+            raise rd.fail(
+                f"{where}.lead", exc.problem, f"{exc.fix} (the zero of the lead compensator, y = lead*prev - cur)"
+            ) from None
     return {"kind": "lead2", "lead": None if lead is None else float(lead)}
 
 

@@ -34,7 +34,7 @@ from .balance import (
     tone_forces,
     volts,
 )
-from .loopfile import LoopSpec
+from .loopfile import LoopSpec, check_input_tone
 from .signals import Timing, Tone, duty, selected
 
 FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind  # the loop-filter registry (kinds.py), by its old name
@@ -43,9 +43,6 @@ FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind  # the loop-filter registr
 # per channel (in order; the disk's z, tilt_x, tilt_y take the first three): the dither sits at
 # f_s (1/2 - delta), a different delta per channel so that the dithers are uncorrelated
 DITHER_DELTA = (0.0218, 0.0274, 0.0331, 0.0388, 0.0445, 0.0502)
-# the simulators' relative tolerance: range accepted from the CLI and sweep files
-RELTOL_RANGE = (1e-7, 1e-2)
-RELTOL_TEXT = "1e-7..1e-2"
 # the comparator's stated model (Design.latch_resolution): above its resolution a held level is
 # regenerated to within this of 0 or 1 (to 0.5 (1 - tanh(latch_gain / 2)) = 6e-6 at the default gain)
 CLEAN_LATCH = 1e-3
@@ -467,6 +464,8 @@ def design(
     `step`: the back end renders a feedback step (runner.STEP_BACKENDS), which a designed filter then
     gets unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
     spec = spec or LoopSpec()
+    if tone is None or tone is spec.input.tone:  # a caller's tone replaces the description's
+        check_input_tone(spec, ts)
     density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
     dither_given = dither is not None or spec.dither is not None  # a designed kind runs without, unless given
     full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)

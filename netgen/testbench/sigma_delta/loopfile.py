@@ -37,10 +37,12 @@ from pathlib import Path
 
 from ...errors import LoopError
 from ...files import read_text, toml_document
+from ...options import OptionError
 from ...structure.reader import Reader, check_keys, choice
 from ...text import escape, is_identifier, text_problem
 from ...units import UnitError, parse_quantity
 from .kinds import FILTERS
+from .options import OPTIONS
 from .signals import Timing, Tone
 
 LOOP_KEYS = [
@@ -61,14 +63,8 @@ INPUT_KEYS = ["acceleration", "tone", "force", "gravity"]
 READOUTS = ["charge_amplifier"]
 MAX_CHANNELS = 6  # 2^6 feedback patterns in the force table
 FIX = "see the [loop] reference in docs/sigma-delta.md"
-# ranges of the numbers (the CLI's and sweep files' ranges where they exist)
-RANGES = {
-    "sense_ratio": (0.0, 10.0, "> 0 and <= 10"),
-    "full_scale": (0.0, 1.0, "> 0 and <= 1"),
-    "density": (0.0, 1.0, "between 0 and 1 (exclusive)"),
-    "dither": (-1e-300, 1.0, "between 0 and 1"),
-    "reltol": (1e-7 * (1 - 1e-9), 1e-2, "between 1e-7 and 1e-2"),
-}
+# the [loop] keys that are declared options (netgen.testbench.sigma_delta.options: one range each)
+NUMBERS = ("sense_ratio", "full_scale", "density", "dither", "reltol")
 
 
 @dataclass(frozen=True)
@@ -141,8 +137,8 @@ def read_loop(rd: Reader, t: object) -> LoopSpec:
     if not isinstance(t, dict):
         raise rd.fail("loop", f"'loop' must be a table, got {type(t).__name__}", "write it as a [loop] section")
     check_keys(rd, "loop", t, LOOP_KEYS)
-    nums = {k: number(rd, t, "loop", k, *RANGES[k][:2], RANGES[k][2]) for k in RANGES}
-    vfb = quantity(rd, t, "loop", "feedback_voltage", "voltage", 0.0, 1e4, "> 0 and <= 10 kV")
+    nums = {k: option(rd, t, "loop", k, k) for k in NUMBERS}
+    vfb = option(rd, t, "loop", "feedback_voltage", "feedback_voltage")
     return LoopSpec(
         source=rd.path,
         channels=read_channels(rd, t),
@@ -174,6 +170,19 @@ def name(rd: Reader, where: str, value: object, what: str) -> str:
         shown = text_problem(value) or f"{escape(str(value))!r} is not a name (letters, digits, _)"
         raise rd.fail(where, f"{what} {shown}", f"give the {what} as it is named in the model")
     return value
+
+
+def option(rd: Reader, t: dict, where: str, key: str, name: str, required: bool = False) -> object:
+    """t[key] through its declared option's check (options.OPTIONS[name]: the range the flag and the
+    sweep parameter share), None if absent; else the error naming the key."""
+    if key not in t:
+        if required:
+            raise rd.fail(f"{where}.{key}", f"missing required key '{key}'", f"add {key} ({OPTIONS[name].fix(key)})")
+        return None
+    try:
+        return OPTIONS[name].read(t[key], f"{where}.{key}")
+    except OptionError as exc:
+        raise rd.fail(f"{where}.{key}", escape(exc.problem), f"{exc.fix} ({FIX})") from None
 
 
 def number(rd: Reader, t: dict, where: str, key: str, lo: float, hi: float, text: str) -> float | None:
@@ -341,26 +350,14 @@ def read_input(rd: Reader, t: dict) -> InputSpec:
         if table["gravity"]:
             return InputSpec()
     if "acceleration" in table:
-        dc["a_in"] = quantity(
-            rd,
-            table,
-            "loop.input",
-            "acceleration",
-            "acceleration",
-            0.0,
-            1e7,
-            "a finite acceleration up to 1e7 m/s^2",
-            signed=True,
-        )
+        dc["a_in"] = option(rd, table, "loop.input", "acceleration", "acceleration")
     if "tone" in table:
         tt = subtable(rd, table, "loop.input", "tone")
         check_keys(rd, "loop.input.tone", tt, ["amplitude", "frequency"])
         tone = Tone(
             "a_in",
-            quantity(
-                rd, tt, "loop.input.tone", "amplitude", "acceleration", 0.0, 1e7, "> 0 and <= 1e7 m/s^2", required=True
-            ),
-            quantity(rd, tt, "loop.input.tone", "frequency", "frequency", 0.0, 1e12, "> 0", required=True),
+            option(rd, tt, "loop.input.tone", "amplitude", "tone_acceleration", required=True),
+            option(rd, tt, "loop.input.tone", "frequency", "tone_freq", required=True),
         )
     if "force" in table:
         dc, tone = read_forces(rd, table["force"])
@@ -410,11 +407,24 @@ def read_force(rd: Reader, t: dict, where: str = "loop.input.force") -> tuple[di
         raise rd.fail(f"{where}.coordinate", "missing required key 'coordinate'", 'add coordinate = "z"')
     coord = name(rd, f"{where}.coordinate", t["coordinate"], "coordinate")
     dc = quantity(rd, t, where, "dc", "dimensionless", 0.0, 1e12, "a finite number (the f_ port unit)", signed=True)
-    amp = quantity(rd, t, where, "amplitude", "dimensionless", 0.0, 1e12, "> 0 (the f_ port unit)")
+    amp = option(rd, t, where, "amplitude", "tone_amplitude")
     if amp is not None and "frequency" not in t:
         raise rd.fail(f"{where}.frequency", "an amplitude needs a frequency", 'add frequency = "2 kHz"')
-    freq = quantity(rd, t, where, "frequency", "frequency", 0.0, 1e12, "> 0")
+    freq = option(rd, t, where, "frequency", "tone_freq")
     if freq is not None and amp is None:
         raise rd.fail(f"{where}.amplitude", "a frequency needs an amplitude", "add amplitude = 0.02 (f_ port unit)")
     tone = Tone(coord, amp, freq) if amp is not None else None
     return ({f"f_{coord}": dc} if dc is not None else {}), tone
+
+
+def check_input_tone(spec: LoopSpec, ts: float) -> None:
+    """The description's tone below f_s/2 at this T_s (the check --tone gets: options.tone_freq),
+    else the LoopError naming its frequency key."""
+    tone = spec.input.tone
+    if tone is None:
+        return
+    where = "loop.input.tone.frequency" if tone.coord == "a_in" else "loop.input.force.frequency"
+    try:
+        OPTIONS["tone_freq"].read(tone.freq, where, {"ts": ts})
+    except OptionError as exc:
+        raise spec.fail(where, escape(exc.problem), f"{exc.fix}, or a shorter --ts") from None

@@ -28,12 +28,10 @@ from . import filters
 from .analysis import levitation, per_clock
 from .inputs import input_text, mechanical_inputs, tone_unit
 from .loop import Design, Tone
+from .options import MIN_SEGMENT, SEGMENT_S
 from .vacask import drivers
 
 TEMPLATE = "sigma_delta/tb.cir.j2"
-# ngspice runs go in segments of this much simulated time, restarted at t = 0 (run_segments)
-SEGMENT_S = 5e-4
-MIN_SEGMENT = 16
 # the testbench's sampler/quantizer/driver blocks: behavioural sources, the netgen_sdloop code model,
 # or the Verilog-A modules of blocks.va through OSDI (netgen.testbench.sigma_delta.osdi)
 LOOPS = ("analog", "xspice", "osdi")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import time
+import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -21,13 +22,15 @@ import numpy as np
 from ...build import build_key, build_model
 from ...emit import write_outputs
 from ...emit.osdi import target_cpu
-from ...errors import LoopError
+from ...errors import LoopError, SimulatorNotFound, StructureError
 from ...folders import MANIFEST, OutputFolder, check_manifest
 from ...model import MacroModel
 from ...sim.ngspice import identity as ngspice_identity
 from ...sim.ngspice import version as ngspice_version
 from ...sim.vacask import stats as vacask_stats
+from ...sim.vacask import tools as vacask_tools
 from ...structure import Damping, load_structure
+from ...structure.reader import Reader
 from . import ngspice, osdi, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Design, Tone, design
@@ -161,6 +164,24 @@ SIMULATORS = tuple(BACKENDS)
 STEP_BACKENDS = ("ngspice-xspice", "vacask")
 
 
+def simulator_problem(name: str) -> str | None:
+    """Why the back end `name` cannot run here (its simulator missing, or an ngspice too old for
+    OSDI: osdi.check's verdict), else None; for a sweep's dry run, before any run."""
+    try:
+        if name == "vacask":
+            vacask_tools()
+        else:
+            v = ngspice_version()
+            if name == "ngspice-osdi" and not v.osdi:
+                return (
+                    f"{v.label} ({v.path}) cannot load openvaf-r's OSDI 0.5 modules (ngspice 44 and later do); "
+                    f"{osdi.ALTERNATIVES}"
+                )
+    except SimulatorNotFound as exc:
+        return str(exc)
+    return None
+
+
 def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
     """Every channel's loop filter is one this back end renders (FilterKind.backends), else a
     LoopError naming the kind and the back ends that do; likewise a feedback step (Timing.fb_edge 0)."""
@@ -180,13 +201,51 @@ def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
         )
 
 
+@dataclass(frozen=True)
+class Choices:
+    """The design choices a caller (the command line, a sweep) gives over the loop description's
+    (None: the description's, else the default; netgen.testbench.sigma_delta.options declares them)."""
+
+    density: float | None = None
+    sense_ratio: float | None = None
+    lead: float | None = None
+    full_scale: float | None = None
+    dither: float | None = None
+    reltol: float | None = None
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """One run's settings: T_s, periods, the tone (else the description's), progress and plots,
+    `skip` (periods left out of the spectra; None: an eighth), the BACKENDS name, ngspice's
+    `segment`, the simulator `timeout`, the loop description `loop` (None: the model's defaults)
+    with a caller's `feedback_voltage` and DC `acceleration` over it, and `designed`: the caller's
+    backend_design of the same model, loop, tone and choices (else designed in run)."""
+
+    ts: float
+    cycles: int
+    tone: Tone | None = None
+    progress: bool = True
+    plots: bool = True
+    skip: int | None = None
+    simulator: str = "ngspice"
+    segment: int | None = None
+    timeout: float = TIMEOUT
+    loop: LoopSpec | None = None
+    designed: Design | None = None
+    choices: Choices = Choices()
+    feedback_voltage: float | None = None
+    acceleration: float | None = None
+    native: bool = False  # compile the Verilog-A for this CPU, not the x86-64 baseline (emit.osdi.target_cpu)
+
+
 def backend_design(
-    model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str, **choices
+    model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str, choices: Choices = Choices()
 ) -> Design:
     """The loop's design (loop.design with the caller's choices) for this back end: a designed
     filter gets the feedback step where the back end renders one; refused (LoopError) where it
     cannot render the design (check_backend)."""
-    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **choices)
+    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **asdict(choices))
     check_backend(d, loop, simulator)
     return d
 
@@ -201,39 +260,19 @@ def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: flo
     return loop
 
 
-def run(
-    model: MacroModel,
-    lib: Path,
-    out: Path,
-    ts: float,
-    cycles: int,
-    tone: Tone | None = None,
-    progress: bool = True,
-    plots: bool = True,
-    skip: int | None = None,
-    simulator: str = "ngspice",
-    segment: int | None = None,
-    timeout: float = TIMEOUT,
-    loop: LoopSpec | None = None,
-    designed: Design | None = None,
-    native: bool = False,
-    **choices,
-) -> dict:
+def run(model: MacroModel, lib: Path, out: Path, request: RunRequest) -> dict:
     """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
-    native: compile the Verilog-A (vacask, ngspice-osdi) for this machine's CPU, not the x86-64
-    baseline (netgen.emit.osdi.target_cpu; the summary names the target).
-    simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
-    with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
-    .va next to `lib` or else the module emitted from `model`); `loop`: the loop description
-    (defaults: the model's), `tone` (else the description's) its input tone; `designed`: the
-    caller's backend_design of the same model, loop, tone and choices (the command line checks
-    the loop before it opens the output folder), else designed here."""
+    request.simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model
+    emitted with its plate terms in the compiled code model; "vacask" the compiled Verilog-A
+    module, the .va next to `lib` or else the module emitted from `model`)."""
+    r = request
+    simulator, ts, cycles = r.simulator, r.ts, r.cycles
     if simulator not in BACKENDS:
         raise ValueError(f"unknown simulator {simulator!r}; choose one of {', '.join(BACKENDS)}")
     backend = BACKENDS[simulator]
-    loop = overridden(loop or LoopSpec(), choices.pop("feedback_voltage", None), choices.pop("acceleration", None))
-    tone = tone or loop.input.tone
-    d = designed if designed is not None else backend_design(model, ts, loop, tone, simulator, **choices)
+    loop = overridden(r.loop or LoopSpec(), r.feedback_voltage, r.acceleration)
+    tone = r.tone or loop.input.tone
+    d = r.designed if r.designed is not None else backend_design(model, ts, loop, tone, simulator, r.choices)
     if len(d.channels) > vacask.MAX_CHANNELS and simulator in ("vacask", "ngspice-osdi"):
         raise LoopError(
             loop.source,
@@ -241,15 +280,15 @@ def run(
             f"{len(d.channels)} channels: the Verilog-A loop takes at most {vacask.MAX_CHANNELS}",
             "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice",
         )
-    state = backend.prepare(model, lib, out, progress, target_cpu(native))  # fails before any output
-    state["timeout"] = timeout  # the wall-clock limit of each simulator run
+    state = backend.prepare(model, lib, out, r.progress, target_cpu(r.native))  # fails before any output
+    state["timeout"] = r.timeout  # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    clock, extra = backend.run(model, d, lib, out, cycles, tone, progress, segment, state)
+    clock, extra = backend.run(model, d, lib, out, cycles, tone, r.progress, r.segment, state)
     wall = time.perf_counter() - start
     np.savez_compressed(out / "bitstreams.npz", **clock)
     done = len(clock["time"])  # fewer than `cycles` if a segment lost the plate
-    skip = done // 8 if skip is None else min(skip, done // 2)
+    skip = done // 8 if r.skip is None else min(r.skip, done // 2)
     summary = analyse(clock, d, tone, skip=skip)
     summary["levitation"] = levitation(clock, model)
     spectra = summary.pop("spectra")
@@ -281,7 +320,7 @@ def run(
         }
     )
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    if plots:
+    if r.plots:
         plot_spectra(
             summary | {"spectra": spectra},
             out / "spectra.png",
@@ -292,6 +331,17 @@ def run(
 
 
 # ----------------------------------------------------------------------------- the run's model
+
+
+@dataclass(frozen=True)
+class BuildOptions:
+    """The sigma-delta command's options that rebuild the model: rigid-body only (modes = 0), the
+    squeeze film's gas `pressure` and `film` model, thermal `noise` sources."""
+
+    rigid_only: bool = False
+    pressure: float | None = None
+    film: str | None = None
+    noise: bool = False
 
 
 def with_damping(structure, pressure: float | None, film: str | None, noise: bool):
@@ -306,14 +356,35 @@ def with_damping(structure, pressure: float | None, film: str | None, noise: boo
     return replace(structure, damping=replace(d, noise=noise or d.noise))
 
 
-def model_folder(out: Path, rigid_only: bool, pressure: float | None, film: str | None, noise: bool) -> Path:
+def damping_problem(path: str | Path, structure, pressure: float | None = None, film: str | None = None) -> str | None:
+    """The structure's own verdict (its conductor's check) on a [damping] table with the gas
+    options as with_damping applies them: the problem, or None where the file would accept them."""
+    text = Path(path).read_text(encoding="utf-8")
+    doc = tomllib.loads(text)
+    damping = dict(doc.get("damping") or {}) | {"squeeze_film": True}
+    damping |= {"pressure": pressure} if pressure is not None else {}
+    damping |= {"film_model": film} if film is not None else {}
+    try:
+        structure.conductor.check(
+            Reader(str(path), text),
+            doc | {"damping": damping},
+            structure.electrode_sets,
+            structure.coordinates,
+            structure.fem,
+        )
+    except StructureError as exc:
+        return f"{exc.problem} ({structure.name}'s [damping] refuses it as {exc.where})"
+    return None
+
+
+def model_folder(out: Path, build: BuildOptions = BuildOptions()) -> Path:
     """DIR/model..., one folder per option set, so a cached model never answers for other options."""
     tags = (
         ["model"]
-        + (["rigid"] if rigid_only else [])
-        + ([f"p{pressure:g}Pa"] if pressure is not None else [])
-        + ([film] if film else [])
-        + (["noise"] if noise else [])
+        + (["rigid"] if build.rigid_only else [])
+        + ([f"p{build.pressure:g}Pa"] if build.pressure is not None else [])
+        + ([build.film] if build.film else [])
+        + (["noise"] if build.noise else [])
     )
     return out / "_".join(tags)
 
@@ -321,19 +392,17 @@ def model_folder(out: Path, rigid_only: bool, pressure: float | None, film: str 
 def model_for(
     structure_path: str | Path,
     folder: Path,
-    rigid_only: bool = False,
+    build: BuildOptions = BuildOptions(),
+    *,
     rebuild: bool = False,
     progress: bool = True,
-    pressure: float | None = None,
-    film: str | None = None,
-    noise: bool = False,
 ) -> tuple[MacroModel, Path]:
-    """Build the structure's model into `folder` (rigid-body only: modes = 0; gas film at
-    `pressure`, thermal noise sources with `noise`), or reuse the .json/.lib (and .va) there
+    """Build the structure's model into `folder` with the `build` options (rigid-body only: modes
+    = 0; gas film at its pressure, thermal noise sources), or reuse the .json/.lib (and .va) there
     when the set there was built from the same content (netgen.build.build_key, kept in the
     set's manifest): editing only the [loop] table, or touching the file, rebuilds nothing."""
-    structure = with_damping(load_structure(structure_path), pressure, film, noise)
-    if rigid_only:
+    structure = with_damping(load_structure(structure_path), build.pressure, build.film, build.noise)
+    if build.rigid_only:
         structure = replace(structure, coordinates=replace(structure.coordinates, modes=0))
     js, lib = folder / f"{structure.name}.json", folder / f"{structure.name}.lib"
     key = build_key(structure)

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...options import number
+
 
 @dataclass(frozen=True)
 class Timing:
@@ -61,10 +63,10 @@ class Tone:
         parts = text.split(":")
         if len(parts) != 3:
             raise ValueError(f"tone {text!r} is not COORD:AMPLITUDE:FREQ (e.g. z:0.02:1000 or a_in:2:1000)")
-        try:
-            return cls(parts[0], float(parts[1]), float(parts[2]))
-        except ValueError:
-            raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers") from None
+        amplitude, freq = number(parts[1]), number(parts[2])  # strictly: no underscores, inf or nan
+        if amplitude is None or freq is None:
+            raise ValueError(f"tone {text!r}: amplitude and frequency must be numbers")
+        return cls(parts[0], amplitude, freq)
 
 
 def duty(t: Timing, a: float | None = None, b: float | None = None) -> float:

@@ -1,0 +1,313 @@
+"""The sigma-delta loop's options, each declared once (netgen.options.Option): the `netgen
+sigma-delta` flags, the [loop] keys and the sweep parameters of the same setting share one range
+and one check. The command line (cli.add_parser), the loop reader (loopfile), the loop filter's
+reader (kinds.read_lead2), the sweep file (netgen.sweep.spec) and the docs' option tables
+(tests/test_options.py) are derived from OPTIONS."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ...options import Option, OptionError, by_name, markdown_table
+
+# ngspice runs go in segments of this much simulated time, restarted at t = 0 (ngspice.run_segments)
+SEGMENT_S = 5e-4
+MIN_SEGMENT = 16
+SIMULATORS = ("ngspice", "ngspice-xspice", "vacask", "ngspice-osdi")  # runner.BACKENDS' names
+MAX_CYCLES = 1 << 24  # periods per run: 2^24 periods write ~250 GB of raw file
+# the sampling period: below 1 ns ngspice's time steps reach its resolution; above 1 s a period
+# is longer than any mechanics the models describe
+TS_RANGE = (1e-9, 1.0)
+MAX_TONE = 1e12  # a force tone's amplitude (f_ port unit) and any tone's frequency (Hz)
+MAX_ACCELERATION = 1e7  # m/s^2 (a_in: DC and tone)
+
+
+def below_nyquist(freq: float, context: dict) -> str | None:
+    """A tone frequency below f_s/2 = 1/(2 ts) (context "ts"; unknown ts: not checked here)."""
+    ts = context.get("ts")
+    if ts is None or freq < 0.5 / ts:
+        return None
+    return f"the tone frequency is not below f_s/2 = 1/(2 T_s) = {0.5 / ts:g} Hz (T_s = {ts:g} s)"
+
+
+def simulator_available(name: str, context: dict) -> str | None:
+    """The simulator can run here (context "installed": its check, which names what is missing)."""
+    check = context.get("installed")
+    return check(name) if check else None
+
+
+def damping_accepted(value: object, context: dict) -> str | None:
+    """The structure accepts the setting in its [damping] table (context "damping": the
+    structure's own check of the table with this setting, -> its problem or None)."""
+    check = context.get("damping")
+    return check(value) if check else None
+
+
+_options = [
+    Option(
+        "ts",
+        "the sampling period T_s",
+        quantity="time",
+        low=TS_RANGE[0],
+        high=TS_RANGE[1],
+        default=1e-6,
+        example="1e-6",
+        flag="--ts",
+        sweep="ts",
+    ),
+    Option(
+        "cycles",
+        "the number of sampling periods",
+        type="int",
+        low=64,
+        high=MAX_CYCLES,
+        default=4096,
+        example="4096",
+        flag="--cycles",
+        sweep="cycles",
+    ),
+    Option(
+        "skip",
+        "the periods left out at the start of the spectra (at most half of cycles)",
+        type="int",
+        low=0,
+        high=MAX_CYCLES // 2,
+        default_text="cycles / 8",
+        example="512",
+        sweep="skip",
+    ),
+    Option(
+        "lead",
+        "the lead-compensator coefficient a in y = a*prev - cur",
+        low=-10.0,
+        high=10.0,
+        default=0.8,
+        example="0.8",
+        flag="--lead",
+        loop_key="filter.lead",
+        sweep="lead",
+    ),
+    Option(
+        "density",
+        "the mean bit the DC input needs when V_fb is derived",
+        low=0.0,
+        high=1.0,
+        open_low=True,
+        open_high=True,
+        default=0.5,
+        example="0.5",
+        loop_key="density",
+        sweep="density",
+    ),
+    Option(
+        "sense_ratio",
+        "the sense voltage over the feedback voltage, V_s / V_fb",
+        low=0.0,
+        high=10.0,
+        open_low=True,
+        default=0.25,
+        example="0.25",
+        loop_key="sense_ratio",
+        sweep="sense_ratio",
+    ),
+    Option(
+        "full_scale",
+        "the readout's full scale, a fraction of the touch amplitude that reads 1 V",
+        low=0.0,
+        high=1.0,
+        open_low=True,
+        default=0.01,
+        example="0.01",
+        loop_key="full_scale",
+        sweep="full_scale",
+    ),
+    Option(
+        "dither",
+        "the comparator dither, a fraction of the one-period feedback displacement a_fb*T_s^2 (0: none)",
+        low=0.0,
+        high=1.0,
+        default=0.2,
+        example="0.2",
+        flag="--dither",
+        loop_key="dither",
+        sweep="dither",
+    ),
+    Option(
+        "reltol",
+        "the simulator's relative tolerance (1e-4 for spectra you quote: docs/sigma-delta.md)",
+        low=1e-7,
+        high=1e-2,
+        default=1e-3,
+        example="1e-3",
+        flag="--reltol",
+        loop_key="reltol",
+        sweep="reltol",
+    ),
+    Option(
+        "feedback_voltage",
+        "the feedback voltage V_fb",
+        quantity="voltage",
+        low=0.0,
+        high=1e4,
+        open_low=True,
+        default_text="the DC input needs a mean bit of `density`",
+        example='"3 V"',
+        loop_key="feedback_voltage",
+        sweep="feedback_voltage",
+    ),
+    Option(
+        "acceleration",
+        "the DC frame acceleration through a_in",
+        quantity="acceleration",
+        low=-MAX_ACCELERATION,
+        high=MAX_ACCELERATION,
+        default_text="gravity",
+        example='"9.81 m/s^2"',
+        loop_key="input.acceleration",
+        sweep="acceleration",
+    ),
+    Option(
+        "tone",
+        "a sinusoidal input COORD:AMPLITUDE:FREQ (amplitude in the f_ port unit, uN or nN*m; a_in: m/s^2)",
+        type="text",
+        example="z:0.02:1000",
+        flag="--tone",
+        sweep="tone",
+    ),
+    Option(
+        "tone_amplitude",
+        "the amplitude of a force tone (its f_ port unit)",
+        low=0.0,
+        high=MAX_TONE,
+        open_low=True,
+        example="0.02",
+        loop_key="input.force.amplitude",
+        sweep="tone_amplitude",
+    ),
+    Option(
+        "tone_acceleration",
+        "the amplitude of an acceleration tone on a_in",
+        quantity="acceleration",
+        low=0.0,
+        high=MAX_ACCELERATION,
+        open_low=True,
+        example='"2 m/s^2"',
+        loop_key="input.tone.amplitude",
+    ),
+    Option(
+        "tone_freq",
+        "the tone frequency (below f_s/2)",
+        quantity="frequency",
+        low=0.0,
+        high=MAX_TONE,
+        open_low=True,
+        example="1000",
+        loop_key="input.tone.frequency",
+        sweep="tone_freq",
+        cross=below_nyquist,
+    ),
+    Option(
+        "segment",
+        "the ngspice periods per segment",
+        type="int",
+        low=MIN_SEGMENT,
+        high=MAX_CYCLES,
+        zero="one run",
+        default_text=f"{SEGMENT_S * 1e3:g} ms of simulated time",
+        example=str(MIN_SEGMENT * 64),
+        flag="--segment",
+    ),
+    Option(
+        "timeout",
+        "the wall-clock limit of each simulator call",
+        quantity="time",
+        low=0.0,
+        high=1e7,
+        open_low=True,
+        default_text="36000 s (a sweep: 10 min + 1 s per period)",
+        example="3600",
+        flag="--timeout",
+    ),
+    Option(
+        "simulator",
+        "the circuit simulator",
+        type="choice",
+        choices=SIMULATORS,
+        default="ngspice",
+        example="ngspice",
+        flag="--simulator",
+        sweep="simulator",
+        cross=simulator_available,
+    ),
+    Option(
+        "pressure",
+        "the gas pressure of the squeeze film (turns squeeze-film damping on)",
+        quantity="pressure",
+        low=0.0,
+        open_low=True,
+        default_text="none: the structure's [damping]",
+        example='"100 Pa"',
+        flag="--pressure",
+        cross=damping_accepted,
+    ),
+    Option(
+        "film",
+        "the squeeze-film model",
+        type="choice",
+        choices=("incompressible", "compressible"),
+        default_text="the structure's [damping] film_model",
+        example="incompressible",
+        flag="--film",
+        cross=damping_accepted,
+    ),
+    Option(
+        "rigid_only",
+        "drop the eigenmodes (the model built with modes = 0)",
+        type="bool",
+        flag="--rigid-only",
+        sweep="rigid_only",
+    ),
+]
+OPTIONS = by_name(_options)
+# where the settings are written: the sigma-delta command's flags, the [loop] keys, the sweep's parameters
+FLAGS = {o.flag: o for o in _options if o.flag}
+LOOP_KEYS = {o.loop_key: o for o in _options if o.loop_key}
+SWEEP = {o.sweep: o for o in _options if o.sweep}
+
+
+def read_tone(text: object, named: str, ts: float | None = None, amplitude: Option | None = None):
+    """COORD:AMPLITUDE:FREQ as a (coordinate, amplitude, frequency): the numbers strictly (no
+    underscores), the amplitude in its option's range (tone_acceleration on a_in, else
+    tone_amplitude), the frequency in tone_freq's and below f_s/2 when `ts` is known."""
+    fix = OPTIONS["tone"].fix(named)
+    if not isinstance(text, str) or not text.strip():
+        raise OptionError(f"{named} = {text!r} is not COORD:AMPLITUDE:FREQ", fix)
+    parts = text.split(":")
+    if len(parts) != 3 or not parts[0]:
+        raise OptionError(f"{named} = {text!r} is not COORD:AMPLITUDE:FREQ", fix)
+    coord, amp, freq = parts
+    amp_option = amplitude or OPTIONS["tone_acceleration" if coord == "a_in" else "tone_amplitude"]
+    # the numbers plain, as on the command line (a unit belongs to the [loop.input] tables)
+    parts = (
+        ("amplitude", amp, replace(amp_option, quantity="dimensionless"), {}),
+        ("frequency", freq, replace(OPTIONS["tone_freq"], quantity="dimensionless"), {"ts": ts}),
+    )
+    out = []
+    for what, value, option, context in parts:
+        try:
+            out.append(option.read(value, what, context))
+        except OptionError as exc:
+            raise OptionError(
+                f"{named} = {text!r}: {exc.problem}",
+                f"give {option.help} in {option.range_text()}, e.g. {OPTIONS['tone'].example_as(named)}",
+            ) from None
+    return coord, out[0], out[1]
+
+
+def markdown_tables() -> dict[str, str]:
+    """The docs' option tables by page (tests/test_options.py checks the pages hold them): every
+    option of `netgen sigma-delta` and the [loop] table, and the sweep's testbench parameters."""
+    return {
+        "sigma-delta.md": markdown_table(o for o in _options if o.flag or o.loop_key),
+        "sweeps.md": markdown_table((o for o in _options if o.sweep), ("sweep",)),
+    }
