@@ -218,4 +218,5 @@ def add_option(parser: argparse.ArgumentParser, option: Option, **extra) -> None
         if option.type == "choice":
             kwargs["choices"] = list(option.choices)
             kwargs["type"] = str  # argparse's choices message; the cross check runs where the context is known
+    assert option.flag is not None, f"option {option.name} has no command-line flag"
     parser.add_argument(option.flag, **(kwargs | extra))

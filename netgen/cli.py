@@ -269,8 +269,9 @@ def main(argv: list[str] | None = None) -> int:
 def report_interrupt(exc: KeyboardInterrupt) -> int:
     """One line for a run stopped by SIGINT or SIGTERM (the stage's own line where it cleaned up
     and said what is left, netgen.interrupts.Interrupted.message); exit 130."""
-    if getattr(exc, "message", None):
-        print(f"netgen: {exc.message}", file=sys.stderr)
+    message = getattr(exc, "message", None)
+    if message:
+        print(f"netgen: {message}", file=sys.stderr)
         return EXIT_INTERRUPTED
     which = getattr(exc, "signum", None)
     print(f"netgen: interrupted{f' ({signal.Signals(which).name})' if which else ''}", file=sys.stderr)

@@ -14,6 +14,7 @@ import math
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 from .units import SI_NAME, UnitError, parse_quantity
 
@@ -72,7 +73,7 @@ class Option:
     flag: str | None = None
     loop_key: str | None = None
     sweep: str | None = None
-    cross: Callable[[object, dict], str | None] | None = None
+    cross: Callable[[Any, dict], str | None] | None = None
 
     @property
     def unit(self) -> str:
@@ -114,11 +115,11 @@ class Option:
         rng = self.range_text()
         return f"give {self.help} {'in ' if rng[0] in '([' else ''}{rng}, e.g. {self.example_as(named)}"
 
-    def read(self, value: object, named: str, context: dict | None = None) -> object:
+    def read(self, value: object, named: str, context: dict | None = None) -> Any:
         """The checked value (a float in SI, an int, a choice, a bool or the text) of `value` as
         written (command-line text, or a TOML value) at `named` (the flag or the key), or OptionError."""
         parsed = self.parse(value, named)
-        if self.type in ("float", "int") and not self.inside(parsed):
+        if self.type in ("float", "int") and isinstance(parsed, (int, float)) and not self.inside(parsed):
             outside = "is not" if self.type == "int" else "is outside"
             raise OptionError(f"{named} = {shown(value)} {outside} {self.range_text()}", self.fix(named))
         problem = self.cross(parsed, context or {}) if self.cross else None
@@ -154,12 +155,11 @@ class Option:
         if isinstance(value, (int, float)):
             v = float(value)
         else:
-            v = number(value)
-            if v is None:
-                try:
-                    v = parse_quantity(value, self.quantity)
-                except UnitError as exc:
-                    raise OptionError(f"{named} = {shown(value)}: {exc}", self.fix(named)) from None
+            plain = number(value)
+            try:
+                v = plain if plain is not None else parse_quantity(value, self.quantity)
+            except UnitError as exc:
+                raise OptionError(f"{named} = {shown(value)}: {exc}", self.fix(named)) from None
         if not math.isfinite(v):
             raise OptionError(f"{named} = {shown(value)} is not a finite number", self.fix(named))
         return v

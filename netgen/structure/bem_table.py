@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from ..errors import StructureError
+from ..errors import InputError
 from ..files import did_you_mean
 from .reader import Reader
 
@@ -31,7 +31,7 @@ KEYS: dict[str, tuple[str, float, float, str]] = {
 }
 
 
-def fail(rd: Reader, key: str | None, problem: str, fix: str) -> StructureError:
+def fail(rd: Reader, key: str | None, problem: str, fix: str) -> InputError:
     """A StructureError at electrostatics.bem[.key], at the key's line (else the table's header)."""
     return rd.fail(f"{WHERE}.{key}" if key else WHERE, problem, fix)
 

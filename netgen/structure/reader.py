@@ -7,7 +7,7 @@ import re
 from collections.abc import Callable
 from typing import TypeGuard
 
-from ..errors import StructureError
+from ..errors import InputError, StructureError
 from ..files import did_you_mean
 from ..text import is_identifier, text_problem
 from ..units import SI_NAME, UnitError, example, parse_quantity
@@ -16,10 +16,10 @@ from ..units import SI_NAME, UnitError, example, parse_quantity
 class Reader:
     """Knows the file text so errors can point at a line; raises StructureError (or `error`)."""
 
-    def __init__(self, path: str, text: str, error: type[StructureError] = StructureError):
+    def __init__(self, path: str, text: str, error: type[InputError] = StructureError):
         self.path, self.lines, self.error = path, text.splitlines(), error
 
-    def fail(self, where: str, problem: str, fix: str) -> StructureError:
+    def fail(self, where: str, problem: str, fix: str) -> InputError:
         return self.error(self.path, where, problem, fix, self.line_of(where))
 
     def line_of(self, where: str) -> int | None:

@@ -43,12 +43,9 @@ class RunSpec:
 def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
     """The runs of a sweep: grid/zip of the value lists x `samples` Monte Carlo draws (seeded)."""
     lists = [p for p in sweep.parameters if p.values is not None]
+    values = [p.values or [] for p in lists]  # (`or []` only narrows the type: these all have values)
     random = [p for p in sweep.parameters if p.distribution]
-    combos = (
-        list(itertools.product(*[p.values for p in lists]))
-        if sweep.mode == "grid"
-        else list(zip(*[p.values for p in lists]))
-    )
+    combos = list(itertools.product(*values)) if sweep.mode == "grid" else list(zip(*values))
     rng = np.random.default_rng(sweep.seed)
     base_text = Path(structure_path).read_text(encoding="utf-8")
     base_doc = tomllib.loads(base_text)
@@ -57,7 +54,7 @@ def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
     ]:
         _set_path(json.loads(json.dumps(base_doc)), name, 0, str(structure_path), sweep.path)
     width = len(str(len(combos) * sweep.samples - 1))
-    runs = []
+    runs: list[RunSpec] = []
     for combo in combos:
         for _ in range(sweep.samples):
             params = dict(zip([p.name for p in lists], combo))

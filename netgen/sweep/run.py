@@ -75,7 +75,7 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
     if spec.structure_text is not None:
         (folder / "structure.toml").write_text(spec.structure_text, encoding="utf-8")
         s = parse_structure(spec.structure_text, str(folder / "structure.toml"))
-        loop = sd.read_structure_loop(folder / "structure.toml")
+        loop: sd.LoopSpec | None = sd.read_structure_loop(folder / "structure.toml")
         if spec.rigid_only:
             s = replace(s, coordinates=replace(s.coordinates, modes=0))
         model = build_model(s)

@@ -288,12 +288,12 @@ def read_tone(text: object, named: str, ts: float | None = None, amplitude: Opti
     coord, amp, freq = parts
     amp_option = amplitude or OPTIONS["tone_acceleration" if coord == "a_in" else "tone_amplitude"]
     # the numbers plain, as on the command line (a unit belongs to the [loop.input] tables)
-    parts = (
+    checks: tuple[tuple[str, str, Option, dict], ...] = (
         ("amplitude", amp, replace(amp_option, quantity="dimensionless"), {}),
         ("frequency", freq, replace(OPTIONS["tone_freq"], quantity="dimensionless"), {"ts": ts}),
     )
     out = []
-    for what, value, option, context in parts:
+    for what, value, option, context in checks:
         try:
             out.append(option.read(value, what, context))
         except OptionError as exc:
