@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from .units import SI_NAME, UnitError, parse_quantity
+from .units import RANGES, SI_NAME, UnitError, in_range, parse_quantity
 
 # a plain number as written: digits, one point, an exponent; no underscores, no inf/nan, no spaces
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -162,7 +162,10 @@ class Option:
                 raise OptionError(f"{named} = {shown(value)}: {exc}", self.fix(named)) from None
         if not math.isfinite(v):
             raise OptionError(f"{named} = {shown(value)} is not a finite number", self.fix(named))
-        return v
+        try:  # a plain number meets the same physical range as a quantity string (units.RANGES)
+            return in_range(v, self.quantity, shown(value)) if self.quantity in RANGES else v
+        except UnitError as exc:
+            raise OptionError(f"{named} = {shown(value)}: {exc}", self.fix(named)) from None
 
     def what(self) -> str:
         """What a value of this type is, for 'is not ...'."""

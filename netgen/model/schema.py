@@ -132,3 +132,5 @@ def points(c: Checker, contact: dict, ncoords: int) -> None:
             c.number(f"{where}.a[{k}]", x)
         if not any(math.isfinite(x) and x != 0 for x in a):
             c.fail(f"{where}.a", "is all zeros: the stop point is reached by no motion", FIX)
+        if not isinstance(p.get("electrode"), str):
+            c.fail(f"{where}.electrode", "must name the electrode the stop faces (the netlists label it)", FIX)

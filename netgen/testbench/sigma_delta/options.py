@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ...options import Option, OptionError, by_name, markdown_table
+from ...options import Option, OptionError, by_name, markdown_table, number
 
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (ngspice.run_segments)
 SEGMENT_S = 5e-4
@@ -290,11 +290,14 @@ def read_tone(text: object, named: str, ts: float | None = None, amplitude: Opti
     # the numbers plain, as on the command line (a unit belongs to the [loop.input] tables)
     checks: tuple[tuple[str, str, Option, dict], ...] = (
         ("amplitude", amp, replace(amp_option, quantity="dimensionless"), {}),
-        ("frequency", freq, replace(OPTIONS["tone_freq"], quantity="dimensionless"), {"ts": ts}),
+        # plain numbers only (number() below), checked against the key's own physical range too
+        ("frequency", freq, OPTIONS["tone_freq"], {"ts": ts}),
     )
     out = []
     for what, value, option, context in checks:
         try:
+            if number(value) is None:
+                raise OptionError(f"{what} {value!r} is not a plain number", "")
             out.append(option.read(value, what, context))
         except OptionError as exc:
             raise OptionError(
