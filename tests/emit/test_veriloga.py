@@ -18,6 +18,7 @@ import pytest
 
 from netgen.emit import write_outputs
 from netgen.emit.veriloga import module
+from netgen.errors import ModelError
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
@@ -149,10 +150,11 @@ def test_vacask_transient_matches_ngspice(model, tmp_path):
 
 
 def test_bad_names_are_refused_clearly(model):
-    """An electrode named like a Verilog-A keyword cannot be emitted: a ValueError names it."""
+    """An electrode named like a Verilog-A keyword never reaches the emitter: the model's name
+    policy (netgen.names, checked when a model is read) refuses it with the key and the fix."""
     d = model.to_dict()
     d["electrodes"][0]["name"] = d["capacitances"][0]["electrode"] = "module"
-    with pytest.raises(ValueError, match="Verilog-A identifiers: module;"):
+    with pytest.raises(ModelError, match=r"electrodes\[0\]\.name: electrode name 'module' is a Verilog-A keyword"):
         module(MacroModel.from_dict(d))
 
 
