@@ -23,7 +23,7 @@ Last, the causal check: the numpy reference of the channel run with the measured
 its feedback (the terms with the channel's bit as a relative change of its force g[n], the rest
 as a force h[n], the 8192-period sequences tiled 4x), its z-bit PSD per octave against the
 reference's own and the error's.
-Measured on the disk (docs/sigma-delta.md, "The disk's second floor").
+Measured on the disk (docs/sigma-delta-validation.md, "The disk's second floor").
 """
 
 from __future__ import annotations

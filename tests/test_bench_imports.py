@@ -9,7 +9,6 @@ from __future__ import annotations
 import ast
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -20,7 +19,12 @@ BENCH = ROOT / "bench"
 
 def _is_sys_path(node: ast.AST) -> bool:
     """`sys.path` (an attribute `path` of the name `sys`)."""
-    return isinstance(node, ast.Attribute) and node.attr == "path" and isinstance(node.value, ast.Name) and node.value.id == "sys"
+    return (
+        isinstance(node, ast.Attribute)
+        and node.attr == "path"
+        and isinstance(node.value, ast.Name)
+        and node.value.id == "sys"
+    )
 
 
 def _test_module(name: str) -> bool:
