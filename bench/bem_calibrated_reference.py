@@ -25,10 +25,10 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
 from netgen.cli import main as netgen
 from netgen.electrostatics import EXTRACTORS
@@ -39,7 +39,6 @@ from netgen.mechanics import mechanics
 from netgen.model import MacroModel
 from netgen.structure.parse import parse_structure
 
-ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "examples" / "levitated_disk.toml"
 STEP = 0.05  # +-h: this fraction of each rigid coordinate's touching amplitude
 RIGID = ("z", "tilt_x", "tilt_y")
@@ -155,10 +154,10 @@ def report(model: MacroModel) -> None:
 def transient(model: MacroModel, folder: Path, work: Path) -> None:
     """tests/emit/test_couplings.py's floating-electrode transient on this model: ngspice (.lib) and
     VACASK (.va) within 1 % of the floating electrode's peak and of each coordinate's."""
-    sys.path.insert(0, str(ROOT))
+    from support import Bench, states, transient_drive
+
     from netgen.sim.ngspice import run_ngspice
     from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
-    from tests.fixtures import Bench, states, transient_drive
 
     float_el = "top_r2s2"
     drive = transient_drive() | {"top_r2s3": transient_drive()["top_r2s1"]}

@@ -33,6 +33,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
 from netgen.constants import EPS0
 from netgen.electrostatics import EXTRACTORS, bem
@@ -40,7 +41,6 @@ from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
 from netgen.structure.parse import parse_structure
 
-ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "examples" / "levitated_disk.toml"
 RIGID = ("z", "tilt_x", "tilt_y")
 STORE = Path.home() / ".cache" / "netgen" / "bem_reference_disk"

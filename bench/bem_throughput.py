@@ -14,18 +14,14 @@ its gaps set to g/R = --gap.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "electrostatics"))
-
-from netgen.electrostatics import bem  # noqa: E402
-from netgen.electrostatics.bem_sampling import sample_maxwell  # noqa: E402
-from netgen.electrostatics.sampling import sampling_grid  # noqa: E402
-from netgen.executor import executor  # noqa: E402
+from netgen.electrostatics import bem
+from netgen.electrostatics.bem_sampling import sample_maxwell
+from netgen.electrostatics.sampling import sampling_grid
+from netgen.executor import executor
 
 PAPER_POINTS = 2187
 
@@ -33,10 +29,9 @@ PAPER_POINTS = 2187
 def problem(name: str, gap: float) -> tuple[bem.PreparedBem, np.ndarray]:
     """The prepared extractor and the coordinate scale of each sampled coordinate."""
     if name == "reduced":
-        from test_bem_sampling import GAP, R, reduced
+        from support import bem_reduced
 
-        return reduced(), np.array([GAP, GAP / R])
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+        return bem_reduced.reduced(), np.array([bem_reduced.GAP, bem_reduced.GAP / bem_reduced.R])
     from bem_reference_disk import structure
 
     from netgen.geometry.layout import electrodes, plate_outline

@@ -17,17 +17,16 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
+from support import ROOT
 
-from netgen.build import assemble  # noqa: E402
-from netgen.electrostatics import extractor  # noqa: E402
-from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout  # noqa: E402
-from netgen.emit.ngspice import subcircuit  # noqa: E402
-from netgen.fit.capacitance import fit_all  # noqa: E402
-from netgen.geometry.layout import electrodes, plate_outline  # noqa: E402
-from netgen.mechanics import mechanics  # noqa: E402
-from netgen.structure import load_structure  # noqa: E402
+from netgen.build import assemble
+from netgen.electrostatics import extractor
+from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout
+from netgen.emit.ngspice import subcircuit
+from netgen.fit.capacitance import fit_all
+from netgen.geometry.layout import electrodes, plate_outline
+from netgen.mechanics import mechanics
+from netgen.structure import load_structure
 
 BUDGET_S = 60.0  # the original target: a reference build within a minute
 GOAL_S = 20.0  # the later performance target

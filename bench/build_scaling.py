@@ -22,19 +22,17 @@ import time
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from netgen.build import default_range  # noqa: E402
-from netgen.electrostatics import extractor  # noqa: E402
-from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout, sample_points  # noqa: E402
-from netgen.fit import cost  # noqa: E402
-from netgen.fit.adaptive import adaptive_fits  # noqa: E402
-from netgen.fit.capacitance import fit_all  # noqa: E402
-from netgen.geometry.layout import electrodes, plate_outline  # noqa: E402
-from netgen.mechanics import mechanics  # noqa: E402
-from netgen.structure import parse_structure  # noqa: E402
+from netgen.build import default_range
+from netgen.electrostatics import extractor
+from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout, sample_points
+from netgen.fit import cost
+from netgen.fit.adaptive import adaptive_fits
+from netgen.fit.capacitance import fit_all
+from netgen.geometry.layout import electrodes, plate_outline
+from netgen.mechanics import mechanics
+from netgen.structure import parse_structure
 
 EXAMPLE = (ROOT / "examples/levitated_disk.toml").read_text()
 

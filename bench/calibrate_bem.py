@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
 from netgen.cli import main as netgen
 from netgen.electrostatics.calibration import pairs
 
-ROOT = Path(__file__).resolve().parents[1]
 # the reduced disk of examples/calibrated_disk.toml (tests/electrostatics/test_calibration.py
 # shares it): its geometry without the [electrostatics] table, then gap, slot and rings set here
 EXAMPLE = ROOT / "examples" / "calibrated_disk.toml"

@@ -23,17 +23,13 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
+from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_control
 
-from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_control  # noqa: E402
-
-from netgen.model import MacroModel  # noqa: E402
-from netgen.sim import codemodel  # noqa: E402
-from netgen.sim.ngspice import ngspice_path  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
+from netgen.model import MacroModel
+from netgen.sim import codemodel
+from netgen.sim.ngspice import ngspice_path
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import ngspice as sdn
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 

@@ -19,10 +19,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from support import ROOT
 
-from netgen import cli  # noqa: E402
+from netgen import cli
 
 NUMBERS = ["0", "-1", "-0", "nan", "inf", "-inf", "1e400", "1e-400", "abc", "", " ", "1,5", "0x10"]
 INTEGERS = ["0", "-5", "1.5", "1e3", "abc", "", str(1 << 40), "10"]

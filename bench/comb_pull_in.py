@@ -15,15 +15,10 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
 
 
 def main() -> None:
@@ -35,22 +30,22 @@ def main() -> None:
     a = ap.parse_args()
     os.environ["NETGEN_CACHE"] = a.cache or tempfile.mkdtemp(prefix="comb_pull_in-")
     from comb_textbook import pull_in_ratio
+    from support import NGSPICE, lateral_comb
 
     from netgen.build import build
     from netgen.constants import EPS0
     from netgen.electrostatics import comb_section
     from netgen.structure import parse_structure
-    from tests.electrostatics.test_comb import L0, G, K, N
-    from tests.electrostatics.test_comb_pull_in import circuit_pull_in, model_pull_in, structure, table_pull_in
-    from tests.fixtures import NGSPICE
+
+    L0, G, K, N = lateral_comb.L0, lateral_comb.G, lateral_comb.K, lateral_comb.N
 
     comb_section.GRID = dict(comb_section.GRID, offsets=a.offsets)
     print(f"settings {comb_section.SETTINGS}, grid {comb_section.GRID}, cache {os.environ['NETGEN_CACHE']}")
     for r in (float(x) for x in a.ratios.split(",")):
         t0 = time.process_time()
-        b = build(parse_structure(structure(r), f"comb_t{r:g}.toml"))
+        b = build(parse_structure(lateral_comb.structure(r), f"comb_t{r:g}.toml"))
         closed = math.sqrt(K * G**3 / (2 * EPS0 * N * r * G * L0))
-        python, tables = model_pull_in(b.model), table_pull_in(b)
+        python, tables = lateral_comb.model_pull_in(b.model), lateral_comb.table_pull_in(b)
         direct = pull_in_ratio(
             SimpleNamespace(width=2e-6, thickness=r * G, pitch=2e-6 + G, substrate_gap=2e-6, eps=EPS0), 0.1 * G
         )
@@ -60,7 +55,7 @@ def main() -> None:
         )
         for release in sorted(NGSPICE):
             with tempfile.TemporaryDirectory() as tmp:
-                circuit = circuit_pull_in(b.model, Path(tmp), release, 1.02 * closed)
+                circuit = lateral_comb.circuit_pull_in(b.model, Path(tmp), release, 1.02 * closed)
             print(
                 f"  ngspice {release}: circuit {circuit:.4f} V = {circuit / closed:.4f} of the closed form, "
                 f"circuit / Python - 1 = {circuit / python - 1:+.2e}"

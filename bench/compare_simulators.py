@@ -20,11 +20,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def notch_near(channel: dict, f0: float, tol: float = 0.05) -> dict | None:

@@ -14,8 +14,9 @@ from __future__ import annotations
 import argparse
 import time
 
+from support import closed_forms
+
 from netgen.constants import EPS0
-from netgen.electrostatics import closed_forms
 from netgen.electrostatics.field2d import Conductor, Problem, open_box, solve
 from netgen.electrostatics.mesh2d import Disk, Strip
 

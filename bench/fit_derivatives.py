@@ -23,16 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from netgen.electrostatics import extractor  # noqa: E402
-from netgen.geometry.layout import electrodes, plate_outline  # noqa: E402
-from netgen.mechanics import mechanics  # noqa: E402
-from netgen.model import MacroModel  # noqa: E402
-from netgen.structure import load_structure  # noqa: E402
-from netgen.testbench.sigma_delta.loop import design  # noqa: E402
-from netgen.testbench.sigma_delta.signals import selected  # noqa: E402
+from netgen.electrostatics import extractor
+from netgen.geometry.layout import electrodes, plate_outline
+from netgen.mechanics import mechanics
+from netgen.model import MacroModel
+from netgen.structure import load_structure
+from netgen.testbench.sigma_delta.loop import design
+from netgen.testbench.sigma_delta.signals import selected
 
 STEP = 1e-3  # scaled step of the second derivatives' central differences (and half of it)
 

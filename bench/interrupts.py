@@ -43,8 +43,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 NETGEN = [str(ROOT / ".venv/bin/netgen")]
 USER_FILE = "my_notes.txt"  # a user's own file in the output folder: never touched
 

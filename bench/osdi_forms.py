@@ -20,15 +20,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import sigma_delta as bench
 
-import sigma_delta as bench  # noqa: E402
-
-from netgen.emit import osdi, veriloga  # noqa: E402
-from netgen.model import MacroModel  # noqa: E402
-from netgen.testbench.sigma_delta import osdi as sdo  # noqa: E402
-from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
+from netgen.emit import osdi, veriloga
+from netgen.model import MacroModel
+from netgen.testbench.sigma_delta import osdi as sdo
+from netgen.testbench.sigma_delta import vacask as sdv
 
 
 def main() -> int:

@@ -14,21 +14,17 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from support import NGSPICE, ROOT, Bench, reference_transient, transient_drive
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
-
-from netgen import emit  # noqa: E402
+from netgen import emit
 from netgen.emit import osdi
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
-from tests.fixtures import NGSPICE, ROOT, Bench, transient_drive
-from tests.sim.test_ngspice import _reference_transient
 
 
 def main() -> None:
@@ -61,7 +57,7 @@ def main() -> None:
                 wall = time.perf_counter() - start
                 node = (lambda s: f"v({osdi.state_node(s)})") if name == "osdi" else (lambda s: f"v(x1.{s})")
                 x = np.stack([plot[node(f"xs_{c.name}")] for c in model.coordinates], axis=-1)
-                ref = _reference_transient(model, drive, f_ext, np.asarray(plot["time"]), stop)
+                ref = reference_transient(model, drive, f_ext, np.asarray(plot["time"]), stop)
                 errs = np.abs(x - ref).max(axis=0) / np.abs(ref).max(axis=0)
                 print(
                     f"{name:5s} reltol={reltol} tmax={tmax} points={len(plot['time'])} wall={wall:.2f}s  "

@@ -78,22 +78,20 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
+import numpy as np
+from baselines import BASELINES
+from support import ROOT
 
-import numpy as np  # noqa: E402
-from baselines import BASELINES  # noqa: E402
-
-from netgen.emit import ngspice, osdi, veriloga, xspice  # noqa: E402
-from netgen.emit.common import force_gain, num, time_scale  # noqa: E402
-from netgen.model import MacroModel  # noqa: E402
-from netgen.sim import codemodel  # noqa: E402
-from netgen.sim.ngspice import ngspice_path, version  # noqa: E402
-from netgen.sim.rawfile import read_raw  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
-from netgen.testbench.sigma_delta import osdi as sdo  # noqa: E402
-from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
+from netgen.emit import ngspice, osdi, veriloga, xspice
+from netgen.emit.common import force_gain, num, time_scale
+from netgen.model import MacroModel
+from netgen.sim import codemodel
+from netgen.sim.ngspice import ngspice_path, version
+from netgen.sim.rawfile import read_raw
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import ngspice as sdn
+from netgen.testbench.sigma_delta import osdi as sdo
+from netgen.testbench.sigma_delta import vacask as sdv
 
 MODEL_JSON = ROOT / "netlists" / "levitated_disk.json"
 VARIANTS = ("xspice", "osdi", "fast", "nodes", "naive", "floor", "linear")

@@ -25,17 +25,15 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+import numpy as np
+from support import ROOT
 
-import numpy as np  # noqa: E402
-
-from netgen.build import build_model  # noqa: E402
-from netgen.emit import write_outputs  # noqa: E402
-from netgen.model import MacroModel  # noqa: E402
-from netgen.structure import load_structure  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import analysis, loopfile, plots  # noqa: E402
+from netgen.build import build_model
+from netgen.emit import write_outputs
+from netgen.model import MacroModel
+from netgen.structure import load_structure
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import analysis, loopfile, plots
 
 STRUCTURE = ROOT / "examples" / "accelerometer_z.toml"
 TS = 1e-6

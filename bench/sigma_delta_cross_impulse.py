@@ -23,7 +23,7 @@ Last, the causal check: the numpy reference of the channel run with the measured
 its feedback (the terms with the channel's bit as a relative change of its force g[n], the rest
 as a force h[n], the 8192-period sequences tiled 4x), its z-bit PSD per octave against the
 reference's own and the error's.
-Measured on the disk (docs/sigma-delta.md, "The disk's second floor").
+Measured on the disk (docs/sigma-delta-validation.md, "The disk's second floor").
 """
 
 from __future__ import annotations
@@ -31,17 +31,15 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
+from scipy import linalg
+from sigma_delta_orders import setup
+from support import sigma_delta_reference as reference
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from scipy import linalg  # noqa: E402
-from sigma_delta_orders import setup  # noqa: E402
-
-from netgen.testbench.sigma_delta import Tone, filters, metrics, ngspice, psd, reference  # noqa: E402
-from netgen.testbench.sigma_delta.loop import selected  # noqa: E402
+from netgen.testbench.sigma_delta import Tone, analysis, filters, ngspice, psd
+from netgen.testbench.sigma_delta.loop import selected
 
 WINDOW = (0.47, 0.97)  # sense off .. reset off: only the feedback, springs and input act on the mass
 NPERSEG = 8192
@@ -55,7 +53,7 @@ def run(args) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
-    tone_hz = metrics.tone_frequency(args.ts, NPERSEG, 64)
+    tone_hz = analysis.tone_frequency(args.ts, NPERSEG, 64)
     tone = Tone(name, args.tone_fs * mech.full_scale * mech.mass * 1e6, tone_hz)  # uN on f_<q>
     nodes = [f"x1.u_{name}"] + [f"x1.xs_{c}" for c in coords]
     net = ngspice.testbench(

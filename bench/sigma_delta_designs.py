@@ -24,12 +24,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from support import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from netgen.model import MacroModel  # noqa: E402
-from netgen.testbench.sigma_delta.loop import design  # noqa: E402
+from netgen.model import MacroModel
+from netgen.testbench.sigma_delta.loop import design
 
 CHANNELS = ("z", "tilt_x", "tilt_y")
 

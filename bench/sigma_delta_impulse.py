@@ -32,7 +32,7 @@ import numpy as np
 
 from netgen.build import build_model
 from netgen.structure import load_structure
-from netgen.testbench.sigma_delta import Tone, design, filters, metrics, ngspice, psd, read_structure_loop
+from netgen.testbench.sigma_delta import Tone, analysis, design, filters, ngspice, psd, read_structure_loop
 
 WINDOW = (0.47, 0.97)  # sense off .. reset off: only the feedback, springs and input act on the mass
 NPERSEG = 8192
@@ -52,7 +52,7 @@ def run(args) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
-    tone = Tone("a_in", args.tone_fs * mech.full_scale, metrics.tone_frequency(args.ts, NPERSEG, 64))
+    tone = Tone("a_in", args.tone_fs * mech.full_scale, analysis.tone_frequency(args.ts, NPERSEG, 64))
     nodes = [f"x1.u_{name}", f"x1.xs_{name}"]
     net = ngspice.testbench(
         model,

@@ -1,5 +1,5 @@
 """Loop orders 2-5 on one channel of a sigma-delta force-feedback loop: the numpy reference
-(netgen.testbench.sigma_delta.reference) and, with --circuit, the compiled ngspice loop
+(tests/oracles/sigma_delta_reference.py) and, with --circuit, the compiled ngspice loop
 (--simulator ngspice-xspice's bench with the channel's filter in netgen_sdloop), side by side.
 
     .venv/bin/python bench/sigma_delta_orders.py [--cycles 65536] [--orders 2,3,4,5] [--circuit] [-o DIR]
@@ -32,19 +32,19 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from support import sigma_delta_reference as reference
 
 from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import (
     Tone,
+    analysis,
     design,
     filters,
-    metrics,
     ngspice,
     read_loop_file,
     read_structure_loop,
-    reference,
 )
 from netgen.testbench.sigma_delta.analysis import band_metrics, psd
 from netgen.testbench.sigma_delta.kinds import FILTERS
@@ -100,15 +100,15 @@ def dc_input(model: MacroModel, d, mech: filters.Mechanics) -> float:
 
 
 def figures(v: np.ndarray, ts: float, osr: float, tone_hz: float) -> dict:
-    """The in-band figures of a bitstream after its first eighth (the band from metrics.DC_BINS)."""
+    """The in-band figures of a bitstream after its first eighth (the band from analysis.DC_BINS)."""
     f, p = psd(v[len(v) // 8 :], ts, NPERSEG)
-    return band_metrics(f, p, ts, osr, tone_hz, metrics.DC_BINS)
+    return band_metrics(f, p, ts, osr, tone_hz, analysis.DC_BINS)
 
 
 def run_reference(args, order: int) -> dict:
     """The numpy loop of this order: figures, max |z| and time."""
     model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, fb_edge=args.fb_edge, loop=args.loop)
-    tone = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
+    tone = analysis.tone_frequency(args.ts, NPERSEG, args.osr)
     start = time.perf_counter()
     r = reference.simulate(
         mech,
@@ -149,13 +149,13 @@ def dynamic_range(args, model, d, mech, f, tone: float) -> dict:
         return r["v"], reference.stable(r, args.hold * gap)
 
     amps = [1e-3, 3e-3, 0.01, 0.03, 0.1, 0.2, 0.3, 0.4, 0.45, 0.5]
-    return metrics.dynamic_range(run, amps, args.ts, args.osr, tone, NPERSEG // 2, skip=4096)
+    return analysis.dynamic_range(run, amps, args.ts, args.osr, tone, NPERSEG // 2, skip=4096)
 
 
 def run_circuit(args, order: int) -> dict:
     """The compiled ngspice loop (netgen_sdloop with the z channel's filter), segmented."""
     model, d, mech, f = setup(args.model, args.ts, order, args.osr, args.h_inf, args.reltol, args.fb_edge, args.loop)
-    tone_hz = metrics.tone_frequency(args.ts, NPERSEG, args.osr)
+    tone_hz = analysis.tone_frequency(args.ts, NPERSEG, args.osr)
     out = Path(args.out) / f"order{order}"
     out.mkdir(parents=True, exist_ok=True)
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))

@@ -39,14 +39,13 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from a checkout without installing too
+from support import ROOT
 
-from netgen.model import MacroModel  # noqa: E402
-from netgen.sim.vacask import stats as vacask_stats  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import ngspice as sdn  # noqa: E402
-from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
+from netgen.model import MacroModel
+from netgen.sim.vacask import stats as vacask_stats
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import ngspice as sdn
+from netgen.testbench.sigma_delta import vacask as sdv
 
 JSON = ROOT / "netlists" / "levitated_disk.json"
 LIB = ROOT / "netlists" / "levitated_disk.lib"

@@ -35,13 +35,12 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from support import ROOT
 
-from netgen.sim.process import start_time  # noqa: E402
-from netgen.sweep import load_sweep, plan  # noqa: E402
-from netgen.sweep.folder import MARKER, identity  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
+from netgen.sim.process import start_time
+from netgen.sweep import load_sweep, plan
+from netgen.sweep.folder import MARKER, identity
+from netgen.testbench import sigma_delta as sd
 
 STRUCTURE = ROOT / "examples" / "levitated_disk.toml"
 TS = [1.0e-6, 1.3e-6, 1.6e-6, 2.0e-6]

@@ -1,6 +1,6 @@
 """Scan the Verilog-A of every structure example (built with `netgen build --format veriloga`),
 the committed netlists/levitated_disk.va and the loop blocks (blocks.va) for the product
-openvaf-r miscompiles, c*(a + b*t) with c*a = c*b = 1 (tests/va_scan.py; the emitter folds it,
+openvaf-r miscompiles, c*(a + b*t) with c*a = c*b = 1 (tests/oracles/va_scan.py; the emitter folds it,
 netgen.emit.veriloga.misfolds). Exit 1 if any is found.
 
     nice -n 10 .venv/bin/python bench/va_fault_scan.py [--keep DIR]
@@ -16,11 +16,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout
+from support import ROOT, va_scan
 
-from netgen import cli  # noqa: E402
-from tests.fixtures import ROOT  # noqa: E402
-from tests.va_scan import scan, statements  # noqa: E402
+from netgen import cli
 
 
 def structure_examples() -> list[Path]:
@@ -44,7 +42,7 @@ def main() -> int:
         total, found = 0, 0
         for va in files:
             text = va.read_text(encoding="utf-8")
-            rows, n = scan(text), len(statements(text))
+            rows, n = va_scan.scan(text), len(va_scan.statements(text))
             total, found = total + n, found + len(rows)
             print(
                 f"{va.relative_to(out) if va.is_relative_to(out) else va.relative_to(ROOT)}: {n} statements, "

@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen.testbench.sigma_delta import metrics
-from netgen.testbench.sigma_delta.analysis import band_metrics, psd
+from netgen.testbench.sigma_delta.analysis import DC_BINS, band_metrics, psd
 
 NPERSEG = 4096  # Welch segment: 244 Hz bins at T_s = 1 us, 29 in the decade below the band edge
 
@@ -49,7 +48,7 @@ def analyse(folder: Path) -> dict:
     tone = summary["tone"]["freq"] if summary.get("tone") else None
     for n in names:
         f, p = psd(bits[n], ts, min(len(bits[n]), NPERSEG))
-        b = band_metrics(f, p, ts, osr, tone, metrics.DC_BINS)
+        b = band_metrics(f, p, ts, osr, tone, DC_BINS)
         out["channels"][n] = {
             "bit_mean": float(bits[n].mean()),
             "floor_db_per_hz": b["noise_floor_db_per_hz"],

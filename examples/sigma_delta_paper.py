@@ -1,5 +1,5 @@
 """The paper's Fig. 3 runs (long): the sigma-delta levitation loop at T_s = 1 us and 3.2 us, the
-rigid-body-only model, and a tone on z. Prints the paper reproduction's figures (docs/sigma-delta.md).
+rigid-body-only model, and a tone on z. Prints the paper reproduction's figures (docs/sigma-delta-validation.md).
 
     .venv/bin/python examples/sigma_delta_paper.py --cycles 65536 -o out/sigma_delta
 

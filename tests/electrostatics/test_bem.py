@@ -18,8 +18,8 @@ pytest.importorskip("bempp_cl")
 from netgen.constants import EPS0  # noqa: E402
 from netgen.electrostatics import EXTRACTORS, bem  # noqa: E402
 from netgen.electrostatics.bem_mesh import Surface, disk_sheet, icosphere, rectangle_sheet  # noqa: E402
-from netgen.electrostatics.closed_forms import kirchhoff_disk, love_disks, palmer_rectangle  # noqa: E402
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
+from tests.oracles.closed_forms import kirchhoff_disk, love_disks, palmer_rectangle  # noqa: E402
 
 COARSE = bem.BemSettings(
     element_to_gap=4.0, edge_to_gap=0.25, element_to_size=0.125, levels=2, max_levels=2, tolerance=1.0

@@ -6,7 +6,6 @@ a rerun reuses every stored point.
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import threading
@@ -18,30 +17,10 @@ import pytest
 pytest.importorskip("bempp_cl")
 pytest.importorskip("distributed")
 
-from netgen.constants import EPS0  # noqa: E402
-from netgen.electrostatics import bem  # noqa: E402
 from netgen.electrostatics.bem_sampling import sample_maxwell  # noqa: E402
 from netgen.electrostatics.sampling import ChunkStore, sampling_grid  # noqa: E402
 from netgen.executor import DaskExecutor  # noqa: E402
-from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
-
-UM = 1e-6
-R, GAP = 100 * UM, 20 * UM
-
-
-def rigid(x, y):
-    """z and tilt_x (w = z + theta y) at the points."""
-    return np.column_stack([np.ones(np.size(x)), np.asarray(y, dtype=float)])
-
-
-def reduced() -> bem.PreparedBem:
-    """The reduced problem: small coarse meshes (a few hundred elements), a solve in ~0.1 s."""
-    els = [
-        Electrode(AnnularSector("top", 0.0, R, 0.0, 2 * math.pi), "above", GAP),
-        Electrode(AnnularSector("bot", 0.0, R, 0.0, 2 * math.pi), "below", GAP),
-    ]
-    st = bem.BemSettings(element_to_gap=2.0, edge_to_gap=1.0, element_to_size=0.5, tolerance=1.0, max_levels=2)
-    return bem.BemExtractor(eps=EPS0, settings=st).prepare(els, DiskPlate(R), rigid)
+from tests.oracles.bem_reduced import GAP, R, reduced  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,6 @@ import pytest
 from netgen.cli import main
 from netgen.constants import EPS0
 from netgen.electrostatics.calibration import calibrate, design
-from netgen.electrostatics.closed_forms import palmer_rectangle
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
 from netgen.electrostatics.sampling import coordinate_scales
 from netgen.geometry.layout import electrodes, plate_outline
@@ -39,6 +38,7 @@ from netgen.mechanics import mechanics
 from netgen.model import MacroModel
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.oracles.closed_forms import palmer_rectangle
 
 MM = 1e-3
 # the reduced disk of examples/calibrated_disk.toml (one ring of four sectors per side, rigid

@@ -15,44 +15,9 @@ from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE, Bench
+from tests.oracles.lateral_comb import L0, LATERAL, G, K, N, T
 
 EPS0 = 8.8541878128e-12
-N, T, G, L0, K = 30, 2e-6, 2e-6, 20e-6, 5.0
-
-LATERAL = f"""
-name = "comb"
-[conductor]
-kind = "proof_mass"
-length = "200 um"
-width = "200 um"
-thickness = "2 um"
-density = 2330
-[conductor.flexure]
-type = "given"
-k_x = {K}
-k_y = {K}
-k_rot = 1e-6
-[[electrodes]]
-name = "drive"
-kind = "lateral_comb"
-orientation = "x"
-fingers = {N}
-width = "2 um"
-gap = "2 um"
-length = "40 um"
-overlap = "20 um"
-side = "+"
-center = ["130 um", "0 um"]
-[coordinates]
-rigid = ["x", "y"]
-[sampling]
-levels = 5
-[fit]
-degree = 3
-[electrostatics]
-fringe = "none"
-comb_model = "textbook"
-"""
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from netgen.constants import EPS0
-from netgen.electrostatics import closed_forms, comb_section
+from netgen.electrostatics import comb_section
+from tests.oracles import closed_forms
 
 UM = 1e-6
 

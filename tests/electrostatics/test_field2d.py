@@ -10,9 +10,9 @@ import math
 import pytest
 
 from netgen.constants import EPS0
-from netgen.electrostatics import closed_forms
 from netgen.electrostatics.field2d import Conductor, Problem, open_box, solve
 from netgen.electrostatics.mesh2d import Disk, Strip
+from tests.oracles import closed_forms
 
 OPEN = {"bottom": "open", "right": "open", "top": "open", "left": "open"}
 GROUNDED = {**OPEN, "bottom": "ground"}

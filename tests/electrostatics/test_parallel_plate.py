@@ -15,11 +15,11 @@ import pytest
 from scipy.integrate import dblquad
 
 from netgen.constants import EPS0
-from netgen.electrostatics.closed_forms import kirchhoff_disk, palmer_rectangle, tilted_sector_exact
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate
 from netgen.mechanics import rigid_basis
 from tests.geometry.references import SLOT, corner_radius, green_area, quadrants, side_point
+from tests.oracles.closed_forms import kirchhoff_disk, palmer_rectangle, tilted_sector_exact
 
 R = 500e-6  # plate radius
 G = R / 200  # gap, the reference geometry of docs/bem.md's field checks (g/L = 1/200)

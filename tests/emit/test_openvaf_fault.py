@@ -26,7 +26,7 @@ from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
 from tests.fixtures import ROOT, using_ngspice
-from tests.va_scan import scan
+from tests.oracles.va_scan import scan
 
 X, Y, Z = 3.0, 7.0, 5.0
 # (right-hand side over x, y, z, hand-computed value at X, Y, Z); the first ones are the faulty shape

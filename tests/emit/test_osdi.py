@@ -28,8 +28,7 @@ from netgen.errors import SimulatorNotFound
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, run_vacask
-from tests.fixtures import NGSPICE, ROOT, Bench, Pulse, transient_drive
-from tests.sim.test_ngspice import _reference_transient
+from tests.fixtures import NGSPICE, ROOT, Bench, Pulse, reference_transient, transient_drive
 
 NETLISTS = ROOT / "netlists"
 LIB = NETLISTS / "levitated_disk.lib"
@@ -136,7 +135,7 @@ def test_transient_matches_scipy_and_the_b_source_lib(model, built, ngspice46, t
     t, x = runs["osdi"]
     f_ext = np.zeros(model.ncoords)
     f_ext[0] = gravity
-    ref = _reference_transient(model, drive, f_ext, t, stop)
+    ref = reference_transient(model, drive, f_ext, t, stop)
     t_lib, x_lib = runs["lib"]
     for v, c in enumerate(model.coordinates):
         peak = np.abs(ref[:, v]).max()

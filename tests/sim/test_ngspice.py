@@ -17,12 +17,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from netgen.model import MacroModel
 from netgen.sim.ngspice import ENV, run_ngspice
-from tests.fixtures import EMISSIONS, NGSPICE, ROOT, Bench, Pulse, emission_id, emitted_library, states, transient_drive
+from tests.fixtures import (
+    EMISSIONS,
+    NGSPICE,
+    ROOT,
+    Bench,
+    Pulse,
+    emission_id,
+    emitted_library,
+    reference_transient,
+    states,
+    transient_drive,
+)
 
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 
@@ -68,29 +78,6 @@ def test_motional_current_is_v_dc_dt(model, lib, tmp_path):
     assert np.abs(current - expected)[settled].max() < 5e-3 * peak
 
 
-def _reference_transient(model, drive, f_ext, times, stop):
-    """solve_ivp of M q'' + K q = F_el(q, V(t)) + F_ext, segment by segment between the
-    corners of the piecewise-linear voltages (tight tolerances), sampled at `times`."""
-    idx = [_names(model).index(k) for k in drive]
-
-    def rhs(t, y):
-        v = np.zeros(len(model.electrodes))
-        for k, i in zip(drive, idx):
-            v[i] = drive[k](t)
-        n = model.ncoords
-        return np.concatenate([y[n:], model.accelerations(y[:n], y[n:], v, 0.0, f_ext)])
-
-    corners = sorted({0.0, stop, *[t for d in drive.values() for t in d.breakpoints(stop)]})
-    y, out = np.zeros(2 * model.ncoords), np.zeros((len(times), model.ncoords))
-    for a, b in zip(corners[:-1], corners[1:]):
-        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-10, atol=1e-13, dense_output=True)
-        y = sol.y[:, -1]
-        sel = (times >= a) & (times < b)
-        if sel.any():
-            out[sel] = sol.sol(times[sel]).T[:, : model.ncoords]
-    return out
-
-
 def test_transient_matches_scipy_integration(model, lib, tmp_path):
     """Steps and 1 MHz pulses on four electrodes plus gravity, 105 us (> 10 periods of the
     97.6 kHz mode): every coordinate within 1 % of its peak of the scipy solution."""
@@ -103,7 +90,7 @@ def test_transient_matches_scipy_integration(model, lib, tmp_path):
     x, _ = states(plot, model)
     f_ext = np.zeros(model.ncoords)
     f_ext[0] = gravity
-    ref = _reference_transient(model, drive, f_ext, plot["time"], stop)
+    ref = reference_transient(model, drive, f_ext, plot["time"], stop)
     for v, c in enumerate(model.coordinates):
         peak = np.abs(ref[:, v]).max()
         assert peak > 0, c.name
@@ -264,8 +251,8 @@ def test_code_model_takes_non_affine_plate_terms(model, tmp_path):
     x, _ = states(plot, curved)
     f_ext = np.zeros(curved.ncoords)
     f_ext[0] = gravity
-    ref = _reference_transient(curved, drive, f_ext, plot["time"], stop)
-    plain = _reference_transient(model, drive, f_ext, plot["time"], stop)
+    ref = reference_transient(curved, drive, f_ext, plot["time"], stop)
+    plain = reference_transient(model, drive, f_ext, plot["time"], stop)
     for v, c in enumerate(curved.coordinates):
         peak = np.abs(ref[:, v]).max()
         print(

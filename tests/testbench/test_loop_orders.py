@@ -16,9 +16,10 @@ from netgen.build import build_model
 from netgen.constants import EPS0, G
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
-from netgen.testbench.sigma_delta import filters, loopfile, reference
+from netgen.testbench.sigma_delta import filters, loopfile
 from netgen.testbench.sigma_delta.loop import duty
 from tests.fixtures import ROOT
+from tests.oracles import sigma_delta_reference as reference
 
 TS = 1e-6
 SIDE, GAP, RHO, THICK, K_SPRING = 500e-6, 2e-6, 2330.0, 20e-6, 0.3

@@ -1,14 +1,15 @@
 """Higher-order sigma-delta loops: NTF synthesis against the delta-sigma toolbox's published
 values and closed forms, loop-filter coefficients that reproduce the designed NTF, the sampled
 mechanics against the kinematics of a free mass, and the numpy reference loop's noise shaping
-(netgen.testbench.sigma_delta.ntf, filters, reference, metrics)."""
+(netgen.testbench.sigma_delta.ntf, filters, analysis; tests/oracles/sigma_delta_reference.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from netgen.testbench.sigma_delta import analysis, filters, metrics, ntf, reference
+from netgen.testbench.sigma_delta import analysis, filters, ntf
+from tests.oracles import sigma_delta_reference as reference
 
 # the levitated disk's z channel (bench/sigma_delta_ideal_loop.py): a free mass, 1 V of readout
 # per 1/34.57 um, the feedback pulse 0.50-0.94 T_s with 2 % edges, sampled at 0.34 T_s
@@ -94,10 +95,10 @@ def test_coefficients_reproduce_the_ntf(order, topology, mech):
 
 def _shaping(f: filters.Filter, cycles: int = 2**15, amplitude: float = 0.5) -> dict:
     """The reference loop's figures at -6 dBFS (a tone at a quarter of the band), OSR 64."""
-    tone = metrics.tone_frequency(TS, 4096, 64)
+    tone = analysis.tone_frequency(TS, 4096, 64)
     run = reference.simulate(DISK_Z, f, cycles, reference.Input(0.0, amplitude * DISK_Z.full_scale, tone))
     assert reference.stable(run, 1e-8)
-    return analysis.band_metrics(*analysis.psd(run["v"][cycles // 8 :], TS, 4096), TS, 64, tone, metrics.DC_BINS)
+    return analysis.band_metrics(*analysis.psd(run["v"][cycles // 8 :], TS, 4096), TS, 64, tone, analysis.DC_BINS)
 
 
 def test_reference_noise_shaping_order2_and_order4():
@@ -115,13 +116,13 @@ def test_reference_noise_shaping_order2_and_order4():
 def test_dynamic_range_finds_the_overload():
     """SNR rises 1 dB per dB of input, and past full scale the loop loses the mass."""
     f = filters.design(DISK_Z, 3, 64, 1.5, "cifb")
-    tone = metrics.tone_frequency(TS, 2048, 64)
+    tone = analysis.tone_frequency(TS, 2048, 64)
 
     def run(a: float):
         r = reference.simulate(DISK_Z, f, 2**14, reference.Input(0.0, a * DISK_Z.full_scale, tone))
         return r["v"], reference.stable(r, 1e-8)
 
-    dr = metrics.dynamic_range(run, [0.01, 0.1, 0.5, 2.0], TS, 64, tone, 2048, skip=2048)
+    dr = analysis.dynamic_range(run, [0.01, 0.1, 0.5, 2.0], TS, 64, tone, 2048, skip=2048)
     rows = dr["rows"]
     assert rows[1]["sqnr_db"] - rows[0]["sqnr_db"] == pytest.approx(20, abs=3)
     assert not rows[-1]["held"] and dr["max_stable_amplitude"] == 0.5

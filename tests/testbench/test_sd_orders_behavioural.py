@@ -19,9 +19,10 @@ from netgen.build import build_model
 from netgen.emit import write_outputs
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
-from netgen.testbench.sigma_delta import filters, loopfile, ngspice, reference
+from netgen.testbench.sigma_delta import filters, loopfile, ngspice
 from netgen.testbench.sigma_delta.analysis import per_clock
 from tests.fixtures import ROOT, using_ngspice
+from tests.oracles import sigma_delta_reference as reference
 
 TS, GAP, PERIODS, RELTOL = 1e-6, 2e-6, 100, 1e-4
 EXAMPLE = ROOT / "examples" / "accelerometer_z.toml"

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from netgen.model import MacroModel
-from netgen.testbench.sigma_delta import design, filters, ngspice, reference
+from netgen.testbench.sigma_delta import design, filters, ngspice
 from tests.fixtures import ROOT
+from tests.oracles import sigma_delta_reference as reference
 
 TS, CYCLES, SEGMENT = 1e-6, 192, 96
 

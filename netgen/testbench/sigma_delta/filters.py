@@ -2,7 +2,7 @@
 
 Every kind is one per-channel discrete-time state-space filter, updated once per period at the
 latch instant (the form the compiled loop netgen_sdloop, the numpy reference
-netgen.testbench.sigma_delta.reference and the netlists evaluate):
+tests/oracles/sigma_delta_reference.py and the netlists evaluate):
 
     y[n] = c . u[n] + d x[n]            (x: the charge-amplifier sample of period n, volts)
     v[n] = +1 if y[n] + dither > 0 else -1
@@ -63,7 +63,7 @@ class Mechanics:
 
     def period_map(self) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma): the state at one sample instant to the next, s' = Phi s + Gamma v, exact
-        (matrix exponentials of the piecewise-constant force, netgen.testbench.sigma_delta.reference)."""
+        (matrix exponentials of the piecewise-constant force, as in tests/oracles/sigma_delta_reference.py)."""
         a, b = self.continuous()
         return step_map(a, b * self.force, self.ts, self.sample, self.pulse)
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
-from .filters import Filter, Mechanics, step_map
+from netgen.testbench.sigma_delta.filters import Filter, Mechanics, step_map
 
 
 @dataclass

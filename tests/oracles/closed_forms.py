@@ -10,7 +10,7 @@ from scipy import special
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from ..geometry.shapes import Array, corner_radius
+from netgen.geometry.shapes import Array, corner_radius
 
 
 def parallel_plate(eps: float, area: float, gap: ArrayLike) -> Array:
