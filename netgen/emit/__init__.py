@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..files import write_files_atomic
 from ..model import MacroModel
-from . import ngspice, osdi, veriloga, xspice
+from . import ngspice, osdi, veriloga, xschem, xspice
 
 
 def always(model: MacroModel) -> str | None:
@@ -56,6 +56,14 @@ EMITTERS: dict[str, Emitter] = {
         "the .va compiled by openvaf-r (.osdi) and a .subckt instantiating it, for ngspice 45+",
         osdi.outputs,
         in_all=False,
+    ),
+    "xschem": Emitter(
+        ".sym",
+        xschem.symbol,
+        always,
+        "",
+        "Xschem symbol of the .subckt and an example testbench schematic (_tb.sch) that includes the .lib",
+        xschem.outputs,
     ),
 }
 
