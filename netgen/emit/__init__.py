@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..files import write_files_atomic
 from ..model import MacroModel
-from . import ngspice, osdi, veriloga, xschem, xspice
+from . import kicad, ngspice, osdi, veriloga, xschem, xspice
 
 
 def always(model: MacroModel) -> str | None:
@@ -64,6 +64,13 @@ EMITTERS: dict[str, Emitter] = {
         "",
         "Xschem symbol of the .subckt and an example testbench schematic (_tb.sch) that includes the .lib",
         xschem.outputs,
+    ),
+    "kicad": Emitter(
+        ".kicad_sym",
+        kicad.symbol_library,
+        always,
+        "",
+        "KiCad 6+ symbol library whose Sim.* (and KiCad 6 Spice_*) fields instantiate the .lib's subcircuit",
     ),
 }
 
