@@ -28,7 +28,8 @@ REGENERATE = (
     "for n in " + " ".join(EXAMPLES) + "; do .venv/bin/netgen build examples/$n.toml -o netlists/$n "
     "--format all,osdi; done"
 )
-COMMITTED = (".lib", ".json", ".va", "_calibration.json")  # text files; PNGs are not compared
+# text files; PNGs and the build report (its figures inline) are not compared, nor committed
+COMMITTED = (".lib", ".json", ".va", "_calibration.json", ".sym", "_tb.sch", ".kicad_sym")
 
 
 def rendered(name: str, tmp: Path) -> dict[str, str]:
@@ -38,6 +39,7 @@ def rendered(name: str, tmp: Path) -> dict[str, str]:
         b = build(load_structure(f"examples/{name}.toml"))
     model = b.model
     out = {f"{model.name}{EMITTERS[f].suffix}": EMITTERS[f].render(model) for f in chosen(model, "all,osdi")}
+    out |= {f"{model.name}{suffix}": text for suffix, text in EMITTERS["xschem"].extra(model).items()}  # _tb.sch
     out[f"{model.name}.json"] = model.json_text()
     for path in write_calibration(b, tmp, figure=False):
         out[path.name] = path.read_text(encoding="utf-8")

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from netgen import cli, emit
-from netgen.emit import osdi, xspice
+from netgen.emit import EMITTERS, osdi, xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.model import MacroModel
 from tests.fixtures import REFERENCE, ROOT
@@ -123,6 +123,12 @@ def _stale(problems: list[str]) -> str:
 # ----------------------------------------------------------------------------- committed netlists
 
 
+def schematic_forms(model: MacroModel) -> dict[str, str]:
+    """The Xschem symbol and testbench and the KiCad library of `model`, by file ending."""
+    out = {EMITTERS[f].suffix: EMITTERS[f].render(model) for f in ("xschem", "kicad")}
+    return out | EMITTERS["xschem"].extra(model)
+
+
 def test_committed_netlists_are_current(reference_model):
     """A fresh build of the reference example (the session build, loaded from the repository
     root with the same relative path) matches netlists/ up to BLAS-level rounding."""
@@ -137,6 +143,9 @@ def test_committed_netlists_are_current(reference_model):
     # the _osdi.lib (its .osdi is not committed: a platform binary that differs between compiles)
     osdi_old = (NETLISTS / f"{NAME}_osdi.lib").read_text(encoding="utf-8")
     problems += _compare_text(osdi.subcircuit(reference_model), osdi_old, f"{NAME}_osdi.lib", rounded_lines="*")
+    # the schematic forms (netgen.emit.xschem, netgen.emit.kicad): text, byte for byte up to rounding
+    for suffix, text in schematic_forms(reference_model).items():
+        problems += _compare_text(text, (NETLISTS / f"{NAME}{suffix}").read_text(encoding="utf-8"), f"{NAME}{suffix}")
     # the JSON: its text with numbers masked, then its numbers by key path (see NOISE)
     problems += _compare_text(json_new, json_old, f"{NAME}.json", numbers=False) if not problems else []
     problems += _compare_json(json.loads(json_new), json.loads(json_old)) if not problems else []
