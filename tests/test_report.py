@@ -1,8 +1,9 @@
-"""The build report <name>_report.html (netgen.emit.report): its numbers are the JSON's, it is
-self-contained, and a real browser (Debian's chromium, headless, installed by .ci/setup) renders
-it with no console error into a screenshot that is not blank. Two pages: one written by
-`netgen build` of the one-coordinate accelerometer, one rendered from the committed levitated
-disk (31 ports, modes) with its committed figures."""
+"""The build report <name>_report.html (netgen.emit.report) and a sigma-delta run's report.html
+(netgen.testbench.sigma_delta.report): their numbers are the JSON's, they are self-contained,
+and a real browser (Debian's chromium, headless, installed by .ci/setup) renders them with no
+console error into a screenshot that is not blank. Build pages: one written by `netgen build` of
+the one-coordinate accelerometer, one rendered from the committed levitated disk (31 ports,
+modes) with its committed figures; run page: a 64-period run of the disk's loop (ngspice)."""
 
 from __future__ import annotations
 
@@ -26,28 +27,30 @@ NETLISTS = ROOT / "netlists"
 
 
 class Tables(HTMLParser):
-    """Every <table id=...>: its rows as lists of (text, data-value or None) cells; every
-    src/href attribute; the SVG <path d=...> attributes."""
+    """Every <table id=...>: its own rows (not those of tables nested in it) as lists of (text,
+    data-value or None) cells; every src/href attribute; the SVG <path d=...> attributes."""
 
     def __init__(self) -> None:
         super().__init__()
         self.tables: dict[str, list[list[tuple[str, str | None]]]] = {}
         self.links: list[str] = []
         self.paths: list[str] = []
-        self._table: str | None = None
+        self._open: list[str | None] = []  # the table ids from the outermost to the innermost
         self._cell: list | None = None
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
         self.links += [v for k, v in attrs if k in ("src", "href")]
+        table = self._open[-1] if self._open else None
         if tag == "path":
             self.paths.append(a["d"])
         if tag == "table":
-            self._table = a.get("id")
-            self.tables[self._table] = []
-        elif tag == "tr" and self._table:
-            self.tables[self._table].append([])
-        elif tag == "td" and self._table:
+            self._open.append(a.get("id"))
+            if a.get("id"):
+                self.tables[a["id"]] = []
+        elif tag == "tr" and table:
+            self.tables[table].append([])
+        elif tag == "td" and table:
             self._cell = ["", a.get("data-value")]
 
     def handle_data(self, data):
@@ -55,11 +58,43 @@ class Tables(HTMLParser):
             self._cell[0] += data
 
     def handle_endtag(self, tag):
-        if tag == "td" and self._cell is not None:
-            self.tables[self._table][-1].append((self._cell[0].strip(), self._cell[1]))
+        if tag == "td" and self._cell is not None and self._open and self._open[-1]:
+            self.tables[self._open[-1]][-1].append((self._cell[0].strip(), self._cell[1]))
             self._cell = None
         elif tag == "table":
-            self._table = None
+            self._open.pop()
+
+
+@pytest.fixture(scope="module")
+def run_page(tmp_path_factory) -> tuple[Path, dict]:
+    """A 64-period sigma-delta run of the committed disk model: (report.html, summary.json)."""
+    out = tmp_path_factory.mktemp("sd") / "run"
+    (out / "model").mkdir(parents=True)
+    for suffix in (".json", ".lib"):
+        shutil.copy(NETLISTS / f"levitated_disk{suffix}", out / "model")
+    args = ["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "--cycles", "64", "-q", "-o", str(out)]
+    assert cli.main([*args, "--model", str(out / "model" / "levitated_disk.json")]) == 0
+    return out / "report.html", json.loads((out / "summary.json").read_text())
+
+
+def test_run_report_numbers_equal_the_summary(run_page):
+    """Held or not as the summary says; every channel's scalar entries are summary.json's."""
+    page, summary = run_page
+    t = parsed(page)
+    text = page.read_text(encoding="utf-8")
+    assert ("The loop held the plate" in text) == summary["levitation"]["held"]
+    assert all(link.startswith("data:") for link in t.links) and len(t.links) == 2  # spectra, coordinates
+    rows = t.tables["channels"]
+    for (name, entries), row in zip(summary["channels"].items(), [r for r in rows if r]):
+        assert row[0][0] == name
+        shown = [float(v) for _, v in row[1:] if v is not None]
+        assert shown == [v for v in entries.values() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+
+
+def test_run_report_renders_in_chromium(run_page, tmp_path):
+    """As the build reports: no console message, a screenshot that is not blank."""
+    shot, console = chromium(run_page[0], tmp_path)
+    assert console == [] and shot[..., :3].mean(axis=-1).std() > 0.05
 
 
 @pytest.fixture(scope="module")

@@ -512,4 +512,5 @@ def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path, 
     assert code == 2 and "electrode top_r1s1 has a 'direct' capacitance fit" in err and "; fix: " in err
     assert _leftovers(out) == []
     written = {p.name for p in emit.write_outputs(bad, tmp_path / "all", "all")}
-    assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"}
+    schematics = {f"{NAME}.sym", f"{NAME}_tb.sch", f"{NAME}.kicad_sym"}  # netgen.emit.xschem, netgen.emit.kicad
+    assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"} | schematics

@@ -27,7 +27,7 @@ from ...sim.ngspice import identity as ngspice_identity
 from ...sim.ngspice import version as ngspice_version
 from ...sim.vacask import stats as vacask_stats
 from ...structure import Damping, load_structure
-from . import ngspice, osdi, vacask
+from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Design, Tone, design
 from .loopfile import InputSpec, LoopSpec
@@ -204,7 +204,7 @@ def run(
     designed: Design | None = None,
     **choices,
 ) -> dict:
-    """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
+    """Design, simulate and analyse; write bits .npz, PNGs, summary.json and report.html into `out`.
     simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model emitted
     with its plate terms in the compiled code model; "vacask" the compiled Verilog-A module, the
     .va next to `lib` or else the module emitted from `model`); `loop`: the loop description
@@ -271,6 +271,7 @@ def run(
             f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})",
         )
         plot_states(clock, out / "coordinates.png")
+    report.write(out, summary)  # the page to open (netgen.testbench.sigma_delta.report)
     return summary | {"spectra": spectra, "clock": clock}
 
 
