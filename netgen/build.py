@@ -27,7 +27,7 @@ from .fit import cost
 from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all
 from .fit.energy import energy_entry, fit_energy
-from .geometry.layout import electrode_outlines, electrodes, overlap_area, plate_outline
+from .geometry.layout import drawing, electrode_outlines, electrodes, overlap_area, plate_outline
 from .geometry.shapes import Electrode as ShapeElectrode
 from .geometry.shapes import Plate
 from .mechanics import Mechanics, mechanics, participation
@@ -260,6 +260,7 @@ def assemble(
         sampling,
         report,
         contact=stops(s, m, prepared, shapes, scales),
+        layout=drawing(plate, shapes),
     )
     if hasattr(ext, "calibration"):  # calibrated fringes / given couplings (netgen.electrostatics.calibrated)
         model.calibration = ext.calibration()

@@ -17,7 +17,7 @@ from typing import Any
 from . import __version__
 from .arguments import Parser, existing_file, output_folder, positive
 from .build import build, figure_names, write_calibration, write_figures
-from .emit import EMITTERS, compiles, osdi, refusal, requested, write_outputs
+from .emit import EMITTERS, compiles, osdi, refusal, report, requested, write_outputs
 from .errors import InputError, NetgenError, StructureError
 from .executor import add_scheduler_option, executor
 from .folders import OutputFolder
@@ -58,6 +58,7 @@ def _build(args: argparse.Namespace) -> int:
         if not args.no_plots:
             written += write_figures(result, out.stage)
         written += write_calibration(result, out.stage, figure=not args.no_plots)
+        written.append(report.write(model, out.stage, written))  # the one page to open (netgen.emit.report)
         written = out.commit(written)
     if not args.quiet:
         for path in written:
@@ -72,7 +73,8 @@ def _build(args: argparse.Namespace) -> int:
 
 def build_files(name: str) -> tuple[str, ...]:
     """Every file a build of model `name` can write (its set, for OutputFolder)."""
-    return tuple(f"{name}{e.suffix}" for e in EMITTERS.values()) + (f"{name}.json",) + figure_names(name)
+    extra = (f"{name}_tb.sch", f"{name}_report.html")  # beside the .sym (netgen.emit.xschem); the report
+    return tuple(f"{name}{e.suffix}" for e in EMITTERS.values()) + (f"{name}.json",) + figure_names(name) + extra
 
 
 @contextmanager

@@ -45,7 +45,8 @@ REGENERATE = (
     "for n in " + " ".join(EXAMPLES) + "; do .venv/bin/netgen build examples/$n.toml -o netlists/$n "
     "--format all,osdi; done"
 )
-COMMITTED = (".lib", ".json", ".va", "_calibration.json")  # text files; PNGs are not compared
+# text files; PNGs and the build report (its figures inline) are not compared, nor committed
+COMMITTED = (".lib", ".json", ".va", "_calibration.json", ".sym", "_tb.sch", ".kicad_sym")
 
 
 @functools.cache
@@ -57,8 +58,9 @@ def built(name: str) -> Build:
 
 
 def rendered(model: MacroModel) -> dict[str, str]:
-    """Every committed netlist text form of a model, by file name."""
-    return {f"{model.name}{EMITTERS[f].suffix}": EMITTERS[f].render(model) for f in chosen(model, "all,osdi")}
+    """Every committed netlist text form of a model, by file name (the Xschem testbench too)."""
+    out = {f"{model.name}{EMITTERS[f].suffix}": EMITTERS[f].render(model) for f in chosen(model, "all,osdi")}
+    return out | {f"{model.name}{suffix}": str(text) for suffix, text in EMITTERS["xschem"].extra(model, "").items()}
 
 
 def problems_of(b: Build, folder: Path, tmp: Path) -> tuple[list[str], list[str]]:

@@ -95,7 +95,8 @@ def test_a_registered_emitter_joins_the_formats(monkeypatch, tmp_path):
     monkeypatch.setitem(emit.EMITTERS, "ports", ports)
     assert cli.main(["build", str(PISTON), "-o", str(tmp_path), "-q", "--no-plots", "--format", "ports"]) == 0
     assert (tmp_path / "piston.ports").read_text().split() == ["drive", "plate", "f_z", "x_z"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["piston.json", "piston.manifest.json", "piston.ports"]
+    written = ["piston.json", "piston.manifest.json", "piston.ports", "piston_report.html"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == written
 
 
 def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
@@ -103,14 +104,18 @@ def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
     with pytest.raises(
         ValueError,
         match=r"choose one or more \(joined by commas\) of ngspice, veriloga, xspice, "
-        r"osdi, all",
+        r"osdi, xschem, kicad, all",
     ):
         emit.write_outputs(model, tmp_path, "spectre")
     for bad in ("spectre", "ngspice,spectre", ""):
         with pytest.raises(SystemExit) as info:
             cli.main(["build", str(PISTON), "-o", str(tmp_path / "out"), "--format", bad])
         err = capsys.readouterr().err
-        assert info.value.code == 2 and "argument --format" in err and "ngspice, veriloga, xspice, osdi, all" in err
+        assert (
+            info.value.code == 2
+            and "argument --format" in err
+            and "ngspice, veriloga, xspice, osdi, xschem, kicad, all" in err
+        )
     assert not (tmp_path / "out").exists()
 
 
@@ -125,9 +130,14 @@ def test_several_formats_are_one_build_and_one_set(tmp_path):
         "piston.osdi",
         "piston.va",
         "piston_osdi.lib",
+        "piston_report.html",
     ]
     model = MacroModel.load_json(tmp_path / "piston.json")
-    assert emit.chosen(model, "all,ngspice,all") == emit.chosen(model, "all") == ["ngspice", "veriloga", "xspice"]
+    assert (
+        emit.chosen(model, "all,ngspice,all")
+        == emit.chosen(model, "all")
+        == ["ngspice", "veriloga", "xspice", "xschem", "kicad"]
+    )
 
 
 def test_a_refused_format_is_left_out_of_all():

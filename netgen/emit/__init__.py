@@ -14,7 +14,7 @@ from typing import Protocol
 
 from ..files import write_files_atomic
 from ..model import MacroModel
-from . import ngspice, osdi, veriloga, xspice
+from . import kicad, ngspice, osdi, veriloga, xschem, xspice
 
 
 class Render(Protocol):
@@ -54,6 +54,7 @@ class Emitter:
     # extra(model, cpu) with the compiler's target cpu (netgen.emit.osdi.GENERIC or NATIVE)
     extra: Outputs | None = None
     in_all: bool = True  # part of --format all
+    compiled: bool = False  # its extra files include a compiled module (the build record names the target)
 
 
 EMITTERS: dict[str, Emitter] = {
@@ -76,13 +77,29 @@ EMITTERS: dict[str, Emitter] = {
         "the .va compiled by openvaf-r (.osdi) and a .subckt instantiating it, for ngspice 45+",
         osdi.outputs,
         in_all=False,
+        compiled=True,
+    ),
+    "xschem": Emitter(
+        ".sym",
+        xschem.symbol,
+        always,
+        "",
+        "Xschem symbol of the .subckt and an example testbench schematic (_tb.sch) that includes the .lib",
+        xschem.outputs,
+    ),
+    "kicad": Emitter(
+        ".kicad_sym",
+        kicad.symbol_library,
+        always,
+        "",
+        "KiCad 6+ symbol library whose Sim.* (and KiCad 6 Spice_*) fields instantiate the .lib's subcircuit",
     ),
 }
 
 
 def compiles(fmt: str) -> bool:
     """Whether a --format value writes a compiled module (an extra file such as the .osdi)."""
-    return any(EMITTERS[f].extra is not None for f in requested(fmt) if f != "all")
+    return any(EMITTERS[f].compiled for f in requested(fmt) if f != "all")
 
 
 def formats() -> list[str]:

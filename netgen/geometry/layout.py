@@ -91,3 +91,36 @@ def electrode_outlines(s: Structure, points: int = 40) -> list[tuple[np.ndarray,
                 y = np.concatenate([r_out * np.sin(ta), r_lo * np.sin(tb), [r_out * math.sin(lo_o)]])
                 out.append((x, y))
     return out
+
+
+def drawing(plate: Plate, shapes: list[Electrode], points: int = 12) -> dict:
+    """The layout as plain polylines for a drawing to scale (the build report, netgen.emit.report):
+    the conductor's outline and, per electrode in port order, the pieces of its overlap with the
+    conductor's outline (a comb: the overlap of each facing sidewall), in m, rounded to 1 pm."""
+
+    def line(x, y) -> list[list[float]]:
+        return [[round(float(v), 12) for v in x], [round(float(v), 12) for v in y]]
+
+    if isinstance(plate, DiskPlate):
+        t = np.linspace(0, 2 * math.pi, 4 * points + 1)
+        conductor = line(plate.radius * np.cos(t), plate.radius * np.sin(t))
+    else:
+        conductor = line(
+            [plate.x0, plate.x1, plate.x1, plate.x0, plate.x0], [plate.y0, plate.y0, plate.y1, plate.y1, plate.y0]
+        )
+    out = []
+    for e in shapes:
+        if isinstance(e.shape, CombShape):
+            back = e.shape.engage * e.shape.overlap
+            ends = [(np.asarray(f.tip), np.asarray(f.tip) - back) for f in e.shape.faces()]
+            pieces = [line([a[0], b[0]], [a[1], b[1]]) for a, b in ends]
+        else:
+            pieces = []
+            for p in e.shape.boundary(plate):
+                if hasattr(p, "p0"):
+                    pieces.append(line([p.p0[0], p.p1[0]], [p.p0[1], p.p1[1]]))
+                else:
+                    t = np.linspace(p.phi0, p.phi1, points + 1)
+                    pieces.append(line(p.radius * np.cos(t), p.radius * np.sin(t)))
+        out.append({"name": e.name, "side": e.side, "pieces": pieces})
+    return {"unit": "m", "conductor": conductor, "electrodes": out}

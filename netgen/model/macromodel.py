@@ -110,6 +110,9 @@ class MacroModel:
     # per-electrode fringe coefficients {"electrode", "a", "b", "length"} of the term a + b ln(L/g) per
     # unit edge length, and the spread of each coupling over the points; {} = the analytic defaults
     calibration: dict = field(default_factory=dict)
+    # the layout drawn to scale by the build report (netgen.geometry.layout.drawing): the conductor's
+    # outline and each electrode's overlap pieces as polylines in m; {} = not known (an old JSON)
+    layout: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -270,6 +273,8 @@ class MacroModel:
             }
         if self.calibration:
             out["calibration"] = self.calibration
+        if self.layout:
+            out["layout"] = self.layout
         return out
 
     def fit_misses(self) -> list[dict]:
@@ -433,6 +438,7 @@ class MacroModel:
             d.get("nonlinear_stiffness", {}),
             d.get("acceleration_port", {}).get("participation", []),
             d.get("calibration", {}),
+            d.get("layout", {}),
         )
 
     @classmethod

@@ -42,8 +42,8 @@ def tilted_disk(model: MacroModel, x: np.ndarray) -> float:
 
 
 def test_a_missed_tolerance_warns_everywhere(tmp_path, capsys):
-    """stderr, the JSON's validity entry and the headers of .lib, _xspice.lib and .va carry the
-    warning with its fix; the fit really misses (closed form, 300 random points in the box)."""
+    """stderr, the JSON's validity entry, the headers of .lib, _xspice.lib and .va and the build
+    report carry the warning with its fix; the fit really misses (closed form, 300 random points in the box)."""
     structure = tmp_path / "one_plate.toml"
     structure.write_text(MISSES)
     out = tmp_path / "out"
@@ -65,6 +65,9 @@ def test_a_missed_tolerance_warns_everywhere(tmp_path, capsys):
         header = (out / name).read_text().split("\n.subckt" if name.endswith(".lib") else "`include")[0]
         assert WARNING in header, name
         assert "[fit] max_terms" in header.replace("\n*   ", " ").replace("\n//   ", " "), name
+    page = (out / "one_plate_report.html").read_text()
+    assert 'class="warning">the capacitance fit of electrode bot_r1s1 misses fit.tolerance' in page
+    assert "[fit] max_terms" in page
 
 
 def test_strict_refuses_a_missed_tolerance(tmp_path, capsys):

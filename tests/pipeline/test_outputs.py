@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from netgen import cli, emit
-from netgen.emit import osdi, xspice
+from netgen.emit import EMITTERS, osdi, xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.fit.capacitance import PATCH_GRIDS
 from netgen.model import MacroModel
@@ -57,6 +57,12 @@ def _stale(problems: list[str]) -> str:
 # ----------------------------------------------------------------------------- committed netlists
 
 
+def schematic_forms(model: MacroModel) -> dict[str, str]:
+    """The Xschem symbol and testbench and the KiCad library of `model`, by file ending."""
+    out = {EMITTERS[f].suffix: EMITTERS[f].render(model) for f in ("xschem", "kicad")}
+    return out | {suffix: str(text) for suffix, text in EMITTERS["xschem"].extra(model, "").items()}
+
+
 def test_committed_netlists_are_current(reference_build):
     """A fresh build of the reference example (the session build, loaded from the repository
     root with the same relative path) computes what the committed netlists/ compute: words and
@@ -72,6 +78,11 @@ def test_committed_netlists_are_current(reference_build):
     for suffix, render in ((".lib", subcircuit), ("_xspice.lib", xspice.subcircuit), ("_osdi.lib", osdi.subcircuit)):
         old = (NETLISTS / f"{NAME}{suffix}").read_text(encoding="utf-8")
         problems += text_problems(render(model), old, render(hybrid), f"{NAME}{suffix}")
+    # the schematic forms (netgen.emit.xschem, netgen.emit.kicad), judged the same way
+    new, mixed = schematic_forms(model), schematic_forms(hybrid)
+    for suffix, text in new.items():
+        old = (NETLISTS / f"{NAME}{suffix}").read_text(encoding="utf-8")
+        problems += text_problems(text, old, mixed[suffix], f"{NAME}{suffix}")
     assert not problems, _stale(problems)
 
 
@@ -476,4 +487,5 @@ def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path, 
     assert code == 2 and "electrode top_r1s1 has a 'direct' capacitance fit" in err and "; fix: " in err
     assert _leftovers(out) == []
     written = {p.name for p in emit.write_outputs(bad, tmp_path / "all", "all")}
-    assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"}
+    schematics = {f"{NAME}.sym", f"{NAME}_tb.sch", f"{NAME}.kicad_sym"}  # netgen.emit.xschem, netgen.emit.kicad
+    assert written == {f"{NAME}.lib", f"{NAME}.va", f"{NAME}.json"} | schematics

@@ -31,7 +31,7 @@ from ...sim.vacask import stats as vacask_stats
 from ...sim.vacask import tools as vacask_tools
 from ...structure import Damping, load_structure
 from ...structure.reader import Reader
-from . import ngspice, osdi, vacask
+from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Design, Tone, design
 from .loopfile import InputSpec, LoopSpec
@@ -261,7 +261,7 @@ def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: flo
 
 
 def run(model: MacroModel, lib: Path, out: Path, request: RunRequest) -> dict:
-    """Design, simulate and analyse; write bits .npz, PNGs and summary.json into `out`.
+    """Design, simulate and analyse; write bits .npz, PNGs, summary.json and report.html into `out`.
     request.simulator: a BACKENDS name ("ngspice" runs the .lib `lib`; "ngspice-xspice" the model
     emitted with its plate terms in the compiled code model; "vacask" the compiled Verilog-A
     module, the .va next to `lib` or else the module emitted from `model`)."""
@@ -327,6 +327,7 @@ def run(model: MacroModel, lib: Path, out: Path, request: RunRequest) -> dict:
             f"{model.name}: T_s = {ts * 1e6:g} us, {cycles} cycles ({simulator})",
         )
         plot_states(clock, out / "coordinates.png")
+    report.write(out, summary)  # the page to open (netgen.testbench.sigma_delta.report)
     return summary | {"spectra": spectra, "clock": clock}
 
 
