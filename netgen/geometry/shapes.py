@@ -216,9 +216,11 @@ def pieces_points(pieces: Sequence[Piece], order: int) -> tuple[Array, Array, Ar
 
 @runtime_checkable
 class Shape(Protocol):
-    """Electrode outline: exact area, area and edge quadrature over its overlap with a plate."""
+    """Electrode outline: exact area, area and edge quadrature over its overlap with a plate
+    (`name` read-only: the shapes are frozen dataclasses)."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def area(self) -> float: ...
     def quadrature(self, plate: Plate, order: int = DEFAULT_ORDER) -> tuple[Array, Array, Array]: ...
