@@ -115,6 +115,7 @@ def cli(args) -> int:
             args.noise,
         )
     inputs = [c.name for c in model.coordinates] + (["a_in"] if model.acceleration else [])
+    inputs += list(model.inertial.participation)  # a_x, a_y (netgen.model.inertial)
     if tone and tone.coord not in inputs:
         print(
             f"netgen: --tone {args.tone}: the model has no coordinate {tone.coord!r}; choose one of "
