@@ -4,7 +4,7 @@ channel, and the cross-axis correlation of the bitstreams (raw, and in band), fr
 a `netgen sigma-delta` run.
 
     netgen sigma-delta examples/accelerometer_xyz.toml -o OUT --cycles 16384 --simulator ngspice-xspice \
-        --tone x:0.016:1953.125
+        --tone a_x:25.55:1953.125
     python examples/accelerometer_xyz_loop.py OUT
 """
 

@@ -30,11 +30,11 @@ from .fit.energy import energy_entry, fit_energy
 from .geometry.layout import drawing, electrode_outlines, electrodes, overlap_area, plate_outline
 from .geometry.shapes import Electrode as ShapeElectrode
 from .geometry.shapes import Plate
-from .mechanics import Mechanics, mechanics, participation
+from .mechanics import Mechanics, inertial, mechanics, participation
 from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
-from .model import Coordinate, Electrode, MacroModel, contact, plots
+from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -266,6 +266,10 @@ def assemble(
         model.calibration = ext.calibration()
     if s.coordinates.acceleration_port:
         model.acceleration = participation(s, m)
+    if set(s.coordinates.inertial) - {"a_z"}:  # a_x, a_y, rates (netgen.mechanics.inertial)
+        data = inertial.terms(s, m, s.coordinates.inertial)
+        model.inertial = Inertial.from_dict(data)
+        model.report["inertial"] = inertial.report(m.names, m.kinds, data, m.stiffnesses, s.coordinates.inertial)
     if m.strain_energy is not None:  # e.g. stress stiffening (netgen.mechanics.beam)
         poly, fit_report = fit_energy(m.strain_energy.energy, scales)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)

@@ -47,6 +47,9 @@ def _build(args: argparse.Namespace) -> int:
         if args.strict:
             raise StructureError(args.structure, "[fit] tolerance", f"{model.fit_problem()} (--strict)", FIT_FIX)
         print(f"netgen: warning: {args.structure}: {model.fit_warning()}", file=sys.stderr)
+    note = model.report.get("inertial", {}).get("uncoupled_note")
+    if note:  # an inertial input that moves nothing (netgen.mechanics.inertial.report)
+        print(f"netgen: note: {args.structure}: {note}", file=sys.stderr)
     for fmt in requested(args.format):
         if fmt != "all" and refusal(model, fmt):
             print(f"netgen: {args.structure}: --format {fmt}: {refusal(model, fmt)}", file=sys.stderr)

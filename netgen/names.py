@@ -9,7 +9,7 @@ differ case-insensitively from every other electrode, electrode set and port nam
 - a ground name of ngspice or VACASK (0, gnd) or the plate port, case-insensitively;
 - a node the emitted subcircuit or a testbench derives from a coordinate, electrode or channel
   name (xs_z, u_z, p_drive_1, ca_z, ...: any name starting with one of NODE_PREFIXES, which also
-  covers the ports f_<q> and x_<q>) or a fixed node of theirs (BENCH_NODES, a_in);
+  covers the ports f_<q> and x_<q>) or a fixed node of theirs (BENCH_NODES: a_in, a_x, a_y; the rate ports w_x, w_y, w_z have the prefix w_);
 - a Verilog-A / Verilog-AMS keyword, or a discipline, nature, access or analog function name the
   emitted module uses (VERILOG_A, case-sensitively, as Verilog-A reads names);
 - a VACASK netlist keyword (VACASK, case-insensitively).
@@ -32,7 +32,7 @@ NODE_PREFIXES = re.compile(
     re.I,
 )
 # fixed nodes of the subcircuit and the testbenches (templates/sigma_delta, loop.py's bit nodes)
-BENCH_NODES = frozenset("a_in plate phs phf fb1 fb2 clk rst sprev scur sfm sfs tie bz bx by".split())
+BENCH_NODES = frozenset("a_in a_x a_y plate phs phf fb1 fb2 clk rst sprev scur sfm sfs tie bz bx by".split())
 VACASK = frozenset(
     "ground global load include model subckt ends parameters control endc embed postprocess options".split()
 )

@@ -77,7 +77,8 @@ def rest_capacitance(f, ncoords: int) -> float:
     return float(sum(1.0 / poly(zero)[0] for poly in f.polys))
 
 
-# every mechanical input (f_<q>, a_in) is tied to ground inside the model by this conductance
+INPUT_KINDS = ("force_in", "acceleration_in", "rate_in")  # the mechanical input ports' kinds (MacroModel.ports)
+# every mechanical input (f_<q>, a_in, a_x, w_z, ...) is tied to ground inside the model by this conductance
 # (noiseless: a VCCS in ngspice, a plain contribution in Verilog-A), so an unused, open input reads
 # 0 instead of leaving the matrix singular; an input driven through a source resistance R_s reads
 # low by R_s * PORT_TIE (1e-6 for 1 Mohm), one driven by an ideal source not at all
@@ -86,7 +87,7 @@ PORT_TIE = 1e-12
 
 def input_ties(model: MacroModel) -> list[str]:
     """The mechanical input ports that carry the PORT_TIE to ground, in port order."""
-    return [p["name"] for p in model.ports() if p["kind"] in ("force_in", "acceleration_in")]
+    return [p["name"] for p in model.ports() if p["kind"] in INPUT_KINDS]
 
 
 def si(value: float, unit: str) -> str:

@@ -12,6 +12,7 @@ from ..constants import K_B
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
 from ..templating import render
+from . import inertial
 from .common import (
     c_node,
     contact_terms,
@@ -132,6 +133,9 @@ def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
     ctx["nonlinear"] = nonlinear_sources(model, ws, state)
     ctx["film"] = film_branches(model, ws, noise_enabled(model, noise))
     ctx["inertial"] = inertial_loads(model, ws)
+    ctx["inertial_xy"] = inertial.acceleration_gains(model, ws)
+    ctx["rates"] = inertial.rate_expressions(model, ws)
+    ctx["inertial_text"] = inertial.header_lines(model)
     if any("rms" in b for b in ctx["film"]) and not ctx.get("subckt_params"):
         dt = noise_context(model, ws)["noise_dt"]  # the branches' noise needs the instance params
         ctx.update({"noise_dt": dt, "subckt_params": f"\n+ params: noise=1 noise_dt={dt}"})

@@ -19,7 +19,9 @@ from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
 from ..names import VERILOG_A as KEYWORDS
 from ..templating import render
+from . import inertial
 from .common import (
+    INPUT_KINDS,
     clamp_expr,
     contact_terms,
     dv2_node,
@@ -217,6 +219,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
         if g != 0.0:  # inertial load -G a_in (netgen.mechanics.participation)
             row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
+    inertial_rows(model, ctx, ws)
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
@@ -290,3 +293,15 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                 }
             )
     return rows
+
+
+def inertial_rows(model: MacroModel, ctx: dict, ws: float) -> None:
+    """The input ports a_x, a_y, w_x, w_y, w_z (netgen.emit.inertial) added to the coordinates'
+    right-hand sides, and the header lines and input list that name them."""
+    rows = {r["name"]: r for r in ctx["coords"]}
+    for a in inertial.acceleration_gains(model, ws):
+        rows[a["coord"]]["rhs"] += f" - {a['gain']} * V({a['port']})"
+    for r in inertial.rate_expressions(model, ws, access=VA):
+        rows[r["coord"]]["rhs"] += f"\n            + {r['expr']}"
+    ctx["inertial_text"] = inertial.header_lines(model)
+    ctx["inputs"] = [p["name"] for p in ctx["ports"] if p["kind"] in INPUT_KINDS]

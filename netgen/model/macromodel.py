@@ -24,6 +24,7 @@ from ..files import json_document, read_text, write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from . import contact, schema, validate
+from .inertial import Inertial
 
 # port units: coordinate unit -> (display unit of displacement, factor SI per display unit,
 #                                  display unit of generalized force, factor SI per display unit)
@@ -113,6 +114,8 @@ class MacroModel:
     # the layout drawn to scale by the build report (netgen.geometry.layout.drawing): the conductor's
     # outline and each electrode's overlap pieces as polylines in m; {} = not known (an old JSON)
     layout: dict = field(default_factory=dict)
+    # frame acceleration along x, y and rotation rates (ports a_x, a_y, w_x, w_y, w_z; netgen.model.inertial)
+    inertial: Inertial = field(default_factory=Inertial)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -224,8 +227,11 @@ class MacroModel:
         v_plate: float,
         f_ext: np.ndarray | None = None,
         a_frame: float = 0.0,
+        inertial: dict[str, float] | None = None,
     ) -> np.ndarray:
-        """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext - G a_frame (diagonal M, D, K)."""
+        """Scaled accelerations x'' from M q'' + D q' + K q = F_el + F_ext - G a_frame + F_inertial
+        (diagonal M, D, K; F_inertial: the inputs {a_x, a_y, w_x, w_y, w_z: value} through
+        netgen.model.inertial.Inertial.force)."""
         c = self.coordinates
         m = np.array([k.mass for k in c])
         d = np.array([k.damping for k in c])
@@ -238,6 +244,8 @@ class MacroModel:
             force = force + f_ext
         if self.acceleration and a_frame:
             force = force - np.array(self.acceleration) * a_frame
+        if self.inertial and inertial:
+            force = force + self.inertial.force(s * np.ravel(x), s * np.ravel(xdot), inertial)
         return (force - d * s * np.ravel(xdot) - k * s * np.ravel(x)) / (m * s)
 
     def nonlinear_energy_polynomial(self) -> Polynomial | None:
@@ -271,6 +279,8 @@ class MacroModel:
                 "+z; coordinate v feels -participation_v * a_in (a_in = 9.81: gravity)",
                 "participation": list(self.acceleration),
             }
+        if self.inertial:
+            out["inertial_inputs"] = self.inertial.to_dict()
         if self.calibration:
             out["calibration"] = self.calibration
         if self.layout:
@@ -362,9 +372,10 @@ class MacroModel:
             xu, _, fu, _ = c.port_units
             ports.append({"name": f"f_{c.name}", "kind": "force_in", "unit": fu, "coordinate": c.name})
             ports.append({"name": f"x_{c.name}", "kind": "displacement_out", "unit": xu, "coordinate": c.name})
+        ports += self.inertial.ports()
         if self.acceleration:
             ports.append({"name": ACCEL_PORT, "kind": "acceleration_in", "unit": "m/s^2"})
-        return ports
+        return ports + self.inertial.rate_ports()
 
     def json_text(self) -> str:
         """The model JSON text, byte-reproducible (full-precision floats, no NaN)."""
@@ -439,6 +450,7 @@ class MacroModel:
             d.get("acceleration_port", {}).get("participation", []),
             d.get("calibration", {}),
             d.get("layout", {}),
+            Inertial.from_dict(d.get("inertial_inputs", {})),
         )
 
     @classmethod

@@ -130,6 +130,7 @@ def check_names(c: Checker, d: dict) -> None:
         c.choice(f"capacitances[{i}].target", row.get("target"), TARGETS)
     check_couplings(c, d, tuple(names))
     check_calibration(c, d.get("calibration", {}), tuple(names))
+    check_inertial(c, d.get("inertial_inputs", {}), len(d["coordinates"]))
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
 
@@ -210,3 +211,34 @@ def check_calibration(c: Checker, cal: Any, names: tuple[str, ...]) -> None:
             c.fail(f"{where}.length", f"{row['length']!r} m is not a positive reference length")
     if "points" in cal:
         c.number("calibration.points", cal["points"], integer=True)
+
+
+# the inertial inputs' tables (netgen.model.inertial): key -> (allowed names, rank of each entry)
+INERTIAL = {
+    "participation": (("a_x", "a_y"), 1),
+    "gyroscopic": (("x", "y", "z"), 2),
+    "centrifugal": (("xx", "yy", "zz", "xy", "xz", "yz"), 2),
+    "centrifugal_force": (("xx", "yy", "zz", "xy", "xz", "yz"), 1),
+}
+
+
+def check_inertial(c: Checker, block: Any, n: int) -> None:
+    """The optional inertial_inputs entry: known axis names, one number per coordinate (a vector)
+    or an n x n array of numbers (a matrix) each."""
+    if not isinstance(block, dict):
+        c.fail("inertial_inputs", "must be an object")
+    for key, (names, rank) in INERTIAL.items():
+        table = block.get(key, {})
+        if not isinstance(table, dict):
+            c.fail(f"inertial_inputs.{key}", "must be an object")
+        for axis, value in table.items():
+            where = f"inertial_inputs.{key}.{axis}"
+            c.choice(f"{where} (key)", axis, names)
+            rows = value if rank == 2 else [value]
+            if not isinstance(rows, list) or len(rows) != (n if rank == 2 else 1):
+                c.fail(where, f"must be {'an n x n array' if rank == 2 else 'a list'} over the {n} coordinates")
+            for r, row in enumerate(rows):
+                if not isinstance(row, list) or len(row) != n:
+                    c.fail(f"{where}[{r}]" if rank == 2 else where, f"must be a list of {n} numbers")
+                for k, x in enumerate(row):
+                    c.number(f"{where}[{r}][{k}]" if rank == 2 else f"{where}[{k}]", x)

@@ -293,7 +293,7 @@ def run_netlist(netlist: str, workdir: Path, name: str, timeout: float) -> list[
 
 # ----------------------------------------------------------------------------- a macromodel in a Circuit
 
-INPUTS = ("electrode", "conductor", "force_in", "acceleration_in")  # port kinds a source drives or ties
+INPUTS = ("electrode", "conductor", "force_in", "acceleration_in", "rate_in")  # port kinds a source drives or ties
 ELECTRICAL = ("electrode", "conductor")
 NODE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*$")
 SOURCE_WORDS = {"dc", "ac", "pulse", "sin", "pwl", "exp", "sffm", "am"}

@@ -64,7 +64,7 @@ class VacaskBench:
             name = p["name"]
             if name in self.sources:
                 lines.append(f"v_{name} ({name} 0) vsource {self.sources[name]}")
-            elif p["kind"] in ("force_in", "electrode", "acceleration_in"):
+            elif p["kind"] in ("force_in", "electrode", "acceleration_in", "rate_in"):
                 lines.append(f"v_{name} ({name} 0) vsource dc=0")  # grounded; the plate floats unless given
         lines += ["", "control"]
         if self.options:

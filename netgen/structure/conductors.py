@@ -15,7 +15,16 @@ from typing import ClassVar, Protocol, runtime_checkable
 from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
 from .flexures import Flexure, read_flexure
 from .reader import Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity, table
-from .schema import ALL_RIGID, MODE_LABEL, RIGID_COORDINATES, Conductor, Coordinates, FemOptions, mode_name
+from .schema import (
+    ALL_RIGID,
+    INERTIAL_INPUTS,
+    MODE_LABEL,
+    RIGID_COORDINATES,
+    Conductor,
+    Coordinates,
+    FemOptions,
+    mode_name,
+)
 
 MAX_PLATE_MODES = 12  # internal modes of a proof mass (the plate mesh resolves them: netgen.mechanics.rect_plate)
 
@@ -30,6 +39,27 @@ def acceleration_port(rd: Reader, t: dict) -> bool:
         False,
         "write acceleration_port = true (adds the port a_in: frame acceleration, 1 V = 1 m/s^2)",
     )
+
+
+def inertial_inputs(rd: Reader, t: dict) -> tuple[str, ...]:
+    """coordinates.inertial (frame accelerations a_x, a_y, a_z and rotation rates w_x, w_y, w_z) and
+    acceleration_port = true (the a_z shorthand), in the canonical order of INERTIAL_INPUTS."""
+    chosen = t.get("inertial", [])
+    example = 'write inertial = ["a_x", "a_y", "a_z", "w_z"] (any of ' + ", ".join(INERTIAL_INPUTS) + ")"
+    if not isinstance(chosen, list) or not all(isinstance(a, str) for a in chosen):
+        raise rd.fail("coordinates.inertial", f"inertial must be a list of input names, got {chosen!r}", example)
+    for a in chosen:
+        if a not in INERTIAL_INPUTS:
+            raise rd.fail(
+                "coordinates.inertial",
+                f"unknown inertial input {a!r}",
+                f"{did_you_mean(a, list(INERTIAL_INPUTS))}{example}",
+            )
+    if len(set(chosen)) != len(chosen):
+        raise rd.fail("coordinates.inertial", "an inertial input is listed twice", "list each input once")
+    if acceleration_port(rd, t):
+        chosen = [*chosen, "a_z"]
+    return tuple(a for a in INERTIAL_INPUTS if a in chosen)
 
 
 def boundary_edges(refine: int) -> int:
@@ -89,7 +119,7 @@ class FreeDisk:
     def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
         """Rigid z and tilts, and eigenmodes by count or (n,s) label."""
         t = table(rd, doc, "coordinates", required=True)
-        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port"])
+        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port", "inertial"])
         rigid = t.get("rigid", list(RIGID_COORDINATES))
         if not isinstance(rigid, list) or not all(isinstance(r, str) for r in rigid):
             raise rd.fail(
@@ -129,7 +159,7 @@ class FreeDisk:
             modes = tuple(modes)
         if not rigid and not modes:
             raise rd.fail("coordinates", "no generalized coordinates", "list rigid coordinates and/or modes")
-        return Coordinates(tuple(rigid), modes, acceleration_port(rd, t))
+        return Coordinates(tuple(rigid), modes, inertial_inputs(rd, t))
 
     def read_fem(self, rd: Reader, doc: dict) -> FemOptions:
         t = table(rd, doc, "fem", required=False)
@@ -250,8 +280,8 @@ class Piston(Suspended):
     def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
         """Rigid z (and the tilts, with a tilt spring)."""
         t = table(rd, doc, "coordinates", required=False)
-        accel = acceleration_port(rd, t)
-        check_keys(rd, "coordinates", t, ["rigid", "acceleration_port"])
+        accel = inertial_inputs(rd, t)
+        check_keys(rd, "coordinates", t, ["rigid", "acceleration_port", "inertial"])
         rigid = t.get("rigid", ["z"])
         if (
             not isinstance(rigid, list)
@@ -368,8 +398,8 @@ class Beam(Suspended):
     def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates:
         """The first N bending modes (m1, m2, ...)."""
         t = table(rd, doc, "coordinates", required=False)
-        accel = acceleration_port(rd, t)
-        check_keys(rd, "coordinates", t, ["modes", "acceleration_port"])
+        accel = inertial_inputs(rd, t)
+        check_keys(rd, "coordinates", t, ["modes", "acceleration_port", "inertial"])
         modes = t.get("modes", 3)
         if isinstance(modes, bool) or not isinstance(modes, int) or not 1 <= modes <= 12:
             raise rd.fail(
@@ -496,8 +526,8 @@ class ProofMass(Suspended):
         """Any of the six rigid-body motions (default x, y, z) and, if requested, the first
         `modes` internal plate modes m1, m2, ... (netgen.mechanics.rect_plate)."""
         t = table(rd, doc, "coordinates", required=False)
-        accel = acceleration_port(rd, t)
-        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port"])
+        accel = inertial_inputs(rd, t)
+        check_keys(rd, "coordinates", t, ["rigid", "modes", "acceleration_port", "inertial"])
         rigid = t.get("rigid", ["x", "y", "z"])
         if (
             not isinstance(rigid, list)

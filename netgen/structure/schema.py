@@ -10,6 +10,9 @@ from typing import Protocol
 RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")  # out of plane: every conductor kind
 IN_PLANE_COORDINATES = ("x", "y", "rot_z")  # in plane: proof masses (netgen.structure.conductors.ProofMass)
 ALL_RIGID = IN_PLANE_COORDINATES + RIGID_COORDINATES
+# [coordinates] inertial: frame acceleration (m/s^2) and rotation rate (rad/s) per axis, as model ports
+# (netgen.model.inertial; a_z is the port a_in, its name since before the other axes)
+INERTIAL_INPUTS = ("a_x", "a_y", "a_z", "w_x", "w_y", "w_z")
 MODE_LABEL = re.compile(r"^([0-9]+),([0-9]+)([cs]?)\Z")  # \Z: "2,0c\n" is not a label
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_GRID_POINTS = 2_000_000  # capacitance samples levels ** ncoords the pipeline accepts
@@ -89,7 +92,13 @@ class Coordinates:
 
     rigid: tuple[str, ...]
     modes: int | tuple[str, ...]
-    acceleration_port: bool = False  # an a_in port: frame acceleration along +z (inertial load)
+    # inertial inputs (INERTIAL_INPUTS): frame accelerations and rotation rates as ports
+    inertial: tuple[str, ...] = ()
+
+    @property
+    def acceleration_port(self) -> bool:
+        """The a_in port (frame acceleration along +z: the input a_z)."""
+        return "a_z" in self.inertial
 
     @property
     def count(self) -> int:

@@ -113,7 +113,10 @@ class Bench:
             name = p["name"]
             if name in self.sources:
                 lines.append(f"V{name} {name} 0 {self.sources[name]}")
-            elif p["kind"] in ("force_in", "electrode", "acceleration_in") and name not in self.driven_elsewhere:
+            elif (
+                p["kind"] in ("force_in", "electrode", "acceleration_in", "rate_in")
+                and name not in self.driven_elsewhere
+            ):
                 lines.append(f"V{name} {name} 0 0")  # grounded; the plate floats unless given
         lines += self.extra
         if self.options:

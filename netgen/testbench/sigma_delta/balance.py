@@ -35,6 +35,8 @@ def tone_forces(model: MacroModel, tone: Tone | None) -> np.ndarray:
         return out
     if tone.coord == "a_in":
         return np.abs(np.array(model.acceleration or [0.0] * model.ncoords)) * abs(tone.amplitude)
+    if tone.coord in model.inertial.participation:  # a_x, a_y (netgen.model.inertial)
+        return np.abs(np.array(model.inertial.participation[tone.coord])) * abs(tone.amplitude)
     i = coord_index(model, tone.coord)
     out[i] = abs(tone.amplitude) * si_factor(model, i)[0]
     return out

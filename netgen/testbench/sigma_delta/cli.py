@@ -112,6 +112,7 @@ def cli(args) -> int:
     loop = read_loop_file(args.loop) if args.loop else read_structure_loop(args.structure)  # LoopError: exit 2
     model, lib = run_model(args, out)
     inputs = [c.name for c in model.coordinates] + (["a_in"] if model.acceleration else [])
+    inputs += list(model.inertial.participation)  # a_x, a_y (netgen.model.inertial)
     if tone and tone.coord not in inputs:
         print(
             f"netgen: --tone {args.tone}: the model has no coordinate {tone.coord!r}; choose one of "

@@ -8,12 +8,14 @@ from .balance import coord_index
 from .loop import Design
 from .signals import Tone
 
+ACCEL_INPUTS = ("a_in", "a_x", "a_y")  # frame-acceleration ports a tone can drive (m/s^2)
+
 
 def mechanical_inputs(model: MacroModel, d: Design, tone: Tone | None) -> list[tuple[str, float, Tone | None]]:
     """(port, DC value, tone or None) per input port of the model: the design's DC inputs (the
     disk: gravity on f_z), the optional tone on its port (f_<q>, or a_in), 0 on the others.
     Both benches format these in their own source syntax."""
-    port = None if tone is None else ("a_in" if tone.coord == "a_in" else f"f_{tone.coord}")
+    port = None if tone is None else (tone.coord if tone.coord in ACCEL_INPUTS else f"f_{tone.coord}")
     out = [
         (f"f_{c.name}", d.inputs.get(f"f_{c.name}", 0.0), tone if port == f"f_{c.name}" else None)
         for c in model.coordinates
@@ -33,12 +35,16 @@ def tone_unit(model: MacroModel, tone: Tone) -> str:
         if not model.acceleration:
             raise ValueError(f"model {model.name} has no a_in port (structure: [coordinates] acceleration_port = true)")
         return "m/s^2"
+    if tone.coord in ACCEL_INPUTS:
+        if tone.coord not in model.inertial.participation:
+            raise ValueError(f"model {model.name} has no {tone.coord} port (structure: [coordinates] inertial)")
+        return "m/s^2"
     return model.coordinates[coord_index(model, tone.coord)].port_units[2]
 
 
 def input_text(model: MacroModel, d: Design) -> str:
     """One comment line on the DC inputs and the channel they load, for the netlist headers."""
-    units = {f"f_{c.name}": c.port_units[2] for c in model.coordinates} | {"a_in": "m/s^2"}
+    units = {f"f_{c.name}": c.port_units[2] for c in model.coordinates} | {a: "m/s^2" for a in ACCEL_INPUTS}
     dc = ", ".join(f"{p} = {v:.6g} {units.get(p, '')}" for p, v in d.inputs.items()) or "none"
     b = d.balance
     return (

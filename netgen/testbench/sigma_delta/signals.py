@@ -50,7 +50,7 @@ class Timing:
 @dataclass
 class Tone:
     """A sinusoidal input: a generalized force on coordinate `coord` (amplitude in its f_ port
-    unit), or with coord "a_in" the frame acceleration (m/s^2) through the model's a_in port."""
+    unit), or with coord "a_in" (or "a_x", "a_y") the frame acceleration (m/s^2) through that port."""
 
     coord: str
     amplitude: float

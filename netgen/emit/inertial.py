@@ -1,0 +1,73 @@
+"""The inertial inputs as emitted terms (shared by the .lib, _xspice.lib and .va emitters): the
+frame acceleration ports a_x, a_y (linear: -P a into the velocity node, like a_in) and the rate
+ports w_x, w_y, w_z (Coriolis -Omega_k G_k q', centrifugal -Omega_k Omega_l (S_kl q + c_kl):
+products of node voltages, one behavioural expression per coordinate). Everything is read from
+the MacroModel's Inertial (netgen.model.inertial); the scaling is every force's, 1/(M L w_s^2)."""
+
+from __future__ import annotations
+
+from ..model import MacroModel
+from .common import force_gain, num
+
+
+def acceleration_gains(model: MacroModel, ws: float) -> list[dict]:
+    """Per in-plane acceleration port and coordinate with a non-zero participation P: the gain
+    P / (M L w_s^2) from the port (m/s^2) into the velocity node (the force -P a)."""
+    rows = []
+    for port, p in model.inertial.participation.items():
+        for c, g in zip(model.coordinates, p):
+            if g != 0.0:
+                rows.append(
+                    {"port": port, "coord": c.name, "gain": num(g * force_gain(c, ws)), "participation": f"{g:.6g}"}
+                )
+    return rows
+
+
+def rate_expressions(model: MacroModel, ws: float, access: str = "v({})") -> list[dict]:
+    """Per coordinate that a rate input moves: {coord, expr}, the scaled force of the rate ports on
+    its velocity node (`access` formats a node voltage: v(n) for ngspice, V(n) for Verilog-A)."""
+    inert, coords = model.inertial, model.coordinates
+    rows = []
+    for v, c in enumerate(coords):
+        a = force_gain(c, ws)
+        parts = []
+        for k, g in inert.gyroscopic.items():  # -Omega_k G q', q' = L w_s u
+            lin = [(-g[v][w] * cw.scale * ws * a, f"u_{cw.name}") for w, cw in enumerate(coords)]
+            parts += product([f"w_{k}"], lin, 0.0, access)
+        for pair, s in inert.centrifugal.items():  # -Omega_k Omega_l (S q + c), q = L xs
+            lin = [(-s[v][w] * cw.scale * a, f"xs_{cw.name}") for w, cw in enumerate(coords)]
+            const = -inert.centrifugal_force.get(pair, [0.0] * len(coords))[v] * a
+            parts += product([f"w_{pair[0]}", f"w_{pair[1]}"], lin, const, access)
+        if parts:
+            rows.append({"coord": c.name, "expr": " + ".join(parts).replace("+ -", "- ")})
+    return rows
+
+
+def product(rates: list[str], lin: list[tuple[float, str]], const: float, access: str) -> list[str]:
+    """The term rates[0]*rates[1]*(sum gain*node + const) as text, [] when it is zero."""
+    terms = [f"{num(g)}*{access.format(n)}" for g, n in lin if g != 0.0]
+    if const != 0.0:
+        terms.append(num(const))
+    if not terms:
+        return []
+    factor = "*".join(access.format(r) for r in rates)
+    return [f"{factor}*({' + '.join(terms)})".replace("+ -", "- ")]
+
+
+def header_lines(model: MacroModel) -> list[str]:
+    """The header's description of the inertial input ports the model has beyond a_in."""
+    lines = []
+    if model.inertial.participation:
+        ports = ", ".join(model.inertial.participation)
+        lines.append(
+            f"{ports}: frame acceleration along x / y IN (high impedance), 1 V = 1 m/s^2; each coordinate "
+            "feels -P a (P = int rho Phi . e dV, the model JSON's inertial_inputs)."
+        )
+    if model.inertial.gyroscopic:
+        ports = ", ".join(f"w_{k}" for k in model.inertial.gyroscopic)
+        lines.append(
+            f"{ports}: frame rotation rate about x / y / z IN (high impedance), 1 V = 1 rad/s, taken as slowly "
+            "varying (no Euler term); each coordinate feels the Coriolis force -sum_k w_k G_k dq/dt and the "
+            "centrifugal force -sum_kl w_k w_l (S_kl q + c_kl) (the model JSON's inertial_inputs)."
+        )
+    return lines
