@@ -72,9 +72,16 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
     period the proof mass's velocity change over the feedback phase (the model's velocity node,
     u = (dq/dt) / (L w_s), w_s = 1 / C_u from the .lib) equals the MacroModel's force with the
     period's feedback pattern, its spring and gravity integrated along the circuit's own
-    trajectory: the same scale in every period within 1e-4 (measured -5.6e-6) and, what changes from
-    period to period, within 1e-6 of one bit's impulse rms (measured 1.7e-9; the ramped feedback's
-    was 8.6e-5, bench/sigma_delta_impulse.py)."""
+    trajectory, both the scale error (the same in every period) and what changes from period to
+    period (rms) within a derived share of one bit's impulse. The feedback step and gravity are
+    constant over ngspice's steps and integrated exactly; only the position-dependent forces, the
+    spring k q and the feedback's electrostatic spring k_el q (k_el = (k - k_eff) / duty from the
+    mechanics the design sees), carry integration error, which ngspice's truncation-error control
+    holds to trtol x reltol = 7 x 1e-3 of what it integrates. Their impulse over the window is at
+    most P = (|k| + |k_el|) max|q| window / (one bit's impulse x m) (1.3e-3 here), so the bound is
+    7e-3 P (9e-6 here; the ramped feedback's rms was 8.6e-5, bench/sigma_delta_impulse.py). This
+    machine: scale -5.55e-6, rms 1.72e-9, both unchanged (and the same 23405 steps) when V_fb is
+    changed by +-1e-12 and +-3e-12 relative: no CPU's rounding moves them."""
     d = sd.design(model, TS, spec=loopfile.read_loop_file(loop_file(tmp_path, CIFB4)))
     assert d.t.fb_ramp == 0 and model.coordinates[0].admittance(0.0).real == 0.0
     lib, control = ngspice.xspice_library(model, tmp_path, ngspice.code_models(False))
@@ -106,7 +113,11 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
     assert np.abs(np.asarray(xs)).max() < 0.01 and len(set(bits)) == 2  # held near rest, both bits
     gain = np.mean(errors * bits)  # a scale error, the same every period: no noise
     spread = np.std(errors - gain * bits)  # what changes from period to period
-    assert abs(gain) < 1e-4 and spread < 1e-6, (gain, spread)
+    c, mech = model.coordinates[0], filters.mechanics_of(model, d, "z")
+    k_el = (c.stiffness - mech.stiffness) / duty(d.t)
+    share = (abs(c.stiffness) + abs(k_el)) * np.abs(xs).max() * c.scale * (WINDOW[1] - WINDOW[0]) * d.ts
+    bound = 7 * d.reltol * share / (bit_impulse * c.mass)
+    assert abs(gain) < bound and spread < bound, (gain, spread, bound)
 
 
 def test_the_designed_filters_default_to_the_step_and_lead2_keeps_its_ramps(model, tmp_path):

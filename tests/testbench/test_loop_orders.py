@@ -127,17 +127,24 @@ def test_a_bad_filter_table_exits_2_naming_the_file_and_the_key(text, key, tmp_p
 
 
 CIRCUIT_PERIODS = 400
-MATCH_PERIODS = 50  # bit for bit (measured: the first 77; the first difference at |y| = 2 mV)
+# bit for bit: the 1 % quantile of the first difference between the reference loop and 200 copies
+# of it with force, gain, stiffness and input perturbed by eps N(0, 1), eps = 1e-2 (the circuit's
+# percent-level mechanics mismatch, below): bench/first_difference.py, 14 (26 at 1e-3, 69 at 1e-6);
+# this machine's run parted at 77 (|y| = 2 mV)
+MATCH_PERIODS = 14
 
 
 def test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop(model, tmp_path, capsys):
     """`netgen sigma-delta` with [loop.filter] cifb order 4 on ngspice-xspice, 400 periods from
     rest under gravity: its bits equal the numpy reference loop's (the same design, exact
-    mechanics, no circuit) in each of the first 50 periods, both hold the mass, their mean bits
-    agree within 0.02, and the numpy mechanics driven by the circuit's own bits give its z samples
-    within 5 % of their peak (measured 3 %: the circuit's electrostatic spring varies within the
-    period, the reference's is the period's mean). Beyond the first tie the two bitstreams
-    decorrelate in detail (the loop is chaotic), not in their statistics (bench/sigma_delta_orders.py)."""
+    mechanics, no circuit) in each of the first MATCH_PERIODS periods, both hold the mass, their
+    mean bits agree within 0.02, and the numpy mechanics driven by the circuit's own bits give its
+    z samples within 5 % of their peak (measured 3 %: the circuit's electrostatic spring varies
+    within the period, the reference's is the period's mean). The circuit is a perturbed copy of
+    the reference at that percent level (and another CPU's rounding moves ngspice's steps), so the
+    bit-for-bit span is the low quantile of a perturbed ensemble (MATCH_PERIODS). Beyond the first
+    tie the two bitstreams decorrelate in detail (the loop is chaotic), not in their statistics
+    (bench/sigma_delta_orders.py)."""
     loop = tmp_path / "loop.toml"
     loop.write_text(CIFB4, encoding="utf-8")
     out = tmp_path / "sd"
