@@ -211,7 +211,9 @@ def folded_model() -> MacroModel:
         FIT
         | {"electrode": "top", "pair": ["plate", "top"], "terms": [{"exponents": [[0], [1]], "coeffs": [0.25, 0.25]}]},
     ]
-    return MacroModel.from_dict(d)
+    # unit-scale numbers to check by hand; a 4 F capacitor is outside the physical ranges that
+    # MacroModel.from_dict's schema (netgen.model.schema) refuses, so the toy skips that check
+    return MacroModel._from_dict(d)
 
 
 def operating_xs(model: MacroModel, text: str, tmp_path) -> float:
