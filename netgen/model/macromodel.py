@@ -110,6 +110,9 @@ class MacroModel:
     # per-electrode fringe coefficients {"electrode", "a", "b", "length"} of the term a + b ln(L/g) per
     # unit edge length, and the spread of each coupling over the points; {} = the analytic defaults
     calibration: dict = field(default_factory=dict)
+    # process laws (netgen.model.process): tscale/escale/temp polynomials per coordinate, the
+    # squeeze film's viscosity law, the gap-offset sets; {} = no process instance parameters
+    process: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -270,6 +273,8 @@ class MacroModel:
             }
         if self.calibration:
             out["calibration"] = self.calibration
+        if self.process:
+            out["process"] = self.process
         return out
 
     def fit_misses(self) -> list[dict]:
@@ -432,6 +437,7 @@ class MacroModel:
             d.get("nonlinear_stiffness", {}),
             d.get("acceleration_port", {}).get("participation", []),
             d.get("calibration", {}),
+            d.get("process", {}),
         )
 
     @classmethod

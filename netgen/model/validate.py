@@ -128,6 +128,7 @@ def check_names(c: Checker, d: dict) -> None:
         c.choice(f"capacitances[{i}].target", row.get("target"), TARGETS)
     check_couplings(c, d, tuple(names))
     check_calibration(c, d.get("calibration", {}), tuple(names))
+    check_process(c, d.get("process", {}), tuple(names))
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
 
@@ -204,3 +205,15 @@ def check_calibration(c: Checker, cal: Any, names: tuple[str, ...]) -> None:
             c.fail(f"{where}.length", f"{row['length']!r} m is not a positive reference length")
     if "points" in cal:
         c.number("calibration.points", cal["points"], integer=True)
+
+
+def check_process(c: Checker, process: Any, names: tuple[str, ...]) -> None:
+    """The optional process record (netgen.model.process): its gap sets name the model's electrodes
+    and are identifiers (they become instance parameter names dg_<set>)."""
+    if not isinstance(process, dict):
+        c.fail("process", "must be an object")
+    for i, g in enumerate(process.get("gaps", [])):
+        c.name(f"process.gaps[{i}].set", g.get("set"))
+        for e in g.get("electrodes", []):
+            if e not in names:
+                c.fail(f"process.gaps[{i}].electrodes", f"{e!r} is not an electrode of the model")
