@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Protocol, runtime_checkable
+from typing import ClassVar
 
 from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
 from .flexures import Flexure, read_flexure
@@ -20,7 +20,7 @@ from .schema import (
     INERTIAL_INPUTS,
     MODE_LABEL,
     RIGID_COORDINATES,
-    Conductor,
+    ConductorKind,
     Coordinates,
     FemOptions,
     mode_name,
@@ -573,26 +573,6 @@ class ProofMass(Suspended):
     def coordinate_names(self, coords: Coordinates) -> list[str]:
         assert isinstance(coords.modes, int)  # read_coordinates: a count (labelled modes are the free disk's)
         return list(coords.rigid) + [mode_name(str(k + 1)) for k in range(coords.modes)]
-
-
-@runtime_checkable
-class ConductorKind(Conductor, Protocol):
-    """What a conductor kind's dataclass provides to the structure reader (netgen.structure.parse):
-    itself from its [conductor] table, its electrodes, coordinates and FEM options, the checks
-    across them, and its coordinates' names (None: the reader's default)."""
-
-    @classmethod
-    def read(cls, rd: Reader, t: dict, kind: str) -> ConductorKind: ...
-
-    def read_electrodes(self, rd: Reader, doc: dict) -> tuple: ...
-
-    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates: ...
-
-    def read_fem(self, rd: Reader, doc: dict) -> FemOptions: ...
-
-    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None: ...
-
-    def coordinate_names(self, coords: Coordinates) -> list[str] | None: ...
 
 
 # kind -> conductor class; a new kind is a dataclass satisfying ConductorKind, one line here, and

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
+
+from .reader import Reader
 
 RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")  # out of plane: every conductor kind
 IN_PLANE_COORDINATES = ("x", "y", "rot_z")  # in plane: proof masses (netgen.structure.conductors.ProofMass)
@@ -230,3 +232,23 @@ class Structure:
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]
+
+
+@runtime_checkable
+class ConductorKind(Conductor, Protocol):
+    """What a conductor kind's dataclass provides to the structure reader (netgen.structure.parse):
+    itself from its [conductor] table, its electrodes, coordinates and FEM options, the checks
+    across them, and its coordinates' names (None: the reader's default)."""
+
+    @classmethod
+    def read(cls, rd: Reader, t: dict, kind: str) -> ConductorKind: ...
+
+    def read_electrodes(self, rd: Reader, doc: dict) -> tuple: ...
+
+    def read_coordinates(self, rd: Reader, doc: dict) -> Coordinates: ...
+
+    def read_fem(self, rd: Reader, doc: dict) -> FemOptions: ...
+
+    def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None: ...
+
+    def coordinate_names(self, coords: Coordinates) -> list[str] | None: ...
