@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..errors import CodeModelError, SimulationError, SimulatorNotFound
 from . import process
-from .rawfile import Plot, read_raw
+from .rawfile import Plot, first_plot, read_raw
 
 INSTALL_HINT = "install it with: apt-get install -y ngspice libngspice0   (Debian/Ubuntu, as root)"
 
@@ -319,7 +319,10 @@ def checked(done: process.Finished, raw: Path, log: Path, reproduce: str) -> lis
         raise SimulationError(
             f"ngspice failed: {problem or f'exit code {done.returncode}'}; log {log}; reproduce with: {reproduce}"
         )
-    plots = read_raw(raw)
+    try:
+        plots = read_raw(raw)
+    except SimulationError as exc:  # garbage in the raw file: name the log and the command too
+        raise SimulationError(f"ngspice: {exc}; log {log}; reproduce with: {reproduce}") from None
     if not plots:
         raise SimulationError(
             f"ngspice wrote no results into {raw} (does the netlist have an analysis, "
@@ -366,7 +369,7 @@ def _run_control(
             f"ngspice failed: {diagnose(done.output) or f'exit code {done.returncode}'}; "
             f"log {log}; reproduce with: {reproduce}"
         )
-    return read_raw(raw)[0]
+    return first_plot(raw, log=log, reproduce=reproduce)
 
 
 def log_header() -> str:
