@@ -154,10 +154,11 @@ def _add_build(sub) -> None:
 
 def _simulate(args: argparse.Namespace) -> int:
     netlist_text(args.netlist)  # refuses binary input before the simulator sees it
-    plots = SIMULATORS[args.simulator].file(Path(args.netlist), Path(args.output), args.timeout)
-    if not args.quiet:
-        if args.simulator == "ngspice":  # its log's first line records the same
+    with ngspice.probe_timeout(args.timeout):
+        plots = SIMULATORS[args.simulator].file(Path(args.netlist), Path(args.output), args.timeout)
+        if not args.quiet and args.simulator == "ngspice":  # its log's first line records the same
             print(f"ran {ngspice.version().label} ({ngspice.version().path})")
+    if not args.quiet:
         for plot in plots:
             points = len(next(iter(plot.vectors.values()), ()))
             print(f"{plot.name}: {len(plot.vectors)} vectors, {points} points")

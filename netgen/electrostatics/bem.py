@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -30,7 +30,7 @@ from ..constants import EPS0
 from ..errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import ProbePoints
-from .bem_mesh import Sizes, Surface, electrode_sheet, thick_plate
+from .bem_mesh import Sizes, Surface, electrode_sheet, estimate_elements, thick_plate
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 
 BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
@@ -44,6 +44,10 @@ BYTES_PER_ENTRY = 10.0  # the dense matrix (factorised in place) and bempp's ass
 # thread; an earlier OpenBLAS's threaded potrf segfaulted at 20k (docs/bem.md, 'Costs'). Above it
 # the blocked Cholesky, whose threaded parts are matrix products only.
 LU_LIMIT = 16000
+# bem_mesh.estimate_elements is within this factor of the mesher's count (measured 0.89..1.25 on
+# disks, sectors and rectangles, thin and thick plates: bench/bem_estimate.py): a level is refused
+# before meshing only when even estimate / ESTIMATE_FACTOR elements exceed the memory budget
+ESTIMATE_FACTOR = 1.5
 
 
 class BemBudgetError(SimulationError):
@@ -330,6 +334,33 @@ class _Level:
     electrodes: tuple[Surface, ...]
 
 
+def surely_over(elements: float, budget: float) -> bool:
+    """Does a mesh of about `elements` (bem_mesh.estimate_elements) exceed the budget even
+    at the low end of the estimate's factor?"""
+    return BYTES_PER_ENTRY * (elements / ESTIMATE_FACTOR) ** 2 > budget
+
+
+def refusal(
+    settings: BemSettings, elements: float, culprit: str, source: str | None
+) -> SimulationError | StructureError:
+    """The error for settings whose always-solved levels cannot fit the budget: a StructureError
+    at the culprit key when they came from a structure file, else BemBudgetError."""
+    need = BYTES_PER_ENTRY * elements**2
+    problem = (
+        f"edge_to_gap = {settings.edge_to_gap:g}, element_to_gap = {settings.element_to_gap:g} give about "
+        f"{elements:.3g} elements on mesh level {settings.levels - 1} (estimated before meshing, within a factor "
+        f"{ESTIMATE_FACTOR:g}), {need / 1e9:.3g} GB for the dense matrix, above the memory budget of "
+        f"{settings.memory_budget / 1e9:g} GB"
+    )
+    fix = (
+        f"raise {culprit} (edge_to_gap = 0.5 and element_to_gap = 4 are the defaults), or raise memory_budget_gb, "
+        "or use a calibrated analytic extractor"
+    )
+    if source is None:
+        return BemBudgetError(f"BEM: {problem}; {fix}")
+    return StructureError(source, f"electrostatics.bem.{culprit}", problem, fix)
+
+
 class PreparedBem:
     """BemExtractor bound to electrodes, plate and basis: meshes and basis values are computed
     once per level (numpy only, so it pickles to executor workers); every q is a BEM solve."""
@@ -342,8 +373,11 @@ class PreparedBem:
         eps: float,
         thickness: float,
         settings: BemSettings,
+        source: str | None = None,
     ):
-        """Mesh every level; the parallel-plate geometry answers min_gap and probe_points."""
+        """Mesh every level that can fit the memory budget (estimated first: refused before any
+        meshing when an always-solved level cannot); the parallel-plate geometry answers min_gap
+        and probe_points. `source`: the structure file the settings came from."""
         self.electrodes = tuple(electrodes)
         self.eps, self.thickness, self.settings = eps, thickness, settings
         self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=eps, fringe=None).prepare(
@@ -353,7 +387,21 @@ class PreparedBem:
         self.gap = min(e.gap for e in electrodes)
         self.plate_size = plate.size
         self.names = ("plate",) + tuple(e.name for e in electrodes)
-        self.levels = [self._level(plate, basis, k) for k in range(settings.max_levels)]
+        self.estimates = [self._estimate(plate, settings, k) for k in range(settings.max_levels)]
+        if surely_over(self.estimates[settings.levels - 1], settings.memory_budget):
+            edge_only = self._estimate(
+                plate, replace(settings, edge_to_gap=max(settings.edge_to_gap, 0.5)), settings.levels - 1
+            )
+            culprit = "element_to_gap" if surely_over(edge_only, settings.memory_budget) else "edge_to_gap"
+            raise refusal(settings, self.estimates[settings.levels - 1], culprit, source)
+        self.levels: list[_Level | None] = [
+            None if surely_over(n, settings.memory_budget) else self._level(plate, basis, k)
+            for k, n in enumerate(self.estimates)
+        ]
+
+    def _estimate(self, plate: Plate, settings: BemSettings, k: int) -> float:
+        """Elements of mesh level k, from the sizes alone (bem_mesh.estimate_elements)."""
+        return estimate_elements(plate, self.thickness, self.electrodes, settings.sizes(self.gap, k, plate.size))
 
     def _level(self, plate: Plate, basis: Basis, k: int) -> _Level:
         """Meshes of level k: the plate (closed if thick) and each electrode at its height."""
@@ -367,6 +415,14 @@ class PreparedBem:
     def surfaces(self, q: ArrayLike, level: int) -> list[Surface]:
         """The conductors at coordinates q on mesh level `level`: the moved plate, then the electrodes."""
         lv = self.levels[level]
+        if lv is None:  # not meshed: even the low end of its estimate is over the budget
+            n = self.estimates[level]
+            raise BemBudgetError(
+                f"BEM: mesh level {level} would have about {n:.3g} elements (estimated before meshing), "
+                f"{BYTES_PER_ENTRY * n * n / 1e9:.3g} GB for the dense matrix, above the memory budget of "
+                f"{self.settings.memory_budget / 1e9:.1f} GB; raise BemSettings.memory_budget, loosen tolerance "
+                "or element_to_gap, or use a calibrated analytic extractor"
+            )
         return [lv.plate.moved(lv.phi @ np.asarray(q, dtype=float)), *lv.electrodes]
 
     def local_gap(self, q: ArrayLike) -> float:
@@ -437,6 +493,7 @@ class BemExtractor:
     eps: float = EPS0
     thickness: float = 0.0
     settings: BemSettings = field(default_factory=BemSettings)
+    source: str | None = None  # the structure file of the settings (errors name it)
 
     @property
     def description(self) -> str:
@@ -452,7 +509,7 @@ class BemExtractor:
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedBem:
         """Mesh the structure once (every level); each sample is then a solve."""
-        return PreparedBem(electrodes, plate, basis, self.eps, self.thickness, self.settings)
+        return PreparedBem(electrodes, plate, basis, self.eps, self.thickness, self.settings, self.source)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """Electrode-electrode capacitances (nel, nel) in F at the undeformed position."""
@@ -495,4 +552,5 @@ def from_structure(s, plate: Plate) -> BemExtractor:
     """The extractor for a structure (s: netgen.structure.Structure): its permittivity, thickness
     and [electrostatics.bem] settings."""
     eps = EPS0 * s.electrostatics.relative_permittivity
-    return BemExtractor(eps=eps, thickness=float(getattr(s.conductor, "thickness", 0.0)), settings=settings_of(s))
+    thickness = float(getattr(s.conductor, "thickness", 0.0))
+    return BemExtractor(eps=eps, thickness=thickness, settings=settings_of(s), source=str(s.source))

@@ -280,3 +280,79 @@ def icosphere(radius: float, level: int) -> Surface:
             new += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
         faces = new
     return Surface(radius * np.array(verts), np.array(faces))
+
+
+def graded_steps(length: float, sizes: Sizes, graded_ends: int) -> float:
+    """Closed-form step count of graded() over `length` (before its rounding): a geometric run
+    h_edge * growth^k from each graded end until it reaches h_max, then steps of h_max."""
+    if graded_ends == 0:
+        return max(1.0, length / sizes.h_max)
+    span, g = (length / 2.0 if graded_ends == 2 else length), sizes.growth
+    run = max(0.0, math.log(sizes.h_max / sizes.h_edge) / math.log(g))  # steps until h_max
+    run_length = sizes.h_edge * (g**run - 1.0) / (g - 1.0)
+    n = (
+        math.log1p(span * (g - 1.0) / sizes.h_edge) / math.log(g)
+        if run_length >= span
+        else run + (span - run_length) / sizes.h_max
+    )
+    return graded_ends * max(1.0, n)
+
+
+def _rect_estimate(width: float, height: float, sizes: Sizes) -> tuple[float, float]:
+    """(triangles, boundary nodes) of rectangle_sheet."""
+    nx, ny = graded_steps(width, sizes, 2), graded_steps(height, sizes, 2)
+    return 2.0 * nx * ny, 2.0 * (nx + ny)
+
+
+def _rim_points(radius: float, sizes: Sizes, aspect: float = 10.0) -> float:
+    """Points on _ring_sheet's rings next to one graded rim: rings at spacings h_edge growth^j,
+    each of 2 pi r / (aspect h_edge growth^j) points while that is finer than h_max."""
+    fine = max(0.0, math.log(sizes.h_max / (aspect * sizes.h_edge)) / math.log(sizes.growth))
+    return (
+        2.0
+        * math.pi
+        * radius
+        / (aspect * sizes.h_edge)
+        * (1.0 - sizes.growth ** -(fine + 1.0))
+        / (1.0 - 1.0 / sizes.growth)
+    )
+
+
+def _ring_estimate(r_in: float, r_out: float, sizes: Sizes) -> tuple[float, float]:
+    """(triangles, outer-rim points) of _ring_sheet: the rim rings plus an interior of spacing h_max."""
+    rim = _rim_points(r_out, sizes) + (_rim_points(r_in, sizes) if r_in > 0.0 else 0.0)
+    interior = math.pi * (r_out**2 - r_in**2) / sizes.h_max**2
+    outer = max(8.0, 2.0 * math.pi * r_out / min(sizes.h_max, 10.0 * sizes.h_edge))  # the rim ring alone
+    return 2.0 * (rim + interior + 8.0 * graded_steps(r_out - r_in, sizes, 2 if r_in > 0 else 1)), outer
+
+
+def _sector_estimate(s: AnnularSector, sizes: Sizes) -> float:
+    """Triangles of sector_sheet: rings graded in r, each ring's arc graded towards both sides."""
+    lo = max(s.r_in, corner_radius(s.slot, s.span))
+    if s.full_ring:
+        return _ring_estimate(lo, s.r_out, sizes)[0]
+    rings = graded_steps(s.r_out - lo, sizes, 2 if lo > 0.0 else 1) + 1.0
+    arc = graded_steps(max(0.5 * (lo + s.r_out) * s.span, sizes.h_edge), sizes, 2) + 1.0
+    return 2.0 * rings * arc
+
+
+def estimate_elements(plate: Plate, thickness: float, electrodes: tuple[Electrode, ...], sizes: Sizes) -> float:
+    """Triangles of one mesh level (plate, closed if thick, and every electrode sheet), in closed
+    form from the sizes, without meshing: it lets a memory budget refuse a mesh before it is built
+    (netgen.electrostatics.bem.PreparedBem). Checked against the mesher in tests/trust/test_bem_estimate.py."""
+    if isinstance(plate, DiskPlate):
+        face, loop = _ring_estimate(0.0, plate.radius, sizes)
+    elif isinstance(plate, RectPlate):
+        face, loop = _rect_estimate(plate.x1 - plate.x0, plate.y1 - plate.y0, sizes)
+    else:
+        raise NotImplementedError(f"no BEM mesh for plate {type(plate).__name__}")
+    total = face
+    if thickness > 0.0:
+        total = 2.0 * face + 2.0 * loop * math.ceil(thickness / sizes.h_edge)
+    for e in electrodes:
+        s = e.shape
+        if isinstance(s, AnnularSector):
+            total += _sector_estimate(s, sizes)
+        elif isinstance(s, Rectangle):
+            total += _rect_estimate(s.x1 - s.x0, s.y1 - s.y0, sizes)[0]
+    return total

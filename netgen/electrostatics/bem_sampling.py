@@ -70,6 +70,7 @@ def key_of(prepared: PreparedBem, q: np.ndarray) -> str:
     arrays = [
         a
         for lv in prepared.levels
+        if lv is not None  # a level over the memory budget is not meshed (PreparedBem)
         for a in (lv.plate.vertices, lv.plate.triangles, lv.phi, *[s.vertices for s in lv.electrodes])
     ]
     return "bem-maxwell-" + fingerprint(

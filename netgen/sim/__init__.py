@@ -12,7 +12,7 @@ from typing import Protocol
 
 from ..errors import InputError
 from . import ngspice, pyspice, vacask
-from .rawfile import Plot, read_raw
+from .rawfile import Plot, first_plot, read_raw
 
 # control characters no text netlist holds (tab, newline, form feed and carriage return are text)
 BINARY = re.compile(rb"[\x00-\x08\x0e-\x1a\x1c-\x1f]")
@@ -75,14 +75,14 @@ def run_vacask_netlist(netlist: str, workdir: Path, name: str, timeout: float) -
     """A VACASK netlist's analyses (`analysis <name> ...` lines in its control block), in order."""
     analyses = re.findall(r"^\s*analysis\s+(\w+)", netlist, re.M) or ["tran1"]
     first = vacask.run_vacask(netlist, workdir, analyses[0], name, timeout)
-    return [first] + [read_raw(Path(workdir) / f"{a}.raw")[0] for a in analyses[1:]]
+    return [first] + [first_plot(Path(workdir) / f"{a}.raw") for a in analyses[1:]]
 
 
 def run_vacask_file(path: Path, workdir: Path, timeout: float) -> list[Plot]:
     """A VACASK netlist file's analyses, run where the file is (includes resolve against its folder)."""
     analyses = re.findall(r"^\s*analysis\s+(\w+)", netlist_text(path), re.M) or ["tran1"]
     first = vacask.run_file(path, workdir, analyses[0], timeout)
-    return [first] + [read_raw(Path(workdir) / f"{a}.raw")[0] for a in analyses[1:]]
+    return [first] + [first_plot(Path(workdir) / f"{a}.raw") for a in analyses[1:]]
 
 
 SIMULATORS: dict[str, Simulator] = {

@@ -8,16 +8,17 @@ import json
 import os
 import re
 import shutil
-import subprocess
+import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 from ..errors import CodeModelError, SimulationError, SimulatorNotFound
 from . import process
-from .rawfile import Plot, read_raw
+from .rawfile import Plot, first_plot, read_raw
 
 INSTALL_HINT = "install it with: apt-get install -y ngspice libngspice0   (Debian/Ubuntu, as root)"
 
@@ -94,14 +95,42 @@ def version(path: str | None = None) -> Version:
     return _version(path, os.stat(path).st_mtime_ns)
 
 
+PROBE_TIMEOUT: ContextVar[float] = ContextVar("PROBE_TIMEOUT", default=30.0)
+
+
+@contextmanager
+def probe_timeout(seconds: float) -> Iterator[None]:
+    """Within this block the ngspice probes (version(), has_osdi()) get the command's time limit
+    (at most the default 30 s): a hanging ngspice is killed with its children by sim.process."""
+    token = PROBE_TIMEOUT.set(min(seconds, PROBE_TIMEOUT.get()))
+    try:
+        yield
+    finally:
+        PROBE_TIMEOUT.reset(token)
+
+
+def probe(path: str, args: list[str], files: dict[str, str] | None = None) -> str:
+    """The merged output of `path args` run by sim.process in a scratch folder (holding `files`)
+    within PROBE_TIMEOUT: SimulatorNotFound when it cannot start or does not finish."""
+    limit = PROBE_TIMEOUT.get()
+    command = " ".join([path, *args])
+    with tempfile.TemporaryDirectory(prefix="netgen-probe-") as tmp:
+        for name, text in (files or {}).items():
+            Path(tmp, name).write_text(text)
+        try:
+            return process.run([path, *args], tmp, limit, command, Path(path).name).output
+        except OSError as exc:
+            raise SimulatorNotFound(f"{command} failed ({exc}); is it an ngspice?") from exc
+        except SimulationError:
+            raise SimulatorNotFound(
+                f"{command} did not finish within {limit:g} s (it was killed with its children); "
+                f"is it an ngspice? Point {ENV} (or --ngspice) at a working one, or raise --timeout"
+            ) from None
+
+
 @lru_cache(maxsize=8)
 def _version(path: str, mtime: int) -> Version:
-    try:
-        out = subprocess.run(
-            [path, "--version"], capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL
-        ).stdout
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise SimulatorNotFound(f"{path} --version failed ({exc}); is it an ngspice?") from exc
+    out = probe(path, ["--version"])
     match = re.search(r"ngspice-(\d+)(?:\.(\d+))?", out)
     if not match:
         raise SimulatorNotFound(f"{path} --version printed no ngspice release; point {ENV} at an ngspice")
@@ -134,13 +163,7 @@ def has_osdi(path: str) -> bool:
 
 @lru_cache(maxsize=8)
 def _has_osdi(path: str, mtime: int) -> bool:
-    try:
-        done = subprocess.run(
-            [path, "-b"], input="osdi probe\n.control\nosdi\n.endc\n.end\n", capture_output=True, text=True, timeout=30
-        )
-        out = done.stdout + done.stderr
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise SimulatorNotFound(f"{path} -b failed ({exc}); is it an ngspice?") from exc
+    out = probe(path, ["-b", "probe.cir"], {"probe.cir": "osdi probe\n.control\nosdi\n.endc\n.end\n"})
     return "no such command" not in out
 
 
@@ -257,12 +280,13 @@ def run_ngspice(netlist: str, workdir: str | Path, name: str = "circuit", timeou
     """Write `netlist` to workdir/name.cir, run ngspice -b, return the plots of name.raw."""
     exe = ngspice_path()
     workdir = Path(workdir)
-    check_code_models(netlist, workdir)
-    cir, raw, log = _files(workdir, name, netlist, f"{name}.raw")
-    reproduce = f"{exe} -b {cir}"
-    # names relative to workdir, ngspice's working folder (a relative workdir would resolve twice)
-    done = process.run([exe, "-b", "-r", raw.name, cir.name], workdir, timeout, reproduce, "ngspice")
-    return checked(done, raw, log, reproduce)
+    with probe_timeout(timeout):
+        check_code_models(netlist, workdir)
+        cir, raw, log = _files(workdir, name, netlist, f"{name}.raw")
+        reproduce = f"{exe} -b {cir}"
+        # names relative to workdir, ngspice's working folder (a relative workdir would resolve twice)
+        done = process.run([exe, "-b", "-r", raw.name, cir.name], workdir, timeout, reproduce, "ngspice")
+        return checked(done, raw, log, reproduce)
 
 
 def run_file(netlist: str | Path, workdir: str | Path, timeout: float = 3600.0) -> list[Plot]:
@@ -271,13 +295,14 @@ def run_file(netlist: str | Path, workdir: str | Path, timeout: float = 3600.0) 
     `workdir` (also the working folder: what its .control block writes lands there)."""
     exe = ngspice_path()
     source, workdir = Path(netlist).resolve(), Path(workdir).resolve()
-    check_code_models(source.read_bytes().decode("latin-1"), workdir)  # before any folder is made
-    workdir.mkdir(parents=True, exist_ok=True)
-    raw, log = workdir / f"{source.stem}.raw", workdir / f"{source.stem}.log"
-    raw.unlink(missing_ok=True)
-    reproduce = f"cd {workdir} && {exe} -b -r {raw.name} {source}"
-    done = process.run([exe, "-b", "-r", str(raw), str(source)], workdir, timeout, reproduce, "ngspice")
-    return checked(done, raw, log, reproduce)
+    with probe_timeout(timeout):
+        check_code_models(source.read_bytes().decode("latin-1"), workdir)  # before any folder is made
+        workdir.mkdir(parents=True, exist_ok=True)
+        raw, log = workdir / f"{source.stem}.raw", workdir / f"{source.stem}.log"
+        raw.unlink(missing_ok=True)
+        reproduce = f"cd {workdir} && {exe} -b -r {raw.name} {source}"
+        done = process.run([exe, "-b", "-r", str(raw), str(source)], workdir, timeout, reproduce, "ngspice")
+        return checked(done, raw, log, reproduce)
 
 
 def checked(done: process.Finished, raw: Path, log: Path, reproduce: str) -> list[Plot]:
@@ -294,7 +319,10 @@ def checked(done: process.Finished, raw: Path, log: Path, reproduce: str) -> lis
         raise SimulationError(
             f"ngspice failed: {problem or f'exit code {done.returncode}'}; log {log}; reproduce with: {reproduce}"
         )
-    plots = read_raw(raw)
+    try:
+        plots = read_raw(raw)
+    except SimulationError as exc:  # garbage in the raw file: name the log and the command too
+        raise SimulationError(f"ngspice: {exc}; log {log}; reproduce with: {reproduce}") from None
     if not plots:
         raise SimulationError(
             f"ngspice wrote no results into {raw} (does the netlist have an analysis, "
@@ -315,6 +343,20 @@ def run_control(
     pausing for progress lines, which `on_line` sees as they are printed); return that plot.
     ngspice exits 1 after a paused-and-resumed run: success is a complete raw file."""
     exe, workdir = ngspice_path(), Path(workdir)
+    with probe_timeout(timeout):
+        return _run_control(exe, netlist, workdir, name, raw_name, timeout, on_line)
+
+
+def _run_control(
+    exe: str,
+    netlist: str,
+    workdir: Path,
+    name: str,
+    raw_name: str,
+    timeout: float,
+    on_line: Callable[[str], None] | None,
+) -> Plot:
+    """run_control's run, its probes already limited to its timeout."""
     check_code_models(netlist, workdir)
     cir, raw, log = _files(workdir, name, netlist, raw_name)
     reproduce = f"cd {workdir} && {exe} -b {cir.name}"
@@ -327,7 +369,7 @@ def run_control(
             f"ngspice failed: {diagnose(done.output) or f'exit code {done.returncode}'}; "
             f"log {log}; reproduce with: {reproduce}"
         )
-    return read_raw(raw)[0]
+    return first_plot(raw, log=log, reproduce=reproduce)
 
 
 def log_header() -> str:

@@ -51,6 +51,19 @@ def read_raw(path: str | Path, mapped: bool = False) -> list[Plot]:
         raise SimulationError(f"cannot read the raw file {path}: {exc.strerror or exc}") from None
 
 
+def first_plot(path: str | Path, mapped: bool = False, log: str | Path | None = None, reproduce: str = "") -> Plot:
+    """The first plot of a simulator's raw file: a SimulationError naming the raw file (and the
+    run's log and command) when it is garbage or holds no plot, never an exception of the parsing."""
+    where = (f"; log {log}" if log else "") + (f"; reproduce with: {reproduce}" if reproduce else "")
+    try:
+        plots = read_raw(path, mapped)
+    except SimulationError as exc:
+        raise SimulationError(f"{exc}{where}") from None
+    if not plots:
+        raise SimulationError(f"{path} holds no plot: the simulator wrote an empty or garbled raw file{where}")
+    return plots[0]
+
+
 def _plots(data: bytes) -> list[Plot]:
     """Every plot of a raw file's bytes (errors from the checks or the parsing: read_raw)."""
     plots, pos = [], 0

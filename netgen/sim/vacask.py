@@ -19,7 +19,7 @@ from ..errors import SimulationError, SimulatorNotFound
 from ..model import MacroModel
 from ..paths import vacask_string
 from . import process
-from .rawfile import Plot, last_time, read_raw
+from .rawfile import Plot, first_plot, last_time
 
 __all__ = ["compile_va", "compiled", "tools", "VacaskBench", "run_vacask", "stats", "print_progress"]
 
@@ -120,7 +120,7 @@ def run_file(
         raise SimulationError(
             f"VACASK failed (exit code {done.returncode}): {' | '.join(last)}; log {log}; reproduce with: {reproduce}"
         )
-    return read_raw(raw, mapped=mapped)[0]
+    return first_plot(raw, mapped, log, reproduce)
 
 
 def stats(log: Path) -> dict:
