@@ -39,8 +39,10 @@ def shaping(bits: np.ndarray) -> tuple[float, float]:
     f, p = welch(2 * bits - 1, fs=1.0, nperseg=min(1024, len(bits) // 4))
     band = (f >= 1 / 64) & (f <= 1 / 8)
     slope = np.polyfit(np.log10(f[band]), 10 * np.log10(p[band]), 1)[0]
-    hi, lo = p[(f >= 0.25)].mean(), p[(f > 0) & (f <= 1 / 32)].mean()
-    return float(slope), float(10 * np.log10(hi / lo))
+    low = (f > 0) & (f <= 1 / 32)
+    if not low.any():  # a run too short for a bin below f_s/32
+        return float(slope), float("nan")
+    return float(slope), float(10 * np.log10(p[f >= 0.25].mean() / p[low].mean()))
 
 
 def held(work: Path, a: float, args) -> None:
