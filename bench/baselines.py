@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from netgen.core.templating import render
 from netgen.emit import ngspice
 from netgen.emit.common import (
     clamp_expr,
@@ -26,7 +27,6 @@ from netgen.emit.common import (
     y_node,
 )
 from netgen.model import MacroModel
-from netgen.templating import render
 
 
 def nodes_subcircuit(model: MacroModel, noise: bool | None = False) -> str:

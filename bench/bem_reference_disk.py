@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from support import ROOT
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import EXTRACTORS, bem
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics

@@ -1,5 +1,5 @@
 """BEM solves per hour on 1 and 2 workers (netgen.electrostatics.bem_sampling through
-netgen.executor), and the projection for the paper's 2187 points (3^7 grid).
+netgen.runtime.executor), and the projection for the paper's 2187 points (3^7 grid).
 
     .venv/bin/python bench/bem_throughput.py                       # the suite's reduced problem, 24 points
     .venv/bin/python bench/bem_throughput.py --problem disk --gap 0.05 --points 4
@@ -21,7 +21,7 @@ import numpy as np
 from netgen.electrostatics import bem
 from netgen.electrostatics.bem_sampling import sample_maxwell
 from netgen.electrostatics.sampling import sampling_grid
-from netgen.executor import executor
+from netgen.runtime.executor import executor
 
 PAPER_POINTS = 2187
 

@@ -33,7 +33,7 @@ def main() -> None:
     from support import NGSPICE, lateral_comb
 
     from netgen.build import build
-    from netgen.constants import EPS0
+    from netgen.core.constants import EPS0
     from netgen.electrostatics import comb_section
     from netgen.structure import parse_structure
 

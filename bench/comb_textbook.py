@@ -16,7 +16,7 @@ import argparse
 import time
 from types import SimpleNamespace
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import comb_section
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from netgen.plots import plt, save
+from netgen.core.plots import plt, save
 from netgen.testbench.sigma_delta import CHANNELS, psd
 
 

@@ -16,7 +16,7 @@ import time
 
 from support import closed_forms
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics.field2d import Conductor, Problem, open_box, solve
 from netgen.electrostatics.mesh2d import Disk, Strip
 

@@ -9,7 +9,7 @@ the committed z accelerometer, per ngspice release:
   noise shaping (scipy.signal.welch of the +-1 bits: the PSD slope in dB/decade over f_s/64..f_s/8,
   and the mean over f_s/4..f_s/2 against 0..f_s/32);
 - scale factor: the bit mean over --scale-periods at each acceleration against the force balance
-  (tests/sc_readout.balance, from the model JSON): the slope d mean / d a against the design
+  (tests/oracles/sc_readout.balance, from the model JSON): the slope d mean / d a against the design
   slope, in %;
 - cost: CPU seconds per period of the model against the fixed-capacitor testbench
   (examples/accelerometer_z_sc_fixed.cir's circuit), short runs taken in turn, and time points;
@@ -21,18 +21,16 @@ shared 2-core machine.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 from scipy.signal import welch
+from support import NGSPICE, oracle, using_ngspice
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from netgen.model import MacroModel
 
-from netgen.model import MacroModel  # noqa: E402
-from tests import sc_readout as sc  # noqa: E402
-from tests.fixtures import NGSPICE, using_ngspice  # noqa: E402
+sc = oracle("sc_readout")
 
 
 def shaping(bits: np.ndarray) -> tuple[float, float]:

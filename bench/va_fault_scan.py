@@ -18,7 +18,7 @@ from pathlib import Path
 
 from support import ROOT, va_scan
 
-from netgen import cli
+from netgen.runtime import cli
 
 
 def structure_examples() -> list[Path]:

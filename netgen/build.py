@@ -18,11 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .constants import EPS0
+from .core.constants import EPS0
+from .core.errors import StructureError
 from .electrostatics import CapacitanceExtractor, PreparedExtractor, calibration_report, extractor
 from .electrostatics import imported as imported_capacitance
 from .electrostatics.sampling import Samples, box_range, coordinate_scales, sample_grid, sample_holdout, sample_points
-from .errors import StructureError
 from .fit import cost
 from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all

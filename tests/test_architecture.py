@@ -1,8 +1,12 @@
-"""The house, read from the package's own AST: data flows one way through the stages.
+"""The house, read from the package's own AST: data flows one way through the layers.
 
-- no import circle between subpackages (or top-level modules) of netgen;
-- no stage imports a later stage, and the shared modules import no stage;
-- no private name (`_x`) is imported from, or read as an attribute of, another package.
+- core (netgen/core: constants, errors, units, text, files, the TOML reader, templating, plots,
+  options, the external-tool runner) imports nothing else of netgen;
+- runtime (netgen/runtime: arguments, interrupts, folders, executor) imports only core; its
+  command line (runtime.cli, runtime.entry) sits on top and may import every stage;
+- no stage imports a later stage; only the runtime imports argparse;
+- no import circle between rooms, and no private name (`_x`) is imported from, or read as an
+  attribute of, another package.
 The checker is tested on synthetic module sets first, so these tests can fail.
 """
 
@@ -16,24 +20,11 @@ import pytest
 from tests.fixtures import ROOT
 
 PACKAGE = ROOT / "netgen"
-SHARED = (
-    "__init__",
-    "constants",
-    "errors",
-    "interrupts",
-    "arguments",
-    "files",
-    "folders",
-    "units",
-    "options",
-    "templating",
-    "plots",
-    "executor",
-    "text",
-    "names",  # the name policy every reader and emitter shares
-    "paths",  # the writer of paths into simulator input (emit, sim, testbench)
-)
-# the pipeline's order: a stage may import the shared modules, itself and the stages before it
+# the layers below the stages, in order: core imports only itself, runtime imports core
+BASE = ("__init__", "core", "runtime")
+BASE_IMPORTS = {"__init__": set(), "core": set(), "runtime": {"core", "__init__"}}
+# the pipeline's order: a stage may import the base layers, itself and the stages before it; the
+# command line (runtime.cli and runtime.entry) comes last
 STAGES = (
     "structure",
     "geometry",
@@ -48,12 +39,15 @@ STAGES = (
     "testbench",
     "sweep",
     "cli",
-    "entry",
 )
+TOP = {"netgen.runtime.cli": "cli", "netgen.runtime.entry": "cli"}
 
 
 def room(module: str) -> str:
-    """The subpackage or top-level module a dotted netgen module belongs to: netgen.a.b -> a."""
+    """The layer or stage a dotted netgen module belongs to: netgen.a.b -> a, except the command
+    line's modules of the runtime (TOP), which sit above every stage."""
+    if module in TOP:
+        return TOP[module]
     parts = module.split(".")
     return parts[1] if len(parts) > 1 else "__init__"
 
@@ -136,9 +130,11 @@ def problems(modules: dict[str, tuple[ast.AST, bool]], top: str = "netgen") -> d
 
 def allowed(here: str, there: str) -> bool:
     """May room `here` import room `there`?"""
-    if there in SHARED:
-        return here not in SHARED or SHARED.index(there) != SHARED.index(here)
-    if here in SHARED or there not in STAGES or here not in STAGES:
+    if here in BASE:
+        return there in BASE_IMPORTS[here]
+    if there in BASE:
+        return True
+    if there not in STAGES or here not in STAGES:
         return False
     return STAGES.index(there) < STAGES.index(here)
 
@@ -219,12 +215,13 @@ def test_checker_finds_an_import_of_a_later_stage_and_a_shared_module_importing_
             "__init__.py": "",
             "fit/__init__.py": "from ..emit import x\n",
             "emit/__init__.py": "",
-            "files.py": "from .model import m\n",
+            "core/__init__.py": "",
+            "core/files.py": "from ..model import m\n",
             "model/__init__.py": "",
         },
     )
     assert sorted(problems(mods)["upward"]) == [
-        "netgen.files:1 imports netgen.model (files -> model)",
+        "netgen.core.files:1 imports netgen.model (core -> model)",
         "netgen.fit:1 imports netgen.emit (fit -> emit)",
     ]
 
@@ -237,9 +234,28 @@ def house() -> dict[str, list[str]]:
     return problems(read_package(PACKAGE))
 
 
-def test_every_room_is_a_stage_or_a_shared_module():
+def test_every_room_is_a_stage_or_a_base_layer():
     rooms = {room(m) for m in read_package(PACKAGE)}
-    assert rooms <= set(STAGES) | set(SHARED), sorted(rooms - set(STAGES) - set(SHARED))
+    assert rooms <= set(STAGES) | set(BASE), sorted(rooms - set(STAGES) - set(BASE))
+
+
+def test_the_root_holds_only_the_pipeline():
+    """Beside the subpackages the root holds __init__, build (the stage order) and export."""
+    assert sorted(p.name for p in PACKAGE.glob("*.py")) == ["__init__.py", "build.py", "export.py"]
+
+
+def test_core_imports_nothing_else_of_netgen(house):
+    assert [u for u in house["upward"] if "(core ->" in u] == []
+
+
+def test_only_the_runtime_imports_argparse():
+    users = [
+        name
+        for name, (tree, _) in read_package(PACKAGE).items()
+        for target, _, _ in imports(tree, name, False)
+        if target == "argparse" and not name.startswith("netgen.runtime.")
+    ]
+    assert users == []
 
 
 def test_no_import_circles(house):

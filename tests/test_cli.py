@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netgen import cli
-from netgen.arguments import output_folder
-from netgen.errors import SimulationError
-from netgen.folders import OutputFolder, check_manifest
-from netgen.interrupts import Interrupted
+from netgen.core.errors import SimulationError
+from netgen.runtime import cli
+from netgen.runtime.arguments import output_folder
+from netgen.runtime.folders import OutputFolder, check_manifest
+from netgen.runtime.interrupts import Interrupted
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.rawfile import read_raw
 from tests.fixtures import NGSPICE, ROOT

@@ -1,4 +1,4 @@
-"""Options declared once (netgen.options, netgen.testbench.sigma_delta.options): every option that a
+"""Options declared once (netgen.core.options, netgen.testbench.sigma_delta.options): every option that a
 user can write in more than one place (a `netgen sigma-delta` flag, a [loop] key, a sweep
 parameter) gets the same verdict in each, at and beyond its declared limits. The verdicts come
 from the real parsers (the command line's argparse and checks, the loop reader, `netgen sweep
@@ -13,9 +13,9 @@ from dataclasses import replace
 
 import pytest
 
-from netgen import cli
-from netgen.errors import LoopError
-from netgen.options import Option
+from netgen.core.errors import LoopError
+from netgen.core.options import Option
+from netgen.runtime import cli
 from netgen.testbench.sigma_delta import cli as sd_cli
 from netgen.testbench.sigma_delta import loopfile
 from netgen.testbench.sigma_delta.options import FLAGS, OPTIONS, SWEEP, markdown_tables

@@ -2,7 +2,7 @@
 the simulator as exactly that path or is refused (exit 2, naming the path and the fix); it never
 includes another file or runs a command. Each output set owns its files in a folder.
 
-The expectations are written here, independently of netgen.paths: what each dialect reads back
+The expectations are written here, independently of netgen.core.paths: what each dialect reads back
 was measured on ngspice 39 and 46 (an .include of a resistor, a pre_codemodel of netgen's code
 model) and is checked again below against the simulators themselves."""
 
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from netgen import cli
-from netgen.errors import InputError
-from netgen.paths import spice_card, spice_command, vacask_string
+from netgen.core.errors import InputError
+from netgen.core.paths import spice_card, spice_command, vacask_string
+from netgen.runtime import cli
 from netgen.sim import codemodel
 from tests.fixtures import NGSPICE, ROOT
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
-from ..constants import EPS0
-from ..errors import StructureError
+from ..core.constants import EPS0
+from ..core.errors import StructureError
 from ..geometry.shapes import Plate
 from ..structure import CombElectrode, Structure
 from . import bem, calibrated, parallel_plate

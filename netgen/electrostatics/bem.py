@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import cholesky, lu_factor, lu_solve, solve_triangular
 
-from ..constants import EPS0
-from ..errors import SimulationError, SimulatorNotFound, StructureError
+from ..core.constants import EPS0
+from ..core.errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import ProbePoints
 from .bem_mesh import Sizes, Surface, electrode_sheet, estimate_elements, thick_plate

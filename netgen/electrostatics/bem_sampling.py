@@ -1,5 +1,5 @@
 """BEM sampling at scale: the Maxwell matrix at many coordinate points through the executor
-seam (netgen.executor: local processes or Dask), one point per task, each point stored as it
+seam (netgen.runtime.executor: local processes or Dask), one point per task, each point stored as it
 finishes (netgen.electrostatics.sampling.ChunkStore, one .npy per point under a folder named by
 a hash of the meshes, settings and points) so a rerun computes only the missing ones.
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..executor import Executor, SerialExecutor
+from ..runtime.executor import Executor, SerialExecutor
 from .bem import PreparedBem
 from .sampling import ChunkStore, blas_threads, fingerprint
 

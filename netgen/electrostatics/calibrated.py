@@ -17,7 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..errors import StructureError
+from ..core.errors import StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from . import coupling_file
 from .calibration import Calibration, MaxwellSource, calibrate, design, electrode_couplings
@@ -29,7 +29,7 @@ from .sampling import touch_amplitudes
 def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> MaxwellSource:
     """The BEM extractor's Maxwell matrix at q (netgen.electrostatics.bem: PreparedBem.maxwell(q).matrix,
     conductors [plate, *electrodes]); each solve's estimated error is kept in `source.errors`."""
-    from . import bem  # optional: needs bempp-cl (pip install -e '.[bem]')
+    from . import bem
 
     prepared = bem.from_structure(s, plate).prepare(electrodes, plate, basis)
     errors: list[float] = []

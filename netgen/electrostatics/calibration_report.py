@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..files import write_atomic
-from ..plots import plt, save
+from ..core.files import write_atomic
+from ..core.plots import plt, save
 
 
 def summary(report: dict) -> dict:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import StructureError
+from ..core.errors import StructureError
 from ..geometry.combs import CombShape
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from . import comb_section

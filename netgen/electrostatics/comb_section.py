@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.interpolate import RectBivariateSpline
 
-from ..files import write_bytes_atomic
+from ..core.files import write_bytes_atomic
 from .field2d import Conductor, Problem, solve
 from .mesh2d import Rect
 

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import StructureError
-from ..files import did_you_mean, read_csv, read_text
+from ..core.errors import StructureError
+from ..core.files import did_you_mean, read_csv, read_text
 from .imported import PLAUSIBLE
 
 WHERE = "electrostatics.couplings"

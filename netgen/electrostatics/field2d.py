@@ -27,7 +27,7 @@ from scipy.sparse.linalg import splu
 from skfem import Basis, BilinearForm, ElementTriP1, ElementTriP2, MeshTri, asm
 from skfem.helpers import dot, grad
 
-from ..constants import EPS0
+from ..core.constants import EPS0
 from . import mesh2d
 from .mesh2d import Disk, Shape
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import StructureError
-from ..files import load_npz, read_csv
+from ..core.errors import StructureError
+from ..core.files import load_npz, read_csv
 from .sampling import Samples
 
 WHERE = "import.capacitance"

@@ -25,7 +25,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..constants import EPS0
+from ..core.constants import EPS0
 from ..geometry.shapes import DEFAULT_EDGE_ORDER, DEFAULT_ORDER, Array, Basis, Electrode, Plate, shared_edge_length
 from .base import ProbePoints
 

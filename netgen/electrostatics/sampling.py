@@ -1,7 +1,7 @@
 """Sampling the extractor: the coordinate scales (touching amplitudes), the sample designs
 (netgen.electrostatics.designs: the paper's tensor grid, sparse grids, space-filling designs;
 seeded held-out points) and the capacitances at those points, in
-chunks with a progress bar, serially or through an executor (netgen.executor), with finished
+chunks with a progress bar, serially or through an executor (netgen.runtime.executor), with finished
 chunks streamed to a store so a re-run computes only the missing ones.
 
 Parallel sampling splits the points into the same chunks as the serial path and runs each with
@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from ..executor import Executor, SerialExecutor
-from ..files import write_bytes_atomic
+from ..core.files import write_bytes_atomic
+from ..runtime.executor import Executor, SerialExecutor
 from . import designs
 from .base import PreparedExtractor
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from ..files import write_files_atomic
+from ..core.files import write_files_atomic
 from ..model import MacroModel
 from . import kicad, ngspice, osdi, veriloga, xschem, xspice
 

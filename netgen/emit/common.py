@@ -8,9 +8,9 @@ import math
 
 import numpy as np
 
+from ..core.text import comment_text, is_identifier
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..text import comment_text, is_identifier
 
 
 def num(value: float) -> str:
@@ -96,9 +96,9 @@ def si(value: float, unit: str) -> str:
 
 def check_names(model: MacroModel) -> None:
     """Every name an emitter or testbench writes outside comments (model, plate, electrodes,
-    coordinates) is an identifier (netgen.text.is_identifier): the readers refuse anything else,
+    coordinates) is an identifier (netgen.core.text.is_identifier): the readers refuse anything else,
     this is the emitters' own guard. Free text (description, source, labels) goes only through
-    the templates' `comment` / `comment_text` filters (netgen.text.comment_lines, comment_text)."""
+    the templates' `comment` / `comment_text` filters (netgen.core.text.comment_lines, comment_text)."""
     names = [
         model.name,
         model.plate,

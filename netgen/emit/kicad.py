@@ -9,8 +9,8 @@ input files reaches the file but as those names."""
 
 from __future__ import annotations
 
+from ..core.templating import render
 from ..model import MacroModel
-from ..templating import render
 from .common import check_names
 
 PITCH = 2.54  # mm, KiCad's pin grid

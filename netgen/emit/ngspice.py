@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 
-from ..constants import K_B
+from ..core.constants import K_B
+from ..core.templating import render
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..templating import render
 from . import inertial, process
 from .common import (
     c_node,

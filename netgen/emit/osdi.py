@@ -16,10 +16,10 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from ..errors import SimulationError, SimulatorNotFound
-from ..files import write_atomic
+from ..core.errors import SimulationError, SimulatorNotFound
+from ..core.files import write_atomic
+from ..core.templating import render
 from ..model import MacroModel
-from ..templating import render
 from . import veriloga
 from .common import header_context, noise_enabled, time_scale
 from .ngspice import inertial_loads

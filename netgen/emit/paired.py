@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import ModelError
-from ..files import read_text
+from ..core.errors import ModelError
+from ..core.files import read_text
+from ..core.text import escape
 from ..model.macromodel import MacroModel
-from ..text import escape
 from . import EMITTERS
 
 REBUILD = "rebuild both with `netgen build STRUCTURE.toml -o DIR` (it writes X.json and X.lib together)"

@@ -13,9 +13,9 @@ import base64
 import math
 from pathlib import Path
 
-from ..files import write_atomic
+from ..core.files import write_atomic
+from ..core.templating import render
 from ..model import MacroModel
-from ..templating import render
 
 SIDE_COLOURS = {"above": "#c0392b", "below": "#2471a3", "in_plane": "#1e8449"}
 FILES = {  # what each emitted file is, by its ending (the figures: netgen.build.figure_names)

@@ -13,12 +13,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..constants import K_B
+from ..core.constants import K_B
+from ..core.names import VERILOG_A as KEYWORDS
+from ..core.templating import render
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
-from ..names import VERILOG_A as KEYWORDS
-from ..templating import render
 from . import inertial
 from .common import (
     INPUT_KINDS,

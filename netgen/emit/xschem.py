@@ -12,8 +12,8 @@ the `G` and the `K` global property, so Xschem 2.8.1 (Debian 12) and 3.x read th
 
 from __future__ import annotations
 
+from ..core.templating import render
 from ..model import MacroModel
-from ..templating import render
 from .common import check_names
 
 PITCH = 20  # pin spacing, Xschem's default grid

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from ..core.templating import render
 from ..model import MacroModel
-from ..templating import render
 from . import ngspice
 from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale
 

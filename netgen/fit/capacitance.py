@@ -16,9 +16,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from tqdm import tqdm
 
-from ..constants import EPS0
+from ..core.constants import EPS0
+from ..core.errors import StructureError
 from ..electrostatics.sampling import Samples
-from ..errors import StructureError
 from ..geometry.layout import plate_outline
 from ..geometry.shapes import Electrode
 from ..structure import Structure

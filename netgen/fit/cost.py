@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..core.errors import StructureError
 from ..electrostatics.sampling import design_points
-from ..errors import StructureError
 from ..structure import Structure
 from ..structure.schema import smolyak_count
 from .capacitance import MAX_NFEV, PATCH_GRIDS

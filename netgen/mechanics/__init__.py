@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
-from ..errors import StructureError
+from ..core.errors import StructureError
 from ..structure import Structure
 from . import beam, free_disk, piston, proof_mass
 from .base import Mechanics, StrainEnergy, participation, rigid_basis

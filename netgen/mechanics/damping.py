@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from ..constants import GASES
-from ..errors import StructureError
+from ..core.constants import GASES
+from ..core.errors import StructureError
 from ..structure import Structure
 from . import squeeze_film as sf
 from .base import Mechanics

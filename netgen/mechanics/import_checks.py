@@ -16,8 +16,8 @@ import numpy as np
 import scipy.io
 from scipy.spatial import cKDTree
 
-from ..errors import StructureError
-from ..files import read_bytes
+from ..core.errors import StructureError
+from ..core.files import read_bytes
 from ..geometry.layout import plate_outline
 from ..structure import RIGID_COORDINATES, Structure
 

@@ -30,10 +30,10 @@ import numpy as np
 from scipy.interpolate import CloughTocher2DInterpolator, CubicSpline
 from scipy.spatial import ConvexHull, cKDTree
 
-from ..files import load_npz, read_csv
+from ..core.files import load_npz, read_csv
+from ..core.reader import identifier
+from ..core.text import shown, text_problem
 from ..structure import RIGID_COORDINATES, Structure
-from ..structure.reader import identifier
-from ..text import shown, text_problem
 from .base import RIGID, Mechanics, rigid_field
 from .fields import P2Field
 from .import_checks import (

@@ -33,7 +33,7 @@ from scipy.sparse.linalg import eigsh, splu, spsolve
 from skfem import Basis, BilinearForm, ElementTriP2, LinearForm, MeshTri, condense, solve
 from skfem.helpers import dot, grad
 
-from ..constants import ATMOSPHERE, K_B, Gas
+from ..core.constants import ATMOSPHERE, K_B, Gas
 
 
 def knudsen(gas: Gas, pressure: float, gap: float) -> float:

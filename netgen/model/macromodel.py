@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import ModelError
-from ..files import json_document, read_text, write_atomic
+from ..core.errors import ModelError
+from ..core.files import json_document, read_text, write_atomic
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from . import contact, schema, validate

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..plots import plt, save
+from ..core.plots import plt, save
 from .macromodel import MacroModel
 
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..constants import GASES
+from ..core.constants import GASES
 from ..mechanics import Mechanics
 from ..mechanics import squeeze_film as sf
 from ..mechanics.damping import damping as damping_of

@@ -1,6 +1,6 @@
 """A model JSON read back (MacroModel.load_json, from_dict) is an input file like any other: the
 emitters and testbenches write its names into netlists and its text into their headers, so
-before a MacroModel is built from it every string is printable one-line text (netgen.text),
+before a MacroModel is built from it every string is printable one-line text (netgen.core.text),
 every name an emitter writes outside comments is an identifier, every choice is known and every
 number the headers print is a finite number. Errors are ModelError (exit 2), naming the file,
 the entry (e.g. coordinates[2].label) and the fix."""
@@ -11,9 +11,9 @@ import math
 from collections.abc import Iterator
 from typing import Any, NoReturn
 
-from ..errors import ModelError
-from ..names import GROUND, duplicate, keyword, model_problem, rename_fix, reserved
-from ..text import escape, is_identifier, shown, text_problem
+from ..core.errors import ModelError
+from ..core.names import GROUND, duplicate, keyword, model_problem, rename_fix, reserved
+from ..core.text import escape, is_identifier, shown, text_problem
 
 KINDS = ("translation", "rotation", "mode")
 TARGETS = ("plates", "inverse", "direct")
@@ -137,7 +137,7 @@ def check_names(c: Checker, d: dict) -> None:
 
 
 def check_policy(c: Checker, model: str, plate: str, electrodes: list[str]) -> None:
-    """The name policy (netgen.names): a model name no dialect or run file reserves, a plate
+    """The name policy (netgen.core.names): a model name no dialect or run file reserves, a plate
     that is not ground, electrode names no dialect reserves, all distinct case-insensitively."""
     problem = model_problem(model)
     if problem:

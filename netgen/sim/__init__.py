@@ -1,4 +1,4 @@
-"""The sim stage: running circuit simulators on netlists. One runner (netgen.sim.process: wall-
+"""The sim stage: running circuit simulators on netlists. One runner (netgen.core.process: wall-
 clock limit, output lines, progress), one raw-file reader (netgen.sim.rawfile), one module per
 simulator. SIMULATORS maps a `netgen simulate --simulator` name to its netlist runner: adding a
 simulator is one module on top of process and rawfile and one line here."""
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from ..errors import InputError
+from ..core.errors import InputError
 from . import ngspice, pyspice, vacask
 from .rawfile import Plot, first_plot, read_raw
 

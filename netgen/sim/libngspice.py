@@ -9,7 +9,7 @@ import sysconfig
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import SimulatorNotFound
+from ..core.errors import SimulatorNotFound
 from . import ngspice
 
 ENV = "NETGEN_LIBNGSPICE"

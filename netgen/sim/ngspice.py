@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from ..errors import CodeModelError, SimulationError, SimulatorNotFound
-from . import process
+from ..core import process
+from ..core.errors import CodeModelError, SimulationError, SimulatorNotFound
 from .rawfile import Plot, first_plot, read_raw
 
 INSTALL_HINT = "install it with: apt-get install -y ngspice libngspice0   (Debian/Ubuntu, as root)"
@@ -191,7 +191,7 @@ def build_record(cm: str | Path) -> Path:
     return Path(cm).with_suffix(".json")
 
 
-# the path as netgen.paths.spice_command writes it ('quoted'), or a bare word
+# the path as netgen.core.paths.spice_command writes it ('quoted'), or a bare word
 CODEMODEL_LINE = re.compile(r"^\s*(?:pre_)?codemodel\s+(?:'([^']*)'|(\S+))", re.I | re.M)
 
 

@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.errors import InputError, SimulationError, SimulatorNotFound
+from ..core.paths import spice_card, spice_command
+from ..core.text import comment_text
 from ..emit import ngspice as emit_ngspice
 from ..emit.common import time_scale
-from ..errors import InputError, SimulationError, SimulatorNotFound
 from ..model import MacroModel
-from ..paths import spice_card, spice_command
-from ..text import comment_text
 from . import ngspice
 from .libngspice import ENV, INSTALL_HINT, Library, library
 from .rawfile import Plot
@@ -192,7 +192,7 @@ def run_text(
 
 
 def save(netlist: str, workdir: Path, name: str) -> Path:
-    """workdir/name.cir with the netlist, for ngspice's `source` (a path netgen.paths.spice_command
+    """workdir/name.cir with the netlist, for ngspice's `source` (a path netgen.core.paths.spice_command
     writes, under 1000 characters)."""
     cir = workdir / f"{name}.cir"
     spice_command(cir)  # refused (exit 2) before anything is written
@@ -414,7 +414,7 @@ class ModelCircuit:
             lib.write_text(emit_ngspice.subcircuit(model))
         lib = Path(lib).absolute()
         where = str(lib)
-        include = f".include {spice_card(lib)}"  # the path quoted, or refused (netgen.paths)
+        include = f".include {spice_card(lib)}"  # the path quoted, or refused (netgen.core.paths)
         node_of = check_nodes(model, nodes or {}, where)
         drive = drive or {}
         known = {p["name"]: p["kind"] for p in model.ports()}
@@ -433,7 +433,7 @@ class ModelCircuit:
                 f"{instance!r} is not a simple name",
                 "use letters, digits and _ (not the word 'error')",
             )
-        # the title is the deck's first card: one line, its controls escaped (netgen.text)
+        # the title is the deck's first card: one line, its controls escaped (netgen.core.text)
         circuit = Circuit(comment_text(title) if title else f"netgen {model.name} through PySpice")
         circuit.raw_spice = include  # not Circuit.include: it writes the path unquoted
         circuit.X(instance, model.name, *[node_of[p["name"]] for p in model.ports()])

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..core.errors import SimulationError
 
 
 @dataclass

@@ -14,11 +14,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..core import process
+from ..core.errors import SimulationError, SimulatorNotFound
+from ..core.paths import vacask_string
 from ..emit.osdi import ANSI, INSTALL_HINT, compile_va, compiled, openvaf
-from ..errors import SimulationError, SimulatorNotFound
 from ..model import MacroModel
-from ..paths import vacask_string
-from . import process
 from .rawfile import Plot, first_plot, last_time
 
 __all__ = ["compile_va", "compiled", "tools", "VacaskBench", "run_vacask", "stats", "print_progress"]

@@ -1,7 +1,7 @@
 """The structure stage: the TOML file a user writes, validated into frozen dataclasses
 (netgen.structure.parse). Conductor kinds: netgen.structure.conductors.CONDUCTORS."""
 
-from ..errors import StructureError
+from ..core.errors import StructureError
 from .conductors import CONDUCTORS, Beam, FreeDisk, Piston, ProofMass
 from .electrodes import CombElectrode, ElectrodeSet, RectElectrode
 from .parse import load_structure, parse_structure

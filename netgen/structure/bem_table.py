@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import math
 
-from ..errors import InputError
-from ..files import did_you_mean
-from .reader import Reader
+from ..core.errors import InputError
+from ..core.files import did_you_mean
+from ..core.reader import Reader
 
 WHERE = "electrostatics.bem"
 # key -> (kind, low, high, what): "float" in (low, high], "int" in [low, high]

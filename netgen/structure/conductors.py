@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+from ..core.reader import Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity, table
 from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
 from .flexures import Flexure, read_flexure
-from .reader import Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity, table
 from .schema import (
     ALL_RIGID,
     INERTIAL_INPUTS,

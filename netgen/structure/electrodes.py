@@ -6,9 +6,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..names import rename_fix, reserved
-from ..units import UnitError, parse_quantity
-from .reader import Reader, check_keys, choice, identifier, integer, nonnegative, positive, quantity
+from ..core.names import rename_fix, reserved
+from ..core.reader import Reader, check_keys, choice, identifier, integer, nonnegative, positive, quantity
+from ..core.units import UnitError, parse_quantity
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,7 @@ def unique_name(
     rd: Reader, t: dict, where: str, seen: set[str], what: str, each: str, fix: str, forbidden: tuple[str, ...] = ()
 ) -> str:
     """An [[electrodes]] table's name: an identifier (not one of `forbidden`) that no emitted
-    dialect reserves (netgen.names.reserved) and not used before, case-insensitively (`seen`
+    dialect reserves (netgen.core.names.reserved) and not used before, case-insensitively (`seen`
     holds the lower-case names)."""
     name = t.get("name")
     if not identifier(name) or name in forbidden:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .reader import Reader, check_keys, choice, nonnegative, positive, quantity
+from ..core.reader import Reader, check_keys, choice, nonnegative, positive, quantity
 
 TYPES = ("folded", "crab_leg", "clamped_guided", "given", "none")
 GIVEN = ("k_x", "k_y", "k_z", "k_rot", "k_tilt_x", "k_tilt_y")

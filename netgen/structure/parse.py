@@ -11,15 +11,11 @@ import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..constants import GASES
-from ..errors import StructureError
-from ..files import read_text, toml_document
-from ..names import duplicate, model_problem, rename_fix, reserved
-from ..text import escape, text_problem
-from . import validity
-from .bem_table import read_bem
-from .conductors import CONDUCTORS
-from .reader import (
+from ..core.constants import GASES
+from ..core.errors import StructureError
+from ..core.files import read_text, toml_document
+from ..core.names import duplicate, model_problem, rename_fix, reserved
+from ..core.reader import (
     Reader,
     check_keys,
     choice,
@@ -33,6 +29,10 @@ from .reader import (
     quantity,
     table,
 )
+from ..core.text import escape, text_problem
+from . import validity
+from .bem_table import read_bem
+from .conductors import CONDUCTORS
 from .schema import (
     ALL_RIGID,
     DESIGN_KEYS,
@@ -150,7 +150,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
 
 
 def model_name(rd: Reader, name: str) -> None:
-    """Refuse a model name an emitted dialect or a run's own files reserve (netgen.names)."""
+    """Refuse a model name an emitted dialect or a run's own files reserve (netgen.core.names)."""
     problem = model_problem(name)
     if problem:
         raise rd.fail("name", f"model name {problem}", rename_fix(name))
@@ -158,7 +158,7 @@ def model_name(rd: Reader, name: str) -> None:
 
 def electrode_names(rd: Reader, sets: Sequence) -> None:
     """Refuse electrode names (a set's derived <set>_r<i>s<j> too) that a dialect reserves or that
-    repeat another set's case-insensitively (netgen.names)."""
+    repeat another set's case-insensitively (netgen.core.names)."""
     seen: dict[str, str] = {}
     for i, s in enumerate(sets):
         for name in s.electrode_names():

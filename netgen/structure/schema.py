@@ -7,7 +7,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
-from .reader import Reader
+from ..core.reader import Reader
 
 RIGID_COORDINATES = ("z", "tilt_x", "tilt_y")  # out of plane: every conductor kind
 IN_PLANE_COORDINATES = ("x", "y", "rot_z")  # in plane: proof masses (netgen.structure.conductors.ProofMass)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
+from ..core.reader import Reader
 from .electrodes import CombElectrode
-from .reader import Reader
 
 GAP_WARN, GAP_REFUSE = 0.1, 0.5  # gap / lateral size of the conductor (parallel plate: gap << size)
 COMB_LENGTH = 2.0  # finger length / lateral size of the mass, at most

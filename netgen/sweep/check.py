@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import LoopError, StructureError, SweepError
-from ..options import OptionError
+from ..core.errors import LoopError, StructureError, SweepError
+from ..core.options import OptionError
+from ..core.reader import Reader
 from ..structure import Structure, mode_name, parse_structure
-from ..structure.reader import Reader
 from ..testbench import sigma_delta as sd
 from ..testbench.sigma_delta import read_tone
 from .plan import RunSpec

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
 from pathlib import Path
 
-from ..arguments import output_folder
-from ..executor import add_scheduler_option, executor, planned_workers
+from ..runtime.arguments import ArgumentTypeError, add_scheduler_option, output_folder
+from ..runtime.executor import executor, planned_workers
 from ..structure import load_structure
 from .check import check_runs
 from .plan import plan
@@ -27,7 +26,7 @@ def positive_int(text: str) -> int:
     except ValueError:
         value = 0
     if not 1 <= value <= RUNS_CEILING:
-        raise argparse.ArgumentTypeError(
+        raise ArgumentTypeError(
             f"{text!r} is not an integer between 1 and {RUNS_CEILING} (every run is "
             f"planned in memory first; the default is {MAX_RUNS})"
         )
@@ -36,7 +35,7 @@ def positive_int(text: str) -> int:
 
 def cli(args) -> int:
     """exit 0 (all ran, or --dry-run), 1 (some failed), 2 (bad input: SweepError, StructureError,
-    FolderError and ExecutorError reach netgen.cli.main, which reports them), 130 (stopped
+    FolderError and ExecutorError reach netgen.runtime.cli.main, which reports them), 130 (stopped
     by SIGINT or SIGTERM, resumable)."""
     start = time.perf_counter()
     out = Path(args.output)

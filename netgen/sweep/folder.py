@@ -14,8 +14,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..errors import InputError
-from ..files import write_atomic
+from ..core.errors import InputError
+from ..core.files import write_atomic
 from .plan import RunSpec
 
 MARKER = ".sweep.json"

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SweepError
-from ..structure.reader import did_you_mean
-from ..text import comment_text
-from ..units import parse_quantity
+from ..core.errors import SweepError
+from ..core.reader import did_you_mean
+from ..core.text import comment_text
+from ..core.units import parse_quantity
 from .spec import TESTBENCH, Sweep, timeout_for
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..plots import plt, save
-from ..units import UnitError, parse_quantity
+from ..core.plots import plt, save
+from ..core.units import UnitError, parse_quantity
 from .spec import TESTBENCH, Sweep, kind_of
 
 

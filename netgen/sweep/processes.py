@@ -1,9 +1,9 @@
 """The processes a sweep starts, and only those: each run folder keeps a record (.processes, JSON
 lines) of the worker that ran it and of every simulator that worker started (through
-netgen.sim.process.watched), each with its PID, process group, /proc start time and host. A
+netgen.core.process.watched), each with its PID, process group, /proc start time and host. A
 retry or a resume signals a recorded process only while that PID still names the same process
 (same start time, same host): a user's shell or editor whose working directory is inside a run
-folder is never touched. SIGTERM and SIGINT of the sweep become netgen.interrupts.Interrupted
+folder is never touched. SIGTERM and SIGINT of the sweep become netgen.runtime.interrupts.Interrupted
 (held while the executor holds its locks), which run_sweep turns into stopped workers, killed
 simulators, a resumable folder and an Interrupted that says so."""
 
@@ -19,9 +19,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..executor import raise_or_hold
-from ..interrupts import Interrupted
-from ..sim.process import start_time
+from ..core.process import start_time
+from ..runtime.interrupts import Interrupted
 
 RECORDS = ".processes"
 
@@ -98,13 +97,13 @@ def reap(folder: Path, workers: bool = False) -> list[int]:
 
 @contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """Within: SIGTERM and SIGINT raise netgen.interrupts.Interrupted in the main thread (elsewhere: nothing changes)."""
+    """Within: SIGTERM and SIGINT raise netgen.runtime.interrupts.Interrupted in the main thread (elsewhere: nothing changes)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: object) -> None:
-        raise_or_hold(Interrupted(signum))  # held while the executor holds its pool's locks
+        raise Interrupted(signum)  # deferred while the executor holds its pool's locks (interrupts.held)
 
     old = {s: signal.signal(s, handler) for s in (signal.SIGTERM, signal.SIGINT)}
     try:

@@ -19,10 +19,10 @@ from typing import Any
 from tqdm import tqdm
 
 from ..build import build_model
+from ..core import process as sim_process
+from ..core.files import write_atomic
 from ..emit import write_outputs
-from ..files import write_atomic
-from ..interrupts import Interrupted
-from ..sim import process as sim_process
+from ..runtime.interrupts import Interrupted
 from ..sim.ngspice import identity as ngspice_build
 from ..sim.ngspice import same_build
 from ..structure import parse_structure
@@ -158,7 +158,7 @@ def run_sweep(
 ) -> list[dict]:
     """Plan, run (through the executor `ex`), gather: the rows of results.csv, in run order.
     The folder must be new, empty or this sweep's (netgen.sweep.folder); SIGTERM or SIGINT stops
-    the workers and their simulators, writes what finished and raises netgen.interrupts.Interrupted with a line
+    the workers and their simulators, writes what finished and raises netgen.runtime.interrupts.Interrupted with a line
     saying how many runs finished and how to resume (exit 130)."""
     out = Path(out)
     runs = runs if runs is not None else plan(sweep, structure_path, out)

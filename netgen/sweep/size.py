@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import SweepError
+from ..core.errors import SweepError
 from .spec import Sweep
 
 # rough ngspice cost of one sampling period of the sigma-delta loop (s, summary.json wall_s per

@@ -1,5 +1,5 @@
 """`netgen sweep STRUCTURE.toml SWEEP.toml -o DIR`: parameter sweeps and Monte Carlo of the
-sigma-delta loop (netgen.testbench.sigma_delta), run through netgen.executor (local processes or Dask).
+sigma-delta loop (netgen.testbench.sigma_delta), run through netgen.runtime.executor (local processes or Dask).
 
 SWEEP.toml (see examples/sweep_ts.toml):
 
@@ -46,13 +46,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SweepError
-from ..files import read_bytes, toml_document
-from ..options import Option, OptionError
-from ..structure.reader import Reader, did_you_mean
+from ..core.errors import SweepError
+from ..core.files import read_bytes, toml_document
+from ..core.options import Option, OptionError
+from ..core.reader import Reader, did_you_mean
+from ..core.text import text_problem
+from ..core.units import UNITS, UnitError, parse_quantity
 from ..testbench.sigma_delta import CHANNELS, OPTIONS, SWEEP, read_tone
-from ..text import text_problem
-from ..units import UNITS, UnitError, parse_quantity
 
 METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db", "slope_db_per_decade")
 # result columns: <channel>.<metric> for any channel of the loop (the disk's z, tilt_x, tilt_y are

@@ -15,7 +15,7 @@ import pytest
 
 pytest.importorskip("bempp_cl")
 
-from netgen.constants import EPS0  # noqa: E402
+from netgen.core.constants import EPS0
 from netgen.electrostatics import EXTRACTORS, bem  # noqa: E402
 from netgen.electrostatics.bem_mesh import Surface, disk_sheet, icosphere, rectangle_sheet  # noqa: E402
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402

@@ -19,7 +19,7 @@ pytest.importorskip("distributed")
 
 from netgen.electrostatics.bem_sampling import sample_maxwell  # noqa: E402
 from netgen.electrostatics.sampling import ChunkStore, sampling_grid  # noqa: E402
-from netgen.executor import DaskExecutor  # noqa: E402
+from netgen.runtime.executor import DaskExecutor
 from tests.oracles.bem_reduced import GAP, R, reduced  # noqa: E402
 
 

@@ -74,7 +74,7 @@ def test_motion_outside_the_tables_is_a_structure_error_naming_the_electrode(lat
     """A finger gap the section table does not span (y closing the 2 um gap to 0.1 um, below the
     table's lower edge of 0.1 gap) is a StructureError naming the file, the electrode and the fix,
     not a ValueError that would exit 70 as an internal error."""
-    from netgen.errors import StructureError
+    from netgen.core.errors import StructureError
 
     combs = [p for _, p in lateral.prepared.parts if hasattr(p, "geoms")]
     with pytest.raises(StructureError) as err:

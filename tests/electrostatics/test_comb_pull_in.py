@@ -14,7 +14,7 @@ import math
 import pytest
 
 from netgen.build import build
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import comb_section
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import comb_section
 from tests.oracles import closed_forms
 

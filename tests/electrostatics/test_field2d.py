@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics.field2d import Conductor, Problem, open_box, solve
 from netgen.electrostatics.mesh2d import Disk, Strip
 from tests.oracles import closed_forms

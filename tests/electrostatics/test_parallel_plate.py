@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate
 from netgen.mechanics import rigid_basis

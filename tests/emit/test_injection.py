@@ -27,14 +27,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netgen import cli
 from netgen import export as importers
 from netgen.build import build
+from netgen.core.errors import InputError, ModelError, StructureError, SweepError
 from netgen.emit import EMITTERS
-from netgen.errors import InputError, ModelError, StructureError, SweepError
 from netgen.mechanics.imported import read_modes
 from netgen.model import MacroModel
 from netgen.model.plots import mode_shapes
+from netgen.runtime import cli
 from netgen.sim.vacask import compile_va
 from netgen.structure import load_structure, parse_structure
 from netgen.sweep.plan import plan
@@ -518,10 +518,10 @@ def test_sweep_values_and_structure_path_are_refused_or_inert(piston, flag, tmp_
 
 
 def test_comment_writer_by_hand():
-    """netgen.text on hand-written cases: one marker and a space per line (so never `*#`), every
+    """netgen.core.text on hand-written cases: one marker and a space per line (so never `*#`), every
     line break a new comment line, other controls escaped, // comments without backticks, /*, */
     or a trailing backslash, long text wrapped; an identifier is the whole string."""
-    from netgen.text import comment_lines, comment_text, is_identifier
+    from netgen.core.text import comment_lines, comment_text, is_identifier
 
     assert comment_lines("a\n.control\r\nb\u2028c\x85", "*") == "* a\n* .control\n* b\n* c"
     assert comment_lines("#shell ls", "*") == "* #shell ls" and comment_lines("", "*") == "*"

@@ -22,9 +22,9 @@ import pytest
 from scipy.optimize import fsolve
 
 from netgen import emit
+from netgen.core.errors import SimulatorNotFound
 from netgen.emit import osdi, veriloga
 from netgen.emit.common import time_scale
-from netgen.errors import SimulatorNotFound
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, run_vacask

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.constants import EPS0, K_B
+from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure

@@ -16,9 +16,9 @@ import numpy as np
 import openvaf_py
 import pytest
 
+from netgen.core.errors import ModelError
 from netgen.emit import write_outputs
 from netgen.emit.veriloga import module
-from netgen.errors import ModelError
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
@@ -151,7 +151,7 @@ def test_vacask_transient_matches_ngspice(model, tmp_path):
 
 def test_bad_names_are_refused_clearly(model):
     """An electrode named like a Verilog-A keyword never reaches the emitter: the model's name
-    policy (netgen.names, checked when a model is read) refuses it with the key and the fix."""
+    policy (netgen.core.names, checked when a model is read) refuses it with the key and the fix."""
     d = model.to_dict()
     d["electrodes"][0]["name"] = d["capacitances"][0]["electrode"] = "module"
     with pytest.raises(ModelError, match=r"electrodes\[0\]\.name: electrode name 'module' is a Verilog-A keyword"):

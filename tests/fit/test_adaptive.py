@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics.sampling import Samples, design_points
 from netgen.fit.adaptive import SAFETY, adaptive_fits
 from netgen.fit.capacitance import fit_all

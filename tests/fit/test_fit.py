@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import extractor
 from netgen.electrostatics.sampling import holdout_points, sampling_grid
 from netgen.fit.capacitance import CapacitanceFit, fit_capacitance, fit_plates

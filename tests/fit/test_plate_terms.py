@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from netgen.errors import StructureError
+from netgen.core.errors import StructureError
 from netgen.fit.capacitance import CapacitanceFit, physical, refuse_unphysical
 from netgen.fit.polynomial import Polynomial
 from netgen.structure import parse_structure

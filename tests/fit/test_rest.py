@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics.sampling import rest_of
 from netgen.structure import parse_structure
 from tests.fit.test_adaptive import GAP, PISTON, SIDE

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.constants import GASES
+from netgen.core.constants import GASES
 from netgen.emit.ngspice import subcircuit
 from netgen.mechanics import squeeze_film as sf
 from netgen.model import MacroModel
@@ -401,7 +401,7 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     3 pi mu_eff a^4 / (2 g^3) (independent of the Reynolds FEM), within 1 dB."""
     import json
 
-    from netgen import cli
+    from netgen.runtime import cli
     from netgen.testbench import sigma_delta as sd
     from netgen.testbench.sigma_delta import runner as sd_runner
 
@@ -451,12 +451,12 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
     """Bad gas, noise, dither, segment or tolerance options: exit 2 with the reason, no traceback,
     nothing built."""
-    from netgen import cli
+    from netgen.runtime import cli
 
     out = tmp_path / "sd"
     try:
         code = cli.main(["sigma-delta", str(ROOT / "examples" / "levitated_disk.toml"), "-o", str(out), *args])
-    except SystemExit as exc:  # argparse's own range checks (netgen.arguments)
+    except SystemExit as exc:  # argparse's own range checks (netgen.runtime.arguments)
         code = exc.code
     assert code == 2 and message in capsys.readouterr().err
     assert not out.exists()

@@ -204,7 +204,7 @@ def test_squeeze_film_of_the_perforated_mass(hole):
     """z damping of the proof mass (incompressible film, holes as a smeared Poiseuille leak,
     netgen.mechanics.squeeze_film.perforation_leak) against the double sine series of the same
     equation on the rectangle within 1 %; holes lower it; in-plane coordinates get none."""
-    from netgen.constants import GASES
+    from netgen.core.constants import GASES
     from netgen.mechanics import mechanics
     from netgen.mechanics import squeeze_film as sf
     from netgen.mechanics.damping import damping

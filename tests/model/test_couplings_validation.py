@@ -7,7 +7,7 @@ import copy
 
 import pytest
 
-from netgen.errors import ModelError
+from netgen.core.errors import ModelError
 from netgen.model import MacroModel
 from tests.fixtures import ROOT
 

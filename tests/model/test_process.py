@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.mechanics import mechanics
 from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values, viscosity_ratio

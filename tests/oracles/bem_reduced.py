@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from netgen.constants import EPS0
+from netgen.core.constants import EPS0
 from netgen.electrostatics import bem
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode
 

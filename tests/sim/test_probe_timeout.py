@@ -1,5 +1,5 @@
 """The ngspice probes (netgen.sim.ngspice.version, has_osdi) run through the one runner
-(netgen.sim.process) within the command's time limit: a hanging ngspice and the child it
+(netgen.core.process) within the command's time limit: a hanging ngspice and the child it
 started are killed, and the user gets a clear error naming the binary and the fix."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import time
 
 import pytest
 
-from netgen.cli import main
-from netgen.errors import SimulatorNotFound
+from netgen.core.errors import SimulatorNotFound
+from netgen.runtime.cli import main
 from netgen.sim import ngspice
 
 from .test_process import gone

@@ -1,4 +1,4 @@
-"""The one runner (netgen.sim.process): its wall-clock limit holds when the program prints nothing,
+"""The one runner (netgen.core.process): its wall-clock limit holds when the program prints nothing,
 the whole process group goes with it, and output lines and progress ticks arrive while it runs."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import time
 
 import pytest
 
-from netgen.errors import SimulationError
-from netgen.sim import process
+from netgen.core import process
+from netgen.core.errors import SimulationError
 
 
 def gone(pid: int, within: float = 5.0) -> bool:

@@ -30,8 +30,8 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen.build import build
+from netgen.core.errors import InputError
 from netgen.emit import ngspice as emit_ngspice
-from netgen.errors import InputError
 from netgen.model import MacroModel
 from netgen.sim import pyspice
 from netgen.sim.ngspice import run_ngspice
@@ -163,7 +163,12 @@ def test_piston_statics_and_ac_against_parallel_plate(version, piston):
 
 def cli(args: list[str], env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "netgen.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+        [sys.executable, "-m", "netgen.runtime.cli", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
 
 
@@ -200,7 +205,7 @@ ERROR_WORD = (
 
 RUNS = """
 import json, sys
-from netgen.errors import SimulationError
+from netgen.core.errors import SimulationError
 from netgen.sim import SIMULATORS
 for name in sys.argv[2:]:
     try:
@@ -261,7 +266,7 @@ def test_simulate_cli_exit_code_of_a_failed_run(tmp_path):
 def test_one_library_per_process(tmp_path):
     """After 39 is loaded, asking for 46 in the same process is a clear refusal, not a crash."""
     code = (
-        "import os; from netgen.sim import pyspice; from netgen.errors import SimulatorNotFound\n"
+        "import os; from netgen.sim import pyspice; from netgen.core.errors import SimulatorNotFound\n"
         f"print(pyspice.release()); os.environ['NETGEN_NGSPICE'] = {NGSPICE['46']!r}\n"
         "try:\n    pyspice.shared()\nexcept SimulatorNotFound as e:\n    print(e)\n"
     )

@@ -1,4 +1,4 @@
-"""The name policy (netgen.names) at read time: names that mean something to SPICE, Verilog-A or
+"""The name policy (netgen.core.names) at read time: names that mean something to SPICE, Verilog-A or
 VACASK, or to a run's own files, are refused with exit 2 naming the file, the key, the name and
 the fix, in a structure file and in a model JSON (--model). The expectations are the dialects'
 own rules (ngspice ground 0/gnd, case-insensitive names; the Verilog-AMS keyword list)."""
@@ -10,9 +10,9 @@ import re
 
 import pytest
 
-from netgen import cli
-from netgen.errors import ModelError, StructureError
+from netgen.core.errors import ModelError, StructureError
 from netgen.model import MacroModel
+from netgen.runtime import cli
 from netgen.structure import parse_structure
 from tests.fixtures import NETLISTS, ROOT
 

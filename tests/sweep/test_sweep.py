@@ -1,4 +1,4 @@
-"""Sweeps at scale: netgen.executor, capacitance sampling through it, `netgen sweep`.
+"""Sweeps at scale: netgen.runtime.executor, capacitance sampling through it, `netgen sweep`.
 
 Everything runs on a Dask LocalCluster of 2 worker processes (1 thread each) started here, with
 the real extractor and real ngspice runs; the references are independent serial computations:
@@ -26,14 +26,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netgen import cli
 from netgen import sweep as sw
 from netgen.electrostatics import extractor as structure_extractor
 from netgen.electrostatics import sampling
 from netgen.electrostatics.sampling import ChunkStore
-from netgen.executor import DaskExecutor, executor, restore_environ
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
+from netgen.runtime import cli
+from netgen.runtime.executor import DaskExecutor, executor, restore_environ
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.sweep.conftest import CYCLES, STRUCTURE, TS
@@ -254,7 +254,7 @@ std = "30 nm"
 
 
 def test_scheduler_errors_are_one_line_with_the_fix(monkeypatch, tmp_path, capsys):
-    from netgen.errors import ExecutorError
+    from netgen.core.errors import ExecutorError
 
     with pytest.raises(ExecutorError, match="positive integer"):
         executor("local:zero")

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import pytest
 
-from netgen import cli
-from netgen.sim.process import start_time
+from netgen.core.process import start_time
+from netgen.runtime import cli
 from netgen.sweep import load_sweep, plan, processes
 from netgen.sweep.folder import claim, identity
 from tests.fixtures import ROOT
@@ -130,7 +130,7 @@ def _start(sweep: Path, out: Path) -> subprocess.Popen:
         [
             sys.executable,
             "-m",
-            "netgen.cli",
+            "netgen.runtime.cli",
             "sweep",
             str(STRUCTURE),
             str(sweep),

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.constants import EPS0, G
+from netgen.core.constants import EPS0, G
 from netgen.emit import write_outputs
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd

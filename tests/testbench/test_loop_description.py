@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from netgen import cli
+from netgen.runtime import cli
 from netgen.testbench.sigma_delta import loopfile
 from tests.fixtures import ROOT
 

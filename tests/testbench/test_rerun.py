@@ -5,7 +5,7 @@ the run recorded in bitstreams.npz. The rerun's raw file is read with netgen.sim
 latch node b_<channel> sampled at the recorded clock instants (bitstreams.npz "time") against the
 mid level; netgen's runner and analysis are not on that path. Moving the folder first also shows
 that nothing the netlist loads is named by an absolute path into it (nor into the staging folder
-the run wrote it in, netgen.folders.OutputFolder).
+the run wrote it in, netgen.runtime.folders.OutputFolder).
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from netgen import cli
-from netgen.folders import STAGING
 from netgen.model import MacroModel
+from netgen.runtime import cli
+from netgen.runtime.folders import STAGING
 from netgen.sim import vacask as sim_vacask
 from netgen.sim.rawfile import read_raw
 from netgen.testbench.sigma_delta import vacask
@@ -107,7 +107,7 @@ def test_kept_netlist_reruns_by_hand_with_the_recorded_bits(simulator, release, 
 def test_a_failed_runs_netlist_reruns_in_its_failed_folder(compiled, tmp_path):
     """A run stopped by --timeout keeps its netlist in DIR/sigma-delta.failed/, where netgen's
     message says to reproduce it: VACASK runs it there to the end, the compiled models reached
-    through the kept link osdi -> ../osdi (netgen.folders.OutputFolder)."""
+    through the kept link osdi -> ../osdi (netgen.runtime.folders.OutputFolder)."""
     out = tmp_path / "run"
     shutil.copytree(compiled, out / "osdi")
     code = cli.main(

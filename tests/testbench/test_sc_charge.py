@@ -28,8 +28,8 @@ import pytest
 
 from netgen.model import MacroModel
 from netgen.sim import ngspice
-from tests import sc_readout as sc
 from tests.fixtures import using_ngspice
+from tests.oracles import sc_readout as sc
 
 CF = 1e-12
 PERIODS_CLAMPED = 25

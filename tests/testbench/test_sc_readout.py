@@ -5,11 +5,11 @@ the mass with a velocity that the loop takes ~20 periods to take out), the mass 
 bitstream's mean against the force balance.
 
 Reference: mean(bit) = (G a / d - F_bottom) / (F_top - F_bottom), F_i = 1/2 dC_i/dz V_fb^2 from the
-model JSON (netgen.model.MacroModel, tests/sc_readout.balance), d = 0.70 us / 2 us, V_fb = 0.9 V.
+model JSON (netgen.model.MacroModel, tests/oracles/sc_readout.balance), d = 0.70 us / 2 us, V_fb = 0.9 V.
 Tolerance: momentum over the N averaged periods gives exactly
   mean - balance = m (v_end - v_start) / (N d T_s (F_top - F_bottom))
 (plus the spring, k z / (d (F_top - F_bottom)) < 1e-4 here at |z| < 10 nm): the loop's velocity
-spread expressed in bit impulses (tests/sc_readout.bit_impulse), measured along the run as the
+spread expressed in bit impulses (tests/oracles/sc_readout.bit_impulse), measured along the run as the
 range of the per-period mean velocities, plus one bit for the per-period means against the
 instantaneous velocities at the window's ends, over N.
 Held: |z| below 20 nm (1 % of the 2 um gap) throughout; a point-mass model of this loop with its
@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from netgen.model import MacroModel
-from tests import sc_readout as sc
 from tests.fixtures import using_ngspice
+from tests.oracles import sc_readout as sc
 
 EACH = 45  # periods per DC input
 SETTLE = 20  # periods skipped after the start and after the input step

@@ -13,8 +13,8 @@ import time
 import numpy as np
 import pytest
 
-from netgen import cli
 from netgen.model import MacroModel
+from netgen.runtime import cli
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
 from tests.testbench.test_sigma_delta_latch import check_latches
@@ -140,7 +140,7 @@ def test_ngspice_39_is_refused_with_exit_3(tmp_path, monkeypatch, capsys):
 def test_the_node_cap_of_ngspice_44_is_refused(model, monkeypatch):
     """ngspice 44 caps an OSDI instance at 20 nodes (not installed here: its Version stands in):
     the 52-node disk is refused with the count and the alternatives."""
-    from netgen.errors import SimulatorNotFound
+    from netgen.core.errors import SimulatorNotFound
     from netgen.sim import ngspice as sim_ngspice
     from netgen.testbench.sigma_delta import osdi
 

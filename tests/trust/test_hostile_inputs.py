@@ -21,15 +21,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from netgen.core.errors import InputError, LoopError, ModelError, StructureError, SweepError
+from netgen.core.files import read_text
+from netgen.core.reader import Reader
+from netgen.core.text import is_identifier
 from netgen.emit import EMITTERS
-from netgen.errors import InputError, LoopError, ModelError, StructureError, SweepError
-from netgen.files import read_text
 from netgen.model import MacroModel
 from netgen.structure.parse import parse_structure
-from netgen.structure.reader import Reader
 from netgen.sweep.spec import parse_sweep
 from netgen.testbench.sigma_delta.loopfile import read_loop
-from netgen.text import is_identifier
 from tests.emit.test_injection import code, printable
 from tests.fixtures import ROOT
 from tests.trust.conftest import COUNTS
@@ -265,7 +265,7 @@ def test_hostile_paths(text):
 
 def test_output_folder_holds_nothing_of_a_refused_build(tmp_path):
     """A build refused for its input leaves no output folder and no staging folder (no mixed set)."""
-    from netgen import cli
+    from netgen.runtime import cli
 
     bad = tmp_path / "bad.toml"
     bad.write_text((ROOT / "examples/piston.toml").read_text().replace('gap = "2 um"', 'gap = "1 m"'))
@@ -282,7 +282,7 @@ def test_full_disk_leaves_no_staging(tmp_path, size, capsys):
     import os
     import subprocess
 
-    from netgen import cli
+    from netgen.runtime import cli
 
     mnt = tmp_path / "full"
     mnt.mkdir()

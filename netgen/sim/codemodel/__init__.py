@@ -37,9 +37,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ... import __version__
-from ...errors import CodeModelError, SimulationError
-from ...paths import spice_command
-from .. import process
+from ...core import process
+from ...core.errors import CodeModelError, SimulationError
+from ...core.paths import spice_command
 from ..ngspice import build_record, identity
 from . import source
 
@@ -150,7 +150,7 @@ def _check_ifs(library: Library) -> None:
 
 
 def _run(argv: list[str], cwd: Path, env: dict | None = None, timeout: float = 900.0) -> None:
-    """One build step (netgen.sim.process: with a wall-clock limit); a failure is a CodeModelError."""
+    """One build step (netgen.core.process: with a wall-clock limit); a failure is a CodeModelError."""
     try:
         done = process.run(argv, cwd, timeout, f"cd {cwd} && {' '.join(argv)}", env=env)
     except FileNotFoundError as exc:

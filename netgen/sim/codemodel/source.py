@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...errors import CodeModelError
+from ...core.errors import CodeModelError
 from . import aptsources
 
 ENV = "NETGEN_NGSPICE_SOURCE"

@@ -11,8 +11,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import signal
 
-from ...constants import K_B
-from ...errors import SimulationError
+from ...core.constants import K_B
+from ...core.errors import SimulationError
 from ...model import MacroModel
 from .loop import CLEAN_LATCH, Design, Tone, duty
 

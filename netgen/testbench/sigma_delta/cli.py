@@ -10,12 +10,12 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ...arguments import add_option, existing_file, output_folder
+from ...core.errors import SimulationError
+from ...core.options import OptionError
 from ...emit.paired import load_pair
-from ...errors import SimulationError
-from ...folders import OutputFolder
 from ...model import MacroModel
-from ...options import OptionError
+from ...runtime.arguments import add_option, existing_file, output_folder
+from ...runtime.folders import OutputFolder
 from ...structure import load_structure
 from .loop import Tone
 from .loopfile import read_loop_file, read_structure_loop

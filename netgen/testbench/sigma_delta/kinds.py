@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...options import OptionError
-from ...structure.reader import Reader, check_keys
+from ...core.options import OptionError
+from ...core.reader import Reader, check_keys
 from . import filters
 from .options import OPTIONS
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 from scipy import integrate, optimize
 
-from ...constants import G
+from ...core.constants import G
 from ...model import MacroModel
 from . import kinds
 from .balance import (
@@ -233,8 +233,8 @@ def channel_names(model: MacroModel, spec: LoopSpec, grad: np.ndarray | None = N
 
 
 def did_you_mean(value: str, choices: list[str]) -> str:
-    """'did you mean X? ' (netgen.files.did_you_mean)."""
-    from ...files import did_you_mean as near
+    """'did you mean X? ' (netgen.core.files.did_you_mean)."""
+    from ...core.files import did_you_mean as near
 
     return near(value, choices)
 

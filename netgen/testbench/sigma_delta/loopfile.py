@@ -35,12 +35,12 @@ import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from ...errors import LoopError
-from ...files import read_text, toml_document
-from ...options import OptionError
-from ...structure.reader import Reader, check_keys, choice
-from ...text import escape, is_identifier, text_problem
-from ...units import UnitError, parse_quantity
+from ...core.errors import LoopError
+from ...core.files import read_text, toml_document
+from ...core.options import OptionError
+from ...core.reader import Reader, check_keys, choice
+from ...core.text import escape, is_identifier, text_problem
+from ...core.units import UnitError, parse_quantity
 from .kinds import FILTERS
 from .options import OPTIONS
 from .signals import Timing, Tone

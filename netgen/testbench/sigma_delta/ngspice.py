@@ -15,15 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from ... import __version__
+from ...core.errors import CodeModelError
+from ...core.files import write_files_atomic
+from ...core.paths import spice_card
+from ...core.templating import render
 from ...emit import osdi, xspice
 from ...emit.common import check_names
-from ...errors import CodeModelError
-from ...files import write_files_atomic
 from ...model import MacroModel
-from ...paths import spice_card
 from ...sim import codemodel
 from ...sim.ngspice import run_control, same_build
-from ...templating import render
 from . import filters
 from .analysis import levitation, per_clock
 from .inputs import input_text, mechanical_inputs, tone_unit
@@ -111,10 +111,10 @@ def testbench(
     quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
     "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them);
     `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3; `folder`: the one it runs in
-    (the .include of a `lib` inside it relative, netgen.paths.spice_card)."""
+    (the .include of a `lib` inside it relative, netgen.core.paths.spice_card)."""
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
-    check_names(model)  # names outside comments; the paths below through netgen.paths
+    check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if loop != "xspice" and d.t.fb_ramp == 0:
         raise ValueError(
             f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "

@@ -1,4 +1,4 @@
-"""The sigma-delta loop's options, each declared once (netgen.options.Option): the `netgen
+"""The sigma-delta loop's options, each declared once (netgen.core.options.Option): the `netgen
 sigma-delta` flags, the [loop] keys and the sweep parameters of the same setting share one range
 and one check. The command line (cli.add_parser), the loop reader (loopfile), the loop filter's
 reader (kinds.read_lead2), the sweep file (netgen.sweep.spec) and the docs' option tables
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ...options import Option, OptionError, by_name, markdown_table, number
+from ...core.options import Option, OptionError, by_name, markdown_table, number
 
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (ngspice.run_segments)
 SEGMENT_S = 5e-4

@@ -18,11 +18,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ...core.errors import SimulatorNotFound
+from ...core.files import write_files_atomic
+from ...core.paths import spice_command
 from ...emit import osdi
-from ...errors import SimulatorNotFound
-from ...files import write_files_atomic
 from ...model import MacroModel
-from ...paths import spice_command
 from ...sim import ngspice as sim_ngspice
 from .vacask import blocks_source, compile_model
 

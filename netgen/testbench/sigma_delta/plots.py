@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...plots import plt, save
+from ...core.plots import plt, save
 
 
 def plot_spectra(summary: dict, path: Path, title: str) -> Path:

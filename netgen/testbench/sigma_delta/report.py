@@ -9,8 +9,8 @@ from __future__ import annotations
 import base64
 from pathlib import Path
 
-from ...files import write_atomic
-from ...templating import render
+from ...core.files import write_atomic
+from ...core.templating import render
 
 FIGURES = ("spectra.png", "coordinates.png")
 

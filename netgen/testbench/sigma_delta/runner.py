@@ -20,24 +20,24 @@ from pathlib import Path
 import numpy as np
 
 from ...build import build_key, build_model
+from ...core.errors import LoopError, SimulatorNotFound, StructureError
+from ...core.reader import Reader
 from ...emit import write_outputs
 from ...emit.osdi import target_cpu
-from ...errors import LoopError, SimulatorNotFound, StructureError
-from ...folders import MANIFEST, OutputFolder, check_manifest
 from ...model import MacroModel
+from ...runtime.folders import MANIFEST, OutputFolder, check_manifest
 from ...sim.ngspice import identity as ngspice_identity
 from ...sim.ngspice import version as ngspice_version
 from ...sim.vacask import stats as vacask_stats
 from ...sim.vacask import tools as vacask_tools
 from ...structure import Damping, load_structure
-from ...structure.reader import Reader
 from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Design, Tone, design
 from .loopfile import InputSpec, LoopSpec
 from .plots import plot_spectra, plot_states
 
-TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.sim.process)
+TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.core.process)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...options import number
+from ...core.options import number
 
 
 @dataclass(frozen=True)

@@ -19,14 +19,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from ... import __version__
+from ...core.paths import vacask_string
+from ...core.templating import render
 from ...emit import veriloga
 from ...emit.common import check_names
 from ...emit.osdi import GENERIC
 from ...model import MacroModel
-from ...paths import vacask_string
 from ...sim.rawfile import Plot
 from ...sim.vacask import compiled, print_progress, run_vacask
-from ...templating import render
 from . import filters
 from .inputs import input_text, mechanical_inputs, tone_unit
 from .loop import Design, Tone
@@ -164,8 +164,8 @@ def testbench(
     folder: Path | None = None,
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
-    `folder`, where it runs, for what lies inside it (netgen.paths.vacask_string), else absolute."""
-    check_names(model)  # names outside comments; the paths below through netgen.paths
+    `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute."""
+    check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]

@@ -1,6 +1,6 @@
-"""The `netgen` console command: installs the SIGINT/SIGTERM handlers (netgen.interrupts) before
-the heavy imports of netgen.cli (numpy, scipy, matplotlib: about 0.6 s), so a Ctrl-C or SIGTERM
-while they load is one line and exit 130 instead of a traceback; then runs netgen.cli.main, the
+"""The `netgen` console command: installs the SIGINT/SIGTERM handlers (netgen.runtime.interrupts) before
+the heavy imports of netgen.runtime.cli (numpy, scipy, matplotlib: about 0.6 s), so a Ctrl-C or SIGTERM
+while they load is one line and exit 130 instead of a traceback; then runs netgen.runtime.cli.main, the
 error boundary of every subcommand."""
 
 from __future__ import annotations

@@ -32,13 +32,12 @@ import uuid
 from collections.abc import Callable, Iterable, Iterator
 from concurrent import futures as cf
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .arguments import nonempty
-from .errors import ExecutorError
+from ..core.errors import ExecutorError
+from .interrupts import held
 
 DASK_INSTALL = "pip install 'netgen[dask]'  (or: pip install 'dask[distributed]')"
 SCHEDULER_HELP = (
@@ -61,35 +60,9 @@ class Outcome:
         return self.error is None
 
 
-_HELD: dict = {"depth": 0, "pending": None}  # main process: an interrupt held until a safe point
-
-
-@contextmanager
-def uninterrupted() -> Iterator[None]:
-    """A block that an interrupt honouring it (raise_or_hold) does not break: the pool's locks
-    and futures are never left half-taken; a held interrupt is raised when the block ends."""
-    _HELD["depth"] += 1
-    try:
-        yield
-    finally:
-        _HELD["depth"] -= 1
-        pending = _HELD["pending"]
-        if _HELD["depth"] == 0 and pending is not None:
-            _HELD["pending"] = None
-            raise pending
-
-
-def raise_or_hold(exc: BaseException) -> None:
-    """From a signal handler: raise `exc` now, or at the end of the current uninterrupted block."""
-    if _HELD["depth"] > 0:
-        _HELD["pending"] = exc
-        return
-    raise exc
-
-
 class WorkerStopped(BaseException):
     """A local worker process got SIGTERM or SIGINT: unwinds its task (whose `finally` blocks
-    kill the simulators it started, netgen.sim.process.run) and then the worker exits."""
+    kill the simulators it started, netgen.core.process.run) and then the worker exits."""
 
 
 _WORKER = {"local": False, "busy": False}  # per process: a ProcessExecutor worker? in a task?
@@ -235,7 +208,7 @@ def _finished(futs: dict) -> Iterator[Any]:
     that an interrupt is raised between them, never inside the futures' locks."""
     remaining = set(futs)
     while remaining:
-        with uninterrupted():
+        with held():
             done, remaining = cf.wait(remaining, timeout=0.25, return_when=cf.FIRST_COMPLETED)
         yield from done
 
@@ -337,7 +310,7 @@ class ProcessExecutor(Executor):
         attempts = dict.fromkeys(pending, 0)
         while pending:
             futs = {}
-            with uninterrupted():  # a signal never lands inside the pool's locks
+            with held():  # a signal never lands inside the pool's locks
                 pool = self.pool()
                 for i in sorted(pending):
                     attempts[i] += 1
@@ -356,7 +329,7 @@ class ProcessExecutor(Executor):
                     Outcome(value if status == "ok" else None, value if status == "error" else None, tb, attempts[i]),
                 )
             if lost:  # a worker died: new pool, resubmit its tasks
-                with uninterrupted():
+                with held():
                     self._pool.shutdown(wait=False, cancel_futures=True)
                     self._pool = None
                 for i in lost:
@@ -546,13 +519,3 @@ def planned_workers(spec: str | None) -> int | None:
     if kind == "serial":
         return 1
     return int(count) if count.isdigit() and int(count) > 0 else (os.cpu_count() or 1)
-
-
-def add_scheduler_option(parser: Any, what: str = "the tasks run (default: local processes)") -> None:
-    """The shared --scheduler option of the build and sweep commands."""
-    parser.add_argument(
-        "--scheduler",
-        metavar="SPEC",
-        type=nonempty("--scheduler", "processes:2"),
-        help=f"where {what}: {SCHEDULER_HELP}",
-    )

@@ -7,10 +7,10 @@ import re
 from collections.abc import Callable
 from typing import TypeGuard
 
-from ..errors import InputError, StructureError
-from ..files import did_you_mean
-from ..text import is_identifier, text_problem
-from ..units import SI_NAME, UnitError, example, parse_quantity
+from .errors import InputError, StructureError
+from .files import did_you_mean
+from .text import is_identifier, text_problem
+from .units import SI_NAME, UnitError, example, parse_quantity
 
 
 class Reader:
@@ -212,7 +212,7 @@ def identifier(name: object) -> TypeGuard[str]:
 
 
 def free_text(rd: Reader, where: str, value: object, what: str) -> str:
-    """A string that is printable free text (netgen.text.text_problem: no line breaks or other
+    """A string that is printable free text (netgen.core.text.text_problem: no line breaks or other
     control characters), since it is written into netlist headers; else the error with the fix."""
     problem = text_problem(value)
     if problem:

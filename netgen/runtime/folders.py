@@ -15,8 +15,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import DiskFullError, InputError
-from .files import umask, write_atomic
+from ..core.errors import DiskFullError, InputError
+from ..core.files import umask, write_atomic
 from .interrupts import check, held
 
 STAGING = ".netgen-staging-"
@@ -34,7 +34,7 @@ class OutputFolder:
     netgen did not write are never touched) and writes `<name>.manifest.json` naming the new set
     with the SHA-256 of each file. A run that ends without committing leaves the folder as it
     was; a failed one (not an interrupt) with `keep_failed` moves its files to `<name>.failed/`.
-    SIGINT/SIGTERM are held over the commit and the clean-up (netgen.interrupts.held), so an
+    SIGINT/SIGTERM are held over the commit and the clean-up (netgen.runtime.interrupts.held), so an
     interrupt never leaves a half-moved set or a staging folder. `shared`: sub-folders of
     `folder` the run reaches through `stage` (caches such as osdi/), linked, not staged.
     `legacy`: the names this set's files have, replaced or removed as its own when the folder
@@ -237,7 +237,7 @@ def manifest_files(manifest: Path) -> list[str]:
 
 def manifest_text(folder: Path, name: str, files: list[str], info: dict) -> str:
     """The manifest of a committed set: what wrote it, and each file with its SHA-256."""
-    from . import __version__
+    from .. import __version__
 
     doc = {
         "generator": f"netgen {__version__}",

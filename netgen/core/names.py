@@ -4,7 +4,7 @@ module they are meant to be. Checked when a structure file or model JSON is read
 fix); the emitters keep their own guard (netgen.emit.common.check_names,
 netgen.emit.veriloga.check_identifiers).
 
-A name must be an identifier (netgen.text.is_identifier) and, since SPICE is case-insensitive,
+A name must be an identifier (netgen.core.text.is_identifier) and, since SPICE is case-insensitive,
 differ case-insensitively from every other electrode, electrode set and port name, and not be
 - a ground name of ngspice or VACASK (0, gnd) or the plate port, case-insensitively;
 - a node the emitted subcircuit or a testbench derives from a coordinate, electrode or channel

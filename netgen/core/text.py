@@ -1,10 +1,10 @@
 """Text from input files as data, never code: the one definition of a printable free-text string
 and of a netlist name, and the comment writer every emitted netlist and Verilog-A file uses.
 
-Read time (netgen.structure.reader, netgen.model.validate, the import readers, the sweep file)
+Read time (netgen.core.reader, netgen.model.validate, the import readers, the sweep file)
 refuses names that are not identifiers and free text with control characters. Emit time
 (netgen.emit.common, the templates through the Jinja filters `comment` and `comment_text` that
-netgen.templating registers) writes any such text only inside comments: every line starts with
+netgen.core.templating registers) writes any such text only inside comments: every line starts with
 the comment marker and a space, line breaks of any kind start a new comment line, other control
 characters are written as escapes (\\x00, \\u2028), and for the C-like markers (Verilog-A,
 VACASK: //) backticks, /* and */ are made inert. So even text that skipped validation cannot end a
@@ -68,7 +68,7 @@ def escape(text: str) -> str:
 
 
 def shown(value: object, limit: int = 60) -> str:
-    """`value` for an error message: its repr, escaped (netgen.text.escape) and cut at `limit` characters."""
+    """`value` for an error message: its repr, escaped (netgen.core.text.escape) and cut at `limit` characters."""
     text = escape(repr(value))
     return text if len(text) <= limit else text[: limit - 3] + "..."
 

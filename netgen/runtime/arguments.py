@@ -12,8 +12,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from ..core.options import Option, OptionError, as_written
+from . import executor
 from .interrupts import held
-from .options import Option, OptionError, as_written
 
 # file systems a run folder can never be on: kernel views and device nodes, not storage
 VIRTUAL = {
@@ -36,6 +37,10 @@ VIRTUAL = {
     "autofs",
     "efivarfs",
 }
+
+
+# the error an argparse type raises, for the commands' own option types (only the runtime imports argparse)
+ArgumentTypeError = argparse.ArgumentTypeError
 
 
 def number(text: str) -> float:
@@ -191,7 +196,7 @@ def nonempty(what: str, example: str) -> Callable[[str], str]:
 
 
 def option_type(option: Option) -> Callable[[str], object]:
-    """The argparse `type=` of a declared option: its own check (netgen.options.Option.read), so
+    """The argparse `type=` of a declared option: its own check (netgen.core.options.Option.read), so
     the flag gets the verdict and message its file keys get."""
 
     def check(text: str) -> object:
@@ -220,3 +225,15 @@ def add_option(parser: argparse.ArgumentParser, option: Option, **extra) -> None
             kwargs["type"] = str  # argparse's choices message; the cross check runs where the context is known
     assert option.flag is not None, f"option {option.name} has no command-line flag"
     parser.add_argument(option.flag, **(kwargs | extra))
+
+
+def add_scheduler_option(
+    parser: argparse.ArgumentParser, what: str = "the tasks run (default: local processes)"
+) -> None:
+    """The shared --scheduler option of the build and sweep commands."""
+    parser.add_argument(
+        "--scheduler",
+        metavar="SPEC",
+        type=nonempty("--scheduler", "processes:2"),
+        help=f"where {what}: {executor.SCHEDULER_HELP}",
+    )

@@ -14,7 +14,7 @@ import numpy as np
 from netgen.model import MacroModel
 from netgen.sim import ngspice
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
 MODEL_LIB = ROOT / "netlists/accelerometer_z/accelerometer_z.lib"
 MODEL_JSON = ROOT / "netlists/accelerometer_z/accelerometer_z.json"

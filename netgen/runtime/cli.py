@@ -1,5 +1,5 @@
 """Command line: `netgen build STRUCTURE.toml -o DIR` and friends. Errors exit with the code of
-their class (netgen.errors: 2 bad input, 3 missing tool, 1 failed run), never a traceback: an
+their class (netgen.core.errors: 2 bad input, 3 missing tool, 1 failed run), never a traceback: an
 interrupt (SIGINT or SIGTERM) is 130, anything unexpected 70 with its traceback in a crash log."""
 
 from __future__ import annotations
@@ -14,20 +14,20 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from .arguments import Parser, existing_file, output_folder, positive
-from .build import build, figure_names, write_calibration, write_figures
-from .emit import EMITTERS, compiles, osdi, refusal, report, requested, write_outputs
-from .errors import InputError, NetgenError, StructureError
-from .executor import add_scheduler_option, executor
+from .. import __version__
+from ..build import build, figure_names, write_calibration, write_figures
+from ..core.errors import InputError, NetgenError, StructureError
+from ..emit import EMITTERS, compiles, osdi, refusal, report, requested, write_outputs
+from ..model import FIT_FIX
+from ..sim import SIMULATORS, codemodel, netlist_text, ngspice
+from ..structure import load_structure
+from ..sweep import cli as sweep_cli
+from ..testbench import TESTBENCHES
+from ..testbench.sigma_delta.ngspice import LOOP_LIBRARY
+from .arguments import Parser, add_scheduler_option, existing_file, output_folder, positive
+from .executor import executor
 from .folders import OutputFolder
 from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
-from .model import FIT_FIX
-from .sim import SIMULATORS, codemodel, netlist_text, ngspice
-from .structure import load_structure
-from .sweep import cli as sweep_cli
-from .testbench import TESTBENCHES
-from .testbench.sigma_delta.ngspice import LOOP_LIBRARY
 
 TIMEOUT_MAX = 1e7  # s (116 days): a limit, not a typo of one
 
@@ -240,7 +240,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """The one error boundary of every subcommand (the `netgen` command runs it through
-    netgen.entry): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
+    netgen.runtime.entry): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
     anything else exit 70 with the traceback in a crash log next to the output."""
     previous = install()
     args = None
@@ -274,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def report_interrupt(exc: KeyboardInterrupt) -> int:
     """One line for a run stopped by SIGINT or SIGTERM (the stage's own line where it cleaned up
-    and said what is left, netgen.interrupts.Interrupted.message); exit 130."""
+    and said what is left, netgen.runtime.interrupts.Interrupted.message); exit 130."""
     message = getattr(exc, "message", None)
     if message:
         print(f"netgen: {message}", file=sys.stderr)

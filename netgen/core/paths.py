@@ -37,7 +37,7 @@ FIX = (
 def placed(path: str | os.PathLike[str], folder: str | Path | None = None) -> str:
     """The text of `path` as the simulator should see it: relative to `folder` (where the
     netlist runs; links not followed, e.g. a staging folder's osdi -> ../osdi,
-    netgen.folders.OutputFolder) when it lies inside it, so the kept netlist reruns from the
+    netgen.runtime.folders.OutputFolder) when it lies inside it, so the kept netlist reruns from the
     folder the run is moved to; otherwise absolute (symlinks resolved)."""
     if folder is None:
         return str(path)

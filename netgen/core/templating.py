@@ -14,7 +14,7 @@ from .text import comment_lines, comment_text
 def environment() -> jinja2.Environment:
     """Strict environment: an undefined template variable is an error, never an empty string.
     Text from input files goes through the filters `comment(marker)` (comment lines) and
-    `comment_text(marker)` (inside a comment line): netgen.text."""
+    `comment_text(marker)` (inside a comment line): netgen.core.text."""
     loader = jinja2.FunctionLoader(_load)
     env = jinja2.Environment(
         loader=loader, undefined=jinja2.StrictUndefined, keep_trailing_newline=True, autoescape=False

@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import SimulationError
+from .errors import SimulationError
 
 
 @dataclass

@@ -2,7 +2,7 @@
 ends, default, help) and where a user writes it (command-line flag, [loop] key, sweep parameter);
 its `read` is the one check the command line, the file readers and the sweep all apply, so a value
 gets the same verdict and the same message wherever it is written (only the name differs: the flag
-or the key as the user wrote it). The argparse arguments (netgen.arguments.add_option), the
+or the key as the user wrote it). The argparse arguments (netgen.runtime.arguments.add_option), the
 readers' checks and the docs' option tables (markdown_table) are derived from the declarations.
 
 Imports nothing of netgen but errors and units (no argparse, no stage).
