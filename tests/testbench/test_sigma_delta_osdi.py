@@ -18,7 +18,7 @@ from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
 from tests.testbench.test_sigma_delta_latch import check_latches
-from tests.testbench.test_sigma_delta_vacask import replay
+from tests.testbench.test_sigma_delta_vacask import bit_means_and_bound, replay
 
 CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
@@ -92,15 +92,18 @@ def test_mechanics_match_an_independent_integration(osdi_run, model):
         assert err < (0.03 if c.name == "z" else 0.015), c.name
 
 
-def test_agrees_with_vacask(osdi_run, vacask_run):
-    """The same modules in two simulators, after settling: z bit density within 0.04, mean height
-    within 10 %, tilt excursions of the same size (ratio 1/3..3): the tolerances of the
-    VACASK-ngspice comparison (tests/testbench/test_sigma_delta_vacask.py, which says why)."""
+def test_agrees_with_vacask(osdi_run, vacask_run, model):
+    """The same modules in two simulators, after settling: z bit density within what the two
+    momentum balances allow (bit_means_and_bound of tests/testbench/test_sigma_delta_vacask.py,
+    ~0.013), mean height within 10 %, tilt excursions of the same size (ratio 1/3..3): the
+    tolerances of the VACASK-ngspice comparison (tests/testbench/test_sigma_delta_vacask.py, which says why)."""
     a, b = osdi_run["clock"], vacask_run["clock"]
     same = np.all([a[f"bits_{c}"] == b[f"bits_{c}"] for c in CHANNELS], axis=0)
     print(f"bits identical for the first {int(np.argmin(same)) if not same.all() else CYCLES} clocks")
     window = slice(SKIP, CYCLES - 2)
-    assert a["bits_z"][window].mean() == pytest.approx(b["bits_z"][window].mean(), abs=0.04)
+    (za, zb), bound = bit_means_and_bound(model, [a, b], SKIP, CYCLES)
+    print(f"z bit mean: ngspice-osdi {za:.4f}, VACASK {zb:.4f} (bound {bound:.4f})")
+    assert abs(za - zb) < bound
     assert a["x_z"][window].mean() == pytest.approx(b["x_z"][window].mean(), rel=0.10)
     for c in ("tilt_x", "tilt_y"):
         ratio = np.ptp(a[f"x_{c}"][window]) / np.ptp(b[f"x_{c}"][window])
