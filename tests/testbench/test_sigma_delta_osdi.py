@@ -54,13 +54,24 @@ def vacask_run(model, tmp_path_factory) -> dict:
 
 def test_plate_levitates_and_balances_gravity(osdi_run, model):
     """z within 0.3 % of the gap, tilts and modes within 1 % of touch; the mean feedback force
-    equals m g within 1 %; one ngspice segment, every electrode corner a time point."""
+    equals m g within trtol x reltol + 2 |mean z| / gap: the momentum balance
+    (netgen.testbench.sigma_delta.gravity_balance) takes the forces of the bits from the model's
+    table at rest, while ngspice holds each feedback impulse to its LTE limit trtol x reltol =
+    7 x 1e-3 of the velocity change it integrates (the same relative error for both bit signs: the
+    electrodes of +1 and -1 are mirror images) and the force at the mean height differs from the
+    table's by 2 z / gap (parallel plate, 1 / (g - z)^2). Measured ratio 1 - 1.6e-3 (bound 7.2e-3,
+    was 1 %). One ngspice segment, every electrode corner a time point."""
     coords = osdi_run["coordinates"]
     for c in model.coordinates:
         touch = c.scale / c.port_units[1]
         limit = 0.003 if c.name == "z" else 0.01
         assert max(abs(coords[c.name]["min"]), abs(coords[c.name]["max"])) < limit * touch, c.name
-    assert osdi_run["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    balance = osdi_run["gravity_balance"]
+    gap = min(e.gap for e in model.electrodes)
+    a, b = balance["window"]
+    mean_z = abs(np.mean(osdi_run["clock"]["x_z"][a : b + 1])) * 1e-6  # x_z port: 1 V = 1 um
+    print(f"gravity balance ratio {balance['ratio']:.5f}, mean z / gap {mean_z / gap:.2e}")
+    assert balance["ratio"] == pytest.approx(1.0, abs=7 * 1e-3 + 2 * mean_z / gap)
     assert 0.3 < osdi_run["channels"]["z"]["bit_mean"] < 0.7
     assert osdi_run["segments"]["ngspice_runs"] == 1 and osdi_run["ngspice"]["version"] == "ngspice-46"
     assert osdi_run["breakpoints"]["periods_with_a_missed_corner"] == 0
