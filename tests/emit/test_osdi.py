@@ -4,8 +4,9 @@ instance at 20 nodes, so the disk's 52 need 45 or later), against independent re
 
 - what `--format osdi` writes: the .va netgen.emit.veriloga renders, a loadable .osdi, the
   _osdi.lib with the .lib's header, ports and states;
-- transient: every coordinate against scipy's solve_ivp of the same equations, and against the
-  B-source .lib in the same ngspice within 0.5 % of each coordinate's peak;
+- transient: every coordinate against scipy's solve_ivp of the same equations (within the
+  trapezoidal phase lag plus the corner error), and against the B-source .lib in the same
+  ngspice (within the corner error of each);
 - DC operating point: against scipy's fsolve of the static equilibrium;
 - floating plate: the plate potential is the charge-conservation value;
 - portability: the module compiled for the x86-64 baseline and for this CPU give the same
@@ -34,6 +35,8 @@ NETLISTS = ROOT / "netlists"
 LIB = NETLISTS / "levitated_disk.lib"
 # generic vs native compiles of one module (test_generic_and_native_modules_give_the_same_transient)
 BOUND = 1e-9
+# the transient's error at the pulse corners at 10x the bench's reltol (test_transient_matches_scipy_and_the_b_source_lib)
+CORNERS = 7.1e-4
 
 
 @pytest.fixture(scope="module")
@@ -116,8 +119,23 @@ def test_subcircuit_has_the_lib_s_ports_header_and_usage(model):
 
 def test_transient_matches_scipy_and_the_b_source_lib(model, built, ngspice46, tmp_path):
     """The .lib tests' transient (1 MHz pulses on four electrodes plus gravity, 105 us) through
-    OSDI: every coordinate within 1 % of its peak of solve_ivp, and within 0.5 % of the B-source
-    .lib's run in the same ngspice (measured 2.9e-3 and 2.9e-3 at reltol 1e-5)."""
+    OSDI: every coordinate within PHASE_LAG + CORNERS of its peak of solve_ivp, and within
+    2 CORNERS of the B-source .lib's run in the same ngspice.
+
+    The error has two parts (bench/osdi_transient_error.py, max over the coordinates, OSDI / .lib):
+    - PHASE_LAG: the trapezoidal rule turns an undamped mode w by w^3 h^3 / 12 per step h, so with
+      every step <= the 10 ns cap the phase lag after T = 105 us is at most w^3 h^2 T / 12 of its
+      amplitude: 2.5e-3 for the 225 kHz (3,0) modes. Measured 1.0e-3 / 1.0e-3 at reltol 1e-7
+      (where the rest vanishes: OSDI - .lib 2.8e-5), 2.6e-4 at a 5 ns cap (h^2).
+    - CORNERS: the impulse error at the pulse corners, where ngspice restarts small steps and lets
+      them grow back to the cap as fast as trtol x reltol allows (the trapezoid's global error at
+      LTE-controlled steps, ~tol^(2/3)): above the phase lag, 6e-5 / 6e-5, 2.3e-4 / 3.2e-4 and
+      5.8e-4 / 7.1e-4 at reltol 1e-6, 1e-5, 1e-4; unchanged (to 3 digits, same time points) by a
+      1e-12 relative change of an electrode voltage, i.e. another CPU's rounding. CORNERS = 7.1e-4
+      is the larger form's error at 10x the bench's reltol 1e-5, which no rounding difference can
+      reach; each run has its own, so 2 CORNERS bounds OSDI - .lib (the phase lag is shared at the
+      same step cap).
+    Measured at reltol 1e-5: 1.23e-3 of the peak against solve_ivp, 2.2e-4 against the .lib."""
     drive = transient_drive()
     gravity = -model.coordinates[0].mass * 9.81
     stop = 105e-6
@@ -137,11 +155,16 @@ def test_transient_matches_scipy_and_the_b_source_lib(model, built, ngspice46, t
     f_ext[0] = gravity
     ref = reference_transient(model, drive, f_ext, t, stop)
     t_lib, x_lib = runs["lib"]
+    omega = max(np.sqrt(c.stiffness / c.mass) for c in model.coordinates)  # the (3,0) modes: 2 pi 225 kHz
+    phase_lag = omega**3 * 10e-9**2 * stop / 12
     for v, c in enumerate(model.coordinates):
         peak = np.abs(ref[:, v]).max()
         assert peak > 0, c.name
-        assert np.abs(x[:, v] - ref[:, v]).max() < 0.01 * peak, c.name
-        assert np.abs(np.interp(t_lib, t, x[:, v]) - x_lib[:, v]).max() < 0.005 * peak, c.name
+        err_ref = np.abs(x[:, v] - ref[:, v]).max() / peak
+        err_lib = np.abs(np.interp(t_lib, t, x[:, v]) - x_lib[:, v]).max() / peak
+        print(f"{c.name}: OSDI - solve_ivp {err_ref:.2e}, OSDI - .lib {err_lib:.2e} of the peak")
+        assert err_ref < phase_lag + CORNERS, c.name
+        assert err_lib < 2 * CORNERS, c.name
 
 
 def test_dc_operating_point_is_the_static_equilibrium(model, built, ngspice46, tmp_path):

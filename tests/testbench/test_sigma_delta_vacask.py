@@ -168,6 +168,36 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndar
     return out / np.array([c.port_units[1] for c in model.coordinates])
 
 
+def bit_means_and_bound(model: MacroModel, clocks: list[dict], skip: int, cycles: int) -> tuple[list[float], float]:
+    """The z bit means (bits +-1) of several runs of one loop over the clocks skip..cycles - 2 with
+    netgen.testbench.sigma_delta.gravity_balance's weights (the end samples count half), and the
+    largest difference between them that two momentum balances within 1 % allow.
+
+    Per run the balance is mean force = ratio (m g + I), with I = m (v_b - v_a) / (t_b - t_a) the
+    run's own inertial term over the window, and mean force = F_fs * bit mean + sense force +
+    duty * (the z force's dependence on the tilt bits, <= max_p |f_p - F_fs / duty| per sample).
+    With |ratio - 1| <= 0.01 (asserted here, on this window) two runs' bit means differ by at most
+    (0.01 (2 m g + |I_1| + |I_2|) + |I_1 - I_2| + 2 duty max_p |f_p - F_fs / duty|) / F_fs: 0.010
+    from the balances (m g / F_fs = 0.50), ~1e-3 from the inertial terms, 1.7e-3 from the tilt bits."""
+    d = sd.design(model, TS)
+    ch = d.channels[d.balance["index"]]
+    full, mg, unit = ch["full_scale_force_si"], -d.balance["dc_force_n"], ch["force_unit_si"]
+    spread = max(abs(abs(r["f"][d.balance["channel"]] * unit) - full / d.duty) for r in d.table)
+    means, inertia = [], []
+    for clock in clocks:
+        cut = {k: np.asarray(v)[:cycles] for k, v in clock.items()}
+        balance = sd.gravity_balance(cut, d, skip)
+        assert balance["ratio"] == pytest.approx(1.0, abs=0.01)
+        a, b = balance["window"]
+        w = np.ones(b - a + 1)
+        w[[0, -1]] = 0.5
+        means.append(float(np.dot(w, cut["bits_z"][a : b + 1]) / (b - a)))
+        inertia.append(balance["inertial_n"])
+    i1, i2 = inertia[0], inertia[1]
+    bound = (0.01 * (2 * mg + abs(i1) + abs(i2)) + abs(i1 - i2) + 2 * d.duty * spread) / full
+    return means, bound
+
+
 def test_mechanics_match_an_independent_integration(vacask, model):
     """The first 48 clocks: tilts and modes within 1.5 % of their peak (measured <= 0.8 %), z within
     6 % (measured 3.5 %). z is the small residual of a nearly balanced force (the plate hovers
@@ -197,7 +227,8 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
     loop. So:
     - both benches' mechanics equal the independent integration of their own bits (48 clocks;
       tilts and modes within 1.5 % of their peak, z within 6 %, as for VACASK above);
-    - after settling: the same z bit density within 0.04 (2.5 bit flips in 126 clocks), the same
+    - after settling: the same z bit density within what the two momentum balances allow
+      (bit_means_and_bound: 0.013, 0.8 bit flips in 126 clocks; measured 0), the same
       mean height (the set point where the readout offset of the asymmetric electrode fits is
       nulled) within 10 %, both balancing gravity within 1 %, tilt excursions of the same size
       (ratio 1/3..3; measured 0.7..1.8 over runs: the excursion of a chaotic loop over 126 clocks,
@@ -213,9 +244,9 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
     same = np.all([a[f"bits_{c}"][:NG_CYCLES] == b[f"bits_{c}"] for c in CHANNELS], axis=0)
     print(f"bits identical for the first {int(np.argmin(same)) if not same.all() else NG_CYCLES} clocks")
     window = slice(NG_SKIP, NG_CYCLES - 2)
-    za, zb = a["bits_z"][window].mean(), b["bits_z"][window].mean()
-    print(f"z bit mean: VACASK {za:.4f}, ngspice {zb:.4f}")
-    assert za == pytest.approx(zb, abs=0.04)
+    (za, zb), bound = bit_means_and_bound(model, [a, b], NG_SKIP, NG_CYCLES)
+    print(f"z bit mean: VACASK {za:.4f}, ngspice {zb:.4f} (bound {bound:.4f})")
+    assert abs(za - zb) < bound
     assert vacask["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
     assert ngspice["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
     ma, mb = a["x_z"][window].mean(), b["x_z"][window].mean()
