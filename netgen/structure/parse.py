@@ -42,7 +42,6 @@ from .schema import (
     ElectrostaticsOptions,
     FitOptions,
     Imports,
-    Process,
     Sampling,
     Structure,
     default_design,
@@ -63,7 +62,6 @@ TOP_KEYS = [
     "damping",
     "import",
     "loop",
-    "process",
 ]  # [loop]: the sigma-delta testbench's (loopfile)
 DAMPING_KEYS = [
     "q_factor",
@@ -145,7 +143,6 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
         damping=read_damping(rd, doc, conductor.coordinate_names(coords), getattr(conductor, "sprung_rigid", False)),
         imports=read_imports(rd, doc),
         warnings=warnings,
-        process=read_process(rd, doc),
     )
 
 
@@ -478,23 +475,6 @@ def read_damping(rd: Reader, doc: dict, names: list[str] | None, sprung: bool = 
             "highest frequency the compressible film network must reproduce (0: auto)",
         ),
     )
-
-
-def read_process(rd: Reader, doc: dict) -> Process:
-    """The optional [process] table: the modulus' temperature coefficient (1/K)."""
-    t = table(rd, doc, "process", required=False)
-    check_keys(rd, "process", t, ["modulus_tc"])
-    tc = quantity(
-        rd,
-        t,
-        "process",
-        "modulus_tc",
-        "dimensionless",
-        Process.modulus_tc,
-        lambda v: None if abs(v) < 1e-3 else "is not a modulus temperature coefficient (|tc| < 1e-3 per K)",
-        "d ln E / dT in 1/K (silicon -60e-6)",
-    )
-    return Process(tc)
 
 
 # ---------------------------------------------------------------- [import]

@@ -192,13 +192,6 @@ class Damping:
 
 
 @dataclass(frozen=True)
-class Process:
-    """[process]: material data behind the process instance parameters (netgen.model.process)."""
-
-    modulus_tc: float = -60e-6  # 1/K, d ln E / dT of the device layer (silicon about -60 ppm/K)
-
-
-@dataclass(frozen=True)
 class Imports:
     """[import]: data from an external FEM and/or field solver (netgen.mechanics.imported,
     netgen.electrostatics.imported), paths resolved against the structure file's folder.
@@ -228,7 +221,6 @@ class Structure:
     damping: Damping | None = None
     imports: Imports | None = None  # [import]: mechanics and/or capacitances from external tools
     warnings: tuple[str, ...] = ()  # model assumptions near their limits (netgen.structure.validity)
-    process: Process = field(default_factory=Process)  # [process]: modulus temperature coefficient
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]
