@@ -423,7 +423,7 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
         ]
     )
     assert code == 0
-    folder = sd_runner.model_folder(out, True, 100.0, None, True)
+    folder = sd_runner.model_folder(out, sd_runner.BuildOptions(True, 100.0, None, True))
     assert "TRNOISE(" in (folder / "levitated_disk.lib").read_text()
     summary = json.loads((out / "summary.json").read_text())
     th = summary["thermal_noise"]
@@ -442,10 +442,10 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     [
         (["--noise", "--simulator", "vacask"], "--noise needs --simulator ngspice"),
         (["--pressure", "1 psi"], "not a pressure unit"),
-        (["--pressure", "-5"], "must be a positive, finite pressure"),
-        (["--dither", "-0.1"], "--dither -0.1 must be between 0"),
-        (["--segment", "8"], "argument --segment: 8: periods per segment must be between 16"),
-        (["--reltol", "0.5"], "--reltol 0.5 is outside 1e-7..1e-2"),
+        (["--pressure", "-5"], "--pressure = '-5' is outside (0, inf) Pa"),
+        (["--dither", "-0.1"], "--dither = '-0.1' is outside [0, 1]"),
+        (["--segment", "8"], "--segment = 8 is not between 16 and 16777216"),
+        (["--reltol", "0.5"], "--reltol = '0.5' is outside [1e-07, 0.01]"),
     ],
 )
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
