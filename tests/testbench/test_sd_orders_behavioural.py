@@ -50,7 +50,7 @@ def loop_design(model, tmp_path: Path, kind: str, order: int):
     with the feedback ramps these back ends render (step=False, as runner.run designs for them)."""
     p = tmp_path / "loop.toml"
     p.write_text(LOOP.format(kind=kind, order=order), encoding="utf-8")
-    return sd.design(model, TS, spec=loopfile.read_loop_file(p), reltol=RELTOL, step=False), p
+    return sd.design(model, TS, sd.Choices(reltol=RELTOL), spec=loopfile.read_loop_file(p), step=False), p
 
 
 def first_difference(a: np.ndarray, b: np.ndarray) -> int:

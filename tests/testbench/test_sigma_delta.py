@@ -250,7 +250,9 @@ def test_a_segmented_run_stops_after_the_segment_that_lost_the_plate(model, tmp_
     """V_fb designed for a z bit density of 2 (impossible: all-up bits give m g / 2) lets the plate
     fall at g / 2 from the start: it leaves 2 % of the gap after sqrt(4 * 0.02 gap / g) (156 us,
     kinematics). The run stops after the segment in which that happens, and says so."""
-    d = sd.design(model, TS, density=2.0, balance_check=False, step=False)  # (design() refuses it otherwise)
+    d = sd.design(
+        model, TS, sd.Choices(density=2.0), balance_check=False, step=False
+    )  # (design() refuses it otherwise)
     s = sd.run(
         model,
         ROOT / "netlists" / "levitated_disk.lib",
