@@ -168,7 +168,7 @@ def run_circuit(args, order: int) -> dict:
     )  # uN on f_z
     start = time.perf_counter()
     clock, breakpoints, segments = ngspice.run_segments(
-        model, d, lib, out, args.cycles, tone, False, args.segment, control, "xspice"
+        model, d, lib, out, args.cycles, tone, False, ngspice.Settings("xspice", control, segment=args.segment)
     )
     wall = time.perf_counter() - start
     v = clock[f"bits_{name}"].astype(float)

@@ -74,7 +74,9 @@ def test_the_behavioural_loop_runs_the_state_space_filter(model, tmp_path, relea
     f = filters.Filter.from_dict(d.channels[0]["filter"])
     states = [f"u{j}_z" for j in range(f.states)]
     with using_ngspice(release):
-        net = ngspice.testbench(m, d, lib.resolve(), PERIODS, "sigma_delta.raw", states=states + ["cur_z"])
+        net = ngspice.testbench(
+            m, d, lib.resolve(), PERIODS, "sigma_delta.raw", segment=ngspice.Segment(states=states + ["cur_z"])
+        )
         plot = ngspice.simulate(net, tmp_path, TS * PERIODS, False)
     t = np.asarray(plot["time"])
     at = (np.arange(PERIODS) + d.t.clk) * TS  # the latch: cur and u held

@@ -215,12 +215,15 @@ def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_pa
     d = sd.design(model, TS)
     states = sdn.state_nodes(lib, model, d)
     first = sdn.simulate(
-        sdn.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a", 24 * TS, False
+        sdn.testbench(model, d, lib, 24, "sigma_delta.raw", segment=sdn.Segment(states=states)),
+        tmp_path / "a",
+        24 * TS,
+        False,
     )
     ic = {n: float(first[f"v({n})"][-1]) for n in states}
     assert max(abs(v) for v in ic.values()) > 1e-4  # a state worth restarting from
     second = sdn.simulate(
-        sdn.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
+        sdn.testbench(model, d, lib, 2, "sigma_delta.raw", segment=sdn.Segment(24, ic, states)),
         tmp_path / "b",
         2 * TS,
         False,

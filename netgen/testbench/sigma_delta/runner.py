@@ -83,9 +83,8 @@ def _run_ngspice(
         segment = 0  # one run: .ic cannot reach the module's states (osdi.py)
     else:
         klu = ngspice_version().klu
-    clock, breakpoints, segments = ngspice.run_segments(
-        model, d, lib, out, cycles, tone, progress, segment, control, loop, klu, timeout=state.get("timeout", TIMEOUT)
-    )
+    settings = ngspice.Settings(loop, control, klu, segment=segment, timeout=state.get("timeout", TIMEOUT))
+    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, settings)
     return clock, {
         "breakpoints": breakpoints,
         "segments": segments,
