@@ -43,7 +43,12 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
     # generic x86-64: valgrind 3.19 stops at the AVX-512 instructions openvaf-r's default (native) emits here
     control += osdi_control(model, variant, loop, folder / "osdi", cpu="generic")
     net = sdn.testbench(
-        model, sd.design(model, 1e-6), folder / "model.lib", cycles, "bench.raw", chunks=1, control=control, loop=loop
+        model,
+        sd.design(model, 1e-6),
+        folder / "model.lib",
+        cycles,
+        "bench.raw",
+        settings=sdn.Settings(loop, control, chunks=1),
     )
     (folder / "bench.cir").write_text(net.replace("write bench.raw", "rusage all\nwrite bench.raw"))
     with open(folder / "bench.log", "w") as log:  # ngspice -b may exit 1 after a complete run

@@ -195,7 +195,7 @@ def run_once(
     lib = workdir / "model.lib"
     lib.write_text(lib_text)
     d = sd.design(model, ts)
-    net = sdn.testbench(model, d, lib, cycles, "bench.raw", chunks=1, control=control, loop=loop)
+    net = sdn.testbench(model, d, lib, cycles, "bench.raw", settings=sdn.Settings(loop, control, chunks=1))
     net = net.replace("write bench.raw", "rusage all\nwrite bench.raw")
     if solver == "klu":
         net = net.replace("\n.control\n", "\n.options klu\n.control\n", 1)

@@ -63,10 +63,8 @@ def run(args) -> dict:
         args.cycles,
         "sigma_delta.raw",
         tone,
-        states=nodes,
-        control=control,
-        loop="xspice",
-        chunks=1,
+        ngspice.Settings("xspice", control, chunks=1),
+        ngspice.Segment(states=nodes),
     )
     plot = ngspice.simulate(net, out, d.ts * args.cycles, False)
     t = np.asarray(plot["time"])

@@ -38,6 +38,7 @@ from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import (
+    Choices,
     Tone,
     analysis,
     design,
@@ -86,7 +87,7 @@ def setup(
         spec = replace(spec, filter=table)
     if fb_edge is not None or (order > 2 and not model_path.endswith(".toml")):
         spec = replace(spec, timing={**spec.timing, "fb_edge": 0.0 if fb_edge is None else fb_edge})
-    d = design(model, ts, reltol=reltol, spec=spec)
+    d = design(model, ts, Choices(reltol=reltol), spec=spec)
     ch = d.channels[0]
     if order > 2 and not model_path.endswith(".toml"):
         ch["filter"], ch["dither_v"] = FILTERS["cifb"].design(model, d, ch, table), 0.0
@@ -167,7 +168,7 @@ def run_circuit(args, order: int) -> dict:
     )  # uN on f_z
     start = time.perf_counter()
     clock, breakpoints, segments = ngspice.run_segments(
-        model, d, lib, out, args.cycles, tone, False, args.segment, control, "xspice"
+        model, d, lib, out, args.cycles, tone, False, ngspice.Settings("xspice", control, segment=args.segment)
     )
     wall = time.perf_counter() - start
     v = clock[f"bits_{name}"].astype(float)

@@ -24,10 +24,10 @@ from ..structure import Structure
 from .capacitance import (
     PATCH_GRIDS,
     CapacitanceFit,
+    FitData,
     check_determined,
     fit_electrode,
     refuse_unphysical,
-    rest_of,
     with_errors,
 )
 
@@ -170,20 +170,7 @@ def fit_round(
     fits: list[CapacitanceFit | None] = list(previous) if previous else [None] * len(shapes)
     used = list(used)
     for i in which:
-        fit, used[i] = fit_electrode(
-            s,
-            shapes[i],
-            shapes[i].name,
-            basis,
-            scales,
-            train.x,
-            train.c[:, i],
-            check.x,
-            check.c[:, i],
-            used[i],
-            OVERSAMPLE,
-            rest_of(train, i),
-        )
+        fit, used[i] = fit_electrode(s, shapes[i], basis, scales, FitData.of(train, check, i), used[i], OVERSAMPLE)
         fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])
     done = [f for f in fits if f is not None]
     assert len(done) == len(fits)  # the first round (no previous fits) refits every electrode

@@ -170,25 +170,31 @@ def fit_plates(
 PATCH_GRIDS = [(1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5)]
 
 
+@dataclass(frozen=True)
+class FitData:
+    """One electrode's samples for its fit: training (x, c), held out (x_check, c_check), and its
+    value and gradient at rest (rest_of)."""
+
+    x: np.ndarray
+    c: np.ndarray
+    x_check: np.ndarray
+    c_check: np.ndarray
+    rest: tuple[float, np.ndarray] | None = None
+
+    @classmethod
+    def of(cls, train: Samples, check: Samples, i: int) -> FitData:
+        """Electrode i's columns of the training and held-out samples."""
+        return cls(train.x, train.c[:, i], check.x, check.c[:, i], rest_of(train, i))
+
+
 def fit_electrode(
-    s: Structure,
-    e: Electrode,
-    name: str,
-    basis,
-    scales: np.ndarray,
-    x: np.ndarray,
-    c: np.ndarray,
-    x_check: np.ndarray,
-    c_check: np.ndarray,
-    first: int = 0,
-    oversample: float = 1.0,
-    rest: tuple[float, np.ndarray] | None = None,
+    s: Structure, e: Electrode, basis, scales: np.ndarray, data: FitData, first: int = 0, oversample: float = 1.0
 ) -> tuple[CapacitanceFit, int]:
     """Fit one electrode's capacitance in the chosen form; 'plates' refines its patch count,
     starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
     term limit is reached: at most len(x) / oversample coefficients). Returns the fit and the
     index of the grid used."""
-    o = s.fit
+    o, name, x, c, x_check, c_check, rest = s.fit, e.name, data.x, data.c, data.x_check, data.c_check, data.rest
     if o.target != "plates":
         return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
     best: CapacitanceFit | None = None
@@ -309,19 +315,7 @@ def fit_all(
     start: dict[str, int] = {}
     for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr, leave=False)):
         ring = e.name.rsplit("s", 1)[0]  # electrodes of one ring share a patch grid
-        fit, start[ring] = fit_electrode(
-            s,
-            e,
-            e.name,
-            basis,
-            scales,
-            grid.x,
-            grid.c[:, i],
-            holdout.x,
-            holdout.c[:, i],
-            start.get(ring, 0),
-            rest=rest_of(grid, i),
-        )
+        fit, start[ring] = fit_electrode(s, e, basis, scales, FitData.of(grid, holdout, i), start.get(ring, 0))
         fits.append(fit)
     refuse_unphysical(s, fits, grid.x, holdout.x)
     return fits

@@ -93,10 +93,8 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
         PERIODS,
         "sigma_delta.raw",
         None,
-        states=nodes,
-        control=control,
-        loop="xspice",
-        chunks=1,
+        ngspice.Settings("xspice", control, chunks=1),
+        ngspice.Segment(states=nodes),
     )
     plot = ngspice.simulate(net, tmp_path, d.ts * PERIODS, False)
     t, u, xs, b = (np.asarray(plot[k]) for k in ("time", "v(x1.u_z)", "v(x1.xs_z)", "v(b_z)"))

@@ -52,7 +52,7 @@ def loop_design(model, tmp_path: Path, kind: str, order: int):
     with the feedback ramps these back ends render (step=False, as runner.run designs for them)."""
     p = tmp_path / "loop.toml"
     p.write_text(LOOP.format(kind=kind, order=order), encoding="utf-8")
-    return sd.design(model, TS, spec=loopfile.read_loop_file(p), reltol=RELTOL, step=False), p
+    return sd.design(model, TS, sd.Choices(reltol=RELTOL), spec=loopfile.read_loop_file(p), step=False), p
 
 
 def first_difference(a: np.ndarray, b: np.ndarray) -> int:
@@ -79,7 +79,9 @@ def test_the_behavioural_loop_runs_the_state_space_filter(model, tmp_path, relea
     f = filters.Filter.from_dict(d.channels[0]["filter"])
     states = [f"u{j}_z" for j in range(f.states)]
     with using_ngspice(release):
-        net = ngspice.testbench(m, d, lib.resolve(), PERIODS, "sigma_delta.raw", states=states + ["cur_z"])
+        net = ngspice.testbench(
+            m, d, lib.resolve(), PERIODS, "sigma_delta.raw", segment=ngspice.Segment(states=states + ["cur_z"])
+        )
         plot = ngspice.simulate(net, tmp_path, TS * PERIODS, False)
     t = np.asarray(plot["time"])
     at = (np.arange(PERIODS) + d.t.clk) * TS  # the latch: cur and u held

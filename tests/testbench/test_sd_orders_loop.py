@@ -32,7 +32,9 @@ def run(tmp_path_factory) -> dict:
     d.channels[0]["filter"], d.channels[0]["dither_v"] = f.as_dict(), 0.0
     out = tmp_path_factory.mktemp("sd_order4")
     lib, control = ngspice.xspice_library(model, out, ngspice.code_models(False))
-    clock, _, segments = ngspice.run_segments(model, d, lib, out, CYCLES, None, False, SEGMENT, control, "xspice")
+    clock, _, segments = ngspice.run_segments(
+        model, d, lib, out, CYCLES, None, False, ngspice.Settings("xspice", control, segment=SEGMENT)
+    )
     dc = filters.dc_acceleration(model, d, "z")
     return {
         "model": model,

@@ -215,12 +215,15 @@ def test_segment_restarts_from_the_state_the_previous_one_ended_in(model, tmp_pa
     d = sd.design(model, TS)
     states = sdn.state_nodes(lib, model, d)
     first = sdn.simulate(
-        sdn.testbench(model, d, lib, 24, "sigma_delta.raw", states=states), tmp_path / "a", 24 * TS, False
+        sdn.testbench(model, d, lib, 24, "sigma_delta.raw", segment=sdn.Segment(states=states)),
+        tmp_path / "a",
+        24 * TS,
+        False,
     )
     ic = {n: float(first[f"v({n})"][-1]) for n in states}
     assert max(abs(v) for v in ic.values()) > 1e-4  # a state worth restarting from
     second = sdn.simulate(
-        sdn.testbench(model, d, lib, 2, "sigma_delta.raw", start=24, ic=ic, states=states),
+        sdn.testbench(model, d, lib, 2, "sigma_delta.raw", segment=sdn.Segment(24, ic, states)),
         tmp_path / "b",
         2 * TS,
         False,
@@ -250,7 +253,9 @@ def test_a_segmented_run_stops_after_the_segment_that_lost_the_plate(model, tmp_
     """V_fb designed for a z bit density of 2 (impossible: all-up bits give m g / 2) lets the plate
     fall at g / 2 from the start: it leaves 2 % of the gap after sqrt(4 * 0.02 gap / g) (156 us,
     kinematics). The run stops after the segment in which that happens, and says so."""
-    d = sd.design(model, TS, density=2.0, balance_check=False, step=False)  # (design() refuses it otherwise)
+    d = sd.design(
+        model, TS, sd.Choices(density=2.0), balance_check=False, step=False
+    )  # (design() refuses it otherwise)
     s = sd.run(
         model,
         ROOT / "netlists" / "levitated_disk.lib",

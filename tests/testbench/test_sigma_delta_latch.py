@@ -142,7 +142,9 @@ def test_behavioural_latch_resolves_beyond_its_resolution(design, tmp_path):
     d = sd.design(MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json"), TS)
     d.channels[0]["dither_v"] = 0.0
     model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
-    text = sdn.testbench(model, d, ROOT / "netlists" / "levitated_disk.lib", PERIODS, "x.raw", loop="analog")
+    text = sdn.testbench(
+        model, d, ROOT / "netlists" / "levitated_disk.lib", PERIODS, "x.raw", settings=sdn.Settings("analog")
+    )
     keep = re.compile(r"^(\.param ts|\.func (ph|win)\(|Bclk |Bcmp_z |Blat_z |Breg_z |Cb_z )")
     block = [ln for ln in text.splitlines() if keep.match(ln)]
     assert len(block) == 8, block

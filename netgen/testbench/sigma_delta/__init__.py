@@ -8,14 +8,13 @@ analysis: bitstreams to spectra and figures; plots; cli: `netgen sigma-delta`.
 """
 
 from .analysis import analyse, gravity_balance, levitation, per_clock, psd, thermal_floor
-from .loop import FILTERS, Design, Timing, Tone, design, duty, groups
+from .loop import FILTERS, Choices, Design, Timing, Tone, design, duty, groups
 from .loopfile import LoopSpec, check_input_tone, read_loop_file, read_structure_loop
 from .options import OPTIONS, SWEEP, read_tone
 from .runner import (
     BACKENDS,
     SIMULATORS,
     BuildOptions,
-    Choices,
     RunRequest,
     model_for,
     run,

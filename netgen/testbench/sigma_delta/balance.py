@@ -5,6 +5,8 @@ one-period step; each refusal a LoopError naming the loop description's key."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ...model import MacroModel
@@ -147,23 +149,35 @@ def feedback_voltage(spec: LoopSpec, force: float, per_v2: float) -> float:
     return v
 
 
+@dataclass(frozen=True)
+class Plant:
+    """What the loop closes around, as loop.design derives it before sizing the feedback: the model
+    and its loop description, the channels (`names`, coordinate indices `idx`), the scaled_gradient
+    `grad`, per electrode the weights (`electrodes`), per channel the (f+, f-) feedback force at 1 V
+    (`drive`, SI) and mean |force| per V^2 (`per_v2`, SI), the DC inputs (`inputs`, port units;
+    `dc_si`, SI per coordinate)."""
+
+    model: MacroModel
+    spec: LoopSpec
+    names: list[str]
+    idx: list[int]
+    grad: np.ndarray
+    electrodes: list[dict]
+    drive: list[tuple[float, float]]
+    per_v2: list[float]
+    inputs: dict[str, float]
+    dc_si: np.ndarray
+
+
 def check_balance(
-    model: MacroModel,
-    spec: LoopSpec,
-    names: list[str],
-    drive: list[tuple[float, float]],
-    dc_si: np.ndarray,
-    sense: np.ndarray,
-    tone: Tone | None,
-    vfb: float,
-    t: Timing,
-    refuse: bool = True,
+    p: Plant, sense: np.ndarray, tone: Tone | None, vfb: float, t: Timing, refuse: bool = True
 ) -> list[float]:
     """The mean bit each channel needs for its DC input (with the sense phase's force), and a
     LoopError when DC + tone peak need more than MAX_BIT_MEAN of the feedback's range."""
+    model, spec, drive, dc_si = p.model, p.spec, p.drive, p.dc_si
     sduty, fduty, amp = duty(t, t.sense_on, t.sense_off), duty(t), tone_forces(model, tone)
     out = []
-    for j, n in enumerate(names):
+    for j, n in enumerate(p.names):
         i = coord_index(model, n)
         fp, fm = drive[j][0] * vfb**2, drive[j][1] * vfb**2
         need = -(dc_si[i] + sense[i] * sduty) / fduty

@@ -17,13 +17,12 @@ from ...model import MacroModel
 from ...runtime.arguments import add_option, existing_file, output_folder
 from ...runtime.folders import OutputFolder
 from ...structure import load_structure
-from .loop import Tone
+from .loop import Choices, Tone
 from .loopfile import read_loop_file, read_structure_loop
 from .options import OPTIONS, read_tone
 from .runner import (
     TIMEOUT,
     BuildOptions,
-    Choices,
     RunRequest,
     backend_design,
     damping_problem,

@@ -22,6 +22,7 @@ from ...model import MacroModel
 from . import kinds
 from .balance import (
     ONE_SIDED_FIX,
+    Plant,
     check_balance,
     check_sensing,
     check_step,
@@ -439,19 +440,29 @@ def latch_resolution(
     return float(vcmp * optimize.brentq(lambda x: held(x) - (1.0 - clean), 0.0, 30.0, xtol=1e-6))
 
 
+@dataclass(frozen=True)
+class Choices:
+    """The design choices a caller (the command line, a sweep) gives over the loop description's
+    (None: the description's, else the default; netgen.testbench.sigma_delta.options declares them);
+    `timing`, a caller's Timing, replaces [loop.timing] whole."""
+
+    density: float | None = None
+    sense_ratio: float | None = None
+    lead: float | None = None
+    full_scale: float | None = None
+    dither: float | None = None
+    reltol: float | None = None
+    timing: Timing | None = None
+
+
 def design(
     model: MacroModel,
     ts: float,
-    density: float | None = None,
-    sense_ratio: float | None = None,
-    lead: float | None = None,
-    full_scale: float | None = None,
-    g: float = G,
-    timing: Timing | None = None,
-    dither: float | None = None,
-    reltol: float | None = None,
+    choices: Choices = Choices(),
+    *,
     spec: LoopSpec | None = None,
     tone: Tone | None = None,
+    g: float = G,
     balance_check: bool = True,
     step: bool = True,
 ) -> Design:
@@ -459,28 +470,64 @@ def design(
     a mean bit of `density` on the channel it loads most (the disk: gravity on z), V_s =
     sense_ratio * V_fb, C_f so that `full_scale` of the touch amplitude reads 1 V; `reltol` is
     the simulators' relative tolerance (the in-band floors depend on it: bench/compare_simulators.py).
-    Arguments given here win over the description's; `tone` enters the balance check
+    The `choices` given win over the description's; `tone` enters the balance check
     (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported);
     `step`: the back end renders a feedback step (runner.STEP_BACKENDS), which a designed filter then
     gets unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
     spec = spec or LoopSpec()
     if tone is None or tone is spec.input.tone:  # a caller's tone replaces the description's
         check_input_tone(spec, ts)
-    density, sense_ratio = pick(density, spec, "density", 0.5), pick(sense_ratio, spec, "sense_ratio", 0.25)
-    dither_given = dither is not None or spec.dither is not None  # a designed kind runs without, unless given
-    full_scale, dither = pick(full_scale, spec, "full_scale", 0.01), pick(dither, spec, "dither", 0.2)
-    reltol = pick(reltol, spec, "reltol", 1e-3)
-    t = timing or Timing(**{k: v for k, v in spec.timing.items() if k in {f.name for f in fields(Timing)}})
+    chosen = Choices(
+        pick(choices.density, spec, "density", 0.5),
+        pick(choices.sense_ratio, spec, "sense_ratio", 0.25),
+        choices.lead,
+        pick(choices.full_scale, spec, "full_scale", 0.01),
+        pick(choices.dither, spec, "dither", 0.2),
+        pick(choices.reltol, spec, "reltol", 1e-3),
+    )
     grad = scaled_gradient(model)
     names = channel_names(model, spec, grad)
+    t = loop_timing(spec, choices, names, step)
+    p = attach(model, spec, names, grad, g)
+    vfb, jb = feedback_level(p, tone, chosen.density * duty(t))
+    vs = volts(chosen.sense_ratio * vfb)
+    sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(p.electrodes), vs))[0]
+    needed = check_balance(p, sense, tone, vfb, t, balance_check)
+    table = force_table(model, p.electrodes, vfb, names)
+    check_step(model, spec, table, names, ts)
+    balance = balance_of(p, jb)
+    d = Design(
+        ts, vs, vfb, None, chosen.full_scale, p.electrodes, [], table, p.inputs, balance, duty(t), sense.tolist(), t
+    )
+    d.damping, d.dither, d.reltol = balance["damping"], chosen.dither, chosen.reltol
+    d.channels = [channel_entry(p, d, k, chosen.lead, needed[k]) for k in range(len(names))]
+    d.lead = d.channels[0]["filter"].get("lead")
+    dither_given = choices.dither is not None or spec.dither is not None  # a designed kind runs without, unless given
+    for ch in (c for c in d.channels if FILTERS[c["filter"]["kind"]].design):  # designed kinds (kinds.py)
+        ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
+        ch["dither_v"] = ch["dither_v"] if dither_given else 0.0  # no idle tones to break
+    return d
+
+
+def loop_timing(spec: LoopSpec, choices: Choices, names: list[str], step: bool) -> Timing:
+    """The caller's timing, else [loop.timing]'s; a designed (higher-order) filter gets the feedback
+    step where the back end renders one (`step`) unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
+    given = {f.name for f in fields(Timing)}
+    t = choices.timing or Timing(**{k: v for k, v in spec.timing.items() if k in given})
     if (
         step
-        and timing is None
+        and choices.timing is None
         and "fb_edge" not in spec.timing
-        and any(FILTERS[channel_filter(spec, n, lead)["kind"]].design for n in names)
+        and any(FILTERS[channel_filter(spec, n, choices.lead)["kind"]].design for n in names)
     ):
-        t = replace(t, fb_edge=0.0)  # a designed (higher-order) filter: the feedback step (Timing.fb_edge)
+        t = replace(t, fb_edge=0.0)
     check_timing(spec, t)
+    return t
+
+
+def attach(model: MacroModel, spec: LoopSpec, names: list[str], grad: np.ndarray, g: float) -> Plant:
+    """The Plant: the channels' electrodes (checked to sense them), their feedback forces at 1 V
+    and the DC inputs (gravity `g` by default)."""
     idx = [coord_index(model, n) for n in names]
     electrodes = groups(model, names, spec, grad)
     check_sensing(model, spec, electrodes, names, grad)
@@ -488,10 +535,17 @@ def design(
     drive = drive_forces(model, spec, unit, names)
     inputs, dc_si = dc_forces(model, spec, g)
     per_v2 = [float(np.mean([abs(r["f"][n]) for r in unit])) * si_factor(model, i)[0] for n, i in zip(names, idx)]
-    load = [abs(dc_si[i]) / p for i, p in zip(idx, per_v2)]
+    return Plant(model, spec, names, idx, grad, electrodes, drive, per_v2, inputs, dc_si)
+
+
+def feedback_level(p: Plant, tone: Tone | None, bit_duty: float) -> tuple[float, int]:
+    """(V_fb, the channel it is sized on): the given feedback voltage, else the one at which the
+    channel the input loads most needs a mean force of `bit_duty` (density x duty) of its per-V^2 one."""
+    model, spec, idx = p.model, p.spec, p.idx
+    load = [abs(p.dc_si[i]) / v2 for i, v2 in zip(idx, p.per_v2)]
     jb = int(np.argmax(load))
-    if not spec.feedback_voltage and not (abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
-        for n, (fp, fm) in zip(names, drive):  # no input: a one-sided loop has nothing to balance against
+    if not spec.feedback_voltage and not (abs(p.dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
+        for n, (fp, fm) in zip(p.names, p.drive):  # no input: a one-sided loop has nothing to balance against
             if fp <= 0 or fm >= 0:
                 raise spec.fail(
                     "loop.channels",
@@ -499,62 +553,41 @@ def design(
                     ONE_SIDED_FIX,
                 )
     vfb = spec.feedback_voltage or feedback_voltage(
-        spec, abs(dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]], density * duty(t) * per_v2[jb]
+        spec, abs(p.dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]], bit_duty * p.per_v2[jb]
     )
-    vs = volts(sense_ratio * vfb)
-    sense = model.electrostatic_force(np.zeros(model.ncoords), np.full(len(electrodes), vs))[0]
-    needed = check_balance(model, spec, names, drive, dc_si, sense, tone, vfb, t, balance_check)
-    table = force_table(model, electrodes, vfb, names)
-    check_step(model, spec, table, names, ts)
-    channels = []
-    for k, (name, i) in enumerate(zip(names, idx)):
-        sens = vs * float(sum(e["w"][k] * grad[j, i] for j, e in enumerate(electrodes)))
-        channels.append(
-            {
-                "name": name,
-                "index": k,
-                "coord": i,
-                "sensitivity": sens,
-                "cf": float(f"{sens * full_scale:.4g}"),
-                "dither_v": float(f"{dither * step_volts(model, table, name, ts, full_scale):.4g}"),
-                "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k]),
-                "filter": channel_filter(spec, name, lead),
-                "force_unit_si": si_factor(model, i)[0],
-                "bit_mean_needed": needed[k],
-                "full_scale_force_si": 0.5 * (drive[k][0] - drive[k][1]) * vfb**2 * duty(t),
-                "bit_node": {"z": "bz", "tilt_x": "bx", "tilt_y": "by"}.get(name, f"bit_{name}"),
-            }
-        )
-    c = model.coordinates[idx[jb]]
-    balance = {
-        "channel": names[jb],
+    return vfb, jb
+
+
+def balance_of(p: Plant, jb: int) -> dict:
+    """Design.balance: the DC force balance of channel `jb`."""
+    c = p.model.coordinates[p.idx[jb]]
+    return {
+        "channel": p.names[jb],
         "index": jb,
-        "coord": idx[jb],
+        "coord": p.idx[jb],
         "mass": c.mass,
-        "dc_force_n": float(dc_si[idx[jb]]),
+        "dc_force_n": float(p.dc_si[p.idx[jb]]),
         "damping": float(c.admittance(0.0).real),
         "x_unit_si": c.port_units[1],
     }
-    first = channels[0]["filter"]
-    d = Design(
-        ts,
-        vs,
-        vfb,
-        first.get("lead"),
-        full_scale,
-        electrodes,
-        channels,
-        table,
-        inputs,
-        balance,
-        duty(t),
-        sense.tolist(),
-        t,
-        damping=balance["damping"],
-        dither=dither,
-        reltol=reltol,
-    )
-    for ch in (c for c in channels if FILTERS[c["filter"]["kind"]].design):  # designed kinds (kinds.py)
-        ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
-        ch["dither_v"] = ch["dither_v"] if dither_given else 0.0  # no idle tones to break
-    return d
+
+
+def channel_entry(p: Plant, d: Design, k: int, lead: float | None, needed: float) -> dict:
+    """Design.channels[k]: readout sensitivity, C_f, dither, loop filter (lead: the caller's) and
+    full-scale force of the k-th channel, `needed`: its mean bit (check_balance)."""
+    model, name, i = p.model, p.names[k], p.idx[k]
+    sens = d.vs * float(sum(e["w"][k] * p.grad[j, i] for j, e in enumerate(p.electrodes)))
+    return {
+        "name": name,
+        "index": k,
+        "coord": i,
+        "sensitivity": sens,
+        "cf": float(f"{sens * d.full_scale:.4g}"),
+        "dither_v": float(f"{d.dither * step_volts(model, d.table, name, d.ts, d.full_scale):.4g}"),
+        "dither_step": 2 * np.pi * (0.5 - DITHER_DELTA[k]),
+        "filter": channel_filter(p.spec, name, lead),
+        "force_unit_si": si_factor(model, i)[0],
+        "bit_mean_needed": needed,
+        "full_scale_force_si": 0.5 * (p.drive[k][0] - p.drive[k][1]) * d.vfb**2 * d.duty,
+        "bit_node": {"z": "bz", "tilt_x": "bx", "tilt_y": "by"}.get(name, f"bit_{name}"),
+    }

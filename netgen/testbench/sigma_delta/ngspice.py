@@ -10,6 +10,8 @@ import math
 import re
 import sys
 import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +91,35 @@ def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", a
     return [f"{instance}.{n}" for n in inner] + bench
 
 
+@dataclass(frozen=True)
+class Settings:
+    """How ngspice runs the loop: `loop` "analog": the samplers, quantizers and drivers as
+    behavioural sources, "xspice": as the compiled netgen_sdloop, "osdi": as the blocks.va modules
+    VACASK runs, loaded through OSDI (`control` loads them); `control`: extra .control lines
+    (loading the code model); `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3;
+    `chunks`: progress stops per run; `folder`: the one it runs in (the .include of a `lib` inside
+    it relative, netgen.core.paths.spice_card); run_segments: `segment` periods per ngspice run
+    (None: segment_periods' choice) and each run's wall-clock `timeout` (s)."""
+
+    loop: str = "analog"
+    control: Sequence[str] = ()
+    klu: bool = False
+    chunks: int = 50
+    folder: Path | None = None
+    segment: int | None = None
+    timeout: float = 36000.0
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A segment of a long run: the periods from `start` on, from the node state `ic`, also saving
+    the nodes `states` (for the next segment's `ic`)."""
+
+    start: int = 0
+    ic: dict[str, float] | None = None
+    states: Sequence[str] = field(default_factory=list)
+
+
 def testbench(
     model: MacroModel,
     d: Design,
@@ -96,22 +127,12 @@ def testbench(
     cycles: int,
     raw: str,
     tone: Tone | None = None,
-    chunks: int = 50,
-    start: int = 0,
-    ic: dict[str, float] | None = None,
-    states: list[str] = (),
-    control: list[str] = (),
-    loop: str = "analog",
-    klu: bool = False,
-    folder: Path | None = None,
+    settings: Settings = Settings(),
+    segment: Segment = Segment(),
 ) -> str:
-    """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2); for a segment of a
-    long run, the periods from `start` on, from the node state `ic`, also saving `states`;
-    `control`: extra .control lines (loading the code model); `loop` "analog": the samplers,
-    quantizers and drivers as behavioural sources, "xspice": as the compiled netgen_sdloop,
-    "osdi": as the blocks.va modules VACASK runs, loaded through OSDI (`control` loads them);
-    `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3; `folder`: the one it runs in
-    (the .include of a `lib` inside it relative, netgen.core.paths.spice_card)."""
+    """The ngspice netlist of the loop (templates/sigma_delta/tb.cir.j2), run as `settings` say;
+    for a `segment` of a long run, its periods from its node state."""
+    loop, chunks, start, states = settings.loop, settings.chunks, segment.start, segment.states
     if loop not in LOOPS:
         raise ValueError(f"unknown loop {loop!r}; choose one of {', '.join(LOOPS)}")
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
@@ -120,7 +141,7 @@ def testbench(
             f"a feedback step (fb_edge = 0) runs in the compiled loop only (--simulator ngspice-xspice), "
             f"not in the {loop!r} loop"
         )
-    ic = dict(ic or {})
+    ic = dict(segment.ic or {})
     card = loop_card(d, start, ic) if loop == "xspice" else None
     if tone:
         tone.unit = tone_unit(model, tone)
@@ -138,7 +159,7 @@ def testbench(
         version=__version__,
         model=model,
         d=d,
-        lib=spice_card(lib, folder),
+        lib=spice_card(lib, settings.folder),
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
         forces=force_sources(model, d, tone, start * d.ts),
@@ -149,11 +170,11 @@ def testbench(
         selects=selection_nodes(d),
         start=start,
         ic=ic,
-        control=list(control),
+        control=list(settings.control),
         sdloop=card,
         pulses=phase_pulses(d),
         osdi=loop == "osdi",
-        klu=klu,
+        klu=settings.klu,
         inputs=input_text(model, d),
         drivers=drivers(d) if loop == "osdi" else [],
         statefilters=(
@@ -383,11 +404,7 @@ def run_segments(
     cycles: int,
     tone: Tone | None,
     progress: bool,
-    segment: int | None,
-    control: list[str] = (),
-    loop: str = "analog",
-    klu: bool = False,
-    timeout: float = 36000.0,
+    settings: Settings = Settings(),
 ) -> tuple[dict, dict, dict]:
     """Run the ngspice bench in segments, each restarted at t = 0 from the node state the run
     reached: the per-clock samples, the missed corners, the plan. A segment in which ngspice
@@ -397,31 +414,22 @@ def run_segments(
     Why: ngspice 39 chains a periodic PULSE's breakpoints; once a chain breaks the electrode
     currents ring after every ramp, the readout integrates the ringing and the plate falls;
     restarting at the first missed corner never runs on a broken chain."""
-    length = segment_periods(d.ts, segment, cycles)
-    states = state_nodes(lib, model, d, analog=loop == "analog") if length < cycles else []
+    length = segment_periods(d.ts, settings.segment, cycles)
+    states = state_nodes(lib, model, d, analog=settings.loop == "analog") if length < cycles else []
     parts, accepted_misses, cuts, runs = [], [], [], 0
     n0, ic, wall0 = 0, None, time.perf_counter()
     while n0 < cycles:
         n = min(length, cycles - n0)
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)
-        bench = testbench(
-            model,
-            d,
-            lib,
-            n,
-            "sigma_delta.raw",
-            tone,
-            start=n0,
-            ic=ic,
-            states=states,
-            control=control,
-            loop=loop,
-            chunks=max(1, min(50, n // 100)),
-            klu=klu,
-            folder=out,
-        )
+        run = replace(settings, chunks=max(1, min(50, n // 100)), folder=out)
+        bench = testbench(model, d, lib, n, "sigma_delta.raw", tone, run, Segment(n0, ic, states))
         plot = simulate(
-            bench, out, d.ts * n, progress, timeout, span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0)
+            bench,
+            out,
+            d.ts * n,
+            progress,
+            settings.timeout,
+            span=(n0 * d.ts, cycles * d.ts, time.perf_counter() - wall0),
         )
         runs += 1
         t = np.asarray(plot["time"])

@@ -33,7 +33,7 @@ from ...sim.vacask import tools as vacask_tools
 from ...structure import Damping, load_structure
 from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
-from .loop import FILTERS, Design, Tone, design
+from .loop import FILTERS, Choices, Design, Tone, design
 from .loopfile import InputSpec, LoopSpec
 from .plots import plot_spectra, plot_states
 
@@ -83,9 +83,8 @@ def _run_ngspice(
         segment = 0  # one run: .ic cannot reach the module's states (osdi.py)
     else:
         klu = ngspice_version().klu
-    clock, breakpoints, segments = ngspice.run_segments(
-        model, d, lib, out, cycles, tone, progress, segment, control, loop, klu, timeout=state.get("timeout", TIMEOUT)
-    )
+    settings = ngspice.Settings(loop, control, klu, segment=segment, timeout=state.get("timeout", TIMEOUT))
+    clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, settings)
     return clock, {
         "breakpoints": breakpoints,
         "segments": segments,
@@ -202,19 +201,6 @@ def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
 
 
 @dataclass(frozen=True)
-class Choices:
-    """The design choices a caller (the command line, a sweep) gives over the loop description's
-    (None: the description's, else the default; netgen.testbench.sigma_delta.options declares them)."""
-
-    density: float | None = None
-    sense_ratio: float | None = None
-    lead: float | None = None
-    full_scale: float | None = None
-    dither: float | None = None
-    reltol: float | None = None
-
-
-@dataclass(frozen=True)
 class RunRequest:
     """One run's settings: T_s, periods, the tone (else the description's), progress and plots,
     `skip` (periods left out of the spectra; None: an eighth), the BACKENDS name, ngspice's
@@ -240,12 +226,12 @@ class RunRequest:
 
 
 def backend_design(
-    model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str, choices: Choices = Choices()
+    model: MacroModel, ts: float, loop: LoopSpec, tone: Tone | None, simulator: str, choices: Choices
 ) -> Design:
     """The loop's design (loop.design with the caller's choices) for this back end: a designed
     filter gets the feedback step where the back end renders one; refused (LoopError) where it
     cannot render the design (check_backend)."""
-    d = design(model, ts, spec=loop, tone=tone, step=simulator in STEP_BACKENDS, **asdict(choices))
+    d = design(model, ts, choices, spec=loop, tone=tone, step=simulator in STEP_BACKENDS)
     check_backend(d, loop, simulator)
     return d
 
