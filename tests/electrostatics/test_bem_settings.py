@@ -11,10 +11,10 @@ import io
 import numpy as np
 import pytest
 
+from netgen.cli.commands import main
 from netgen.electrostatics import bem
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
-from netgen.runtime.cli import main
 from netgen.structure import parse_structure
 
 # a 100 um disk between two full-disk electrodes at 20 um: a few hundred elements per level

@@ -12,10 +12,10 @@ import time
 
 import pytest
 
+from netgen.cli.commands import main
 from netgen.electrostatics import bem
 from netgen.electrostatics.bem_mesh import electrode_sheet, estimate_elements, thick_plate
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate
-from netgen.runtime.cli import main
 
 # a 100 um disk, 2 um thick, between two full-disk electrodes at 20 um
 DISK = """name = "small_bem"
