@@ -34,10 +34,9 @@ from ...structure import Damping, load_structure
 from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Choices, Design, Tone, design
-from .loopfile import InputSpec, LoopSpec
+from .loopfile import InputSpec, LoopSettings, LoopSpec
+from .options import TIMEOUT
 from .plots import plot_spectra, plot_states
-
-TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.core.process)
 
 
 @dataclass(frozen=True)
@@ -239,7 +238,7 @@ def backend_design(
 def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: float | None) -> LoopSpec:
     """The loop description with a sweep's (or caller's) feedback voltage and DC acceleration on a_in."""
     if feedback_voltage is not None:
-        loop = replace(loop, feedback_voltage=feedback_voltage)
+        loop = replace(loop, settings=LoopSettings(feedback_voltage=feedback_voltage).over(loop.settings))
     if acceleration is not None:
         dc = {k: v for k, v in loop.input.dc.items() if k == "a_in"} | {"a_in": acceleration}
         loop = replace(loop, input=InputSpec(dc, loop.input.tone if not loop.input.default else None, default=False))
