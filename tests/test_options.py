@@ -18,8 +18,11 @@ import pytest
 
 from netgen.core.errors import LoopError
 from netgen.core.options import Option, of_role, with_table
+from netgen.emit import EMITTERS, requested
 from netgen.runtime import cli
 from netgen.runtime.arguments import Parser
+from netgen.runtime.options import build_options, simulate_options
+from netgen.sim import SIMULATORS
 from netgen.sweep import spec
 from netgen.testbench.sigma_delta import Choices, loopfile
 from netgen.testbench.sigma_delta import cli as sd_cli
@@ -261,6 +264,26 @@ def test_every_flag_and_sweep_parameter_is_declared():
     sub = next(a for a in cli.parser()._actions if isinstance(getattr(a, "choices", None), dict))
     actions = {a.option_strings[-1] if a.option_strings else a.dest for a in sub.choices["sigma-delta"]._actions}
     assert actions - {"--help"} == set(FLAGS)
+
+
+BUILD, SIMULATE = build_options(EMITTERS, requested), simulate_options(SIMULATORS)
+
+
+@pytest.mark.parametrize("command, declared", [("build", BUILD), ("simulate", SIMULATE)])
+def test_every_build_and_simulate_argument_is_declared(command, declared, tmp_path, capsys):
+    """`netgen build` and `netgen simulate` take exactly the declared options (netgen.runtime.options),
+    and a declared limit is the parser's: --max-minutes and --timeout refused at 0 and taken at 1 ms
+    (the smallest time a wall-clock limit is given in), with the declaration's message."""
+    sub = next(a for a in cli.parser()._actions if isinstance(getattr(a, "choices", None), dict))
+    actions = {a.option_strings[-1] if a.option_strings else a.dest for a in sub.choices[command]._actions}
+    assert actions - {"--help"} == {o.flag for o in declared.values()}
+    o = declared["max_minutes" if command == "build" else "timeout"]
+    first = [command, DISK if command == "build" else str(ROOT / "pyproject.toml"), "-o", str(tmp_path / "o")]
+    p = cli.parser()
+    assert getattr(p.parse_args(first + [f"{o.flag}=1e-3"]), o.name) == 1e-3
+    with pytest.raises(SystemExit):
+        p.parse_args(first + [f"{o.flag}=0"])
+    assert f"{o.flag} = '0' is outside {o.range_text()}" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("doc", ["sigma-delta.md", "sweeps.md"])

@@ -263,7 +263,7 @@ class Record:
         raise AttributeError(f"{type(self).__name__} is immutable; build another (over, or_defaults)")
 
     def __eq__(self, other: object) -> bool:
-        return type(other) is type(self) and self._values == other._values  # type: ignore[attr-defined]
+        return type(other) is type(self) and self._values == other._values
 
     def __hash__(self) -> int:
         return hash((type(self).__name__, tuple(self._values.items())))
