@@ -197,20 +197,21 @@ def number(rd: Reader, t: dict, where: str, key: str, lo: float, hi: float, text
     return float(v)
 
 
-def quantity(
-    rd: Reader,
-    t: dict,
-    where: str,
-    key: str,
-    kind: str,
-    lo: float,
-    hi: float,
-    text: str,
-    required: bool = False,
-    signed: bool = False,
-) -> float | None:
-    """An optional quantity (number in SI, or a string with a unit of `kind`) with lo < |v| <= hi
-    (signed: lo <= |v|)."""
+@dataclass(frozen=True)
+class Bounds:
+    """The range of a quantity key: its `kind` (units.UNITS), lo < v <= hi (signed: lo <= |v| <= hi),
+    and the range as the message words it."""
+
+    kind: str
+    lo: float
+    hi: float
+    text: str
+    signed: bool = False
+
+
+def quantity(rd: Reader, t: dict, where: str, key: str, bounds: Bounds, required: bool = False) -> float | None:
+    """An optional quantity (number in SI, or a string with a unit of bounds.kind) in its bounds."""
+    kind, lo, hi, text, signed = bounds.kind, bounds.lo, bounds.hi, bounds.text, bounds.signed
     if key not in t:
         if required:
             raise rd.fail(f"{where}.{key}", f"missing required key '{key}'", f"add {key} = <{kind}> ({FIX})")
@@ -404,7 +405,7 @@ def read_force(rd: Reader, t: dict, where: str = "loop.input.force") -> tuple[di
     if "coordinate" not in t:
         raise rd.fail(f"{where}.coordinate", "missing required key 'coordinate'", 'add coordinate = "z"')
     coord = name(rd, f"{where}.coordinate", t["coordinate"], "coordinate")
-    dc = quantity(rd, t, where, "dc", "dimensionless", 0.0, 1e12, "a finite number (the f_ port unit)", signed=True)
+    dc = quantity(rd, t, where, "dc", Bounds("dimensionless", 0.0, 1e12, "a finite number (the f_ port unit)", True))
     amp = option(rd, t, where, "amplitude", "tone_amplitude")
     if amp is not None and "frequency" not in t:
         raise rd.fail(f"{where}.frequency", "an amplitude needs a frequency", 'add frequency = "2 kHz"')
