@@ -55,6 +55,17 @@ class Build:
     extractor: CapacitanceExtractor | None = None
 
 
+@dataclass(frozen=True)
+class Sampled:
+    """The capacitance samples and their fits (assemble's input): the grid, the held-out set, the
+    fits and the sample design's extra report."""
+
+    grid: Samples
+    holdout: Samples
+    fits: list[CapacitanceFit]
+    design_extra: dict | None = None
+
+
 def build(s: Structure, progress: bool = False, max_minutes: float | None = None, **parallel) -> Build:
     """Run the whole pipeline for one structure, keeping every stage's output. With `max_minutes`
     the sampling and fit cost is estimated first (netgen.fit.cost) and a design over it refused.
@@ -78,7 +89,7 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     else:
         s = default_range(s, prepared, scales, progress)
         grid, holdout, fits, extra = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
-    model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits, extra)
+    model = assemble(s, m, plate, shapes, ext, prepared, scales, Sampled(grid, holdout, fits, extra))
     if imp:
         model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
         if imp.capacitance:
@@ -201,12 +212,10 @@ def assemble(
     ext: CapacitanceExtractor,
     prepared: PreparedExtractor,
     scales: np.ndarray,
-    grid: Samples,
-    holdout: Samples,
-    fits: list[CapacitanceFit],
-    design_extra: dict | None = None,
+    sampled: Sampled,
 ) -> MacroModel:
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
+    grid, holdout, fits, design_extra = sampled.grid, sampled.holdout, sampled.fits, sampled.design_extra
     coupling = ext.coupling(shapes, plate)
     damp, damp_report = damping(s, m)
     film = damp_report.pop("branches", [()] * len(m.names))

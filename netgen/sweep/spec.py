@@ -71,13 +71,24 @@ MAX_RETRIES = 10
 MAX_RUNS = 10_000  # default of `netgen sweep --max-runs`
 # the parameter kinds of the sweep's table: a quantity kind (units.UNITS), or these
 KINDS = {"int": "int", "choice": "str", "text": "tone", "bool": "bool"}
-# testbench parameter: (kind, its declared option, what it is); derived from the sigma-delta
-# options (netgen.testbench.sigma_delta.options: the flags and [loop] keys of the same settings)
-TESTBENCH: dict[str, tuple[str, Option, str]] = {
-    name: (KINDS.get(o.type, o.quantity), o, o.help) for name, o in SWEEP.items()
-}
+
+
+def testbench_table(sweep: dict[str, Option]) -> dict[str, tuple[str, Option, str]]:
+    """The testbench parameters: (kind, its declared option, what it is) by sweep name, derived from the
+    sigma-delta options (netgen.testbench.sigma_delta.options: the flags and [loop] keys of the same settings)."""
+    return {name: (KINDS.get(o.type, o.quantity), o, o.help) for name, o in sweep.items()}
+
+
+TESTBENCH = testbench_table(SWEEP)
 SWEEP_TIMEOUT = OPTIONS["timeout"]  # [sweep] timeout: each simulator call's limit, as --timeout
-DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
+
+
+def design_choices(sweep: dict[str, Option]) -> tuple[str, ...]:
+    """The parameters that are the loop design's choices (sigma_delta.Choices: the options of role "design")."""
+    return tuple(name for name, o in sweep.items() if o.role == "design")
+
+
+DESIGN_CHOICES = design_choices(SWEEP)
 LOOP_CHOICES = ("feedback_voltage", "acceleration")  # netgen.testbench.sigma_delta.RunRequest: over its LoopSpec
 
 
