@@ -131,6 +131,7 @@ def check_names(c: Checker, d: dict) -> None:
     check_couplings(c, d, tuple(names))
     check_calibration(c, d.get("calibration", {}), tuple(names))
     check_inertial(c, d.get("inertial_inputs", {}), len(d["coordinates"]))
+    check_process(c, d.get("process", {}), tuple(names))
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
 
@@ -242,3 +243,15 @@ def check_inertial(c: Checker, block: Any, n: int) -> None:
                     c.fail(f"{where}[{r}]" if rank == 2 else where, f"must be a list of {n} numbers")
                 for k, x in enumerate(row):
                     c.number(f"{where}[{r}][{k}]" if rank == 2 else f"{where}[{k}]", x)
+
+
+def check_process(c: Checker, process: Any, names: tuple[str, ...]) -> None:
+    """The optional process record (netgen.model.process): its gap sets name the model's electrodes
+    and are identifiers (they become instance parameter names dg_<set>)."""
+    if not isinstance(process, dict):
+        c.fail("process", "must be an object")
+    for i, g in enumerate(process.get("gaps", [])):
+        c.name(f"process.gaps[{i}].set", g.get("set"))
+        for e in g.get("electrodes", []):
+            if e not in names:
+                c.fail(f"process.gaps[{i}].electrodes", f"{e!r} is not an electrode of the model")
