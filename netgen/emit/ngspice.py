@@ -283,7 +283,10 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     for k, poly in enumerate(f.polys):
         shifted = deviation(poly)
         if affine(poly):
-            nodes.append({"name": node(e, k), "lines": linear_network(node(e, k), shifted, state)})
+            lines = linear_network(node(e, k), shifted, state) + process.offset_lines(
+                model, e, node(e, k), shifted, state
+            )
+            nodes.append({"name": node(e, k), "lines": lines})
         else:
             nodes.append({"name": node(e, k), "expr": poly_expr(shifted, state)})
         g_row, y_row = plate_term(e, k, float(poly(zero)[0]), clamp[k], dv2["name"])

@@ -5,6 +5,8 @@ No physics here: every number comes from the model."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..model import MacroModel
 from .common import num
 
@@ -105,34 +107,60 @@ def noise_dtemp(model: MacroModel, temp_k: float, circuit_c: float) -> str:
 
 
 def gap_shifts(model: MacroModel) -> dict[str, tuple[str, float]]:
-    """electrode -> (shifted state node, xs_z offset per metre of dg): the set's capacitance terms read
+    """electrode -> (its set, xs_z offset per metre of dg): the set's capacitance terms read
     xs_z - sign dg / L_z (netgen.model.process)."""
     if not enabled(model):
         return {}
     scale = {c.name: c.scale for c in model.coordinates}.get("z")
-    out = {}
-    for g in model.process["gaps"]:
-        for e in g["electrodes"]:
-            out[e] = (f"xg_{g['set']}", -g["sign"] / scale)
-    return out
+    return {e: (g["set"], -g["sign"] / scale) for g in model.process["gaps"] for e in g["electrodes"]}
+
+
+def read_as_expression(f) -> bool:
+    """The fit of one electrode has a term netgen.emit.ngspice renders as an expression of the state
+    (target direct, or a plate polynomial of degree > 1), not only linear networks."""
+    return f.target == "direct" or any(bool(np.any(p.exponents.sum(axis=1) > 1)) for p in f.polys)
+
+
+def node_sets(model: MacroModel) -> set[str]:
+    """The gap sets whose shifted state is a node xg_<set> (some electrode of the set is read as an
+    expression); the others shift their linear networks by a current source (offset_lines): no
+    unknown is added to the circuit's matrix (two nodes per set changed KLU's pivoting in ngspice 46
+    enough to fail the levitated disk's sigma-delta run, timestep too small at 0.46 us)."""
+    shifts = gap_shifts(model)
+    return {shifts[f.electrode][0] for f in model.capacitances if f.electrode in shifts and read_as_expression(f)}
 
 
 def electrode_state(model: MacroModel, electrode: str, state: list[str]) -> list[str]:
-    """The state names the plate terms of `electrode` read: xs_z replaced by its set's shifted node."""
+    """The state names the plate terms of `electrode` read: xs_z replaced by its set's shifted node
+    where the set has one (node_sets)."""
     shift = gap_shifts(model).get(electrode)
-    if shift is None:
+    if shift is None or shift[0] not in node_sets(model):
         return state
-    return [shift[0] if s == "xs_z" else s for s in state]
+    return [f"xg_{shift[0]}" if s == "xs_z" else s for s in state]
+
+
+def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list[str]) -> list[str]:
+    """The gap offset of an affine network node `name` = sum c_v xs_v (netgen.emit.ngspice.linear_network)
+    as one more current source, c_z (-sign / L_z) dg_<set>: a right-hand side only. [] where the
+    electrode has no offset, its set reads a shifted node instead, or the node has no z term."""
+    shift = gap_shifts(model).get(electrode)
+    if shift is None or shift[0] in node_sets(model) or "xs_z" not in state:
+        return []
+    v = state.index("xs_z")
+    c = sum(float(k) for e, k in zip(poly.exponents, poly.coeffs) if e.sum() == 1 and e[v] == 1)
+    return [f"I{name}_dg 0 {name} {{{num(c * shift[1])}*dg_{shift[0]}}}"] if c else []
 
 
 def gap_networks(model: MacroModel) -> list[str]:
-    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z (1 ohm, a VCCS, a
-    parameter current source: linear, nothing to differentiate)."""
+    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (1 ohm,
+    a VCCS, a parameter current source: linear, nothing to differentiate)."""
     if not enabled(model):
         return []
     scale = {c.name: c.scale for c in model.coordinates}.get("z")
     lines = []
     for g in model.process["gaps"]:
+        if g["set"] not in node_sets(model):
+            continue
         n = f"xg_{g['set']}"
         lines += [
             f"R{n} {n} 0 1",

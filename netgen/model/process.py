@@ -90,9 +90,12 @@ def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tu
         return np.column_stack([values[0]] + [np.zeros_like(values[0])] * 3), 0.0
     v = np.vander(np.array(x), 4, increasing=True)
     coef, *_ = np.linalg.lstsq(v, values, rcond=None)
-    one = x.index(1.0)  # the nominal point exactly (default parameters = the model's own numbers)
+    # the least-squares round-off of exact laws (the Vandermonde matrix over 0.9..1.1 has a condition
+    # number near 1e6: 1e-16 x 1e6 = 1e-10 relative), then the nominal point exactly (default
+    # parameters = the model's own numbers: a ratio of exactly 1)
+    coef[np.abs(coef) < 1e-9 * np.max(np.abs(coef), axis=0, initial=0.0)] = 0.0
+    one = x.index(1.0)
     coef[0] += values[one] - v[one] @ coef
-    coef[np.abs(coef) < 1e-12 * np.max(np.abs(coef), axis=0, initial=0.0)] = 0.0  # round-off of exact laws
     err = np.abs(v @ coef - values) / np.where(scale > 0, scale, 1.0)
     return coef.T, float(np.max(err, initial=0.0))
 

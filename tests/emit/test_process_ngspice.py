@@ -14,6 +14,7 @@ run in ngspice 39 and 46 (tests/fixtures.NGSPICE).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -99,3 +100,32 @@ X1 d p 0 xz piston_process dg_drive={dg}
     cap = float(np.imag(plot["i(vp)"])[0]) / (2 * math.pi * 1e3)
     ref = EPS0 * model.electrodes[0].area / (2e-6 + dg)
     assert abs(cap) == pytest.approx(ref, rel=1e-9)
+
+
+def nodes(lib: str) -> set[str]:
+    """The node names of the subcircuit's elements (the matrix's unknowns, less the branch currents)."""
+    body = lib.split("\n.subckt ", 1)[1].split("\n.ends", 1)[0]
+    out = set()
+    for line in body.splitlines():
+        if not line or line[0] in "*+.":
+            continue
+        words = line.split()
+        if line[0] in "RCGEFIVB":
+            out |= set(words[1:3])
+        if line[0] in "GE":
+            out |= set(words[3:5])
+    return out - {"0"}
+
+
+def test_process_adds_no_unknown_but_the_noise_resistors(lib):
+    """The process parameters change element values and add sources, not unknowns: the gap offset of
+    an affine plate network is a current source into its node (netgen.emit.process.offset_lines),
+    not a shifted node (two extra nodes per gap set changed KLU's pivoting enough that ngspice 46's
+    sigma-delta run of the levitated disk with [process] stopped at 0.46 us, timestep too small);
+    the only new nodes are the .noise resistors' nv_<q>."""
+    _, model = lib
+    with_process = emit_ngspice.subcircuit(model)
+    without = emit_ngspice.subcircuit(dataclasses.replace(model, process={}))
+    assert "xg_" not in with_process and "Ip_drive_1_dg" in with_process
+    extra = nodes(with_process) - nodes(without)
+    assert extra == {"nv_z"}, extra
