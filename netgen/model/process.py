@@ -84,7 +84,9 @@ def fit_points(p: Process) -> tuple[float, ...]:
 def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, float]:
     """Cubic polynomials c0 + c1 x + c2 x^2 + c3 x^3 per column of `values` (least squares over the
     points: one more than the coefficients; c0 then set so the fit is exact at x = 1), and the
-    largest residual at the points relative to `scale` (per column: the quantity it is a part of).
+    largest residual at the points relative to `scale` (per point and column: the quantity it is a
+    part of, there; relative to the largest value over the range it understated the error at the
+    thin end by the cube of the range).
     One point (no tscale): the constant."""
     if len(x) == 1:
         return np.column_stack([values[0]] + [np.zeros_like(values[0])] * 3), 0.0
@@ -122,7 +124,7 @@ def mechanics_laws(s: Structure, m: Mechanics, run, film: bool, p: Process) -> t
     stiff, damp = np.abs(arrays["a"] + arrays["b"]), np.abs(arrays["d_rest"] + arrays["d_film"])
     totals = {"mass": np.abs(arrays["mass"]), "a": stiff, "b": stiff, "d_rest": damp, "d_film": damp}
     for key, vals in arrays.items():
-        laws[key], err = power_fit(points, vals, np.max(totals[key], axis=0))
+        laws[key], err = power_fit(points, vals, totals[key])
         errors.append(err)
     return [{k: [float(c) for c in laws[k][v]] for k in laws} for v in range(len(m.names))], errors
 

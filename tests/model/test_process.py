@@ -74,6 +74,32 @@ def proof(t: float = 10.0, e: float = 160.0):
     return build_model(parse_structure(PROOF.format(t=t, e=e), "pm.toml"))
 
 
+def full_rebuild(t: float = 10.0, e: float = 160.0, bot_um: float = 2.0):
+    """The whole build (mechanics, electrostatics, fit) of the structure file rewritten at thickness
+    t (um), modulus e (GPa) and bottom gap bot_um."""
+    text = PROOF.format(t=t, e=e).replace(
+        'name = "bot"\nside = "below"\ngap = "2 um"', f'name = "bot"\nside = "below"\ngap = "{bot_um!r} um"'
+    )
+    return build_model(parse_structure(text, "pm.toml"))
+
+
+def capacitances_agree(nominal, model, dg: float = 0.0) -> None:
+    """C of every electrode at 100 random points of the fit box: the nominal model (plate electrodes:
+    unchanged by tscale and escale; the bottom set shifted by dg as the emitters do) against `model`,
+    within the larger of the two fits' held-out errors and the sampling tolerance."""
+    rng = np.random.default_rng(7)
+    scales = np.array([c.scale for c in nominal.coordinates])
+    q = rng.uniform(-0.2, 0.2, (100, nominal.ncoords)) * scales
+    shift = np.zeros(nominal.ncoords)
+    shift[[c.name for c in nominal.coordinates].index("z")] = dg
+    got = nominal.capacitance(q / scales)
+    bot = [e.name for e in nominal.electrodes].index("bot")
+    got[:, bot] = nominal.capacitance((q + shift) / scales)[:, bot]
+    ref = model.capacitance(q / np.array([c.scale for c in model.coordinates]))
+    errs = [f.max_rel_error for f in nominal.capacitances + model.capacitances]
+    np.testing.assert_allclose(got, ref, rtol=max([nominal.sampling["tolerance"], *errs]))
+
+
 def rebuilt(t: float = 10.0, e: float = 160.0) -> list[tuple[float, float, float]]:
     """(mass, stiffness, damping) per coordinate of the structure file rewritten at thickness t and
     modulus e: the mechanics and damping stages re-run (the electrostatics do not change with them)."""
@@ -95,10 +121,12 @@ def frequencies(mass_stiff) -> np.ndarray:
 @pytest.mark.parametrize("tau", [0.92, 1.0, 1.08])
 def test_tscale_against_rebuild(nominal, tau):
     """Modal frequencies and masses of the laws at tscale against a rebuild with the thickness (of
-    the mass and the flexures) scaled in the structure file (mechanics and damping re-run); the damping too (squeeze film: the gap
-    sets it, a solid plate's film does not depend on the thickness)."""
+    the mass and the flexures) scaled in the structure file (mechanics and damping re-run); the
+    damping too (squeeze film: the gap sets it, a solid plate's film does not depend on the
+    thickness); the capacitances at 100 points against the full rebuild's (unchanged)."""
     law = nominal.process
     ref = rebuilt(t=10.0 * tau)
+    capacitances_agree(nominal, full_rebuild(t=10.0 * tau))
     vals = [coordinate_values(law, v, tscale=tau) for v in range(nominal.ncoords)]
     np.testing.assert_allclose(frequencies(vals), frequencies(ref), rtol=1e-4)
     np.testing.assert_allclose([v[0] for v in vals], [r[0] for r in ref], rtol=1e-4)
@@ -107,9 +135,12 @@ def test_tscale_against_rebuild(nominal, tau):
 
 @pytest.mark.parametrize("e", [0.6, 1.0, 1.4])
 def test_escale_against_rebuild(nominal, e):
-    """Stiffness at escale against a rebuild with Young's modulus scaled; frequencies as sqrt(e)."""
+    """Modal frequencies at escale against a full rebuild with Young's modulus scaled, and its
+    capacitances at 100 points (unchanged by the modulus)."""
     vals = [coordinate_values(nominal.process, v, escale=e) for v in range(nominal.ncoords)]
-    np.testing.assert_allclose(frequencies(vals), frequencies(rebuilt(e=160.0 * e)), rtol=1e-4)
+    model = full_rebuild(e=160.0 * e)
+    np.testing.assert_allclose(frequencies(vals), [c.frequency_hz for c in model.coordinates], rtol=1e-4)
+    capacitances_agree(nominal, model)
 
 
 @pytest.mark.parametrize("temp_c", [-40.0, 25.0, 125.0])
@@ -182,3 +213,67 @@ def test_gap_offset_against_rebuild(nominal_piston, dg_nm):
     g = 2e-6 + dg
     v_closed = math.sqrt(8 * 2.0 * g**3 / (27 * EPS0 * m.electrodes[0].area))
     assert v_model == pytest.approx(v_closed, rel=5e-4)
+
+
+def pull_in_z(model, electrode: str, k: float, dg: float) -> float:
+    """Pull-in voltage of `electrode` (below) along z alone: the maximum over the travel q < 0 of
+    sqrt(2 k q / C'(q)), its C read at q - sign dg as the emitters shift it; on a 20001-point grid
+    refined by a parabola through the best three."""
+    v = [c.name for c in model.coordinates].index("z")
+    scale, i = model.coordinates[v].scale, [e.name for e in model.electrodes].index(electrode)
+    sign = next(g["sign"] for g in model.process["gaps"] if electrode in g["electrodes"])
+
+    def cap(q: np.ndarray) -> np.ndarray:
+        x = np.zeros((len(q), model.ncoords))
+        x[:, v] = (q - sign * dg) / scale
+        return model.capacitance(x)[:, i]
+
+    q = -np.linspace(1e-4, 0.55, 20001) * scale
+    h = 1e-6 * scale
+    v2 = 2 * k * q / ((cap(q + h) - cap(q - h)) / (2 * h))
+    j = int(np.argmax(v2))
+    a, b, c = v2[j - 1 : j + 2]
+    return math.sqrt(b + (c - a) ** 2 / (8 * (2 * b - a - c)))
+
+
+def proof_z(t: float = 10.0, bot_um: float = 2.0):
+    """The proof mass on z alone with one affine plate term per electrode (rigid = ["z"], degree 1:
+    C = eps A / (g -+ z) to round-off) and the sampled box reaching the pull-in travel g/3."""
+    text = PROOF.format(t=t, e=160.0).replace('rigid = ["z", "tilt_x", "tilt_y"]', 'rigid = ["z"]')
+    text = (
+        text.replace("degree = 2", "degree = 1")
+        .replace("levels = 3", "levels = 5")
+        .replace("range = 0.3", "range = 0.6")
+    )
+    text = text.replace(
+        'name = "bot"\nside = "below"\ngap = "2 um"', f'name = "bot"\nside = "below"\ngap = "{bot_um!r} um"'
+    )
+    return build_model(parse_structure(text, "pm.toml"))
+
+
+@pytest.fixture(scope="module")
+def nominal_z():
+    return proof_z()
+
+
+@pytest.mark.parametrize("tau,dg_nm", [(0.92, -150.0), (1.0, 0.0), (1.08, 200.0)])
+def test_pull_in_with_thickness_and_gap(nominal_z, tau, dg_nm):
+    """The proof mass's pull-in towards the bottom plate (top at the plate's potential) with tscale
+    and dg_bot applied to the nominal model (proof_z): against sqrt(8 k g^3 / (27 eps A)) with k the
+    law's z stiffness at tscale (folded flexures bending out of plane: ~ t^3) and g = 2 um + dg,
+    within 0.05 % (C = eps A / (g + z) to round-off: what is left is the grid's quadratic error,
+    ~1e-9); against a full rebuild at that thickness and gap within 0.2 % (the same two round-offs
+    and half the stiffness law's error), its stiffness within twice the law's stated error (the
+    cubic's residual at the five re-run thicknesses, 1.6e-4 for these folded flexures, whose truss
+    torsion is no power law of t; between the points a smooth residual stays within twice it) and
+    its capacitances at 100 points within the fits' held-out errors."""
+    law, dg = nominal_z.process, dg_nm * 1e-9
+    k = coordinate_values(law, 0, tscale=tau)[1]
+    bot = next(e for e in nominal_z.electrodes if e.name == "bot")
+    g = 2e-6 + dg
+    v_model = pull_in_z(nominal_z, "bot", k, dg)
+    assert v_model == pytest.approx(math.sqrt(8 * k * g**3 / (27 * EPS0 * bot.area)), rel=5e-4)
+    model = proof_z(t=10.0 * tau, bot_um=2.0 + dg_nm * 1e-3)
+    assert k == pytest.approx(model.coordinates[0].stiffness, rel=2 * law["tscale"]["max_rel_error"])
+    assert v_model == pytest.approx(pull_in_z(model, "bot", model.coordinates[0].stiffness, 0.0), rel=2e-3)
+    capacitances_agree(nominal_z, model, dg)
