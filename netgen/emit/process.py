@@ -181,7 +181,9 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         t = p["tscale"]
         parts.append(
             f"tscale = device-layer thickness / nominal, valid {t['range'][0]:g}..{t['range'][1]:g}, mass, "
-            f"stiffness and damping laws within {t['max_rel_error']:.1e} (capacitance: {t['capacitance']})"
+            f"stiffness and damping laws "
+            + (f"within {t['max_rel_error']:.1e}" if t["max_rel_error"] else "exact (power laws of t)")
+            + " (capacitance: unchanged, plate electrodes)"
         )
     if declared(model, "escale"):
         e = p["escale"]["range"]
@@ -195,8 +197,12 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             f"{p['modulus_tc_per_K'] * 1e6:.4g} ppm/K, thermal noise k_B T"
         )
         visc = p["temp"].get("viscosity")
-        text += f", squeeze film by {visc['law']} within {visc['max_rel_error']:.1e}" if visc else ""
-        text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
+        text += (
+            f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
+            if visc
+            else ""
+        )
+        text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")

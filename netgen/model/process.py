@@ -46,6 +46,7 @@ VISCOSITY_DEGREE = 4
 # Ar 144); helium 79.4 K (Sutherland-law fits of Chapman and Cowling's data)
 SUTHERLAND = {"air": 111.0, "nitrogen": 107.0, "argon": 144.0, "helium": 79.4}
 GAP_SIDES = {"above": 1.0, "below": -1.0}  # +z towards the electrode
+ROUND_OFF = 1e-12  # a law's residual below this is the re-runs' round-off: stated as 0 (exact)
 
 
 def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
@@ -94,12 +95,16 @@ def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tu
     coef, *_ = np.linalg.lstsq(v, values, rcond=None)
     # the least-squares round-off of exact laws (the Vandermonde matrix over 0.9..1.1 has a condition
     # number near 1e6: 1e-16 x 1e6 = 1e-10 relative), then the nominal point exactly (default
-    # parameters = the model's own numbers: a ratio of exactly 1)
+    # parameters = the model's own numbers: a ratio of exactly 1) by scaling the polynomial, which
+    # keeps a pure power law's zeros (adding the misfit to c0 wrote a round-off c0 into the netlist)
     coef[np.abs(coef) < 1e-9 * np.max(np.abs(coef), axis=0, initial=0.0)] = 0.0
     one = x.index(1.0)
-    coef[0] += values[one] - v[one] @ coef
-    err = np.abs(v @ coef - values) / np.where(scale > 0, scale, 1.0)
-    return coef.T, float(np.max(err, initial=0.0))
+    at_one = v[one] @ coef
+    ok = at_one != 0.0
+    coef[:, ok] *= values[one][ok] / at_one[ok]
+    coef[0, ~ok] += values[one][~ok]
+    err = float(np.max(np.abs(v @ coef - values) / np.where(scale > 0, scale, 1.0), initial=0.0))
+    return coef.T, err if err > ROUND_OFF else 0.0
 
 
 def mechanics_laws(s: Structure, m: Mechanics, run, film: bool, p: Process) -> tuple[list[dict], list[float]]:
