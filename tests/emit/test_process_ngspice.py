@@ -25,6 +25,7 @@ from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure
+from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import ROOT
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml (Q = 5 with its 2 N/m spring)
@@ -129,3 +130,31 @@ def test_process_adds_no_unknown_but_the_noise_resistors(lib):
     assert "xg_" not in with_process and "Ip_drive_1_dg" in with_process
     extra = nodes(with_process) - nodes(without)
     assert extra == {"nv_z"}, extra
+
+
+@pytest.mark.parametrize("tscale", [0.9, 1.1])
+def test_xspice_form_takes_the_process_parameters(lib, tmp_path, tscale):
+    """The _xspice.lib (netgen_es code model, ngspice 39 as installed) carries tscale and temp too
+    (not dg: its code model reads xs_z itself): .ac gives the spring unchanged and mass and damping
+    times tscale, to ngspice's round-off (1e-9) as for the B-source .lib."""
+    _, model = lib
+    xlib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
+    assert "dg_drive" not in xlib.read_text()
+    lines = "\n".join(control)
+    net = f"""* ac
+.include {xlib.resolve()}
+Vf fz 0 DC 0 AC 1
+X1 0 0 fz xz piston_process tscale={tscale} temp=90
+.ac lin 3 5k 30k
+.control
+{lines}
+run
+write ac.raw
+.endc
+.end
+"""
+    k, m, b = ac_fit(run_ngspice(net, tmp_path)[0])
+    c = model.coordinates[0]
+    assert k == pytest.approx(2.0, rel=1e-9)
+    assert m == pytest.approx(c.mass * tscale, rel=1e-9)
+    assert b == pytest.approx(ALPHA * c.mass * tscale, rel=1e-9)
