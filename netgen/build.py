@@ -35,6 +35,7 @@ from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
 from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots
+from .model.process import process_laws
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -282,6 +283,8 @@ def assemble(
     if m.strain_energy is not None:  # e.g. stress stiffening (netgen.mechanics.beam)
         poly, fit_report = fit_energy(m.strain_energy.energy, scales)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
+    scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
+    model.process = process_laws(s, m, mechanics, described, scale_z, s.sampling.range)
     return model
 
 
