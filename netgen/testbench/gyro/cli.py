@@ -45,8 +45,10 @@ def cli(args) -> int:
     req = request_of(args)
     sense_design(model, spec, req)  # the loop checked against the model before any output (exit 2)
     inside = lib_folder(lib, out)
-    info = {"arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))}}
-    info["started"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    info = {
+        "arguments": {k: v for k, v in vars(args).items() if isinstance(v, (str, int, float, bool, type(None)))},
+        "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
     with OutputFolder(out, RESULTS, info, keep_failed=True, shared=SHARED + ((inside,) if inside else ())) as folder:
         staged = folder.stage / inside / Path(lib).name if inside else lib
         try:

@@ -103,7 +103,8 @@ def start_state(model: MacroModel, amplitude: float) -> tuple[tuple[str, float],
 def run_rate(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest, rate: float) -> dict:
     """One rate (rad/s): the bench, its per-period samples, the demodulated figures."""
     d = replace(d, inputs=d.inputs | {RATE_PORT: float(rate)})
-    control, loop = [], "analog"
+    control: list[str] = []
+    loop = "analog"
     if req.simulator == "ngspice-xspice":
         lib, control = ngspice.xspice_library(model, out, ngspice.code_models(req.progress))
         loop = "xspice"
