@@ -137,12 +137,9 @@ def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroReques
     """The run (or the sweep) at the request's rates; summary.json and the PNGs in `out`."""
     d = sense_design(model, spec, req)
     out.mkdir(parents=True, exist_ok=True)
+    cx = coordinate(model, DRIVE)
     per_rate = (
-        2
-        * coordinate(model, DRIVE).mass
-        * req.drive_amplitude
-        * math.sqrt(coordinate(model, DRIVE).stiffness / coordinate(model, DRIVE).mass)
-        / d.channels[0]["full_scale_force_si"]
+        2 * cx.mass * req.drive_amplitude * math.sqrt(cx.stiffness / cx.mass) / d.channels[0]["full_scale_force_si"]
     )
     full_scale = 1.0 / per_rate  # rad/s at which the Coriolis force alone needs every bit
     if req.rate_points:
@@ -160,6 +157,12 @@ def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroReques
         "feedback_force_n": d.channels[0]["full_scale_force_si"],
         "feedback_voltage": d.vfb,
         "loop_filter": d.channels[0]["filter"],
+        "drive_loop": {
+            "amplitude_m": req.drive_amplitude,
+            "agc_gain": req.agc_gain,
+            "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
+        },
+        "design_scale_factor_per_rad_s": per_rate,
         "runs": [{k: v for k, v in r.items() if k != "clock"} for r in runs],
     }
     if len(runs) > 1:
