@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import SimulationError
-from netgen.runtime import cli
 from netgen.runtime.arguments import output_folder
 from netgen.runtime.folders import OutputFolder, check_manifest
 from netgen.runtime.interrupts import Interrupted

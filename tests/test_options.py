@@ -13,9 +13,9 @@ from dataclasses import replace
 
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import LoopError
 from netgen.core.options import Option
-from netgen.runtime import cli
 from netgen.testbench.sigma_delta import cli as sd_cli
 from netgen.testbench.sigma_delta import loopfile
 from netgen.testbench.sigma_delta.options import FLAGS, OPTIONS, SWEEP, markdown_tables

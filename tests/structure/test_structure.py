@@ -126,7 +126,7 @@ def test_cli_reports_bad_file_with_exit_2_and_no_output(tmp_path):
     bad.write_text(_replace('gap = "3 um"', 'gap = "0 um"'))
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(bad), "-o", str(out)], capture_output=True, text=True
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(bad), "-o", str(out)], capture_output=True, text=True
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr

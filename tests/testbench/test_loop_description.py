@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 from netgen.testbench.sigma_delta import loopfile
 from tests.fixtures import ROOT
 

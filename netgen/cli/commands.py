@@ -19,15 +19,15 @@ from ..build import build, figure_names, write_calibration, write_figures
 from ..core.errors import InputError, NetgenError, StructureError
 from ..emit import EMITTERS, compiles, osdi, refusal, report, requested, write_outputs
 from ..model import FIT_FIX
+from ..runtime.arguments import Parser, add_scheduler_option, existing_file, output_folder, positive
+from ..runtime.executor import executor
+from ..runtime.folders import OutputFolder
+from ..runtime.interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 from ..sim import SIMULATORS, codemodel, netlist_text, ngspice
 from ..structure import load_structure
 from ..sweep import cli as sweep_cli
 from ..testbench import TESTBENCHES
 from ..testbench.sigma_delta.ngspice import LOOP_LIBRARY
-from .arguments import Parser, add_scheduler_option, existing_file, output_folder, positive
-from .executor import executor
-from .folders import OutputFolder
-from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
 
 TIMEOUT_MAX = 1e7  # s (116 days): a limit, not a typo of one
 
@@ -240,7 +240,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """The one error boundary of every subcommand (the `netgen` command runs it through
-    netgen.runtime.entry): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
+    netgen.cli): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
     anything else exit 70 with the traceback in a crash log next to the output."""
     previous = install()
     args = None
