@@ -26,8 +26,8 @@ import math
 import pytest
 
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.emit.ngspice import subcircuit
-from netgen.runtime import cli
 from netgen.structure import load_structure
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
 from netgen.testbench.sigma_delta.loopfile import read_structure_loop
