@@ -14,9 +14,9 @@ quadrature reads: their noise is the bitstream's shaped quantisation noise at th
 whose standard deviation over the run the analysis reports (rate_read_sigma_rad_s, the density over
 sqrt(2 T)); the test takes 4 of them plus the systematic part: the sense loop's finite gain at the
 drive frequency leaves a residual sense motion (k_y - m w^2 + i w b_y) Y that the bits do not carry
-and that leaks quadrature into rate; measured (bench/gyroscope.py, 4096-period runs) it is below
-0.2 % of the quadrature at zero rate; so 2 % on the scale factor (the brief's figure) and 1 % on the
-quadrature force each hold several sigma of margin. 2048 periods of T_s = 1 us (26 drive periods)
+and that leaks quadrature into rate; measured (bench/gyroscope.py, 16384-period runs) the scale
+factor is 0.35 % low and the zero-rate output 1e-5 of the quadrature; so 2 % on the scale factor and
+1 % on the quadrature force (0.5 % measured) hold several sigma of margin. 2048 periods of T_s = 1 us (26 drive periods)
 in ngspice with the compiled loop (ngspice-xspice): about 40 s."""
 
 from __future__ import annotations
