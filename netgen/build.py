@@ -281,7 +281,7 @@ def assemble(
         model.inertial = Inertial.from_dict(data)
         model.report["inertial"] = inertial.report(m.names, m.kinds, data, m.stiffnesses, s.coordinates.inertial)
     if m.strain_energy is not None:  # e.g. stress stiffening (netgen.mechanics.beam)
-        poly, fit_report = fit_energy(m.strain_energy.energy, scales)
+        poly, fit_report = fit_energy(m.strain_energy.energy, scales, degrees=m.strain_energy.degrees)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     model.process = process_laws(s, m, mechanics, described, scale_z, s.sampling.range)

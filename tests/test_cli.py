@@ -36,6 +36,7 @@ import interrupts as bench  # noqa: E402  (bench/interrupts.py: the classifier a
 NETGEN = str(ROOT / ".venv/bin/netgen")
 PISTON = str(ROOT / "examples/piston.toml")
 DISK = str(ROOT / "examples/levitated_disk.toml")
+GYRO = str(ROOT / "examples/gyroscope_z.toml")
 MODEL = str(ROOT / "netlists/levitated_disk.json")
 
 
@@ -84,6 +85,11 @@ RANGES = [
     (["sigma-delta", DISK, "-o", "OUT", "--pressure", "inf"], "--pressure", "e.g. --pressure"),
     (["sigma-delta", DISK, "-o", "OUT", "--model", "no/such.json"], "--model", "check the path"),
     (["sigma-delta", DISK, "-o", ""], "-o/--output", "give a folder"),
+    (["gyro", GYRO, "-o", "OUT", "--rate", "nan"], "--rate", "e.g. --rate 200"),
+    (["gyro", GYRO, "-o", "OUT", "--rate-points", "2"], "--rate-points", "between 3 and 41"),
+    (["gyro", GYRO, "-o", "OUT", "--drive-amplitude", "4 V"], "--drive-amplitude", "e.g. --drive-amplitude"),
+    (["gyro", GYRO, "-o", "OUT", "--agc-gain", "0"], "--agc-gain", "is outside (0, 10000]"),
+    (["gyro", GYRO, "-o", "OUT", "--simulator", "vacask"], "--simulator", "invalid choice"),
     (["sweep", DISK, str(ROOT / "examples/sweep_ts.toml"), "-o", ""], "-o/--output", "give a folder"),
     (["sweep", DISK, str(ROOT / "examples/sweep_ts.toml"), "-o", "/proc/x"], "-o/--output", "not storage"),
 ]

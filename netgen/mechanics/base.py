@@ -80,6 +80,7 @@ class StrainEnergy:
 
     energy: Callable[[np.ndarray], np.ndarray]
     description: str
+    degrees: tuple[int, ...] = (4,)  # the polynomial's total degrees (netgen.fit.energy.fit_energy)
 
 
 @dataclass

@@ -16,9 +16,10 @@ import math
 
 import numpy as np
 
+from ..core.errors import StructureError
 from ..structure import Structure, mode_name
 from . import flexures
-from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, rigid_field
+from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, StrainEnergy, rigid_field
 from .plates import PLATE_MODES
 from .rect_plate import ELEMENTS, conductor_plate
 
@@ -185,6 +186,10 @@ def mechanics(s: Structure) -> Mechanics:
     if modes:
         report["internal_modes"] = modes_report(c, modes, attached)
     names = rigid + [mode_name(lab) for lab in labels]
+    k_xy = flexure_coupling(c)
+    energy = coupling_energy(s.source, k_xy, names, springs)
+    if energy:
+        spring_report["k_xy_N_per_m"] = k_xy  # the report's "flexure" entry
     return Mechanics(
         names,
         [RIGID[n][0] for n in rigid] + ["mode"] * count,
@@ -195,4 +200,32 @@ def mechanics(s: Structure) -> Mechanics:
         freqs,
         ModalBasis(rigid, modes) if modes else RigidBasis(rigid),
         report,
+        energy,
+    )
+
+
+def flexure_coupling(c) -> float:
+    """The suspension's x-y coupling stiffness k_xy (N/m; 0 without one)."""
+    return float(c.flexure.k_xy)
+
+
+def coupling_energy(source: str, k_xy: float, names: list[str], springs: dict[str, float]) -> StrainEnergy | None:
+    """The flexure's x-y coupling k_xy x y as a strain energy (a quadratic, so the emitters' restoring
+    force -dU/dq is exact): a gyroscope's quadrature force -k_xy x on y. Refused (exit 2, naming the
+    structure file `source`) unless the spring matrix [[k_x, k_xy], [k_xy, k_y]] stays positive definite."""
+    if not k_xy:
+        return None
+    limit = math.sqrt(springs["x"] * springs["y"])
+    if abs(k_xy) >= limit:
+        raise StructureError(
+            source,
+            "conductor.flexure.k_xy",
+            f"|k_xy| = {abs(k_xy):g} N/m is not below sqrt(k_x k_y) = {limit:g} N/m: the suspension would be unstable",
+            f"give |k_xy| well below {limit:g} N/m (a misalignment: a few per cent of k_x or less)",
+        )
+    ix, iy = names.index("x"), names.index("y")
+    return StrainEnergy(
+        lambda q: k_xy * q[:, ix] * q[:, iy],
+        f"x-y coupling of the suspension, U = k_xy x y with k_xy = {k_xy:g} N/m ([conductor.flexure] k_xy)",
+        (2,),
     )

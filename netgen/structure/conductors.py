@@ -556,7 +556,14 @@ class ProofMass(Suspended):
         return Coordinates(tuple(r for r in ALL_RIGID if r in rigid), modes, accel)
 
     def check(self, rd: Reader, doc: dict, electrodes: tuple, coords: Coordinates, fem: FemOptions) -> None:
-        """The squeeze film under the mass is the incompressible one (with its etch holes)."""
+        """The squeeze film under the mass is the incompressible one (with its etch holes); a
+        flexure's k_xy couples x and y, so both must be coordinates."""
+        if self.flexure.k_xy and not {"x", "y"} <= set(coords.rigid):
+            raise rd.fail(
+                "conductor.flexure.k_xy",
+                f"k_xy couples x and y but the coordinates are {list(coords.rigid)}",
+                'list both in [coordinates] rigid (e.g. rigid = ["x", "y"]) or remove k_xy',
+            )
         damp = doc.get("damping")
         if isinstance(damp, dict) and damp.get("film_model") == "compressible":
             raise rd.fail(

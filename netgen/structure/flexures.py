@@ -11,10 +11,10 @@ from ..core.reader import Reader, check_keys, choice, nonnegative, positive, qua
 TYPES = ("folded", "crab_leg", "clamped_guided", "given", "none")
 GIVEN = ("k_x", "k_y", "k_z", "k_rot", "k_tilt_x", "k_tilt_y")
 KEYS = {
-    "folded": ["type", "length", "width", "thickness", "axis", "truss_width", "spacing"],
-    "crab_leg": ["type", "length", "width", "thickness", "axis", "thigh_length", "thigh_width"],
-    "clamped_guided": ["type", "length", "width", "thickness", "axis"],
-    "given": ["type", *GIVEN],
+    "folded": ["type", "length", "width", "thickness", "axis", "truss_width", "spacing", "k_xy"],
+    "crab_leg": ["type", "length", "width", "thickness", "axis", "thigh_length", "thigh_width", "k_xy"],
+    "clamped_guided": ["type", "length", "width", "thickness", "axis", "k_xy"],
+    "given": ["type", *GIVEN, "k_xy"],
     "none": ["type"],
 }
 
@@ -28,7 +28,10 @@ class Flexure:
     outer beams (to the anchors) along `axis` (Tang's folded flexure, eight beams), the beams
     `spacing` apart; "crab_leg": four legs, a shin of `length` x `width` along `axis` from the mass
     to the knee and a thigh of `thigh_length` x `thigh_width` across it to the anchor; "given":
-    the stiffnesses themselves (N/m, N*m/rad); "none": a free body (no springs)."""
+    the stiffnesses themselves (N/m, N*m/rad); "none": a free body (no springs). `k_xy` (N/m,
+    either sign) is the x-y coupling stiffness of an imperfect suspension (its principal axes turned
+    by theta from x, y: k_xy = (k_1 - k_2) sin theta cos theta): the energy k_xy x y, the source of a
+    gyroscope's quadrature (netgen.mechanics.proof_mass.coupling_energy)."""
 
     type: str
     length: float = 0.0
@@ -40,6 +43,7 @@ class Flexure:
     thigh_length: float = 0.0
     thigh_width: float = 0.0
     given: tuple[tuple[str, float], ...] = ()
+    k_xy: float = 0.0
 
 
 def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
@@ -52,6 +56,7 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
     check_keys(rd, where, raw, KEYS[kind])
     if kind == "none":
         return Flexure("none")
+    k_xy = coupling(rd, raw, where)
     if kind == "given":
         given = tuple(
             (
@@ -72,7 +77,7 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
         )
         if not given:
             raise rd.fail(where, 'type = "given" without stiffnesses', f"give some of {', '.join(GIVEN)}")
-        return Flexure("given", given=given)
+        return Flexure("given", given=given, k_xy=k_xy)
     q = lambda key, what, default=None: quantity(rd, raw, where, key, "length", default, positive, what)  # noqa: E731
     length, width = q("length", "beam length (crab leg: shin length)"), q("width", "beam width")
     axis = choice(rd, raw, where, "axis", ["x", "y"], "y")
@@ -85,4 +90,9 @@ def read_flexure(rd: Reader, t: dict, thickness: float) -> Flexure:
         )
     if kind == "crab_leg":
         out |= dict(thigh_length=q("thigh_length", "thigh length"), thigh_width=q("thigh_width", "thigh width", width))
-    return Flexure(**out)
+    return Flexure(**out, k_xy=k_xy)
+
+
+def coupling(rd: Reader, raw: dict, where: str) -> float:
+    """k_xy: a stiffness of either sign (0 without the key)."""
+    return quantity(rd, raw, where, "k_xy", "stiffness", 0.0, None, "x-y coupling stiffness, N/m, either sign")

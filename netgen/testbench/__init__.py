@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+from .gyro import cli as gyro_cli
 from .sigma_delta import cli as sigma_delta_cli
 
 
@@ -24,4 +25,5 @@ class TestbenchCommand(Protocol):
 
 TESTBENCHES: dict[str, TestbenchCommand] = {
     "sigma-delta": sigma_delta_cli,
+    "gyro": gyro_cli,
 }

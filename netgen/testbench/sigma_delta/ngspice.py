@@ -61,6 +61,15 @@ def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0
     ]
 
 
+def behavioural_sources(forces: list[dict], expressions: dict[str, str]) -> list[dict]:
+    """The input sources with element letter V, or B with V=<expression> where one is given."""
+    return [
+        f
+        | ({"element": "B", "source": f"V={expressions[f['port']]}"} if f["port"] in expressions else {"element": "V"})
+        for f in forces
+    ]
+
+
 def state_nodes(lib: Path, model: MacroModel, d: Design, instance: str = "x1", analog: bool = False) -> list[str]:
     """The nodes that hold the loop's state (capacitor nodes that no port drives): the model's
     internal ones (position, velocity, film branches; read from the .lib, or those of the OSDI
@@ -97,6 +106,7 @@ class Settings:
     behavioural sources, "xspice": as the compiled netgen_sdloop, "osdi": as the blocks.va modules
     VACASK runs, loaded through OSDI (`control` loads them); `control`: extra .control lines
     (loading the code model); `klu`: ngspice's KLU solver (.options klu) instead of Sparse 1.3;
+    `behavioural`: input ports driven by a B-source expression; `start_state`: the start's node values;
     `chunks`: progress stops per run; `folder`: the one it runs in (the .include of a `lib` inside
     it relative, netgen.core.paths.spice_card); run_segments: `segment` periods per ngspice run
     (None: segment_periods' choice) and each run's wall-clock `timeout` (s)."""
@@ -108,6 +118,10 @@ class Settings:
     folder: Path | None = None
     segment: int | None = None
     timeout: float = 36000.0
+    # input ports driven by a behavioural source instead (port, B-source expression; the gyroscope's
+    # drive loop, netgen.testbench.gyro) and the node state of the run's start (the first segment's .ic)
+    behavioural: tuple[tuple[str, str], ...] = ()
+    start_state: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -162,7 +176,7 @@ def testbench(
         lib=spice_card(lib, settings.folder),
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
-        forces=force_sources(model, d, tone, start * d.ts),
+        forces=behavioural_sources(force_sources(model, d, tone, start * d.ts), dict(settings.behavioural)),
         tone=tone,
         saves=saves,
         raw=raw,
@@ -417,7 +431,7 @@ def run_segments(
     length = segment_periods(d.ts, settings.segment, cycles)
     states = state_nodes(lib, model, d, analog=settings.loop == "analog") if length < cycles else []
     parts, accepted_misses, cuts, runs = [], [], [], 0
-    n0, ic, wall0 = 0, None, time.perf_counter()
+    n0, ic, wall0 = 0, dict(settings.start_state) or None, time.perf_counter()
     while n0 < cycles:
         n = min(length, cycles - n0)
         # progress stops: one per ~100 periods (each `stop when` costs ngspice ~3 time points)

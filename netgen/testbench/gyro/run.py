@@ -1,0 +1,182 @@
+"""A gyroscope run: the sense loop's design (the sigma-delta testbench's loop.design, on the
+channel y of the loop description), the drive loop as a behavioural source on the model's f_x port,
+the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments), the
+demodulation (analysis.py), and a rate sweep's linearity; summary.json and PNGs in the folder."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ...core.errors import LoopError
+from ...emit.common import time_scale
+from ...model import MacroModel
+from ..sigma_delta import ngspice
+from ..sigma_delta.loop import Choices, Design
+from ..sigma_delta.loopfile import LoopSpec
+from ..sigma_delta.runner import backend_design
+from . import analysis, plots
+
+DRIVE, SENSE, RATE_PORT = "x", "y", "w_z"
+SKIP = 8  # the first 1/SKIP of the periods (the sense loop's start) is left out of the demodulation
+
+
+@dataclass(frozen=True)
+class GyroRequest:
+    """One run's settings (netgen.testbench.gyro.options declares them)."""
+
+    ts: float = 1e-6
+    cycles: int = 4096
+    rate_deg_s: float = 0.0
+    rate_points: int = 0
+    rate_span: float = 0.5
+    drive_amplitude: float = 4e-6
+    agc_gain: float = 100.0
+    simulator: str = "ngspice-xspice"
+    progress: bool = True
+    plots: bool = True
+
+
+def coordinate(model: MacroModel, name: str):
+    return next(c for c in model.coordinates if c.name == name)
+
+
+def check_model(model: MacroModel, spec: LoopSpec) -> None:
+    """The gyroscope needs the coordinates x (drive) and y (sense) and the rate port w_z; the loop
+    closes on y alone (LoopError, exit 2, naming the key and the fix)."""
+    names = [c.name for c in model.coordinates]
+    if DRIVE not in names or SENSE not in names:
+        raise LoopError(
+            spec.source,
+            "coordinates.rigid",
+            f"the gyroscope drives x and senses y; the model's coordinates are {names}",
+            'list rigid = ["x", "y"] in the structure',
+        )
+    if RATE_PORT not in [p["name"] for p in model.ports()]:
+        raise LoopError(
+            spec.source,
+            "coordinates.inertial",
+            "the model has no rate port w_z",
+            'add "w_z" to [coordinates] inertial in the structure',
+        )
+    if spec.channels is None or [c.name for c in spec.channels] != [SENSE]:
+        raise LoopError(
+            spec.source,
+            "loop.channels",
+            "the gyroscope closes the sense loop on y alone",
+            "give one channel, [loop.channels.y], with the sense electrodes' sense and feedback weights",
+        )
+
+
+def sense_design(model: MacroModel, spec: LoopSpec, req: GyroRequest) -> Design:
+    """The sigma-delta design of the sense loop (loop.design through the sigma-delta back end's checks)."""
+    check_model(model, spec)
+    return backend_design(model, req.ts, spec, None, req.simulator, Choices())
+
+
+def drive_expression(model: MacroModel, amplitude: float, gain: float) -> str:
+    """The drive loop as a B-source on f_x (port units): the velocity pick-off times the drive's own
+    damping b_x (so the loop cancels it: self-oscillation at the resonance), scaled by the amplitude
+    control 1 + G (1 - A / X_d), A = sqrt(x^2 + (x' / w_x)^2) (the amplitude of a sinusoid, ripple-free);
+    the factor is at most 1 + G. Read from the model's nodes: x from the port x_x, x' from the
+    velocity node u_x (x' = u ws scale)."""
+    c = coordinate(model, DRIVE)
+    w = math.sqrt(c.stiffness / c.mass)
+    length = c.port_units[1]  # m per port volt of x_x
+    force = c.port_units[3]  # N per port volt of f_x
+    vel = f"(v(x1.u_{DRIVE})*{time_scale(model) * c.scale!r})"
+    pos = f"(v(x_{DRIVE})*{length!r})"
+    amp = f"sqrt({pos}*{pos}+{vel}*{vel}*{1 / w**2!r})"
+    return f"{c.damping / force!r}*{vel}*(1+{gain!r}*(1-{amp}/{amplitude!r}))"
+
+
+def start_state(model: MacroModel, amplitude: float) -> tuple[tuple[str, float], ...]:
+    """x at the set amplitude, at rest: the drive starts at its turning point."""
+    c = coordinate(model, DRIVE)
+    return ((f"x1.xs_{DRIVE}", amplitude / c.scale), (f"x1.u_{DRIVE}", 0.0))
+
+
+def run_rate(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest, rate: float) -> dict:
+    """One rate (rad/s): the bench, its per-period samples, the demodulated figures."""
+    d = replace(d, inputs=d.inputs | {RATE_PORT: float(rate)})
+    control: list[str] = []
+    loop = "analog"
+    if req.simulator == "ngspice-xspice":
+        lib, control = ngspice.xspice_library(model, out, ngspice.code_models(req.progress))
+        loop = "xspice"
+    settings = ngspice.Settings(
+        loop,
+        control,
+        behavioural=(("f_x", drive_expression(model, req.drive_amplitude, req.agc_gain)),),
+        start_state=start_state(model, req.drive_amplitude),
+        segment=0,  # one ngspice run: run_segments stops after a segment whose coordinates leave the
+        # levitation bound (analysis.levitation), which the drive's x amplitude does by design
+    )
+    clock, _, _ = ngspice.run_segments(model, d, lib, out, req.cycles, None, req.progress, settings)
+    keep = slice(len(clock["time"]) // SKIP, None)
+    cx = coordinate(model, DRIVE)
+    fs = d.channels[0]["full_scale_force_si"]
+    demod = analysis.demodulate(
+        clock["time"][keep], clock[f"bits_{SENSE}"][keep], clock[f"x_{DRIVE}"][keep] * cx.port_units[1], cx.mass, fs
+    )
+    demod |= analysis.rate_noise(
+        clock["time"][keep],
+        clock[f"bits_{SENSE}"][keep],
+        d.ts,
+        2 * math.pi * demod["drive_hz"],
+        demod["design_scale_factor_per_rad_s"],
+    )
+    return demod | {"rate_applied_rad_s": rate, "clock": clock}
+
+
+def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroRequest) -> dict:
+    """The run (or the sweep) at the request's rates; summary.json and the PNGs in `out`."""
+    d = sense_design(model, spec, req)
+    out.mkdir(parents=True, exist_ok=True)
+    cx = coordinate(model, DRIVE)
+    per_rate = (
+        2 * cx.mass * req.drive_amplitude * math.sqrt(cx.stiffness / cx.mass) / d.channels[0]["full_scale_force_si"]
+    )
+    full_scale = 1.0 / per_rate  # rad/s at which the Coriolis force alone needs every bit
+    if req.rate_points:
+        rates = [float(r) for r in np.linspace(-req.rate_span, req.rate_span, req.rate_points) * full_scale]
+    else:
+        rates = [req.rate_deg_s * analysis.DEG]
+    runs = [run_rate(model, lib, out, d, req, r) for r in rates]
+    first = runs[len(runs) // 2]
+    summary: dict = {
+        "model": model.name,
+        "simulator": req.simulator,
+        "ts": req.ts,
+        "cycles": req.cycles,
+        "full_scale_rate_deg_s": full_scale / analysis.DEG,
+        "feedback_force_n": d.channels[0]["full_scale_force_si"],
+        "feedback_voltage": d.vfb,
+        "loop_filter": d.channels[0]["filter"],
+        "drive_loop": {
+            "amplitude_m": req.drive_amplitude,
+            "agc_gain": req.agc_gain,
+            "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
+        },
+        "design_scale_factor_per_rad_s": per_rate,
+        "runs": [{k: v for k, v in r.items() if k != "clock"} for r in runs],
+    }
+    if len(runs) > 1:
+        fit = analysis.sweep_fit(rates, [r["rate_rad_s"] for r in runs])
+        summary["sweep"] = fit | {
+            "scale_factor_over_design": fit["slope"],
+            "rates_rad_s": rates,
+        }
+    np.savez_compressed(
+        out / "bitstreams.npz", **{f"{k}_{i}": v for i, r in enumerate(runs) for k, v in r["clock"].items()}
+    )
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if req.plots:
+        plots.spectrum(first["clock"][f"bits_{SENSE}"], req.ts, first["drive_hz"], out / "spectrum.png", model.name)
+        if len(runs) > 1:
+            plots.sweep(rates, [r["rate_rad_s"] for r in runs], out / "rate_sweep.png", model.name)
+    return summary
