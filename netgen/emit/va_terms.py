@@ -20,7 +20,7 @@ see the same matrix; the values differ from the direct form by below 1e-12 relat
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -96,7 +96,7 @@ def _times(c: float, poly: Polynomial, names: list[str], factor: str, fold: Fold
     return f"({_poly(Polynomial(np.array([e for e, _ in terms]), np.array([a for _, a in terms])), names)}) * {factor}"
 
 
-def _sum(terms: list[str | None], sep: str = "\n            + ", per_line: int = 1) -> str:
+def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: int = 1) -> str:
     """Non-empty terms joined (`per_line` to a line when sep breaks lines), '+ -' folded; '0.0' if none."""
     live = [t for t in terms if t]
     if per_line > 1:
@@ -104,7 +104,9 @@ def _sum(terms: list[str | None], sep: str = "\n            + ", per_line: int =
     return sep.join(live).replace("+ -", "- ") if live else "0.0"
 
 
-def _term_rows(f: CapacitanceFit, clamps, names: list[str], fold: Fold) -> list[dict]:
+def _term_rows(
+    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold
+) -> list[dict]:
     """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`)."""
     rows = []
     for k, poly in enumerate(f.polys):
