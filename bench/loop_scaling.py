@@ -33,6 +33,11 @@ from netgen.sim.ngspice import ngspice_path
 EXAMPLE = (ROOT / "examples/levitated_disk.toml").read_text()
 RINGS = {1: '[["20 um", "473 um"]]', 2: '[["20 um", "230 um"], ["240 um", "473 um"]]'}
 NG39 = "/usr/bin/ngspice"
+SWEEP = {  # the models whose size varies along each key alone
+    "coordinates": lambda r: r["layout"] == "2x4",
+    "electrodes": lambda r: r["coordinates"] == 3,
+    "plate_terms": lambda r: True,
+}
 
 
 def structure(modes: int, rings: int, sectors: int) -> str:
@@ -80,8 +85,10 @@ def measure(model: MacroModel, path: str, cycles: int, folder: Path) -> dict:
 
 
 def exponent(rows: list[dict], path: str, key: str) -> float | None:
-    """b of instructions per iteration ~ key^b (least squares in logs), None with < 2 distinct sizes."""
-    pts = [(r[key], r[path]["per_iteration_k"]) for r in rows if path in r]
+    """b of instructions per iteration ~ key^b (least squares in logs) over the sweep that varies
+    `key` alone (coordinates: the 2 x 4 layout; electrodes: no modes; plate terms: every model);
+    None with fewer than 2 distinct sizes."""
+    pts = [(r[key], r[path]["per_iteration_k"]) for r in rows if path in r and SWEEP[key](r)]
     if len({x for x, _ in pts}) < 2:
         return None
     x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
@@ -100,8 +107,8 @@ def figure(rows: list[dict], paths: list[str], png: Path) -> None:
         axes, ("coordinates", "electrodes", "plate_terms"), ("coordinates", "electrodes", "plate terms")
     ):
         for path in paths:
-            pts = sorted((r[key], r[path]["per_iteration_k"]) for r in rows if path in r)
-            ax.loglog(*zip(*pts), "o-", label=path)
+            pts = sorted((r[key], r[path]["per_iteration_k"]) for r in rows if path in r and SWEEP[key](r))
+            ax.loglog(*zip(*pts), "o" if key == "plate_terms" else "o-", label=path)
         ax.set_xlabel(label)
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("k instructions per Newton iteration")
@@ -131,6 +138,7 @@ def main() -> int:
         model = build(structure(modes, rings, sectors), args.out / name)
         row = {
             "model": name,
+            "layout": f"{rings}x{sectors}",
             "coordinates": model.ncoords,
             "electrodes": len(model.electrodes),
             "plate_terms": sum(len(f.polys) for f in model.capacitances),
