@@ -34,8 +34,9 @@ from netgen.testbench.sigma_delta import ngspice as sdn
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
 
-def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: str = "analog") -> None:
-    """One callgrind run of the bench around `variant` (testbench blocks `loop`); prints its counts."""
+def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: str = "analog") -> dict:
+    """One callgrind run of the bench around `variant` (testbench blocks `loop`); prints its counts
+    and returns the total instructions and Newton iterations."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.lib").write_text(library(model, variant))
     cm = needs_codemodel(variant, loop)
@@ -84,6 +85,7 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
         if m and float(m.group(2)) > 2.0 and "TOTALS" not in line:
             count = int(m.group(1).replace(",", ""))
             print(f"    {count / iterations / 1e3:7.1f}k per iteration {m.group(2):>6} %  {m.group(3)[:70]}")
+    return {"instructions": total, "iterations": iterations}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -158,7 +158,7 @@ def needs_codemodel(variant: str, loop: str) -> bool:
     return variant == "xspice" or loop == "xspice"
 
 
-def osdi_control(model: MacroModel, variant: str, loop: str, cache: Path, cpu: str | None = None) -> list[str]:
+def osdi_control(model: MacroModel, variant: str, loop: str, cache: Path, cpu: str = osdi.GENERIC) -> list[str]:
     """The pre_osdi lines (compiled once into `cache`, for openvaf-r's target `cpu`) of an osdi
     model or loop, and num_threads=1."""
     lines = []

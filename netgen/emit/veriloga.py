@@ -9,32 +9,25 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
 
 import numpy as np
 
 from ..core.constants import K_B
 from ..core.names import VERILOG_A as KEYWORDS
 from ..core.templating import render
-from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
-from . import inertial
+from . import inertial, va_terms
 from .common import (
     INPUT_KINDS,
-    clamp_expr,
     contact_terms,
     dv2_node,
     force_gain,
     header_context,
-    node,
     noise_enabled,
     nonlinear_forces,
     num,
-    poly_expr,
-    slope_expr,
     time_scale,
-    y_node,
 )
 
 TEMPLATE = "veriloga/module.va.j2"
@@ -60,47 +53,6 @@ def misfolds(c: float, poly: Polynomial) -> bool:
     if len(terms) != 2 or sum(not np.any(e) for e, _ in terms) != 1:
         return False
     return all(abs(c * k) == 1.0 for _, k in terms)
-
-
-def times(c: float, poly: Polynomial, state: list[str]) -> str:
-    """The factors c * (poly) of a product as text: as they read where openvaf-r compiles them
-    right, and folded into one sum, (c*a) + (c*b)*t, where it would not (`misfolds`)."""
-    if misfolds(c, poly):
-        return f"({poly_expr(Polynomial(poly.exponents, poly.coeffs * c), state, access=VA)})"
-    return f"{num(c)} * ({poly_expr(poly, state, access=VA)})"
-
-
-def charge(f: CapacitanceFit, plate: str, state: list[str]) -> str:
-    """Charge of one plate-electrode capacitor, C(q) * (V_e - V_plate), in C (c_ref folded into the
-    polynomial where openvaf-r would miscompile c_ref * P, `misfolds`)."""
-    if f.target == "direct":
-        cap = (
-            times(f.c_ref, f.polys[0], state)
-            if misfolds(f.c_ref, f.polys[0])
-            else f"{num(f.c_ref)} * {node(f.electrode, 0)}"
-        )
-    else:
-        cap = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(f.electrode, k)}" for k in range(len(f.polys))) + ")"
-    return f"{cap} * V({f.electrode}, {plate})"
-
-
-def force_sum(model: MacroModel, v: int, state: list[str]) -> str:
-    """Electrostatic generalized force on coordinate v (SI) from the derivative polynomials."""
-    # direct fits: c_ref / (2 L) * dP/dxs * dv2; 1/P terms: -c_ref / (2 L) * dP_k/dxs * y_k
-    scale, terms = model.coordinates[v].scale, []
-    for f in model.capacitances:
-        g = f.c_ref / (2.0 * scale)
-        for k, poly in enumerate(f.polys):
-            dpoly = poly.derivative(v)
-            if not np.any(dpoly.coeffs):
-                continue
-            if f.target == "direct":
-                terms.append(f"{times(g, dpoly, state)} * {dv2_node(f.electrode)}")
-            elif dpoly.exponents.sum() == 0:  # affine P_k: constant slope
-                terms.append(f"{num(-g * float(dpoly.coeffs.sum()))} * {y_node(f.electrode, k)}")
-            else:
-                terms.append(f"{times(-g, dpoly, state)} * {y_node(f.electrode, k)}")
-    return _sum(terms)
 
 
 def _rhs(c: Coordinate, ws: float) -> str:
@@ -140,7 +92,6 @@ def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list
                 "fel": f"fel_{c.name}",
                 "damping": num(c.damping),
                 "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
-                "force_sum": force_sum(model, v, state),
                 "rhs": _rhs(c, ws),
                 "fn": f"fn_{c.name}",
                 "fn_expr": _force_node(c, has_contact),
@@ -149,42 +100,16 @@ def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list
         )
 
 
-def _fit_rows(model: MacroModel, rows: list[dict], state: list[str]) -> None:
-    """Add the Verilog-A fields of each capacitance fit to its header row."""
-    clamps = model.term_clamps()
-    for i, (row, f) in enumerate(zip(rows, model.capacitances)):
-        dv2 = dv2_node(f.electrode)
-        cl: Sequence[tuple[float, float] | None] = clamps[i] if clamps else [None] * len(f.polys)
-        row.update(
-            {
-                "polys": [
-                    {
-                        "name": node(f.electrode, k),
-                        "expr": clamp_va(poly_expr(p, state, access=VA), *ck) if ck else poly_expr(p, state, access=VA),
-                    }
-                    for k, (p, ck) in enumerate(zip(f.polys, cl))
-                ],
-                "dv2": dv2,
-                "charge": charge(f, model.plate, state),
-                "ys": []
-                if f.target == "direct"
-                else [
-                    {
-                        "name": y_node(f.electrode, k),
-                        "expr": f"{dv2}"
-                        + (f" * {slope_expr(node(f.electrode, k), *ck)}" if ck else "")
-                        + f" / ({node(f.electrode, k)} * {node(f.electrode, k)})",
-                    }
-                    for k, ck in enumerate(cl)
-                ],
-            }
-        )
-
-
-def clamp_va(expr: str, knee: float, floor: float) -> str:
-    """The contact clamp of a plate term (netgen.emit.common.clamp_expr) with its exp evaluated only
-    below the knee, where it acts: at and above it the clamp is P itself, value and slope."""
-    return f"({expr} >= {num(knee)} ? {expr} : {clamp_expr(expr, knee, floor)})"
+def _fit_rows(model: MacroModel, ctx: dict) -> None:
+    """Add the Verilog-A fields of the plate terms, charges and forces (netgen.emit.va_terms)."""
+    for row, f in zip(ctx["fits"], model.capacitances):
+        row["dv2"] = dv2_node(f.electrode)
+    ctx.update(va_terms.rows(model, ctx["fits"], lambda c, poly: misfolds(c, poly)))
+    for row, text in zip(ctx["coords"], ctx["forces"]):
+        row["force_sum"] = text
+    ctx["vf_vars"] = [f["vf"] for f in ctx["fits"]]
+    ctx["w_vars"] = [t["w"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("w")]
+    ctx["b_vars"] = [t["b"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("b")]
 
 
 def check_identifiers(names: list[str]) -> None:
@@ -213,7 +138,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     ctx = header_context(model)
     _coordinate_rows(model, ctx["coords"], ws, state)
     nonlinear_rows(model, ctx, ws, state)
-    _fit_rows(model, ctx["fits"], state)
+    _fit_rows(model, ctx)
     ctx["film"] = film_rows(model, ws)
     ctx["accel_port"] = "a_in" if model.acceleration else ""
     for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
@@ -221,9 +146,10 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
             row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
     inertial_rows(model, ctx, ws)
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
-    p_vars = [p["name"] for f in ctx["fits"] for p in f["polys"]]
+    p_vars = [t["p"] for f in ctx["fits"] for t in f["plate_terms"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
-    y_vars = [y["name"] for f in ctx["fits"] for y in f["ys"]]
+    y_vars = ctx["w_vars"] + ctx["b_vars"] + ctx["vf_vars"] + [s["name"] for s in ctx["stiffness"]]
+    y_vars += [n for x in ctx["frozen"] for n in (x["xf"], x["dx"])]
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
     check_identifiers(

@@ -9,7 +9,8 @@ a number, a two-term sum a + b*t of numbers a and b, a product (its number and i
 factors), or anything else. Variables carry every value they may hold (an `if` adds one).
 A product is flagged when a number other than +-1 is among its factors, its numbers multiply
 to c and one factor is such a sum with |c*a| = |c*b| = 1 (both signs, and a division by a
-number counted as a product: a margin over the faulty form)."""
+number counted as a product: a margin over the faulty form). A product held in a variable enters
+another product as one opaque factor t, as the compiler sees it."""
 
 from __future__ import annotations
 
@@ -109,8 +110,9 @@ class Scanner:
         """Every abstract value the expression may have (products checked on the way)."""
         if isinstance(node, ast.Constant):
             return [Num(float(node.value))] if isinstance(node.value, (int, float)) else [OTHER]
-        if isinstance(node, ast.Name):
-            return list(self.values.get(node.id, [OTHER]))
+        if isinstance(node, ast.Name):  # a product held by a variable is one opaque factor t (the
+            # compiler folds the literal b of b*t, not the numbers inside t)
+            return [Prod(1.0, (node.id,)) if isinstance(v, Prod) else v for v in self.values.get(node.id, [OTHER])]
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
             return [self.product([Num(-1.0), v]) if v is not OTHER else OTHER for v in self.eval(node.operand)]
         if isinstance(node, ast.BinOp):

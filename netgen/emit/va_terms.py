@@ -1,0 +1,213 @@
+"""The plate terms, charges and electrostatic forces of the Verilog-A module with their Jacobian
+written out from shared factors (netgen.emit.veriloga renders them; no physics here).
+
+Automatic differentiation (openvaf-r) of F_v = sum_t g_tv dP_t/dxs_v y_t forms every
+dF_v/dxs_w as its own sum over the plate terms t, each product re-derived per pair: for the
+reference disk (94 terms, 7 coordinates) most of the model's evaluation. Here the plate terms
+are evaluated once, as values, on derivative-free copies of the states and electrode voltages
+(`frozen`: rounded to 2^-40, and floor() has no derivative), and the derivatives the simulator
+needs are added as explicit terms that vanish in value:
+
+    F_v = F_v(xf, V) - 1/(2 L_v) sum_w S_vw (V(xs_w) - xf_w),
+    S_vw = sum_t c_t dv2f_t [grad_tv grad_tw dw_t/dP + hess_tvw w_t]   (symmetric: 28 of 49 sums)
+
+with w = slope/P^2 (1/P terms, slope of the contact clamp) and, for the charges,
+Q_i = c_i (sum_k 1/P_k(xf)) dV_i - c_i dVf_i sum_w (sum_k grad_kw w_k) (V(xs_w) - xf_w).
+The derivatives with respect to the electrode voltages come from dv2 = dV^2 and dV as before.
+The Jacobian is the exact one (to the 2^-40 rounding of the copies), so AC, noise and Newton
+see the same matrix; the values differ from the direct form by below 1e-12 relative.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..fit.capacitance import CapacitanceFit
+from ..fit.polynomial import Polynomial
+from ..model import MacroModel
+from .common import clamp_expr, dv2_node, node, num, poly_expr, slope_expr
+
+ROUND = num(2.0**40)  # the copies' grid: 2^-40 ~ 9e-13 of a state (O(1)) or a volt
+
+
+def frozen(expr: str) -> str:
+    """`expr` rounded to 2^-40: a value without derivative (floor() has none in Verilog-A compilers)."""
+    return f"floor({expr} * {ROUND} + 0.5) / {ROUND}"
+
+
+def xf(name: str) -> str:
+    """The derivative-free copy of state xs_<q>."""
+    return f"xf_{name}"
+
+
+def dx(name: str) -> str:
+    """V(xs_<q>) - xf_<q>: zero in value, derivative 1 with respect to xs_<q>."""
+    return f"dx_{name}"
+
+
+def vf(electrode: str) -> str:
+    """The derivative-free copy of V(electrode, plate)."""
+    return f"vf_{electrode}"
+
+
+def w_var(electrode: str, k: int) -> str:
+    """slope/P^2 of a 1/P plate term (the force and motional-charge factor)."""
+    return f"w_{electrode}_{k + 1}"
+
+
+def b_var(electrode: str, k: int) -> str:
+    """dv2f * d(slope/P^2)/dP of a 1/P plate term (its factor in the force Jacobian)."""
+    return f"b_{electrode}_{k + 1}"
+
+
+def s_var(model: MacroModel, v: int, w: int) -> str:
+    """Entry (v, w) of the symmetric force Jacobian sum S (stored once, v <= w)."""
+    a, b = sorted((v, w))
+    return f"s_{model.coordinates[a].name}_{model.coordinates[b].name}"
+
+
+def _poly(poly: Polynomial, names: list[str]) -> str:
+    """A polynomial of the derivative-free copies, or its constant."""
+    return poly_expr(poly, names, access="{}")
+
+
+def _constant(poly: Polynomial) -> float | None:
+    """The value of a constant polynomial, None if it depends on the states."""
+    live = poly.coeffs != 0.0
+    if np.any(poly.exponents[live].sum(axis=1) > 0):
+        return None
+    return float(poly.coeffs[live].sum())
+
+
+Fold = Callable[[float, Polynomial], bool]
+
+
+def _times(c: float, poly: Polynomial, names: list[str], factor: str, fold: Fold | None = None) -> str | None:
+    """c * poly * factor as text (None when zero): a constant poly folded into c, and c into the
+    poly's sum unless `fold` says openvaf-r compiles the product right (netgen.emit.veriloga.misfolds)."""
+    k = _constant(poly)
+    if k is not None:
+        return None if c * k == 0.0 else f"{num(c * k)} * {factor}"
+    if fold is not None and not fold(c, poly):
+        return f"{num(c)} * ({_poly(poly, names)}) * {factor}"
+    terms = [(e, float(a) * c) for e, a in zip(poly.exponents, poly.coeffs) if a != 0.0]
+    return f"({_poly(Polynomial(np.array([e for e, _ in terms]), np.array([a for _, a in terms])), names)}) * {factor}"
+
+
+def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: int = 1) -> str:
+    """Non-empty terms joined (`per_line` to a line when sep breaks lines), '+ -' folded; '0.0' if none."""
+    live = [t for t in terms if t]
+    if per_line > 1:
+        live = [" + ".join(live[i : i + per_line]) for i in range(0, len(live), per_line)]
+    return sep.join(live).replace("+ -", "- ") if live else "0.0"
+
+
+def _term_rows(
+    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold
+) -> list[dict]:
+    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`)."""
+    rows = []
+    for k, poly in enumerate(f.polys):
+        p, ck = node(f.electrode, k), clamps[k] if clamps else None
+        folded = f.target == "direct" and fold(f.c_ref, poly)
+        text = _poly(Polynomial(poly.exponents, poly.coeffs * f.c_ref) if folded else poly, names)
+        row = {
+            "w": "",
+            "b": "",
+            "p": p,
+            "p_expr": f"({text} >= {num(ck[0])} ? {text} : {clamp_expr(text, *ck)})" if ck else text,
+        }
+        if f.target != "direct":
+            w, dv2f = w_var(f.electrode, k), f"{vf(f.electrode)} * {vf(f.electrode)}"
+            if ck:
+                knee, floor = ck
+                slope = slope_expr(p, knee, floor)
+                dslope = f"(({p} - {num(floor)}) < {num(knee - floor)} ? {num(1.0 / (knee - floor))} : 0.0)"
+                row["w_expr"] = f"{slope} / ({p} * {p})"
+                row["b_expr"] = f"{dv2f} * {w} * ({dslope} - 2.0 * {slope} / {p})"
+            else:
+                row["w_expr"] = f"1.0 / ({p} * {p})"
+                row["b_expr"] = f"-2.0 * {dv2f} * {w} / {p}"
+            row.update(w=w, b=b_var(f.electrode, k))
+        rows.append(row)
+    return rows
+
+
+def charge(f: CapacitanceFit, model: MacroModel, names: list[str], fold: Fold) -> str:
+    """The ddt() argument of one plate-electrode capacitor: C(xf) dV plus its explicit xs-derivative."""
+    e, coords = f.electrode, model.coordinates
+    dv = f"V({e}, {model.plate})"
+    if f.target == "direct":
+        grads = [_times(f.c_ref, f.polys[0].derivative(w), names, dx(c.name), fold) for w, c in enumerate(coords)]
+        cap = node(e, 0) if fold(f.c_ref, f.polys[0]) else f"{num(f.c_ref)} * {node(e, 0)}"
+        return f"{cap} * {dv} + {vf(e)} * ({_sum(grads, ' + ')})"
+    value = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(e, k)}" for k in range(len(f.polys))) + f") * {dv}"
+    parts = []
+    for w, c in enumerate(coords):
+        inner = _sum([_times(f.c_ref, p.derivative(w), names, w_var(e, k), fold) for k, p in enumerate(f.polys)], " + ")
+        if inner != "0.0":
+            parts.append(f"{dx(c.name)} * ({inner})")
+    return value + (f" - {vf(e)} * ({_sum(parts)})" if parts else "")
+
+
+def force(model: MacroModel, v: int, names: list[str], fold: Fold) -> str:
+    """F_v (SI): sum_i dv2_i (the plate terms' share at xf) and -1/(2 L_v) sum_w S_vw dx_w."""
+    scale, groups = model.coordinates[v].scale, []
+    for f in model.capacitances:
+        g = f.c_ref / (2.0 * scale)
+        if f.target == "direct":
+            inner = [_times(g, f.polys[0].derivative(v), names, "1.0", fold)]
+        else:
+            inner = [_times(-g, p.derivative(v), names, w_var(f.electrode, k), fold) for k, p in enumerate(f.polys)]
+        text = _sum(inner, " + ")
+        if text != "0.0":
+            groups.append(f"{dv2_node(f.electrode)} * ({text})")
+    jac = [f"{s_var(model, v, w)} * {dx(c.name)}" for w, c in enumerate(model.coordinates)]
+    return _sum(groups) + f"\n            - {num(0.5 / scale)} * ({' + '.join(jac)})"
+
+
+def stiffness(model: MacroModel, names: list[str]) -> list[dict]:
+    """The sums S_vw (v <= w) of the force Jacobian (module doc)."""
+    n, rows = model.ncoords, []
+    for v in range(n):
+        for w in range(v, n):
+            terms: list[str | None] = []
+            for f in model.capacitances:
+                dv2f = f"{vf(f.electrode)} * {vf(f.electrode)}"
+                for k, p in enumerate(f.polys):
+                    hess = p.derivative(v).derivative(w)
+                    if f.target == "direct":
+                        terms.append(_times(-f.c_ref, hess, names, dv2f))
+                        continue
+                    gv, gw = p.derivative(v), p.derivative(w)
+                    cv, cw = _constant(gv), _constant(gw)
+                    if cv is not None and cw is not None:
+                        terms.append(None if cv * cw == 0.0 else f"{num(f.c_ref * cv * cw)} * {b_var(f.electrode, k)}")
+                    else:
+                        cgv = Polynomial(gv.exponents, gv.coeffs * f.c_ref)  # c_ref folded in (misfolds)
+                        terms.append(f"({_poly(cgv, names)}) * ({_poly(gw, names)}) * {b_var(f.electrode, k)}")
+                    terms.append(_times(f.c_ref, hess, names, f"{dv2f} * {w_var(f.electrode, k)}"))
+            rows.append({"name": s_var(model, v, w), "expr": _sum(terms, per_line=4)})
+    return rows
+
+
+def rows(model: MacroModel, fits: list[dict], fold: Fold) -> dict:
+    """Template fields: the copies, each fit's terms and charge, the Jacobian sums, the forces;
+    fold(c, poly): write c * poly as one sum (netgen.emit.veriloga.misfolds)."""
+    names = [xf(c.name) for c in model.coordinates]
+    clamps = model.term_clamps()
+    for i, (row, f) in enumerate(zip(fits, model.capacitances)):
+        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, names, fold)
+        row["charge"] = charge(f, model, names, fold)
+        row["vf"] = vf(f.electrode)
+    return {
+        "frozen": [
+            {"xf": xf(c.name), "dx": dx(c.name), "xs": f"xs_{c.name}", "expr": frozen(f"V(xs_{c.name})")}
+            for c in model.coordinates
+        ],
+        "vf_expr": {f.electrode: frozen(f"V({f.electrode}, {model.plate})") for f in model.capacitances},
+        "stiffness": stiffness(model, names),
+        "forces": [force(model, v, names, fold) for v in range(model.ncoords)],
+    }
