@@ -8,7 +8,9 @@ states, in SI: states q (m or rad), q' and the squeeze-film branch forces; input
 and plate voltages, the generalized forces f_<q> and the inertial inputs the model has (a_in,
 a_x, a_y, w_x, w_y, w_z); outputs the displacements x_<q> and the electrode and plate charges
 Q_<e>. No currents: FMI 2.0 model exchange cannot pass input derivatives, so the importer takes
-dQ/dt (or integrates the charge directly, as a charge amplifier reads it). The thermal force noise
+dQ/dt (or reads the charge directly, as a charge amplifier does). Co-simulation takes first input
+derivatives (canInterpolateInputs): an input ramps linearly over the next doStep, so a
+piecewise-linear drive (a PULSE's edges) is integrated exactly. The thermal force noise
 of an ngspice .lib (its TRNOISE sources) is not in the FMU: it is deterministic.
 
 Co-simulation integrates with Dormand-Prince 5(4) under error control (tolerance: the
@@ -316,7 +318,9 @@ def context(model: MacroModel) -> dict:
     settable = [v["causality"] in ("input", "parameter") or v["initial"] == "exact" for v in vs]
     nominal = [float(v["nominal"]) for v in vs[:nx]]
     start = [float(v["start"]) if v["start"] is not None else 0.0 for v in vs]
-    arrays += [array("int", "SETTABLE", settable), array("double", "NOMINAL", nominal), array("double", "START", start)]
+    inputs = [v["causality"] == "input" for v in vs]
+    arrays += [array("int", "SETTABLE", settable), array("int", "INPUT", inputs)]
+    arrays += [array("double", "NOMINAL", nominal), array("double", "START", start)]
     ctx = {
         "m": model,
         "nq": nq,
