@@ -185,7 +185,7 @@ def run(model: MacroModel, d: Design, cycles: int, tolerance: float = 1e-9) -> d
         out_cur[n] = cur
     inst.close()
     t = (np.arange(cycles) + lp.t_record) * lp.ts
-    res = {f"bits_{c}": out_bits[:, k] for k, c in enumerate(lp.channels)}
+    res: dict[str, np.ndarray] = {f"bits_{c}": out_bits[:, k] for k, c in enumerate(lp.channels)}
     res |= {f"latch_{c}": (out_bits[:, k] > 0).astype(float) for k, c in enumerate(lp.channels)}
     res |= {f"cur_{c}": out_cur[:, k] for k, c in enumerate(lp.channels)}
     res |= {f"x_{c.name}": out_x[:, v] for v, c in enumerate(model.coordinates)}
