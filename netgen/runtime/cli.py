@@ -136,7 +136,7 @@ def _add_build(sub) -> None:
         default="ngspice",
         help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
         + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
-        + "; all: every dialect the model has but osdi",
+        + "; all: every dialect the model has but osdi and fmu (they compile)",
     )
     b.add_argument(
         "--native",
