@@ -30,13 +30,13 @@ from pathlib import Path
 import numpy as np
 from support import ROOT
 
+from netgen.cli.commands import main as netgen
 from netgen.electrostatics import EXTRACTORS
 from netgen.electrostatics.sampling import coordinate_scales
 from netgen.emit import write_outputs
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
 from netgen.model import MacroModel
-from netgen.runtime.cli import main as netgen
 from netgen.structure.parse import parse_structure
 
 REFERENCE = ROOT / "examples" / "levitated_disk.toml"

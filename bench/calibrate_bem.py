@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from support import ROOT
 
+from netgen.cli.commands import main as netgen
 from netgen.electrostatics.calibration import pairs
-from netgen.runtime.cli import main as netgen
 
 # the reduced disk of examples/calibrated_disk.toml (tests/electrostatics/test_calibration.py
 # shares it): its geometry without the [electrostatics] table, then gap, slot and rings set here

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from support import ROOT
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 
 NUMBERS = ["0", "-1", "-0", "nan", "inf", "-inf", "1e400", "1e-400", "abc", "", " ", "1,5", "0x10"]
 INTEGERS = ["0", "-5", "1.5", "1e3", "abc", "", str(1 << 40), "10"]

@@ -49,10 +49,12 @@ def grids(name: str, max_nfev: int, electrodes: int) -> None:
                 break
             init = cap.patch_guess(s, e, b.mechanics.basis, b.scales, grid, cap.reference(x, c))
             t0 = time.perf_counter()
-            one = cap.fit_plates(e.name, x, c, init, s.fit.degree, b.holdout.x, b.holdout.c[:, i], max_nfev, rest)
+            one = cap.fit_plates(
+                e.name, cap.FitData(x, c, b.holdout.x, b.holdout.c[:, i], rest), init, s.fit.degree, max_nfev
+            )
             dt = time.perf_counter() - t0
             two = cap.fit_plates(
-                e.name, x, perturbed, init, s.fit.degree, b.holdout.x, b.holdout.c[:, i], max_nfev, rest
+                e.name, cap.FitData(x, perturbed, b.holdout.x, b.holdout.c[:, i], rest), init, s.fit.degree, max_nfev
             )
             a, a2 = (np.concatenate([p.coeffs for p in f.polys]) for f in (one, two))
             print(

@@ -29,7 +29,9 @@ def refit(b, i: int, k: int, noise: float, seed: int) -> cap.CapacitanceFit:
     s, x, e = b.structure, b.grid.x, b.electrodes[i]
     c = b.grid.c[:, i] * (1 + noise * np.random.default_rng(seed).standard_normal(len(x)))
     init = cap.patch_guess(s, e, b.mechanics.basis, b.scales, cap.PATCH_GRIDS[k], cap.reference(x, c))
-    return cap.fit_plates(e.name, x, c, init, s.fit.degree, b.holdout.x, b.holdout.c[:, i], rest=cap.rest_of(b.grid, i))
+    return cap.fit_plates(
+        e.name, cap.FitData(x, c, b.holdout.x, b.holdout.c[:, i], cap.rest_of(b.grid, i)), init, s.fit.degree
+    )
 
 
 def grid_of(fit: cap.CapacitanceFit) -> int:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from support import ROOT
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 
 
 def example():

@@ -64,7 +64,8 @@ def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path,
         wall = time.perf_counter() - start
         pts, its = len(plot["time"]) - 1, None
     else:
-        plot = sdv.run_bench(model, d, out, cycles, progress=False, va=VA, cache=cache, options=VARIANTS[variant])
+        how = sdv.BenchOptions(va=VA, cache=cache, options=VARIANTS[variant])
+        plot = sdv.run_bench(model, d, out, cycles, progress=False, how=how)
         wall = time.perf_counter() - start
         st = vacask_stats(out / sdv.LOG)
         pts, its = st["accepted"], st["nr_iterations"] / st["accepted"]

@@ -20,7 +20,16 @@ PACKAGE = "netgen_test_oracles"  # the name the oracles package gets here (tests
 
 # the oracle modules this file hands out, and the testbench names it re-exports (tests/fixtures.py
 # re-exports the same ones to the tests)
-MODULES = ("bem_reduced", "closed_forms", "lateral_comb", "sc_readout", "sigma_delta_reference", "testbench", "va_scan")
+MODULES = (
+    "bem_reduced",
+    "closed_forms",
+    "lateral_comb",
+    "process_mc",
+    "sc_readout",
+    "sigma_delta_reference",
+    "testbench",
+    "va_scan",
+)
 TESTBENCH = ("NGSPICE", "Bench", "Pulse", "reference_transient", "states", "transient_drive", "using_ngspice")
 
 __all__ = ["ORACLES", "ROOT", "oracle", *MODULES, *TESTBENCH]

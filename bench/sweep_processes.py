@@ -17,7 +17,7 @@ Every case runs the real `netgen sweep` (a 4-run T_s sweep of the rigid disk mod
 - a hanging simulator: [sweep] timeout stops it by the timer.
 Prints one line per case class: tried, tracebacks, wrong outcomes, leftovers. A Ctrl-C while
 Python still imports netgen (the first second or two) is Python's KeyboardInterrupt traceback
-before netgen.runtime.cli.main runs; it is counted apart ("tracebacks during imports").
+before netgen.cli.commands.main runs; it is counted apart ("tracebacks during imports").
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ def start(sweep: Path, out: Path) -> subprocess.Popen:
         [
             sys.executable,
             "-m",
-            "netgen.runtime.cli",
+            "netgen.cli.commands",
             "sweep",
             str(STRUCTURE),
             str(sweep),
@@ -251,7 +251,7 @@ def foreign(n: int, tmp: Path, tally: dict) -> None:
     for k in range(n):
         start_s = time.monotonic()
         p = subprocess.run(
-            [sys.executable, "-m", "netgen.runtime.cli", "sweep", str(STRUCTURE), str(sweep), "-o", str(out), "-q"],
+            [sys.executable, "-m", "netgen.cli.commands", "sweep", str(STRUCTURE), str(sweep), "-o", str(out), "-q"],
             cwd=ROOT,
             capture_output=True,
             text=True,

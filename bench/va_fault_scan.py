@@ -18,7 +18,7 @@ from pathlib import Path
 
 from support import ROOT, va_scan
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 
 
 def structure_examples() -> list[Path]:

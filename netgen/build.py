@@ -35,6 +35,7 @@ from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
 from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots
+from .model.process import process_laws
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -53,6 +54,17 @@ class Build:
     fits: list[CapacitanceFit]
     model: MacroModel
     extractor: CapacitanceExtractor | None = None
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """The capacitance samples and their fits (assemble's input): the grid, the held-out set, the
+    fits and the sample design's extra report."""
+
+    grid: Samples
+    holdout: Samples
+    fits: list[CapacitanceFit]
+    design_extra: dict | None = None
 
 
 def build(s: Structure, progress: bool = False, max_minutes: float | None = None, **parallel) -> Build:
@@ -78,7 +90,7 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     else:
         s = default_range(s, prepared, scales, progress)
         grid, holdout, fits, extra = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
-    model = assemble(s, m, plate, shapes, ext, prepared, scales, grid, holdout, fits, extra)
+    model = assemble(s, m, plate, shapes, ext, prepared, scales, Sampled(grid, holdout, fits, extra))
     if imp:
         model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
         if imp.capacitance:
@@ -201,12 +213,10 @@ def assemble(
     ext: CapacitanceExtractor,
     prepared: PreparedExtractor,
     scales: np.ndarray,
-    grid: Samples,
-    holdout: Samples,
-    fits: list[CapacitanceFit],
-    design_extra: dict | None = None,
+    sampled: Sampled,
 ) -> MacroModel:
     """The MacroModel from the stage outputs (plus the constant electrode couplings)."""
+    grid, holdout, fits, design_extra = sampled.grid, sampled.holdout, sampled.fits, sampled.design_extra
     coupling = ext.coupling(shapes, plate)
     damp, damp_report = damping(s, m)
     film = damp_report.pop("branches", [()] * len(m.names))
@@ -273,6 +283,8 @@ def assemble(
     if m.strain_energy is not None:  # e.g. stress stiffening (netgen.mechanics.beam)
         poly, fit_report = fit_energy(m.strain_energy.energy, scales)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
+    scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
+    model.process = process_laws(s, m, mechanics, described, scale_z, s.sampling.range)
     return model
 
 

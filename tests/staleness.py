@@ -286,7 +286,9 @@ def refit(b, i: int, noise: float, seed: int = 0, grid: int | None = None):
     wobble[np.argmin(np.sum(x * x, axis=1))] = 0.0
     c = b.grid.c[:, i] * (1.0 + wobble)
     init = cap.patch_guess(b.structure, e, b.mechanics.basis, b.scales, cap.PATCH_GRIDS[k], cap.reference(x, c))
-    return cap.fit_plates(e.name, x, c, init, f.degree, b.holdout.x, b.holdout.c[:, i], rest=cap.rest_of(b.grid, i))
+    return cap.fit_plates(
+        e.name, cap.FitData(x, c, b.holdout.x, b.holdout.c[:, i], cap.rest_of(b.grid, i)), init, f.degree
+    )
 
 
 def with_fit(model: MacroModel, i: int, fit) -> MacroModel:

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import SimulationError
-from netgen.runtime import cli
 from netgen.runtime.arguments import output_folder
 from netgen.runtime.folders import OutputFolder, check_manifest
 from netgen.runtime.interrupts import Interrupted
@@ -51,10 +51,10 @@ def refused(argv: list[str], capsys) -> str:
 
 A_FILE = str(ROOT / "pyproject.toml")
 RANGES = [
-    (["simulate", A_FILE, "-o", "OUT", "--timeout", "0"], "--timeout", "greater than 0"),
-    (["simulate", A_FILE, "-o", "OUT", "--timeout", "-1"], "--timeout", "greater than 0"),
-    (["simulate", A_FILE, "-o", "OUT", "--timeout", "nan"], "--timeout", "finite"),
-    (["simulate", A_FILE, "-o", "OUT", "--timeout", "1e300"], "--timeout", "at most"),
+    (["simulate", A_FILE, "-o", "OUT", "--timeout", "0"], "--timeout", "is outside (0, 1e+07] s"),
+    (["simulate", A_FILE, "-o", "OUT", "--timeout", "-1"], "--timeout", "is outside (0, 1e+07] s"),
+    (["simulate", A_FILE, "-o", "OUT", "--timeout", "nan"], "--timeout", "e.g. --timeout 600"),
+    (["simulate", A_FILE, "-o", "OUT", "--timeout", "1e300"], "--timeout", "outside the physical range"),
     (["simulate", "no/such.cir", "-o", "OUT"], "netlist", "check the path"),
     (["simulate", str(ROOT), "-o", "OUT"], "netlist", "give the netlist file inside it"),
     (["simulate", A_FILE, "-o", ""], "-o/--output", "give a folder"),
@@ -65,7 +65,11 @@ RANGES = [
     (["build", PISTON, "-o", ""], "-o/--output", "give a folder"),
     (["build", PISTON, "-o", "/proc/self/netgen"], "-o/--output", "not storage"),
     (["build", PISTON, "-o", "OUT", "--sample-store", A_FILE], "--sample-store", "is a file"),
-    (["build", PISTON, "-o", "OUT", "--scheduler", ""], "--scheduler", "give one, e.g. processes:2"),
+    (
+        ["build", PISTON, "-o", "OUT", "--scheduler", ""],
+        "--scheduler",
+        "is empty; give where the capacitance samples are computed",
+    ),
     (["simulate", A_FILE, "-o", "OUT", "--timeout", "-inf"], "--timeout", "--option=VALUE"),
     (["sigma-delta", DISK, "-o", "OUT", "--cycles", "10"], "--cycles", "between 64 and"),
     (["sigma-delta", DISK, "-o", "OUT", "--cycles", "1e3"], "--cycles", "whole number"),

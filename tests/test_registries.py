@@ -11,11 +11,11 @@ import pytest
 
 from netgen import electrostatics, emit, mechanics
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.core.constants import EPS0
 from netgen.core.errors import StructureError, SweepError
 from netgen.electrostatics.parallel_plate import ParallelPlateExtractor
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.sim import SIMULATORS
 from netgen.structure import CONDUCTORS, load_structure, parse_structure
 from netgen.sweep import parse_sweep

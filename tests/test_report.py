@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from matplotlib import image
 
+from netgen.cli import commands as cli
 from netgen.emit import report
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from tests.fixtures import ROOT
 
 NETLISTS = ROOT / "netlists"

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import InputError
 from netgen.core.paths import spice_card, spice_command, vacask_string
-from netgen.runtime import cli
 from netgen.sim import codemodel
 from tests.fixtures import NGSPICE, ROOT
 

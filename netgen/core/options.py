@@ -2,8 +2,9 @@
 ends, default, help) and where a user writes it (command-line flag, [loop] key, sweep parameter);
 its `read` is the one check the command line, the file readers and the sweep all apply, so a value
 gets the same verdict and the same message wherever it is written (only the name differs: the flag
-or the key as the user wrote it). The argparse arguments (netgen.runtime.arguments.add_option), the
-readers' checks and the docs' option tables (markdown_table) are derived from the declarations.
+or the key as the user wrote it). The argparse arguments (netgen.runtime.arguments.add_options), the
+readers' checks, the records that carry the values (Record: one attribute per declared option) and
+the docs' option tables (markdown_table) are derived from the declarations.
 
 Imports nothing of netgen but errors and units (no argparse, no stage).
 """
@@ -12,15 +13,16 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from .units import RANGES, SI_NAME, UnitError, in_range, parse_quantity
 
 # a plain number as written: digits, one point, an exponent; no underscores, no inf/nan, no spaces
 NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 INTEGER = re.compile(r"[-+]?\d+")
+TEXTS = ("text", "file", "folder")  # the types whose value is the text as written
 
 
 class OptionError(ValueError):
@@ -51,10 +53,14 @@ def number(text: str) -> float | None:
 @dataclass(frozen=True)
 class Option:
     """One option. type: "float" (a number, or a quantity string of kind `quantity`), "int",
-    "choice" (one of `choices`), "bool" or "text"; low/high: the range (None: unbounded), each end
-    open or closed; zero: what 0 means where it is allowed outside the range (None: it is not).
-    flag / loop_key / sweep: the command-line flag, the [loop] key (dotted below [loop]) and the
-    sweep parameter that set it (None: not there). cross(value, context) -> problem or None: a
+    "choice" (one of `choices`), "bool", "text", or a path: "file" (to read) or "folder" (to write
+    into; both checked by the command line, netgen.runtime.arguments); low/high: the range (None:
+    unbounded), each end open or closed; zero: what 0 means where it is allowed outside the range
+    (None: it is not). flag / loop_key / sweep: the command-line flag (a name without dashes: a
+    positional argument), the [loop] key (dotted below [loop]) and the sweep parameter that set it
+    (None: not there); short, metavar, required, usage: the flag's short form, value name, whether
+    it must be given and the text --help adds to `help`. role: the record the value is carried in
+    (e.g. "design": the sigma-delta loop's Choices). cross(value, context) -> problem or None: a
     check against other settings (context: the names of the settings known where it is read)."""
 
     name: str
@@ -74,6 +80,11 @@ class Option:
     loop_key: str | None = None
     sweep: str | None = None
     cross: Callable[[Any, dict], str | None] | None = None
+    role: str = ""
+    short: str | None = None
+    metavar: str | None = None
+    required: bool = False
+    usage: str = ""
 
     @property
     def unit(self) -> str:
@@ -110,7 +121,7 @@ class Option:
 
     def fix(self, named: str) -> str:
         """The fix of a refused value, written the way the user wrote the setting."""
-        if self.type == "text":
+        if self.type in TEXTS:
             return f"give {self.help}, e.g. {self.example_as(named)}"
         rng = self.range_text()
         return f"give {self.help} {'in ' if rng[0] in '([' else ''}{rng}, e.g. {self.example_as(named)}"
@@ -144,7 +155,7 @@ class Option:
             if value in self.choices:
                 return value
             raise OptionError(f"{named} = {shown(value)} is not one of {', '.join(self.choices)}", self.fix(named))
-        if self.type == "text":
+        if self.type in TEXTS:
             if isinstance(value, str):
                 return value
             raise bad
@@ -173,10 +184,27 @@ class Option:
             "bool": "true or false",
             "int": "a whole number",
             "text": "a text",
+            "file": "a file",
+            "folder": "a folder",
             "choice": "one of " + ", ".join(self.choices),
         }.get(
             self.type, f"a number (SI) or a {self.quantity} string" if self.quantity != "dimensionless" else "a number"
         )
+
+
+MARK = "<!-- generated from the option declarations: {} -->"  # the line above a docs page's generated table
+
+
+def with_table(text: str, name: str, table: str) -> str:
+    """A docs page's text with the table below its MARK line `name` replaced by `table` (the table
+    ends at the first line that is not a table row); ValueError if the page has no such mark."""
+    mark = MARK.format(name) + "\n"
+    if mark not in text:
+        raise ValueError(f"no line {mark.strip()!r} above the table")
+    head, _, rest = text.partition(mark)
+    lines = rest.splitlines(keepends=True)
+    n = next((i for i, line in enumerate(lines) if not line.startswith("|")), len(lines))
+    return head + mark + table + "".join(lines[n:])
 
 
 def by_name(options: Iterable[Option]) -> dict[str, Option]:
@@ -193,9 +221,73 @@ def markdown_table(options: Iterable[Option], columns: tuple[str, ...] = ("flag"
     ]
     for o in options:
         where = [f"`{getattr(o, c)}`" if getattr(o, c) else "" for c in columns]
+        where = [f"`{o.short}`, {w}" if c == "flag" and o.short else w for c, w in zip(columns, where)]
         default = o.default_text or (
             "" if o.default is None else f"{o.default:g}" if o.type == "float" else str(o.default)
         )
-        rng = "true, false" if o.type == "bool" else "text" if o.type == "text" else o.range_text()
+        rng = "true, false" if o.type == "bool" else o.type if o.type in TEXTS else o.range_text()
         rows.append("| " + " | ".join(where + [rng, default, o.help]) + " |")
     return "\n".join(rows) + "\n"
+
+
+class Record:
+    """The values of declared options, one attribute per option (None: not given), compared by
+    value and immutable; a subclass says which (`declared`, e.g. from the declarations' role) and
+    may carry `extra` values that are not options. Adding a declaration adds its attribute."""
+
+    declared: ClassVar[Mapping[str, Option]] = {}
+    extra: ClassVar[tuple[str, ...]] = ()
+    __slots__ = ("_values",)
+
+    def __init__(self, **given: Any) -> None:
+        names = tuple(self.declared) + self.extra
+        unknown = sorted(set(given) - set(names))
+        if unknown:
+            raise TypeError(f"{type(self).__name__} has no option {', '.join(unknown)} (declared: {', '.join(names)})")
+        object.__setattr__(self, "_values", {n: given.get(n) for n in names})
+
+    @classmethod
+    def of(cls, values: Mapping[str, Any]) -> Any:
+        """The record of the names it declares in `values` (e.g. parsed arguments, a sweep's settings)."""
+        return cls(**{k: v for k, v in values.items() if k in cls.declared or k in cls.extra})
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "_values":  # not yet set (copy, pickle): no recursion
+            raise AttributeError(name)
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(f"{type(self).__name__} has no option {name!r}") from None
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"{type(self).__name__} is immutable; build another (over, or_defaults)")
+
+    def __eq__(self, other: object) -> bool:
+        return type(other) is type(self) and self._values == other._values
+
+    def __hash__(self) -> int:
+        return hash((type(self).__name__, tuple(self._values.items())))
+
+    def __repr__(self) -> str:
+        given = ", ".join(f"{k}={v!r}" for k, v in self._values.items() if v is not None)
+        return f"{type(self).__name__}({given})"
+
+    def __reduce__(self) -> tuple:
+        return (type(self).of, (dict(self._values),))
+
+    def given(self) -> dict[str, Any]:
+        """The values given (not None), by name."""
+        return {k: v for k, v in self._values.items() if v is not None}
+
+    def over(self, other: Record) -> Any:
+        """This record with `other`'s values where this one has none (the names both declare)."""
+        return type(self).of(other.given() | self.given())
+
+    def or_defaults(self) -> Any:
+        """This record with each missing value its declared default."""
+        return type(self).of({k: o.default for k, o in self.declared.items()} | self.given())
+
+
+def of_role(options: Iterable[Option], role: str) -> dict[str, Option]:
+    """The options of one role (a Record's `declared`), by name."""
+    return {o.name: o for o in options if o.role == role}

@@ -60,19 +60,26 @@ def line_buffered(argv: list[str]) -> list[str]:
     return ([stdbuf, "-oL", "-eL"] if stdbuf else []) + list(argv)
 
 
+@dataclass(frozen=True)
+class Watch:
+    """What run reports while the process runs: on_line(line) for each output line as it arrives,
+    on_tick(wall seconds) every `tick` s."""
+
+    on_line: Callable[[str], None] | None = None
+    on_tick: Callable[[float], None] | None = None
+    tick: float = 2.0
+
+
 def run(
     argv: list[str],
     cwd: str | Path,
     timeout: float,
     reproduce: str,
     name: str = "",
-    on_line: Callable[[str], None] | None = None,
-    on_tick: Callable[[float], None] | None = None,
-    tick: float = 2.0,
+    watch: Watch = Watch(),
     env: dict[str, str] | None = None,
 ) -> Finished:
-    """Run argv in cwd with stdin closed; on_line(line) for each output line as it arrives,
-    on_tick(wall seconds) every `tick` s while it runs. Past `timeout` s the process group is
+    """Run argv in cwd with stdin closed, reporting to `watch` while it runs. Past `timeout` s the process group is
     killed and a SimulationError names the program (`name`, default argv[0]) and the command
     that reproduces the run; an interrupt of the caller kills it too. `env`: its environment
     (default: this process's)."""
@@ -101,6 +108,7 @@ def run(
     reader.start()
     start = time.perf_counter()
     out: list[str] = []
+    on_line, on_tick, tick = watch.on_line, watch.on_tick, watch.tick
     next_tick = tick
     try:
         while True:

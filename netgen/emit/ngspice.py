@@ -12,7 +12,7 @@ from ..core.constants import K_B
 from ..core.templating import render
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from . import inertial
+from . import inertial, process
 from .common import (
     c_node,
     contact_terms,
@@ -38,17 +38,18 @@ def force_terms(model: MacroModel, v: int, ws: float, state: list[str]) -> tuple
     a = force_gain(c, ws)
     parts, linear = [f"{gain}*v({n})" for n, gain in linear_force_terms(model, v, ws)], []
     for f in model.capacitances:
+        fstate = process.electrode_state(model, f.electrode, state)
         for k, poly in enumerate(f.polys):
             dpoly = poly.derivative(v)
             if not np.any(dpoly.coeffs):
                 continue
             g = a * f.c_ref / (2.0 * c.scale)
             if f.target == "direct":  # F = g dP/dx dV^2
-                parts.append(f"{num(g)}*({poly_expr(dpoly, state)})*v({dv2_node(f.electrode)})")
+                parts.append(f"{num(g)}*({poly_expr(dpoly, fstate)})*v({dv2_node(f.electrode)})")
             elif dpoly.exponents.sum() == 0:  # affine P_k: F linear in y_k
                 linear.append((y_node(f.electrode, k), num(-g * float(dpoly.coeffs.sum()))))
             else:
-                parts.append(f"{num(-g)}*({poly_expr(dpoly, state)})*v({y_node(f.electrode, k)})")
+                parts.append(f"{num(-g)}*({poly_expr(dpoly, fstate)})*v({y_node(f.electrode, k)})")
     return " + ".join(parts).replace("+ -", "- "), linear
 
 
@@ -59,9 +60,9 @@ def linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, 
     a = force_gain(c, ws)
     terms = [(f"f_{c.name}", num(a * c.port_units[3]))]
     if c.stiffness:
-        terms.append((f"xs_{c.name}", num(-c.stiffness / (c.mass * ws * ws))))
+        terms.append((f"xs_{c.name}", process.factor(model, "pk", c.name, num(-c.stiffness / (c.mass * ws * ws)))))
     if c.damping:
-        terms.append((f"u_{c.name}", num(-c.damping / (c.mass * ws))))
+        terms.append((f"u_{c.name}", process.factor(model, "pd", c.name, num(-c.damping / (c.mass * ws)))))
     return terms
 
 
@@ -102,9 +103,15 @@ def noise_context(model: MacroModel, ws: float) -> dict:
     sources = [
         {
             "name": c.name,
-            "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3]),
+            "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3])
+            + (f"*sqrt(pt_{c.name})" if process.active(model, "pt") else ""),
             "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws)),
         }
+        | (
+            {"rn": process.factor(model, "pd", c.name, num(c.damping / c.port_units[3] ** 2))}
+            if process.enabled(model)
+            else {}
+        )
         for c in model.coordinates
         if c.damping > 0
     ]
@@ -113,13 +120,19 @@ def noise_context(model: MacroModel, ws: float) -> dict:
         "noise_temperature": f"{temp:g}",
         "noise_dt": f"{dt:g}",
         "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else "",
+        "noise_dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
     }
+
+
+# ngspice's default circuit temperature (degC): a .noise resistor's (with [process]) noise temperature
+# is it plus dtemp; the resistor form of 4 k_B T D assumes that .temp (ngspice 39 ignores a resistor's temp=)
+NGSPICE_TEMP_C = 27.0
 
 
 TEMPLATE = "ngspice/subckt.lib.j2"
 
 
-def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
+def mechanics_context(model: MacroModel, noise: bool | None, gaps: bool = True) -> dict:
     """Template context of every part of the .lib but the electrostatics: the header tables, the
     integrators of each coordinate, thermal noise, stress stiffening, film branches and inertial
     loads (shared with netgen.emit.xspice)."""
@@ -130,6 +143,7 @@ def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
         ctx.update(noise_context(model, ws))
     for row, c in zip(ctx["coords"], model.coordinates):
         row.update({"cint": num(1.0 / ws), "out_gain": num(c.scale / c.port_units[1])})
+        row["cu"] = process.factor(model, "pm", c.name, num(1.0 / ws))
     ctx["nonlinear"] = nonlinear_sources(model, ws, state)
     ctx["film"] = film_branches(model, ws, noise_enabled(model, noise))
     ctx["inertial"] = inertial_loads(model, ws)
@@ -139,7 +153,22 @@ def mechanics_context(model: MacroModel, noise: bool | None) -> dict:
     if any("rms" in b for b in ctx["film"]) and not ctx.get("subckt_params"):
         dt = noise_context(model, ws)["noise_dt"]  # the branches' noise needs the instance params
         ctx.update({"noise_dt": dt, "subckt_params": f"\n+ params: noise=1 noise_dt={dt}"})
+    add_process(ctx, model, gaps)
     return ctx
+
+
+def add_process(ctx: dict, model: MacroModel, gaps: bool = True) -> None:
+    """The process instance parameters (netgen.emit.process): defaults on the .subckt line, the derived
+    .param lines, the shifted gap states (`gaps`: the form reads them) and the header's statement."""
+    if not process.enabled(model):
+        return
+    extra = " ".join(f"{n}={v}" for n, v in process.params(model, gaps))
+    old = ctx.get("subckt_params", "")
+    if extra:
+        ctx["subckt_params"] = f"{old} {extra}" if old else f"\n+ params: {extra}"
+    ctx["process_params"] = [f".param {n} = {{{e}}}" for n, e in process.factors(model)]
+    ctx["gap_shift"] = process.gap_networks(model) if gaps else []
+    ctx["process_text"] = process.header_text(model, gaps)
 
 
 def add_stops(ctx: dict, model: MacroModel, stops: list[dict], per_coord: list[list[tuple[str, float]]]) -> None:
@@ -162,7 +191,8 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
         row["force_expr"], row["linear"] = force_terms(model, v, ws, state)
     clamps = model.term_clamps()
     for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
-        row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), state))
+        fstate = process.electrode_state(model, f.electrode, state)
+        row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), fstate))
     stops, per_coord = contact_terms(model)
     for pt in stops:  # no penetration, no force: the ternary skips the penalty's derivative trees
         pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
@@ -253,7 +283,10 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     for k, poly in enumerate(f.polys):
         shifted = deviation(poly)
         if affine(poly):
-            nodes.append({"name": node(e, k), "lines": linear_network(node(e, k), shifted, state)})
+            lines = linear_network(node(e, k), shifted, state) + process.offset_lines(
+                model, e, node(e, k), shifted, state
+            )
+            nodes.append({"name": node(e, k), "lines": lines})
         else:
             nodes.append({"name": node(e, k), "expr": poly_expr(shifted, state)})
         g_row, y_row = plate_term(e, k, float(poly(zero)[0]), clamp[k], dv2["name"])
@@ -316,6 +349,11 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                         "rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
                         "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
                     }
+                    | (
+                        {"rn": num(r / c.port_units[3] ** 2), "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C)}
+                        if process.enabled(model)
+                        else {}
+                    )
                 )
             rows.append(row)
     return rows
@@ -325,7 +363,11 @@ def inertial_loads(model: MacroModel, ws: float) -> list[dict]:
     """Per coordinate with a non-zero participation G_v: the gain from the a_in port (m/s^2) into
     its velocity node, G_v / (M L w_s^2) (the inertial force -G_v a_in, like F_ext)."""
     return [
-        {"coord": c.name, "gain": num(g / (c.mass * c.scale * ws * ws)), "participation": f"{g:.6g}"}
+        {
+            "coord": c.name,
+            "gain": process.factor(model, "tscale", c.name, num(g / (c.mass * c.scale * ws * ws))),
+            "participation": f"{g:.6g}",
+        }
         for c, g in zip(model.coordinates, model.acceleration)
         if g != 0.0
     ]

@@ -104,7 +104,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     problem = refusal(model)
     if problem:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
-    ctx = ngspice.mechanics_context(model, noise)
+    ctx = ngspice.mechanics_context(model, noise, gaps=False)  # the code model reads xs_z itself
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees
         row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})

@@ -12,7 +12,7 @@ only stops when that pool meets the bound too (else the fresh pool joins the pro
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,7 +83,7 @@ def adaptive_fits(
     stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size)
     train, probes = start, evaluate(stream.take(pool_size))
     spent, validations, since = design_size(probes), 0, 0
-    fits, used = fit_round(s, shapes, basis, scales, train, probes, range(len(shapes)), [0] * len(shapes))
+    fits, used = fit_round(s, shapes, basis, scales, train, probes, Round(range(len(shapes)), [0] * len(shapes)))
     result = AdaptiveResult(train, fits, spent)
     while True:
         err = errors(fits, probes)
@@ -126,7 +126,7 @@ def adaptive_fits(
         spent += design_size(fresh)
         probes = Samples(probes.x[keep], probes.c[keep], 0, probes.x[keep]) + fresh
         failing = [i for i in range(len(shapes)) if worst[i] > SAFETY * tol]
-        fits, used = fit_round(s, shapes, basis, scales, train, probes, failing, used, fits)
+        fits, used = fit_round(s, shapes, basis, scales, train, probes, Round(failing, used, fits))
     final = [with_errors(f, train.x, train.c[:, i], holdout.x, holdout.c[:, i]) for i, f in enumerate(fits)]
     refuse_unphysical(s, final, train.x, holdout.x)
     result.samples, result.fits, result.probes = train, final, spent
@@ -154,6 +154,16 @@ def stalled(rounds: list[dict]) -> bool:
     return min(r["probe_max_rel_error"] for r in rounds[-STALL:]) > 0.9 * best_before
 
 
+@dataclass(frozen=True)
+class Round:
+    """One refit round: the electrodes to refit (`which`), each electrode's patch grid so far
+    (`used`) and the last round's fits (`previous`; None: the first round)."""
+
+    which: Iterable[int]
+    used: list[int]
+    previous: list[CapacitanceFit] | None = None
+
+
 def fit_round(
     s: Structure,
     shapes: list[Electrode],
@@ -161,14 +171,13 @@ def fit_round(
     scales: np.ndarray,
     train: Samples,
     check: Samples,
-    which,
-    used: list[int],
-    previous: list[CapacitanceFit] | None = None,
+    r: Round,
 ) -> tuple[list[CapacitanceFit], list[int]]:
-    """Refit the electrodes `which` on `train` (their patch count starting where the last round
-    ended: a warm start), keep the others; errors against `check`."""
+    """Refit the electrodes r.which on `train` (their patch count starting where the last round
+    ended, r.used: a warm start), keep the others (r.previous); errors against `check`."""
+    which, previous = r.which, r.previous
     fits: list[CapacitanceFit | None] = list(previous) if previous else [None] * len(shapes)
-    used = list(used)
+    used = list(r.used)
     for i in which:
         fit, used[i] = fit_electrode(s, shapes[i], basis, scales, FitData.of(train, check, i), used[i], OVERSAMPLE)
         fits[i] = with_errors(fit, train.x, train.c[:, i], check.x, check.c[:, i])

@@ -100,24 +100,16 @@ def fit_capacitance(
     return with_errors(draft, x, c, x_check, c_check)
 
 
-def fit_plates(
-    name: str,
-    x: np.ndarray,
-    c: np.ndarray,
-    initial: np.ndarray,
-    degree: int,
-    x_check: np.ndarray,
-    c_check: np.ndarray,
-    max_nfev: int = MAX_NFEV,
-    rest: tuple[float, np.ndarray] | None = None,
-) -> CapacitanceFit:
-    """Fit C = c_ref sum_k 1/P_k(x) by least squares on the relative error.
+def fit_plates(name: str, data: FitData, initial: np.ndarray, degree: int, max_nfev: int = MAX_NFEV) -> CapacitanceFit:
+    """Fit C = c_ref sum_k 1/P_k(x) to data.x, data.c by least squares on the relative error
+    (data.x_check, data.c_check: the held-out errors).
 
     `initial` (K, 1 + ncoords) holds affine first guesses of the P_k (from physical patches
     of the electrode); higher-degree coefficients start at zero. The Jacobian is analytic.
-    `rest` (C(0), dC/dx(0)): n + 1 more residuals, weighted REST_WEIGHT sqrt(samples), so the fit
+    data.rest (C(0), dC/dx(0)): n + 1 more residuals, weighted REST_WEIGHT sqrt(samples), so the fit
     matches the capacitance and its slopes at rest (netgen.electrostatics.sampling.rest_of).
     """
+    x, c, x_check, c_check, rest = data.x, data.c, data.x_check, data.c_check, data.rest
     c_ref = reference(x, c)
     exps = monomial_exponents(x.shape[1], degree)
     sp = span(x)
@@ -194,7 +186,7 @@ def fit_electrode(
     starting at PATCH_GRIDS[first], until the held-out error meets the tolerance (or the
     term limit is reached: at most len(x) / oversample coefficients). Returns the fit and the
     index of the grid used."""
-    o, name, x, c, x_check, c_check, rest = s.fit, e.name, data.x, data.c, data.x_check, data.c_check, data.rest
+    o, name, x, c, x_check, c_check = s.fit, e.name, data.x, data.c, data.x_check, data.c_check
     if o.target != "plates":
         return fit_capacitance(name, x, c, o.degree, o.target, x_check, c_check), 0
     best: CapacitanceFit | None = None
@@ -206,7 +198,7 @@ def fit_electrode(
         ) * oversample > len(x):
             break  # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
-        fit = fit_plates(name, x, c, init, o.degree, x_check, c_check, rest=rest)
+        fit = fit_plates(name, data, init, o.degree)
         ok = physical(fit, x, x_check)
         if best is None or (ok, -fit.max_rel_error) > (best_ok, -best.max_rel_error):
             best, used, best_ok = fit, k, ok

@@ -67,18 +67,12 @@ class BeamModes:
         return self._eval(x, True)
 
 
-def beam_modes(
-    kind: str,
-    length: float,
-    width: float,
-    thickness: float,
-    youngs_modulus: float,
-    density: float,
-    count: int,
-    residual_stress: float = 0.0,
-    elements: int = 60,
-) -> BeamModes:
-    """The first `count` bending modes of a clamped-clamped beam or a cantilever (Hermite FE)."""
+def beam_modes(c, count: int) -> BeamModes:
+    """The first `count` bending modes of the clamped-clamped beam or cantilever `c` (the structure's
+    beam conductor: kind, length, width, thickness, youngs_modulus, density, residual_stress and its
+    `elements`; Hermite FE)."""
+    kind, length, width, thickness = c.kind, c.length, c.width, c.thickness
+    youngs_modulus, density, residual_stress, elements = c.youngs_modulus, c.density, c.residual_stress, c.elements
     h = length / elements
     area, inertia = width * thickness, width * thickness**3 / 12.0
     ei, rho_a, n0 = youngs_modulus * inertia, density * area, residual_stress * area
@@ -183,9 +177,7 @@ def mechanics(s: Structure) -> Mechanics:
     clamped-clamped beam with `stretching` also carries its stretching energy."""
     c = s.conductor
     count = s.coordinates.modes
-    modes = beam_modes(
-        c.kind, c.length, c.width, c.thickness, c.youngs_modulus, c.density, count, c.residual_stress, c.elements
-    )
+    modes = beam_modes(c, count)
 
     def basis(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return modes.shape(x)

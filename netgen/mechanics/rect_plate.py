@@ -156,13 +156,20 @@ def constrained_dofs(basis: CellBasis, boundary: str) -> np.ndarray:
     return np.unique(np.concatenate(out))
 
 
+@dataclass(frozen=True)
+class PlateSpec:
+    """A rectangular plate's size (m) and material (Pa, kg/m^3), rect_plate_modes' input."""
+
+    length: float
+    width: float
+    thickness: float
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+
+
 def rect_plate_modes(
-    length: float,
-    width: float,
-    thickness: float,
-    youngs_modulus: float,
-    poisson_ratio: float,
-    density: float,
+    p: PlateSpec,
     count: int,
     elements: int = 24,
     boundary: str = "free",
@@ -172,6 +179,8 @@ def rect_plate_modes(
     """The first `count` elastic eigenmodes (free edges: after the three rigid ones) of the
     rectangular plate, effective density and stiffness applied; `holes` = (side, pitch) cuts the
     holes out of the mesh instead (the check of the effective plate)."""
+    length, width, thickness = p.length, p.width, p.thickness
+    youngs_modulus, poisson_ratio, density = p.youngs_modulus, p.poisson_ratio, p.density
     if boundary not in BOUNDARIES:
         raise ValueError(f"boundary {boundary!r}: use one of {BOUNDARIES}")
     basis = plate_basis(length, width, elements, holes)
@@ -312,13 +321,9 @@ def conductor_plate(c) -> EffectivePlate:
 def conductor_modes(c, count: int) -> RectPlateModes:
     """The first `count` internal modes of a proof mass (free edges, etch holes as the effective
     plate of the module docstring)."""
+    plate = PlateSpec(c.length, c.width, c.thickness, c.youngs_modulus, c.poisson_ratio, c.density)
     return rect_plate_modes(
-        c.length,
-        c.width,
-        c.thickness,
-        c.youngs_modulus,
-        c.poisson_ratio,
-        c.density,
+        plate,
         count,
         ELEMENTS,
         "free",

@@ -116,6 +116,9 @@ class MacroModel:
     layout: dict = field(default_factory=dict)
     # frame acceleration along x, y and rotation rates (ports a_x, a_y, w_x, w_y, w_z; netgen.model.inertial)
     inertial: Inertial = field(default_factory=Inertial)
+    # process laws (netgen.model.process): tscale/escale/temp polynomials per coordinate, the
+    # squeeze film's viscosity law, the gap-offset sets; {} = no process instance parameters
+    process: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------ evaluation
     @property
@@ -285,6 +288,8 @@ class MacroModel:
             out["calibration"] = self.calibration
         if self.layout:
             out["layout"] = self.layout
+        if self.process:
+            out["process"] = self.process
         return out
 
     def fit_misses(self) -> list[dict]:
@@ -451,6 +456,7 @@ class MacroModel:
             d.get("calibration", {}),
             d.get("layout", {}),
             Inertial.from_dict(d.get("inertial_inputs", {})),
+            d.get("process", {}),
         )
 
     @classmethod

@@ -131,6 +131,7 @@ def check_names(c: Checker, d: dict) -> None:
     check_couplings(c, d, tuple(names))
     check_calibration(c, d.get("calibration", {}), tuple(names))
     check_inertial(c, d.get("inertial_inputs", {}), len(d["coordinates"]))
+    check_process(c, d.get("process", {}), tuple(names), len(d["coordinates"]))
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
 
@@ -242,3 +243,54 @@ def check_inertial(c: Checker, block: Any, n: int) -> None:
                     c.fail(f"{where}[{r}]" if rank == 2 else where, f"must be a list of {n} numbers")
                 for k, x in enumerate(row):
                     c.number(f"{where}[{r}][{k}]" if rank == 2 else f"{where}[{k}]", x)
+
+
+def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int = 0) -> None:
+    """The optional process record (netgen.model.process), whose numbers and names the emitters write
+    into the netlist (netgen.emit.process): its parameters are known names, its laws finite numbers
+    (four per law and coordinate), its gap sets identifiers (they become instance parameter names
+    dg_<set>) naming the model's electrodes, with a sign of +-1."""
+    if not isinstance(process, dict):
+        c.fail("process", "must be an object")
+    if not process:
+        return
+    params = process.get("parameters")
+    if not isinstance(params, list) or not params:
+        c.fail("process.parameters", "must be a non-empty list")
+    for i, p in enumerate(params):
+        c.choice(f"process.parameters[{i}]", p, ("dg", "tscale", "escale", "temp"))
+    c.number("process.temperature_C", process.get("temperature_C"))
+    c.number("process.modulus_tc_per_K", process.get("modulus_tc_per_K"))
+    laws = process.get("coordinates")
+    if not isinstance(laws, list) or len(laws) != ncoords:
+        c.fail("process.coordinates", f"must list one law per coordinate ({ncoords})")
+    for v, law in enumerate(laws):
+        for key in ("mass", "a", "b", "d_rest", "d_film"):
+            row = law.get(key) if isinstance(law, dict) else None
+            if not isinstance(row, list) or len(row) != 4:
+                c.fail(f"process.coordinates[{v}].{key}", "must be a list of 4 numbers")
+            for k, x in enumerate(row):
+                c.number(f"process.coordinates[{v}].{key}[{k}]", x)
+    for where in ("tscale.range", "escale.range", "temp.range_C"):
+        outer, inner = where.split(".")
+        rng = (process.get(outer) or {}).get(inner)
+        if not isinstance(rng, list) or len(rng) != 2:
+            c.fail(f"process.{where}", "must be a list of 2 numbers")
+        for k, x in enumerate(rng):
+            c.number(f"process.{where}[{k}]", x)
+    c.number("process.tscale.max_rel_error", process["tscale"].get("max_rel_error"))
+    visc = (process.get("temp") or {}).get("viscosity") or {}
+    if visc:
+        c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))
+    for k, x in enumerate(visc.get("coeffs", []) if isinstance(visc, dict) else [None]):
+        c.number(f"process.temp.viscosity.coeffs[{k}]", x)
+    for i, g in enumerate(process.get("gaps", [])):
+        if not isinstance(g, dict):
+            c.fail(f"process.gaps[{i}]", "must be an object")
+        c.name(f"process.gaps[{i}].set", g.get("set"))
+        if g.get("sign") not in (1.0, -1.0):
+            c.fail(f"process.gaps[{i}].sign", "must be 1 or -1")
+        c.number(f"process.gaps[{i}].max_m", g.get("max_m"))
+        for e in g.get("electrodes", []):
+            if e not in names:
+                c.fail(f"process.gaps[{i}].electrodes", f"{e!r} is not an electrode of the model")

@@ -1,4 +1,3 @@
-"""The process runtime of the `netgen` command: the console entry, the command line and its error
-boundary (cli), argparse types (arguments), signal handling (interrupts), output folders as
-transactions (folders) and the executors of parallel work (executor). Only this package imports
-argparse; entry and cli sit above every stage, the other modules below them."""
+"""The process runtime below every stage: argparse types (arguments), signal handling
+(interrupts), output folders as transactions (folders) and the executors of parallel work
+(executor). It imports only netgen.core; the command line that uses it is netgen.cli."""

@@ -9,7 +9,7 @@ import argparse
 import math
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from ..core.options import Option, OptionError, as_written
@@ -210,21 +210,39 @@ def option_type(option: Option) -> Callable[[str], object]:
 
 
 def add_option(parser: argparse.ArgumentParser, option: Option, **extra) -> None:
-    """The argument of a declared option: its flag, type, default and help (choices and the range
-    in the help); `extra` goes to add_argument as is (e.g. default=None where the file decides)."""
+    """The argument of a declared option: its flag (and short form), type, default and help (choices
+    and the range in the help; `usage` after it); `extra` goes to add_argument as is. An option a
+    [loop] key also sets defaults to None on the command line: the file decides, then the default."""
+    assert option.flag is not None, f"option {option.name} has no command-line flag"
     default = option.default_text or option.default
-    rng = "" if option.type in ("bool", "text", "choice") else f"; {option.range_text()}"
-    kwargs: dict = {"help": f"{option.help}{rng} (default: {default})" if default is not None else option.help}
+    rng = "" if option.type in ("bool", "text", "choice", "file", "folder") else f"; {option.range_text()}"
+    text = f"{option.help}{rng} (default: {default})" if default is not None else option.help
+    kwargs: dict = {"help": f"{text}{option.usage}"}
     if option.type == "bool":
         kwargs["action"] = "store_true"
     else:
-        kwargs["type"] = option_type(option)
-        kwargs["default"] = option.default
+        kwargs["type"] = {"file": existing_file(option.name.replace("_", " ")), "folder": output_folder}.get(
+            option.type, option_type(option)
+        )
+        kwargs["default"] = None if option.loop_key else option.default
         if option.type == "choice":
             kwargs["choices"] = list(option.choices)
             kwargs["type"] = str  # argparse's choices message; the cross check runs where the context is known
-    assert option.flag is not None, f"option {option.name} has no command-line flag"
-    parser.add_argument(option.flag, **(kwargs | extra))
+    if option.metavar:
+        kwargs["metavar"] = option.metavar
+    if not option.flag.startswith("-"):  # a positional argument: argparse names it by the flag
+        kwargs.pop("default", None)
+        parser.add_argument(option.flag, **(kwargs | extra))
+        return
+    kwargs |= {"dest": option.name} | ({"required": True} if option.required else {})
+    parser.add_argument(*((option.short,) if option.short else ()), option.flag, **(kwargs | extra))
+
+
+def add_options(parser: argparse.ArgumentParser, options: Iterable[Option]) -> None:
+    """Every declared option that has a flag, as an argument of `parser` (in declaration order)."""
+    for option in options:
+        if option.flag:
+            add_option(parser, option)
 
 
 def add_scheduler_option(

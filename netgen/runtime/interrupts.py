@@ -3,7 +3,7 @@ raise Interrupted (a KeyboardInterrupt) in the main thread, so every `finally` a
 transaction (netgen.runtime.folders.OutputFolder) cleans up the same way whichever signal stopped the run;
 `held()` defers them over a few renames that must not be cut in half. An unexpected exception
 becomes a crash log (`crash_log`) and one line. Standard library only: the console entry
-(netgen.runtime.entry) installs this before any heavy import."""
+(netgen.cli) installs this before any heavy import."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ EXIT_INTERNAL = 70
 class Interrupted(KeyboardInterrupt):
     """The run was stopped by SIGINT (Ctrl-C) or SIGTERM; `signum` says which. `message`, when a
     stage has cleaned up after the signal and knows what is left (a sweep: which runs finished,
-    how to resume), is the one line the error boundary (netgen.runtime.cli.report_interrupt) prints; the
+    how to resume), is the one line the error boundary (netgen.cli.commands.report_interrupt) prints; the
     exit code is EXIT_INTERRUPTED either way. str() is the signal's name."""
 
     def __init__(self, signum: int = signal.SIGINT, message: str | None = None):

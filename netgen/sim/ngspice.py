@@ -361,7 +361,7 @@ def _run_control(
     cir, raw, log = _files(workdir, name, netlist, raw_name)
     reproduce = f"cd {workdir} && {exe} -b {cir.name}"
     done = process.run(
-        process.line_buffered([exe, "-b", cir.name]), workdir, timeout, reproduce, "ngspice", on_line=on_line
+        process.line_buffered([exe, "-b", cir.name]), workdir, timeout, reproduce, "ngspice", process.Watch(on_line)
     )
     log.write_text(log_header() + done.output)
     if not raw.exists() or ABORTED.search(done.output):

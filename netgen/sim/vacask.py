@@ -112,7 +112,7 @@ def run_file(
     target = sim.name if sim.parent == workdir.resolve() else str(sim)
     reproduce = f"cd {workdir} && {vacask} {target}"
     tick = (lambda wall: progress(last_time(raw), wall)) if progress else None
-    done = process.run([vacask, target], workdir, timeout, reproduce, "VACASK", on_tick=tick)
+    done = process.run([vacask, target], workdir, timeout, reproduce, "VACASK", process.Watch(on_tick=tick))
     text = ANSI.sub("", done.output)
     log.write_text(text)
     if done.returncode != 0 or not raw.exists() or re.search(r"aborted|timestep too small", text, re.I):

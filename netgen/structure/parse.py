@@ -33,6 +33,7 @@ from ..core.text import escape, text_problem
 from . import validity
 from .bem_table import read_bem
 from .conductors import CONDUCTORS
+from .process_table import check_process, read_process
 from .schema import (
     ALL_RIGID,
     DESIGN_KEYS,
@@ -62,6 +63,7 @@ TOP_KEYS = [
     "damping",
     "import",
     "loop",
+    "process",
 ]  # [loop]: the sigma-delta testbench's (loopfile)
 DAMPING_KEYS = [
     "q_factor",
@@ -129,7 +131,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
         )
     electrostatics = read_electrostatics(rd, doc)
     warnings = validity.check(rd, conductor, sets, electrostatics)
-    return Structure(
+    structure = Structure(
         name=name,
         description=description,
         source=path,
@@ -143,7 +145,12 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
         damping=read_damping(rd, doc, conductor.coordinate_names(coords), getattr(conductor, "sprung_rigid", False)),
         imports=read_imports(rd, doc),
         warnings=warnings,
+        process=read_process(rd, doc),
     )
+    imported = bool(structure.imports and structure.imports.modes)
+    t0_c = (structure.damping.temperature if structure.damping else 300.0) - 273.15
+    check_process(rd, structure.process, conductor.coordinate_names(coords) or list(coords.rigid), sets, imported, t0_c)
+    return structure
 
 
 def model_name(rd: Reader, name: str) -> None:

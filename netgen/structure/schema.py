@@ -191,6 +191,25 @@ class Damping:
         )
 
 
+PROCESS_PARAMETERS = ("dg", "tscale", "escale", "temp")  # [process] parameters: dg = one dg_<set> per plate set
+
+
+@dataclass(frozen=True)
+class Process:
+    """[process] (opt-in): which process instance parameters the emitted .lib carries, their valid
+    ranges and the modulus' temperature coefficient (netgen.model.process derives the laws)."""
+
+    parameters: tuple[str, ...] = PROCESS_PARAMETERS  # a subset of PROCESS_PARAMETERS
+    tscale_range: tuple[float, float] = (0.9, 1.1)  # device-layer thickness / nominal
+    escale_range: tuple[float, float] = (0.5, 1.5)  # Young's modulus / nominal
+    temp_range: tuple[float, float] = (-40.0, 125.0)  # die temperature, degC
+    modulus_tc: float = -60e-6  # 1/K, d ln E / dT of the device layer (silicon about -60 ppm/K)
+
+    def wants(self, name: str) -> bool:
+        """The parameter `name` is declared."""
+        return name in self.parameters
+
+
 @dataclass(frozen=True)
 class Imports:
     """[import]: data from an external FEM and/or field solver (netgen.mechanics.imported,
@@ -221,6 +240,7 @@ class Structure:
     damping: Damping | None = None
     imports: Imports | None = None  # [import]: mechanics and/or capacitances from external tools
     warnings: tuple[str, ...] = ()  # model assumptions near their limits (netgen.structure.validity)
+    process: Process | None = None  # [process]: the process instance parameters (None: none, main's .lib)
 
     def electrode_names(self) -> list[str]:
         return [n for s in self.electrode_sets for n in s.electrode_names()]

@@ -35,7 +35,7 @@ def positive_int(text: str) -> int:
 
 def cli(args) -> int:
     """exit 0 (all ran, or --dry-run), 1 (some failed), 2 (bad input: SweepError, StructureError,
-    FolderError and ExecutorError reach netgen.runtime.cli.main, which reports them), 130 (stopped
+    FolderError and ExecutorError reach netgen.cli.commands.main, which reports them), 130 (stopped
     by SIGINT or SIGTERM, resumable)."""
     start = time.perf_counter()
     out = Path(args.output)

@@ -93,7 +93,7 @@ def request(spec: RunSpec, loop) -> sd.RunRequest:
     """The run's RunRequest from its testbench settings (spec.DESIGN_CHOICES and LOOP_CHOICES)."""
     tb = dict(spec.testbench)
     tone = sd.Tone.parse(tb.pop("tone")) if tb.get("tone") else None
-    choices = sd.Choices(**{k: tb.pop(k) for k in DESIGN_CHOICES if k in tb})
+    choices = sd.Choices(**{sd.SWEEP[k].name: tb.pop(k) for k in DESIGN_CHOICES if k in tb})
     cycles = int(tb.pop("cycles"))
     return sd.RunRequest(
         tb.pop("ts"),

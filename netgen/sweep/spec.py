@@ -71,13 +71,24 @@ MAX_RETRIES = 10
 MAX_RUNS = 10_000  # default of `netgen sweep --max-runs`
 # the parameter kinds of the sweep's table: a quantity kind (units.UNITS), or these
 KINDS = {"int": "int", "choice": "str", "text": "tone", "bool": "bool"}
-# testbench parameter: (kind, its declared option, what it is); derived from the sigma-delta
-# options (netgen.testbench.sigma_delta.options: the flags and [loop] keys of the same settings)
-TESTBENCH: dict[str, tuple[str, Option, str]] = {
-    name: (KINDS.get(o.type, o.quantity), o, o.help) for name, o in SWEEP.items()
-}
+
+
+def testbench_table(sweep: dict[str, Option]) -> dict[str, tuple[str, Option, str]]:
+    """The testbench parameters: (kind, its declared option, what it is) by sweep name, derived from the
+    sigma-delta options (netgen.testbench.sigma_delta.options: the flags and [loop] keys of the same settings)."""
+    return {name: (KINDS.get(o.type, o.quantity), o, o.help) for name, o in sweep.items()}
+
+
+TESTBENCH = testbench_table(SWEEP)
 SWEEP_TIMEOUT = OPTIONS["timeout"]  # [sweep] timeout: each simulator call's limit, as --timeout
-DESIGN_CHOICES = ("lead", "density", "sense_ratio", "full_scale", "dither", "reltol")
+
+
+def design_choices(sweep: dict[str, Option]) -> tuple[str, ...]:
+    """The parameters that are the loop design's choices (sigma_delta.Choices: the options of role "design")."""
+    return tuple(name for name, o in sweep.items() if o.role == "design")
+
+
+DESIGN_CHOICES = design_choices(SWEEP)
 LOOP_CHOICES = ("feedback_voltage", "acceleration")  # netgen.testbench.sigma_delta.RunRequest: over its LoopSpec
 
 
@@ -160,6 +171,16 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
                 "and [[parameters]]",
             )
     head = doc.get("sweep", {})
+    sweep = _read_head(rd, head, path)
+    _read_fixed(rd, doc, sweep)
+    names = _read_parameters(rd, doc, sweep, max_runs)
+    _check_combination(rd, sweep, head, names)
+    _check_skip(rd, sweep)
+    return sweep
+
+
+def _read_head(rd: Reader, head: Any, path: str) -> Sweep:
+    """The [sweep] table: figure, mode, samples, seed, retries, timeout and plots."""
     if not isinstance(head, dict):
         raise rd.fail("sweep", "'sweep' must be a table", "write it as a [sweep] section")
     allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots", "timeout"]
@@ -201,12 +222,20 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
             raise rd.fail("sweep.plots", "plots must be true or false", "write plots = false")
         sweep.plots = head["plots"]
 
+    return sweep
+
+
+def _read_fixed(rd: Reader, doc: dict, sweep: Sweep) -> None:
+    """The [fixed] table: every value checked as its option declares."""
     fixed = doc.get("fixed", {})
     if not isinstance(fixed, dict):
         raise rd.fail("fixed", "'fixed' must be a table", "write it as a [fixed] section")
     for name, value in _flatten(fixed):
         sweep.fixed[name] = check_value(rd, f"fixed.{name}", name, value)[0]
 
+
+def _read_parameters(rd: Reader, doc: dict, sweep: Sweep, max_runs: int) -> list[str]:
+    """The [[parameters]] entries, each swept once and not also fixed; returns their names."""
     params = doc.get("parameters", [])
     if not isinstance(params, list) or not all(isinstance(p, dict) for p in params) or not params:
         raise rd.fail(
@@ -222,6 +251,11 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
             raise rd.fail("parameters", f"parameter {n!r} is swept twice", "give each parameter once")
         if n in sweep.fixed:
             raise rd.fail(f"fixed.{n}", f"{n!r} is both fixed and swept", "remove it from [fixed] or [[parameters]]")
+    return names
+
+
+def _check_combination(rd: Reader, sweep: Sweep, head: Any, names: list[str]) -> None:
+    """What the parameters allow together: zip lengths, samples with a distribution, x, the tone."""
     lists = [p for p in sweep.parameters if p.values is not None]
     if sweep.mode == "zip" and not lists:
         raise rd.fail(
@@ -253,8 +287,6 @@ def parse_sweep(text: str, path: str = "<string>", max_runs: int = MAX_RUNS) -> 
                 f"{n} changes the test tone, but no tone is given",
                 'add tone = "z:0.02:2000" (COORD:AMPLITUDE:FREQ) to [fixed]',
             )
-    _check_skip(rd, sweep)
-    return sweep
 
 
 def _timeout(rd: Reader, value: Any) -> float:
@@ -393,6 +425,23 @@ def _tone(rd: Reader, where: str, value: Any) -> str:
     return value
 
 
+def _number(rd: Reader, where: str, p: dict, key: str, kind: str) -> float:
+    """A range's or distribution's number at `key`, in the unit of the parameter's kind."""
+    if key not in p:
+        raise rd.fail(f"{where}.{key}", f"missing key '{key}'", f"add {key} = <number or quantity>")
+    try:
+        v = (
+            float(p[key])
+            if isinstance(p[key], (int, float)) and not isinstance(p[key], bool)
+            else parse_quantity(p[key], "dimensionless" if kind == "int" else kind)
+        )
+    except UnitError as exc:
+        raise rd.fail(f"{where}.{key}", str(exc), f"write {key} in the unit of {p['name']}") from None
+    if not math.isfinite(v):
+        raise rd.fail(f"{where}.{key}", f"{key} is not finite", f"give a finite {key}")
+    return v
+
+
 def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Parameter:
     """One [[parameters]] entry: its name and its values list, range or distribution, checked."""
     allowed = ["name", "values", "start", "stop", "num", "scale", "distribution", "mean", "std", "low", "high"]
@@ -432,41 +481,38 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
         sample = p.get("start", p.get("mean", p.get("low")))
         kind = kind_of(sample)
 
-    def number(key: str) -> float:
-        if key not in p:
-            raise rd.fail(f"{where}.{key}", f"missing key '{key}'", f"add {key} = <number or quantity>")
-        try:
-            v = (
-                float(p[key])
-                if isinstance(p[key], (int, float)) and not isinstance(p[key], bool)
-                else parse_quantity(p[key], "dimensionless" if kind == "int" else kind)
-            )
-        except UnitError as exc:
-            raise rd.fail(f"{where}.{key}", str(exc), f"write {key} in the unit of {name}") from None
-        if not math.isfinite(v):
-            raise rd.fail(f"{where}.{key}", f"{key} is not finite", f"give a finite {key}")
-        return v
-
     if forms[0] == "range":
-        start, stop = number("start"), number("stop")
-        num = p.get("num")
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise rd.fail(f"{where}.num", f"num = {num!r} must be an integer >= 1", "write num = 4")
-        if num > max_runs:
-            raise rd.fail(
-                f"{where}.num",
-                f"num = {num} values alone exceed the sweep's limit of {max_runs} runs",
-                f"give num <= {max_runs} (or raise the limit with --max-runs)",
-            )
-        scale = p.get("scale", "linear")
-        if scale not in ("linear", "log"):
-            raise rd.fail(f"{where}.scale", f"scale {scale!r} is not 'linear' or 'log'", 'write scale = "log"')
-        if scale == "log" and (start <= 0 or stop <= 0):
-            raise rd.fail(f"{where}.start", "a log range needs start and stop > 0", 'use scale = "linear"')
-        vals = (np.geomspace if scale == "log" else np.linspace)(start, stop, num).tolist()
-        if kind == "int":
-            vals = [int(round(v)) for v in vals]
-        return Parameter(name, [check_value(rd, where, name, v)[0] for v in vals], kind=kind)
+        return _range(rd, where, p, kind, max_runs)
+    return _distribution(rd, where, p, kind)
+
+
+def _range(rd: Reader, where: str, p: dict, kind: str, max_runs: int) -> Parameter:
+    """A start/stop/num entry: its values on a linear or log scale, each checked."""
+    name = p["name"]
+    start, stop = _number(rd, where, p, "start", kind), _number(rd, where, p, "stop", kind)
+    num = p.get("num")
+    if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+        raise rd.fail(f"{where}.num", f"num = {num!r} must be an integer >= 1", "write num = 4")
+    if num > max_runs:
+        raise rd.fail(
+            f"{where}.num",
+            f"num = {num} values alone exceed the sweep's limit of {max_runs} runs",
+            f"give num <= {max_runs} (or raise the limit with --max-runs)",
+        )
+    scale = p.get("scale", "linear")
+    if scale not in ("linear", "log"):
+        raise rd.fail(f"{where}.scale", f"scale {scale!r} is not 'linear' or 'log'", 'write scale = "log"')
+    if scale == "log" and (start <= 0 or stop <= 0):
+        raise rd.fail(f"{where}.start", "a log range needs start and stop > 0", 'use scale = "linear"')
+    vals = (np.geomspace if scale == "log" else np.linspace)(start, stop, num).tolist()
+    if kind == "int":
+        vals = [int(round(v)) for v in vals]
+    return Parameter(name, [check_value(rd, where, name, v)[0] for v in vals], kind=kind)
+
+
+def _distribution(rd: Reader, where: str, p: dict, kind: str) -> Parameter:
+    """A normal (mean, std) or uniform (low, high) entry."""
+    name = p["name"]
     dist = p["distribution"]
     if dist not in ("normal", "uniform"):
         raise rd.fail(
@@ -480,7 +526,11 @@ def _parameter(rd: Reader, where: str, p: dict, max_runs: int = MAX_RUNS) -> Par
             f"{name} is an integer; it cannot be drawn from a distribution",
             "give it values = [...]",
         )
-    a, b = (number("mean"), number("std")) if dist == "normal" else (number("low"), number("high"))
+    a, b = (
+        (_number(rd, where, p, "mean", kind), _number(rd, where, p, "std", kind))
+        if dist == "normal"
+        else (_number(rd, where, p, "low", kind), _number(rd, where, p, "high", kind))
+    )
     if (dist == "normal" and b < 0) or (dist == "uniform" and b < a):
         raise rd.fail(
             where,

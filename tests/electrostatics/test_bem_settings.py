@@ -11,39 +11,14 @@ import io
 import numpy as np
 import pytest
 
+from netgen.cli.commands import main
 from netgen.electrostatics import bem
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
-from netgen.runtime.cli import main
 from netgen.structure import parse_structure
+from tests.fixtures import SMALL_BEM_DISK
 
-# a 100 um disk between two full-disk electrodes at 20 um: a few hundred elements per level
-DISK = """name = "small_bem"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z"]
-[electrostatics]
-extractor = "{extractor}"
-{extra}
-"""
+DISK = SMALL_BEM_DISK
 SETTINGS = """[electrostatics.bem]
 element_to_gap = 2.0
 edge_to_gap = 1.0

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen.cli.commands import main
 from netgen.core.constants import EPS0
 from netgen.electrostatics.calibration import calibrate, design
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
@@ -35,7 +36,6 @@ from netgen.geometry.layout import electrodes, plate_outline
 from netgen.geometry.shapes import Electrode, Rectangle, RectPlate
 from netgen.mechanics import mechanics
 from netgen.model import MacroModel
-from netgen.runtime.cli import main
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.oracles.closed_forms import palmer_rectangle
@@ -291,7 +291,7 @@ def test_calibrated_without_bem_says_what_to_do(tmp_path):
     (tmp_path / "disk.toml").write_text(DISK + '[electrostatics]\nextractor = "calibrated"\ncalibration_points = 3\n')
     code = (
         "import sys; sys.modules['bempp_cl'] = None\n"
-        "from netgen.runtime.cli import main\n"
+        "from netgen.cli.commands import main\n"
         "sys.exit(main(['build', 'disk.toml', '-o', 'out', '-q']))"
     )
     run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)

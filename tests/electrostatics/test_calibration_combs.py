@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pytest
 
+from netgen.cli.commands import main
 from netgen.core.constants import EPS0
 from netgen.electrostatics import compose, extractor
 from netgen.electrostatics.calibration import design
@@ -24,7 +25,6 @@ from netgen.electrostatics.sampling import touch_amplitudes
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
 from netgen.model import MacroModel
-from netgen.runtime.cli import main
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.structures import plate_electrode

@@ -11,9 +11,9 @@ import zipfile
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.emit import write_outputs
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from tests.fixtures import NETLISTS, ROOT, Bench, states, using_ngspice

@@ -29,12 +29,12 @@ import pytest
 
 from netgen import export as importers
 from netgen.build import build
+from netgen.cli import commands as cli
 from netgen.core.errors import InputError, ModelError, StructureError, SweepError
 from netgen.emit import EMITTERS
 from netgen.mechanics.imported import read_modes
 from netgen.model import MacroModel
 from netgen.model.plots import mode_shapes
-from netgen.runtime import cli
 from netgen.sim.vacask import compile_va
 from netgen.structure import load_structure, parse_structure
 from netgen.sweep.plan import plan

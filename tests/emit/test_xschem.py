@@ -27,7 +27,8 @@ AGREEMENT = 1e-9
 
 
 def card(lib: Path) -> tuple[str, list[str]]:
-    """The .subckt card's name and ports, its continuation lines joined."""
+    """The .subckt card's name and ports, its continuation lines joined: the words before ngspice's
+    `params:` keyword (the instance parameters' defaults follow it) that are not `name=value`."""
     lines = lib.read_text(encoding="utf-8").splitlines()
     start = next(i for i, line in enumerate(lines) if line.lower().startswith(".subckt"))
     words = lines[start].split()[1:]
@@ -35,6 +36,7 @@ def card(lib: Path) -> tuple[str, list[str]]:
         if not line.startswith("+"):
             break
         words += line[1:].split()
+    words = words[: [w.lower() for w in words].index("params:")] if "params:" in map(str.lower, words) else words
     return words[0], [w for w in words[1:] if "=" not in w]
 
 

@@ -18,7 +18,7 @@ from netgen.build import build
 from netgen.core.constants import EPS0
 from netgen.electrostatics import extractor
 from netgen.electrostatics.sampling import holdout_points, sampling_grid
-from netgen.fit.capacitance import CapacitanceFit, fit_capacitance, fit_plates
+from netgen.fit.capacitance import CapacitanceFit, FitData, fit_capacitance, fit_plates
 from netgen.fit.polynomial import Polynomial, monomial_exponents, monomials
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.structure import parse_structure
@@ -231,7 +231,7 @@ def test_plates_fit_recovers_two_parallel_plates():
     # exact P_k = c_ref (a_k + b_k.x) / c_k; start 10-20 % off
     exact = np.array([np.concatenate([[a1], b1]) * c_ref / c1, np.concatenate([[a2], b2]) * c_ref / c2])
     start = exact * np.array([[1.1, 0.8, 1.2], [0.9, 1.15, 0.85]])
-    fit = fit_plates("e", x, c_true(x), start, 1, x_check, c_true(x_check))
+    fit = fit_plates("e", FitData(x, c_true(x), x_check, c_true(x_check)), start, 1)
     assert fit.max_rel_error < 1e-8
     x_new = np.random.default_rng(5).uniform(-0.2, 0.2, size=(100, 2))
     np.testing.assert_allclose(fit.value(x_new), c_true(x_new), rtol=1e-8)

@@ -401,7 +401,7 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
     3 pi mu_eff a^4 / (2 g^3) (independent of the Reynolds FEM), within 1 dB."""
     import json
 
-    from netgen.runtime import cli
+    from netgen.cli import commands as cli
     from netgen.testbench import sigma_delta as sd
     from netgen.testbench.sigma_delta import runner as sd_runner
 
@@ -451,7 +451,7 @@ def test_sigma_delta_gas_and_noise_options(tmp_path):
 def test_sigma_delta_option_errors(tmp_path, capsys, args, message):
     """Bad gas, noise, dither, segment or tolerance options: exit 2 with the reason, no traceback,
     nothing built."""
-    from netgen.runtime import cli
+    from netgen.cli import commands as cli
 
     out = tmp_path / "sd"
     try:

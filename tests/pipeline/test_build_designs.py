@@ -41,7 +41,7 @@ def test_a_design_over_max_minutes_is_refused_with_the_fix(tmp_path):
     path.write_text(_piston("levels = 9"))
     out = tmp_path / "out"
     run = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(path), "-o", str(out), "--max-minutes", "1e-6"],
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(path), "-o", str(out), "--max-minutes", "1e-6"],
         capture_output=True,
         text=True,
         cwd=ROOT,
@@ -56,7 +56,7 @@ def test_the_estimate_is_printed_and_the_design_recorded(tmp_path):
     path = tmp_path / "p.toml"
     path.write_text(_piston('design = "lhs"\npoints = 64\nseed = 5'))
     run = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(path), "-o", str(tmp_path / "o"), "--no-plots"],
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(path), "-o", str(tmp_path / "o"), "--no-plots"],
         capture_output=True,
         text=True,
         cwd=ROOT,

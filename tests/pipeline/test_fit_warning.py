@@ -13,8 +13,8 @@ import math
 import numpy as np
 from scipy.constants import epsilon_0
 
+from netgen.cli.commands import main
 from netgen.model import MacroModel
-from netgen.runtime.cli import main
 from tests.fixtures import ROOT
 from tests.structures import ONE_PLATE_GAP, ONE_PLATE_RADIUS, one_plate_disk
 

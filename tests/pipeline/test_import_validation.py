@@ -1,7 +1,7 @@
 """Bad [import] data never becomes a model: good exports (netgen.export) of three cheap structures
 (a cantilever with three eigenmodes, a piston on its spring, a free disk with rigid coordinates
 only) corrupted systematically into several hundred bad Matrix Market, mode-shape and capacitance
-files; each built in-process through netgen.runtime.cli.main must exit 2 with no traceback and a message
+files; each built in-process through netgen.cli.commands.main must exit 2 with no traceback and a message
 that names the file, the row or entry where there is one, and a fix. The good files, and a table
 with an exact repeated row, still build, with the native build's numbers.
 
@@ -27,7 +27,7 @@ import scipy.sparse
 
 from netgen import export
 from netgen.build import build
-from netgen.runtime.cli import main
+from netgen.cli.commands import main
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.structures import disk, ring_electrode
@@ -552,7 +552,7 @@ class Outcome:
 
 
 def run(bases: dict[str, Base], k: int, c: Case) -> tuple[Outcome, Path]:
-    """Write case k's bad file beside its base's good ones and build it through netgen.runtime.cli.main."""
+    """Write case k's bad file beside its base's good ones and build it through netgen.cli.commands.main."""
     b = bases[c.base]
     bad = b.folder / f"case{k:03d}_{c.key}{c.suffix}"
     bad.write_bytes(c.data)

@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from netgen import emit
+from netgen.cli import commands as cli
 from netgen.emit import EMITTERS, osdi, xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.fit.capacitance import PATCH_GRIDS
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from tests.fixtures import REFERENCE, ROOT
 from tests.staleness import (
     FIT_SHARE,
@@ -168,7 +168,7 @@ def fresh_builds(tmp_path_factory):
     for k in range(FRESH_RUNS):
         out = tmp_path_factory.mktemp(f"build{k}")
         proc = subprocess.Popen(
-            [sys.executable, "-m", "netgen.runtime.cli", "build", REFERENCE, "-o", str(out)],
+            [sys.executable, "-m", "netgen.cli.commands", "build", REFERENCE, "-o", str(out)],
             cwd=ROOT,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -289,7 +289,7 @@ def test_model_round_trips_through_json(reference_model):
 @pytest.fixture
 def cli_with_model(reference_build, monkeypatch):
     """`netgen build` on the reference file, with the 10 s pipeline run replaced by the session's."""
-    monkeypatch.setattr("netgen.runtime.cli.build", lambda s, *args, **kwargs: reference_build)
+    monkeypatch.setattr("netgen.cli.commands.build", lambda s, *args, **kwargs: reference_build)
     return lambda out: cli.main(["build", str(ROOT / REFERENCE), "-o", str(out), "-q"])
 
 
@@ -375,7 +375,7 @@ def test_invalid_structure_file_exits_2_with_file_key_and_fix(tmp_path):
     line = 1 + bad.read_text().splitlines().index('gap = "-3 um"')
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(bad), "-o", str(out)],
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(bad), "-o", str(out)],
         cwd=tmp_path,
         capture_output=True,
         text=True,
@@ -450,7 +450,7 @@ def test_wheel_ships_templates_and_renders_outside_the_repo(tmp_path):
         )
         assert not shipped - names, sorted(shipped - names)
         entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
-        assert "netgen = netgen.runtime.entry:main" in z.read(entry).decode()
+        assert "netgen = netgen.cli:main" in z.read(entry).decode()
         z.extractall(tmp_path / "site")
     work = tmp_path / "elsewhere"
     work.mkdir()
@@ -481,7 +481,7 @@ def test_xspice_emission_names_the_electrode_whose_fit_it_cannot_take(tmp_path, 
     bad = dataclasses.replace(model, capacitances=fits)
     with pytest.raises(ValueError, match=r"top_r1s1.*'direct'.*fix: emit the B-source form"):
         xspice.subcircuit(bad)
-    monkeypatch.setattr("netgen.runtime.cli.build", lambda s, *args, **kwargs: types.SimpleNamespace(model=bad))
+    monkeypatch.setattr("netgen.cli.commands.build", lambda s, *args, **kwargs: types.SimpleNamespace(model=bad))
     out = tmp_path / "one"
     code = cli.main(["build", str(ROOT / REFERENCE), "-o", str(out), "-q", "--no-plots", "--format", "xspice"])
     err = capsys.readouterr().err

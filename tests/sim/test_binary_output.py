@@ -9,8 +9,8 @@ import io
 
 import pytest
 
+from netgen.cli.commands import main
 from netgen.core.errors import SimulationError
-from netgen.runtime.cli import main
 from netgen.sim import ngspice, vacask
 
 BINARY = r"printf '\377\376\375 binary \200\201\000 output\n'"

@@ -22,8 +22,8 @@ import tarfile
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.model import contact
-from netgen.runtime import cli
 from netgen.sim import codemodel
 from netgen.sim.ngspice import ENV, build_record, identity, run_ngspice
 from netgen.testbench.sigma_delta.ngspice import LOOP_LIBRARY

@@ -11,8 +11,8 @@ import time
 
 import pytest
 
+from netgen.cli.commands import main
 from netgen.core.errors import SimulatorNotFound
-from netgen.runtime.cli import main
 from netgen.sim import ngspice
 
 from .test_process import gone

@@ -51,9 +51,9 @@ def test_lines_arrive_as_printed_and_ticks_run_in_the_silences(tmp_path):
         tmp_path,
         30.0,
         "x",
-        on_line=lambda line: seen.append((line.strip(), time.monotonic() - start)),
-        on_tick=ticks.append,
-        tick=0.25,
+        watch=process.Watch(
+            on_line=lambda line: seen.append((line.strip(), time.monotonic() - start)), on_tick=ticks.append, tick=0.25
+        ),
     )
     assert done.returncode == 0 and done.output == "a\nb\n"
     assert [s for s, _ in seen] == ["a", "b"] and seen[0][1] < 1.0 <= seen[1][1]  # 'a' before the sleep

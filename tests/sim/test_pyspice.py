@@ -175,7 +175,7 @@ def test_piston_statics_and_ac_against_parallel_plate(version, piston):
 
 def cli(args: list[str], env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", *args],
+        [sys.executable, "-m", "netgen.cli.commands", *args],
         cwd=cwd,
         env=env,
         capture_output=True,

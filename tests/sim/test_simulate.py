@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import SimulationError, SimulatorNotFound
-from netgen.runtime import cli
 from netgen.sim.ngspice import ENV, run_ngspice
 from netgen.sim.rawfile import read_raw
 from tests.fixtures import NGSPICE
@@ -39,7 +39,7 @@ def test_missing_ngspice_in_a_fresh_process_is_a_message_not_a_traceback(tmp_pat
     cir.write_text(BLOW_UP)
     env = dict(os.environ, PATH=str(tmp_path))
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
+        [sys.executable, "-m", "netgen.cli.commands", "simulate", str(cir), "-o", str(tmp_path / "run")],
         capture_output=True,
         text=True,
         env=env,
@@ -78,7 +78,7 @@ def test_cli_reports_a_failed_simulation_with_exit_1(tmp_path):
     cir = tmp_path / "blow.cir"
     cir.write_text(BLOW_UP)
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "simulate", str(cir), "-o", str(tmp_path / "run")],
+        [sys.executable, "-m", "netgen.cli.commands", "simulate", str(cir), "-o", str(tmp_path / "run")],
         capture_output=True,
         text=True,
         timeout=60,

@@ -10,9 +10,9 @@ import re
 
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.errors import ModelError, StructureError
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.structure import parse_structure
 from tests.fixtures import NETLISTS, ROOT
 

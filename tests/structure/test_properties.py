@@ -25,8 +25,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.emit.ngspice import subcircuit
-from netgen.runtime import cli
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import Bench, states
@@ -313,7 +313,7 @@ def test_fresh_process_reports_a_bad_file_with_exit_2(tmp_path):
     doc = dict(BASE, coordinates={"rigid": ["z"], "modes": 30})
     bad.write_text(toml_text(doc))
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(bad), "-o", str(tmp_path / "out")],
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(bad), "-o", str(tmp_path / "out")],
         capture_output=True,
         text=True,
         timeout=60,

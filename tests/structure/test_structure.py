@@ -126,7 +126,7 @@ def test_cli_reports_bad_file_with_exit_2_and_no_output(tmp_path):
     bad.write_text(_replace('gap = "3 um"', 'gap = "0 um"'))
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "netgen.runtime.cli", "build", str(bad), "-o", str(out)], capture_output=True, text=True
+        [sys.executable, "-m", "netgen.cli.commands", "build", str(bad), "-o", str(out)], capture_output=True, text=True
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
@@ -137,3 +137,72 @@ def test_cli_reports_bad_file_with_exit_2_and_no_output(tmp_path):
 def test_missing_file_is_a_clear_error(tmp_path):
     with pytest.raises(StructureError, match="no such file"):
         load_structure(tmp_path / "nope.toml")
+
+
+PROCESS_EXAMPLE = ROOT / "examples" / "piston_process.toml"
+PROCESS_BAD = [
+    # (replacement of the example's [process] parameters line, expected key, expected words)
+    ('parameters = ["dg", "tscale", "tmp"]', "process.parameters", ["unknown process parameter 'tmp'"]),
+    ('parameters = ["dg", "dg"]', "process.parameters", ["listed twice"]),
+    ("parameters = []", "process.parameters", ["non-empty list"]),
+    ('parameters = "dg"', "process.parameters", ["non-empty list"]),
+    ('parameters = ["dg", "temp"]', "process.tscale_range", ["'tscale' is not in process.parameters"]),
+    ('parameters = ["dg", "tscale", "temp"]\nescale_range = [0.5, 1.5]', "process.escale_range", ["'escale'"]),
+    ('parameters = ["dg", "tscale", "temp"]\nmodulus_tc = 0.5', "process.modulus_tc", ["|tc| < 1e-3"]),
+    ('parameters = ["dg", "tscale", "temp"]\nprocess_corner = 1', "process.process_corner", ["unknown key"]),
+]
+PROCESS_RANGES = [
+    ("tscale_range = [0.9, 1.1]", "tscale_range = [1.05, 1.1]", "process.tscale_range", ["nominal 1"]),
+    ("tscale_range = [0.9, 1.1]", "tscale_range = [0.2, 1.1]", "process.tscale_range", ["within 0.5..1.5"]),
+    ("tscale_range = [0.9, 1.1]", 'tscale_range = ["0.9", 1.1]', "process.tscale_range", ["two numbers"]),
+    ("temp_range = [-40, 125]", "temp_range = [40, 125]", "process.temp_range", ["26.85 degC"]),
+    ("temp_range = [-40, 125]", "temp_range = [125, -40]", "process.temp_range", ["increasing"]),
+    ('rigid = ["z"]', 'rigid = ["z"]\n[process.x]', "process.x", ["unknown key"]),
+]
+
+
+def process_case(old: str, new: str) -> str:
+    text = PROCESS_EXAMPLE.read_text()
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+@pytest.mark.parametrize(
+    "old,new,where,words",
+    [('parameters = ["dg", "tscale", "temp"]', *case) for case in PROCESS_BAD] + PROCESS_RANGES,
+)
+def test_bad_process_table_names_file_key_and_fix(old, new, where, words):
+    """A bad [process] table (netgen.structure.process_table): exit-2 StructureError naming the
+    file, the key and a fix."""
+    with pytest.raises(StructureError) as info:
+        parse_structure(process_case(old, new), "bad.toml")
+    err = info.value
+    assert err.exit_code == 2 and err.where == where and err.fix, str(err)
+    assert str(err).startswith("bad.toml")
+    for w in words:
+        assert w in str(err), str(err)
+
+
+@pytest.mark.parametrize(
+    "example,where,words",
+    [
+        ("cantilever.toml", "process.parameters", ["dg needs the coordinate z"]),
+        ("accelerometer_xyz.toml", "process.parameters", ["tscale with comb fingers"]),
+    ],
+)
+def test_process_parameters_the_structure_cannot_carry_are_refused(example, where, words):
+    """dg without a coordinate z (a beam's modes), tscale with comb fingers: refused with the reason
+    and the parameters that stay exact, never a silently wrong law."""
+    text = (ROOT / "examples" / example).read_text() + '\n[process]\nparameters = ["dg", "tscale"]\n'
+    with pytest.raises(StructureError) as info:
+        parse_structure(text, "bad.toml")
+    assert info.value.where == where and info.value.fix
+    for w in words:
+        assert w in str(info.value), str(info.value)
+
+
+def test_without_process_table_no_process_parameters():
+    """No [process]: Structure.process is None (the model stage derives nothing, netgen.model.process)."""
+    assert load_structure(EXAMPLE).process is None
+    p = load_structure(PROCESS_EXAMPLE).process
+    assert p is not None and p.parameters == ("dg", "tscale", "temp") and p.modulus_tc == -60e-6

@@ -27,12 +27,12 @@ import numpy as np
 import pytest
 
 from netgen import sweep as sw
+from netgen.cli import commands as cli
 from netgen.electrostatics import extractor as structure_extractor
 from netgen.electrostatics import sampling
 from netgen.electrostatics.sampling import ChunkStore
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
-from netgen.runtime import cli
 from netgen.runtime.executor import DaskExecutor, executor, restore_environ
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT

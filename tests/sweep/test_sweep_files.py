@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 from netgen.sweep import parse_sweep
 from netgen.sweep.size import RUN_SECONDS, SECONDS_PER_PERIOD, estimate, run_count
 from tests.fixtures import ROOT

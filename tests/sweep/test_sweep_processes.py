@@ -26,8 +26,8 @@ from pathlib import Path
 
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.core.process import start_time
-from netgen.runtime import cli
 from netgen.sweep import load_sweep, plan, processes
 from netgen.sweep.folder import claim, identity
 from tests.fixtures import ROOT
@@ -130,7 +130,7 @@ def _start(sweep: Path, out: Path) -> subprocess.Popen:
         [
             sys.executable,
             "-m",
-            "netgen.runtime.cli",
+            "netgen.cli.commands",
             "sweep",
             str(STRUCTURE),
             str(sweep),

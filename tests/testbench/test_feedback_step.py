@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile, ngspice
@@ -70,7 +70,8 @@ def window_impulse(model, d, t: np.ndarray, xs: np.ndarray, bit: int, n: int, on
 def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(model, tmp_path):
     """A 4th-order cifb loop under gravity in ngspice-xspice, 300 periods from rest: in every
     period the proof mass's velocity change over the feedback phase (the model's velocity node,
-    u = (dq/dt) / (L w_s), w_s = 1 / C_u from the .lib) equals the MacroModel's force with the
+    u = (dq/dt) / (L w_s), w_s = 1 / C_x from the .lib: a plain number, where C_u carries the
+    mass's process ratio of a [process] model) equals the MacroModel's force with the
     period's feedback pattern, its spring and gravity integrated along the circuit's own
     trajectory, both the scale error (the same in every period) and what changes from period to
     period (rms) within a derived share of one bit's impulse. The feedback step and gravity are
@@ -98,7 +99,7 @@ def test_the_compiled_loop_gives_the_mass_the_models_impulse_in_every_period(mod
     )
     plot = ngspice.simulate(net, tmp_path, d.ts * PERIODS, False)
     t, u, xs, b = (np.asarray(plot[k]) for k in ("time", "v(x1.u_z)", "v(x1.xs_z)", "v(b_z)"))
-    w_s = 1.0 / float(re.search(r"^Cu_z u_z 0 (\S+)", lib.read_text(), re.M).group(1))
+    w_s = 1.0 / float(re.search(r"^Cx_z xs_z 0 (\S+)", lib.read_text(), re.M).group(1))
     scale = model.coordinates[0].scale * w_s  # m/s per unit u
     bit_impulse = filters.mechanics_of(model, d, "z").force * duty(d.t) * d.ts / model.coordinates[0].mass
     errors, bits = [], []

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from netgen.runtime import cli
+from netgen.cli import commands as cli
 from netgen.testbench.sigma_delta import loopfile
 from tests.fixtures import ROOT
 
@@ -190,8 +190,12 @@ def test_a_loop_file_parses_into_its_spec(tmp_path):
         '[loop.input]\nacceleration = "0.5 g"\ntone = { amplitude = "2 m/s^2", frequency = "1 kHz" }\n'
     )
     spec = loopfile.read_loop_file(p)
-    assert [c.name for c in spec.channels] == ["z"] and spec.feedback_voltage == pytest.approx(1.5)
-    assert spec.density == 0.4 and spec.sense_ratio is None and spec.filter == {"kind": "lead2", "lead": 0.75}
+    assert [c.name for c in spec.channels] == ["z"] and spec.settings.feedback_voltage == pytest.approx(1.5)
+    assert (
+        spec.settings.density == 0.4
+        and spec.settings.sense_ratio is None
+        and spec.filter == {"kind": "lead2", "lead": 0.75}
+    )
     assert spec.timing == {"cur": 0.27} and spec.input.dc == {"a_in": pytest.approx(0.5 * 9.81)}
     assert (spec.input.tone.coord, spec.input.tone.amplitude, spec.input.tone.freq) == ("a_in", 2.0, 1000.0)
 

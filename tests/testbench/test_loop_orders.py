@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.core.constants import EPS0, G
-from netgen.runtime import cli
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile

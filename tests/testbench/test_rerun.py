@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.runtime.folders import STAGING
 from netgen.sim import vacask as sim_vacask
 from netgen.sim.rawfile import read_raw

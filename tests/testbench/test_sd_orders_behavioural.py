@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.emit import write_outputs
-from netgen.runtime import cli
 from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile, ngspice

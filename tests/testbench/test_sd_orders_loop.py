@@ -116,7 +116,8 @@ def vacask_run(tmp_path_factory) -> dict:
     f = filters.design(mech, 4, 64, 1.4, "cifb")
     d.channels[0]["filter"], d.channels[0]["dither_v"] = f.as_dict(), 0.0
     out = tmp_path_factory.mktemp("sd_order4_vacask")
-    plot = vacask.run_bench(model, d, out, CYCLES, None, False, va=ROOT / "netlists" / "levitated_disk.va")
+    va = vacask.BenchOptions(va=ROOT / "netlists" / "levitated_disk.va")
+    plot = vacask.run_bench(model, d, out, CYCLES, None, False, va)
     dc = filters.dc_acceleration(model, d, "z")
     return {
         "model": model,

@@ -18,8 +18,8 @@ import subprocess
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.sim import codemodel
 from netgen.sim.ngspice import ngspice_path
 from netgen.sim.rawfile import read_raw

@@ -13,8 +13,8 @@ import time
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
 from tests.testbench.test_sigma_delta_latch import check_latches

@@ -10,8 +10,8 @@ import json
 import numpy as np
 import pytest
 
+from netgen.cli import commands as cli
 from netgen.model import MacroModel
-from netgen.runtime import cli
 from tests.fixtures import ROOT
 
 EXAMPLE = ROOT / "examples" / "accelerometer_xyz.toml"

@@ -12,38 +12,14 @@ import time
 
 import pytest
 
+from netgen.cli.commands import main
 from netgen.electrostatics import bem
 from netgen.electrostatics.bem_mesh import electrode_sheet, estimate_elements, thick_plate
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate
-from netgen.runtime.cli import main
+from tests.fixtures import SMALL_BEM_DISK
 
 # a 100 um disk, 2 um thick, between two full-disk electrodes at 20 um
-DISK = """name = "small_bem"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z"]
-[electrostatics]
-extractor = "bem"
-[electrostatics.bem]
-"""
+DISK = SMALL_BEM_DISK.format(extractor="bem", extra="[electrostatics.bem]")
 
 
 def build(tmp_path, bem_table: str) -> tuple[int, str, float]:

@@ -265,7 +265,7 @@ def test_hostile_paths(text):
 
 def test_output_folder_holds_nothing_of_a_refused_build(tmp_path):
     """A build refused for its input leaves no output folder and no staging folder (no mixed set)."""
-    from netgen.runtime import cli
+    from netgen.cli import commands as cli
 
     bad = tmp_path / "bad.toml"
     bad.write_text((ROOT / "examples/piston.toml").read_text().replace('gap = "2 um"', 'gap = "1 m"'))
@@ -282,7 +282,7 @@ def test_full_disk_leaves_no_staging(tmp_path, size, capsys):
     import os
     import subprocess
 
-    from netgen.runtime import cli
+    from netgen.cli import commands as cli
 
     mnt = tmp_path / "full"
     mnt.mkdir()

@@ -119,7 +119,7 @@ def check_step(model: MacroModel, spec: LoopSpec, table: list[dict], names: list
         step = step_volts(model, table, n, ts, 1.0)
         if step > MAX_STEP:
             raise spec.fail(
-                "loop.feedback_voltage" if spec.feedback_voltage else "loop.input",
+                "loop.feedback_voltage" if spec.settings.feedback_voltage else "loop.input",
                 f"channel {n}: one period of feedback moves it {step:.3g} of its touching amplitude "
                 f"(at most {MAX_STEP}: the loop could not hold it near rest)",
                 "lower the input or the feedback voltage, or shorten --ts",
@@ -185,7 +185,7 @@ def check_balance(
         swing = 2 * amp[i] / fduty / (fp - fm)
         if refuse and abs(bit) + swing > MAX_BIT_MEAN:
             v = vfb * np.sqrt((abs(bit) + swing) / (0.9 * MAX_BIT_MEAN))  # the forces go as V^2
-            where = "loop.feedback_voltage" if spec.feedback_voltage else "loop.input"
+            where = "loop.feedback_voltage" if spec.settings.feedback_voltage else "loop.input"
             if (fp <= 0 and need > 0) or (fm >= 0 and need < 0):
                 raise spec.fail(
                     where,

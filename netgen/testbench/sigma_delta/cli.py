@@ -7,21 +7,21 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 
 from ...core.errors import SimulationError
-from ...core.options import OptionError
+from ...core.options import Option, OptionError
 from ...emit.paired import load_pair
 from ...model import MacroModel
-from ...runtime.arguments import add_option, existing_file, output_folder
+from ...runtime.arguments import add_options
 from ...runtime.folders import OutputFolder
 from ...structure import load_structure
 from .loop import Choices, Tone
 from .loopfile import read_loop_file, read_structure_loop
 from .options import OPTIONS, read_tone
 from .runner import (
-    TIMEOUT,
     BuildOptions,
     RunRequest,
     backend_design,
@@ -128,7 +128,7 @@ def cli(args) -> int:
         simulator=args.simulator,
         segment=args.segment,
         timeout=args.timeout,
-        choices=Choices(lead=args.lead, dither=args.dither, reltol=args.reltol),
+        choices=Choices.of(vars(args)),
         native=args.native,
     )
     # the loop checked against the model before any output (LoopError: exit 2)
@@ -232,64 +232,13 @@ def lost_hint(s: dict) -> str:
     return (" Diagnostics: " + "; ".join(hints) + ".") if hints else ""
 
 
-def add_parser(sub) -> None:
-    """The `sigma-delta` subcommand's arguments."""
+def add_parser(sub, options: Iterable[Option] | None = None) -> None:
+    """The `sigma-delta` subcommand's arguments: every declared option with a flag (`options`, else
+    options.OPTIONS)."""
     p = sub.add_parser(
         "sigma-delta",
         help="run the sigma-delta force-feedback loop (the paper's levitation loop, "
         "for any device) in ngspice or VACASK, with spectra",
     )
-    p.add_argument("structure", help="structure description (TOML; its [loop] table describes the loop)")
-    p.add_argument(
-        "--loop",
-        type=existing_file("loop description"),
-        help="loop description LOOP.toml (a [loop] "
-        "table, as in a structure file; replaces the structure's): channels, electrodes, feedback "
-        "voltage, loop filter, timing, input (docs/sigma-delta.md)",
-    )
-    p.add_argument(
-        "-o",
-        "--output",
-        required=True,
-        type=output_folder,
-        help="output folder (bitstreams.npz, spectra, summary.json)",
-    )
-    add_option(p, OPTIONS["ts"])
-    add_option(p, OPTIONS["cycles"])
-    add_option(p, OPTIONS["tone"], type=str, default=None)
-    add_option(p, OPTIONS["rigid_only"])
-    p.add_argument(
-        "--model",
-        type=existing_file("model JSON"),
-        help="use this model .json (with the .lib, and for VACASK the .va, next to it) instead of building",
-    )
-    add_option(
-        p,
-        OPTIONS["simulator"],
-        help="ngspice with the .lib (default); ngspice-xspice: ngspice with the model's plate terms in "
-        "the compiled XSPICE code model (netgen codemodel; about 4x faster); or VACASK with the compiled "
-        "Verilog-A module: the same loop, for spectra-length runs",
-    )
-    p.add_argument("--rebuild", action="store_true", help="rebuild the model even if DIR/model is up to date")
-    add_option(p, OPTIONS["pressure"], default=None)
-    add_option(p, OPTIONS["film"], default=None)
-    p.add_argument(
-        "--noise",
-        action="store_true",
-        help="thermal force noise of the damping (ngspice trnoise); "
-        "summary.json gives the resulting Brownian floor per channel",
-    )
-    add_option(p, OPTIONS["lead"], default=None)  # None: the [loop] filter's, else the default
-    add_option(p, OPTIONS["dither"], default=None)
-    add_option(p, OPTIONS["reltol"], default=None)
-    add_option(p, OPTIONS["segment"], default=None)
-    add_option(p, OPTIONS["timeout"], default=TIMEOUT)
-    p.add_argument(
-        "--native",
-        action="store_true",
-        help="compile the Verilog-A (vacask, ngspice-osdi) for this machine's CPU (openvaf-r --target_cpu native: "
-        "faster on long runs); default: the x86-64 baseline (summary.json names the target)",
-    )
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
+    add_options(p, OPTIONS.values() if options is None else options)
     p.set_defaults(func=cli)

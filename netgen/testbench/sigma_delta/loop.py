@@ -18,6 +18,7 @@ import numpy as np
 from scipy import integrate, optimize
 
 from ...core.constants import G
+from ...core.options import Record, of_role
 from ...model import MacroModel
 from . import kinds
 from .balance import (
@@ -36,6 +37,7 @@ from .balance import (
     volts,
 )
 from .loopfile import LoopSpec, check_input_tone
+from .options import OPTIONS
 from .signals import Timing, Tone, duty, selected
 
 FILTERS, FilterKind = kinds.FILTERS, kinds.FilterKind  # the loop-filter registry (kinds.py), by its old name
@@ -401,14 +403,6 @@ def channel_filter(spec: LoopSpec, name: str, lead: float | None) -> dict:
     return f
 
 
-def pick(given, spec: LoopSpec, key: str, default):
-    """A design choice: the caller's (CLI, sweep), else the loop description's, else the default."""
-    if given is not None:
-        return given
-    value = getattr(spec, key)
-    return default if value is None else value
-
-
 @functools.lru_cache(maxsize=64)
 def latch_resolution(
     vcmp: float, settle: float, gain: float, regen: float, t: Timing, read: float, clean: float = CLEAN_LATCH
@@ -440,25 +434,19 @@ def latch_resolution(
     return float(vcmp * optimize.brentq(lambda x: held(x) - (1.0 - clean), 0.0, 30.0, xtol=1e-6))
 
 
-@dataclass(frozen=True)
-class Choices:
+class Choices(Record):
     """The design choices a caller (the command line, a sweep) gives over the loop description's
-    (None: the description's, else the default; netgen.testbench.sigma_delta.options declares them);
-    `timing`, a caller's Timing, replaces [loop.timing] whole."""
+    (None: the description's, else the declared default): one attribute per option of role "design"
+    (netgen.testbench.sigma_delta.options); `timing`, a caller's Timing, replaces [loop.timing] whole."""
 
-    density: float | None = None
-    sense_ratio: float | None = None
-    lead: float | None = None
-    full_scale: float | None = None
-    dither: float | None = None
-    reltol: float | None = None
-    timing: Timing | None = None
+    declared = of_role(OPTIONS.values(), "design")
+    extra = ("timing",)
 
 
 def design(
     model: MacroModel,
     ts: float,
-    choices: Choices = Choices(),
+    choices: Choices | None = None,
     *,
     spec: LoopSpec | None = None,
     tone: Tone | None = None,
@@ -474,17 +462,10 @@ def design(
     (balance_check False: an under-designed loop is built anyway, to test how a lost plate is reported);
     `step`: the back end renders a feedback step (runner.STEP_BACKENDS), which a designed filter then
     gets unless [loop.timing] gives fb_edge (Timing.fb_edge)."""
-    spec = spec or LoopSpec()
+    spec, choices = spec or LoopSpec(), choices or Choices()
     if tone is None or tone is spec.input.tone:  # a caller's tone replaces the description's
         check_input_tone(spec, ts)
-    chosen = Choices(
-        pick(choices.density, spec, "density", 0.5),
-        pick(choices.sense_ratio, spec, "sense_ratio", 0.25),
-        choices.lead,
-        pick(choices.full_scale, spec, "full_scale", 0.01),
-        pick(choices.dither, spec, "dither", 0.2),
-        pick(choices.reltol, spec, "reltol", 1e-3),
-    )
+    chosen = choices.over(spec.settings.or_defaults())  # the caller's, else the file's, else the default
     grad = scaled_gradient(model)
     names = channel_names(model, spec, grad)
     t = loop_timing(spec, choices, names, step)
@@ -502,7 +483,9 @@ def design(
     d.damping, d.dither, d.reltol = balance["damping"], chosen.dither, chosen.reltol
     d.channels = [channel_entry(p, d, k, chosen.lead, needed[k]) for k in range(len(names))]
     d.lead = d.channels[0]["filter"].get("lead")
-    dither_given = choices.dither is not None or spec.dither is not None  # a designed kind runs without, unless given
+    dither_given = (
+        choices.dither is not None or spec.settings.dither is not None
+    )  # a designed kind runs without, unless given
     for ch in (c for c in d.channels if FILTERS[c["filter"]["kind"]].design):  # designed kinds (kinds.py)
         ch["filter"] = FILTERS[ch["filter"]["kind"]].design(model, d, ch, ch["filter"])
         ch["dither_v"] = ch["dither_v"] if dither_given else 0.0  # no idle tones to break
@@ -544,7 +527,7 @@ def feedback_level(p: Plant, tone: Tone | None, bit_duty: float) -> tuple[float,
     model, spec, idx = p.model, p.spec, p.idx
     load = [abs(p.dc_si[i]) / v2 for i, v2 in zip(idx, p.per_v2)]
     jb = int(np.argmax(load))
-    if not spec.feedback_voltage and not (abs(p.dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
+    if not spec.settings.feedback_voltage and not (abs(p.dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]]):
         for n, (fp, fm) in zip(p.names, p.drive):  # no input: a one-sided loop has nothing to balance against
             if fp <= 0 or fm >= 0:
                 raise spec.fail(
@@ -552,7 +535,7 @@ def feedback_level(p: Plant, tone: Tone | None, bit_duty: float) -> tuple[float,
                     f"channel {n}: {one_sided(fp, fm)} and the loop has no input to balance it against",
                     ONE_SIDED_FIX,
                 )
-    vfb = spec.feedback_voltage or feedback_voltage(
+    vfb = spec.settings.feedback_voltage or feedback_voltage(
         spec, abs(p.dc_si[idx[jb]]) or tone_forces(model, tone)[idx[jb]], bit_duty * p.per_v2[jb]
     )
     return vfb, jb

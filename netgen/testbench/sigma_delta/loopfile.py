@@ -37,34 +37,33 @@ from pathlib import Path
 
 from ...core.errors import LoopError
 from ...core.files import read_text, toml_document
-from ...core.options import OptionError
+from ...core.options import Option, OptionError, Record
 from ...core.reader import Reader, check_keys, choice
 from ...core.text import escape, is_identifier, text_problem
 from ...core.units import UnitError, parse_quantity
 from .kinds import FILTERS
-from .options import OPTIONS
+from .options import LOOP_SETTINGS, OPTIONS
 from .signals import Timing, Tone
 
-LOOP_KEYS = [
-    "channels",
-    "feedback_voltage",
-    "sense_ratio",
-    "full_scale",
-    "density",
-    "dither",
-    "readout",
-    "filter",
-    "timing",
-    "input",
-    "reltol",
-]
+# the [loop] keys that are tables or names; the others are declared options (LoopSettings)
+STRUCTURE_KEYS = ["channels", "readout", "filter", "timing", "input"]
 CHANNEL_KEYS = ["sense", "feedback", "filter"]
 INPUT_KEYS = ["acceleration", "tone", "force", "gravity"]
 READOUTS = ["charge_amplifier"]
 MAX_CHANNELS = 6  # 2^6 feedback patterns in the force table
 FIX = "see the [loop] reference in docs/sigma-delta.md"
-# the [loop] keys that are declared options (netgen.testbench.sigma_delta.options: one range each)
-NUMBERS = ("sense_ratio", "full_scale", "density", "dither", "reltol")
+
+
+class LoopSettings(Record):
+    """The top-level [loop] keys that are declared options (options.LOOP_SETTINGS: one range each,
+    shared with their flags and sweep parameters), one attribute each (None: not in the file)."""
+
+    declared = LOOP_SETTINGS
+
+
+def loop_keys() -> list[str]:
+    """Every key a [loop] table may hold."""
+    return STRUCTURE_KEYS + list(LoopSettings.declared)
 
 
 @dataclass(frozen=True)
@@ -90,16 +89,12 @@ class ChannelSpec:
 
 @dataclass(frozen=True)
 class LoopSpec:
-    """A validated loop description (every field None = derived from the model)."""
+    """A validated loop description (every field None = derived from the model); `settings`: the
+    values of the declared [loop] options (feedback_voltage, density, ...)."""
 
     source: str = "<defaults>"
     channels: tuple[ChannelSpec, ...] | None = None
-    feedback_voltage: float | None = None
-    sense_ratio: float | None = None
-    full_scale: float | None = None
-    density: float | None = None
-    dither: float | None = None
-    reltol: float | None = None
+    settings: LoopSettings = LoopSettings()
     readout: str = "charge_amplifier"
     filter: dict | None = None
     timing: dict[str, float] = field(default_factory=dict)
@@ -136,18 +131,18 @@ def read_loop(rd: Reader, t: object) -> LoopSpec:
     """Validate a [loop] table's form into a LoopSpec."""
     if not isinstance(t, dict):
         raise rd.fail("loop", f"'loop' must be a table, got {type(t).__name__}", "write it as a [loop] section")
-    check_keys(rd, "loop", t, LOOP_KEYS)
-    nums = {k: option(rd, t, "loop", k, k) for k in NUMBERS}
-    vfb = option(rd, t, "loop", "feedback_voltage", "feedback_voltage")
+    check_keys(rd, "loop", t, loop_keys())
+    settings = LoopSettings(
+        **{k: option(rd, t, "loop", o.loop_key, k, declared=o) for k, o in LoopSettings.declared.items()}
+    )
     return LoopSpec(
         source=rd.path,
         channels=read_channels(rd, t),
-        feedback_voltage=vfb,
+        settings=settings,
         readout=choice(rd, t, "loop", "readout", READOUTS, "charge_amplifier"),
         filter=read_filter(rd, t, "loop.filter") if "filter" in t else None,
         timing=read_timing(rd, t),
         input=read_input(rd, t),
-        **nums,
     )
 
 
@@ -172,15 +167,18 @@ def name(rd: Reader, where: str, value: object, what: str) -> str:
     return value
 
 
-def option(rd: Reader, t: dict, where: str, key: str, name: str, required: bool = False) -> object:
-    """t[key] through its declared option's check (options.OPTIONS[name]: the range the flag and the
-    sweep parameter share), None if absent; else the error naming the key."""
+def option(
+    rd: Reader, t: dict, where: str, key: str, name: str, required: bool = False, declared: Option | None = None
+) -> object:
+    """t[key] through its declared option's check (`declared`, else options.OPTIONS[name]: the range
+    the flag and the sweep parameter share), None if absent; else the error naming the key."""
+    o = declared or OPTIONS[name]
     if key not in t:
         if required:
-            raise rd.fail(f"{where}.{key}", f"missing required key '{key}'", f"add {key} ({OPTIONS[name].fix(key)})")
+            raise rd.fail(f"{where}.{key}", f"missing required key '{key}'", f"add {key} ({o.fix(key)})")
         return None
     try:
-        return OPTIONS[name].read(t[key], f"{where}.{key}")
+        return o.read(t[key], f"{where}.{key}")
     except OptionError as exc:
         raise rd.fail(f"{where}.{key}", escape(exc.problem), f"{exc.fix} ({FIX})") from None
 
@@ -199,20 +197,21 @@ def number(rd: Reader, t: dict, where: str, key: str, lo: float, hi: float, text
     return float(v)
 
 
-def quantity(
-    rd: Reader,
-    t: dict,
-    where: str,
-    key: str,
-    kind: str,
-    lo: float,
-    hi: float,
-    text: str,
-    required: bool = False,
-    signed: bool = False,
-) -> float | None:
-    """An optional quantity (number in SI, or a string with a unit of `kind`) with lo < |v| <= hi
-    (signed: lo <= |v|)."""
+@dataclass(frozen=True)
+class Bounds:
+    """The range of a quantity key: its `kind` (units.UNITS), lo < v <= hi (signed: lo <= |v| <= hi),
+    and the range as the message words it."""
+
+    kind: str
+    lo: float
+    hi: float
+    text: str
+    signed: bool = False
+
+
+def quantity(rd: Reader, t: dict, where: str, key: str, bounds: Bounds, required: bool = False) -> float | None:
+    """An optional quantity (number in SI, or a string with a unit of bounds.kind) in its bounds."""
+    kind, lo, hi, text, signed = bounds.kind, bounds.lo, bounds.hi, bounds.text, bounds.signed
     if key not in t:
         if required:
             raise rd.fail(f"{where}.{key}", f"missing required key '{key}'", f"add {key} = <{kind}> ({FIX})")
@@ -406,7 +405,7 @@ def read_force(rd: Reader, t: dict, where: str = "loop.input.force") -> tuple[di
     if "coordinate" not in t:
         raise rd.fail(f"{where}.coordinate", "missing required key 'coordinate'", 'add coordinate = "z"')
     coord = name(rd, f"{where}.coordinate", t["coordinate"], "coordinate")
-    dc = quantity(rd, t, where, "dc", "dimensionless", 0.0, 1e12, "a finite number (the f_ port unit)", signed=True)
+    dc = quantity(rd, t, where, "dc", Bounds("dimensionless", 0.0, 1e12, "a finite number (the f_ port unit)", True))
     amp = option(rd, t, where, "amplitude", "tone_amplitude")
     if amp is not None and "frequency" not in t:
         raise rd.fail(f"{where}.frequency", "an amplitude needs a frequency", 'add frequency = "2 kHz"')

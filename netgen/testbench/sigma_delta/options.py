@@ -1,14 +1,18 @@
 """The sigma-delta loop's options, each declared once (netgen.core.options.Option): the `netgen
 sigma-delta` flags, the [loop] keys and the sweep parameters of the same setting share one range
-and one check. The command line (cli.add_parser), the loop reader (loopfile), the loop filter's
-reader (kinds.read_lead2), the sweep file (netgen.sweep.spec) and the docs' option tables
-(tests/test_options.py) are derived from OPTIONS."""
+and one check. The command line (cli.add_parser: every option with a flag), the loop reader
+(loopfile: every top-level [loop] key, LOOP_SETTINGS), the loop filter's reader
+(kinds.read_lead2), the design's choices (loop.Choices: the options of role "design"), the sweep
+file (netgen.sweep.spec: every option with a sweep parameter) and the docs' option tables
+(tests/test_options.py) are derived from OPTIONS: a new option is its declaration and its use."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
+from pathlib import Path
 
-from ...core.options import Option, OptionError, by_name, markdown_table, number
+from ...core.options import Option, OptionError, by_name, markdown_table, number, with_table
 
 # ngspice runs go in segments of this much simulated time, restarted at t = 0 (ngspice.run_segments)
 SEGMENT_S = 5e-4
@@ -20,6 +24,7 @@ MAX_CYCLES = 1 << 24  # periods per run: 2^24 periods write ~250 GB of raw file
 TS_RANGE = (1e-9, 1.0)
 MAX_TONE = 1e12  # a force tone's amplitude (f_ port unit) and any tone's frequency (Hz)
 MAX_ACCELERATION = 1e7  # m/s^2 (a_in: DC and tone)
+TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.core.process)
 
 
 def below_nyquist(freq: float, context: dict) -> str | None:
@@ -79,6 +84,7 @@ _options = [
     Option(
         "lead",
         "the lead-compensator coefficient a in y = a*prev - cur",
+        role="design",
         low=-10.0,
         high=10.0,
         default=0.8,
@@ -90,6 +96,7 @@ _options = [
     Option(
         "density",
         "the mean bit the DC input needs when V_fb is derived",
+        role="design",
         low=0.0,
         high=1.0,
         open_low=True,
@@ -102,6 +109,7 @@ _options = [
     Option(
         "sense_ratio",
         "the sense voltage over the feedback voltage, V_s / V_fb",
+        role="design",
         low=0.0,
         high=10.0,
         open_low=True,
@@ -113,6 +121,7 @@ _options = [
     Option(
         "full_scale",
         "the readout's full scale, a fraction of the touch amplitude that reads 1 V",
+        role="design",
         low=0.0,
         high=1.0,
         open_low=True,
@@ -124,6 +133,7 @@ _options = [
     Option(
         "dither",
         "the comparator dither, a fraction of the one-period feedback displacement a_fb*T_s^2 (0: none)",
+        role="design",
         low=0.0,
         high=1.0,
         default=0.2,
@@ -135,6 +145,7 @@ _options = [
     Option(
         "reltol",
         "the simulator's relative tolerance (1e-4 for spectra you quote: docs/sigma-delta.md)",
+        role="design",
         low=1e-7,
         high=1e-2,
         default=1e-3,
@@ -224,6 +235,7 @@ _options = [
         low=0.0,
         high=1e7,
         open_low=True,
+        default=TIMEOUT,
         default_text="36000 s (a sweep: 10 min + 1 s per period)",
         example="3600",
         flag="--timeout",
@@ -237,6 +249,9 @@ _options = [
         example="ngspice",
         flag="--simulator",
         sweep="simulator",
+        usage="; ngspice with the .lib; ngspice-xspice: ngspice with the model's plate terms in the compiled "
+        "XSPICE code model (netgen codemodel; about 4x faster); or VACASK with the compiled Verilog-A module: "
+        "the same loop, for spectra-length runs",
         cross=simulator_available,
     ),
     Option(
@@ -267,12 +282,76 @@ _options = [
         flag="--rigid-only",
         sweep="rigid_only",
     ),
+    # the command's other arguments: what it reads and writes, and how it runs
+    Option(
+        "structure",
+        "the structure description (TOML; its [loop] table describes the loop)",
+        type="text",
+        example="examples/levitated_disk.toml",
+        flag="structure",
+    ),
+    Option(
+        "loop",
+        "the loop description LOOP.toml (a [loop] table, as in a structure file; replaces the structure's): "
+        "channels, electrodes, feedback voltage, loop filter, timing, input",
+        type="file",
+        default_text="the structure's [loop]",
+        example="loop.toml",
+        flag="--loop",
+    ),
+    Option(
+        "output",
+        "the output folder (bitstreams.npz, spectra, summary.json)",
+        type="folder",
+        example="out/sd",
+        flag="--output",
+        short="-o",
+        required=True,
+    ),
+    Option(
+        "model",
+        "the model .json to use (with the .lib, and for VACASK the .va, next to it) instead of building",
+        type="file",
+        default_text="built in DIR/model",
+        example="netlists/levitated_disk.json",
+        flag="--model",
+    ),
+    Option("rebuild", "rebuild the model even if DIR/model is up to date", type="bool", flag="--rebuild"),
+    Option(
+        "noise",
+        "thermal force noise of the damping (ngspice trnoise); summary.json gives the resulting Brownian "
+        "floor per channel",
+        type="bool",
+        flag="--noise",
+    ),
+    Option(
+        "native",
+        "compile the Verilog-A (vacask, ngspice-osdi) for this machine's CPU (openvaf-r --target_cpu native: "
+        "faster on long runs); default: the x86-64 baseline (summary.json names the target)",
+        type="bool",
+        flag="--native",
+    ),
+    Option("no_plots", "skip the PNG figures", type="bool", flag="--no-plots"),
+    Option("quiet", "no progress or summary output", type="bool", flag="--quiet", short="-q"),
 ]
+
+
+def loop_settings(options: Iterable[Option]) -> dict[str, Option]:
+    """The options written as top-level [loop] keys (loopfile.LoopSettings; a dotted key is read in its table)."""
+    return {o.name: o for o in options if o.loop_key and "." not in o.loop_key}
+
+
+def sweep_parameters(options: Iterable[Option]) -> dict[str, Option]:
+    """The options that are sweep parameters, by parameter name (netgen.sweep.spec.TESTBENCH)."""
+    return {o.sweep: o for o in options if o.sweep}
+
+
 OPTIONS = by_name(_options)
-# where the settings are written: the sigma-delta command's flags, the [loop] keys, the sweep's parameters
+# where the settings are written: the sigma-delta command's arguments, the [loop] keys, the sweep's parameters
 FLAGS = {o.flag: o for o in _options if o.flag}
 LOOP_KEYS = {o.loop_key: o for o in _options if o.loop_key}
-SWEEP = {o.sweep: o for o in _options if o.sweep}
+LOOP_SETTINGS = loop_settings(_options)
+SWEEP = sweep_parameters(_options)
 
 
 def read_tone(text: object, named: str, ts: float | None = None, amplitude: Option | None = None):
@@ -307,10 +386,19 @@ def read_tone(text: object, named: str, ts: float | None = None, amplitude: Opti
     return coord, out[0], out[1]
 
 
-def markdown_tables() -> dict[str, str]:
-    """The docs' option tables by page (tests/test_options.py checks the pages hold them): every
-    option of `netgen sigma-delta` and the [loop] table, and the sweep's testbench parameters."""
+def markdown_tables(options: Iterable[Option] = OPTIONS.values()) -> dict[str, str]:
+    """The docs' option tables by page, each below its line MARK.format("sigma-delta") (write them:
+    write_docs("docs"); tests/test_options.py checks the pages hold
+    them): every option of `netgen sigma-delta` and the [loop] table, and the sweep's testbench parameters."""
+    options = list(options)
     return {
-        "sigma-delta.md": markdown_table(o for o in _options if o.flag or o.loop_key),
-        "sweeps.md": markdown_table((o for o in _options if o.sweep), ("sweep",)),
+        "sigma-delta.md": markdown_table(o for o in options if o.flag or o.loop_key),
+        "sweeps.md": markdown_table((o for o in options if o.sweep), ("sweep",)),
     }
+
+
+def write_docs(folder: str) -> None:
+    """Rewrite the option tables of the docs pages in `folder` from the declarations."""
+    for page, table in markdown_tables().items():
+        path = Path(folder) / page
+        path.write_text(with_table(path.read_text(encoding="utf-8"), "sigma-delta", table), encoding="utf-8")

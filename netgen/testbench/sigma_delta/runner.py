@@ -34,17 +34,17 @@ from ...structure import Damping, load_structure
 from . import ngspice, osdi, report, vacask
 from .analysis import analyse, levitation, per_clock, thermal_floor
 from .loop import FILTERS, Choices, Design, Tone, design
-from .loopfile import InputSpec, LoopSpec
+from .loopfile import InputSpec, LoopSettings, LoopSpec
+from .options import TIMEOUT
 from .plots import plot_spectra, plot_states
-
-TIMEOUT = 36000.0  # s: the default wall-clock limit of one simulator run (netgen.core.process)
 
 
 @dataclass(frozen=True)
 class Backend:
     """prepare(model, lib, out, progress, cpu) -> state: what must exist before the timed run (code
     models built, Verilog-A compiled for openvaf-r's target `cpu`), failing before any output; run(model, design, lib, out,
-    cycles, tone, progress, segment, state) -> (clock, extra summary entries)."""
+    request, state) -> (clock, extra summary entries): the RunRequest's cycles, tone (the one the
+    run simulates), progress and segment."""
 
     prepare: Callable[..., dict]
     run: Callable[..., tuple[dict, dict]]
@@ -59,21 +59,12 @@ def _code_models(model: MacroModel, lib: Path, out: Path, progress: bool, cpu: s
     return {"cms": ngspice.code_models(progress)}
 
 
-def _run_ngspice(
-    model: MacroModel,
-    d: Design,
-    lib: Path,
-    out: Path,
-    cycles: int,
-    tone: Tone | None,
-    progress: bool,
-    segment: int | None,
-    state: dict,
-) -> tuple[dict, dict]:
+def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, r: RunRequest, state: dict) -> tuple[dict, dict]:
     """The behavioural-source loop around the .lib, or (with code models) the compiled loop around
     the xspice .lib, or (osdi) the blocks.va loop around the _osdi.lib, in segments
     (ngspice.run_segments). The B-source .lib runs with KLU where the ngspice has it (25 % less
     CPU on ngspice 46; the OSDI and code-model forms gain nothing or are not built for it)."""
+    cycles, tone, progress, segment = r.cycles, r.tone, r.progress, r.segment
     control, loop, klu = [], "analog", False
     if "cms" in state:
         lib, control = ngspice.xspice_library(model, out, state["cms"])
@@ -109,29 +100,11 @@ def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool, cpu
     return {"va": va, "compile_s": time.perf_counter() - start, "target_cpu": cpu}
 
 
-def _run_vacask(
-    model: MacroModel,
-    d: Design,
-    lib: Path,
-    out: Path,
-    cycles: int,
-    tone: Tone | None,
-    progress: bool,
-    segment: int | None,
-    state: dict,
-) -> tuple[dict, dict]:
+def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, r: RunRequest, state: dict) -> tuple[dict, dict]:
     """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
-    plot = vacask.run_bench(
-        model,
-        d,
-        out,
-        cycles,
-        tone,
-        progress,
-        va=state["va"],
-        timeout=state.get("timeout", TIMEOUT),
-        cpu=state["target_cpu"],
-    )
+    cycles = r.cycles
+    how = vacask.BenchOptions(va=state["va"], timeout=state.get("timeout", TIMEOUT), cpu=state["target_cpu"])
+    plot = vacask.run_bench(model, d, out, cycles, r.tone, r.progress, how)
     extra = {
         "compile_s": state["compile_s"],
         "target_cpu": state["target_cpu"],
@@ -239,7 +212,7 @@ def backend_design(
 def overridden(loop: LoopSpec, feedback_voltage: float | None, acceleration: float | None) -> LoopSpec:
     """The loop description with a sweep's (or caller's) feedback voltage and DC acceleration on a_in."""
     if feedback_voltage is not None:
-        loop = replace(loop, feedback_voltage=feedback_voltage)
+        loop = replace(loop, settings=LoopSettings(feedback_voltage=feedback_voltage).over(loop.settings))
     if acceleration is not None:
         dc = {k: v for k, v in loop.input.dc.items() if k == "a_in"} | {"a_in": acceleration}
         loop = replace(loop, input=InputSpec(dc, loop.input.tone if not loop.input.default else None, default=False))
@@ -270,7 +243,7 @@ def run(model: MacroModel, lib: Path, out: Path, request: RunRequest) -> dict:
     state["timeout"] = r.timeout  # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    clock, extra = backend.run(model, d, lib, out, cycles, tone, r.progress, r.segment, state)
+    clock, extra = backend.run(model, d, lib, out, replace(r, tone=tone), state)
     wall = time.perf_counter() - start
     np.savez_compressed(out / "bitstreams.npz", **clock)
     done = len(clock["time"])  # fewer than `cycles` if a segment lost the plate

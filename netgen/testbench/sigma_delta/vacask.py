@@ -16,6 +16,7 @@ memory map (a 2^16-cycle run writes ~1 GB) and deleted by the caller after the p
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from ... import __version__
@@ -205,6 +206,19 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
     )
 
 
+@dataclass(frozen=True)
+class BenchOptions:
+    """How run_bench compiles and runs: the model's .va (None: emitted from the model), the compile
+    `cache` (None: out/osdi), extra VACASK `options`, the wall-clock `timeout` (s) and openvaf-r's
+    target `cpu`."""
+
+    va: Path | None = None
+    cache: Path | None = None
+    options: str = ""
+    timeout: float = 36000.0
+    cpu: str = GENERIC
+
+
 def run_bench(
     model: MacroModel,
     d: Design,
@@ -212,16 +226,12 @@ def run_bench(
     cycles: int,
     tone: Tone | None = None,
     progress: bool = True,
-    va: Path | None = None,
-    cache: Path | None = None,
-    options: str = "",
-    timeout: float = 36000.0,
-    cpu: str = GENERIC,
+    how: BenchOptions = BenchOptions(),
 ) -> Plot:
-    """Compile (cached, for openvaf-r's target `cpu`), render and run the VACASK bench in `out`;
+    """Compile (cached, for openvaf-r's target `how.cpu`), render and run the VACASK bench in `out`;
     return its plot."""
-    cache = cache or out / "osdi"
-    model_osdi = compile_model(model, cache, va, cpu)
-    blocks_osdi = compile_blocks(cache, cpu)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, options, folder=out)
-    return simulate(bench, out, d.ts * cycles, progress, timeout)
+    cache = how.cache or out / "osdi"
+    model_osdi = compile_model(model, cache, how.va, how.cpu)
+    blocks_osdi = compile_blocks(cache, how.cpu)
+    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out)
+    return simulate(bench, out, d.ts * cycles, progress, how.timeout)

@@ -1,20 +1,20 @@
 """The `netgen` console command: installs the SIGINT/SIGTERM handlers (netgen.runtime.interrupts) before
-the heavy imports of netgen.runtime.cli (numpy, scipy, matplotlib: about 0.6 s), so a Ctrl-C or SIGTERM
-while they load is one line and exit 130 instead of a traceback; then runs netgen.runtime.cli.main, the
+the heavy imports of netgen.cli.commands (numpy, scipy, matplotlib: about 0.6 s), so a Ctrl-C or SIGTERM
+while they load is one line and exit 130 instead of a traceback; then runs netgen.cli.commands.main, the
 error boundary of every subcommand."""
 
 from __future__ import annotations
 
 import sys
 
-from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, quiet
+from ..runtime.interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, quiet
 
 
 def main() -> int:
     """Entry point of the `netgen` console script."""
     install()
     try:
-        from . import cli
+        from . import commands as cli
 
         check()  # a signal an import swallowed
     except KeyboardInterrupt:

@@ -19,18 +19,16 @@ from ..build import build, figure_names, write_calibration, write_figures
 from ..core.errors import InputError, NetgenError, StructureError
 from ..emit import EMITTERS, compiles, fmu, osdi, refusal, report, requested, write_outputs
 from ..model import FIT_FIX
+from ..runtime.arguments import Parser, add_options
+from ..runtime.executor import executor
+from ..runtime.folders import OutputFolder
+from ..runtime.interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
+from ..runtime.options import build_options, simulate_options
 from ..sim import SIMULATORS, codemodel, netlist_text, ngspice
 from ..structure import load_structure
 from ..sweep import cli as sweep_cli
 from ..testbench import TESTBENCHES
 from ..testbench.sigma_delta.ngspice import LOOP_LIBRARY
-from .arguments import Parser, add_scheduler_option, existing_file, output_folder, positive
-from .executor import executor
-from .folders import OutputFolder
-from .interrupts import EXIT_INTERRUPTED, check, install, internal_error, interrupted, restore
-
-TIMEOUT_MAX = 1e7  # s (116 days): a limit, not a typo of one
-
 
 # ----------------------------------------------------------------------------- netgen build
 
@@ -115,57 +113,9 @@ def sampling(args: Any) -> Iterator[dict]:
             ex.close()
 
 
-def format_list(text: str) -> str:
-    """argparse type of --format: one or more of emit.formats() joined by commas."""
-    try:
-        requested(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"{text!r}: {exc}") from None
-    return text
-
-
 def _add_build(sub) -> None:
     b = sub.add_parser("build", help="build the macromodel of a structure file and emit netlists")
-    b.add_argument("structure", help="structure description (TOML), e.g. examples/levitated_disk.toml")
-    b.add_argument(
-        "-o", "--output", required=True, type=output_folder, help="output folder for <name>.lib and <name>.json"
-    )
-    b.add_argument(
-        "--format",
-        type=format_list,
-        default="ngspice",
-        help="netlist dialects to write, one or several joined by commas (e.g. all,osdi): "
-        + "; ".join(f"{k}: {e.help}" for k, e in EMITTERS.items())
-        + "; all: every dialect the model has but osdi and fmu (they compile)",
-    )
-    b.add_argument(
-        "--native",
-        action="store_true",
-        help="compile the .osdi for this machine's CPU (openvaf-r --target_cpu native: faster, but it may not "
-        "load elsewhere); default: the x86-64 baseline, which runs anywhere (the manifest names the target)",
-    )
-    b.add_argument("-q", "--quiet", action="store_true", help="no progress or summary output")
-    b.add_argument("--no-plots", action="store_true", help="skip the PNG figures (mode shapes, fit errors)")
-    b.add_argument(
-        "--max-minutes",
-        type=positive("--max-minutes", "--max-minutes 60"),
-        default=60.0,
-        metavar="MIN",
-        help="refuse (exit 2) a sample design whose estimated sampling and fit time exceeds MIN "
-        "minutes (default 60; the estimate is printed before the work)",
-    )
-    b.add_argument(
-        "--strict",
-        action="store_true",
-        help="refuse (exit 2, nothing written) a model whose capacitance fit misses [fit] tolerance",
-    )
-    add_scheduler_option(b, what="the capacitance samples are computed (default: serially in this process)")
-    b.add_argument(
-        "--sample-store",
-        metavar="DIR",
-        type=output_folder,
-        help="save finished sample chunks in DIR; a re-run with the same inputs reuses them",
-    )
+    add_options(b, build_options(EMITTERS, requested).values())  # declared in netgen.runtime.options
     b.set_defaults(func=_build)
 
 
@@ -187,23 +137,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _add_simulate(sub) -> None:
     r = sub.add_parser("simulate", help="run a netlist in a simulator (batch) and report failures clearly")
-    r.add_argument(
-        "netlist", type=existing_file("netlist"), help="netlist with its analyses (ngspice .cir, or a VACASK .sim)"
-    )
-    r.add_argument("-o", "--output", required=True, type=output_folder, help="run folder: the raw file and log")
-    r.add_argument(
-        "--simulator",
-        choices=list(SIMULATORS),
-        default="ngspice",
-        help="; ".join(f"{k}: {s.help}" for k, s in SIMULATORS.items()),
-    )
-    r.add_argument(
-        "--timeout",
-        type=positive("the time limit in seconds", "--timeout 600", TIMEOUT_MAX),
-        default=3600.0,
-        help="seconds of wall time before the run is stopped (default 3600)",
-    )
-    r.add_argument("-q", "--quiet", action="store_true", help="no summary output")
+    add_options(r, simulate_options(SIMULATORS).values())  # declared in netgen.runtime.options
     r.set_defaults(func=_simulate)
 
 
@@ -260,7 +194,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """The one error boundary of every subcommand (the `netgen` command runs it through
-    netgen.runtime.entry): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
+    netgen.cli): each error class its exit code and one message, SIGINT and SIGTERM exit 130,
     anything else exit 70 with the traceback in a crash log next to the output."""
     previous = install()
     args = None

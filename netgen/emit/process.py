@@ -1,0 +1,218 @@
+"""The process instance parameters (tscale, escale, temp, dg_<set>) as netlist text: the laws of
+netgen.model.process (MacroModel.process) rendered as parameter expressions, shared by the
+dialects (the expressions use only + - * / and parentheses: valid in ngspice .param and Verilog-A).
+No physics here: every number comes from the model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import MacroModel
+from .common import num
+
+KELVIN = 273.15
+
+
+def enabled(model: MacroModel) -> bool:
+    """The model carries process laws (its structure has [process]): without them every emitted
+    text is the one of a model without process parameters."""
+    return bool(model.process.get("coordinates"))
+
+
+def declared(model: MacroModel, name: str) -> bool:
+    """The structure's [process] declares parameter `name` (dg, tscale, escale, temp)."""
+    return enabled(model) and name in model.process.get("parameters", [])
+
+
+# the derived ratios each parameter moves (netgen.emit.process.factors): pm mass, pk stiffness,
+# pd damping, pt the noise PSD
+MOVES = {"pm": ("tscale",), "pk": ("tscale", "escale", "temp"), "pd": ("tscale", "temp"), "pt": ("tscale", "temp")}
+
+
+def active(model: MacroModel, kind: str) -> bool:
+    """Some declared parameter moves the ratio `kind` (MOVES; tscale itself for the inertial gain)."""
+    return any(declared(model, n) for n in MOVES.get(kind, (kind,)))
+
+
+def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
+    """(name, default) of the declared instance parameters (the dg_<set> only with `gaps`); [] without
+    laws."""
+    if not enabled(model):
+        return []
+    p = model.process
+    out = [(n, "1") for n in ("tscale", "escale") if declared(model, n)]
+    out += [("temp", f"{p['temperature_C']:.6g}")] if declared(model, "temp") else []
+    return out + ([(f"dg_{g['set']}", "0") for g in p["gaps"]] if gaps else [])
+
+
+def poly(coeffs: list[float], x: str) -> str:
+    """c0 + c1 x + c2 x^2 + c3 x^3 as products (no power operator: the dialects differ)."""
+    terms = [f"{num(c)}" + "".join(f"*{x}" for _ in range(k)) for k, c in enumerate(coeffs) if c != 0.0]
+    return "(" + (" + ".join(terms) if terms else "0") + ")"
+
+
+def factors(model: MacroModel) -> list[tuple[str, str]]:
+    """(name, expression) of the derived parameters: per coordinate q the ratios pm_q, pk_q, pd_q of
+    its mass, stiffness and damping to the model's values, and pt_q = pd_q T / T0 (the thermal noise
+    PSD's factor), each only where a declared parameter moves it (active); the modulus factor pe and
+    the film viscosity ratio pv first. An undeclared tscale is 1, an undeclared temp the nominal."""
+    if not enabled(model):
+        return []
+    p = model.process
+    tscale = "tscale" if declared(model, "tscale") else "1"
+    temp = "temp" if declared(model, "temp") else num(p["temperature_C"])
+    escale = "escale*" if declared(model, "escale") else ""
+    out = []
+    if active(model, "pk"):
+        out.append(("pe", f"{escale}(1 + {num(p['modulus_tc_per_K'])}*({temp} - {num(p['temperature_C'])}))"))
+    visc = p["temp"].get("viscosity") or {}
+    if active(model, "pd"):
+        out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
+    t0 = p["temperature_C"] + KELVIN
+    for c, law in zip(model.coordinates, p["coordinates"]):
+        if active(model, "pm"):
+            out.append((f"pm_{c.name}", f"{poly(law['mass'], tscale)}/{num(c.mass)}"))
+        if c.stiffness and active(model, "pk"):
+            stiff = join([f"pe*{poly(law['a'], tscale)}", poly(law["b"], tscale)], [law["a"], law["b"]])
+            out.append((f"pk_{c.name}", f"{stiff}/{num(c.stiffness)}"))
+        if c.damping and active(model, "pd"):
+            damp = join(
+                [poly(law["d_rest"], tscale), f"pv*{poly(law['d_film'], tscale)}"], [law["d_rest"], law["d_film"]]
+            )
+            out.append((f"pd_{c.name}", f"{damp}/{num(c.damping)}"))
+            out.append((f"pt_{c.name}", f"pd_{c.name}*({temp} + {num(KELVIN)})/{num(t0)}"))
+    return out
+
+
+def join(parts: list[str], coeffs: list[list[float]]) -> str:
+    """The sum of the parts whose polynomial is not identically zero, in parentheses."""
+    kept = [p for p, c in zip(parts, coeffs) if any(c)]
+    return "(" + (" + ".join(kept) if kept else "0") + ")"
+
+
+def factor(model: MacroModel, kind: str, name: str, value: str) -> str:
+    """ngspice text of `value` times coordinate `name`'s process ratio `kind` (pm, pk, pd, pt) or tscale,
+    in braces; `value` unchanged where no declared parameter moves it."""
+    if not active(model, kind):
+        return value
+    return "{" + (f"tscale*{value}" if kind == "tscale" else f"{kind}_{name}*{value}") + "}"
+
+
+def noise_dtemp(model: MacroModel, temp_k: float, circuit_c: float) -> str:
+    """dtemp of the .noise resistors: the die temperature (the instance's temp where declared, else
+    the model's, temp_k) over ngspice's circuit temperature circuit_c."""
+    if declared(model, "temp"):
+        return f"{{temp - {circuit_c:g}}}"
+    return f"{temp_k - KELVIN - circuit_c:.6g}"
+
+
+def gap_shifts(model: MacroModel) -> dict[str, tuple[str, float]]:
+    """electrode -> (its set, xs_z offset per metre of dg): the set's capacitance terms read
+    xs_z - sign dg / L_z (netgen.model.process)."""
+    if not enabled(model):
+        return {}
+    scale = {c.name: c.scale for c in model.coordinates}.get("z")
+    return {e: (g["set"], -g["sign"] / scale) for g in model.process["gaps"] for e in g["electrodes"]}
+
+
+def read_as_expression(f) -> bool:
+    """The fit of one electrode has a term netgen.emit.ngspice renders as an expression of the state
+    (target direct, or a plate polynomial of degree > 1), not only linear networks."""
+    return f.target == "direct" or any(bool(np.any(p.exponents.sum(axis=1) > 1)) for p in f.polys)
+
+
+def node_sets(model: MacroModel) -> set[str]:
+    """The gap sets whose shifted state is a node xg_<set> (some electrode of the set is read as an
+    expression); the others shift their linear networks by a current source (offset_lines): no
+    unknown is added to the circuit's matrix (two nodes per set changed KLU's pivoting in ngspice 46
+    enough to fail the levitated disk's sigma-delta run, timestep too small at 0.46 us)."""
+    shifts = gap_shifts(model)
+    return {shifts[f.electrode][0] for f in model.capacitances if f.electrode in shifts and read_as_expression(f)}
+
+
+def electrode_state(model: MacroModel, electrode: str, state: list[str]) -> list[str]:
+    """The state names the plate terms of `electrode` read: xs_z replaced by its set's shifted node
+    where the set has one (node_sets)."""
+    shift = gap_shifts(model).get(electrode)
+    if shift is None or shift[0] not in node_sets(model):
+        return state
+    return [f"xg_{shift[0]}" if s == "xs_z" else s for s in state]
+
+
+def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list[str]) -> list[str]:
+    """The gap offset of an affine network node `name` = sum c_v xs_v (netgen.emit.ngspice.linear_network)
+    as one more current source, c_z (-sign / L_z) dg_<set>: a right-hand side only. [] where the
+    electrode has no offset, its set reads a shifted node instead, or the node has no z term."""
+    shift = gap_shifts(model).get(electrode)
+    if shift is None or shift[0] in node_sets(model) or "xs_z" not in state:
+        return []
+    v = state.index("xs_z")
+    c = sum(float(k) for e, k in zip(poly.exponents, poly.coeffs) if e.sum() == 1 and e[v] == 1)
+    return [f"I{name}_dg 0 {name} {{{num(c * shift[1])}*dg_{shift[0]}}}"] if c else []
+
+
+def gap_networks(model: MacroModel) -> list[str]:
+    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (1 ohm,
+    a VCCS, a parameter current source: linear, nothing to differentiate)."""
+    if not enabled(model):
+        return []
+    scale = {c.name: c.scale for c in model.coordinates}.get("z")
+    lines = []
+    for g in model.process["gaps"]:
+        if g["set"] not in node_sets(model):
+            continue
+        n = f"xg_{g['set']}"
+        lines += [
+            f"R{n} {n} 0 1",
+            f"G{n} 0 {n} xs_z 0 1",
+            f"I{n} 0 {n} {{{num(-g['sign'] / scale)}*dg_{g['set']}}}",
+        ]
+    return lines
+
+
+def header_text(model: MacroModel, gaps: bool = True) -> str:
+    """The header's statement of each declared process parameter: meaning, valid range and error
+    (without `gaps`, why this form has no dg_<set>); "" without [process]."""
+    if not enabled(model):
+        return ""
+    p = model.process
+    parts = []
+    if declared(model, "tscale"):
+        t = p["tscale"]
+        parts.append(
+            f"tscale = device-layer thickness / nominal, valid {t['range'][0]:g}..{t['range'][1]:g}, mass, "
+            f"stiffness and damping laws "
+            + (f"within {t['max_rel_error']:.1e}" if t["max_rel_error"] else "exact (power laws of t)")
+            + " (capacitance: unchanged, plate electrodes)"
+        )
+    if declared(model, "escale"):
+        e = p["escale"]["range"]
+        parts.append(
+            f"escale = Young's modulus / nominal, valid {e[0]:g}..{e[1]:g} (given springs and residual stress do not scale)"
+        )
+    if declared(model, "temp"):
+        r = p["temp"]["range_C"]
+        text = (
+            f"temp = die temperature in degC (default {p['temperature_C']:.6g}), valid {r[0]:g}..{r[1]:g}: modulus "
+            f"{p['modulus_tc_per_K'] * 1e6:.4g} ppm/K, thermal noise k_B T"
+        )
+        visc = p["temp"].get("viscosity")
+        text += (
+            f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
+            if visc
+            else ""
+        )
+        text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
+        parts.append(text)
+    if p["gaps"] and not gaps:
+        parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
+    for g in p["gaps"] if gaps else []:
+        parts.append(
+            f"dg_{g['set']} (m) = gap increase of electrode set {g['set']}, exact as a shift of z, "
+            f"valid |dg| <= {g['max_m']:.3g} (the fit's box moves by dg)"
+        )
+    return (
+        "Process parameters (netgen/model/process.py, declared in [process]): "
+        + "; ".join(parts)
+        + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
+    )

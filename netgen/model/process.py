@@ -1,0 +1,255 @@
+"""Process spread as instance parameters (opt-in: only for a structure with [process], and only the
+parameters it declares; netgen.structure.process_table): the laws by which a built model's numbers change with the
+device-layer thickness (tscale), Young's modulus (escale), the die temperature (temp, degC) and a
+gap offset per electrode set (dg_<set>, m), derived here once so that emitters only render them.
+
+- tscale: mass, stiffness and damping of every coordinate as cubic polynomials in tscale, fitted to
+  the mechanics (netgen.mechanics) and damping (netgen.mechanics.damping) re-run with the conductor's
+  and the flexures' thickness scaled at fit_points (five points, four coefficients: the largest
+  relative residual is the parameter's stated error; 0 to round-off for the power laws t, t^3 of rigid masses,
+  beams in bending and Kirchhoff plates; torsion is not a power law). The capacitances of plate
+  electrodes above/below do not depend on thickness (offered only without comb fingers, whose
+  overlap does).
+- escale and temp: K(tscale, E) = e * A(tscale) + B(tscale), with A the part proportional to the
+  modulus (beams, frames, plates) and B the rest (residual stress, given springs), separated by a
+  re-run at the modulus scaled by E_PROBE; e = escale * (1 + modulus_tc * (temp - T0)).
+- temp in the damping: the squeeze-film part of the damping times mu_eff(T) / mu_eff(T0), with
+  Sutherland's law mu ~ T^1.5 / (T + S) and the mean free path ~ mu sqrt(T) / p in Veijola's
+  rarefaction mu / (1 + 9.638 Kn^1.159) (netgen.mechanics.squeeze_film), as a polynomial in
+  (T - T0) / 100 K fitted on the declared temp_range; and k_B T in the thermal noise.
+- dg_<set>: moving a plate electrode set (side above or below) away by dg is, exactly, moving the
+  conductor by -dg along z towards the other side (for any tilt and any plate mode: both add to the
+  rigid translation), so each of the set's capacitance terms reads xs_z - sign dg / L_z, whatever its
+  fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
+  |xs_z - sign dg / L_z| <= range).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from ..core.constants import GASES
+from ..mechanics import Mechanics
+from ..mechanics import squeeze_film as sf
+from ..mechanics.damping import damping as damping_of
+from ..structure import Structure
+from ..structure.schema import Process
+
+E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
+KELVIN = 273.15
+VISCOSITY_DEGREE = 4
+# Sutherland constants S (K): White, Viscous Fluid Flow (3rd ed.), table 1-2 (air 111, N2 107,
+# Ar 144); helium 79.4 K (Sutherland-law fits of Chapman and Cowling's data)
+SUTHERLAND = {"air": 111.0, "nitrogen": 107.0, "argon": 144.0, "helium": 79.4}
+GAP_SIDES = {"above": 1.0, "below": -1.0}  # +z towards the electrode
+ROUND_OFF = 1e-12  # a law's residual below this is the re-runs' round-off: stated as 0 (exact)
+
+
+def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
+    """The structure with the device layer (conductor and flexures) tscale times as thick and
+    Young's modulus escale times as large (kinds without a modulus keep their given springs)."""
+    c: Any = s.conductor  # every conductor kind is a dataclass with a thickness
+    changes: dict = {"thickness": c.thickness * tscale}
+    if hasattr(c, "youngs_modulus"):
+        changes["youngs_modulus"] = c.youngs_modulus * escale
+    flex = getattr(c, "flexure", None)
+    if flex is not None and flex.thickness:
+        changes["flexure"] = dataclasses.replace(flex, thickness=flex.thickness * tscale)
+    return dataclasses.replace(s, conductor=dataclasses.replace(c, **changes))
+
+
+def viscosity_ratio(gas: str, pressure: float, gap: float, t0: float, t: np.ndarray) -> np.ndarray:
+    """mu_eff(T) / mu_eff(T0) of the rarefied gas film (T, T0 in K): Sutherland's mu(T), the mean
+    free path scaling as mu sqrt(T) at fixed pressure, Veijola's effective viscosity."""
+    g, s_k = GASES[gas], SUTHERLAND[gas]
+    t = np.asarray(t, dtype=float)
+    mu = (t / t0) ** 1.5 * (t0 + s_k) / (t + s_k)
+    kn0 = sf.knudsen(g, pressure, gap)
+    kn = kn0 * mu * np.sqrt(t / t0)
+    return mu * (1.0 + 9.638 * kn0**1.159) / (1.0 + 9.638 * kn**1.159)
+
+
+def fit_points(p: Process) -> tuple[float, ...]:
+    """The thicknesses the mechanics are re-run at: five across the declared tscale range (two each
+    side of the nominal, which is one of them), or the nominal alone without tscale."""
+    if not p.wants("tscale"):
+        return (1.0,)
+    lo, hi = p.tscale_range
+    return (lo, (lo + 1.0) / 2, 1.0, (1.0 + hi) / 2, hi)
+
+
+def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, float]:
+    """Cubic polynomials c0 + c1 x + c2 x^2 + c3 x^3 per column of `values` (least squares over the
+    points: one more than the coefficients; c0 then set so the fit is exact at x = 1), and the
+    largest residual at the points relative to `scale` (per point and column: the quantity it is a
+    part of, there; relative to the largest value over the range it understated the error at the
+    thin end by the cube of the range).
+    One point (no tscale): the constant."""
+    if len(x) == 1:
+        return np.column_stack([values[0]] + [np.zeros_like(values[0])] * 3), 0.0
+    v = np.vander(np.array(x), 4, increasing=True)
+    coef, *_ = np.linalg.lstsq(v, values, rcond=None)
+    # the least-squares round-off of exact laws (the Vandermonde matrix over 0.9..1.1 has a condition
+    # number near 1e6: 1e-16 x 1e6 = 1e-10 relative), then the nominal point exactly (default
+    # parameters = the model's own numbers: a ratio of exactly 1) by scaling the polynomial, which
+    # keeps a pure power law's zeros (adding the misfit to c0 wrote a round-off c0 into the netlist)
+    coef[np.abs(coef) < 1e-9 * np.max(np.abs(coef), axis=0, initial=0.0)] = 0.0
+    one = x.index(1.0)
+    at_one = v[one] @ coef
+    ok = at_one != 0.0
+    coef[:, ok] *= values[one][ok] / at_one[ok]
+    coef[0, ~ok] += values[one][~ok]
+    err = float(np.max(np.abs(v @ coef - values) / np.where(scale > 0, scale, 1.0), initial=0.0))
+    return coef.T, err if err > ROUND_OFF else 0.0
+
+
+def mechanics_laws(s: Structure, m: Mechanics, run, film: bool, p: Process) -> tuple[list[dict], list[float]]:
+    """Per coordinate the tscale polynomials of mass, K's modulus part A and rest B, and the damping
+    without and with its squeeze film, from `run(structure)` -> Mechanics (netgen.mechanics.mechanics)
+    re-run at fit_points (the nominal m reused) and, for escale or temp, at E_PROBE (else A = 0: the
+    modulus never varies); and each polynomial's residual."""
+    rows: dict[str, list] = {k: [] for k in ("mass", "a", "b", "d_rest", "d_film")}
+    modulus = p.wants("escale") or p.wants("temp")
+    points = fit_points(p)
+    for tau in points:
+        m1 = m if tau == 1.0 else run(scaled(s, tau))
+        m2 = run(scaled(s, tau, E_PROBE)) if modulus else m1
+        if m1.names != m.names or m2.names != m.names:
+            raise ValueError("the coordinates change with the thickness")
+        a = (m2.stiffnesses - m1.stiffnesses) / (E_PROBE - 1.0)
+        rest, total = damping_parts(scaled(s, tau), m1, film)
+        for key, val in zip(rows, (m1.masses, a, m1.stiffnesses - a, rest, total - rest)):
+            rows[key].append(np.asarray(val, dtype=float))
+    laws, errors = {}, []
+    arrays = {k: np.array(v) for k, v in rows.items()}
+    stiff, damp = np.abs(arrays["a"] + arrays["b"]), np.abs(arrays["d_rest"] + arrays["d_film"])
+    totals = {"mass": np.abs(arrays["mass"]), "a": stiff, "b": stiff, "d_rest": damp, "d_film": damp}
+    for key, vals in arrays.items():
+        laws[key], err = power_fit(points, vals, totals[key])
+        errors.append(err)
+    return [{k: [float(c) for c in laws[k][v]] for k in laws} for v in range(len(m.names))], errors
+
+
+def damping_parts(s: Structure, m: Mechanics, film: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(damping without the squeeze film, total damping) per coordinate."""
+    total, _ = damping_of(s, m)
+    if not film or s.damping is None:
+        return total, total
+    rest, _ = damping_of(dataclasses.replace(s, damping=dataclasses.replace(s.damping, squeeze_film=False)), m)
+    return rest, total
+
+
+def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
+    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K (and its misfit);
+    {} without a squeeze film. T0 = the structure's damping temperature."""
+    d = s.damping
+    t0 = d.temperature if d else 300.0
+    if not (d and d.squeeze_film):
+        return {}
+    gaps = [e.gap for e in s.electrode_sets if getattr(e, "side", None) in GAP_SIDES]
+    gap = min(gaps)
+    lo, hi = (v + KELVIN for v in temp_range_c)
+    t = np.linspace(lo, hi, 67)
+    u = (t - t0) / 100.0
+    ratio = viscosity_ratio(d.gas, d.pressure, gap, t0, t)
+    coef = np.polynomial.polynomial.polyfit(u, ratio, VISCOSITY_DEGREE)
+    fine = np.linspace(lo, hi, 661)
+    misfit = np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / viscosity_ratio(
+        d.gas, d.pressure, gap, t0, fine
+    )
+    return {
+        "law": f"Sutherland (S = {SUTHERLAND[d.gas]:g} K) with Veijola's rarefaction at gap {gap:.4g} m",
+        "gas": d.gas,
+        "coeffs": [float(c) for c in coef],
+        "variable": "(T - T0) / 100 K",
+        "max_rel_error": float(np.max(np.abs(misfit - 1.0))),
+    }
+
+
+def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], str]:
+    """The electrode sets a gap offset applies to exactly (plates above/below with coordinate z),
+    each {"set", "electrodes", "sign"}; and the reason when there are none."""
+    if "z" not in names:
+        return [], "no coordinate z: a gap offset is not a shift of a coordinate of this model"
+    sets: dict[str, dict] = {}
+    for e in electrodes:
+        if e.side not in GAP_SIDES:
+            continue
+        row = sets.setdefault(e.group, {"set": e.group, "electrodes": [], "sign": GAP_SIDES[e.side]})
+        if row["sign"] != GAP_SIDES[e.side]:
+            row["mixed"] = True
+        row["electrodes"].append(e.name)
+    out = [r for r in sets.values() if not r.pop("mixed", False)]
+    return out, "" if out else "no electrode set lies above or below the conductor"
+
+
+def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float) -> dict:
+    """The model's process entry (MacroModel.process): laws, ranges and errors of the parameters the
+    structure's [process] declares (netgen.structure.process_table checked them against the
+    structure); {} without [process] (nothing is re-run, the model is what it was)."""
+    p = s.process
+    if p is None:
+        return {}
+    d = s.damping
+    film = bool(d and d.squeeze_film and d.film_model == "incompressible")
+    per, errors = mechanics_laws(s, m, run, film, p)
+    t0 = d.temperature if d else 300.0
+    sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
+    dg_max = sampling_range * scale_z / 4 if scale_z else 0.0
+    out: dict[str, Any] = {
+        "parameters": list(p.parameters),
+        "temperature_C": t0 - KELVIN,
+        "modulus_tc_per_K": p.modulus_tc,
+        "tscale": {
+            "range": list(p.tscale_range),
+            "max_rel_error": max(errors),
+            "fit_points": list(fit_points(p)),
+            "capacitance": "unchanged (plate electrodes)",
+        },
+        "escale": {"range": list(p.escale_range), "max_rel_error": max(errors[1:3])},
+        "temp": {
+            "range_C": list(p.temp_range),
+            "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
+        },
+        "coordinates": per,
+        "gaps": [dict(r, max_m=dg_max) for r in sets],
+    }
+    if d and d.film_model == "compressible":
+        out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
+    return out
+
+
+def kelvin(temp_c: float) -> float:
+    """degC -> K."""
+    return temp_c + KELVIN
+
+
+def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
+    """e = escale (1 + tc (T - T0)): the factor on the modulus part of the stiffness."""
+    return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
+
+
+def coordinate_values(law: dict, v: int, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None):
+    """(mass, stiffness, damping) of coordinate v at the process point, from the laws (the same
+    arithmetic the emitters render)."""
+    temp_c = law["temperature_C"] if temp_c is None else temp_c
+    c = law["coordinates"][v]
+    p = [1.0, tscale, tscale**2, tscale**3]
+    mass, a, b = (float(np.dot(c[k], p)) for k in ("mass", "a", "b"))
+    visc = law["temp"]["viscosity"]
+    ratio = (
+        float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
+        if visc
+        else 1.0
+    )
+    damp = float(np.dot(c["d_rest"], p)) + ratio * float(np.dot(c["d_film"], p))
+    return mass, modulus_factor(law, escale, temp_c) * a + b, damp
+
+
+def finite_law(law: dict) -> bool:
+    """Every number in the law is finite (JSON-safe)."""
+    return all(math.isfinite(x) for c in law.get("coordinates", []) for k in c for x in c[k])

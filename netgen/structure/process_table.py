@@ -1,0 +1,109 @@
+"""The optional [process] table: which process instance parameters the emitted .lib carries
+(netgen.model.process derives their laws), their valid ranges and the modulus' temperature
+coefficient. Without the table no law is derived and every emitted file is what it was before."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..core.reader import Reader, check_keys, quantity, table
+from .schema import PROCESS_PARAMETERS, Process
+
+KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc"]
+# the widest ranges the laws are offered for: thickness and modulus factors around 1, the die
+# temperature between liquid nitrogen and a solder reflow (the gas laws' and the modulus' validity)
+LIMITS = {"tscale": (0.5, 1.5), "escale": (0.2, 3.0), "temp": (-200.0, 300.0)}
+GAP_SIDES = ("above", "below")
+
+
+def read_process(rd: Reader, doc: dict) -> Process | None:
+    """The [process] table as a Process; None when the file has none (no process parameters)."""
+    if "process" not in doc:
+        return None
+    t = table(rd, doc, "process", required=False)
+    check_keys(rd, "process", t, KEYS)
+    params = read_parameters(rd, t)
+    ranges = {name: read_range(rd, t, name, params) for name in LIMITS}
+    tc = quantity(
+        rd,
+        t,
+        "process",
+        "modulus_tc",
+        "dimensionless",
+        Process.modulus_tc,
+        lambda v: None if abs(v) < 1e-3 else "is not a modulus temperature coefficient (|tc| < 1e-3 per K)",
+        "d ln E / dT in 1/K (silicon -60e-6)",
+    )
+    return Process(params, ranges["tscale"], ranges["escale"], ranges["temp"], tc)
+
+
+def read_parameters(rd: Reader, t: dict) -> tuple[str, ...]:
+    """process.parameters: a non-empty list of distinct names from PROCESS_PARAMETERS (default all)."""
+    fix = f"write parameters = {list(PROCESS_PARAMETERS)} or a subset of it".replace("'", '"')
+    value: Any = t.get("parameters", list(PROCESS_PARAMETERS))
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise rd.fail("process.parameters", f"parameters must be a non-empty list of names, got {value!r}", fix)
+    for v in value:
+        if v not in PROCESS_PARAMETERS:
+            raise rd.fail("process.parameters", f"unknown process parameter {v!r}", fix)
+    if len(set(value)) != len(value):
+        raise rd.fail("process.parameters", "a parameter is listed twice", "list each parameter once")
+    return tuple(value)
+
+
+def read_range(rd: Reader, t: dict, name: str, params: tuple[str, ...]) -> tuple[float, float]:
+    """process.<name>_range: [lo, hi] within LIMITS[name], around the nominal (1, or 25 degC for temp
+    is not required: the structure's temperature is checked by check_process)."""
+    key, default = f"{name}_range", getattr(Process, f"{name}_range")
+    where = f"process.{key}"
+    if key not in t:
+        return default
+    if name not in params:
+        raise rd.fail(where, f"{key} is given but {name!r} is not in process.parameters", f"add {name!r} or drop {key}")
+    value = t[key]
+    lo_lim, hi_lim = LIMITS[name]
+    fix = f"write {key} = [lo, hi] with {lo_lim:g} <= lo < hi <= {hi_lim:g}" + (" (degC)" if name == "temp" else "")
+    ok = isinstance(value, list) and len(value) == 2
+    if not ok or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        raise rd.fail(where, f"{key} must be a list of two numbers, got {value!r}", fix)
+    lo, hi = float(value[0]), float(value[1])
+    if not lo_lim <= lo < hi <= hi_lim:
+        raise rd.fail(where, f"{key} = {value!r} is not an increasing range within {lo_lim:g}..{hi_lim:g}", fix)
+    if name != "temp" and not lo < 1.0 < hi:
+        raise rd.fail(where, f"{key} = {value!r} does not contain the nominal 1", f"{fix}, lo < 1 < hi")
+    return lo, hi
+
+
+def check_process(rd: Reader, p: Process | None, names: list[str], sets: tuple, imported: bool, t0_c: float) -> None:
+    """The declared parameters against the structure: dg needs a coordinate z and a plate set
+    above/below (the offset is a shift of z); tscale refuses comb fingers (their capacitance grows
+    with the thickness, not modelled); tscale, escale and temp need mechanics netgen can re-run;
+    temp's range contains the structure's own temperature (the laws' nominal point)."""
+    if p is None:
+        return
+    where = "process.parameters"
+    if p.wants("dg") and ("z" not in names or not any(getattr(s, "side", None) in GAP_SIDES for s in sets)):
+        raise rd.fail(
+            where,
+            "dg needs the coordinate z and an electrode set above or below the conductor (a gap offset is a shift of z)",
+            "remove 'dg' from process.parameters, or add z to [coordinates] rigid",
+        )
+    if p.wants("tscale") and any(getattr(s, "side", None) not in GAP_SIDES for s in sets):
+        raise rd.fail(
+            where,
+            "tscale with comb fingers: their capacitance grows with the thickness, which the laws do not model",
+            "remove 'tscale' from process.parameters (escale, temp and dg stay exact)",
+        )
+    moved = [n for n in ("tscale", "escale", "temp") if p.wants(n)]
+    if imported and moved:
+        raise rd.fail(
+            where,
+            f"{', '.join(moved)} with imported mechanics: netgen cannot re-run them at another thickness or modulus",
+            "remove them from process.parameters (dg stays exact) or describe the flexures in the structure file",
+        )
+    if p.wants("temp") and not p.temp_range[0] <= t0_c <= p.temp_range[1]:
+        raise rd.fail(
+            "process.temp_range",
+            f"temp_range {list(p.temp_range)} degC does not contain the structure's temperature {t0_c:.6g} degC",
+            "widen temp_range or set [damping] temperature inside it",
+        )
