@@ -105,7 +105,7 @@ def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
     with pytest.raises(
         ValueError,
         match=r"choose one or more \(joined by commas\) of ngspice, veriloga, xspice, "
-        r"osdi, xschem, kicad, all",
+        r"osdi, xschem, kicad, fmu, all",
     ):
         emit.write_outputs(model, tmp_path, "spectre")
     for bad in ("spectre", "ngspice,spectre", ""):
@@ -115,7 +115,7 @@ def test_unknown_format_is_refused_with_the_choices(tmp_path, capsys):
         assert (
             info.value.code == 2
             and "argument --format" in err
-            and "ngspice, veriloga, xspice, osdi, xschem, kicad, all" in err
+            and "ngspice, veriloga, xspice, osdi, xschem, kicad, fmu, all" in err
         )
     assert not (tmp_path / "out").exists()
 

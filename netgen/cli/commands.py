@@ -17,7 +17,7 @@ from typing import Any
 from .. import __version__
 from ..build import build, figure_names, write_calibration, write_figures
 from ..core.errors import InputError, NetgenError, StructureError
-from ..emit import EMITTERS, compiles, osdi, refusal, report, requested, write_outputs
+from ..emit import EMITTERS, compiles, fmu, osdi, refusal, report, requested, write_outputs
 from ..model import FIT_FIX
 from ..runtime.arguments import Parser, add_options
 from ..runtime.executor import executor
@@ -53,7 +53,7 @@ def _build(args: argparse.Namespace) -> int:
             print(f"netgen: {args.structure}: --format {fmt}: {refusal(model, fmt)}", file=sys.stderr)
             return 2
     cpu = osdi.target_cpu(args.native)
-    info = {"osdi": {"compiler": "openvaf-r", "target_cpu": cpu}} if compiles(args.format) else {}
+    info = compiled_info(args.format, cpu)
     with OutputFolder(args.output, model.name, info, legacy=build_files(model.name)) as out:
         written = write_outputs(model, out.stage, args.format, cpu)
         if not args.no_plots:
@@ -72,9 +72,29 @@ def _build(args: argparse.Namespace) -> int:
     return 0
 
 
+def chosen_formats(fmt: str) -> list[str]:
+    """The formats named in a --format value ("all" counts as none of the compiled ones)."""
+    return [f for f in requested(fmt) if f != "all"]
+
+
+def compiled_info(fmt: str, cpu: str) -> dict:
+    """The manifest's record of each compiled form --format writes: its compiler and target cpu."""
+    names = chosen_formats(fmt)
+    info: dict = {}
+    if "osdi" in names:
+        info["osdi"] = {"compiler": "openvaf-r", "target_cpu": cpu}
+    if "fmu" in names:
+        info["fmu"] = {"compiler": " ".join(fmu.compiler() or []), "target_cpu": cpu}
+    return info if compiles(fmt) else {}
+
+
 def build_files(name: str) -> tuple[str, ...]:
     """Every file a build of model `name` can write (its set, for OutputFolder)."""
-    extra = (f"{name}_tb.sch", f"{name}_report.html")  # beside the .sym (netgen.emit.xschem); the report
+    extra = (
+        f"{name}_tb.sch",
+        f"{name}_report.html",
+        f"{name}.fmu",
+    )  # beside the .sym (netgen.emit.xschem); the report; the .fmu beside _fmu.c
     return tuple(f"{name}{e.suffix}" for e in EMITTERS.values()) + (f"{name}.json",) + figure_names(name) + extra
 
 

@@ -14,7 +14,7 @@ from typing import Protocol
 
 from ..core.files import write_files_atomic
 from ..model import MacroModel
-from . import kicad, ngspice, osdi, veriloga, xschem, xspice
+from . import fmu, kicad, ngspice, osdi, veriloga, xschem, xspice
 
 
 class Render(Protocol):
@@ -93,6 +93,19 @@ EMITTERS: dict[str, Emitter] = {
         always,
         "",
         "KiCad 6+ symbol library whose Sim.* (and KiCad 6 Spice_*) fields instantiate the .lib's subcircuit",
+    ),
+    # not in "all": it needs a C compiler (no Python package brings one; many user machines have
+    # none, and "all" would then drop it without a word) and writes a platform binary that differs
+    # byte-wise between compilers (netlists/ is regenerated with "all")
+    "fmu": Emitter(
+        "_fmu.c",
+        fmu.source,
+        fmu.refusal,
+        fmu.FIX,
+        "FMI 2.0 FMU (<name>.fmu: model exchange and co-simulation) compiled from the generated C (<name>_fmu.c)",
+        fmu.outputs,
+        in_all=False,
+        compiled=True,
     ),
 }
 

@@ -65,7 +65,7 @@ def build_options(emitters: Mapping[str, Any], requested: Callable[[str], list[s
                 cross=format_check(requested),
                 usage=": "
                 + "; ".join(f"{k}: {e.help}" for k, e in emitters.items())
-                + "; all: every dialect the model has but osdi",
+                + "; all: every dialect the model has but osdi and fmu (they compile)",
             ),
             Option(
                 "native",

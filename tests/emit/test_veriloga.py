@@ -160,6 +160,6 @@ def test_bad_names_are_refused_clearly(model):
 
 def test_unknown_format_is_refused(model, tmp_path):
     """write_outputs names the known dialects and writes nothing."""
-    with pytest.raises(ValueError, match="ngspice, veriloga, xspice, osdi, xschem, kicad, all"):
+    with pytest.raises(ValueError, match="ngspice, veriloga, xspice, osdi, xschem, kicad, fmu, all"):
         write_outputs(model, tmp_path / "out", "spectre")
     assert not (tmp_path / "out").exists()
