@@ -33,10 +33,10 @@ from .fastcap_mesh import Panels, electrode_panels, plate_panels
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 
 FASTCAP_INSTALL = "pip install 'netgen[fastcap]'  (or: pip install fastcap2==2.1)"
-# peak memory per panel of one solve (bytes), fitted to bench/fastcap_reference.py's peak RSS
-# (the near-field direct interactions and the multipole tables, expansion order 4..6)
-BYTES_PER_PANEL = 40e3
-SECONDS_PER_PANEL = 2e-4  # one solve on this 2-core machine, same fit
+# peak memory per panel of one solve (bytes): bench/fastcap_reference.py measured 1.21 GB peak RSS
+# (Python and numpy included) for 55.6k panels at expansion order 4 and 30.5k at order 6, about
+# 20 kB a panel; 25 kB keeps a margin for order 6 on the fine level
+BYTES_PER_PANEL = 25e3
 
 
 class FastcapBudgetError(SimulationError):
@@ -196,6 +196,10 @@ class PreparedFastcap:
         plate, phi, sheets = self.levels[level]
         dz = (phi @ np.asarray(q, dtype=float)).reshape(len(plate), 4)
         return [plate.moved(dz), *sheets]
+
+    def fingerprint_arrays(self) -> list[Array]:
+        """The arrays that identify the panels (bem_sampling.key_of's store folder)."""
+        return [a for plate, phi, sheets in self.levels for a in (plate.corners, phi, *[p.corners for p in sheets])]
 
     def maxwell(self, q: ArrayLike) -> MaxwellMatrix:
         """The converged Maxwell matrix at generalized coordinates q (ncoords,)."""

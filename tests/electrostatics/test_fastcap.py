@@ -133,3 +133,21 @@ def test_budget_refused_before_the_work():
     ext = fastcap.FastcapExtractor(settings=fastcap.FastcapSettings(memory_budget=1e6))
     with pytest.raises(fastcap.FastcapBudgetError, match="memory budget"):
         ext.prepare(els, plate, rigid_z)
+
+
+def test_sampling_records_and_reuses(tmp_path):
+    """The Maxwell matrices at two points through the BEM sampling path (bem_sampling.sample_maxwell,
+    the executor seam Dask plugs into): each point's error bar and panels recorded, a rerun reuses
+    the store, and the plate-electrode capacitance grows as the gap closes (rigid z towards the
+    electrodes above: C ~ 1/gap, a conservation-free monotonicity check)."""
+    from netgen.electrostatics.bem_sampling import sample_maxwell
+
+    plate = DiskPlate(100 * UM)
+    els = [Electrode(AnnularSector("top", 0.0, 100 * UM, 0.0, 2 * math.pi), "above", 20 * UM)]
+    prepared = fastcap.FastcapExtractor().prepare(els, plate, rigid_z)
+    Q = np.array([[0.0], [2 * UM]])
+    first = sample_maxwell(prepared, Q, store=tmp_path)
+    assert first.computed == [0, 1] and (first.error > 0).all() and (first.elements > 0).all()
+    assert first.plate_electrode[1, 0] > first.plate_electrode[0, 0]
+    again = sample_maxwell(prepared, Q, store=tmp_path)
+    assert again.reused == [0, 1] and np.array_equal(again.matrix, first.matrix)
