@@ -177,10 +177,11 @@ class PreparedFastcap:
                 f"{panels} panels on the fine level, about {BYTES_PER_PANEL * panels / 1e9:.3g} GB, above the "
                 f"memory budget of {settings.memory_budget / 1e9:g} GB"
             )
-            fix = "raise edge_to_gap or element_to_gap, or raise memory_budget_gb"
+            fix = "raise FastcapSettings.edge_to_gap or element_to_gap, or memory_budget"
             if source is None:
                 raise FastcapBudgetError(f"fastcap: {problem}; {fix}")
-            raise StructureError(source, "electrostatics.fastcap.memory_budget_gb", problem, fix)
+            fix = 'use extractor = "calibrated" (a structure file cannot set the fastcap settings yet), or the ' + fix
+            raise StructureError(source, "electrostatics.extractor", problem, fix)
 
     def _level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels, ...]]:
         """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the electrodes."""

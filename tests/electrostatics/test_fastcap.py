@@ -151,3 +151,13 @@ def test_sampling_records_and_reuses(tmp_path):
     assert first.plate_electrode[1, 0] > first.plate_electrode[0, 0]
     again = sample_maxwell(prepared, Q, store=tmp_path)
     assert again.reused == [0, 1] and np.array_equal(again.matrix, first.matrix)
+
+
+def test_budget_from_a_structure_file_names_file_and_key():
+    """From a structure file the refusal is a StructureError (exit 2) naming the file and the key."""
+    from netgen.core.errors import StructureError
+
+    plate, els = reference_layout(5 * UM)
+    st = fastcap.FastcapSettings(memory_budget=1e6)
+    with pytest.raises(StructureError, match=r"(?s)disk\.toml.*electrostatics\.extractor.*calibrated"):
+        fastcap.FastcapExtractor(settings=st, source="disk.toml").prepare(els, plate, rigid_z)
