@@ -60,8 +60,8 @@ def test_a_kind_the_mechanics_stage_does_not_know_is_a_clear_error(monkeypatch):
 
 
 def test_unknown_extractor_exits_2_naming_the_key_and_the_known_ones(tmp_path, capsys):
-    bad = tmp_path / "fastcap.toml"  # an extractor netgen does not have
-    bad.write_text(piston_text(extractor='"fastcap"'))
+    bad = tmp_path / "fmm3d.toml"  # an extractor netgen does not have
+    bad.write_text(piston_text(extractor='"fmm3d"'))
     assert cli.main(["build", str(bad), "-o", str(tmp_path / "out"), "-q"]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "electrostatics.extractor" in err and "parallel_plate" in err and "fix:" in err

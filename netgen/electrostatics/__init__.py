@@ -9,7 +9,7 @@ from ..core.constants import EPS0
 from ..core.errors import StructureError
 from ..geometry.shapes import Plate
 from ..structure import CombElectrode, Structure
-from . import bem, calibrated, parallel_plate
+from . import bem, calibrated, fastcap, parallel_plate
 from .base import CapacitanceExtractor, PreparedExtractor, ProbePoints
 from .comb import CombExtractor
 from .mixed import MixedExtractor
@@ -28,6 +28,7 @@ EXTRACTORS: dict[str, ExtractorBuilder] = {
     "parallel_plate": parallel_plate.from_structure,
     "calibrated": calibrated.from_structure,
     "bem": bem.from_structure,
+    "fastcap": fastcap.from_structure,
 }
 
 

@@ -1,4 +1,5 @@
-"""BEM sampling at scale: the Maxwell matrix at many coordinate points through the executor
+"""BEM sampling at scale (the dense BEM, netgen.electrostatics.bem, or the multipole extractor,
+netgen.electrostatics.fastcap): the Maxwell matrix at many coordinate points through the executor
 seam (netgen.runtime.executor: local processes or Dask), one point per task, each point stored as it
 finishes (netgen.electrostatics.sampling.ChunkStore, one .npy per point under a folder named by
 a hash of the meshes, settings and points) so a rerun computes only the missing ones.
@@ -19,6 +20,7 @@ from tqdm import tqdm
 
 from ..runtime.executor import Executor, SerialExecutor
 from .bem import PreparedBem
+from .fastcap import PreparedFastcap
 from .sampling import ChunkStore, blas_threads, fingerprint
 
 # a stored point: matrix, coarse matrix (n x n each), then these per-solve fields
@@ -49,12 +51,12 @@ class MaxwellSamples:
 
 def pack(m) -> np.ndarray:
     """One solve (bem.MaxwellMatrix) as a (1, 2 n^2 + 4) row."""
-    finest = m.settings["solves"][-1]
-    extra = [m.error, finest["elements"], finest["order"], m.settings.get("seconds", 0.0)]
+    finest = m.settings["solves"][1 if "panels" in m.settings["solves"][0] else -1]  # fastcap: [coarse, fine, check]
+    extra = [m.error, finest.get("elements", finest.get("panels")), finest["order"], m.settings.get("seconds", 0.0)]
     return np.concatenate([m.matrix.ravel(), m.coarse.ravel(), extra])[None, :]
 
 
-def maxwell_point(prepared: PreparedBem, item: tuple[np.ndarray, int | None]) -> np.ndarray:
+def maxwell_point(prepared: PreparedBem | PreparedFastcap, item: tuple[np.ndarray, int | None]) -> np.ndarray:
     """The work unit: the Maxwell matrix at one point, with the caller's BLAS thread count."""
     q, threads = item
     if threads is None or threads == blas_threads():
@@ -65,8 +67,18 @@ def maxwell_point(prepared: PreparedBem, item: tuple[np.ndarray, int | None]) ->
         return pack(prepared.maxwell(q))
 
 
-def key_of(prepared: PreparedBem, q: np.ndarray) -> str:
-    """The store folder's name: a hash of meshes, basis values, settings, permittivity and points."""
+def key_of(prepared: PreparedBem | PreparedFastcap, q: np.ndarray) -> str:
+    """The store folder's name: a hash of meshes, basis values, settings, permittivity and points
+    (a multipole extractor, netgen.electrostatics.fastcap, names its own arrays)."""
+    if isinstance(prepared, PreparedFastcap):
+        return "fastcap-maxwell-" + fingerprint(
+            prepared.names,
+            asdict(prepared.settings),
+            prepared.eps,
+            prepared.thickness,
+            *prepared.fingerprint_arrays(),
+            q,
+        )
     arrays = [
         a
         for lv in prepared.levels
@@ -79,7 +91,7 @@ def key_of(prepared: PreparedBem, q: np.ndarray) -> str:
 
 
 def sample_maxwell(
-    prepared: PreparedBem,
+    prepared: PreparedBem | PreparedFastcap,
     Q: np.ndarray,
     executor: Executor | None = None,
     store: ChunkStore | str | Path | None = None,
@@ -126,7 +138,11 @@ def sample_maxwell(
 
 
 def unpack(
-    q: np.ndarray, rows: list[np.ndarray], prepared: PreparedBem, computed: list[int], reused: list[int]
+    q: np.ndarray,
+    rows: list[np.ndarray],
+    prepared: PreparedBem | PreparedFastcap,
+    computed: list[int],
+    reused: list[int],
 ) -> MaxwellSamples:
     """MaxwellSamples from the stored rows (pack's layout)."""
     n = len(prepared.names)

@@ -1,0 +1,305 @@
+"""The multipole extractor: the Maxwell capacitance matrix of the moving plate and every fixed
+electrode from FastCap2 (`fastcap2` on PyPI: collocation of constant-charge flat panels, the
+dense system never formed: GMRES with multipole-accelerated products).
+
+Why beside the dense BEM (netgen.electrostatics.bem): the dense matrix needs 10 N^2 bytes and
+stops at g/R = 0.0115 (12.9 GB); FastCap's memory and time grow about linearly with the panels,
+so the reference disk at its own gap (g/R = 0.0063) fits (docs/fastcap.md, 'Costs').
+
+Panels (netgen.electrostatics.fastcap_mesh): quads, graded from edge_to_gap gaps at free edges
+to element_to_gap gaps inside (panel size tied to the smallest gap). Every solve runs on two
+mesh levels (sizes in the ratio `refinement`) at `expansion_order`, Richardson-extrapolates
+(the correction is the discretisation error estimate), and solves the coarse level again at
+`check_order`: the change is the multipole error estimate. Both are recorded per solve.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..core.constants import EPS0
+from ..core.errors import SimulationError, SimulatorNotFound, StructureError
+from ..geometry.shapes import Array, Basis, Electrode, Plate
+from .base import ProbePoints
+from .bem import MaxwellMatrix, extrapolate, relative_change
+from .bem_mesh import Sizes
+from .fastcap_mesh import Panels, electrode_panels, plate_panels
+from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
+
+FASTCAP_INSTALL = "pip install 'netgen[fastcap]'  (or: pip install fastcap2==2.1)"
+# peak memory per panel of one solve (bytes): bench/fastcap_reference.py measured 1.21 GB peak RSS
+# (Python and numpy included) for 55.6k panels at expansion order 4 and 30.5k at order 6, about
+# 20 kB a panel; 25 kB keeps a margin for order 6 on the fine level
+BYTES_PER_PANEL = 25e3
+
+
+class FastcapBudgetError(SimulationError):
+    """The panels of a solve need more memory than the budget allows."""
+
+
+@dataclass(frozen=True)
+class FastcapSettings:
+    """How the multipole extractor meshes and solves (lengths in units of the smallest gap).
+
+    edge_to_gap: panel size at free edges; element_to_gap: largest panel; growth: size ratio of
+    neighbouring panel rows; refinement: size ratio of the two mesh levels; expansion_order: the
+    multipole order of the solves; check_order: the order of the check solve on the coarse level;
+    iter_tol: FastCap's GMRES tolerance; richardson_order: convergence order in the panel size
+    assumed by the extrapolation (2: measured on coaxial disks, docs/fastcap.md);
+    element_to_size: largest panel in units of the plate's size; memory_budget: bytes per solve.
+    """
+
+    edge_to_gap: float = 0.25
+    element_to_gap: float = 2.0
+    growth: float = 1.5
+    refinement: float = math.sqrt(2.0)
+    expansion_order: int = 4
+    check_order: int = 6
+    iter_tol: float = 1e-4
+    richardson_order: float = 2.0
+    element_to_size: float = 0.2
+    memory_budget: float = 8e9
+
+    def sizes(self, gap: float, level: int, size: float = math.inf) -> Sizes:
+        """Panel sizes (m) of mesh level `level` (0 = coarsest) for the smallest gap and a plate of `size`."""
+        f = 1.0 / self.refinement**level
+        h_max = min(self.element_to_gap * gap, self.element_to_size * size)
+        return Sizes(min(self.edge_to_gap * gap, h_max / 2.0) * f, h_max * f, self.growth)
+
+
+def _fastcap():
+    """The fastcap2 module, or SimulatorNotFound saying how to install it."""
+    try:
+        import fastcap2
+    except ImportError:
+        raise SimulatorNotFound(f"the fastcap extractor needs fastcap2; install it with: {FASTCAP_INSTALL}") from None
+    return fastcap2
+
+
+def check_budget(panels: int, budget: float) -> None:
+    """FastcapBudgetError when a solve of `panels` does not fit `budget` bytes (BYTES_PER_PANEL)."""
+    need = BYTES_PER_PANEL * panels
+    if need > budget:
+        raise FastcapBudgetError(
+            f"fastcap: {panels} panels need about {need / 1e9:.1f} GB (estimated before the solve, "
+            f"{BYTES_PER_PANEL / 1e3:g} kB per panel), above the memory budget of {budget / 1e9:.1f} GB; raise "
+            "memory_budget_gb in [electrostatics.fastcap], or raise edge_to_gap / element_to_gap"
+        )
+
+
+def solve_panels(conductors: Sequence[Panels], eps_r: float, order: int, iter_tol: float) -> tuple[Array, dict]:
+    """Maxwell matrix (n, n) in F of conductors given as panel sets, symmetrised; and the solve's
+    record (panels, order, seconds, asymmetry = max |C - C^T| / max |C|)."""
+    fc = _fastcap()
+    t0 = time.perf_counter()
+    problem = fc.Problem(title="netgen")
+    problem.expansion_order, problem.iter_tol = int(order), float(iter_tol)
+    problem.perm_factor = float(eps_r)
+    for i, panels in enumerate(conductors):
+        surface = fc.Surface(name=f"c{i}")
+        corners = panels.corners
+        tri = np.all(corners[:, 2] == corners[:, 3], axis=1)
+        for c, is_tri in zip(corners.tolist(), tri):
+            if is_tri:  # fastcap2 2.1's Surface.add_tri calls the quad entry point: the core's triangle one
+                surface._add_tri(tuple(c[0]), tuple(c[1]), tuple(c[2]))
+            else:
+                surface.add_quad(tuple(c[0]), tuple(c[1]), tuple(c[2]), tuple(c[3]))
+        problem.add(surface)
+    C = np.asarray(problem.solve(), dtype=float)
+    order_of = [int(name.split("%")[0][1:]) for name in problem.conductors()]
+    inv = np.argsort(order_of)
+    C = C[np.ix_(inv, inv)]
+    asym = float(np.max(np.abs(C - C.T)) / np.max(np.abs(C)))
+    record = {
+        "panels": int(sum(len(p) for p in conductors)),
+        "order": int(order),
+        "seconds": time.perf_counter() - t0,
+        "asymmetry": asym,
+    }
+    return 0.5 * (C + C.T), record
+
+
+def converged(levels: Sequence[Sequence[Panels]], eps_r: float, settings: FastcapSettings, names) -> MaxwellMatrix:
+    """The Maxwell matrix from two mesh levels (coarse, fine) at expansion_order, Richardson-
+    extrapolated, with the coarse level solved again at check_order; error = discretisation
+    estimate (the correction) + multipole estimate (the order change)."""
+    need = max(sum(len(p) for p in lv) for lv in levels)
+    check_budget(need, settings.memory_budget)
+    coarse, rc = solve_panels(levels[0], eps_r, settings.expansion_order, settings.iter_tol)
+    fine, rf = solve_panels(levels[1], eps_r, settings.expansion_order, settings.iter_tol)
+    check, rk = solve_panels(levels[0], eps_r, settings.check_order, settings.iter_tol)
+    best, p = extrapolate([coarse, fine], settings.refinement, settings.richardson_order)
+    mesh_error, order_error = relative_change(best, fine), relative_change(check, coarse)
+    record = {
+        **asdict(settings),
+        "solves": [rc, rf, rk],
+        "mesh_error": mesh_error,
+        "order_error": order_error,
+        "asymmetry": max(r["asymmetry"] for r in (rc, rf, rk)),
+    }
+    return MaxwellMatrix(tuple(names), best, fine, mesh_error + order_error, record)
+
+
+class PreparedFastcap:
+    """FastcapExtractor bound to electrodes, plate and basis: panels and basis values once per
+    level (numpy only, so it pickles to executor workers); every q is a converged solve."""
+
+    def __init__(
+        self,
+        electrodes: Sequence[Electrode],
+        plate: Plate,
+        basis: Basis,
+        eps_r: float,
+        thickness: float,
+        settings: FastcapSettings,
+        source: str | None = None,
+    ):
+        """Panel both levels, refusing before the work when the finer one exceeds the budget."""
+        self.electrodes = tuple(electrodes)
+        self.eps_r, self.eps, self.thickness, self.settings = eps_r, EPS0 * eps_r, thickness, settings
+        self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=self.eps, fringe=None).prepare(
+            electrodes, plate, basis
+        )
+        self.ncoords = self.geometry.ncoords
+        self.gap = min(e.gap for e in electrodes)
+        self.names = ("plate",) + tuple(e.name for e in electrodes)
+        self.levels = [self._level(plate, basis, k) for k in range(2)]
+        panels = sum(len(p) for p in (self.levels[1][0], *self.levels[1][2]))
+        if BYTES_PER_PANEL * panels > settings.memory_budget:
+            problem = (
+                f"edge_to_gap = {settings.edge_to_gap:g}, element_to_gap = {settings.element_to_gap:g} give "
+                f"{panels} panels on the fine level, about {BYTES_PER_PANEL * panels / 1e9:.3g} GB, above the "
+                f"memory budget of {settings.memory_budget / 1e9:g} GB"
+            )
+            fix = "raise FastcapSettings.edge_to_gap or element_to_gap, or memory_budget"
+            if source is None:
+                raise FastcapBudgetError(f"fastcap: {problem}; {fix}")
+            fix = 'use extractor = "calibrated" (a structure file cannot set the fastcap settings yet), or the ' + fix
+            raise StructureError(source, "electrostatics.extractor", problem, fix)
+
+    def _level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels, ...]]:
+        """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the electrodes."""
+        sizes = self.settings.sizes(self.gap, k, plate.size)
+        p = plate_panels(plate, self.thickness, sizes)
+        xy = p.corners.reshape(-1, 3)
+        phi = np.asarray(basis(xy[:, 0], xy[:, 1]), dtype=float).reshape(len(xy), -1)
+        half = self.thickness / 2.0
+        return p, phi, tuple(electrode_panels(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+
+    def panels(self, q: ArrayLike, level: int) -> list[Panels]:
+        """The conductors at q on mesh level `level`: the moved plate, then the electrodes."""
+        plate, phi, sheets = self.levels[level]
+        dz = (phi @ np.asarray(q, dtype=float)).reshape(len(plate), 4)
+        return [plate.moved(dz), *sheets]
+
+    def fingerprint_arrays(self) -> list[Array]:
+        """The arrays that identify the panels (bem_sampling.key_of's store folder)."""
+        return [a for plate, phi, sheets in self.levels for a in (plate.corners, phi, *[p.corners for p in sheets])]
+
+    def maxwell(self, q: ArrayLike) -> MaxwellMatrix:
+        """The converged Maxwell matrix at generalized coordinates q (ncoords,)."""
+        q = np.asarray(q, dtype=float).reshape(self.ncoords)
+        g = self.geometry.min_gap(q)
+        if np.isfinite(g).any() and np.min(g[np.isfinite(g)]) <= 0.0:
+            raise ValueError("the plate touches an electrode at this q")
+        t0 = time.perf_counter()
+        m = converged([self.panels(q, 0), self.panels(q, 1)], self.eps_r, self.settings, self.names)
+        m.settings["seconds"] = time.perf_counter() - t0
+        return m
+
+    def capacitance(self, Q: ArrayLike) -> Array:
+        """Plate-electrode capacitances (nsamples, nelectrodes) in F; nan where the plate touches."""
+        q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.full((q.shape[0], len(self.electrodes)), np.nan)
+        gaps = self.geometry.min_gap(q)
+        for i, row in enumerate(q):
+            g = np.atleast_2d(gaps)[i]
+            if not (np.isfinite(g).any() and np.min(g[np.isfinite(g)]) <= 0.0):
+                out[i] = self.maxwell(row).plate_electrode
+        return out[0] if np.ndim(Q) == 1 else out
+
+    def gradient(self, Q: ArrayLike) -> Array:
+        """dC_i/dq_v by central differences of solves on the same panels (a step closing 2 % of the gap)."""
+        q = np.atleast_2d(np.asarray(Q, dtype=float))
+        amp = np.abs(self.geometry.probe.phi).max(axis=0)
+        step = 0.02 * self.gap / np.where(amp > 0, amp, 1.0)
+        out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
+        for i, row in enumerate(q):
+            for v in range(self.ncoords):
+                dq = np.zeros(self.ncoords)
+                dq[v] = step[v]
+                plus, minus = self.maxwell(row + dq), self.maxwell(row - dq)
+                out[i, :, v] = (plus.plate_electrode - minus.plate_electrode) / (2 * step[v])
+        return out[0] if np.ndim(Q) == 1 else out
+
+    def min_gap(self, Q: ArrayLike) -> Array:
+        """Smallest local gap under each electrode (the parallel-plate geometry's)."""
+        return self.geometry.min_gap(Q)
+
+    def probe_points(self) -> ProbePoints:
+        """The contact model's stop candidates (the parallel-plate geometry's)."""
+        return self.geometry.probe_points()
+
+
+@dataclass(frozen=True)
+class FastcapExtractor:
+    """Multipole-accelerated panel capacitances (FastCap2): relative permittivity, plate thickness
+    (m; 0: a sheet), settings (FastcapSettings)."""
+
+    eps_r: float = 1.0
+    thickness: float = 0.0
+    settings: FastcapSettings = field(default_factory=FastcapSettings)
+    source: str | None = None
+
+    @property
+    def description(self) -> str:
+        """What it computes and with which settings (the model report's extractor line)."""
+        st = self.settings
+        return (
+            f"multipole panels (FastCap2, quads, 2 mesh levels + Richardson order {st.richardson_order:g}): "
+            f"edge_to_gap {st.edge_to_gap:g}, element_to_gap {st.element_to_gap:g}, refinement "
+            f"{st.refinement:.3g}, expansion order {st.expansion_order} (check {st.check_order}), "
+            f"memory budget {st.memory_budget / 1e9:g} GB"
+        )
+
+    def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedFastcap:
+        """Panel the structure once (both levels); each sample is then a converged solve."""
+        return PreparedFastcap(electrodes, plate, basis, self.eps_r, self.thickness, self.settings, self.source)
+
+    def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
+        """Electrode-electrode capacitances (nel, nel) in F at the undeformed position."""
+        prepared = self.prepare(electrodes, plate, lambda x, y: np.zeros((np.size(x), 1)))
+        return prepared.maxwell(np.zeros(1)).coupling
+
+
+SETTINGS_KEYS = {f.name for f in FastcapSettings.__dataclass_fields__.values()} - {"memory_budget"}
+
+
+def settings_of(s) -> FastcapSettings:
+    """FastcapSettings from the structure's [electrostatics.fastcap] table (memory_budget_gb in GB)."""
+    given = dict(getattr(s.electrostatics, "fastcap", None) or {})
+    if "memory_budget_gb" in given:
+        given["memory_budget"] = float(given.pop("memory_budget_gb")) * 1e9
+    for key in given:
+        if key not in SETTINGS_KEYS | {"memory_budget"}:
+            raise StructureError(
+                s.source,
+                f"electrostatics.fastcap.{key}",
+                f"unknown key {key!r}",
+                f"use one of {', '.join(sorted(SETTINGS_KEYS | {'memory_budget_gb'}))}",
+            )
+    return FastcapSettings(**given)
+
+
+def from_structure(s, plate: Plate) -> FastcapExtractor:
+    """The extractor for a structure (s: netgen.structure.Structure): permittivity, thickness, settings."""
+    thickness = float(getattr(s.conductor, "thickness", 0.0))
+    return FastcapExtractor(
+        eps_r=s.electrostatics.relative_permittivity, thickness=thickness, settings=settings_of(s), source=str(s.source)
+    )

@@ -1,0 +1,147 @@
+"""Quadrilateral panels for the multipole extractor (netgen.electrostatics.fastcap), in numpy.
+
+FastCap collocates a constant charge per flat panel, so panels need not meet edge to edge: every
+radial band of a disk or sector and every row of a rectangle is divided on its own, with panels
+of at most `aspect` to one. Sizes follow bem_mesh.Sizes (in metres, set from the smallest gap):
+h_edge at every free edge (where the charge density is singular), growing by `growth` up to
+h_max inside, so the panels facing a gap are a fixed number of gaps wide and those at its edges a
+fraction of a gap. A band whose inner radius is 0 is closed by triangles (one corner repeated).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.shapes import AnnularSector, Array, DiskPlate, Electrode, Plate, Rectangle, RectPlate, corner_radius
+from .bem_mesh import Sizes, graded
+
+ASPECT = 4.0  # longest panel side over its radial (or shortest) side
+
+
+@dataclass(frozen=True)
+class Panels:
+    """Flat panels of one conductor: corners (n, 4, 3) in m; a triangle repeats its last corner."""
+
+    corners: Array
+
+    def moved(self, dz: Array) -> Panels:
+        """The panels with corner (i, k) shifted by dz[i, k] along z (a moved or deformed plate)."""
+        c = self.corners.copy()
+        c[:, :, 2] += dz
+        return Panels(c)
+
+    def __len__(self) -> int:
+        """The number of panels."""
+        return len(self.corners)
+
+    def areas(self) -> Array:
+        """Area of every panel (two triangles, exact for flat panels)."""
+        c = self.corners
+        t1 = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        t2 = np.cross(c[:, 2] - c[:, 0], c[:, 3] - c[:, 0])
+        return 0.5 * (np.linalg.norm(t1, axis=1) + np.linalg.norm(t2, axis=1))
+
+
+def _band_nodes(length: float, sizes: Sizes, dr: float, aspect: float, graded_ends: bool) -> Array:
+    """Fractions 0..1 along a band of `length`: panels at most aspect * dr (and h_max) long,
+    graded to h_edge at both ends when they are free edges."""
+    top = min(sizes.h_max, aspect * dr)
+    if not graded_ends:
+        n = max(1, math.ceil(length / top))
+        return np.linspace(0.0, 1.0, n + 1)
+    s = Sizes(min(sizes.h_edge, top), top, sizes.growth)
+    return (graded(0.0, length, s) - 0.0) / length
+
+
+def polar_panels(
+    r_lo: float, r_hi: float, theta0: float, span: float, slot: float, sizes: Sizes, z: float, aspect: float = ASPECT
+) -> Panels:
+    """An annulus, disk or slotted annular sector at height z: radial bands graded towards every
+    free radius, each band's arc divided on its own (graded towards the slot sides, if any)."""
+    full = slot == 0.0 and span >= 2.0 * math.pi - 1e-12
+    radii = graded(r_lo, r_hi, sizes, ends=(r_lo > 0.0, True))
+    quads = []
+    for r0, r1 in zip(radii[:-1], radii[1:]):
+        rm = 0.5 * (r0 + r1)
+        trims = [math.asin(min(1.0, slot / (2.0 * r))) if (slot > 0.0 and r > 0.0) else 0.0 for r in (r0, r1)]
+        width = span - 2.0 * math.asin(min(1.0, slot / (2.0 * rm))) if slot > 0.0 else span
+        u = _band_nodes(max(rm * width, 1e-30), sizes, r1 - r0, aspect, graded_ends=not full)
+        if full:
+            u = np.linspace(0.0, 1.0, max(8, len(u)))
+        t0 = [theta0 + tr + u * (span - 2.0 * tr) for tr in trims]  # angles of the nodes at r0 and r1
+        p0 = np.stack([r0 * np.cos(t0[0]), r0 * np.sin(t0[0])], axis=1)
+        p1 = np.stack([r1 * np.cos(t0[1]), r1 * np.sin(t0[1])], axis=1)
+        q = np.stack([p0[:-1], p1[:-1], p1[1:], p0[1:]], axis=1)
+        if r0 == 0.0:  # the centre: triangles, the repeated corner last
+            q = np.stack([p1[:-1], p1[1:], p0[:-1], p0[:-1]], axis=1)
+        quads.append(q)
+    xy = np.concatenate(quads)
+    return Panels(np.concatenate([xy, np.full(xy.shape[:2] + (1,), z)], axis=2))
+
+
+def rect_panels(x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z: float) -> Panels:
+    """A rectangle at height z: a tensor grid graded towards all four edges."""
+    x, y = graded(x0, x1, sizes), graded(y0, y1, sizes)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    P = np.stack([X, Y, np.full(X.shape, z)], axis=-1)
+    c = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2).reshape(-1, 4, 3)
+    return Panels(c)
+
+
+def _rim_band(outline: Array, thickness: float, sizes: Sizes) -> Panels:
+    """The side wall of a plate of `thickness` along a closed outline (m, 2) of points: layers of
+    about h_edge in z (graded towards both faces), panels between consecutive outline points."""
+    zs = graded(-thickness / 2.0, thickness / 2.0, Sizes(sizes.h_edge, sizes.h_edge * 4.0, sizes.growth))
+    a, b = outline, np.roll(outline, -1, axis=0)
+    out = []
+    for z0, z1 in zip(zs[:-1], zs[1:]):
+
+        def at(p, z):
+            return np.column_stack([p, np.full(len(p), z)])
+
+        out.append(np.stack([at(a, z0), at(b, z0), at(b, z1), at(a, z1)], axis=1))
+    return Panels(np.concatenate(out))
+
+
+def plate_panels(plate: Plate, thickness: float, sizes: Sizes, aspect: float = ASPECT) -> Panels:
+    """The plate: one sheet at z = 0 (thickness 0), or top and bottom faces at +-thickness/2 and
+    the rim wall (a closed surface)."""
+    if isinstance(plate, DiskPlate):
+        face = polar_panels(0.0, plate.radius, 0.0, 2.0 * math.pi, 0.0, sizes, 0.0, aspect)
+        n = max(8, math.ceil(2.0 * math.pi * plate.radius / min(sizes.h_max, aspect * sizes.h_edge)))
+        t = np.arange(n) * (2.0 * math.pi / n)
+        outline = plate.radius * np.column_stack([np.cos(t), np.sin(t)])
+    elif isinstance(plate, RectPlate):
+        face = rect_panels(plate.x0, plate.x1, plate.y0, plate.y1, sizes, 0.0)
+        x, y = graded(plate.x0, plate.x1, sizes), graded(plate.y0, plate.y1, sizes)
+        outline = np.concatenate(
+            [
+                np.column_stack([x[:-1], np.full(len(x) - 1, plate.y0)]),
+                np.column_stack([np.full(len(y) - 1, plate.x1), y[:-1]]),
+                np.column_stack([x[::-1][:-1], np.full(len(x) - 1, plate.y1)]),
+                np.column_stack([np.full(len(y) - 1, plate.x0), y[::-1][:-1]]),
+            ]
+        )
+    else:
+        raise NotImplementedError(f"no panels for plate {type(plate).__name__}")
+    if thickness <= 0.0:
+        return face
+    top, bottom = (
+        face.moved(np.full(face.corners.shape[:2], thickness / 2.0)),
+        face.moved(np.full(face.corners.shape[:2], -thickness / 2.0)),
+    )
+    return Panels(np.concatenate([top.corners, bottom.corners, _rim_band(outline, thickness, sizes).corners]))
+
+
+def electrode_panels(e: Electrode, sizes: Sizes, z: float, aspect: float = ASPECT) -> Panels:
+    """A fixed electrode's outline as a flat panel sheet at height z."""
+    s = e.shape
+    if isinstance(s, AnnularSector):
+        lo = max(s.r_in, corner_radius(s.slot, s.span))
+        return polar_panels(lo, s.r_out, s.theta_start, s.span, s.slot, sizes, z, aspect)
+    if isinstance(s, Rectangle):
+        return rect_panels(s.x0, s.x1, s.y0, s.y1, sizes, z)
+    raise NotImplementedError(f"no panels for electrode shape {type(s).__name__}")

