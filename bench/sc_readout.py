@@ -2,11 +2,14 @@
 the committed z accelerometer, per ngspice release:
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/sc_readout.py [--releases 46,39] [--periods 4096]
-        [--fractions 0,0.25,-0.25,0.5,-0.5] [--scale-periods 256] [--skip 64]
-        [--reltol-periods 256] [--cost-periods 10] [--charge-periods 4096] [--out out/sc_readout]
-        [--only scale,cost,reltol,held,charge]
+        [--fractions 0,0.25,-0.25,0.5,-0.5] [--scale-periods 192] [--skip 32]
+        [--reltol-periods 128] [--cost-periods 10] [--charge-periods 4096] [--out out/sc_readout]
+        [--impulse-periods 64] [--only impulse,scale,held,cost,reltol,charge]
 
-The parts, in this order (the long held run last, so the short figures come first):
+The parts, in this order (the long runs last, so the short figures come first):
+- impulse: each bit's feedback impulse from the simulated electrode voltages against the design
+  d T_s F1, the settling time constant that shortfall implies, and the slope and offset errors it
+  makes of the design formula (docs/embedding.md, "Scale factor");
 - scale: the bit mean over --scale-periods at each acceleration (--fractions of the full scale
   d F1 / G, tests/oracles/sc_readout.full_scale) against the force balance (tests/oracles/
   sc_readout.balance, from the model JSON): the least-squares slope d mean / d a against the
@@ -125,29 +128,34 @@ def cost(work: Path, a: float, args) -> None:
 
 
 def scale(work: Path, model: MacroModel, args) -> None:
-    """Bit means at each acceleration against the force balance: slope error and offset."""
+    """Bit means at each acceleration against the force balance: slope error and offset. Each mean
+    is taken net of the momentum the mass gained over the averaged periods (tests/oracles/
+    sc_readout.momentum_mean), which leaves the per-bit impulses' error plus at most two bits over
+    the N periods."""
     fs = sc.full_scale(model)
     acc = [float(x) * fs for x in args.fractions.split(",")]
-    means, bounds = [], []
-    impulse = sc.bit_impulse(model)
+    means, raw = [], []
     for a in acc:
         r = sc.run(work, a, args.scale_periods, name="scale")
-        n = args.scale_periods - args.skip
-        v = sc.period_velocity(r, args.skip)[:n]
-        means.append(r.bits[args.skip :].mean())
-        bounds.append((1 + np.ptp(v) / impulse) / n)  # momentum: tests/testbench/test_sc_readout.py
+        raw.append(r.bits[args.skip :].mean())
+        means.append(sc.momentum_mean(model, r, args.skip))
+        z = r.x_um[r.time > args.skip * sc.TS] * 1e-6
         print(
-            f"  a = {a:+6.3f} m/s^2: mean {means[-1]:.4f}, balance {sc.balance(model, a):.4f} "
-            f"(+-{bounds[-1]:.4f} from the velocity spread), max |z| {np.abs(r.x_um).max() * 1e3:.3g} nm, "
-            f"CPU {r.cpu:.0f} s"
+            f"  a = {a:+6.3f} m/s^2: mean {raw[-1]:.4f}, net of the momentum {means[-1]:.4f}, balance "
+            f"{sc.balance(model, a):.4f} (at the mean z {z.mean() * 1e9:+.2f} nm: {sc.balance(model, a, z.mean()):.4f}), "
+            f"max |z| {np.abs(z).max() * 1e9:.3g} nm, CPU {r.cpu:.0f} s",
+            flush=True,
         )
-    got, off = np.polyfit(acc, means, 1)
+    n = args.scale_periods - args.skip
     want, off0 = np.polyfit(acc, [sc.balance(model, a) for a in acc], 1)
-    print(
-        f"  full scale {fs:.4g} m/s^2; scale factor {got:.5f} per m/s^2 against {want:.5f}: "
-        f"{100 * (got / want - 1):+.2f} %; offset {off - off0:+.4f} bits "
-        f"({(off - off0) / want:+.3f} m/s^2); momentum bound per point <= {max(bounds):.4f}"
-    )
+    for name, m in (("net of the momentum", means), ("raw bit means", raw)):
+        got, off = np.polyfit(acc, m, 1)
+        print(
+            f"  {name}: scale factor {got:.5f} per m/s^2 against the design {want:.5f} (full scale "
+            f"{fs:.4g} m/s^2): {100 * (got / want - 1):+.2f} %; offset {off - off0:+.4f} bits "
+            f"({(off - off0) / want:+.3f} m/s^2)"
+        )
+    print(f"  resolution of each net mean: 2/N = {2 / n:.4f} bits")
 
 
 def reltols(work: Path, model: MacroModel, a: float, args) -> None:
@@ -163,6 +171,59 @@ def reltols(work: Path, model: MacroModel, a: float, args) -> None:
             f"- balance = {err:+.4f} ({err / slope:+.3f} m/s^2), longest run of equal bits {longest_run(bits)}, "
             f"{r.cpu / args.reltol_periods * 1e3:.0f} ms/period, {r.points / args.reltol_periods:.0f} points/period"
         )
+
+
+VS = 0.5  # the sense step on each electrode (examples/sc_readout.inc: VCM +- Vs)
+START = 0.02e-6  # phf on: the feedback window is START .. START + sc.WINDOW
+# settling losses in V^2 * tau of an electrode-plate voltage moving from its sense level to its
+# feedback level with one time constant tau (V(t) = V_end + (V_start - V_end) e^(-t/tau)):
+#   int (V(t)^2 - V_end^2) dt = -2 V_end (V_end - V_start) tau + (V_end - V_start)^2 tau / 2
+# bit 1: top -Vs -> V_fb, bottom +Vs -> 0 (its pull down, Vs^2 tau / 2, counts against the push);
+# bit 0: bottom +Vs -> V_fb, top -Vs -> 0
+LOSS = {
+    1: 2 * sc.V_FB * (sc.V_FB + VS) - (sc.V_FB + VS) ** 2 / 2 + VS**2 / 2,
+    0: 2 * sc.V_FB * (sc.V_FB - VS) - (sc.V_FB - VS) ** 2 / 2 + VS**2 / 2,
+}
+
+
+def impulse(work: Path, model: MacroModel, a: float, args) -> None:
+    """Each bit's feedback impulse from the simulated electrode and plate voltages (MacroModel.
+    electrostatic_force at the simulated z, integrated over the window on ngspice's own points)
+    against the design d T_s F1: the shortfalls e1, e0, the settling time constant each implies
+    (LOSS), and what they make of the design formula: slope x 2 / (2 - e1 - e0), offset
+    (e1 - e0) / 4 bits; the rest of each period (sense phases, gaps) as a mean force in bits."""
+    n = args.impulse_periods
+    text = sc.netlist(a, n).replace(".save v(qb) v(x_z)", ".save v(qb) v(x_z) v(top) v(bottom) v(plate)")
+    plot = ngspice.run_ngspice(text, work, "impulse")[0]
+    t = np.real(plot["time"])
+    v = {k: np.real(plot[f"v({k})"]) for k in ("qb", "x_z", "top", "bottom", "plate")}
+    xs = (v["x_z"] * 1e-6 / model.coordinates[0].scale)[:, None]
+    force = model.electrostatic_force(xs, np.stack([v["top"], v["bottom"]], axis=1), v["plate"])[:, 0]
+    bits = np.interp(np.arange(n) * sc.TS + sc.T_BIT, t, v["qb"]) > 0.9
+    f1 = sc.sc_force(model)[0]
+    design = sc.WINDOW * f1
+    per: dict[int, list[float]] = {0: [], 1: []}
+    rest = []
+    for k in range(args.skip // 4 + 1, n):
+        lo, hi, end = k * sc.TS + START, k * sc.TS + START + sc.WINDOW, (k + 1) * sc.TS
+        per[int(bits[k - 1])].append(integral(t, force, lo, hi))
+        rest.append(integral(t, force, k * sc.TS, lo) + integral(t, force, hi, end))
+    e = {b: 1 - abs(np.mean(per[b])) / design for b in (0, 1)}
+    tau = {b: e[b] * sc.V_FB**2 * sc.WINDOW / LOSS[b] for b in (0, 1)}
+    print(
+        f"  impulse per bit ({n} periods): bit 1 short of d T_s F1 by {100 * e[1]:.2f} % (tau {tau[1] * 1e9:.1f} ns), "
+        f"bit 0 by {100 * e[0]:.2f} % (tau {tau[0] * 1e9:.1f} ns): slope {100 * (2 / (2 - e[1] - e[0]) - 1):+.2f} %, "
+        f"offset {(e[1] - e[0]) / 4:+.4f} bits; sense phases and gaps {np.mean(rest) / (2 * design):+.4f} bits; "
+        f"mean plate in the window {np.mean(v['plate'][(t % sc.TS > 0.3e-6) & (t % sc.TS < 0.7e-6)]):.4f} V"
+    )
+
+
+def integral(t: np.ndarray, y: np.ndarray, lo: float, hi: float) -> float:
+    """int_lo^hi y dt, trapezoidal on the simulator's points and the interpolated ends."""
+    inside = (t > lo) & (t < hi)
+    tt = np.concatenate([[lo], t[inside], [hi]])
+    yy = np.concatenate([[np.interp(lo, t, y)], y[inside], [np.interp(hi, t, y)]])
+    return float(np.sum((yy[1:] + yy[:-1]) * np.diff(tt)) / 2)
 
 
 def charge(work: Path, model: MacroModel, args) -> None:
@@ -201,13 +262,14 @@ def main() -> None:
     p.add_argument("--releases", default="46,39")
     p.add_argument("--periods", type=int, default=4096)
     p.add_argument("--fractions", default="0,0.25,-0.25,0.5,-0.5")
-    p.add_argument("--scale-periods", type=int, default=256)
-    p.add_argument("--reltol-periods", type=int, default=256)
-    p.add_argument("--skip", type=int, default=64)
+    p.add_argument("--scale-periods", type=int, default=192)
+    p.add_argument("--reltol-periods", type=int, default=128)
+    p.add_argument("--skip", type=int, default=32)
     p.add_argument("--cost-periods", type=int, default=10)
     p.add_argument("--out", default="out/sc_readout")
     p.add_argument("--charge-periods", type=int, default=4096)
-    p.add_argument("--only", default="scale,cost,reltol,held,charge")
+    p.add_argument("--impulse-periods", type=int, default=64)
+    p.add_argument("--only", default="impulse,scale,held,cost,reltol,charge")
     args = p.parse_args()
     model = MacroModel.load_json(sc.MODEL_JSON)
     a0 = float(args.fractions.split(",")[0]) * sc.full_scale(model)
@@ -216,16 +278,18 @@ def main() -> None:
         with using_ngspice(rel), tempfile.TemporaryDirectory() as tmp:
             print(f"ngspice {rel} ({NGSPICE[rel]})", flush=True)
             work = Path(tmp)
-            if "scale" in parts:
-                scale(work, model, args)
-            if "cost" in parts:
-                cost(work, a0, args)
-            if "reltol" in parts:
-                reltols(work, model, a0, args)
-            if "held" in parts:
-                held(work, model, a0, rel, args)
-            if "charge" in parts:
-                charge(work, model, args)
+            for part in parts:
+                PARTS[part](work, model, a0, rel, args)
+
+
+PARTS = {
+    "impulse": lambda work, model, a0, rel, args: impulse(work, model, a0, args),
+    "scale": lambda work, model, a0, rel, args: scale(work, model, args),
+    "held": held,
+    "cost": lambda work, model, a0, rel, args: cost(work, a0, args),
+    "reltol": lambda work, model, a0, rel, args: reltols(work, model, a0, args),
+    "charge": lambda work, model, a0, rel, args: charge(work, model, args),
+}
 
 
 if __name__ == "__main__":

@@ -120,6 +120,18 @@ def period_velocity(r: Run, first: int) -> np.ndarray:
     return np.diff(x) / TS
 
 
+def momentum_mean(model: MacroModel, r: Run, first: int) -> float:
+    """The bit mean from `first` on, net of the momentum the mass gained meanwhile: over N periods
+    sum(impulses) = m (v_end - v_start) + N T_s (G a + k z) exactly, so subtracting
+    m (v_end - v_start) / (N d T_s (F_top - F_bottom)) leaves the force balance's mean up to the
+    per-bit impulses' error and two bits over N: the period-mean velocities (period_velocity) stand
+    in for the instantaneous ones at the ends (one bit's impulse), and the last bit is decided
+    but not yet applied within the run (one bit)."""
+    v = period_velocity(r, first)
+    n = len(r.bits) - first
+    return float(r.bits[first:].mean() - (v[-1] - v[0]) / (n * bit_impulse(model)))
+
+
 def full_scale(model: MacroModel) -> float:
     """The acceleration (m/s^2) the loop balances with every bit pushing up: d F_top / G at rest."""
     return float(sc_force(model)[0] * (WINDOW / TS) / model.acceleration[0])
