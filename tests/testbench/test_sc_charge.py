@@ -31,59 +31,24 @@ from netgen.sim import ngspice
 from tests.fixtures import using_ngspice
 from tests.oracles import sc_readout as sc
 
-CF = 1e-12
 PERIODS_CLAMPED = 25
 PERIODS_FREE = 10
-ABSTOL, VNTOL = 1e-12, 1e-6  # ngspice defaults, not overridden below
-
-
-def netlist(sensor: str, periods: int) -> str:
-    """The never-reset charge amplifier around `sensor` (model, clamped model, or fixed)."""
-    lines = [
-        "* never-reset charge amplifier",
-        *(f'.include "{p}"' for p in (sc.EXAMPLES / "generic_018.lib", sc.EXAMPLES / "sc_readout.inc")),
-        "Vdd vdd 0 1.8",
-        "Vcm vcm 0 0.9",
-        "Xota sum vcm out vdd sc_ota",
-        f"Cf sum out {CF!r}",
-        "Vphr phr 0 PWL(0 1.8 1u 1.8 1.003u 0)",
-        "Mrst sum phr out 0 nch w=4u l=0.18u",
-        "Vtop top 0 PULSE(1.4 0.4 2u 3n 3n 997n 2u)",
-        "Vbot bottom 0 PULSE(0.4 1.4 2u 3n 3n 997n 2u)",
-    ]
-    if sensor == "fixed":
-        lines += [f"Ctop top sum {sc.C_REST!r}", f"Cbot bottom sum {sc.C_REST!r}", "Vxz x_z 0 0"]
-    else:
-        lines += [f'.include "{sc.MODEL_LIB}"', "X1 top bottom sum f_z x_z a_in accelerometer_z"]
-    if sensor == "clamped":  # f_z in uN, x_z in um: -K x - c v with K = 1e6 N/m, c = 2 sqrt(K m)
-        lines += ["Cv x_z xv 1", "Vv xv 0 0", "Bclamp f_z 0 V=-1e6*v(x_z) - 0.2159*i(Vv)", "Vacc a_in 0 0"]
-    elif sensor == "free":
-        lines += ["Vacc a_in 0 -3000"]
-    lines += [".save v(out) v(sum) v(x_z) v(top) v(bottom)", f".tran 20n {periods * sc.TS!r} 0 uic", ".end", ""]
-    return "\n".join(lines)
-
-
-def quiet(plot, periods: int) -> dict[str, np.ndarray]:
-    """Node voltages at 0.8 us after each electrode edge from the third period on."""
-    t = np.real(plot["time"])
-    at = np.array([k * 1e-6 + 0.8e-6 for k in range(4, 2 * periods)])
-    return {n: np.interp(at, t, np.real(plot[f"v({n})"])) for n in ("out", "sum", "x_z", "top", "bottom")}
 
 
 @pytest.mark.parametrize("release", ["39", "46"])
 def test_clamped_model_drifts_like_fixed_capacitors(release, tmp_path):
     """The output drift over 25 periods with the clamped model equals the fixed capacitors' drift
-    within 2 abstol T / Cf + 2 C_ref vntol / Cf (module docstring)."""
+    within 2 abstol T / Cf + 2 C_ref vntol / Cf (module docstring, sc_readout.drift_bound)."""
     drift = {}
     with using_ngspice(release):
         for sensor in ("clamped", "fixed"):
-            plot = ngspice.run_ngspice(netlist(sensor, PERIODS_CLAMPED), tmp_path / sensor, sensor)[0]
-            v = quiet(plot, PERIODS_CLAMPED)
+            plot = ngspice.run_ngspice(sc.charge_netlist(sensor, PERIODS_CLAMPED), tmp_path / sensor, sensor)[0]
+            v = sc.quiet(plot, PERIODS_CLAMPED)
             even = v["out"][::2]  # the same electrode state each time
             drift[sensor] = even[-1] - even[0]
             if sensor == "clamped":
                 assert np.abs(v["x_z"]).max() < 1e-9  # um: the clamp holds (< 1e-15 m)
-    allowed = (2 * ABSTOL * PERIODS_CLAMPED * sc.TS + 2 * sc.C_REST * VNTOL) / CF
+    allowed = sc.drift_bound(PERIODS_CLAMPED)
     assert abs(drift["clamped"] - drift["fixed"]) <= allowed, (drift, allowed)
 
 
@@ -93,12 +58,10 @@ def test_free_model_charge_matches_macromodel(release, tmp_path):
     of the swing (module docstring)."""
     model = MacroModel.load_json(sc.MODEL_JSON)
     with using_ngspice(release):
-        plot = ngspice.run_ngspice(netlist("free", PERIODS_FREE), tmp_path, "free")[0]
-    v = quiet(plot, PERIODS_FREE)
-    xs = (v["x_z"] * 1e-6 / model.coordinates[0].scale)[:, None]
-    q_model = model.plate_charge(xs, np.stack([v["top"], v["bottom"]], axis=1), v["sum"])
-    q_cf = CF * (v["out"] - v["sum"])
-    assert np.ptp(xs) > 0.2  # the mass moved through a fifth of the gap at least
-    swing = np.ptp(q_model)
-    err = (q_cf - q_cf[0]) - (q_model - q_model[0])
-    assert np.abs(err).max() <= 1e-3 * swing, (np.abs(err).max() / swing, swing)
+        plot = ngspice.run_ngspice(sc.charge_netlist("free", PERIODS_FREE), tmp_path, "free")[0]
+    v = sc.quiet(plot, PERIODS_FREE)
+    assert (
+        np.ptp(v["x_z"] * 1e-6 / model.coordinates[0].scale) > 0.2
+    )  # the mass moved through a fifth of the gap at least
+    err, swing = sc.charge_error(model, v)
+    assert err <= 1e-3 * swing, (err / swing, swing)
