@@ -216,3 +216,38 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
     )
+
+
+def va_params(model: MacroModel) -> list[dict]:
+    """The declared parameters as Verilog-A `parameter real` rows: name, default, valid range (lo, hi)
+    from the model's process record and the meaning; [] without laws."""
+    if not enabled(model):
+        return []
+    p, out = model.process, []
+    ranges = {
+        "tscale": (p["tscale"]["range"], "device-layer thickness / nominal"),
+        "escale": (p["escale"]["range"], "Young's modulus / nominal"),
+        "temp": (p["temp"]["range_C"], "die temperature, degC (thermal noise at temp + 273.15 K)"),
+    }
+    for name, default in params(model, gaps=False):
+        (lo, hi), text = ranges[name]
+        out.append({"name": name, "default": default, "lo": f"{lo:g}", "hi": f"{hi:g}", "text": text})
+    for g in p["gaps"]:
+        m = f"{g['max_m']:.6g}"
+        out.append(
+            {"name": f"dg_{g['set']}", "default": "0", "lo": f"-{m}", "hi": m, "text": f"gap increase of set {g['set']}, m"}
+        )
+    return out
+
+
+def noise_temperature(model: MacroModel) -> str:
+    """Verilog-A text of the thermal noise's temperature (K): the instance's temp where declared, else
+    the simulator's $temperature (as without [process])."""
+    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else "$temperature"
+
+
+def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
+    """Verilog-A text of `value` times coordinate `name`'s process ratio `kind` (as factor)."""
+    if not active(model, kind):
+        return value
+    return f"{'tscale' if kind == 'tscale' else f'{kind}_{name}'} * {value}"
