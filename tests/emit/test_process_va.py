@@ -22,6 +22,9 @@ plate on a given 2 N/m spring, 2 um above one electrode, fringe "none": C = eps 
   compiler would flip or null the PSD, not scale it by a few %): 1e-6 relative (both simulators
   write doubles; the brief's bound is 2 %).
 - an out-of-range value (from [lo:hi] of the declared range) is refused by the simulator.
+- the parameters the piston lacks (escale, the squeeze film's temperature law, two gap sets on
+  degree-2 fits, three coordinates): tests/model/test_process.py's proof mass through OSDI against
+  its .lib in ngspice 46 (deflection, .ac response, .noise).
 """
 
 from __future__ import annotations
@@ -42,8 +45,9 @@ from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import run_vacask
-from netgen.structure import load_structure
+from netgen.structure import load_structure, parse_structure
 from tests.fixtures import NGSPICE, ROOT
+from tests.model.test_process import PROOF
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml
 SPRING = 2.0  # N/m, the given spring
@@ -221,3 +225,74 @@ def test_compiles_without_warnings(built):
     _, folder = built
     out, _ = osdi.compile_va(folder / "piston_process.va", folder / "again.osdi")
     assert out.exists()
+
+
+# ngspice's Boltzmann constant (CODATA 2014, its CONSTboltz): the .lib's noise resistors use it, the
+# module the SI value netgen.core.constants.K_B
+K_NGSPICE = 1.38064852e-23
+
+
+@pytest.fixture(scope="module")
+def proof_mass(tmp_path_factory):
+    """tests/model/test_process.py's proof mass (folded flexures: a modulus law; incompressible squeeze
+    film: the viscosity law; plates above and below: two gap sets; three coordinates, degree-2 fits)
+    with thermal noise, all four parameters: its .lib and `--format osdi` (a ~20 s build)."""
+    text = PROOF.format(t=10.0, e=160.0).replace("squeeze_film = true", "squeeze_film = true\nnoise = true")
+    model = build_model(parse_structure(text, "pm.toml"))
+    folder = tmp_path_factory.mktemp("process_va_pm")
+    (folder / "pm.lib").write_text(emit_ngspice.subcircuit(model))
+    emit.write_outputs(model, folder, "osdi")
+    return model, folder
+
+
+def run_pm(folder: Path, form: str, params: str, analysis: str, workdir: Path):
+    """One ngspice run of the proof mass (1 V top, 0.5 V bottom, grounded plate, AC force on z)."""
+    lib = folder / ("pm.lib" if form == "lib" else "pm_osdi.lib")
+    control = ""
+    if form == "osdi":
+        control = f".control\npre_osdi {folder / 'pm.osdi'}\nset num_threads=1\nrun\nwrite circuit.raw\n.endc"
+    net = f"""* proof mass, {form}
+.include {lib}
+X1 top bot 0 fz xz 0 xtx 0 xty pm {params}
+Vt top 0 DC 1
+Vb bot 0 DC 0.5
+Vf fz 0 DC 0 AC 1
+.options reltol={RELTOL} vntol={VNTOL}
+{analysis}
+{control}
+.end
+"""
+    return run_ngspice(net, workdir / form)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        "",
+        "tscale=1.05 escale=1.3 temp=125 dg_top=2e-8 dg_bot=-3e-8",
+        "tscale=0.92 escale=0.7 temp=-40 dg_top=-5e-8 dg_bot=6e-8",
+    ],
+)
+def test_proof_mass_with_all_four_parameters_matches_the_lib(proof_mass, ngspice46, tmp_path, params):
+    """The module's escale (pe), temp (pe and the squeeze film's pv), tscale and two gap sets against
+    the B-source .lib in ngspice 46: the deflection within twice Newton's stopping bound; the .ac
+    response H(f) over 0.5..1.5 f0 within 2 reltol (the operating point's error enters H only through
+    the electrostatic stiffness, a fraction of k; the film damps the mode to Q = 0.06: no resonant
+    amplification); the .noise amplitude's ratio within 2 reltol of sqrt(K_B / ngspice's k_B)
+    (1 + 1.7e-7: the .lib's noise resistors use ngspice's CODATA-2014 constant)."""
+    model, folder = proof_mass
+    f0 = model.coordinates[0].frequency_hz
+    out = {}
+    for form in ("lib", "osdi"):
+        op = run_pm(folder, form, params, ".op", tmp_path / "op")[0]
+        ac = run_pm(folder, form, params, f".ac lin 21 {0.5 * f0} {1.5 * f0}", tmp_path / "ac")[0]
+        plots = run_pm(folder, form, params, f".noise v(xz) Vf lin 21 {0.5 * f0} {1.5 * f0}", tmp_path / "no")
+        spec = next(p for p in plots if "onoise_spectrum" in p.vectors)
+        out[form] = (float(np.real(op["v(xz)"][0])), np.asarray(ac["v(xz)"]), np.real(spec["onoise_spectrum"]))
+    (x_lib, h_lib, n_lib), (x_osdi, h_osdi, n_osdi) = out["lib"], out["osdi"]
+    h_err = np.max(np.abs(h_osdi / h_lib - 1))
+    n_err = np.max(np.abs(n_osdi / n_lib - math.sqrt(K_B / K_NGSPICE)))
+    print(f"[{params}] x OSDI - .lib {x_osdi - x_lib:.1e} um of {x_lib:.3e}; H {h_err:.1e}; noise {n_err:.1e}")
+    assert abs(x_osdi - x_lib) <= 2 * (RELTOL * abs(x_lib) + VNTOL)
+    assert h_err <= 2 * RELTOL
+    assert n_err <= 2 * RELTOL
