@@ -15,12 +15,12 @@ plate on a given 2 N/m spring, 2 um above one electrode, fringe "none": C = eps 
   against the .lib and against sqrt(k_eff / m) / 2 pi with k_eff = k - eps A V^2 / (g + dg - z)^3,
   m = M tscale. The AC solve is linear (round-off, 1e-9 after the least squares); the operating
   point's Newton error dz moves k_eff by 3 k_es dz / (g + dg - z), i.e. f0 by half that over k_eff:
-  the bound is that (near 2e-8 at reltol 1e-6) plus 1e-9, under the brief's 1e-4.
+  the bound is that (near 2e-8 at reltol 1e-6) plus 1e-9, under the acceptance bound 1e-4.
 - .noise of the unbiased damped piston through OSDI in ngspice 46 and in VACASK: the displacement
   PSD against 4 k_B T b |H(f)|^2 over the resonance with T = temp + 273.15 K, b = alpha M tscale,
   m = M tscale. The white_noise source is exact in the small-signal analysis (a sign error of the
   compiler would flip or null the PSD, not scale it by a few %): 1e-6 relative (both simulators
-  write doubles; the brief's bound is 2 %).
+  write doubles; the acceptance bound is 2 %).
 - an out-of-range value (from [lo:hi] of the declared range) is refused by the simulator.
 - the parameters the piston lacks (escale, the squeeze film's temperature law, two gap sets on
   degree-2 fits, three coordinates): tests/model/test_process.py's proof mass through OSDI against
@@ -141,7 +141,7 @@ def test_static_deflection_and_resonance(built, ngspice46, tmp_path, name, value
         f"(bound {newton:.1e}); f0 OSDI/.lib - 1 {f0['osdi'] / f0['lib'] - 1:.1e}, "
         f"OSDI/closed form - 1 {f0['osdi'] / f_ref - 1:.1e} (bound {bound:.1e})"
     )
-    assert bound < 1e-4  # the brief's bound
+    assert bound < 1e-4  # the acceptance bound
     assert f0["osdi"] == pytest.approx(f0["lib"], rel=bound)
     for form in f0:
         assert f0[form] == pytest.approx(f_ref, rel=bound), form
