@@ -20,7 +20,7 @@ from ..core.errors import SimulationError, SimulatorNotFound
 from ..core.files import write_atomic
 from ..core.templating import render
 from ..model import MacroModel
-from . import veriloga
+from . import process, veriloga
 from .common import header_context, noise_enabled, time_scale
 from .ngspice import inertial_loads
 
@@ -147,6 +147,11 @@ def subcircuit(model: MacroModel) -> str:
     """The complete _osdi.lib text: the .lib's header with the OSDI usage, one instance of the module."""
     ctx = header_context(model)
     ctx["inertial"] = inertial_loads(model, time_scale(model))
+    names = [p["name"] for p in process.va_params(model)]  # [] without [process]
+    if names:  # the .subckt's params reach the module through a .model card per instance
+        ctx["subckt_params"] = "\n+ params: " + " ".join(f"{n}={v}" for n, v in process.params(model))
+        ctx["model_params"] = " " + " ".join(f"{n}={{{n}}}" for n in names)
+        ctx["process_text"] = process.header_text(model)
     n = nodes(model)
     return render(
         TEMPLATE,

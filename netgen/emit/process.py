@@ -216,3 +216,49 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
     )
+
+
+# relative widening of the Verilog-A `from [lo:hi]` bounds: ngspice's numparam turns a corner value
+# passed through the _osdi.lib's .subckt params into a double one ulp off (dg_drive=3e-7 was refused by
+# from [-3e-07:3e-07]); 1e-9 is far below any law's stated error
+SLACK = 1e-9
+
+
+def va_params(model: MacroModel) -> list[dict]:
+    """The declared parameters as Verilog-A `parameter real` rows: name, default, valid range (lo, hi)
+    from the model's process record (widened by SLACK) and the meaning; [] without laws."""
+    if not enabled(model):
+        return []
+    p, out = model.process, []
+    ranges = {
+        "tscale": (p["tscale"]["range"], "device-layer thickness / nominal, valid {:g}..{:g}"),
+        "escale": (p["escale"]["range"], "Young's modulus / nominal, valid {:g}..{:g}"),
+        "temp": (p["temp"]["range_C"], "die temperature, degC, valid {:g}..{:g} (thermal noise at temp + 273.15 K)"),
+    }
+    for name, default in params(model, gaps=False):
+        (lo, hi), text = ranges[name]
+        text = text.format(lo, hi)
+        out.append({"name": name, "default": default, "lo": bound(lo, -1), "hi": bound(hi, 1), "text": text})
+    for g in p["gaps"]:
+        m = g["max_m"]
+        text = f"gap increase of set {g['set']}, m (|dg| <= {m:.6g})"
+        out.append({"name": f"dg_{g['set']}", "default": "0", "lo": bound(-m, -1), "hi": bound(m, 1), "text": text})
+    return out
+
+
+def bound(x: float, side: int) -> str:
+    """A range end moved outwards (side -1 low, +1 high) by SLACK relative, as Verilog-A text."""
+    return f"{x + side * SLACK * abs(x):.10g}"
+
+
+def noise_temperature(model: MacroModel) -> str:
+    """Verilog-A text of the thermal noise's temperature (K): the instance's temp where declared, else
+    the simulator's $temperature (as without [process])."""
+    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else "$temperature"
+
+
+def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
+    """Verilog-A text of `value` times coordinate `name`'s process ratio `kind` (as factor)."""
+    if not active(model, kind):
+        return value
+    return f"{'tscale' if kind == 'tscale' else f'{kind}_{name}'} * {value}"

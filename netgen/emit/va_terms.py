@@ -152,10 +152,12 @@ def charge(f: CapacitanceFit, model: MacroModel, names: list[str], fold: Fold) -
     return value + (f" - {vf(e)} * ({_sum(parts)})" if parts else "")
 
 
-def force(model: MacroModel, v: int, names: list[str], fold: Fold) -> str:
-    """F_v (SI): sum_i dv2_i (the plate terms' share at xf) and -1/(2 L_v) sum_w S_vw dx_w."""
-    scale, groups = model.coordinates[v].scale, []
+def force(model: MacroModel, v: int, names: list[str], fold: Fold, shifted: dict | None = None) -> str:
+    """F_v (SI): sum_i dv2_i (the plate terms' share at xf) and -1/(2 L_v) sum_w S_vw dx_w (an electrode
+    in `shifted` reads its own state names: netgen.emit.veriloga.gap_names)."""
+    scale, groups, all_names = model.coordinates[v].scale, [], names
     for f in model.capacitances:
+        names = (shifted or {}).get(f.electrode, all_names)
         g = f.c_ref / (2.0 * scale)
         if f.target == "direct":
             inner = [_times(g, f.polys[0].derivative(v), names, "1.0", fold)]
@@ -168,13 +170,14 @@ def force(model: MacroModel, v: int, names: list[str], fold: Fold) -> str:
     return _sum(groups) + f"\n            - {num(0.5 / scale)} * ({' + '.join(jac)})"
 
 
-def stiffness(model: MacroModel, names: list[str]) -> list[dict]:
-    """The sums S_vw (v <= w) of the force Jacobian (module doc)."""
-    n, rows = model.ncoords, []
+def stiffness(model: MacroModel, names: list[str], shifted: dict | None = None) -> list[dict]:
+    """The sums S_vw (v <= w) of the force Jacobian (module doc; `shifted` as in force)."""
+    n, rows, all_names = model.ncoords, [], names
     for v in range(n):
         for w in range(v, n):
             terms: list[str | None] = []
             for f in model.capacitances:
+                names = (shifted or {}).get(f.electrode, all_names)
                 dv2f = f"{vf(f.electrode)} * {vf(f.electrode)}"
                 for k, p in enumerate(f.polys):
                     hess = p.derivative(v).derivative(w)
@@ -193,14 +196,16 @@ def stiffness(model: MacroModel, names: list[str]) -> list[dict]:
     return rows
 
 
-def rows(model: MacroModel, fits: list[dict], fold: Fold) -> dict:
+def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None = None) -> dict:
     """Template fields: the copies, each fit's terms and charge, the Jacobian sums, the forces;
-    fold(c, poly): write c * poly as one sum (netgen.emit.veriloga.misfolds)."""
+    fold(c, poly): write c * poly as one sum (netgen.emit.veriloga.misfolds); `shifted`: electrode ->
+    the state names its plate terms read (the gap offsets of netgen.emit.process), else the copies."""
     names = [xf(c.name) for c in model.coordinates]
     clamps = model.term_clamps()
     for i, (row, f) in enumerate(zip(fits, model.capacitances)):
-        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, names, fold)
-        row["charge"] = charge(f, model, names, fold)
+        own = (shifted or {}).get(f.electrode, names)
+        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold)
+        row["charge"] = charge(f, model, own, fold)
         row["vf"] = vf(f.electrode)
     return {
         "frozen": [
@@ -208,6 +213,6 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold) -> dict:
             for c in model.coordinates
         ],
         "vf_expr": {f.electrode: frozen(f"V({f.electrode}, {model.plate})") for f in model.capacitances},
-        "stiffness": stiffness(model, names),
-        "forces": [force(model, v, names, fold) for v in range(model.ncoords)],
+        "stiffness": stiffness(model, names, shifted),
+        "forces": [force(model, v, names, fold, shifted) for v in range(model.ncoords)],
     }

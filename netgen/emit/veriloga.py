@@ -17,7 +17,7 @@ from ..core.names import VERILOG_A as KEYWORDS
 from ..core.templating import render
 from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
-from . import inertial, va_terms
+from . import inertial, process, va_terms
 from .common import (
     INPUT_KINDS,
     contact_terms,
@@ -55,14 +55,17 @@ def misfolds(c: float, poly: Polynomial) -> bool:
     return all(abs(c * k) == 1.0 for _, k in terms)
 
 
-def _rhs(c: Coordinate, ws: float) -> str:
+def _rhs(c: Coordinate, ws: float, model: MacroModel) -> str:
     """Right-hand side of (1/w_s) du/dt: (F_ext + F_nl - K L xs - D L w_s u) / (M L w_s^2), linear
-    in the nodes: the nonlinear forces F_nl enter through the force node fn_<q> (`_force_node`)."""
+    in the nodes: the nonlinear forces F_nl enter through the force node fn_<q> (`_force_node`);
+    K and D times their process ratios pk_<q>, pd_<q> where declared parameters move them."""
     a = force_gain(c, ws) * c.port_units[3]
     parts = [f"{num(a)} * V(f_{c.name})"]
     if c.stiffness:
-        parts.append(f"{num(-c.stiffness / (c.mass * ws * ws))} * V(xs_{c.name})")
-    parts += [f"-d_{c.name} * {num(1.0 / (c.mass * ws))} * V(u_{c.name})", f"{num(a)} * V(fn_{c.name})"]
+        k = num(-c.stiffness / (c.mass * ws * ws))
+        parts.append(f"{process.va_factor(model, 'pk', c.name, k)} * V(xs_{c.name})")
+    d = f"d_{c.name} * " + (process.va_factor(model, "pd", c.name, "") if c.damping else "")
+    parts += [f"-{d}{num(1.0 / (c.mass * ws))} * V(u_{c.name})", f"{num(a)} * V(fn_{c.name})"]
     return " + ".join(parts).replace("+ -", "- ")
 
 
@@ -92,7 +95,8 @@ def _coordinate_rows(model: MacroModel, rows: list[dict], ws: float, state: list
                 "fel": f"fel_{c.name}",
                 "damping": num(c.damping),
                 "damp_unit": "N*s/m" if c.unit == "m" else "N*m*s/rad",
-                "rhs": _rhs(c, ws),
+                "rhs": _rhs(c, ws, model),
+                "cu": process.va_factor(model, "pm", c.name, ""),
                 "fn": f"fn_{c.name}",
                 "fn_expr": _force_node(c, has_contact),
                 "out_gain": num(c.scale / c.port_units[1]),
@@ -104,12 +108,33 @@ def _fit_rows(model: MacroModel, ctx: dict) -> None:
     """Add the Verilog-A fields of the plate terms, charges and forces (netgen.emit.va_terms)."""
     for row, f in zip(ctx["fits"], model.capacitances):
         row["dv2"] = dv2_node(f.electrode)
-    ctx.update(va_terms.rows(model, ctx["fits"], lambda c, poly: misfolds(c, poly)))
+    ctx.update(va_terms.rows(model, ctx["fits"], lambda c, poly: misfolds(c, poly), gap_names(model, ctx)))
     for row, text in zip(ctx["coords"], ctx["forces"]):
         row["force_sum"] = text
     ctx["vf_vars"] = [f["vf"] for f in ctx["fits"]]
     ctx["w_vars"] = [t["w"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("w")]
     ctx["b_vars"] = [t["b"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("b")]
+
+
+def gap_names(model: MacroModel, ctx: dict) -> dict[str, list[str]]:
+    """electrode -> the state names its plate terms read: xf_z replaced by the variable xg_<set> =
+    xf_z - sign dg_<set> / L_z of its gap set (netgen.emit.process.gap_shifts; a constant shift: the
+    Jacobian's dx terms are unchanged); adds the variables' rows to ctx["gap_vars"]. {} without gap sets."""
+    shifts = process.gap_shifts(model)
+    ctx["gap_vars"] = [
+        {"name": f"xg_{s}", "expr": f"{va_terms.xf('z')} + {num(k)} * dg_{s}"} for s, k in dict(shifts.values()).items()
+    ]
+    names = [va_terms.xf(c.name) for c in model.coordinates]
+    return {e: [f"xg_{s}" if n == va_terms.xf("z") else n for n in names] for e, (s, _) in shifts.items()}
+
+
+def process_rows(model: MacroModel, ctx: dict) -> None:
+    """The process parameters (netgen.emit.process, only with [process]): parameter rows, the derived
+    ratios as variables, the header's statement (all empty without [process])."""
+    ctx["process_params"] = process.va_params(model)
+    # pt_<q> (the .lib's noise factor) is not needed: the white_noise reads pd_<q> and temp itself
+    ctx["process_vars"] = [{"name": n, "expr": e} for n, e in process.factors(model) if not n.startswith("pt_")]
+    ctx["process_text"] = process.header_text(model)
 
 
 def check_identifiers(names: list[str]) -> None:
@@ -126,9 +151,12 @@ def check_identifiers(names: list[str]) -> None:
 
 
 def noise_rows(model: MacroModel, rows: list[dict], ws: float) -> None:
-    """Add each coordinate's white_noise factor: 4 k_B (force-to-velocity-node gain)^2."""
+    """Add each coordinate's white_noise factor: 4 k_B (force-to-velocity-node gain)^2, the damping's
+    process ratio and the temperature (netgen.emit.process.noise_temperature)."""
     for row, c in zip(rows, model.coordinates):
         row["noise_gain"] = num(4.0 * K_B / (c.mass * c.scale * ws * ws) ** 2)
+        row["noise_temp"] = process.noise_temperature(model)
+        row["noise_d"] = row["d"] + (f" * pd_{c.name}" if c.damping and process.active(model, "pd") else "")
 
 
 def module(model: MacroModel, noise: bool | None = None) -> str:
@@ -143,8 +171,10 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     ctx["accel_port"] = "a_in" if model.acceleration else ""
     for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
         if g != 0.0:  # inertial load -G a_in (netgen.mechanics.participation)
-            row["rhs"] = f"{row['rhs']} - {num(g / (c.mass * c.scale * ws * ws))} * V(a_in)"
+            gain = process.va_factor(model, "tscale", c.name, num(g / (c.mass * c.scale * ws * ws)))
+            row["rhs"] = f"{row['rhs']} - {gain} * V(a_in)"
     inertial_rows(model, ctx, ws)
+    process_rows(model, ctx)
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [t["p"] for f in ctx["fits"] for t in f["plate_terms"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
@@ -163,6 +193,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
         + ["fel_scale"]
         + stop_vars
         + [n["var"] for n in ctx["nonlinear"]]
+        + [v["name"] for v in ctx["process_params"] + ctx["process_vars"] + ctx["gap_vars"]]
     )
     if noise_enabled(model, noise):
         noise_rows(model, ctx["coords"], ws)
@@ -214,6 +245,7 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                     "g_in": num(corner / ws),
                     "g_force": num(r / (c.mass * ws)),
                     "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                    "noise_temp": process.noise_temperature(model),
                     "corner_hz": f"{corner / (2 * math.pi):.6g}",
                     "damping": f"{r:.6g}",
                 }

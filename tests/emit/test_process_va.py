@@ -1,0 +1,298 @@
+"""The process parameters in the Verilog-A module (netgen.emit.veriloga with netgen.emit.process), compiled
+by openvaf-r and run through OSDI in ngspice 46 (its _osdi.lib, which forwards the instance's
+parameters to a .model card per instance) and in VACASK, for examples/piston_process.toml (a rigid
+plate on a given 2 N/m spring, 2 um above one electrode, fringe "none": C = eps A / gap exactly).
+
+- static deflection under 2 V at three values of each parameter (tscale, temp, dg_drive): OSDI
+  against the B-source .lib in the same ngspice and both against the closed-form equilibrium
+  k z = eps A V^2 / (2 (g + dg - z)^2) (brentq to 1e-24 m; the given spring: tscale and temp move
+  nothing). Bound:
+  ngspice stops Newton when each node moved less than reltol |v| + vntol; at the quadratic
+  convergence of this smooth one-unknown problem the last iterate is much closer than that step,
+  so each solution lies within NEWTON = reltol |x| + vntol of the root and two within twice that
+  (the 1/P fit is exact to round-off: 1e-12 relative on top).
+- the resonance at that bias from .ac (1/H = k_eff - m w^2 + i w b, three frequencies): OSDI
+  against the .lib and against sqrt(k_eff / m) / 2 pi with k_eff = k - eps A V^2 / (g + dg - z)^3,
+  m = M tscale. The AC solve is linear (round-off, 1e-9 after the least squares); the operating
+  point's Newton error dz moves k_eff by 3 k_es dz / (g + dg - z), i.e. f0 by half that over k_eff:
+  the bound is that (near 2e-8 at reltol 1e-6) plus 1e-9, under the acceptance bound 1e-4.
+- .noise of the unbiased damped piston through OSDI in ngspice 46 and in VACASK: the displacement
+  PSD against 4 k_B T b |H(f)|^2 over the resonance with T = temp + 273.15 K, b = alpha M tscale,
+  m = M tscale. The white_noise source is exact in the small-signal analysis (a sign error of the
+  compiler would flip or null the PSD, not scale it by a few %): 1e-6 relative (both simulators
+  write doubles; the acceptance bound is 2 %).
+- an out-of-range value (from [lo:hi] of the declared range) is refused by the simulator.
+- the parameters the piston lacks (escale, the squeeze film's temperature law, two gap sets on
+  degree-2 fits, three coordinates): tests/model/test_process.py's proof mass through OSDI against
+  its .lib in ngspice 46 (deflection, .ac response, .noise).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from netgen import emit
+from netgen.build import build_model
+from netgen.core.constants import EPS0, K_B
+from netgen.core.errors import SimulationError
+from netgen.emit import ngspice as emit_ngspice
+from netgen.emit import osdi
+from netgen.sim.ngspice import run_ngspice
+from netgen.sim.vacask import run_vacask
+from netgen.structure import load_structure, parse_structure
+from tests.fixtures import NGSPICE, ROOT
+from tests.model.test_process import PROOF
+
+ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml
+SPRING = 2.0  # N/m, the given spring
+GAP = 2e-6  # m
+BIAS = 2.0  # V on the drive electrode (pull-in near 3.1 V at dg = -0.2 um)
+RELTOL, VNTOL = 1e-6, 1e-12  # the static runs' Newton tolerances (x_z in um: 1 V = 1 um)
+POINTS = [("tscale", v) for v in (0.9, 1.0, 1.1)] + [("temp", v) for v in (-40.0, 26.85, 125.0)]
+POINTS += [("dg_drive", v) for v in (-2e-7, 0.0, 3e-7)]
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The model, its .lib and `--format osdi` (the .va compiled by openvaf-r) in one folder."""
+    model = build_model(load_structure(ROOT / "examples/piston_process.toml"))
+    folder = tmp_path_factory.mktemp("process_va")
+    (folder / "piston_process.lib").write_text(emit_ngspice.subcircuit(model))
+    emit.write_outputs(model, folder, "osdi")
+    return model, folder
+
+
+@pytest.fixture
+def ngspice46(monkeypatch):
+    """Run ngspice 46 (the OSDI-capable one .ci/setup installs)."""
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+
+
+def run(folder: Path, form: str, params: dict, analysis: str, bias: float, workdir: Path):
+    """One ngspice run of X1 (drive, grounded plate, force port fz, output xz) in `form` (lib, osdi)."""
+    ps = " ".join(f"{k}={v}" for k, v in params.items())
+    lib = folder / ("piston_process.lib" if form == "lib" else "piston_process_osdi.lib")
+    control = ""
+    if form == "osdi":
+        control = (
+            f".control\npre_osdi {folder / 'piston_process.osdi'}\nset num_threads=1\nrun\nwrite circuit.raw\n.endc"
+        )
+    net = f"""* process parameters, {form}
+.include {lib}
+X1 drive 0 fz xz piston_process {ps}
+Vd drive 0 DC {bias}
+Vf fz 0 DC 0 AC 1
+.options reltol={RELTOL} vntol={VNTOL}
+{analysis}
+{control}
+.end
+"""
+    return run_ngspice(net, workdir / form)
+
+
+def equilibrium(area: float, dg: float) -> float:
+    """The closed-form static deflection (m, towards the electrode: negative z) at BIAS."""
+    return -brentq(
+        lambda z: SPRING * z - EPS0 * area * BIAS**2 / (2 * (GAP + dg - z) ** 2),
+        0.0,
+        (GAP + dg) / 3,
+        xtol=1e-24,
+        rtol=1e-15,
+    )
+
+
+def ac_fit(plot) -> tuple[float, float, float]:
+    """k, m, b from 1/H = k - m w^2 + i w b (H in um/uN = m/N)."""
+    w = 2 * np.pi * np.real(plot["frequency"])
+    inv = 1.0 / plot["v(xz)"]
+    a = np.stack([np.ones_like(w), -(w**2)], axis=1)
+    (k, m), *_ = np.linalg.lstsq(a, inv.real, rcond=None)
+    return float(k), float(m), float(np.mean(inv.imag / w))
+
+
+@pytest.mark.parametrize(("name", "value"), POINTS)
+def test_static_deflection_and_resonance(built, ngspice46, tmp_path, name, value):
+    model, folder = built
+    c, area = model.coordinates[0], model.electrodes[0].area
+    dg, tscale = (value if name == "dg_drive" else 0.0), (value if name == "tscale" else 1.0)
+    z_ref = equilibrium(area, dg)
+    x, f0 = {}, {}
+    for form in ("lib", "osdi"):
+        x[form] = float(np.real(run(folder, form, {name: value}, ".op", BIAS, tmp_path / "op")[0]["v(xz)"][0])) * 1e-6
+        k, m, _ = ac_fit(run(folder, form, {name: value}, ".ac lin 3 5k 30k", BIAS, tmp_path / "ac")[0])
+        f0[form] = math.sqrt(k / m) / (2 * math.pi)
+    newton = (RELTOL * abs(z_ref) * 1e6 + VNTOL) * 1e-6  # m: one solution's bound
+    assert abs(x["osdi"] - x["lib"]) <= 2 * newton
+    for form in x:
+        assert abs(x[form] - z_ref) <= newton + 1e-12 * abs(z_ref), form
+    gap = GAP + dg + z_ref
+    k_es = EPS0 * area * BIAS**2 / gap**3
+    k_eff = SPRING - k_es
+    f_ref = math.sqrt(k_eff / (c.mass * tscale)) / (2 * math.pi)
+    bound = 0.5 * 3 * k_es * 2 * newton / gap / k_eff + 1e-9
+    print(
+        f"{name}={value}: x OSDI - .lib {x['osdi'] - x['lib']:.1e} m, OSDI - closed form {x['osdi'] - z_ref:.1e} m "
+        f"(bound {newton:.1e}); f0 OSDI/.lib - 1 {f0['osdi'] / f0['lib'] - 1:.1e}, "
+        f"OSDI/closed form - 1 {f0['osdi'] / f_ref - 1:.1e} (bound {bound:.1e})"
+    )
+    assert bound < 1e-4  # the acceptance bound
+    assert f0["osdi"] == pytest.approx(f0["lib"], rel=bound)
+    for form in f0:
+        assert f0[form] == pytest.approx(f_ref, rel=bound), form
+
+
+NOISE_POINTS = [(-40.0, 0.9), (26.85, 1.0), (125.0, 1.1)]  # (temp degC, tscale)
+
+
+def reference_psd(model, f: np.ndarray, temp: float, tscale: float) -> np.ndarray:
+    """4 k_B T b |H(f)|^2 of the unbiased piston (m^2/Hz)."""
+    w = 2 * np.pi * f
+    m = model.coordinates[0].mass * tscale
+    b = ALPHA * m
+    return 4 * K_B * (temp + 273.15) * b / np.abs(SPRING - m * w**2 + 1j * w * b) ** 2
+
+
+@pytest.mark.parametrize(("temp", "tscale"), NOISE_POINTS)
+def test_noise_through_osdi_in_ngspice46(built, ngspice46, tmp_path, temp, tscale):
+    model, folder = built
+    plots = run(folder, "osdi", {"temp": temp, "tscale": tscale}, ".noise v(xz) Vf lin 41 5k 25k", 0.0, tmp_path)
+    spec = next(p for p in plots if "onoise_spectrum" in p.vectors)
+    f = np.real(spec["frequency"])
+    got = np.real(spec["onoise_spectrum"]) ** 2 * 1e-12  # V/sqrt(Hz) at x_z (1 V = 1 um) -> m^2/Hz
+    ref = reference_psd(model, f, temp, tscale)
+    print(f"temp={temp} tscale={tscale}: max |PSD / 4 k_B T b |H|^2 - 1| = {np.max(np.abs(got / ref - 1)):.1e}")
+    np.testing.assert_allclose(got, ref, rtol=1e-6)
+
+
+@pytest.mark.parametrize(("temp", "tscale"), NOISE_POINTS)
+def test_noise_in_vacask(built, tmp_path, temp, tscale):
+    """VACASK's noise analysis of the same module, the parameters on its model card; onoise is the
+    output PSD itself (V^2/Hz)."""
+    model, folder = built
+    net = f"""piston_process noise
+ground 0
+load "{folder / "piston_process.osdi"}"
+model mems piston_process temp={temp} tscale={tscale}
+model vsource vsource
+x1 (drive plate fz xz) mems
+v_drive (drive 0) vsource dc=0
+v_plate (plate 0) vsource dc=0
+v_fz (fz 0) vsource dc=0 mag=1
+control
+  analysis n1 noise out="xz" in="v_fz" from=5k to=25k mode="lin" points=40
+endc
+"""
+    plot = run_vacask(net, tmp_path, analysis="n1")
+    f = np.real(plot["frequency"])
+    got = np.real(plot["onoise"]) * 1e-12  # um^2/Hz -> m^2/Hz
+    ref = reference_psd(model, f, temp, tscale)
+    print(f"VACASK temp={temp} tscale={tscale}: max |PSD / 4 k_B T b |H|^2 - 1| = {np.max(np.abs(got / ref - 1)):.1e}")
+    np.testing.assert_allclose(got, ref, rtol=1e-6)
+
+
+def declared_range(text: str, name: str) -> tuple[float, float]:
+    """The `from [lo:hi]` of parameter `name` in the module text."""
+    m = re.search(rf"parameter real {name} = \S+ from \[(\S+):(\S+)\];", text)
+    assert m, name
+    return float(m.group(1)), float(m.group(2))
+
+
+def test_declared_ranges_are_the_model_s(built, ngspice46, tmp_path):
+    """The .va declares each parameter with the range of the model's process record (widened by
+    netgen.emit.process.SLACK = 1e-9 relative, for the simulators' number parsing: the corners pass),
+    and ngspice refuses a value outside it rather than extrapolating the laws."""
+    model, folder = built
+    text = (folder / "piston_process.va").read_text()
+    p = model.process
+    dg = p["gaps"][0]["max_m"]
+    for name, (lo, hi) in {"tscale": p["tscale"]["range"], "temp": p["temp"]["range_C"], "dg_drive": (-dg, dg)}.items():
+        got = declared_range(text, name)
+        assert got[0] <= lo and got[1] >= hi, name
+        assert got == pytest.approx((lo, hi), rel=2e-9), name
+    with pytest.raises(SimulationError, match="exit code"):
+        run(folder, "osdi", {"tscale": 1.15}, ".op", BIAS, tmp_path)
+    assert "tscale is out of bounds" in (tmp_path / "osdi" / "circuit.log").read_text()
+
+
+def test_compiles_without_warnings(built):
+    """openvaf-r compiles the module with warnings as errors (netgen.emit.osdi.compile_va's default)."""
+    _, folder = built
+    out, _ = osdi.compile_va(folder / "piston_process.va", folder / "again.osdi")
+    assert out.exists()
+
+
+# ngspice's Boltzmann constant (CODATA 2014, its CONSTboltz): the .lib's noise resistors use it, the
+# module the SI value netgen.core.constants.K_B
+K_NGSPICE = 1.38064852e-23
+
+
+@pytest.fixture(scope="module")
+def proof_mass(tmp_path_factory):
+    """tests/model/test_process.py's proof mass (folded flexures: a modulus law; incompressible squeeze
+    film: the viscosity law; plates above and below: two gap sets; three coordinates, degree-2 fits)
+    with thermal noise, all four parameters: its .lib and `--format osdi` (a ~20 s build)."""
+    text = PROOF.format(t=10.0, e=160.0).replace("squeeze_film = true", "squeeze_film = true\nnoise = true")
+    model = build_model(parse_structure(text, "pm.toml"))
+    folder = tmp_path_factory.mktemp("process_va_pm")
+    (folder / "pm.lib").write_text(emit_ngspice.subcircuit(model))
+    emit.write_outputs(model, folder, "osdi")
+    return model, folder
+
+
+def run_pm(folder: Path, form: str, params: str, analysis: str, workdir: Path):
+    """One ngspice run of the proof mass (1 V top, 0.5 V bottom, grounded plate, AC force on z)."""
+    lib = folder / ("pm.lib" if form == "lib" else "pm_osdi.lib")
+    control = ""
+    if form == "osdi":
+        control = f".control\npre_osdi {folder / 'pm.osdi'}\nset num_threads=1\nrun\nwrite circuit.raw\n.endc"
+    net = f"""* proof mass, {form}
+.include {lib}
+X1 top bot 0 fz xz 0 xtx 0 xty pm {params}
+Vt top 0 DC 1
+Vb bot 0 DC 0.5
+Vf fz 0 DC 0 AC 1
+.options reltol={RELTOL} vntol={VNTOL}
+{analysis}
+{control}
+.end
+"""
+    return run_ngspice(net, workdir / form)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        "",
+        "tscale=1.05 escale=1.3 temp=125 dg_top=2e-8 dg_bot=-3e-8",
+        "tscale=0.92 escale=0.7 temp=-40 dg_top=-5e-8 dg_bot=6e-8",
+    ],
+)
+def test_proof_mass_with_all_four_parameters_matches_the_lib(proof_mass, ngspice46, tmp_path, params):
+    """The module's escale (pe), temp (pe and the squeeze film's pv), tscale and two gap sets against
+    the B-source .lib in ngspice 46: the deflection within twice Newton's stopping bound; the .ac
+    response H(f) over 0.5..1.5 f0 within 2 reltol (the operating point's error enters H only through
+    the electrostatic stiffness, a fraction of k; the film damps the mode to Q = 0.06: no resonant
+    amplification); the .noise amplitude's ratio within 2 reltol of sqrt(K_B / ngspice's k_B)
+    (1 + 1.7e-7: the .lib's noise resistors use ngspice's CODATA-2014 constant)."""
+    model, folder = proof_mass
+    f0 = model.coordinates[0].frequency_hz
+    out = {}
+    for form in ("lib", "osdi"):
+        op = run_pm(folder, form, params, ".op", tmp_path / "op")[0]
+        ac = run_pm(folder, form, params, f".ac lin 21 {0.5 * f0} {1.5 * f0}", tmp_path / "ac")[0]
+        plots = run_pm(folder, form, params, f".noise v(xz) Vf lin 21 {0.5 * f0} {1.5 * f0}", tmp_path / "no")
+        spec = next(p for p in plots if "onoise_spectrum" in p.vectors)
+        out[form] = (float(np.real(op["v(xz)"][0])), np.asarray(ac["v(xz)"]), np.real(spec["onoise_spectrum"]))
+    (x_lib, h_lib, n_lib), (x_osdi, h_osdi, n_osdi) = out["lib"], out["osdi"]
+    h_err = np.max(np.abs(h_osdi / h_lib - 1))
+    n_err = np.max(np.abs(n_osdi / n_lib - math.sqrt(K_B / K_NGSPICE)))
+    print(f"[{params}] x OSDI - .lib {x_osdi - x_lib:.1e} um of {x_lib:.3e}; H {h_err:.1e}; noise {n_err:.1e}")
+    assert abs(x_osdi - x_lib) <= 2 * (RELTOL * abs(x_lib) + VNTOL)
+    assert h_err <= 2 * RELTOL
+    assert n_err <= 2 * RELTOL
