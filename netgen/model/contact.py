@@ -32,9 +32,9 @@ A dielectric layer on an electrode (netgen.structure.electrodes.read_dielectric)
 to the layer's surface: the probe points' gap_j is the air gap g - t_d (Electrode.stop_gap), so a
 lone coordinate stops at xs = +-1 with the plate on the layer, while the plate terms' effective
 gap g - t_d + t_d / eps_r still has t_d / eps_r left there (a contact capacitance
-g_eff / (t_d / eps_r) times the rest value: 68 x for 0.2 um of nitride under 2 um). The clamp's
-FLOOR (0.02) lies below that only when t_d / eps_r > 0.02 g_eff; a thinner or higher-eps_r layer
-lets the clamp cap the capacitance before contact.
+g_eff / (t_d / eps_r) times the rest value). The clamp's FLOOR (0.02) lies below that only when
+t_d / eps_r > 0.02 g_eff; a thinner or higher-eps_r layer (0.2 um of nitride under 2 um: 68 x)
+has the clamp cap the contact capacitance at 1 / FLOOR = 50 x.
 
 Limits: the stop is a rigid electrode (or layer) surface without stand-off bumps; the
 clamp is a numerical safeguard, not a model of the contact capacitance (C near contact is
