@@ -306,9 +306,10 @@ class ParallelPlateExtractor:
         # the plate terms see the series gap of air and layer; min_gap the air gap to the layer
         medium = self.eps / EPS0
         field_gaps = [e.field_gap(medium) for e in electrodes]
-        gaps = (field_gaps, field_gaps, [e.stop_gap for e in electrodes])
+        stop_gaps = [e.stop_gap for e in electrodes]
         nc, k, sets = phi.shape[1], 0, []
-        for g, group_gaps in zip(groups, gaps):
+        for g in groups:
+            group_gaps = stop_gaps if g is probe else field_gaps
             blocks = []
             for e, pts in zip(electrodes, g):
                 blocks.append(e.sign * phi[k : k + pts[0].size])
