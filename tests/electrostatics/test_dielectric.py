@@ -138,3 +138,21 @@ def test_header_and_report_state_the_layer(piston):
     assert layers[0]["stop_gap_m"] == pytest.approx(G - T_D, rel=1e-12)
     text = (folder / "piston_nitride.lib").read_text()
     assert "Dielectric layers" in text and "eps_r 7.5" in text
+
+
+def test_squeeze_film_sees_the_air_gap():
+    """The gas film ends at the layer's surface: a disk 3 um from its electrodes under 0.3 um
+    layers has the damping of the same disk 2.7 um from bare electrodes (Reynolds' equation knows
+    only the air gap; the same mesh and modes: equal to rounding, 1e-12)."""
+    from tests.mechanics.test_damping import SMALL
+
+    layer = '\ndielectric_thickness = "0.3 um"\ndielectric_permittivity = 3.9\n'
+    layered = SMALL.replace('gap = "3 um"', 'gap = "3 um"' + layer)
+    assert layered.count("dielectric_thickness") == 2
+    bare = SMALL.replace('gap = "3 um"', 'gap = "2.7 um"')
+    damped = [
+        build(parse_structure(text + "[damping]\nsqueeze_film = true\n", "film.toml")).model for text in (layered, bare)
+    ]
+    for a, b in zip(*(m.coordinates for m in damped)):
+        assert a.damping == pytest.approx(b.damping, rel=1e-12)
+        assert a.damping > 0
