@@ -29,7 +29,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from netgen.build import build
 from netgen.electrostatics.parallel_plate import ParallelPlateExtractor
-from netgen.emit import ngspice
+from netgen.emit import ngspice, report
 from netgen.geometry.shapes import Electrode, Rectangle, RectPlate
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
@@ -138,6 +138,8 @@ def test_header_and_report_state_the_layer(piston):
     assert layers[0]["stop_gap_m"] == pytest.approx(G - T_D, rel=1e-12)
     text = (folder / "piston_nitride.lib").read_text()
     assert "Dielectric layers" in text and "eps_r 7.5" in text
+    html = report.page(b.model, [], {})
+    assert 'id="dielectric_layers"' in html and f'data-value="{G - T_D!r}"' in html
 
 
 def test_squeeze_film_sees_the_air_gap():
