@@ -160,7 +160,7 @@ def default_range(s: Structure, prepared: PreparedExtractor, scales: np.ndarray,
 def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: list[ShapeElectrode]) -> np.ndarray:
     """The touching amplitudes; an imported mode that moves no electrode's gap is the modes file's fault."""
     try:
-        return coordinate_scales(prepared, m.names, np.array([e.gap for e in shapes]))
+        return coordinate_scales(prepared, m.names, np.array([e.stop_gap for e in shapes]))
     except ValueError as exc:
         if not (s.imports and s.imports.modes):
             raise
@@ -174,8 +174,8 @@ def scales_of(s: Structure, prepared: PreparedExtractor, m: Mechanics, shapes: l
 
 def plate_estimates(s: Structure, shapes: list[ShapeElectrode], plate: Plate) -> np.ndarray:
     """eps A / g of each electrode at rest: the scale an imported capacitance table must be near."""
-    eps = EPS0 * s.electrostatics.relative_permittivity
-    return np.array([eps * overlap_area(e, plate) / e.gap for e in shapes])
+    medium = s.electrostatics.relative_permittivity
+    return np.array([EPS0 * medium * overlap_area(e, plate) / e.field_gap(medium) for e in shapes])
 
 
 def build_key(s: Structure) -> str:
@@ -251,6 +251,9 @@ def assemble(
             "permittivity_F_per_m": EPS0 * s.electrostatics.relative_permittivity,
         },
     }
+    layers = dielectric_layers(s)
+    if layers:  # only with a layer: the JSON of a structure without one stays as it was
+        report["electrostatics"]["dielectric_layers"] = layers
     if damp_report:
         report["damping"] = damp_report
     if s.warnings:  # assumptions near their limits (netgen.structure.validity), also on stderr
@@ -286,6 +289,27 @@ def assemble(
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     model.process = process_laws(s, m, mechanics, described, scale_z, s.sampling.range)
     return model
+
+
+def dielectric_layers(s: Structure) -> list[dict]:
+    """The electrode sets' dielectric layers (netgen.structure.electrodes.read_dielectric): each one's
+    thickness, permittivity, the air gap where the plate stops and the series (effective) gap."""
+    medium = s.electrostatics.relative_permittivity
+    out = []
+    for e in s.electrode_sets:
+        t = getattr(e, "dielectric_thickness", 0.0)
+        if t > 0.0:
+            eps_r = e.dielectric_permittivity
+            out.append(
+                {
+                    "set": e.name,
+                    "thickness_m": t,
+                    "relative_permittivity": eps_r,
+                    "stop_gap_m": e.gap - t,
+                    "effective_gap_m": e.gap - t + t * medium / eps_r,
+                }
+            )
+    return out
 
 
 def farthest(plate: Plate, shapes: list[ShapeElectrode]) -> float:

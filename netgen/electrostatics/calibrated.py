@@ -186,7 +186,7 @@ def plate_scales(analytic, coordinates: list[str], electrodes: Sequence[Electrod
     """Touching amplitude of each coordinate for these (plate) electrodes; infinite for one that
     moves none of them (in-plane beside combs: netgen.electrostatics.compose), which the
     calibration leaves at 0."""
-    return touch_amplitudes(analytic, len(coordinates), np.array([e.gap for e in electrodes]))
+    return touch_amplitudes(analytic, len(coordinates), np.array([e.stop_gap for e in electrodes]))
 
 
 def pad_plate(m: np.ndarray) -> np.ndarray:

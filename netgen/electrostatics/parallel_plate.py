@@ -12,6 +12,14 @@ fringe along the boundary of that overlap:
 
 Both terms are analytic in q, so dC/dq (the electrostatic forces) follow exactly.  Gaps are
 measured from the undeformed plate SURFACE to the electrode; plate thickness does not enter.
+
+A dielectric layer of thickness t_d and relative permittivity eps_r on an electrode is a
+capacitor in series with the air gap: D is continuous across the layer, so the potential drop
+is D [(g_loc - t_d) / eps_m + t_d / eps_r] / eps0 and both terms use the effective gap
+g_eff - s w, g_eff = g - t_d + t_d eps_m / eps_r (eps_m: the gap medium's relative permittivity,
+Electrode.field_gap).  The fringe term takes the same effective gap (an approximation: the layer
+is thin against the plate).  min_gap() and the probe points measure the AIR gap g - t_d - s w
+(Electrode.stop_gap): the plate touches the layer's surface, not the electrode.
 The Gauss rules come from netgen.geometry.shapes.
 """
 
@@ -154,7 +162,8 @@ class PreparedParallelPlate:
     """ParallelPlateExtractor bound to electrodes, plate and basis (see module docstring).
 
     Samples where the plate touches or crosses an electrode (a local gap <= 0 at a quadrature
-    node) give nan for that electrode; check min_gap() to keep samples in range.
+    node, or at most the layer's share t_d eps_m / eps_r of the effective gap: the plate inside a
+    dielectric layer) give nan for that electrode; check min_gap() to keep samples in range.
     """
 
     def __init__(
@@ -174,6 +183,16 @@ class PreparedParallelPlate:
         self.eps = eps
         self.fringe = fringe if edge.gap.size else None
         self.chunk = max(1, chunk_elements // max(1, area.gap.size + edge.gap.size))
+        # the effective gap left when the plate touches a layer (None: no layer, the gap's own 0)
+        layers = [e.field_gap(eps / EPS0) - e.stop_gap for e in self.electrodes]
+        self.reserve = (
+            (
+                np.repeat(layers, [sl.stop - sl.start for sl in area.slices]),
+                np.repeat(layers, [sl.stop - sl.start for sl in edge.slices]),
+            )
+            if any(layers)
+            else None
+        )
 
     def _blocks(self, q: Array) -> Iterator[tuple[slice, Array, Array, Array, Array | None]]:
         """Yield (sample slice, q chunk, area gaps, edge gaps, touching mask or None) per chunk."""
@@ -181,10 +200,11 @@ class PreparedParallelPlate:
             qc = q[s : s + self.chunk]
             ga, ge = self.area.gaps(qc), self.edge.gaps(qc)
             touch = None
-            if (ga.size and ga.min() <= 0.0) or (ge.size and ge.min() <= 0.0):
-                touch = np.minimum(self.area.per_electrode_min(ga), self.edge.per_electrode_min(ge)) <= 0.0
+            aa, ae = (ga, ge) if self.reserve is None else (ga - self.reserve[0], ge - self.reserve[1])
+            if (aa.size and aa.min() <= 0.0) or (ae.size and ae.min() <= 0.0):
+                touch = np.minimum(self.area.per_electrode_min(aa), self.edge.per_electrode_min(ae)) <= 0.0
                 # any finite positive stand-in keeps other electrodes' sums clean (0 * inf = nan)
-                ga, ge = np.where(ga > 0.0, ga, 1.0), np.where(ge > 0.0, ge, 1.0)
+                ga, ge = np.where(aa > 0.0, ga, 1.0), np.where(ae > 0.0, ge, 1.0)
             yield slice(s, s + qc.shape[0]), qc, ga, ge, touch
 
     def capacitance(self, Q: ArrayLike) -> Array:
@@ -283,14 +303,19 @@ class ParallelPlateExtractor:
         phi = phi[:, None] if phi.ndim == 1 else phi
         if phi.shape[0] != x.size:
             raise ValueError(f"basis returned {phi.shape[0]} rows for {x.size} points")
-        nc, gaps, k, sets = phi.shape[1], [e.gap for e in electrodes], 0, []
+        # the plate terms see the series gap of air and layer; min_gap the air gap to the layer
+        medium = self.eps / EPS0
+        field_gaps = [e.field_gap(medium) for e in electrodes]
+        stop_gaps = [e.stop_gap for e in electrodes]
+        nc, k, sets = phi.shape[1], 0, []
         for g in groups:
+            group_gaps = stop_gaps if g is probe else field_gaps
             blocks = []
             for e, pts in zip(electrodes, g):
                 blocks.append(e.sign * phi[k : k + pts[0].size])
                 k += pts[0].size
             weights = [p[2] if len(p) == 3 else np.zeros(p[0].size) for p in g]
-            sets.append(_PointSet.build(gaps, blocks, weights, nc))
+            sets.append(_PointSet.build(group_gaps, blocks, weights, nc))
         fringe = self.fringe.resolved(plate.size) if self.fringe is not None else None
         if self.fringes is not None:
             fringe = self.point_fringe(edge, plate)

@@ -162,6 +162,7 @@ def header_context(model: MacroModel) -> dict:
             " (lone coordinates stop at xs = +-1; see netgen/model/contact.py for the model and its limits)."
         )
     )
+    contact_text += layer_text(model)
     tie_text = (
         f"Mechanical inputs are tied to ground inside by {PORT_TIE:g} S (noiseless): an open one reads 0; "
         f"through a source resistance R_s one reads low by R_s * {PORT_TIE:g} (1e-6 for 1 Mohm)."
@@ -184,6 +185,24 @@ def header_context(model: MacroModel) -> dict:
         "fit_warning": model.fit_warning(),
         "damping_text": damping_text(model),
     }
+
+
+def layer_text(model: MacroModel) -> str:
+    """The header's dielectric layers (netgen.build.dielectric_layers), if any: the plate terms
+    see the series gap, the stops sit on the layer's surface."""
+    layers = model.report.get("electrostatics", {}).get("dielectric_layers", [])
+    if not layers:
+        return ""
+    parts = [
+        f"{d['set']} {d['thickness_m'] * 1e6:.4g} um eps_r {d['relative_permittivity']:.4g} "
+        f"(effective gap {d['effective_gap_m'] * 1e6:.4g} um, stop at {d['stop_gap_m'] * 1e6:.4g} um)"
+        for d in layers
+    ]
+    return (
+        " Dielectric layers on the electrodes (in series with the air gap; the plate stops on the layer): "
+        + ", ".join(parts)
+        + "."
+    )
 
 
 def damping_text(model: MacroModel) -> str:

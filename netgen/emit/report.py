@@ -114,7 +114,7 @@ def warnings(model: MacroModel) -> list[str]:
 
 
 def rows(model: MacroModel) -> dict:
-    """The tables: coordinates, electrodes, fits, contact, damping."""
+    """The tables: coordinates, electrodes, dielectric layers, fits, contact, damping."""
     coords = [
         {
             "name": c.name,
@@ -141,7 +141,21 @@ def rows(model: MacroModel) -> dict:
     ]
     contact = {k: cell(v) for k, v in model.contact.items() if isinstance(v, float)}
     damping = model.report.get("damping", {})
-    return {"coords": coords, "electrodes": electrodes, "fits": fits, "contact": contact, "damping": damping}
+    layers = [  # netgen.build.dielectric_layers; none without the structure keys
+        {
+            "set": d["set"],
+            "cells": [cell(d[k]) for k in ("thickness_m", "relative_permittivity", "effective_gap_m", "stop_gap_m")],
+        }
+        for d in model.report.get("electrostatics", {}).get("dielectric_layers", [])
+    ]
+    return {
+        "coords": coords,
+        "electrodes": electrodes,
+        "fits": fits,
+        "contact": contact,
+        "damping": damping,
+        "layers": layers,
+    }
 
 
 def page(model: MacroModel, files: list[str], figures: dict[str, bytes]) -> str:

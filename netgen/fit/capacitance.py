@@ -253,8 +253,9 @@ def patch_guess(
         if area <= 0:
             continue
         mean_phi = np.sum(w[sel, None] * phi[sel], axis=0) / area
-        rows.append(np.concatenate([[e.gap], -mean_phi]) / (eps * area))
-        caps.append(eps * area / e.gap)
+        gap = e.field_gap(s.electrostatics.relative_permittivity)  # the series gap of a dielectric layer
+        rows.append(np.concatenate([[gap], -mean_phi]) / (eps * area))
+        caps.append(eps * area / gap)
     lam = c_ref / sum(caps)  # absorbs the edge fringe
     return np.array(rows) * c_ref / lam
 

@@ -33,7 +33,12 @@ def ring_sectors(eset: ElectrodeSet) -> list[Electrode]:
             slot = eset.slot if eset.sectors > 1 else 0.0
             out.append(
                 Electrode(
-                    AnnularSector(next(names), r_in, r_out, start, start + width, slot), eset.side, eset.gap, eset.name
+                    AnnularSector(next(names), r_in, r_out, start, start + width, slot),
+                    eset.side,
+                    eset.gap,
+                    eset.name,
+                    eset.dielectric_thickness,
+                    eset.dielectric_permittivity,
                 )
             )
     return out
@@ -41,7 +46,16 @@ def ring_sectors(eset: ElectrodeSet) -> list[Electrode]:
 
 def rectangle(e: RectElectrode) -> list[Electrode]:
     """A rectangular electrode (its own group)."""
-    return [Electrode(Rectangle(e.name, e.x0, e.x1, e.y0, e.y1), e.side, e.gap, e.name)]
+    return [
+        Electrode(
+            Rectangle(e.name, e.x0, e.x1, e.y0, e.y1),
+            e.side,
+            e.gap,
+            e.name,
+            e.dielectric_thickness,
+            e.dielectric_permittivity,
+        )
+    ]
 
 
 def comb(e: CombElectrode) -> list[Electrode]:

@@ -465,13 +465,28 @@ class Electrode:
     side: Side
     gap: float
     group: str = ""
+    dielectric_thickness: float = 0.0  # m, a layer on the electrode's face (0: none)
+    dielectric_permittivity: float = 1.0  # its relative permittivity
 
     def __post_init__(self) -> None:
-        """Validate side and gap."""
+        """Validate side, gap and layer."""
         if self.side not in ("above", "below", "in_plane"):
             raise ValueError(f"side must be 'above', 'below' or 'in_plane' (comb fingers), not {self.side!r}")
         if not self.gap > 0.0:
             raise ValueError("gap must be positive")
+        if not (0.0 <= self.dielectric_thickness < self.gap and self.dielectric_permittivity >= 1.0):
+            raise ValueError("need 0 <= dielectric_thickness < gap and dielectric_permittivity >= 1")
+
+    @property
+    def stop_gap(self) -> float:
+        """Plate surface to the layer's surface, where the plate stops: g - t_d."""
+        return self.gap - self.dielectric_thickness
+
+    def field_gap(self, medium: float = 1.0) -> float:
+        """The parallel plate's effective gap in a gap medium of relative permittivity `medium`:
+        air and layer in series, g - t_d + t_d medium / eps_r (g itself without a layer)."""
+        t = self.dielectric_thickness
+        return self.gap if t == 0.0 else self.gap - t + t * medium / self.dielectric_permittivity
 
     @property
     def name(self) -> str:

@@ -60,7 +60,8 @@ def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
     gaps = {}
     for e in s.electrode_sets:
         if getattr(e, "side", None) in ("above", "below"):  # comb fingers have no film of their own
-            gaps[e.side] = min(e.gap, gaps.get(e.side, math.inf))
+            air = e.gap - getattr(e, "dielectric_thickness", 0.0)  # the film ends at a layer's surface
+            gaps[e.side] = min(air, gaps.get(e.side, math.inf))
     if c.outline_shape == "disk":
         radius = c.radius
         mesh = sf.disk_mesh(radius, d.fem_refine)

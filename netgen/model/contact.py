@@ -28,7 +28,15 @@ Two parts, both stored in the MacroModel's `contact` dict and emitted by every d
    k = m (RATIO w_s)^2 and c = 2 m RATIO w_s (critically damped against the plate mass m
    with a contact frequency RATIO times the model time scale).
 
-Limits: the stop is a rigid electrode surface without stand-off bumps or dielectric; the
+A dielectric layer on an electrode (netgen.structure.electrodes.read_dielectric) moves the stop
+to the layer's surface: the probe points' gap_j is the air gap g - t_d (Electrode.stop_gap), so a
+lone coordinate stops at xs = +-1 with the plate on the layer, while the plate terms' effective
+gap g - t_d + t_d / eps_r still has t_d / eps_r left there (a contact capacitance
+g_eff / (t_d / eps_r) times the rest value). The clamp's FLOOR (0.02) lies below that only when
+t_d / eps_r > 0.02 g_eff; a thinner or higher-eps_r layer (0.2 um of nitride under 2 um: 68 x)
+has the clamp cap the contact capacitance at 1 / FLOOR = 50 x.
+
+Limits: the stop is a rigid electrode (or layer) surface without stand-off bumps; the
 clamp is a numerical safeguard, not a model of the contact capacitance (C near contact is
 only as good as the fit's extrapolation, within the floor); adhesion, friction and the
 plate's deformation at contact are not modelled; a plate driven by a force larger than

@@ -150,7 +150,12 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     t0 = d.temperature if d else 300.0
     if not (d and d.squeeze_film):
         return {}
-    gaps = [e.gap for e in s.electrode_sets if getattr(e, "side", None) in GAP_SIDES]
+    # the film's gap: to a dielectric layer's surface (netgen.mechanics.damping.squeeze_film_damping)
+    gaps = [
+        e.gap - getattr(e, "dielectric_thickness", 0.0)
+        for e in s.electrode_sets
+        if getattr(e, "side", None) in GAP_SIDES
+    ]
     gap = min(gaps)
     lo, hi = (v + KELVIN for v in temp_range_c)
     t = np.linspace(lo, hi, 67)

@@ -22,6 +22,8 @@ class ElectrodeSet:
     sectors: int
     sector_start: float  # rad, start angle of the first sector's centre line boundary
     slot: float  # m, width of the straight slots between sectors
+    dielectric_thickness: float = 0.0  # m, a layer on the electrodes (0: none; read_dielectric)
+    dielectric_permittivity: float = 1.0  # the layer's relative permittivity
 
     def electrode_names(self) -> list[str]:
         return [f"{self.name}_r{r + 1}s{s + 1}" for r in range(len(self.rings)) for s in range(self.sectors)]
@@ -38,6 +40,8 @@ class RectElectrode:
     x1: float
     y0: float
     y1: float
+    dielectric_thickness: float = 0.0  # m, a layer on the electrode (0: none; read_dielectric)
+    dielectric_permittivity: float = 1.0  # the layer's relative permittivity
 
     def electrode_names(self) -> list[str]:
         return [self.name]
@@ -51,6 +55,50 @@ def electrode_tables(rd: Reader, doc: dict, missing: str, fix: str, each: str) -
     if not isinstance(raw, list) or not all(isinstance(e, dict) for e in raw):
         raise rd.fail("electrodes", "electrodes must be an array of tables", f"write each {each} as [[electrodes]]")
     return raw
+
+
+DIELECTRIC_KEYS = ["dielectric_thickness", "dielectric_permittivity"]
+
+
+def read_dielectric(rd: Reader, t: dict, where: str, gap: float) -> tuple[float, float]:
+    """dielectric_thickness and dielectric_permittivity of a layer on the electrode (a nitride or
+    oxide): both or neither, 0 <= thickness < gap (the mass stops on the layer), permittivity >= 1.
+    Without them: (0, 1), no layer."""
+    given = [k for k in DIELECTRIC_KEYS if k in t]
+    if not given:
+        return 0.0, 1.0
+    if len(given) == 1:
+        other = DIELECTRIC_KEYS[1 - DIELECTRIC_KEYS.index(given[0])]
+        raise rd.fail(
+            f"{where}.{other}",
+            f"{given[0]} is given without {other}: a dielectric layer needs both",
+            'write both, e.g. dielectric_thickness = "0.2 um" and dielectric_permittivity = 7.5 (nitride), or neither',
+        )
+    thickness = quantity(
+        rd,
+        t,
+        where,
+        "dielectric_thickness",
+        "length",
+        check=nonnegative,
+        what="thickness of the layer on the electrode",
+    )
+    if thickness >= gap:
+        raise rd.fail(
+            f"{where}.dielectric_thickness",
+            f"dielectric_thickness {thickness:g} m fills the gap {gap:g} m (the layer lies inside the gap)",
+            f"give a thickness below the gap ({gap:g} m), or check the unit",
+        )
+    eps_r = quantity(
+        rd,
+        t,
+        where,
+        "dielectric_permittivity",
+        "dimensionless",
+        check=lambda v: None if v >= 1 else "must be >= 1 (relative permittivity: 7.5 for nitride, 3.9 for oxide)",
+        what="relative permittivity of the layer",
+    )
+    return thickness, eps_r
 
 
 def unique_name(
@@ -125,7 +173,7 @@ def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
     names: set[str] = set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
-        check_keys(rd, where, t, ["name", "side", "gap", "rings", "sectors", "sector_start", "slot"])
+        check_keys(rd, where, t, ["name", "side", "gap", "rings", "sectors", "sector_start", "slot", *DIELECTRIC_KEYS])
         name = unique_name(
             rd,
             t,
@@ -159,7 +207,7 @@ def ring_sets(rd: Reader, doc: dict, radius: float) -> tuple[ElectrodeSet, ...]:
                     f"slot {slot:g} m swallows the ring [{r_in:g}, {r_out:g}] m",
                     "narrow the slot or widen the ring",
                 )
-        sets.append(ElectrodeSet(name, side, gap, ring_list, sectors, start, slot))
+        sets.append(ElectrodeSet(name, side, gap, ring_list, sectors, start, slot, *read_dielectric(rd, t, where, gap)))
     return tuple(sets)
 
 
@@ -212,7 +260,7 @@ def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]
     names: set[str] = set()
     for i, t in enumerate(raw):
         where = f"electrodes[{i}]"
-        check_keys(rd, where, t, ["name", "side", "gap", "x", "y"])
+        check_keys(rd, where, t, ["name", "side", "gap", "x", "y", *DIELECTRIC_KEYS])
         name = unique_name(
             rd,
             t,
@@ -235,7 +283,7 @@ def rectangles(rd: Reader, doc: dict, outline: tuple[float, float, float, float]
                     f"electrode {name!r} overlaps {prev.name!r} on the same side ({side})",
                     "make the rectangles disjoint or merge them",
                 )
-        out.append(RectElectrode(name, side, gap, a, b, c, d))
+        out.append(RectElectrode(name, side, gap, a, b, c, d, *read_dielectric(rd, t, where, gap)))
     if not out:
         raise rd.fail("[[electrodes]]", "no electrodes", "add at least one [[electrodes]] table")
     return tuple(out)
@@ -381,7 +429,7 @@ def rectangle_table(
 ) -> RectElectrode:
     """One rectangular plate electrode's table, refused if it overlaps an earlier one on its side."""
     x0, x1, y0, y1 = outline
-    check_keys(rd, where, t, ["name", "kind", "side", "gap", "x", "y"])
+    check_keys(rd, where, t, ["name", "kind", "side", "gap", "x", "y", *DIELECTRIC_KEYS])
     side = choice(rd, t, where, "side", ["above", "below"], default="below")
     gap = quantity(rd, t, where, "gap", "length", check=positive, what="gap between conductor and electrode")
     a, b = span(rd, t, where, "x", x0, x1)
@@ -400,7 +448,7 @@ def rectangle_table(
                 f"electrode {name!r} overlaps {prev.name!r} on the same side ({side})",
                 "make the rectangles disjoint or merge them",
             )
-    return RectElectrode(name, side, gap, a, b, c, d)
+    return RectElectrode(name, side, gap, a, b, c, d, *read_dielectric(rd, t, where, gap))
 
 
 def plates_and_combs(rd: Reader, doc: dict, outline: tuple[float, float, float, float], thickness: float) -> tuple:

@@ -38,6 +38,7 @@ def check(rd: Reader, conductor: object, sets: tuple, electrostatics: object) ->
                 "per unit edge length holds (a negative fringe removes capacitance)",
                 f'give {key} in {lo:g}..{hi:g} (default {0.42 if key == "fringe_a" else 1.0}), or fringe = "none"',
             )
+    dielectric(rd, sets, electrostatics)
     size = lateral_size(conductor)
     if size is None:
         return ()
@@ -80,3 +81,18 @@ def comb(rd: Reader, where: str, s: CombElectrode, size: float) -> None:
             f"{reach:g} m (mass size + finger length): its fingers cannot touch the mass",
             f"place the comb at the mass's edge (within {reach:g} m of its centre)",
         )
+
+
+def dielectric(rd: Reader, sets: tuple, electrostatics: object) -> None:
+    """A dielectric layer on an electrode is modelled by the parallel-plate extractor only (its
+    series gap, netgen.electrostatics.parallel_plate); the field solvers do not mesh it yet."""
+    extractor = getattr(electrostatics, "extractor", "parallel_plate")
+    if extractor == "parallel_plate":
+        return
+    for i, s in enumerate(sets):
+        if getattr(s, "dielectric_thickness", 0.0) > 0.0:
+            raise rd.fail(
+                f"electrodes[{i}].dielectric_thickness",
+                f"extractor = {extractor!r} does not model a dielectric layer on the electrodes (yet)",
+                'use extractor = "parallel_plate" (the layer as a series gap), or drop the layer',
+            )

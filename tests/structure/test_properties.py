@@ -182,6 +182,7 @@ def invalid_docs(draw) -> str:
                 "duplicate_set",
                 "wrong_type",
                 "mode_label",
+                "dielectric",
             ]
         )
     )
@@ -250,6 +251,23 @@ def invalid_docs(draw) -> str:
             )
         )
         _get(doc, table)[key] = draw(st.sampled_from(["three", 2.5, True, [3], -4, 10**9]))
+    elif kind == "dielectric":  # a layer on an electrode set: one key alone, or out of range
+        layer = draw(
+            st.sampled_from(
+                [
+                    {"dielectric_thickness": "0.2 um"},
+                    {"dielectric_permittivity": 7.5},
+                    {"dielectric_thickness": "3 um", "dielectric_permittivity": 7.5},  # = gap
+                    {"dielectric_thickness": "5 um", "dielectric_permittivity": 3.9},
+                    {"dielectric_thickness": "-0.1 um", "dielectric_permittivity": 7.5},
+                    {"dielectric_thickness": "0.2 um", "dielectric_permittivity": 0.5},
+                    {"dielectric_thickness": "0.2 um", "dielectric_permittivity": "7.5 um"},
+                    {"dielectric_thickness": "0.2 kg", "dielectric_permittivity": 7.5},
+                    {"dielectric_thickness": "nan um", "dielectric_permittivity": 7.5},
+                ]
+            )
+        )
+        doc["electrodes"][draw(st.integers(0, 1))].update(layer)
     elif kind == "mode_label":
         doc["coordinates"]["modes"] = [draw(st.sampled_from(["2,0", "0,1c", "x", "2;0c", "9,0c", "2,9c"]))]
     return toml_text(doc)
