@@ -23,6 +23,7 @@ PACKAGE = "netgen_test_oracles"  # the name the oracles package gets here (tests
 MODULES = (
     "bem_reduced",
     "closed_forms",
+    "gyro_reference",
     "lateral_comb",
     "process_mc",
     "sc_readout",

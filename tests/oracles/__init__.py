@@ -1,6 +1,7 @@
 """Test oracles: the independent references the tests and the bench scripts measure the package
 against, kept out of the installed package. closed_forms: capacitances in closed form;
-sigma_delta_reference: the numpy sigma-delta loop; bem_reduced: the reduced BEM problem;
+sigma_delta_reference: the numpy sigma-delta loop; gyro_reference: the gyroscope's sense loop and its
+noise reading; bem_reduced: the reduced BEM problem;
 lateral_comb: the comb of the comb tests and its pull-in readings; testbench: the simulator
 benches (ngspice releases, PULSE drives, a bench around one instance, the solve_ivp transient);
 va_scan: the scan of Verilog-A text for the openvaf-r miscompile. Imports of the package inside

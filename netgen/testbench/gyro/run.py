@@ -75,7 +75,37 @@ def check_model(model: MacroModel, spec: LoopSpec) -> None:
 def sense_design(model: MacroModel, spec: LoopSpec, req: GyroRequest) -> Design:
     """The sigma-delta design of the sense loop (loop.design through the sigma-delta back end's checks)."""
     check_model(model, spec)
-    return backend_design(model, req.ts, spec, None, req.simulator, Choices())
+    d = backend_design(model, req.ts, spec, None, req.simulator, Choices())
+    check_request(model, spec, req, d)
+    return d
+
+
+def check_request(model: MacroModel, spec: LoopSpec, req: GyroRequest, d: Design) -> None:
+    """The drive amplitude inside the model's sampled travel of x (beyond it the fits extrapolate)
+    and the rate inside the full scale F_fb / (2 m X_d w_d) (beyond it the bits saturate): else
+    LoopError (exit 2) naming the option and the fix."""
+    c = coordinate(model, DRIVE)
+    travel = float(model.sampling.get("range", 1.0)) * c.scale
+    if req.drive_amplitude > travel:
+        raise LoopError(
+            spec.source,
+            "--drive-amplitude",
+            f"the drive amplitude {req.drive_amplitude * 1e6:.4g} um is beyond the model's sampled travel of x, "
+            f"+-{travel * 1e6:.4g} um ([sampling] range {model.sampling.get('range')} of {c.scale * 1e6:.4g} um): "
+            "the fits would extrapolate",
+            f"give --drive-amplitude at most {travel * 1e6:.4g} um, or widen [sampling] range in the structure",
+        )
+    full_scale = d.channels[0]["full_scale_force_si"] / (
+        2 * c.mass * req.drive_amplitude * math.sqrt(c.stiffness / c.mass)
+    )
+    if not req.rate_points and abs(req.rate_deg_s * analysis.DEG) > full_scale:
+        raise LoopError(
+            spec.source,
+            "--rate",
+            f"the rate {req.rate_deg_s:.6g} deg/s is beyond the full scale {full_scale / analysis.DEG:.6g} deg/s "
+            f"at the {req.drive_amplitude * 1e6:.4g} um drive: the sense bits would saturate",
+            f"give |--rate| below {full_scale / analysis.DEG:.6g} deg/s, or a smaller --drive-amplitude",
+        )
 
 
 def drive_expression(model: MacroModel, amplitude: float, gain: float) -> str:
