@@ -75,6 +75,12 @@ class Design:
     t: Timing = field(default_factory=Timing)
     cs: float = 1e-12
     reltol: float = 1e-3
+    # ngspice's absolute tolerances (None: its defaults, abstol 1e-12 A and vntol 1e-6 V, which are
+    # near the loop's own signals: the charge amplifier's node moves by ~1e-5 V per period). The
+    # FMU loop's reference runs set 1e-20 and 1e-14 with reltol 1e-6 (docs/fmu.md); the ngspice
+    # templates only, not VACASK
+    abstol: float | None = None
+    vntol: float | None = None
     tmax: float = 0.05
     # (the compiled loop, netgen_sdloop, needs no time point inside a window; there tmax is set by
     # the plate modes: at 0.1 T_s the (3,0) modes drift 3 % of their peak from an independent
