@@ -19,7 +19,7 @@ from pathlib import Path
 
 from support import ROOT
 
-from netgen.build import assemble
+from netgen.build import Sampled, assemble
 from netgen.electrostatics import extractor
 from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout
 from netgen.emit.ngspice import subcircuit
@@ -56,7 +56,9 @@ def run_once(path: Path) -> dict[str, float]:
     grid = timed(f"grid samples ({s.sampling.levels}^{len(scales)})", sample_grid, s, prepared, scales)
     held = timed(f"held-out samples ({s.fit.holdout})", sample_holdout, s, prepared, scales)
     fits = timed(f"fits ({len(shapes)} electrodes, {s.fit.target})", fit_all, s, shapes, m.basis, scales, grid, held)
-    model = timed("assemble MacroModel", assemble, s, m, plate, shapes, ext, prepared, scales, grid, held, fits)
+    model = timed(
+        "assemble MacroModel", assemble, s, m, plate, shapes, ext, prepared, scales, Sampled(grid, held, fits)
+    )
     timed("emit ngspice .lib", subcircuit, model)
     timed("JSON text", model.json_text)
     return times

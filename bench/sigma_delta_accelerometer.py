@@ -46,10 +46,11 @@ def one(args: tuple) -> dict:
     loop = sd.read_structure_loop(STRUCTURE)
     tone = None
     check = True
+    volts = loopfile.LoopSettings.of(loop.settings.given() | {"feedback_voltage": vfb})
     if kind == "dc":
-        loop = replace(loop, feedback_voltage=vfb, input=loopfile.InputSpec({"a_in": a}, None, default=False))
+        loop = replace(loop, settings=volts, input=loopfile.InputSpec({"a_in": a}, None, default=False))
     elif kind == "tone":
-        loop = replace(loop, feedback_voltage=vfb, input=loopfile.InputSpec({"a_in": 0.0}, None, default=False))
+        loop = replace(loop, settings=volts, input=loopfile.InputSpec({"a_in": 0.0}, None, default=False))
         tone, check = sd.Tone("a_in", a, freq), False  # past full scale: measure, do not refuse
     # check False: an under-designed loop built anyway (to see how a lost plate is reported)
     step = simulator in ("ngspice-xspice", "vacask")  # runner.STEP_BACKENDS

@@ -29,6 +29,7 @@ import hashlib
 import io
 import os
 import platform
+import re
 import shlex
 import shutil
 import subprocess
@@ -341,8 +342,11 @@ def context(model: MacroModel) -> dict:
 
 
 def guid(text: str) -> str:
-    """A GUID from the hash of the model's C data (one model, one GUID)."""
-    h = hashlib.sha256(text.encode()).hexdigest()
+    """A GUID from the hash of the model's C code without its comments (one model, one GUID; the
+    free text a structure file carries into the comments never reaches the code, not even as a hash)."""
+    code = re.sub(r"//[^\n]*", "", re.sub(r"/\*.*?\*/", "", text, flags=re.S))
+    lines = "\n".join(ln.rstrip() for ln in code.split("\n") if ln.strip())
+    h = hashlib.sha256(lines.encode()).hexdigest()
     return f"{{{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:32]}}}"
 
 

@@ -120,7 +120,7 @@ def spice_code(text: str) -> list[str]:
 
 
 def c_code(text: str) -> list[str]:
-    """Verilog-A / VACASK text without // and /* */ comments (outside "strings"), by line."""
+    """Verilog-A / VACASK / C text without // and /* */ comments (outside "strings"), by line."""
     out, i, n, string = [], 0, len(text), False
     while i < n:
         ch = text[i]
@@ -143,8 +143,8 @@ def c_code(text: str) -> list[str]:
 
 
 def code(name: str, text: str) -> list[str]:
-    """The code lines of an emitted file, by its dialect (.va and VACASK: C-like comments)."""
-    return c_code(text) if name.endswith((".va", ".sim")) else spice_code(text)
+    """The code lines of an emitted file, by its dialect (.va, VACASK and the FMU's C: C-like comments)."""
+    return c_code(text) if name.endswith((".va", ".sim", ".c")) else spice_code(text)
 
 
 def printable(text: str) -> bool:
