@@ -13,6 +13,7 @@ from .validate import FIX, Checker
 
 MAX_EXPONENT = 24  # a fit's degree is at most 8 per coordinate ([fit] degree); 24 leaves room
 MAX_TERMS = 100_000  # monomials in one polynomial
+MAX_COEFF = 1e6  # |coefficient| of a fit in scaled coordinates; the examples reach 21
 SIDES = ("above", "below", "in_plane")
 
 # (list, field, low, low allowed, high, meaning and fix); list "" = the document itself
@@ -59,6 +60,8 @@ def check(c: Checker, d: dict) -> None:
             c.fail(f"capacitances[{e}].terms", "must be a non-empty list of polynomials", FIX)
         for t, term in enumerate(terms):
             polynomial(c, f"capacitances[{e}].terms[{t}]", term, ncoords)
+            if fit.get("target") == "plates":
+                plate_at_rest(c, f"capacitances[{e}].terms[{t}]", term)
     contact = d.get("contact") or {}
     if not isinstance(contact, dict):
         c.fail("contact", "must be an object (empty: no contact model)", FIX)
@@ -114,6 +117,24 @@ def polynomial(c: Checker, where: str, term: Any, ncoords: int) -> None:
         c.fail(f"{where}.coeffs", f"{n} coefficients for {len(exps)} exponent rows", "one per row; " + FIX)
     for k, x in enumerate(coeffs):
         c.number(f"{where}.coeffs[{k}]", x)
+        if abs(x) > MAX_COEFF:
+            c.fail(
+                f"{where}.coeffs[{k}]",
+                f"{x:g} is beyond {MAX_COEFF:g}: a fit of scaled coordinates (|q| <= 1) has no such term",
+                FIX,
+            )
+
+
+def plate_term_at_rest(term: dict) -> float:
+    """P(0) of a plate term: the sum of its constant rows' coefficients."""
+    return sum(x for row, x in zip(term["exponents"], term["coeffs"]) if not any(row))
+
+
+def plate_at_rest(c: Checker, where: str, term: dict) -> None:
+    """A plate term's gap polynomial P is positive at rest (1/P is its capacitance share)."""
+    p0 = plate_term_at_rest(term)
+    if not p0 > 0.0:
+        c.fail(f"{where}.coeffs", f"the plate term's P at rest is {p0:g}, not > 0 (1/P would be infinite)", FIX)
 
 
 def points(c: Checker, contact: dict, ncoords: int) -> None:
