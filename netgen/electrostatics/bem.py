@@ -324,6 +324,22 @@ def converged(
     return MaxwellMatrix(tuple(names), best, sols[-2], err, record)
 
 
+def central_differences(
+    Q: ArrayLike, step: Array, nel: int, solve_at: Callable[[Array], Callable[[Array], MaxwellMatrix]]
+) -> Array:
+    """dC_i/dq_v (nsamples, nel, ncoords) by central differences of Maxwell solves; `solve_at(row)`
+    is the solve for one sample's neighbours (the field solvers' gradient: BEM and FastCap)."""
+    q = np.atleast_2d(np.asarray(Q, dtype=float))
+    out = np.empty((q.shape[0], nel, len(step)))
+    for i, row in enumerate(q):
+        solve = solve_at(row)
+        for v in range(len(step)):
+            dq = np.zeros(len(step))
+            dq[v] = step[v]
+            out[i, :, v] = (solve(row + dq).plate_electrode - solve(row - dq).plate_electrode) / (2 * step[v])
+    return out[0] if np.ndim(Q) == 1 else out
+
+
 @dataclass(frozen=True)
 class _Level:
     """One mesh level of a prepared structure: the undeformed plate, its basis at the plate
@@ -461,20 +477,16 @@ class PreparedBem:
 
     def gradient(self, Q: ArrayLike) -> Array:
         """dC_i/dq_v (nsamples, nelectrodes, ncoords) by central differences of BEM solves on the
-        same meshes (a step closing 1 % of the smallest gap)."""
-        q = np.atleast_2d(np.asarray(Q, dtype=float))
+        same meshes (a step closing 1 % of the smallest gap), each sample's quadrature order fixed."""
         amp = np.abs(self.geometry.probe.phi).max(axis=0)
         step = 0.01 * self.gap / np.where(amp > 0, amp, 1.0)
-        out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
-        for i, row in enumerate(q):
-            h_max = self.settings.sizes(self.gap, 0, self.plate_size).h_max
+        h_max = self.settings.sizes(self.gap, 0, self.plate_size).h_max
+
+        def solve_at(row: Array) -> Callable[[Array], MaxwellMatrix]:
             order = self.settings.quadrature_order or quadrature_order(h_max / min(self.local_gap(row), self.gap))
-            for v in range(self.ncoords):
-                dq = np.zeros(self.ncoords)
-                dq[v] = step[v]
-                plus, minus = self.maxwell(row + dq, order), self.maxwell(row - dq, order)
-                out[i, :, v] = (plus.plate_electrode - minus.plate_electrode) / (2 * step[v])
-        return out[0] if np.ndim(Q) == 1 else out
+            return lambda x: self.maxwell(x, order)
+
+        return central_differences(Q, step, len(self.electrodes), solve_at)
 
     def min_gap(self, Q: ArrayLike) -> Array:
         """Smallest local gap under each electrode (the parallel-plate geometry's)."""

@@ -27,7 +27,7 @@ from ..core.constants import EPS0
 from ..core.errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import ProbePoints
-from .bem import MaxwellMatrix, extrapolate, relative_change
+from .bem import MaxwellMatrix, central_differences, extrapolate, relative_change
 from .bem_mesh import Sizes
 from .fastcap_mesh import Panels, electrode_panels, plate_panels
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
@@ -226,17 +226,9 @@ class PreparedFastcap:
 
     def gradient(self, Q: ArrayLike) -> Array:
         """dC_i/dq_v by central differences of solves on the same panels (a step closing 2 % of the gap)."""
-        q = np.atleast_2d(np.asarray(Q, dtype=float))
         amp = np.abs(self.geometry.probe.phi).max(axis=0)
         step = 0.02 * self.gap / np.where(amp > 0, amp, 1.0)
-        out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
-        for i, row in enumerate(q):
-            for v in range(self.ncoords):
-                dq = np.zeros(self.ncoords)
-                dq[v] = step[v]
-                plus, minus = self.maxwell(row + dq), self.maxwell(row - dq)
-                out[i, :, v] = (plus.plate_electrode - minus.plate_electrode) / (2 * step[v])
-        return out[0] if np.ndim(Q) == 1 else out
+        return central_differences(Q, step, len(self.electrodes), lambda row: self.maxwell)
 
     def min_gap(self, Q: ArrayLike) -> Array:
         """Smallest local gap under each electrode (the parallel-plate geometry's)."""
