@@ -266,7 +266,7 @@ class FastcapExtractor:
         st = self.settings
         return (
             f"multipole panels (FastCap2, quads, {max(2, st.levels)} mesh levels + Richardson order "
-            f"{'observed' if st.levels >= 3 else format(st.richardson_order, 'g')}): "
+            f"{'observed, else ' if st.levels >= 3 else ''}{st.richardson_order:g}): "
             f"edge_to_gap {st.edge_to_gap:g}, element_to_gap {st.element_to_gap:g}, refinement "
             f"{st.refinement:.3g}, expansion order {st.expansion_order} (check {st.check_order}), "
             f"memory budget {st.memory_budget / 1e9:g} GB"
