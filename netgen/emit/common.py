@@ -184,7 +184,18 @@ def header_context(model: MacroModel) -> dict:
         "tie_text": tie_text,
         "fit_warning": model.fit_warning(),
         "damping_text": damping_text(model),
-    }
+    } | box_texts(model)
+
+
+def box_texts(model: MacroModel) -> dict:
+    """The sampled box in the header: one half-width for every coordinate, or each coordinate's own
+    (a [sampling] range table; the JSON's sampling.coordinate_range)."""
+    r, per = model.sampling["range"], model.sampling.get("coordinate_range")
+    if not per:
+        return {"box_text": f"{r * 100} %", "keep_text": f"|xs| below {r}"}
+    pct = ", ".join(f"{n} {v * 100:.4g} %" for n, v in per.items())
+    each = ", ".join(f"{n} {v:.4g}" for n, v in per.items())
+    return {"box_text": f"({pct})", "keep_text": f"each |xs| within its own half-width ({each})"}
 
 
 def layer_text(model: MacroModel) -> str:

@@ -134,7 +134,7 @@ TEMPLATE = "ngspice/subckt.lib.j2"
 
 def mechanics_context(model: MacroModel, noise: bool | None, gaps: bool = True) -> dict:
     """Template context of every part of the .lib but the electrostatics: the header tables, the
-    integrators of each coordinate, thermal noise, stress stiffening, film branches and inertial
+    integrators of each coordinate, thermal noise, strain-energy forces, film branches and inertial
     loads (shared with netgen.emit.xspice)."""
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]

@@ -107,6 +107,12 @@ def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) 
             c.number(f"sampling.{key}", d["sampling"][key], integer=True)
     if "range" in d["sampling"]:
         c.number("sampling.range", d["sampling"]["range"])
+    per = d["sampling"].get("coordinate_range", {})  # printed in the headers: names and numbers only
+    if not isinstance(per, dict):
+        c.fail("sampling.coordinate_range", "must be an object {coordinate: half-width}")
+    for name, value in per.items():
+        c.name("sampling.coordinate_range", name)
+        c.number(f"sampling.coordinate_range.{name}", value)
 
 
 def check_names(c: Checker, d: dict) -> None:

@@ -123,6 +123,10 @@ class Sampling:
     points: int = 0  # lhs / sobol size, adaptive budget (0 before the parser's default)
     seed: int = 1
     range_given: bool = True
+    ranges: tuple[tuple[str, float], ...] = ()  # per-coordinate ranges (name or "*"); `range` is their largest
+    factors: tuple[
+        float, ...
+    ] = ()  # each coordinate's range / `range`, in coordinate order (netgen.build.resolve_ranges)
 
 
 @dataclass(frozen=True)
