@@ -13,8 +13,8 @@ Tolerances:
   error (f ~ sqrt(k): a relative k error e gives e / 2 in f), whichever is larger.
 - with tscale as well, the law is the product of the tscale and etch laws; at the corners of the
   box its misfit is part of the stated error, so the stiffness there is held to that error.
-- .ac of the .lib (a linear model, 1/H = k - m w^2): ngspice's linear solve to 1e-9, then the law
-  against the re-run as above.
+- .ac of the .lib, the _xspice.lib and the .va through OSDI (a linear model, 1/H = k - m w^2):
+  ngspice's linear solve to round-off, 1e-9, against the clamped-guided closed form (exact law).
 """
 
 from __future__ import annotations
@@ -24,13 +24,16 @@ import math
 import numpy as np
 import pytest
 
+from netgen import emit
 from netgen.build import build_model
+from netgen.core.errors import StructureError
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
 from netgen.model.process import coordinate_values, process_laws
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
-from netgen.core.errors import StructureError
+from netgen.testbench.sigma_delta import ngspice as sdn
+from tests.fixtures import NGSPICE
 from tests.model.test_process import PROOF
 
 ETCHES = (-0.2e-6, 0.1e-6, 0.3e-6)  # m: three values across etch_range
@@ -162,6 +165,59 @@ X1 0 0 fz xz cg etch={etch!r}
     plot = run_ngspice(net, tmp_path)[0]
     w = 2 * np.pi * np.real(plot["frequency"])
     inv = 1.0 / plot["v(xz)"]  # x_z in um per uN = m/N: 1/H in N/m
+    (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
+    assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
+    assert m == pytest.approx(c.mass, rel=1e-9)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_osdi_ac_with_etch(guided_model, tmp_path, monkeypatch, etch):
+    """The same through the .va compiled by openvaf-r (`--format osdi`) in ngspice 46."""
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    c = guided_model.coordinates[0]
+    emit.write_outputs(guided_model, tmp_path, "osdi")
+    net = f"""* ac osdi
+.include {tmp_path / "cg_osdi.lib"}
+Vf fz 0 DC 0 AC 1
+X1 0 0 fz xz cg etch={etch!r}
+.ac lin 3 1k 30k
+.control
+pre_osdi {tmp_path / "cg.osdi"}
+set num_threads=1
+run
+write circuit.raw
+.endc
+.end
+"""
+    plot = run_ngspice(net, tmp_path / "run")[0]
+    w = 2 * np.pi * np.real(plot["frequency"])
+    inv = 1.0 / plot["v(xz)"]
+    (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
+    assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
+    assert m == pytest.approx(c.mass, rel=1e-9)
+
+
+@pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
+def test_xspice_ac_with_etch(guided_model, tmp_path, etch):
+    """The same through the _xspice.lib (netgen_es code model, ngspice 39 as installed)."""
+    c = guided_model.coordinates[0]
+    xlib, control = sdn.xspice_library(guided_model, tmp_path, sdn.code_models(False))
+    lines = "\n".join(control)
+    net = f"""* ac xspice
+.include {xlib.resolve()}
+Vf fz 0 DC 0 AC 1
+X1 0 0 fz xz cg etch={etch!r}
+.ac lin 3 1k 30k
+.control
+{lines}
+run
+write ac.raw
+.endc
+.end
+"""
+    plot = run_ngspice(net, tmp_path)[0]
+    w = 2 * np.pi * np.real(plot["frequency"])
+    inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
     assert m == pytest.approx(c.mass, rel=1e-9)
