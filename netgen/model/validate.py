@@ -297,11 +297,12 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
     c.number("process.tscale.max_rel_error", process["tscale"].get("max_rel_error"))
     if "etch" in params:
         etch = process.get("etch")
-        rng = etch.get("range_m") if isinstance(etch, dict) else None
-        if not isinstance(rng, list) or len(rng) != 2:
+        if not isinstance(etch, dict) or not isinstance(etch.get("range_m"), list) or len(etch["range_m"]) != 2:
             c.fail("process.etch.range_m", "must be a list of 2 numbers")
-        for k, x in enumerate([*rng, etch.get("max_rel_error"), etch.get("unetched_area_rel")]):
-            c.number(f"process.etch.{['range_m[0]', 'range_m[1]', 'max_rel_error', 'unetched_area_rel'][k]}", x)
+        for k, x in enumerate(etch["range_m"]):
+            c.number(f"process.etch.range_m[{k}]", x)
+        for key in ("max_rel_error", "unetched_area_rel"):
+            c.number(f"process.etch.{key}", etch.get(key))
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))
