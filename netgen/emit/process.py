@@ -168,6 +168,23 @@ def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list
     return [f"I{name}_dg 0 {name} {{{num(c * shift[1])}*dg_{shift[0]}}}"] if c else []
 
 
+def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
+    """Per contact stop point the text its penetration p_j = a_j . xs - 1 gains from its electrode's
+    gap offset: moving the set away by dg deepens every local gap by dg, so p_j - dg / gap_j (the
+    stop follows the electrode; netgen.model.contact). ngspice text in braces (numparam), Verilog-A
+    plain; None without gap offsets (the expressions unchanged)."""
+    shifts = gap_shifts(model)
+    points = model.contact.get("points", [])
+    if not shifts or not points:
+        return None
+    out = []
+    for pt in points:
+        shift = shifts.get(pt["electrode"])
+        term = f"{num(1.0 / pt['gap'])}*dg_{shift[0]}" if shift else ""
+        out.append(f" - {{{term}}}" if shift and braces else f" - {term}" if shift else "")
+    return out
+
+
 def gap_networks(model: MacroModel) -> list[str]:
     """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (1 ohm,
     a VCCS, a parameter current source: linear, nothing to differentiate)."""
