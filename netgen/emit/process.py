@@ -185,15 +185,16 @@ def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
     return out
 
 
-def gap_networks(model: MacroModel) -> list[str]:
-    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (1 ohm,
-    a VCCS, a parameter current source: linear, nothing to differentiate)."""
+def gap_networks(model: MacroModel, every: bool = False) -> list[str]:
+    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (`every`:
+    of every gap set, the code model's extra state columns, netgen.emit.xspice) (1 ohm, a VCCS, a
+    parameter current source: linear, nothing to differentiate)."""
     if not enabled(model):
         return []
     scale = {c.name: c.scale for c in model.coordinates}.get("z")
     lines = []
     for g in model.process["gaps"]:
-        if g["set"] not in node_sets(model):
+        if not every and g["set"] not in node_sets(model):
             continue
         n = f"xg_{g['set']}"
         lines += [
