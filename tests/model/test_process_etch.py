@@ -105,6 +105,21 @@ def test_clamped_guided_against_closed_form(guided_laws, etch):
     assert law["etch"]["max_rel_error"] < 1e-9
 
 
+@pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
+def test_full_rebuild_at_the_etched_widths(guided_model, etch):
+    """The whole build of the file rewritten at w - 2 etch: its modal frequency against the law's
+    (exact law: 1e-9 as above) and its capacitances at 100 points of the fit box against the
+    nominal model's (the plates are not etched) within the larger fit error."""
+    model = build_model(parse_structure(guided(w=2.0 - 2 * etch * 1e6), "cg.toml"))
+    c, ref = guided_model.coordinates[0], model.coordinates[0]
+    m, k, _ = coordinate_values(guided_model.process, 0, etch=etch)
+    assert math.sqrt(k / m) == pytest.approx(math.sqrt(ref.stiffness / ref.mass), rel=1e-9)
+    q = np.random.default_rng(7).uniform(-0.2, 0.2, (100, 1))
+    errs = [f.max_rel_error for f in guided_model.capacitances + model.capacitances]
+    assert ref.scale == c.scale  # the same touching amplitude: the same scaled points
+    np.testing.assert_allclose(guided_model.capacitance(q), model.capacitance(q), rtol=max(errs))
+
+
 def proof_text(t: float = 10.0, width: float = 3.0, truss: float = 10.0, params: str = '["etch"]') -> str:
     """PROOF (tests/model/test_process.py) at thickness t with its beam and truss widths rewritten,
     without damping."""
