@@ -33,7 +33,7 @@ from netgen.model.process import coordinate_values, process_laws
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.fixtures import NGSPICE
+from tests.fixtures import NGSPICE, ROOT
 from tests.model.test_process import PROOF
 
 ETCHES = (-0.2e-6, 0.1e-6, 0.3e-6)  # m: three values across etch_range
@@ -251,3 +251,16 @@ def test_bad_etch_tables(process, key):
     with pytest.raises(StructureError) as exc:
         parse_structure(guided(process="[process]\n" + process), "cg.toml")
     assert key in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("example", "reason"),
+    [("piston_process.toml", "needs a proof mass with a flexure"), ("gyroscope_z.toml", "comb fingers")],
+)
+def test_etch_refused_without_beams_or_with_combs(example, reason):
+    """A piston (no flexure beams) and the gyroscope (comb fingers): exit 2 at process.parameters."""
+    text = (ROOT / "examples" / example).read_text()
+    text = text.split("[process]")[0] + '[process]\nparameters = ["etch"]\n'
+    with pytest.raises(StructureError) as exc:
+        parse_structure(text, example)
+    assert "process.parameters" in str(exc.value) and reason in str(exc.value)
