@@ -149,7 +149,8 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     )
     imported = bool(structure.imports and structure.imports.modes)
     t0_c = (structure.damping.temperature if structure.damping else 300.0) - 273.15
-    check_process(rd, structure.process, conductor.coordinate_names(coords) or list(coords.rigid), sets, imported, t0_c)
+    names = conductor.coordinate_names(coords) or list(coords.rigid)
+    check_process(rd, structure.process, names, sets, imported, t0_c, conductor)
     return structure
 
 
