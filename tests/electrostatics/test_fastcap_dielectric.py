@@ -33,8 +33,9 @@ from netgen.core.constants import EPS0  # noqa: E402
 from netgen.core.errors import StructureError  # noqa: E402
 from netgen.electrostatics import fastcap  # noqa: E402
 from netgen.electrostatics.bem_mesh import Sizes  # noqa: E402
+from netgen.electrostatics.bem_sampling import key_of  # noqa: E402
 from netgen.electrostatics.fastcap_mesh import Layered, Panels, layered_panels, outlines, rect_panels  # noqa: E402
-from netgen.geometry.shapes import AnnularSector, Electrode, Rectangle  # noqa: E402
+from netgen.geometry.shapes import AnnularSector, Electrode, Rectangle, RectPlate  # noqa: E402
 from netgen.structure import parse_structure  # noqa: E402
 from tests.fixtures import ROOT  # noqa: E402
 
@@ -134,3 +135,22 @@ def test_structure_admits_a_layer_for_fastcap_only():
     assert s.electrode_sets[0].dielectric_thickness == pytest.approx(T_D)
     with pytest.raises(StructureError, match="dielectric_thickness"):
         parse_structure(layered_piston("bem"), "piston_nitride.toml")
+
+
+def layered_prepared(eps_r: float):
+    """The multipole extractor prepared on a 40 um piston over a layered electrode (no solve)."""
+    h = 20 * UM
+    e = Electrode(Rectangle("d", -h, h, -h, h), "below", G, "d", T_D, eps_r)
+    return fastcap.FastcapExtractor().prepare([e], RectPlate(-h, h, -h, h), lambda x, y: np.ones((np.size(x), 1)))
+
+
+def test_stop_on_the_layer_and_store_key():
+    """The plate stops on the layer's surface (min_gap is the air gap g - t_d - x, a plate pushed
+    into the layer reads nan without a solve), and the sample store's key changes with the
+    layer's permittivity, so a store never hands back another layer's samples."""
+    p = layered_prepared(7.5)
+    x = np.array([0.0, 0.5 * UM, 1.2 * UM])
+    assert p.min_gap(-x[:, None])[:, 0] == pytest.approx(G - T_D - x, rel=1e-12)
+    assert np.isnan(p.capacitance(np.array([[-(G - T_D) - 1e-9]]))[0, 0])
+    q = np.zeros((1, 1))
+    assert key_of(p, q) != key_of(layered_prepared(3.9), q)
