@@ -122,6 +122,8 @@ class Settings:
     # drive loop, netgen.testbench.gyro) and the node state of the run's start (the first segment's .ic)
     behavioural: tuple[tuple[str, str], ...] = ()
     start_state: tuple[tuple[str, float], ...] = ()
+    # instance parameters of the model's X line (name, value): a process point of a [process] .lib
+    instance: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,7 @@ def testbench(
         lib=spice_card(lib, settings.folder),
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
+        instance=" ".join(f"{k}={v!r}" for k, v in settings.instance),
         forces=behavioural_sources(force_sources(model, d, tone, start * d.ts), dict(settings.behavioural)),
         tone=tone,
         saves=saves,
