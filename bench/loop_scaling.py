@@ -38,6 +38,7 @@ from netgen.sim.ngspice import ngspice_path
 EXAMPLE = (ROOT / "examples/levitated_disk.toml").read_text()
 RINGS = {1: '[["20 um", "473 um"]]', 2: '[["20 um", "230 um"], ["240 um", "473 um"]]'}
 NG39 = "/usr/bin/ngspice"
+PATHS = ("osdi", "xspice", "vacask")
 SWEEP = {  # the models whose size varies along each key alone
     "coordinates": lambda r: r["layout"] == "2x4",
     "electrodes": lambda r: r["coordinates"] == 3,
@@ -112,23 +113,27 @@ def exponent(rows: list[dict], path: str, key: str, what: str = "per_iteration_k
 
 
 def figure(rows: list[dict], paths: list[str], png: Path) -> None:
-    """Instructions per iteration against coordinates, electrodes and plate terms, per path."""
+    """Instructions per iteration (top) and per period (bottom) against coordinates, electrodes and
+    plate terms, per path."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
-    for ax, key, label in zip(
-        axes, ("coordinates", "electrodes", "plate_terms"), ("coordinates", "electrodes", "plate terms")
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.6))
+    keys = (("coordinates", "coordinates"), ("electrodes", "electrodes"), ("plate_terms", "plate terms"))
+    for row, (what, ylabel) in enumerate(
+        (("per_iteration_k", "k instructions per Newton iteration"), ("per_period_m", "M instructions per period"))
     ):
-        for path in paths:
-            pts = sorted((r[key], r[path]["per_iteration_k"]) for r in rows if path in r and SWEEP[key](r))
-            ax.loglog(*zip(*pts), "o" if key == "plate_terms" else "o-", label=path)
-        ax.set_xlabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("k instructions per Newton iteration")
-    axes[0].legend()
+        for ax, (key, label) in zip(axes[row], keys):
+            for path in paths:
+                pts = sorted((r[key], r[path][what]) for r in rows if path in r and SWEEP[key](r))
+                if pts:
+                    ax.loglog(*zip(*pts), "o" if key == "plate_terms" else "o-", label=path)
+            ax.set_xlabel(label)
+            ax.grid(True, which="both", alpha=0.3)
+        axes[row][0].set_ylabel(ylabel)
+    axes[0][0].legend()
     fig.tight_layout()
     fig.savefig(png, dpi=110)
 
@@ -150,7 +155,7 @@ def main() -> int:
     ap.add_argument("--modes", default="0,1,2,3,4", help="elastic modes of the coordinate sweep (n = 3 + modes)")
     ap.add_argument("--layouts", default="1x4,2x8", help="rings x sectors per side of the electrode sweep (no modes)")
     ap.add_argument("--cycles", type=int, default=8)
-    ap.add_argument("--paths", default="osdi,xspice,vacask")
+    ap.add_argument("--paths", default=",".join(PATHS))
     args = ap.parse_args()
     paths = args.paths.split(",")
     cases = [(int(m), 2, 4) for m in args.modes.split(",") if m]
@@ -183,13 +188,14 @@ def main() -> int:
             json.dumps(rows + [r for n, r in earlier.items() if n not in {x["model"] for x in rows}], indent=1)
         )
     rows += [r for n, r in earlier.items() if n not in {x["model"] for x in rows}]
-    for path in paths:
+    shown = [p for p in PATHS if any(p in r for r in rows)]  # this run's and the earlier rows' paths
+    for path in shown:
         for what, label in (("per_iteration_k", "per iteration"), ("per_period_m", "per period")):
             fits = {k: exponent(rows, path, k, what) for k in ("coordinates", "electrodes", "plate_terms")}
             print(
                 f"{path}: instructions {label} ~ " + ", ".join(f"{k}^{b:.2f}" for k, b in fits.items() if b is not None)
             )
-    figure(rows, paths, args.out / "loop_scaling.png")
+    figure(rows, shown, args.out / "loop_scaling.png")
     print(f"wrote {args.out / 'loop_scaling.json'} and loop_scaling.png")
     return 0
 

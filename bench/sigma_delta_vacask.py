@@ -14,8 +14,8 @@ Runs the loop of `netgen sigma-delta` (netgen.testbench.sigma_delta.loop) around
                period against 99, the mechanics' error against solve_ivp 1.1 % of z's peak against 2.5 %)
   vacask-native  the same, the Verilog-A compiled for this machine's CPU (openvaf-r --target_cpu native,
                what `netgen sigma-delta --native` does)
-  vacask-fast  the same with VACASK's default corner steps (tran_fbr=0.25): 114 points per period
-               with tran_lteratio=30, z 6.9 % of its peak off solve_ivp in 48 periods (the test's bound: 6 %)
+  vacask-fast  the same with VACASK's default corner steps (tran_fbr=0.25; with tran_lteratio=10 it had
+               114 points per period and z 6.9 % of its peak off solve_ivp in 48 periods, over the test's 6 %)
   ngspice      the ngspice bench (templates/sigma_delta/tb.cir.j2 with netlists/levitated_disk.lib)
 
 each --repeat times in this process (variant order rotates per repeat), and prints per variant

@@ -205,7 +205,7 @@ def test_mechanics_match_an_independent_integration(vacask, model):
     (netgen.testbench.sigma_delta.vacask.OPTIONS) integrates to a few % of its excursion, growing as t^2.
     The ngspice benches are off by the same amount (B-source loop 3.9 % on z, 0.6 % on the (3,0)
     modes; compiled loop 3.0 % and 1.3 %; test_xspice_mechanics_match_an_independent_integration).
-    With VACASK's default corner steps (tran_fbr=0.25) z was 15 % off here (6.9 % with tran_lteratio=30);
+    With VACASK's default corner steps (tran_fbr=0.25) z was 15 % off here (6.9 % in a later run, tran_lteratio=10);
     the options before (tran_fbr=0.1 tran_lteratio=10, 50 % more time points) gave 1.1 % and 0.7 %."""
     clock = vacask["clock"]
     ref = replay(model, sd.design(model, TS), clock, REPLAY)
