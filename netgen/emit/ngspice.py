@@ -134,7 +134,7 @@ TEMPLATE = "ngspice/subckt.lib.j2"
 
 def mechanics_context(model: MacroModel, noise: bool | None, gaps: bool = True) -> dict:
     """Template context of every part of the .lib but the electrostatics: the header tables, the
-    integrators of each coordinate, thermal noise, stress stiffening, film branches and inertial
+    integrators of each coordinate, thermal noise, strain-energy forces, film branches and inertial
     loads (shared with netgen.emit.xspice)."""
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]
@@ -193,7 +193,7 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
     for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
         fstate = process.electrode_state(model, f.electrode, state)
         row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), fstate))
-    stops, per_coord = contact_terms(model)
+    stops, per_coord = contact_terms(model, offsets=process.stop_offsets(model, braces=True))
     for pt in stops:  # no penetration, no force: the ternary skips the penalty's derivative trees
         pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
     add_stops(ctx, model, stops, per_coord)

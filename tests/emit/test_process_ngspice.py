@@ -135,11 +135,11 @@ def test_process_adds_no_unknown_but_the_noise_resistors(lib):
 @pytest.mark.parametrize("tscale", [0.9, 1.1])
 def test_xspice_form_takes_the_process_parameters(lib, tmp_path, tscale):
     """The _xspice.lib (netgen_es code model, ngspice 39 as installed) carries tscale and temp too
-    (not dg: its code model reads xs_z itself): .ac gives the spring unchanged and mass and damping
+    (and dg: tests/emit/test_process_xspice.py): .ac gives the spring unchanged and mass and damping
     times tscale, to ngspice's round-off (1e-9) as for the B-source .lib."""
     _, model = lib
     xlib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
-    assert "dg_drive" not in xlib.read_text()
+    assert "dg_drive=0" in xlib.read_text()
     lines = "\n".join(control)
     net = f"""* ac
 .include {xlib.resolve()}
