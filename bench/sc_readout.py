@@ -3,7 +3,7 @@ the committed z accelerometer, per ngspice release:
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/sc_readout.py [--releases 46,39] [--periods 4096]
         [--fractions 0,0.25,-0.25,0.5,-0.5] [--scale-periods 192] [--skip 32]
-        [--reltol-periods 128] [--cost-periods 10] [--charge-periods 4096] [--out out/sc_readout]
+        [--reltol-periods 128] [--cost-periods 10] [--charge-periods 4096] [--charge-options reltol=1e-4] [--out out/sc_readout]
         [--impulse-periods 64] [--threads-periods 16] [--step-periods 64] [--start-periods 64]
         [--start-accels 0,3] [--only threads,impulse,scale,maxstep,start,held,cost,reltol,charge]
 
@@ -233,14 +233,16 @@ def integral(t: np.ndarray, y: np.ndarray, lo: float, hi: float) -> float:
 
 def charge(work: Path, model: MacroModel, args) -> None:
     """The never-reset charge amplifier (tests/oracles/sc_readout.charge_netlist) over
-    --charge-periods: the clamped model's output drift against the fixed capacitors' (and the
+    --charge-periods, at --charge-options (ngspice's defaults unless given): the clamped model's output drift against the fixed capacitors' (and the
     derived bound, sc_readout.drift_bound), and the moving model's collected charge against
     MacroModel.plate_charge along the simulated z."""
     n = args.charge_periods
     drift, quiet = {}, {}
     for sensor in ("clamped", "fixed", "moving"):
         before, start = sc.children_cpu(), time.monotonic()
-        plot = ngspice.run_ngspice(sc.charge_netlist(sensor, n), work / sensor, sensor, 6 * 3600)[0]
+        plot = ngspice.run_ngspice(sc.charge_netlist(sensor, n, args.charge_options), work / sensor, sensor, 6 * 3600)[
+            0
+        ]
         cpu, wall = sc.children_cpu() - before, time.monotonic() - start
         v = quiet[sensor] = sc.quiet(plot, n)
         points = len(plot["time"])
@@ -326,6 +328,7 @@ def main() -> None:
     p.add_argument("--cost-periods", type=int, default=10)
     p.add_argument("--out", default="out/sc_readout")
     p.add_argument("--charge-periods", type=int, default=4096)
+    p.add_argument("--charge-options", default="", help="the charge runs' .options (default: none)")
     p.add_argument("--impulse-periods", type=int, default=64)
     p.add_argument("--threads-periods", type=int, default=16)
     p.add_argument("--step-periods", type=int, default=64)
