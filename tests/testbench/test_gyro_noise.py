@@ -19,11 +19,14 @@ notch at the sense resonance shapes the noise (docs/gyroscope.md: -0.58 dB over 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
+import pytest
 from scipy import stats
 
 from netgen.build import build_model
+from netgen.emit import xspice
 from netgen.emit.ngspice import subcircuit
 from netgen.structure import load_structure
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
@@ -106,16 +109,18 @@ def test_brownian_rate_noise_floor(tmp_path):
     spec = read_structure_loop(path)
     lib = tmp_path / "g.lib"
     lib.write_text(subcircuit(model))
-    assert "TRNOISE" in lib.read_text()  # the structure's noise switch reached the netlist
+    cy = next(c for c in model.coordinates if c.name == "y")
+    b_y = math.sqrt(cy.stiffness * cy.mass) / reference.BROWNIAN_Q_Y
+    thermal = 4 * reference.K_B * TEMPERATURE * b_y  # N^2/Hz
+    for text in (lib.read_text(), xspice.subcircuit(model)):  # both ngspice paths: rms sqrt(2 k_B T b_y / dt)
+        rms = re.search(r"^Vn_y .*TRNOISE\(\{noise\*([0-9.eE+-]+)/sqrt\(noise_dt\)\}", text, re.M)
+        assert rms and float(rms.group(1)) * cy.port_units[3] == pytest.approx(math.sqrt(thermal / 2), rel=1e-12)
     s = run(model, lib, tmp_path / "run", spec, GyroRequest(cycles=BROWNIAN_CYCLES, progress=False, plots=False))
     z = np.load(tmp_path / "run" / "bitstreams.npz")
     keep = slice(BROWNIAN_CYCLES // 8, None)
     drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
     got, nu_c = reference.band_density(z["time_0"][keep], z["bits_y_0"][keep], s["ts"], drive_w, BROWNIAN_BAND_HZ)
 
-    cy = next(c for c in model.coordinates if c.name == "y")
-    b_y = math.sqrt(cy.stiffness * cy.mass) / reference.BROWNIAN_Q_Y
-    thermal = 4 * reference.K_B * TEMPERATURE * b_y  # N^2/Hz
     d = sense_design(model, spec, GyroRequest())
     refs = [reference.simulate_design(model, d, REFERENCE_CYCLES, force_noise=thermal, seed=n) for n in (1, 2)]
     k = slice(REFERENCE_CYCLES // 8, None)
