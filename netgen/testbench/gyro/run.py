@@ -1,7 +1,8 @@
 """A gyroscope run: the sense loop's design (the sigma-delta testbench's loop.design, on the
 channel y of the loop description), the drive loop as a behavioural source on the model's f_x port,
-the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments), the
-demodulation (analysis.py), and a rate sweep's linearity; summary.json and PNGs in the folder."""
+the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments); or
+its VACASK bench with an open-loop drive (vacask_drive); the demodulation (analysis.py), and a rate
+sweep's linearity; summary.json and PNGs in the folder."""
 
 from __future__ import annotations
 
