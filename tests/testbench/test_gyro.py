@@ -67,9 +67,10 @@ def test_gyro_in_vacask_reads_rate_and_quadrature(tmp_path):
     start-up kick), 4096 periods: the rate and quadrature reads held as in the ngspice test above
     (the same derivation). The drive: its frequency within 1e-3 (it is the model's x resonance,
     imposed); its amplitude, with no amplitude control, within 1 %: the kick starts the drive within
-    X_d / Q_x + (w T / 100)^2 / 24 = 7e-4 of the steady state and the rest (the side forces of the
-    sense combs' feedback pulses on x, which the ngspice drive loop's AGC takes out) decays in
-    2 m / b_x = 49 ms only; measured -1.1e-3 at 1024 periods. About 30 s."""
+    X_d / Q_x + (w T / 100)^2 / 24 = 7e-4 of the steady state, and any other force on x at the drive
+    frequency (which the ngspice drive loop's AGC would take out) moves it for 2 m / b_x = 49 ms,
+    longer than the run; measured -1.1e-3 at 1024 periods (the part beyond 7e-4 not yet traced).
+    About 30 s (70 s on the loaded 2-core machine)."""
     model = build_model(load_structure(EXAMPLE))
     cx = next(c for c in model.coordinates if c.name == "x")
     w = math.sqrt(cx.stiffness / cx.mass)
