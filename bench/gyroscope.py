@@ -18,7 +18,7 @@ and brownian.png (tests/testbench/test_gyro_noise.py runs 8192 periods over +-4 
 
     .venv/bin/python bench/gyroscope.py [--cycles 65536] [--points 9] [--span 0.5] [--simulator ngspice-xspice] [-o DIR]
     .venv/bin/python bench/gyroscope.py --noise-reference --cycles 32768
-    .venv/bin/python bench/gyroscope.py --brownian --cycles 32768 [--simulator ngspice] [-o DIR]
+    .venv/bin/python bench/gyroscope.py --brownian --cycles 16384 [--simulator ngspice] [-o DIR]
 """
 
 from __future__ import annotations
