@@ -28,8 +28,9 @@ K_XY, X_D = 5e-3, 4e-6
 # (b_y 200 times the vacuum's), the damping's thermal force on, and a fourth-order CIFB sense loop
 # (H_inf 1.5). Why: at Q_y = 2000 and the lead2 loop the quantisation floor near the drive lies
 # above the Brownian one; raising b_y raises the Brownian force sqrt(4 k_B T b_y) (+23 dB) while
-# the force-feedback quantisation floor in rate units does not grow with b, and the fourth-order
-# loop's in-band noise shaping takes that floor a further 10-20 dB down: this reference loop puts it
+# the force-feedback quantisation floor grows far less (lead2: +4 dB from Q_y 2000 to 20, as the
+# sense resonance's notch at the drive flattens; it is the quantiser's noise, not the damper's),
+# and the fourth-order loop's in-band noise shaping takes it 10-20 dB down: the reference loop puts it
 # 13.5-14 dB under the Brownian floor over the drive +-4 kHz (17-19 dB over +-2 kHz), 2^16 periods.
 BROWNIAN_EDITS = (
     ("q_factor = { x = 2000, y = 2000 }", "q_factor = { x = 2000, y = 10 }\nnoise = true"),
