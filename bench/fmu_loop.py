@@ -54,12 +54,12 @@ def reference(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
     return folder, time.perf_counter() - start
 
 
-def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
-    """The ngspice-xspice run of the same Design at the CONVERGED tolerances: folder, wall time."""
-    folder = out / "ngspice-xspice-converged"
+def xspice_run(folder: Path, cycles: int, loop: str | None = None, **settings) -> dict:
+    """The ngspice-xspice run of the example's Design (the structure's [loop], or the file `loop`)
+    with `settings` replacing its fields (reltol, abstol, vntol, tmax, ramp_steps) into `folder`:
+    sd.run's result. The request both benches compare the FMU loop with."""
     ex = example()
     model, d = ex.design(loop)
-    spec = sd.read_loop_file(loop) if loop else sd.read_structure_loop(ex.STRUCTURE)
     request = RunRequest(
         ex.TS,
         cycles,
@@ -67,11 +67,17 @@ def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
         progress=False,
         plots=False,
         simulator="ngspice-xspice",
-        loop=spec,
-        designed=replace(d, **CONVERGED),
+        loop=sd.read_loop_file(loop) if loop else sd.read_structure_loop(ex.STRUCTURE),
+        designed=replace(d, **settings),
     )
+    return sd.run(model, ex.MODEL.with_suffix(".lib"), folder, request)
+
+
+def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
+    """The ngspice-xspice run of the same Design at the CONVERGED settings: folder, wall time."""
+    folder = out / "ngspice-xspice-converged"
     start = time.perf_counter()
-    sd.run(model, ex.MODEL.with_suffix(".lib"), folder, request)
+    xspice_run(folder, cycles, loop, **CONVERGED)
     return folder, time.perf_counter() - start
 
 
