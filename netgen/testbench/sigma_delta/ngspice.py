@@ -288,6 +288,8 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
         # a feedback step (Timing.fb_ramp 0): V_fb on (fb_on, fb_off], with its own breakpoints
         **({"fb_level": d.vfb, "fb_on": d.t.fb_on, "fb_off": d.t.fb_off} if d.t.fb_ramp == 0 else {}),
         "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
+        # every drive edge in ramp_steps equal steps (Design.ramp_steps; the code model's own breakpoints)
+        **({"ramp_steps": int(d.ramp_steps)} if d.ramp_steps else {}),
         "dither_amp": [c["dither_v"] for c in d.channels],
         "dither_step": [float(c["dither_step"]) for c in d.channels],
         "cur0": init["cur"],
