@@ -338,7 +338,8 @@ class ParallelPlateExtractor:
         fringe = self.fringe.resolved(plate.size) if self.fringe is not None else None
         if self.fringes is not None:
             fringe = self.point_fringe(edge, plate)
-        return PreparedParallelPlate(electrodes, *sets, self.eps, fringe, self.chunk_elements, self.perforation)
+        at, ed, pr = sets
+        return PreparedParallelPlate(electrodes, at, ed, pr, self.eps, fringe, self.chunk_elements, self.perforation)
 
     def point_fringe(self, edge: list, plate: Plate) -> PointFringe:
         """The per-electrode fringes as per-point coefficients over the electrodes' edge points."""
