@@ -5,14 +5,16 @@ eps / g, with the fringe under the holes' rims counted.
 The field reaches in under each hole's rim: a hole seen from the electrode looks smaller by a
 fringe length d on each side, so the hole grid acts as a solid plate with holes of side h - 2 d:
 
-    F(g) = 1 - (max(h - 2 d, 0) / p)^2,      d(g) = (g / pi) ln(1 + A h / g).
+    F(g) = 1 - (max(h - 2 d, 0) / p)^2,      d(g) = (B g / pi) ln(1 + A h / g).
 
-d is the edge fringe of a slot of width h over a plane (a conformal-map result): (g / pi)
-(ln(h / g) + ln A) for wide holes (h >> g), A h / pi (the hole closed, F = 1) for narrow ones.
-Limits: F -> 1 - (h / p)^2 (the plain solid fraction) as g / p -> 0; F -> 1 as h -> 0 and as g
-grows past about h. A = exp(PERFORATION_LN_A) is fitted to FastCap solutions of a thin plate
-(bench/fastcap_perforated.py; docs/fastcap.md, 'Perforated plates'); the plate's thickness does
-not enter (a thick plate's hole walls collect more charge at large holes: see the docs).
+d has the form of a plate edge's fringe over a plane (conformal map: growing as (g / pi) ln(h / g)
+for wide holes, h >> g), here fed from both faces (the rim's underside and the field leaking
+through the hole from above), so its strength B is fitted rather than 1; for narrow holes
+(h << g) d -> B A h / pi, 0.46 h. Limits: F -> 1 - (h / p)^2 (the plain solid fraction) as
+g / p -> 0; F -> 1 as h -> 0 (as 1 - 0.006 (h / p)^2); for g >> h it tends to 1 - 0.006 (h / p)^2
+rather than 1 (0.2 % low at h / p = 0.6). B and ln A are fitted to FastCap solutions of a thin
+plate with h / p = 0.6 at g / p = 0.1, 0.2, 0.4 (bench/fastcap_perforated.py, fine panels;
+docs/fastcap.md, 'Perforated plates'); the plate's thickness does not enter.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from numpy.typing import ArrayLike
 
 from ..geometry.shapes import Array
 
-# ln A of the fringe length d = (g / pi) ln(1 + A h / g): the least-squares fit to FastCap's F of a
-# sheet (docs/fastcap.md, 'Perforated plates')
-PERFORATION_LN_A = 0.54
+# B and ln A of the fringe length d = (B g / pi) ln(1 + A h / g): the least-squares fit to FastCap's
+# F of a sheet (docs/fastcap.md, 'Perforated plates')
+PERFORATION_STRENGTH = 1.40
+PERFORATION_LN_A = 0.036
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,7 @@ class Perforation:
 
     hole: float
     pitch: float
+    strength: float = PERFORATION_STRENGTH
     ln_a: float = PERFORATION_LN_A
 
     def __post_init__(self) -> None:
@@ -44,9 +48,9 @@ class Perforation:
             raise ValueError(f"a hole grid needs 0 <= hole < pitch, got hole {self.hole:g} m, pitch {self.pitch:g} m")
 
     def fringe_length(self, g: ArrayLike) -> Array:
-        """d(g) = (g / pi) ln(1 + A h / g): how far the field reaches in under each rim (m)."""
+        """d(g) = (B g / pi) ln(1 + A h / g): how far the field reaches in under each rim (m)."""
         g = np.asarray(g, dtype=float)
-        return g / math.pi * np.log1p(math.exp(self.ln_a) * self.hole / g)
+        return self.strength * g / math.pi * np.log1p(math.exp(self.ln_a) * self.hole / g)
 
     def fill(self, g: ArrayLike) -> Array:
         """F(g) = 1 - (max(h - 2 d, 0) / p)^2: the electrode's charge over that of a solid plate."""
@@ -57,6 +61,6 @@ class Perforation:
         """dF/dg = 4 (h - 2 d) d'(g) / p^2 while the hole is open (0 once closed)."""
         g = np.asarray(g, dtype=float)
         x = math.exp(self.ln_a) * self.hole / g
-        dd = (np.log1p(x) - x / (1.0 + x)) / math.pi
+        dd = self.strength * (np.log1p(x) - x / (1.0 + x)) / math.pi
         r = np.maximum(self.hole - 2.0 * self.fringe_length(g), 0.0)
         return 4.0 * r * dd / self.pitch**2
