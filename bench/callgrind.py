@@ -28,8 +28,10 @@ from sigma_delta import MODEL_JSON, VARIANTS, library, needs_codemodel, osdi_con
 from netgen.model import MacroModel
 from netgen.sim import codemodel
 from netgen.sim.ngspice import ngspice_path
+from netgen.sim.vacask import tools as vacask_tools
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import ngspice as sdn
+from netgen.testbench.sigma_delta import vacask as sdv
 
 LINE = re.compile(r"\s*([\d,]+) \(\s*([\d.]+)%\)\s+(\S+)")
 
@@ -86,6 +88,44 @@ def profile(model: MacroModel, variant: str, cycles: int, folder: Path, loop: st
             count = int(m.group(1).replace(",", ""))
             print(f"    {count / iterations / 1e3:7.1f}k per iteration {m.group(2):>6} %  {m.group(3)[:70]}")
     return {"instructions": total, "iterations": iterations}
+
+
+def vacask_run(model: MacroModel, cycles: int, folder: Path) -> tuple[int, int]:
+    """Total instructions and Newton iterations of one callgrind run of VACASK on the loop of
+    `netgen sigma-delta --simulator vacask` (T_s = 1 us, the model's Verilog-A for generic x86-64)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    model_osdi = sdv.compile_model(model, folder / "osdi", cpu="generic")
+    blocks_osdi = sdv.compile_blocks(folder / "osdi", cpu="generic")
+    net = sdv.testbench(model, sd.design(model, 1e-6), model_osdi, blocks_osdi, cycles, folder=folder)
+    (folder / "bench.sim").write_text(net)
+    done = subprocess.run(
+        ["valgrind", "--tool=callgrind", "--callgrind-out-file=callgrind.out", vacask_tools()[1], "bench.sim"],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+    )
+    (folder / "bench.log").write_text(done.stdout + done.stderr)
+    found = re.search(r"NR solver iterations:\s*(\d+)", done.stdout)
+    if not found:
+        raise SystemExit(f"bench/callgrind.py: the VACASK run did not finish; see {folder / 'bench.log'}")
+    report = subprocess.run(
+        ["callgrind_annotate", "callgrind.out"], cwd=folder, capture_output=True, text=True, check=True
+    ).stdout
+    total = int(re.search(r"([\d,]+) \(100.0%\)\s+PROGRAM TOTALS", report).group(1).replace(",", ""))
+    return total, int(found.group(1))
+
+
+def profile_vacask(model: MacroModel, cycles: int, folder: Path) -> dict:
+    """Instructions and Newton iterations of `cycles` periods of the VACASK loop: the difference of
+    runs of 2 x cycles and cycles periods, so VACASK's start (loading, elaboration, about 120M
+    instructions for the reference disk, 20 % of an 8-period run) is not counted as periods."""
+    i1, n1 = vacask_run(model, cycles, folder / "short")
+    i2, n2 = vacask_run(model, 2 * cycles, folder / "long")
+    print(
+        f"vacask: {(i2 - i1) / 1e6:.0f}M instructions, {n2 - n1} Newton iterations ({(n2 - n1) / cycles:.0f} per period), "
+        f"{(i2 - i1) / (n2 - n1) / 1e3:.0f}k per iteration, {(i2 - i1) / cycles / 1e6:.1f}M per period (start {(2 * i1 - i2) / 1e6:.0f}M)"
+    )
+    return {"instructions": i2 - i1, "iterations": n2 - n1}
 
 
 def main(argv: list[str] | None = None) -> int:

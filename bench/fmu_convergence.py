@@ -1,6 +1,7 @@
 """Which side is converged on the z accelerometer's ramped-feedback loop: ngspice-xspice at
-reltol, absolute tolerances and maximum step, the FMU loop at its tolerance, and the FMU loop
-against an independent integration of the same MacroModel:
+reltol, absolute tolerances, maximum step and equal steps per drive edge (Design.ramp_steps), the
+FMU loop at its tolerance, and the FMU loop against an independent integration of the same
+MacroModel (8 minutes, 133 s of CPU, on a loaded 2-core machine; most of it in the reltol 1e-7 runs):
 
     .venv/bin/python bench/fmu_convergence.py [--cycles 512] [--check 130] [-o out/fmu_convergence]
 
@@ -17,27 +18,31 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from fmu_loop import example
+from fmu_loop import example, xspice_run
 from scipy.integrate import solve_ivp
 
 from netgen.sim import codemodel
 from netgen.sim.ngspice import ngspice_path
 from netgen.sim.rawfile import read_raw
-from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import fmu
-from netgen.testbench.sigma_delta.runner import RunRequest
 
 TIGHT = {"abstol": 1e-20, "vntol": 1e-14}
-# (label, reltol, absolute tolerances, maximum step in T_s)
-NGSPICE = [(f"reltol {r:g}{' tight' if a else ''} tmax {m:g}", r, a, m) for r, a, m in [
-    (1e-3, {}, 0.05), (1e-4, {}, 0.05), (1e-5, {}, 0.05), (1e-6, {}, 0.05), (1e-5, {}, 0.01), (1e-6, {}, 0.01),
-    (1e-3, TIGHT, 0.05), (1e-5, TIGHT, 0.05), (1e-6, TIGHT, 0.05), (1e-6, TIGHT, 0.01), (1e-7, TIGHT, 0.05),
-    (1e-7, TIGHT, 0.01), (1e-3, {}, 0.001), (1e-6, TIGHT, 0.001),
-]]  # fmt: skip
+# (label, reltol, absolute tolerances, maximum step in T_s, equal steps per drive edge; 0: ngspice's own)
+NGSPICE = [
+    (f"reltol {r:g}{' tight' if a else ''} tmax {m:g}{f' ramp {n}' if n else ''}", r, a, m, n)
+    for r, a, m, n in [
+        (1e-3, {}, 0.05, 0), (1e-4, {}, 0.05, 0), (1e-5, {}, 0.05, 0), (1e-6, {}, 0.05, 0), (1e-5, {}, 0.01, 0),
+        (1e-6, {}, 0.01, 0), (1e-3, TIGHT, 0.05, 0), (1e-5, TIGHT, 0.05, 0), (1e-6, TIGHT, 0.05, 0),
+        (1e-6, TIGHT, 0.01, 0), (1e-7, TIGHT, 0.05, 0), (1e-7, TIGHT, 0.01, 0), (1e-3, {}, 0.001, 0),
+        (1e-6, TIGHT, 0.001, 0), (1e-3, {}, 0.05, 10), (1e-3, TIGHT, 0.05, 20), (1e-4, TIGHT, 0.05, 20),
+        (1e-5, TIGHT, 0.05, 20), (1e-6, TIGHT, 0.05, 10), (1e-6, TIGHT, 0.05, 20),
+        (1e-6, TIGHT, 0.05, 40), (1e-6, TIGHT, 0.05, 80), (1e-6, TIGHT, 0.01, 40), (1e-7, TIGHT, 0.05, 20),
+        (1e-7, TIGHT, 0.05, 40), (1e-7, TIGHT, 0.05, 80),
+    ]
+]  # fmt: skip
 FMU_TOLERANCES = (1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 
 
@@ -47,20 +52,9 @@ def first_difference(a: np.ndarray, b: np.ndarray) -> int:
     return int(diff[0]) if len(diff) else len(a)
 
 
-def ngspice_bits(ex, out: Path, cycles: int, reltol: float, tol: dict, tmax: float) -> np.ndarray:
-    """The ngspice-xspice loop's bits with the design at these tolerances and maximum step."""
-    model, d = ex.design()
-    request = RunRequest(
-        ex.TS,
-        cycles,
-        None,
-        progress=False,
-        plots=False,
-        simulator="ngspice-xspice",
-        loop=sd.read_structure_loop(ex.STRUCTURE),
-        designed=replace(d, reltol=reltol, tmax=tmax, **tol),
-    )
-    return sd.run(model, ex.MODEL.with_suffix(".lib"), out, request)["clock"]["bits_z"]
+def ngspice_bits(out: Path, cycles: int, reltol: float, tol: dict, tmax: float, steps: int) -> np.ndarray:
+    """The ngspice-xspice loop's bits with the design at these tolerances, maximum step and ramp steps."""
+    return xspice_run(out, cycles, reltol=reltol, tmax=tmax, ramp_steps=steps, **tol)["clock"]["bits_z"]
 
 
 def independent(ex, periods: int) -> float:
@@ -155,8 +149,8 @@ def main() -> None:
     ex = example()
     model, d = ex.design()
     runs = {f"FMU tolerance {t:g}": fmu.run(model, d, args.cycles, tolerance=t)["bits_z"] for t in FMU_TOLERANCES}
-    for k, (label, reltol, tol, tmax) in enumerate(NGSPICE):
-        runs[f"ngspice {label}"] = ngspice_bits(ex, out / f"ngspice{k}", args.cycles, reltol, tol, tmax)
+    for k, (label, reltol, tol, tmax, steps) in enumerate(NGSPICE):
+        runs[f"ngspice {label}"] = ngspice_bits(out / f"ngspice{k}", args.cycles, reltol, tol, tmax, steps)
     names = list(runs)
     table = {a: {b: first_difference(runs[a], runs[b]) for b in names} for a in names}
     for a in names:

@@ -6,10 +6,13 @@ ngspice-xspice (the compiled netgen_sdloop and netgen_es), same model and Design
 
 Runs `netgen sigma-delta examples/accelerometer_z.toml --model <committed JSON> --simulator
 ngspice-xspice` into OUT/ngspice-xspice (or takes --reference DIR, such a run's folder) and the same
-Design at the tolerances where ngspice's bits stop moving (reltol 1e-6, abstol 1e-20 A, vntol
-1e-14 V; docs/fmu.md) into OUT/ngspice-xspice-converged (or --converged DIR), then the FMU loop
+Design at the settings where ngspice's bits stop moving (CONVERGED: reltol 1e-6, abstol 1e-20 A,
+vntol 1e-14 V, 20 equal steps per drive edge; docs/fmu.md) into OUT/ngspice-xspice-converged (or
+--converged DIR), then the FMU loop
 (examples/fmu_sigma_delta.py), and prints the walls, bit means, in-band floors (OSR 64, first
 eighth skipped) and the first period whose bit differs against each; writes OUT/fmu_loop.json.
+--realizations K also runs the FMU loop K times with a_in scaled by 1 + k 1e-7 (realizations)
+and gives the floors' mean and spread, and each ngspice floor's distance from that mean.
 """
 
 from __future__ import annotations
@@ -26,11 +29,15 @@ from support import ROOT
 
 from netgen.cli import commands as cli
 from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import fmu
+from netgen.testbench.sigma_delta.analysis import analyse
 from netgen.testbench.sigma_delta.runner import RunRequest
 
-# ngspice where its bits stop moving with its tolerances (docs/fmu.md): at its default absolute
-# tolerances they part after 26-60 periods whatever reltol or the maximum step
-CONVERGED = {"reltol": 1e-6, "abstol": 1e-20, "vntol": 1e-14}
+# ngspice where its bits stop moving with its settings (docs/fmu.md): at its default absolute
+# tolerances they part after 26-60 periods whatever reltol or the maximum step, and inside the
+# feedback edges its own steps miss the V^2 impulse by up to 2e-3 (Design.ramp_steps: 20 equal steps
+# per edge; 192 bits as the FMU loop's at these settings, 456-512 at reltol 1e-7 with 40-80 steps)
+CONVERGED = {"reltol": 1e-6, "abstol": 1e-20, "vntol": 1e-14, "ramp_steps": 20}
 
 
 def example():
@@ -54,12 +61,12 @@ def reference(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
     return folder, time.perf_counter() - start
 
 
-def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
-    """The ngspice-xspice run of the same Design at the CONVERGED tolerances: folder, wall time."""
-    folder = out / "ngspice-xspice-converged"
+def xspice_run(folder: Path, cycles: int, loop: str | None = None, **settings) -> dict:
+    """The ngspice-xspice run of the example's Design (the structure's [loop], or the file `loop`)
+    with `settings` replacing its fields (reltol, abstol, vntol, tmax, ramp_steps) into `folder`:
+    sd.run's result. The request both benches compare the FMU loop with."""
     ex = example()
     model, d = ex.design(loop)
-    spec = sd.read_loop_file(loop) if loop else sd.read_structure_loop(ex.STRUCTURE)
     request = RunRequest(
         ex.TS,
         cycles,
@@ -67,11 +74,17 @@ def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
         progress=False,
         plots=False,
         simulator="ngspice-xspice",
-        loop=spec,
-        designed=replace(d, **CONVERGED),
+        loop=sd.read_loop_file(loop) if loop else sd.read_structure_loop(ex.STRUCTURE),
+        designed=replace(d, **settings),
     )
+    return sd.run(model, ex.MODEL.with_suffix(".lib"), folder, request)
+
+
+def converged(out: Path, cycles: int, loop: str | None) -> tuple[Path, float]:
+    """The ngspice-xspice run of the same Design at the CONVERGED settings: folder, wall time."""
+    folder = out / "ngspice-xspice-converged"
     start = time.perf_counter()
-    sd.run(model, ex.MODEL.with_suffix(".lib"), folder, request)
+    xspice_run(folder, cycles, loop, **CONVERGED)
     return folder, time.perf_counter() - start
 
 
@@ -89,12 +102,28 @@ def against(ex, clock: dict, z: dict, folder: Path, wall: float | None, tag: str
     }
 
 
+def realizations(cycles: int, count: int, loop: str | None) -> list[float]:
+    """The FMU loop's in-band floor over `count` realizations of the same loop: the DC input a_in
+    scaled by 1 + k 1e-7 (k = 0: the design's), a change far below what 2^16 bits resolve (1.5e-5)
+    that still flips a decision somewhere and so gives another bit sequence, as another machine's
+    round-off or another simulator's would: the spread of the floor estimate itself."""
+    ex = example()
+    model, d = ex.design(loop)
+    floors = []
+    for k in range(count):
+        dk = replace(d, inputs={**d.inputs, "a_in": d.inputs["a_in"] * (1 + k * 1e-7)})
+        clock = fmu.run(model, dk, cycles)
+        floors.append(analyse(clock, dk, skip=cycles // 8)["channels"]["z"]["noise_floor_db_per_hz"])
+    return floors
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cycles", type=int, default=65536)
     p.add_argument("--reference", help="an existing ngspice-xspice run folder of the same cycles")
     p.add_argument("--converged", help="an existing run folder of the same cycles at the CONVERGED tolerances")
     p.add_argument("--loop", help="loop description (default: the structure's [loop])")
+    p.add_argument("--realizations", type=int, default=0, help="FMU loop floors over this many realizations")
     p.add_argument("-o", "--output", default="out/fmu_loop")
     args = p.parse_args()
     out = Path(args.output)
@@ -112,6 +141,12 @@ def main() -> None:
         **against(ex, clock, z, folder, ref_wall, "ngspice_xspice"),
         **against(ex, clock, z, tight, tight_wall, "ngspice_xspice_converged"),
     }
+    if args.realizations > 1:
+        floors = np.array(realizations(args.cycles, args.realizations, args.loop))
+        mean, std = float(floors.mean()), float(floors.std(ddof=1))
+        result |= {"fmu_floor_realizations_db_per_hz": floors.tolist(), "fmu_floor_mean": mean, "fmu_floor_std": std}
+        for tag in ("ngspice_xspice", "ngspice_xspice_converged"):
+            result[f"{tag}_floor_minus_fmu_mean_db"] = result[f"{tag}_floor_db_per_hz"] - mean
     (out / "fmu_loop.json").write_text(json.dumps(result, indent=1) + "\n")
     for k, v in result.items():
         print(f"{k:44s} {v}")

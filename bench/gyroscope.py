@@ -10,8 +10,15 @@ as tests/oracles/gyro_reference.py reads it (demodulated, 1 Hz to BAND) against 
 of the same sense loop (two runs of 4 x --cycles periods), with the ratio's F(nu_c, nu_r) 1e-3
 quantiles (tests/testbench/test_gyro_noise.py runs 6144 periods over 4 kHz).
 
+With --brownian: the Brownian variant (gyro_reference.brownian_variant: Q_y = 10, thermal force
+on, a fourth-order CIFB sense loop) at zero rate: the bits' PSD over the drive +-band against the
+closed form 4 k_B T b_y / F_fb^2 and against the reference loop with the same thermal force (two
+runs of 4 x --cycles periods), the rate noise density against sqrt(4 k_B T b_y) / (2 m X_d w_d),
+and brownian.png (tests/testbench/test_gyro_noise.py runs 8192 periods over +-4 kHz).
+
     .venv/bin/python bench/gyroscope.py [--cycles 65536] [--points 9] [--span 0.5] [--simulator ngspice-xspice] [-o DIR]
     .venv/bin/python bench/gyroscope.py --noise-reference --cycles 32768
+    .venv/bin/python bench/gyroscope.py --brownian --cycles 16384 [--simulator ngspice] [-o DIR]
 """
 
 from __future__ import annotations
@@ -21,8 +28,12 @@ import math
 import tempfile
 from pathlib import Path
 
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
 import numpy as np
-from scipy import stats
+from scipy import signal, stats
 from support import ROOT
 from support import gyro_reference as reference
 
@@ -30,13 +41,12 @@ from netgen.build import build_model
 from netgen.emit.ngspice import subcircuit
 from netgen.structure import load_structure
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
-from netgen.testbench.sigma_delta import filters
 from netgen.testbench.sigma_delta.loopfile import read_structure_loop
 
 EXAMPLE = ROOT / "examples" / "gyroscope_z.toml"
-K_XY = 5e-3  # N/m, the file's k_xy
-X_D = 4e-6  # m, the default drive amplitude
 BANDS_HZ = (500.0, 1000.0, 2000.0, 4000.0)
+BROWNIAN_BANDS_HZ = (2000.0, 4000.0)
+TEMPERATURE = 300.0  # K, the structure's [damping] temperature (its default)
 
 
 def noise_reference(model, out: Path, cycles: int, simulator: str) -> None:
@@ -49,25 +59,8 @@ def noise_reference(model, out: Path, cycles: int, simulator: str) -> None:
     keep = slice(cycles // 8, None)
     drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
     d = sense_design(model, spec, GyroRequest())
-    mech, ch = filters.mechanics_of(model, d, "y"), d.channels[0]
-    cx = next(c for c in model.coordinates if c.name == "x")
-    w = math.sqrt(cx.stiffness / cx.mass)
-    refs = [
-        reference.simulate(
-            mech,
-            filters.Filter.from_dict(ch["filter"]),
-            4 * cycles,
-            w,
-            X_D,
-            k_xy=K_XY,
-            dc=filters.dc_acceleration(model, d, "y"),
-            dither=ch["dither_v"],
-            dither_step=ch["dither_step"],
-            phase=phase,
-        )
-        for phase in (0.0, math.pi / 2)
-    ]
-    per_rate = 2 * mech.mass * X_D * w / ch["full_scale_force_si"]
+    refs = [reference.simulate_design(model, d, 4 * cycles, phase) for phase in (0.0, math.pi / 2)]
+    w, per_rate = refs[0]["drive_w"], refs[0]["per_rate"]
     deg = lambda sd: math.degrees(math.sqrt(2 * sd) / per_rate)  # noqa: E731
     print(f"{cycles} periods at zero rate, reference 2 x {4 * cycles}; rate noise density (deg/s/rtHz):")
     for band in BANDS_HZ:
@@ -83,6 +76,74 @@ def noise_reference(model, out: Path, cycles: int, simulator: str) -> None:
         )
 
 
+def brownian(out: Path, cycles: int, simulator: str) -> None:
+    """The Brownian variant's zero-rate run: its noise floor against the closed form and the reference."""
+    path = out / "brownian.toml"
+    path.write_text(reference.brownian_variant(EXAMPLE.read_text()))
+    model = build_model(load_structure(path), progress=False)
+    spec = read_structure_loop(path)
+    lib = out / "g.lib"
+    lib.write_text(subcircuit(model))
+    s = run(model, lib, out, spec, GyroRequest(cycles=cycles, simulator=simulator, progress=False, plots=False))
+    z = np.load(out / "bitstreams.npz")
+    keep = slice(cycles // 8, None)
+    drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
+    cy = next(c for c in model.coordinates if c.name == "y")
+    thermal = 4 * reference.K_B * TEMPERATURE * math.sqrt(cy.stiffness * cy.mass) / reference.BROWNIAN_Q_Y
+    d = sense_design(model, spec, GyroRequest())
+    refs = [reference.simulate_design(model, d, 4 * cycles, force_noise=thermal, seed=n) for n in (1, 2)]
+    closed = thermal / refs[0]["full_scale_force"] ** 2
+    per_rate, w = refs[0]["per_rate"], refs[0]["drive_w"]
+    one_sideband = math.sqrt(thermal) / (2 * cy.mass * reference.X_D * w)
+    db = lambda x: 10 * math.log10(x)  # noqa: E731
+    print(
+        f"{cycles} periods ({simulator}), Q_y = {reference.BROWNIAN_Q_Y:g}, 4 k_B T b_y = {thermal:.4g} N^2/Hz; "
+        f"sqrt(4 k_B T b_y) / (2 m X_d w_d) = {math.degrees(one_sideband):.4g} deg/s/rtHz"
+    )
+    for band in BROWNIAN_BANDS_HZ:
+        got, nu_c = reference.band_density(z["time_0"][keep], z["bits_y_0"][keep], d.ts, drive_w, band)
+        rk = slice(len(refs[0]["v"]) // 8, None)
+        reads = [reference.band_density(r["t"][rk], r["v"][rk], d.ts, w, band) for r in refs]
+        want, nu_r = float(np.mean([r[0] for r in reads])), sum(r[1] for r in reads)
+        c_lo, c_hi = stats.chi2.ppf([5e-4, 1 - 5e-4], nu_c) / nu_c
+        f_lo, f_hi = stats.f.ppf([5e-4, 1 - 5e-4], nu_c, nu_r)
+        rate = math.sqrt(2 * got) / per_rate
+        print(
+            f"  drive +-{band:4.0f} Hz: rate noise {math.degrees(rate):.4g} deg/s/rtHz, "
+            f"{20 * math.log10(rate / one_sideband):+.2f} dB over the one-sideband form; bits' PSD over "
+            f"4 k_B T b_y / F_fb^2 {db(got / closed):+.2f} dB (chi2 1e-3 quantiles {db(c_lo):+.2f}, {db(c_hi):+.2f}; "
+            f"nu {nu_c:.0f}), over the reference with the thermal force {db(got / want):+.2f} dB "
+            f"(F quantiles {db(f_lo):+.2f}, {db(f_hi):+.2f}; nu_r {nu_r:.0f})"
+        )
+    rk = slice(len(refs[0]["v"]) // 8, None)
+    runs = [
+        (z["time_0"][keep], z["bits_y_0"][keep], drive_w, simulator),
+        (refs[0]["t"][rk], refs[0]["v"][rk], w, "reference loop"),
+    ]
+    plot_brownian(runs, d.ts, closed, out / "brownian.png")
+    print(f"results in {out}")
+
+
+def plot_brownian(runs: list[tuple], ts: float, closed: float, path: Path) -> None:
+    """Welch PSDs near the drive of each (t, bits, drive_w, label), its drive tones taken out, and
+    the closed form's level."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for t, bits, w, label in runs:
+        basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
+        rest = bits.astype(float) - basis @ np.linalg.lstsq(basis, bits.astype(float), rcond=None)[0]
+        f, p = signal.welch(rest, fs=1.0 / ts, nperseg=min(4096, len(rest)))
+        near = np.abs(f - w / (2 * math.pi)) <= 8000.0
+        ax.semilogy((f[near] - w / (2 * math.pi)) / 1e3, p[near], label=label)
+    ax.axhline(closed, color="k", ls="--", label="4 k_B T b_y / F_fb^2")
+    ax.set_xlabel("frequency - drive (kHz)")
+    ax.set_ylabel("bits' PSD (1/Hz)")
+    ax.set_title("gyroscope_z, Brownian variant: sense bits near the drive")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=65536)
@@ -91,7 +152,12 @@ def main() -> None:
     ap.add_argument("--simulator", default="ngspice-xspice")
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--noise-reference", action="store_true", help="the noise floor against the reference loop")
+    ap.add_argument("--brownian", action="store_true", help="the Brownian variant's floor against 4 k_B T b_y")
     a = ap.parse_args()
+    if a.brownian:
+        out = Path(a.output or tempfile.mkdtemp(prefix="gyroscope-brownian-"))
+        out.mkdir(parents=True, exist_ok=True)
+        return brownian(out, a.cycles, a.simulator)
     model = build_model(load_structure(EXAMPLE), progress=False)
     out = Path(a.output or tempfile.mkdtemp(prefix="gyroscope-"))
     out.mkdir(parents=True, exist_ok=True)
@@ -108,7 +174,7 @@ def main() -> None:
     for r in s["runs"]:
         print(
             f"  applied {r['rate_applied_rad_s'] / deg:+10.3f} deg/s  read {r['rate_rad_s'] / deg:+10.3f}  "
-            f"quadrature force / k_xy X_d - 1 {r['quadrature_force_n'] / (K_XY * r['drive_amplitude_m']) - 1:+.2e}  "
+            f"quadrature force / k_xy X_d - 1 {r['quadrature_force_n'] / (reference.K_XY * r['drive_amplitude_m']) - 1:+.2e}  "
             f"noise {r['rate_noise_deg_s_rthz']:.3g} deg/s/rtHz"
         )
     sw = s["sweep"]

@@ -3,13 +3,18 @@ the committed z accelerometer, per ngspice release:
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/sc_readout.py [--releases 46,39] [--periods 4096]
         [--fractions 0,0.25,-0.25,0.5,-0.5] [--scale-periods 192] [--skip 32]
-        [--reltol-periods 128] [--cost-periods 10] [--charge-periods 4096] [--out out/sc_readout]
-        [--impulse-periods 64] [--only impulse,scale,held,cost,reltol,charge]
+        [--reltol-periods 128] [--cost-periods 10] [--charge-periods 4096] [--charge-options reltol=1e-4] [--out out/sc_readout]
+        [--impulse-periods 64] [--threads-periods 16] [--step-periods 64] [--start-periods 64]
+        [--start-accels 0,3] [--only threads,impulse,scale,maxstep,start,held,cost,reltol,charge]
 
 The parts, in this order (the long runs last, so the short figures come first):
+- threads: CPU per period at the simulator's default OpenMP threads (ngspice 39: 2, 46: 8 from
+  its spinit) against `set num_threads=1` (what every other part runs at), the bits compared;
 - impulse: each bit's feedback impulse from the simulated electrode voltages against the design
   d T_s F1, the settling time constant that shortfall implies, and the slope and offset errors it
   makes of the design formula (docs/embedding.md, "Scale factor");
+- maxstep: the example's 20 ns maximum step against a whole period's: held, bits, points, CPU;
+- start: the transient from `uic` against from the operating point, at --start-accels;
 - scale: the bit mean over --scale-periods at each acceleration (--fractions of the full scale
   d F1 / G, tests/oracles/sc_readout.full_scale) against the force balance (tests/oracles/
   sc_readout.balance, from the model JSON): the least-squares slope d mean / d a against the
@@ -24,8 +29,8 @@ The parts, in this order (the long runs last, so the short figures come first):
   the 2 um gap), wall and CPU time, and the bitstream's noise shaping: the Welch PSD of the +-1
   bits, its slope in dB/decade in band (f_s/1024..f_s/128, oversampling 64) and over the first
   decade above (f_s/128..f_s/12.8), drawn in OUT/sc_readout_psd_<release>.png.
-OMP_NUM_THREADS=1: Debian's ngspice 39 loads BSIM4 with OpenMP threads, which only contend on a
-shared 2-core machine.
+OMP_NUM_THREADS=1 keeps numpy to one thread; it does not reach ngspice, whose `num_threads`
+(set to 1 by the netlists, tests/oracles/sc_readout.ONE_THREAD) overrides it.
 """
 
 from __future__ import annotations
@@ -228,14 +233,16 @@ def integral(t: np.ndarray, y: np.ndarray, lo: float, hi: float) -> float:
 
 def charge(work: Path, model: MacroModel, args) -> None:
     """The never-reset charge amplifier (tests/oracles/sc_readout.charge_netlist) over
-    --charge-periods: the clamped model's output drift against the fixed capacitors' (and the
+    --charge-periods, at --charge-options (ngspice's defaults unless given): the clamped model's output drift against the fixed capacitors' (and the
     derived bound, sc_readout.drift_bound), and the moving model's collected charge against
     MacroModel.plate_charge along the simulated z."""
     n = args.charge_periods
     drift, quiet = {}, {}
     for sensor in ("clamped", "fixed", "moving"):
         before, start = sc.children_cpu(), time.monotonic()
-        plot = ngspice.run_ngspice(sc.charge_netlist(sensor, n), work / sensor, sensor, 6 * 3600)[0]
+        plot = ngspice.run_ngspice(sc.charge_netlist(sensor, n, args.charge_options), work / sensor, sensor, 6 * 3600)[
+            0
+        ]
         cpu, wall = sc.children_cpu() - before, time.monotonic() - start
         v = quiet[sensor] = sc.quiet(plot, n)
         points = len(plot["time"])
@@ -258,6 +265,58 @@ def charge(work: Path, model: MacroModel, args) -> None:
     print(f"  clamped - fixed drift {diff:.3e} V against the bound {sc.drift_bound(n):.3e} V")
 
 
+def threads(work: Path, model: MacroModel, a: float, args) -> None:
+    """CPU per period with the simulator's default OpenMP threads against `set num_threads=1`
+    (tests/oracles/sc_readout.ONE_THREAD), runs taken in turn, and whether the two give the same
+    bits and trajectory (the threads only share the BSIM4 load: the numbers must not change)."""
+    runs = {}
+    for t in (0, 1, 0, 1):
+        r = sc.run(work, a, args.threads_periods, threads=t, name=f"threads{t}")
+        runs.setdefault(t, []).append(r)
+    d, one = runs[0][0], runs[1][0]
+    same = np.array_equal(d.bits, one.bits) and len(d.time) == len(one.time)
+    dz = np.abs(d.x_um - one.x_um).max() * 1e3 if len(d.time) == len(one.time) else np.nan
+    for t, rs in runs.items():
+        label = "num_threads=1" if t else "default threads"
+        print(
+            f"  {label}: CPU {', '.join(f'{r.cpu / args.threads_periods * 1e3:.0f}' for r in rs)} ms/period, "
+            f"wall {', '.join(f'{r.wall / args.threads_periods * 1e3:.0f}' for r in rs)} ms/period, "
+            f"{rs[0].points / args.threads_periods:.0f} points/period"
+        )
+    print(f"  same bits and time points: {same}; max |z difference| {dz:.3g} nm")
+
+
+def maxstep(work: Path, model: MacroModel, a: float, args) -> None:
+    """The example's 20 ns maximum step (ngspice's default for the 20 ns .tran step) against one
+    of a whole period (2 us: the clocks' breakpoints and the truncation-error control alone set
+    the steps): max |z| after --skip, bit mean, points and CPU per period, the bits compared."""
+    runs = {}
+    for tmax in (None, sc.TS):
+        r = runs[tmax] = sc.run(work, a, args.step_periods, tmax=tmax, name="maxstep")
+        z = np.abs(r.x_um[r.time > args.skip * sc.TS]).max() * 1e3
+        print(
+            f"  max step {20e-9 if tmax is None else tmax:.0e} s: max |z| {z:.4g} nm after {args.skip} periods, "
+            f"bit mean {r.bits[args.skip :].mean():.4f}, {r.points / args.step_periods:.0f} points/period, "
+            f"CPU {r.cpu / args.step_periods * 1e3:.0f} ms/period"
+        )
+    differ = int(np.sum(runs[None].bits != runs[sc.TS].bits))
+    print(f"  bits that differ: {differ} of {args.step_periods}")
+
+
+def start(work: Path, model: MacroModel, a: float, args) -> None:
+    """The transient from `uic` against from ngspice's operating point, at each --start-accels:
+    z at t = 0, max |z| after --skip, z at the end, bit mean against the balance."""
+    for acc in (float(x) for x in args.start_accels.split(",")):
+        for how in ("uic", ""):
+            r = sc.run(work, acc, args.start_periods, start=how, name="start")
+            after = r.x_um[r.time > args.skip * sc.TS] * 1e3
+            print(
+                f"  a = {acc:+.3g} m/s^2, {how or 'operating point'}: z(0) {r.x_um[0] * 1e3:+.4g} nm, "
+                f"max |z| {np.abs(after).max():.4g} nm after {args.skip} periods, z(end) {after[-1]:+.4g} nm, "
+                f"bit mean {r.bits[args.skip :].mean():.4f} against the balance {sc.balance(model, acc):.4f}"
+            )
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--releases", default="46,39")
@@ -269,8 +328,13 @@ def main() -> None:
     p.add_argument("--cost-periods", type=int, default=10)
     p.add_argument("--out", default="out/sc_readout")
     p.add_argument("--charge-periods", type=int, default=4096)
+    p.add_argument("--charge-options", default="", help="the charge runs' .options (default: none)")
     p.add_argument("--impulse-periods", type=int, default=64)
-    p.add_argument("--only", default="impulse,scale,held,cost,reltol,charge")
+    p.add_argument("--threads-periods", type=int, default=16)
+    p.add_argument("--step-periods", type=int, default=64)
+    p.add_argument("--start-periods", type=int, default=64)
+    p.add_argument("--start-accels", default="0,3")
+    p.add_argument("--only", default="threads,impulse,scale,maxstep,start,held,cost,reltol,charge")
     args = p.parse_args()
     model = MacroModel.load_json(sc.MODEL_JSON)
     a0 = float(args.fractions.split(",")[0]) * sc.full_scale(model)
@@ -290,6 +354,9 @@ PARTS = {
     "cost": lambda work, model, a0, rel, args: cost(work, a0, args),
     "reltol": lambda work, model, a0, rel, args: reltols(work, model, a0, args),
     "charge": lambda work, model, a0, rel, args: charge(work, model, args),
+    "threads": lambda work, model, a0, rel, args: threads(work, model, a0, args),
+    "maxstep": lambda work, model, a0, rel, args: maxstep(work, model, a0, args),
+    "start": lambda work, model, a0, rel, args: start(work, model, a0, args),
 }
 
 

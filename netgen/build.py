@@ -22,7 +22,16 @@ from .core.constants import EPS0
 from .core.errors import StructureError
 from .electrostatics import CapacitanceExtractor, PreparedExtractor, calibration_report, extractor
 from .electrostatics import imported as imported_capacitance
-from .electrostatics.sampling import Samples, box_range, coordinate_scales, sample_grid, sample_holdout, sample_points
+from .electrostatics.sampling import (
+    Samples,
+    box_factors,
+    box_range,
+    coordinate_ranges,
+    coordinate_scales,
+    sample_grid,
+    sample_holdout,
+    sample_points,
+)
 from .fit import cost
 from .fit.adaptive import adaptive_fits
 from .fit.capacitance import CapacitanceFit, fit_all
@@ -74,6 +83,7 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     imp = s.imports
     say(progress, f"{s.name}: eigenmodes and rigid-body mechanics")
     m = imported_mechanics.mechanics(s) if imp and imp.modes else mechanics(s)
+    s = resolve_ranges(s, m.names)
     plate, shapes = plate_outline(s), electrodes(s)
     table = (
         imported_capacitance.table(imp.capacitance, m.names, [e.name for e in shapes])
@@ -139,6 +149,26 @@ def sample_and_fit(
         {"probes": result.probes, "rounds": len(result.rounds), "converged": result.converged}
         | ({"validation_max_rel_error": checked[-1]} if checked else {}),
     )
+
+
+def resolve_ranges(s: Structure, names: list[str]) -> Structure:
+    """The structure with each coordinate's share of the box (Sampling.factors) when [sampling]
+    range is a table; its coordinate names are checked here when the file could not know them
+    (the free disk's modes are named by the mode solve)."""
+    if not s.sampling.ranges:
+        return s
+    unknown = [n for n, _ in s.sampling.ranges if n != "*" and n not in names]
+    if unknown:
+        raise StructureError(
+            s.source,
+            "sampling.range",
+            f"unknown coordinate {unknown[0]!r}",
+            f'use one of {names} (or "*" for the rest)',
+        )
+    r = coordinate_ranges(s.sampling, names)
+    rng = float(r.max())
+    factors = tuple(float(v) for v in r / rng)
+    return dataclasses.replace(s, sampling=dataclasses.replace(s.sampling, range=rng, factors=factors))
 
 
 def default_range(s: Structure, prepared: PreparedExtractor, scales: np.ndarray, progress: bool) -> Structure:
@@ -241,6 +271,8 @@ def assemble(
     }
     if s.sampling.design != "grid":  # the grid's JSON as before
         sampling = {k: v for k, v in sampling.items() if k != "levels"} | cost.design_report(s, design_extra or {})
+    if s.sampling.factors:  # a range table (netgen.build.resolve_ranges): each coordinate's half-width
+        sampling["coordinate_range"] = {n: s.sampling.range * f for n, f in zip(m.names, s.sampling.factors)}
     if not s.sampling.range_given and s.sampling.range < Sampling.range:  # netgen.build.default_range
         sampling["range_narrowed_from"] = Sampling.range
     report = {
@@ -287,7 +319,8 @@ def assemble(
         poly, fit_report = fit_energy(m.strain_energy.energy, scales, degrees=m.strain_energy.degrees)
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
-    model.process = process_laws(s, m, mechanics, described, scale_z, s.sampling.range)
+    range_z = s.sampling.range * (box_factors(s.sampling, len(m.names))[m.names.index("z")] if "z" in m.names else 1.0)
+    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z))
     return model
 
 

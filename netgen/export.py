@@ -12,7 +12,7 @@ import numpy as np
 import scipy.io
 
 from .build import Build
-from .electrostatics.sampling import holdout_points, sampling_grid
+from .electrostatics.sampling import box_factors, holdout_points, sampling_grid
 from .mechanics import free_disk
 from .mechanics.fields import P2_NODES
 from .structure import FreeDisk, Structure
@@ -47,9 +47,12 @@ def export(b: Build, folder: str | Path, csv_too: bool = False) -> dict[str, Pat
         length_scale=unit,
         **extra,
     )
-    grid_x, grid_c = _with_touching(b.grid, sampling_grid(len(b.scales), s.sampling.levels, s.sampling.range))
+    n = len(b.scales)
+    grid_x, grid_c = _with_touching(
+        b.grid, sampling_grid(n, s.sampling.levels, s.sampling.range) * box_factors(s.sampling, n)
+    )
     hold_x, hold_c = _with_touching(
-        b.holdout, holdout_points(len(b.scales), s.fit.holdout, s.sampling.range, s.fit.seed)
+        b.holdout, holdout_points(n, s.fit.holdout, s.sampling.range, s.fit.seed, box_factors(s.sampling, n))
     )
     np.savez(
         out["capacitance"],

@@ -56,8 +56,20 @@ RUNS = {
     ),
     "callgrind": (["bench/callgrind.py", "--cycles", "1", "--variants", "floor"], ["floor"]),
     "loop_scaling": (
-        ["bench/loop_scaling.py", "-o", "{tmp}", "--modes", "0", "--layouts", "", "--cycles", "1", "--paths", "xspice"],
-        ["disk_m0_r2s4       3    16", "instructions per iteration ~", "wrote "],
+        [
+            "bench/loop_scaling.py",
+            "-o",
+            "{tmp}",
+            "--modes",
+            "0",
+            "--layouts",
+            "",
+            "--cycles",
+            "1",
+            "--paths",
+            "xspice,vacask",
+        ],
+        ["disk_m0_r2s4       3    16", "instructions per iteration ~", "vacask: instructions per period ~", "wrote "],
     ),
     "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
     "sigma_delta_accelerometer": (

@@ -30,7 +30,7 @@ from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import ProbePoints
 from .bem import MaxwellMatrix, central_differences, extrapolate, relative_change
 from .bem_mesh import Sizes
-from .fastcap_mesh import Panels, electrode_panels, plate_panels
+from .fastcap_mesh import Layered, Panels, electrode_panels, layered_panels, plate_panels
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 
 FASTCAP_INSTALL = "pip install 'netgen[fastcap]'  (or: pip install fastcap2==2.1)"
@@ -97,24 +97,52 @@ def check_budget(panels: int, budget: float) -> None:
         )
 
 
-def solve_panels(conductors: Sequence[Panels], eps_r: float, order: int, iter_tol: float) -> tuple[Array, dict]:
-    """Maxwell matrix (n, n) in F of conductors given as panel sets, symmetrised; and the solve's
-    record (panels, order, seconds, asymmetry = max |C - C^T| / max |C|)."""
+def _add(surface, panels: Panels, refs: Array | None = None) -> None:
+    """Add the panels to a fastcap2 Surface (with a reference point per panel, if given)."""
+    corners = panels.corners
+    tri = np.all(corners[:, 2] == corners[:, 3], axis=1)
+    for k, (c, is_tri) in enumerate(zip(corners.tolist(), tri)):
+        rp = {} if refs is None else {"rp": tuple(refs[k])}
+        if is_tri:  # fastcap2 2.1's Surface.add_tri calls the quad entry point: the core's triangle one
+            surface._add_tri(tuple(c[0]), tuple(c[1]), tuple(c[2]), *rp.values())
+        else:
+            surface.add_quad(tuple(c[0]), tuple(c[1]), tuple(c[2]), tuple(c[3]), **rp)
+
+
+def _add_conductor(fc, problem, i: int, conductor: Panels | Layered, eps_r: float) -> None:
+    """Conductor i: one surface in the gap medium, or (under a dielectric layer) its face in the
+    layer, its back and walls in the medium, and the layer's free surface as a dielectric interface
+    (permittivities relative to the medium's: perm_factor carries eps_r)."""
+    if isinstance(conductor, Panels):
+        surface = fc.Surface(name=f"c{i}")
+        _add(surface, conductor)
+        problem.add(surface)
+        return
+    inside = conductor.eps_r / eps_r
+    for part, outside in ((conductor.face, inside), (conductor.rest, 1.0)):
+        if len(part):  # a guarded face (tests) is a conductor of its own, without back or walls
+            surface = fc.Surface(name=f"c{i}")
+            _add(surface, part)
+            problem.add(surface, group=f"g{i}", outside_perm=outside)
+    if not len(conductor.interface):
+        return
+    surface = fc.Surface(title=f"layer{i}")
+    _add(surface, conductor.interface, conductor.refs)
+    problem.add(surface, kind=fc.Problem.DIELEC, outside_perm=1.0, inside_perm=inside)
+
+
+def solve_panels(
+    conductors: Sequence[Panels | Layered], eps_r: float, order: int, iter_tol: float
+) -> tuple[Array, dict]:
+    """Maxwell matrix (n, n) in F of conductors given as panel sets (Layered: under a dielectric
+    layer), symmetrised; and the solve's record (panels, order, seconds, asymmetry = max |C - C^T| / max |C|)."""
     fc = _fastcap()
     t0 = time.perf_counter()
     problem = fc.Problem(title="netgen")
     problem.expansion_order, problem.iter_tol = int(order), float(iter_tol)
     problem.perm_factor = float(eps_r)
-    for i, panels in enumerate(conductors):
-        surface = fc.Surface(name=f"c{i}")
-        corners = panels.corners
-        tri = np.all(corners[:, 2] == corners[:, 3], axis=1)
-        for c, is_tri in zip(corners.tolist(), tri):
-            if is_tri:  # fastcap2 2.1's Surface.add_tri calls the quad entry point: the core's triangle one
-                surface._add_tri(tuple(c[0]), tuple(c[1]), tuple(c[2]))
-            else:
-                surface.add_quad(tuple(c[0]), tuple(c[1]), tuple(c[2]), tuple(c[3]))
-        problem.add(surface)
+    for i, conductor in enumerate(conductors):
+        _add_conductor(fc, problem, i, conductor, eps_r)
     C = np.asarray(problem.solve(), dtype=float)
     order_of = [int(name.split("%")[0][1:]) for name in problem.conductors()]
     inv = np.argsort(order_of)
@@ -129,7 +157,9 @@ def solve_panels(conductors: Sequence[Panels], eps_r: float, order: int, iter_to
     return 0.5 * (C + C.T), record
 
 
-def converged(levels: Sequence[Sequence[Panels]], eps_r: float, settings: FastcapSettings, names) -> MaxwellMatrix:
+def converged(
+    levels: Sequence[Sequence[Panels | Layered]], eps_r: float, settings: FastcapSettings, names
+) -> MaxwellMatrix:
     """The Maxwell matrix from two or more mesh levels (coarse to fine) at expansion_order,
     Richardson-extrapolated (bem.extrapolate: from three levels at the observed order), with the
     coarse level solved again at check_order; error = discretisation estimate (the correction) +
@@ -194,16 +224,24 @@ class PreparedFastcap:
             )
             raise StructureError(source, "electrostatics.fastcap", problem, fix)
 
-    def level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels, ...]]:
-        """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the electrodes."""
+    def level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels | Layered, ...]]:
+        """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the
+        electrodes (Layered under a dielectric layer)."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
         p = plate_panels(plate, self.thickness, sizes)
         xy = p.corners.reshape(-1, 3)
         phi = np.asarray(basis(xy[:, 0], xy[:, 1]), dtype=float).reshape(len(xy), -1)
         half = self.thickness / 2.0
-        return p, phi, tuple(electrode_panels(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+        return p, phi, tuple(self._electrode(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
 
-    def panels(self, q: ArrayLike, level: int) -> list[Panels]:
+    @staticmethod
+    def _electrode(e: Electrode, sizes, z: float) -> Panels | Layered:
+        """An electrode's panels at height z: a sheet, or a box under its dielectric layer."""
+        if e.dielectric_thickness > 0.0:
+            return layered_panels(e, sizes, z, -e.sign)
+        return electrode_panels(e, sizes, z)
+
+    def panels(self, q: ArrayLike, level: int) -> list[Panels | Layered]:
         """The conductors at q on mesh level `level`: the moved plate, then the electrodes."""
         plate, phi, sheets = self.levels[level]
         dz = (phi @ np.asarray(q, dtype=float)).reshape(len(plate), 4)
@@ -211,7 +249,15 @@ class PreparedFastcap:
 
     def fingerprint_arrays(self) -> list[Array]:
         """The arrays that identify the panels (bem_sampling.key_of's store folder)."""
-        return [a for plate, phi, sheets in self.levels for a in (plate.corners, phi, *[p.corners for p in sheets])]
+        return [
+            a
+            for plate, phi, sheets in self.levels
+            for a in (
+                plate.corners,
+                phi,
+                *[b for p in sheets for b in (p.arrays() if isinstance(p, Layered) else [p.corners])],
+            )
+        ]
 
     def maxwell(self, q: ArrayLike) -> MaxwellMatrix:
         """The converged Maxwell matrix at generalized coordinates q (ncoords,)."""

@@ -145,3 +145,123 @@ def electrode_panels(e: Electrode, sizes: Sizes, z: float, aspect: float = ASPEC
     if isinstance(s, Rectangle):
         return rect_panels(s.x0, s.x1, s.y0, s.y1, sizes, z)
     raise NotImplementedError(f"no panels for electrode shape {type(s).__name__}")
+
+
+# ----------------------------------------------------------------------------- dielectric layers
+
+
+@dataclass(frozen=True)
+class Layered:
+    """An electrode under a dielectric layer (Electrode.dielectric_thickness): FastCap2 refuses a thin
+    conductor on a dielectric interface, so the electrode is a closed box of the layer's thickness
+    below its face. face: the conductor's face under the layer; rest: its back face and walls (in
+    the gap medium); interface: the layer's free surface (top face and walls), with one reference
+    point inside the layer per panel (refs, (n, 3)); eps_r: the layer's relative permittivity."""
+
+    face: Panels
+    rest: Panels
+    interface: Panels
+    refs: Array
+    eps_r: float
+
+    def __len__(self) -> int:
+        """The panels of the conductor and the interface."""
+        return len(self.face) + len(self.rest) + len(self.interface)
+
+    def arrays(self) -> list[Array]:
+        """The arrays that identify it (a sample store's fingerprint)."""
+        return [self.face.corners, self.rest.corners, self.interface.corners, self.refs, np.array([self.eps_r])]
+
+
+def _arc(r: float, a0: float, a1: float, h: float) -> Array:
+    """Points on the arc of radius r from angle a0 to a1 (both ends), at most h apart."""
+    n = max(1, math.ceil(abs(a1 - a0) * r / h)) if r > 0.0 else 1
+    t = np.linspace(a0, a1, n + 1)
+    return r * np.column_stack([np.cos(t), np.sin(t)])
+
+
+def _line(a: Array, b: Array, h: float) -> Array:
+    """Points on the segment a..b (both ends), at most h apart."""
+    n = max(1, math.ceil(float(np.hypot(*(b - a))) / h))
+    return a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a)
+
+
+def outlines(e: Electrode, sizes: Sizes) -> list[Array]:
+    """The electrode's boundary as closed polygons (m, 2), the electrode to the left of every
+    edge (outer boundary counter-clockwise, an annulus's inner circle clockwise); points at most
+    h_edge apart (rectangles: the graded face's own edge nodes)."""
+    s, h = e.shape, sizes.h_edge
+    if isinstance(s, Rectangle):
+        x, y = graded(s.x0, s.x1, sizes), graded(s.y0, s.y1, sizes)
+        return [
+            np.concatenate(
+                [
+                    np.column_stack([x[:-1], np.full(len(x) - 1, s.y0)]),
+                    np.column_stack([np.full(len(y) - 1, s.x1), y[:-1]]),
+                    np.column_stack([x[::-1][:-1], np.full(len(x) - 1, s.y1)]),
+                    np.column_stack([np.full(len(y) - 1, s.x0), y[::-1][:-1]]),
+                ]
+            )
+        ]
+    if not isinstance(s, AnnularSector):
+        raise NotImplementedError(f"no outline for electrode shape {type(s).__name__}")
+    lo = max(s.r_in, corner_radius(s.slot, s.span))
+    if s.slot == 0.0 and s.span >= 2.0 * math.pi - 1e-12:
+        rings = [_arc(s.r_out, 0.0, 2.0 * math.pi, h)[:-1]]
+        return rings + ([_arc(lo, 2.0 * math.pi, 0.0, h)[:-1]] if lo > 0.0 else [])
+
+    def trim(r: float) -> float:
+        return math.asin(min(1.0, s.slot / (2.0 * r))) if (s.slot > 0.0 and r > 0.0) else 0.0
+
+    a0, a1 = s.theta_start, s.theta_start + s.span
+    outer = _arc(s.r_out, a0 + trim(s.r_out), a1 - trim(s.r_out), h)
+    inner = _arc(lo, a1 - trim(lo), a0 + trim(lo), h)
+    end = _line(outer[-1], inner[0], h)
+    start = _line(inner[-1], outer[0], h)
+    parts = [outer[:-1], end[:-1], *([inner[:-1]] if lo > 0.0 else []), start[:-1]]
+    return [np.concatenate(parts)]
+
+
+def walls(outline: Array, z0: float, z1: float, h: float) -> tuple[Panels, Array]:
+    """The wall along a closed outline between heights z0 and z1 (rows at most h tall), and a
+    point just inside (to the left of every edge, a tenth of the shorter panel side) per panel."""
+    zs = np.linspace(z0, z1, max(1, math.ceil(abs(z1 - z0) / h)) + 1)
+    a, b = outline, np.roll(outline, -1, axis=0)
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])
+    inward = np.column_stack([-d[:, 1], d[:, 0]]) / length[:, None]
+    quads, refs = [], []
+    for lo, hi in zip(zs[:-1], zs[1:]):
+
+        def at(p: Array, z: float) -> Array:
+            return np.column_stack([p, np.full(len(p), z)])
+
+        quads.append(np.stack([at(a, lo), at(b, lo), at(b, hi), at(a, hi)], axis=1))
+        step = 0.1 * np.minimum(length, abs(hi - lo))
+        refs.append(at(0.5 * (a + b) + inward * step[:, None], 0.5 * (lo + hi)))
+    return Panels(np.concatenate(quads)), np.concatenate(refs)
+
+
+def layered_panels(e: Electrode, sizes: Sizes, z: float, toward: float, aspect: float = ASPECT) -> Layered:
+    """An electrode with its face at height z under a layer (dielectric_thickness) towards the
+    plate (toward = +1: the plate is above, -1: below); the box below the face is as thick as the
+    layer. The layer's panels are the face's, moved to its surface."""
+    t = e.dielectric_thickness
+    face = electrode_panels(e, sizes, z, aspect)
+    back = face.moved(np.full(face.corners.shape[:2], -toward * t))
+    top = face.moved(np.full(face.corners.shape[:2], toward * t))
+    h = min(sizes.h_edge, t)
+    rest, interface, refs = [back.corners], [top.corners], [top.corners.mean(axis=1) - [0.0, 0.0, toward * t / 2.0]]
+    for ring in outlines(e, sizes):
+        w, _ = walls(ring, z - toward * t, z, h)
+        rest.append(w.corners)
+        w, r = walls(ring, z, z + toward * t, h)
+        interface.append(w.corners)
+        refs.append(r)
+    return Layered(
+        face,
+        Panels(np.concatenate(rest)),
+        Panels(np.concatenate(interface)),
+        np.concatenate(refs),
+        e.dielectric_permittivity,
+    )

@@ -20,6 +20,9 @@ g_eff - s w, g_eff = g - t_d + t_d eps_m / eps_r (eps_m: the gap medium's relati
 Electrode.field_gap).  The fringe term takes the same effective gap (an approximation: the layer
 is thin against the plate).  min_gap() and the probe points measure the AIR gap g - t_d - s w
 (Electrode.stop_gap): the plate touches the layer's surface, not the electrode.
+A perforated plate (a proof mass's etch-hole grid) scales the plate term by its effective fill
+factor at the local gap, eps F(g_loc) / g_loc (netgen.electrostatics.perforation); the edge fringe
+of the plate's outline is unchanged.
 The Gauss rules come from netgen.geometry.shapes.
 """
 
@@ -36,6 +39,7 @@ from numpy.typing import ArrayLike
 from ..core.constants import EPS0
 from ..geometry.shapes import DEFAULT_EDGE_ORDER, DEFAULT_ORDER, Array, Basis, Electrode, Plate, shared_edge_length
 from .base import ProbePoints
+from .perforation import Perforation
 
 # ----------------------------------------------------------------------------- edge fringe
 
@@ -175,6 +179,7 @@ class PreparedParallelPlate:
         eps: float,
         fringe: EdgeFringe | PointFringe | None,
         chunk_elements: int,
+        perforation: Perforation | None = None,
     ) -> None:
         """Store the precomputed point sets; use ParallelPlateExtractor.prepare to build one."""
         self.electrodes = tuple(electrodes)
@@ -182,6 +187,7 @@ class PreparedParallelPlate:
         self.ncoords = area.phi.shape[1]
         self.eps = eps
         self.fringe = fringe if edge.gap.size else None
+        self.perforation = perforation
         self.chunk = max(1, chunk_elements // max(1, area.gap.size + edge.gap.size))
         # the effective gap left when the plate touches a layer (None: no layer, the gap's own 0)
         layers = [e.field_gap(eps / EPS0) - e.stop_gap for e in self.electrodes]
@@ -212,7 +218,7 @@ class PreparedParallelPlate:
         q, single = _as_samples(Q, self.ncoords)
         out = np.empty((q.shape[0], len(self.electrodes)))
         for sl, _, ga, ge, touch in self._blocks(q):
-            c = (1.0 / ga) @ self.area.weights
+            c = (self.areal(ga) / ga) @ self.area.weights
             if self.fringe is not None:
                 c += self.fringe.per_length(ge) @ self.edge.weights
             c *= self.eps
@@ -224,12 +230,13 @@ class PreparedParallelPlate:
     def gradient(self, Q: ArrayLike) -> Array:
         """Analytic dC_i/dq_v (nsamples, nelectrodes, ncoords); nan where touching.
 
-        dC/dq_v = eps [ int s phi_v / g^2 dA + int s phi_v b / g ds ]  (s = +1 above, -1 below).
+        dC/dq_v = eps [ int s phi_v / g^2 dA + int s phi_v b / g ds ]  (s = +1 above, -1 below);
+        a perforated plate's area term is int s phi_v (F / g^2 - F' / g) dA (areal_slope).
         """
         q, single = _as_samples(Q, self.ncoords)
         out = np.empty((q.shape[0], len(self.electrodes), self.ncoords))
         for sl, _, ga, ge, touch in self._blocks(q):
-            ha = self.area.point_weight / ga**2
+            ha = self.area.point_weight * self.areal_slope(ga)
             he = -self.fringe.derivative(ge) * self.edge.point_weight if self.fringe is not None else None
             for i in range(len(self.electrodes)):
                 a = self.area.slices[i]
@@ -241,6 +248,16 @@ class PreparedParallelPlate:
             if touch is not None:
                 out[sl][touch] = np.nan
         return out[0] if single else out
+
+    def areal(self, g: Array) -> Array | float:
+        """The plate term's fill factor at the local gaps g (1: a solid plate)."""
+        return 1.0 if self.perforation is None else self.perforation.fill(g)
+
+    def areal_slope(self, g: Array) -> Array:
+        """-d/dg (F(g) / g) = F / g^2 - F' / g: the plate term's weight in dC/dq."""
+        if self.perforation is None:
+            return 1.0 / g**2
+        return self.perforation.fill(g) / g**2 - self.perforation.derivative(g) / g
 
     def min_gap(self, Q: ArrayLike) -> Array:
         """Smallest local gap under each electrode (nsamples, nelectrodes); inf if no overlap.
@@ -275,6 +292,7 @@ class ParallelPlateExtractor:
     independent).  neighbour_gap: largest edge separation counted as "neighbouring"
     (None: the larger slot of the two shapes).  order / edge_order: Gauss points per panel.
     chunk_elements: samples are processed in chunks of about this many (sample, point) pairs.
+    perforation: the plate's etch-hole grid (None: solid), its fill factor F(g) on the plate term.
     """
 
     description: ClassVar[str] = "parallel-plate over the local gap + edge fringe"
@@ -287,6 +305,7 @@ class ParallelPlateExtractor:
     order: int = DEFAULT_ORDER
     edge_order: int = DEFAULT_EDGE_ORDER
     chunk_elements: int = 2**21
+    perforation: Perforation | None = None
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedParallelPlate:
         """Build quadrature for all electrodes and evaluate the basis once at all points."""
@@ -319,7 +338,8 @@ class ParallelPlateExtractor:
         fringe = self.fringe.resolved(plate.size) if self.fringe is not None else None
         if self.fringes is not None:
             fringe = self.point_fringe(edge, plate)
-        return PreparedParallelPlate(electrodes, *sets, self.eps, fringe, self.chunk_elements)
+        at, ed, pr = sets
+        return PreparedParallelPlate(electrodes, at, ed, pr, self.eps, fringe, self.chunk_elements, self.perforation)
 
     def point_fringe(self, edge: list, plate: Plate) -> PointFringe:
         """The per-electrode fringes as per-point coefficients over the electrodes' edge points."""
@@ -368,6 +388,10 @@ def from_structure(s, plate: Plate) -> ParallelPlateExtractor:
         fringe = EdgeFringe.palmer(plate.width)
     else:
         fringe = EdgeFringe(o.fringe_a, o.fringe_b, plate.size)
+    hole, pitch = float(getattr(s.conductor, "hole", 0.0)), float(getattr(s.conductor, "hole_pitch", 0.0))
     return ParallelPlateExtractor(
-        eps=EPS0 * o.relative_permittivity, fringe=fringe, coupling_per_length=o.coupling_per_length
+        eps=EPS0 * o.relative_permittivity,
+        fringe=fringe,
+        coupling_per_length=o.coupling_per_length,
+        perforation=Perforation(hole, pitch) if hole else None,
     )

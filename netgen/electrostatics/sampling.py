@@ -69,9 +69,29 @@ def sampling_grid(ncoords: int, levels: int, half_range: float) -> np.ndarray:
     return designs.full_grid(ncoords, levels, half_range)
 
 
+def box_factors(sampling, ncoords: int) -> np.ndarray:
+    """Each coordinate's half-width of the sampled box over `range` (1 without per-coordinate
+    ranges): a design drawn over +-range is multiplied by these, which is exact for 1."""
+    return np.array(sampling.factors, dtype=float) if sampling.factors else np.ones(ncoords)
+
+
+def coordinate_ranges(sampling, names: list[str]) -> np.ndarray:
+    """The half-width of each named coordinate's box from [sampling] range (a number, or a table
+    whose "*" or the default 0.2 covers the coordinates it does not name)."""
+    given = dict(sampling.ranges)
+    rest = given.get("*", 0.2) if given else sampling.range
+    return np.array([given.get(n, rest) for n in names], dtype=float)
+
+
 def design_points(sampling, ncoords: int) -> np.ndarray:
     """The points of a structure's [sampling] design (for "adaptive": its starting design, the
-    Smolyak level-1 grid, centre and axis ends, plus a Sobol set of 16 (n + 1) points)."""
+    Smolyak level-1 grid, centre and axis ends, plus a Sobol set of 16 (n + 1) points), each
+    coordinate within its own range (box_factors)."""
+    return unit_design(sampling, ncoords) * box_factors(sampling, ncoords)
+
+
+def unit_design(sampling, ncoords: int) -> np.ndarray:
+    """The design's points over +-range in every coordinate."""
     o, r = sampling, sampling.range
     if o.design == "grid":
         return designs.full_grid(ncoords, o.levels, r)
@@ -85,10 +105,13 @@ def design_points(sampling, ncoords: int) -> np.ndarray:
     return np.concatenate([designs.smolyak_points(ncoords, 1, r), start])[: o.points]
 
 
-def holdout_points(ncoords: int, count: int, half_range: float, seed: int) -> np.ndarray:
-    """Uniform random points inside the sampled box (held out from the fit)."""
+def holdout_points(
+    ncoords: int, count: int, half_range: float, seed: int, factors: np.ndarray | None = None
+) -> np.ndarray:
+    """Uniform random points inside the sampled box (held out from the fit); `factors` as box_factors."""
     rng = np.random.default_rng(seed)
-    return rng.uniform(-half_range, half_range, size=(count, ncoords))
+    x = rng.uniform(-half_range, half_range, size=(count, ncoords))
+    return x if factors is None else x * factors
 
 
 def touch_amplitudes(prepared: PreparedExtractor, ncoords: int, gaps: np.ndarray) -> np.ndarray:
@@ -200,7 +223,8 @@ def rest_of(prepared: PreparedExtractor, scales: np.ndarray) -> Rest:
 
 def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress: bool = False, **parallel) -> Samples:
     """Held-out check samples: uniform random points (seeded) inside the sampled box."""
-    x = holdout_points(len(scales), s.fit.holdout, s.sampling.range, s.fit.seed)
+    n = len(scales)
+    x = holdout_points(n, s.fit.holdout, s.sampling.range, s.fit.seed, box_factors(s.sampling, n))
     return sample_points(prepared, x, scales, progress, "held-out samples", **parallel)
 
 

@@ -184,7 +184,18 @@ def header_context(model: MacroModel) -> dict:
         "tie_text": tie_text,
         "fit_warning": model.fit_warning(),
         "damping_text": damping_text(model),
-    }
+    } | box_texts(model)
+
+
+def box_texts(model: MacroModel) -> dict:
+    """The sampled box in the header: one half-width for every coordinate, or each coordinate's own
+    (a [sampling] range table; the JSON's sampling.coordinate_range)."""
+    r, per = model.sampling["range"], model.sampling.get("coordinate_range")
+    if not per:
+        return {"box_text": f"{r * 100} %", "keep_text": f"|xs| below {r}"}
+    pct = ", ".join(f"{n} {v * 100:.4g} %" for n, v in per.items())
+    each = ", ".join(f"{n} {v:.4g}" for n, v in per.items())
+    return {"box_text": f"({pct})", "keep_text": f"each |xs| within its own half-width ({each})"}
 
 
 def layer_text(model: MacroModel) -> str:
@@ -342,10 +353,11 @@ def stop_constants(model: MacroModel) -> dict | None:
 
 
 def contact_terms(
-    model: MacroModel, access: str = "v({})", var: str = "v({})"
+    model: MacroModel, access: str = "v({})", var: str = "v({})", offsets: list[str] | None = None
 ) -> tuple[list[dict], list[list[tuple[str, float]]]]:
     """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
-    per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta."""
+    per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta. `offsets`: per
+    stop point a text appended to its penetration (a gap offset's - dg / gap_j, netgen.emit.process)."""
     points: list[dict] = []
     per_coord: list[list[tuple[str, float]]] = [[] for _ in model.coordinates]
     k = stop_constants(model)
@@ -358,6 +370,7 @@ def contact_terms(
         g, f = stop_name(j)
         used = [(v, a) for v, a in enumerate(a_j) if a != 0.0]
         gap_expr = " + ".join(f"{num(a)}*{xs[v]}" for v, a in used).replace("+ -", "- ") + " - 1"
+        gap_expr += offsets[j] if offsets else ""
         r = f"min(max({var.format(g)}, 0), {num(delta)})"
         rate = " + ".join(f"{num(a * ws)}*{us[v]}" for v, a in used).replace("+ -", "- ")
         pen = (

@@ -108,7 +108,7 @@ def noise_context(model: MacroModel, ws: float) -> dict:
             "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws)),
         }
         | (
-            {"rn": process.factor(model, "pd", c.name, num(c.damping / c.port_units[3] ** 2))}
+            {"rn": process.factor(model, "pd", c.name, num(noise_resistance(c.damping, c.port_units[3])))}
             if process.enabled(model)
             else {}
         )
@@ -127,6 +127,15 @@ def noise_context(model: MacroModel, ws: float) -> dict:
 # ngspice's default circuit temperature (degC): a .noise resistor's (with [process]) noise temperature
 # is it plus dtemp; the resistor form of 4 k_B T D assumes that .temp (ngspice 39 ignores a resistor's temp=)
 NGSPICE_TEMP_C = 27.0
+# ngspice's Boltzmann constant (CONSTboltz in its const.h: CODATA 2014, 1.38064852e-23 J/K, in 39 and
+# 46 alike): a resistor's noise PSD is 4 CONSTboltz T R, 3.5e-7 below 4 K_B T R with the exact SI K_B
+K_B_NGSPICE = 1.38064852e-23
+
+
+def noise_resistance(damping: float, force_unit: float) -> float:
+    """The .noise resistor whose ngspice noise PSD 4 CONSTboltz T R is 4 K_B T D in force-port units
+    (D / unit^2 scaled by K_B / K_B_NGSPICE); it carries no current, so only its noise sees R."""
+    return damping / force_unit**2 * (K_B / K_B_NGSPICE)
 
 
 TEMPLATE = "ngspice/subckt.lib.j2"
@@ -134,7 +143,7 @@ TEMPLATE = "ngspice/subckt.lib.j2"
 
 def mechanics_context(model: MacroModel, noise: bool | None, gaps: bool = True) -> dict:
     """Template context of every part of the .lib but the electrostatics: the header tables, the
-    integrators of each coordinate, thermal noise, stress stiffening, film branches and inertial
+    integrators of each coordinate, thermal noise, strain-energy forces, film branches and inertial
     loads (shared with netgen.emit.xspice)."""
     ws = time_scale(model)
     state = [f"xs_{c.name}" for c in model.coordinates]
@@ -193,7 +202,7 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
     for i, (row, f) in enumerate(zip(ctx["fits"], model.capacitances)):
         fstate = process.electrode_state(model, f.electrode, state)
         row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), fstate))
-    stops, per_coord = contact_terms(model)
+    stops, per_coord = contact_terms(model, offsets=process.stop_offsets(model, braces=True))
     for pt in stops:  # no penetration, no force: the ternary skips the penalty's derivative trees
         pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
     add_stops(ctx, model, stops, per_coord)
@@ -350,7 +359,10 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                         "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
                     }
                     | (
-                        {"rn": num(r / c.port_units[3] ** 2), "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C)}
+                        {
+                            "rn": num(noise_resistance(r, c.port_units[3])),
+                            "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
+                        }
                         if process.enabled(model)
                         else {}
                     )

@@ -1,4 +1,4 @@
-"""The process instance parameters (tscale, escale, temp, dg_<set>) as netlist text: the laws of
+"""The process instance parameters (tscale, escale, temp, etch, dg_<set>) as netlist text: the laws of
 netgen.model.process (MacroModel.process) rendered as parameter expressions, shared by the
 dialects (the expressions use only + - * / and parentheses: valid in ngspice .param and Verilog-A).
 No physics here: every number comes from the model."""
@@ -26,7 +26,12 @@ def declared(model: MacroModel, name: str) -> bool:
 
 # the derived ratios each parameter moves (netgen.emit.process.factors): pm mass, pk stiffness,
 # pd damping, pt the noise PSD
-MOVES = {"pm": ("tscale",), "pk": ("tscale", "escale", "temp"), "pd": ("tscale", "temp"), "pt": ("tscale", "temp")}
+MOVES = {
+    "pm": ("tscale", "etch"),
+    "pk": ("tscale", "escale", "temp", "etch"),
+    "pd": ("tscale", "temp", "etch"),
+    "pt": ("tscale", "temp", "etch"),
+}
 
 
 def active(model: MacroModel, kind: str) -> bool:
@@ -42,6 +47,7 @@ def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
     p = model.process
     out = [(n, "1") for n in ("tscale", "escale") if declared(model, n)]
     out += [("temp", f"{p['temperature_C']:.6g}")] if declared(model, "temp") else []
+    out += [("etch", "0")] if declared(model, "etch") else []
     return out + ([(f"dg_{g['set']}", "0") for g in p["gaps"]] if gaps else [])
 
 
@@ -71,17 +77,28 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     t0 = p["temperature_C"] + KELVIN
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
-            out.append((f"pm_{c.name}", f"{poly(law['mass'], tscale)}/{num(c.mass)}"))
+            out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
         if c.stiffness and active(model, "pk"):
-            stiff = join([f"pe*{poly(law['a'], tscale)}", poly(law["b"], tscale)], [law["a"], law["b"]])
+            stiff = join([f"pe*{part(model, law, 'a', tscale)}", part(model, law, "b", tscale)], [law["a"], law["b"]])
             out.append((f"pk_{c.name}", f"{stiff}/{num(c.stiffness)}"))
         if c.damping and active(model, "pd"):
             damp = join(
-                [poly(law["d_rest"], tscale), f"pv*{poly(law['d_film'], tscale)}"], [law["d_rest"], law["d_film"]]
+                [part(model, law, "d_rest", tscale), f"pv*{part(model, law, 'd_film', tscale)}"],
+                [law["d_rest"], law["d_film"]],
             )
             out.append((f"pd_{c.name}", f"{damp}/{num(c.damping)}"))
             out.append((f"pt_{c.name}", f"pd_{c.name}*({temp} + {num(KELVIN)})/{num(t0)}"))
     return out
+
+
+def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
+    """One law part's text: its tscale cubic, times its etch ratio (a cubic in etch / 1 um,
+    netgen.model.process.etch_laws) where etch is declared and the ratio is not identically 1."""
+    text = poly(law[key], tscale)
+    ratio = law.get("etch", {}).get(key, [1.0, 0.0, 0.0, 0.0])
+    if not declared(model, "etch") or list(ratio) == [1.0, 0.0, 0.0, 0.0]:
+        return text
+    return f"{text}*{poly(ratio, '(1e6*etch)')}"
 
 
 def join(parts: list[str], coeffs: list[list[float]]) -> str:
@@ -151,15 +168,33 @@ def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list
     return [f"I{name}_dg 0 {name} {{{num(c * shift[1])}*dg_{shift[0]}}}"] if c else []
 
 
-def gap_networks(model: MacroModel) -> list[str]:
-    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (1 ohm,
-    a VCCS, a parameter current source: linear, nothing to differentiate)."""
+def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
+    """Per contact stop point the text its penetration p_j = a_j . xs - 1 gains from its electrode's
+    gap offset: moving the set away by dg deepens every local gap by dg, so p_j - dg / gap_j (the
+    stop follows the electrode; netgen.model.contact). ngspice text in braces (numparam), Verilog-A
+    plain; None without gap offsets (the expressions unchanged)."""
+    shifts = gap_shifts(model)
+    points = model.contact.get("points", [])
+    if not shifts or not points:
+        return None
+    out = []
+    for pt in points:
+        shift = shifts.get(pt["electrode"])
+        term = f"{num(1.0 / pt['gap'])}*dg_{shift[0]}" if shift else ""
+        out.append(f" - {{{term}}}" if shift and braces else f" - {term}" if shift else "")
+    return out
+
+
+def gap_networks(model: MacroModel, every: bool = False) -> list[str]:
+    """ngspice lines of the shifted nodes xg_<set> = xs_z - sign dg_<set> / L_z of node_sets (`every`:
+    of every gap set, the code model's extra state columns, netgen.emit.xspice) (1 ohm, a VCCS, a
+    parameter current source: linear, nothing to differentiate)."""
     if not enabled(model):
         return []
     scale = {c.name: c.scale for c in model.coordinates}.get("z")
     lines = []
     for g in model.process["gaps"]:
-        if g["set"] not in node_sets(model):
+        if not every and g["set"] not in node_sets(model):
             continue
         n = f"xg_{g['set']}"
         lines += [
@@ -204,6 +239,14 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         )
         text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
         parts.append(text)
+    if declared(model, "etch"):
+        e = p["etch"]
+        lo, hi = (x * 1e6 for x in e["range_m"])
+        parts.append(
+            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), valid {lo:g}..{hi:g} um, "
+            + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
+            + f" (mass outline, holes and plates not etched: their area would change by up to {e['unetched_area_rel']:.1e})"
+        )
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
     for g in p["gaps"] if gaps else []:
@@ -234,6 +277,7 @@ def va_params(model: MacroModel) -> list[dict]:
         "tscale": (p["tscale"]["range"], "device-layer thickness / nominal, valid {:g}..{:g}"),
         "escale": (p["escale"]["range"], "Young's modulus / nominal, valid {:g}..{:g}"),
         "temp": (p["temp"]["range_C"], "die temperature, degC, valid {:g}..{:g} (thermal noise at temp + 273.15 K)"),
+        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "flexure over-etch per edge, m, valid {:g}..{:g}"),
     }
     for name, default in params(model, gaps=False):
         (lo, hi), text = ranges[name]

@@ -180,7 +180,7 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
     y_vars = ctx["w_vars"] + ctx["b_vars"] + ctx["vf_vars"] + [s["name"] for s in ctx["stiffness"]]
     y_vars += [n for x in ctx["frozen"] for n in (x["xf"], x["dx"])]
-    ctx["stops"], _ = contact_terms(model, access=VA, var="{}")
+    ctx["stops"], _ = contact_terms(model, access=VA, var="{}", offsets=process.stop_offsets(model, braces=False))
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
     check_identifiers(
         [model.name]

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.templating import render
 from ..model import MacroModel
-from . import ngspice
+from . import ngspice, process
 from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale
 
 # ------------------------------------------------------------------ the XSPICE code model form
@@ -51,10 +51,34 @@ def fit_rows(model: MacroModel, f) -> dict:
     }
 
 
+def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, int]]:
+    """The code model's extra state columns for the gap offsets (netgen.emit.process): one node
+    xg_<set> = xs_z - sign dg_<set> / L_z per gap set, and electrode -> its column. An electrode of
+    the set reads its z exponents, and a stop point on it its z normal, from that column; the
+    column's force output goes to u_z with z's gain (dC/dxg = dC/dxs_z): the shift exact, the
+    compiled code model unchanged."""
+    if not process.enabled(model):
+        return [], {}
+    n, sets = model.ncoords, [g["set"] for g in model.process["gaps"]]
+    shifts = process.gap_shifts(model)
+    return [f"xg_{s}" for s in sets], {e: n + sets.index(g) for e, (g, _) in shifts.items()}
+
+
+def moved(row, z: int, col: int | None, width: int) -> list:
+    """A row over the coordinates widened to `width` columns, its z entry moved to column `col`."""
+    out = list(row) + [0] * (width - len(row))
+    if col is not None:
+        out[col], out[z] = out[z], 0
+    return out
+
+
 def code_model_context(model: MacroModel, ws: float) -> dict:
     """The netgen_es instances and their .model card: every plate term as monomials of its
-    polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form)."""
-    n = model.ncoords
+    polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form);
+    with gap offsets the extra columns of gap_columns."""
+    extra, column = gap_columns(model)
+    n = model.ncoords + len(extra)
+    z = [c.name for c in model.coordinates].index("z") if extra else 0
     clamps = model.term_clamps()
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
@@ -72,20 +96,24 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
                 if c != 0.0:
                     p["mono_term"].append(term)
                     p["mono_coef"].append(float(c))
-                    p["mono_exp"].extend(int(x) for x in e)
+                    p["mono_exp"].extend(int(x) for x in moved(e, z, column.get(f.electrode), n))
     gains = [force_gain(c, ws) for c in model.coordinates]
+    gains += [gains[z]] * len(extra)
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
+    p["fgain"] += [p["fgain"][z]] * len(extra)
     stops = stop_constants(model)
     nstop = len(stops["a"]) if stops else 1  # the model card needs the vectors even without stops
     sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
-        sa[:] = stops["a"]
-        sg[:] = np.asarray(stops["gain"]) * np.asarray(gains)[None, :]
+        for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
+            col = column.get(pt["electrode"])
+            sa[j] = moved(a, z, col, n)
+            sg[j] = np.asarray(moved(g, z, col, n)) * np.asarray(gains)
     sr = sa * ws
     p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
-    xs = " ".join(f"xs_{c.name}" for c in model.coordinates)
-    us = " ".join(f"u_{c.name}" for c in model.coordinates)
+    xs = " ".join([f"xs_{c.name}" for c in model.coordinates] + extra)
+    us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[z].name}"] * len(extra))
     ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
     cs = " ".join(c_node(f.electrode) for f in model.capacitances)
     return {
@@ -104,7 +132,8 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     problem = refusal(model)
     if problem:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
-    ctx = ngspice.mechanics_context(model, noise, gaps=False)  # the code model reads xs_z itself
+    ctx = ngspice.mechanics_context(model, noise)
+    ctx["gap_shift"] = process.gap_networks(model, every=True)  # the code model's extra columns
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees
         row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..electrostatics import designs
-from ..electrostatics.sampling import Samples
+from ..electrostatics.sampling import Samples, box_factors
 from ..geometry.shapes import Electrode
 from ..structure import Structure
 from .capacitance import (
@@ -52,9 +52,11 @@ class AdaptiveResult:
 class ProbeStream:
     """Seeded Sobol points (a different seed from the design's start) handed out in order."""
 
-    def __init__(self, ncoords: int, half_range: float, seed: int, total: int):
+    def __init__(self, ncoords: int, half_range: float, seed: int, total: int, factors: np.ndarray | None = None):
         count = 1 << max(0, total - 1).bit_length()
         self.points = designs.sobol(ncoords, count, half_range, seed + 7919)
+        if factors is not None:  # per-coordinate ranges (netgen.electrostatics.sampling.box_factors)
+            self.points = self.points * factors
         self.next = 0
 
     def take(self, k: int) -> np.ndarray:
@@ -80,7 +82,9 @@ def adaptive_fits(
     n, tol, budget = len(scales), s.fit.tolerance, s.sampling.points
     check_determined(s, start.x)
     batch, pool_size = 3 * (n + 1), 2 * max(s.fit.holdout, 6 * (n + 1))  # probes: twice the held-out points
-    stream = ProbeStream(n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size)
+    stream = ProbeStream(
+        n, s.sampling.range, s.sampling.seed, budget + (2 + 2 * VALIDATIONS) * pool_size, box_factors(s.sampling, n)
+    )
     train, probes = start, evaluate(stream.take(pool_size))
     spent, validations, since = design_size(probes), 0, 0
     fits, used = fit_round(s, shapes, basis, scales, train, probes, Round(range(len(shapes)), [0] * len(shapes)))

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..core.errors import StructureError
-from ..electrostatics.sampling import design_points
+from ..electrostatics.sampling import box_factors, design_points
 from ..structure import Structure
 from ..structure.schema import smolyak_count
 from .capacitance import MAX_NFEV, PATCH_GRIDS
@@ -66,6 +66,7 @@ def extractor_time(prepared, s: Structure, scales: np.ndarray) -> float:
         design_points(s.sampling, len(scales))[:CALIBRATION_POINTS]
         if s.sampling.design != "grid"
         else np.random.default_rng(0).uniform(-s.sampling.range, s.sampling.range, (CALIBRATION_POINTS, len(scales)))
+        * box_factors(s.sampling, len(scales))
     )
     t0 = time.perf_counter()
     prepared.capacitance(x[:1] * scales)

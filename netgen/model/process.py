@@ -1,7 +1,8 @@
 """Process spread as instance parameters (opt-in: only for a structure with [process], and only the
 parameters it declares; netgen.structure.process_table): the laws by which a built model's numbers change with the
-device-layer thickness (tscale), Young's modulus (escale), the die temperature (temp, degC) and a
-gap offset per electrode set (dg_<set>, m), derived here once so that emitters only render them.
+device-layer thickness (tscale), Young's modulus (escale), the die temperature (temp, degC), a
+gap offset per electrode set (dg_<set>, m) and the flexures' lateral etch bias (etch, m), derived here
+once so that emitters only render them.
 
 - tscale: mass, stiffness and damping of every coordinate as cubic polynomials in tscale, fitted to
   the mechanics (netgen.mechanics) and damping (netgen.mechanics.damping) re-run with the conductor's
@@ -22,6 +23,10 @@ gap offset per electrode set (dg_<set>, m), derived here once so that emitters o
   rigid translation), so each of the set's capacitance terms reads xs_z - sign dg / L_z, whatever its
   fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
   |xs_z - sign dg / L_z| <= range).
+- etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
+  its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
+  law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
+  product's misfit at the (tscale, etch) box's corners is part of the stated error).
 """
 
 from __future__ import annotations
@@ -82,7 +87,9 @@ def fit_points(p: Process) -> tuple[float, ...]:
     return (lo, (lo + 1.0) / 2, 1.0, (1.0 + hi) / 2, hi)
 
 
-def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, float]:
+def power_fit(
+    x: tuple[float, ...], values: np.ndarray, scale: np.ndarray, nominal: float = 1.0
+) -> tuple[np.ndarray, float]:
     """Cubic polynomials c0 + c1 x + c2 x^2 + c3 x^3 per column of `values` (least squares over the
     points: one more than the coefficients; c0 then set so the fit is exact at x = 1), and the
     largest residual at the points relative to `scale` (per point and column: the quantity it is a
@@ -98,7 +105,7 @@ def power_fit(x: tuple[float, ...], values: np.ndarray, scale: np.ndarray) -> tu
     # parameters = the model's own numbers: a ratio of exactly 1) by scaling the polynomial, which
     # keeps a pure power law's zeros (adding the misfit to c0 wrote a round-off c0 into the netlist)
     coef[np.abs(coef) < 1e-9 * np.max(np.abs(coef), axis=0, initial=0.0)] = 0.0
-    one = x.index(1.0)
+    one = x.index(nominal)
     at_one = v[one] @ coef
     ok = at_one != 0.0
     coef[:, ok] *= values[one][ok] / at_one[ok]
@@ -205,6 +212,7 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
     t0 = d.temperature if d else 300.0
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
     dg_max = sampling_range * scale_z / 4 if scale_z else 0.0
+    etch_err = etch_laws(s, m, run, film, p, per) if p.wants("etch") else 0.0
     out: dict[str, Any] = {
         "parameters": list(p.parameters),
         "temperature_C": t0 - KELVIN,
@@ -223,9 +231,131 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
         "coordinates": per,
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
+    if p.wants("etch"):
+        out["etch"] = etch_record(s, p, etch_err)
     if d and d.film_model == "compressible":
         out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
     return out
+
+
+ETCH_UNIT = 1e-6  # m: the etch laws are polynomials in etch / 1 um
+LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
+
+
+def etched(s: Structure, etch: float) -> Structure:
+    """The structure with every flexure beam etched by `etch` per edge (m; negative: under-etch): beam,
+    truss and thigh widths w - 2 etch. Beam lengths and the beams' spacing (centre to centre) stay:
+    they are set by the anchors' and the mass's edges, which recede together; the mass outline, its
+    holes and the plates are not etched (etch_record states how much that neglects)."""
+    c: Any = s.conductor
+    f = c.flexure
+    w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
+    return dataclasses.replace(s, conductor=dataclasses.replace(c, flexure=dataclasses.replace(f, **w)))
+
+
+def etch_points(p: Process) -> tuple[float, ...]:
+    """The etch biases (m) the mechanics are re-run at: five across etch_range, the nominal 0 among them."""
+    lo, hi = p.etch_range
+    return (lo, lo / 2, 0.0, hi / 2, hi)
+
+
+def point_values(s: Structure, run, film: bool, modulus: bool, names: list[str], m: Mechanics | None = None) -> dict:
+    """Mass, K's modulus part a and rest b, damping without and with the squeeze film per coordinate of
+    structure `s` (mechanics `m` when already run), as in mechanics_laws."""
+    m1 = m if m is not None else run(s)
+    m2 = run(scaled(s, 1.0, E_PROBE)) if modulus else m1
+    if list(m1.names) != names or list(m2.names) != names:
+        raise ValueError("the coordinates change with the etch bias")
+    a = (m2.stiffnesses - m1.stiffnesses) / (E_PROBE - 1.0) if modulus else np.zeros(len(names))
+    rest, total = damping_parts(s, m1, film)
+    vals = (m1.masses, a, m1.stiffnesses - a, rest, total - rest)
+    return {k: np.asarray(v, dtype=float) for k, v in zip(LAW_KEYS, vals)}
+
+
+def etch_laws(s: Structure, m: Mechanics, run, film: bool, p: Process, per: list[dict]) -> float:
+    """Per coordinate the etch ratios (cubics in etch / ETCH_UNIT, 1 at 0) of mass, a, b and the damping
+    parts, from re-runs at etch_points (thickness nominal), stored as per[v]["etch"]; the value at
+    (tscale, etch) is the tscale law times the ratio. Returns the error: the largest of the fits'
+    residuals and, with tscale, the product's misfit at the four corners of the (tscale, etch) box
+    against re-runs there (0 for laws separable in t and w: k ~ t w^3 in plane, w t^3 out of plane;
+    torsion is not), relative to the total mass, stiffness or damping there."""
+    names, modulus = list(m.names), p.wants("escale") or p.wants("temp")
+    points = etch_points(p)
+    rows = [point_values(etched(s, e), run, film, modulus, names, m if e == 0.0 else None) for e in points]
+    u = tuple(e / ETCH_UNIT for e in points)
+    errors = []
+    for key in LAW_KEYS:
+        vals = np.array([r[key] for r in rows])
+        coef, err = power_fit(u, vals, totals(rows, key), nominal=0.0)
+        nominal, scale = vals[points.index(0.0)], totals(rows, key)
+        for v, c in enumerate(per):
+            # a part at the re-runs' round-off of its total (b of pure beams: K - a) carries no ratio
+            ok = abs(nominal[v]) > 1e-9 * scale[points.index(0.0), v]
+            c.setdefault("etch", {})[key] = [float(x / nominal[v]) for x in coef[v]] if ok else [1.0, 0.0, 0.0, 0.0]
+            if not ok:  # a part that is zero at the nominal etch must stay zero (no ratio can carry it)
+                err = max(err, float(np.max(np.abs(vals[:, v] - nominal[v]) / np.maximum(scale[:, v], 1e-300))))
+        errors.append(err)
+    if p.wants("tscale"):
+        errors.append(corner_misfit(s, run, film, modulus, names, p, per))
+    worst = max(errors)
+    return worst if worst > ROUND_OFF else 0.0
+
+
+def totals(rows: list[dict], key: str) -> np.ndarray:
+    """|the total| a law part belongs to, per point and coordinate: mass, stiffness a + b, damping."""
+    group = {
+        "mass": ("mass",),
+        "a": ("a", "b"),
+        "b": ("a", "b"),
+        "d_rest": ("d_rest", "d_film"),
+        "d_film": ("d_rest", "d_film"),
+    }
+    return np.abs(np.array([sum(r[k] for k in group[key]) for r in rows]))
+
+
+def law_value(c: dict, key: str, tscale: float, etch: float) -> float:
+    """Law part `key` of one coordinate's law at (tscale, etch): the tscale cubic times the etch ratio."""
+    t = float(np.dot(c[key], [1.0, tscale, tscale**2, tscale**3]))
+    if "etch" not in c:
+        return t
+    u = etch / ETCH_UNIT
+    return t * float(np.dot(c["etch"][key], [1.0, u, u**2, u**3]))
+
+
+def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str], p: Process, per: list[dict]) -> float:
+    """The largest misfit of the product laws at the corners of the (tscale, etch) box against re-runs."""
+    worst = 0.0
+    for tau in p.tscale_range:
+        for e in p.etch_range:
+            ref = point_values(etched(scaled(s, tau), e), run, film, modulus, names)
+            for key in LAW_KEYS:
+                scale = totals([ref], key)[0]
+                for v, c in enumerate(per):
+                    if scale[v] > 0:
+                        worst = max(worst, abs(law_value(c, key, tau, e) - ref[key][v]) / scale[v])
+    return worst
+
+
+def etch_record(s: Structure, p: Process, err: float) -> dict:
+    """The etch entry of the process record: range, law error, the polynomial variable, and the relative
+    change of the mass outline's area (holes included) the laws neglect at the range's ends."""
+    c: Any = s.conductor
+    nx, ny = c.holes()
+
+    def area(e: float) -> float:
+        return (
+            (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
+            if c.hole
+            else (c.length - 2 * e) * (c.width - 2 * e)
+        )
+
+    a0 = area(0.0)
+    return {
+        "range_m": list(p.etch_range),
+        "max_rel_error": float(err),
+        "variable": "etch / 1 um",
+        "unetched_area_rel": max(abs(area(e) / a0 - 1.0) for e in p.etch_range),
+    }
 
 
 def kelvin(temp_c: float) -> float:
@@ -238,23 +368,48 @@ def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
     return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
 
 
-def coordinate_values(law: dict, v: int, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None):
+def coordinate_values(
+    law: dict, v: int, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None, etch: float = 0.0
+):
     """(mass, stiffness, damping) of coordinate v at the process point, from the laws (the same
     arithmetic the emitters render)."""
     temp_c = law["temperature_C"] if temp_c is None else temp_c
     c = law["coordinates"][v]
-    p = [1.0, tscale, tscale**2, tscale**3]
-    mass, a, b = (float(np.dot(c[k], p)) for k in ("mass", "a", "b"))
+    mass, a, b, d_rest, d_film = (law_value(c, k, tscale, etch) for k in LAW_KEYS)
     visc = law["temp"]["viscosity"]
     ratio = (
         float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
         if visc
         else 1.0
     )
-    damp = float(np.dot(c["d_rest"], p)) + ratio * float(np.dot(c["d_film"], p))
+    damp = d_rest + ratio * d_film
     return mass, modulus_factor(law, escale, temp_c) * a + b, damp
 
 
 def finite_law(law: dict) -> bool:
     """Every number in the law is finite (JSON-safe)."""
-    return all(math.isfinite(x) for c in law.get("coordinates", []) for k in c for x in c[k])
+    parts = [x for c in law.get("coordinates", []) for k in LAW_KEYS for x in c[k]]
+    parts += [x for c in law.get("coordinates", []) for k in c.get("etch", {}) for x in c["etch"][k]]
+    return all(math.isfinite(x) for x in parts)
+
+
+# the parameters a sweep moves by instance parameters (netgen.sweep): the laws change only the
+# coordinates' numbers for these; temp's viscosity law has no rebuild to compare with (the damping
+# stage keeps the gas at its tabulated viscosity) and dg moves the fits' box
+SWEPT = ("tscale", "escale")
+
+
+def at_point(model: Any, tscale: float = 1.0, escale: float = 1.0) -> Any:
+    """A MacroModel's copy at a process point, for the loop design and analysis of a run whose netlist
+    takes the point as instance parameters (netgen.sweep): each coordinate's mass, stiffness and
+    damping from the laws (coordinate_values, the arithmetic the emitters render) and its frequency
+    from them, the a_in participation times tscale (as the emitters scale the port); the fits are
+    the model's (plate electrodes depend on neither t nor E)."""
+    law = model.process
+    coords = []
+    for v, c in enumerate(model.coordinates):
+        mass, stiffness, damping = coordinate_values(law, v, tscale=tscale, escale=escale)
+        freq = math.sqrt(stiffness / mass) / (2 * math.pi) if stiffness > 0 else 0.0
+        coords.append(dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq))
+    accel = [g * tscale for g in model.acceleration]
+    return dataclasses.replace(model, coordinates=coords, acceleration=accel)

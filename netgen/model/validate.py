@@ -107,6 +107,12 @@ def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) 
             c.number(f"sampling.{key}", d["sampling"][key], integer=True)
     if "range" in d["sampling"]:
         c.number("sampling.range", d["sampling"]["range"])
+    per = d["sampling"].get("coordinate_range", {})  # printed in the headers: names and numbers only
+    if not isinstance(per, dict):
+        c.fail("sampling.coordinate_range", "must be an object {coordinate: half-width}")
+    for name, value in per.items():
+        c.name("sampling.coordinate_range", name)
+        c.number(f"sampling.coordinate_range.{name}", value)
 
 
 def check_names(c: Checker, d: dict) -> None:
@@ -245,6 +251,21 @@ def check_inertial(c: Checker, block: Any, n: int) -> None:
                     c.number(f"{where}[{r}][{k}]" if rank == 2 else f"{where}[{k}]", x)
 
 
+def check_etch_law(c: Checker, law: Any, where: str, declared: bool) -> None:
+    """A coordinate's etch ratios (netgen.model.process.etch_laws): four numbers per law part where
+    etch is declared (the emitters write them), absent otherwise."""
+    if law is None and not declared:
+        return
+    if not isinstance(law, dict) or not declared:
+        c.fail(where, "must be an object of the etch ratios, present only when etch is a parameter")
+    for key in ("mass", "a", "b", "d_rest", "d_film"):
+        row = law.get(key)
+        if not isinstance(row, list) or len(row) != 4:
+            c.fail(f"{where}.{key}", "must be a list of 4 numbers")
+        for k, x in enumerate(row):
+            c.number(f"{where}.{key}[{k}]", x)
+
+
 def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int = 0) -> None:
     """The optional process record (netgen.model.process), whose numbers and names the emitters write
     into the netlist (netgen.emit.process): its parameters are known names, its laws finite numbers
@@ -258,7 +279,7 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
     if not isinstance(params, list) or not params:
         c.fail("process.parameters", "must be a non-empty list")
     for i, p in enumerate(params):
-        c.choice(f"process.parameters[{i}]", p, ("dg", "tscale", "escale", "temp"))
+        c.choice(f"process.parameters[{i}]", p, ("dg", "tscale", "escale", "temp", "etch"))
     c.number("process.temperature_C", process.get("temperature_C"))
     c.number("process.modulus_tc_per_K", process.get("modulus_tc_per_K"))
     laws = process.get("coordinates")
@@ -271,6 +292,7 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
                 c.fail(f"process.coordinates[{v}].{key}", "must be a list of 4 numbers")
             for k, x in enumerate(row):
                 c.number(f"process.coordinates[{v}].{key}[{k}]", x)
+            check_etch_law(c, law.get("etch"), f"process.coordinates[{v}].etch", "etch" in params)
     for where in ("tscale.range", "escale.range", "temp.range_C"):
         outer, inner = where.split(".")
         rng = (process.get(outer) or {}).get(inner)
@@ -279,6 +301,14 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
         for k, x in enumerate(rng):
             c.number(f"process.{where}[{k}]", x)
     c.number("process.tscale.max_rel_error", process["tscale"].get("max_rel_error"))
+    if "etch" in params:
+        etch = process.get("etch")
+        if not isinstance(etch, dict) or not isinstance(etch.get("range_m"), list) or len(etch["range_m"]) != 2:
+            c.fail("process.etch.range_m", "must be a list of 2 numbers")
+        for k, x in enumerate(etch["range_m"]):
+            c.number(f"process.etch.range_m[{k}]", x)
+        for key in ("max_rel_error", "unetched_area_rel"):
+            c.number(f"process.etch.{key}", etch.get(key))
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))

@@ -113,7 +113,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     sets = conductor.read_electrodes(rd, doc)
     electrode_names(rd, sets)
     coords = conductor.read_coordinates(rd, doc)
-    sampling, fit = read_sampling(rd, doc, coords.count), read_fit(rd, doc)
+    sampling, fit = read_sampling(rd, doc, coords.count, conductor.coordinate_names(coords)), read_fit(rd, doc)
     if sampling.design == "grid" and fit.degree >= sampling.levels:
         raise rd.fail(
             "fit.degree",
@@ -150,7 +150,8 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     )
     imported = bool(structure.imports and structure.imports.modes)
     t0_c = (structure.damping.temperature if structure.damping else 300.0) - 273.15
-    check_process(rd, structure.process, conductor.coordinate_names(coords) or list(coords.rigid), sets, imported, t0_c)
+    names = conductor.coordinate_names(coords) or list(coords.rigid)
+    check_process(rd, structure.process, names, sets, imported, t0_c, conductor)
     return structure
 
 
@@ -186,27 +187,13 @@ def load_structure(path: str | Path) -> Structure:
 # ---------------------------------------------------------------- sections of every kind
 
 
-def read_sampling(rd: Reader, doc: dict, ncoords: int) -> Sampling:
+def read_sampling(rd: Reader, doc: dict, ncoords: int, names: list[str] | None = None) -> Sampling:
     """[sampling]: the design (default: the grid when `levels` is given or up to GRID_DEFAULT_MAX
     coordinates, else the sparse grid), its own keys (a key of another design is refused) and the
-    box range."""
+    box range (one number, or a table per coordinate: read_range)."""
     t = table(rd, doc, "sampling", required=False)
     check_keys(rd, "sampling", t, ["design", "levels", "range", "level", "points", "seed"])
-    rng = quantity(
-        rd,
-        t,
-        "sampling",
-        "range",
-        "dimensionless",
-        default=0.2,
-        check=lambda v: (
-            None
-            if 0 < v < 0.9
-            else "must lie in (0, 0.9): it is a fraction of the "
-            "amplitude at which the plate touches an electrode, and 1 means contact"
-        ),
-        what="sampling range as a fraction of the touching amplitude",
-    )
+    rng, ranges = read_range(rd, t, names)
     design = choice(rd, t, "sampling", "design", list(DESIGNS), "grid" if "levels" in t else default_design(ncoords))
     for key, owners in DESIGN_KEYS.items():
         if key in t and design not in owners:
@@ -247,7 +234,43 @@ def read_sampling(rd: Reader, doc: dict, ncoords: int) -> Sampling:
         points=points,
         seed=integer(rd, t, "sampling", "seed", 1, 0, 2**31 - 1, "random seed of the design"),
         range_given="range" in t,
+        ranges=ranges,
     )
+
+
+def range_problem(v: float) -> str | None:
+    """The sampling range's bounds: a fraction of the touching amplitude, below contact."""
+    if 0 < v < 0.9:
+        return None
+    return "must lie in (0, 0.9): it is a fraction of the amplitude at which the plate touches an electrode, and 1 means contact"
+
+
+def read_range(rd: Reader, t: dict, names: list[str] | None) -> tuple[float, tuple[tuple[str, float], ...]]:
+    """`range`: one number for every coordinate, or a table {coordinate = number, "*" = number for
+    the rest} (coordinates it does not name take "*", else the default 0.2). A table lets a
+    beam's higher modes, whose static reach under an electrode load is a few per cent of the first
+    mode's, keep a small box while the first reaches pull-in: the corners of an even box then
+    close several gaps and no fit follows them (netgen.electrostatics.sampling.box_factors).
+    Returns the largest range and the per-coordinate entries."""
+    what = "sampling range as a fraction of the touching amplitude"
+    raw = t.get("range")
+    if not isinstance(raw, dict):
+        return quantity(rd, t, "sampling", "range", "dimensionless", 0.2, range_problem, what), ()
+    if not raw:
+        raise rd.fail(
+            "sampling.range", "the range table is empty", 'write range = 0.2, or range = {"*" = 0.2, m2 = 0.05}'
+        )
+    entries = []
+    for name, value in raw.items():
+        if name != "*" and names is not None and name not in names:
+            raise rd.fail(
+                "sampling.range", f"unknown coordinate {name!r}", f"{did_you_mean(name, names)}use one of {names}"
+            )
+        entries.append(
+            (name, quantity(rd, {name: value}, "sampling.range", name, "dimensionless", None, range_problem, what))
+        )
+    rest = dict(entries).get("*", Sampling.range)
+    return max([v for _, v in entries] + ([rest] if names is None or len(entries) < len(names) else [])), tuple(entries)
 
 
 def read_fit(rd: Reader, doc: dict) -> FitOptions:

@@ -7,9 +7,12 @@ from __future__ import annotations
 from typing import Any
 
 from ..core.reader import Reader, check_keys, quantity, table
-from .schema import PROCESS_PARAMETERS, Process
+from ..core.units import UnitError, parse_quantity
+from .schema import ALL_PROCESS_PARAMETERS, PROCESS_PARAMETERS, Process
 
-KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc"]
+KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc", "etch_range"]
+ETCH_LIMIT = 5e-6  # m: the widest lateral etch bias per edge read (the flexure widths bound it further)
+ETCH_TYPES = ("folded", "crab_leg", "clamped_guided")  # flexures with beam widths the etch narrows
 # the widest ranges the laws are offered for: thickness and modulus factors around 1, the die
 # temperature between liquid nitrogen and a solder reflow (the gas laws' and the modulus' validity)
 LIMITS = {"tscale": (0.5, 1.5), "escale": (0.2, 3.0), "temp": (-200.0, 300.0)}
@@ -34,17 +37,18 @@ def read_process(rd: Reader, doc: dict) -> Process | None:
         lambda v: None if abs(v) < 1e-3 else "is not a modulus temperature coefficient (|tc| < 1e-3 per K)",
         "d ln E / dT in 1/K (silicon -60e-6)",
     )
-    return Process(params, ranges["tscale"], ranges["escale"], ranges["temp"], tc)
+    return Process(params, ranges["tscale"], ranges["escale"], ranges["temp"], tc, read_etch_range(rd, t, params))
 
 
 def read_parameters(rd: Reader, t: dict) -> tuple[str, ...]:
-    """process.parameters: a non-empty list of distinct names from PROCESS_PARAMETERS (default all)."""
+    """process.parameters: a non-empty list of distinct names from ALL_PROCESS_PARAMETERS (default
+    PROCESS_PARAMETERS: etch only by name)."""
     fix = f"write parameters = {list(PROCESS_PARAMETERS)} or a subset of it".replace("'", '"')
     value: Any = t.get("parameters", list(PROCESS_PARAMETERS))
     if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
         raise rd.fail("process.parameters", f"parameters must be a non-empty list of names, got {value!r}", fix)
     for v in value:
-        if v not in PROCESS_PARAMETERS:
+        if v not in ALL_PROCESS_PARAMETERS:
             raise rd.fail("process.parameters", f"unknown process parameter {v!r}", fix)
     if len(set(value)) != len(value):
         raise rd.fail("process.parameters", "a parameter is listed twice", "list each parameter once")
@@ -74,7 +78,55 @@ def read_range(rd: Reader, t: dict, name: str, params: tuple[str, ...]) -> tuple
     return lo, hi
 
 
-def check_process(rd: Reader, p: Process | None, names: list[str], sets: tuple, imported: bool, t0_c: float) -> None:
+def read_etch_range(rd: Reader, t: dict, params: tuple[str, ...]) -> tuple[float, float]:
+    """process.etch_range: [lo, hi] lengths (m or with units) around the nominal 0, within +-ETCH_LIMIT."""
+    where, default = "process.etch_range", Process.etch_range
+    if "etch_range" not in t:
+        return default
+    if "etch" not in params:
+        raise rd.fail(
+            where, "etch_range is given but 'etch' is not in process.parameters", "add 'etch' or drop etch_range"
+        )
+    value = t["etch_range"]
+    fix = 'write etch_range = ["-0.1 um", "0.1 um"] (over-etch per edge, lo < 0 < hi)'
+    try:
+        lo, hi = (parse_quantity(v, "length") for v in value) if isinstance(value, list) and len(value) == 2 else (0, 0)
+    except UnitError as exc:
+        raise rd.fail(where, str(exc), fix) from None
+    if not -ETCH_LIMIT <= lo < 0.0 < hi <= ETCH_LIMIT:
+        raise rd.fail(where, f"etch_range = {value!r} is not a range lo < 0 < hi within +-{ETCH_LIMIT:g} m", fix)
+    return lo, hi
+
+
+def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
+    """etch narrows a proof mass's flexure beams (w - 2 etch): it needs such flexures, no comb fingers
+    (their gap and overlap laws are not built) and every beam still wider than 0 at the range's top."""
+    where = "process.parameters"
+    flex = getattr(conductor, "flexure", None)
+    if getattr(conductor, "kind", "") != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
+        raise rd.fail(
+            where,
+            f"etch narrows flexure beams: it needs a proof mass with a flexure of type {', '.join(ETCH_TYPES)}",
+            "remove 'etch' from process.parameters",
+        )
+    if any(getattr(s, "side", None) not in GAP_SIDES for s in sets):
+        raise rd.fail(
+            where,
+            "etch with comb fingers: the laws of their gap (g + 2 etch) and finger width are not built",
+            "remove 'etch' from process.parameters, or the comb electrodes",
+        )
+    widths = [w for w in (flex.width, flex.truss_width, flex.thigh_width) if w]
+    if 2 * p.etch_range[1] >= 0.5 * min(widths):
+        raise rd.fail(
+            "process.etch_range",
+            f"an over-etch of {p.etch_range[1]:g} m per edge removes half or more of the narrowest beam ({min(widths):g} m)",
+            "narrow etch_range (its top below a quarter of the narrowest flexure width)",
+        )
+
+
+def check_process(
+    rd: Reader, p: Process | None, names: list[str], sets: tuple, imported: bool, t0_c: float, conductor: Any = None
+) -> None:
     """The declared parameters against the structure: dg needs a coordinate z and a plate set
     above/below (the offset is a shift of z); tscale refuses comb fingers (their capacitance grows
     with the thickness, not modelled); tscale, escale and temp need mechanics netgen can re-run;
@@ -94,13 +146,15 @@ def check_process(rd: Reader, p: Process | None, names: list[str], sets: tuple, 
             "tscale with comb fingers: their capacitance grows with the thickness, which the laws do not model",
             "remove 'tscale' from process.parameters (escale, temp and dg stay exact)",
         )
-    moved = [n for n in ("tscale", "escale", "temp") if p.wants(n)]
+    moved = [n for n in ("tscale", "escale", "temp", "etch") if p.wants(n)]
     if imported and moved:
         raise rd.fail(
             where,
             f"{', '.join(moved)} with imported mechanics: netgen cannot re-run them at another thickness or modulus",
             "remove them from process.parameters (dg stays exact) or describe the flexures in the structure file",
         )
+    if p.wants("etch"):
+        check_etch(rd, p, conductor, sets)
     if p.wants("temp") and not p.temp_range[0] <= t0_c <= p.temp_range[1]:
         raise rd.fail(
             "process.temp_range",

@@ -123,6 +123,10 @@ class Sampling:
     points: int = 0  # lhs / sobol size, adaptive budget (0 before the parser's default)
     seed: int = 1
     range_given: bool = True
+    ranges: tuple[tuple[str, float], ...] = ()  # per-coordinate ranges (name or "*"); `range` is their largest
+    factors: tuple[
+        float, ...
+    ] = ()  # each coordinate's range / `range`, in coordinate order (netgen.build.resolve_ranges)
 
 
 @dataclass(frozen=True)
@@ -194,6 +198,9 @@ class Damping:
 
 
 PROCESS_PARAMETERS = ("dg", "tscale", "escale", "temp")  # [process] parameters: dg = one dg_<set> per plate set
+# every parameter [process] may declare: PROCESS_PARAMETERS (the default list) and the lateral etch bias,
+# which needs a proof mass's flexures and so is only declared by name
+ALL_PROCESS_PARAMETERS = (*PROCESS_PARAMETERS, "etch")
 
 
 @dataclass(frozen=True)
@@ -206,6 +213,7 @@ class Process:
     escale_range: tuple[float, float] = (0.5, 1.5)  # Young's modulus / nominal
     temp_range: tuple[float, float] = (-40.0, 125.0)  # die temperature, degC
     modulus_tc: float = -60e-6  # 1/K, d ln E / dT of the device layer (silicon about -60 ppm/K)
+    etch_range: tuple[float, float] = (-1e-7, 1e-7)  # m, lateral over-etch per edge (flexure widths w - 2 etch)
 
     def wants(self, name: str) -> bool:
         """The parameter `name` is declared."""

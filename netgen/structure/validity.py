@@ -84,15 +84,18 @@ def comb(rd: Reader, where: str, s: CombElectrode, size: float) -> None:
 
 
 def dielectric(rd: Reader, sets: tuple, electrostatics: object) -> None:
-    """A dielectric layer on an electrode is modelled by the parallel-plate extractor only (its
-    series gap, netgen.electrostatics.parallel_plate); the field solvers do not mesh it yet."""
+    """A dielectric layer on an electrode is modelled by the parallel-plate extractor (its series
+    gap, netgen.electrostatics.parallel_plate) and the multipole extractor (a dielectric interface,
+    netgen.electrostatics.fastcap_mesh.layered_panels); the dense BEM and the calibration do not
+    model it yet."""
     extractor = getattr(electrostatics, "extractor", "parallel_plate")
-    if extractor == "parallel_plate":
+    if extractor in ("parallel_plate", "fastcap"):
         return
     for i, s in enumerate(sets):
         if getattr(s, "dielectric_thickness", 0.0) > 0.0:
             raise rd.fail(
                 f"electrodes[{i}].dielectric_thickness",
                 f"extractor = {extractor!r} does not model a dielectric layer on the electrodes (yet)",
-                'use extractor = "parallel_plate" (the layer as a series gap), or drop the layer',
+                'use extractor = "parallel_plate" (the layer as a series gap) or "fastcap" (a dielectric '
+                "interface), or drop the layer",
             )

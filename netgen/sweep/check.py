@@ -59,6 +59,37 @@ def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: li
             s = parsed[run.structure_text]
         _check_tone(rd, sweep, run, s)
         _check_loop_tone(rd, sweep, run, loop)
+        _check_process(rd, sweep, run, s)
+
+
+def _check_process(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
+    """A run on the shared model at a process point: the structure's [process] declares each swept
+    parameter and its range holds the value, and the run's simulator is the B-source .lib's
+    (the other forms are emitted from the model inside the run: they would take the point twice)."""
+    for name, value in run.process.items():
+        where = _where(sweep, f"process.{name}") or f"process.{name}"
+        p = s.process
+        if p is None or not p.wants(name):
+            raise rd.fail(
+                where,
+                f"process.{name}: the structure does not declare {name} in its [process] table",
+                f'add [process] parameters = ["{name}"] to the structure, or write [sweep] process = "rebuild"',
+            )
+        lo, hi = getattr(p, f"{name}_range")
+        if not lo <= value <= hi:
+            raise rd.fail(
+                where,
+                f"{run.name}: process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
+                f'keep the values inside {name}_range, widen it in [process], or write [sweep] process = "rebuild"',
+            )
+    simulator = run.testbench.get("simulator", "ngspice")
+    if run.process and simulator != "ngspice":
+        raise rd.fail(
+            _where(sweep, "simulator") or "simulator",
+            f"{run.name}: process parameters as instance parameters run in simulator = 'ngspice' (the .lib), "
+            f"not {simulator!r}",
+            'sweep simulator = "ngspice", or write [sweep] process = "rebuild"',
+        )
 
 
 def _check_simulators(rd: Reader, sweep: Sweep, runs: list[RunSpec]) -> None:

@@ -10,7 +10,7 @@ import json
 import math
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +38,9 @@ class RunSpec:
     key: str = ""
     timeout: float = 0.0  # s, wall-clock limit of each simulator call
     owner: dict | None = None  # the sweep process that runs it (netgen.sweep.processes.me)
+    # process point {tscale, escale} of a run on the shared [process] model (instance parameters);
+    # {} = none, or the point rebuilt into structure_text
+    process: dict = field(default_factory=dict)
 
 
 def plan(sweep: Sweep, structure_path: str | Path, out: Path) -> list[RunSpec]:
@@ -74,9 +77,12 @@ def _spec(
     tone = None
     overrides = {}
     rigid = False
+    point: dict[str, float] = {}
     for n, v in values.items():
         if n.startswith("structure."):
             overrides[n] = v
+        elif n.startswith("process."):
+            point[n.split(".", 1)[1]] = float(v)
         elif n == "rigid_only":
             rigid = bool(v)
         elif n == "tone":
@@ -94,12 +100,18 @@ def _spec(
         amp = str(values.get("tone_amplitude", amp))
         freq = str(parse_quantity(values["tone_freq"], "frequency")) if "tone_freq" in values else freq
         tb["tone"] = f"{coord}:{amp}:{freq}"
+    rebuild = bool(point) and sweep.process == "rebuild"
+    if rebuild:  # the reference: the structure itself at the point, built without its [process] laws
+        overrides.update(process_overrides(base_doc, point))
     text = None
-    if overrides:
+    if overrides or rebuild:
         doc = json.loads(json.dumps(base_doc))
+        if rebuild:
+            doc.pop("process", None)
         for n, v in overrides.items():
             _set_path(doc, n, v, str(structure_path), sweep.path)
-        note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in overrides.items())}", "#")
+        shown = {**overrides, **{f"process.{k}": v for k, v in point.items()}} if rebuild else overrides
+        note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in shown.items())}", "#")
         text = f"# {note}\n" + to_toml(doc)
     spec = RunSpec(
         index,
@@ -112,10 +124,35 @@ def _spec(
         sweep.plots,
         timeout=sweep.timeout or timeout_for(tb["cycles"]),
     )
+    spec.process = {} if rebuild else point
     spec.key = hashlib.sha256(
-        json.dumps([tb, rigid, text, sweep.plots], sort_keys=True, default=str).encode()
+        json.dumps(
+            [tb, rigid, text, sweep.plots] + ([spec.process] if spec.process else []), sort_keys=True, default=str
+        ).encode()
     ).hexdigest()[:16]
     return spec
+
+
+# the structure keys a rebuild at a process point scales (netgen.model.process.scaled on the file):
+# the device layer's thickness (the conductor's and a flexure's own) by tscale, the modulus by escale
+PROCESS_KEYS = (
+    ("conductor.thickness", "length", "tscale"),
+    ("conductor.flexure.thickness", "length", "tscale"),
+    ("conductor.youngs_modulus", "modulus", "escale"),
+)
+
+
+def process_overrides(doc: dict, point: dict[str, float]) -> dict[str, float]:
+    """structure.<key> -> SI value of the structure file at the process point `point` (tscale,
+    escale): each PROCESS_KEYS entry present in the file times its factor."""
+    out = {}
+    for path, kind, name in PROCESS_KEYS:
+        node: Any = doc
+        for key in path.split("."):
+            node = node.get(key) if isinstance(node, dict) else None
+        if node is not None and point.get(name, 1.0) != 1.0:
+            out[f"structure.{path}"] = parse_quantity(node, kind) * point[name]
+    return out
 
 
 def _set_path(doc: dict, name: str, value: Any, structure: str, sweep: str) -> None:

@@ -22,6 +22,7 @@ from ..build import build_model
 from ..core import process as sim_process
 from ..core.files import write_atomic
 from ..emit import write_outputs
+from ..model.process import at_point as process_point
 from ..runtime.interrupts import Interrupted
 from ..sim.ngspice import identity as ngspice_build
 from ..sim.ngspice import same_build
@@ -86,7 +87,11 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
         (folder / "model").mkdir(exist_ok=True)
         (folder / "model" / f"{model.name}.lib").write_text(lib_text, encoding="utf-8")
     lib = folder / "model" / f"{model.name}.lib"
-    sd.run(model, lib, folder, request(spec, loop))
+    req = request(spec, loop)
+    if spec.process:  # the .lib at the point by instance parameters; design and analysis see its numbers
+        model = process_point(model, **spec.process)
+        req = replace(req, instance=tuple(sorted(spec.process.items())))
+    sd.run(model, lib, folder, req)
 
 
 def request(spec: RunSpec, loop) -> sd.RunRequest:

@@ -52,6 +52,7 @@ from ..core.options import Option, OptionError
 from ..core.reader import Reader, did_you_mean
 from ..core.text import text_problem
 from ..core.units import UNITS, UnitError, parse_quantity
+from ..model.process import SWEPT as PROCESS_SWEPT
 from ..testbench.sigma_delta import CHANNELS, OPTIONS, SWEEP, read_tone
 
 METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db", "slope_db_per_decade")
@@ -69,6 +70,7 @@ def figure_ok(name: str) -> bool:
 
 MAX_RETRIES = 10
 MAX_RUNS = 10_000  # default of `netgen sweep --max-runs`
+PROCESS_PATHS = ("parameters", "rebuild")  # [sweep] process: how process.<name> values reach a run
 # the parameter kinds of the sweep's table: a quantity kind (units.UNITS), or these
 KINDS = {"int": "int", "choice": "str", "text": "tone", "bool": "bool"}
 
@@ -124,6 +126,9 @@ class Sweep:
     retries: int = 2
     plots: bool = False
     timeout: float | None = None  # s per simulator call; None: timeout_for(cycles)
+    # process.<name> parameters: "parameters" = one [process] build, each run's point as instance
+    # parameters; "rebuild" = the structure rebuilt at each point (the reference)
+    process: str = "parameters"
 
 
 def load_sweep(path: str | Path, max_runs: int = MAX_RUNS) -> Sweep:
@@ -183,7 +188,7 @@ def _read_head(rd: Reader, head: Any, path: str) -> Sweep:
     """The [sweep] table: figure, mode, samples, seed, retries, timeout and plots."""
     if not isinstance(head, dict):
         raise rd.fail("sweep", "'sweep' must be a table", "write it as a [sweep] section")
-    allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots", "timeout"]
+    allowed = ["figure", "x", "mode", "samples", "seed", "retries", "plots", "timeout", "process"]
     for key in head:
         if key not in allowed:
             raise rd.fail(
@@ -208,6 +213,14 @@ def _read_head(rd: Reader, head: Any, path: str) -> Sweep:
                 "grid runs every combination of the value lists, zip pairs their k-th values",
             )
         sweep.mode = head["mode"]
+    if "process" in head:
+        if head["process"] not in PROCESS_PATHS:
+            raise rd.fail(
+                "sweep.process",
+                f"process {head['process']!r} is not 'parameters' or 'rebuild'",
+                "parameters: one build, the process.* values as instance parameters; rebuild: a build per run",
+            )
+        sweep.process = head["process"]
     for key, lo, hi in (("samples", 1, None), ("seed", 0, None), ("retries", 0, MAX_RETRIES)):
         if key in head:
             v = head[key]
@@ -355,6 +368,15 @@ def kind_of(value: Any) -> str:
 
 
 def check_name(rd: Reader, where: str, name: str) -> None:
+    if name.startswith("process."):
+        if name.split(".", 1)[1] not in PROCESS_SWEPT:
+            raise rd.fail(
+                where,
+                f"{name!r} is not a process parameter a sweep moves (process.tscale, process.escale)",
+                "sweep process.tscale or process.escale, or rebuild with structure.<table>.<key> "
+                "(a gap: structure.electrodes[k].gap; the temperature: structure.damping.temperature)",
+            )
+        return
     if name.startswith("structure."):
         if not re.fullmatch(r"structure(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])?)+", name):
             raise rd.fail(
@@ -381,6 +403,10 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
             f"{name}: the value {text_problem(value)}",
             "write it as one line of printable text (no line breaks, tabs or other control characters)",
         )
+    if name.startswith("process."):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 10:
+            raise rd.fail(where, f"{name} = {value!r} is not a ratio to the nominal", f"write e.g. {name} = 1.05")
+        return float(value), float(value)
     if name.startswith("structure."):
         if isinstance(value, (dict, list)):
             raise rd.fail(

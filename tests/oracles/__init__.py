@@ -4,6 +4,7 @@ sigma_delta_reference: the numpy sigma-delta loop; gyro_reference: the gyroscope
 noise reading; bem_reduced: the reduced BEM problem;
 lateral_comb: the comb of the comb tests and its pull-in readings; testbench: the simulator
 benches (ngspice releases, PULSE drives, a bench around one instance, the solve_ivp transient);
-va_scan: the scan of Verilog-A text for the openvaf-r miscompile. Imports of the package inside
+va_scan: the scan of Verilog-A text for the openvaf-r miscompile; process_balance: the pull-in and
+the gravity balance voltage of the process-parameter tests. Imports of the package inside
 are absolute (`netgen.`), of each other relative, so that bench/support.py can load the folder
 by its path."""

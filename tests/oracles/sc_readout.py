@@ -27,6 +27,13 @@ C_REST = 1.1067734766e-12  # the fixed-capacitor twin's value: C(0) of the model
 # the readout's comparator decides on mV at ~1 V nodes: at the default reltol 1e-3 ngspice 46 lets
 # the decisions lose the position (the mass drifted 17 nm in 60 periods at 3 m/s^2), 1e-4 holds it
 RELTOL = "reltol=1e-4"
+# ngspice built with OpenMP (Debian's 39, the 46 of .ci/setup) loads BSIM4 in a parallel loop with
+# `num_threads` threads: 2 by default in 39 (cktsetup.c; omp_set_num_threads overrides
+# OMP_NUM_THREADS), 8 from 46's spinit. On a shared 2-core machine the threads spin at every
+# load's barrier: ngspice 39 spent 40x the CPU of one thread on the same time points and Newton
+# iterations (bench/sc_readout.py --only threads). A `set` in .control overrides both (`.options
+# num_threads=1` reaches 39 only: 46's spinit value wins over it).
+ONE_THREAD = [".control", "set num_threads=1", "run", ".endc"]
 
 
 @dataclass
@@ -50,9 +57,20 @@ def steps(values: list[float], each: int) -> str:
     return f"PWL({' '.join(pts)})"
 
 
-def netlist(accel: float | str, periods: int, model: bool = True, options: str = RELTOL, step: float = 20e-9) -> str:
+def netlist(
+    accel: float | str,
+    periods: int,
+    model: bool = True,
+    options: str = RELTOL,
+    step: float = 20e-9,
+    threads: int = 1,
+    start: str = "uic",
+    tmax: float | None = None,
+) -> str:
     """The testbench of examples/accelerometer_z_sc.cir (model) or _fixed.cir, with absolute
-    includes; accel in m/s^2 or a source value such as steps() gives."""
+    includes; accel in m/s^2 or a source value such as steps() gives; threads=1 sets one OpenMP
+    thread (ONE_THREAD), anything else leaves the simulator's default; start "uic" or "" (the
+    transient from the operating point); tmax the maximum step (None: ngspice's, the step)."""
     inc = [EXAMPLES / "generic_018.lib", EXAMPLES / "sc_readout.inc"] + ([MODEL_LIB] if model else [])
     lines = ["* sc readout run", *(f'.include "{p}"' for p in inc)]
     if model:
@@ -65,8 +83,13 @@ def netlist(accel: float | str, periods: int, model: bool = True, options: str =
     lines += ["Xro top bottom plate q qb sc_readout"]
     if options:
         lines.append(f".options {options}")
-    lines += [".save v(qb) v(x_z)", f".tran {step!r} {periods * TS!r} 0 uic", ".end", ""]
-    return "\n".join(lines)
+    lines += [
+        ".save v(qb) v(x_z)",
+        " ".join(
+            [".tran", repr(step), repr(periods * TS), "0", *([] if tmax is None else [repr(tmax)]), start]
+        ).rstrip(),
+    ]
+    return "\n".join([*lines, *(ONE_THREAD if threads == 1 else []), ".end", ""])
 
 
 def children_cpu() -> float:
@@ -83,12 +106,14 @@ def run(
     options: str = RELTOL,
     name: str = "sc",
     timeout: float = 3600.0,
+    **settings,
 ) -> Run:
-    """Simulate (at the readout's reltol unless `options` says otherwise), return the bits decided
-    in each period and the trace of x_z, with the ngspice process's CPU and wall seconds."""
-    before, start = children_cpu(), time.monotonic()
-    plot = ngspice.run_ngspice(netlist(accel, periods, model, options), workdir, name, timeout)[0]
-    cpu, wall = children_cpu() - before, time.monotonic() - start
+    """Simulate (at the readout's reltol unless `options` says otherwise; `settings`: netlist()'s
+    step, threads, start), return the bits decided in each period and the trace of x_z, with the
+    ngspice process's CPU and wall seconds."""
+    before, began = children_cpu(), time.monotonic()
+    plot = ngspice.run_ngspice(netlist(accel, periods, model, options, **settings), workdir, name, timeout)[0]
+    cpu, wall = children_cpu() - before, time.monotonic() - began
     t = np.real(plot["time"])
     qb, x = np.real(plot["v(qb)"]), np.real(plot["v(x_z)"])
     bits = np.interp(np.arange(periods) * TS + T_BIT, t, qb) > 0.9
@@ -162,7 +187,13 @@ def charge_netlist(sensor: str, periods: int, options: str = "") -> str:
     1 us) around `sensor`: "clamped" (the model with its mass held by a stiff critically damped
     spring on f_z), "free" (the model driven through a_in at -3000 m/s^2: up to the stop after
     ~30 us), "moving" (the model on a 1 N/m critically damped spring, a_in a +-50 m/s^2 square
-    wave: z swings +-0.6 um, a third of the gap, for any run length) or "fixed" (two C(0) capacitors); the electrodes switch every 1 us between VCM +- 0.5 V, top and bottom opposite.
+    wave: z swings +-0.6 um, a third of the gap, for any run length) or "fixed" (two C(0) capacitors);
+    the electrodes switch every 1 us between VCM +- 0.5 V, top and bottom opposite.
+    The reset switch's body is at VCM, as a designer isolates the p-well of a switch on a
+    never-reset integrating node: with the body at 0 its junction on the summing node sits at
+    -0.9 V, and ngspice's gmin (1e-12 S, which BSIM4 puts across each junction) leaked 0.9 pA out
+    of the node, 0.9 fC per ms (all of the fixed capacitors' drift; it scaled with gmin); at VCM it
+    leaks only gmin times the OTA's offset (~1.4 mV: 1.4e-15 A).
     Shared by tests/testbench/test_sc_charge.py (short) and bench/sc_readout.py (4096 periods)."""
     lines = [
         "* never-reset charge amplifier",
@@ -172,7 +203,7 @@ def charge_netlist(sensor: str, periods: int, options: str = "") -> str:
         "Xota sum vcm out vdd sc_ota",
         f"Cf sum out {CF!r}",
         "Vphr phr 0 PWL(0 1.8 1u 1.8 1.003u 0)",
-        "Mrst sum phr out 0 nch w=4u l=0.18u",
+        "Mrst sum phr out vcm nch w=4u l=0.18u",  # body at VCM: no bias on the summing node's junction
         "Vtop top 0 PULSE(1.4 0.4 2u 3n 3n 997n 2u)",
         "Vbot bottom 0 PULSE(0.4 1.4 2u 3n 3n 997n 2u)",
     ]
@@ -193,8 +224,8 @@ def charge_netlist(sensor: str, periods: int, options: str = "") -> str:
         ]
     if options:
         lines.append(f".options {options}")
-    lines += [".save v(out) v(sum) v(x_z) v(top) v(bottom)", f".tran 20n {periods * TS!r} 0 uic", ".end", ""]
-    return "\n".join(lines)
+    lines += [".save v(out) v(sum) v(x_z) v(top) v(bottom)", f".tran 20n {periods * TS!r} 0 uic", *ONE_THREAD]
+    return "\n".join([*lines, ".end", ""])
 
 
 def quiet(plot, periods: int) -> dict[str, np.ndarray]:

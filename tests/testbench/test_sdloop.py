@@ -175,3 +175,24 @@ def test_sdloop_feedback_step_is_a_step_at_its_own_breakpoints(cold_build, tmp_p
         for at in (FB_ON, FB_ON + 1e-3, FB_OFF, FB_OFF + 1e-3):
             assert np.abs(t - (k + at) * TS).min() < 1e-9 * TS, (k, at)
     assert on.any() and any(sel[0] * on)  # a step was on in the run
+
+
+def test_sdloop_ramp_steps_cross_each_edge_in_equal_steps(cold_build, tmp_path):
+    """With ramp_steps = N ngspice's time points on every edge of the drives (an interval between
+    the PULSE corners where the sense or the feedback phase changes, from the PULSE definition) are
+    the N + 1 equally spaced points from corner to corner, in each of three periods, and no others
+    (the circuit has no charge whose truncation error could ask for more; tmax 50 ns is 2.5 to 7.5
+    edge lengths, so without the grid an edge gets fewer points). The instance sets the corners as
+    breakpoints too (the netlist has no PULSE source). Tolerance 1e-15 s: a breakpoint is reached as
+    the last time plus the difference, exact to the double round-off of times below 3 us (1e-21 s
+    per step)."""
+    n = 5
+    sense, fb = (0, 1, 0.05e-6, 0.02e-6, 0.03e-6, 0.2e-6, TS), (0, 2, 0.5e-6, 0.04e-6, 0.02e-6, 0.3e-6, TS)
+    edges = [(0.05e-6, 0.07e-6), (0.27e-6, 0.30e-6), (0.5e-6, 0.54e-6), (0.84e-6, 0.86e-6)]
+    netlist = _sdloop_netlist(cold_build, ".tran 1e-9 3e-6 0 50e-9", [sense, fb], extra=f"ramp_steps={n}")
+    t = np.asarray(run_ngspice(netlist, tmp_path)[0]["time"]).real
+    for k in range(3):
+        for a, b in edges:
+            a, b = a + k * TS, b + k * TS
+            inside = t[(t > a - 1e-15) & (t < b + 1e-15)]
+            assert inside == pytest.approx(a + (b - a) * np.arange(n + 1) / n, abs=1e-15, rel=0)

@@ -7,7 +7,8 @@ from __future__ import annotations
 from ...core.options import Option, by_name
 from ..sigma_delta.options import OPTIONS as SIGMA_DELTA
 
-SIMULATORS = ("ngspice", "ngspice-xspice")  # the sigma-delta back ends whose bench takes the drive loop
+# the sigma-delta back ends whose bench takes a drive: the drive loop (ngspice) or the open-loop drive (vacask)
+SIMULATORS = ("ngspice", "ngspice-xspice", "vacask")
 
 _options = [
     Option(
@@ -64,7 +65,8 @@ _options = [
     Option(
         "simulator",
         "ngspice with the behavioural-source loop around the .lib, or with the compiled loop and the "
-        "model's plate terms in code models (about 4x faster)",
+        "model's plate terms in code models (about 4x faster), both with the drive loop; or VACASK with "
+        "the compiled Verilog-A module and an open-loop drive at the x resonance",
         type="choice",
         choices=SIMULATORS,
         default="ngspice-xspice",

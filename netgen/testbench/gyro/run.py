@@ -1,7 +1,8 @@
 """A gyroscope run: the sense loop's design (the sigma-delta testbench's loop.design, on the
 channel y of the loop description), the drive loop as a behavioural source on the model's f_x port,
-the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments), the
-demodulation (analysis.py), and a rate sweep's linearity; summary.json and PNGs in the folder."""
+the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments); or
+its VACASK bench with an open-loop drive (vacask_drive); the demodulation (analysis.py), and a rate
+sweep's linearity; summary.json and PNGs in the folder."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ import numpy as np
 from ...core.errors import LoopError
 from ...emit.common import time_scale
 from ...model import MacroModel
-from ..sigma_delta import ngspice
+from ..sigma_delta import ngspice, vacask
+from ..sigma_delta.analysis import per_clock
 from ..sigma_delta.loop import Choices, Design
 from ..sigma_delta.loopfile import LoopSpec
 from ..sigma_delta.runner import backend_design
@@ -23,6 +25,8 @@ from . import analysis, plots
 
 DRIVE, SENSE, RATE_PORT = "x", "y", "w_z"
 SKIP = 8  # the first 1/SKIP of the periods (the sense loop's start) is left out of the demodulation
+# VACASK's open-loop drive (vacask_drive): its start-up kick lasts 1/KICK of a drive period
+KICK = 100
 
 
 @dataclass(frozen=True)
@@ -130,23 +134,48 @@ def start_state(model: MacroModel, amplitude: float) -> tuple[tuple[str, float],
     return ((f"x1.xs_{DRIVE}", amplitude / c.scale), (f"x1.u_{DRIVE}", 0.0))
 
 
+def vacask_drive(model: MacroModel, amplitude: float) -> tuple[str, str]:
+    """VACASK's drive on f_x (it has no behavioural sources, and an OSDI module's velocity is not a
+    node the bench can read), in port units: open loop at the model's x resonance w, two sources in
+    series. The steady one, F_0 sin(w t) with F_0 = b_x w X_d, holds x = -X_d cos(w t), whose
+    velocity X_d w sin(w t) peaks at t = T/4, where the second, a short pulse (width T / KICK of
+    the drive period T), gives the mass that momentum, m X_d w (1 - 1/Q_x): the run starts in the
+    steady state instead of rising in the drive's 2 m / b_x (49 ms at Q = 2000); the 1/Q_x is the
+    momentum F_0 already gave over [0, T/4]. What is left (of order X_d / Q_x and the pulse's
+    (w T / KICK)^2 / 24) decays in 2 m / b_x. No amplitude control: the model's b_x and w are exact,
+    so the amplitude is X_d to the drive's detuning by the side forces (below 1e-5)."""
+    c = coordinate(model, DRIVE)
+    w = math.sqrt(c.stiffness / c.mass)
+    unit = c.port_units[3]  # N per port volt of f_x
+    period = 2 * math.pi / w
+    width, edge = period / KICK, period / KICK / 10
+    momentum = c.mass * amplitude * w * (1 - c.damping / (c.mass * w))
+    kick = momentum / (width + edge) / unit  # a trapezoid's impulse: height (width + edge)
+    delay = period / 4 - edge - width / 2  # centred on T/4
+    return (
+        f'type="sine" sinedc=0 ampl={c.damping * w * amplitude / unit!r} freq={w / (2 * math.pi)!r}',
+        f'type="pulse" val0=0 val1={kick!r} delay={delay!r} rise={edge!r} fall={edge!r} width={width!r}',
+    )
+
+
+def run_vacask(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest) -> dict:
+    """The sense loop in VACASK (the sigma-delta testbench's bench, one run) with the open-loop
+    drive on f_x: the per-period samples; the raw file is dropped after the sampling."""
+    va = Path(lib).with_suffix(".va")
+    how = vacask.BenchOptions(
+        va=va if va.exists() else None, drives=(("f_x", vacask_drive(model, req.drive_amplitude)),)
+    )
+    plot = vacask.run_bench(model, d, out, req.cycles, None, req.progress, how)
+    clock = per_clock(plot, d, req.cycles, model)
+    del plot
+    (out / "tran1.raw").unlink(missing_ok=True)
+    return clock
+
+
 def run_rate(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest, rate: float) -> dict:
     """One rate (rad/s): the bench, its per-period samples, the demodulated figures."""
     d = replace(d, inputs=d.inputs | {RATE_PORT: float(rate)})
-    control: list[str] = []
-    loop = "analog"
-    if req.simulator == "ngspice-xspice":
-        lib, control = ngspice.xspice_library(model, out, ngspice.code_models(req.progress))
-        loop = "xspice"
-    settings = ngspice.Settings(
-        loop,
-        control,
-        behavioural=(("f_x", drive_expression(model, req.drive_amplitude, req.agc_gain)),),
-        start_state=start_state(model, req.drive_amplitude),
-        segment=0,  # one ngspice run: run_segments stops after a segment whose coordinates leave the
-        # levitation bound (analysis.levitation), which the drive's x amplitude does by design
-    )
-    clock, _, _ = ngspice.run_segments(model, d, lib, out, req.cycles, None, req.progress, settings)
+    clock = run_vacask(model, lib, out, d, req) if req.simulator == "vacask" else run_ngspice(model, lib, out, d, req)
     keep = slice(len(clock["time"]) // SKIP, None)
     cx = coordinate(model, DRIVE)
     fs = d.channels[0]["full_scale_force_si"]
@@ -161,6 +190,26 @@ def run_rate(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroReques
         demod["design_scale_factor_per_rad_s"],
     )
     return demod | {"rate_applied_rad_s": rate, "clock": clock}
+
+
+def run_ngspice(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest) -> dict:
+    """The sense loop in ngspice (the sigma-delta testbench's bench) with the behavioural drive loop
+    on f_x, one run: the per-period samples."""
+    control: list[str] = []
+    loop = "analog"
+    if req.simulator == "ngspice-xspice":
+        lib, control = ngspice.xspice_library(model, out, ngspice.code_models(req.progress))
+        loop = "xspice"
+    settings = ngspice.Settings(
+        loop,
+        control,
+        behavioural=(("f_x", drive_expression(model, req.drive_amplitude, req.agc_gain)),),
+        start_state=start_state(model, req.drive_amplitude),
+        segment=0,  # one ngspice run: run_segments stops after a segment whose coordinates leave the
+        # levitation bound (analysis.levitation), which the drive's x amplitude does by design
+    )
+    clock, _, _ = ngspice.run_segments(model, d, lib, out, req.cycles, None, req.progress, settings)
+    return clock
 
 
 def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroRequest) -> dict:
@@ -187,11 +236,18 @@ def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroReques
         "feedback_force_n": d.channels[0]["full_scale_force_si"],
         "feedback_voltage": d.vfb,
         "loop_filter": d.channels[0]["filter"],
-        "drive_loop": {
-            "amplitude_m": req.drive_amplitude,
-            "agc_gain": req.agc_gain,
-            "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
-        },
+        "drive_loop": (
+            {
+                "amplitude_m": req.drive_amplitude,
+                "force": "open loop at w_x: b_x w_x X_d sin(w_x t), and a kick m X_d w_x (1 - 1/Q_x) at T/4, on f_x",
+            }
+            if req.simulator == "vacask"
+            else {
+                "amplitude_m": req.drive_amplitude,
+                "agc_gain": req.agc_gain,
+                "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
+            }
+        ),
         "design_scale_factor_per_rad_s": per_rate,
         "runs": [{k: v for k, v in r.items() if k != "clock"} for r in runs],
     }

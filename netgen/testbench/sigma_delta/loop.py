@@ -81,6 +81,10 @@ class Design:
     # templates only, not VACASK
     abstol: float | None = None
     vntol: float | None = None
+    # the compiled loop (netgen_sdloop's ramp_steps): ngspice crosses every drive edge in this many
+    # equal steps (0: its own step control, whose steps inside an edge miss the edge's V^2 impulse by
+    # up to 2e-3 of the feedback impulse, changing from period to period; docs/fmu.md)
+    ramp_steps: int = 0
     tmax: float = 0.05
     # (the compiled loop, netgen_sdloop, needs no time point inside a window; there tmax is set by
     # the plate modes: at 0.1 T_s the (3,0) modes drift 3 % of their peak from an independent

@@ -122,6 +122,8 @@ class Settings:
     # drive loop, netgen.testbench.gyro) and the node state of the run's start (the first segment's .ic)
     behavioural: tuple[tuple[str, str], ...] = ()
     start_state: tuple[tuple[str, float], ...] = ()
+    # instance parameters of the model's X line (name, value): a process point of a [process] .lib
+    instance: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,7 @@ def testbench(
         lib=spice_card(lib, settings.folder),
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
+        instance=" ".join(f"{k}={v!r}" for k, v in settings.instance),
         forces=behavioural_sources(force_sources(model, d, tone, start * d.ts), dict(settings.behavioural)),
         tone=tone,
         saves=saves,
@@ -285,6 +288,8 @@ def loop_card(d: Design, start: int, ic: dict[str, float]) -> dict:
         # a feedback step (Timing.fb_ramp 0): V_fb on (fb_on, fb_off], with its own breakpoints
         **({"fb_level": d.vfb, "fb_on": d.t.fb_on, "fb_off": d.t.fb_off} if d.t.fb_ramp == 0 else {}),
         "ph_pulse": [float(v) for v in itertools.chain(*phase_pulses(d).values())],
+        # every drive edge in ramp_steps equal steps (Design.ramp_steps; the code model's own breakpoints)
+        **({"ramp_steps": int(d.ramp_steps)} if d.ramp_steps else {}),
         "dither_amp": [c["dither_v"] for c in d.channels],
         "dither_step": [float(c["dither_step"]) for c in d.channels],
         "cur0": init["cur"],

@@ -74,7 +74,11 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, r: RunReque
         segment = 0  # one run: .ic cannot reach the module's states (osdi.py)
     else:
         klu = ngspice_version().klu
-    settings = ngspice.Settings(loop, control, klu, segment=segment, timeout=state.get("timeout", TIMEOUT))
+    if r.instance and loop != "analog":
+        raise ValueError(f"instance parameters {dict(r.instance)} run in the B-source .lib only, not the {loop} loop")
+    settings = ngspice.Settings(
+        loop, control, klu, segment=segment, timeout=state.get("timeout", TIMEOUT), instance=r.instance
+    )
     clock, breakpoints, segments = ngspice.run_segments(model, d, lib, out, cycles, tone, progress, settings)
     return clock, {
         "breakpoints": breakpoints,
@@ -196,6 +200,8 @@ class RunRequest:
     feedback_voltage: float | None = None
     acceleration: float | None = None
     native: bool = False  # compile the Verilog-A for this CPU, not the x86-64 baseline (emit.osdi.target_cpu)
+    # instance parameters on the model's line (the B-source .lib's process point, netgen.sweep)
+    instance: tuple[tuple[str, float], ...] = ()
 
 
 def backend_design(

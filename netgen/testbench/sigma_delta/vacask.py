@@ -37,21 +37,24 @@ TEMPLATE = "sigma_delta/tb.vacask.j2"
 LOG = "sigma_delta.vacask.log"
 # VACASK options: the ngspice bench's reltol and chgtol (maxstep is given on the analysis:
 # docs/simulators.md, 'VACASK netlists').
-# tran_fbr=0.1: after every pulse corner VACASK restarts with a backward-Euler step, by default up
-# to 0.25 of the distance to the next corner; at the bench's reltol and maxstep that made every
-# feedback impulse 0.45 % short (a pulse drive of the model alone against solve_ivp); 0.1 leaves
-# 0.09 % (ngspice, which restarts at 0.1 of the previous step: 0.05 % long), which brings the
-# mechanics to the ngspice bench's accuracy against an independent integration
-# (tests/testbench/test_sigma_delta_vacask.py). It costs time points (110 -> 171 per period);
-# tran_lteratio=10 took 15 % of them back without a measurable loss (the steps are set by the
-# corners, the clock windows and maxstep, not by the LTE of the smooth parts).
-OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.1 tran_lteratio=10"
+# tran_fbr: after every pulse corner VACASK restarts with a backward-Euler step, and every step
+# between two corners is at most tran_fbr of their distance. VACASK's default 0.25 made every
+# feedback impulse 0.45 % short (a pulse drive of the model alone against solve_ivp) and z 15 % off
+# an independent integration of the loop's mechanics; 0.15 keeps the loop within the bounds of
+# tests/testbench/test_sigma_delta_vacask.py (z 2.5 %, tilts and modes <= 1.05 % of their peak over
+# 48 periods, as close as the ngspice benches). The cap is the cost: 8 corners a period, ceil(1/tran_fbr)
+# steps or more between each two (56 of the period's points at 0.15, 80 at 0.1).
+# tran_lteratio=30: the remaining steps are set by the corners, the clock windows and maxstep, not
+# by the LTE of the smooth parts. Against 0.1 and 10 (before 2026-12-06): 99 time points per period
+# instead of 148 and 35 % less CPU time (bench/sigma_delta_vacask.py --variants vacask,vacask-previous),
+# z 2.5 % off instead of 1.1 %, clean latches in both; 2^16-period figures: docs/performance.md.
+OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.15 tran_lteratio=30"
 # Appended to OPTIONS in every bench (later settings win), e.g. "tran_fbr=0.25" for VACASK's
 # a feedback step (Timing.fb_edge 0) in VACASK: its pulse source needs a rise time, so the step has
 # edges of this fraction of T_s (their V^2 impulse is 2/3 of a step's: 0.08 % of the feedback at the
 # default timing, a gain the reference, which takes the step as exact, does not have)
 STEP_RISE = 1e-3
-# default corner steps: 35 % fewer time points, feedback impulses 0.45 % short (spectra unchanged).
+# default corner steps (with tran_lteratio=10: 114 points per period, z 6.9 % off, over the test's 6 %).
 EXTRA_OPTIONS = ""
 
 
@@ -76,15 +79,23 @@ def compile_blocks(cache: Path, cpu: str = GENERIC) -> Path:
     return compiled(blocks_source(), "sigma_delta_blocks", cache, cpu)
 
 
-def force_sources(model: MacroModel, d: Design, tone: Tone | None) -> list[dict]:
-    """VACASK vsource parameters per input port (inputs.mechanical_inputs)."""
-    return [
-        {
-            "port": port,
-            "source": (f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}"),
-        }
-        for port, dc, t in mechanical_inputs(model, d, tone)
-    ]
+def force_sources(
+    model: MacroModel, d: Design, tone: Tone | None, drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
+) -> list[dict]:
+    """VACASK vsources per input port (inputs.mechanical_inputs): name, nodes and parameters; a port
+    in `drives` (port, vsource parameter strings) gets those sources in series instead (their
+    voltages add; the gyroscope's open-loop drive, netgen.testbench.gyro.run.vacask_drive)."""
+    chains = dict(drives)
+    out = []
+    for port, dc, t in mechanical_inputs(model, d, tone):
+        sources = chains.get(port) or (
+            f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}",
+        )
+        nodes = [port] + [f"{port}_s{k}" for k in range(1, len(sources))] + ["0"]
+        out += [
+            {"name": nodes[k], "pos": nodes[k], "neg": nodes[k + 1], "source": src} for k, src in enumerate(sources)
+        ]
+    return out
 
 
 def merge_options(*texts: str) -> str:
@@ -163,9 +174,11 @@ def testbench(
     tone: Tone | None = None,
     options: str = "",
     folder: Path | None = None,
+    drives: tuple[tuple[str, tuple[str, ...]], ...] = (),
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
-    `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute."""
+    `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute;
+    `drives`: input ports driven by other sources (force_sources)."""
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
@@ -180,7 +193,7 @@ def testbench(
         blocks_osdi=vacask_string(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
         cycles=cycles,
         ports=ports,
-        forces=force_sources(model, d, tone),
+        forces=force_sources(model, d, tone, drives),
         tone=tone,
         saves=saves(model, d),
         drivers=drivers(d),
@@ -210,13 +223,14 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
 class BenchOptions:
     """How run_bench compiles and runs: the model's .va (None: emitted from the model), the compile
     `cache` (None: out/osdi), extra VACASK `options`, the wall-clock `timeout` (s) and openvaf-r's
-    target `cpu`."""
+    target `cpu`; `drives`: input ports driven by other vsources (force_sources)."""
 
     va: Path | None = None
     cache: Path | None = None
     options: str = ""
     timeout: float = 36000.0
     cpu: str = GENERIC
+    drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
 
 def run_bench(
@@ -233,5 +247,5 @@ def run_bench(
     cache = how.cache or out / "osdi"
     model_osdi = compile_model(model, cache, how.va, how.cpu)
     blocks_osdi = compile_blocks(cache, how.cpu)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out)
+    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out, drives=how.drives)
     return simulate(bench, out, d.ts * cycles, progress, how.timeout)

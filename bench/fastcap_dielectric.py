@@ -1,0 +1,117 @@
+"""A dielectric layer on an electrode in the multipole extractor (netgen.electrostatics.fastcap)
+against the series-capacitor closed form and the analytic extractor.
+
+    .venv/bin/python bench/fastcap_dielectric.py guarded --eps-r 7.5 --element-to-gap 2
+    .venv/bin/python bench/fastcap_dielectric.py piston --side 100
+
+guarded: the sense square of tests/electrostatics/test_fastcap_dielectric.py (a layered box
+electrode whose face is split into a 20 um sense square and an 8 um guard ring, 2 um under a
+plate) against eps0 L^2 / g_eff, g_eff = g - t_d + t_d / eps_r: the solver's deviation beside its
+own error bar, at the settings given (the suite runs the defaults).
+
+piston: a square plate over an electrode of the same size (2 um gap, 0.2 um of nitride,
+eps_r 7.5), rigid: FastCap with the layer, with the layer at eps_r = 1 (the electrode's box
+alone) and without the layer, each against the parallel-plate extractor with
+its edge fringe (netgen.electrostatics.parallel_plate.EdgeFringe) and the same layer, and against
+the closed form eps0 A / g_eff (no fringe). Wall and process time per Maxwell matrix.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from netgen.core.constants import EPS0  # noqa: E402
+from netgen.electrostatics import fastcap  # noqa: E402
+from netgen.electrostatics.parallel_plate import ParallelPlateExtractor  # noqa: E402
+from netgen.geometry.shapes import Electrode, Rectangle, RectPlate  # noqa: E402
+from tests.electrostatics.test_fastcap_dielectric import SENSE, T_D, G, guarded_levels  # noqa: E402
+
+UM = 1e-6
+
+
+def timed(f):
+    """(result, wall s, process s) of f()."""
+    w, p = time.perf_counter(), time.process_time()
+    out = f()
+    return out, time.perf_counter() - w, time.process_time() - p
+
+
+def guarded(eps_r: float, st: fastcap.FastcapSettings) -> dict:
+    """The guarded sense square against the closed form."""
+    m, wall, cpu = timed(lambda: fastcap.converged(guarded_levels(eps_r, st), 1.0, st, ("p", "s", "g")))
+    ref = EPS0 * SENSE**2 / (G - T_D + T_D / eps_r)
+    return {
+        "eps_r": eps_r,
+        "C_fF": -m.matrix[0, 1] * 1e15,
+        "closed_form_fF": ref * 1e15,
+        "deviation": -m.matrix[0, 1] / ref - 1.0,
+        "error_bar": m.error,
+        "mesh_error": m.settings["mesh_error"],
+        "order_error": m.settings["order_error"],
+        "panels": [r["panels"] for r in m.settings["solves"]],
+        "wall_s": wall,
+        "cpu_s": cpu,
+    }
+
+
+def piston(side: float, eps_r: float, st: fastcap.FastcapSettings) -> dict:
+    """FastCap and the analytic extractor on the layered piston (and FastCap without the layer)."""
+    h = side / 2
+    plate = RectPlate(-h, h, -h, h)
+
+    def basis(x, y):
+        return np.ones((np.size(x), 1))
+
+    out: dict = {"side_um": side / UM, "eps_r": eps_r}
+    # "box": the layer at eps_r = 1, invisible to the field: what the electrode's box (FastCap2
+    # needs one under a layer) adds over a sheet, to separate it from the layer's own effect
+    for name, (t, e_r) in {"layer": (T_D, eps_r), "box": (T_D, 1.0), "none": (0.0, 1.0)}.items():
+        e = Electrode(Rectangle("d", -h, h, -h, h), "below", G, "d", t, e_r)
+        prepared = fastcap.FastcapExtractor(settings=st).prepare([e], plate, basis)
+        m, wall, cpu = timed(lambda p=prepared: p.maxwell(np.zeros(1)))
+        analytic = ParallelPlateExtractor().prepare([e], plate, basis).capacitance(np.zeros(1))[0]
+        c = m.plate_electrode[0]
+        out[name] = {
+            "fastcap_fF": c * 1e15,
+            "error_bar": m.error,
+            "analytic_fF": analytic * 1e15,
+            "analytic_minus_fastcap": analytic / c - 1.0,
+            "closed_form_fF": EPS0 * side**2 / e.field_gap() * 1e15,
+            "fastcap_over_closed_form": c / (EPS0 * side**2 / e.field_gap()) - 1.0,
+            "panels": [r["panels"] for r in m.settings["solves"]],
+            "wall_s": wall,
+            "cpu_s": cpu,
+        }
+    return out
+
+
+def main() -> None:
+    """Parse the arguments, run one case, print (and optionally store) the JSON."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("case", choices=["guarded", "piston"])
+    ap.add_argument("--eps-r", type=float, default=7.5)
+    ap.add_argument("--side", type=float, default=100.0, help="piston side in um")
+    ap.add_argument("--edge-to-gap", type=float, default=0.25)
+    ap.add_argument("--element-to-gap", type=float, default=2.0)
+    ap.add_argument("--json")
+    a = ap.parse_args()
+    st = replace(fastcap.FastcapSettings(), edge_to_gap=a.edge_to_gap, element_to_gap=a.element_to_gap)
+    res = guarded(a.eps_r, st) if a.case == "guarded" else piston(a.side * UM, a.eps_r, st)
+    res["settings"] = {"edge_to_gap": st.edge_to_gap, "element_to_gap": st.element_to_gap}
+    text = json.dumps(res, indent=2)
+    print(text)
+    if a.json:
+        Path(a.json).write_text(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,80 @@
+"""VACASK's step options in the sigma-delta loop: time points and CPU per period against the
+mechanics' accuracy, the check of tests/testbench/test_sigma_delta_vacask.py for each option set.
+
+    .venv/bin/python bench/vacask_options.py [OPTIONS ...]     # e.g. - "tran_fbr=0.25" "tran_lteratio=100"
+
+Each argument is a set of VACASK options appended to netgen.testbench.sigma_delta.vacask.OPTIONS
+("-": none, the default). For each, the test's 512-period VACASK run of the reference disk
+(T_s = 1 us), then the test's independent integration (solve_ivp of the mechanics driven by the
+bits VACASK produced, 48 periods) and its latch check; prints the time points and Newton
+iterations per period (VACASK's stats), the CPU time of the VACASK process per period, the largest
+error of z and of the other coordinates against the integration (of each one's peak; the test's
+bounds: 6 % and 1.5 %), the mean z bit and the held latch levels off 0/1 (unexplained, partial,
+largest).
+"""
+
+from __future__ import annotations
+
+import resource
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from support import ROOT
+
+sys.path.insert(0, str(ROOT))
+from netgen.model import MacroModel  # noqa: E402
+from netgen.sim.vacask import stats  # noqa: E402
+from netgen.testbench import sigma_delta as sd  # noqa: E402
+from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
+from tests.testbench import test_sigma_delta_vacask as check  # noqa: E402
+
+
+def child_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def one(model: MacroModel, extra: str, out: Path) -> str:
+    """The line of one option set."""
+    sdv.EXTRA_OPTIONS = "" if extra == "-" else extra
+    sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")
+    sdv.compile_blocks(out / "osdi")
+    cpu = child_cpu()
+    s = check._run(model, out, "vacask", check.CYCLES, check.SKIP)
+    cpu = child_cpu() - cpu
+    st = stats(out / sdv.LOG)
+    clock = s["clock"]
+    ref = check.replay(model, sd.design(model, check.TS), clock, check.REPLAY)
+    err = {
+        c.name: float(np.abs(clock[f"x_{c.name}"][: check.REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max())
+        for i, c in enumerate(model.coordinates)
+    }
+    ch = s["channels"]
+    latches = [
+        (ch[c]["unexplained_latches"], ch[c]["partial_latches"], ch[c]["max_latch_error"]) for c in check.CHANNELS
+    ]
+    return (
+        f"{extra:32s} {st['accepted'] / check.CYCLES:6.1f} {st['nr_iterations'] / st['accepted']:5.2f} "
+        f"{1e3 * cpu / check.CYCLES:7.2f} {err['z']:7.3f} {max(v for k, v in err.items() if k != 'z'):7.4f} "
+        f"{ch['z']['bit_mean']:6.4f}  {sum(u + p for u, p, _ in latches)} / {max(m for _, _, m in latches):.1e}"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    sets = (argv if argv is not None else sys.argv[1:]) or ["-"]
+    model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
+    print(f"VACASK options appended to {sdv.OPTIONS!r}; {check.CYCLES} periods, {check.REPLAY} replayed")
+    print(
+        f"{'options':32s} {'pts':>6s} {'it/pt':>5s} {'cpu ms':>7s} {'z err':>7s} {'others':>7s} {'z bit':>6s}  latches"
+    )
+    with tempfile.TemporaryDirectory(prefix="bench_vacask_options_") as tmp:
+        for k, extra in enumerate(sets):
+            print(one(model, extra, Path(tmp) / str(k)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,156 @@
+"""A dielectric layer on an electrode in the multipole extractor (netgen.electrostatics.fastcap:
+the layer's free surface is a FastCap2 dielectric interface, the electrode a box under it,
+fastcap_mesh.layered_panels) against the series-capacitor closed form.
+
+The oracle is a guarded electrode: one layered box electrode 2 c wide, 2 um under a plate of the
+same width, whose face is split into a central L x L square (the sense conductor) and the ring
+around it (the guard, with the box's back and walls). Both are at the same potential in the
+plate's column of the Maxwell matrix, so the sense square carries exactly the charge of an
+infinite parallel plate over its area, eps0 L^2 / g_eff with g_eff = g - t_d + t_d / eps_r (D
+continuous across the layer), up to the fringe of the guard's outer edge, which decays as
+exp(-pi W / g_eff) over the guard width W = 4 g (below 1e-5). No slot, no fringe formula.
+
+Tolerances: the extractor's own error bar e (Richardson correction of two mesh levels plus the
+change from expansion order 4 to 6) with coverage factor 2, as tests/electrostatics/test_fastcap.py
+(the convergence order is assumed, not observed per solve). With the layer, e is about 2 % at
+the default sizes: the conductor face and the interface 0.2 um above it carry nearly opposite
+charges (the polarisation cancels all but 1/eps_r of the conductor's), so the multipole and
+panel errors of each are amplified against the net (docs/fastcap.md, 'Dielectric layers').
+The geometry tests compare polygon areas with the exact ones within the chord deficit
+(1 - sin(d)/d <= d^2/6 for chords of angle d).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fastcap2")
+
+from netgen.core.constants import EPS0  # noqa: E402
+from netgen.core.errors import StructureError  # noqa: E402
+from netgen.electrostatics import fastcap  # noqa: E402
+from netgen.electrostatics.bem_mesh import Sizes  # noqa: E402
+from netgen.electrostatics.bem_sampling import key_of  # noqa: E402
+from netgen.electrostatics.fastcap_mesh import Layered, Panels, layered_panels, outlines, rect_panels  # noqa: E402
+from netgen.geometry.shapes import AnnularSector, Electrode, Rectangle, RectPlate  # noqa: E402
+from netgen.structure import parse_structure  # noqa: E402
+from tests.fixtures import ROOT  # noqa: E402
+
+UM = 1e-6
+G, T_D = 2 * UM, 0.2 * UM
+SENSE, GUARD = 20 * UM, 8 * UM
+
+
+def guarded_levels(eps_r: float, st: fastcap.FastcapSettings) -> list[list]:
+    """Both mesh levels of the guarded layered electrode (module docstring): plate, sense, guard.
+    The layer's top face is the split face moved up, so interface and conductor panels align."""
+    a, c = SENSE / 2, SENSE / 2 + GUARD
+    levels = []
+    for k in range(2):
+        sz = st.sizes(G - T_D, k)
+        box = layered_panels(Electrode(Rectangle("g", -c, c, -c, c), "below", G, "g", T_D, eps_r), sz, 0.0, 1.0)
+        sense = rect_panels(-a, a, -a, a, sz, 0.0)
+        pieces = [(-c, c, -c, -a), (-c, c, a, c), (-c, -a, -a, a), (a, c, -a, a)]
+        ring = np.concatenate([rect_panels(*p, sz, 0.0).corners for p in pieces])
+        top = np.concatenate([sense.corners, ring])
+        top[:, :, 2] += T_D
+        n_top = len(rect_panels(-c, c, -c, c, sz, 0.0))  # the box's own top face, replaced by `top`
+        interface = Panels(np.concatenate([top, box.interface.corners[n_top:]]))
+        refs = np.concatenate([top.mean(axis=1) - [0.0, 0.0, T_D / 2], box.refs[n_top:]])
+        empty = Panels(np.zeros((0, 4, 3)))
+        levels.append(
+            [
+                rect_panels(-c, c, -c, c, sz, G),
+                Layered(sense, empty, empty, np.zeros((0, 3)), eps_r),
+                Layered(Panels(ring), box.rest, interface, refs, eps_r),
+            ]
+        )
+    return levels
+
+
+@pytest.mark.parametrize("eps_r", [1.0, 7.5])
+def test_guarded_layer_against_series_capacitor(eps_r):
+    """The sense square's charge against eps0 L^2 / g_eff within 2 e (module docstring); eps_r = 1
+    checks that the interface itself is invisible, 7.5 (nitride) the series layer."""
+    st = fastcap.FastcapSettings()
+    m = fastcap.converged(guarded_levels(eps_r, st), 1.0, st, ("plate", "sense", "guard"))
+    ref = EPS0 * SENSE**2 / (G - T_D + T_D / eps_r)
+    dev = abs(-m.matrix[0, 1] / ref - 1.0)
+    assert dev <= 2.0 * m.error
+
+
+def shoelace(p: np.ndarray) -> float:
+    """Signed area of a closed polygon (positive counter-clockwise)."""
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+@pytest.mark.parametrize(
+    "shape, area",
+    [
+        (Rectangle("r", -3 * UM, 5 * UM, -1 * UM, 2 * UM), 8 * UM * 3 * UM),
+        (AnnularSector("s", 20 * UM, 100 * UM, 0.3, 1.5, 0.0), 0.5 * 1.2 * (100**2 - 20**2) * UM**2),
+        (AnnularSector("a", 20 * UM, 100 * UM, 0.0, 2 * math.pi, 0.0), math.pi * (100**2 - 20**2) * UM**2),
+        (AnnularSector("d", 0.0, 100 * UM, 0.0, math.pi / 2, 0.0), math.pi / 4 * 100**2 * UM**2),
+    ],
+)
+def test_outlines_enclose_the_shape(shape, area):
+    """The outlines' signed areas add up to the shape's (the electrode to the left of every edge:
+    an annulus's inner circle counts negative), within the chord deficit of arcs h_edge apart."""
+    sizes = Sizes(2 * UM, 10 * UM, 1.5)
+    rings = outlines(Electrode(shape, "below", G), sizes)
+    total = sum(shoelace(r) for r in rings)
+    d = (2 * UM) / (20 * UM)  # largest chord angle: h_edge over the smallest radius (20 um)
+    assert total == pytest.approx(area, rel=d * d / 6 + 1e-12)
+
+
+def test_layered_box_panels():
+    """The layered electrode: face at z, back and interface t_d away on either side, every
+    interface reference point strictly inside the layer (between the face and its top)."""
+    e = Electrode(AnnularSector("s", 20 * UM, 100 * UM, 0.3, 1.5, 5 * UM), "above", G, "s", T_D, 7.5)
+    z = 10 * UM
+    lay = layered_panels(e, Sizes(0.5 * UM, 4 * UM, 1.5), z, -1.0)
+    assert np.allclose(lay.face.corners[:, :, 2], z)
+    assert lay.refs.shape == (len(lay.interface), 3)
+    assert np.all((lay.refs[:, 2] < z) & (lay.refs[:, 2] > z - T_D))
+    top = lay.interface.corners[:, :, 2]
+    assert np.isclose(top, z - T_D).all(axis=1).sum() == len(lay.face)
+
+
+def layered_piston(extractor: str) -> str:
+    """examples/piston.toml with 0.2 um of nitride on its electrode and the given extractor."""
+    text = (ROOT / "examples" / "piston.toml").read_text()
+    text = text.replace(
+        'gap = "2 um"\n', 'gap = "2 um"\ndielectric_thickness = "0.2 um"\ndielectric_permittivity = 7.5\n', 1
+    )
+    return text.replace("[electrostatics]\n", f'[electrostatics]\nextractor = "{extractor}"\n', 1)
+
+
+def test_structure_admits_a_layer_for_fastcap_only():
+    """extractor = "fastcap" reads a layered structure; "bem" still refuses it, naming the key."""
+    s = parse_structure(layered_piston("fastcap"), "piston_nitride.toml")
+    assert s.electrode_sets[0].dielectric_thickness == pytest.approx(T_D)
+    with pytest.raises(StructureError, match="dielectric_thickness"):
+        parse_structure(layered_piston("bem"), "piston_nitride.toml")
+
+
+def layered_prepared(eps_r: float):
+    """The multipole extractor prepared on a 40 um piston over a layered electrode (no solve)."""
+    h = 20 * UM
+    e = Electrode(Rectangle("d", -h, h, -h, h), "below", G, "d", T_D, eps_r)
+    return fastcap.FastcapExtractor().prepare([e], RectPlate(-h, h, -h, h), lambda x, y: np.ones((np.size(x), 1)))
+
+
+def test_stop_on_the_layer_and_store_key():
+    """The plate stops on the layer's surface (min_gap is the air gap g - t_d - x, a plate pushed
+    into the layer reads nan without a solve), and the sample store's key changes with the
+    layer's permittivity, so a store never hands back another layer's samples."""
+    p = layered_prepared(7.5)
+    x = np.array([0.0, 0.5 * UM, 1.2 * UM])
+    assert p.min_gap(-x[:, None])[:, 0] == pytest.approx(G - T_D - x, rel=1e-12)
+    assert np.isnan(p.capacitance(np.array([[-(G - T_D) - 1e-9]]))[0, 0])
+    q = np.zeros((1, 1))
+    assert key_of(p, q) != key_of(layered_prepared(3.9), q)
