@@ -4,6 +4,10 @@ a couplings file, then the ngspice-vs-VACASK transient with its couplings and th
 sigma-delta comparison with and without them:
 
     .venv/bin/python bench/bem_calibrated_reference.py EXTRAPOLATION.json OUT [--transient]
+    .venv/bin/python bench/bem_calibrated_reference.py DIRECT.json OUT      # bench/fastcap_levels.py --calibration-json
+
+DIRECT.json (bench/fastcap_levels.py --calibration-json) is the FastCap solution at the reference
+gap itself, in the same form: the file is then OUT/maxwell_direct.json and says so.
 
 What the couplings file holds, and why it is one: BEM cannot solve the reference gap here (g/R =
 0.0063 needs 104k elements on the finest level, ~100 GB: bench/bem_extrapolate.py's cost lines), so OUT/maxwell_extrapolated.json
@@ -86,28 +90,34 @@ def maxwell_file(ex: dict, out: Path) -> Path:
         np.fill_diagonal(mx, 0.0)
         np.fill_diagonal(mx, -mx.sum(axis=1) + 0.1 * np.abs(mx).max())  # a small capacitance to infinity each
         points.append({"q": {name: float(v) for name, v in zip(m.names, row) if v}, "maxwell": mx.tolist()})
+    if "direct" in ex:  # bench/fastcap_levels.py --calibration-json: a field solution at the gap itself
+        described = f"{ex['direct']}, written by bench/bem_calibrated_reference.py"
+        solver = "fastcap2 2.1 (multipole panels)"
+    else:
+        described = (
+            f"EXTRAPOLATED, not a field solution: BEM (bempp-cl, bench/bem_reference_disk.py) at "
+            f"g/R = {', '.join(f'{g:g}' for g in ex['gaps'])}, extrapolated to {ex['target_g_over_R']:.4f} "
+            "by bench/bem_extrapolate.py, written by bench/bem_calibrated_reference.py"
+        )
+        solver = "bempp-cl 0.4.2 (extrapolated)"
     doc = {
-        "description": f"EXTRAPOLATED, not a field solution: BEM (bempp-cl, bench/bem_reference_disk.py) at "
-        f"g/R = {', '.join(f'{g:g}' for g in ex['gaps'])}, extrapolated to {ex['target_g_over_R']:.4f} "
-        "by bench/bem_extrapolate.py, written by bench/bem_calibrated_reference.py",
-        "solver": "bempp-cl 0.4.2 (extrapolated)",
+        "description": described,
+        "solver": solver,
         "conductors": ["plate"] + names,
         "points": points,
     }
-    path = out / "maxwell_extrapolated.json"
+    path = out / ("maxwell_direct.json" if "direct" in ex else "maxwell_extrapolated.json")
     path.write_text(json.dumps(doc, indent=1) + "\n")
     return path
 
 
-def structure(out: Path) -> Path:
-    """OUT/levitated_disk.toml: the reference structure, calibrated against the file."""
+def structure(out: Path, maxwell: Path) -> Path:
+    """OUT/levitated_disk.toml: the reference structure, calibrated against the file `maxwell`."""
     text = REFERENCE.read_text()
     head, tail = text.split("[electrostatics]")
     rest = tail[tail.index("\n[", 1) :] if "\n[" in tail[1:] else ""
     path = out / "levitated_disk.toml"
-    path.write_text(
-        head + '[electrostatics]\nextractor = "calibrated"\ncouplings = "maxwell_extrapolated.json"\n' + rest
-    )
+    path.write_text(head + f'[electrostatics]\nextractor = "calibrated"\ncouplings = "{maxwell.name}"\n' + rest)
     return path
 
 
@@ -206,7 +216,8 @@ def main() -> None:
     ap.add_argument("--transient", action="store_true")
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
-    print(f"wrote {maxwell_file(json.loads(a.extrapolation.read_text()), a.out)} and {structure(a.out)}")
+    maxwell = maxwell_file(json.loads(a.extrapolation.read_text()), a.out)
+    print(f"wrote {maxwell} and {structure(a.out, maxwell)}")
     model = build(a.out)
     report(model)
     if a.transient:
@@ -218,6 +229,12 @@ def main() -> None:
         )
     print(
         f".venv/bin/python bench/couplings_sigma_delta.py {a.out}/sd_plain {a.out}/sd_model --png {a.out}/couplings_sd.png"
+    )
+    print(  # with and without the calibration: the committed (uncalibrated) reference model beside it
+        f"nice -n 10 .venv/bin/netgen sigma-delta examples/levitated_disk.toml --model netlists/levitated_disk.json "
+        f"--simulator ngspice-xspice --cycles 8192 --tone z:0.02:2000 -o {a.out}/sd_uncalibrated -q --no-plots\n"
+        f".venv/bin/python bench/couplings_sigma_delta.py {a.out}/sd_uncalibrated {a.out}/sd_model "
+        f"--png {a.out}/calibration_sd.png"
     )
 
 

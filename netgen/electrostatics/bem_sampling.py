@@ -51,7 +51,7 @@ class MaxwellSamples:
 
 def pack(m) -> np.ndarray:
     """One solve (bem.MaxwellMatrix) as a (1, 2 n^2 + 4) row."""
-    finest = m.settings["solves"][1 if "panels" in m.settings["solves"][0] else -1]  # fastcap: [coarse, fine, check]
+    finest = m.settings["solves"][-2 if "panels" in m.settings["solves"][0] else -1]  # fastcap: [levels..., check]
     extra = [m.error, finest.get("elements", finest.get("panels")), finest["order"], m.settings.get("seconds", 0.0)]
     return np.concatenate([m.matrix.ravel(), m.coarse.ravel(), extra])[None, :]
 

@@ -3,7 +3,8 @@ extractor with per-electrode edge-fringe coefficients and the constant electrode
 couplings fitted to a field solution at a few points (netgen.electrostatics.calibration).
 
 The field solution is the BEM extractor at `calibration_points` points (netgen.electrostatics.bem,
-its Maxwell matrix at given generalized coordinates), or the Maxwell matrices of a user's file
+its Maxwell matrix at given generalized coordinates; `calibration_source = "fastcap"`: the multipole
+extractor, netgen.electrostatics.fastcap, with its [electrostatics.fastcap] settings), or the Maxwell matrices of a user's file
 (`couplings = "file"`, netgen.electrostatics.coupling_file) at the points the file names.
 `extractor = "parallel_plate"` with a `couplings` file takes the file's mean couplings only.
 """
@@ -31,7 +32,20 @@ def bem_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -
     conductors [plate, *electrodes]); each solve's estimated error is kept in `source.errors`."""
     from . import bem
 
-    prepared = bem.from_structure(s, plate).prepare(electrodes, plate, basis)
+    return field_source(bem.from_structure(s, plate).prepare(electrodes, plate, basis))
+
+
+def fastcap_source(s, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> MaxwellSource:
+    """The multipole extractor's Maxwell matrix at q (netgen.electrostatics.fastcap, its
+    [electrostatics.fastcap] settings), with each solve's error bar in `source.errors`."""
+    from . import fastcap
+
+    return field_source(fastcap.from_structure(s, plate).prepare(electrodes, plate, basis))
+
+
+def field_source(prepared) -> MaxwellSource:
+    """q -> a prepared field solver's Maxwell matrix (conductors [plate, *electrodes]), each
+    solve's estimated error appended to `source.errors`."""
     errors: list[float] = []
 
     def source(q: np.ndarray) -> np.ndarray:
@@ -97,6 +111,7 @@ class CalibratedExtractor:
                     'give the field solver\'s Maxwell matrices instead: couplings = "maxwell.json"',
                 )
             maxwell = self.source(self.structure, electrodes, plate, basis)
+            solver = "FastCap" if self.source is fastcap_source else "BEM"
             cal = calibrate(
                 maxwell,
                 electrodes,
@@ -104,7 +119,7 @@ class CalibratedExtractor:
                 basis,
                 design(self.points, scales, self.span),
                 self.base,
-                f"BEM at {self.points} point(s)",
+                f"{solver} at {self.points} point(s)",
             )
             self.result["field_errors"] = list(getattr(maxwell, "errors", []))
         self.result["calibration"] = cal
@@ -218,9 +233,11 @@ def from_structure(s, plate: Plate) -> CalibratedExtractor:
             'extractor = "calibrated" needs calibration points or a couplings file',
             'write calibration_points = 9 (BEM solves), or couplings = "maxwell.json"',
         )
-    return CalibratedExtractor(
-        base, names, o.calibration_points, s.sampling.range, o.couplings, BEM_SOURCE[0] if BEM_SOURCE else None, s
-    )
+    if getattr(o, "calibration_source", "bem") == "fastcap":
+        source: Callable[..., MaxwellSource] | None = fastcap_source
+    else:
+        source = BEM_SOURCE[0] if BEM_SOURCE else None
+    return CalibratedExtractor(base, names, o.calibration_points, s.sampling.range, o.couplings, source, s)
 
 
 def with_file_couplings(s, base: ParallelPlateExtractor) -> FileCoupledExtractor:

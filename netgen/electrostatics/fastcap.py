@@ -7,9 +7,10 @@ stops at g/R = 0.0115 (12.9 GB); FastCap's memory and time grow about linearly w
 so the reference disk at its own gap (g/R = 0.0063) fits (docs/fastcap.md, 'Costs').
 
 Panels (netgen.electrostatics.fastcap_mesh): quads, graded from edge_to_gap gaps at free edges
-to element_to_gap gaps inside (panel size tied to the smallest gap). Every solve runs on two
-mesh levels (sizes in the ratio `refinement`) at `expansion_order`, Richardson-extrapolates
-(the correction is the discretisation error estimate), and solves the coarse level again at
+to element_to_gap gaps inside (panel size tied to the smallest gap). Every solve runs on `levels`
+mesh levels (2 or more; sizes in the ratio `refinement`) at `expansion_order`, Richardson-
+extrapolates (with three levels or more at the order observed from the last three, bem.extrapolate;
+the correction is the discretisation error estimate), and solves the coarse level again at
 `check_order`: the change is the multipole error estimate. Both are recorded per solve.
 """
 
@@ -51,8 +52,10 @@ class FastcapSettings:
     neighbouring panel rows; refinement: size ratio of the two mesh levels; expansion_order: the
     multipole order of the solves; check_order: the order of the check solve on the coarse level;
     iter_tol: FastCap's GMRES tolerance; richardson_order: convergence order in the panel size
-    assumed by the extrapolation (2: measured on coaxial disks, docs/fastcap.md);
+    assumed by the extrapolation (2: measured on coaxial disks, docs/fastcap.md); levels: mesh
+    levels solved (3 or more: the order observed from the last three when it lies in 0.5..4);
     element_to_size: largest panel in units of the plate's size; memory_budget: bytes per solve.
+    A structure file sets them in [electrostatics.fastcap] (netgen.structure.fastcap_table).
     """
 
     edge_to_gap: float = 0.25
@@ -63,6 +66,7 @@ class FastcapSettings:
     check_order: int = 6
     iter_tol: float = 1e-4
     richardson_order: float = 2.0
+    levels: int = 2
     element_to_size: float = 0.2
     memory_budget: float = 8e9
 
@@ -156,24 +160,29 @@ def solve_panels(
 def converged(
     levels: Sequence[Sequence[Panels | Layered]], eps_r: float, settings: FastcapSettings, names
 ) -> MaxwellMatrix:
-    """The Maxwell matrix from two mesh levels (coarse, fine) at expansion_order, Richardson-
-    extrapolated, with the coarse level solved again at check_order; error = discretisation
-    estimate (the correction) + multipole estimate (the order change)."""
+    """The Maxwell matrix from two or more mesh levels (coarse to fine) at expansion_order,
+    Richardson-extrapolated (bem.extrapolate: from three levels at the observed order), with the
+    coarse level solved again at check_order; error = discretisation estimate (the correction) +
+    multipole estimate (the order change)."""
     need = max(sum(len(p) for p in lv) for lv in levels)
     check_budget(need, settings.memory_budget)
-    coarse, rc = solve_panels(levels[0], eps_r, settings.expansion_order, settings.iter_tol)
-    fine, rf = solve_panels(levels[1], eps_r, settings.expansion_order, settings.iter_tol)
+    sols, records = [], []
+    for lv in levels:
+        c, r = solve_panels(lv, eps_r, settings.expansion_order, settings.iter_tol)
+        sols.append(c)
+        records.append(r)
     check, rk = solve_panels(levels[0], eps_r, settings.check_order, settings.iter_tol)
-    best, p = extrapolate([coarse, fine], settings.refinement, settings.richardson_order)
-    mesh_error, order_error = relative_change(best, fine), relative_change(check, coarse)
+    best, p = extrapolate(sols, settings.refinement, settings.richardson_order)
+    mesh_error, order_error = relative_change(best, sols[-1]), relative_change(check, sols[0])
     record = {
         **asdict(settings),
-        "solves": [rc, rf, rk],
+        "solves": [*records, rk],
+        "richardson_order_used": p,
         "mesh_error": mesh_error,
         "order_error": order_error,
-        "asymmetry": max(r["asymmetry"] for r in (rc, rf, rk)),
+        "asymmetry": max(r["asymmetry"] for r in (*records, rk)),
     }
-    return MaxwellMatrix(tuple(names), best, fine, mesh_error + order_error, record)
+    return MaxwellMatrix(tuple(names), best, sols[-1], mesh_error + order_error, record)
 
 
 class PreparedFastcap:
@@ -190,7 +199,7 @@ class PreparedFastcap:
         settings: FastcapSettings,
         source: str | None = None,
     ):
-        """Panel both levels, refusing before the work when the finer one exceeds the budget."""
+        """Panel every level, refusing before the work when the finest exceeds the budget."""
         self.electrodes = tuple(electrodes)
         self.eps_r, self.eps, self.thickness, self.settings = eps_r, EPS0 * eps_r, thickness, settings
         self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=self.eps, fringe=None).prepare(
@@ -199,21 +208,23 @@ class PreparedFastcap:
         self.ncoords = self.geometry.ncoords
         self.gap = min(e.gap for e in electrodes)
         self.names = ("plate",) + tuple(e.name for e in electrodes)
-        self.levels = [self._level(plate, basis, k) for k in range(2)]
-        panels = sum(len(p) for p in (self.levels[1][0], *self.levels[1][2]))
+        self.levels = [self.level(plate, basis, k) for k in range(max(2, settings.levels))]
+        panels = sum(len(p) for p in (self.levels[-1][0], *self.levels[-1][2]))
         if BYTES_PER_PANEL * panels > settings.memory_budget:
             problem = (
                 f"edge_to_gap = {settings.edge_to_gap:g}, element_to_gap = {settings.element_to_gap:g} give "
-                f"{panels} panels on the fine level, about {BYTES_PER_PANEL * panels / 1e9:.3g} GB, above the "
+                f"{panels} panels on the finest level, about {BYTES_PER_PANEL * panels / 1e9:.3g} GB, above the "
                 f"memory budget of {settings.memory_budget / 1e9:g} GB"
             )
-            fix = "raise FastcapSettings.edge_to_gap or element_to_gap, or memory_budget"
             if source is None:
+                fix = "raise FastcapSettings.edge_to_gap or element_to_gap, or memory_budget, or lower levels"
                 raise FastcapBudgetError(f"fastcap: {problem}; {fix}")
-            fix = 'use extractor = "calibrated" (a structure file cannot set the fastcap settings yet), or the ' + fix
-            raise StructureError(source, "electrostatics.extractor", problem, fix)
+            fix = (
+                "in [electrostatics.fastcap] raise edge_to_gap or element_to_gap, or memory_budget_gb, or lower levels"
+            )
+            raise StructureError(source, "electrostatics.fastcap", problem, fix)
 
-    def _level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels | Layered, ...]]:
+    def level(self, plate: Plate, basis: Basis, k: int) -> tuple[Panels, Array, tuple[Panels | Layered, ...]]:
         """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the
         electrodes (Layered under a dielectric layer)."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
@@ -255,7 +266,7 @@ class PreparedFastcap:
         if np.isfinite(g).any() and np.min(g[np.isfinite(g)]) <= 0.0:
             raise ValueError("the plate touches an electrode at this q")
         t0 = time.perf_counter()
-        m = converged([self.panels(q, 0), self.panels(q, 1)], self.eps_r, self.settings, self.names)
+        m = converged([self.panels(q, k) for k in range(len(self.levels))], self.eps_r, self.settings, self.names)
         m.settings["seconds"] = time.perf_counter() - t0
         return m
 
@@ -300,7 +311,8 @@ class FastcapExtractor:
         """What it computes and with which settings (the model report's extractor line)."""
         st = self.settings
         return (
-            f"multipole panels (FastCap2, quads, 2 mesh levels + Richardson order {st.richardson_order:g}): "
+            f"multipole panels (FastCap2, quads, {max(2, st.levels)} mesh levels + Richardson order "
+            f"{'observed, else ' if st.levels >= 3 else ''}{st.richardson_order:g}): "
             f"edge_to_gap {st.edge_to_gap:g}, element_to_gap {st.element_to_gap:g}, refinement "
             f"{st.refinement:.3g}, expansion order {st.expansion_order} (check {st.check_order}), "
             f"memory budget {st.memory_budget / 1e9:g} GB"
@@ -316,22 +328,12 @@ class FastcapExtractor:
         return prepared.maxwell(np.zeros(1)).coupling
 
 
-SETTINGS_KEYS = {f.name for f in FastcapSettings.__dataclass_fields__.values()} - {"memory_budget"}
-
-
 def settings_of(s) -> FastcapSettings:
-    """FastcapSettings from the structure's [electrostatics.fastcap] table (memory_budget_gb in GB)."""
-    given = dict(getattr(s.electrostatics, "fastcap", None) or {})
+    """FastcapSettings from the structure's [electrostatics.fastcap] table (netgen.structure.fastcap_table:
+    keys, types and ranges checked there; memory_budget_gb in GB)."""
+    given = dict(getattr(s.electrostatics, "fastcap", ()))
     if "memory_budget_gb" in given:
         given["memory_budget"] = float(given.pop("memory_budget_gb")) * 1e9
-    for key in given:
-        if key not in SETTINGS_KEYS | {"memory_budget"}:
-            raise StructureError(
-                s.source,
-                f"electrostatics.fastcap.{key}",
-                f"unknown key {key!r}",
-                f"use one of {', '.join(sorted(SETTINGS_KEYS | {'memory_budget_gb'}))}",
-            )
     return FastcapSettings(**given)
 
 

@@ -31,9 +31,9 @@ KEYS: dict[str, tuple[str, float, float, str]] = {
 }
 
 
-def fail(rd: Reader, key: str | None, problem: str, fix: str) -> InputError:
-    """A StructureError at electrostatics.bem[.key], at the key's line (else the table's header)."""
-    return rd.fail(f"{WHERE}.{key}" if key else WHERE, problem, fix)
+def fail(rd: Reader, key: str | None, problem: str, fix: str, where: str = WHERE) -> InputError:
+    """A StructureError at `where`[.key] (electrostatics.bem), at the key's line (else the table's header)."""
+    return rd.fail(f"{where}.{key}" if key else where, problem, fix)
 
 
 def read_bem(rd: Reader, t: dict, extractor: str, couplings: str | None) -> tuple[tuple[str, float | int | None], ...]:
@@ -72,10 +72,12 @@ def read_bem(rd: Reader, t: dict, extractor: str, couplings: str | None) -> tupl
     return tuple((k, out[k]) for k in KEYS if k in out)
 
 
-def number(rd: Reader, key: str, value) -> float | int | None:
-    """One key's value checked against its kind and range."""
-    kind, lo, hi, what = KEYS[key]
-    if key == "richardson_order" and value == "none":
+def number(rd: Reader, key: str, value, keys=None, where: str = WHERE) -> float | int | None:
+    """One key's value checked against its kind and range in `keys` (KEYS; the FastCap table
+    passes its own, netgen.structure.fastcap_table)."""
+    kind, lo, hi, what = (keys or KEYS)[key]
+    bem_none = key == "richardson_order" and keys is None  # the BEM alone can report its finest level
+    if bem_none and value == "none":
         return None
     if kind == "int":
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
@@ -84,6 +86,7 @@ def number(rd: Reader, key: str, value) -> float | int | None:
                 key,
                 f"{key} = {value!r} is not an integer in {lo:g}..{hi:g}",
                 f"write {key} = <integer {lo:g}..{hi:g}> ({what})",
+                where,
             )
         return int(value)
     if (
@@ -92,11 +95,12 @@ def number(rd: Reader, key: str, value) -> float | int | None:
         or not math.isfinite(value)
         or not lo < value <= hi
     ):
-        extra = ', or "none" (report the finest level)' if key == "richardson_order" else ""
+        extra = ', or "none" (report the finest level)' if bem_none else ""
         raise fail(
             rd,
             key,
             f"{key} = {value!r} is not a number in ({lo:g}, {hi:g}]",
             f"write {key} = <number above {lo:g}, at most {hi:g}>{extra} ({what})",
+            where,
         )
     return float(value)

@@ -33,6 +33,7 @@ from ..core.text import escape, text_problem
 from . import validity
 from .bem_table import read_bem
 from .conductors import CONDUCTORS
+from .fastcap_table import read_fastcap, refuse_bem
 from .process_table import check_process, read_process
 from .schema import (
     ALL_RIGID,
@@ -308,6 +309,8 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
         "calibration_points",
         "comb_model",
         "bem",
+        "calibration_source",
+        "fastcap",
     ]
     check_keys(rd, "electrostatics", t, keys)
     d = ElectrostaticsOptions()
@@ -348,10 +351,19 @@ def read_electrostatics(rd: Reader, doc: dict) -> ElectrostaticsOptions:
             "calibration_points (BEM) and a couplings file are two calibration sources",
             "keep one: the file's points, or BEM at calibration_points",
         )
+    source = choice(rd, t, "electrostatics", "calibration_source", ["bem", "fastcap"], "bem")
+    if "calibration_source" in t and not points:
+        raise rd.fail(
+            "electrostatics.calibration_source",
+            "calibration_source without calibration_points: no field solve runs for a calibration",
+            'write extractor = "calibrated" with calibration_points = 9, or drop calibration_source',
+        )
     return ElectrostaticsOptions(
         couplings=couplings,
         calibration_points=points,
-        bem=read_bem(rd, t, extractor, couplings),
+        calibration_source=source,
+        bem=read_bem(rd, t, extractor, couplings) if source == "bem" else refuse_bem(rd, t),
+        fastcap=read_fastcap(rd, t, extractor, source),
         fringe=choice(rd, t, "electrostatics", "fringe", ["plate_between", "palmer", "none"], d.fringe),
         fringe_a=quantity(rd, t, "electrostatics", "fringe_a", "dimensionless", d.fringe_a),
         fringe_b=quantity(rd, t, "electrostatics", "fringe_b", "dimensionless", d.fringe_b),

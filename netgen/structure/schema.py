@@ -159,8 +159,10 @@ class ElectrostaticsOptions:
     extractor: str = "parallel_plate"
     couplings: str | None = None  # a field solver's Maxwell matrices (netgen.electrostatics.coupling_file)
     calibration_points: int = 0  # BEM points of extractor = "calibrated" (netgen.electrostatics.calibrated)
+    calibration_source: str = "bem"  # the field solver of those points: "bem" or "fastcap"
     comb_model: str = "field2d"  # netgen.electrostatics.comb.MODELS: "field2d" or "textbook"
     bem: tuple = ()  # [electrostatics.bem] (key, value) pairs: netgen.electrostatics.bem.BemSettings
+    fastcap: tuple = ()  # [electrostatics.fastcap] pairs: netgen.electrostatics.fastcap.FastcapSettings
 
 
 @dataclass(frozen=True)

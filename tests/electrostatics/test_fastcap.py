@@ -159,5 +159,5 @@ def test_budget_from_a_structure_file_names_file_and_key():
 
     plate, els = reference_layout(5 * UM)
     st = fastcap.FastcapSettings(memory_budget=1e6)
-    with pytest.raises(StructureError, match=r"(?s)disk\.toml.*electrostatics\.extractor.*calibrated"):
+    with pytest.raises(StructureError, match=r"(?s)disk\.toml.*electrostatics\.fastcap.*memory_budget_gb"):
         fastcap.FastcapExtractor(settings=st, source="disk.toml").prepare(els, plate, rigid_z)
