@@ -49,15 +49,19 @@ BROWNIAN_BANDS_HZ = (2000.0, 4000.0)
 TEMPERATURE = 300.0  # K, the structure's [damping] temperature (its default)
 
 
-def noise_reference(model, out: Path, cycles: int, simulator: str) -> None:
-    """The zero-rate run's rate noise density against the reference loop's, per band."""
-    spec = read_structure_loop(EXAMPLE)
+def zero_rate_run(model, spec, out: Path, cycles: int, simulator: str):
+    """One zero-rate gyro run of `model` in `out`: its bitstreams, the settled slice (after the first
+    eighth) and the drive's angular frequency."""
     lib = out / "g.lib"
     lib.write_text(subcircuit(model))
     s = run(model, lib, out, spec, GyroRequest(cycles=cycles, simulator=simulator, progress=False, plots=False))
-    z = np.load(out / "bitstreams.npz")
-    keep = slice(cycles // 8, None)
-    drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
+    return np.load(out / "bitstreams.npz"), slice(cycles // 8, None), 2 * math.pi * s["runs"][0]["drive_hz"]
+
+
+def noise_reference(model, out: Path, cycles: int, simulator: str) -> None:
+    """The zero-rate run's rate noise density against the reference loop's, per band."""
+    spec = read_structure_loop(EXAMPLE)
+    z, keep, drive_w = zero_rate_run(model, spec, out, cycles, simulator)
     d = sense_design(model, spec, GyroRequest())
     refs = [reference.simulate_design(model, d, 4 * cycles, phase) for phase in (0.0, math.pi / 2)]
     w, per_rate = refs[0]["drive_w"], refs[0]["per_rate"]
@@ -82,12 +86,7 @@ def brownian(out: Path, cycles: int, simulator: str) -> None:
     path.write_text(reference.brownian_variant(EXAMPLE.read_text()))
     model = build_model(load_structure(path), progress=False)
     spec = read_structure_loop(path)
-    lib = out / "g.lib"
-    lib.write_text(subcircuit(model))
-    s = run(model, lib, out, spec, GyroRequest(cycles=cycles, simulator=simulator, progress=False, plots=False))
-    z = np.load(out / "bitstreams.npz")
-    keep = slice(cycles // 8, None)
-    drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
+    z, keep, drive_w = zero_rate_run(model, spec, out, cycles, simulator)
     cy = next(c for c in model.coordinates if c.name == "y")
     thermal = 4 * reference.K_B * TEMPERATURE * math.sqrt(cy.stiffness * cy.mass) / reference.BROWNIAN_Q_Y
     d = sense_design(model, spec, GyroRequest())
