@@ -25,6 +25,7 @@ MODULES = (
     "closed_forms",
     "gyro_reference",
     "lateral_comb",
+    "process_balance",
     "process_mc",
     "sc_readout",
     "sigma_delta_reference",
