@@ -9,12 +9,12 @@ parameter value, at the ends of each parameter's valid range (and the nominal).
   MacroModel's static equilibrium K q = 1/2 V^2 grad C(q) by displacement iteration (the first
   mode's amplitude s controlled, V^2(s) = 2 K_1 s / C_1(q), the higher modes by fixed point,
   max_s V on a grid refined by a parabola). A uniform beam's mode shapes depend on neither t nor
-  E and its plate capacitance not on t, so both models' fits come from the same samples (equal to
-  round-off) and V ~ sqrt(K) differs by half the stiffness law's stated error (the re-runs'
-  round-off for the t^3 E law of Hermite beams, 7.8e-8) plus the fits' least-squares round-off
-  (1e-10 relative: condition ~1e6 x 1e-16): the bound asserted, far inside the brief's 0.2 %. The
-  scaling V ~ sqrt(t^3 E) (the beam equation: the load needed per deflection is EI ~ E t^3) is
-  checked as well, within the same bound.
+  E and its plate capacitance not on t, so on the nominal model's own fit V ~ sqrt(K) follows
+  sqrt(t^3 E) (the beam equation: the load needed per deflection is EI ~ E t^3) within half the
+  stiffness law's stated error (the re-runs' round-off for the t^3 E law of Hermite beams, 7.8e-8)
+  plus 1e-9. Against a rebuild, whose plate fit comes from the same samples but is not determined to
+  round-off (a Levenberg-Marquardt solution, cond(J) 1e4..1e5), the fits' Markov bound below is
+  added (4 e / R on m1's box: about 7e-4), inside the brief's 0.2 %.
 - Levitated disk (dg, tscale; escale and temp do not enter: the disk is free in z, and neither its
   weight nor the plate force at rest involves the modulus or a spring): the voltage on all eight top
   electrodes holding it at rest against gravity, V^2 = 2 M g / sum dC_top/dz. The suite's disk
@@ -22,7 +22,8 @@ parameter value, at the ends of each parameter's valid range (and the nominal).
   voltage puts no force on the tilts or the (2,0)/(3,0) modes at rest, by the sectors' symmetry) and
   a tighter fit ([fit] tolerance 2e-4 on 5 levels; a 1 s build): bench/process_pull_in.py runs the
   example itself (31 s builds; its 2e-3 fits). With tscale the mass law (rigid: ~ t) is exact and
-  the capacitances do not depend on t: agreement to round-off, 1e-9. With dg the law is exact on
+  the capacitances do not depend on t: V ~ sqrt(t) within 1e-9 (against a rebuild, whose plate fit
+  need not repeat the nominal's to round-off, within the bound below). With dg the law is exact on
   the field solution (the extractor's slope of the nominal geometry at z = -dg against the rebuilt
   geometry's at rest, to round-off), and the models differ by the two fits' slope errors where each
   is read: a fit residual r(z) with |r| <= e C over the box |z| <= R g (e the held-out error, R the
@@ -100,8 +101,12 @@ def test_cantilever_pull_in_against_rebuild(nominal_cantilever, name, value):
     v_nominal = pull_in(nominal_cantilever, [c.stiffness for c in nominal_cantilever.coordinates])
     print(f"{name}={value}: pull-in {v_law:.9g} V, rebuilt {v_rebuilt:.9g} V ({v_law / v_rebuilt - 1:.1e})")
     bound = 0.5 * nominal_cantilever.process["tscale"]["max_rel_error"] + 1e-9
-    assert v_law == pytest.approx(v_rebuilt, rel=bound)
     assert v_law == pytest.approx(v_nominal * math.sqrt(tscale**3 * e), rel=bound)
+    # against the rebuild: two plate fits, equal only as far as the fit is determined (the disk test's
+    # docstring), so within the fits' Markov bound on m1's box (module docstring) plus the law's error
+    errors = [f.max_rel_error for f in nominal_cantilever.capacitances + rebuilt.capacitances]
+    m1 = nominal_cantilever.sampling.get("coordinate_range", {}).get("m1", nominal_cantilever.sampling["range"])
+    assert v_law == pytest.approx(v_rebuilt, rel=bound + 4 * max(errors) / m1)
 
 
 RANGE = 0.2  # the example's [sampling] range: the box is |z| <= RANGE g
@@ -132,9 +137,12 @@ def nominal_disk():
 def test_disk_gravity_balance_against_rebuild(nominal_disk, tscale, dg_nm):
     """The levitated disk's gravity balance voltage with tscale and dg_top (the ends of their ranges:
     0.9..1.1, |dg| <= R g / 4 = 150 nm) against a full rebuild at thickness 10 um tscale and top gap
-    3 um + dg: for tscale alone within 1e-9 and V / V_nominal = sqrt(tscale) (weight ~ t, plate force
-    independent of t); with dg the field solution's slopes within 1e-12 (the law is exact there) and
-    the voltages within the fits' Markov bound (module docstring), itself below the brief's 0.2 %."""
+    3 um + dg. The law is checked where it is exact: the field solution's slopes within 1e-12, and for
+    tscale alone V / V_nominal = sqrt(tscale) within 1e-9 (weight ~ t, plate force independent of t).
+    The voltages of the two models are read from two fits, which agree only as far as the plate fit
+    is determined: its Levenberg-Marquardt solution (cond(J) 1e4..1e5) is not unique to round-off,
+    and a rebuild of the same geometry in the suite's worker once differed by 3.5e-7 (alone: 0).
+    So every case is held to the fits' Markov bound (module docstring), below the brief's 0.2 %."""
     law = nominal_disk.model.process
     dg = dg_nm * 1e-9
     assert law["gaps"][0]["set"] == "top" and law["gaps"][0]["sign"] == 1.0
@@ -144,7 +152,7 @@ def test_disk_gravity_balance_against_rebuild(nominal_disk, tscale, dg_nm):
     rebuilt = disk(10.0 * tscale, 3.0 + dg_nm * 1e-3, process=False)
     v_rebuilt = balance_voltage(top_slope(rebuilt, 0.0), rebuilt.model.coordinates[0].mass)
     errors = [f.max_rel_error for f in nominal_disk.model.capacitances + rebuilt.model.capacitances]
-    bound = 1e-9 if dg == 0 else (4 * max(errors[:16]) / RANGE + 4 * max(errors[16:]) / RANGE) / 2
+    bound = (4 * max(errors[:16]) / RANGE + 4 * max(errors[16:]) / RANGE) / 2
     print(
         f"tscale={tscale} dg={dg_nm:g} nm: {v_law:.9g} V, rebuilt {v_rebuilt:.9g} V ({v_law / v_rebuilt - 1:.1e}; bound {bound:.1e})"
     )
