@@ -491,6 +491,7 @@ def design(
         ts, vs, vfb, None, chosen.full_scale, p.electrodes, [], table, p.inputs, balance, duty(t), sense.tolist(), t
     )
     d.damping, d.dither, d.reltol = balance["damping"], chosen.dither, chosen.reltol
+    d.ramp_steps = int(chosen.ramp_steps)
     d.channels = [channel_entry(p, d, k, chosen.lead, needed[k]) for k in range(len(names))]
     d.lead = d.channels[0]["filter"].get("lead")
     dither_given = (

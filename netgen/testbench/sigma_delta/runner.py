@@ -175,6 +175,12 @@ def check_backend(d: Design, spec: LoopSpec, simulator: str) -> None:
             f"a feedback step (fb_edge = 0) is not implemented for --simulator {simulator}",
             f"use --simulator {' or '.join(STEP_BACKENDS)}, or give [loop.timing] fb_edge = 0.02 (ramps)",
         )
+    if d.ramp_steps and simulator != "ngspice-xspice":  # the compiled loop's breakpoints (netgen_sdloop)
+        raise spec.fail(
+            "loop.ramp_steps",
+            f"ramp_steps = {d.ramp_steps} is implemented for --simulator ngspice-xspice only, not {simulator}",
+            "use --simulator ngspice-xspice, or drop ramp_steps (--ramp-steps)",
+        )
 
 
 @dataclass(frozen=True)
