@@ -4,7 +4,7 @@ against the series-capacitor closed form and the analytic extractor.
     .venv/bin/python bench/fastcap_dielectric.py guarded --eps-r 7.5 --element-to-gap 2
     .venv/bin/python bench/fastcap_dielectric.py piston --side 100
 
-guarded: the sense square of tests/electrostatics/test_fastcap_dielectric.py (a layered box
+guarded: the sense square of tests/electrostatics/test_fastcap_dielectric.py (tests/oracles/fastcap_guarded.py: a layered box
 electrode whose face is split into a 20 um sense square and an 8 um guard ring, 2 um under a
 plate) against eps0 L^2 / g_eff, g_eff = g - t_d + t_d / eps_r: the solver's deviation beside its
 own error bar, at the settings given (the suite runs the defaults).
@@ -20,20 +20,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from support import fastcap_guarded
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from netgen.core.constants import EPS0
+from netgen.electrostatics import fastcap
+from netgen.electrostatics.parallel_plate import ParallelPlateExtractor
+from netgen.geometry.shapes import Electrode, Rectangle, RectPlate
 
-from netgen.core.constants import EPS0  # noqa: E402
-from netgen.electrostatics import fastcap  # noqa: E402
-from netgen.electrostatics.parallel_plate import ParallelPlateExtractor  # noqa: E402
-from netgen.geometry.shapes import Electrode, Rectangle, RectPlate  # noqa: E402
-from tests.electrostatics.test_fastcap_dielectric import SENSE, T_D, G, guarded_levels  # noqa: E402
+SENSE, T_D, G = fastcap_guarded.SENSE, fastcap_guarded.T_D, fastcap_guarded.G
+guarded_levels = fastcap_guarded.guarded_levels
 
 UM = 1e-6
 

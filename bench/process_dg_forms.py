@@ -7,20 +7,18 @@ CHANGELOG.md, on examples/piston_process.toml. Run from the repository root:
 from __future__ import annotations
 
 import os
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+from support import NGSPICE, ROOT, process_forms
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from netgen import emit
+from netgen.build import build_model
+from netgen.structure import load_structure
 
-from netgen import emit  # noqa: E402
-from netgen.build import build_model  # noqa: E402
-from netgen.structure import load_structure  # noqa: E402
-from tests.emit.test_process_stops import op, resting  # noqa: E402
-from tests.emit.test_process_xspice import libs, run  # noqa: E402
-from tests.fixtures import NGSPICE, ROOT  # noqa: E402
+# the suite's piston runs (tests/oracles/process_forms.py)
+libs, op, resting, run = process_forms.libs, process_forms.op, process_forms.resting, process_forms.run
 
 DGS = (-2e-7, 0.0, 3e-7)
 

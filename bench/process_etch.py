@@ -6,17 +6,18 @@ figures quoted in docs/process.md and CHANGELOG.md. Run from the repository root
 from __future__ import annotations
 
 import math
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from support import process_cases
 
-from netgen.build import build_model  # noqa: E402
-from netgen.mechanics import mechanics  # noqa: E402
-from netgen.model.process import coordinate_values, process_laws  # noqa: E402
-from netgen.structure import parse_structure  # noqa: E402
-from tests.model.test_process_etch import ETCHES, RANGE, guided, proof_text, rerun  # noqa: E402
+from netgen.build import build_model
+from netgen.mechanics import mechanics
+from netgen.model.process import coordinate_values, process_laws
+from netgen.structure import parse_structure
+
+# the cases of tests/model/test_process_etch.py (tests/oracles/process_cases.py)
+ETCHES, RANGE = process_cases.ETCHES, process_cases.RANGE
+guided, proof_text, rerun = process_cases.guided, process_cases.proof_text, process_cases.rerun
 
 
 def main() -> None:

@@ -23,12 +23,16 @@ PACKAGE = "netgen_test_oracles"  # the name the oracles package gets here (tests
 MODULES = (
     "bem_reduced",
     "closed_forms",
+    "fastcap_guarded",
     "gyro_reference",
     "lateral_comb",
     "process_balance",
+    "process_cases",
+    "process_forms",
     "process_mc",
     "sc_readout",
     "sigma_delta_reference",
+    "sigma_delta_vacask",
     "testbench",
     "va_scan",
 )

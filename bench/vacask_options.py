@@ -1,5 +1,6 @@
 """VACASK's step options in the sigma-delta loop: time points and CPU per period against the
-mechanics' accuracy, the check of tests/testbench/test_sigma_delta_vacask.py for each option set.
+mechanics' accuracy, the check of tests/testbench/test_sigma_delta_vacask.py for each option set
+(its loop and integration: tests/oracles/sigma_delta_vacask.py).
 
     .venv/bin/python bench/vacask_options.py [OPTIONS ...]     # e.g. - "tran_fbr=0.25" "tran_lteratio=100"
 
@@ -22,13 +23,12 @@ from pathlib import Path
 
 import numpy as np
 from support import ROOT
+from support import sigma_delta_vacask as check  # the loop and the check of the VACASK test
 
-sys.path.insert(0, str(ROOT))
-from netgen.model import MacroModel  # noqa: E402
-from netgen.sim.vacask import stats  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import vacask as sdv  # noqa: E402
-from tests.testbench import test_sigma_delta_vacask as check  # noqa: E402
+from netgen.model import MacroModel
+from netgen.sim.vacask import stats
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import vacask as sdv
 
 
 def child_cpu() -> float:
@@ -43,7 +43,7 @@ def one(model: MacroModel, extra: str, out: Path) -> str:
     sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")
     sdv.compile_blocks(out / "osdi")
     cpu = child_cpu()
-    s = check._run(model, out, "vacask", check.CYCLES, check.SKIP)
+    s = check.run(model, out, "vacask", check.CYCLES, check.SKIP)
     cpu = child_cpu() - cpu
     st = stats(out / sdv.LOG)
     clock = s["clock"]

@@ -17,17 +17,14 @@ plate would rest at the nominal stop, dg (>= 2e-7 m) away: the test tells the tw
 from __future__ import annotations
 
 import pytest
-from scipy.optimize import brentq
 
 from netgen import emit
 from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
-from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure
 from tests.fixtures import NGSPICE, ROOT
+from tests.oracles.process_forms import GAP, op, resting
 
-SPRING, GAP = 2.0, 2e-6  # N/m, m: examples/piston_process.toml
-FORCE = -10e-6  # N through f_z (1 V = 1 uN), downwards onto the electrode
 DGS = (-2e-7, 0.0, 3e-7)
 
 
@@ -39,40 +36,6 @@ def built(tmp_path_factory):
     (folder / "piston_process.lib").write_text(emit_ngspice.subcircuit(model))
     emit.write_outputs(model, folder, "osdi")
     return model, folder
-
-
-def resting(model, dg: float) -> float:
-    """z (m) where spring, force and the stop's penalty balance, the stop at -(GAP + dg)."""
-    c = model.contact
-    k_c, delta = c["stiffness"], c["smoothing"]
-
-    def pen(p: float) -> float:
-        r = min(max(p, 0.0), delta)
-        return r * r / (2 * delta) + max(p - delta, 0.0)
-
-    def balance(z: float) -> float:
-        return -SPRING * z + FORCE + k_c * GAP * pen((-z - GAP - dg) / GAP)
-
-    return brentq(balance, -(GAP + dg) * 1.5, -(GAP + dg) * 0.9, xtol=1e-22, rtol=1e-15)
-
-
-def op(folder, form: str, dg: float, workdir) -> float:
-    """x_z (m) of the .op with FORCE on f_z and no voltage, in `form` (lib or osdi)."""
-    lib = folder / ("piston_process.lib" if form == "lib" else "piston_process_osdi.lib")
-    control = ""
-    if form == "osdi":
-        control = f".control\npre_osdi {folder / 'piston_process.osdi'}\nset num_threads=1\nrun\nwrite op.raw\n.endc"
-    net = f"""* stop with dg, {form}
-.include {lib}
-X1 0 0 fz xz piston_process dg_drive={dg!r}
-Vf fz 0 DC {FORCE * 1e6!r}
-.options reltol=1e-6 vntol=1e-12
-.op
-{control}
-.end
-"""
-    plot = run_ngspice(net, workdir / form)[0]
-    return float(plot["v(xz)"].real[0]) * 1e-6
 
 
 @pytest.mark.parametrize("dg", DGS)

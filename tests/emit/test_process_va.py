@@ -47,7 +47,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import run_vacask
 from netgen.structure import load_structure, parse_structure
 from tests.fixtures import NGSPICE, ROOT
-from tests.model.test_process import PROOF
+from tests.oracles.process_cases import PROOF
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml
 SPRING = 2.0  # N/m, the given spring

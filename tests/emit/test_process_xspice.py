@@ -22,11 +22,9 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.emit import ngspice as emit_ngspice
-from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure
-from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import ROOT
+from tests.oracles.process_forms import libs, run
 
 DGS = (-2e-7, 0.0, 3e-7)
 
@@ -34,29 +32,6 @@ DGS = (-2e-7, 0.0, 3e-7)
 @pytest.fixture(scope="module")
 def model():
     return build_model(load_structure(ROOT / "examples/piston_process.toml"))
-
-
-def libs(model, folder) -> dict[str, tuple[str, str]]:
-    """form -> (.include path, .control lines) for the B-source .lib and the _xspice.lib."""
-    (folder / "piston_process.lib").write_text(emit_ngspice.subcircuit(model))
-    xlib, control = sdn.xspice_library(model, folder, sdn.code_models(False))
-    return {"lib": (str(folder / "piston_process.lib"), ""), "xspice": (str(xlib.resolve()), "\n".join(control))}
-
-
-def run(include: tuple[str, str], dg: float, drive: str, analysis: str, folder):
-    """One ngspice run of the piston with dg_drive = dg in the given form."""
-    path, control = include
-    ctl = f".control\n{control}\nrun\nwrite out.raw\n.endc" if control else ""
-    net = f"""* dg
-.include {path}
-X1 drive 0 fz xz piston_process dg_drive={dg!r}
-Vd drive 0 DC {drive}
-Vf fz 0 {analysis}
-.options reltol=1e-6 vntol=1e-12
-{ctl}
-.end
-"""
-    return run_ngspice(net, folder)[0]
 
 
 @pytest.mark.parametrize("dg", DGS)

@@ -24,50 +24,9 @@ from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values, viscosity_ratio
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.oracles.process_cases import PROOF
 
 PISTON = (ROOT / "examples/piston_process.toml").read_text()
-
-PROOF = """
-name = "pm"
-description = "proof mass on folded flexures between plates"
-[conductor]
-kind = "proof_mass"
-length = "300 um"
-width = "300 um"
-thickness = "{t} um"
-density = "2330 kg/m^3"
-youngs_modulus = "{e} GPa"
-poisson_ratio = 0.22
-[conductor.flexure]
-type = "folded"
-axis = "x"
-length = "150 um"
-width = "3 um"
-truss_width = "10 um"
-spacing = "10 um"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "2 um"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "2 um"
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
-levels = 3
-range = 0.3
-[fit]
-degree = 2
-[electrostatics]
-fringe = "none"
-[damping]
-squeeze_film = true
-
-[process]
-parameters = ["dg", "tscale", "escale", "temp"]
-"""
 
 
 def proof(t: float = 10.0, e: float = 160.0):

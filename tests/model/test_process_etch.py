@@ -34,45 +34,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, ROOT
-from tests.model.test_process import PROOF
-
-ETCHES = (-0.2e-6, 0.1e-6, 0.3e-6)  # m: three values across etch_range
-RANGE = '\netch_range = ["-0.2 um", "0.3 um"]'
-
-GUIDED = """
-name = "cg"
-description = "proof mass on four clamped-guided beams over one plate"
-[conductor]
-kind = "proof_mass"
-length = "200 um"
-width = "200 um"
-thickness = "{t} um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-[conductor.flexure]
-type = "clamped_guided"
-axis = "y"
-length = "150 um"
-width = "{w} um"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "2 um"
-[coordinates]
-rigid = ["z"]
-[sampling]
-levels = 3
-range = 0.3
-[electrostatics]
-fringe = "none"
-[damping]
-rayleigh = {{ alpha = 2000 }}
-"""
-
-
-def guided(t: float = 5.0, w: float = 2.0, process: str = "") -> str:
-    return GUIDED.format(t=t, w=w) + process
+from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun
 
 
 @pytest.fixture(scope="module")
@@ -120,28 +82,9 @@ def test_full_rebuild_at_the_etched_widths(guided_model, etch):
     np.testing.assert_allclose(guided_model.capacitance(q), model.capacitance(q), rtol=max(errs))
 
 
-def proof_text(t: float = 10.0, width: float = 3.0, truss: float = 10.0, params: str = '["etch"]') -> str:
-    """PROOF (tests/model/test_process.py) at thickness t with its beam and truss widths rewritten,
-    without damping."""
-    text = PROOF.format(t=t, e=160.0).replace(
-        'parameters = ["dg", "tscale", "escale", "temp"]', "parameters = " + params
-    )
-    text = text.replace('width = "3 um"', f'width = "{width!r} um"')
-    text = text.replace('truss_width = "10 um"', f'truss_width = "{truss!r} um"')
-    # without the squeeze film (its Reynolds solve per re-run costs seconds; the etch leaves it alone)
-    return text.replace("[damping]\nsqueeze_film = true\n", "") + (RANGE if "etch" in params else "")
-
-
 @pytest.fixture(scope="module")
 def folded():
     return build_model(parse_structure(proof_text(params='["tscale", "etch"]'), "pm.toml"))
-
-
-def rerun(t: float, etch: float) -> list[tuple[float, float]]:
-    """(mass, stiffness) per coordinate of PROOF rewritten at thickness t with the widths etched."""
-    s = parse_structure(proof_text(t, 3.0 - 2 * etch * 1e6, 10.0 - 2 * etch * 1e6, '["tscale"]'), "pm.toml")
-    m = mechanics(s)
-    return list(zip(m.masses, m.stiffnesses))
 
 
 @pytest.mark.parametrize("etch", ETCHES)

@@ -14,37 +14,22 @@ physics the loop does not compute itself and against the ngspice bench on the sa
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
-from netgen.testbench.sigma_delta import loop as sd_loop
 from netgen.testbench.sigma_delta import vacask as sdv
 from tests.fixtures import ROOT
+from tests.oracles.sigma_delta_vacask import CHANNELS, CYCLES, REPLAY, SKIP, TS, replay, run
 from tests.testbench.test_sigma_delta_latch import check_latches
 
-CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
-
-LIB = ROOT / "netlists" / "levitated_disk.lib"
-TS = 1e-6
-CYCLES, SKIP = 512, 64  # VACASK: ~10 s; long enough for a momentum balance within 1 %
 NG_CYCLES, NG_SKIP = 160, 32  # the ngspice comparison run (as tests/testbench/test_sigma_delta.py): ~1 min
-REPLAY = 48  # clocks of the independent integration (~10 s)
 
 
 @pytest.fixture(scope="module")
 def model() -> MacroModel:
     return MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
-
-
-def _run(model, out, simulator, cycles, skip):
-    start = time.perf_counter()
-    s = sd.run(model, LIB, out, sd.RunRequest(TS, cycles, progress=False, plots=False, skip=skip, simulator=simulator))
-    return s | {"wall": time.perf_counter() - start}
 
 
 @pytest.fixture(scope="module")
@@ -53,19 +38,19 @@ def vacask(model, tmp_path_factory) -> dict:
     out = tmp_path_factory.mktemp("sd_vacask")
     sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")  # compile outside the timing
     sdv.compile_blocks(out / "osdi")
-    return _run(model, out, "vacask", CYCLES, SKIP)
+    return run(model, out, "vacask", CYCLES, SKIP)
 
 
 @pytest.fixture(scope="module")
 def ngspice(model, tmp_path_factory) -> dict:
     """The ngspice run of the same loop (about 1 min on an idle core)."""
-    return _run(model, tmp_path_factory.mktemp("sd_ngspice"), "ngspice", NG_CYCLES, NG_SKIP)
+    return run(model, tmp_path_factory.mktemp("sd_ngspice"), "ngspice", NG_CYCLES, NG_SKIP)
 
 
 @pytest.fixture(scope="module")
 def xspice(model, tmp_path_factory) -> dict:
     """The same ngspice run with the plate terms in the compiled netgen_es code model (~4 s)."""
-    return _run(model, tmp_path_factory.mktemp("sd_xspice"), "ngspice-xspice", NG_CYCLES, NG_SKIP)
+    return run(model, tmp_path_factory.mktemp("sd_xspice"), "ngspice-xspice", NG_CYCLES, NG_SKIP)
 
 
 def test_vacask_netlist_is_the_ngspice_loop(model, tmp_path):
@@ -110,62 +95,6 @@ def test_spectra_are_noise_shaped(vacask):
     for channel in CHANNELS:
         f, p = vacask["spectra"][channel]
         assert 10 * np.log10(p[f >= fs / 4].mean() / p[(f > 0) & (f <= fs / 32)].mean()) > 15, channel
-
-
-def _phase(t: float, on: float, off: float, edge: float, ts: float) -> float:
-    """The bench's trapezoidal clock phase (linear edges of `edge` centred on on/off), 0..1."""
-    p = t / ts - np.floor(t / ts)
-    return float(np.clip((p - on + edge / 2) / edge, 0, 1) - np.clip((p - off + edge / 2) / edge, 0, 1))
-
-
-def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndarray:
-    """Coordinates (port units) at the per-clock sample times from solve_ivp of the mechanics driven
-    by the electrode voltages the bench applies for the recorded bits: V_s in the sense phase, V_fb
-    on the electrodes netgen.testbench.sigma_delta.loop.selected() picks in the feedback phase, gravity on z."""
-    t = d.t
-    n = model.ncoords
-    sel = [sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)) for k in range(cycles)]
-    mass = np.array([c.mass for c in model.coordinates])
-    stiff = np.array([c.stiffness for c in model.coordinates])
-    damp = np.array([c.damping for c in model.coordinates])
-    scale = model.scales
-    f_ext = np.zeros(n)
-    f_ext[0] = -d.mass * 9.81  # gravity on z (the design's default input)
-
-    def rhs(time_, y):
-        k = min(int(time_ / d.ts), cycles - 1)
-        v = (
-            d.vs * _phase(time_, t.sense_on, t.sense_off, t.edge, d.ts)
-            + d.vfb * _phase(time_, t.fb_on, t.fb_off, t.edge, d.ts) * sel[k]
-        )
-        f = model.electrostatic_force(y[:n] / scale, v)[0] + f_ext
-        return np.concatenate([y[n:], (f - damp * y[n:] - stiff * y[:n]) / mass])
-
-    # integrate between the corners of the voltage waveform (smooth inside each piece)
-    corners = [
-        (k + f) * d.ts
-        for k in range(cycles)
-        for f in (
-            t.sense_on - t.edge / 2,
-            t.sense_on + t.edge / 2,
-            t.sense_off - t.edge / 2,
-            t.sense_off + t.edge / 2,
-            t.fb_on - t.edge / 2,
-            t.fb_on + t.edge / 2,
-            t.fb_off - t.edge / 2,
-            t.fb_off + t.edge / 2,
-        )
-    ]
-    corners = np.unique(np.clip([0.0, *corners, cycles * d.ts], 0.0, cycles * d.ts))
-    at = clock["time"][:cycles]
-    y, out = np.zeros(2 * n), np.zeros((cycles, n))
-    for a, b in zip(corners[:-1], corners[1:]):
-        inside = np.nonzero((at > a) & (at <= b))[0]
-        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-9, atol=1e-30, dense_output=True)
-        for i in inside:
-            out[i] = sol.sol(at[i])[:n]
-        y = sol.y[:, -1]
-    return out / np.array([c.port_units[1] for c in model.coordinates])
 
 
 def bit_means_and_bound(model: MacroModel, clocks: list[dict], skip: int, cycles: int) -> tuple[list[float], float]:

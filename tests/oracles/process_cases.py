@@ -1,0 +1,109 @@
+"""The structure texts and re-runs of the process-parameter tests, shared with the bench scripts:
+PROOF, the proof mass on folded flexures between plates (tests/model/test_process.py,
+tests/emit/test_process_va.py; format with t in um and e in GPa), and the lateral etch bias's cases
+(tests/model/test_process_etch.py, bench/process_etch.py): the etch values and range, the proof mass
+on four clamped-guided beams (GUIDED, guided), PROOF rewritten at etched widths (proof_text) and its
+mechanics re-run there (rerun)."""
+
+from __future__ import annotations
+
+from netgen.mechanics import mechanics
+from netgen.structure import parse_structure
+
+PROOF = """
+name = "pm"
+description = "proof mass on folded flexures between plates"
+[conductor]
+kind = "proof_mass"
+length = "300 um"
+width = "300 um"
+thickness = "{t} um"
+density = "2330 kg/m^3"
+youngs_modulus = "{e} GPa"
+poisson_ratio = 0.22
+[conductor.flexure]
+type = "folded"
+axis = "x"
+length = "150 um"
+width = "3 um"
+truss_width = "10 um"
+spacing = "10 um"
+[[electrodes]]
+name = "top"
+side = "above"
+gap = "2 um"
+[[electrodes]]
+name = "bot"
+side = "below"
+gap = "2 um"
+[coordinates]
+rigid = ["z", "tilt_x", "tilt_y"]
+[sampling]
+levels = 3
+range = 0.3
+[fit]
+degree = 2
+[electrostatics]
+fringe = "none"
+[damping]
+squeeze_film = true
+
+[process]
+parameters = ["dg", "tscale", "escale", "temp"]
+"""
+
+ETCHES = (-0.2e-6, 0.1e-6, 0.3e-6)  # m: three values across etch_range
+RANGE = '\netch_range = ["-0.2 um", "0.3 um"]'
+
+GUIDED = """
+name = "cg"
+description = "proof mass on four clamped-guided beams over one plate"
+[conductor]
+kind = "proof_mass"
+length = "200 um"
+width = "200 um"
+thickness = "{t} um"
+density = "2330 kg/m^3"
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.22
+[conductor.flexure]
+type = "clamped_guided"
+axis = "y"
+length = "150 um"
+width = "{w} um"
+[[electrodes]]
+name = "bot"
+side = "below"
+gap = "2 um"
+[coordinates]
+rigid = ["z"]
+[sampling]
+levels = 3
+range = 0.3
+[electrostatics]
+fringe = "none"
+[damping]
+rayleigh = {{ alpha = 2000 }}
+"""
+
+
+def guided(t: float = 5.0, w: float = 2.0, process: str = "") -> str:
+    return GUIDED.format(t=t, w=w) + process
+
+
+def proof_text(t: float = 10.0, width: float = 3.0, truss: float = 10.0, params: str = '["etch"]') -> str:
+    """PROOF at thickness t with its beam and truss widths rewritten, without damping."""
+    text = PROOF.format(t=t, e=160.0).replace(
+        'parameters = ["dg", "tscale", "escale", "temp"]', "parameters = " + params
+    )
+    text = text.replace('width = "3 um"', f'width = "{width!r} um"')
+    text = text.replace('truss_width = "10 um"', f'truss_width = "{truss!r} um"')
+    # without the squeeze film (its Reynolds solve per re-run costs seconds; the etch leaves it alone)
+    return text.replace("[damping]\nsqueeze_film = true\n", "") + (RANGE if "etch" in params else "")
+
+
+def rerun(t: float, etch: float) -> list[tuple[float, float]]:
+    """(mass, stiffness) per coordinate of PROOF rewritten at thickness t with the widths etched."""
+    s = parse_structure(proof_text(t, 3.0 - 2 * etch * 1e6, 10.0 - 2 * etch * 1e6, '["tscale"]'), "pm.toml")
+    m = mechanics(s)
+    return list(zip(m.masses, m.stiffnesses))

@@ -1,0 +1,90 @@
+"""The sigma-delta loop of tests/testbench/test_sigma_delta_vacask.py (the reference disk at
+T_s = 1 us, its run lengths and channels), shared with bench/vacask_options.py: one run of the loop
+in a given simulator (run), and the independent integration of the mechanics driven by the bits a run
+produced (replay: scipy solve_ivp of M q'' + D q' + K q = F_el(q, V) + F_ext with the Python model's
+forces, for the electrode voltages the bench applies). The test module's docstring gives the checks
+and tolerances."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from netgen.model import MacroModel
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import loop as sd_loop
+
+ROOT = Path(__file__).resolve().parents[2]
+
+CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
+
+LIB = ROOT / "netlists" / "levitated_disk.lib"
+TS = 1e-6
+CYCLES, SKIP = 512, 64  # VACASK: ~10 s; long enough for a momentum balance within 1 %
+REPLAY = 48  # clocks of the independent integration (~10 s)
+
+
+def run(model, out, simulator, cycles, skip):
+    """sigma_delta.run of the loop on LIB in `simulator` (cycles periods, skip settling), with its wall time."""
+    start = time.perf_counter()
+    s = sd.run(model, LIB, out, sd.RunRequest(TS, cycles, progress=False, plots=False, skip=skip, simulator=simulator))
+    return s | {"wall": time.perf_counter() - start}
+
+
+def _phase(t: float, on: float, off: float, edge: float, ts: float) -> float:
+    """The bench's trapezoidal clock phase (linear edges of `edge` centred on on/off), 0..1."""
+    p = t / ts - np.floor(t / ts)
+    return float(np.clip((p - on + edge / 2) / edge, 0, 1) - np.clip((p - off + edge / 2) / edge, 0, 1))
+
+
+def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndarray:
+    """Coordinates (port units) at the per-clock sample times from solve_ivp of the mechanics driven
+    by the electrode voltages the bench applies for the recorded bits: V_s in the sense phase, V_fb
+    on the electrodes netgen.testbench.sigma_delta.loop.selected() picks in the feedback phase, gravity on z."""
+    t = d.t
+    n = model.ncoords
+    sel = [sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)) for k in range(cycles)]
+    mass = np.array([c.mass for c in model.coordinates])
+    stiff = np.array([c.stiffness for c in model.coordinates])
+    damp = np.array([c.damping for c in model.coordinates])
+    scale = model.scales
+    f_ext = np.zeros(n)
+    f_ext[0] = -d.mass * 9.81  # gravity on z (the design's default input)
+
+    def rhs(time_, y):
+        k = min(int(time_ / d.ts), cycles - 1)
+        v = (
+            d.vs * _phase(time_, t.sense_on, t.sense_off, t.edge, d.ts)
+            + d.vfb * _phase(time_, t.fb_on, t.fb_off, t.edge, d.ts) * sel[k]
+        )
+        f = model.electrostatic_force(y[:n] / scale, v)[0] + f_ext
+        return np.concatenate([y[n:], (f - damp * y[n:] - stiff * y[:n]) / mass])
+
+    # integrate between the corners of the voltage waveform (smooth inside each piece)
+    corners = [
+        (k + f) * d.ts
+        for k in range(cycles)
+        for f in (
+            t.sense_on - t.edge / 2,
+            t.sense_on + t.edge / 2,
+            t.sense_off - t.edge / 2,
+            t.sense_off + t.edge / 2,
+            t.fb_on - t.edge / 2,
+            t.fb_on + t.edge / 2,
+            t.fb_off - t.edge / 2,
+            t.fb_off + t.edge / 2,
+        )
+    ]
+    corners = np.unique(np.clip([0.0, *corners, cycles * d.ts], 0.0, cycles * d.ts))
+    at = clock["time"][:cycles]
+    y, out = np.zeros(2 * n), np.zeros((cycles, n))
+    for a, b in zip(corners[:-1], corners[1:]):
+        inside = np.nonzero((at > a) & (at <= b))[0]
+        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-9, atol=1e-30, dense_output=True)
+        for i in inside:
+            out[i] = sol.sol(at[i])[:n]
+        y = sol.y[:, -1]
+    return out / np.array([c.port_units[1] for c in model.coordinates])
