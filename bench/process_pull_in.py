@@ -56,14 +56,7 @@ def timed(f, *args, **kw):
 def run_cantilever() -> None:
     nominal, wall, cpu = timed(cantilever)
     print(f"cantilever [process] build {wall:.1f} s wall, {cpu:.1f} s CPU")
-    for name, value in [
-        ("tscale", 0.9),
-        ("tscale", 1.1),
-        ("escale", 0.5),
-        ("escale", 1.5),
-        ("temp", -40.0),
-        ("temp", 125.0),
-    ]:
+    for name, value in ob.CASES:
         key = "temp_c" if name == "temp" else name
         k = [coordinate_values(nominal.process, v, **{key: value})[1] for v in range(nominal.ncoords)]
         v_law = ob.pull_in(nominal, k)

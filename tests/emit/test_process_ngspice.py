@@ -29,6 +29,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import ROOT
+from tests.oracles.process_forms import ac_fit
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml (Q = 5 with its 2 N/m spring)
 
@@ -39,15 +40,6 @@ def lib(tmp_path_factory) -> tuple[str, object]:
     folder = tmp_path_factory.mktemp("process")
     (folder / "piston_process.lib").write_text(emit_ngspice.subcircuit(model))
     return str(folder / "piston_process.lib"), model
-
-
-def ac_fit(plot) -> tuple[float, float, float]:
-    """k, m, b from 1/H = k - m w^2 + i w b (H in um/uN = m/N)."""
-    w = 2 * np.pi * np.real(plot["frequency"])
-    inv = 1.0 / plot["v(xz)"]
-    a = np.stack([np.ones_like(w), -(w**2)], axis=1)
-    (k, m), *_ = np.linalg.lstsq(a, inv.real, rcond=None)
-    return float(k), float(m), float(np.mean(inv.imag / w))
 
 
 @pytest.mark.parametrize("tscale", [0.9, 1.0, 1.1])

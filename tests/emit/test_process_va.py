@@ -48,6 +48,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import load_structure, parse_structure
 from tests.fixtures import NGSPICE, ROOT
 from tests.oracles.process_cases import PROOF
+from tests.oracles.process_forms import ac_fit
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml
 SPRING = 2.0  # N/m, the given spring
@@ -105,15 +106,6 @@ def equilibrium(area: float, dg: float) -> float:
         xtol=1e-24,
         rtol=1e-15,
     )
-
-
-def ac_fit(plot) -> tuple[float, float, float]:
-    """k, m, b from 1/H = k - m w^2 + i w b (H in um/uN = m/N)."""
-    w = 2 * np.pi * np.real(plot["frequency"])
-    inv = 1.0 / plot["v(xz)"]
-    a = np.stack([np.ones_like(w), -(w**2)], axis=1)
-    (k, m), *_ = np.linalg.lstsq(a, inv.real, rcond=None)
-    return float(k), float(m), float(np.mean(inv.imag / w))
 
 
 @pytest.mark.parametrize(("name", "value"), POINTS)

@@ -42,7 +42,7 @@ from netgen.build import build, build_model
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
-from tests.oracles.process_balance import balance_voltage, pull_in, top_slope
+from tests.oracles.process_balance import CASES, balance_voltage, pull_in, top_slope
 
 CANTILEVER = (ROOT / "examples/cantilever.toml").read_text()
 DISK = (ROOT / "examples/levitated_disk.toml").read_text()
@@ -73,16 +73,6 @@ def nominal_cantilever():
 
 def law_stiffness(model, **point) -> list[float]:
     return [coordinate_values(model.process, v, **point)[1] for v in range(model.ncoords)]
-
-
-CASES = [
-    ("tscale", 0.9),
-    ("tscale", 1.1),
-    ("escale", 0.5),
-    ("escale", 1.5),
-    ("temp", -40.0),
-    ("temp", 125.0),
-]
 
 
 @pytest.mark.parametrize("name,value", [("tscale", 1.0), *CASES])

@@ -53,3 +53,15 @@ def balance_voltage(slope: float, mass: float) -> float:
     """The top-electrode voltage (disk and bottom electrodes at 0) whose force on z, 1/2 V^2 slope,
     balances the weight M g."""
     return math.sqrt(2 * mass * G / slope)
+
+
+# the cantilever's parameter points (the ends of each range), shared by tests/model/test_process_pull_in.py
+# and bench/process_pull_in.py
+CASES = [
+    ("tscale", 0.9),
+    ("tscale", 1.1),
+    ("escale", 0.5),
+    ("escale", 1.5),
+    ("temp", -40.0),
+    ("temp", 125.0),
+]

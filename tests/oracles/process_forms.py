@@ -6,6 +6,7 @@ _xspice.lib (libs, run). The test modules' docstrings give the references and to
 
 from __future__ import annotations
 
+import numpy as np
 from scipy.optimize import brentq
 
 from netgen.emit import ngspice as emit_ngspice
@@ -71,3 +72,12 @@ Vf fz 0 {analysis}
 .end
 """
     return run_ngspice(net, folder)[0]
+
+
+def ac_fit(plot) -> tuple[float, float, float]:
+    """k, m, b from 1/H = k - m w^2 + i w b (H in um/uN = m/N) of an .ac plot's v(xz)."""
+    w = 2 * np.pi * np.real(plot["frequency"])
+    inv = 1.0 / plot["v(xz)"]
+    a = np.stack([np.ones_like(w), -(w**2)], axis=1)
+    (k, m), *_ = np.linalg.lstsq(a, inv.real, rcond=None)
+    return float(k), float(m), float(np.mean(inv.imag / w))
