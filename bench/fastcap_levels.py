@@ -6,7 +6,8 @@ expansion order 4 to 6 on one level, against the analytic extractor (parallel pl
 
     .venv/bin/python bench/fastcap_levels.py --count                       # panels per level, no solve
     nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --levels 4 --json out.json
-    nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --levels 3
+    nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --element-to-gap 12.5 --levels 2
+    nice -n 10 env OMP_NUM_THREADS=1 /usr/bin/time -v .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --element-to-gap 12.5 --levels 3 --one 1 step 4
     .venv/bin/python bench/fastcap_levels.py --levels 4 --calibration-json direct.json   # from the store
 
 --calibration-json writes the direct solution in bench/bem_extrapolate.py's form (analytic - fastcap
@@ -28,7 +29,13 @@ one-sided differences differ by about 2 % and their mean is a central difference
 over the sectors of one side is reported beside it (the iteration and panel-placement noise).
 Every solve is stored as it
 finishes (--store, default ~/.cache/netgen/fastcap_levels): an interrupted run recomputes only the
-missing solves. Peak RSS and the process CPU time of every solve are printed on stderr.
+missing solves. Peak RSS and the process CPU time of every solve are printed on stderr; --one
+LEVEL WHAT ORDER runs a single solve into the store, so that /usr/bin/time -v measures each solve
+in a process of its own, and a later run without --one assembles them.
+
+g/R = 0.002 (docs/fastcap.md): the reference's element_to_gap 4 gives 868k panels on level 2
+(21.7 GB); element_to_gap 12.5 keeps the largest panel at the reference's absolute size (4 x its
+gap, 0.025 R) and the edge panels at half a gap: 66.8k / 109k / 183k panels.
 """
 
 from __future__ import annotations
@@ -148,8 +155,17 @@ def richardson(values: list[float], ratio: float, assumed: float) -> dict:
     return out
 
 
-def run(gr: float, st: FastcapSettings, nlevels: int, check_level: int, count: bool, store: Path | None) -> dict:
-    """All levels (centre and step), the order check, and the comparison at g/R = gr."""
+def run(
+    gr: float,
+    st: FastcapSettings,
+    nlevels: int,
+    check_level: int,
+    count: bool,
+    store: Path | None,
+    one: tuple[int, str, int] | None = None,
+) -> dict:
+    """All levels (centre and step), the order check, and the comparison at g/R = gr; one = (level,
+    what, order): that solve alone into the store (a process per solve, so /usr/bin/time -v measures it)."""
     s = structure(gr)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
@@ -176,6 +192,10 @@ def run(gr: float, st: FastcapSettings, nlevels: int, check_level: int, count: b
         key = {**base, "level": level, "what": what, "order": order, "q": q.tolist()}
         return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol)
 
+    if one is not None:
+        solve(*one)
+        out.update(one=list(one), peak_gb=peak_gb(), cpu_s=time.process_time())
+        return out
     per_level, couplings, check = [], [], None
     for k in range(nlevels):
         centre = solve(k, "centre", st.expansion_order)
@@ -284,6 +304,12 @@ def main() -> None:
     ap.add_argument("--budget-gb", type=float, default=8.0)
     ap.add_argument("--store", default=str(STORE), help="folder of stored solves ('' stores nothing)")
     ap.add_argument("--count", action="store_true", help="count panels only")
+    ap.add_argument(
+        "--one",
+        nargs=3,
+        metavar=("LEVEL", "WHAT", "ORDER"),
+        help="one solve into the store and exit (WHAT: centre or step); run under /usr/bin/time -v",
+    )
     ap.add_argument("--json")
     ap.add_argument("--calibration-json", help="the direct solution for bench/bem_calibrated_reference.py")
     a = ap.parse_args()
@@ -296,7 +322,12 @@ def main() -> None:
         memory_budget=a.budget_gb * 1e9,
         levels=a.levels,
     )
-    out = run(a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None)
+    one = None
+    if a.one:
+        if a.one[1] not in ("centre", "step"):
+            ap.error(f"--one: WHAT is {a.one[1]!r}; give centre or step")
+        one = (int(a.one[0]), a.one[1], int(a.one[2]))
+    out = run(a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None, one)
     print(json.dumps(out, indent=1, default=float))
     if a.json:
         with open(a.json, "w") as f:

@@ -69,6 +69,42 @@ def test_form_against_fastcap(h, g, f, bar):
     assert abs(Perforation(h * P, P).fill(g * P) / f - 1) < 0.01
 
 
+@pytest.mark.parametrize("h", [0.0, 0.4, 0.6])
+def test_zero_thickness_is_the_sheet_exactly(h):
+    """t = 0: the walls' term is exactly 0, so F and dF/dg are the sheet's to the last bit; and F is
+    continuous there, leaving the sheet as sqrt(t) (w -> (2 B_w / pi) sqrt(t g) for t << g): 100x
+    the thickness moves F 10x as far (to 1 %: the next term is O(t / g) and O(k t))."""
+    g = np.array([0.05, 0.1, 0.2, 0.4, 2.0]) * P
+    sheet, zero = Perforation(h * P, P), Perforation(h * P, P, thickness=0.0)
+    assert np.array_equal(zero.fill(g), sheet.fill(g))
+    assert np.array_equal(zero.derivative(g), sheet.derivative(g))
+    if h > 0:
+        d1, d2 = (Perforation(h * P, P, thickness=t).fill(g) - sheet.fill(g) for t in (1e-17, 1e-15))
+        assert np.all(d1 > 0) and np.all(d1 < 1e-4)
+        np.testing.assert_allclose(d2 / d1, 10.0, rtol=0.01)
+
+
+def test_thickness_raises_the_fill_and_saturates():
+    """Walls add fringe (F rises with t) only as deep as the slowest hole mode reaches
+    (exp(-sqrt(2) pi t / h)): t = 10 h / (sqrt(2) pi) and t = 1 mm agree to e^-10 of t_e."""
+    h, g = 0.6 * P, 0.2 * P
+    f = [float(Perforation(h, P, thickness=t * UM).fill(g)) for t in (0.0, 0.5, 1.0, 2.0, 4.0)]
+    assert np.all(np.diff(f) > 0)
+    deep = Perforation(h, P, thickness=10 * h / (np.sqrt(2) * np.pi))
+    assert abs(deep.wall_depth() / Perforation(h, P, thickness=1e-3).wall_depth() - 1) < 5e-5
+    with pytest.raises(ValueError, match="thickness"):
+        Perforation(h, P, thickness=-1e-6)
+
+
+def test_thick_derivative_matches_central_differences():
+    """dF/dg with the walls' term against central differences (step 1e-6 g, as above)."""
+    g = np.array([0.05, 0.2, 0.5]) * P
+    for h, t in ((0.6, 2.0), (0.4, 4.0)):
+        p = Perforation(h * P, P, thickness=t * UM)
+        fd = (p.fill(g * (1 + 1e-6)) - p.fill(g * (1 - 1e-6))) / (2e-6 * g)
+        np.testing.assert_allclose(p.derivative(g), fd, rtol=1e-6, atol=1e-3 / P)
+
+
 def test_extractor_scales_the_plate_term_by_the_fill_factor():
     """Rigid z, fringe off: C = eps A F(g - z) / (g - z) for a perforated plate, and its dC/dz
     against central differences (the F' term included)."""
