@@ -163,16 +163,19 @@ def run(
     count: bool,
     store: Path | None,
     one: tuple[int, str, int] | None = None,
+    first: int = 0,
 ) -> dict:
     """All levels (centre and step), the order check, and the comparison at g/R = gr; one = (level,
-    what, order): that solve alone into the store (a process per solve, so /usr/bin/time -v measures it)."""
+    what, order): that solve alone into the store (a process per solve, so /usr/bin/time -v measures it);
+    first: the coarsest level solved (negative: coarser than the settings' sizes, by refinement per level);
+    check_level counts from it."""
     s = structure(gr)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
     fx = FastcapExtractor(eps_r=s.electrostatics.relative_permittivity, thickness=s.conductor.thickness, settings=st)
     pf = fx.prepare(shapes, plate, m.basis)
-    levels = pf.levels
-    npanels = [len(lv[0]) + sum(len(p) for p in lv[2]) for lv in levels]
+    levels = {k: pf.level(plate, m.basis, k) for k in range(min(first, 0), 0)} | dict(enumerate(pf.levels))
+    npanels = [len(lv[0]) + sum(len(p) for p in lv[2]) for _, lv in sorted(levels.items())]
     out: dict = {"g_over_r": gr, "panels": npanels, "settings": asdict(st)}
     print(f"g/R {gr}: panels per level {npanels}", file=sys.stderr, flush=True)
     if count:
@@ -197,14 +200,14 @@ def run(
         out.update(one=list(one), peak_gb=peak_gb(), cpu_s=time.process_time())
         return out
     per_level, couplings, check = [], [], None
-    for k in range(nlevels):
+    for i, k in enumerate(range(first, first + nlevels)):
         centre = solve(k, "centre", st.expansion_order)
         per_level.append(quantities(centre, solve(k, "step", st.expansion_order), mirror, steps, pairs))
         couplings.append(-centre[1:, 1:])
-        if k == max(1, check_level) and check_level >= 0:  # the order check after two levels (-1: none)
+        if i == max(1, check_level) and check_level >= 0:  # the order check after two levels (-1: none)
             check = quantities(
-                solve(check_level, "centre", st.check_order),
-                solve(check_level, "step", st.check_order),
+                solve(first + check_level, "centre", st.check_order),
+                solve(first + check_level, "step", st.check_order),
                 mirror,
                 steps,
                 pairs,
@@ -300,6 +303,12 @@ def main() -> None:
     )
     ap.add_argument("--order", type=int, default=4)
     ap.add_argument("--check-order", type=int, default=6)
+    ap.add_argument(
+        "--first-level",
+        type=int,
+        default=0,
+        help="coarsest level solved (-1: one level coarser than --edge-to-gap / --element-to-gap give)",
+    )
     ap.add_argument("--iter-tol", type=float, default=1e-5)
     ap.add_argument("--budget-gb", type=float, default=8.0)
     ap.add_argument("--store", default=str(STORE), help="folder of stored solves ('' stores nothing)")
@@ -327,7 +336,9 @@ def main() -> None:
         if a.one[1] not in ("centre", "step"):
             ap.error(f"--one: WHAT is {a.one[1]!r}; give centre or step")
         one = (int(a.one[0]), a.one[1], int(a.one[2]))
-    out = run(a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None, one)
+    out = run(
+        a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None, one, a.first_level
+    )
     print(json.dumps(out, indent=1, default=float))
     if a.json:
         with open(a.json, "w") as f:

@@ -16,18 +16,17 @@ rather than 1 (0.2 % low at h / p = 0.6). B and ln A are fitted to FastCap solut
 plate with h / p = 0.6 at g / p = 0.1, 0.2, 0.4 (bench/fastcap_perforated.py, fine panels;
 docs/fastcap.md, 'Perforated plates').
 
-A plate of thickness t: the holes have walls, and the field entering a hole from the gap ends on
-them instead of leaking through to the top face. The walls add the fringe of a thick plate edge
-over a plane (Palmer's thick-edge term, (g / pi) ln(1 + 2 tau + 2 sqrt(tau + tau^2)) =
-(2 g / pi) asinh(sqrt(tau)), tau = wall height / g), but only as deep as the field reaches into
-the hole: in a square hole of side h with conducting walls the slowest Laplace mode,
-sin(pi x / h) sin(pi y / h) exp(-k z), decays with k = sqrt(2) pi / h, so the wall counts over
-t_e = (1 - exp(-k t)) / k. The hole then looks smaller by
+A plate of thickness t: the field that enters the open part of a hole (side h - 2 d) from the gap
+leaks, through a sheet, out to the top face, and the electrode below sees no plate there; through
+a plate it meets the hole's walls. How deep it reaches them follows from the hole's slowest Laplace
+mode with conducting walls, sin(pi x / h) sin(pi y / h) exp(-k z), k = sqrt(2) pi / h: the walls
+recover a fraction
 
-    w(g) = (2 B_w g / pi) asinh(sqrt(t_e / g))      on each side, F = 1 - (max(h - 2 d - 2 w, 0) / p)^2,
+    phi(t) = beta (1 - exp(-k t))      of the open part's missing charge, F = 1 - (1 - phi) (max(h - 2 d, 0) / p)^2,
 
-which vanishes at t = 0 (the sheet's F exactly) and saturates for t >> 1 / k. Its strength B_w is
-fitted to FastCap solutions of a 2 um plate with h / p = 0.6 (bench/fastcap_thick_holes.py).
+so t = 0 is the sheet exactly, and a plate a few 1 / k thick (1 / k = 0.225 h) the deep-hole
+limit beta. beta is fitted to FastCap solutions of a 2 um plate with h / p = 0.6 at g / p = 0.2
+and 0.4 (bench/fastcap_thick_holes.py) and checked at h / p = 0.4 and at other thicknesses.
 """
 
 from __future__ import annotations
@@ -44,8 +43,9 @@ from ..geometry.shapes import Array
 # F of a sheet (docs/fastcap.md, 'Perforated plates')
 PERFORATION_STRENGTH = 1.40
 PERFORATION_LN_A = 0.036
-# B_w of the hole walls' term w = (2 B_w g / pi) asinh(sqrt(t_e / g)) (docs/fastcap.md, 'Perforated plates')
-PERFORATION_WALL_STRENGTH = 1.0
+# beta, the share of an open hole's missing charge that a deep hole's walls recover: the fit to FastCap's
+# F of thick plates (docs/fastcap.md, 'Perforated plates')
+PERFORATION_WALL_SHARE = 0.32
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,7 @@ class Perforation:
     strength: float = PERFORATION_STRENGTH
     ln_a: float = PERFORATION_LN_A
     thickness: float = 0.0
-    wall_strength: float = PERFORATION_WALL_STRENGTH
+    wall_share: float = PERFORATION_WALL_SHARE
 
     def __post_init__(self) -> None:
         """Refuse a grid that is not one (hole >= pitch, non-positive sizes)."""
@@ -67,17 +67,11 @@ class Perforation:
         if self.thickness < 0.0:
             raise ValueError(f"a hole grid needs thickness >= 0, got {self.thickness:g} m")
 
-    def wall_depth(self) -> float:
-        """t_e = (1 - exp(-k t)) / k, k = sqrt(2) pi / h: how deep the field reaches the walls (m)."""
+    def wall_fraction(self) -> float:
+        """phi = beta (1 - exp(-sqrt(2) pi t / h)): the share of the open holes' missing charge the walls recover."""
         if self.thickness == 0.0 or self.hole == 0.0:
             return 0.0
-        k = math.sqrt(2.0) * math.pi / self.hole
-        return -math.expm1(-k * self.thickness) / k
-
-    def wall_length(self, g: ArrayLike) -> Array:
-        """w(g) = (2 B_w g / pi) asinh(sqrt(t_e / g)): the holes' walls' share of the rim fringe (m)."""
-        g = np.asarray(g, dtype=float)
-        return 2.0 * self.wall_strength * g / math.pi * np.arcsinh(np.sqrt(self.wall_depth() / g))
+        return -self.wall_share * math.expm1(-math.sqrt(2.0) * math.pi * self.thickness / self.hole)
 
     def fringe_length(self, g: ArrayLike) -> Array:
         """d(g) = (B g / pi) ln(1 + A h / g): how far the field reaches in under each rim (m)."""
@@ -85,18 +79,14 @@ class Perforation:
         return self.strength * g / math.pi * np.log1p(math.exp(self.ln_a) * self.hole / g)
 
     def fill(self, g: ArrayLike) -> Array:
-        """F(g) = 1 - (max(h - 2 d - 2 w, 0) / p)^2: the electrode's charge over that of a solid plate."""
-        return 1.0 - (self._open(g) / self.pitch) ** 2
-
-    def _open(self, g: ArrayLike) -> Array:
-        """h - 2 d - 2 w, the hole's side as the electrode sees it (0 once closed)."""
-        return np.maximum(self.hole - 2.0 * (self.fringe_length(g) + self.wall_length(g)), 0.0)
+        """F(g) = 1 - (1 - phi) (max(h - 2 d, 0) / p)^2: the electrode's charge over that of a solid plate."""
+        r = np.maximum(self.hole - 2.0 * self.fringe_length(g), 0.0)
+        return 1.0 - (1.0 - self.wall_fraction()) * (r / self.pitch) ** 2
 
     def derivative(self, g: ArrayLike) -> Array:
-        """dF/dg = 4 (h - 2 d - 2 w) (d'(g) + w'(g)) / p^2 while the hole is open (0 once closed)."""
+        """dF/dg = 4 (1 - phi) (h - 2 d) d'(g) / p^2 while the hole is open (0 once closed)."""
         g = np.asarray(g, dtype=float)
         x = math.exp(self.ln_a) * self.hole / g
         dd = self.strength * (np.log1p(x) - x / (1.0 + x)) / math.pi
-        s = np.sqrt(self.wall_depth() / g)
-        dw = 2.0 * self.wall_strength * (np.arcsinh(s) - s / (2.0 * np.sqrt(1.0 + s * s))) / math.pi
-        return 4.0 * self._open(g) * (dd + dw) / self.pitch**2
+        r = np.maximum(self.hole - 2.0 * self.fringe_length(g), 0.0)
+        return 4.0 * (1.0 - self.wall_fraction()) * r * dd / self.pitch**2
