@@ -68,8 +68,11 @@ def peak_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
 
 
-def stored_solve(folder: Path | None, key: dict, conductors, eps_r: float, order: int, tol: float) -> np.ndarray:
-    """The Maxwell matrix of one FastCap solve, from the store when it holds it."""
+def stored_solve(
+    folder: Path | None, key: dict, conductors, eps_r: float, order: int, tol: float, stored_only: bool = False
+) -> np.ndarray | None:
+    """The Maxwell matrix of one FastCap solve, from the store when it holds it (stored_only: None
+    when it does not, no solve)."""
     f = None
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
@@ -77,6 +80,8 @@ def stored_solve(folder: Path | None, key: dict, conductors, eps_r: float, order
         f = folder / f"{h}.npz"
         if f.exists():
             return np.load(f)["matrix"]
+    if stored_only:
+        return None
     c0, w0 = time.process_time(), time.perf_counter()
     C, rec = solve_panels(conductors, eps_r, order, tol)
     print(
@@ -155,6 +160,39 @@ def richardson(values: list[float], ratio: float, assumed: float) -> dict:
     return out
 
 
+def stored_summary(solve, levels: range, check: int, st: FastcapSettings, rings: dict, analytic: dict, sep) -> dict:
+    """What the store holds (--stored-only), for a run cut short: per ring and quantity the levels
+    solved, the order-2 Richardson estimate from the last two and its correction, the change at
+    check_order on level `check` where both orders are stored, and analytic - fastcap."""
+    got: dict[str, list] = {"C": [], "dz": [], "dtilt": []}
+    for k in levels:
+        centre, step = solve(k, "centre", st.expansion_order), solve(k, "step", st.expansion_order)
+        if centre is not None:
+            got["C"].append((k, sep(centre, step)))
+        if centre is not None and step is not None:
+            got["dz"].append((k, got["C"][-1][1]))
+            got["dtilt"].append((k, got["C"][-1][1]))
+    cc, cs = solve(check, "centre", st.check_order), solve(check, "step", st.check_order)
+    base = dict(got["C"]).get(check)
+    out: dict = {}
+    for ring, sel in rings.items():
+        for qn, vals in got.items():
+            if not vals:
+                continue
+            means = [ring_stats(q[qn], sel, qn == "dtilt")["mean"] for _, q in vals]
+            r = richardson(means, st.refinement, 2.0) if len(means) >= 2 else {"levels": means, "best": means[-1]}
+            entry = {"levels_solved": [k for k, _ in vals], **r}
+            if cc is not None and base is not None and (qn == "C" or cs is not None):
+                other = sep(cc, cs)
+                entry["order_change"] = abs(
+                    ring_stats(other[qn], sel, qn == "dtilt")["mean"] / ring_stats(base[qn], sel, qn == "dtilt")["mean"]
+                    - 1.0
+                )
+            entry["analytic_minus_fastcap"] = ring_stats(analytic[qn], sel, qn == "dtilt")["mean"] / r["best"] - 1.0
+            out[f"{ring}_{qn}"] = entry
+    return out
+
+
 def run(
     gr: float,
     st: FastcapSettings,
@@ -164,11 +202,12 @@ def run(
     store: Path | None,
     one: tuple[int, str, int] | None = None,
     first: int = 0,
+    stored_only: bool = False,
 ) -> dict:
     """All levels (centre and step), the order check, and the comparison at g/R = gr; one = (level,
     what, order): that solve alone into the store (a process per solve, so /usr/bin/time -v measures it);
     first: the coarsest level solved (negative: coarser than the settings' sizes, by refinement per level);
-    check_level counts from it."""
+    check_level counts from it; stored_only: no solves, what the store holds (stored_summary)."""
     s = structure(gr)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
@@ -193,11 +232,30 @@ def run(
         q = dq if what == "step" else np.zeros(pf.ncoords)
         dz = (phi @ q).reshape(len(plate_p), 4)
         key = {**base, "level": level, "what": what, "order": order, "q": q.tolist()}
-        return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol)
+        return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol, stored_only)
 
     if one is not None:
         solve(*one)
         out.update(one=list(one), peak_gb=peak_gb(), cpu_s=time.process_time())
+        return out
+    sides = np.array([e.side for e in shapes])
+    inner_r = min(e.shape.r_in for e in shapes)
+    rings = {
+        "inner": np.array([e.shape.r_in == inner_r for e in shapes]),
+        "outer": np.array([e.shape.r_in > inner_r for e in shapes]),
+    }
+    pp = EXTRACTORS["parallel_plate"](s, plate).prepare(shapes, plate, m.basis)
+    q0 = np.zeros(pf.ncoords)
+    c_pp = pp.capacitance(q0)
+    g_pp = separate(pp.capacitance(dq) - c_pp, mirror, steps)
+    analytic = {"C": c_pp, "dz": g_pp["z"], "dtilt": g_pp["tilt_x"]}
+    if stored_only:
+
+        def sep(centre, step):
+            return quantities(centre, centre if step is None else step, mirror, steps, pairs)
+
+        levels_run = range(first, first + nlevels)
+        out["stored"] = stored_summary(solve, levels_run, first + check_level, st, rings, analytic, sep)
         return out
     per_level, couplings, check = [], [], None
     for i, k in enumerate(range(first, first + nlevels)):
@@ -212,17 +270,6 @@ def run(
                 steps,
                 pairs,
             )
-    sides = np.array([e.side for e in shapes])
-    inner_r = min(e.shape.r_in for e in shapes)
-    rings = {
-        "inner": np.array([e.shape.r_in == inner_r for e in shapes]),
-        "outer": np.array([e.shape.r_in > inner_r for e in shapes]),
-    }
-    pp = EXTRACTORS["parallel_plate"](s, plate).prepare(shapes, plate, m.basis)
-    q0 = np.zeros(pf.ncoords)
-    c_pp = pp.capacitance(q0)
-    g_pp = separate(pp.capacitance(dq) - c_pp, mirror, steps)
-    analytic = {"C": c_pp, "dz": g_pp["z"], "dtilt": g_pp["tilt_x"]}
     result: dict = {}
     for ring, sel in rings.items():
         for qn in ("C", "dz", "dtilt"):
@@ -313,6 +360,7 @@ def main() -> None:
     ap.add_argument("--budget-gb", type=float, default=8.0)
     ap.add_argument("--store", default=str(STORE), help="folder of stored solves ('' stores nothing)")
     ap.add_argument("--count", action="store_true", help="count panels only")
+    ap.add_argument("--stored-only", action="store_true", help="no solves: summarise what the store holds")
     ap.add_argument(
         "--one",
         nargs=3,
@@ -337,7 +385,15 @@ def main() -> None:
             ap.error(f"--one: WHAT is {a.one[1]!r}; give centre or step")
         one = (int(a.one[0]), a.one[1], int(a.one[2]))
     out = run(
-        a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None, one, a.first_level
+        a.gap_over_r,
+        st,
+        a.levels,
+        a.check_level,
+        a.count,
+        Path(a.store) if a.store else None,
+        one,
+        a.first_level,
+        a.stored_only,
     )
     print(json.dumps(out, indent=1, default=float))
     if a.json:

@@ -42,6 +42,10 @@ FASTCAP_SHEET = [
 FASTCAP_THICK = [
     (0.6, 0.2, 0.2, 0.9092, 0.0057),
     (0.6, 0.4, 0.2, 0.9458, 0.0015),
+    (0.6, 0.4, 0.4, 0.9470, 0.0025),
+    (0.6, 0.4, 0.1, 0.9436, 0.0022),
+    (0.4, 0.2, 0.2, 0.9759, 0.0056),
+    (0.4, 0.4, 0.2, 0.9839, 0.0021),
 ]
 
 
@@ -115,8 +119,9 @@ def test_thick_derivative_matches_central_differences():
 
 @pytest.mark.parametrize(("h", "g", "t", "f", "bar"), FASTCAP_THICK)
 def test_thick_form_against_fastcap(h, g, t, f, bar):
-    """The walls' term brings the form within 1 % of FastCap's F of a thick plate, where the sheet's
-    form is 1.7-3.3 % low (at the fitted and the unfitted points)."""
+    """The walls' term brings the form within 1 % of FastCap's F of a thick plate (the accuracy asked
+    of it; against the solve's central value, its own bar 0.15-0.57 %), where the sheet's form is
+    0.5-3.3 % low, at the fitted and the unfitted points (h / p 0.4, t / p 0.1 and 0.4)."""
     assert abs(Perforation(h * P, P, thickness=t * P).fill(g * P) / f - 1) < 0.01
 
 
