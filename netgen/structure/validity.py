@@ -39,6 +39,7 @@ def check(rd: Reader, conductor: object, sets: tuple, electrostatics: object) ->
                 f'give {key} in {lo:g}..{hi:g} (default {0.42 if key == "fringe_a" else 1.0}), or fringe = "none"',
             )
     dielectric(rd, sets, electrostatics)
+    perforation(rd, conductor, electrostatics)
     size = lateral_size(conductor)
     if size is None:
         return ()
@@ -99,3 +100,24 @@ def dielectric(rd: Reader, sets: tuple, electrostatics: object) -> None:
                 'use extractor = "parallel_plate" (the layer as a series gap) or "fastcap" (a dielectric '
                 "interface), or drop the layer",
             )
+
+
+def perforation(rd: Reader, conductor: object, electrostatics: object) -> None:
+    """A proof mass's etch holes enter the parallel-plate extractor (a fill factor,
+    netgen.electrostatics.perforation) and the multipole extractor (the holes meshed,
+    fastcap_mesh.perforated_face); the dense BEM meshes a solid plate, so it and a calibration on
+    its points would give a silently wrong model."""
+    if not getattr(conductor, "hole", 0.0):
+        return
+    extractor = getattr(electrostatics, "extractor", "parallel_plate")
+    on_bem = (
+        extractor == "calibrated" and electrostatics.calibration_points and electrostatics.calibration_source == "bem"
+    )
+    if extractor == "bem" or on_bem:
+        what = 'extractor = "bem"' if extractor == "bem" else 'calibration_source = "bem"'
+        raise rd.fail(
+            "conductor.hole",
+            f"{what} meshes the proof mass as a solid plate: its etch holes would be left out of the capacitance",
+            'use extractor = "fastcap" (the holes meshed), "calibrated" with calibration_source = "fastcap", '
+            'or "parallel_plate" (a fill factor), or drop hole and hole_pitch',
+        )
