@@ -134,7 +134,7 @@ def perforated_face(plate: RectPlate, hole: float, pitch: float, sizes: Sizes) -
     X, Y = np.meshgrid(x, y, indexing="ij")
     P = np.stack([X, Y, np.zeros(X.shape)], axis=-1)
     c = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)
-    keep = ~(in_x[:, None] & in_y[None, :])
+    keep = ~np.logical_and.outer(in_x, in_y)
     rings = []
     for a, b in cx:
         xs = x[(x >= a - 1e-9 * pitch) & (x <= b + 1e-9 * pitch)]

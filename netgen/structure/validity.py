@@ -116,9 +116,8 @@ def perforation(rd: Reader, conductor: object, electrostatics: object) -> None:
     if not getattr(conductor, "hole", 0.0):
         return
     extractor = getattr(electrostatics, "extractor", "parallel_plate")
-    on_bem = (
-        extractor == "calibrated" and electrostatics.calibration_points and electrostatics.calibration_source == "bem"
-    )
+    points = getattr(electrostatics, "calibration_points", 0)
+    on_bem = extractor == "calibrated" and points and getattr(electrostatics, "calibration_source", "bem") == "bem"
     if extractor == "bem" or on_bem:
         what = 'extractor = "bem"' if extractor == "bem" else 'calibration_source = "bem"'
         raise rd.fail(
