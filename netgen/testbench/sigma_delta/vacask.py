@@ -175,10 +175,12 @@ def testbench(
     options: str = "",
     folder: Path | None = None,
     drives: tuple[tuple[str, tuple[str, ...]], ...] = (),
+    instance: tuple[tuple[str, float], ...] = (),
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
     `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute;
-    `drives`: input ports driven by other sources (force_sources)."""
+    `drives`: input ports driven by other sources (force_sources); `instance`: the model's instance
+    parameters (the module's process parameters, netgen.emit.process.va_params)."""
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
@@ -197,6 +199,7 @@ def testbench(
         tone=tone,
         saves=saves(model, d),
         drivers=drivers(d),
+        instance=" ".join(f"{k}={v!r}" for k, v in instance),
         inputs=input_text(model, d),
         statefilters=filters.statefilter_params(d.channels, d),
         step_rise=STEP_RISE,
@@ -231,6 +234,10 @@ class BenchOptions:
     timeout: float = 36000.0
     cpu: str = GENERIC
     drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    # instance parameters of the model's line (name, value: a process point, netgen.sweep) and the
+    # model the module is compiled from when the run's `model` is that point's copy (design, analysis)
+    instance: tuple[tuple[str, float], ...] = ()
+    nominal: MacroModel | None = None
 
 
 def run_bench(
@@ -245,7 +252,18 @@ def run_bench(
     """Compile (cached, for openvaf-r's target `how.cpu`), render and run the VACASK bench in `out`;
     return its plot."""
     cache = how.cache or out / "osdi"
-    model_osdi = compile_model(model, cache, how.va, how.cpu)
+    model_osdi = compile_model(how.nominal or model, cache, how.va, how.cpu)
     blocks_osdi = compile_blocks(cache, how.cpu)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out, drives=how.drives)
+    bench = testbench(
+        model,
+        d,
+        model_osdi,
+        blocks_osdi,
+        cycles,
+        tone,
+        how.options,
+        folder=out,
+        drives=how.drives,
+        instance=how.instance,
+    )
     return simulate(bench, out, d.ts * cycles, progress, how.timeout)
