@@ -29,7 +29,7 @@ import pytest
 
 from netgen.cli import commands as cli
 from netgen.model import MacroModel
-from tests.fixtures import ROOT
+from tests.fixtures import NGSPICE, ROOT
 from tests.sweep.test_sweep_process import RELTOL, VNTOL, structure
 
 CASES = {  # parameter -> ([process] parameters, its swept value)
@@ -151,3 +151,25 @@ def test_etch_rebuild_needs_flexures(tmp_path, capsys):
     rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
     err = capsys.readouterr().err
     assert rc == 2 and str(s) in err and "parameters[0].values" in err and "no flexure beams" in err, err
+
+
+BACKEND_POINT = '"process.temp" = 85\n"process.escale" = 0.9\nsimulator = "{simulator}"\n'
+
+
+@pytest.mark.parametrize("simulator", ["ngspice-xspice", "ngspice-osdi", "vacask"])
+def test_backends_take_the_point(tmp_path, monkeypatch, simulator):
+    """temp, escale and dg_top at once on the other back ends, each in its own form (the _xspice.lib's
+    and the _osdi.lib's .subckt params:, VACASK's model card), against the rebuild on the same back
+    end, within the module docstring's bounds (OSDI on ngspice 46; the code model on the PATH's 39)."""
+    if simulator == "ngspice-osdi":
+        monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    fixed = BACKEND_POINT.format(simulator=simulator)
+    out = both_paths(tmp_path, "dg_top", '["dg", "temp", "escale"]', "3e-8", fixed)
+    run = out["parameters"] / "runs" / "run_0"
+    if simulator == "vacask":
+        card = [x for x in (run / "sigma_delta.sim").read_text().splitlines() if x.startswith("model mems ")]
+        assert card == ["model mems accelerometer_z dg_top=3e-08 escale=0.9 temp=85.0"], card
+    else:
+        x1 = [x for x in (run / "sigma_delta.cir").read_text().splitlines() if x.startswith("X1 ")]
+        assert x1 and x1[0].endswith("accelerometer_z dg_top=3e-08 escale=0.9 temp=85.0"), x1
+    agree(out, "dg_top")

@@ -179,8 +179,8 @@ def testbench(
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
     `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute;
-    `drives`: input ports driven by other sources (force_sources); `instance`: the model's instance
-    parameters (the module's process parameters, netgen.emit.process.va_params)."""
+    `drives`: input ports driven by other sources (force_sources); `instance`: the module's process
+    parameters (netgen.emit.process.va_params) on its model card (model parameters, not instance ones)."""
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
@@ -234,7 +234,8 @@ class BenchOptions:
     timeout: float = 36000.0
     cpu: str = GENERIC
     drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
-    # instance parameters of the model's line (name, value: a process point, netgen.sweep) and the
+    # the process point (name, value; netgen.sweep) on the model card (the .va's process parameters are
+    # model parameters) and the
     # model the module is compiled from when the run's `model` is that point's copy (design, analysis)
     instance: tuple[tuple[str, float], ...] = ()
     nominal: MacroModel | None = None
