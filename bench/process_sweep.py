@@ -1,8 +1,8 @@
 """`netgen sweep` over a process parameter both ways: one [process] build with each run's point as
 instance parameters ([sweep] process = "parameters") against a rebuild per run (process =
-"rebuild", the reference), on one local worker; the wall and CPU time of each sweep (the CPU time
-of this process and its reaped children: the worker and its simulators), and the largest
-difference of the runs' results between the two.
+"rebuild", the reference), both in this process (--scheduler serial, so that the CPU time of this
+process and its reaped children counts every build and simulator run); the wall and CPU time of
+each sweep, and the largest difference of the runs' results between the two.
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/process_sweep.py [--parameter tscale] [--values 0.9,0.95,1.05,1.1]
         [--structure examples/levitated_disk.toml | --crab-legs] [--simulator ngspice] [--cycles 128]
@@ -86,7 +86,7 @@ def run(structure: Path, tmp: Path, path: str, args) -> tuple[float, float, list
     sweep.write_text(text)
     out = tmp / path
     start, cpu = time.perf_counter(), cpu_s()
-    rc = cli.main(["sweep", str(structure), str(sweep), "-o", str(out), "--scheduler", "local:1", "-q"])
+    rc = cli.main(["sweep", str(structure), str(sweep), "-o", str(out), "--scheduler", "serial", "-q"])
     wall, cpu = time.perf_counter() - start, cpu_s() - cpu
     if rc != 0:
         raise SystemExit(f"sweep {path} exited {rc}")
