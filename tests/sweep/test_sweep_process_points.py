@@ -62,7 +62,7 @@ def both_paths(tmp: Path, name: str, declared: str, value: str, fixed: str = "")
     for path in ("parameters", "rebuild"):
         s = tmp / f"{path}.toml"
         s.write_text(SWEEP.format(path=path, name=name, value=value, fixed=fixed))
-        rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp / path), "--scheduler", "local:1", "-q"])
+        rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp / path), "--scheduler", "serial", "-q"])
         assert rc == 0, (tmp / path / "runs" / "run_0" / "error.txt").read_text()
         out[path] = tmp / path
     return out
