@@ -72,9 +72,12 @@ def _check_process(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None
     for name, value in run.process.items():
         refused = problem(s, name, value, rebuild=False)
         if refused:
-            raise rd.fail(
-                _where(sweep, f"process.{name}") or f"process.{name}", f"{run.name}: {refused[0]}", refused[1]
-            )
+            k = next((k for k, p in enumerate(sweep.parameters) if p.name == f"process.{name}"), None)
+            if k is not None and sweep.parameters[k].distribution:  # a Monte Carlo draw
+                where, fix = f"parameters[{k}]", f"narrow the distribution, or {refused[1]}"
+            else:
+                where, fix = _where(sweep, f"process.{name}") or f"process.{name}", refused[1]
+            raise rd.fail(where, f"{run.name}: {refused[0]}", fix)
 
 
 def _check_simulators(rd: Reader, sweep: Sweep, runs: list[RunSpec]) -> None:

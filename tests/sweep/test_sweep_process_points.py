@@ -173,3 +173,18 @@ def test_backends_take_the_point(tmp_path, monkeypatch, simulator):
         x1 = [x for x in (run / "sigma_delta.cir").read_text().splitlines() if x.startswith("X1 ")]
         assert x1 and x1[0].endswith("accelerometer_z dg_top=3e-08 escale=0.9 temp=85.0"), x1
     agree(out, "dg_top")
+
+
+def test_monte_carlo_draw_outside_the_range_exits_2(tmp_path, capsys):
+    """A seeded normal draw of dg_top beyond the gap offsets' range (std 200 nm against |dg| <= 300 nm):
+    exit 2 naming the distribution's entry and the fix, before anything runs."""
+    acc = structure(tmp_path, '\n[process]\nparameters = ["dg"]\n')
+    s = tmp_path / "mc.toml"
+    s.write_text(
+        '[sweep]\nsamples = 20\nseed = 3\n[fixed]\ncycles = 128\n[[parameters]]\nname = "process.dg_top"\n'
+        'distribution = "normal"\nmean = "0 nm"\nstd = "200 nm"\n'
+    )
+    rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "parameters[0]:" in err and "narrow the distribution" in err, err
+    assert not (tmp_path / "out").exists()
