@@ -41,6 +41,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
+from netgen.cli import commands as cli
 from netgen.emit.ngspice import subcircuit
 from netgen.structure import load_structure
 from netgen.testbench.gyro import analysis
@@ -106,3 +107,25 @@ def test_drive_block_holds_amplitude_and_resonance(model, tmp_path, simulator):
     assert held["quadrature_force_n"] == pytest.approx(K_XY * held["drive_amplitude_m"], rel=0.01)
     zro = free["rate_rad_s"]
     assert abs(zro) <= 4 * free["rate_read_sigma_rad_s"] + 1e-3 * abs(free["quadrature_rad_s"])
+
+
+@pytest.mark.parametrize(
+    "simulator, old, new, key",
+    [
+        ("ngspice-osdi", "[loop.channels.y]", "[loop.timing]\nfb_edge = 0\n\n[loop.channels.y]", "loop.timing.fb_edge"),
+        ("vacask", 'feedback_voltage = "10 V"', 'feedback_voltage = "10 V"\nramp_steps = 20', "loop.ramp_steps"),
+    ],
+)
+def test_the_block_back_ends_refuse_what_their_sense_loop_cannot_render(tmp_path, capsys, simulator, old, new, key):
+    """The sigma-delta back end's checks reach the gyroscope: a feedback step (the OSDI loop renders
+    ramps only) or an edge grid (ngspice-xspice only) is exit 2 naming the key, with a fix and no
+    result set, before any simulator runs."""
+    text = EXAMPLE.read_text()
+    assert old in text
+    path = tmp_path / "g.toml"
+    path.write_text(text.replace(old, new, 1))
+    out = tmp_path / "out"
+    assert cli.main(["gyro", str(path), "-o", str(out), "--simulator", simulator, "--cycles", "64", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and key in err and "fix:" in err and "Traceback" not in err
+    assert not (out / "summary.json").exists()
