@@ -16,7 +16,7 @@ the ngspice path (the same loop equations, so the same figures):
   comes from another run, whose time steps differ, and the loss per step goes as h^2) plus 4e-6: the
   amplitude estimator's ripple where the oscillation is off w_x by delta (its weight on the velocity
   squared moves A by 3 delta / 4 <= 2.3e-6 with the 1.5e-6 below) and the trapezoidal velocity's
-  (w h_max)^2 / 12 = 1.4e-6 (h_max = 0.05 T_s, the bench's maxstep). Measured (06:40 UTC run):
+  (w h_max)^2 / 12 = 1.4e-6 (h_max = 0.05 T_s, the bench's maxstep). Measured:
   VACASK Delta 1.55 %, deficit 1.444e-4 against 1.474e-4; ngspice-osdi Delta 0.169 %, 1.28e-5
   against 1.61e-5.
 - The frequency is the model's x resonance sqrt(k_x / m): the loop cancels the damping, so the
