@@ -46,6 +46,7 @@ from ..core.templating import render
 from ..core.text import escape
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from . import fmu_process
 from .common import check_names, num, stop_constants, time_scale
 
 DEFAULT_TOL = 1e-8  # relative tolerance of the co-simulation integrator when the importer sets none
@@ -72,6 +73,7 @@ UNITS = {
     "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
     "N.s/m": {"kg": 1, "s": -1},
     "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
+    "degC": {"K": 1, "offset": 273.15},
 }
 
 
@@ -138,6 +140,8 @@ def variables(model: MacroModel) -> list[dict]:
                 "derivative": kw.get("derivative"),
                 "nominal": kw.get("nominal"),
                 "group": kw.get("group", name),
+                "min": kw.get("min"),
+                "max": kw.get("max"),
             }
         )
 
@@ -190,6 +194,9 @@ def variables(model: MacroModel) -> list[dict]:
         for c in cs:
             add(f"{kind}_{c.name}", units[c.unit == "rad"], "parameter", "fixed", f"{kind} of {c.name}",
                 initial="exact", start=num(getattr(c, kind)), group=kind.upper())  # fmt: skip
+    for r in fmu_process.rows(model):  # process instance parameters (netgen.emit.fmu_process)
+        add(r["name"], r["unit"], "parameter", "fixed", r["description"], initial="exact", start=r["start"],
+            min=r["min"], max=r["max"], group="PROC")  # fmt: skip
     names = [v["name"] for v in out]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
@@ -322,6 +329,7 @@ def context(model: MacroModel) -> dict:
     inputs = [v["causality"] == "input" for v in vs]
     arrays += [array("int", "SETTABLE", settable), array("int", "INPUT", inputs)]
     arrays += [array("double", "NOMINAL", nominal), array("double", "START", start)]
+    proc, defines, proc_names = fmu_process.arrays(model, {v["name"]: v["vr"] for v in vs}, array)
     ctx = {
         "m": model,
         "nq": nq,
@@ -331,7 +339,9 @@ def context(model: MacroModel) -> dict:
         "nm": sum(int(np.count_nonzero(p.coeffs)) for f in model.capacitances for p in f.polys),
         "nv": len(vs),
         "refs": references(model, vs),
-        "arrays": arrays,
+        "arrays": arrays + proc,
+        "process": defines,
+        "proc_names": proc_names,
         "tolerance": num(DEFAULT_TOL),
         "first_step": num(0.1 / fastest_rate(model)),
         "variables": vs,
@@ -360,7 +370,7 @@ def description(model: MacroModel, ctx: dict | None = None) -> str:
     ctx = ctx or context(model)
     vs = ctx["variables"]
     nx = ctx["nx"]
-    used = sorted({v["unit"] for v in vs})
+    used = sorted({v["unit"] for v in vs if v["unit"]})  # "": a ratio, no unit attribute
     units = [{"name": u, "base": sorted(UNITS[u].items())} for u in used]
     index = {v["vr"]: v["vr"] + 1 for v in vs}
     derivs = [v for v in vs if v["derivative"]]
