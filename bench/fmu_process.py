@@ -1,0 +1,40 @@
+"""The FMU's process parameters against the closed forms and ngspice (tests/emit/test_fmu_process.py,
+tests/oracles/fmu_process.py): the figures quoted in docs/embedding.md and CHANGELOG.md. Run from the
+repository root:
+    .venv/bin/python bench/fmu_process.py
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from support import oracle
+
+
+def main() -> None:
+    """Print per case the FMU's deviations from the closed form and from ngspice."""
+    fp = oracle("fmu_process")
+    with tempfile.TemporaryDirectory(prefix="fmu-process-") as tmp:
+        folder = Path(tmp)
+        model, lib, path = fp.build(folder)
+        print(f"ngspice budget {fp.ngspice_budget(model):.2e} of the peak")
+        print("case            zeta   f/kHz   FMU-closed  integ     static    FMU-ngspice")
+        for name, values in fp.VALUES.items():
+            for v in values:
+                r = fp.step_case(model, lib, path, name, v, folder)
+                print(
+                    f"{name}={v:<9g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
+                    f"{r['static']:.2e}  {r['ngspice']:.2e}"
+                )
+        print("case            z/nm      z-closed  charge-closed  integ(z)  FMU-ngspice")
+        for dg in fp.DG:
+            r = fp.gap_case(model, lib, path, dg, folder)
+            print(
+                f"dg_bot={dg:<9g} {r['z_m'] * 1e9:8.3f}  {r['z']:.2e}  {r['q']:.2e}       {r['z_integ']:.2e}  "
+                f"{r['ngspice']:.2e}"
+            )
+
+
+if __name__ == "__main__":
+    main()
