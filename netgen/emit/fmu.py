@@ -56,7 +56,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-co
 ARCH = {"generic": ["-march=x86-64", "-mtune=generic"], "native": ["-march=native"]}
 PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the runtime's order of the centrifugal products
 # FMI unit name -> SI base-unit exponents
-UNITS = {
+UNITS: dict[str, dict[str, float]] = {
     "m": {"m": 1},
     "rad": {"rad": 1},
     "m/s": {"m": 1, "s": -1},
@@ -196,9 +196,9 @@ def variables(model: MacroModel) -> list[dict]:
         for c in cs:
             add(f"{kind}_{c.name}", units[c.unit == "rad"], "parameter", "fixed", f"{kind} of {c.name}",
                 initial="exact", start=num(getattr(c, kind)), group=kind.upper())  # fmt: skip
-    for r in fmu_process.rows(model):  # process instance parameters (netgen.emit.fmu_process)
-        add(r["name"], r["unit"], "parameter", "fixed", r["description"], initial="exact", start=r["start"],
-            min=r["min"], max=r["max"], group="PROC")  # fmt: skip
+    for pr in fmu_process.rows(model):  # process instance parameters (netgen.emit.fmu_process)
+        add(pr["name"], pr["unit"], "parameter", "fixed", pr["description"], initial="exact", start=pr["start"],
+            min=pr["min"], max=pr["max"], group="PROC")  # fmt: skip
     names = [v["name"] for v in out]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})

@@ -64,7 +64,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     ident = [1.0, 0.0, 0.0, 0.0]
     coeffs, etch, nominal = [], [], []
     for v, c in enumerate(model.coordinates):
-        cl = law[v] if law else {k: [0.0] * 4 for k in LAW_KEYS}
+        cl: dict[str, Any] = law[v] if law else {k: [0.0] * 4 for k in LAW_KEYS}
         coeffs += [cl[k] for k in LAW_KEYS]
         ratio = cl.get("etch", {}) if process.declared(model, "etch") else {}
         etch += [ratio.get(k, ident) for k in LAW_KEYS]
