@@ -27,6 +27,12 @@ def main() -> None:
                     f"{name}={v:<9g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
                     f"{r['static']:.2e}  {r['ngspice']:.2e}"
                 )
+        for v in fp.VALUES["tscale"]:
+            r = fp.step_case(model, lib, path, "tscale", v, folder, load="a_in")
+            print(
+                f"a_in, tscale={v:<5g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
+                f"{r['static']:.2e}  {r['ngspice']:.2e}"
+            )
         print("case            z/nm      z-closed  charge-closed  integ(z)  FMU-ngspice")
         for dg in fp.DG:
             r = fp.gap_case(model, lib, path, dg, folder)
@@ -34,6 +40,14 @@ def main() -> None:
                 f"dg_bot={dg:<9g} {r['z_m'] * 1e9:8.3f}  {r['z']:.2e}  {r['q']:.2e}       {r['z_integ']:.2e}  "
                 f"{r['ngspice']:.2e}"
             )
+
+        fm, flib, fpath = fp.film_build(folder)
+        misfit = fm.process["temp"]["viscosity"]["max_rel_error"]
+        print(f"squeeze film: nominal b {fm.coordinates[0].damping:.4e} N s/m, stated viscosity misfit {misfit:.2e}")
+        print("temp/C   b/(N s/m)    b/b0 - law  ngspice .ac - FMU")
+        for t in fp.FILM_TEMPS:
+            r = fp.film_case(fm, flib, fpath, t, folder)
+            print(f"{t:6g}   {r['b']:.6e}  {r['ratio']:.2e}    {r['ngspice']:.2e}")
 
 
 if __name__ == "__main__":

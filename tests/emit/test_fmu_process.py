@@ -10,8 +10,13 @@ References:
   structure's temperature), w = 2 um - 2 etch; m = rho A t (the rigid plate); b = alpha m; the step
   response of m x'' + b x' + k x = F from rest (resonance and static deflection F / k); under a
   voltage V on the plate below, the equilibrium k z = -eps0 A V^2 / (2 (g + dg + z)^2) and the
-  charge eps0 A V / (g + dg + z) (fringe "none": the 1/P fit is exact);
-- ngspice 39's transient of the emitted .lib with the same instance parameters (second solver).
+  charge eps0 A V / (g + dg + z) (fringe "none": the 1/P fit is exact); a step on a_in loads the
+  plate with -m a_in (the a_in gain times tscale);
+- the same mass damped by its squeeze film alone, at -40, 25 and 125 C: the damping's ratio to the
+  nominal against the film's viscosity law (Sutherland, Veijola's rarefaction) computed in
+  tests/oracles/fmu_process.viscosity_ratio;
+- ngspice 39's transient (or .ac) of the emitted .lib with the same instance parameters (second
+  solver).
 
 Tolerances:
 - FMU against the closed form: the laws' stated error (model.process max_rel_error, <= 1e-11 here)
@@ -65,6 +70,37 @@ def test_step_response_against_closed_form_and_ngspice(built, tmp_path, name, va
     assert got["static"] <= bound + got["tail"], got
     assert fp.ngspice_budget(model) < 1e-5
     assert got["ngspice"] <= 1e-5, got
+
+
+@pytest.mark.parametrize("tscale", fp.VALUES["tscale"])
+def test_acceleration_step_scales_with_the_thickness(built, tmp_path, tscale):
+    """A step acceleration on a_in: the load -m a_in grows with the thickness (the a_in gain times
+    tscale), the static deflection -m a / k as t^-2; against the closed form and ngspice as above."""
+    model, lib, path = built
+    got = fp.step_case(model, lib, path, "tscale", tscale, tmp_path, load="a_in")
+    bound = 10 * law_error(model) + 2 * got["integ"] + 1e-12
+    assert got["err"] <= bound and got["static"] <= bound + got["tail"], got
+    assert got["ngspice"] <= 1e-5, got
+
+
+@pytest.fixture(scope="module")
+def film(tmp_path_factory):
+    """The guided mass damped by its squeeze film alone: model, .lib and FMU."""
+    return fp.film_build(tmp_path_factory.mktemp("fmu_film"))
+
+
+@pytest.mark.parametrize("temp", fp.FILM_TEMPS)
+def test_squeeze_film_damping_follows_the_viscosity_law(film, tmp_path, temp):
+    """At -40, 25 and 125 C the FMU's damping over the nominal against the film's viscosity ratio
+    (Sutherland's law with Veijola's rarefaction, computed here): within the law's stated
+    polynomial misfit (model.process temp.viscosity.max_rel_error) plus 1e-12 of round-off; and
+    the .lib's damping from ngspice's .ac at the same temp against the FMU's: ngspice's linear solve
+    and the three-point fit, 1e-9 (tests/emit/test_process_ngspice.py)."""
+    model, lib, path = film
+    got = fp.film_case(model, lib, path, temp, tmp_path)
+    misfit = model.process["temp"]["viscosity"]["max_rel_error"]
+    assert got["ratio"] <= misfit + 1e-12, got
+    assert got["ngspice"] <= 1e-9, got
 
 
 @pytest.mark.parametrize("dg", fp.DG)

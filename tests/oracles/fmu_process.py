@@ -38,12 +38,14 @@ DG = (-1.4e-7, 0.5e-7, 1.4e-7)
 STOP, CAP, RELTOL = 300e-6, 2e-9, 1e-9  # run length, ngspice step cap and reltol
 GRID = np.linspace(0.0, STOP, 601)  # the co-simulation's communication points
 FORCE = 3e-6  # N: the step load (x ~ 60 nm at the nominal 47 N/m)
+ACCEL = 6e3  # m/s^2: the a_in step (-m a_in = -2.8 uN at the nominal mass)
 VOLTS = 10.0  # the plate's voltage in the gap-offset cases (static pull-in 16 V at dg = -0.14 um)
 
 
 def build(folder):
     """(model, its .lib in `folder`, its FMU)."""
     text = guided(process=PROCESS).replace("alpha = 2000", f"alpha = {ALPHA:g}")
+    text = text.replace('rigid = ["z"]', 'rigid = ["z"]\ninertial = ["a_z"]')  # the a_in port
     model = build_model(parse_structure(text, "cg.toml"))
     lib = folder / "cg.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
@@ -119,26 +121,30 @@ def ngspice_budget(model) -> float:
     return phase_bound(model, CAP, STOP, [True]) + RELTOL * math.sqrt(STOP / CAP) + 2e-7
 
 
-def step_case(model, lib, path, name: str, value: float, folder) -> dict[str, float]:
-    """A step FORCE on z at the process point {name: value}: the FMU (tolerance 1e-10) against the
+def step_case(model, lib, path, name: str, value: float, folder, load: str = "f_z") -> dict[str, float]:
+    """A step load on z at the process point {name: value}, FORCE through f_z or the acceleration
+    ACCEL through a_in (the load -m a_in of the rigid plate): the FMU (tolerance 1e-10) against the
     closed form (err), its own integration error against 1e-13 (integ), the final value against
     F / k (static), the transient's decay left at STOP (tail), all relative to the peak (static:
     to F / k); and against ngspice (ngspice)."""
     params = {name: value}
-    x = fmu_run(path, params, {"f_z": FORCE}, 1e-10)[:, 0]
-    fine = fmu_run(path, params, {"f_z": FORCE}, 1e-13)[:, 0]
     m, k, b = closed_form(params)
-    ref = step_response(m, k, b, GRID)
+    inputs = {"f_z": FORCE} if load == "f_z" else {"a_in": ACCEL}
+    force = FORCE if load == "f_z" else -m * ACCEL
+    x = fmu_run(path, params, inputs, 1e-10)[:, 0]
+    fine = fmu_run(path, params, inputs, 1e-13)[:, 0]
+    ref = step_response(m, k, b, GRID) * force / FORCE
     peak = float(np.max(np.abs(ref)))
     z = zeta(m, k, b)
     port = FORCE / model.coordinates[0].port_units[3]  # the .lib's force port in its display units
-    ng = ngspice_run(model, lib, params, {"f_z": f"DC {port!r}"}, folder)
+    sources = {"f_z": f"DC {port!r}"} if load == "f_z" else {"a_in": f"DC {ACCEL!r}"}  # a_in in m/s^2
+    ng = ngspice_run(model, lib, params, sources, folder)
     return {
         "zeta": z,
         "f_hz": math.sqrt(k / m) / (2 * math.pi),
         "err": float(np.max(np.abs(x - ref))) / peak,
         "integ": float(np.max(np.abs(x - fine))) / peak,
-        "static": abs(x[-1] - FORCE / k) / (FORCE / k),
+        "static": abs(x[-1] - force / k) / abs(force / k),
         "tail": math.exp(-z * math.sqrt(k / m) * STOP) / math.sqrt(1 - z**2),
         "ngspice": float(np.max(np.abs(x - ng))) / float(np.max(np.abs(ng))),
     }
@@ -164,4 +170,62 @@ def gap_case(model, lib, path, dg: float, folder) -> dict[str, float]:
         "q": abs(run[-1, 1] - charge) / charge,
         "q_integ": abs(run[-1, 1] - fine[-1, 1]) / charge,
         "ngspice": float(np.max(np.abs(run[:, 0] - ng))) / float(np.max(np.abs(ng))),
+    }
+
+
+# ----------------------------------------------------------------------------- the squeeze film's temperature
+
+
+FILM_PROCESS = '[process]\nparameters = ["temp"]\ntemp_range = [-40, 125]\n'
+FILM_TEMPS = (-40.0, 25.0, 125.0)  # degC
+SUTHERLAND_AIR = 111.0  # K: White, Viscous Fluid Flow (3rd ed.), table 1-2
+MEAN_FREE_PATH = 68e-9  # m: air at 1 atm and 300 K
+
+
+def film_build(folder):
+    """(model, its .lib in `folder`, its FMU) of the guided mass damped by the squeeze film alone."""
+    text = guided(process=FILM_PROCESS).replace("rayleigh = { alpha = 2000 }", "squeeze_film = true")
+    model = build_model(parse_structure(text.replace('name = "cg"', 'name = "cgf"'), "cgf.toml"))
+    lib = folder / "cgf.lib"
+    lib.write_text(emit_ngspice.subcircuit(model))
+    return model, lib, fmu.built(model)
+
+
+def viscosity_ratio(temp_c: float, t0_k: float = 300.0, gap: float = GAP) -> float:
+    """mu_eff(T) / mu_eff(T0) of air in the film at 1 atm: Sutherland's mu ~ T^1.5 / (T + S), the
+    mean free path ~ mu sqrt(T) / p, Veijola's rarefied-gas viscosity mu / (1 + 9.638 Kn^1.159)."""
+    t = temp_c + 273.15
+    mu = (t / t0_k) ** 1.5 * (t0_k + SUTHERLAND_AIR) / (t + SUTHERLAND_AIR)
+    kn0 = MEAN_FREE_PATH / gap
+    kn = kn0 * mu * math.sqrt(t / t0_k)
+    return mu * (1.0 + 9.638 * kn0**1.159) / (1.0 + 9.638 * kn**1.159)
+
+
+def film_case(model, lib, path, temp_c: float, folder) -> dict[str, float]:
+    """The damping at die temperature temp_c: the FMU's (model exchange: q'' at q = 0, q' = 1 m/s
+    is -b / m) over the model's nominal, against viscosity_ratio (ratio); and the .lib's from an
+    ngspice 39 .ac (1/H = k - m w^2 + i w b) against the FMU's (ngspice)."""
+    from .process_forms import ac_fit
+
+    c = model.coordinates[0]
+    inst = fmu.Instance(path, cosim=False)
+    inst.set({"temp": temp_c})
+    inst.start()
+    inst.set_states(np.array([0.0, 1.0]))
+    b_fmu = -c.mass * float(inst.get(["qdd_z"])[0])
+    inst.close()
+    net = f"""* ac
+.include {lib}
+Vf fz 0 DC 0 AC 1
+X1 0 0 fz xz {model.name} temp={temp_c!r}
+.ac lin 3 5k 30k
+.end
+"""
+    with using_ngspice("39"):
+        _, _, b_lib = ac_fit(run_ngspice(net, folder)[0])
+    ratio = viscosity_ratio(temp_c)
+    return {
+        "b": b_fmu,
+        "ratio": abs(b_fmu / c.damping / ratio - 1.0),
+        "ngspice": abs(b_lib / b_fmu - 1.0),
     }
