@@ -10,10 +10,11 @@ a_x, a_y, w_x, w_y, w_z); outputs the displacements x_<q> and the electrode and 
 Q_<e>; parameters the nominal mass, stiffness and damping and, with [process], the process
 instance parameters (netgen.emit.fmu_process: min/max the valid range, applied through the
 model's laws, refused out of range at initialization). No currents: FMI 2.0 model exchange
-cannot pass input derivatives, so the importer takes dQ/dt (or reads the charge directly, as a charge amplifier does). Co-simulation takes first input
-derivatives (canInterpolateInputs): an input ramps linearly over the next doStep, so a
-piecewise-linear drive (a PULSE's edges) is integrated exactly. The thermal force noise
-of an ngspice .lib (its TRNOISE sources) is not in the FMU: it is deterministic.
+cannot pass input derivatives, so the importer takes dQ/dt (or reads the charge directly, as a
+charge amplifier does). Co-simulation takes first input derivatives (canInterpolateInputs): an
+input ramps linearly over the next doStep, so a piecewise-linear drive (a PULSE's edges) is
+integrated exactly. The thermal force noise of an ngspice .lib (its TRNOISE sources) is not in
+the FMU: it is deterministic.
 
 Co-simulation integrates with Dormand-Prince 5(4) under error control (tolerance: the
 experiment's, else DEFAULT_TOL, relative, times each state's nominal absolute). Explicit is the

@@ -104,8 +104,8 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "ACTIVE_PM": int(process.active(model, "pm")),
         "ACTIVE_PK": int(process.active(model, "pk")),
         "ACTIVE_PD": int(process.active(model, "pd")),
-        "T0_C": num(p.get("temperature_C", 0.0)),
-        "MODULUS_TC": num(p.get("modulus_tc_per_K", 0.0)),
-        "INV_ETCH_UNIT": num(1.0 / ETCH_UNIT),
+        "T0_C": f"({num(p.get('temperature_C', 0.0))})",  # parenthesized: a negative value in any expression
+        "MODULUS_TC": f"({num(p.get('modulus_tc_per_K', 0.0))})",
+        "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
     }
     return data, defines, names
