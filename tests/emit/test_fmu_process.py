@@ -35,9 +35,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
+from scipy.optimize import brentq
 
+from netgen.model import MacroModel
+from netgen.sim import fmu
+from tests.fixtures import NETLISTS
 from tests.oracles import fmu_process as fp
+from tests.oracles import process_forms as pf
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy.fmi1 import FMICallException  # noqa: E402  (fmpy's FMI 2.0 calls raise it too)
@@ -116,6 +122,31 @@ def test_gap_offset_static_deflection_and_charge(built, tmp_path, dg):
     assert got["ngspice"] <= 1e-5, got
 
 
+@pytest.mark.parametrize("dg", (-2e-7, 0.0, 3e-7))
+def test_stop_follows_the_gap_offset(dg):
+    """The committed piston_process model pushed by -10 uN through f_z past its electrode: the FMU's
+    static balance (model exchange: the root of q''(z) at q' = 0, by brentq) against the balance of
+    spring, force and the stop's penalty with the electrode's surface at -(g + dg)
+    (tests/oracles/process_forms.resting, the penalty written out from its definition). The model's
+    stop is stated in its z scale, which is the gap to its round-off (1.99999999999985e-06 m: 7.5e-14
+    relative), so the penetration differs by 7.5e-14 and the rest point by 1.5e-19 m; both roots to
+    brentq's 1e-15 relative (2e-21 m), the force's round-off (1e-16 of 1e-5 N over a slope >= 2 N/m)
+    < 1e-21 m: 1e-17 m. Without the offset the plate would rest dg (>= 2e-7 m) away."""
+    model = MacroModel.load_json(NETLISTS / "piston_process" / "piston_process.json")
+    inst = fmu.Instance(fmu.built(model), cosim=False)
+    inst.set({"dg_drive": dg, "f_z": pf.FORCE})
+    inst.start()
+
+    def qdd(z: float) -> float:
+        inst.set_states(np.array([z, 0.0]))
+        return float(inst.get(["qdd_z"])[0])
+
+    z = brentq(qdd, -(pf.GAP + dg) * 1.5, -(pf.GAP + dg) * 0.9, xtol=1e-22, rtol=1e-15)
+    inst.close()
+    assert abs(z - pf.resting(model, dg)) <= 1e-17
+    assert -z > pf.GAP + dg  # on the stop, pressed into it
+
+
 # ----------------------------------------------------------------------------- description, refusals
 
 
@@ -139,7 +170,7 @@ def test_parameters_in_the_model_description(built):
         v = var[name]
         assert (v.causality, v.variability, v.initial) == ("parameter", "fixed", "exact")
         assert float(v.start) == pytest.approx(start, rel=1e-12, abs=0.0)  # temp: the .lib's 6 digits of T0
-        assert float(v.min) == lo and float(v.max) == hi
+        assert float(v.min) == float(f"{lo:.12g}") and float(v.max) == float(f"{hi:.12g}")  # round-off dropped
         assert v.unit == unit
         assert f"valid {lo:.6g}..{hi:.6g}" in v.description
 
@@ -164,18 +195,19 @@ def outside(model) -> list[tuple[str, float]]:
 def test_out_of_range_refused_at_initialization(built, capsys):
     """A value outside its valid range (or NaN) makes fmi2ExitInitializationMode return fmi2Error
     with a logged error naming the parameter, its value and its range; the range's ends themselves
-    initialize; and a process parameter set after initialization is refused (variability fixed)."""
+    initialize as a user writes them (dg_bot = -1.5e-7, the range's -1.4999999999998874e-07 to round-off);
+    and a process parameter set after initialization is refused (variability fixed)."""
     model, _, path = built
     for name, value in outside(model):
-        inst = fp.fmu.Instance(path)
+        inst = fmu.Instance(path)
         inst.set({name: value})
         with pytest.raises(FMICallException, match="fmi2ExitInitializationMode"):
             inst.start()
         log = capsys.readouterr().out
         assert f"process parameter {name} = " in log and "outside its valid range" in log, log
         inst.fmu.freeInstance()
-    ends = {"tscale": 0.9, "escale": 1.5, "temp": -40.0, "etch": 0.3e-6, "dg_bot": -model.process["gaps"][0]["max_m"]}
-    inst = fp.fmu.Instance(path)
+    ends = {"tscale": 0.9, "escale": 1.5, "temp": -40.0, "etch": 0.3e-6, "dg_bot": -1.5e-7}  # as a user writes them
+    inst = fmu.Instance(path)
     inst.set(ends)
     inst.start()
     with pytest.raises(FMICallException, match="fmi2SetReal"):
