@@ -18,27 +18,21 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="fmu-process-") as tmp:
         folder = Path(tmp)
         model, lib, path = fp.build(folder)
-        print(f"ngspice budget {fp.ngspice_budget(model):.2e} of the peak")
-        print("case            zeta   f/kHz   FMU-closed  integ     static    FMU-ngspice")
-        for name, values in fp.VALUES.items():
-            for v in values:
-                r = fp.step_case(model, lib, path, name, v, folder)
-                print(
-                    f"{name}={v:<9g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
-                    f"{r['static']:.2e}  {r['ngspice']:.2e}"
-                )
-        for v in fp.VALUES["tscale"]:
-            r = fp.step_case(model, lib, path, "tscale", v, folder, load="a_in")
+        print(f"ngspice budget {fp.ngspice_budget(model):.2e} of the peak (its first {fp.NG_STOP * 1e6:g} us)")
+        print("load case            zeta   f/kHz   FMU-closed  integ     static    FMU-ngspice  FMU-.op")
+        cases = [(n, v, "f_z") for n, vals in fp.VALUES.items() for v in vals]
+        for name, v, load in cases + [("tscale", v, "a_in") for v in fp.VALUES["tscale"]]:
+            r = fp.step_case(model, lib, path, name, v, folder, load=load)
             print(
-                f"a_in, tscale={v:<5g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
-                f"{r['static']:.2e}  {r['ngspice']:.2e}"
+                f"{load} {name}={v:<9g} {r['zeta']:.3f} {r['f_hz'] / 1e3:7.3f} {r['err']:.2e}    {r['integ']:.2e}  "
+                f"{r['static']:.2e}  {r['ngspice']:.2e}     {r['op']:.2e}"
             )
-        print("case            z/nm      z-closed  charge-closed  integ(z)  FMU-ngspice")
+        print("case            z/nm      z-closed  charge-closed  integ(z)  FMU-ngspice  FMU-.op")
         for dg in fp.DG:
             r = fp.gap_case(model, lib, path, dg, folder)
             print(
                 f"dg_bot={dg:<9g} {r['z_m'] * 1e9:8.3f}  {r['z']:.2e}  {r['q']:.2e}       {r['z_integ']:.2e}  "
-                f"{r['ngspice']:.2e}"
+                f"{r['ngspice']:.2e}     {r['op']:.2e}"
             )
 
         fm, flib, fpath = fp.film_build(folder)
