@@ -9,8 +9,10 @@ error and the simulator's tolerance. Each trajectory is within reltol (1e-3, the
 the value plus vntol (1e-6) on the scaled state xs_z (vntol L / 1 um volts at the x_z port) of the
 exact one, so the displacement at every clock sample agrees within 2 (reltol max |x| + vntol L / 1 um)
 plus the law's error times max |x|, up to the first comparator decision that falls within that
-error of its threshold (after a flipped bit the loops run on different feedback); the bit means within 2/128 (one flipped decision and the loop's
-compensating one); the gravity balance ratio within 2 reltol plus the law's error. The laws' errors,
+error of its threshold (after a flipped bit the loops run on different feedback); the gravity balance
+ratio within 2 reltol plus the law's error. The bit means are not compared bit for bit: after a flip
+near a threshold (another CPU's rounding can flip the first decision) they part by the two runs'
+different inertial terms, and what both must still meet is the momentum balance, asserted on the ratio. The laws' errors,
 as the model states them: temp moves only the modulus here (no squeeze film), e = 1 + tc (T - T0),
 exact; etch: the crab legs' cubic ratios in etch (process.etch.max_rel_error); dg_<set>: a shift of z,
 exact, and the plates without fringe (fringe = "none") give 1/C linear in z, so the shifted fit and
@@ -98,7 +100,6 @@ def agree(out: dict[str, Path], name: str) -> None:
         f"bits differ at {flips.size} of 128; balance {balance:.1e}; law error {err:.1e}"
     )
     assert np.max(np.abs(x_p - x_r)) <= bound
-    assert abs(float(p["z.bit_mean"]) - float(r["z.bit_mean"])) <= 2 / 128
     assert abs(balance) <= 2 * RELTOL + err
 
 
