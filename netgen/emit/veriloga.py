@@ -112,8 +112,10 @@ def _fit_rows(model: MacroModel, ctx: dict) -> None:
     for row, text in zip(ctx["coords"], ctx["forces"]):
         row["force_sum"] = text
     ctx["vf_vars"] = [f["vf"] for f in ctx["fits"]]
+    ctx["r_vars"] = [t["r"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("r")]
     ctx["w_vars"] = [t["w"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("w")]
     ctx["b_vars"] = [t["b"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("b")]
+    ctx["m_vars"] = [s["name"] for f in ctx["fits"] for s in f["slopes"]]
 
 
 def gap_names(model: MacroModel, ctx: dict) -> dict[str, list[str]]:
@@ -178,7 +180,14 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [t["p"] for f in ctx["fits"] for t in f["plate_terms"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
-    y_vars = ctx["w_vars"] + ctx["b_vars"] + ctx["vf_vars"] + [s["name"] for s in ctx["stiffness"]]
+    y_vars = (
+        ctx["r_vars"]
+        + ctx["w_vars"]
+        + ctx["b_vars"]
+        + ctx["m_vars"]
+        + ctx["vf_vars"]
+        + [s["name"] for s in ctx["stiffness"]]
+    )
     y_vars += [n for x in ctx["frozen"] for n in (x["xf"], x["dx"])]
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}", offsets=process.stop_offsets(model, braces=False))
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]

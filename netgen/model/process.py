@@ -391,25 +391,3 @@ def finite_law(law: dict) -> bool:
     parts = [x for c in law.get("coordinates", []) for k in LAW_KEYS for x in c[k]]
     parts += [x for c in law.get("coordinates", []) for k in c.get("etch", {}) for x in c["etch"][k]]
     return all(math.isfinite(x) for x in parts)
-
-
-# the parameters a sweep moves by instance parameters (netgen.sweep): the laws change only the
-# coordinates' numbers for these; temp's viscosity law has no rebuild to compare with (the damping
-# stage keeps the gas at its tabulated viscosity) and dg moves the fits' box
-SWEPT = ("tscale", "escale")
-
-
-def at_point(model: Any, tscale: float = 1.0, escale: float = 1.0) -> Any:
-    """A MacroModel's copy at a process point, for the loop design and analysis of a run whose netlist
-    takes the point as instance parameters (netgen.sweep): each coordinate's mass, stiffness and
-    damping from the laws (coordinate_values, the arithmetic the emitters render) and its frequency
-    from them, the a_in participation times tscale (as the emitters scale the port); the fits are
-    the model's (plate electrodes depend on neither t nor E)."""
-    law = model.process
-    coords = []
-    for v, c in enumerate(model.coordinates):
-        mass, stiffness, damping = coordinate_values(law, v, tscale=tscale, escale=escale)
-        freq = math.sqrt(stiffness / mass) / (2 * math.pi) if stiffness > 0 else 0.0
-        coords.append(dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq))
-    accel = [g * tscale for g in model.acceleration]
-    return dataclasses.replace(model, coordinates=coords, acceleration=accel)
