@@ -306,3 +306,26 @@ def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
     if not active(model, kind):
         return value
     return f"{'tscale' if kind == 'tscale' else f'{kind}_{name}'} * {value}"
+
+
+def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None = None) -> str:
+    """The text of the tscale law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
+    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share); "" where
+    the model has no such law (no tscale: the entry is a constant)."""
+    law = model.process.get("inertial") if enabled(model) else None
+    if not law:
+        return ""
+    f = law["t3_fraction"][kind][key][v]
+    f = f if w is None else f[w]
+    if f == 0.0:
+        return "tscale"
+    if f == 1.0:
+        return "tscale*tscale*tscale"
+    return f"({num(1.0 - f)}*tscale + {num(f)}*tscale*tscale*tscale)"
+
+
+def scaled_number(value: str, scale: str, braces: bool) -> str:
+    """`value` times the law text `scale` (inertial_scale): ngspice text in braces, else plain."""
+    if not scale:
+        return value
+    return f"{{{scale}*{value}}}" if braces else f"{scale}*{value}"

@@ -257,7 +257,7 @@ def inertial_rows(model: MacroModel, ctx: dict, ws: float) -> None:
     """The input ports a_x, a_y, w_x, w_y, w_z (netgen.emit.inertial) added to the coordinates'
     right-hand sides, and the header lines and input list that name them."""
     rows = {r["name"]: r for r in ctx["coords"]}
-    for a in inertial.acceleration_gains(model, ws):
+    for a in inertial.acceleration_gains(model, ws, braces=False):
         rows[a["coord"]]["rhs"] += f" - {a['gain']} * V({a['port']})"
     for r in inertial.rate_expressions(model, ws, access=VA):
         rows[r["coord"]]["rhs"] += f"\n            + {r['expr']}"

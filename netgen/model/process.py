@@ -413,3 +413,33 @@ def at_point(model: Any, tscale: float = 1.0, escale: float = 1.0) -> Any:
         coords.append(dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq))
     accel = [g * tscale for g in model.acceleration]
     return dataclasses.replace(model, coordinates=coords, acceleration=accel)
+
+
+INERTIAL_KINDS = ("participation", "gyroscopic", "centrifugal", "centrifugal_force")
+PROBE_T = 2.0  # the thickness factor of the second evaluation separating the t and t^3 parts
+
+
+def inertial_law(s: Structure, data: dict, terms) -> dict:
+    """The tscale law of the inertial terms (MacroModel.inertial, netgen.mechanics.inertial): every
+    entry is an integral over the plate of rho (A A + z^2 B B) (fields affine in z through the
+    thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
+    (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
+    the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
+    Etch and escale leave them (the plate outline is not etched; no modulus). {} without tscale."""
+    if s.process is None or not s.process.wants("tscale") or not any(data.get(k) for k in INERTIAL_KINDS):
+        return {}
+    probe = terms(scaled(s, PROBE_T))
+    fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}
+    return {
+        "law": "X(tscale) = X ((1 - f) tscale + f tscale^3), f the entry's rotary share (exact)",
+        "t3_fraction": fractions,
+    }
+
+
+def rotary_share(nominal, probe) -> list:
+    """f = (X(2) - 2 X) / (6 X) per entry (0 where X = 0), snapped to 0 or 1 within ROUND_OFF."""
+    x, x2 = np.asarray(nominal, dtype=float), np.asarray(probe, dtype=float)
+    f = np.divide(x2 - PROBE_T * x, (PROBE_T**3 - PROBE_T) * x, out=np.zeros_like(x), where=x != 0.0)
+    f[np.abs(f) < ROUND_OFF] = 0.0
+    f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
+    return f.tolist()
