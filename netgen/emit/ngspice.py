@@ -324,8 +324,9 @@ def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[di
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
     gains = [force_gain(c, ws) for c in model.coordinates]
+    scale = "{pu}*" if process.energy_moved(model) else ""  # the strain energy's process law
     return [
-        {"name": c.name, "expr": e}
+        {"name": c.name, "expr": f"{scale}({e})" if scale else e}
         for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
         if e != "0"
     ]

@@ -74,6 +74,9 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     visc = p["temp"].get("viscosity") or {}
     if active(model, "pd"):
         out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
+    if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
+        u = p["strain_energy"]
+        out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
     t0 = p["temperature_C"] + KELVIN
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
@@ -329,3 +332,9 @@ def scaled_number(value: str, scale: str, braces: bool) -> str:
     if not scale:
         return value
     return f"{{{scale}*{value}}}" if braces else f"{scale}*{value}"
+
+
+def energy_moved(model: MacroModel) -> bool:
+    """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
+    times pu."""
+    return enabled(model) and bool(model.process.get("strain_energy"))

@@ -226,6 +226,7 @@ def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) ->
         if expr == "0":
             continue
         var = f"fnl_{c.name}"
+        expr = f"pu * ({expr})" if process.energy_moved(model) else expr  # the strain energy's process law
         ctx["nonlinear"].append({"var": var, "expr": expr})
         row["fn_expr"] = row["fn_expr"].replace(") / ", f" + {var}) / ", 1)
 

@@ -233,6 +233,8 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
     }
     if p.wants("etch"):
         out["etch"] = etch_record(s, p, etch_err)
+    if m.strain_energy is not None:
+        out["strain_energy"] = energy_law(s, m, run, p)
     if d and d.film_model == "compressible":
         out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
     return out
@@ -443,3 +445,37 @@ def rotary_share(nominal, probe) -> list:
     f[np.abs(f) < ROUND_OFF] = 0.0
     f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
     return f.tolist()
+
+
+def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
+    """The fitted strain energy's law (MacroModel.nonlinear, netgen.mechanics StrainEnergy): U(q; t, E)
+    = (e A(t) + B(t)) U(q) with e the modulus factor (modulus_factor), A the part proportional to the
+    modulus (a beam's stretching energy E w t (int w'^2 / 2)^2 / 2L: A = t for shapes independent of
+    t) and B the rest (a given spring such as k_xy x y: B = 1), cubics in tscale from the energies
+    re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
+    the error includes the spread of that ratio over the points (a shape change with t). {} without
+    a strain energy or a parameter that moves it (tscale, escale, temp)."""
+    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp")):
+        return {}
+    q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)
+    u0 = np.asarray(m.strain_energy.energy(q), dtype=float)
+    ratios, spread = [], 0.0
+    modulus = p.wants("escale") or p.wants("temp")
+    for tau in fit_points(p):
+        row = []
+        for e in (1.0, E_PROBE) if modulus else (1.0,):
+            mt = m if tau == 1.0 and e == 1.0 else run(scaled(s, tau, e))
+            u = np.asarray(mt.strain_energy.energy(q), dtype=float)
+            r = float(u0 @ u / (u0 @ u0))
+            spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
+            row.append(r)
+        a = (row[1] - row[0]) / (E_PROBE - 1.0) if modulus else 0.0
+        ratios.append([a, row[0] - a])
+    coef, err = power_fit(fit_points(p), np.array(ratios), np.abs(np.array(ratios)).sum(axis=1, keepdims=True))
+    worst = max(err, spread)
+    return {
+        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest",
+        "a": [float(c) for c in coef[0]],
+        "b": [float(c) for c in coef[1]],
+        "max_rel_error": worst if worst > ROUND_OFF else 0.0,
+    }
