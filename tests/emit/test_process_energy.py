@@ -1,7 +1,8 @@
 """The fitted strain energy under the process parameters (netgen.model.process.energy_law, the factor
 pu of netgen.emit.process): the clamped-clamped beam of examples/cc_beam.toml with tscale and escale,
 its mid-plane stretching energy U = E w t (int w'^2 / 2)^2 / 2L (so pu = escale tscale for shapes
-independent of t: no residual stress here), in the .lib (ngspice 39) and the FMU.
+independent of t: no residual stress here), in the .lib (ngspice 39), the .va through OSDI (ngspice 46)
+and the FMU.
 
 Reference: a second build with the thickness and the modulus scaled (no [process]); its static
 deflection under FORCE on f_m1 (no voltage), K q + dU/dq = F solved by scipy's fsolve (xtol 1e-13).
@@ -23,10 +24,12 @@ from scipy.optimize import fsolve
 
 from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
+from netgen.emit import osdi
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.oracles.testbench import using_ngspice
 
 FORCE = 40e-6  # N on f_m1 (1 V = 1 uN): 0.97 um linear at the nominal 41.4 N/m
 CASES = [(0.9, 1.0), (1.1, 1.0), (1.0, 0.5), (1.1, 1.5)]  # (tscale, escale)
@@ -46,6 +49,8 @@ def built(tmp_path_factory):
     folder = tmp_path_factory.mktemp("energy")
     model = build_model(parse_structure(text() + PROCESS, "cc_beam.toml"))
     (folder / "cc_beam.lib").write_text(emit_ngspice.subcircuit(model))
+    (folder / "cc_beam_osdi.lib").write_text(osdi.subcircuit(model))
+    (folder / "cc_beam.osdi").write_bytes(osdi.outputs(model)[".osdi"])
     refs = {case: build_model(parse_structure(text(*case), "cc_beam.toml")) for case in CASES}
     return model, folder, refs
 
@@ -67,19 +72,24 @@ def bound(model) -> float:
     return model.process["tscale"]["max_rel_error"] + model.process["strain_energy"]["max_rel_error"]
 
 
+@pytest.mark.parametrize("form", ("lib", "osdi"))
 @pytest.mark.parametrize("case", CASES, ids=[f"t{t:g}-e{e:g}" for t, e in CASES])
-def test_static_deflection_against_the_rebuild(built, tmp_path, case):
-    """The .lib's .op deflection of m1 under FORCE at (tscale, escale) against the rebuilt beam's."""
+def test_static_deflection_against_the_rebuild(built, tmp_path, case, form):
+    """The .op deflection of m1 under FORCE at (tscale, escale) in the .lib and the .va (OSDI) against
+    the rebuilt beam's."""
     model, folder, refs = built
+    ctl = f".control\npre_osdi {folder / 'cc_beam.osdi'}\nset num_threads=1\nrun\nwrite out.raw\n.endc"
     net = f"""* stretching at {case}
-.include {folder / "cc_beam.lib"}
+.include {folder / ("cc_beam.lib" if form == "lib" else "cc_beam_osdi.lib")}
 X1 0 0 f1 x1 0 x2 0 x3 cc_beam tscale={case[0]!r} escale={case[1]!r}
 Vf f1 0 DC {FORCE * 1e6!r}
 .options reltol=1e-10 vntol=1e-16
 .op
+{ctl if form == "osdi" else ""}
 .end
 """
-    got = float(run_ngspice(net, tmp_path)[0]["v(x1)"].real[0]) * 1e-6
+    with using_ngspice("39" if form == "lib" else "46"):  # OSDI: ngspice 46
+        got = float(run_ngspice(net, tmp_path)[0]["v(x1)"].real[0]) * 1e-6
     want = rest(refs[case])[0]
     assert abs(got / want - 1.0) <= bound(model) + 2e-10, (got, want)
     ref = refs[case]
