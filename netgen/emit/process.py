@@ -250,6 +250,12 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
             + f" (mass outline, holes and plates not etched: their area would change by up to {e['unetched_area_rel']:.1e})"
         )
+    if energy_moved(model):
+        err = p["strain_energy"]["max_rel_error"]
+        parts.append(
+            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part), "
+            + (f"within {err:.1e}" if err else "exact")
+        )
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
     for g in p["gaps"] if gaps else []:

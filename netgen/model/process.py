@@ -465,6 +465,8 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
         row = []
         for e in (1.0, E_PROBE) if modulus else (1.0,):
             mt = m if tau == 1.0 and e == 1.0 else run(scaled(s, tau, e))
+            if mt.strain_energy is None:
+                raise ValueError("the strain energy vanishes with the thickness or modulus")
             u = np.asarray(mt.strain_energy.energy(q), dtype=float)
             r = float(u0 @ u / (u0 @ u0))
             spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
