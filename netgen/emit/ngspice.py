@@ -341,6 +341,10 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
+    # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
+    pv = process.film_scaled(model)
+    f = (lambda x, e: f"{{{x}{e}}}") if pv else (lambda x, e: x)
     rows = []
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
@@ -349,19 +353,20 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                 "node": f"w_{c.name}_{j + 1}",
                 "corner_hz": f"{corner / (2 * math.pi):.6g}",
                 "damping": f"{r:.6g}",
-                "g_in": num(corner / ws),
-                "r_out": num(ws / corner),
-                "g_force": num(r / (c.mass * ws)),
+                "g_in": f(num(corner / ws), "/pv"),
+                "r_out": f(num(ws / corner), "*pv"),
+                "g_force": f(num(r / (c.mass * ws)), "*pv"),
             }
             if noise:
+                rms = num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3])
                 row.update(
                     {
-                        "rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
-                        "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
+                        "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
+                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
                     }
                     | (
                         {
-                            "rn": num(noise_resistance(r, c.port_units[3])),
+                            "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
                             "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                         }
                         if process.enabled(model)

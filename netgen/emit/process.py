@@ -240,7 +240,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             if visc
             else ""
         )
-        text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
+        text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if declared(model, "etch"):
         e = p["etch"]
@@ -344,3 +344,9 @@ def energy_moved(model: MacroModel) -> bool:
     """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
     times pu."""
     return enabled(model) and bool(model.process.get("strain_energy"))
+
+
+def film_scaled(model: MacroModel) -> bool:
+    """The compressible film's branches follow the viscosity ratio pv (temp declared; damper r_j times
+    pv, corner over pv: netgen.model.process, r_j ~ mu_eff, the gas spring ~ the pressure)."""
+    return declared(model, "temp") and bool(model.process["temp"].get("viscosity"))

@@ -236,6 +236,8 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
     (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
     enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
     rows = []
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled): noise_gain ~ r (corner / r)^2
+    pv = (" / pv", " * pv", " / (pv * pv * pv)") if process.film_scaled(model) else ("", "", "")
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
             rows.append(
@@ -243,9 +245,9 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                     "coord": c.name,
                     "u": f"u_{c.name}",
                     "node": f"w_{c.name}_{j + 1}",
-                    "g_in": num(corner / ws),
-                    "g_force": num(r / (c.mass * ws)),
-                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                    "g_in": num(corner / ws) + pv[0],
+                    "g_force": num(r / (c.mass * ws)) + pv[1],
+                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2) + pv[2],
                     "noise_temp": process.noise_temperature(model),
                     "corner_hz": f"{corner / (2 * math.pi):.6g}",
                     "damping": f"{r:.6g}",

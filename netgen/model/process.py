@@ -207,7 +207,7 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
     if p is None:
         return {}
     d = s.damping
-    film = bool(d and d.squeeze_film and d.film_model == "incompressible")
+    film = bool(d and d.squeeze_film)  # compressible: d_film is the branches' remainder damper
     per, errors = mechanics_laws(s, m, run, film, p)
     t0 = d.temperature if d else 300.0
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
@@ -235,8 +235,8 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
         out["etch"] = etch_record(s, p, etch_err)
     if m.strain_energy is not None:
         out["strain_energy"] = energy_law(s, m, run, p)
-    if d and d.film_model == "compressible":
-        out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
+    if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
+        out["temp"]["film_branches"] = "the compressible film's branch dampers times the ratio, corners over it"
     return out
 
 
