@@ -262,6 +262,22 @@ def term_arrays(model: MacroModel) -> list[dict]:
     ]
 
 
+def rotary_shares(model: MacroModel) -> dict[str, list]:
+    """Per inertial kind the tables' rotary shares f (netgen.model.process.inertial_law) in the
+    runtime's order (rates x, y, z; PAIRS; a_x, a_y), None where an entry has no law (a constant)."""
+    law = (model.process.get("inertial") or {}).get("t3_fraction", {})
+    keys = {"gyroscopic": "xyz", "centrifugal": PAIRS, "centrifugal_force": PAIRS, "participation": ("a_x", "a_y")}
+    return {kind: [law.get(kind, {}).get(k) for k in order] for kind, order in keys.items()}
+
+
+def split(tables: list, shares: list) -> tuple[np.ndarray, np.ndarray]:
+    """Tables X as their t and t^3 parts X (1 - f), X f (the runtime's force is tscale X1 + tscale^3
+    X3); without a law (f None) X and zeros."""
+    x = np.array([np.asarray(t, dtype=float) for t in tables])
+    f = np.array([np.zeros_like(t) if s is None else np.asarray(s, dtype=float) for t, s in zip(x, shares)])
+    return x * (1.0 - f), x * f
+
+
 def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
     """Stops, strain energy, inertial tables, film branches and couplings, and the contact scalars."""
     n = model.ncoords
@@ -269,10 +285,12 @@ def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
     pts = model.contact.get("points", []) if stops else []
     poly = model.nonlinear_energy_polynomial() or Polynomial(np.zeros((0, n), dtype=int), np.zeros(0))
     keep = [i for i, c in enumerate(poly.coeffs) if c != 0.0]
-    ine = model.inertial
-    gyro = [ine.gyroscopic.get(k, np.zeros((n, n))) for k in "xyz"]
-    cent = [ine.centrifugal.get(p, np.zeros((n, n))) for p in PAIRS]
-    centf = [ine.centrifugal_force.get(p, np.zeros(n)) for p in PAIRS]
+    ine, share = model.inertial, rotary_shares(model)
+    gyro, gyro3 = split([ine.gyroscopic.get(k, np.zeros((n, n))) for k in "xyz"], share["gyroscopic"])
+    cent, cent3 = split([ine.centrifugal.get(p, np.zeros((n, n))) for p in PAIRS], share["centrifugal"])
+    centf, centf3 = split([ine.centrifugal_force.get(p, np.zeros(n)) for p in PAIRS], share["centrifugal_force"])
+    p_ax, p_ax3 = split([ine.participation.get("a_x", np.zeros(n))], share["participation"][:1])
+    p_ay, p_ay3 = split([ine.participation.get("a_y", np.zeros(n))], share["participation"][1:])
     film = [(v, r, w) for v, c in enumerate(model.coordinates) for r, w in c.film]
     arrays = [
         array("double", "SCALE", model.scales),
@@ -281,11 +299,16 @@ def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
         array("double", "NL_COEF", poly.coeffs[keep]),
         array("int", "NL_EXP", poly.exponents[keep]),
         array("double", "G_AIN", model.acceleration or np.zeros(n)),
-        array("double", "P_AX", ine.participation.get("a_x", np.zeros(n))),
-        array("double", "P_AY", ine.participation.get("a_y", np.zeros(n))),
+        array("double", "P_AX", p_ax),
+        array("double", "P_AY", p_ay),
         array("double", "GYRO", gyro),
         array("double", "CENT", cent),
         array("double", "CENTF", centf),
+        array("double", "P_AX3", p_ax3),
+        array("double", "P_AY3", p_ay3),
+        array("double", "GYRO3", gyro3),
+        array("double", "CENT3", cent3),
+        array("double", "CENTF3", centf3),
         array("int", "FILM_COORD", [b[0] for b in film]),
         array("double", "FILM_R", [b[1] for b in film]),
         array("double", "FILM_CORNER", [b[2] for b in film]),

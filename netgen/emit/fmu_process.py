@@ -88,6 +88,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "ETCH_LAW", etch),
         array("double", "LAW_NOM", nominal),
         array("double", "VISC", visc),
+        array("double", "ENERGY_LAW", energy_law(model)),
         array("int", "ELEC_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in elec]),
         array("double", "ELEC_SHIFT", [s[1] if s else 0.0 for s in elec]),
         array("int", "STOP_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in stop_sets]),
@@ -113,3 +114,10 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
     }
     return data, defines, names
+
+
+def energy_law(model: MacroModel) -> list[float]:
+    """The strain energy's law cubics a then b (netgen.model.process.energy_law: its forces times
+    pe a(tscale) + b(tscale)); without one a = 0, b = 1 (the factor exactly 1)."""
+    u = model.process.get("strain_energy") if process.energy_moved(model) else None
+    return list(u["a"]) + list(u["b"]) if u else [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]

@@ -324,8 +324,9 @@ def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[di
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
     gains = [force_gain(c, ws) for c in model.coordinates]
+    scale = "{pu}*" if process.energy_moved(model) else ""  # the strain energy's process law
     return [
-        {"name": c.name, "expr": e}
+        {"name": c.name, "expr": f"{scale}({e})" if scale else e}
         for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
         if e != "0"
     ]
@@ -340,6 +341,10 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
+    # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
+    pv = process.film_scaled(model)
+    f = (lambda x, e: f"{{{x}{e}}}") if pv else (lambda x, e: x)
     rows = []
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
@@ -348,19 +353,20 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                 "node": f"w_{c.name}_{j + 1}",
                 "corner_hz": f"{corner / (2 * math.pi):.6g}",
                 "damping": f"{r:.6g}",
-                "g_in": num(corner / ws),
-                "r_out": num(ws / corner),
-                "g_force": num(r / (c.mass * ws)),
+                "g_in": f(num(corner / ws), "/pv"),
+                "r_out": f(num(ws / corner), "*pv"),
+                "g_force": f(num(r / (c.mass * ws)), "*pv"),
             }
             if noise:
+                rms = num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3])
                 row.update(
                     {
-                        "rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
-                        "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
+                        "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
+                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
                     }
                     | (
                         {
-                            "rn": num(noise_resistance(r, c.port_units[3])),
+                            "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
                             "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                         }
                         if process.enabled(model)

@@ -74,6 +74,9 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     visc = p["temp"].get("viscosity") or {}
     if active(model, "pd"):
         out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
+    if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
+        u = p["strain_energy"]
+        out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
     t0 = p["temperature_C"] + KELVIN
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
@@ -237,7 +240,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             if visc
             else ""
         )
-        text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
+        text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if declared(model, "etch"):
         e = p["etch"]
@@ -246,6 +249,12 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), valid {lo:g}..{hi:g} um, "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
             + f" (mass outline, holes and plates not etched: their area would change by up to {e['unetched_area_rel']:.1e})"
+        )
+    if energy_moved(model):
+        err = p["strain_energy"]["max_rel_error"]
+        parts.append(
+            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part), "
+            + (f"within {err:.1e}" if err else "exact")
         )
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
@@ -306,3 +315,38 @@ def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
     if not active(model, kind):
         return value
     return f"{'tscale' if kind == 'tscale' else f'{kind}_{name}'} * {value}"
+
+
+def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None = None) -> str:
+    """The text of the tscale law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
+    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share); "" where
+    the model has no such law (no tscale: the entry is a constant)."""
+    law = model.process.get("inertial") if enabled(model) else None
+    if not law:
+        return ""
+    f = law["t3_fraction"][kind][key][v]
+    f = f if w is None else f[w]
+    if f == 0.0:
+        return "tscale"
+    if f == 1.0:
+        return "tscale*tscale*tscale"
+    return f"({num(1.0 - f)}*tscale + {num(f)}*tscale*tscale*tscale)"
+
+
+def scaled_number(value: str, scale: str, braces: bool) -> str:
+    """`value` times the law text `scale` (inertial_scale): ngspice text in braces, else plain."""
+    if not scale:
+        return value
+    return f"{{{scale}*{value}}}" if braces else f"{scale}*{value}"
+
+
+def energy_moved(model: MacroModel) -> bool:
+    """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
+    times pu."""
+    return enabled(model) and bool(model.process.get("strain_energy"))
+
+
+def film_scaled(model: MacroModel) -> bool:
+    """The compressible film's branches follow the viscosity ratio pv (temp declared; damper r_j times
+    pv, corner over pv: netgen.model.process, r_j ~ mu_eff, the gas spring ~ the pressure)."""
+    return declared(model, "temp") and bool(model.process["temp"].get("viscosity"))

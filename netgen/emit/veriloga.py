@@ -235,6 +235,7 @@ def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) ->
         if expr == "0":
             continue
         var = f"fnl_{c.name}"
+        expr = f"pu * ({expr})" if process.energy_moved(model) else expr  # the strain energy's process law
         ctx["nonlinear"].append({"var": var, "expr": expr})
         row["fn_expr"] = row["fn_expr"].replace(") / ", f" + {var}) / ", 1)
 
@@ -244,6 +245,8 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
     (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
     enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
     rows = []
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled): noise_gain ~ r (corner / r)^2
+    pv = (" / pv", " * pv", " / (pv * pv * pv)") if process.film_scaled(model) else ("", "", "")
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
             rows.append(
@@ -251,9 +254,9 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                     "coord": c.name,
                     "u": f"u_{c.name}",
                     "node": f"w_{c.name}_{j + 1}",
-                    "g_in": num(corner / ws),
-                    "g_force": num(r / (c.mass * ws)),
-                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                    "g_in": num(corner / ws) + pv[0],
+                    "g_force": num(r / (c.mass * ws)) + pv[1],
+                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2) + pv[2],
                     "noise_temp": process.noise_temperature(model),
                     "corner_hz": f"{corner / (2 * math.pi):.6g}",
                     "damping": f"{r:.6g}",
@@ -266,7 +269,7 @@ def inertial_rows(model: MacroModel, ctx: dict, ws: float) -> None:
     """The input ports a_x, a_y, w_x, w_y, w_z (netgen.emit.inertial) added to the coordinates'
     right-hand sides, and the header lines and input list that name them."""
     rows = {r["name"]: r for r in ctx["coords"]}
-    for a in inertial.acceleration_gains(model, ws):
+    for a in inertial.acceleration_gains(model, ws, braces=False):
         rows[a["coord"]]["rhs"] += f" - {a['gain']} * V({a['port']})"
     for r in inertial.rate_expressions(model, ws, access=VA):
         rows[r["coord"]]["rhs"] += f"\n            + {r['expr']}"

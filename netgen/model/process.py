@@ -207,7 +207,7 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
     if p is None:
         return {}
     d = s.damping
-    film = bool(d and d.squeeze_film and d.film_model == "incompressible")
+    film = bool(d and d.squeeze_film)  # compressible: d_film is the branches' remainder damper
     per, errors = mechanics_laws(s, m, run, film, p)
     t0 = d.temperature if d else 300.0
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
@@ -233,8 +233,10 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
     }
     if p.wants("etch"):
         out["etch"] = etch_record(s, p, etch_err)
-    if d and d.film_model == "compressible":
-        out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
+    if m.strain_energy is not None:
+        out["strain_energy"] = energy_law(s, m, run, p)
+    if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
+        out["temp"]["film_branches"] = "the compressible film's branch dampers times the ratio, corners over it"
     return out
 
 
@@ -391,3 +393,69 @@ def finite_law(law: dict) -> bool:
     parts = [x for c in law.get("coordinates", []) for k in LAW_KEYS for x in c[k]]
     parts += [x for c in law.get("coordinates", []) for k in c.get("etch", {}) for x in c["etch"][k]]
     return all(math.isfinite(x) for x in parts)
+
+
+INERTIAL_KINDS = ("participation", "gyroscopic", "centrifugal", "centrifugal_force")
+PROBE_T = 2.0  # the thickness factor of the second evaluation separating the t and t^3 parts
+
+
+def inertial_law(s: Structure, data: dict, terms) -> dict:
+    """The tscale law of the inertial terms (MacroModel.inertial, netgen.mechanics.inertial): every
+    entry is an integral over the plate of rho (A A + z^2 B B) (fields affine in z through the
+    thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
+    (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
+    the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
+    Etch and escale leave them (the plate outline is not etched; no modulus). {} without tscale."""
+    if s.process is None or not s.process.wants("tscale") or not any(data.get(k) for k in INERTIAL_KINDS):
+        return {}
+    probe = terms(scaled(s, PROBE_T))
+    fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}
+    return {
+        "law": "X(tscale) = X ((1 - f) tscale + f tscale^3), f the entry's rotary share (exact)",
+        "t3_fraction": fractions,
+    }
+
+
+def rotary_share(nominal, probe) -> list:
+    """f = (X(2) - 2 X) / (6 X) per entry (0 where X = 0), snapped to 0 or 1 within ROUND_OFF."""
+    x, x2 = np.asarray(nominal, dtype=float), np.asarray(probe, dtype=float)
+    f = np.divide(x2 - PROBE_T * x, (PROBE_T**3 - PROBE_T) * x, out=np.zeros_like(x), where=x != 0.0)
+    f[np.abs(f) < ROUND_OFF] = 0.0
+    f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
+    return f.tolist()
+
+
+def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
+    """The fitted strain energy's law (MacroModel.nonlinear, netgen.mechanics StrainEnergy): U(q; t, E)
+    = (e A(t) + B(t)) U(q) with e the modulus factor (modulus_factor), A the part proportional to the
+    modulus (a beam's stretching energy E w t (int w'^2 / 2)^2 / 2L: A = t for shapes independent of
+    t) and B the rest (a given spring such as k_xy x y: B = 1), cubics in tscale from the energies
+    re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
+    the error includes the spread of that ratio over the points (a shape change with t). {} without
+    a strain energy or a parameter that moves it (tscale, escale, temp)."""
+    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp")):
+        return {}
+    q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)
+    u0 = np.asarray(m.strain_energy.energy(q), dtype=float)
+    ratios, spread = [], 0.0
+    modulus = p.wants("escale") or p.wants("temp")
+    for tau in fit_points(p):
+        row = []
+        for e in (1.0, E_PROBE) if modulus else (1.0,):
+            mt = m if tau == 1.0 and e == 1.0 else run(scaled(s, tau, e))
+            if mt.strain_energy is None:
+                raise ValueError("the strain energy vanishes with the thickness or modulus")
+            u = np.asarray(mt.strain_energy.energy(q), dtype=float)
+            r = float(u0 @ u / (u0 @ u0))
+            spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
+            row.append(r)
+        a = (row[1] - row[0]) / (E_PROBE - 1.0) if modulus else 0.0
+        ratios.append([a, row[0] - a])
+    coef, err = power_fit(fit_points(p), np.array(ratios), np.abs(np.array(ratios)).sum(axis=1, keepdims=True))
+    worst = max(err, spread)
+    return {
+        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest",
+        "a": [float(c) for c in coef[0]],
+        "b": [float(c) for c in coef[1]],
+        "max_rel_error": worst if worst > ROUND_OFF else 0.0,
+    }
