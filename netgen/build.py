@@ -320,8 +320,20 @@ def assemble(
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     range_z = s.sampling.range * (box_factors(s.sampling, len(m.names))[m.names.index("z")] if "z" in m.names else 1.0)
-    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z))
+    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), rest_capacitances(m))
     return model
+
+
+def rest_capacitances(m: Mechanics):
+    """structure -> its electrodes' capacitances at rest from a fresh extractor (the process laws'
+    re-runs of an etched structure: netgen.model.process.etch_record)."""
+
+    def at_rest(s: Structure) -> np.ndarray:
+        plate, shapes = plate_outline(s), electrodes(s)
+        prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
+        return np.asarray(prepared.capacitance(np.zeros((1, len(m.names)))), dtype=float)[0]
+
+    return at_rest
 
 
 def dielectric_layers(s: Structure) -> list[dict]:

@@ -243,9 +243,11 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         e = p["etch"]
         lo, hi = (x * 1e6 for x in e["range_m"])
         parts.append(
-            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), valid {lo:g}..{hi:g} um, "
+            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), the proof mass's "
+            f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
+            "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
-            + f" (mass outline, holes and plates not etched: their area would change by up to {e['unetched_area_rel']:.1e})"
+            + etch_neglect(e)
         )
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
@@ -258,6 +260,17 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         "Process parameters (netgen/model/process.py, declared in [process]): "
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
+    )
+
+
+def etch_neglect(e: dict) -> str:
+    """The header's statement of what the etch laws leave out: the capacitances (fits at the drawn
+    geometry), by the largest change at rest the extractor found at the range's ends."""
+    if "unetched_capacitance_rel" not in e:
+        return " (capacitances not etched)"
+    return (
+        f" (capacitances not etched: at the range's ends they change by up to {e['unetched_capacitance_rel']:.1e}"
+        f" at rest, electrode {e['unetched_capacitance_electrode']})"
     )
 
 

@@ -199,10 +199,14 @@ def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], st
     return out, "" if out else "no electrode set lies above or below the conductor"
 
 
-def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float) -> dict:
+def process_laws(
+    s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float, at_rest=None
+) -> dict:
     """The model's process entry (MacroModel.process): laws, ranges and errors of the parameters the
     structure's [process] declares (netgen.structure.process_table checked them against the
-    structure); {} without [process] (nothing is re-run, the model is what it was)."""
+    structure); {} without [process] (nothing is re-run, the model is what it was). `at_rest`:
+    structure -> its electrodes' capacitances at rest (netgen.build.rest_capacitances), for the
+    etch record's statement of the capacitance the laws leave unetched (None: not stated)."""
     p = s.process
     if p is None:
         return {}
@@ -232,7 +236,7 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err)
+        out["etch"] = etch_record(s, p, etch_err, at_rest, [e.name for e in electrodes])
     if d and d.film_model == "compressible":
         out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
     return out
@@ -243,14 +247,19 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def etched(s: Structure, etch: float) -> Structure:
-    """The structure with every flexure beam etched by `etch` per edge (m; negative: under-etch): beam,
-    truss and thigh widths w - 2 etch. Beam lengths and the beams' spacing (centre to centre) stay:
-    they are set by the anchors' and the mass's edges, which recede together; the mass outline, its
-    holes and the plates are not etched (etch_record states how much that neglects)."""
+    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch): flexure
+    beam, truss and thigh widths w - 2 etch, the proof mass's outline (length, width) - 2 etch and its
+    etch holes' side + 2 etch on the drawn grid (pitch and count stay: lithography places them). Beam
+    lengths and the beams' spacing (centre to centre) stay: they are set by the anchors' and the
+    mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
+    capacitances would change)."""
     c: Any = s.conductor
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
-    return dataclasses.replace(s, conductor=dataclasses.replace(c, flexure=dataclasses.replace(f, **w)))
+    outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
+    holes = {"hole": c.hole + 2 * etch, "hole_grid": c.holes()} if c.hole else {}
+    changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
+    return dataclasses.replace(s, conductor=changed)
 
 
 def etch_points(p: Process) -> tuple[float, ...]:
@@ -336,26 +345,30 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
     return worst
 
 
-def etch_record(s: Structure, p: Process, err: float) -> dict:
-    """The etch entry of the process record: range, law error, the polynomial variable, and the relative
-    change of the mass outline's area (holes included) the laws neglect at the range's ends."""
+def etch_record(s: Structure, p: Process, err: float, at_rest=None, names: list[str] | None = None) -> dict:
+    """The etch entry of the process record: range, law error, the polynomial variable, the etched
+    mass outline's relative area change at the range's ends (holes included: the mass and inertia
+    laws carry it exactly), and, with `at_rest`, the largest relative change of an electrode's
+    capacitance at rest at the range's ends (the fits are not etched: what the model neglects) and
+    that electrode's name."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
     def area(e: float) -> float:
-        return (
-            (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
-            if c.hole
-            else (c.length - 2 * e) * (c.width - 2 * e)
-        )
+        return (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
 
-    a0 = area(0.0)
-    return {
+    out = {
         "range_m": list(p.etch_range),
         "max_rel_error": float(err),
         "variable": "etch / 1 um",
-        "unetched_area_rel": max(abs(area(e) / a0 - 1.0) for e in p.etch_range),
+        "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
+    if at_rest is not None:
+        c0 = at_rest(s)
+        rel = np.max([np.abs(at_rest(etched(s, e)) / c0 - 1.0) for e in p.etch_range], axis=0)
+        k = int(np.argmax(rel))
+        out |= {"unetched_capacitance_rel": float(rel[k]), "unetched_capacitance_electrode": (names or [""])[k]}
+    return out
 
 
 def kelvin(temp_c: float) -> float:

@@ -307,8 +307,12 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
             c.fail("process.etch.range_m", "must be a list of 2 numbers")
         for k, x in enumerate(etch["range_m"]):
             c.number(f"process.etch.range_m[{k}]", x)
-        for key in ("max_rel_error", "unetched_area_rel"):
-            c.number(f"process.etch.{key}", etch.get(key))
+        c.number("process.etch.max_rel_error", etch.get("max_rel_error"))
+        for key in ("area_rel", "unetched_capacitance_rel"):  # stated in the header (netgen.emit.process)
+            if key in etch:
+                c.number(f"process.etch.{key}", etch[key])
+        if "unetched_capacitance_electrode" in etch:
+            c.name("process.etch.unetched_capacitance_electrode", etch["unetched_capacitance_electrode"])
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))

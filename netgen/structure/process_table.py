@@ -99,8 +99,9 @@ def read_etch_range(rd: Reader, t: dict, params: tuple[str, ...]) -> tuple[float
 
 
 def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
-    """etch narrows a proof mass's flexure beams (w - 2 etch): it needs such flexures, no comb fingers
-    (their gap and overlap laws are not built) and every beam still wider than 0 at the range's top."""
+    """etch narrows a proof mass's flexure beams (w - 2 etch) and widens its etch holes: it needs such
+    flexures, no comb fingers (their gap and overlap laws are not built), every beam still wider than
+    0 at the range's top and holes that neither close nor merge over the range."""
     where = "process.parameters"
     flex = getattr(conductor, "flexure", None)
     if getattr(conductor, "kind", "") != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
@@ -114,6 +115,13 @@ def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
             where,
             "etch with comb fingers: the laws of their gap (g + 2 etch) and finger width are not built",
             "remove 'etch' from process.parameters, or the comb electrodes",
+        )
+    hole, pitch = getattr(conductor, "hole", 0.0), getattr(conductor, "hole_pitch", 0.0)
+    if hole and not (hole + 2 * p.etch_range[0] > 0.0 and hole + 2 * p.etch_range[1] < pitch):
+        raise rd.fail(
+            "process.etch_range",
+            f"the etch holes (side {hole:g} m + 2 etch, pitch {pitch:g} m) close or merge within etch_range",
+            "narrow etch_range (hole + 2 lo > 0 and hole + 2 hi < hole_pitch)",
         )
     widths = [w for w in (flex.width, flex.truss_width, flex.thigh_width) if w]
     if 2 * p.etch_range[1] >= 0.5 * min(widths):
