@@ -320,20 +320,23 @@ def assemble(
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     range_z = s.sampling.range * (box_factors(s.sampling, len(m.names))[m.names.index("z")] if "z" in m.names else 1.0)
-    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), rest_capacitances(m))
+    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), capacitance_sampler(s, m, scales))
     return model
 
 
-def rest_capacitances(m: Mechanics):
-    """structure -> its electrodes' capacitances at rest from a fresh extractor (the process laws'
-    re-runs of an etched structure: netgen.model.process.etch_record)."""
+def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
+    """(structure, n) -> its electrodes' capacitances from a fresh extractor at rest and at n random
+    points of s0's fit box (fixed seed: the same points for every structure; rows where a gap closes
+    are NaN), for the process laws' re-runs of an etched structure (netgen.model.process.etch_record)."""
+    half = s0.sampling.range * box_factors(s0.sampling, len(m.names)) * scales
 
-    def at_rest(s: Structure) -> np.ndarray:
+    def extract(s: Structure, n: int) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
         prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
-        return np.asarray(prepared.capacitance(np.zeros((1, len(m.names)))), dtype=float)[0]
+        q = np.vstack([np.zeros(len(m.names)), np.random.default_rng(0).uniform(-1.0, 1.0, (n, len(m.names))) * half])
+        return np.asarray(prepared.capacitance(q), dtype=float)
 
-    return at_rest
+    return extract
 
 
 def dielectric_layers(s: Structure) -> list[dict]:

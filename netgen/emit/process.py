@@ -75,6 +75,7 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     if active(model, "pd"):
         out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
     t0 = p["temperature_C"] + KELVIN
+    out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
             out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
@@ -89,6 +90,21 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
             out.append((f"pd_{c.name}", f"{damp}/{num(c.damping)}"))
             out.append((f"pt_{c.name}", f"pd_{c.name}*({temp} + {num(KELVIN)})/{num(t0)}"))
     return out
+
+
+def capacitance_ratios(model: MacroModel) -> dict[str, list[float]]:
+    """electrode -> its capacitance's etch ratio (a cubic in etch / 1 um, netgen.model.process.
+    capacitance_laws) where etch is declared; the emitters scale the electrode's charge and forces by
+    pc_<electrode>. {} otherwise."""
+    if not declared(model, "etch"):
+        return {}
+    return {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
+
+
+def charge_scale(model: MacroModel, electrode: str, value: str) -> str:
+    """ngspice text of `value` times the electrode's capacitance ratio pc_<electrode>, in braces;
+    `value` unchanged without one."""
+    return f"{{pc_{electrode}*{value}}}" if electrode in capacitance_ratios(model) else value
 
 
 def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
@@ -264,13 +280,14 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 
 
 def etch_neglect(e: dict) -> str:
-    """The header's statement of what the etch laws leave out: the capacitances (fits at the drawn
-    geometry), by the largest change at rest the extractor found at the range's ends."""
-    if "unetched_capacitance_rel" not in e:
+    """The header's statement of the capacitances under etch: each electrode's C times its ratio
+    pc_<electrode> (netgen.model.process.capacitance_laws) and that law's error over the fit box."""
+    if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
+    err = e["capacitance_max_rel_error"]
     return (
-        f" (capacitances not etched: at the range's ends they change by up to {e['unetched_capacitance_rel']:.1e}"
-        f" at rest, electrode {e['unetched_capacitance_electrode']})"
+        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline and holes, "
+        + (f"within {err:.1e} over the fit box" if err else "exact")
     )
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from . import process
 from .common import clamp_expr, dv2_node, node, num, poly_expr, slope_expr
 
 ROUND = num(2.0**40)  # the copies' grid: 2^-40 ~ 9e-13 of a state (O(1)) or a volt
@@ -104,10 +105,22 @@ def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: i
     return sep.join(live).replace("+ -", "- ") if live else "0.0"
 
 
+def ratio(model: MacroModel, electrode: str) -> str:
+    """ "pc_<electrode> * " where the electrode's capacitance has an etch ratio (netgen.emit.process.
+    capacitance_ratios: it scales C, so the charge, the forces and their Jacobian), else ""."""
+    return f"pc_{electrode} * " if electrode in process.capacitance_ratios(model) else ""
+
+
+def dv2_value(model: MacroModel, electrode: str) -> str:
+    """The frozen dv2f of one electrode times its etch ratio (ratio)."""
+    return f"{ratio(model, electrode)}{vf(electrode)} * {vf(electrode)}"
+
+
 def _term_rows(
-    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold
+    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold, dv2f: str
 ) -> list[dict]:
-    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`)."""
+    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`);
+    dv2f: the electrode's frozen dv2 text (dv2_value)."""
     rows = []
     for k, poly in enumerate(f.polys):
         p, ck = node(f.electrode, k), clamps[k] if clamps else None
@@ -120,7 +133,7 @@ def _term_rows(
             "p_expr": f"({text} >= {num(ck[0])} ? {text} : {clamp_expr(text, *ck)})" if ck else text,
         }
         if f.target != "direct":
-            w, dv2f = w_var(f.electrode, k), f"{vf(f.electrode)} * {vf(f.electrode)}"
+            w = w_var(f.electrode, k)
             if ck:
                 knee, floor = ck
                 slope = slope_expr(p, knee, floor)
@@ -178,7 +191,7 @@ def stiffness(model: MacroModel, names: list[str], shifted: dict | None = None) 
             terms: list[str | None] = []
             for f in model.capacitances:
                 names = (shifted or {}).get(f.electrode, all_names)
-                dv2f = f"{vf(f.electrode)} * {vf(f.electrode)}"
+                dv2f = dv2_value(model, f.electrode)
                 for k, p in enumerate(f.polys):
                     hess = p.derivative(v).derivative(w)
                     if f.target == "direct":
@@ -204,8 +217,10 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
     clamps = model.term_clamps()
     for i, (row, f) in enumerate(zip(fits, model.capacitances)):
         own = (shifted or {}).get(f.electrode, names)
-        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold)
-        row["charge"] = charge(f, model, own, fold)
+        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold, dv2_value(model, f.electrode))
+        scale = ratio(model, f.electrode)
+        row["charge"] = f"{scale}({charge(f, model, own, fold)})" if scale else charge(f, model, own, fold)
+        row["dv2_scale"] = scale
         row["vf"] = vf(f.electrode)
     return {
         "frozen": [

@@ -43,12 +43,24 @@ def fit_rows(model: MacroModel, f) -> dict:
     """Template rows of one electrode in the xspice form: node c_i (driven by the code model into
     1 ohm), C_i(0) as a linear capacitor, the rest of the charge on the node qn_i (charge_node)."""
     c0 = rest_capacitance(f, model.ncoords)
-    cs = c_node(f.electrode)
+    cs, e = c_node(f.electrode), f.electrode
     return {
         "sums": [f"R{cs} {cs} 0 1"],
-        "c0": num(f.c_ref * c0),
-        "charge": ngspice.charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref),
+        "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
+        "charge": ngspice.charge_node(e, f"v({cs})", model.plate, process.charge_scale(model, e, num(f.c_ref))),
     }
+
+
+def etch_voltages(model: MacroModel) -> tuple[list[str], dict[str, str]]:
+    """The code model's voltage inputs of the electrodes with an etch capacitance ratio pc_<e>
+    (netgen.emit.process.capacitance_ratios): a VCVS node pv_<e> = sqrt(pc_<e>) (V_e - V_plate), so
+    the compiled forces (quadratic in the voltage) carry pc_<e>; the charges scale on their capacitors
+    (fit_rows). Lines and electrode -> its input."""
+    lines, inputs = [], {}
+    for e in process.capacitance_ratios(model):
+        lines.append(f"Epv_{e} pv_{e} 0 {e} {model.plate} {{sqrt(pc_{e})}}")
+        inputs[e] = f"%vd(pv_{e} 0)"
+    return lines, inputs
 
 
 def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, int]]:
@@ -114,7 +126,8 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
     xs = " ".join([f"xs_{c.name}" for c in model.coordinates] + extra)
     us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[z].name}"] * len(extra))
-    ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
+    _, scaled = etch_voltages(model)
+    ve = " ".join(scaled.get(f.electrode, f"%vd({f.electrode} {model.plate})") for f in model.capacitances)
     cs = " ".join(c_node(f.electrode) for f in model.capacitances)
     return {
         "name": f"{model.name}_es",
@@ -134,6 +147,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
     ctx = ngspice.mechanics_context(model, noise)
     ctx["gap_shift"] = process.gap_networks(model, every=True)  # the code model's extra columns
+    ctx["etch_voltages"] = etch_voltages(model)[0]
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees
         row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})

@@ -200,13 +200,13 @@ def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], st
 
 
 def process_laws(
-    s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float, at_rest=None
+    s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float, extract=None
 ) -> dict:
     """The model's process entry (MacroModel.process): laws, ranges and errors of the parameters the
     structure's [process] declares (netgen.structure.process_table checked them against the
-    structure); {} without [process] (nothing is re-run, the model is what it was). `at_rest`:
-    structure -> its electrodes' capacitances at rest (netgen.build.rest_capacitances), for the
-    etch record's statement of the capacitance the laws leave unetched (None: not stated)."""
+    structure); {} without [process] (nothing is re-run, the model is what it was). `extract`:
+    (structure, n) -> the extractor's capacitances at rest and at n points of the fit box
+    (netgen.build.capacitance_sampler), for the etch's capacitance laws (None: none built)."""
     p = s.process
     if p is None:
         return {}
@@ -236,7 +236,7 @@ def process_laws(
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err, at_rest, [e.name for e in electrodes])
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes])
     if d and d.film_model == "compressible":
         out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
     return out
@@ -345,12 +345,15 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
     return worst
 
 
-def etch_record(s: Structure, p: Process, err: float, at_rest=None, names: list[str] | None = None) -> dict:
+CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios are checked at (and rest)
+
+
+def etch_record(s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None) -> dict:
     """The etch entry of the process record: range, law error, the polynomial variable, the etched
     mass outline's relative area change at the range's ends (holes included: the mass and inertia
-    laws carry it exactly), and, with `at_rest`, the largest relative change of an electrode's
-    capacitance at rest at the range's ends (the fits are not etched: what the model neglects) and
-    that electrode's name."""
+    laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
+    and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
+    laws (capacitance_laws)."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
@@ -363,12 +366,47 @@ def etch_record(s: Structure, p: Process, err: float, at_rest=None, names: list[
         "variable": "etch / 1 um",
         "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
-    if at_rest is not None:
-        c0 = at_rest(s)
-        rel = np.max([np.abs(at_rest(etched(s, e)) / c0 - 1.0) for e in p.etch_range], axis=0)
-        k = int(np.argmax(rel))
-        out |= {"unetched_capacitance_rel": float(rel[k]), "unetched_capacitance_electrode": (names or [""])[k]}
+    if extract is not None:
+        out |= capacitance_laws(s, p, extract, names or [])
     return out
+
+
+def capacitance_laws(s: Structure, p: Process, extract, names: list[str]) -> dict:
+    """Each electrode's capacitance ratio C(x; etch) / C(x; 0) as a cubic in etch / 1 um (1 at 0),
+    from the extractor at rest at etch_points: the etched outline and holes change the area a plate
+    faces (a perforated mass's fill factor, netgen.electrostatics.perforation), which scales C nearly
+    uniformly over the box. The stated error is the largest |ratio C(x; 0) / C(x; etch) - 1| over rest
+    and CAPACITANCE_POINTS random points of the fit box at the range's ends and the cubic's residual at
+    the etch points (the fill factor's gap dependence makes the ratio vary a little with x)."""
+    points = etch_points(p)
+    rest = np.array([extract(etched(s, e), 0)[0] for e in points])
+    u = tuple(e / ETCH_UNIT for e in points)
+    coef, err = power_fit(u, rest, np.abs(rest), nominal=0.0)
+    c0 = rest[points.index(0.0)]
+    ratios = [[float(x / c0[k]) for x in coef[k]] for k in range(len(c0))]
+    nominal = extract(s, CAPACITANCE_POINTS)
+    for e in p.etch_range:
+        ratio = np.array([ratio_value(r, e) for r in ratios])
+        moved = extract(etched(s, e), CAPACITANCE_POINTS)
+        ok = np.isfinite(moved).all(axis=1) & np.isfinite(nominal).all(axis=1)
+        err = max(err, float(np.max(np.abs(ratio * nominal[ok] / moved[ok] - 1.0), initial=0.0)))
+    laws = [{"electrode": n, "ratio": r} for n, r in zip(names, ratios) if r != [1.0, 0.0, 0.0, 0.0]]
+    return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+
+
+def ratio_value(coeffs: list[float], etch: float) -> float:
+    """An etch ratio (cubic in etch / ETCH_UNIT) at `etch` (m)."""
+    u = etch / ETCH_UNIT
+    return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
+
+
+def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
+    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x and the etch bias:
+    the fits times each electrode's etch ratio (the arithmetic the emitters render)."""
+    c = model.capacitance(x)
+    laws = {r["electrode"]: r["ratio"] for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    ratio = [ratio_value(laws[f.electrode], etch) if f.electrode in laws else 1.0 for f in model.capacitances]
+    return c * np.array(ratio)
 
 
 def kelvin(temp_c: float) -> float:

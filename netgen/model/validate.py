@@ -266,6 +266,20 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool) -> None:
             c.number(f"{where}.{key}[{k}]", x)
 
 
+def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...]) -> None:
+    """The etch's capacitance ratios (netgen.model.process.capacitance_laws): per electrode one of the
+    model's electrode names (the emitters name the parameter pc_<electrode>) and four numbers."""
+    if not isinstance(laws, list):
+        c.fail("process.etch.capacitance", "must be a list of {electrode, ratio} objects")
+    for i, law in enumerate(laws):
+        where = f"process.etch.capacitance[{i}]"
+        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
+            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
+        c.choice(f"{where}.electrode", law.get("electrode"), names)
+        for k, x in enumerate(law["ratio"]):
+            c.number(f"{where}.ratio[{k}]", x)
+
+
 def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int = 0) -> None:
     """The optional process record (netgen.model.process), whose numbers and names the emitters write
     into the netlist (netgen.emit.process): its parameters are known names, its laws finite numbers
@@ -308,11 +322,10 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
         for k, x in enumerate(etch["range_m"]):
             c.number(f"process.etch.range_m[{k}]", x)
         c.number("process.etch.max_rel_error", etch.get("max_rel_error"))
-        for key in ("area_rel", "unetched_capacitance_rel"):  # stated in the header (netgen.emit.process)
+        for key in ("area_rel", "capacitance_max_rel_error"):  # stated in the header (netgen.emit.process)
             if key in etch:
                 c.number(f"process.etch.{key}", etch[key])
-        if "unetched_capacitance_electrode" in etch:
-            c.name("process.etch.unetched_capacitance_electrode", etch["unetched_capacitance_electrode"])
+        check_capacitance_laws(c, etch.get("capacitance", []), names)
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))

@@ -14,7 +14,8 @@ Tolerances:
   error (f ~ sqrt(k): a relative k error e gives e / 2 in f), whichever is larger.
 - with tscale as well, the law is the product of the tscale and etch laws; at the corners of the
   box its misfit is part of the stated error, so the stiffness there is held to that error.
-- .ac of the .lib, the _xspice.lib and the .va through OSDI (a linear model, 1/H = k - m w^2):
+- .ac of the .lib, the _xspice.lib and the .va through OSDI (a linear model, 1/H = k - m w^2; m of
+  the etched outline, rho t (200 um - 2 etch)^2):
   ngspice's linear solve to round-off, 1e-9, against the clamped-guided closed form (exact law).
 """
 
@@ -30,7 +31,7 @@ from netgen.build import build_model
 from netgen.core.errors import StructureError
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
-from netgen.model.process import coordinate_values, process_laws
+from netgen.model.process import capacitance_at, coordinate_values, process_laws
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
@@ -73,23 +74,22 @@ def test_clamped_guided_against_closed_form(guided_laws, etch):
 def test_full_rebuild_at_the_etched_widths(guided_model, etch):
     """The whole build of the file rewritten at w - 2 etch and the mass's side 200 um - 2 etch: its
     modal frequency against the law's (exact law: 1e-9 as above); its capacitances at 100 points of
-    the fit box against the nominal model's (the fits are not etched) within the larger fit error
-    plus the capacitance change the header states (unetched_capacitance_rel), which for the plate
-    under the whole mass (no fringe) is the area's, 1 - (1 - 2 etch / 200 um)^2 at the range's ends
-    (stated relative to the nominal C, so relative to the rebuild's C it is stated / (1 - stated))."""
+    the fit box against the nominal model's times the etch ratio (netgen.model.process.capacitance_at)
+    within the larger fit error plus the ratio's stated error (0 here: the plate is wider than the
+    mass, so C ~ (200 um - 2 etch)^2 exactly, a quadratic), and the ratio against that closed form."""
     side = 200.0 - 2 * etch * 1e6
     model = build_model(parse_structure(guided(w=2.0 - 2 * etch * 1e6, side=side), "cg.toml"))
     c, ref = guided_model.coordinates[0], model.coordinates[0]
     m, k, _ = coordinate_values(guided_model.process, 0, etch=etch)
     assert math.sqrt(k / m) == pytest.approx(math.sqrt(ref.stiffness / ref.mass), rel=1e-9)
-    stated = guided_model.process["etch"]["unetched_capacitance_rel"]
-    assert stated == pytest.approx(max(abs(1 - (1 - 2 * e / 200e-6) ** 2) for e in (-0.2e-6, 0.3e-6)), rel=1e-9)
+    law = guided_model.process["etch"]
+    assert law["capacitance_max_rel_error"] == 0.0
+    (ratio,) = [r["ratio"] for r in law["capacitance"]]
+    assert ratio == pytest.approx([1.0, -0.02, 1e-4, 0.0], abs=1e-12)  # (1 - 2 (etch / 1 um) / 200)^2
     q = np.random.default_rng(7).uniform(-0.2, 0.2, (100, 1))
     errs = [f.max_rel_error for f in guided_model.capacitances + model.capacitances]
     assert ref.scale == c.scale  # the same touching amplitude: the same scaled points
-    np.testing.assert_allclose(
-        guided_model.capacitance(q), model.capacitance(q), rtol=max(errs) + stated / (1 - stated)
-    )
+    np.testing.assert_allclose(capacitance_at(guided_model, q, etch), model.capacitance(q), rtol=max(errs) + 1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -135,7 +135,7 @@ X1 0 0 fz xz cg etch={etch!r}
     inv = 1.0 / plot["v(xz)"]  # x_z in um per uN = m/N: 1/H in N/m
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", ETCHES)
@@ -162,7 +162,7 @@ write circuit.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
@@ -188,7 +188,7 @@ write ac.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
 
 
 @pytest.mark.parametrize(

@@ -75,6 +75,8 @@ width = "{w} um"
 name = "bot"
 side = "below"
 gap = "2 um"
+x = ["-110 um", "110 um"]  # beyond the mass: the plate faces its whole (etched) outline
+y = ["-110 um", "110 um"]
 [coordinates]
 rigid = ["z"]
 [sampling]

@@ -1,0 +1,113 @@
+"""The etch's capacitance ratio pc_<electrode> (netgen.model.process.capacitance_laws) in every emitted
+form: the proof mass on four clamped-guided beams over a plate wider than the mass
+(tests/oracles/process_cases.GUIDED), whose facing area is the etched outline (200 um - 2 etch)^2,
+in the .lib (ngspice 39 and 46), the _xspice.lib (netgen_es code model, ngspice 39 as installed) and
+the .va through OSDI (ngspice 46).
+
+Tolerances:
+- C at rest from .ac of the electrode current (I = j w C V, the mass still: no DC bias, no force)
+  against eps (200 um - 2 etch)^2 / g: fringe "none" makes the 1/P fit exact to round-off and the
+  ratio ((L - 2 etch) / L)^2 a quadratic the cubic carries exactly; ngspice's linear AC solve is exact
+  to round-off: 1e-9.
+- the static deflection at 10 V (56 % of the 17.8 V pull-in) from .op against the root
+  of k(etch) z = eps A(etch) V^2 / (2 (g - z)^2), with k_z(etch) = k_z (1 - 2 etch / w) (a beam's
+  axial and vertical stiffness ~ w, the law exact: tests/model/test_process_etch.py): the model's
+  force is exact as above, so the error is Newton's last step at reltol 1e-12 and vntol 1e-15 V (an
+  x_z of ~0.1 um read in um): 1e-7 covers the quadratic convergence's last correction by decades.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from netgen import emit
+from netgen.build import build_model
+from netgen.core.constants import EPS0
+from netgen.emit import ngspice as emit_ngspice
+from netgen.sim.ngspice import run_ngspice
+from netgen.structure import parse_structure
+from netgen.testbench.sigma_delta import ngspice as sdn
+from tests.fixtures import NGSPICE
+from tests.oracles.process_cases import ETCHES, RANGE, guided
+
+GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
+OPTIONS = ".options reltol=1e-12 vntol=1e-15 abstol=1e-20"
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(parse_structure(guided(process='[process]\nparameters = ["etch"]' + RANGE), "cg.toml"))
+
+
+def area(etch: float) -> float:
+    return (SIDE - 2 * etch) ** 2
+
+
+def deflection(model, etch: float) -> float:
+    """The closed-form static z (m, toward the plate below: negative) at VOLTS."""
+    k = model.coordinates[0].stiffness * (1 - 2 * etch / 2e-6)
+    return brentq(lambda z: k * z + EPS0 * area(etch) * VOLTS**2 / (2 * (GAP + z) ** 2), -GAP / 3, 0.0, xtol=1e-22)
+
+
+def decks(include: str, etch: float, control: str = "") -> tuple[str, str]:
+    """(.ac deck of C at rest, .op deck of the deflection at VOLTS) around one instance at `etch`."""
+    ac = f"""* cap
+.include {include}
+Vd d 0 DC 0 AC 1
+Vp p 0 0
+X1 d p 0 xz cg etch={etch!r}
+.ac lin 1 1k 1k
+{control}
+.end
+"""
+    op = f"""* op
+.include {include}
+Vd d 0 DC {VOLTS}
+X1 d 0 0 xz cg etch={etch!r}
+{OPTIONS}
+.op
+{control}
+.end
+"""
+    return ac, op
+
+
+def check(model, ac_plot, op_plot, etch: float) -> None:
+    """C at rest and the deflection against the closed forms (module docstring)."""
+    cap = abs(float(np.imag(ac_plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
+    assert cap == pytest.approx(EPS0 * area(etch) / GAP, rel=1e-9)
+    z = float(np.real(op_plot["v(xz)"])[0]) * 1e-6  # x_z in um
+    assert z == pytest.approx(deflection(model, etch), rel=1e-7)
+
+
+def control_block(lines: list[str], raw: str) -> str:
+    return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_lib(model, tmp_path, ngspice_version, etch):
+    (tmp_path / "cg.lib").write_text(emit_ngspice.subcircuit(model))
+    ac, op = decks(str(tmp_path / "cg.lib"), etch)
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_xspice(model, tmp_path, etch):
+    xlib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
+    ac, _ = decks(str(xlib.resolve()), etch, control_block(control, "ac.raw"))
+    _, op = decks(str(xlib.resolve()), etch, control_block(control, "op.raw"))
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_osdi(model, tmp_path, monkeypatch, etch):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(model, tmp_path, "osdi")
+    pre = [f"pre_osdi {tmp_path / 'cg.osdi'}"]
+    ac, _ = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "ac.raw"))
+    _, op = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "op.raw"))
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
