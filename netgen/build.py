@@ -325,16 +325,17 @@ def assemble(
 
 
 def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
-    """(structure, n) -> its electrodes' capacitances from a fresh extractor at rest and at n random
-    points of s0's fit box (fixed seed: the same points for every structure; rows where a gap closes
-    are NaN), for the process laws' re-runs of an etched structure (netgen.model.process.etch_record)."""
+    """(structure, n, offset) -> its electrodes' capacitances from a fresh extractor at rest and at n
+    random points of s0's fit box (fixed seed: the same points for every structure), all moved by the
+    displacement `offset` (SI per coordinate; None: none), for the process laws' re-runs of an etched
+    structure (netgen.model.process.etch_record)."""
     half = s0.sampling.range * box_factors(s0.sampling, len(m.names)) * scales
 
-    def extract(s: Structure, n: int) -> np.ndarray:
+    def extract(s: Structure, n: int, offset: np.ndarray | None = None) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
         prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
         q = np.vstack([np.zeros(len(m.names)), np.random.default_rng(0).uniform(-1.0, 1.0, (n, len(m.names))) * half])
-        return np.asarray(prepared.capacitance(q), dtype=float)
+        return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
 
     return extract
 

@@ -179,6 +179,7 @@ def add_process(ctx: dict, model: MacroModel, gaps: bool = True) -> None:
         ctx["subckt_params"] = f"{old} {extra}" if old else f"\n+ params: {extra}"
     ctx["process_params"] = [f".param {n} = {{{e}}}" for n, e in process.factors(model)]
     ctx["gap_shift"] = process.gap_networks(model) if gaps else []
+    ctx["etch_shift"] = process.etch_networks(model)
     ctx["process_text"] = process.header_text(model, gaps)
 
 

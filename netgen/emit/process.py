@@ -101,6 +101,42 @@ def capacitance_ratios(model: MacroModel) -> dict[str, list[float]]:
     return {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
 
 
+def etch_columns(model: MacroModel) -> list[tuple[str, str, float]]:
+    """The distinct etch shifts of the combs' capacitance terms (netgen.model.process.capacitance_laws):
+    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order."""
+    if not declared(model, "etch"):
+        return []
+    scale = {c.name: c.scale for c in model.coordinates}
+    out: list[tuple[str, str, float]] = []
+    for r in model.process["etch"].get("capacitance", []):
+        for q, k in r.get("shift", {}).items():
+            if not any(c[1] == q and c[2] == k / scale[q] for c in out):
+                out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
+    return out
+
+
+def etch_states(model: MacroModel) -> dict[str, dict[str, str]]:
+    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns)."""
+    scale = {c.name: c.scale for c in model.coordinates}
+    cols = {(q, k): n for n, q, k in etch_columns(model)}
+    out: dict[str, dict[str, str]] = {}
+    if not cols:
+        return out
+    for r in model.process["etch"].get("capacitance", []):
+        if r.get("shift"):
+            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in r["shift"].items()}
+    return out
+
+
+def etch_networks(model: MacroModel) -> list[str]:
+    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns): 1 ohm, a
+    VCCS and a parameter current source, linear."""
+    lines = []
+    for n, q, k in etch_columns(model):
+        lines += [f"R{n} {n} 0 1", f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
+    return lines
+
+
 def charge_scale(model: MacroModel, electrode: str, value: str) -> str:
     """ngspice text of `value` times the electrode's capacitance ratio pc_<electrode>, in braces;
     `value` unchanged without one."""
@@ -165,7 +201,9 @@ def node_sets(model: MacroModel) -> set[str]:
 
 def electrode_state(model: MacroModel, electrode: str, state: list[str]) -> list[str]:
     """The state names the plate terms of `electrode` read: xs_z replaced by its set's shifted node
-    where the set has one (node_sets)."""
+    where the set has one (node_sets), a comb's xs_q by its etch-shifted node (etch_states)."""
+    etch = {f"xs_{q}": n for q, n in etch_states(model).get(electrode, {}).items()}
+    state = [etch.get(s, s) for s in state]
     shift = gap_shifts(model).get(electrode)
     if shift is None or shift[0] not in node_sets(model):
         return state
@@ -281,12 +319,20 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 
 def etch_neglect(e: dict) -> str:
     """The header's statement of the capacitances under etch: each electrode's C times its ratio
-    pc_<electrode> (netgen.model.process.capacitance_laws) and that law's error over the fit box."""
+    pc_<electrode> (netgen.model.process.capacitance_laws), a comb's fit read at its etch-shifted state
+    xe (gap g + 2 etch, overlap - 2 etch), and that law's error over the fit box."""
     if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
     err = e["capacitance_max_rel_error"]
+    combs = any(r.get("shift") for r in e.get("capacitance", []))
     return (
-        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline and holes, "
+        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
+        + (
+            " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box moves with etch; stops stay at the drawn gaps)"
+            if combs
+            else ""
+        )
+        + ", "
         + (f"within {err:.1e} over the fit box" if err else "exact")
     )
 

@@ -63,24 +63,33 @@ def etch_voltages(model: MacroModel) -> tuple[list[str], dict[str, str]]:
     return lines, inputs
 
 
-def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, int]]:
-    """The code model's extra state columns for the gap offsets (netgen.emit.process): one node
-    xg_<set> = xs_z - sign dg_<set> / L_z per gap set, and electrode -> its column. An electrode of
-    the set reads its z exponents, and a stop point on it its z normal, from that column; the
-    column's force output goes to u_z with z's gain (dC/dxg = dC/dxs_z): the shift exact, the
-    compiled code model unchanged."""
+def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, dict[int, int]], list[int]]:
+    """The code model's extra state columns for the gap offsets and the combs' etch shifts
+    (netgen.emit.process): one node xg_<set> = xs_z - sign dg_<set> / L_z per gap set and one node
+    xe_<q>_<i> = xs_q + (shift / L_q) etch per etch shift; electrode -> {coordinate index: the column
+    its terms read instead}; and per extra column its coordinate's index. A column's force output goes
+    to that coordinate's u with its gain (dC/dxg = dC/dxs): the shifts exact, the compiled code model
+    unchanged."""
     if not process.enabled(model):
-        return [], {}
+        return [], {}, []
     n, sets = model.ncoords, [g["set"] for g in model.process["gaps"]]
-    shifts = process.gap_shifts(model)
-    return [f"xg_{s}" for s in sets], {e: n + sets.index(g) for e, (g, _) in shifts.items()}
+    names = [c.name for c in model.coordinates]
+    extra = [f"xg_{s}" for s in sets] + [c[0] for c in process.etch_columns(model)]
+    coords = [names.index("z")] * len(sets) + [names.index(c[1]) for c in process.etch_columns(model)]
+    column: dict[str, dict[int, int]] = {
+        e: {names.index("z"): n + sets.index(g)} for e, (g, _) in process.gap_shifts(model).items()
+    }
+    for e, moves in process.etch_states(model).items():
+        column.setdefault(e, {}).update({names.index(q): n + extra.index(node) for q, node in moves.items()})
+    return extra, column, coords
 
 
-def moved(row, z: int, col: int | None, width: int) -> list:
-    """A row over the coordinates widened to `width` columns, its z entry moved to column `col`."""
+def moved(row, moves: dict[int, int], width: int) -> list:
+    """A row over the coordinates widened to `width` columns, each entry of `moves` (coordinate index ->
+    column) moved to its column."""
     out = list(row) + [0] * (width - len(row))
-    if col is not None:
-        out[col], out[z] = out[z], 0
+    for v, col in moves.items():
+        out[col], out[v] = out[v], 0
     return out
 
 
@@ -88,9 +97,9 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     """The netgen_es instances and their .model card: every plate term as monomials of its
     polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form);
     with gap offsets the extra columns of gap_columns."""
-    extra, column = gap_columns(model)
+    extra, column, owner = gap_columns(model)
     n = model.ncoords + len(extra)
-    z = [c.name for c in model.coordinates].index("z") if extra else 0
+    gap_sets = len(model.process["gaps"]) if extra else 0
     clamps = model.term_clamps()
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
@@ -108,24 +117,25 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
                 if c != 0.0:
                     p["mono_term"].append(term)
                     p["mono_coef"].append(float(c))
-                    p["mono_exp"].extend(int(x) for x in moved(e, z, column.get(f.electrode), n))
+                    p["mono_exp"].extend(int(x) for x in moved(e, column.get(f.electrode, {}), n))
     gains = [force_gain(c, ws) for c in model.coordinates]
-    gains += [gains[z]] * len(extra)
+    gains += [gains[v] for v in owner]
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
-    p["fgain"] += [p["fgain"][z]] * len(extra)
+    p["fgain"] += [p["fgain"][v] for v in owner]
     stops = stop_constants(model)
     nstop = len(stops["a"]) if stops else 1  # the model card needs the vectors even without stops
     sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
         for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
-            col = column.get(pt["electrode"])
-            sa[j] = moved(a, z, col, n)
-            sg[j] = np.asarray(moved(g, z, col, n)) * np.asarray(gains)
+            # a stop follows its electrode's gap offset (the xg columns), not the etch (stops stay drawn)
+            cols = {v: c for v, c in column.get(pt["electrode"], {}).items() if c < model.ncoords + gap_sets}
+            sa[j] = moved(a, cols, n)
+            sg[j] = np.asarray(moved(g, cols, n)) * np.asarray(gains)
     sr = sa * ws
     p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
     xs = " ".join([f"xs_{c.name}" for c in model.coordinates] + extra)
-    us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[z].name}"] * len(extra))
+    us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[v].name}" for v in owner])
     _, scaled = etch_voltages(model)
     ve = " ".join(scaled.get(f.electrode, f"%vd({f.electrode} {model.plate})") for f in model.capacitances)
     cs = " ".join(c_node(f.electrode) for f in model.capacitances)
@@ -146,7 +156,9 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     if problem:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
     ctx = ngspice.mechanics_context(model, noise)
-    ctx["gap_shift"] = process.gap_networks(model, every=True)  # the code model's extra columns
+    # the code model's extra columns
+    ctx["gap_shift"] = process.gap_networks(model, every=True)
+    ctx["etch_shift"] = process.etch_networks(model)
     ctx["etch_voltages"] = etch_voltages(model)[0]
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees

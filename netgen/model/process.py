@@ -236,7 +236,7 @@ def process_laws(
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes])
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names))
     if d and d.film_model == "compressible":
         out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
     return out
@@ -259,7 +259,41 @@ def etched(s: Structure, etch: float) -> Structure:
     outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
     holes = {"hole": c.hole + 2 * etch, "hole_grid": c.holes()} if c.hole else {}
     changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
-    return dataclasses.replace(s, conductor=changed)
+    sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
+    return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+def is_comb(e: Any) -> bool:
+    """A comb electrode (netgen.structure.electrodes.CombElectrode): fingers, not a plate."""
+    return getattr(e, "kind", "") in ("lateral_comb", "transverse_comb")
+
+
+def etched_comb(e: Any, etch: float) -> Any:
+    """A comb with every finger sidewall and end receded by `etch`: finger width - 2 etch, gaps + 2
+    etch (the far side's too), overlap - 2 etch (both comb's tips recede); the finger length (root and
+    tip recede together), the pitch and the overlap's centre stay."""
+    anti = e.anti_gap + 2 * etch if e.anti_gap else 0.0
+    return dataclasses.replace(
+        e, width=e.width - 2 * etch, gap=e.gap + 2 * etch, anti_gap=anti, overlap=e.overlap - 2 * etch
+    )
+
+
+def comb_shifts(s: Structure, names: list[str]) -> dict[str, dict[str, float]]:
+    """electrode -> {coordinate: shift per metre of etch} of the combs: the etched comb is, for the
+    parallel-plate part of its capacitance, the drawn one with the mass moved by these: a transverse
+    comb's gap g + 2 etch is the fingers moved 2 etch away across (-sign), and every comb's overlap
+    L0 - 2 etch is them moved 2 etch back along the fingers (-engage); a coordinate the model lacks
+    is left out (its part goes into the ratio and its error)."""
+    out: dict[str, dict[str, float]] = {}
+    for e in s.electrode_sets:
+        if not is_comb(e):
+            continue
+        across = "y" if e.orientation == "x" else "x"
+        shift = {e.orientation: -2.0 * (1.0 if e.root == "+" else -1.0)}
+        if e.kind == "transverse_comb":
+            shift[across] = -2.0 * (1.0 if e.side == "+" else -1.0)
+        out[e.name] = {q: k for q, k in shift.items() if q in names}
+    return out
 
 
 def etch_points(p: Process) -> tuple[float, ...]:
@@ -348,7 +382,9 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
 CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios are checked at (and rest)
 
 
-def etch_record(s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None) -> dict:
+def etch_record(
+    s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None, coords: list[str] | None = None
+) -> dict:
     """The etch entry of the process record: range, law error, the polynomial variable, the etched
     mass outline's relative area change at the range's ends (holes included: the mass and inertia
     laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
@@ -367,30 +403,37 @@ def etch_record(s: Structure, p: Process, err: float, extract=None, names: list[
         "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
     if extract is not None:
-        out |= capacitance_laws(s, p, extract, names or [])
+        out |= capacitance_laws(s, p, extract, names or [], coords or [])
     return out
 
 
-def capacitance_laws(s: Structure, p: Process, extract, names: list[str]) -> dict:
-    """Each electrode's capacitance ratio C(x; etch) / C(x; 0) as a cubic in etch / 1 um (1 at 0),
-    from the extractor at rest at etch_points: the etched outline and holes change the area a plate
-    faces (a perforated mass's fill factor, netgen.electrostatics.perforation), which scales C nearly
-    uniformly over the box. The stated error is the largest |ratio C(x; 0) / C(x; etch) - 1| over rest
-    and CAPACITANCE_POINTS random points of the fit box at the range's ends and the cubic's residual at
-    the etch points (the fill factor's gap dependence makes the ratio vary a little with x)."""
+def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
+    """Each electrode's capacitance under etch as C(q; etch) = ratio(etch) C(q + shift etch; 0): the
+    combs' shift (comb_shifts: exact for the parallel-plate part of a transverse comb's gap and every
+    comb's overlap) and a ratio, a cubic in etch / 1 um (1 at 0), from the extractor at rest at
+    etch_points: C(0; etch) / C(shift etch; 0). It carries what no shift is: the area a plate faces
+    (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
+    lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
+    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
+    fit box at the range's ends, and the cubic's residual at the etch points."""
+    shifts = comb_shifts(s, coords)
+    vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
     points = etch_points(p)
     rest = np.array([extract(etched(s, e), 0)[0] for e in points])
+    drawn = np.array([[extract(s, 0, v * e)[0][k] for k, v in enumerate(vectors)] for e in points])
     u = tuple(e / ETCH_UNIT for e in points)
-    coef, err = power_fit(u, rest, np.abs(rest), nominal=0.0)
-    c0 = rest[points.index(0.0)]
-    ratios = [[float(x / c0[k]) for x in coef[k]] for k in range(len(c0))]
-    nominal = extract(s, CAPACITANCE_POINTS)
+    coef, err = power_fit(u, rest / drawn, np.ones_like(rest), nominal=0.0)
+    ratios = [[float(x) for x in coef[k]] for k in range(len(names))]
     for e in p.etch_range:
-        ratio = np.array([ratio_value(r, e) for r in ratios])
         moved = extract(etched(s, e), CAPACITANCE_POINTS)
-        ok = np.isfinite(moved).all(axis=1) & np.isfinite(nominal).all(axis=1)
-        err = max(err, float(np.max(np.abs(ratio * nominal[ok] / moved[ok] - 1.0), initial=0.0)))
-    laws = [{"electrode": n, "ratio": r} for n, r in zip(names, ratios) if r != [1.0, 0.0, 0.0, 0.0]]
+        for k, v in enumerate(vectors):
+            ref = ratio_value(ratios[k], e) * extract(s, CAPACITANCE_POINTS, v * e)[:, k]
+            ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
+            err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
+    laws = []
+    for n, r in zip(names, ratios):
+        if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
+            laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
     return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
 
 
@@ -402,11 +445,22 @@ def ratio_value(coeffs: list[float], etch: float) -> float:
 
 def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
     """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x and the etch bias:
-    the fits times each electrode's etch ratio (the arithmetic the emitters render)."""
-    c = model.capacitance(x)
-    laws = {r["electrode"]: r["ratio"] for r in (model.process.get("etch") or {}).get("capacitance", [])}
-    ratio = [ratio_value(laws[f.electrode], etch) if f.electrode in laws else 1.0 for f in model.capacitances]
-    return c * np.array(ratio)
+    each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws; the
+    arithmetic the emitters render)."""
+    x = np.atleast_2d(x)
+    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    names = [c.name for c in model.coordinates]
+    out = model.capacitance(x)
+    for k, f in enumerate(model.capacitances):
+        law = laws.get(f.electrode)
+        if law is None:
+            continue
+        moved = x.copy()
+        for q, shift in law.get("shift", {}).items():
+            v = names.index(q)
+            moved[:, v] += shift * etch / model.coordinates[v].scale
+        out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
+    return out
 
 
 def kelvin(temp_c: float) -> float:

@@ -1,8 +1,9 @@
-"""The etch's capacitance ratio pc_<electrode> (netgen.model.process.capacitance_laws) in every emitted
-form: the proof mass on four clamped-guided beams over a plate wider than the mass
-(tests/oracles/process_cases.GUIDED), whose facing area is the etched outline (200 um - 2 etch)^2,
-in the .lib (ngspice 39 and 46), the _xspice.lib (netgen_es code model, ngspice 39 as installed) and
-the .va through OSDI (ngspice 46).
+"""The etch's capacitance laws (netgen.model.process.capacitance_laws) in every emitted form, the .lib
+(ngspice 39 and 46), the _xspice.lib (netgen_es code model, ngspice 39 as installed) and the .va
+through OSDI (ngspice 46): the ratio pc_<electrode> on the proof mass on four clamped-guided beams
+over a plate wider than the mass (tests/oracles/process_cases.GUIDED), whose facing area is the
+etched outline (200 um - 2 etch)^2, and the combs' shifted states on examples/accelerometer_xyz with
+textbook combs (tests/oracles/process_cases.xyz_text, C at rest of comb xp_t).
 
 Tolerances:
 - C at rest from .ac of the electrode current (I = j w C V, the mass still: no DC bias, no force)
@@ -28,14 +29,16 @@ from netgen import emit
 from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
+from netgen.model.process import capacitance_at
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.process_cases import ETCHES, RANGE, guided
+from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, guided, xyz_text
 
 GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
 OPTIONS = ".options reltol=1e-12 vntol=1e-15 abstol=1e-20"
+ETCHES_COMB = PERFORATED_ETCHES  # across the default etch_range of the comb case
 
 
 @pytest.fixture(scope="module")
@@ -79,9 +82,9 @@ X1 d 0 0 xz cg etch={etch!r}
 def check(model, ac_plot, op_plot, etch: float) -> None:
     """C at rest and the deflection against the closed forms (module docstring)."""
     cap = abs(float(np.imag(ac_plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
-    assert cap == pytest.approx(EPS0 * area(etch) / GAP, rel=1e-9)
+    assert cap == pytest.approx(EPS0 * area(etch) / GAP, rel=1e-9, abs=0)
     z = float(np.real(op_plot["v(xz)"])[0]) * 1e-6  # x_z in um
-    assert z == pytest.approx(deflection(model, etch), rel=1e-7)
+    assert z == pytest.approx(deflection(model, etch), rel=1e-7, abs=0)
 
 
 def control_block(lines: list[str], raw: str) -> str:
@@ -111,3 +114,60 @@ def test_osdi(model, tmp_path, monkeypatch, etch):
     ac, _ = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "ac.raw"))
     _, op = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "op.raw"))
     check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.fixture(scope="module")
+def xyz():
+    """examples/accelerometer_xyz with the textbook combs and etch declared (tests/oracles/process_cases.xyz_text)."""
+    return build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+
+
+def comb_deck(include: str, etch: float, control: str = "") -> str:
+    """.ac of comb xp_t's current at rest (the other electrodes and the plate at 0 V: only xp_t's charge
+    moves; no DC bias, so no force and the mass stays)."""
+    pins = "d 0 0 0 0 0 0 0 0 0 p " + " ".join(f"0 x{k}" for k in range(6)) + " 0 0 0"
+    return f"""* comb cap
+.include {include}
+Vd d 0 DC 0 AC 1
+Vp p 0 0
+X1 {pins} accelerometer_xyz etch={etch!r}
+.ac lin 1 1k 1k
+{control}
+.end
+"""
+
+
+def check_comb(xyz, plot, etch: float) -> None:
+    """The comb's C at rest against the textbook closed form, within the fit's error at rest and the
+    law's stated error (as tests/model/test_process_etch_combs.py; the simulators add round-off)."""
+    cap = abs(float(np.imag(plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
+    k = [f.electrode for f in xyz.capacitances].index("xp_t")
+    tol = xyz.capacitances[k].max_rel_error + xyz.process["etch"]["capacitance_max_rel_error"]
+    assert cap == pytest.approx(20 * EPS0 * 2e-6 * (30e-6 - 2 * etch) / (1.5e-6 + 2 * etch), rel=tol, abs=0)
+    # and exactly the Python model's law (the emitters render its arithmetic): round-off
+    assert cap == pytest.approx(capacitance_at(xyz, np.zeros((1, xyz.ncoords)), etch)[0, k], rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_lib(xyz, tmp_path, ngspice_version, etch):
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    check_comb(xyz, run_ngspice(comb_deck(str(tmp_path / "xyz.lib"), etch), tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_xspice(xyz, tmp_path, etch):
+    xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
+    deck = comb_deck(str(xlib.resolve()), etch, control_block(control, "ac.raw"))
+    check_comb(xyz, run_ngspice(deck, tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_osdi(xyz, tmp_path, monkeypatch, etch):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(xyz, tmp_path, "osdi")
+    deck = comb_deck(
+        str(tmp_path / "accelerometer_xyz_osdi.lib"),
+        etch,
+        control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw"),
+    )
+    check_comb(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)

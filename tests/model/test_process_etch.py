@@ -36,7 +36,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, ROOT
-from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun
+from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun, xyz_text
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +65,7 @@ def test_clamped_guided_against_closed_form(guided_laws, etch):
     for name, power in (("x", 3), ("y", 1), ("z", 1)):
         v = list(m.names).index(name)
         mass, k, _ = coordinate_values(law, v, etch=etch)
-        assert mass == pytest.approx(2330 * 5e-6 * (200e-6 - 2 * etch) ** 2, rel=1e-9)
+        assert mass == pytest.approx(2330 * 5e-6 * (200e-6 - 2 * etch) ** 2, rel=1e-9, abs=0)
         assert k / m.stiffnesses[v] == pytest.approx(ratio**power, rel=1e-9)
     assert law["etch"]["max_rel_error"] < 1e-9
 
@@ -135,7 +135,7 @@ X1 0 0 fz xz cg etch={etch!r}
     inv = 1.0 / plot["v(xz)"]  # x_z in um per uN = m/N: 1/H in N/m
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", ETCHES)
@@ -162,7 +162,7 @@ write circuit.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
@@ -188,7 +188,7 @@ write ac.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9)  # the etched outline
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize(
@@ -206,14 +206,28 @@ def test_bad_etch_tables(process, key):
     assert key in str(exc.value)
 
 
-@pytest.mark.parametrize(
-    ("example", "reason"),
-    [("piston_process.toml", "needs a proof mass with a flexure"), ("gyroscope_z.toml", "comb fingers")],
-)
-def test_etch_refused_without_beams_or_with_combs(example, reason):
-    """A piston (no flexure beams) and the gyroscope (comb fingers): exit 2 at process.parameters."""
-    text = (ROOT / "examples" / example).read_text()
+def test_etch_refused_without_beams():
+    """A piston (no flexure beams): exit 2 at process.parameters."""
+    text = (ROOT / "examples" / "piston_process.toml").read_text()
     text = text.split("[process]")[0] + '[process]\nparameters = ["etch"]\n'
     with pytest.raises(StructureError) as exc:
-        parse_structure(text, example)
-    assert "process.parameters" in str(exc.value) and reason in str(exc.value)
+        parse_structure(text, "piston_process.toml")
+    assert "process.parameters" in str(exc.value) and "needs a proof mass with a flexure" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "reason"),
+    [
+        ('width = "2.0 um"\ngap = "1.5 um"', 'width = "1.0 um"\ngap = "1.5 um"', "comb xp_t's fingers"),
+        ('hole = "4.0 um"', 'hole = "9.5 um"', "etch holes"),
+    ],
+)
+def test_etch_range_eating_fingers_or_merging_holes(old, new, reason):
+    """accelerometer_xyz's fingers narrowed to 1 um, or its holes widened to 9.5 um on the 9.98 um pitch,
+    with etch_range up to 0.3 um: a finger loses half its width, the holes merge: exit 2 at
+    process.etch_range."""
+    text = xyz_text(process='[process]\nparameters = ["etch"]\netch_range = ["-0.1 um", "0.3 um"]\n')
+    assert old in text
+    with pytest.raises(StructureError) as exc:
+        parse_structure(text.replace(old, new), "xyz.toml")
+    assert "process.etch_range" in str(exc.value) and reason in str(exc.value)

@@ -62,10 +62,10 @@ def test_mass_and_inertia_closed_form(nominal, rebuilt):
     mass, inertia = etched_inertia(etch)
     names = [c.name for c in nominal.coordinates]
     z, tx = names.index("z"), names.index("tilt_x")
-    assert coordinate_values(nominal.process, z, etch=etch)[0] == pytest.approx(mass, rel=1e-9)
-    assert coordinate_values(nominal.process, tx, etch=etch)[0] == pytest.approx(inertia, rel=1e-9)
-    assert model.coordinates[z].mass == pytest.approx(mass, rel=1e-9)
-    assert model.coordinates[tx].mass == pytest.approx(inertia, rel=1e-9)
+    assert coordinate_values(nominal.process, z, etch=etch)[0] == pytest.approx(mass, rel=1e-9, abs=0)
+    assert coordinate_values(nominal.process, tx, etch=etch)[0] == pytest.approx(inertia, rel=1e-9, abs=0)
+    assert model.coordinates[z].mass == pytest.approx(mass, rel=1e-9, abs=0)
+    assert model.coordinates[tx].mass == pytest.approx(inertia, rel=1e-9, abs=0)
 
 
 def test_frequencies_against_rebuild(nominal, rebuilt):
@@ -83,7 +83,9 @@ def test_capacitances_against_rebuild(nominal, rebuilt):
     etch, model = rebuilt
     stated = nominal.process["etch"]["capacitance_max_rel_error"]
     errs = [f.max_rel_error for f in nominal.capacitances + model.capacitances]
-    assert [c.scale for c in model.coordinates] == pytest.approx([c.scale for c in nominal.coordinates], rel=1e-12)
+    assert [c.scale for c in model.coordinates] == pytest.approx(
+        [c.scale for c in nominal.coordinates], rel=1e-12, abs=0
+    )
     q = np.random.default_rng(11).uniform(-0.2, 0.2, (100, len(nominal.coordinates)))
     got, ref = capacitance_at(nominal, q, etch), model.capacitance(q)
     np.testing.assert_allclose(got, ref, rtol=2 * max(errs) + stated)

@@ -175,3 +175,27 @@ def perforated(etch: float = 0.0, process: str = "") -> str:
     hole 4 + 2 etch, beam and thigh widths 3 - 2 etch (um)."""
     e = 2 * etch * 1e6
     return PERFORATED.format(side=repr(405.0 - e), hole=repr(4.0 + e), w=repr(3.0 - e)) + process
+
+
+def xyz_text(etch: float = 0.0, process: str = "") -> str:
+    """examples/accelerometer_xyz.toml with the textbook comb form (eps t / g per face: the etch's gap
+    and overlap shifts are exact for it) and hole_pitch 9.98 um (40 holes at every etched side: the
+    drawn grid the etch keeps; at 10 um the file's fitted count drops to 39 at 399.8 um), drawn
+    (with `process`) or rewritten at the etched sizes: mass side 400 - 2 etch, hole 4 + 2 etch, legs
+    and fingers 2 - 2 etch, finger gaps 1.5 + 2 etch, overlap 30 - 2 etch (um)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "examples" / "accelerometer_xyz.toml").read_text()
+    text = text.split("[loop]")[0].replace('comb_model = "field2d"', 'comb_model = "textbook"')
+    text = text.replace('hole_pitch = "10 um"', 'hole_pitch = "9.98 um"')
+    e = 2 * etch * 1e6
+    for old, new in (
+        ('length = "400 um"', f'length = "{400.0 - e!r} um"'),
+        ('width = "400 um"', f'width = "{400.0 - e!r} um"'),
+        ('hole = "4 um"', f'hole = "{4.0 + e!r} um"'),
+        ('width = "2 um"', f'width = "{2.0 - e!r} um"'),
+        ('gap = "1.5 um"', f'gap = "{1.5 + e!r} um"'),
+        ('overlap = "30 um"', f'overlap = "{30.0 - e!r} um"'),
+    ):
+        text = text.replace(old, new)
+    return text + process
