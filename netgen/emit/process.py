@@ -225,17 +225,37 @@ def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list
 def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
     """Per contact stop point the text its penetration p_j = a_j . xs - 1 gains from its electrode's
     gap offset: moving the set away by dg deepens every local gap by dg, so p_j - dg / gap_j (the
-    stop follows the electrode; netgen.model.contact). ngspice text in braces (numparam), Verilog-A
-    plain; None without gap offsets (the expressions unchanged)."""
-    shifts = gap_shifts(model)
+    stop follows the electrode; netgen.model.contact); and from a comb's etch shift (etch_columns:
+    the stop reads the shifted state as the comb's terms do, so p_j + a_j . shift etch / L: a finger's
+    sidewall stop 2 etch later). ngspice text in braces (numparam), Verilog-A plain; None without
+    either (the expressions unchanged)."""
+    shifts, etch = gap_shifts(model), etch_offsets(model)
     points = model.contact.get("points", [])
-    if not shifts or not points:
+    if not (shifts or etch) or not points:
         return None
     out = []
-    for pt in points:
+    for j, pt in enumerate(points):
         shift = shifts.get(pt["electrode"])
-        term = f"{num(1.0 / pt['gap'])}*dg_{shift[0]}" if shift else ""
-        out.append(f" - {{{term}}}" if shift and braces else f" - {term}" if shift else "")
+        terms = [f"-{num(1.0 / pt['gap'])}*dg_{shift[0]}"] if shift else []
+        terms += [f"{num(etch[j])}*etch"] if etch.get(j) else []
+        sign, text = ("-", terms[0][1:]) if len(terms) == 1 and terms[0][0] == "-" else ("+", " + ".join(terms))
+        out.append(f" {sign} {{{text}}}" if text and braces else f" {sign} {text}" if text else "")
+    return out
+
+
+def etch_offsets(model: MacroModel) -> dict[int, float]:
+    """Stop point index -> d p_j / d etch = a_j . (shift / L) of a comb's etch shift (etch_states),
+    where not zero (a finger's vertical stop over the substrate has none)."""
+    scale = {c.name: c.scale for c in model.coordinates}
+    names = [c.name for c in model.coordinates]
+    shifts = {r["electrode"]: r.get("shift", {}) for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    if not declared(model, "etch"):
+        return {}
+    out = {}
+    for j, pt in enumerate(model.contact.get("points", [])):
+        c = sum(pt["a"][names.index(q)] * k / scale[q] for q, k in shifts.get(pt["electrode"], {}).items())
+        if c:
+            out[j] = c
     return out
 
 
@@ -328,7 +348,7 @@ def etch_neglect(e: dict) -> str:
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
         + (
-            " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box moves with etch; stops stay at the drawn gaps)"
+            " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs
             else ""
         )

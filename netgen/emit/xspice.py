@@ -99,7 +99,6 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     with gap offsets the extra columns of gap_columns."""
     extra, column, owner = gap_columns(model)
     n = model.ncoords + len(extra)
-    gap_sets = len(model.process["gaps"]) if extra else 0
     clamps = model.term_clamps()
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
@@ -128,8 +127,8 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
         for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
-            # a stop follows its electrode's gap offset (the xg columns), not the etch (stops stay drawn)
-            cols = {v: c for v, c in column.get(pt["electrode"], {}).items() if c < model.ncoords + gap_sets}
+            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's etch
+            cols = column.get(pt["electrode"], {})
             sa[j] = moved(a, cols, n)
             sg[j] = np.asarray(moved(g, cols, n)) * np.asarray(gains)
     sr = sa * ws

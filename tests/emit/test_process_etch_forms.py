@@ -33,7 +33,7 @@ from netgen.model.process import capacitance_at
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.fixtures import NGSPICE
+from tests.fixtures import NGSPICE, using_ngspice
 from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, guided, xyz_text
 
 GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
@@ -171,3 +171,77 @@ def test_comb_osdi(xyz, tmp_path, monkeypatch, etch):
         control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw"),
     )
     check_comb(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)
+
+
+PUSH = 20.0  # uN on f_x: 3.1 um of the 6.4 N/m legs' travel, past xp_t's finger stop
+
+
+def push_deck(include: str, etch: float, control: str = "", push: float = PUSH) -> str:
+    """.op of the mass pushed along +x by `push` (uN) onto xp_t's sidewall stop (no voltages)."""
+    pins = "0 0 0 0 0 0 0 0 0 0 0 fx x0 0 x1 0 x2 0 x3 0 x4 0 x5 0 0 0"
+    return f"""* push
+.include {include}
+Vf fx 0 DC {push}
+X1 {pins} accelerometer_xyz etch={etch!r}
+{OPTIONS}
+.op
+{control}
+.end
+"""
+
+
+def sidewall_stop(xyz) -> int:
+    """The index of xp_t's sidewall stop (its direction along x)."""
+    names = [c.name for c in xyz.coordinates]
+    pts = xyz.contact["points"]
+    return next(j for j, p in enumerate(pts) if p["electrode"] == "xp_t" and p["a"][names.index("x")] != 0.0)
+
+
+def rest_x(plot) -> float:
+    """x (um) and rot_z (mrad) of the pushed mass."""
+    return float(np.real(plot["v(x0)"])[0]), float(np.real(plot["v(x2)"])[0])
+
+
+@pytest.fixture(scope="module")
+def pushed_lib(xyz, tmp_path_factory):
+    """The pushed rest of the .lib in ngspice 39 and 46 per etch: the reference of the other forms."""
+    folder = tmp_path_factory.mktemp("push")
+    (folder / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    out = {}
+    for release in ("39", "46"):
+        for etch in ETCHES_COMB:
+            with using_ngspice(release):
+                out[release, etch] = rest_x(
+                    run_ngspice(push_deck(str(folder / "xyz.lib"), etch), folder / f"{release}{etch}")[0]
+                )
+    return out
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_lib(xyz, tmp_path, ngspice_version, etch):
+    """xp_t's sidewall stop at rest: its penetration node sg_j = a_j . xs - 1 reads -(1.5 um + 2 etch) /
+    1.5 um (the stop at the widened gap; x's touching amplitude is the drawn 1.5 um gap), to the
+    .op's round-off (1e-9)."""
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    plot = run_ngspice(push_deck(str(tmp_path / "xyz.lib"), etch, push=0.0), tmp_path)[0]
+    sg = float(np.real(plot[f"v(x1.sg_{sidewall_stop(xyz) + 1})"])[0])
+    assert sg == pytest.approx(-(1.5e-6 + 2 * etch) / 1.5e-6, rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_xspice(xyz, tmp_path, etch, pushed_lib):
+    """The _xspice.lib (its stops in the code model, reading the etch columns) pushed as the .lib in
+    ngspice 39: the same rest to Newton's convergence at reltol 1e-12 (1e-9)."""
+    xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
+    got = rest_x(run_ngspice(push_deck(str(xlib.resolve()), etch, control_block(control, "op.raw")), tmp_path)[0])
+    assert got == pytest.approx(pushed_lib["39", etch], rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_osdi(xyz, tmp_path, monkeypatch, etch, pushed_lib):
+    """The .va through OSDI (ngspice 46) pushed as the .lib in ngspice 46: the same rest (1e-9)."""
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(xyz, tmp_path, "osdi")
+    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+    deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
+    assert rest_x(run_ngspice(deck, tmp_path / "run")[0]) == pytest.approx(pushed_lib["46", etch], rel=1e-9, abs=0)
