@@ -23,6 +23,7 @@ Tolerances:
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -30,6 +31,8 @@ import pytest
 
 from netgen.build import build_model
 from netgen.core.constants import EPS0
+from netgen.core.errors import ModelError
+from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
@@ -76,3 +79,22 @@ def test_frequencies_and_mass(nominal, rebuilt):
     z = [c.name for c in nominal.coordinates].index("z")
     mass = 2330 * 2e-6 * ((400e-6 - 2 * etch) ** 2 - 1600 * (4e-6 + 2 * etch) ** 2)
     assert coordinate_values(nominal.process, z, etch=etch)[0] == pytest.approx(mass, rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize(
+    ("change", "where"),
+    [
+        ({"electrode": "nope"}, "process.etch.capacitance[0].electrode"),
+        ({"ratio": [1.0, 0.0]}, "process.etch.capacitance[0]"),
+        ({"shift": {"rot_z": 2.0}}, "process.etch.capacitance[0].shift"),
+        ({"shift": {"x": "2"}}, "process.etch.capacitance[0].shift.x"),
+    ],
+)
+def test_bad_capacitance_law_in_json(nominal, change, where):
+    """An edited model JSON whose etch law names an unknown electrode or coordinate, or has a short
+    ratio or a text shift: a ModelError naming the key (the emitters would write it into the netlist)."""
+    d = copy.deepcopy(nominal.to_dict())  # to_dict shares the model's process record
+    d["process"]["etch"]["capacitance"][0].update(change)
+    with pytest.raises(ModelError) as exc:
+        MacroModel.from_dict(d, "xyz.json")
+    assert where in str(exc.value)
