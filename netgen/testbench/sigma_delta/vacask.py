@@ -79,23 +79,31 @@ def compile_blocks(cache: Path, cpu: str = GENERIC) -> Path:
     return compiled(blocks_source(), "sigma_delta_blocks", cache, cpu)
 
 
-def force_sources(
-    model: MacroModel, d: Design, tone: Tone | None, drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
-) -> list[dict]:
-    """VACASK vsources per input port (inputs.mechanical_inputs): name, nodes and parameters; a port
-    in `drives` (port, vsource parameter strings) gets those sources in series instead (their
-    voltages add; the gyroscope's open-loop drive, netgen.testbench.gyro.run.vacask_drive)."""
-    chains = dict(drives)
+def force_sources(model: MacroModel, d: Design, tone: Tone | None, driven: tuple[str, ...] = ()) -> list[dict]:
+    """VACASK vsources per input port (inputs.mechanical_inputs): name, nodes and parameters; the
+    ports in `driven` get none (a Device drives them: the gyroscope's drive loop on f_x)."""
     out = []
     for port, dc, t in mechanical_inputs(model, d, tone):
-        sources = chains.get(port) or (
-            f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}",
-        )
-        nodes = [port] + [f"{port}_s{k}" for k in range(1, len(sources))] + ["0"]
-        out += [
-            {"name": nodes[k], "pos": nodes[k], "neg": nodes[k + 1], "source": src} for k, src in enumerate(sources)
-        ]
+        if port in driven:
+            continue
+        source = f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}"
+        out.append({"name": port, "pos": port, "neg": "0", "source": source})
     return out
+
+
+@dataclass(frozen=True)
+class Device:
+    """A compiled Verilog-A device in the bench that drives input ports in place of their vsources
+    (the gyroscope's drive loop, netgen.testbench.gyro.run.drive_device): its OSDI file, the model
+    card `model` of its `module`, its instance line's text after the name ("(nodes) model params",
+    validated identifiers and numbers only) and the `ports` it drives."""
+
+    osdi: Path
+    model: str
+    module: str
+    name: str
+    instance: str
+    ports: tuple[str, ...]
 
 
 def merge_options(*texts: str) -> str:
@@ -174,11 +182,11 @@ def testbench(
     tone: Tone | None = None,
     options: str = "",
     folder: Path | None = None,
-    drives: tuple[tuple[str, tuple[str, ...]], ...] = (),
+    devices: tuple[Device, ...] = (),
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
     `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute;
-    `drives`: input ports driven by other sources (force_sources)."""
+    `devices`: Verilog-A devices that drive input ports in place of their vsources."""
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
@@ -193,7 +201,17 @@ def testbench(
         blocks_osdi=vacask_string(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
         cycles=cycles,
         ports=ports,
-        forces=force_sources(model, d, tone, drives),
+        forces=force_sources(model, d, tone, tuple(p for dev in devices for p in dev.ports)),
+        devices=[
+            {
+                "osdi": vacask_string(dev.osdi if folder else Path(dev.osdi).resolve(), folder),
+                "model": dev.model,
+                "module": dev.module,
+                "name": dev.name,
+                "instance": dev.instance,
+            }
+            for dev in devices
+        ],
         tone=tone,
         saves=saves(model, d),
         drivers=drivers(d),
@@ -223,14 +241,14 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
 class BenchOptions:
     """How run_bench compiles and runs: the model's .va (None: emitted from the model), the compile
     `cache` (None: out/osdi), extra VACASK `options`, the wall-clock `timeout` (s) and openvaf-r's
-    target `cpu`; `drives`: input ports driven by other vsources (force_sources)."""
+    target `cpu`; `devices`: Verilog-A devices driving input ports (Device)."""
 
     va: Path | None = None
     cache: Path | None = None
     options: str = ""
     timeout: float = 36000.0
     cpu: str = GENERIC
-    drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    devices: tuple[Device, ...] = ()
 
 
 def run_bench(
@@ -247,5 +265,5 @@ def run_bench(
     cache = how.cache or out / "osdi"
     model_osdi = compile_model(model, cache, how.va, how.cpu)
     blocks_osdi = compile_blocks(cache, how.cpu)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out, drives=how.drives)
+    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out, devices=how.devices)
     return simulate(bench, out, d.ts * cycles, progress, how.timeout)
