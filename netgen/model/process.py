@@ -418,16 +418,25 @@ def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords
     fit box at the range's ends, and the cubic's residual at the etch points."""
     shifts = comb_shifts(s, coords)
     vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
+    memo: dict[tuple, np.ndarray] = {}
+
+    def drawn_at(n: int, offset: np.ndarray) -> np.ndarray:
+        """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
+        key = (n, *offset.tolist())
+        if key not in memo:
+            memo[key] = extract(s, n, offset)
+        return memo[key]
+
     points = etch_points(p)
     rest = np.array([extract(etched(s, e), 0)[0] for e in points])
-    drawn = np.array([[extract(s, 0, v * e)[0][k] for k, v in enumerate(vectors)] for e in points])
+    drawn = np.array([[drawn_at(0, v * e)[0][k] for k, v in enumerate(vectors)] for e in points])
     u = tuple(e / ETCH_UNIT for e in points)
     coef, err = power_fit(u, rest / drawn, np.ones_like(rest), nominal=0.0)
     ratios = [[float(x) for x in coef[k]] for k in range(len(names))]
     for e in p.etch_range:
         moved = extract(etched(s, e), CAPACITANCE_POINTS)
         for k, v in enumerate(vectors):
-            ref = ratio_value(ratios[k], e) * extract(s, CAPACITANCE_POINTS, v * e)[:, k]
+            ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
             ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
             err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
     laws = []
