@@ -30,6 +30,7 @@ import numpy as np
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from . import process
 from .common import clamp_expr, dv2_node, node, num, poly_expr
 
 ROUND = num(2.0**40)  # the copies' grid: 2^-40 ~ 9e-13 of a state (O(1)) or a volt
@@ -117,10 +118,22 @@ def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: i
     return sep.join(live).replace("+ -", "- ") if live else "0.0"
 
 
+def ratio(model: MacroModel, electrode: str) -> str:
+    """ "pc_<electrode> * " where the electrode's capacitance has an etch ratio (netgen.emit.process.
+    capacitance_ratios: it scales C, so the charge, the forces and their Jacobian), else ""."""
+    return f"pc_{electrode} * " if electrode in process.capacitance_ratios(model) else ""
+
+
+def dv2_value(model: MacroModel, electrode: str) -> str:
+    """The frozen dv2f of one electrode times its etch ratio (ratio)."""
+    return f"{ratio(model, electrode)}{vf(electrode)} * {vf(electrode)}"
+
+
 def _term_rows(
-    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold
+    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold, dv2f: str
 ) -> list[dict]:
-    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`)."""
+    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`);
+    dv2f: the electrode's frozen dv2 text (dv2_value)."""
     rows = []
     for k, poly in enumerate(f.polys):
         p, ck = node(f.electrode, k), clamps[k] if clamps else None
@@ -134,7 +147,7 @@ def _term_rows(
             "p_expr": f"({text} >= {num(ck[0])} ? {text} : {clamp_expr(text, *ck)})" if ck else text,
         }
         if f.target != "direct":
-            w, r, dv2f = w_var(f.electrode, k), r_var(f.electrode, k), f"{vf(f.electrode)} * {vf(f.electrode)}"
+            w, r = w_var(f.electrode, k), r_var(f.electrode, k)
             row["r_expr"] = f"1.0 / {p}"
             if ck:
                 knee, floor = ck
@@ -197,7 +210,7 @@ def stiffness(model: MacroModel, names: list[str], shifted: dict | None = None) 
             terms: list[str | None] = []
             for f in model.capacitances:
                 names = (shifted or {}).get(f.electrode, all_names)
-                dv2f = f"{vf(f.electrode)} * {vf(f.electrode)}"
+                dv2f = dv2_value(model, f.electrode)
                 for k, p in enumerate(f.polys):
                     hess = p.derivative(v).derivative(w)
                     if f.target == "direct":
@@ -224,9 +237,11 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
     m_rows = {}
     for i, (row, f) in enumerate(zip(fits, model.capacitances)):
         own = (shifted or {}).get(f.electrode, names)
-        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold)
+        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold, dv2_value(model, f.electrode))
         row["slopes"] = m_rows[f.electrode] = slopes(f, model, own, fold)
-        row["charge"] = charge(f, model, row["slopes"], fold)
+        scale, value = ratio(model, f.electrode), charge(f, model, row["slopes"], fold)
+        row["charge"] = f"{scale}({value})" if scale else value
+        row["dv2_scale"] = scale
         row["vf"] = vf(f.electrode)
     return {
         "frozen": [

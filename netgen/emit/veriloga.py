@@ -121,13 +121,22 @@ def _fit_rows(model: MacroModel, ctx: dict) -> None:
 def gap_names(model: MacroModel, ctx: dict) -> dict[str, list[str]]:
     """electrode -> the state names its plate terms read: xf_z replaced by the variable xg_<set> =
     xf_z - sign dg_<set> / L_z of its gap set (netgen.emit.process.gap_shifts; a constant shift: the
-    Jacobian's dx terms are unchanged); adds the variables' rows to ctx["gap_vars"]. {} without gap sets."""
+    Jacobian's dx terms are unchanged), a comb's xf_q by its etch-shifted xe (etch_states); adds the
+    variables' rows to ctx["gap_vars"]. {} without either."""
     shifts = process.gap_shifts(model)
     ctx["gap_vars"] = [
         {"name": f"xg_{s}", "expr": f"{va_terms.xf('z')} + {num(k)} * dg_{s}"} for s, k in dict(shifts.values()).items()
     ]
+    # the combs' etch shifts (netgen.emit.process.etch_columns): xe = xf_q + (shift / L_q) etch
+    ctx["gap_vars"] += [
+        {"name": n, "expr": f"{va_terms.xf(q)} + {num(k)} * etch"} for n, q, k in process.etch_columns(model)
+    ]
     names = [va_terms.xf(c.name) for c in model.coordinates]
-    return {e: [f"xg_{s}" if n == va_terms.xf("z") else n for n in names] for e, (s, _) in shifts.items()}
+    out = {e: [f"xg_{s}" if n == va_terms.xf("z") else n for n in names] for e, (s, _) in shifts.items()}
+    for e, moves in process.etch_states(model).items():
+        swap = {va_terms.xf(q): node for q, node in moves.items()}
+        out[e] = [swap.get(n, n) for n in out.get(e, names)]
+    return out
 
 
 def process_rows(model: MacroModel, ctx: dict) -> None:

@@ -199,10 +199,14 @@ def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], st
     return out, "" if out else "no electrode set lies above or below the conductor"
 
 
-def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float) -> dict:
+def process_laws(
+    s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float, extract=None
+) -> dict:
     """The model's process entry (MacroModel.process): laws, ranges and errors of the parameters the
     structure's [process] declares (netgen.structure.process_table checked them against the
-    structure); {} without [process] (nothing is re-run, the model is what it was)."""
+    structure); {} without [process] (nothing is re-run, the model is what it was). `extract`:
+    (structure, n) -> the extractor's capacitances at rest and at n points of the fit box
+    (netgen.build.capacitance_sampler), for the etch's capacitance laws (None: none built)."""
     p = s.process
     if p is None:
         return {}
@@ -232,7 +236,7 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err)
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names))
     if m.strain_energy is not None:
         out["strain_energy"] = energy_law(s, m, run, p)
     if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
@@ -245,14 +249,53 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def etched(s: Structure, etch: float) -> Structure:
-    """The structure with every flexure beam etched by `etch` per edge (m; negative: under-etch): beam,
-    truss and thigh widths w - 2 etch. Beam lengths and the beams' spacing (centre to centre) stay:
-    they are set by the anchors' and the mass's edges, which recede together; the mass outline, its
-    holes and the plates are not etched (etch_record states how much that neglects)."""
+    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch): flexure
+    beam, truss and thigh widths w - 2 etch, the proof mass's outline (length, width) - 2 etch and its
+    etch holes' side + 2 etch on the drawn grid (pitch and count stay: lithography places them). Beam
+    lengths and the beams' spacing (centre to centre) stay: they are set by the anchors' and the
+    mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
+    capacitances would change)."""
     c: Any = s.conductor
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
-    return dataclasses.replace(s, conductor=dataclasses.replace(c, flexure=dataclasses.replace(f, **w)))
+    outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
+    holes = {"hole": c.hole + 2 * etch, "hole_grid": c.holes()} if c.hole else {}
+    changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
+    sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
+    return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+def is_comb(e: Any) -> bool:
+    """A comb electrode (netgen.structure.electrodes.CombElectrode): fingers, not a plate."""
+    return getattr(e, "kind", "") in ("lateral_comb", "transverse_comb")
+
+
+def etched_comb(e: Any, etch: float) -> Any:
+    """A comb with every finger sidewall and end receded by `etch`: finger width - 2 etch, gaps + 2
+    etch (the far side's too), overlap - 2 etch (both comb's tips recede); the finger length (root and
+    tip recede together), the pitch and the overlap's centre stay."""
+    anti = e.anti_gap + 2 * etch if e.anti_gap else 0.0
+    return dataclasses.replace(
+        e, width=e.width - 2 * etch, gap=e.gap + 2 * etch, anti_gap=anti, overlap=e.overlap - 2 * etch
+    )
+
+
+def comb_shifts(s: Structure, names: list[str]) -> dict[str, dict[str, float]]:
+    """electrode -> {coordinate: shift per metre of etch} of the combs: the etched comb is, for the
+    parallel-plate part of its capacitance, the drawn one with the mass moved by these: a transverse
+    comb's gap g + 2 etch is the fingers moved 2 etch away across (-sign), and every comb's overlap
+    L0 - 2 etch is them moved 2 etch back along the fingers (-engage); a coordinate the model lacks
+    is left out (its part goes into the ratio and its error)."""
+    out: dict[str, dict[str, float]] = {}
+    for e in s.electrode_sets:
+        if not is_comb(e):
+            continue
+        across = "y" if e.orientation == "x" else "x"
+        shift = {e.orientation: -2.0 * (1.0 if e.root == "+" else -1.0)}
+        if e.kind == "transverse_comb":
+            shift[across] = -2.0 * (1.0 if e.side == "+" else -1.0)
+        out[e.name] = {q: k for q, k in shift.items() if q in names}
+    return out
 
 
 def etch_points(p: Process) -> tuple[float, ...]:
@@ -338,26 +381,97 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
     return worst
 
 
-def etch_record(s: Structure, p: Process, err: float) -> dict:
-    """The etch entry of the process record: range, law error, the polynomial variable, and the relative
-    change of the mass outline's area (holes included) the laws neglect at the range's ends."""
+CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios are checked at (and rest)
+
+
+def etch_record(
+    s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None, coords: list[str] | None = None
+) -> dict:
+    """The etch entry of the process record: range, law error, the polynomial variable, the etched
+    mass outline's relative area change at the range's ends (holes included: the mass and inertia
+    laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
+    and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
+    laws (capacitance_laws)."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
     def area(e: float) -> float:
-        return (
-            (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
-            if c.hole
-            else (c.length - 2 * e) * (c.width - 2 * e)
-        )
+        return (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
 
-    a0 = area(0.0)
-    return {
+    out = {
         "range_m": list(p.etch_range),
         "max_rel_error": float(err),
         "variable": "etch / 1 um",
-        "unetched_area_rel": max(abs(area(e) / a0 - 1.0) for e in p.etch_range),
+        "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
+    if extract is not None:
+        out |= capacitance_laws(s, p, extract, names or [], coords or [])
+    return out
+
+
+def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
+    """Each electrode's capacitance under etch as C(q; etch) = ratio(etch) C(q + shift etch; 0): the
+    combs' shift (comb_shifts: exact for the parallel-plate part of a transverse comb's gap and every
+    comb's overlap) and a ratio, a cubic in etch / 1 um (1 at 0), from the extractor at rest at
+    etch_points: C(0; etch) / C(shift etch; 0). It carries what no shift is: the area a plate faces
+    (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
+    lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
+    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
+    fit box at the range's ends, and the cubic's residual at the etch points."""
+    shifts = comb_shifts(s, coords)
+    vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
+    memo: dict[tuple, np.ndarray] = {}
+
+    def drawn_at(n: int, offset: np.ndarray) -> np.ndarray:
+        """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
+        key = (n, *offset.tolist())
+        if key not in memo:
+            memo[key] = extract(s, n, offset)
+        return memo[key]
+
+    points = etch_points(p)
+    rest = np.array([extract(etched(s, e), 0)[0] for e in points])
+    drawn = np.array([[drawn_at(0, v * e)[0][k] for k, v in enumerate(vectors)] for e in points])
+    u = tuple(e / ETCH_UNIT for e in points)
+    coef, err = power_fit(u, rest / drawn, np.ones_like(rest), nominal=0.0)
+    ratios = [[float(x) for x in coef[k]] for k in range(len(names))]
+    for e in p.etch_range:
+        moved = extract(etched(s, e), CAPACITANCE_POINTS)
+        for k, v in enumerate(vectors):
+            ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
+            ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
+            err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
+    laws = []
+    for n, r in zip(names, ratios):
+        if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
+            laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
+    return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+
+
+def ratio_value(coeffs: list[float], etch: float) -> float:
+    """An etch ratio (cubic in etch / ETCH_UNIT) at `etch` (m)."""
+    u = etch / ETCH_UNIT
+    return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
+
+
+def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
+    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x and the etch bias:
+    each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws; the
+    arithmetic the emitters render)."""
+    x = np.atleast_2d(x)
+    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    names = [c.name for c in model.coordinates]
+    out = model.capacitance(x)
+    for k, f in enumerate(model.capacitances):
+        law = laws.get(f.electrode)
+        if law is None:
+            continue
+        moved = x.copy()
+        for q, shift in law.get("shift", {}).items():
+            v = names.index(q)
+            moved[:, v] += shift * etch / model.coordinates[v].scale
+        out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
+    return out
 
 
 def kelvin(temp_c: float) -> float:

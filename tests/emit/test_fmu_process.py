@@ -7,8 +7,9 @@ valid range.
 References:
 - closed forms of the structure: k = 4 E w t^3 / L^3 (Euler-Bernoulli beams, guided ends) with
   t = 5 um tscale, E = 160 GPa escale (1 + tc (T - T0)) (tc the declared -60 ppm/K, T0 = 300 K the
-  structure's temperature), w = 2 um - 2 etch; m = rho A t (the rigid plate); b = alpha m; the step
-  response of m x'' + b x' + k x = F from rest (resonance and static deflection F / k); under a
+  structure's temperature), w = 2 um - 2 etch; m = rho (200 um - 2 etch)^2 t (the rigid plate,
+  etched); b = alpha m; the step response of m x'' + b x' + k x = F from rest (resonance and static
+  deflection F / k); under a
   voltage V on the plate below, the equilibrium k z = -eps0 A V^2 / (2 (g + dg + z)^2) and the
   charge eps0 A V / (g + dg + z) (fringe "none": the 1/P fit is exact); a step on a_in loads the
   plate with -m a_in (the a_in gain times tscale);

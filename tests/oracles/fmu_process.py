@@ -1,8 +1,8 @@
 """The FMU's process parameters against closed forms and ngspice, shared by
 tests/emit/test_fmu_process.py (which states the tolerances) and bench/fmu_process.py (which prints
 the figures): the proof mass on four clamped-guided beams over one plate (process_cases.GUIDED, all
-five parameters declared, Rayleigh alpha = 2e5 1/s), its closed forms (k = 4 E w t^3 / L^3, m = rho A
-t, b = alpha m, the step response from rest, the parallel-plate equilibrium), one co-simulation of
+five parameters declared, Rayleigh alpha = 2e5 1/s), its closed forms (k = 4 E w t^3 / L^3, m = rho (200 um -
+2 etch)^2 t, b = alpha m, the step response from rest, the parallel-plate equilibrium), one co-simulation of
 its FMU through fmpy and one ngspice 39 transient of its .lib with the same instance parameters."""
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ def closed_form(p: dict[str, float]) -> tuple[float, float, float]:
     t = T_UM * 1e-6 * p.get("tscale", 1.0)
     e = E0 * p.get("escale", 1.0) * (1.0 + TC * (p.get("temp", T0_C) - T0_C))
     w = W_UM * 1e-6 - 2.0 * p.get("etch", 0.0)
-    m = RHO * AREA * t
+    m = RHO * (math.sqrt(AREA) - 2.0 * p.get("etch", 0.0)) ** 2 * t  # the etched outline (netgen.model.process.etched)
     return m, 4.0 * e * w * t**3 / L**3, ALPHA * m
 
 
