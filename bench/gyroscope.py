@@ -17,6 +17,11 @@ runs of 4 x --cycles periods), the rate noise density against sqrt(4 k_B T b_y) 
 and brownian.png (tests/testbench/test_gyro_noise.py runs 8192 periods over +-4 kHz).
 
     .venv/bin/python bench/gyroscope.py [--cycles 65536] [--points 9] [--span 0.5] [--simulator ngspice-xspice] [-o DIR]
+    .venv/bin/python bench/gyroscope.py --simulator vacask --points 3   (2^16 periods: about 2 min of CPU per rate)
+
+--simulator takes every gyro back end (netgen.testbench.gyro.options.SIMULATORS): the drive loop is a
+B-source in ngspice and ngspice-xspice, the Verilog-A block drive.va in vacask and ngspice-osdi
+(ngspice 45 or later: NETGEN_NGSPICE=~/.cache/netgen/ngspice-46/bin/ngspice).
     .venv/bin/python bench/gyroscope.py --noise-reference --cycles 32768
     .venv/bin/python bench/gyroscope.py --brownian --cycles 16384 [--simulator ngspice] [-o DIR]
 """
@@ -40,6 +45,7 @@ from support import gyro_reference as reference
 from netgen.build import build_model
 from netgen.emit.ngspice import subcircuit
 from netgen.structure import load_structure
+from netgen.testbench.gyro.options import SIMULATORS
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
 from netgen.testbench.sigma_delta.loopfile import read_structure_loop
 
@@ -148,7 +154,7 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=65536)
     ap.add_argument("--points", type=int, default=9, help="rates (odd: one at 0)")
     ap.add_argument("--span", type=float, default=0.5, help="the sweep's extent, a fraction of the full-scale rate")
-    ap.add_argument("--simulator", default="ngspice-xspice")
+    ap.add_argument("--simulator", default="ngspice-xspice", choices=SIMULATORS)
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--noise-reference", action="store_true", help="the noise floor against the reference loop")
     ap.add_argument("--brownian", action="store_true", help="the Brownian variant's floor against 4 k_B T b_y")
@@ -174,7 +180,8 @@ def main() -> None:
         print(
             f"  applied {r['rate_applied_rad_s'] / deg:+10.3f} deg/s  read {r['rate_rad_s'] / deg:+10.3f}  "
             f"quadrature force / k_xy X_d - 1 {r['quadrature_force_n'] / (reference.K_XY * r['drive_amplitude_m']) - 1:+.2e}  "
-            f"noise {r['rate_noise_deg_s_rthz']:.3g} deg/s/rtHz"
+            f"noise {r['rate_noise_deg_s_rthz']:.3g} deg/s/rtHz  "
+            f"drive {r['drive_hz']:.4f} Hz at {r['drive_amplitude_m'] / reference.X_D - 1:+.2e} of X_d"
         )
     sw = s["sweep"]
     zero = [r for r in s["runs"] if r["rate_applied_rad_s"] == 0.0]

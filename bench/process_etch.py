@@ -1,27 +1,97 @@
-"""The lateral etch bias's laws (netgen.model.process.etch_laws) against closed forms and re-runs: the
-figures quoted in docs/process.md and CHANGELOG.md. Run from the repository root:
-    .venv/bin/python bench/process_etch.py
+"""The lateral etch bias's laws (netgen.model.process.etch_laws, capacitance_laws) against closed forms,
+re-runs and full rebuilds: the figures quoted in docs/process.md and CHANGELOG.md. Run from the
+repository root:
+    .venv/bin/python bench/process_etch.py              (flexures, outline and holes, textbook combs)
+    .venv/bin/python bench/process_etch.py --field2d    (also accelerometer_xyz's field2d combs: the
+        2-D finger cell solved at four more finger widths, minutes of CPU the first time, then cached)
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import time
 
+import numpy as np
 from support import process_cases
 
 from netgen.build import build_model
+from netgen.core.constants import EPS0
 from netgen.mechanics import mechanics
-from netgen.model.process import coordinate_values, process_laws
+from netgen.model.process import capacitance_at, coordinate_values, process_laws
 from netgen.structure import parse_structure
 
 # the cases of tests/model/test_process_etch.py (tests/oracles/process_cases.py)
 ETCHES, RANGE = process_cases.ETCHES, process_cases.RANGE
 guided, proof_text, rerun = process_cases.guided, process_cases.proof_text, process_cases.rerun
+PROCESS = '[process]\nparameters = ["etch"]\n'
+
+
+def against_rebuilds(label: str, nominal, rebuild) -> None:
+    """The etch laws of `nominal` against full rebuilds (rebuild(etch) -> MacroModel) at
+    process_cases.PERFORATED_ETCHES: modal frequencies and capacitances at 100 points of the box (the
+    same physical displacements), with the stated errors."""
+    law = nominal.process["etch"]
+    print(
+        f"{label}: stated etch errors: mechanics {law['max_rel_error']:.2e}, capacitance "
+        f"{law['capacitance_max_rel_error']:.2e}; fit errors up to {max(f.max_rel_error for f in nominal.capacitances):.2e}"
+    )
+    x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, nominal.ncoords))
+    worst_f = worst_c = 0.0
+    for etch in process_cases.PERFORATED_ETCHES:
+        model = rebuild(etch)
+        for v, ref in enumerate(model.coordinates):
+            m, k, _ = coordinate_values(nominal.process, v, etch=etch)
+            worst_f = max(worst_f, abs(math.sqrt(k / m) / math.sqrt(ref.stiffness / ref.mass) - 1))
+        ref_c = model.capacitance(x * nominal.scales / model.scales)
+        worst_c = max(worst_c, float(np.max(np.abs(capacitance_at(nominal, x, etch) / ref_c - 1))))
+    print(
+        f"  against rebuilds at etch {process_cases.PERFORATED_ETCHES}: frequencies {worst_f:.2e}, C at 100 points {worst_c:.2e}"
+    )
+
+
+def outline_and_combs(field2d: bool) -> None:
+    """The perforated crab-leg mass (3 um legs) and accelerometer_xyz (textbook combs; with `field2d`
+    its own 2-D finger cell) against rebuilds, and the textbook comb against its closed form."""
+    t0 = time.process_time()
+    px = build_model(parse_structure(process_cases.perforated(process=PROCESS), "px.toml"))
+    print(f"perforated crab-leg mass build with etch: {time.process_time() - t0:.1f} s CPU")
+    against_rebuilds(
+        "perforated crab-leg mass", px, lambda e: build_model(parse_structure(process_cases.perforated(e), "px.toml"))
+    )
+    xyz = build_model(parse_structure(process_cases.xyz_text(process=PROCESS), "xyz.toml"))
+    against_rebuilds(
+        "accelerometer_xyz, textbook combs",
+        xyz,
+        lambda e: build_model(parse_structure(process_cases.xyz_text(e), "xyz.toml")),
+    )
+    k = [f.electrode for f in xyz.capacitances].index("xp_t")
+    worst = max(
+        abs(
+            capacitance_at(xyz, np.zeros((1, xyz.ncoords)), e)[0, k]
+            / (20 * EPS0 * 2e-6 * (30e-6 - 2 * e) / (1.5e-6 + 2 * e))
+            - 1
+        )
+        for e in process_cases.PERFORATED_ETCHES
+    )
+    print(f"  comb xp_t at rest against 20 eps t (L0 - 2 etch) / (g + 2 etch): {worst:.2e}")
+    if field2d:
+        t0 = time.process_time()
+        real = lambda text: text.replace('comb_model = "textbook"', 'comb_model = "field2d"')  # noqa: E731
+        f2 = build_model(parse_structure(real(process_cases.xyz_text(process=PROCESS)), "xyz.toml"))
+        print(f"accelerometer_xyz, field2d combs, build with etch: {time.process_time() - t0:.1f} s CPU")
+        against_rebuilds(
+            "accelerometer_xyz, field2d combs",
+            f2,
+            lambda e: build_model(parse_structure(real(process_cases.xyz_text(e)), "xyz.toml")),
+        )
 
 
 def main() -> None:
     """Print the largest deviations of the etch laws from the closed forms and the re-runs."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--field2d", action="store_true", help="also accelerometer_xyz's field2d combs (slow once)")
+    args = parser.parse_args()
     text = guided(process='[process]\nparameters = ["etch"]' + RANGE).replace(
         'rigid = ["z"]', 'rigid = ["z", "x", "y"]'
     )
@@ -52,6 +122,7 @@ def main() -> None:
             for v, (_, k) in enumerate(rerun(10.0 * tau, etch)):
                 worst_c = max(worst_c, abs(coordinate_values(folded.process, v, tscale=tau, etch=etch)[1] / k - 1))
     print(f"folded stiffness at the (tscale, etch) corners: largest deviation {worst_c:.2e}")
+    outline_and_combs(args.field2d)
 
 
 if __name__ == "__main__":

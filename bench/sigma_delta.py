@@ -53,6 +53,8 @@ compare variants within one loop):
 
 Solvers (each case runs with each): sparse (ngspice's default Sparse 1.3) and klu (`.options klu`,
 built into ngspice 43 and later; `--solvers` defaults to both where the ngspice has KLU).
+`--num-threads-1` adds `set num_threads=1` to the code-model decks as well (the OSDI decks always
+set it; in ngspice 39 it changes nothing there: those decks have no OpenMP device).
 
 Another device: `--model` its JSON; the testbench is its default loop (loop.design: channels,
 electrodes and gravity from the model), e.g. the z accelerometer's compiled loop against its floor:
@@ -280,6 +282,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--model", default=str(MODEL_JSON), help="model JSON (default the committed reference)")
     ap.add_argument("--keep", help="keep the run folders here (default: a temporary folder)")
+    ap.add_argument(
+        "--num-threads-1",
+        action="store_true",
+        help="add `set num_threads=1` to the code-model decks too (the OSDI decks always set it)",
+    )
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     loops = [lp for lp in args.loops.split(",") if lp]
@@ -297,6 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     control = []
     if any(needs_codemodel(v, lp) for v, lp, _ in cases):
         control = codemodel.control_lines(*sdn.code_models(progress=True))
+        control += [sdo.THREADS] if args.num_threads_1 else []
     cache = Path(tempfile.mkdtemp(prefix="netgen-bench-osdi-"))
     extra = {(v, lp): osdi_control(model, v, lp, cache) for v, lp, _ in cases}
     cycles = {v: (args.naive_cycles if v == "naive" else args.cycles) for v in variants}

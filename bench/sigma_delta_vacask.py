@@ -8,14 +8,16 @@ Runs the loop of `netgen sigma-delta` (netgen.testbench.sigma_delta.loop) around
 
   vacask       netgen.testbench.sigma_delta.vacask: the compiled Verilog-A model (netlists/levitated_disk.va)
                and the loop blocks of netgen/testbench/sigma_delta/blocks.va, default options
-               (netgen.testbench.sigma_delta.vacask.OPTIONS: tran_fbr=0.15 tran_lteratio=30, the mechanics
-               within the bounds of tests/testbench/test_sigma_delta_vacask.py)
-  vacask-previous  the options before 2026-12-06 (tran_fbr=0.1 tran_lteratio=10: 148 points per
-               period against 99, the mechanics' error against solve_ivp 1.1 % of z's peak against 2.5 %)
-  vacask-native  the same, the Verilog-A compiled for this machine's CPU (openvaf-r --target_cpu native,
-               what `netgen sigma-delta --native` does)
-  vacask-fast  the same with VACASK's default corner steps (tran_fbr=0.25; with tran_lteratio=10 it had
-               114 points per period and z 6.9 % of its peak off solve_ivp in 48 periods, over the test's 6 %)
+               (netgen.testbench.sigma_delta.vacask.OPTIONS and RAMP_STEPS: tran_fbr=1/3, tran_lteratio=100,
+               abstol=1e-6 and step bounds on the ramps, within the bounds of
+               tests/testbench/test_sigma_delta_vacask.py)
+  vacask-previous  the previous options (tran_fbr=0.15 tran_lteratio=30 abstol=1e-12, no ramp
+               bounds: 99 points per period against 68)
+  vacask-native  the same as vacask, the Verilog-A compiled for this machine's CPU (openvaf-r --target_cpu
+               native, what `netgen sigma-delta --native` does)
+  vacask-fast  the previous options with VACASK's default corner steps (tran_fbr=0.25; with tran_lteratio=10
+               it had 114 points per period and z 6.9 % of its peak off solve_ivp in 48 periods, over the
+               test's 6 %)
   ngspice      the ngspice bench (templates/sigma_delta/tb.cir.j2 with netlists/levitated_disk.lib)
 
 each --repeat times in this process (variant order rotates per repeat), and prints per variant
@@ -58,12 +60,13 @@ from netgen.testbench.sigma_delta import vacask as sdv
 JSON = ROOT / "netlists" / "levitated_disk.json"
 LIB = ROOT / "netlists" / "levitated_disk.lib"
 VA = ROOT / "netlists" / "levitated_disk.va"
-# variant -> (extra VACASK options, openvaf-r target CPU); ngspice: None
+# variant -> (extra VACASK options, openvaf-r target CPU, ramp step bounds: vacask.RAMP_STEPS); ngspice: None
+PREVIOUS = "tran_fbr=0.15 tran_lteratio=30 abstol=1e-12"
 VARIANTS = {
-    "vacask": ("", GENERIC),
-    "vacask-previous": ("tran_fbr=0.1 tran_lteratio=10", GENERIC),
-    "vacask-native": ("", NATIVE),
-    "vacask-fast": ("tran_fbr=0.25", GENERIC),
+    "vacask": ("", GENERIC, sdv.RAMP_STEPS),
+    "vacask-previous": (PREVIOUS, GENERIC, None),
+    "vacask-native": ("", NATIVE, sdv.RAMP_STEPS),
+    "vacask-fast": (PREVIOUS + " tran_fbr=0.25", GENERIC, None),
     "ngspice": None,
 }
 
@@ -85,7 +88,7 @@ def run_one(model: MacroModel, variant: str, ts: float, cycles: int, work: Path,
         wall = time.perf_counter() - start
         pts, its = len(plot["time"]) - 1, None
     else:
-        options, cpu = VARIANTS[variant]
+        options, cpu, sdv.RAMP_STEPS = VARIANTS[variant]
         how = sdv.BenchOptions(va=VA, cache=cache, options=options, cpu=cpu)
         plot = sdv.run_bench(model, d, out, cycles, progress=False, how=how)
         wall = time.perf_counter() - start

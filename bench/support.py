@@ -24,6 +24,7 @@ MODULES = (
     "bem_reduced",
     "closed_forms",
     "fastcap_guarded",
+    "fmu_process",
     "gyro_reference",
     "lateral_comb",
     "process_balance",

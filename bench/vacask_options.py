@@ -5,13 +5,17 @@ mechanics' accuracy, the check of tests/testbench/test_sigma_delta_vacask.py for
     .venv/bin/python bench/vacask_options.py [OPTIONS ...]     # e.g. - "tran_fbr=0.25" "tran_lteratio=100"
 
 Each argument is a set of VACASK options appended to netgen.testbench.sigma_delta.vacask.OPTIONS
-("-": none, the default). For each, the test's 512-period VACASK run of the reference disk
-(T_s = 1 us), then the test's independent integration (solve_ivp of the mechanics driven by the
+("-": none, the default), and optionally ramp_steps=F,S (the step bounds on the feedback and sense
+ramps, netgen.testbench.sigma_delta.vacask.RAMP_STEPS; ramp_steps=none: none). The previous
+options: 'tran_fbr=0.15 tran_lteratio=30 abstol=1e-12 ramp_steps=none'. For each, the test's
+512-period VACASK run of the reference disk (T_s = 1 us), then the test's independent integration (solve_ivp of the mechanics driven by the
 bits VACASK produced, 48 periods) and its latch check; prints the time points and Newton
 iterations per period (VACASK's stats), the CPU time of the VACASK process per period, the largest
 error of z and of the other coordinates against the integration (of each one's peak; the test's
-bounds: 6 % and 1.5 %), the mean z bit and the held latch levels off 0/1 (unexplained, partial,
-largest).
+bounds: 6 % and 1.5 %), the mean z bit, the momentum balance (the test: within 1 %), the noise
+shaping per channel z/tilt_x/tilt_y (the test's: PSD over f_s/4..f_s/2 at least 15 dB over the PSD
+below f_s/32; the mechanics check replays VACASK's bits and so cannot see a readout that lost its
+accuracy, this one can) and the held latch levels off 0/1 (unexplained, partial, largest).
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ from netgen.sim.vacask import stats
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import vacask as sdv
 
+RAMP_STEPS = sdv.RAMP_STEPS  # the default
+
 
 def child_cpu() -> float:
     """CPU seconds (user + system) of this process's finished children."""
@@ -38,8 +44,14 @@ def child_cpu() -> float:
 
 
 def one(model: MacroModel, extra: str, out: Path) -> str:
-    """The line of one option set."""
-    sdv.EXTRA_OPTIONS = "" if extra == "-" else extra
+    """The line of one option set; its ramp_steps=F,S item sets netgen.testbench.sigma_delta.vacask.RAMP_STEPS
+    (ramp_steps=none: no ramp bounds), every other item is a VACASK option."""
+    items = [] if extra == "-" else extra.split()
+    ramps = [i.partition("=")[2] for i in items if i.startswith("ramp_steps=")]
+    sdv.RAMP_STEPS = RAMP_STEPS
+    if ramps:
+        sdv.RAMP_STEPS = None if ramps[-1] == "none" else tuple(float(x) for x in ramps[-1].split(","))
+    sdv.EXTRA_OPTIONS = " ".join(i for i in items if not i.startswith("ramp_steps="))
     sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")
     sdv.compile_blocks(out / "osdi")
     cpu = child_cpu()
@@ -52,14 +64,22 @@ def one(model: MacroModel, extra: str, out: Path) -> str:
         c.name: float(np.abs(clock[f"x_{c.name}"][: check.REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max())
         for i, c in enumerate(model.coordinates)
     }
+    print("  per coordinate: " + " ".join(f"{k} {v:.4f}" for k, v in err.items()), file=sys.stderr)
     ch = s["channels"]
     latches = [
         (ch[c]["unexplained_latches"], ch[c]["partial_latches"], ch[c]["max_latch_error"]) for c in check.CHANNELS
     ]
+    fs = 1 / check.TS
+    shaping = []  # the test's noise-shaping figure per channel: PSD over fs/4..fs/2 against below fs/32, dB
+    for c in check.CHANNELS:
+        f, p = s["spectra"][c]
+        shaping.append(10 * np.log10(p[f >= fs / 4].mean() / p[(f > 0) & (f <= fs / 32)].mean()))
     return (
         f"{extra:32s} {st['accepted'] / check.CYCLES:6.1f} {st['nr_iterations'] / st['accepted']:5.2f} "
         f"{1e3 * cpu / check.CYCLES:7.2f} {err['z']:7.3f} {max(v for k, v in err.items() if k != 'z'):7.4f} "
-        f"{ch['z']['bit_mean']:6.4f}  {sum(u + p for u, p, _ in latches)} / {max(m for _, _, m in latches):.1e}"
+        f"{ch['z']['bit_mean']:6.4f} {s['gravity_balance']['ratio']:7.4f} "
+        + "/".join(f"{x:.1f}" for x in shaping)
+        + f"  {sum(u + p for u, p, _ in latches)} / {max(m for _, _, m in latches):.1e}"
     )
 
 
@@ -68,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
     print(f"VACASK options appended to {sdv.OPTIONS!r}; {check.CYCLES} periods, {check.REPLAY} replayed")
     print(
-        f"{'options':32s} {'pts':>6s} {'it/pt':>5s} {'cpu ms':>7s} {'z err':>7s} {'others':>7s} {'z bit':>6s}  latches"
+        f"{'options':32s} {'pts':>6s} {'it/pt':>5s} {'cpu ms':>7s} {'z err':>7s} {'others':>7s} {'z bit':>6s} "
+        f"{'F/mg':>7s} {'shaping dB':>14s}  latches"
     )
     with tempfile.TemporaryDirectory(prefix="bench_vacask_options_") as tmp:
         for k, extra in enumerate(sets):

@@ -44,7 +44,7 @@ from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
 from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots
-from .model.process import process_laws
+from .model.process import inertial_law, process_laws
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -320,8 +320,26 @@ def assemble(
         model.nonlinear = energy_entry(poly, m.strain_energy.description, fit_report)
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     range_z = s.sampling.range * (box_factors(s.sampling, len(m.names))[m.names.index("z")] if "z" in m.names else 1.0)
-    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z))
+    model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), capacitance_sampler(s, m, scales))
+    if model.process and model.inertial:  # the inertial terms' tscale law (netgen.model.process.inertial_law)
+        model.process["inertial"] = inertial_law(s, data, lambda t: inertial.terms(t, m, s.coordinates.inertial))
     return model
+
+
+def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
+    """(structure, n, offset) -> its electrodes' capacitances from a fresh extractor at rest and at n
+    random points of s0's fit box (fixed seed: the same points for every structure), all moved by the
+    displacement `offset` (SI per coordinate; None: none), for the process laws' re-runs of an etched
+    structure (netgen.model.process.etch_record)."""
+    half = s0.sampling.range * box_factors(s0.sampling, len(m.names)) * scales
+
+    def extract(s: Structure, n: int, offset: np.ndarray | None = None) -> np.ndarray:
+        plate, shapes = plate_outline(s), electrodes(s)
+        prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
+        q = np.vstack([np.zeros(len(m.names)), np.random.default_rng(0).uniform(-1.0, 1.0, (n, len(m.names))) * half])
+        return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
+
+    return extract
 
 
 def dielectric_layers(s: Structure) -> list[dict]:

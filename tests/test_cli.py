@@ -89,7 +89,7 @@ RANGES = [
     (["gyro", GYRO, "-o", "OUT", "--rate-points", "2"], "--rate-points", "between 3 and 41"),
     (["gyro", GYRO, "-o", "OUT", "--drive-amplitude", "4 V"], "--drive-amplitude", "e.g. --drive-amplitude"),
     (["gyro", GYRO, "-o", "OUT", "--agc-gain", "0"], "--agc-gain", "is outside (0, 10000]"),
-    (["gyro", GYRO, "-o", "OUT", "--simulator", "ngspice-osdi"], "--simulator", "invalid choice"),
+    (["gyro", GYRO, "-o", "OUT", "--simulator", "spectre"], "--simulator", "invalid choice"),
     (["sweep", DISK, str(ROOT / "examples/sweep_ts.toml"), "-o", ""], "-o/--output", "give a folder"),
     (["sweep", DISK, str(ROOT / "examples/sweep_ts.toml"), "-o", "/proc/x"], "-o/--output", "not storage"),
 ]

@@ -7,6 +7,9 @@ its Maxwell matrix at given generalized coordinates; `calibration_source = "fast
 extractor, netgen.electrostatics.fastcap, with its [electrostatics.fastcap] settings), or the Maxwell matrices of a user's file
 (`couplings = "file"`, netgen.electrostatics.coupling_file) at the points the file names.
 `extractor = "parallel_plate"` with a `couplings` file takes the file's mean couplings only.
+A perforated plate keeps its fill factor F(g) in the plate term (netgen.electrostatics.perforation)
+and the fringes are fitted beside it, on FastCap points with the holes meshed (BEM points, of a
+solid plate, are refused for it: netgen.structure.validity.perforation).
 """
 
 from __future__ import annotations
@@ -125,7 +128,11 @@ class CalibratedExtractor:
         self.result["calibration"] = cal
         self.result["names"] = [e.name for e in electrodes]
         return ParallelPlateExtractor(
-            eps=self.base.eps, fringes=cal.fringes, order=self.base.order, edge_order=self.base.edge_order
+            eps=self.base.eps,
+            fringes=cal.fringes,
+            order=self.base.order,
+            edge_order=self.base.edge_order,
+            perforation=self.base.perforation,
         ).prepare(electrodes, plate, basis)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:

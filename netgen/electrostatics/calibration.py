@@ -119,11 +119,14 @@ def terms(
     base: ParallelPlateExtractor, electrodes: Sequence[Electrode], plate: Plate, basis: Basis, q: Array
 ) -> tuple[Array, Array, Array]:
     """The three parts of the analytic capacitance at the points q, each (npts, nel) in F:
-    eps int dA/g (no fringe), eps int ds (a = 1, b = 0 minus that), eps int ln(L/g) ds (a = 0, b = 1)."""
+    eps int F dA/g (no fringe; F: a perforated plate's fill factor, 1 when solid), eps int ds (a = 1,
+    b = 0 minus that), eps int ln(L/g) ds (a = 0, b = 1)."""
     length = (base.fringe.length if base.fringe is not None else None) or plate.size
 
     def part(fringe):
-        ext = ParallelPlateExtractor(eps=base.eps, fringe=fringe, order=base.order, edge_order=base.edge_order)
+        ext = ParallelPlateExtractor(
+            eps=base.eps, fringe=fringe, order=base.order, edge_order=base.edge_order, perforation=base.perforation
+        )
         return ext.prepare(electrodes, plate, basis).capacitance(q)
 
     area = part(None)
@@ -182,7 +185,9 @@ def calibrate(
     )
     cc = electrode_couplings(m)
     mean, spread = cc.mean(axis=0), cc.std(axis=0)
-    calibrated = ParallelPlateExtractor(eps=base.eps, fringes=fringes, order=base.order, edge_order=base.edge_order)
+    calibrated = ParallelPlateExtractor(
+        eps=base.eps, fringes=fringes, order=base.order, edge_order=base.edge_order, perforation=base.perforation
+    )
     prepared = [e.prepare(electrodes, plate, basis) for e in (base, calibrated)]
     report = comparison([p.capacitance(q) for p in prepared], c, diffs, [e.name for e in electrodes], mean)
     return Calibration(name, q, m, fringes, mean, spread, report)

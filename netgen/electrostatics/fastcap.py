@@ -32,12 +32,17 @@ from .bem import MaxwellMatrix, central_differences, extrapolate, relative_chang
 from .bem_mesh import Sizes
 from .fastcap_mesh import Layered, Panels, electrode_panels, layered_panels, plate_panels
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
+from .perforation import Perforation
 
 FASTCAP_INSTALL = "pip install 'netgen[fastcap]'  (or: pip install fastcap2==2.1)"
 # peak memory per panel of one solve (bytes): bench/fastcap_reference.py measured 1.21 GB peak RSS
 # (Python and numpy included) for 55.6k panels at expansion order 4 and 30.5k at order 6, about
 # 20 kB a panel; 25 kB keeps a margin for order 6 on the fine level
 BYTES_PER_PANEL = 25e3
+# CPU seconds per panel of one solve (order 4 and 6 mixed) on this project's 2-core AMD EPYC:
+# 0.19-0.64 ms for sheets (2k-46k panels, docs/fastcap.md), 1.1 ms for a 2 um thick perforated
+# plate (its hole walls); 1 ms, so the estimate is within about 5x either way
+SECONDS_PER_PANEL = 1e-3
 
 
 class FastcapBudgetError(SimulationError):
@@ -198,9 +203,11 @@ class PreparedFastcap:
         thickness: float,
         settings: FastcapSettings,
         source: str | None = None,
+        perforation: Perforation | None = None,
     ):
         """Panel every level, refusing before the work when the finest exceeds the budget."""
         self.electrodes = tuple(electrodes)
+        self.holes = None if perforation is None else (perforation.hole, perforation.pitch)
         self.eps_r, self.eps, self.thickness, self.settings = eps_r, EPS0 * eps_r, thickness, settings
         self.geometry: PreparedParallelPlate = ParallelPlateExtractor(eps=self.eps, fringe=None).prepare(
             electrodes, plate, basis
@@ -228,7 +235,7 @@ class PreparedFastcap:
         """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the
         electrodes (Layered under a dielectric layer)."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
-        p = plate_panels(plate, self.thickness, sizes)
+        p = plate_panels(plate, self.thickness, sizes, holes=self.holes)
         xy = p.corners.reshape(-1, 3)
         phi = np.asarray(basis(xy[:, 0], xy[:, 1]), dtype=float).reshape(len(xy), -1)
         half = self.thickness / 2.0
@@ -246,6 +253,17 @@ class PreparedFastcap:
         plate, phi, sheets = self.levels[level]
         dz = (phi @ np.asarray(q, dtype=float)).reshape(len(plate), 4)
         return [plate.moved(dz), *sheets]
+
+    def estimate(self) -> dict:
+        """Panels of every level, and the memory and CPU time of one converged Maxwell matrix,
+        estimated before any solve (BYTES_PER_PANEL for the finest level; SECONDS_PER_PANEL for
+        the levels plus the coarse level's check solve)."""
+        panels = [len(plate) + sum(len(p) for p in sheets) for plate, _, sheets in self.levels]
+        return {
+            "panels": panels,
+            "memory_bytes": BYTES_PER_PANEL * max(panels),
+            "cpu_seconds": SECONDS_PER_PANEL * (sum(panels) + panels[0]),
+        }
 
     def fingerprint_arrays(self) -> list[Array]:
         """The arrays that identify the panels (bem_sampling.key_of's store folder)."""
@@ -299,12 +317,14 @@ class PreparedFastcap:
 @dataclass(frozen=True)
 class FastcapExtractor:
     """Multipole-accelerated panel capacitances (FastCap2): relative permittivity, plate thickness
-    (m; 0: a sheet), settings (FastcapSettings)."""
+    (m; 0: a sheet), settings (FastcapSettings), the plate's etch-hole grid (None: solid; meshed
+    as holes through the plate, fastcap_mesh.perforated_face)."""
 
     eps_r: float = 1.0
     thickness: float = 0.0
     settings: FastcapSettings = field(default_factory=FastcapSettings)
     source: str | None = None
+    perforation: Perforation | None = None
 
     @property
     def description(self) -> str:
@@ -316,11 +336,18 @@ class FastcapExtractor:
             f"edge_to_gap {st.edge_to_gap:g}, element_to_gap {st.element_to_gap:g}, refinement "
             f"{st.refinement:.3g}, expansion order {st.expansion_order} (check {st.check_order}), "
             f"memory budget {st.memory_budget / 1e9:g} GB"
+            + (
+                ""
+                if self.perforation is None
+                else f"; etch holes {self.perforation.hole:g} m on a {self.perforation.pitch:g} m pitch meshed"
+            )
         )
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedFastcap:
         """Panel the structure once (both levels); each sample is then a converged solve."""
-        return PreparedFastcap(electrodes, plate, basis, self.eps_r, self.thickness, self.settings, self.source)
+        return PreparedFastcap(
+            electrodes, plate, basis, self.eps_r, self.thickness, self.settings, self.source, self.perforation
+        )
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:
         """Electrode-electrode capacitances (nel, nel) in F at the undeformed position."""
@@ -338,8 +365,14 @@ def settings_of(s) -> FastcapSettings:
 
 
 def from_structure(s, plate: Plate) -> FastcapExtractor:
-    """The extractor for a structure (s: netgen.structure.Structure): permittivity, thickness, settings."""
+    """The extractor for a structure (s: netgen.structure.Structure): permittivity, thickness, settings,
+    and a proof mass's etch holes (conductor.hole, hole_pitch), meshed."""
     thickness = float(getattr(s.conductor, "thickness", 0.0))
+    hole, pitch = float(getattr(s.conductor, "hole", 0.0)), float(getattr(s.conductor, "hole_pitch", 0.0))
     return FastcapExtractor(
-        eps_r=s.electrostatics.relative_permittivity, thickness=thickness, settings=settings_of(s), source=str(s.source)
+        eps_r=s.electrostatics.relative_permittivity,
+        thickness=thickness,
+        settings=settings_of(s),
+        source=str(s.source),
+        perforation=Perforation(hole, pitch) if hole else None,
     )

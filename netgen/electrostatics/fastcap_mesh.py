@@ -106,25 +106,80 @@ def _rim_band(outline: Array, thickness: float, sizes: Sizes) -> Panels:
     return Panels(np.concatenate(out))
 
 
-def plate_panels(plate: Plate, thickness: float, sizes: Sizes, aspect: float = ASPECT) -> Panels:
+def hole_edges(lo: float, hi: float, hole: float, pitch: float) -> Array:
+    """The holes' edges (n, 2) along one side lo..hi: a centred row of floor(length / pitch) cells
+    (as ProofMass.holes counts them, without its floating-point floor), a hole centred in each."""
+    n = math.floor((hi - lo) / pitch * (1.0 + 1e-9))
+    centres = 0.5 * (lo + hi) + (np.arange(n) - (n - 1) / 2.0) * pitch
+    return np.column_stack([centres - hole / 2.0, centres + hole / 2.0])
+
+
+def _nodes(lo: float, hi: float, cuts: Array, sizes: Sizes) -> tuple[Array, Array]:
+    """Nodes from lo to hi graded towards every cut (hole edge) and end; and whether each cell
+    between consecutive nodes lies inside a hole (cuts (n, 2): each hole's two edges)."""
+    breaks = np.concatenate([[lo], cuts.ravel(), [hi]])
+    parts = [graded(a, b, sizes) for a, b in zip(breaks[:-1], breaks[1:])]
+    nodes = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
+    inside = np.concatenate([np.full(len(p) - 1, k % 2 == 1) for k, p in enumerate(parts)])
+    return nodes, inside
+
+
+def perforated_face(plate: RectPlate, hole: float, pitch: float, sizes: Sizes) -> tuple[Panels, Array, Array, list]:
+    """A rectangular plate's face at z = 0 with its square etch-hole grid cut out: a tensor grid
+    graded towards the outline and every hole's edges, the cells inside holes dropped; also the
+    x and y nodes and each hole's outline (on the grid's nodes, for the holes' walls)."""
+    cx, cy = hole_edges(plate.x0, plate.x1, hole, pitch), hole_edges(plate.y0, plate.y1, hole, pitch)
+    x, in_x = _nodes(plate.x0, plate.x1, cx, sizes)
+    y, in_y = _nodes(plate.y0, plate.y1, cy, sizes)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    P = np.stack([X, Y, np.zeros(X.shape)], axis=-1)
+    c = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)
+    keep = ~np.logical_and.outer(in_x, in_y)
+    rings = []
+    for a, b in cx:
+        xs = x[(x >= a - 1e-9 * pitch) & (x <= b + 1e-9 * pitch)]
+        for lo, hi in cy:
+            ys = y[(y >= lo - 1e-9 * pitch) & (y <= hi + 1e-9 * pitch)]
+            rings.append(_rectangle_outline(xs, ys))
+    return Panels(c[keep]), x, y, rings
+
+
+def _rectangle_outline(x: Array, y: Array) -> Array:
+    """The closed outline (m, 2) of the rectangle x[0]..x[-1] by y[0]..y[-1] through the given nodes."""
+    return np.concatenate(
+        [
+            np.column_stack([x[:-1], np.full(len(x) - 1, y[0])]),
+            np.column_stack([np.full(len(y) - 1, x[-1]), y[:-1]]),
+            np.column_stack([x[::-1][:-1], np.full(len(x) - 1, y[-1])]),
+            np.column_stack([np.full(len(y) - 1, x[0]), y[::-1][:-1]]),
+        ]
+    )
+
+
+def plate_panels(
+    plate: Plate,
+    thickness: float,
+    sizes: Sizes,
+    aspect: float = ASPECT,
+    holes: tuple[float, float] | None = None,
+) -> Panels:
     """The plate: one sheet at z = 0 (thickness 0), or top and bottom faces at +-thickness/2 and
-    the rim wall (a closed surface)."""
-    if isinstance(plate, DiskPlate):
+    the rim wall (a closed surface); holes = (side, pitch): a rectangular plate's square etch-hole
+    grid cut out of the faces, each hole walled through the thickness."""
+    rings: list[Array] = []
+    if holes is not None:
+        if not isinstance(plate, RectPlate):
+            raise NotImplementedError(f"no etch holes in a {type(plate).__name__} (a proof mass is rectangular)")
+        face, x, y, rings = perforated_face(plate, holes[0], holes[1], sizes)
+        outline = _rectangle_outline(x, y)
+    elif isinstance(plate, DiskPlate):
         face = polar_panels(0.0, plate.radius, 0.0, 2.0 * math.pi, 0.0, sizes, 0.0, aspect)
         n = max(8, math.ceil(2.0 * math.pi * plate.radius / min(sizes.h_max, aspect * sizes.h_edge)))
         t = np.arange(n) * (2.0 * math.pi / n)
         outline = plate.radius * np.column_stack([np.cos(t), np.sin(t)])
     elif isinstance(plate, RectPlate):
         face = rect_panels(plate.x0, plate.x1, plate.y0, plate.y1, sizes, 0.0)
-        x, y = graded(plate.x0, plate.x1, sizes), graded(plate.y0, plate.y1, sizes)
-        outline = np.concatenate(
-            [
-                np.column_stack([x[:-1], np.full(len(x) - 1, plate.y0)]),
-                np.column_stack([np.full(len(y) - 1, plate.x1), y[:-1]]),
-                np.column_stack([x[::-1][:-1], np.full(len(x) - 1, plate.y1)]),
-                np.column_stack([np.full(len(y) - 1, plate.x0), y[::-1][:-1]]),
-            ]
-        )
+        outline = _rectangle_outline(graded(plate.x0, plate.x1, sizes), graded(plate.y0, plate.y1, sizes))
     else:
         raise NotImplementedError(f"no panels for plate {type(plate).__name__}")
     if thickness <= 0.0:
@@ -133,7 +188,8 @@ def plate_panels(plate: Plate, thickness: float, sizes: Sizes, aspect: float = A
         face.moved(np.full(face.corners.shape[:2], thickness / 2.0)),
         face.moved(np.full(face.corners.shape[:2], -thickness / 2.0)),
     )
-    return Panels(np.concatenate([top.corners, bottom.corners, _rim_band(outline, thickness, sizes).corners]))
+    wall = [_rim_band(r, thickness, sizes).corners for r in (outline, *rings)]
+    return Panels(np.concatenate([top.corners, bottom.corners, *wall]))
 
 
 def electrode_panels(e: Electrode, sizes: Sizes, z: float, aspect: float = ASPECT) -> Panels:

@@ -7,11 +7,14 @@ strain energy, inertial tables); the runtime evaluates the equations netgen.mode
 states, in SI: states q (m or rad), q' and the squeeze-film branch forces; inputs the electrode
 and plate voltages, the generalized forces f_<q> and the inertial inputs the model has (a_in,
 a_x, a_y, w_x, w_y, w_z); outputs the displacements x_<q> and the electrode and plate charges
-Q_<e>. No currents: FMI 2.0 model exchange cannot pass input derivatives, so the importer takes
-dQ/dt (or reads the charge directly, as a charge amplifier does). Co-simulation takes first input
-derivatives (canInterpolateInputs): an input ramps linearly over the next doStep, so a
-piecewise-linear drive (a PULSE's edges) is integrated exactly. The thermal force noise
-of an ngspice .lib (its TRNOISE sources) is not in the FMU: it is deterministic.
+Q_<e>; parameters the nominal mass, stiffness and damping and, with [process], the process
+instance parameters (netgen.emit.fmu_process: min/max the valid range, applied through the
+model's laws, refused out of range at initialization). No currents: FMI 2.0 model exchange
+cannot pass input derivatives, so the importer takes dQ/dt (or reads the charge directly, as a
+charge amplifier does). Co-simulation takes first input derivatives (canInterpolateInputs): an
+input ramps linearly over the next doStep, so a piecewise-linear drive (a PULSE's edges) is
+integrated exactly. The thermal force noise of an ngspice .lib (its TRNOISE sources) is not in
+the FMU: it is deterministic.
 
 Co-simulation integrates with Dormand-Prince 5(4) under error control (tolerance: the
 experiment's, else DEFAULT_TOL, relative, times each state's nominal absolute). Explicit is the
@@ -46,6 +49,7 @@ from ..core.templating import render
 from ..core.text import escape
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from . import fmu_process
 from .common import check_names, num, stop_constants, time_scale
 
 DEFAULT_TOL = 1e-8  # relative tolerance of the co-simulation integrator when the importer sets none
@@ -53,7 +57,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-co
 ARCH = {"generic": ["-march=x86-64", "-mtune=generic"], "native": ["-march=native"]}
 PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the runtime's order of the centrifugal products
 # FMI unit name -> SI base-unit exponents
-UNITS = {
+UNITS: dict[str, dict[str, float]] = {
     "m": {"m": 1},
     "rad": {"rad": 1},
     "m/s": {"m": 1, "s": -1},
@@ -72,6 +76,7 @@ UNITS = {
     "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
     "N.s/m": {"kg": 1, "s": -1},
     "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
+    "degC": {"K": 1, "offset": 273.15},
 }
 
 
@@ -138,6 +143,8 @@ def variables(model: MacroModel) -> list[dict]:
                 "derivative": kw.get("derivative"),
                 "nominal": kw.get("nominal"),
                 "group": kw.get("group", name),
+                "min": kw.get("min"),
+                "max": kw.get("max"),
             }
         )
 
@@ -190,6 +197,9 @@ def variables(model: MacroModel) -> list[dict]:
         for c in cs:
             add(f"{kind}_{c.name}", units[c.unit == "rad"], "parameter", "fixed", f"{kind} of {c.name}",
                 initial="exact", start=num(getattr(c, kind)), group=kind.upper())  # fmt: skip
+    for pr in fmu_process.rows(model):  # process instance parameters (netgen.emit.fmu_process)
+        add(pr["name"], pr["unit"], "parameter", "fixed", pr["description"], initial="exact", start=pr["start"],
+            min=pr["min"], max=pr["max"], group="PROC")  # fmt: skip
     names = [v["name"] for v in out]
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
@@ -252,6 +262,22 @@ def term_arrays(model: MacroModel) -> list[dict]:
     ]
 
 
+def rotary_shares(model: MacroModel) -> dict[str, list]:
+    """Per inertial kind the tables' rotary shares f (netgen.model.process.inertial_law) in the
+    runtime's order (rates x, y, z; PAIRS; a_x, a_y), None where an entry has no law (a constant)."""
+    law = (model.process.get("inertial") or {}).get("t3_fraction", {})
+    keys = {"gyroscopic": "xyz", "centrifugal": PAIRS, "centrifugal_force": PAIRS, "participation": ("a_x", "a_y")}
+    return {kind: [law.get(kind, {}).get(k) for k in order] for kind, order in keys.items()}
+
+
+def split(tables: list, shares: list) -> tuple[np.ndarray, np.ndarray]:
+    """Tables X as their t and t^3 parts X (1 - f), X f (the runtime's force is tscale X1 + tscale^3
+    X3); without a law (f None) X and zeros."""
+    x = np.array([np.asarray(t, dtype=float) for t in tables])
+    f = np.array([np.zeros_like(t) if s is None else np.asarray(s, dtype=float) for t, s in zip(x, shares)])
+    return x * (1.0 - f), x * f
+
+
 def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
     """Stops, strain energy, inertial tables, film branches and couplings, and the contact scalars."""
     n = model.ncoords
@@ -259,10 +285,12 @@ def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
     pts = model.contact.get("points", []) if stops else []
     poly = model.nonlinear_energy_polynomial() or Polynomial(np.zeros((0, n), dtype=int), np.zeros(0))
     keep = [i for i, c in enumerate(poly.coeffs) if c != 0.0]
-    ine = model.inertial
-    gyro = [ine.gyroscopic.get(k, np.zeros((n, n))) for k in "xyz"]
-    cent = [ine.centrifugal.get(p, np.zeros((n, n))) for p in PAIRS]
-    centf = [ine.centrifugal_force.get(p, np.zeros(n)) for p in PAIRS]
+    ine, share = model.inertial, rotary_shares(model)
+    gyro, gyro3 = split([ine.gyroscopic.get(k, np.zeros((n, n))) for k in "xyz"], share["gyroscopic"])
+    cent, cent3 = split([ine.centrifugal.get(p, np.zeros((n, n))) for p in PAIRS], share["centrifugal"])
+    centf, centf3 = split([ine.centrifugal_force.get(p, np.zeros(n)) for p in PAIRS], share["centrifugal_force"])
+    p_ax, p_ax3 = split([ine.participation.get("a_x", np.zeros(n))], share["participation"][:1])
+    p_ay, p_ay3 = split([ine.participation.get("a_y", np.zeros(n))], share["participation"][1:])
     film = [(v, r, w) for v, c in enumerate(model.coordinates) for r, w in c.film]
     arrays = [
         array("double", "SCALE", model.scales),
@@ -271,11 +299,16 @@ def mechanics_arrays(model: MacroModel) -> tuple[list[dict], dict]:
         array("double", "NL_COEF", poly.coeffs[keep]),
         array("int", "NL_EXP", poly.exponents[keep]),
         array("double", "G_AIN", model.acceleration or np.zeros(n)),
-        array("double", "P_AX", ine.participation.get("a_x", np.zeros(n))),
-        array("double", "P_AY", ine.participation.get("a_y", np.zeros(n))),
+        array("double", "P_AX", p_ax),
+        array("double", "P_AY", p_ay),
         array("double", "GYRO", gyro),
         array("double", "CENT", cent),
         array("double", "CENTF", centf),
+        array("double", "P_AX3", p_ax3),
+        array("double", "P_AY3", p_ay3),
+        array("double", "GYRO3", gyro3),
+        array("double", "CENT3", cent3),
+        array("double", "CENTF3", centf3),
         array("int", "FILM_COORD", [b[0] for b in film]),
         array("double", "FILM_R", [b[1] for b in film]),
         array("double", "FILM_CORNER", [b[2] for b in film]),
@@ -322,6 +355,7 @@ def context(model: MacroModel) -> dict:
     inputs = [v["causality"] == "input" for v in vs]
     arrays += [array("int", "SETTABLE", settable), array("int", "INPUT", inputs)]
     arrays += [array("double", "NOMINAL", nominal), array("double", "START", start)]
+    proc, defines, proc_names = fmu_process.arrays(model, {v["name"]: v["vr"] for v in vs}, array)
     ctx = {
         "m": model,
         "nq": nq,
@@ -331,7 +365,9 @@ def context(model: MacroModel) -> dict:
         "nm": sum(int(np.count_nonzero(p.coeffs)) for f in model.capacitances for p in f.polys),
         "nv": len(vs),
         "refs": references(model, vs),
-        "arrays": arrays,
+        "arrays": arrays + proc,
+        "process": defines,
+        "proc_names": proc_names,
         "tolerance": num(DEFAULT_TOL),
         "first_step": num(0.1 / fastest_rate(model)),
         "variables": vs,
@@ -360,7 +396,7 @@ def description(model: MacroModel, ctx: dict | None = None) -> str:
     ctx = ctx or context(model)
     vs = ctx["variables"]
     nx = ctx["nx"]
-    used = sorted({v["unit"] for v in vs})
+    used = sorted({v["unit"] for v in vs if v["unit"]})  # "": a ratio, no unit attribute
     units = [{"name": u, "base": sorted(UNITS[u].items())} for u in used]
     index = {v["vr"]: v["vr"] + 1 for v in vs}
     derivs = [v for v in vs if v["derivative"]]

@@ -7,47 +7,63 @@ the MacroModel's Inertial (netgen.model.inertial); the scaling is every force's,
 from __future__ import annotations
 
 from ..model import MacroModel
+from . import process
 from .common import force_gain, num
 
 
-def acceleration_gains(model: MacroModel, ws: float) -> list[dict]:
+def acceleration_gains(model: MacroModel, ws: float, braces: bool = True) -> list[dict]:
     """Per in-plane acceleration port and coordinate with a non-zero participation P: the gain
-    P / (M L w_s^2) from the port (m/s^2) into the velocity node (the force -P a)."""
+    P / (M L w_s^2) from the port (m/s^2) into the velocity node (the force -P a), times P's process
+    law where the model has one (netgen.emit.process.inertial_scale; ngspice text in `braces`)."""
     rows = []
     for port, p in model.inertial.participation.items():
-        for c, g in zip(model.coordinates, p):
+        for v, (c, g) in enumerate(zip(model.coordinates, p)):
             if g != 0.0:
-                rows.append(
-                    {"port": port, "coord": c.name, "gain": num(g * force_gain(c, ws)), "participation": f"{g:.6g}"}
-                )
+                scale = process.inertial_scale(model, "participation", port, v)
+                gain = process.scaled_number(num(g * force_gain(c, ws)), scale, braces)
+                rows.append({"port": port, "coord": c.name, "gain": gain, "participation": f"{g:.6g}"})
     return rows
 
 
 def rate_expressions(model: MacroModel, ws: float, access: str = "v({})") -> list[dict]:
     """Per coordinate that a rate input moves: {coord, expr}, the scaled force of the rate ports on
-    its velocity node (`access` formats a node voltage: v(n) for ngspice, V(n) for Verilog-A)."""
+    its velocity node (`access` formats a node voltage: v(n) for ngspice, V(n) for Verilog-A); each
+    coefficient times its process law where the model has one (netgen.emit.process.inertial_scale)."""
     inert, coords = model.inertial, model.coordinates
+    braces = access == "v({})"
+
+    def law(kind: str, key: str, v: int, w: int | None, g: float) -> str:
+        return process.scaled_number(num(g), process.inertial_scale(model, kind, key, v, w), braces) if g else ""
+
     rows = []
     for v, c in enumerate(coords):
         a = force_gain(c, ws)
         parts = []
         for k, g in inert.gyroscopic.items():  # -Omega_k G q', q' = L w_s u
-            lin = [(-g[v][w] * cw.scale * ws * a, f"u_{cw.name}") for w, cw in enumerate(coords)]
-            parts += product([f"w_{k}"], lin, 0.0, access)
+            lin = [
+                (law("gyroscopic", k, v, w, -g[v][w] * cw.scale * ws * a), f"u_{cw.name}")
+                for w, cw in enumerate(coords)
+            ]
+            parts += product([f"w_{k}"], lin, "", access)
         for pair, s in inert.centrifugal.items():  # -Omega_k Omega_l (S q + c), q = L xs
-            lin = [(-s[v][w] * cw.scale * a, f"xs_{cw.name}") for w, cw in enumerate(coords)]
-            const = -inert.centrifugal_force.get(pair, [0.0] * len(coords))[v] * a
+            lin = [
+                (law("centrifugal", pair, v, w, -s[v][w] * cw.scale * a), f"xs_{cw.name}")
+                for w, cw in enumerate(coords)
+            ]
+            force = -inert.centrifugal_force.get(pair, [0.0] * len(coords))[v] * a
+            const = law("centrifugal_force", pair, v, None, force) if pair in inert.centrifugal_force else ""
             parts += product([f"w_{pair[0]}", f"w_{pair[1]}"], lin, const, access)
         if parts:
             rows.append({"coord": c.name, "expr": " + ".join(parts).replace("+ -", "- ")})
     return rows
 
 
-def product(rates: list[str], lin: list[tuple[float, str]], const: float, access: str) -> list[str]:
-    """The term rates[0]*rates[1]*(sum gain*node + const) as text, [] when it is zero."""
-    terms = [f"{num(g)}*{access.format(n)}" for g, n in lin if g != 0.0]
-    if const != 0.0:
-        terms.append(num(const))
+def product(rates: list[str], lin: list[tuple[str, str]], const: str, access: str) -> list[str]:
+    """The term rates[0]*rates[1]*(sum gain*node + const) as text ("" gains and const: zero), []
+    when it is zero."""
+    terms = [f"{g}*{access.format(n)}" for g, n in lin if g]
+    if const:
+        terms.append(const)
     if not terms:
         return []
     factor = "*".join(access.format(r) for r in rates)
@@ -69,5 +85,11 @@ def header_lines(model: MacroModel) -> list[str]:
             f"{ports}: frame rotation rate about x / y / z IN (high impedance), 1 V = 1 rad/s, taken as slowly "
             "varying (no Euler term); each coordinate feels the Coriolis force -sum_k w_k G_k dq/dt and the "
             "centrifugal force -sum_kl w_k w_l (S_kl q + c_kl) (the model JSON's inertial_inputs)."
+        )
+    if lines and process.enabled(model) and model.process.get("inertial"):
+        lines.append(
+            "Under tscale every P, G, S and c entry above is X ((1 - f) tscale + f tscale^3), f its rotary "
+            "(rho t^3 / 12) share (the model JSON's process.inertial; exact: integrals of rho over the plate's "
+            "thickness); etch and escale leave them (the plate outline is not etched)."
         )
     return lines

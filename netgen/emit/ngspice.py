@@ -66,16 +66,18 @@ def linear_force_terms(model: MacroModel, v: int, ws: float) -> list[tuple[str, 
     return terms
 
 
-def charge_expr(f, plate: str) -> str:
-    """Charge of one plate-electrode capacitor, Q = C(q) * (V_e - V_plate)."""
+def charge_expr(f, plate: str, ratio: str = "") -> str:
+    """Charge of one plate-electrode capacitor, Q = C(q) * (V_e - V_plate) (times `ratio`, an etch
+    ratio's parameter, where given)."""
+    c_ref = f"{{{ratio}*{num(f.c_ref)}}}" if ratio else num(f.c_ref)
     if f.target == "direct":
-        cap = f"{num(f.c_ref)}*v({node(f.electrode, 0)})"
+        cap = f"{c_ref}*v({node(f.electrode, 0)})"
     else:
-        cap = f"{num(f.c_ref)}*(" + " + ".join(f"1/v({node(f.electrode, k)})" for k in range(len(f.polys))) + ")"
+        cap = f"{c_ref}*(" + " + ".join(f"1/v({node(f.electrode, k)})" for k in range(len(f.polys))) + ")"
     return f"{cap}*v({f.electrode},{plate})"
 
 
-def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
+def charge_node(electrode: str, factor: str, plate: str, c_ref: float | str) -> dict:
     """The behavioural part of an electrode's charge, c_ref c_i (V_e - V_plate) with c_i the
     expression `factor` (e.g. v(c_e)), as the node qn_e = c_i (V_e - V_plate) on a linear
     capacitor c_ref, whose current the electrode draws through a CCCS. Why not `C ... Q=`:
@@ -86,7 +88,7 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float) -> dict:
     return {
         "b": f"Bqn_{electrode} qs_{electrode} 0 V={factor}*v({electrode},{plate})",
         "v": f"Vqm_{electrode} qs_{electrode} qn_{electrode} 0",
-        "c": f"Cqn_{electrode} qn_{electrode} 0 {num(c_ref)}",
+        "c": f"Cqn_{electrode} qn_{electrode} 0 {c_ref if isinstance(c_ref, str) else num(c_ref)}",
         "f": f"Fq_{electrode} {electrode} {plate} Vqm_{electrode} 1",
     }
 
@@ -177,6 +179,7 @@ def add_process(ctx: dict, model: MacroModel, gaps: bool = True) -> None:
         ctx["subckt_params"] = f"{old} {extra}" if old else f"\n+ params: {extra}"
     ctx["process_params"] = [f".param {n} = {{{e}}}" for n, e in process.factors(model)]
     ctx["gap_shift"] = process.gap_networks(model) if gaps else []
+    ctx["etch_shift"] = process.etch_networks(model)
     ctx["process_text"] = process.header_text(model, gaps)
 
 
@@ -278,14 +281,17 @@ def plate_term(e: str, k: int, p0: float, clamp: tuple[float, float] | None, dv2
 def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     """Template rows of one electrode in the fast form (see the section comment above)."""
     e, plate = f.electrode, model.plate
-    dv2 = {"name": dv2_node(e), "expr": f"v({e},{plate})*v({e},{plate})"}
+    # the etch's capacitance ratio (netgen.emit.process.capacitance_ratios) scales C, so the charge and,
+    # through dv2 (every force of the electrode is linear in it), the forces
+    ratio = f"pc_{e}" if e in process.capacitance_ratios(model) else ""
+    dv2 = {"name": dv2_node(e), "expr": (f"{{{ratio}}}*" if ratio else "") + f"v({e},{plate})*v({e},{plate})"}
     if f.target == "direct":
         return {
             "nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}],
             "dv2": dv2,
             "ys": [],
             "gs": [],
-            "charge_expr": charge_expr(f, plate),
+            "charge_expr": charge_expr(f, plate, ratio),
         }
     nodes, gs, ys = [], [], []
     zero = np.zeros((1, len(state)))
@@ -315,8 +321,8 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
         "ys": ys,
         "dv2": dv2,
         "sums": sums,
-        "c0": num(f.c_ref * c0),
-        "charge": charge_node(e, f"v({cs})", plate, f.c_ref),
+        "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
+        "charge": charge_node(e, f"v({cs})", plate, process.charge_scale(model, e, num(f.c_ref))),
     }
 
 
@@ -324,8 +330,9 @@ def nonlinear_sources(model: MacroModel, ws: float, state: list[str]) -> list[di
     """B current sources into the velocity nodes: the nonlinear restoring forces, scaled like
     every other force of that node (1 / (M L w_s^2))."""
     gains = [force_gain(c, ws) for c in model.coordinates]
+    scale = "{pu}*" if process.energy_moved(model) else ""  # the strain energy's process law
     return [
-        {"name": c.name, "expr": e}
+        {"name": c.name, "expr": f"{scale}({e})" if scale else e}
         for c, e in zip(model.coordinates, nonlinear_forces(model, state, gain=gains))
         if e != "0"
     ]
@@ -340,6 +347,10 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
+    # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
+    pv = process.film_scaled(model)
+    f = (lambda x, e: f"{{{x}{e}}}") if pv else (lambda x, e: x)
     rows = []
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
@@ -348,19 +359,20 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                 "node": f"w_{c.name}_{j + 1}",
                 "corner_hz": f"{corner / (2 * math.pi):.6g}",
                 "damping": f"{r:.6g}",
-                "g_in": num(corner / ws),
-                "r_out": num(ws / corner),
-                "g_force": num(r / (c.mass * ws)),
+                "g_in": f(num(corner / ws), "/pv"),
+                "r_out": f(num(ws / corner), "*pv"),
+                "g_force": f(num(r / (c.mass * ws)), "*pv"),
             }
             if noise:
+                rms = num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3])
                 row.update(
                     {
-                        "rms": num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3]),
-                        "gain": num(corner * c.port_units[3] / (ws * r * c.scale * ws)),
+                        "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
+                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
                     }
                     | (
                         {
-                            "rn": num(noise_resistance(r, c.port_units[3])),
+                            "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
                             "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                         }
                         if process.enabled(model)

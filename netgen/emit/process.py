@@ -74,7 +74,11 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     visc = p["temp"].get("viscosity") or {}
     if active(model, "pd"):
         out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
+    if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
+        u = p["strain_energy"]
+        out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
     t0 = p["temperature_C"] + KELVIN
+    out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
             out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
@@ -89,6 +93,57 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
             out.append((f"pd_{c.name}", f"{damp}/{num(c.damping)}"))
             out.append((f"pt_{c.name}", f"pd_{c.name}*({temp} + {num(KELVIN)})/{num(t0)}"))
     return out
+
+
+def capacitance_ratios(model: MacroModel) -> dict[str, list[float]]:
+    """electrode -> its capacitance's etch ratio (a cubic in etch / 1 um, netgen.model.process.
+    capacitance_laws) where etch is declared; the emitters scale the electrode's charge and forces by
+    pc_<electrode>. {} otherwise."""
+    if not declared(model, "etch"):
+        return {}
+    return {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
+
+
+def etch_columns(model: MacroModel) -> list[tuple[str, str, float]]:
+    """The distinct etch shifts of the combs' capacitance terms (netgen.model.process.capacitance_laws):
+    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order."""
+    if not declared(model, "etch"):
+        return []
+    scale = {c.name: c.scale for c in model.coordinates}
+    out: list[tuple[str, str, float]] = []
+    for r in model.process["etch"].get("capacitance", []):
+        for q, k in r.get("shift", {}).items():
+            if not any(c[1] == q and c[2] == k / scale[q] for c in out):
+                out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
+    return out
+
+
+def etch_states(model: MacroModel) -> dict[str, dict[str, str]]:
+    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns)."""
+    scale = {c.name: c.scale for c in model.coordinates}
+    cols = {(q, k): n for n, q, k in etch_columns(model)}
+    out: dict[str, dict[str, str]] = {}
+    if not cols:
+        return out
+    for r in model.process["etch"].get("capacitance", []):
+        if r.get("shift"):
+            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in r["shift"].items()}
+    return out
+
+
+def etch_networks(model: MacroModel) -> list[str]:
+    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns): 1 ohm, a
+    VCCS and a parameter current source, linear."""
+    lines = []
+    for n, q, k in etch_columns(model):
+        lines += [f"R{n} {n} 0 1", f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
+    return lines
+
+
+def charge_scale(model: MacroModel, electrode: str, value: str) -> str:
+    """ngspice text of `value` times the electrode's capacitance ratio pc_<electrode>, in braces;
+    `value` unchanged without one."""
+    return f"{{pc_{electrode}*{value}}}" if electrode in capacitance_ratios(model) else value
 
 
 def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
@@ -149,7 +204,9 @@ def node_sets(model: MacroModel) -> set[str]:
 
 def electrode_state(model: MacroModel, electrode: str, state: list[str]) -> list[str]:
     """The state names the plate terms of `electrode` read: xs_z replaced by its set's shifted node
-    where the set has one (node_sets)."""
+    where the set has one (node_sets), a comb's xs_q by its etch-shifted node (etch_states)."""
+    etch = {f"xs_{q}": n for q, n in etch_states(model).get(electrode, {}).items()}
+    state = [etch.get(s, s) for s in state]
     shift = gap_shifts(model).get(electrode)
     if shift is None or shift[0] not in node_sets(model):
         return state
@@ -171,17 +228,37 @@ def offset_lines(model: MacroModel, electrode: str, name: str, poly, state: list
 def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
     """Per contact stop point the text its penetration p_j = a_j . xs - 1 gains from its electrode's
     gap offset: moving the set away by dg deepens every local gap by dg, so p_j - dg / gap_j (the
-    stop follows the electrode; netgen.model.contact). ngspice text in braces (numparam), Verilog-A
-    plain; None without gap offsets (the expressions unchanged)."""
-    shifts = gap_shifts(model)
+    stop follows the electrode; netgen.model.contact); and from a comb's etch shift (etch_columns:
+    the stop reads the shifted state as the comb's terms do, so p_j + a_j . shift etch / L: a finger's
+    sidewall stop 2 etch later). ngspice text in braces (numparam), Verilog-A plain; None without
+    either (the expressions unchanged)."""
+    shifts, etch = gap_shifts(model), etch_offsets(model)
     points = model.contact.get("points", [])
-    if not shifts or not points:
+    if not (shifts or etch) or not points:
         return None
     out = []
-    for pt in points:
+    for j, pt in enumerate(points):
         shift = shifts.get(pt["electrode"])
-        term = f"{num(1.0 / pt['gap'])}*dg_{shift[0]}" if shift else ""
-        out.append(f" - {{{term}}}" if shift and braces else f" - {term}" if shift else "")
+        terms = [f"-{num(1.0 / pt['gap'])}*dg_{shift[0]}"] if shift else []
+        terms += [f"{num(etch[j])}*etch"] if etch.get(j) else []
+        sign, text = ("-", terms[0][1:]) if len(terms) == 1 and terms[0][0] == "-" else ("+", " + ".join(terms))
+        out.append(f" {sign} {{{text}}}" if text and braces else f" {sign} {text}" if text else "")
+    return out
+
+
+def etch_offsets(model: MacroModel) -> dict[int, float]:
+    """Stop point index -> d p_j / d etch = a_j . (shift / L) of a comb's etch shift (etch_states),
+    where not zero (a finger's vertical stop over the substrate has none)."""
+    scale = {c.name: c.scale for c in model.coordinates}
+    names = [c.name for c in model.coordinates]
+    shifts = {r["electrode"]: r.get("shift", {}) for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    if not declared(model, "etch"):
+        return {}
+    out = {}
+    for j, pt in enumerate(model.contact.get("points", [])):
+        c = sum(pt["a"][names.index(q)] * k / scale[q] for q, k in shifts.get(pt["electrode"], {}).items())
+        if c:
+            out[j] = c
     return out
 
 
@@ -237,15 +314,23 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             if visc
             else ""
         )
-        text += " (the compressible film's branches keep their values at T0)" if p["temp"].get("film_branches") else ""
+        text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if declared(model, "etch"):
         e = p["etch"]
         lo, hi = (x * 1e6 for x in e["range_m"])
         parts.append(
-            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), valid {lo:g}..{hi:g} um, "
+            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), the proof mass's "
+            f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
+            "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
-            + f" (mass outline, holes and plates not etched: their area would change by up to {e['unetched_area_rel']:.1e})"
+            + etch_neglect(e)
+        )
+    if energy_moved(model):
+        err = p["strain_energy"]["max_rel_error"]
+        parts.append(
+            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part), "
+            + (f"within {err:.1e}" if err else "exact")
         )
     if p["gaps"] and not gaps:
         parts.append("no gap offsets in this form (the code model reads xs_z: use the B-source .lib)")
@@ -258,6 +343,26 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         "Process parameters (netgen/model/process.py, declared in [process]): "
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
+    )
+
+
+def etch_neglect(e: dict) -> str:
+    """The header's statement of the capacitances under etch: each electrode's C times its ratio
+    pc_<electrode> (netgen.model.process.capacitance_laws), a comb's fit read at its etch-shifted state
+    xe (gap g + 2 etch, overlap - 2 etch), and that law's error over the fit box."""
+    if "capacitance_max_rel_error" not in e:
+        return " (capacitances not etched)"
+    err = e["capacitance_max_rel_error"]
+    combs = any(r.get("shift") for r in e.get("capacitance", []))
+    return (
+        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
+        + (
+            " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
+            if combs
+            else ""
+        )
+        + ", "
+        + (f"within {err:.1e} over the fit box" if err else "exact")
     )
 
 
@@ -306,3 +411,38 @@ def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
     if not active(model, kind):
         return value
     return f"{'tscale' if kind == 'tscale' else f'{kind}_{name}'} * {value}"
+
+
+def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None = None) -> str:
+    """The text of the tscale law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
+    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share); "" where
+    the model has no such law (no tscale: the entry is a constant)."""
+    law = model.process.get("inertial") if enabled(model) else None
+    if not law:
+        return ""
+    f = law["t3_fraction"][kind][key][v]
+    f = f if w is None else f[w]
+    if f == 0.0:
+        return "tscale"
+    if f == 1.0:
+        return "tscale*tscale*tscale"
+    return f"({num(1.0 - f)}*tscale + {num(f)}*tscale*tscale*tscale)"
+
+
+def scaled_number(value: str, scale: str, braces: bool) -> str:
+    """`value` times the law text `scale` (inertial_scale): ngspice text in braces, else plain."""
+    if not scale:
+        return value
+    return f"{{{scale}*{value}}}" if braces else f"{scale}*{value}"
+
+
+def energy_moved(model: MacroModel) -> bool:
+    """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
+    times pu."""
+    return enabled(model) and bool(model.process.get("strain_energy"))
+
+
+def film_scaled(model: MacroModel) -> bool:
+    """The compressible film's branches follow the viscosity ratio pv (temp declared; damper r_j times
+    pv, corner over pv: netgen.model.process, r_j ~ mu_eff, the gas spring ~ the pressure)."""
+    return declared(model, "temp") and bool(model.process["temp"].get("viscosity"))

@@ -11,8 +11,11 @@ needs are added as explicit terms that vanish in value:
     F_v = F_v(xf, V) - 1/(2 L_v) sum_w S_vw (V(xs_w) - xf_w),
     S_vw = sum_t c_t dv2f_t [grad_tv grad_tw dw_t/dP + hess_tvw w_t]   (symmetric: 28 of 49 sums)
 
-with w = slope/P^2 (1/P terms, slope of the contact clamp) and, for the charges,
-Q_i = c_i (sum_k 1/P_k(xf)) dV_i - c_i dVf_i sum_w (sum_k grad_kw w_k) (V(xs_w) - xf_w).
+with r = 1/P (the one division per plate term), w = slope r^2 (slope of the contact clamp) and the
+capacitance slopes m_iw = dC_i/dxs_w = -c_i sum_k grad_kw w_k, shared by the charge and the force:
+Q_i = c_i (sum_k r_k) dV_i + dVf_i sum_w m_iw (V(xs_w) - xf_w),   F_v = 1/(2 L_v) sum_i dv2_i m_iv + ...
+(one sum per electrode and coordinate instead of one for the charge and one for the force; a slope
+that is identically zero is left out, so it is no entry of the stamp pattern).
 The derivatives with respect to the electrode voltages come from dv2 = dV^2 and dV as before.
 The Jacobian is the exact one (to the 2^-40 rounding of the copies), so AC, noise and Newton
 see the same matrix; the values differ from the direct form by below 1e-12 relative.
@@ -27,7 +30,8 @@ import numpy as np
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from .common import clamp_expr, dv2_node, node, num, poly_expr, slope_expr
+from . import process
+from .common import clamp_expr, dv2_node, node, num, poly_expr
 
 ROUND = num(2.0**40)  # the copies' grid: 2^-40 ~ 9e-13 of a state (O(1)) or a volt
 
@@ -55,6 +59,16 @@ def vf(electrode: str) -> str:
 def w_var(electrode: str, k: int) -> str:
     """slope/P^2 of a 1/P plate term (the force and motional-charge factor)."""
     return f"w_{electrode}_{k + 1}"
+
+
+def r_var(electrode: str, k: int) -> str:
+    """1/P of a plate term (its capacitance over c_ref, shared by the charge, w and b)."""
+    return f"r_{electrode}_{k + 1}"
+
+
+def m_var(electrode: str, coordinate: str) -> str:
+    """dC/dxs of one electrode's capacitance at the copies (shared by its charge and the force)."""
+    return f"m_{electrode}_{coordinate}"
 
 
 def b_var(electrode: str, k: int) -> str:
@@ -104,10 +118,22 @@ def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: i
     return sep.join(live).replace("+ -", "- ") if live else "0.0"
 
 
+def ratio(model: MacroModel, electrode: str) -> str:
+    """ "pc_<electrode> * " where the electrode's capacitance has an etch ratio (netgen.emit.process.
+    capacitance_ratios: it scales C, so the charge, the forces and their Jacobian), else ""."""
+    return f"pc_{electrode} * " if electrode in process.capacitance_ratios(model) else ""
+
+
+def dv2_value(model: MacroModel, electrode: str) -> str:
+    """The frozen dv2f of one electrode times its etch ratio (ratio)."""
+    return f"{ratio(model, electrode)}{vf(electrode)} * {vf(electrode)}"
+
+
 def _term_rows(
-    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold
+    f: CapacitanceFit, clamps: Sequence[tuple[float, float]] | None, names: list[str], fold: Fold, dv2f: str
 ) -> list[dict]:
-    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`)."""
+    """P_k(xf) (clamped), w_k and b_k of one fit's terms (a direct fit's P holds c_ref where `fold`);
+    dv2f: the electrode's frozen dv2 text (dv2_value)."""
     rows = []
     for k, poly in enumerate(f.polys):
         p, ck = node(f.electrode, k), clamps[k] if clamps else None
@@ -115,59 +141,65 @@ def _term_rows(
         text = _poly(Polynomial(poly.exponents, poly.coeffs * f.c_ref) if folded else poly, names)
         row = {
             "w": "",
+            "r": "",
             "b": "",
             "p": p,
             "p_expr": f"({text} >= {num(ck[0])} ? {text} : {clamp_expr(text, *ck)})" if ck else text,
         }
         if f.target != "direct":
-            w, dv2f = w_var(f.electrode, k), f"{vf(f.electrode)} * {vf(f.electrode)}"
+            w, r = w_var(f.electrode, k), r_var(f.electrode, k)
+            row["r_expr"] = f"1.0 / {p}"
             if ck:
                 knee, floor = ck
-                slope = slope_expr(p, knee, floor)
+                slope = f"min(1, ({p} - {num(floor)}) * {num(1.0 / (knee - floor))})"
                 dslope = f"(({p} - {num(floor)}) < {num(knee - floor)} ? {num(1.0 / (knee - floor))} : 0.0)"
-                row["w_expr"] = f"{slope} / ({p} * {p})"
-                row["b_expr"] = f"{dv2f} * {w} * ({dslope} - 2.0 * {slope} / {p})"
+                row["w_expr"] = f"{slope} * {r} * {r}"
+                row["b_expr"] = f"{dv2f} * {w} * ({dslope} - 2.0 * {slope} * {r})"
             else:
-                row["w_expr"] = f"1.0 / ({p} * {p})"
-                row["b_expr"] = f"-2.0 * {dv2f} * {w} / {p}"
-            row.update(w=w, b=b_var(f.electrode, k))
+                row["w_expr"] = f"{r} * {r}"
+                row["b_expr"] = f"-2.0 * {dv2f} * {w} * {r}"
+            row.update(w=w, r=r, b=b_var(f.electrode, k))
         rows.append(row)
     return rows
 
 
-def charge(f: CapacitanceFit, model: MacroModel, names: list[str], fold: Fold) -> str:
-    """The ddt() argument of one plate-electrode capacitor: C(xf) dV plus its explicit xs-derivative."""
+def slopes(f: CapacitanceFit, model: MacroModel, names: list[str], fold: Fold) -> list[dict]:
+    """The nonzero capacitance slopes m_iw = dC_i/dxs_w of one fit at the copies, as variable rows."""
+    rows = []
+    for w, c in enumerate(model.coordinates):
+        if f.target == "direct":
+            text = _sum([_times(f.c_ref, f.polys[0].derivative(w), names, "1.0", fold)])
+            text = text.removesuffix(" * 1.0")
+        else:
+            parts = [
+                _times(-f.c_ref, p.derivative(w), names, w_var(f.electrode, k), fold) for k, p in enumerate(f.polys)
+            ]
+            text = _sum(parts, " + ")
+        if text != "0.0":
+            rows.append({"name": m_var(f.electrode, c.name), "coord": w, "expr": text})
+    return rows
+
+
+def charge(f: CapacitanceFit, model: MacroModel, m_rows: list[dict], fold: Fold) -> str:
+    """The ddt() argument of one plate-electrode capacitor: C(xf) dV plus its explicit xs-derivative
+    dVf sum_w m_w dx_w (the slopes `m_rows` of `slopes`)."""
     e, coords = f.electrode, model.coordinates
     dv = f"V({e}, {model.plate})"
     if f.target == "direct":
-        grads = [_times(f.c_ref, f.polys[0].derivative(w), names, dx(c.name), fold) for w, c in enumerate(coords)]
-        cap = node(e, 0) if fold(f.c_ref, f.polys[0]) else f"{num(f.c_ref)} * {node(e, 0)}"
-        return f"{cap} * {dv} + {vf(e)} * ({_sum(grads, ' + ')})"
-    value = f"{num(f.c_ref)} * (" + " + ".join(f"1.0 / {node(e, k)}" for k in range(len(f.polys))) + f") * {dv}"
-    parts = []
-    for w, c in enumerate(coords):
-        inner = _sum([_times(f.c_ref, p.derivative(w), names, w_var(e, k), fold) for k, p in enumerate(f.polys)], " + ")
-        if inner != "0.0":
-            parts.append(f"{dx(c.name)} * ({inner})")
-    return value + (f" - {vf(e)} * ({_sum(parts)})" if parts else "")
+        value = (node(e, 0) if fold(f.c_ref, f.polys[0]) else f"{num(f.c_ref)} * {node(e, 0)}") + f" * {dv}"
+    else:
+        value = f"{num(f.c_ref)} * (" + " + ".join(r_var(e, k) for k in range(len(f.polys))) + f") * {dv}"
+    parts = [f"{dx(coords[m['coord']].name)} * {m['name']}" for m in m_rows]
+    return value + (f" + {vf(e)} * ({_sum(parts)})" if parts else "")
 
 
-def force(model: MacroModel, v: int, names: list[str], fold: Fold, shifted: dict | None = None) -> str:
-    """F_v (SI): sum_i dv2_i (the plate terms' share at xf) and -1/(2 L_v) sum_w S_vw dx_w (an electrode
-    in `shifted` reads its own state names: netgen.emit.veriloga.gap_names)."""
-    scale, groups, all_names = model.coordinates[v].scale, [], names
-    for f in model.capacitances:
-        names = (shifted or {}).get(f.electrode, all_names)
-        g = f.c_ref / (2.0 * scale)
-        if f.target == "direct":
-            inner = [_times(g, f.polys[0].derivative(v), names, "1.0", fold)]
-        else:
-            inner = [_times(-g, p.derivative(v), names, w_var(f.electrode, k), fold) for k, p in enumerate(f.polys)]
-        text = _sum(inner, " + ")
-        if text != "0.0":
-            groups.append(f"{dv2_node(f.electrode)} * ({text})")
+def force(model: MacroModel, v: int, m_rows: dict[str, list[dict]]) -> str:
+    """F_v (SI): 1/(2 L_v) (sum_i dv2_i m_iv - sum_w S_vw dx_w): the plate terms' share at xf through
+    the slopes m (`slopes`, per electrode), and the explicit xs-derivative through S."""
+    terms = [f"{dv2_node(e)} * {m['name']}" for e, rows in m_rows.items() for m in rows if m["coord"] == v]
     jac = [f"{s_var(model, v, w)} * {dx(c.name)}" for w, c in enumerate(model.coordinates)]
-    return _sum(groups) + f"\n            - {num(0.5 / scale)} * ({' + '.join(jac)})"
+    value = _sum(terms) if terms else "0.0"
+    return f"{num(0.5 / model.coordinates[v].scale)} * ({value}\n            - ({' + '.join(jac)}))"
 
 
 def stiffness(model: MacroModel, names: list[str], shifted: dict | None = None) -> list[dict]:
@@ -178,7 +210,7 @@ def stiffness(model: MacroModel, names: list[str], shifted: dict | None = None) 
             terms: list[str | None] = []
             for f in model.capacitances:
                 names = (shifted or {}).get(f.electrode, all_names)
-                dv2f = f"{vf(f.electrode)} * {vf(f.electrode)}"
+                dv2f = dv2_value(model, f.electrode)
                 for k, p in enumerate(f.polys):
                     hess = p.derivative(v).derivative(w)
                     if f.target == "direct":
@@ -202,10 +234,14 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
     the state names its plate terms read (the gap offsets of netgen.emit.process), else the copies."""
     names = [xf(c.name) for c in model.coordinates]
     clamps = model.term_clamps()
+    m_rows = {}
     for i, (row, f) in enumerate(zip(fits, model.capacitances)):
         own = (shifted or {}).get(f.electrode, names)
-        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold)
-        row["charge"] = charge(f, model, own, fold)
+        row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold, dv2_value(model, f.electrode))
+        row["slopes"] = m_rows[f.electrode] = slopes(f, model, own, fold)
+        scale, value = ratio(model, f.electrode), charge(f, model, row["slopes"], fold)
+        row["charge"] = f"{scale}({value})" if scale else value
+        row["dv2_scale"] = scale
         row["vf"] = vf(f.electrode)
     return {
         "frozen": [
@@ -214,5 +250,5 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
         ],
         "vf_expr": {f.electrode: frozen(f"V({f.electrode}, {model.plate})") for f in model.capacitances},
         "stiffness": stiffness(model, names, shifted),
-        "forces": [force(model, v, names, fold, shifted) for v in range(model.ncoords)],
+        "forces": [force(model, v, m_rows) for v in range(model.ncoords)],
     }

@@ -112,20 +112,31 @@ def _fit_rows(model: MacroModel, ctx: dict) -> None:
     for row, text in zip(ctx["coords"], ctx["forces"]):
         row["force_sum"] = text
     ctx["vf_vars"] = [f["vf"] for f in ctx["fits"]]
+    ctx["r_vars"] = [t["r"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("r")]
     ctx["w_vars"] = [t["w"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("w")]
     ctx["b_vars"] = [t["b"] for f in ctx["fits"] for t in f["plate_terms"] if t.get("b")]
+    ctx["m_vars"] = [s["name"] for f in ctx["fits"] for s in f["slopes"]]
 
 
 def gap_names(model: MacroModel, ctx: dict) -> dict[str, list[str]]:
     """electrode -> the state names its plate terms read: xf_z replaced by the variable xg_<set> =
     xf_z - sign dg_<set> / L_z of its gap set (netgen.emit.process.gap_shifts; a constant shift: the
-    Jacobian's dx terms are unchanged); adds the variables' rows to ctx["gap_vars"]. {} without gap sets."""
+    Jacobian's dx terms are unchanged), a comb's xf_q by its etch-shifted xe (etch_states); adds the
+    variables' rows to ctx["gap_vars"]. {} without either."""
     shifts = process.gap_shifts(model)
     ctx["gap_vars"] = [
         {"name": f"xg_{s}", "expr": f"{va_terms.xf('z')} + {num(k)} * dg_{s}"} for s, k in dict(shifts.values()).items()
     ]
+    # the combs' etch shifts (netgen.emit.process.etch_columns): xe = xf_q + (shift / L_q) etch
+    ctx["gap_vars"] += [
+        {"name": n, "expr": f"{va_terms.xf(q)} + {num(k)} * etch"} for n, q, k in process.etch_columns(model)
+    ]
     names = [va_terms.xf(c.name) for c in model.coordinates]
-    return {e: [f"xg_{s}" if n == va_terms.xf("z") else n for n in names] for e, (s, _) in shifts.items()}
+    out = {e: [f"xg_{s}" if n == va_terms.xf("z") else n for n in names] for e, (s, _) in shifts.items()}
+    for e, moves in process.etch_states(model).items():
+        swap = {va_terms.xf(q): node for q, node in moves.items()}
+        out[e] = [swap.get(n, n) for n in out.get(e, names)]
+    return out
 
 
 def process_rows(model: MacroModel, ctx: dict) -> None:
@@ -178,7 +189,14 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     states = [s for c in ctx["coords"] for s in (c["xs"], c["u"])] + [b["node"] for b in ctx["film"]]
     p_vars = [t["p"] for f in ctx["fits"] for t in f["plate_terms"]]
     dv2_vars = [f["dv2"] for f in ctx["fits"]]
-    y_vars = ctx["w_vars"] + ctx["b_vars"] + ctx["vf_vars"] + [s["name"] for s in ctx["stiffness"]]
+    y_vars = (
+        ctx["r_vars"]
+        + ctx["w_vars"]
+        + ctx["b_vars"]
+        + ctx["m_vars"]
+        + ctx["vf_vars"]
+        + [s["name"] for s in ctx["stiffness"]]
+    )
     y_vars += [n for x in ctx["frozen"] for n in (x["xf"], x["dx"])]
     ctx["stops"], _ = contact_terms(model, access=VA, var="{}", offsets=process.stop_offsets(model, braces=False))
     stop_vars = [n for p in ctx["stops"] for n in (p["g"], p["f"])] + [c["fcon"] for c in ctx["coords"] if c["fcon"]]
@@ -226,6 +244,7 @@ def nonlinear_rows(model: MacroModel, ctx: dict, ws: float, state: list[str]) ->
         if expr == "0":
             continue
         var = f"fnl_{c.name}"
+        expr = f"pu * ({expr})" if process.energy_moved(model) else expr  # the strain energy's process law
         ctx["nonlinear"].append({"var": var, "expr": expr})
         row["fn_expr"] = row["fn_expr"].replace(") / ", f" + {var}) / ", 1)
 
@@ -235,6 +254,8 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
     (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
     enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
     rows = []
+    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled): noise_gain ~ r (corner / r)^2
+    pv = (" / pv", " * pv", " / (pv * pv * pv)") if process.film_scaled(model) else ("", "", "")
     for c in model.coordinates:
         for j, (r, corner) in enumerate(c.film):
             rows.append(
@@ -242,9 +263,9 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                     "coord": c.name,
                     "u": f"u_{c.name}",
                     "node": f"w_{c.name}_{j + 1}",
-                    "g_in": num(corner / ws),
-                    "g_force": num(r / (c.mass * ws)),
-                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2),
+                    "g_in": num(corner / ws) + pv[0],
+                    "g_force": num(r / (c.mass * ws)) + pv[1],
+                    "noise_gain": num(4.0 * K_B * r * (corner / (ws * ws * r * c.scale)) ** 2) + pv[2],
                     "noise_temp": process.noise_temperature(model),
                     "corner_hz": f"{corner / (2 * math.pi):.6g}",
                     "damping": f"{r:.6g}",
@@ -257,7 +278,7 @@ def inertial_rows(model: MacroModel, ctx: dict, ws: float) -> None:
     """The input ports a_x, a_y, w_x, w_y, w_z (netgen.emit.inertial) added to the coordinates'
     right-hand sides, and the header lines and input list that name them."""
     rows = {r["name"]: r for r in ctx["coords"]}
-    for a in inertial.acceleration_gains(model, ws):
+    for a in inertial.acceleration_gains(model, ws, braces=False):
         rows[a["coord"]]["rhs"] += f" - {a['gain']} * V({a['port']})"
     for r in inertial.rate_expressions(model, ws, access=VA):
         rows[r["coord"]]["rhs"] += f"\n            + {r['expr']}"

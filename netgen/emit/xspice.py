@@ -43,32 +43,53 @@ def fit_rows(model: MacroModel, f) -> dict:
     """Template rows of one electrode in the xspice form: node c_i (driven by the code model into
     1 ohm), C_i(0) as a linear capacitor, the rest of the charge on the node qn_i (charge_node)."""
     c0 = rest_capacitance(f, model.ncoords)
-    cs = c_node(f.electrode)
+    cs, e = c_node(f.electrode), f.electrode
     return {
         "sums": [f"R{cs} {cs} 0 1"],
-        "c0": num(f.c_ref * c0),
-        "charge": ngspice.charge_node(f.electrode, f"v({cs})", model.plate, f.c_ref),
+        "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
+        "charge": ngspice.charge_node(e, f"v({cs})", model.plate, process.charge_scale(model, e, num(f.c_ref))),
     }
 
 
-def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, int]]:
-    """The code model's extra state columns for the gap offsets (netgen.emit.process): one node
-    xg_<set> = xs_z - sign dg_<set> / L_z per gap set, and electrode -> its column. An electrode of
-    the set reads its z exponents, and a stop point on it its z normal, from that column; the
-    column's force output goes to u_z with z's gain (dC/dxg = dC/dxs_z): the shift exact, the
-    compiled code model unchanged."""
+def etch_voltages(model: MacroModel) -> tuple[list[str], dict[str, str]]:
+    """The code model's voltage inputs of the electrodes with an etch capacitance ratio pc_<e>
+    (netgen.emit.process.capacitance_ratios): a VCVS node pv_<e> = sqrt(pc_<e>) (V_e - V_plate), so
+    the compiled forces (quadratic in the voltage) carry pc_<e>; the charges scale on their capacitors
+    (fit_rows). Lines and electrode -> its input."""
+    lines, inputs = [], {}
+    for e in process.capacitance_ratios(model):
+        lines.append(f"Epv_{e} pv_{e} 0 {e} {model.plate} {{sqrt(pc_{e})}}")
+        inputs[e] = f"%vd(pv_{e} 0)"
+    return lines, inputs
+
+
+def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, dict[int, int]], list[int]]:
+    """The code model's extra state columns for the gap offsets and the combs' etch shifts
+    (netgen.emit.process): one node xg_<set> = xs_z - sign dg_<set> / L_z per gap set and one node
+    xe_<q>_<i> = xs_q + (shift / L_q) etch per etch shift; electrode -> {coordinate index: the column
+    its terms read instead}; and per extra column its coordinate's index. A column's force output goes
+    to that coordinate's u with its gain (dC/dxg = dC/dxs): the shifts exact, the compiled code model
+    unchanged."""
     if not process.enabled(model):
-        return [], {}
+        return [], {}, []
     n, sets = model.ncoords, [g["set"] for g in model.process["gaps"]]
-    shifts = process.gap_shifts(model)
-    return [f"xg_{s}" for s in sets], {e: n + sets.index(g) for e, (g, _) in shifts.items()}
+    names = [c.name for c in model.coordinates]
+    extra = [f"xg_{s}" for s in sets] + [c[0] for c in process.etch_columns(model)]
+    coords = [names.index("z")] * len(sets) + [names.index(c[1]) for c in process.etch_columns(model)]
+    column: dict[str, dict[int, int]] = {
+        e: {names.index("z"): n + sets.index(g)} for e, (g, _) in process.gap_shifts(model).items()
+    }
+    for e, moves in process.etch_states(model).items():
+        column.setdefault(e, {}).update({names.index(q): n + extra.index(node) for q, node in moves.items()})
+    return extra, column, coords
 
 
-def moved(row, z: int, col: int | None, width: int) -> list:
-    """A row over the coordinates widened to `width` columns, its z entry moved to column `col`."""
+def moved(row, moves: dict[int, int], width: int) -> list:
+    """A row over the coordinates widened to `width` columns, each entry of `moves` (coordinate index ->
+    column) moved to its column."""
     out = list(row) + [0] * (width - len(row))
-    if col is not None:
-        out[col], out[z] = out[z], 0
+    for v, col in moves.items():
+        out[col], out[v] = out[v], 0
     return out
 
 
@@ -76,9 +97,8 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     """The netgen_es instances and their .model card: every plate term as monomials of its
     polynomial, its clamp, and the per-coordinate force gains (the same scalings as the B form);
     with gap offsets the extra columns of gap_columns."""
-    extra, column = gap_columns(model)
+    extra, column, owner = gap_columns(model)
     n = model.ncoords + len(extra)
-    z = [c.name for c in model.coordinates].index("z") if extra else 0
     clamps = model.term_clamps()
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
@@ -96,25 +116,27 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
                 if c != 0.0:
                     p["mono_term"].append(term)
                     p["mono_coef"].append(float(c))
-                    p["mono_exp"].extend(int(x) for x in moved(e, z, column.get(f.electrode), n))
+                    p["mono_exp"].extend(int(x) for x in moved(e, column.get(f.electrode, {}), n))
     gains = [force_gain(c, ws) for c in model.coordinates]
-    gains += [gains[z]] * len(extra)
+    gains += [gains[v] for v in owner]
     p["fgain"] = [a / (2.0 * c.scale) for a, c in zip(gains, model.coordinates)]
-    p["fgain"] += [p["fgain"][z]] * len(extra)
+    p["fgain"] += [p["fgain"][v] for v in owner]
     stops = stop_constants(model)
     nstop = len(stops["a"]) if stops else 1  # the model card needs the vectors even without stops
     sa, sg = np.zeros((nstop, n)), np.zeros((nstop, n))
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
         for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
-            col = column.get(pt["electrode"])
-            sa[j] = moved(a, z, col, n)
-            sg[j] = np.asarray(moved(g, z, col, n)) * np.asarray(gains)
+            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's etch
+            cols = column.get(pt["electrode"], {})
+            sa[j] = moved(a, cols, n)
+            sg[j] = np.asarray(moved(g, cols, n)) * np.asarray(gains)
     sr = sa * ws
     p.update({"stop_a": sa.ravel(), "stop_rate": sr.ravel(), "stop_gain": sg.ravel()})
     xs = " ".join([f"xs_{c.name}" for c in model.coordinates] + extra)
-    us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[z].name}"] * len(extra))
-    ve = " ".join(f"%vd({f.electrode} {model.plate})" for f in model.capacitances)
+    us = " ".join([f"u_{c.name}" for c in model.coordinates] + [f"u_{model.coordinates[v].name}" for v in owner])
+    _, scaled = etch_voltages(model)
+    ve = " ".join(scaled.get(f.electrode, f"%vd({f.electrode} {model.plate})") for f in model.capacitances)
     cs = " ".join(c_node(f.electrode) for f in model.capacitances)
     return {
         "name": f"{model.name}_es",
@@ -133,7 +155,10 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     if problem:
         raise ValueError(f"{problem}; fix: emit the B-source form (--format ngspice)")
     ctx = ngspice.mechanics_context(model, noise)
-    ctx["gap_shift"] = process.gap_networks(model, every=True)  # the code model's extra columns
+    # the code model's extra columns
+    ctx["gap_shift"] = process.gap_networks(model, every=True)
+    ctx["etch_shift"] = process.etch_networks(model)
+    ctx["etch_voltages"] = etch_voltages(model)[0]
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees
         row.update({"force_g": ngspice.linear_force_terms(model, v, ws), "force_expr": "", "linear": []})

@@ -199,15 +199,19 @@ def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], st
     return out, "" if out else "no electrode set lies above or below the conductor"
 
 
-def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float) -> dict:
+def process_laws(
+    s: Structure, m: Mechanics, run, electrodes, scale_z: float, sampling_range: float, extract=None
+) -> dict:
     """The model's process entry (MacroModel.process): laws, ranges and errors of the parameters the
     structure's [process] declares (netgen.structure.process_table checked them against the
-    structure); {} without [process] (nothing is re-run, the model is what it was)."""
+    structure); {} without [process] (nothing is re-run, the model is what it was). `extract`:
+    (structure, n) -> the extractor's capacitances at rest and at n points of the fit box
+    (netgen.build.capacitance_sampler), for the etch's capacitance laws (None: none built)."""
     p = s.process
     if p is None:
         return {}
     d = s.damping
-    film = bool(d and d.squeeze_film and d.film_model == "incompressible")
+    film = bool(d and d.squeeze_film)  # compressible: d_film is the branches' remainder damper
     per, errors = mechanics_laws(s, m, run, film, p)
     t0 = d.temperature if d else 300.0
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
@@ -232,9 +236,11 @@ def process_laws(s: Structure, m: Mechanics, run, electrodes, scale_z: float, sa
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err)
-    if d and d.film_model == "compressible":
-        out["temp"]["film_branches"] = "the compressible film's branches keep their values at T0"
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names))
+    if m.strain_energy is not None:
+        out["strain_energy"] = energy_law(s, m, run, p)
+    if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
+        out["temp"]["film_branches"] = "the compressible film's branch dampers times the ratio, corners over it"
     return out
 
 
@@ -243,14 +249,53 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def etched(s: Structure, etch: float) -> Structure:
-    """The structure with every flexure beam etched by `etch` per edge (m; negative: under-etch): beam,
-    truss and thigh widths w - 2 etch. Beam lengths and the beams' spacing (centre to centre) stay:
-    they are set by the anchors' and the mass's edges, which recede together; the mass outline, its
-    holes and the plates are not etched (etch_record states how much that neglects)."""
+    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch): flexure
+    beam, truss and thigh widths w - 2 etch, the proof mass's outline (length, width) - 2 etch and its
+    etch holes' side + 2 etch on the drawn grid (pitch and count stay: lithography places them). Beam
+    lengths and the beams' spacing (centre to centre) stay: they are set by the anchors' and the
+    mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
+    capacitances would change)."""
     c: Any = s.conductor
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
-    return dataclasses.replace(s, conductor=dataclasses.replace(c, flexure=dataclasses.replace(f, **w)))
+    outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
+    holes = {"hole": c.hole + 2 * etch, "hole_grid": c.holes()} if c.hole else {}
+    changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
+    sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
+    return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+def is_comb(e: Any) -> bool:
+    """A comb electrode (netgen.structure.electrodes.CombElectrode): fingers, not a plate."""
+    return getattr(e, "kind", "") in ("lateral_comb", "transverse_comb")
+
+
+def etched_comb(e: Any, etch: float) -> Any:
+    """A comb with every finger sidewall and end receded by `etch`: finger width - 2 etch, gaps + 2
+    etch (the far side's too), overlap - 2 etch (both comb's tips recede); the finger length (root and
+    tip recede together), the pitch and the overlap's centre stay."""
+    anti = e.anti_gap + 2 * etch if e.anti_gap else 0.0
+    return dataclasses.replace(
+        e, width=e.width - 2 * etch, gap=e.gap + 2 * etch, anti_gap=anti, overlap=e.overlap - 2 * etch
+    )
+
+
+def comb_shifts(s: Structure, names: list[str]) -> dict[str, dict[str, float]]:
+    """electrode -> {coordinate: shift per metre of etch} of the combs: the etched comb is, for the
+    parallel-plate part of its capacitance, the drawn one with the mass moved by these: a transverse
+    comb's gap g + 2 etch is the fingers moved 2 etch away across (-sign), and every comb's overlap
+    L0 - 2 etch is them moved 2 etch back along the fingers (-engage); a coordinate the model lacks
+    is left out (its part goes into the ratio and its error)."""
+    out: dict[str, dict[str, float]] = {}
+    for e in s.electrode_sets:
+        if not is_comb(e):
+            continue
+        across = "y" if e.orientation == "x" else "x"
+        shift = {e.orientation: -2.0 * (1.0 if e.root == "+" else -1.0)}
+        if e.kind == "transverse_comb":
+            shift[across] = -2.0 * (1.0 if e.side == "+" else -1.0)
+        out[e.name] = {q: k for q, k in shift.items() if q in names}
+    return out
 
 
 def etch_points(p: Process) -> tuple[float, ...]:
@@ -336,26 +381,97 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
     return worst
 
 
-def etch_record(s: Structure, p: Process, err: float) -> dict:
-    """The etch entry of the process record: range, law error, the polynomial variable, and the relative
-    change of the mass outline's area (holes included) the laws neglect at the range's ends."""
+CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios are checked at (and rest)
+
+
+def etch_record(
+    s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None, coords: list[str] | None = None
+) -> dict:
+    """The etch entry of the process record: range, law error, the polynomial variable, the etched
+    mass outline's relative area change at the range's ends (holes included: the mass and inertia
+    laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
+    and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
+    laws (capacitance_laws)."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
     def area(e: float) -> float:
-        return (
-            (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
-            if c.hole
-            else (c.length - 2 * e) * (c.width - 2 * e)
-        )
+        return (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
 
-    a0 = area(0.0)
-    return {
+    out = {
         "range_m": list(p.etch_range),
         "max_rel_error": float(err),
         "variable": "etch / 1 um",
-        "unetched_area_rel": max(abs(area(e) / a0 - 1.0) for e in p.etch_range),
+        "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
+    if extract is not None:
+        out |= capacitance_laws(s, p, extract, names or [], coords or [])
+    return out
+
+
+def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
+    """Each electrode's capacitance under etch as C(q; etch) = ratio(etch) C(q + shift etch; 0): the
+    combs' shift (comb_shifts: exact for the parallel-plate part of a transverse comb's gap and every
+    comb's overlap) and a ratio, a cubic in etch / 1 um (1 at 0), from the extractor at rest at
+    etch_points: C(0; etch) / C(shift etch; 0). It carries what no shift is: the area a plate faces
+    (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
+    lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
+    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
+    fit box at the range's ends, and the cubic's residual at the etch points."""
+    shifts = comb_shifts(s, coords)
+    vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
+    memo: dict[tuple, np.ndarray] = {}
+
+    def drawn_at(n: int, offset: np.ndarray) -> np.ndarray:
+        """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
+        key = (n, *offset.tolist())
+        if key not in memo:
+            memo[key] = extract(s, n, offset)
+        return memo[key]
+
+    points = etch_points(p)
+    rest = np.array([extract(etched(s, e), 0)[0] for e in points])
+    drawn = np.array([[drawn_at(0, v * e)[0][k] for k, v in enumerate(vectors)] for e in points])
+    u = tuple(e / ETCH_UNIT for e in points)
+    coef, err = power_fit(u, rest / drawn, np.ones_like(rest), nominal=0.0)
+    ratios = [[float(x) for x in coef[k]] for k in range(len(names))]
+    for e in p.etch_range:
+        moved = extract(etched(s, e), CAPACITANCE_POINTS)
+        for k, v in enumerate(vectors):
+            ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
+            ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
+            err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
+    laws = []
+    for n, r in zip(names, ratios):
+        if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
+            laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
+    return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+
+
+def ratio_value(coeffs: list[float], etch: float) -> float:
+    """An etch ratio (cubic in etch / ETCH_UNIT) at `etch` (m)."""
+    u = etch / ETCH_UNIT
+    return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
+
+
+def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
+    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x and the etch bias:
+    each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws; the
+    arithmetic the emitters render)."""
+    x = np.atleast_2d(x)
+    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    names = [c.name for c in model.coordinates]
+    out = model.capacitance(x)
+    for k, f in enumerate(model.capacitances):
+        law = laws.get(f.electrode)
+        if law is None:
+            continue
+        moved = x.copy()
+        for q, shift in law.get("shift", {}).items():
+            v = names.index(q)
+            moved[:, v] += shift * etch / model.coordinates[v].scale
+        out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
+    return out
 
 
 def kelvin(temp_c: float) -> float:
@@ -393,23 +509,67 @@ def finite_law(law: dict) -> bool:
     return all(math.isfinite(x) for x in parts)
 
 
-# the parameters a sweep moves by instance parameters (netgen.sweep): the laws change only the
-# coordinates' numbers for these; temp's viscosity law has no rebuild to compare with (the damping
-# stage keeps the gas at its tabulated viscosity) and dg moves the fits' box
-SWEPT = ("tscale", "escale")
+INERTIAL_KINDS = ("participation", "gyroscopic", "centrifugal", "centrifugal_force")
+PROBE_T = 2.0  # the thickness factor of the second evaluation separating the t and t^3 parts
 
 
-def at_point(model: Any, tscale: float = 1.0, escale: float = 1.0) -> Any:
-    """A MacroModel's copy at a process point, for the loop design and analysis of a run whose netlist
-    takes the point as instance parameters (netgen.sweep): each coordinate's mass, stiffness and
-    damping from the laws (coordinate_values, the arithmetic the emitters render) and its frequency
-    from them, the a_in participation times tscale (as the emitters scale the port); the fits are
-    the model's (plate electrodes depend on neither t nor E)."""
-    law = model.process
-    coords = []
-    for v, c in enumerate(model.coordinates):
-        mass, stiffness, damping = coordinate_values(law, v, tscale=tscale, escale=escale)
-        freq = math.sqrt(stiffness / mass) / (2 * math.pi) if stiffness > 0 else 0.0
-        coords.append(dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq))
-    accel = [g * tscale for g in model.acceleration]
-    return dataclasses.replace(model, coordinates=coords, acceleration=accel)
+def inertial_law(s: Structure, data: dict, terms) -> dict:
+    """The tscale law of the inertial terms (MacroModel.inertial, netgen.mechanics.inertial): every
+    entry is an integral over the plate of rho (A A + z^2 B B) (fields affine in z through the
+    thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
+    (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
+    the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
+    Etch and escale leave them (the plate outline is not etched; no modulus). {} without tscale."""
+    if s.process is None or not s.process.wants("tscale") or not any(data.get(k) for k in INERTIAL_KINDS):
+        return {}
+    probe = terms(scaled(s, PROBE_T))
+    fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}
+    return {
+        "law": "X(tscale) = X ((1 - f) tscale + f tscale^3), f the entry's rotary share (exact)",
+        "t3_fraction": fractions,
+    }
+
+
+def rotary_share(nominal, probe) -> list:
+    """f = (X(2) - 2 X) / (6 X) per entry (0 where X = 0), snapped to 0 or 1 within ROUND_OFF."""
+    x, x2 = np.asarray(nominal, dtype=float), np.asarray(probe, dtype=float)
+    f = np.divide(x2 - PROBE_T * x, (PROBE_T**3 - PROBE_T) * x, out=np.zeros_like(x), where=x != 0.0)
+    f[np.abs(f) < ROUND_OFF] = 0.0
+    f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
+    return f.tolist()
+
+
+def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
+    """The fitted strain energy's law (MacroModel.nonlinear, netgen.mechanics StrainEnergy): U(q; t, E)
+    = (e A(t) + B(t)) U(q) with e the modulus factor (modulus_factor), A the part proportional to the
+    modulus (a beam's stretching energy E w t (int w'^2 / 2)^2 / 2L: A = t for shapes independent of
+    t) and B the rest (a given spring such as k_xy x y: B = 1), cubics in tscale from the energies
+    re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
+    the error includes the spread of that ratio over the points (a shape change with t). {} without
+    a strain energy or a parameter that moves it (tscale, escale, temp)."""
+    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp")):
+        return {}
+    q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)
+    u0 = np.asarray(m.strain_energy.energy(q), dtype=float)
+    ratios, spread = [], 0.0
+    modulus = p.wants("escale") or p.wants("temp")
+    for tau in fit_points(p):
+        row = []
+        for e in (1.0, E_PROBE) if modulus else (1.0,):
+            mt = m if tau == 1.0 and e == 1.0 else run(scaled(s, tau, e))
+            if mt.strain_energy is None:
+                raise ValueError("the strain energy vanishes with the thickness or modulus")
+            u = np.asarray(mt.strain_energy.energy(q), dtype=float)
+            r = float(u0 @ u / (u0 @ u0))
+            spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
+            row.append(r)
+        a = (row[1] - row[0]) / (E_PROBE - 1.0) if modulus else 0.0
+        ratios.append([a, row[0] - a])
+    coef, err = power_fit(fit_points(p), np.array(ratios), np.abs(np.array(ratios)).sum(axis=1, keepdims=True))
+    worst = max(err, spread)
+    return {
+        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest",
+        "a": [float(c) for c in coef[0]],
+        "b": [float(c) for c in coef[1]],
+        "max_rel_error": worst if worst > ROUND_OFF else 0.0,
+    }

@@ -137,7 +137,8 @@ def check_names(c: Checker, d: dict) -> None:
     check_couplings(c, d, tuple(names))
     check_calibration(c, d.get("calibration", {}), tuple(names))
     check_inertial(c, d.get("inertial_inputs", {}), len(d["coordinates"]))
-    check_process(c, d.get("process", {}), tuple(names), len(d["coordinates"]))
+    coords = tuple(row.get("name") for row in d["coordinates"])
+    check_process(c, d.get("process", {}), tuple(names), len(d["coordinates"]), coords)
     if not isinstance(d.get("contact") or {}, dict):
         c.fail("contact", "must be an object")
 
@@ -266,7 +267,30 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool) -> None:
             c.number(f"{where}.{key}[{k}]", x)
 
 
-def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int = 0) -> None:
+def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...]) -> None:
+    """The etch's capacitance laws (netgen.model.process.capacitance_laws): per electrode one of the
+    model's electrode names (the emitters name the parameter pc_<electrode>), four numbers and an
+    optional shift {coordinate: number} over the model's x and y."""
+    if not isinstance(laws, list):
+        c.fail("process.etch.capacitance", "must be a list of {electrode, ratio} objects")
+    for i, law in enumerate(laws):
+        where = f"process.etch.capacitance[{i}]"
+        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
+            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
+        c.choice(f"{where}.electrode", law.get("electrode"), names)
+        for k, x in enumerate(law["ratio"]):
+            c.number(f"{where}.ratio[{k}]", x)
+        shift = law.get("shift", {})
+        if not isinstance(shift, dict):
+            c.fail(f"{where}.shift", "must be an object {coordinate: shift per metre of etch}")
+        for q, x in shift.items():
+            c.choice(f"{where}.shift", q, tuple(n for n in coords if n in ("x", "y")))
+            c.number(f"{where}.shift.{q}", x)
+
+
+def check_process(
+    c: Checker, process: Any, names: tuple[str, ...], ncoords: int = 0, coords: tuple[str, ...] = ()
+) -> None:
     """The optional process record (netgen.model.process), whose numbers and names the emitters write
     into the netlist (netgen.emit.process): its parameters are known names, its laws finite numbers
     (four per law and coordinate), its gap sets identifiers (they become instance parameter names
@@ -307,8 +331,11 @@ def check_process(c: Checker, process: Any, names: tuple[str, ...], ncoords: int
             c.fail("process.etch.range_m", "must be a list of 2 numbers")
         for k, x in enumerate(etch["range_m"]):
             c.number(f"process.etch.range_m[{k}]", x)
-        for key in ("max_rel_error", "unetched_area_rel"):
-            c.number(f"process.etch.{key}", etch.get(key))
+        c.number("process.etch.max_rel_error", etch.get("max_rel_error"))
+        for key in ("area_rel", "capacitance_max_rel_error"):  # stated in the header (netgen.emit.process)
+            if key in etch:
+                c.number(f"process.etch.{key}", etch[key])
+        check_capacitance_laws(c, etch.get("capacitance", []), names, coords)
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))

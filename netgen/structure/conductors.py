@@ -438,11 +438,16 @@ class ProofMass(Suspended):
     hole: float = 0.0
     hole_pitch: float = 0.0
     kind: str = "proof_mass"
+    # the hole count fixed by the layout: an etched copy (netgen.model.process.etched) keeps the
+    # drawn grid although its outline shrank; None: the grid that fits (holes)
+    hole_grid: tuple[int, int] | None = None
 
     def holes(self) -> tuple[int, int]:
         """Number of etch holes along x and y (a centred grid that fits inside the mass)."""
         if not self.hole:
             return 0, 0
+        if self.hole_grid is not None:
+            return self.hole_grid
         return int(self.length // self.hole_pitch), int(self.width // self.hole_pitch)
 
     @property

@@ -99,8 +99,9 @@ def read_etch_range(rd: Reader, t: dict, params: tuple[str, ...]) -> tuple[float
 
 
 def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
-    """etch narrows a proof mass's flexure beams (w - 2 etch): it needs such flexures, no comb fingers
-    (their gap and overlap laws are not built) and every beam still wider than 0 at the range's top."""
+    """etch narrows a proof mass's flexure beams (w - 2 etch) and comb fingers and widens its etch holes:
+    it needs such flexures, every beam and finger keeping more than half its width at the range's top
+    and holes that neither close nor merge over the range."""
     where = "process.parameters"
     flex = getattr(conductor, "flexure", None)
     if getattr(conductor, "kind", "") != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
@@ -109,11 +110,20 @@ def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
             f"etch narrows flexure beams: it needs a proof mass with a flexure of type {', '.join(ETCH_TYPES)}",
             "remove 'etch' from process.parameters",
         )
-    if any(getattr(s, "side", None) not in GAP_SIDES for s in sets):
+    for e in sets:
+        if getattr(e, "kind", "") in ("lateral_comb", "transverse_comb") and 2 * p.etch_range[1] >= 0.5 * e.width:
+            raise rd.fail(
+                "process.etch_range",
+                f"an over-etch of {p.etch_range[1]:g} m per edge removes half or more of comb {e.name}'s fingers "
+                f"({e.width:g} m wide)",
+                "narrow etch_range (its top below a quarter of the narrowest finger)",
+            )
+    hole, pitch = getattr(conductor, "hole", 0.0), getattr(conductor, "hole_pitch", 0.0)
+    if hole and not (hole + 2 * p.etch_range[0] > 0.0 and hole + 2 * p.etch_range[1] < pitch):
         raise rd.fail(
-            where,
-            "etch with comb fingers: the laws of their gap (g + 2 etch) and finger width are not built",
-            "remove 'etch' from process.parameters, or the comb electrodes",
+            "process.etch_range",
+            f"the etch holes (side {hole:g} m + 2 etch, pitch {pitch:g} m) close or merge within etch_range",
+            "narrow etch_range (hole + 2 lo > 0 and hole + 2 hi < hole_pitch)",
         )
     widths = [w for w in (flex.width, flex.truss_width, flex.thigh_width) if w]
     if 2 * p.etch_range[1] >= 0.5 * min(widths):

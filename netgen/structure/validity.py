@@ -39,6 +39,7 @@ def check(rd: Reader, conductor: object, sets: tuple, electrostatics: object) ->
                 f'give {key} in {lo:g}..{hi:g} (default {0.42 if key == "fringe_a" else 1.0}), or fringe = "none"',
             )
     dielectric(rd, sets, electrostatics)
+    perforation(rd, conductor, electrostatics)
     size = lateral_size(conductor)
     if size is None:
         return ()
@@ -85,17 +86,43 @@ def comb(rd: Reader, where: str, s: CombElectrode, size: float) -> None:
 
 def dielectric(rd: Reader, sets: tuple, electrostatics: object) -> None:
     """A dielectric layer on an electrode is modelled by the parallel-plate extractor (its series
-    gap, netgen.electrostatics.parallel_plate) and the multipole extractor (a dielectric interface,
-    netgen.electrostatics.fastcap_mesh.layered_panels); the dense BEM and the calibration do not
-    model it yet."""
+    gap, netgen.electrostatics.parallel_plate), the multipole extractor (a dielectric interface,
+    netgen.electrostatics.fastcap_mesh.layered_panels) and a calibration on its points. The dense
+    BEM does not model it: bempp's regular quadrature of the adjoint double layer between the
+    layer's surface and the electrode t_d below it needs elements below t_d (a 0.2 um layer on a
+    20 um electrode: over 10^5 unknowns, far beyond the dense matrix; docs/bem.md)."""
     extractor = getattr(electrostatics, "extractor", "parallel_plate")
     if extractor in ("parallel_plate", "fastcap"):
+        return
+    on_fastcap = getattr(electrostatics, "calibration_source", "bem") == "fastcap"
+    if extractor == "calibrated" and on_fastcap and getattr(electrostatics, "calibration_points", 0):
         return
     for i, s in enumerate(sets):
         if getattr(s, "dielectric_thickness", 0.0) > 0.0:
             raise rd.fail(
                 f"electrodes[{i}].dielectric_thickness",
-                f"extractor = {extractor!r} does not model a dielectric layer on the electrodes (yet)",
-                'use extractor = "parallel_plate" (the layer as a series gap) or "fastcap" (a dielectric '
-                "interface), or drop the layer",
+                f"extractor = {extractor!r} does not model a dielectric layer on the electrodes (the dense BEM "
+                "would need elements thinner than the layer, and a couplings file's solver is unknown)",
+                'use extractor = "parallel_plate" (the layer as a series gap), "fastcap" (a dielectric '
+                'interface) or "calibrated" with calibration_source = "fastcap", or drop the layer',
             )
+
+
+def perforation(rd: Reader, conductor: object, electrostatics: object) -> None:
+    """A proof mass's etch holes enter the parallel-plate extractor (a fill factor,
+    netgen.electrostatics.perforation) and the multipole extractor (the holes meshed,
+    fastcap_mesh.perforated_face); the dense BEM meshes a solid plate, so it and a calibration on
+    its points would give a silently wrong model."""
+    if not getattr(conductor, "hole", 0.0):
+        return
+    extractor = getattr(electrostatics, "extractor", "parallel_plate")
+    points = getattr(electrostatics, "calibration_points", 0)
+    on_bem = extractor == "calibrated" and points and getattr(electrostatics, "calibration_source", "bem") == "bem"
+    if extractor == "bem" or on_bem:
+        what = 'extractor = "bem"' if extractor == "bem" else 'calibration_source = "bem"'
+        raise rd.fail(
+            "conductor.hole",
+            f"{what} meshes the proof mass as a solid plate: its etch holes would be left out of the capacitance",
+            'use extractor = "fastcap" (the holes meshed), "calibrated" with calibration_source = "fastcap", '
+            'or "parallel_plate" (a fill factor), or drop hole and hole_pitch',
+        )

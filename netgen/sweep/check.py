@@ -12,10 +12,12 @@ from pathlib import Path
 from ..core.errors import LoopError, StructureError, SweepError
 from ..core.options import OptionError
 from ..core.reader import Reader
+from ..emit.process import SLACK
 from ..structure import Structure, mode_name, parse_structure
 from ..testbench import sigma_delta as sd
 from ..testbench.sigma_delta import read_tone
 from .plan import RunSpec
+from .point import gap_bound, problem
 from .spec import Sweep, check_value
 
 
@@ -64,32 +66,18 @@ def check_runs(sweep: Sweep, structure: Structure, structure_path: str, runs: li
 
 def _check_process(rd: Reader, sweep: Sweep, run: RunSpec, s: Structure) -> None:
     """A run on the shared model at a process point: the structure's [process] declares each swept
-    parameter and its range holds the value, and the run's simulator is the B-source .lib's
-    (the other forms are emitted from the model inside the run: they would take the point twice)."""
+    parameter and its range holds the value (netgen.sweep.point.problem); every back end passes the
+    point as instance parameters of its own form (.lib and _xspice.lib params:, the _osdi.lib's
+    .model card, VACASK's model card)."""
     for name, value in run.process.items():
-        where = _where(sweep, f"process.{name}") or f"process.{name}"
-        p = s.process
-        if p is None or not p.wants(name):
-            raise rd.fail(
-                where,
-                f"process.{name}: the structure does not declare {name} in its [process] table",
-                f'add [process] parameters = ["{name}"] to the structure, or write [sweep] process = "rebuild"',
-            )
-        lo, hi = getattr(p, f"{name}_range")
-        if not lo <= value <= hi:
-            raise rd.fail(
-                where,
-                f"{run.name}: process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
-                f'keep the values inside {name}_range, widen it in [process], or write [sweep] process = "rebuild"',
-            )
-    simulator = run.testbench.get("simulator", "ngspice")
-    if run.process and simulator != "ngspice":
-        raise rd.fail(
-            _where(sweep, "simulator") or "simulator",
-            f"{run.name}: process parameters as instance parameters run in simulator = 'ngspice' (the .lib), "
-            f"not {simulator!r}",
-            'sweep simulator = "ngspice", or write [sweep] process = "rebuild"',
-        )
+        refused = problem(s, name, value, rebuild=False)
+        if refused:
+            k = next((k for k, p in enumerate(sweep.parameters) if p.name == f"process.{name}"), None)
+            if k is not None and sweep.parameters[k].distribution:  # a Monte Carlo draw
+                where, fix = f"parameters[{k}]", f"narrow the distribution, or {refused[1]}"
+            else:
+                where, fix = _where(sweep, f"process.{name}") or f"process.{name}", refused[1]
+            raise rd.fail(where, f"{run.name}: {refused[0]}", fix)
 
 
 def _check_simulators(rd: Reader, sweep: Sweep, runs: list[RunSpec]) -> None:
@@ -188,4 +176,24 @@ def check_model_tones(sweep: Sweep, runs: list[RunSpec], names: dict[bool, list[
                     "tone",
                     f"{run.name}: the tone's coordinate {coord!r} is not one of the model's {names[run.rigid_only]}",
                     f"name one of {', '.join(names[run.rigid_only])}",
+                )
+
+
+def check_model_process(sweep: Sweep, runs: list[RunSpec], models: dict) -> None:
+    """After the shared models are built (before any run): each dg_<set> of a run on instance
+    parameters within the bound the model states (its process record's max_m, widened by the .va's
+    own SLACK: the printed bound itself passes; the check before the build used range x gap / 4)."""
+    rd = _reader(sweep.path)
+    for run in runs:
+        if run.structure_text is not None or run.rigid_only not in models:
+            continue
+        model = models[run.rigid_only][0]
+        for name, value in run.process.items():
+            bound = gap_bound(model, name)
+            if name.startswith("dg_") and (bound is None or abs(value) > bound * (1 + SLACK)):
+                raise rd.fail(
+                    _where(sweep, f"process.{name}") or f"process.{name}",
+                    f"{run.name}: process.{name} = {value:g} m is outside the model's valid range |dg| <= "
+                    f"{bound or 0:.3g} m (the fit's box moves by dg)",
+                    f'keep |dg| <= {bound or 0:.3g} m, widen [sampling] range, or write [sweep] process = "rebuild"',
                 )

@@ -16,10 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from ..core.errors import SweepError
+from ..core.errors import StructureError, SweepError
 from ..core.reader import did_you_mean
 from ..core.text import comment_text
 from ..core.units import parse_quantity
+from ..structure import Structure, parse_structure
+from .point import problem, rebuild_doc
 from .spec import TESTBENCH, Sweep, timeout_for
 
 
@@ -38,7 +40,7 @@ class RunSpec:
     key: str = ""
     timeout: float = 0.0  # s, wall-clock limit of each simulator call
     owner: dict | None = None  # the sweep process that runs it (netgen.sweep.processes.me)
-    # process point {tscale, escale} of a run on the shared [process] model (instance parameters);
+    # process point {tscale, escale, temp, etch, dg_<set>} of a run on the shared [process] model (instance parameters);
     # {} = none, or the point rebuilt into structure_text
     process: dict = field(default_factory=dict)
 
@@ -101,15 +103,18 @@ def _spec(
         freq = str(parse_quantity(values["tone_freq"], "frequency")) if "tone_freq" in values else freq
         tb["tone"] = f"{coord}:{amp}:{freq}"
     rebuild = bool(point) and sweep.process == "rebuild"
-    if rebuild:  # the reference: the structure itself at the point, built without its [process] laws
-        overrides.update(process_overrides(base_doc, point))
     text = None
     if overrides or rebuild:
         doc = json.loads(json.dumps(base_doc))
-        if rebuild:
-            doc.pop("process", None)
         for n, v in overrides.items():
             _set_path(doc, n, v, str(structure_path), sweep.path)
+        s = base(doc, structure_path) if rebuild else None
+        if s is not None:  # the reference: the structure itself at the point, built without its [process] laws
+            for n, v in point.items():
+                refused = problem(s, n, v, rebuild=True)
+                if refused:
+                    raise SweepError(sweep.path, key_of(sweep, f"process.{n}"), f"{name}: {refused[0]}", refused[1])
+            doc = rebuild_doc(doc, s, point, (sweep.path, "sweep.process"))
         shown = {**overrides, **{f"process.{k}": v for k, v in point.items()}} if rebuild else overrides
         note = comment_text(f"{structure_path} with {', '.join(f'{k} = {v!r}' for k, v in shown.items())}", "#")
         text = f"# {note}\n" + to_toml(doc)
@@ -133,26 +138,19 @@ def _spec(
     return spec
 
 
-# the structure keys a rebuild at a process point scales (netgen.model.process.scaled on the file):
-# the device layer's thickness (the conductor's and a flexure's own) by tscale, the modulus by escale
-PROCESS_KEYS = (
-    ("conductor.thickness", "length", "tscale"),
-    ("conductor.flexure.thickness", "length", "tscale"),
-    ("conductor.youngs_modulus", "modulus", "escale"),
-)
+def base(doc: dict, structure_path: str | Path) -> Structure | None:
+    """The run's structure (the file with the run's structure.* values) as parsed, for its rebuild at a
+    process point; None where the file refuses the values (netgen.sweep.check reports it with the run)."""
+    try:
+        return parse_structure(to_toml(doc), str(structure_path))
+    except StructureError:
+        return None
 
 
-def process_overrides(doc: dict, point: dict[str, float]) -> dict[str, float]:
-    """structure.<key> -> SI value of the structure file at the process point `point` (tscale,
-    escale): each PROCESS_KEYS entry present in the file times its factor."""
-    out = {}
-    for path, kind, name in PROCESS_KEYS:
-        node: Any = doc
-        for key in path.split("."):
-            node = node.get(key) if isinstance(node, dict) else None
-        if node is not None and point.get(name, 1.0) != 1.0:
-            out[f"structure.{path}"] = parse_quantity(node, kind) * point[name]
-    return out
+def key_of(sweep: Sweep, name: str) -> str:
+    """The sweep file's key that sets `name`: parameters[k].values if swept, else fixed.<name>."""
+    k = next((k for k, p in enumerate(sweep.parameters) if p.name == name), None)
+    return f"parameters[{k}].values" if k is not None else f"fixed.{name}"
 
 
 def _set_path(doc: dict, name: str, value: Any, structure: str, sweep: str) -> None:

@@ -22,17 +22,17 @@ from ..build import build_model
 from ..core import process as sim_process
 from ..core.files import write_atomic
 from ..emit import write_outputs
-from ..model.process import at_point as process_point
 from ..runtime.interrupts import Interrupted
 from ..sim.ngspice import identity as ngspice_build
 from ..sim.ngspice import same_build
 from ..structure import parse_structure
 from ..testbench import sigma_delta as sd
 from . import processes
-from .check import check_model_tones
+from .check import check_model_process, check_model_tones
 from .folder import claim, identity
 from .plan import RunSpec, plan
 from .plots import plot
+from .point import at_point
 from .spec import DESIGN_CHOICES, METRICS, Sweep, timeout_for
 
 DONE = ".done"  # in a run folder: the run's key, written when the run completed
@@ -88,9 +88,9 @@ def _simulate(models: dict, spec: RunSpec, folder: Path) -> None:
         (folder / "model" / f"{model.name}.lib").write_text(lib_text, encoding="utf-8")
     lib = folder / "model" / f"{model.name}.lib"
     req = request(spec, loop)
-    if spec.process:  # the .lib at the point by instance parameters; design and analysis see its numbers
-        model = process_point(model, **spec.process)
-        req = replace(req, instance=tuple(sorted(spec.process.items())))
+    if spec.process:  # each back end's form takes the point as instance parameters; design and analysis see its numbers
+        req = replace(req, instance=tuple(sorted(spec.process.items())), nominal=model)
+        model = at_point(model, spec.process)
     sd.run(model, lib, folder, req)
 
 
@@ -205,6 +205,7 @@ def _run(
     check_model_tones(
         sweep, todo, {rigid: [c.name for c in m[0].coordinates] for rigid, m in models.items() if rigid != "loop"}
     )
+    check_model_process(sweep, todo, {k: m for k, m in models.items() if k != "loop"})
     if progress and todo:
         print(f"sweep: {len(todo)} run(s) on {ex!r}" + (f", {len(records)} reused" if records else ""), file=sys.stderr)
     with tqdm(

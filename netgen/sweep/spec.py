@@ -52,8 +52,8 @@ from ..core.options import Option, OptionError
 from ..core.reader import Reader, did_you_mean
 from ..core.text import text_problem
 from ..core.units import UNITS, UnitError, parse_quantity
-from ..model.process import SWEPT as PROCESS_SWEPT
 from ..testbench.sigma_delta import CHANNELS, OPTIONS, SWEEP, read_tone
+from . import point as process_point
 
 METRICS = ("bit_mean", "noise_floor_db_per_hz", "inband_noise_db", "tone_level_db", "snr_db", "slope_db_per_decade")
 # result columns: <channel>.<metric> for any channel of the loop (the disk's z, tilt_x, tilt_y are
@@ -369,12 +369,13 @@ def kind_of(value: Any) -> str:
 
 def check_name(rd: Reader, where: str, name: str) -> None:
     if name.startswith("process."):
-        if name.split(".", 1)[1] not in PROCESS_SWEPT:
+        if not process_point.known(name.split(".", 1)[1]):
             raise rd.fail(
                 where,
-                f"{name!r} is not a process parameter a sweep moves (process.tscale, process.escale)",
-                "sweep process.tscale or process.escale, or rebuild with structure.<table>.<key> "
-                "(a gap: structure.electrodes[k].gap; the temperature: structure.damping.temperature)",
+                f"{name!r} is not a process parameter a sweep moves (process.tscale, process.escale, "
+                "process.temp, process.etch, process.dg_<set>)",
+                "sweep one of those (dg_<set>: the name of an electrode set above or below), or rebuild with "
+                "structure.<table>.<key>",
             )
         return
     if name.startswith("structure."):
@@ -394,6 +395,25 @@ def check_name(rd: Reader, where: str, name: str) -> None:
         )
 
 
+def process_value(rd: Reader, where: str, name: str, value: Any) -> float:
+    """One value of process.<name> in its unit (netgen.sweep.point.unit): tscale and escale ratios to
+    the nominal, temp in degC, etch and dg_<set> lengths (m, or a quantity such as "50 nm")."""
+    kind = process_point.unit(name.split(".", 1)[1])
+    number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if kind == "m" and isinstance(value, str):
+        try:
+            return parse_quantity(value, "length")
+        except UnitError as exc:
+            raise rd.fail(where, f"{name} = {value!r}: {exc}", f'write a length, e.g. {name} = "50 nm"') from None
+    if kind == "ratio" and not (number and 0 < value < 10):
+        raise rd.fail(where, f"{name} = {value!r} is not a ratio to the nominal", f"write e.g. {name} = 1.05")
+    if kind == "degC" and not (number and value > -273.15):
+        raise rd.fail(where, f"{name} = {value!r} is not a temperature in degC", f"write e.g. {name} = 85")
+    if kind == "m" and not (number and abs(value) < 1e-3):
+        raise rd.fail(where, f"{name} = {value!r} is not a length in m", f'write e.g. {name} = 5e-8 or "50 nm"')
+    return float(value)
+
+
 def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, float | None]:
     """Validate one value of parameter `name`; return (value to use, SI number or None)."""
     check_name(rd, where, name)
@@ -404,9 +424,8 @@ def check_value(rd: Reader, where: str, name: str, value: Any) -> tuple[Any, flo
             "write it as one line of printable text (no line breaks, tabs or other control characters)",
         )
     if name.startswith("process."):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 10:
-            raise rd.fail(where, f"{name} = {value!r} is not a ratio to the nominal", f"write e.g. {name} = 1.05")
-        return float(value), float(value)
+        v = process_value(rd, where, name, value)
+        return v, v
     if name.startswith("structure."):
         if isinstance(value, (dict, list)):
             raise rd.fail(

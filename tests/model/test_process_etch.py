@@ -4,16 +4,18 @@ etched widths, and the emitted .lib's etch in ngspice 39 and 46.
 
 Tolerances:
 - clamped-guided beams (Euler-Bernoulli frame elements, netgen.mechanics.flexures): k across the
-  beams ~ t w^3 and k_z ~ w t^3 exactly, so the etch ratios are ((w - 2e)/w)^3 and (w - 2e)/w; the
-  cubic fit of a cubic is exact up to the least squares' round-off (Vandermonde of etch / 1 um over
-  +-0.3 um: condition near 1e3, times the frame solve's 1e-13): 1e-9.
+  beams ~ t w^3 and k_z ~ w t^3 exactly, so the etch ratios are ((w - 2e)/w)^3 and (w - 2e)/w, and
+  the etched outline's mass ((L - 2e)/L)^2; the cubic fit of a cubic is exact up to the least
+  squares' round-off (Vandermonde of etch / 1 um over +-0.3 um: condition near 1e3, times the frame
+  solve's 1e-13): 1e-9.
 - the folded flexure's frame (trusses in series with the beams) is not a power law of w: the law is
   a cubic fit whose residual is the model's stated etch error; the modal frequencies of the law
   against the re-run at three etch values are held to the brief's 1e-4 and to half the stated
   error (f ~ sqrt(k): a relative k error e gives e / 2 in f), whichever is larger.
 - with tscale as well, the law is the product of the tscale and etch laws; at the corners of the
   box its misfit is part of the stated error, so the stiffness there is held to that error.
-- .ac of the .lib, the _xspice.lib and the .va through OSDI (a linear model, 1/H = k - m w^2):
+- .ac of the .lib, the _xspice.lib and the .va through OSDI (a linear model, 1/H = k - m w^2; m of
+  the etched outline, rho t (200 um - 2 etch)^2):
   ngspice's linear solve to round-off, 1e-9, against the clamped-guided closed form (exact law).
 """
 
@@ -29,12 +31,12 @@ from netgen.build import build_model
 from netgen.core.errors import StructureError
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
-from netgen.model.process import coordinate_values, process_laws
+from netgen.model.process import capacitance_at, coordinate_values, process_laws
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, ROOT
-from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun
+from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun, xyz_text
 
 
 @pytest.fixture(scope="module")
@@ -56,30 +58,38 @@ def guided_laws():
 
 @pytest.mark.parametrize("etch", ETCHES)
 def test_clamped_guided_against_closed_form(guided_laws, etch):
-    """Beams along y: k_x (bending in plane) ~ w^3, k_y (axial) ~ w, k_z (out of plane) ~ w."""
+    """Beams along y: k_x (bending in plane) ~ w^3, k_y (axial) ~ w, k_z (out of plane) ~ w; the
+    200 um square mass m = rho t (200 um - 2 etch)^2 (a quadratic: its cubic fit is exact)."""
     law, m = guided_laws
     ratio = (2.0 - 2 * etch * 1e6) / 2.0
     for name, power in (("x", 3), ("y", 1), ("z", 1)):
         v = list(m.names).index(name)
         mass, k, _ = coordinate_values(law, v, etch=etch)
-        assert mass == pytest.approx(m.masses[v], rel=1e-12)  # the mass is not etched
+        assert mass == pytest.approx(2330 * 5e-6 * (200e-6 - 2 * etch) ** 2, rel=1e-9, abs=0)
         assert k / m.stiffnesses[v] == pytest.approx(ratio**power, rel=1e-9)
     assert law["etch"]["max_rel_error"] < 1e-9
 
 
 @pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
 def test_full_rebuild_at_the_etched_widths(guided_model, etch):
-    """The whole build of the file rewritten at w - 2 etch: its modal frequency against the law's
-    (exact law: 1e-9 as above) and its capacitances at 100 points of the fit box against the
-    nominal model's (the plates are not etched) within the larger fit error."""
-    model = build_model(parse_structure(guided(w=2.0 - 2 * etch * 1e6), "cg.toml"))
+    """The whole build of the file rewritten at w - 2 etch and the mass's side 200 um - 2 etch: its
+    modal frequency against the law's (exact law: 1e-9 as above); its capacitances at 100 points of
+    the fit box against the nominal model's times the etch ratio (netgen.model.process.capacitance_at)
+    within the larger fit error plus the ratio's stated error (0 here: the plate is wider than the
+    mass, so C ~ (200 um - 2 etch)^2 exactly, a quadratic), and the ratio against that closed form."""
+    side = 200.0 - 2 * etch * 1e6
+    model = build_model(parse_structure(guided(w=2.0 - 2 * etch * 1e6, side=side), "cg.toml"))
     c, ref = guided_model.coordinates[0], model.coordinates[0]
     m, k, _ = coordinate_values(guided_model.process, 0, etch=etch)
     assert math.sqrt(k / m) == pytest.approx(math.sqrt(ref.stiffness / ref.mass), rel=1e-9)
+    law = guided_model.process["etch"]
+    assert law["capacitance_max_rel_error"] == 0.0
+    (ratio,) = [r["ratio"] for r in law["capacitance"]]
+    assert ratio == pytest.approx([1.0, -0.02, 1e-4, 0.0], abs=1e-12)  # (1 - 2 (etch / 1 um) / 200)^2
     q = np.random.default_rng(7).uniform(-0.2, 0.2, (100, 1))
     errs = [f.max_rel_error for f in guided_model.capacitances + model.capacitances]
     assert ref.scale == c.scale  # the same touching amplitude: the same scaled points
-    np.testing.assert_allclose(guided_model.capacitance(q), model.capacitance(q), rtol=max(errs))
+    np.testing.assert_allclose(capacitance_at(guided_model, q, etch), model.capacitance(q), rtol=max(errs) + 1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -125,7 +135,7 @@ X1 0 0 fz xz cg etch={etch!r}
     inv = 1.0 / plot["v(xz)"]  # x_z in um per uN = m/N: 1/H in N/m
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", ETCHES)
@@ -152,7 +162,7 @@ write circuit.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize("etch", [-0.2e-6, 0.3e-6])
@@ -178,7 +188,7 @@ write ac.raw
     inv = 1.0 / plot["v(xz)"]
     (k, m), *_ = np.linalg.lstsq(np.stack([np.ones_like(w), -(w**2)], axis=1), inv.real, rcond=None)
     assert k == pytest.approx(c.stiffness * (1 - etch * 1e6), rel=1e-9)
-    assert m == pytest.approx(c.mass, rel=1e-9)
+    assert m == pytest.approx(c.mass * (1 - 2 * etch / 200e-6) ** 2, rel=1e-9, abs=0)  # the etched outline
 
 
 @pytest.mark.parametrize(
@@ -196,14 +206,28 @@ def test_bad_etch_tables(process, key):
     assert key in str(exc.value)
 
 
-@pytest.mark.parametrize(
-    ("example", "reason"),
-    [("piston_process.toml", "needs a proof mass with a flexure"), ("gyroscope_z.toml", "comb fingers")],
-)
-def test_etch_refused_without_beams_or_with_combs(example, reason):
-    """A piston (no flexure beams) and the gyroscope (comb fingers): exit 2 at process.parameters."""
-    text = (ROOT / "examples" / example).read_text()
+def test_etch_refused_without_beams():
+    """A piston (no flexure beams): exit 2 at process.parameters."""
+    text = (ROOT / "examples" / "piston_process.toml").read_text()
     text = text.split("[process]")[0] + '[process]\nparameters = ["etch"]\n'
     with pytest.raises(StructureError) as exc:
-        parse_structure(text, example)
-    assert "process.parameters" in str(exc.value) and reason in str(exc.value)
+        parse_structure(text, "piston_process.toml")
+    assert "process.parameters" in str(exc.value) and "needs a proof mass with a flexure" in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "reason"),
+    [
+        ('width = "2.0 um"\ngap = "1.5 um"', 'width = "1.0 um"\ngap = "1.5 um"', "comb xp_t's fingers"),
+        ('hole = "4.0 um"', 'hole = "9.5 um"', "etch holes"),
+    ],
+)
+def test_etch_range_eating_fingers_or_merging_holes(old, new, reason):
+    """accelerometer_xyz's fingers narrowed to 1 um, or its holes widened to 9.5 um on the 9.98 um pitch,
+    with etch_range up to 0.3 um: a finger loses half its width, the holes merge: exit 2 at
+    process.etch_range."""
+    text = xyz_text(process='[process]\nparameters = ["etch"]\netch_range = ["-0.1 um", "0.3 um"]\n')
+    assert old in text
+    with pytest.raises(StructureError) as exc:
+        parse_structure(text.replace(old, new), "xyz.toml")
+    assert "process.etch_range" in str(exc.value) and reason in str(exc.value)

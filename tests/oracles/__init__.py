@@ -8,6 +8,7 @@ va_scan: the scan of Verilog-A text for the openvaf-r miscompile; process_balanc
 the gravity balance voltage of the process-parameter tests; process_cases: the process tests'
 structure texts and etch re-runs; process_forms: the piston's dg runs in its emitted forms;
 fastcap_guarded: the guarded layered electrode of the FastCap dielectric tests; sigma_delta_vacask:
-the VACASK loop test's run and its independent integration. Imports of the package inside
+the VACASK loop test's run and its independent integration. fmu_process: the FMU's process parameters
+against closed forms and ngspice. Imports of the package inside
 are absolute (`netgen.`), of each other relative, so that bench/support.py can load the folder
 by its path."""

@@ -75,6 +75,8 @@ width = "{w} um"
 name = "bot"
 side = "below"
 gap = "2 um"
+x = ["-110 um", "110 um"]  # beyond the mass: the plate faces its whole (etched) outline
+y = ["-110 um", "110 um"]
 [coordinates]
 rigid = ["z"]
 [sampling]
@@ -87,15 +89,21 @@ rayleigh = {{ alpha = 2000 }}
 """
 
 
-def guided(t: float = 5.0, w: float = 2.0, process: str = "") -> str:
-    return GUIDED.format(t=t, w=w) + process
+def guided(t: float = 5.0, w: float = 2.0, process: str = "", side: float = 200.0) -> str:
+    """GUIDED at thickness t (um), beam width w (um) and the mass's side (um)."""
+    text = GUIDED.format(t=t, w=w) + process
+    return text.replace('length = "200 um"\nwidth = "200 um"', f'length = "{side!r} um"\nwidth = "{side!r} um"')
 
 
-def proof_text(t: float = 10.0, width: float = 3.0, truss: float = 10.0, params: str = '["etch"]') -> str:
-    """PROOF at thickness t with its beam and truss widths rewritten, without damping."""
+def proof_text(
+    t: float = 10.0, width: float = 3.0, truss: float = 10.0, params: str = '["etch"]', side: float = 300.0
+) -> str:
+    """PROOF at thickness t with its beam and truss widths and the mass's side (um) rewritten, without
+    damping."""
     text = PROOF.format(t=t, e=160.0).replace(
         'parameters = ["dg", "tscale", "escale", "temp"]', "parameters = " + params
     )
+    text = text.replace('length = "300 um"\nwidth = "300 um"', f'length = "{side!r} um"\nwidth = "{side!r} um"')
     text = text.replace('width = "3 um"', f'width = "{width!r} um"')
     text = text.replace('truss_width = "10 um"', f'truss_width = "{truss!r} um"')
     # without the squeeze film (its Reynolds solve per re-run costs seconds; the etch leaves it alone)
@@ -103,7 +111,91 @@ def proof_text(t: float = 10.0, width: float = 3.0, truss: float = 10.0, params:
 
 
 def rerun(t: float, etch: float) -> list[tuple[float, float]]:
-    """(mass, stiffness) per coordinate of PROOF rewritten at thickness t with the widths etched."""
-    s = parse_structure(proof_text(t, 3.0 - 2 * etch * 1e6, 10.0 - 2 * etch * 1e6, '["tscale"]'), "pm.toml")
+    """(mass, stiffness) per coordinate of PROOF rewritten at thickness t with the widths and the mass's
+    outline etched."""
+    e = 2 * etch * 1e6
+    s = parse_structure(proof_text(t, 3.0 - e, 10.0 - e, '["tscale"]', 300.0 - e), "pm.toml")
     m = mechanics(s)
     return list(zip(m.masses, m.stiffnesses))
+
+
+# accelerometer_xyz's perforated mass on crab legs between its z plates, without the combs (the etch
+# refuses comb fingers): side {side} um (405 um: the fitted hole count, 40 on the 10 um pitch, is the
+# same at every etched side, as the drawn grid the etch keeps), hole {hole} um, beams {w} um (3 um, not
+# the example's 2 um: at w = t the frame's torsion constant (netgen.mechanics.frame.torsion_constant,
+# Roark's fit with A = max(w, t)) has a kink, which a cubic in etch misses by 1.7e-3 in k)
+PERFORATED = """
+name = "px"
+description = "perforated proof mass on crab legs between plates"
+[conductor]
+kind = "proof_mass"
+length = "{side} um"
+width = "{side} um"
+thickness = "2 um"
+density = "2330 kg/m^3"
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.22
+hole = "{hole} um"
+hole_pitch = "10 um"
+[conductor.flexure]
+type = "crab_leg"
+axis = "y"
+length = "100 um"
+width = "{w} um"
+thigh_length = "100 um"
+thigh_width = "{w} um"
+[[electrodes]]
+name = "zs"
+kind = "plate"
+side = "below"
+gap = "2 um"
+x = ["-50 um", "50 um"]
+y = ["-50 um", "50 um"]
+[[electrodes]]
+name = "zt"
+kind = "plate"
+side = "above"
+gap = "2 um"
+x = ["-50 um", "50 um"]
+y = ["-50 um", "50 um"]
+[coordinates]
+rigid = ["z", "tilt_x", "tilt_y"]
+[sampling]
+levels = 3
+range = 0.2
+[fit]
+degree = 2
+"""
+PERFORATED_ETCHES = (-0.1e-6, 0.04e-6, 0.1e-6)  # m: three values across the default etch_range
+PERFORATED_RANGE = '[process]\nparameters = ["etch"]\n'  # etch_range: the default +-0.1 um
+
+
+def perforated(etch: float = 0.0, process: str = "") -> str:
+    """PERFORATED drawn at etch 0 (with `process`) or rewritten at the etched sizes: side 405 - 2 etch,
+    hole 4 + 2 etch, beam and thigh widths 3 - 2 etch (um)."""
+    e = 2 * etch * 1e6
+    return PERFORATED.format(side=repr(405.0 - e), hole=repr(4.0 + e), w=repr(3.0 - e)) + process
+
+
+def xyz_text(etch: float = 0.0, process: str = "") -> str:
+    """examples/accelerometer_xyz.toml with the textbook comb form (eps t / g per face: the etch's gap
+    and overlap shifts are exact for it) and hole_pitch 9.98 um (40 holes at every etched side: the
+    drawn grid the etch keeps; at 10 um the file's fitted count drops to 39 at 399.8 um), drawn
+    (with `process`) or rewritten at the etched sizes: mass side 400 - 2 etch, hole 4 + 2 etch, legs
+    and fingers 2 - 2 etch, finger gaps 1.5 + 2 etch, overlap 30 - 2 etch (um)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "examples" / "accelerometer_xyz.toml").read_text()
+    text = text.split("[loop]")[0].replace('comb_model = "field2d"', 'comb_model = "textbook"')
+    text = text.replace('hole_pitch = "10 um"', 'hole_pitch = "9.98 um"')
+    e = 2 * etch * 1e6
+    for old, new in (
+        ('length = "400 um"', f'length = "{400.0 - e!r} um"'),
+        ('width = "400 um"', f'width = "{400.0 - e!r} um"'),
+        ('hole = "4 um"', f'hole = "{4.0 + e!r} um"'),
+        ('width = "2 um"', f'width = "{2.0 - e!r} um"'),
+        ('gap = "1.5 um"', f'gap = "{1.5 + e!r} um"'),
+        ('overlap = "30 um"', f'overlap = "{30.0 - e!r} um"'),
+    ):
+        text = text.replace(old, new)
+    return text + process

@@ -25,6 +25,8 @@ STATEMENT = re.compile(
     r"(?P<op><\+|=)(?!=)\s*(?P<rhs>.*)$",
     re.S,
 )
+# $bound_step(expr), perhaps under an if: its argument is scanned as an assignment's right-hand side
+BOUND_STEP = re.compile(r"^\s*(?:if\s*\((?P<cond>[^;]*?)\)\s*)?\$bound_step\s*\((?P<rhs>.*)\)\s*$", re.S)
 MAX_ALTERNATIVES = 64
 EITHER = "either_"  # what `c ? a : b` becomes
 
@@ -198,6 +200,9 @@ def scan(text: str) -> list[Finding]:
         sc = scanners.setdefault(module, Scanner(module))
         sc.statement = stmt
         m = STATEMENT.match(stmt)
+        if not m and (b := BOUND_STEP.match(stmt)):
+            sc.run("bound_step_", "=", b.group("rhs"), b.group("cond") is not None)
+            continue
         if not m:
             raise ValueError(f"va_scan cannot read the statement {stmt!r} of module {module}")
         sc.run(m.group("lhs"), m.group("op"), m.group("rhs"), m.group("cond") is not None)

@@ -85,8 +85,8 @@ BAD = [
 
 
 def test_dielectric_layer_is_refused_by_the_field_solvers():
-    """A layer on the electrodes with extractor = "bem": refused at the layer's key (the field
-    solvers do not mesh it yet), not built as if it were absent."""
+    """A layer on the electrodes with extractor = "bem": refused at the layer's key (the dense BEM
+    does not model it: docs/bem.md), not built as if it were absent."""
     text = (ROOT / "examples" / "piston.toml").read_text()
     text = text.replace(
         'gap = "2 um"\n', 'gap = "2 um"\ndielectric_thickness = "0.2 um"\ndielectric_permittivity = 7.5\n'

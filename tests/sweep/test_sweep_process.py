@@ -1,4 +1,5 @@
-"""`netgen sweep` over process parameters (process.tscale, process.escale) of a structure with a
+"""`netgen sweep` over process parameters (process.tscale, process.escale; the others in
+tests/sweep/test_sweep_process_points.py) of a structure with a
 [process] table: by instance parameters on one shared build ([sweep] process = "parameters", the
 default) against the reference that rebuilds the structure at each point (process = "rebuild"),
 in real ngspice sigma-delta runs (128 periods, skip 0: the shortest runs the analysis accepts) of
@@ -151,13 +152,12 @@ def test_parameters_agree_with_rebuild(both):
     [
         (PROCESS, "", "", 1.5, "parameters[0].values", "outside the structure's tscale_range"),
         ("", "", "", 1.05, "parameters[0].values", "does not declare tscale"),
-        (PROCESS, "", 'simulator = "vacask"', 1.05, "fixed.simulator", "instance parameters run in simulator"),
         (PROCESS, 'process = "maybe"', "", 1.05, "sweep.process", "is not 'parameters' or 'rebuild'"),
     ],
 )
 def test_bad_process_sweeps_exit_2(tmp_path, capsys, process, head, fixed, tscale, key, words):
-    """A value outside the declared range, a structure without the parameter, a simulator other than
-    the .lib's, an unknown path: exit 2 before anything runs, naming the sweep file, the key and a fix."""
+    """A value outside the declared range, a structure without the parameter, an unknown path: exit 2
+    before anything runs, naming the sweep file, the key and a fix."""
     acc = structure(tmp_path, process)
     s = sweep(tmp_path, "bad", head=head, fixed=fixed, tscale=tscale)
     rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
@@ -168,11 +168,10 @@ def test_bad_process_sweeps_exit_2(tmp_path, capsys, process, head, fixed, tscal
 
 
 def test_unknown_process_name_exits_2(tmp_path, capsys):
-    """process.temp and process.dg_<set> are not swept by instance parameters (their rebuild does not
-    reproduce the law, or the fit's box moves): exit 2 with the structure keys to rebuild with."""
+    """A process name the laws do not carry: exit 2 naming the key and the parameters a sweep moves."""
     acc = structure(tmp_path)
     s = tmp_path / "t.toml"
-    s.write_text('[fixed]\ncycles = 128\n[[parameters]]\nname = "process.temp"\nvalues = [25, 85]\n')
+    s.write_text('[fixed]\ncycles = 128\n[[parameters]]\nname = "process.pressure"\nvalues = [1, 2]\n')
     rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
     err = capsys.readouterr().err
-    assert rc == 2 and "parameters[0].name" in err and "structure.damping.temperature" in err, err
+    assert rc == 2 and "parameters[0].name" in err and "process.dg_<set>" in err and "fix:" in err, err

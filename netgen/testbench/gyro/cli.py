@@ -1,5 +1,5 @@
 """`netgen gyro STRUCTURE.toml -o DIR`: the vibratory gyroscope's closed loops around the structure's
-macromodel (netgen.testbench.gyro.run): drive loop on x (open loop in VACASK), sigma-delta force feedback on y (the
+macromodel (netgen.testbench.gyro.run): drive loop on x, sigma-delta force feedback on y (the
 structure's [loop] table or --loop LOOP.toml, channel y), a rate on w_z or a rate sweep; writes
 DIR/summary.json, bitstreams.npz and the PNGs, all or nothing (an OutputFolder result set)."""
 

@@ -7,8 +7,9 @@ from __future__ import annotations
 from ...core.options import Option, by_name
 from ..sigma_delta.options import OPTIONS as SIGMA_DELTA
 
-# the sigma-delta back ends whose bench takes a drive: the drive loop (ngspice) or the open-loop drive (vacask)
-SIMULATORS = ("ngspice", "ngspice-xspice", "vacask")
+# every sigma-delta back end (netgen.testbench.sigma_delta.options.SIMULATORS), each with the drive loop:
+# a B-source in ngspice and ngspice-xspice, the Verilog-A block drive.va in vacask and ngspice-osdi
+SIMULATORS = ("ngspice", "ngspice-xspice", "vacask", "ngspice-osdi")
 
 _options = [
     Option(
@@ -65,8 +66,8 @@ _options = [
     Option(
         "simulator",
         "ngspice with the behavioural-source loop around the .lib, or with the compiled loop and the "
-        "model's plate terms in code models (about 4x faster), both with the drive loop; or VACASK with "
-        "the compiled Verilog-A module and an open-loop drive at the x resonance",
+        "model's plate terms in code models (about 4x faster), the drive loop a B-source; or VACASK, or "
+        "ngspice 45+ through OSDI, with the compiled Verilog-A module, the drive loop a Verilog-A block",
         type="choice",
         choices=SIMULATORS,
         default="ngspice-xspice",

@@ -1,8 +1,9 @@
 """A gyroscope run: the sense loop's design (the sigma-delta testbench's loop.design, on the
-channel y of the loop description), the drive loop as a behavioural source on the model's f_x port,
-the rate on w_z, the ngspice bench of the sigma-delta testbench around both (its run_segments); or
-its VACASK bench with an open-loop drive (vacask_drive); the demodulation (analysis.py), and a rate
-sweep's linearity; summary.json and PNGs in the folder."""
+channel y of the loop description), the drive loop on the model's f_x port, the rate on w_z, the
+sigma-delta testbench's bench around both: in ngspice (its run_segments) the drive loop is a
+behavioural source (drive_expression); in VACASK and in ngspice through OSDI it is the Verilog-A
+block drive.va beside this module (drive_device), with the same loop law, gain and set amplitude;
+the demodulation (analysis.py), and a rate sweep's linearity; summary.json and PNGs in the folder."""
 
 from __future__ import annotations
 
@@ -14,9 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ...core.errors import LoopError
+from ...core.paths import spice_command
 from ...emit.common import time_scale
+from ...emit.osdi import GENERIC, compiled
 from ...model import MacroModel
-from ..sigma_delta import ngspice, vacask
+from ..sigma_delta import ngspice, osdi, vacask
 from ..sigma_delta.analysis import per_clock
 from ..sigma_delta.loop import Choices, Design
 from ..sigma_delta.loopfile import LoopSpec
@@ -25,8 +28,9 @@ from . import analysis, plots
 
 DRIVE, SENSE, RATE_PORT = "x", "y", "w_z"
 SKIP = 8  # the first 1/SKIP of the periods (the sense loop's start) is left out of the demodulation
-# VACASK's open-loop drive (vacask_drive): its start-up kick lasts 1/KICK of a drive period
-KICK = 100
+# the Verilog-A drive loop (drive_device) and its start-up pulse's length, 1/KICK of a drive period
+DRIVE_VA = Path(__file__).resolve().parent / "drive.va"
+KICK = 20
 
 
 @dataclass(frozen=True)
@@ -134,37 +138,45 @@ def start_state(model: MacroModel, amplitude: float) -> tuple[tuple[str, float],
     return ((f"x1.xs_{DRIVE}", amplitude / c.scale), (f"x1.u_{DRIVE}", 0.0))
 
 
-def vacask_drive(model: MacroModel, amplitude: float) -> tuple[str, str]:
-    """VACASK's drive on f_x (it has no behavioural sources, and an OSDI module's velocity is not a
-    node the bench can read), in port units: open loop at the model's x resonance w, two sources in
-    series. The steady one, F_0 sin(w t) with F_0 = b_x w X_d, holds x = -X_d cos(w t), whose
-    velocity X_d w sin(w t) peaks at t = T/4, where the second, a short pulse (width T / KICK of
-    the drive period T), gives the mass that momentum, m X_d w (1 - 1/Q_x): the run starts in the
-    steady state instead of rising in the drive's 2 m / b_x (49 ms at Q = 2000); the 1/Q_x is the
-    momentum F_0 already gave over [0, T/4]. What is left (of order X_d / Q_x and the pulse's
-    (w T / KICK)^2 / 24) decays in 2 m / b_x. No amplitude control: the model's b_x and w are exact,
-    so the amplitude is X_d to the drive's detuning by the side forces (below 1e-5)."""
+def drive_parameters(model: MacroModel, amplitude: float, gain: float) -> str:
+    """drive.va's instance parameters: the loop law of drive_expression (the damping b_x, the
+    resonance w_x, the set amplitude X_d and the gain G, in SI; lx, fu the x_x and f_x port units)
+    and the start-up pulse: length tk = T / KICK of the drive period T, impulse p such that the
+    undamped oscillator (the pulse's velocity pick-off cancels b_x) leaves it from rest at amplitude
+    X_d: p |S| = m X_d w with S = int_0^tk (1 - cos(Omega t)) e^(-i w t) dt / tk, Omega = 2 pi / tk,
+    |S| = (2 sin(w tk / 2) / (w tk)) Omega^2 / (Omega^2 - w^2) (1 - 1.6e-3 at KICK = 20)."""
     c = coordinate(model, DRIVE)
     w = math.sqrt(c.stiffness / c.mass)
-    unit = c.port_units[3]  # N per port volt of f_x
-    period = 2 * math.pi / w
-    width, edge = period / KICK, period / KICK / 10
-    momentum = c.mass * amplitude * w * (1 - c.damping / (c.mass * w))
-    kick = momentum / (width + edge) / unit  # a trapezoid's impulse: height (width + edge)
-    delay = period / 4 - edge - width / 2  # centred on T/4
+    tk = 2 * math.pi / w / KICK
+    big = 2 * math.pi / tk
+    s = 2 * math.sin(w * tk / 2) / (w * tk) * big**2 / (big**2 - w**2)
+    p = c.mass * amplitude * w / s
     return (
-        f'type="sine" sinedc=0 ampl={c.damping * w * amplitude / unit!r} freq={w / (2 * math.pi)!r}',
-        f'type="pulse" val0=0 val1={kick!r} delay={delay!r} rise={edge!r} fall={edge!r} width={width!r}',
+        f"lx={c.port_units[1]!r} fu={c.port_units[3]!r} b={c.damping!r} w={w!r} xd={amplitude!r} g={gain!r} "
+        f"p={p!r} tk={tk!r}"
+    )
+
+
+def drive_osdi(cache: Path, cpu: str = GENERIC) -> Path:
+    """drive.va compiled by openvaf-r (cached by text and target cpu)."""
+    return compiled(DRIVE_VA.read_text(encoding="utf-8"), "gyro_drive", cache, cpu)
+
+
+def drive_device(model: MacroModel, req: GyroRequest, cache: Path) -> vacask.Device:
+    """The drive loop in VACASK: drive.va between f_x and ground, reading x_x (VACASK has no
+    behavioural sources, and the OSDI model's velocity node is internal: the block takes x' as
+    d/dt of x_x). Its states start at 0 (no .ic reaches them), hence the start-up pulse."""
+    params = drive_parameters(model, req.drive_amplitude, req.agc_gain)
+    return vacask.Device(
+        drive_osdi(cache), "gdrive", "gyro_drive", "xdrive", f"(f_{DRIVE} 0 x_{DRIVE}) gdrive {params}", (f"f_{DRIVE}",)
     )
 
 
 def run_vacask(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest) -> dict:
-    """The sense loop in VACASK (the sigma-delta testbench's bench, one run) with the open-loop
-    drive on f_x: the per-period samples; the raw file is dropped after the sampling."""
+    """The sense loop in VACASK (the sigma-delta testbench's bench, one run) with the drive loop
+    of drive.va on f_x: the per-period samples; the raw file is dropped after the sampling."""
     va = Path(lib).with_suffix(".va")
-    how = vacask.BenchOptions(
-        va=va if va.exists() else None, drives=(("f_x", vacask_drive(model, req.drive_amplitude)),)
-    )
+    how = vacask.BenchOptions(va=va if va.exists() else None, devices=(drive_device(model, req, out / "osdi"),))
     plot = vacask.run_bench(model, d, out, req.cycles, None, req.progress, how)
     clock = per_clock(plot, d, req.cycles, model)
     del plot
@@ -172,10 +184,31 @@ def run_vacask(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequ
     return clock
 
 
+def run_osdi(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest) -> dict:
+    """The sense loop in ngspice through OSDI (the sigma-delta testbench's osdi bench: the model's
+    compiled module and blocks.va) with drive.va on f_x, as in VACASK; one ngspice run (.ic cannot
+    reach the OSDI states, netgen.testbench.sigma_delta.osdi): the per-period samples."""
+    state = osdi.prepare(model, lib, out, req.progress)
+    block = drive_osdi(out / "osdi")
+    params = drive_parameters(model, req.drive_amplitude, req.agc_gain)
+    lines = f"Ndrive f_{DRIVE} 0 x_{DRIVE} gdrive {params}\n.model gdrive gyro_drive"
+    settings = ngspice.Settings(
+        "osdi",
+        [f"pre_osdi {spice_command(block, out)}", *state["control"]],
+        devices=((f"f_{DRIVE}", lines),),
+        segment=0,
+    )
+    clock, _, _ = ngspice.run_segments(model, d, state["lib"], out, req.cycles, None, req.progress, settings)
+    return clock
+
+
+RUNS = {"vacask": run_vacask, "ngspice-osdi": run_osdi}
+
+
 def run_rate(model: MacroModel, lib: Path, out: Path, d: Design, req: GyroRequest, rate: float) -> dict:
     """One rate (rad/s): the bench, its per-period samples, the demodulated figures."""
     d = replace(d, inputs=d.inputs | {RATE_PORT: float(rate)})
-    clock = run_vacask(model, lib, out, d, req) if req.simulator == "vacask" else run_ngspice(model, lib, out, d, req)
+    clock = RUNS.get(req.simulator, run_ngspice)(model, lib, out, d, req)
     keep = slice(len(clock["time"]) // SKIP, None)
     cx = coordinate(model, DRIVE)
     fs = d.channels[0]["full_scale_force_si"]
@@ -236,18 +269,14 @@ def run(model: MacroModel, lib: Path, out: Path, spec: LoopSpec, req: GyroReques
         "feedback_force_n": d.channels[0]["full_scale_force_si"],
         "feedback_voltage": d.vfb,
         "loop_filter": d.channels[0]["filter"],
-        "drive_loop": (
-            {
-                "amplitude_m": req.drive_amplitude,
-                "force": "open loop at w_x: b_x w_x X_d sin(w_x t), and a kick m X_d w_x (1 - 1/Q_x) at T/4, on f_x",
-            }
-            if req.simulator == "vacask"
-            else {
-                "amplitude_m": req.drive_amplitude,
-                "agc_gain": req.agc_gain,
-                "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
-            }
-        ),
+        "drive_loop": {
+            "amplitude_m": req.drive_amplitude,
+            "agc_gain": req.agc_gain,
+            "force": "b_x x' (1 + G (1 - A / X_d)), A = sqrt(x^2 + (x' / w_x)^2), on f_x",
+            "block": "drive.va (from rest, a start-up pulse of momentum m X_d w_x)"
+            if req.simulator in RUNS
+            else "B-source (from x = X_d at rest)",
+        },
         "design_scale_factor_per_rad_s": per_rate,
         "runs": [{k: v for k, v in r.items() if k != "clock"} for r in runs],
     }

@@ -61,11 +61,21 @@ def force_sources(model: MacroModel, d: Design, tone: Tone | None, t0: float = 0
     ]
 
 
-def behavioural_sources(forces: list[dict], expressions: dict[str, str]) -> list[dict]:
-    """The input sources with element letter V, or B with V=<expression> where one is given."""
+def behavioural_sources(
+    forces: list[dict], expressions: dict[str, str], devices: dict[str, str] | None = None
+) -> list[dict]:
+    """The input sources with element letter V, or B with V=<expression> where one is given, or
+    the netlist lines of a device that drives the port instead (`devices`: port -> lines)."""
+    devices = devices or {}
     return [
         f
-        | ({"element": "B", "source": f"V={expressions[f['port']]}"} if f["port"] in expressions else {"element": "V"})
+        | (
+            {"lines": devices[f["port"]]}
+            if f["port"] in devices
+            else {"element": "B", "source": f"V={expressions[f['port']]}"}
+            if f["port"] in expressions
+            else {"element": "V"}
+        )
         for f in forces
     ]
 
@@ -121,6 +131,9 @@ class Settings:
     # input ports driven by a behavioural source instead (port, B-source expression; the gyroscope's
     # drive loop, netgen.testbench.gyro) and the node state of the run's start (the first segment's .ic)
     behavioural: tuple[tuple[str, str], ...] = ()
+    # input ports driven by a compiled device instead (port, its netlist lines: an OSDI instance and
+    # its .model card; the gyroscope's drive loop in the "osdi" loop, netgen.testbench.gyro.run)
+    devices: tuple[tuple[str, str], ...] = ()
     start_state: tuple[tuple[str, float], ...] = ()
     # instance parameters of the model's X line (name, value): a process point of a [process] .lib
     instance: tuple[tuple[str, float], ...] = ()
@@ -179,7 +192,9 @@ def testbench(
         cycles=cycles,
         ports=[p["name"] for p in model.ports()],
         instance=" ".join(f"{k}={v!r}" for k, v in settings.instance),
-        forces=behavioural_sources(force_sources(model, d, tone, start * d.ts), dict(settings.behavioural)),
+        forces=behavioural_sources(
+            force_sources(model, d, tone, start * d.ts), dict(settings.behavioural), dict(settings.devices)
+        ),
         tone=tone,
         saves=saves,
         raw=raw,

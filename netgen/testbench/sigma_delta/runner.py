@@ -67,15 +67,13 @@ def _run_ngspice(model: MacroModel, d: Design, lib: Path, out: Path, r: RunReque
     cycles, tone, progress, segment = r.cycles, r.tone, r.progress, r.segment
     control, loop, klu = [], "analog", False
     if "cms" in state:
-        lib, control = ngspice.xspice_library(model, out, state["cms"])
+        lib, control = ngspice.xspice_library(r.nominal or model, out, state["cms"])
         loop = "xspice"
     elif "osdi" in state:  # osdi.prepare: the _osdi.lib and its pre_osdi lines
         lib, control, loop = state["osdi"]["lib"], state["osdi"]["control"], "osdi"
         segment = 0  # one run: .ic cannot reach the module's states (osdi.py)
     else:
         klu = ngspice_version().klu
-    if r.instance and loop != "analog":
-        raise ValueError(f"instance parameters {dict(r.instance)} run in the B-source .lib only, not the {loop} loop")
     settings = ngspice.Settings(
         loop, control, klu, segment=segment, timeout=state.get("timeout", TIMEOUT), instance=r.instance
     )
@@ -107,7 +105,13 @@ def _compile_vacask(model: MacroModel, lib: Path, out: Path, progress: bool, cpu
 def _run_vacask(model: MacroModel, d: Design, lib: Path, out: Path, r: RunRequest, state: dict) -> tuple[dict, dict]:
     """The same loop in VACASK, one run; the raw file is dropped after the per-clock sampling."""
     cycles = r.cycles
-    how = vacask.BenchOptions(va=state["va"], timeout=state.get("timeout", TIMEOUT), cpu=state["target_cpu"])
+    how = vacask.BenchOptions(
+        va=state["va"],
+        timeout=state.get("timeout", TIMEOUT),
+        cpu=state["target_cpu"],
+        instance=r.instance,
+        nominal=r.nominal,
+    )
     plot = vacask.run_bench(model, d, out, cycles, r.tone, r.progress, how)
     extra = {
         "compile_s": state["compile_s"],
@@ -206,8 +210,11 @@ class RunRequest:
     feedback_voltage: float | None = None
     acceleration: float | None = None
     native: bool = False  # compile the Verilog-A for this CPU, not the x86-64 baseline (emit.osdi.target_cpu)
-    # instance parameters on the model's line (the B-source .lib's process point, netgen.sweep)
+    # instance parameters on the model's line (a process point, netgen.sweep) in every back end's form,
+    # and the model those forms are emitted from when `model` is that point's copy (netgen.sweep.point.at_point:
+    # the design and analysis read it; emitting it would apply the point twice)
     instance: tuple[tuple[str, float], ...] = ()
+    nominal: MacroModel | None = None
 
 
 def backend_design(
@@ -251,7 +258,7 @@ def run(model: MacroModel, lib: Path, out: Path, request: RunRequest) -> dict:
             f"{len(d.channels)} channels: the Verilog-A loop takes at most {vacask.MAX_CHANNELS}",
             "close the loop on fewer coordinates, or use --simulator ngspice or ngspice-xspice",
         )
-    state = backend.prepare(model, lib, out, r.progress, target_cpu(r.native))  # fails before any output
+    state = backend.prepare(r.nominal or model, lib, out, r.progress, target_cpu(r.native))  # fails before any output
     state["timeout"] = r.timeout  # the wall-clock limit of each simulator run
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()

@@ -36,26 +36,43 @@ BLOCKS = Path(__file__).resolve().parent / "blocks.va"
 TEMPLATE = "sigma_delta/tb.vacask.j2"
 LOG = "sigma_delta.vacask.log"
 # VACASK options: the ngspice bench's reltol and chgtol (maxstep is given on the analysis:
-# docs/simulators.md, 'VACASK netlists').
-# tran_fbr: after every pulse corner VACASK restarts with a backward-Euler step, and every step
-# between two corners is at most tran_fbr of their distance. VACASK's default 0.25 made every
-# feedback impulse 0.45 % short (a pulse drive of the model alone against solve_ivp) and z 15 % off
-# an independent integration of the loop's mechanics; 0.15 keeps the loop within the bounds of
-# tests/testbench/test_sigma_delta_vacask.py (z 2.5 %, tilts and modes <= 1.05 % of their peak over
-# 48 periods, as close as the ngspice benches). The cap is the cost: 8 corners a period, ceil(1/tran_fbr)
-# steps or more between each two (56 of the period's points at 0.15, 80 at 0.1).
-# tran_lteratio=30: the remaining steps are set by the corners, the clock windows and maxstep, not
-# by the LTE of the smooth parts. Against 0.1 and 10 (before 2026-12-06): 99 time points per period
-# instead of 148 and 35 % less CPU time (bench/sigma_delta_vacask.py --variants vacask,vacask-previous),
-# z 2.5 % off instead of 1.1 %, clean latches in both; 2^16-period figures: docs/performance.md.
-OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.15 tran_lteratio=30"
-# Appended to OPTIONS in every bench (later settings win), e.g. "tran_fbr=0.25" for VACASK's
+# docs/simulators.md, 'VACASK netlists'). The rest set the step control; each was measured with
+# bench/vacask_options.py against the checks of tests/testbench/test_sigma_delta_vacask.py (the
+# mechanics against solve_ivp over 48 periods: z 6 %, tilts and modes 1.5 % of their peak; the noise
+# shaping, which sees the readout's accuracy; the momentum balance; clean latches), and the set
+# against the 2^16-period spectrum (docs/performance.md):
+# - tran_fbr: after every pulse corner VACASK restarts with a backward-Euler step, and every step
+#   between two corners is at most tran_fbr of their distance. Only the ramps need short steps (the
+#   V^2 impulse of a feedback ramp: VACASK's default 0.25 on every interval made each feedback
+#   impulse 0.45 % short and z 15 % off), so the cap is VACASK's largest, 1/3, and the ramps get
+#   their own bound from the clock module (RAMP_STEPS).
+# - abstol=1e-6 (A; VACASK's default 1e-12): the tolerance of the flow unknowns, here the electrode
+#   currents, which are algebraic (C dV/dt jumps at every ramp corner). VACASK's LTE check runs over
+#   every unknown and extrapolates the current from the corner's own point, which holds the ramp's
+#   current: at 1e-12 it rejected a point after each feedback corner and restarted the step at 1/4.
+#   The charges, the readout's node voltages and the mechanics keep their tolerances (chgtol, vntol,
+#   reltol against each unknown's own largest value; relref="allglobal", which refers them to the
+#   largest of all, lost the readout's accuracy: noise shaping 2 dB against the test's 15 dB).
+# - tran_lteratio=100: the remaining steps are set by the corners, the clock windows and maxstep.
+# Against the previous options (tran_fbr=0.15 tran_lteratio=30 abstol=1e-12, no ramp
+# bounds): 67 time points per period instead of 99, 31 % fewer instructions per period (valgrind).
+# These hold for the lead-filter loops the tests check with them (the disk, the accelerometer, the
+# xyz loop). A loop with a state-space filter (sd_statefilter) or a driven input (a Device: the
+# gyroscope's drive) runs with CAREFUL_OPTIONS and no ramp bounds: with these their checks failed
+# (the gyroscope's open-loop drive, before its drive loop, 1.04 % low against a 1 % bound; the
+# fourth-order loop's bits leaving the reference loop's after 8-9 periods against 10).
+OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.3333 tran_lteratio=100 abstol=1e-6"
+CAREFUL_OPTIONS = "reltol={reltol!r} chgtol=1e-18 tran_fbr=0.15 tran_lteratio=30"
 # a feedback step (Timing.fb_edge 0) in VACASK: its pulse source needs a rise time, so the step has
 # edges of this fraction of T_s (their V^2 impulse is 2/3 of a step's: 0.08 % of the feedback at the
 # default timing, a gain the reference, which takes the step as exact, does not have)
 STEP_RISE = 1e-3
-# default corner steps (with tran_lteratio=10: 114 points per period, z 6.9 % off, over the test's 6 %).
+# Appended to OPTIONS in every bench (later settings win), e.g. "tran_fbr=0.25".
 EXTRA_OPTIONS = ""
+# The step bounds on the feedback ramps and on the sense ramps, as fractions of each ramp (blocks.va's
+# sd_clocks: hfb, hs; None: no bounds, the cap tran_fbr alone): the feedback ramps' V^2 impulse sets
+# z's error, the sense ramps the (3,0) modes' (bench/vacask_options.py; docs/performance.md).
+RAMP_STEPS: tuple[float, float] | None = (0.12, 0.25)
 
 
 def blocks_source() -> str:
@@ -79,23 +96,31 @@ def compile_blocks(cache: Path, cpu: str = GENERIC) -> Path:
     return compiled(blocks_source(), "sigma_delta_blocks", cache, cpu)
 
 
-def force_sources(
-    model: MacroModel, d: Design, tone: Tone | None, drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
-) -> list[dict]:
-    """VACASK vsources per input port (inputs.mechanical_inputs): name, nodes and parameters; a port
-    in `drives` (port, vsource parameter strings) gets those sources in series instead (their
-    voltages add; the gyroscope's open-loop drive, netgen.testbench.gyro.run.vacask_drive)."""
-    chains = dict(drives)
+def force_sources(model: MacroModel, d: Design, tone: Tone | None, driven: tuple[str, ...] = ()) -> list[dict]:
+    """VACASK vsources per input port (inputs.mechanical_inputs): name, nodes and parameters; the
+    ports in `driven` get none (a Device drives them: the gyroscope's drive loop on f_x)."""
     out = []
     for port, dc, t in mechanical_inputs(model, d, tone):
-        sources = chains.get(port) or (
-            f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}",
-        )
-        nodes = [port] + [f"{port}_s{k}" for k in range(1, len(sources))] + ["0"]
-        out += [
-            {"name": nodes[k], "pos": nodes[k], "neg": nodes[k + 1], "source": src} for k, src in enumerate(sources)
-        ]
+        if port in driven:
+            continue
+        source = f'type="sine" sinedc={dc!r} ampl={t.amplitude!r} freq={t.freq!r}' if t else f"dc={dc!r}"
+        out.append({"name": port, "pos": port, "neg": "0", "source": source})
     return out
+
+
+@dataclass(frozen=True)
+class Device:
+    """A compiled Verilog-A device in the bench that drives input ports in place of their vsources
+    (the gyroscope's drive loop, netgen.testbench.gyro.run.drive_device): its OSDI file, the model
+    card `model` of its `module`, its instance line's text after the name ("(nodes) model params",
+    validated identifiers and numbers only) and the `ports` it drives."""
+
+    osdi: Path
+    model: str
+    module: str
+    name: str
+    instance: str
+    ports: tuple[str, ...]
 
 
 def merge_options(*texts: str) -> str:
@@ -174,14 +199,20 @@ def testbench(
     tone: Tone | None = None,
     options: str = "",
     folder: Path | None = None,
-    drives: tuple[tuple[str, tuple[str, ...]], ...] = (),
+    devices: tuple[Device, ...] = (),
+    instance: tuple[tuple[str, float], ...] = (),
 ) -> str:
     """The VACASK netlist of the loop (templates/sigma_delta/tb.vacask.j2); its loads relative to
     `folder`, where it runs, for what lies inside it (netgen.core.paths.vacask_string), else absolute;
-    `drives`: input ports driven by other sources (force_sources)."""
+    `devices`: Verilog-A devices that drive input ports in place of their vsources; `instance`: the
+    module's process parameters (netgen.emit.process.va_params) on its model card (model parameters,
+    not instance ones). Step control: OPTIONS and RAMP_STEPS, or CAREFUL_OPTIONS for a loop with a
+    state-space filter or a driven input."""
     check_names(model)  # names outside comments; the paths below through netgen.core.paths
     if tone:
         tone.unit = tone_unit(model, tone)
+    statefilters = filters.statefilter_params(d.channels, d)
+    fast = not statefilters and not devices  # where OPTIONS and RAMP_STEPS were checked
     ports = ["0" if p["name"] == model.plate else p["name"] for p in model.ports()]
     return render(
         TEMPLATE,
@@ -193,14 +224,26 @@ def testbench(
         blocks_osdi=vacask_string(blocks_osdi if folder else Path(blocks_osdi).resolve(), folder),
         cycles=cycles,
         ports=ports,
-        forces=force_sources(model, d, tone, drives),
+        forces=force_sources(model, d, tone, tuple(p for dev in devices for p in dev.ports)),
+        devices=[
+            {
+                "osdi": vacask_string(dev.osdi if folder else Path(dev.osdi).resolve(), folder),
+                "model": dev.model,
+                "module": dev.module,
+                "name": dev.name,
+                "instance": dev.instance,
+            }
+            for dev in devices
+        ],
         tone=tone,
         saves=saves(model, d),
         drivers=drivers(d),
+        instance=" ".join(f"{k}={v!r}" for k, v in instance),
         inputs=input_text(model, d),
-        statefilters=filters.statefilter_params(d.channels, d),
+        statefilters=statefilters,
         step_rise=STEP_RISE,
-        options=merge_options(OPTIONS.format(reltol=d.reltol), EXTRA_OPTIONS, options),
+        ramp_steps=RAMP_STEPS if fast else None,
+        options=merge_options((OPTIONS if fast else CAREFUL_OPTIONS).format(reltol=d.reltol), EXTRA_OPTIONS, options),
     )
 
 
@@ -223,14 +266,19 @@ def simulate(netlist: str, workdir: Path, stop: float, progress: bool = True, ti
 class BenchOptions:
     """How run_bench compiles and runs: the model's .va (None: emitted from the model), the compile
     `cache` (None: out/osdi), extra VACASK `options`, the wall-clock `timeout` (s) and openvaf-r's
-    target `cpu`; `drives`: input ports driven by other vsources (force_sources)."""
+    target `cpu`; `devices`: Verilog-A devices driving input ports (Device)."""
 
     va: Path | None = None
     cache: Path | None = None
     options: str = ""
     timeout: float = 36000.0
     cpu: str = GENERIC
-    drives: tuple[tuple[str, tuple[str, ...]], ...] = ()
+    devices: tuple[Device, ...] = ()
+    # the process point (name, value; netgen.sweep) on the model card (the .va's process parameters are
+    # model parameters) and the model the module is compiled from when the run's `model` is that
+    # point's copy (design, analysis)
+    instance: tuple[tuple[str, float], ...] = ()
+    nominal: MacroModel | None = None
 
 
 def run_bench(
@@ -245,7 +293,18 @@ def run_bench(
     """Compile (cached, for openvaf-r's target `how.cpu`), render and run the VACASK bench in `out`;
     return its plot."""
     cache = how.cache or out / "osdi"
-    model_osdi = compile_model(model, cache, how.va, how.cpu)
+    model_osdi = compile_model(how.nominal or model, cache, how.va, how.cpu)
     blocks_osdi = compile_blocks(cache, how.cpu)
-    bench = testbench(model, d, model_osdi, blocks_osdi, cycles, tone, how.options, folder=out, drives=how.drives)
+    bench = testbench(
+        model,
+        d,
+        model_osdi,
+        blocks_osdi,
+        cycles,
+        tone,
+        how.options,
+        folder=out,
+        devices=how.devices,
+        instance=how.instance,
+    )
     return simulate(bench, out, d.ts * cycles, progress, how.timeout)

@@ -1,0 +1,123 @@
+"""The process instance parameters of the FMU (netgen.emit.fmu): tscale, escale, temp, etch and
+dg_<set> as FMI parameters (start = nominal, min/max = the valid range the model's process record
+states) and the C data by which the runtime applies them: the law coefficients of
+netgen.model.process, read from MacroModel.process exactly as netgen.emit.process renders them
+into the .lib and the .va (mass, stiffness and damping ratios pm, pk, pd per coordinate, the a_in
+gain times tscale, each capacitance term's z shifted by -sign dg / L_z, each stop's penetration
+by -dg / gap). No physics here: every number comes from the model; the runtime
+(templates/fmu/runtime.c.j2, process_apply) evaluates the same polynomials."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from ..model import MacroModel
+from ..model.process import ETCH_UNIT, LAW_KEYS
+from . import process
+from .common import num, stop_constants
+
+UNITLESS = ""  # FMI: a Real without a unit attribute (a ratio)
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def rows(model: MacroModel) -> list[dict]:
+    """The declared parameters as FMI parameter rows: name, unit, start (nominal), min, max (the
+    model's stated valid range, unwidened) and description; [] without [process]."""
+    if not process.enabled(model):
+        return []
+    p, out = model.process, []
+    text = {
+        "tscale": (p["tscale"]["range"], UNITLESS, "device-layer thickness / nominal"),
+        "escale": (p["escale"]["range"], UNITLESS, "Young's modulus / nominal"),
+        "temp": (p["temp"]["range_C"], "degC", "die temperature in degC (modulus temperature coefficient)"),
+        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "m", "flexure over-etch per edge in m (w - 2 etch)"),
+    }
+    for name, default in process.params(model, gaps=False):
+        (lo, hi), unit, what = text[name]
+        out.append(row(name, unit, float(default), lo, hi, what))
+    for g in p["gaps"]:
+        m = g["max_m"]
+        out.append(row(f"dg_{g['set']}", "m", 0.0, -m, m, f"gap increase of electrode set {g['set']} in m"))
+    return out
+
+
+def row(name: str, unit: str, start: float, lo: float, hi: float, what: str) -> dict:
+    """One parameter row; the name must be a C/FMI identifier (the set names are validated ones).
+    The range's ends are rounded to 12 digits: a dg range of sampling range x gap / 4 carries the
+    gap scale's round-off (2.999999999999775e-07 for 0.3 um), which would refuse the corner a user
+    writes (3e-07); 12 digits move an end by < 5e-13 relative, far below any law's stated error."""
+    if not NAME.match(name):
+        raise ValueError(f"process parameter name {name!r} is not an identifier")
+    lo, hi = float(f"{lo:.12g}"), float(f"{hi:.12g}")
+    return {
+        "name": name,
+        "unit": unit,
+        "start": num(start),
+        "min": num(lo),
+        "max": num(hi),
+        "description": f"process: {what}, valid {lo:.6g}..{hi:.6g} (netgen.model.process)",
+    }
+
+
+def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], dict[str, Any], list[str]]:
+    """The runtime's process data (`array` builds one C array), its #defines and the parameters'
+    names, from the model's process record and the value references `vr` (name -> vr)."""
+    names = [r["name"] for r in rows(model)]
+    law = model.process.get("coordinates", []) if process.enabled(model) else []
+    ident = [1.0, 0.0, 0.0, 0.0]
+    coeffs, etch, nominal = [], [], []
+    for v, c in enumerate(model.coordinates):
+        cl: dict[str, Any] = law[v] if law else {k: [0.0] * 4 for k in LAW_KEYS}
+        coeffs += [cl[k] for k in LAW_KEYS]
+        ratio = cl.get("etch", {}) if process.declared(model, "etch") else {}
+        etch += [ratio.get(k, ident) for k in LAW_KEYS]
+        nominal += [c.mass, c.stiffness, c.damping]
+    p = model.process if law else {}
+    visc = ((p.get("temp") or {}).get("viscosity") or {}).get("coeffs", [])
+    shifts = process.gap_shifts(model)
+    elec = [shifts.get(e.name) for e in model.electrodes]
+    stops = model.contact.get("points", []) if stop_constants(model) else []
+    stop_sets = [shifts.get(pt["electrode"]) for pt in stops]
+    rngs = {r["name"]: r for r in rows(model)}
+    data = [
+        array("int", "PROC_VR", [vr[n] for n in names]),
+        array("double", "PROC_MIN", [float(rngs[n]["min"]) for n in names]),
+        array("double", "PROC_MAX", [float(rngs[n]["max"]) for n in names]),
+        array("double", "LAW", coeffs),
+        array("double", "ETCH_LAW", etch),
+        array("double", "LAW_NOM", nominal),
+        array("double", "VISC", visc),
+        array("double", "ENERGY_LAW", energy_law(model)),
+        array("int", "ELEC_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in elec]),
+        array("double", "ELEC_SHIFT", [s[1] if s else 0.0 for s in elec]),
+        array("int", "STOP_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in stop_sets]),
+        array("double", "STOP_INV_GAP", [1.0 / pt["gap"] for pt in stops]),
+    ]
+
+    def ref(name: str) -> int:
+        return vr[name] if name in names else -1
+
+    defines = {
+        "NP": len(names),
+        "NVISC": len(visc),
+        "IZ": next((i for i, c in enumerate(model.coordinates) if c.name == "z"), -1),
+        "VR_TSCALE": ref("tscale"),
+        "VR_ESCALE": ref("escale"),
+        "VR_TEMP": ref("temp"),
+        "VR_ETCH": ref("etch"),
+        "ACTIVE_PM": int(process.active(model, "pm")),
+        "ACTIVE_PK": int(process.active(model, "pk")),
+        "ACTIVE_PD": int(process.active(model, "pd")),
+        "T0_C": f"({num(p.get('temperature_C', 0.0))})",  # parenthesized: a negative value in any expression
+        "MODULUS_TC": f"({num(p.get('modulus_tc_per_K', 0.0))})",
+        "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
+    }
+    return data, defines, names
+
+
+def energy_law(model: MacroModel) -> list[float]:
+    """The strain energy's law cubics a then b (netgen.model.process.energy_law: its forces times
+    pe a(tscale) + b(tscale)); without one a = 0, b = 1 (the factor exactly 1)."""
+    u = model.process.get("strain_energy") if process.energy_moved(model) else None
+    return list(u["a"]) + list(u["b"]) if u else [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]

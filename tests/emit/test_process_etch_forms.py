@@ -1,0 +1,247 @@
+"""The etch's capacitance laws (netgen.model.process.capacitance_laws) in every emitted form, the .lib
+(ngspice 39 and 46), the _xspice.lib (netgen_es code model, ngspice 39 as installed) and the .va
+through OSDI (ngspice 46): the ratio pc_<electrode> on the proof mass on four clamped-guided beams
+over a plate wider than the mass (tests/oracles/process_cases.GUIDED), whose facing area is the
+etched outline (200 um - 2 etch)^2, and the combs' shifted states on examples/accelerometer_xyz with
+textbook combs (tests/oracles/process_cases.xyz_text, C at rest of comb xp_t).
+
+Tolerances:
+- C at rest from .ac of the electrode current (I = j w C V, the mass still: no DC bias, no force)
+  against eps (200 um - 2 etch)^2 / g: fringe "none" makes the 1/P fit exact to round-off and the
+  ratio ((L - 2 etch) / L)^2 a quadratic the cubic carries exactly; ngspice's linear AC solve is exact
+  to round-off: 1e-9.
+- the static deflection at 10 V (56 % of the 17.8 V pull-in) from .op against the root
+  of k(etch) z = eps A(etch) V^2 / (2 (g - z)^2), with k_z(etch) = k_z (1 - 2 etch / w) (a beam's
+  axial and vertical stiffness ~ w, the law exact: tests/model/test_process_etch.py): the model's
+  force is exact as above, so the error is Newton's last step at reltol 1e-12 and vntol 1e-15 V (an
+  x_z of ~0.1 um read in um): 1e-7 covers the quadratic convergence's last correction by decades.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from netgen import emit
+from netgen.build import build_model
+from netgen.core.constants import EPS0
+from netgen.emit import ngspice as emit_ngspice
+from netgen.model.process import capacitance_at
+from netgen.sim.ngspice import run_ngspice
+from netgen.structure import parse_structure
+from netgen.testbench.sigma_delta import ngspice as sdn
+from tests.fixtures import NGSPICE, using_ngspice
+from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, guided, xyz_text
+
+GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
+OPTIONS = ".options reltol=1e-12 vntol=1e-15 abstol=1e-20"
+ETCHES_COMB = PERFORATED_ETCHES  # across the default etch_range of the comb case
+
+
+@pytest.fixture(scope="module")
+def model():
+    return build_model(parse_structure(guided(process='[process]\nparameters = ["etch"]' + RANGE), "cg.toml"))
+
+
+def area(etch: float) -> float:
+    return (SIDE - 2 * etch) ** 2
+
+
+def deflection(model, etch: float) -> float:
+    """The closed-form static z (m, toward the plate below: negative) at VOLTS."""
+    k = model.coordinates[0].stiffness * (1 - 2 * etch / 2e-6)
+    return brentq(lambda z: k * z + EPS0 * area(etch) * VOLTS**2 / (2 * (GAP + z) ** 2), -GAP / 3, 0.0, xtol=1e-22)
+
+
+def decks(include: str, etch: float, control: str = "") -> tuple[str, str]:
+    """(.ac deck of C at rest, .op deck of the deflection at VOLTS) around one instance at `etch`."""
+    ac = f"""* cap
+.include {include}
+Vd d 0 DC 0 AC 1
+Vp p 0 0
+X1 d p 0 xz cg etch={etch!r}
+.ac lin 1 1k 1k
+{control}
+.end
+"""
+    op = f"""* op
+.include {include}
+Vd d 0 DC {VOLTS}
+X1 d 0 0 xz cg etch={etch!r}
+{OPTIONS}
+.op
+{control}
+.end
+"""
+    return ac, op
+
+
+def check(model, ac_plot, op_plot, etch: float) -> None:
+    """C at rest and the deflection against the closed forms (module docstring)."""
+    cap = abs(float(np.imag(ac_plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
+    assert cap == pytest.approx(EPS0 * area(etch) / GAP, rel=1e-9, abs=0)
+    z = float(np.real(op_plot["v(xz)"])[0]) * 1e-6  # x_z in um
+    assert z == pytest.approx(deflection(model, etch), rel=1e-7, abs=0)
+
+
+def control_block(lines: list[str], raw: str) -> str:
+    return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_lib(model, tmp_path, ngspice_version, etch):
+    (tmp_path / "cg.lib").write_text(emit_ngspice.subcircuit(model))
+    ac, op = decks(str(tmp_path / "cg.lib"), etch)
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_xspice(model, tmp_path, etch):
+    xlib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
+    ac, _ = decks(str(xlib.resolve()), etch, control_block(control, "ac.raw"))
+    _, op = decks(str(xlib.resolve()), etch, control_block(control, "op.raw"))
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_osdi(model, tmp_path, monkeypatch, etch):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(model, tmp_path, "osdi")
+    pre = [f"pre_osdi {tmp_path / 'cg.osdi'}"]
+    ac, _ = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "ac.raw"))
+    _, op = decks(str(tmp_path / "cg_osdi.lib"), etch, control_block(pre, "op.raw"))
+    check(model, run_ngspice(ac, tmp_path / "ac")[0], run_ngspice(op, tmp_path / "op")[0], etch)
+
+
+@pytest.fixture(scope="module")
+def xyz():
+    """examples/accelerometer_xyz with the textbook combs and etch declared (tests/oracles/process_cases.xyz_text)."""
+    return build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+
+
+def comb_deck(include: str, etch: float, control: str = "") -> str:
+    """.ac of comb xp_t's current at rest (the other electrodes and the plate at 0 V: only xp_t's charge
+    moves; no DC bias, so no force and the mass stays)."""
+    pins = "d 0 0 0 0 0 0 0 0 0 p " + " ".join(f"0 x{k}" for k in range(6)) + " 0 0 0"
+    return f"""* comb cap
+.include {include}
+Vd d 0 DC 0 AC 1
+Vp p 0 0
+X1 {pins} accelerometer_xyz etch={etch!r}
+.ac lin 1 1k 1k
+{control}
+.end
+"""
+
+
+def check_comb(xyz, plot, etch: float) -> None:
+    """The comb's C at rest against the textbook closed form, within the fit's error at rest and the
+    law's stated error (as tests/model/test_process_etch_combs.py; the simulators add round-off)."""
+    cap = abs(float(np.imag(plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
+    k = [f.electrode for f in xyz.capacitances].index("xp_t")
+    tol = xyz.capacitances[k].max_rel_error + xyz.process["etch"]["capacitance_max_rel_error"]
+    assert cap == pytest.approx(20 * EPS0 * 2e-6 * (30e-6 - 2 * etch) / (1.5e-6 + 2 * etch), rel=tol, abs=0)
+    # and exactly the Python model's law (the emitters render its arithmetic): round-off
+    assert cap == pytest.approx(capacitance_at(xyz, np.zeros((1, xyz.ncoords)), etch)[0, k], rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_lib(xyz, tmp_path, ngspice_version, etch):
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    check_comb(xyz, run_ngspice(comb_deck(str(tmp_path / "xyz.lib"), etch), tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_xspice(xyz, tmp_path, etch):
+    xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
+    deck = comb_deck(str(xlib.resolve()), etch, control_block(control, "ac.raw"))
+    check_comb(xyz, run_ngspice(deck, tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_osdi(xyz, tmp_path, monkeypatch, etch):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(xyz, tmp_path, "osdi")
+    deck = comb_deck(
+        str(tmp_path / "accelerometer_xyz_osdi.lib"),
+        etch,
+        control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw"),
+    )
+    check_comb(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)
+
+
+PUSH = 20.0  # uN on f_x: 3.1 um of the 6.4 N/m legs' travel, past xp_t's finger stop
+
+
+def push_deck(include: str, etch: float, control: str = "", push: float = PUSH) -> str:
+    """.op of the mass pushed along +x by `push` (uN) onto xp_t's sidewall stop (no voltages)."""
+    pins = "0 0 0 0 0 0 0 0 0 0 0 fx x0 0 x1 0 x2 0 x3 0 x4 0 x5 0 0 0"
+    return f"""* push
+.include {include}
+Vf fx 0 DC {push}
+X1 {pins} accelerometer_xyz etch={etch!r}
+{OPTIONS}
+.op
+{control}
+.end
+"""
+
+
+def sidewall_stop(xyz) -> int:
+    """The index of xp_t's sidewall stop (its direction along x)."""
+    names = [c.name for c in xyz.coordinates]
+    pts = xyz.contact["points"]
+    return next(j for j, p in enumerate(pts) if p["electrode"] == "xp_t" and p["a"][names.index("x")] != 0.0)
+
+
+def rest_x(plot) -> float:
+    """x (um) and rot_z (mrad) of the pushed mass."""
+    return float(np.real(plot["v(x0)"])[0]), float(np.real(plot["v(x2)"])[0])
+
+
+@pytest.fixture(scope="module")
+def pushed_lib(xyz, tmp_path_factory):
+    """The pushed rest of the .lib in ngspice 39 and 46 per etch: the reference of the other forms."""
+    folder = tmp_path_factory.mktemp("push")
+    (folder / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    out = {}
+    for release in ("39", "46"):
+        for etch in ETCHES_COMB:
+            with using_ngspice(release):
+                out[release, etch] = rest_x(
+                    run_ngspice(push_deck(str(folder / "xyz.lib"), etch), folder / f"{release}{etch}")[0]
+                )
+    return out
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_lib(xyz, tmp_path, ngspice_version, etch):
+    """xp_t's sidewall stop at rest: its penetration node sg_j = a_j . xs - 1 reads -(1.5 um + 2 etch) /
+    1.5 um (the stop at the widened gap; x's touching amplitude is the drawn 1.5 um gap), to the
+    .op's round-off (1e-9)."""
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    plot = run_ngspice(push_deck(str(tmp_path / "xyz.lib"), etch, push=0.0), tmp_path)[0]
+    sg = float(np.real(plot[f"v(x1.sg_{sidewall_stop(xyz) + 1})"])[0])
+    assert sg == pytest.approx(-(1.5e-6 + 2 * etch) / 1.5e-6, rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_xspice(xyz, tmp_path, etch, pushed_lib):
+    """The _xspice.lib (its stops in the code model, reading the etch columns) pushed as the .lib in
+    ngspice 39: the same rest to Newton's convergence at reltol 1e-12 (1e-9)."""
+    xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
+    got = rest_x(run_ngspice(push_deck(str(xlib.resolve()), etch, control_block(control, "op.raw")), tmp_path)[0])
+    assert got == pytest.approx(pushed_lib["39", etch], rel=1e-9, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES_COMB)
+def test_comb_stop_osdi(xyz, tmp_path, monkeypatch, etch, pushed_lib):
+    """The .va through OSDI (ngspice 46) pushed as the .lib in ngspice 46: the same rest (1e-9)."""
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(xyz, tmp_path, "osdi")
+    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+    deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
+    assert rest_x(run_ngspice(deck, tmp_path / "run")[0]) == pytest.approx(pushed_lib["46", etch], rel=1e-9, abs=0)

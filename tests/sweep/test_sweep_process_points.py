@@ -1,0 +1,191 @@
+"""`netgen sweep` over each process parameter the laws carry besides tscale and escale (process.temp,
+process.etch, process.dg_<set>), by instance parameters on one [process] build ([sweep] process =
+"parameters") against the reference that rebuilds the structure at the point (process = "rebuild"),
+on every back end: real 128-period sigma-delta runs (skip 0) of examples/accelerometer_z.toml on crab
+legs (tests/sweep/test_sweep_process.py); and bad process entries refused before anything runs.
+
+Tolerances (as in test_sweep_process.py): the two paths run the same circuit up to the laws' stated
+error and the simulator's tolerance. Each trajectory is within reltol (1e-3, the sweep's default) of
+the value plus vntol (1e-6) on the scaled state xs_z (vntol L / 1 um volts at the x_z port) of the
+exact one, so the displacement at every clock sample agrees within 2 (reltol max |x| + vntol L / 1 um)
+plus the law's error times max |x|, up to the first comparator decision that falls within that
+error of its threshold (after a flipped bit the loops run on different feedback); the gravity balance
+ratio within 2 reltol plus the law's error. The bit means are not compared bit for bit: after a flip
+near a threshold (another CPU's rounding can flip the first decision) they part by the two runs'
+different inertial terms, and what both must still meet is the momentum balance, asserted on the ratio. The laws' errors,
+as the model states them: temp moves only the modulus here (no squeeze film), e = 1 + tc (T - T0),
+exact; etch: the crab legs' cubic ratios in etch (process.etch.max_rel_error); dg_<set>: a shift of z,
+exact, and the plates without fringe (fringe = "none") give 1/C linear in z, so the shifted fit and
+the rebuilt one are each the parallel-plate law within their stated fit error (fit max_rel_error,
+both models' added). VACASK's own tolerances are its reltol 1e-3 and vntol 1e-6 (the bench's options),
+so the same bound holds there.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from netgen.cli import commands as cli
+from netgen.model import MacroModel
+from tests.fixtures import NGSPICE, ROOT
+from tests.sweep.test_sweep_process import RELTOL, VNTOL, structure
+
+CASES = {  # parameter -> ([process] parameters, its swept value)
+    "temp": ('["temp"]', "125"),
+    "etch": ('["etch"]', "5e-8"),
+    "dg_top": ('["dg"]', "3e-8"),
+}
+SWEEP = """
+[sweep]
+process = "{path}"
+[fixed]
+cycles = 128
+skip = 0
+{fixed}
+[[parameters]]
+name = "process.{name}"
+values = [{value}]
+"""
+
+
+def rows(out: Path) -> list[dict]:
+    with open(out / "results.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def both_paths(tmp: Path, name: str, declared: str, value: str, fixed: str = "") -> dict[str, Path]:
+    """The one-run sweep at process.<name> = value by instance parameters and by rebuild."""
+    acc = structure(tmp, f"\n[process]\nparameters = {declared}\n")
+    out = {}
+    for path in ("parameters", "rebuild"):
+        s = tmp / f"{path}.toml"
+        s.write_text(SWEEP.format(path=path, name=name, value=value, fixed=fixed))
+        rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp / path), "--scheduler", "serial", "-q"])
+        assert rc == 0, (tmp / path / "runs" / "run_0" / "error.txt").read_text()
+        out[path] = tmp / path
+    return out
+
+
+def law_error(out: dict[str, Path], name: str) -> float:
+    """The stated error of the parameter's law in the shared model (module docstring)."""
+    model = MacroModel.load_json(out["parameters"] / "model" / "accelerometer_z.json")
+    if name == "etch":
+        return model.process["etch"]["max_rel_error"]
+    if name.startswith("dg_"):
+        rebuilt = MacroModel.load_json(next((out["rebuild"] / "runs" / "run_0" / "model").glob("*.json")))
+        return sum(max(f.max_rel_error for f in m.capacitances) for m in (model, rebuilt))
+    return 0.0
+
+
+def agree(out: dict[str, Path], name: str) -> None:
+    """The two runs within the module docstring's bounds."""
+    p, r = rows(out["parameters"])[0], rows(out["rebuild"])[0]
+    assert p["status"] == r["status"] == "ok"
+    clock_p = np.load(out["parameters"] / "runs" / "run_0" / "bitstreams.npz")
+    clock_r = np.load(out["rebuild"] / "runs" / "run_0" / "bitstreams.npz")
+    model = MacroModel.load_json(out["parameters"] / "model" / "accelerometer_z.json")
+    c, err = model.coordinates[0], law_error(out, name)
+    flips = np.nonzero(clock_p["bits_z"] != clock_r["bits_z"])[0]
+    n = int(flips[0]) + 1 if flips.size else len(clock_r["x_z"])  # the same feedback up to the first flip
+    x_p, x_r = clock_p["x_z"][:n], clock_r["x_z"][:n]
+    scale = np.max(np.abs(x_r))
+    bound = 2 * (RELTOL * scale + VNTOL * c.scale / c.port_units[1]) + err * scale
+    balance = float(p["gravity_balance.ratio"]) / float(r["gravity_balance.ratio"]) - 1
+    print(
+        f"{name}: x_z {np.max(np.abs(x_p - x_r)):.2e} V over {n} periods (bound {bound:.2e} V, largest {scale:.2e} V); "
+        f"bits differ at {flips.size} of 128; balance {balance:.1e}; law error {err:.1e}"
+    )
+    assert np.max(np.abs(x_p - x_r)) <= bound
+    assert abs(balance) <= 2 * RELTOL + err
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_parameter_against_rebuild(tmp_path, name):
+    """Each of temp, etch and dg_top on the .lib (ngspice): the instance parameter on the model's
+    line, the rebuild's structure at the point, the runs within the derived bounds."""
+    declared, value = CASES[name]
+    out = both_paths(tmp_path, name, declared, value)
+    x1 = [x for x in (out["parameters"] / "runs/run_0/sigma_delta.cir").read_text().splitlines() if x.startswith("X1 ")]
+    assert x1 and x1[0].endswith(f"accelerometer_z {name}={float(value)!r}"), x1
+    assert "[process]" not in (out["rebuild"] / "runs/run_0/structure.toml").read_text()
+    agree(out, name)
+
+
+FILM = '\n[damping]\nsqueeze_film = true\npressure = "100 Pa"\n'
+BAD = [  # (appended to the structure, [sweep] process, parameter, value, key, words)
+    ('["temp"]', "parameters", "temp", "200", "parameters[0].values", "outside the structure's temp_range"),
+    ('["temp"]', "parameters", "etch", "5e-8", "parameters[0].values", "does not declare etch"),
+    ('["dg"]', "parameters", "dg_side", "1e-8", "parameters[0].values", "is not an electrode set above or below"),
+    ('["dg"]', "parameters", "dg_top", '"1 um"', "parameters[0].values", "outside the gap offsets' valid range"),
+    ('["dg"]', "parameters", "dg_top", '"2 furlongs"', "parameters[0].values", "process.dg_top"),
+    ('["temp"]', "parameters", "temp", '"hot"', "parameters[0].values", "is not a temperature in degC"),
+    ('["temp"]' + FILM, "rebuild", "temp", "85", "parameters[0].values", "cannot move the squeeze film's gas"),
+]
+
+
+@pytest.mark.parametrize("declared,path,name,value,key,words", BAD)
+def test_bad_process_entries_exit_2(tmp_path, capsys, declared, path, name, value, key, words):
+    """An undeclared parameter, a value outside its valid range (temp_range; |dg| <= range x gap / 4),
+    a set that has no gap offset, a value in the wrong unit, and a rebuild that would be a wrong
+    reference (the film's viscosity at temp): exit 2 before anything runs, naming the sweep file, the
+    key and a fix; no output folder."""
+    acc = structure(tmp_path, f"\n[process]\nparameters = {declared}\n")
+    s = tmp_path / "bad.toml"
+    s.write_text(SWEEP.format(path=path, name=name, value=value, fixed=""))
+    rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert str(s) in err and key in err and words in err and "fix:" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_etch_rebuild_needs_flexures(tmp_path, capsys):
+    """A rebuild at an etch bias of a structure with a given spring (nothing to etch): exit 2."""
+    acc = tmp_path / "acc.toml"
+    acc.write_text((ROOT / "examples/accelerometer_z.toml").read_text())
+    s = tmp_path / "bad.toml"
+    s.write_text(SWEEP.format(path="rebuild", name="etch", value="5e-8", fixed=""))
+    rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
+    err = capsys.readouterr().err
+    assert rc == 2 and str(s) in err and "parameters[0].values" in err and "no flexure beams" in err, err
+
+
+BACKEND_POINT = '"process.temp" = 85\n"process.escale" = 0.9\nsimulator = "{simulator}"\n'
+
+
+@pytest.mark.parametrize("simulator", ["ngspice-xspice", "ngspice-osdi", "vacask"])
+def test_backends_take_the_point(tmp_path, monkeypatch, simulator):
+    """temp, escale and dg_top at once on the other back ends, each in its own form (the _xspice.lib's
+    and the _osdi.lib's .subckt params:, VACASK's model card), against the rebuild on the same back
+    end, within the module docstring's bounds (OSDI on ngspice 46; the code model on the PATH's 39)."""
+    if simulator == "ngspice-osdi":
+        monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    fixed = BACKEND_POINT.format(simulator=simulator)
+    out = both_paths(tmp_path, "dg_top", '["dg", "temp", "escale"]', "3e-8", fixed)
+    run = out["parameters"] / "runs" / "run_0"
+    if simulator == "vacask":
+        card = [x for x in (run / "sigma_delta.sim").read_text().splitlines() if x.startswith("model mems ")]
+        assert card == ["model mems accelerometer_z dg_top=3e-08 escale=0.9 temp=85.0"], card
+    else:
+        x1 = [x for x in (run / "sigma_delta.cir").read_text().splitlines() if x.startswith("X1 ")]
+        assert x1 and x1[0].endswith("accelerometer_z dg_top=3e-08 escale=0.9 temp=85.0"), x1
+    agree(out, "dg_top")
+
+
+def test_monte_carlo_draw_outside_the_range_exits_2(tmp_path, capsys):
+    """A seeded normal draw of dg_top beyond the gap offsets' range (std 200 nm against |dg| <= 300 nm):
+    exit 2 naming the distribution's entry and the fix, before anything runs."""
+    acc = structure(tmp_path, '\n[process]\nparameters = ["dg"]\n')
+    s = tmp_path / "mc.toml"
+    s.write_text(
+        '[sweep]\nsamples = 20\nseed = 3\n[fixed]\ncycles = 128\n[[parameters]]\nname = "process.dg_top"\n'
+        'distribution = "normal"\nmean = "0 nm"\nstd = "200 nm"\n'
+    )
+    rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "parameters[0]:" in err and "narrow the distribution" in err, err
+    assert not (tmp_path / "out").exists()
