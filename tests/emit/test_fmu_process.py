@@ -221,3 +221,22 @@ def test_out_of_range_refused_at_initialization(built, capsys):
         inst.set({"tscale": 1.0})
     assert "process parameter tscale is fixed after initialization" in capsys.readouterr().out
     inst.close()
+
+
+@pytest.mark.parametrize("etch", (-1e-7, 0.0, 1e-7))
+def test_etch_capacitance_ratio_static_deflection_and_charge(built, tmp_path, etch):
+    """VOLTS stepped onto the plate below at the lateral etch: the FMU's capacitance carries the etch's
+    ratio pc_bot ((200 um - 2 etch) / 200 um)^2 (netgen.model.process.capacitance_laws), so the static
+    deflection and the charge at 300 us match the parallel-plate equilibrium with k(etch) and the
+    etched area, and the deflection ngspice's .op of the .lib at the same etch (the same law).
+    Tolerances as test_gap_offset_static_deflection_and_charge: the laws' stated error times 10 (pk and
+    pc, exact quadratics here), twice the FMU's integration error, 1e-12 round-off and the transient's
+    remainder; against the .op also its Newton test at reltol 1e-9. Without the ratio the force would
+    be off by 4 etch / 200 um = 2e-3 at |etch| = 0.1 um, decades above the bound."""
+    model, lib, path = built
+    got = fp.etch_case(model, lib, path, etch, tmp_path)
+    assert got["tail"] < 1e-12
+    laws = 10 * law_error(model)
+    assert got["z"] <= laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
+    assert got["q"] <= laws + 2 * got["q_integ"] + 1e-12 + got["tail"], got
+    assert got["op"] <= fp.RELTOL + laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
