@@ -44,6 +44,7 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen.model import MacroModel
+from netgen.model.process import capacitance_at
 from netgen.sim import fmu
 from tests.fixtures import NETLISTS
 from tests.oracles import fmu_process as fp
@@ -240,3 +241,32 @@ def test_etch_capacitance_ratio_static_deflection_and_charge(built, tmp_path, et
     assert got["z"] <= laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
     assert got["q"] <= laws + 2 * got["q_integ"] + 1e-12 + got["tail"], got
     assert got["op"] <= fp.RELTOL + laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
+
+
+@pytest.fixture(scope="module")
+def combs(tmp_path_factory):
+    """examples/accelerometer_xyz with textbook combs and etch declared, its .lib and its FMU."""
+    return fp.comb_build(tmp_path_factory.mktemp("fmu_combs"))
+
+
+@pytest.mark.parametrize("etch", (-1e-7, 0.0, 1e-7))
+def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etch):
+    """fp.COMB_VOLTS on comb xp_t of accelerometer_xyz at the lateral etch: its fingers' terms read the
+    state shifted by shift / L etch (netgen.model.process.capacitance_laws: the gap 1.5 um + 2 etch).
+    The FMU's static balance (model exchange, q'' = 0 at rest) against ngspice's .op of the .lib at the
+    same etch instance parameter (the same law rendered): Newton's test at reltol fp.RELTOL bounds the
+    .op's relative state error, and the FMU's root is solved to 1e-15; a force error maps to the state
+    through the scaled balance's Jacobian, so the bound is cond(J) (RELTOL + 1e-12), 1e-12 the forces'
+    round-off (tests/emit/test_fmu.py), relative to the largest scaled deflection. The charge against
+    the MacroModel's own law at the FMU's state (netgen.model.process.capacitance_at, times the
+    voltage): 1e-12, the terms summed in another order (tests/emit/test_fmu.py). With the drawn
+    capacitances (the FMU before the law) the deflection was off by 0.24..0.35 at |etch| = 0.1 um."""
+    model, lib, path = combs
+    q, charge, cond = fp.comb_balance(model, path, etch)
+    scale = np.array([c.scale for c in model.coordinates])
+    op = fp.comb_op(model, lib, etch, tmp_path)
+    err = float(np.max(np.abs(q - op) / scale) / np.max(np.abs(q) / scale))
+    assert err <= cond * (fp.RELTOL + 1e-12), (err, cond)
+    k = [f.electrode for f in model.capacitances].index(fp.COMB)
+    ref = capacitance_at(model, (q / scale)[None, :], etch)[0, k] * fp.COMB_VOLTS
+    assert charge == pytest.approx(ref, rel=1e-12, abs=0)

@@ -266,3 +266,61 @@ X1 0 0 fz xz {model.name} temp={temp_c!r}
         "ratio": abs(b_fmu / c.damping / ratio - 1.0),
         "ngspice": abs(b_lib / b_fmu - 1.0),
     }
+
+
+# ----------------------------------------------------------------------------- the combs' etch shifts
+
+COMB, COMB_VOLTS = "xp_t", 5.0  # examples/accelerometer_xyz's comb pulling +x, and its voltage
+
+
+def comb_build(folder):
+    """(model, its .lib in `folder`, its FMU) of examples/accelerometer_xyz with the textbook combs and
+    etch declared (process_cases.xyz_text)."""
+    from .process_cases import xyz_text
+
+    model = build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    lib = folder / "xyz.lib"
+    lib.write_text(emit_ngspice.subcircuit(model))
+    return model, lib, fmu.built(model)
+
+
+def comb_balance(model, path, etch: float) -> tuple[np.ndarray, float, float]:
+    """(q (SI) where the FMU's accelerations vanish at rest, its charge of COMB, the condition number
+    of the scaled balance's Jacobian there) with COMB_VOLTS on COMB at `etch`: model exchange, a
+    Newton solve of q''(q) = 0 by scipy's hybrid method in scaled coordinates to 1e-15; the Jacobian
+    by central differences of 1e-6 (scaled)."""
+    from scipy.optimize import root
+
+    scale = np.array([c.scale for c in model.coordinates])
+    inst = fmu.Instance(path, cosim=False)
+    inst.set({"etch": etch, f"V_{COMB}": COMB_VOLTS})
+    inst.start()
+    names = [f"qdd_{c.name}" for c in model.coordinates]
+    norm = np.array([c.mass / (c.stiffness * c.scale) for c in model.coordinates])  # q'' to scaled x
+
+    def residual(xs: np.ndarray) -> np.ndarray:
+        x = np.zeros(inst.md.numberOfContinuousStates)  # at rest: q' = 0, film forces 0
+        x[: len(xs)] = xs * scale
+        inst.set_states(x)
+        return inst.get(names) * norm
+
+    sol = root(residual, np.zeros(len(scale)), method="hybr", tol=1e-15)
+    eye = np.eye(len(scale)) * 1e-6
+    jac = np.stack([(residual(sol.x + d) - residual(sol.x - d)) / 2e-6 for d in eye], axis=1)
+    residual(sol.x)
+    q = inst.get([f"Q_{COMB}"])[0]
+    inst.close()
+    return sol.x * scale, float(q), float(np.linalg.cond(jac))
+
+
+def comb_op(model, lib, etch: float, folder) -> np.ndarray:
+    """q (SI) of ngspice 39's .op of the .lib at `etch` with COMB_VOLTS on COMB (Newton at reltol
+    RELTOL, vntol 1e-15 V)."""
+    bench = Bench(model, lib, sources={COMB: f"DC {COMB_VOLTS!r}", model.plate: "DC 0"},
+                  options=f"reltol={RELTOL!r} vntol=1e-15 abstol=1e-20")  # fmt: skip
+    lines = bench.netlist(".op").split("\n")
+    net = "\n".join(f"{ln} etch={etch!r}" if ln.startswith("X1 ") else ln for ln in lines)
+    with using_ngspice("39"):
+        plot = run_ngspice(net, folder / "op")[0]
+    x = np.real(states(plot, model)[0]).reshape(-1, model.ncoords)[0]
+    return x * np.array([c.scale for c in model.coordinates])
