@@ -224,7 +224,7 @@ def test_out_of_range_refused_at_initialization(built, capsys):
     inst.close()
 
 
-@pytest.mark.parametrize("etch", (-1e-7, 0.0, 1e-7))
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
 def test_etch_capacitance_ratio_static_deflection_and_charge(built, tmp_path, etch):
     """VOLTS stepped onto the plate below at the lateral etch: the FMU's capacitance carries the etch's
     ratio pc_bot ((200 um - 2 etch) / 200 um)^2 (netgen.model.process.capacitance_laws), so the static
@@ -249,7 +249,7 @@ def combs(tmp_path_factory):
     return fp.comb_build(tmp_path_factory.mktemp("fmu_combs"))
 
 
-@pytest.mark.parametrize("etch", (-1e-7, 0.0, 1e-7))
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
 def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etch):
     """fp.COMB_VOLTS on comb xp_t of accelerometer_xyz at the lateral etch: its fingers' terms read the
     state shifted by shift / L etch (netgen.model.process.capacitance_laws: the gap 1.5 um + 2 etch).

@@ -35,6 +35,7 @@ VALUES = {
     "etch": (-0.2e-6, 0.1e-6, 0.3e-6),
 }
 DG = (-1.4e-7, 0.5e-7, 1.4e-7)
+ETCH_CAPS = (-1e-7, 0.0, 1e-7)  # m: the etch's capacitance law's cases (within both structures' ranges)
 STOP, CAP, RELTOL = 300e-6, 2e-9, 1e-9  # run length, ngspice step cap and reltol
 GRID = np.linspace(0.0, STOP, 601)  # the co-simulation's communication points
 NG_STOP = 100e-6  # ngspice's run: 3.6..6.2 periods and 10 decay times (its 5e4 steps cost 1.6 s)
