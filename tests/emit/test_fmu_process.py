@@ -270,3 +270,19 @@ def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etc
     k = [f.electrode for f in model.capacitances].index(fp.COMB)
     ref = capacitance_at(model, (q / scale)[None, :], etch)[0, k] * fp.COMB_VOLTS
     assert charge == pytest.approx(ref, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_etch_moves_the_combs_stops(combs, etch):
+    """Comb xp_t's finger stop follows the etch as its terms do (netgen.emit.process.stop_offsets: the
+    finger gap 1.5 um + 2 etch, process_cases.xyz_text): the FMU's q''_x / x along x alone (no voltage,
+    no force) 20 nm before and after the etched gap against its value at 0.1 um. The model's springs
+    are linear (no strain energy; asserted), so before contact the ratio is the springs' to round-off,
+    1e-12 (tests/emit/test_fmu.py's n eps); 20 nm into the stop its penalty (stiffness x penetration
+    20 nm / 1.5 um) is of the order of the spring's force: > 0.1 of it. With the drawn stop (the FMU
+    before the law) the contact began 200 nm early or late: one side or the other fails."""
+    model = combs[0]
+    assert model.nonlinear_energy_polynomial() is None
+    before, after = fp.comb_stop_onset(model, combs[2], etch, 1.5e-6, 20e-9)
+    assert before <= 1e-12, (before, after)
+    assert after > 0.1, (before, after)

@@ -325,3 +325,24 @@ def comb_op(model, lib, etch: float, folder) -> np.ndarray:
         plot = run_ngspice(net, folder / "op")[0]
     x = np.real(states(plot, model)[0]).reshape(-1, model.ncoords)[0]
     return x * np.array([c.scale for c in model.coordinates])
+
+
+def comb_stop_onset(model, path, etch: float, gap: float, step: float) -> tuple[float, float]:
+    """The FMU's q''_x / x at rest along x alone (no voltage, no force) at x_c - step and x_c + step
+    around x_c = gap + 2 etch (the etched finger gap, process_cases.xyz_text), each against its value
+    at x = 0.1 um (the springs alone, far from any stop): relative deviations (before, after)."""
+    inst = fmu.Instance(path, cosim=False)
+    inst.set({"etch": etch})
+    inst.start()
+
+    def ratio(x: float) -> float:
+        s = np.zeros(inst.md.numberOfContinuousStates)
+        s[0] = x
+        inst.set_states(s)
+        return float(inst.get(["qdd_x"])[0]) / x
+
+    free = ratio(1e-7)
+    xc = gap + 2.0 * etch
+    before, after = ratio(xc - step) / free - 1.0, ratio(xc + step) / free - 1.0
+    inst.close()
+    return abs(before), abs(after)
