@@ -73,6 +73,10 @@ def etch_tables(fp, folder: Path, model, lib, path) -> None:
             f"{'':22}{etch * 1e9:8g}  {q[0] * 1e9:6.3f}  {q[2] * 1e6:9.3f}  {err:.2e}  {cond:.3f}    "
             f"{abs(charge / ref - 1):.2e}"
         )
+    print("comb stop: etch/nm  q''/x off the springs' 20 nm before / after the etched gap 1.5 um + 2 etch")
+    for etch in fp.ETCH_CAPS:
+        before, after = fp.comb_stop_onset(xyz, xpath, etch, 1.5e-6, 20e-9)
+        print(f"{'':11}{etch * 1e9:8g}  {before:.2e} / {after:.3f}")
 
 
 if __name__ == "__main__":
