@@ -18,7 +18,7 @@ import numpy as np
 from ..core.errors import SweepError
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..model.process import GAP_SIDES, KELVIN, coordinate_values, etched, scaled
+from ..model.process import GAP_SIDES, KELVIN, coordinate_values, etched, ratio_value, scaled
 from ..structure import Structure, parse_structure
 from ..structure.schema import Process
 
@@ -89,6 +89,25 @@ def shifted_fits(model: MacroModel, point: dict[str, float]) -> list:
             if f.electrode in g["electrodes"]:
                 polys = tuple(shift(p, z, delta) for p in f.polys)
                 fits[i] = dataclasses.replace(f, polys=polys)
+    return etched_fits(model, fits, point.get("etch", 0.0))
+
+
+def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
+    """The fits at the etch bias (netgen.model.process.capacitance_at's arithmetic, as the emitters
+    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio."""
+    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    if not etch or not laws:
+        return fits
+    names = [c.name for c in model.coordinates]
+    for i, f in enumerate(fits):
+        law = laws.get(f.electrode)
+        if law is None:
+            continue
+        polys = f.polys
+        for q, k in law.get("shift", {}).items():
+            v = names.index(q)
+            polys = tuple(shift(p, v, k * etch / model.coordinates[v].scale) for p in polys)
+        fits[i] = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch))
     return fits
 
 
@@ -146,6 +165,11 @@ def rebuild_doc(doc: dict, s: Structure, point: dict[str, float], where: tuple[s
         dg = point.get(f"dg_{e.get('name')}", 0.0)
         if dg:
             e["gap"] = next(x.gap for x in target.electrode_sets if x.name == e["name"])
+        if "etch" in point:  # a rectangle drawn as "the whole conductor" stays as drawn while the outline recedes
+            keep = next((x for x in target.electrode_sets if x.name == e.get("name") and hasattr(x, "x0")), None)
+            if keep is not None:
+                e.setdefault("x", [keep.x0, keep.x1])
+                e.setdefault("y", [keep.y0, keep.y1])
     if electrodes:
         out["electrodes"] = electrodes
     back = parse_structure(toml_text(out), s.source)
