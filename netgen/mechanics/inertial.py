@@ -31,9 +31,8 @@ import math
 
 import numpy as np
 
-from ..geometry.layout import plate_outline
 from ..structure import Structure
-from .base import RIGID, Mechanics
+from .base import RIGID, Mechanics, mass_rule, rigid_columns
 
 AXES = "xyz"
 RATE_PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the centrifugal products Omega_k Omega_l, k <= l
@@ -66,15 +65,14 @@ def fields(names: list[str], basis: np.ndarray, x: np.ndarray, y: np.ndarray) ->
 
 def moments(s: Structure, m: Mechanics, order: int = 96) -> tuple[np.ndarray, np.ndarray, float]:
     """W[a, b, i, j] = int rho Phi_a,i Phi_b,j dV and P[a, i] = int rho Phi_a,i dV over the body
-    (a, b: the coordinates and r0 last), and the body's mass."""
-    plate = plate_outline(s)
-    x, y, w = plate.area_rule(order)
-    h = s.conductor.thickness
-    rho_h = s.conductor.density * h * getattr(s.conductor, "fill_factor", 1.0)
+    (a, b: the coordinates and r0 last; the plate and the moving fingers, netgen.mechanics.base.mass_rule:
+    the internal modes over the plate only, as their modal masses), and the body's mass."""
+    x, y, dm, h, on_plate = mass_rule(s, order)
     a, b = fields(m.names, m.basis(x, y), x, y)
-    wt = rho_h * w
-    big_w = np.einsum("p,pai,pbj->abij", wt, a, a) + h * h / 12.0 * np.einsum("p,pai,pbj->abij", wt, b, b)
-    return big_w, np.einsum("p,pai->ai", wt, a), float(np.sum(wt))
+    keep = np.concatenate([rigid_columns(m.names, on_plate), np.ones((len(x), 1))], axis=1)
+    a, b = a * keep[:, :, None], b * keep[:, :, None]
+    big_w = np.einsum("p,pai,pbj->abij", dm, a, a) + np.einsum("p,pai,pbj->abij", dm * h * h / 12.0, b, b)
+    return big_w, np.einsum("p,pai->ai", dm, a), float(np.sum(dm))
 
 
 def terms(s: Structure, m: Mechanics, inputs: tuple[str, ...]) -> dict:
