@@ -101,36 +101,38 @@ class Mechanics:
     strain_energy: StrainEnergy | None = None
 
 
-def mass_rule(s: Structure, order: int = 96) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Points x, y, their masses (kg: Gauss weights times the areal density), thicknesses and
-    whether each lies on the plate, over the body: the plate (a perforated proof mass's areal
-    density carries its solid fraction, `fill_factor`) and the moving comb fingers hanging on it
-    (netgen.geometry.combs.moving_fingers: 4 x 8 Gauss points each)."""
+BodyPart = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
+
+
+def mass_rule(s: Structure, order: int = 96) -> list[BodyPart]:
+    """The body as parts (x, y, Gauss weights, areal density kg/m^2, thickness): the plate first (a
+    perforated proof mass's areal density carries its solid fraction, `fill_factor`), then each
+    moving comb finger hanging on it (netgen.geometry.combs.moving_fingers: 4 x 8 Gauss points)."""
     c = s.conductor
     x, y, w = plate_outline(s).area_rule(order)
-    parts = [(x, y, c.density * c.thickness * getattr(c, "fill_factor", 1.0) * w, np.full(len(x), c.thickness))]
+    parts = [(x, y, w, c.density * c.thickness * getattr(c, "fill_factor", 1.0), c.thickness)]
     fingers = moving_fingers(s.electrode_sets, c.outline()) if c.kind == "proof_mass" else []
     for f in fingers:
         fx, fy, fw = RectPlate(f.x0, f.x1, f.y0, f.y1).area_rule(4)
-        parts.append((fx, fy, c.density * f.thickness * fw, np.full(len(fx), f.thickness)))
-    on_plate = np.concatenate([np.full(len(p[0]), k == 0) for k, p in enumerate(parts)])
-    return (*(np.concatenate([p[i] for p in parts]) for i in range(4)), on_plate)
+        parts.append((fx, fy, fw, c.density * f.thickness, f.thickness))
+    return parts
+
+
+def off_plate(names: list[str]) -> np.ndarray:
+    """Per coordinate 1 for a rigid one, 0 for an internal mode: the modes' masses are the plate's
+    (netgen.mechanics.rect_plate), so the fingers enter only the rigid coordinates' inertial terms."""
+    return np.array([1.0 if n in RIGID else 0.0 for n in names])
 
 
 def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
-    """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and the moving
-    fingers): the generalized force per unit frame acceleration. Values below 1e-6 of sqrt(M_v m)
-    (free-plate modes and tilts about the centre, zero by symmetry up to round-off) are set to
-    exactly 0. The internal modes' masses are the plate's (netgen.mechanics.rect_plate): their
-    participation leaves the fingers out too."""
-    x, y, dm, _, on_plate = mass_rule(s, order)
-    phi = m.basis(x, y) * rigid_columns(m.names, on_plate)  # (points, ncoords)
-    gam = dm @ phi
-    total = float(np.sum(dm))
+    """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and, for the
+    rigid coordinates, the moving fingers; Gauss quadrature): the generalized force per unit frame
+    acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate modes and tilts about the centre,
+    zero by symmetry up to round-off) are set to exactly 0."""
+    parts = mass_rule(s, order)
+    gam, total = np.zeros(len(m.names)), 0.0
+    for k, (x, y, w, rho_h, _) in enumerate(parts):
+        phi = m.basis(x, y) * (1.0 if k == 0 else off_plate(m.names))  # (points, ncoords)
+        gam = gam + rho_h * (w @ phi)
+        total += rho_h * float(np.sum(w))
     return [0.0 if abs(v) < 1e-6 * math.sqrt(mv * total) else float(v) for v, mv in zip(gam, m.masses)]
-
-
-def rigid_columns(names: list[str], on_plate: np.ndarray) -> np.ndarray:
-    """(points, ncoords) mask: 1 on the plate, off it (the fingers) only for rigid coordinates."""
-    rigid = np.array([n in RIGID for n in names])
-    return (on_plate[:, None] | rigid[None, :]).astype(float)
