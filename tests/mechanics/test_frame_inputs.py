@@ -1,7 +1,7 @@
 """The inertial inputs of [coordinates] inertial (netgen.mechanics.inertial, netgen.model.inertial):
 frame acceleration a_x, a_y, a_z (a_z = the port a_in) and rotation rate w_x, w_y, w_z, against
 independent references:
-- static: a proof mass deflects -m a / k along each axis (m = rho t L W of the structure, k the
+- static: a proof mass deflects -m a / k along each axis (m = rho t L W of the structure plus its comb fingers, k the
   coordinate's spring) in ngspice 39 and 46 (.op of a linear circuit: exact up to the solver's
   LU round-off, so 1e-6) and in VACASK (a settled transient: 1e-3, see its docstring);
 - Coriolis: driven along x at its resonance under a constant Omega_z, the y amplitude equals
@@ -33,6 +33,9 @@ from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT, Bench
 
 RHO, T, SIDE = 2330.0, 2e-6, 200e-6  # the proof mass below: density, thickness, side
+# its rigid mass by hand: the plate and the 20 moving fingers of its two combs (2 x 40 um each, from
+# the edge at 100 um to the tip at centre 125 + overlap 30 / 2 = 140 um)
+MASS = RHO * T * (SIDE * SIDE + 20 * 2e-6 * 40e-6)
 COMB = """
 [[electrodes]]
 name = "{name}"
@@ -107,7 +110,7 @@ AXIS = {"a_x": "x", "a_y": "y", "a_in": "z"}
 
 def expected_static(model: MacroModel) -> dict[str, float]:
     """-m a / k per axis, m from the structure's dimensions (no holes)."""
-    mass = RHO * T * SIDE * SIDE
+    mass = MASS
     k = {c.name: c.stiffness for c in model.coordinates}
     return {AXIS[p]: -mass * a / k[AXIS[p]] for p, a in ACCEL.items()}
 
@@ -155,7 +158,7 @@ def test_coriolis_amplitude_in_ngspice(proof_mass, ngspice_version, tmp_path):
     sinusoid, so 1 % leaves margin for ngspice's step control."""
     cx = next(c for c in proof_mass.coordinates if c.name == "x")
     cy = next(c for c in proof_mass.coordinates if c.name == "y")
-    omega, mass = 2000.0, RHO * T * SIDE * SIDE
+    omega, mass = 2000.0, MASS
     w = math.sqrt(cx.stiffness / cx.mass)
     period = 2 * math.pi / w
     stop = 30 * 2 * 5 / w + 10 * period
@@ -221,7 +224,7 @@ def test_jacobi_integral_is_conserved(proof_mass):
     omega = np.array([rates["w_x"], rates["w_y"], rates["w_z"]])
     q, qd = sol.y[:n].T * s, sol.y[n:].T * s
     h = 0.5 * np.sum(mass * qd * qd, axis=1) + 0.5 * np.sum(k * q * q, axis=1)
-    h -= 0.5 * RHO * T * SIDE * SIDE * np.sum(np.cross(omega, q) ** 2, axis=1)
+    h -= 0.5 * MASS * np.sum(np.cross(omega, q) ** 2, axis=1)
     assert np.max(np.abs(h - h[0])) <= 1e-6 * abs(h[0])
 
 
@@ -321,7 +324,7 @@ def test_model_json_round_trip_and_old_json(proof_mass, tmp_path):
 
 def test_gyroscopic_matrices_are_antisymmetric_and_proof_mass_values(proof_mass):
     """G_z[x][y] = -2 m (Coriolis force +2 m Omega_z y' on x), antisymmetric; P along x = m."""
-    mass = RHO * T * SIDE * SIDE
+    mass = MASS
     names = [c.name for c in proof_mass.coordinates]
     g = np.array(proof_mass.inertial.gyroscopic["z"])
     assert g[names.index("x"), names.index("y")] == pytest.approx(-2 * mass, rel=1e-12)
