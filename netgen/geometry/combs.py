@@ -135,6 +135,6 @@ def moving_fingers(electrode_sets, outline: tuple[float, float, float, float] | 
                 continue
             a, b = sorted((tip[1 - k] - half[1 - k], tip[1 - k] + half[1 - k]))
             box = (lo, hi, a, b) if k == 0 else (a, b, lo, hi)
-            f = Finger(*(float(v) for v in box), float(shape.thickness))
+            f = Finger(float(box[0]), float(box[1]), float(box[2]), float(box[3]), float(shape.thickness))
             seen.setdefault(tuple(round(v / 1e-12) for v in (f.x0, f.x1, f.y0, f.y1, f.thickness)), f)
     return list(seen.values())

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -108,7 +109,7 @@ def mass_rule(s: Structure, order: int = 96) -> list[BodyPart]:
     """The body as parts (x, y, Gauss weights, areal density kg/m^2, thickness): the plate first (a
     perforated proof mass's areal density carries its solid fraction, `fill_factor`), then each
     moving comb finger hanging on it (netgen.geometry.combs.moving_fingers: 4 x 8 Gauss points)."""
-    c = s.conductor
+    c: Any = s.conductor
     x, y, w = plate_outline(s).area_rule(order)
     parts = [(x, y, w, c.density * c.thickness * getattr(c, "fill_factor", 1.0), c.thickness)]
     fingers = moving_fingers(s.electrode_sets, c.outline()) if c.kind == "proof_mass" else []

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -186,9 +187,9 @@ def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
 def mechanics(s: Structure) -> Mechanics:
     """The proof mass's rigid-body coordinates with their inertias and flexure springs, and its
     first internal plate modes when [coordinates] modes asks for them."""
-    c = s.conductor
+    c: Any = s.conductor
     rigid = list(s.coordinates.rigid)
-    fingers = moving_fingers(s.electrode_sets, s.conductor.outline())
+    fingers = moving_fingers(s.electrode_sets, c.outline())
     inert, (springs, spring_report) = inertia(c, fingers), stiffness(c)
     count = s.coordinates.modes
     modes = PLATE_MODES[c.outline_shape](c, count) if count else None
