@@ -6,7 +6,8 @@ expansion order 4 to 6 on one level, against the analytic extractor (parallel pl
 
     .venv/bin/python bench/fastcap_levels.py --count                       # panels per level, no solve
     nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --levels 4 --json out.json
-    nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --levels 3
+    nice -n 10 env OMP_NUM_THREADS=1 .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --element-to-gap 12.5 --levels 2
+    nice -n 10 env OMP_NUM_THREADS=1 /usr/bin/time -v .venv/bin/python bench/fastcap_levels.py --gap-over-r 0.002 --element-to-gap 12.5 --levels 3 --one 1 step 4
     .venv/bin/python bench/fastcap_levels.py --levels 4 --calibration-json direct.json   # from the store
 
 --calibration-json writes the direct solution in bench/bem_extrapolate.py's form (analytic - fastcap
@@ -28,7 +29,13 @@ one-sided differences differ by about 2 % and their mean is a central difference
 over the sectors of one side is reported beside it (the iteration and panel-placement noise).
 Every solve is stored as it
 finishes (--store, default ~/.cache/netgen/fastcap_levels): an interrupted run recomputes only the
-missing solves. Peak RSS and the process CPU time of every solve are printed on stderr.
+missing solves. Peak RSS and the process CPU time of every solve are printed on stderr; --one
+LEVEL WHAT ORDER runs a single solve into the store, so that /usr/bin/time -v measures each solve
+in a process of its own, and a later run without --one assembles them.
+
+g/R = 0.002 (docs/fastcap.md): the reference's element_to_gap 4 gives 868k panels on level 2
+(21.7 GB); element_to_gap 12.5 keeps the largest panel at the reference's absolute size (4 x its
+gap, 0.025 R) and the edge panels at half a gap: 66.8k / 109k / 183k panels.
 """
 
 from __future__ import annotations
@@ -61,8 +68,11 @@ def peak_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
 
 
-def stored_solve(folder: Path | None, key: dict, conductors, eps_r: float, order: int, tol: float) -> np.ndarray:
-    """The Maxwell matrix of one FastCap solve, from the store when it holds it."""
+def stored_solve(
+    folder: Path | None, key: dict, conductors, eps_r: float, order: int, tol: float, stored_only: bool = False
+) -> np.ndarray | None:
+    """The Maxwell matrix of one FastCap solve, from the store when it holds it (stored_only: None
+    when it does not, no solve)."""
     f = None
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
@@ -70,6 +80,8 @@ def stored_solve(folder: Path | None, key: dict, conductors, eps_r: float, order
         f = folder / f"{h}.npz"
         if f.exists():
             return np.load(f)["matrix"]
+    if stored_only:
+        return None
     c0, w0 = time.process_time(), time.perf_counter()
     C, rec = solve_panels(conductors, eps_r, order, tol)
     print(
@@ -148,15 +160,61 @@ def richardson(values: list[float], ratio: float, assumed: float) -> dict:
     return out
 
 
-def run(gr: float, st: FastcapSettings, nlevels: int, check_level: int, count: bool, store: Path | None) -> dict:
-    """All levels (centre and step), the order check, and the comparison at g/R = gr."""
+def stored_summary(solve, levels: range, check: int, st: FastcapSettings, rings: dict, analytic: dict, sep) -> dict:
+    """What the store holds (--stored-only), for a run cut short: per ring and quantity the levels
+    solved, the order-2 Richardson estimate from the last two and its correction, the change at
+    check_order on level `check` where both orders are stored, and analytic - fastcap."""
+    got: dict[str, list] = {"C": [], "dz": [], "dtilt": []}
+    for k in levels:
+        centre, step = solve(k, "centre", st.expansion_order), solve(k, "step", st.expansion_order)
+        if centre is not None:
+            got["C"].append((k, sep(centre, step)))
+        if centre is not None and step is not None:
+            got["dz"].append((k, got["C"][-1][1]))
+            got["dtilt"].append((k, got["C"][-1][1]))
+    cc, cs = solve(check, "centre", st.check_order), solve(check, "step", st.check_order)
+    base = dict(got["C"]).get(check)
+    out: dict = {}
+    for ring, sel in rings.items():
+        for qn, vals in got.items():
+            if not vals:
+                continue
+            means = [ring_stats(q[qn], sel, qn == "dtilt")["mean"] for _, q in vals]
+            r = richardson(means, st.refinement, 2.0) if len(means) >= 2 else {"levels": means, "best": means[-1]}
+            entry = {"levels_solved": [k for k, _ in vals], **r}
+            if cc is not None and base is not None and (qn == "C" or cs is not None):
+                other = sep(cc, cs)
+                entry["order_change"] = abs(
+                    ring_stats(other[qn], sel, qn == "dtilt")["mean"] / ring_stats(base[qn], sel, qn == "dtilt")["mean"]
+                    - 1.0
+                )
+            entry["analytic_minus_fastcap"] = ring_stats(analytic[qn], sel, qn == "dtilt")["mean"] / r["best"] - 1.0
+            out[f"{ring}_{qn}"] = entry
+    return out
+
+
+def run(
+    gr: float,
+    st: FastcapSettings,
+    nlevels: int,
+    check_level: int,
+    count: bool,
+    store: Path | None,
+    one: tuple[int, str, int] | None = None,
+    first: int = 0,
+    stored_only: bool = False,
+) -> dict:
+    """All levels (centre and step), the order check, and the comparison at g/R = gr; one = (level,
+    what, order): that solve alone into the store (a process per solve, so /usr/bin/time -v measures it);
+    first: the coarsest level solved (negative: coarser than the settings' sizes, by refinement per level);
+    check_level counts from it; stored_only: no solves, what the store holds (stored_summary)."""
     s = structure(gr)
     m = mechanics(s)
     plate, shapes = plate_outline(s), electrodes(s)
     fx = FastcapExtractor(eps_r=s.electrostatics.relative_permittivity, thickness=s.conductor.thickness, settings=st)
     pf = fx.prepare(shapes, plate, m.basis)
-    levels = pf.levels
-    npanels = [len(lv[0]) + sum(len(p) for p in lv[2]) for lv in levels]
+    levels = {k: pf.level(plate, m.basis, k) for k in range(min(first, 0), 0)} | dict(enumerate(pf.levels))
+    npanels = [len(lv[0]) + sum(len(p) for p in lv[2]) for _, lv in sorted(levels.items())]
     out: dict = {"g_over_r": gr, "panels": npanels, "settings": asdict(st)}
     print(f"g/R {gr}: panels per level {npanels}", file=sys.stderr, flush=True)
     if count:
@@ -174,21 +232,12 @@ def run(gr: float, st: FastcapSettings, nlevels: int, check_level: int, count: b
         q = dq if what == "step" else np.zeros(pf.ncoords)
         dz = (phi @ q).reshape(len(plate_p), 4)
         key = {**base, "level": level, "what": what, "order": order, "q": q.tolist()}
-        return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol)
+        return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol, stored_only)
 
-    per_level, couplings, check = [], [], None
-    for k in range(nlevels):
-        centre = solve(k, "centre", st.expansion_order)
-        per_level.append(quantities(centre, solve(k, "step", st.expansion_order), mirror, steps, pairs))
-        couplings.append(-centre[1:, 1:])
-        if k == max(1, check_level) and check_level >= 0:  # the order check after two levels (-1: none)
-            check = quantities(
-                solve(check_level, "centre", st.check_order),
-                solve(check_level, "step", st.check_order),
-                mirror,
-                steps,
-                pairs,
-            )
+    if one is not None:
+        solve(*one)
+        out.update(one=list(one), peak_gb=peak_gb(), cpu_s=time.process_time())
+        return out
     sides = np.array([e.side for e in shapes])
     inner_r = min(e.shape.r_in for e in shapes)
     rings = {
@@ -200,6 +249,27 @@ def run(gr: float, st: FastcapSettings, nlevels: int, check_level: int, count: b
     c_pp = pp.capacitance(q0)
     g_pp = separate(pp.capacitance(dq) - c_pp, mirror, steps)
     analytic = {"C": c_pp, "dz": g_pp["z"], "dtilt": g_pp["tilt_x"]}
+    if stored_only:
+
+        def sep(centre, step):
+            return quantities(centre, centre if step is None else step, mirror, steps, pairs)
+
+        levels_run = range(first, first + nlevels)
+        out["stored"] = stored_summary(solve, levels_run, first + check_level, st, rings, analytic, sep)
+        return out
+    per_level, couplings, check = [], [], None
+    for i, k in enumerate(range(first, first + nlevels)):
+        centre = solve(k, "centre", st.expansion_order)
+        per_level.append(quantities(centre, solve(k, "step", st.expansion_order), mirror, steps, pairs))
+        couplings.append(-centre[1:, 1:])
+        if i == max(1, check_level) and check_level >= 0:  # the order check after two levels (-1: none)
+            check = quantities(
+                solve(first + check_level, "centre", st.check_order),
+                solve(first + check_level, "step", st.check_order),
+                mirror,
+                steps,
+                pairs,
+            )
     result: dict = {}
     for ring, sel in rings.items():
         for qn in ("C", "dz", "dtilt"):
@@ -280,10 +350,23 @@ def main() -> None:
     )
     ap.add_argument("--order", type=int, default=4)
     ap.add_argument("--check-order", type=int, default=6)
+    ap.add_argument(
+        "--first-level",
+        type=int,
+        default=0,
+        help="coarsest level solved (-1: one level coarser than --edge-to-gap / --element-to-gap give)",
+    )
     ap.add_argument("--iter-tol", type=float, default=1e-5)
     ap.add_argument("--budget-gb", type=float, default=8.0)
     ap.add_argument("--store", default=str(STORE), help="folder of stored solves ('' stores nothing)")
     ap.add_argument("--count", action="store_true", help="count panels only")
+    ap.add_argument("--stored-only", action="store_true", help="no solves: summarise what the store holds")
+    ap.add_argument(
+        "--one",
+        nargs=3,
+        metavar=("LEVEL", "WHAT", "ORDER"),
+        help="one solve into the store and exit (WHAT: centre or step); run under /usr/bin/time -v",
+    )
     ap.add_argument("--json")
     ap.add_argument("--calibration-json", help="the direct solution for bench/bem_calibrated_reference.py")
     a = ap.parse_args()
@@ -296,7 +379,22 @@ def main() -> None:
         memory_budget=a.budget_gb * 1e9,
         levels=a.levels,
     )
-    out = run(a.gap_over_r, st, a.levels, a.check_level, a.count, Path(a.store) if a.store else None)
+    one = None
+    if a.one:
+        if a.one[1] not in ("centre", "step"):
+            ap.error(f"--one: WHAT is {a.one[1]!r}; give centre or step")
+        one = (int(a.one[0]), a.one[1], int(a.one[2]))
+    out = run(
+        a.gap_over_r,
+        st,
+        a.levels,
+        a.check_level,
+        a.count,
+        Path(a.store) if a.store else None,
+        one,
+        a.first_level,
+        a.stored_only,
+    )
     print(json.dumps(out, indent=1, default=float))
     if a.json:
         with open(a.json, "w") as f:

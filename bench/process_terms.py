@@ -7,21 +7,19 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
+from support import oracle
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from netgen.build import build_model
+from netgen.emit import ngspice as emit_ngspice
+from netgen.sim import fmu
+from netgen.sim.ngspice import run_ngspice
+from netgen.structure import parse_structure
 
-from netgen.build import build_model  # noqa: E402
-from netgen.emit import ngspice as emit_ngspice  # noqa: E402
-from netgen.sim import fmu  # noqa: E402
-from netgen.sim.ngspice import run_ngspice  # noqa: E402
-from netgen.structure import parse_structure  # noqa: E402
-from tests.emit import test_process_energy as te  # noqa: E402
-from tests.emit import test_process_inertial as ti  # noqa: E402
+te, ti = oracle("process_energy"), oracle("process_inertial")
 
 
 def coriolis(model, refs, label: str) -> None:

@@ -21,8 +21,8 @@ Electrode.field_gap).  The fringe term takes the same effective gap (an approxim
 is thin against the plate).  min_gap() and the probe points measure the AIR gap g - t_d - s w
 (Electrode.stop_gap): the plate touches the layer's surface, not the electrode.
 A perforated plate (a proof mass's etch-hole grid) scales the plate term by its effective fill
-factor at the local gap, eps F(g_loc) / g_loc (netgen.electrostatics.perforation); the edge fringe
-of the plate's outline is unchanged.
+factor at the local gap, eps F(g_loc) / g_loc (netgen.electrostatics.perforation: hole, pitch and the
+plate's thickness); the edge fringe of the plate's outline is unchanged.
 The Gauss rules come from netgen.geometry.shapes.
 """
 
@@ -389,9 +389,10 @@ def from_structure(s, plate: Plate) -> ParallelPlateExtractor:
     else:
         fringe = EdgeFringe(o.fringe_a, o.fringe_b, plate.size)
     hole, pitch = float(getattr(s.conductor, "hole", 0.0)), float(getattr(s.conductor, "hole_pitch", 0.0))
+    thickness = float(getattr(s.conductor, "thickness", 0.0))
     return ParallelPlateExtractor(
         eps=EPS0 * o.relative_permittivity,
         fringe=fringe,
         coupling_per_length=o.coupling_per_length,
-        perforation=Perforation(hole, pitch) if hole else None,
+        perforation=Perforation(hole, pitch, thickness=thickness) if hole else None,
     )

@@ -4,7 +4,10 @@ states) and the C data by which the runtime applies them: the law coefficients o
 netgen.model.process, read from MacroModel.process exactly as netgen.emit.process renders them
 into the .lib and the .va (mass, stiffness and damping ratios pm, pk, pd per coordinate, the a_in
 gain times tscale, each capacitance term's z shifted by -sign dg / L_z, each stop's penetration
-by -dg / gap). No physics here: every number comes from the model; the runtime
+by -dg / gap; with etch declared each electrode's capacitance ratio pc (a cubic in etch / 1 um,
+netgen.emit.process.capacitance_ratios) scaling its C, a comb's terms read at the state shifted by
+shift / L per metre of etch (etch_columns) and its stops' penetrations by a . shift / L etch
+(etch_offsets)). No physics here: every number comes from the model; the runtime
 (templates/fmu/runtime.c.j2, process_apply) evaluates the same polynomials."""
 
 from __future__ import annotations
@@ -80,6 +83,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     stops = model.contact.get("points", []) if stop_constants(model) else []
     stop_sets = [shifts.get(pt["electrode"]) for pt in stops]
     rngs = {r["name"]: r for r in rows(model)}
+    ratios, etch_stops = process.capacitance_ratios(model), process.etch_offsets(model)
     data = [
         array("int", "PROC_VR", [vr[n] for n in names]),
         array("double", "PROC_MIN", [float(rngs[n]["min"]) for n in names]),
@@ -93,6 +97,9 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "ELEC_SHIFT", [s[1] if s else 0.0 for s in elec]),
         array("int", "STOP_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in stop_sets]),
         array("double", "STOP_INV_GAP", [1.0 / pt["gap"] for pt in stops]),
+        array("double", "PC_LAW", [ratios.get(e.name, ident) for e in model.electrodes]),
+        array("double", "ELEC_ETCH", etch_shifts(model)),
+        array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
     ]
 
     def ref(name: str) -> int:
@@ -114,6 +121,18 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
     }
     return data, defines, names
+
+
+def etch_shifts(model: MacroModel) -> list[float]:
+    """Per electrode and coordinate the scaled-state offset per metre of etch its capacitance terms
+    read (netgen.emit.process.etch_columns: xe_q = xs_q + shift / L_q etch), 0 where none."""
+    cols = {n: k for n, _, k in process.etch_columns(model)}
+    states = process.etch_states(model)
+    return [
+        cols[states[e.name][c.name]] if c.name in states.get(e.name, {}) else 0.0
+        for e in model.electrodes
+        for c in model.coordinates
+    ]
 
 
 def energy_law(model: MacroModel) -> list[float]:

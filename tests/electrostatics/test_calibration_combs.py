@@ -33,7 +33,8 @@ from tests.structures import plate_electrode
 
 EXAMPLE = (ROOT / "examples" / "accelerometer_xyz.toml").read_text()
 CONDUCTOR = EXAMPLE[: EXAMPLE.index("# x: fingers")]  # the proof mass on its crab legs
-HOLES = Perforation(4e-6, 10e-6)  # its etch holes: the calibrated plate term keeps their fill factor
+# its etch holes through its 2 um: the calibrated plate term keeps their fill factor
+HOLES = Perforation(4e-6, 10e-6, thickness=2e-6)
 COMBS = EXAMPLE[EXAMPLE.index('[[electrodes]]\nname = "xp_t"') : EXAMPLE.index('[[electrodes]]\nname = "xp_b"')]
 PLATES = "".join(
     plate_electrode(name, "below", "2 um", (f"{x0} um", f"{x1} um"), ("-150 um", "150 um"))

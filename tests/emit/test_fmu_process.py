@@ -44,6 +44,7 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen.model import MacroModel
+from netgen.model.process import capacitance_at
 from netgen.sim import fmu
 from tests.fixtures import NETLISTS
 from tests.oracles import fmu_process as fp
@@ -221,3 +222,67 @@ def test_out_of_range_refused_at_initialization(built, capsys):
         inst.set({"tscale": 1.0})
     assert "process parameter tscale is fixed after initialization" in capsys.readouterr().out
     inst.close()
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_etch_capacitance_ratio_static_deflection_and_charge(built, tmp_path, etch):
+    """VOLTS stepped onto the plate below at the lateral etch: the FMU's capacitance carries the etch's
+    ratio pc_bot ((200 um - 2 etch) / 200 um)^2 (netgen.model.process.capacitance_laws), so the static
+    deflection and the charge at 300 us match the parallel-plate equilibrium with k(etch) and the
+    etched area, and the deflection ngspice's .op of the .lib at the same etch (the same law).
+    Tolerances as test_gap_offset_static_deflection_and_charge: the laws' stated error times 10 (pk and
+    pc, exact quadratics here), twice the FMU's integration error, 1e-12 round-off and the transient's
+    remainder; against the .op also its Newton test at reltol 1e-9. Without the ratio the force would
+    be off by 4 etch / 200 um = 2e-3 at |etch| = 0.1 um, decades above the bound."""
+    model, lib, path = built
+    got = fp.etch_case(model, lib, path, etch, tmp_path)
+    assert got["tail"] < 1e-12
+    laws = 10 * law_error(model)
+    assert got["z"] <= laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
+    assert got["q"] <= laws + 2 * got["q_integ"] + 1e-12 + got["tail"], got
+    assert got["op"] <= fp.RELTOL + laws + 2 * got["z_integ"] + 1e-12 + got["tail"], got
+
+
+@pytest.fixture(scope="module")
+def combs(tmp_path_factory):
+    """examples/accelerometer_xyz with textbook combs and etch declared, its .lib and its FMU."""
+    return fp.comb_build(tmp_path_factory.mktemp("fmu_combs"))
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etch):
+    """fp.COMB_VOLTS on comb xp_t of accelerometer_xyz at the lateral etch: its fingers' terms read the
+    state shifted by shift / L etch (netgen.model.process.capacitance_laws: the gap 1.5 um + 2 etch).
+    The FMU's static balance (model exchange, q'' = 0 at rest) against ngspice's .op of the .lib at the
+    same etch instance parameter (the same law rendered): Newton's test at reltol fp.RELTOL bounds the
+    .op's relative state error, and the FMU's root is solved to 1e-15; a force error maps to the state
+    through the scaled balance's Jacobian, so the bound is cond(J) (RELTOL + 1e-12), 1e-12 the forces'
+    round-off (tests/emit/test_fmu.py), relative to the largest scaled deflection. The charge against
+    the MacroModel's own law at the FMU's state (netgen.model.process.capacitance_at, times the
+    voltage): 1e-12, the terms summed in another order (tests/emit/test_fmu.py). With the drawn
+    capacitances (the FMU before the law) the deflection was off by 0.24..0.35 at |etch| = 0.1 um."""
+    model, lib, path = combs
+    q, charge, cond = fp.comb_balance(model, path, etch)
+    scale = np.array([c.scale for c in model.coordinates])
+    op = fp.comb_op(model, lib, etch, tmp_path)
+    err = float(np.max(np.abs(q - op) / scale) / np.max(np.abs(q) / scale))
+    assert err <= cond * (fp.RELTOL + 1e-12), (err, cond)
+    k = [f.electrode for f in model.capacitances].index(fp.COMB)
+    ref = capacitance_at(model, (q / scale)[None, :], etch)[0, k] * fp.COMB_VOLTS
+    assert charge == pytest.approx(ref, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_etch_moves_the_combs_stops(combs, etch):
+    """Comb xp_t's finger stop follows the etch as its terms do (netgen.emit.process.stop_offsets: the
+    finger gap 1.5 um + 2 etch, process_cases.xyz_text): the FMU's q''_x / x along x alone (no voltage,
+    no force) 20 nm before and after the etched gap against its value at 0.1 um. The model's springs
+    are linear (no strain energy; asserted), so before contact the ratio is the springs' to round-off,
+    1e-12 (tests/emit/test_fmu.py's n eps); 20 nm into the stop its penalty (stiffness x penetration
+    20 nm / 1.5 um) is of the order of the spring's force: > 0.1 of it. With the drawn stop (the FMU
+    before the law) the contact began 200 nm early or late: one side or the other fails."""
+    model = combs[0]
+    assert model.nonlinear_energy_polynomial() is None
+    before, after = fp.comb_stop_onset(model, combs[2], etch, 1.5e-6, 20e-9)
+    assert before <= 1e-12, (before, after)
+    assert after > 0.1, (before, after)

@@ -32,45 +32,8 @@ from netgen.emit import osdi
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
+from tests.oracles.process_inertial import FREQ, OMEGA, PROCESS, SI, STRUCTURE, T_UM, TSCALES, V0, netlist, reference_ac
 from tests.oracles.testbench import using_ngspice
-
-STRUCTURE = """
-name = "gyp"
-description = "proof mass on crab legs over one plate, rate inputs"
-[conductor]
-kind = "proof_mass"
-length = "200 um"
-width = "200 um"
-thickness = "{t!r} um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "150 um"
-width = "2 um"
-thigh_length = "140 um"
-thigh_width = "2 um"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "2 um"
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-inertial = ["a_z", "w_x", "w_y", "w_z"]
-[sampling]
-levels = 3
-range = 0.3
-[electrostatics]
-fringe = "none"
-[damping]
-rayleigh = {{ alpha = 2000 }}
-"""
-PROCESS = '[process]\nparameters = ["tscale"]\n'
-T_UM, OMEGA, FREQ, V0 = 5.0, 1e3, 2e3, 1.0  # um, rad/s (w_z), Hz (the .ac point), rad/s (tilt_y rate)
-TSCALES = (0.9, 1.1)
-SI = 1e-3 / 1e-9  # x_tilt_x in mrad per f_tilt_y in nN*m (the .lib's port units) -> rad / (N*m)
 
 
 @pytest.fixture(scope="module")
@@ -87,31 +50,6 @@ def built(tmp_path_factory):
 
 def law_error(model) -> float:
     return model.process["tscale"]["max_rel_error"]
-
-
-def reference_ac(ref, w: float) -> complex:
-    """x_tilt_x / f_tilt_y (rad per N*m) of the rebuilt model at w_z = OMEGA, angular frequency w."""
-    m, d, k = (np.diag([getattr(c, a) for c in ref.coordinates]) for a in ("mass", "damping", "stiffness"))
-    g, s = np.array(ref.inertial.gyroscopic["z"]), np.array(ref.inertial.centrifugal["zz"])
-    a = k - w * w * m + 1j * w * d + 1j * w * OMEGA * g + OMEGA**2 * s
-    names = [c.name for c in ref.coordinates]
-    f = np.zeros(len(names), dtype=complex)
-    f[names.index("tilt_y")] = 1.0
-    return complex(np.linalg.solve(a, f)[names.index("tilt_x")])
-
-
-def netlist(include: str, tscale: float, control: str) -> str:
-    return f"""* Coriolis coupling at tscale {tscale}
-.include {include}
-X1 0 0 fz xz ftx xtx fty xty 0 0 0 wz gyp tscale={tscale!r}
-Vz fz 0 0
-Vtx ftx 0 0
-Vty fty 0 DC 0 AC 1
-Vw wz 0 DC {OMEGA!r}
-.ac lin 1 {FREQ!r} {FREQ!r}
-{control}
-.end
-"""
 
 
 @pytest.mark.parametrize("form", ("lib", "osdi"))

@@ -35,6 +35,7 @@ VALUES = {
     "etch": (-0.2e-6, 0.1e-6, 0.3e-6),
 }
 DG = (-1.4e-7, 0.5e-7, 1.4e-7)
+ETCH_CAPS = (-1e-7, 0.0, 1e-7)  # m: the etch's capacitance law's cases (within both structures' ranges)
 STOP, CAP, RELTOL = 300e-6, 2e-9, 1e-9  # run length, ngspice step cap and reltol
 GRID = np.linspace(0.0, STOP, 601)  # the co-simulation's communication points
 NG_STOP = 100e-6  # ngspice's run: 3.6..6.2 periods and 10 decay times (its 5e4 steps cost 1.6 s)
@@ -75,11 +76,17 @@ def step_response(m: float, k: float, b: float, t: np.ndarray) -> np.ndarray:
     return FORCE / k * (1.0 - decay * (np.cos(wd * t) + z / math.sqrt(1.0 - z**2) * np.sin(wd * t)))
 
 
-def equilibrium(dg: float) -> float:
-    """z (m) where the beams hold the plate's pull at VOLTS across the gap g + dg (the stable root)."""
-    _, k, _ = closed_form({})
-    gap = GAP + dg
-    return brentq(lambda z: k * z + 0.5 * EPS0 * AREA * VOLTS**2 / (gap + z) ** 2, -gap / 3.0, 0.0, xtol=1e-22)
+def equilibrium(dg: float, etch: float = 0.0) -> float:
+    """z (m) where the beams hold the plate's pull at VOLTS across the gap g + dg (the stable root),
+    at the lateral etch `etch`: k(etch) and the etched facing area (200 um - 2 etch)^2."""
+    _, k, _ = closed_form({"etch": etch})
+    gap, area = GAP + dg, etched_area(etch)
+    return brentq(lambda z: k * z + 0.5 * EPS0 * area * VOLTS**2 / (gap + z) ** 2, -gap / 3.0, 0.0, xtol=1e-22)
+
+
+def etched_area(etch: float) -> float:
+    """The plate's facing area: the mass's etched outline (the plate below is wider than the mass)."""
+    return (math.sqrt(AREA) - 2.0 * etch) ** 2
 
 
 def fmu_run(path, params: dict[str, float], inputs: dict[str, float], tolerance: float) -> np.ndarray:
@@ -181,6 +188,29 @@ def gap_case(model, lib, path, dg: float, folder) -> dict[str, float]:
     }
 
 
+def etch_case(model, lib, path, etch: float, folder) -> dict[str, float]:
+    """VOLTS stepped onto the plate below at the lateral etch `etch`: the static deflection (z) and the
+    charge (q) at STOP against the parallel-plate equilibrium with k(etch) and the etched area, relative;
+    the FMU's own integration error of each (z_integ, q_integ); the static deflection against
+    ngspice's .op of the .lib at the same etch (op)."""
+    params = {"etch": etch}
+    run = fmu_run(path, params, {"V_bot": VOLTS}, 1e-10)
+    fine = fmu_run(path, params, {"V_bot": VOLTS}, 1e-13)
+    z = equilibrium(0.0, etch)
+    charge = EPS0 * etched_area(etch) * VOLTS / (GAP + z)
+    z_op = ngspice_run(model, lib, params, {"bot": f"DC {VOLTS!r}"}, folder, op=True)
+    m, k, b = closed_form(params)
+    k_eff = k * (1.0 - 2.0 * abs(z) / (GAP + z))  # the electrostatic spring
+    return {
+        "tail": math.exp(-b / (2 * m) * STOP) / math.sqrt(1 - zeta(m, k_eff, b) ** 2),
+        "z": float(abs(run[-1, 0] - z) / abs(z)),
+        "z_integ": float(abs(run[-1, 0] - fine[-1, 0]) / abs(z)),
+        "q": float(abs(run[-1, 1] - charge) / charge),
+        "q_integ": float(abs(run[-1, 1] - fine[-1, 1]) / charge),
+        "op": float(abs(run[-1, 0] - z_op) / abs(z_op)),
+    }
+
+
 # ----------------------------------------------------------------------------- the squeeze film's temperature
 
 
@@ -237,3 +267,82 @@ X1 0 0 fz xz {model.name} temp={temp_c!r}
         "ratio": abs(b_fmu / c.damping / ratio - 1.0),
         "ngspice": abs(b_lib / b_fmu - 1.0),
     }
+
+
+# ----------------------------------------------------------------------------- the combs' etch shifts
+
+COMB, COMB_VOLTS = "xp_t", 5.0  # examples/accelerometer_xyz's comb pulling +x, and its voltage
+
+
+def comb_build(folder):
+    """(model, its .lib in `folder`, its FMU) of examples/accelerometer_xyz with the textbook combs and
+    etch declared (process_cases.xyz_text)."""
+    from .process_cases import xyz_text
+
+    model = build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    lib = folder / "xyz.lib"
+    lib.write_text(emit_ngspice.subcircuit(model))
+    return model, lib, fmu.built(model)
+
+
+def comb_balance(model, path, etch: float) -> tuple[np.ndarray, float, float]:
+    """(q (SI) where the FMU's accelerations vanish at rest, its charge of COMB, the condition number
+    of the scaled balance's Jacobian there) with COMB_VOLTS on COMB at `etch`: model exchange, a
+    Newton solve of q''(q) = 0 by scipy's hybrid method in scaled coordinates to 1e-15; the Jacobian
+    by central differences of 1e-6 (scaled)."""
+    from scipy.optimize import root
+
+    scale = np.array([c.scale for c in model.coordinates])
+    inst = fmu.Instance(path, cosim=False)
+    inst.set({"etch": etch, f"V_{COMB}": COMB_VOLTS})
+    inst.start()
+    names = [f"qdd_{c.name}" for c in model.coordinates]
+    norm = np.array([c.mass / (c.stiffness * c.scale) for c in model.coordinates])  # q'' to scaled x
+
+    def residual(xs: np.ndarray) -> np.ndarray:
+        x = np.zeros(inst.md.numberOfContinuousStates)  # at rest: q' = 0, film forces 0
+        x[: len(xs)] = xs * scale
+        inst.set_states(x)
+        return inst.get(names) * norm
+
+    sol = root(residual, np.zeros(len(scale)), method="hybr", tol=1e-15)
+    eye = np.eye(len(scale)) * 1e-6
+    jac = np.stack([(residual(sol.x + d) - residual(sol.x - d)) / 2e-6 for d in eye], axis=1)
+    residual(sol.x)
+    q = inst.get([f"Q_{COMB}"])[0]
+    inst.close()
+    return sol.x * scale, float(q), float(np.linalg.cond(jac))
+
+
+def comb_op(model, lib, etch: float, folder) -> np.ndarray:
+    """q (SI) of ngspice 39's .op of the .lib at `etch` with COMB_VOLTS on COMB (Newton at reltol
+    RELTOL, vntol 1e-15 V)."""
+    bench = Bench(model, lib, sources={COMB: f"DC {COMB_VOLTS!r}", model.plate: "DC 0"},
+                  options=f"reltol={RELTOL!r} vntol=1e-15 abstol=1e-20")  # fmt: skip
+    lines = bench.netlist(".op").split("\n")
+    net = "\n".join(f"{ln} etch={etch!r}" if ln.startswith("X1 ") else ln for ln in lines)
+    with using_ngspice("39"):
+        plot = run_ngspice(net, folder / "op")[0]
+    x = np.real(states(plot, model)[0]).reshape(-1, model.ncoords)[0]
+    return x * np.array([c.scale for c in model.coordinates])
+
+
+def comb_stop_onset(model, path, etch: float, gap: float, step: float) -> tuple[float, float]:
+    """The FMU's q''_x / x at rest along x alone (no voltage, no force) at x_c - step and x_c + step
+    around x_c = gap + 2 etch (the etched finger gap, process_cases.xyz_text), each against its value
+    at x = 0.1 um (the springs alone, far from any stop): relative deviations (before, after)."""
+    inst = fmu.Instance(path, cosim=False)
+    inst.set({"etch": etch})
+    inst.start()
+
+    def ratio(x: float) -> float:
+        s = np.zeros(inst.md.numberOfContinuousStates)
+        s[0] = x
+        inst.set_states(s)
+        return float(inst.get(["qdd_x"])[0]) / x
+
+    free = ratio(1e-7)
+    xc = gap + 2.0 * etch
+    before, after = ratio(xc - step) / free - 1.0, ratio(xc + step) / free - 1.0
+    inst.close()
+    return abs(before), abs(after)
