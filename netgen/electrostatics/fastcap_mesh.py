@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.shapes import AnnularSector, Array, DiskPlate, Electrode, Plate, Rectangle, RectPlate, corner_radius
+from ..structure import grid_count
 from .bem_mesh import Sizes, graded
 
 ASPECT = 4.0  # longest panel side over its radial (or shortest) side
@@ -107,9 +108,9 @@ def _rim_band(outline: Array, thickness: float, sizes: Sizes) -> Panels:
 
 
 def hole_edges(lo: float, hi: float, hole: float, pitch: float) -> Array:
-    """The holes' edges (n, 2) along one side lo..hi: a centred row of floor(length / pitch) cells
-    (as ProofMass.holes counts them, without its floating-point floor), a hole centred in each."""
-    n = math.floor((hi - lo) / pitch * (1.0 + 1e-9))
+    """The holes' edges (n, 2) along one side lo..hi: a centred row of grid_count(length, pitch)
+    cells (the count ProofMass.holes, its mass and inertia use), a hole centred in each."""
+    n = grid_count(hi - lo, pitch)
     centres = 0.5 * (lo + hi) + (np.arange(n) - (n - 1) / 2.0) * pitch
     return np.column_stack([centres - hole / 2.0, centres + hole / 2.0])
 

@@ -94,3 +94,47 @@ class CombShape(CombElectrode):
         """Farthest point of the fingers from the origin (m): the small-angle report's lever."""
         ends = np.concatenate([self.finger_tips(), self.finger_tips() - self.engage * self.length])
         return float(np.max(np.hypot(ends[:, 0], ends[:, 1])))
+
+
+@dataclass(frozen=True)
+class Finger:
+    """One moving finger as a box hanging on the proof mass: its rectangle [x0, x1] x [y0, y1] at
+    rest (m) and its thickness (m), the mid-plane the mass's."""
+
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+    thickness: float
+
+    @property
+    def area(self) -> float:
+        return (self.x1 - self.x0) * (self.y1 - self.y0)
+
+
+def moving_fingers(electrode_sets, outline: tuple[float, float, float, float] | None = None) -> list[Finger]:
+    """The distinct moving fingers of the structure's combs: each comb's fingers from root to tip
+    (CombShape.finger_tips, `length` back along -engage, `width` across), cut along the finger at the
+    mass's `outline` (x0, x1, y0, y1; a root drawn inside the mass is the mass's own area) and dropped
+    if nothing is left; a finger two combs face (a differential pair on its two sidewalls: the same
+    tips, length and width) counted once."""
+    seen: dict[tuple, Finger] = {}
+    for e in electrode_sets:
+        if getattr(e, "kind", "") not in ("lateral_comb", "transverse_comb"):
+            continue
+        shape = CombShape.of(e)
+        half = shape.across * shape.width / 2
+        k = 0 if shape.orientation == "x" else 1
+        for tip in shape.finger_tips():
+            root = tip - shape.engage * shape.length
+            lo, hi = sorted((tip[k], root[k]))
+            if outline is not None:  # the part beyond the mass's edge on the tip's side
+                edge_lo, edge_hi = outline[2 * k], outline[2 * k + 1]
+                lo, hi = (max(lo, edge_hi), hi) if shape.engage[k] > 0 else (lo, min(hi, edge_lo))
+            if hi <= lo:
+                continue
+            a, b = sorted((tip[1 - k] - half[1 - k], tip[1 - k] + half[1 - k]))
+            box = (lo, hi, a, b) if k == 0 else (a, b, lo, hi)
+            f = Finger(float(box[0]), float(box[1]), float(box[2]), float(box[3]), float(shape.thickness))
+            seen.setdefault(tuple(round(v / 1e-12) for v in (f.x0, f.x1, f.y0, f.y1, f.thickness)), f)
+    return list(seen.values())

@@ -7,10 +7,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from ..geometry.combs import moving_fingers
 from ..geometry.layout import plate_outline
+from ..geometry.shapes import RectPlate
 from ..structure import Structure
 
 # rigid-body coordinate -> (kind, SI unit); every other coordinate is an eigenmode in m
@@ -99,15 +102,38 @@ class Mechanics:
     strain_energy: StrainEnergy | None = None
 
 
+BodyPart = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
+
+
+def mass_rule(s: Structure, order: int = 96) -> list[BodyPart]:
+    """The body as parts (x, y, Gauss weights, areal density kg/m^2, thickness): the plate first (a
+    perforated proof mass's areal density carries its solid fraction, `fill_factor`), then each
+    moving comb finger hanging on it (netgen.geometry.combs.moving_fingers: 4 x 8 Gauss points)."""
+    c: Any = s.conductor
+    x, y, w = plate_outline(s).area_rule(order)
+    parts = [(x, y, w, c.density * c.thickness * getattr(c, "fill_factor", 1.0), c.thickness)]
+    fingers = moving_fingers(s.electrode_sets, c.outline()) if c.kind == "proof_mass" else []
+    for f in fingers:
+        fx, fy, fw = RectPlate(f.x0, f.x1, f.y0, f.y1).area_rule(4)
+        parts.append((fx, fy, fw, c.density * f.thickness, f.thickness))
+    return parts
+
+
+def off_plate(names: list[str]) -> np.ndarray:
+    """Per coordinate 1 for a rigid one, 0 for an internal mode: the modes' masses are the plate's
+    (netgen.mechanics.rect_plate), so the fingers enter only the rigid coordinates' inertial terms."""
+    return np.array([1.0 if n in RIGID else 0.0 for n in names])
+
+
 def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
-    """Inertial participation G_v = rho h int phi_v dA over the plate (Gauss quadrature): the
-    generalized force per unit frame acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate
-    modes and tilts about the centre, zero by symmetry up to round-off) are set to exactly 0. A
-    perforated proof mass's areal density carries its solid fraction (`fill_factor`)."""
-    plate = plate_outline(s)
-    x, y, weights = plate.area_rule(order)
-    phi = m.basis(x, y)  # (points, ncoords)
-    rho_h = s.conductor.density * s.conductor.thickness * getattr(s.conductor, "fill_factor", 1.0)
-    gam = rho_h * (weights @ phi)
-    total = rho_h * plate.area()
+    """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and, for the
+    rigid coordinates, the moving fingers; Gauss quadrature): the generalized force per unit frame
+    acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate modes and tilts about the centre,
+    zero by symmetry up to round-off) are set to exactly 0."""
+    parts = mass_rule(s, order)
+    gam, total = np.zeros(len(m.names)), 0.0
+    for k, (x, y, w, rho_h, _) in enumerate(parts):
+        phi = m.basis(x, y) * (1.0 if k == 0 else off_plate(m.names))  # (points, ncoords)
+        gam = gam + rho_h * (w @ phi)
+        total += rho_h * float(np.sum(w))
     return [0.0 if abs(v) < 1e-6 * math.sqrt(mv * total) else float(v) for v, mv in zip(gam, m.masses)]

@@ -31,9 +31,8 @@ import math
 
 import numpy as np
 
-from ..geometry.layout import plate_outline
 from ..structure import Structure
-from .base import RIGID, Mechanics
+from .base import RIGID, Mechanics, mass_rule, off_plate
 
 AXES = "xyz"
 RATE_PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the centrifugal products Omega_k Omega_l, k <= l
@@ -66,15 +65,19 @@ def fields(names: list[str], basis: np.ndarray, x: np.ndarray, y: np.ndarray) ->
 
 def moments(s: Structure, m: Mechanics, order: int = 96) -> tuple[np.ndarray, np.ndarray, float]:
     """W[a, b, i, j] = int rho Phi_a,i Phi_b,j dV and P[a, i] = int rho Phi_a,i dV over the body
-    (a, b: the coordinates and r0 last), and the body's mass."""
-    plate = plate_outline(s)
-    x, y, w = plate.area_rule(order)
-    h = s.conductor.thickness
-    rho_h = s.conductor.density * h * getattr(s.conductor, "fill_factor", 1.0)
-    a, b = fields(m.names, m.basis(x, y), x, y)
-    wt = rho_h * w
-    big_w = np.einsum("p,pai,pbj->abij", wt, a, a) + h * h / 12.0 * np.einsum("p,pai,pbj->abij", wt, b, b)
-    return big_w, np.einsum("p,pai->ai", wt, a), float(np.sum(wt))
+    (a, b: the coordinates and r0 last; the plate and the moving fingers, netgen.mechanics.base.mass_rule:
+    the internal modes over the plate only, as their modal masses), and the body's mass."""
+    n = len(m.names)
+    big_w, p, total = np.zeros((n + 1, n + 1, 3, 3)), np.zeros((n + 1, 3)), 0.0
+    for k, (x, y, w, rho_h, h) in enumerate(mass_rule(s, order)):
+        a, b = fields(m.names, m.basis(x, y), x, y)
+        if k:  # a finger: no internal-mode field on it
+            keep = np.append(off_plate(m.names), 1.0)[None, :, None]
+            a, b = a * keep, b * keep
+        wt = rho_h * w
+        big_w = big_w + np.einsum("p,pai,pbj->abij", wt, a, a) + h * h / 12.0 * np.einsum("p,pai,pbj->abij", wt, b, b)
+        p, total = p + np.einsum("p,pai->ai", wt, a), total + float(np.sum(wt))
+    return big_w, p, total
 
 
 def terms(s: Structure, m: Mechanics, inputs: tuple[str, ...]) -> dict:

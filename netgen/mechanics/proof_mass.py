@@ -13,10 +13,13 @@ coupling of the modes to z and the tilts is dropped (its size is in the report).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from ..core.errors import StructureError
+from ..geometry.combs import Finger, moving_fingers
 from ..structure import Structure, mode_name
 from . import flexures
 from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, StrainEnergy, rigid_field
@@ -37,13 +40,14 @@ def second_moments(c) -> tuple[float, float]:
     return ix, iy
 
 
-def inertia(c) -> dict[str, float]:
-    """Mass (kg) and moments of inertia about the centre (kg m^2) per rigid-body coordinate;
-    the tilts include the thickness term m t^2 / 12."""
+def inertia(c, fingers: Sequence[Finger] = ()) -> dict[str, float]:
+    """Mass (kg) and moments of inertia about the centre (kg m^2) per rigid-body coordinate of the
+    perforated rectangle and the moving comb fingers on it (finger_inertia); the tilts include the
+    thickness term m t^2 / 12."""
     rho_t = c.density * c.thickness
     ix, iy = second_moments(c)
     m = c.mass
-    return {
+    body = {
         "x": m,
         "y": m,
         "z": m,
@@ -51,6 +55,25 @@ def inertia(c) -> dict[str, float]:
         "tilt_x": rho_t * iy + m * c.thickness**2 / 12,
         "tilt_y": rho_t * ix + m * c.thickness**2 / 12,
     }
+    extra = finger_inertia(c.density, fingers)
+    return {k: v + extra[k] for k, v in body.items()}
+
+
+def finger_inertia(density: float, fingers: Sequence[Finger]) -> dict[str, float]:
+    """The moving fingers' mass rho t w L each and their inertias about the mass centre (each box's
+    own (a^2 + b^2) / 12 plus the parallel-axis term of its centre; the tilts with t^2 / 12)."""
+    out = dict.fromkeys(RIGID, 0.0)
+    for f in fingers:
+        m = density * f.thickness * f.area
+        a, b = f.x1 - f.x0, f.y1 - f.y0
+        cx, cy = (f.x0 + f.x1) / 2, (f.y0 + f.y1) / 2
+        own_x, own_y = m * (a * a / 12 + cx * cx), m * (b * b / 12 + cy * cy)  # int x^2 dm, int y^2 dm
+        for k in ("x", "y", "z"):
+            out[k] += m
+        out["rot_z"] += own_x + own_y
+        out["tilt_x"] += own_y + m * f.thickness**2 / 12
+        out["tilt_y"] += own_x + m * f.thickness**2 / 12
+    return out
 
 
 def stiffness(c) -> tuple[dict[str, float], dict]:
@@ -164,9 +187,10 @@ def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
 def mechanics(s: Structure) -> Mechanics:
     """The proof mass's rigid-body coordinates with their inertias and flexure springs, and its
     first internal plate modes when [coordinates] modes asks for them."""
-    c = s.conductor
+    c: Any = s.conductor
     rigid = list(s.coordinates.rigid)
-    inert, (springs, spring_report) = inertia(c), stiffness(c)
+    fingers = moving_fingers(s.electrode_sets, c.outline())
+    inert, (springs, spring_report) = inertia(c, fingers), stiffness(c)
     count = s.coordinates.modes
     modes = PLATE_MODES[c.outline_shape](c, count) if count else None
     attached = flexure_springs(c, modes, rigid) if modes else None
@@ -177,7 +201,9 @@ def mechanics(s: Structure) -> Mechanics:
     labels = list(modes.labels) if modes else []
     report = {
         "kind": "proof_mass",
-        "mass_kg": c.mass,
+        "mass_kg": inert["x"],
+        "plate_mass_kg": c.mass,
+        "moving_fingers": len(fingers),
         "holes": list(c.holes()),
         "inertia_kg_m2": {k: v for k, v in inert.items() if k in ("rot_z", "tilt_x", "tilt_y")},
         "flexure": spring_report,

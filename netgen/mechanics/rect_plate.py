@@ -31,6 +31,7 @@ from scipy.sparse.linalg import eigsh
 from skfem import CellBasis, MeshQuad
 from skfem.element import ElementQuadBFS
 
+from ..structure import grid_count
 from .free_disk import bending_form, mass_form
 
 BOUNDARIES = ("free", "clamped", "simply_supported")
@@ -99,7 +100,7 @@ def plate_basis(length: float, width: float, elements: int, holes: tuple[float, 
     width, length = width / length, 1.0
     if hole:
         per = elements
-        nx, ny = int(length // pitch), int(width // pitch)
+        nx, ny = grid_count(length, pitch), grid_count(width, pitch)
         xs = _hole_lines(length, nx, pitch, hole, per)
         ys = _hole_lines(width, ny, pitch, hole, per)
         mesh = MeshQuad.init_tensor(xs, ys)

@@ -4,6 +4,7 @@
 from ..core.errors import StructureError
 from .conductors import CONDUCTORS, Beam, FreeDisk, Piston, ProofMass
 from .electrodes import CombElectrode, ElectrodeSet, RectElectrode
+from .holes import grid_count
 from .parse import load_structure, parse_structure
 from .schema import (
     ALL_RIGID,
@@ -44,6 +45,7 @@ __all__ = [
     "Structure",
     "StructureError",
     "load_structure",
+    "grid_count",
     "mode_name",
     "parse_structure",
 ]

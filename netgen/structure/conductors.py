@@ -15,6 +15,7 @@ from typing import ClassVar
 from ..core.reader import Reader, check_keys, did_you_mean, flag, integer, nonnegative, positive, quantity, table
 from .electrodes import check_ring_overlaps, plates_and_combs, rectangles, ring_sets
 from .flexures import Flexure, read_flexure
+from .holes import grid_count
 from .schema import (
     ALL_RIGID,
     INERTIAL_INPUTS,
@@ -448,7 +449,7 @@ class ProofMass(Suspended):
             return 0, 0
         if self.hole_grid is not None:
             return self.hole_grid
-        return int(self.length // self.hole_pitch), int(self.width // self.hole_pitch)
+        return grid_count(self.length, self.hole_pitch), grid_count(self.width, self.hole_pitch)
 
     @property
     def mass(self) -> float:

@@ -1,14 +1,14 @@
 """The inertial inputs of [coordinates] inertial (netgen.mechanics.inertial, netgen.model.inertial):
 frame acceleration a_x, a_y, a_z (a_z = the port a_in) and rotation rate w_x, w_y, w_z, against
 independent references:
-- static: a proof mass deflects -m a / k along each axis (m = rho t L W of the structure, k the
+- static: a proof mass deflects -m a / k along each axis (m = rho t L W of the structure plus its comb fingers, k the
   coordinate's spring) in ngspice 39 and 46 (.op of a linear circuit: exact up to the solver's
   LU round-off, so 1e-6) and in VACASK (a settled transient: 1e-3, see its docstring);
 - Coriolis: driven along x at its resonance under a constant Omega_z, the y amplitude equals
   2 m Omega X w / |k_y - m Omega^2 - m w^2 + i w b_y| (steady state of m y'' + b y' + k y = -2 m Omega x')
   within 1 % in an ngspice transient;
 - conservation: with constant Omega and no damping the Jacobi integral T2 - T0 + V (T0 from the
-  closed form 1/2 m |Omega x d|^2 of a translating body, not from the model's matrices) of the
+  closed form 1/2 m |Omega x (d + r_c)|^2 of a translating body, not from the model's matrices) of the
   MacroModel's own equations stays within 1e-6 of its start over 10^4 periods;
 - rigid rotation: the tilts of a thick free disk in a frame spinning about z follow a free rigid
   body's Euler equations (integrated in the inertial frame) within 1 %.
@@ -33,6 +33,11 @@ from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT, Bench
 
 RHO, T, SIDE = 2330.0, 2e-6, 200e-6  # the proof mass below: density, thickness, side
+# its rigid mass by hand: the plate and the 20 moving fingers of its two combs (2 x 40 um each, from
+# the edge at 100 um to the tip at centre 125 + overlap 30 / 2 = 140 um)
+MASS = RHO * T * (SIDE * SIDE + 20 * 2e-6 * 40e-6)
+# and its centre of mass: comb xp's 10 fingers centred at y = 120 um, yp's at x = 120 um
+CENTRE = np.array([1.0, 1.0, 0.0]) * 10 * RHO * T * 2e-6 * 40e-6 * 120e-6 / MASS
 COMB = """
 [[electrodes]]
 name = "{name}"
@@ -107,7 +112,7 @@ AXIS = {"a_x": "x", "a_y": "y", "a_in": "z"}
 
 def expected_static(model: MacroModel) -> dict[str, float]:
     """-m a / k per axis, m from the structure's dimensions (no holes)."""
-    mass = RHO * T * SIDE * SIDE
+    mass = MASS
     k = {c.name: c.stiffness for c in model.coordinates}
     return {AXIS[p]: -mass * a / k[AXIS[p]] for p, a in ACCEL.items()}
 
@@ -155,7 +160,7 @@ def test_coriolis_amplitude_in_ngspice(proof_mass, ngspice_version, tmp_path):
     sinusoid, so 1 % leaves margin for ngspice's step control."""
     cx = next(c for c in proof_mass.coordinates if c.name == "x")
     cy = next(c for c in proof_mass.coordinates if c.name == "y")
-    omega, mass = 2000.0, RHO * T * SIDE * SIDE
+    omega, mass = 2000.0, MASS
     w = math.sqrt(cx.stiffness / cx.mass)
     period = 2 * math.pi / w
     stop = 30 * 2 * 5 / w + 10 * period
@@ -184,7 +189,8 @@ def test_jacobi_integral_is_conserved(proof_mass):
     """MacroModel.accelerations with Omega = (3, -2, 5) krad/s, no damping, electrodes at 0 V: the
     model is affine in (x, x') there, so its matrix is read from accelerations() (and checked at
     random points to 1e-12), then integrated with DOP853 (rtol 1e-10) over 10^4 periods of x
-    (0.54 * 10^4 of z). h = 1/2 q'^T M q' + 1/2 q^T K q - 1/2 m |Omega x q|^2 for the translations q.
+    (0.54 * 10^4 of z). h = 1/2 q'^T M q' + 1/2 q^T K q - 1/2 m |Omega x (q + r_c)|^2 for the translations
+    q (r_c: the centre of mass by hand, off the origin by the combs' fingers, CENTRE).
     The integrator's own drift, measured on this model, is 1.8e-8 over 10^3 periods at rtol 1e-10
     (growing linearly: about 2e-7 over 10^4) and 9e-10 over 10^4 periods at rtol 1e-12, so a model
     that broke the law (a symmetric G, an asymmetric S) would show at O(1); 1e-6 leaves 5x margin."""
@@ -221,7 +227,7 @@ def test_jacobi_integral_is_conserved(proof_mass):
     omega = np.array([rates["w_x"], rates["w_y"], rates["w_z"]])
     q, qd = sol.y[:n].T * s, sol.y[n:].T * s
     h = 0.5 * np.sum(mass * qd * qd, axis=1) + 0.5 * np.sum(k * q * q, axis=1)
-    h -= 0.5 * RHO * T * SIDE * SIDE * np.sum(np.cross(omega, q) ** 2, axis=1)
+    h -= 0.5 * MASS * np.sum(np.cross(omega, q + CENTRE) ** 2, axis=1)
     assert np.max(np.abs(h - h[0])) <= 1e-6 * abs(h[0])
 
 
@@ -321,7 +327,7 @@ def test_model_json_round_trip_and_old_json(proof_mass, tmp_path):
 
 def test_gyroscopic_matrices_are_antisymmetric_and_proof_mass_values(proof_mass):
     """G_z[x][y] = -2 m (Coriolis force +2 m Omega_z y' on x), antisymmetric; P along x = m."""
-    mass = RHO * T * SIDE * SIDE
+    mass = MASS
     names = [c.name for c in proof_mass.coordinates]
     g = np.array(proof_mass.inertial.gyroscopic["z"])
     assert g[names.index("x"), names.index("y")] == pytest.approx(-2 * mass, rel=1e-12)

@@ -9,7 +9,7 @@ in-plane motions), so its phasor against the simulated x phasor X is exactly
     Y / X = -(k_xy + 2 i m Omega w) / (k_y - m Omega^2 - m w^2 + i w b_y):
 
 the Coriolis part in phase with the drive velocity, the quadrature part with the drive displacement.
-Both are checked at once (m = rho t (L W - holes), k, b from the model's coordinates: the mass from
+Both are checked at once (m = rho t (L W - holes + fingers), k, b from the model's coordinates: the mass from
 the structure's dimensions, independently of the model's matrices). The example's Q = 2000 is
 lowered to 20 so the transient settles in a short run.
 
@@ -41,7 +41,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT, Bench
-from tests.mechanics.test_frame_inputs import PROOF_MASS, RHO, SIDE, T, sine_amplitude
+from tests.mechanics.test_frame_inputs import MASS, PROOF_MASS, sine_amplitude
 
 EXAMPLE = ROOT / "examples" / "gyroscope_z.toml"
 OMEGA = 10.0  # rad/s: the Coriolis part 2 m Omega w = 7.9e-3 N/m, k_xy = 5e-3 N/m: both of the same order
@@ -62,8 +62,10 @@ def gyro() -> MacroModel:
 
 
 def mass_of_example() -> float:
-    """rho t (L W - n^2 s^2): the 500 um, 10 um thick mass with 50 x 50 holes of 4 um."""
-    return 2330.0 * 10e-6 * (500e-6**2 - 50 * 50 * (4e-6) ** 2)
+    """rho t (L W - n^2 s^2 + N w_f L_f): the 500 um, 10 um thick mass with 50 x 50 holes of 4 um and
+    its 80 moving comb fingers (4 lateral combs of 16, two differential transverse pairs of 8 sharing
+    theirs), 2 um wide, each 30 um beyond the 250 um edge (tip at centre 270 + overlap 20 / 2 um)."""
+    return 2330.0 * 10e-6 * (500e-6**2 - 50 * 50 * (4e-6) ** 2 + 80 * 2e-6 * 30e-6)
 
 
 def coord(model: MacroModel, name: str):
@@ -155,7 +157,7 @@ def test_out_of_plane_coriolis_in_ngspice(proof_mass_xyz, ngspice_version, tmp_p
     last = t > stop - PERIODS * period
     amp_d = sine_amplitude(t[last], np.asarray(plot[f"v(x1.xs_{drive})"])[last] * cd.scale, w)
     amp_z = sine_amplitude(t[last], np.asarray(plot["v(x1.xs_z)"])[last] * cz.scale, w)
-    mass = RHO * T * SIDE * SIDE
+    mass = MASS
     want = 2 * mass * omega * w * amp_d / abs(cz.stiffness - mass * omega**2 - mass * w**2 + 1j * w * cz.damping)
     assert amp_z == pytest.approx(want, rel=0.01)
 

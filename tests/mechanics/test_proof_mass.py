@@ -136,6 +136,19 @@ comb_model = "textbook"
 """
 
 
+def body_by_hand() -> tuple[float, float]:
+    """Mass and I_zz of STRUCTURE's body: the 300 x 200 x 2 um plate, m (L^2 + W^2) / 12, and comb
+    xs's 10 moving fingers (2 x 40 um, pitch 3 (w + g) = 12 um, centres at y = 130 + 25 / 2 - 40 / 2
+    = 122.5 um), each m_f (a^2 + b^2) / 12 + m_f r^2 (parallel axis)."""
+    m = RHO * 300e-6 * 200e-6 * 2e-6
+    i_zz = m * ((300e-6) ** 2 + (200e-6) ** 2) / 12
+    m_f = RHO * 2e-6 * 40e-6 * 2e-6
+    for k in range(10):
+        cx, cy = (k - 4.5) * 12e-6, 122.5e-6
+        i_zz += m_f * (((2e-6) ** 2 + (40e-6) ** 2) / 12 + cx * cx + cy * cy)
+    return m + 10 * m_f, i_zz
+
+
 def ring_down(model, lib: Path, workdir: Path, coordinate: str, freq: float, periods: int = 12) -> float:
     """Frequency (Hz) of the free ring-down of one coordinate released at t = 10 ns from the static
     deflection of a force (0.05 of its touching amplitude), from the mean of the zero-crossing periods."""
@@ -160,7 +173,7 @@ def ring_down(model, lib: Path, workdir: Path, coordinate: str, freq: float, per
 def test_in_plane_modes_ring_down_at_sqrt_k_over_m(tmp_path, release, monkeypatch):
     """x (beams bent across), y (beams stretched along) and rot_z ring down in ngspice at
     sqrt(k/m) within 0.1 %: k from the clamped-guided closed forms 4 E t w^3 / L^3 and
-    4 E w t / L, rot_z against the model's k_rot / I_zz with I_zz = m (L^2 + W^2) / 12 by hand."""
+    4 E w t / L, rot_z against the model's k_rot / I_zz; m and I_zz by hand (body_by_hand)."""
     from netgen.sim import ngspice as sim_ngspice
     from tests.fixtures import NGSPICE
 
@@ -168,13 +181,13 @@ def test_in_plane_modes_ring_down_at_sqrt_k_over_m(tmp_path, release, monkeypatc
     b = build(parse_structure(STRUCTURE, "pm.toml"))
     lib = tmp_path / "pm.lib"
     lib.write_text(emit_ngspice.subcircuit(b.model))
-    m = RHO * 300e-6 * 200e-6 * 2e-6
+    m, i_zz = body_by_hand()
     k = {"x": 4 * E * 2e-6 * (2e-6) ** 3 / (100e-6) ** 3, "y": 4 * E * 2e-6 * 2e-6 / 100e-6}
     rot = next(c for c in b.model.coordinates if c.name == "rot_z")
     expected = {
         "x": math.sqrt(k["x"] / m),
         "y": math.sqrt(k["y"] / m),
-        "rot_z": math.sqrt(rot.stiffness / (m * ((300e-6) ** 2 + (200e-6) ** 2) / 12)),
+        "rot_z": math.sqrt(rot.stiffness / i_zz),
     }
     for name, w in expected.items():
         f = ring_down(b.model, lib, tmp_path, name, w / (2 * math.pi))
@@ -235,7 +248,7 @@ def test_squeeze_film_of_the_perforated_mass(hole):
 
 def test_free_body_accelerates_as_newton_says(tmp_path):
     """type = "none": a free proof mass, no springs; a constant force on f_x in ngspice moves it by
-    F t^2 / (2 m) (m by hand) within 0.1 % over 20 us, and nothing else moves."""
+    F t^2 / (2 m) (m by hand: plate and moving fingers) within 0.1 % over 20 us, and nothing else moves."""
     import re
 
     text = re.sub(r"\[conductor.flexure\][^\[]*", '[conductor.flexure]\ntype = "none"\n', STRUCTURE)
@@ -243,7 +256,7 @@ def test_free_body_accelerates_as_newton_says(tmp_path):
     assert all(c.stiffness == 0.0 for c in model.coordinates)
     lib = tmp_path / "free.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
-    m, force, stop = RHO * 300e-6 * 200e-6 * 2e-6, 0.1e-6, 20e-6  # kg, N (0.1 V on f_x), s
+    m, force, stop = body_by_hand()[0], 0.1e-6, 20e-6  # kg, N (0.1 V on f_x), s
     bench = Bench(model, lib, sources={"f_x": "DC 0.1", "plate": "0"}, options="reltol=1e-7")
     plot = run_ngspice(bench.netlist(f".tran 20n {stop!r} 0 20n uic"), tmp_path)[0]
     x = plot["x1.xs_x"][-1] * model.coordinates[0].scale

@@ -1,0 +1,140 @@
+"""The proof mass's rigid body by hand: the etch-hole count where floating-point `//` falls one
+short (400e-6 // 10e-6 is 39), shared by the mass, fill factor, etched copy and FastCap mesh
+(netgen.structure.holes.grid_count); and the moving comb fingers' mass and inertia (netgen.mechanics
+.proof_mass.finger_inertia) against a finger-by-finger parallel-axis sum written out here."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from netgen.electrostatics.fastcap_mesh import hole_edges
+from netgen.mechanics import mechanics
+from netgen.mechanics.base import participation
+from netgen.model.process import etched
+from netgen.structure import parse_structure
+
+RHO, T = 2330.0, 2e-6
+
+BASE = """
+name = "mc"
+[conductor]
+kind = "proof_mass"
+length = "400 um"
+width = "400 um"
+thickness = "2 um"
+density = "2330 kg/m^3"
+hole = "4 um"
+hole_pitch = "0.01 mm"
+[conductor.flexure]
+type = "clamped_guided"
+axis = "y"
+length = "100 um"
+width = "2 um"
+[[electrodes]]
+name = "zs"
+side = "below"
+gap = "2 um"
+x = ["-50 um", "50 um"]
+y = ["-50 um", "50 um"]
+[coordinates]
+rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]
+[electrostatics]
+comb_model = "textbook"
+"""
+
+COMBS = """
+[[electrodes]]
+name = "tp"
+kind = "transverse_comb"
+orientation = "y"
+fingers = 5
+width = "2 um"
+gap = "1.5 um"
+length = "40 um"
+overlap = "30 um"
+side = "+"
+center = ["30 um", "225 um"]
+[[electrodes]]
+name = "tn"
+kind = "transverse_comb"
+orientation = "y"
+fingers = 5
+width = "2 um"
+gap = "1.5 um"
+length = "40 um"
+overlap = "30 um"
+side = "-"
+center = ["30 um", "225 um"]
+[[electrodes]]
+name = "lr"
+kind = "lateral_comb"
+orientation = "x"
+fingers = 4
+width = "3 um"
+gap = "2 um"
+length = "50 um"
+overlap = "20 um"
+side = "+"
+pitch = "10 um"
+center = ["230 um", "-40 um"]
+"""
+
+
+def structure(extra: str = ""):
+    return parse_structure(BASE.replace("[coordinates]", extra + "[coordinates]"), "mc.toml")
+
+
+def test_hole_count_where_the_pitch_divides_the_side():
+    """400 um / 0.01 mm (parsed 3.9999999999999996e-4 / 1e-5, whose `//` is 39.0): 40 x 40 holes, mass
+    rho t (L W - 1600 h^2) to round-off; the fill factor, the etched copy's grid and the FastCap mesh's
+    rows count the same 40."""
+    c = structure().conductor
+    assert c.length // c.hole_pitch == 39.0  # the floating-point floor this guards against
+    assert c.holes() == (40, 40)
+    assert c.mass == pytest.approx(RHO * T * (400e-6**2 - 1600 * 4e-6**2), rel=1e-12)
+    assert c.fill_factor == pytest.approx(1 - 1600 * 16 / 160000, rel=1e-12)
+    assert etched(structure(), 0.1e-6).conductor.holes() == (40, 40)
+    assert len(hole_edges(-c.length / 2, c.length / 2, c.hole, c.hole_pitch)) == 40
+
+
+def test_moving_fingers_mass_and_inertia_by_hand():
+    """A differential transverse pair (tp, tn: the same 5 fingers, faced on either side: counted
+    once) at the top edge and a lateral comb whose roots are drawn 10 um inside the right edge (only
+    the 40 um beyond it is finger): mass and the six inertias against the plate's (holes by hand,
+    their second moments by the grid sum) plus each finger box's m (a^2 + b^2) / 12 + m r^2 (parallel
+    axis), to round-off (1e-9); the vertical participation is the whole mass."""
+    plain, combed = structure(), structure(COMBS)
+    m0 = mechanics(plain)
+    boxes = []  # (centre x, centre y, size along x, size along y) by hand from COMBS
+    for k in range(5):  # pitch 3 (w + g) = 10.5 um, y from the edge 200 um to the tip 240 um
+        boxes.append((30e-6 + (k - 2) * 10.5e-6, 220e-6, 2e-6, 40e-6))
+    for k in range(4):  # tips at 240 um, roots at 190 um: 200..240 um beyond the edge
+        boxes.append((220e-6, -40e-6 + (k - 1.5) * 10e-6, 40e-6, 3e-6))
+    add = dict.fromkeys(m0.names, 0.0)
+    for cx, cy, a, b in boxes:
+        m = RHO * T * a * b
+        for n in ("x", "y", "z"):
+            add[n] += m
+        add["rot_z"] += m * ((a * a + b * b) / 12 + cx * cx + cy * cy)
+        add["tilt_x"] += m * (b * b / 12 + cy * cy + T * T / 12)
+        add["tilt_y"] += m * (a * a / 12 + cx * cx + T * T / 12)
+    m1 = mechanics(combed)
+    assert m1.report["moving_fingers"] == 9
+    for n, base, new in zip(m0.names, m0.masses, m1.masses):
+        assert new == pytest.approx(base + add[n], rel=1e-9), n
+    assert m0.masses[0] == pytest.approx(RHO * T * (400e-6**2 - 1600 * 4e-6**2), rel=1e-12)
+    iz = m1.names.index("z")
+    assert participation(combed, m1)[iz] == pytest.approx(m1.masses[iz], rel=1e-9)
+
+
+def test_etched_fingers_narrow_and_follow_the_edge():
+    """Under an etch bias e the fingers are w - 2 e wide and keep their length beyond the receding
+    edge (root and tip recede together, netgen.model.process.etched_comb): the finger mass by hand."""
+    e = 0.2e-6
+    plain, combed = etched(structure(), e), etched(structure(COMBS), e)
+    extra = mechanics(combed).masses[0] - mechanics(plain).masses[0]
+    hand = RHO * T * (5 * (2e-6 - 2 * e) * 40e-6 + 4 * (3e-6 - 2 * e) * 40e-6)
+    assert extra == pytest.approx(hand, rel=1e-9)
+    assert dataclasses.asdict(combed.conductor)["hole_grid"] == (40, 40)
