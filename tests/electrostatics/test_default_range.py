@@ -98,7 +98,7 @@ def test_each_coordinate_samples_its_own_range(cantilever_example):
     """The design and the held-out points fill each coordinate's own half-width; the JSON names them."""
     b = cantilever_example
     half = np.array([0.6, 0.1, 0.05])
-    assert np.abs(b.grid.x).max(axis=0) == pytest.approx(half, rel=1e-12)
+    assert np.abs(b.grid.x).max(axis=0) == pytest.approx(half, rel=1e-12, abs=0)
     assert np.all(np.abs(b.holdout.x) <= half)
     assert np.abs(b.holdout.x).max(axis=0) == pytest.approx(half, rel=0.05)  # 500 uniform points reach the edges
     assert b.model.sampling["range"] == 0.6

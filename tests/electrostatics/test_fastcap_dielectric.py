@@ -75,7 +75,7 @@ def test_outlines_enclose_the_shape(shape, area):
     rings = outlines(Electrode(shape, "below", G), sizes)
     total = sum(shoelace(r) for r in rings)
     d = (2 * UM) / (20 * UM)  # largest chord angle: h_edge over the smallest radius (20 um)
-    assert total == pytest.approx(area, rel=d * d / 6 + 1e-12)
+    assert total == pytest.approx(area, rel=d * d / 6 + 1e-12, abs=0)
 
 
 def test_layered_box_panels():
@@ -104,7 +104,7 @@ def test_structure_admits_a_layer_for_fastcap_only():
     """extractor = "fastcap" and a calibration on FastCap points read a layered structure; "bem"
     and a calibration on BEM points refuse it, naming the key and the reason."""
     s = parse_structure(layered_piston("fastcap"), "piston_nitride.toml")
-    assert s.electrode_sets[0].dielectric_thickness == pytest.approx(T_D)
+    assert s.electrode_sets[0].dielectric_thickness == pytest.approx(T_D, abs=0)
     on_fastcap = layered_piston("calibrated").replace(
         "[electrostatics]\n", '[electrostatics]\ncalibration_points = 3\ncalibration_source = "fastcap"\n', 1
     )
@@ -151,7 +151,7 @@ def test_stop_on_the_layer_and_store_key():
     layer's permittivity, so a store never hands back another layer's samples."""
     p = layered_prepared(7.5)
     x = np.array([0.0, 0.5 * UM, 1.2 * UM])
-    assert p.min_gap(-x[:, None])[:, 0] == pytest.approx(G - T_D - x, rel=1e-12)
+    assert p.min_gap(-x[:, None])[:, 0] == pytest.approx(G - T_D - x, rel=1e-12, abs=0)
     assert np.isnan(p.capacitance(np.array([[-(G - T_D) - 1e-9]]))[0, 0])
     q = np.zeros((1, 1))
     assert key_of(p, q) != key_of(layered_prepared(3.9), q)

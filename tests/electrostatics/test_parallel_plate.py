@@ -73,7 +73,7 @@ def test_closed_form_tilted_sector_matches_dblquad():
     lo = lambda r: limits(r, ts, 1)  # noqa: E731
     hi = lambda r: lo(r) + (limits(r, te, -1) - lo(r)) % (2 * math.pi)  # noqa: E731
     ref, _ = dblquad(lambda phi, r: r / (G - tilt * r * math.sin(phi)), r_in, r_out, lo, hi, epsabs=0, epsrel=1e-11)
-    assert tilted_sector_exact(EPS0, r_in, r_out, ts, te, SLOT, G, tilt) == pytest.approx(EPS0 * ref, rel=1e-9)
+    assert tilted_sector_exact(EPS0, r_in, r_out, ts, te, SLOT, G, tilt) == pytest.approx(EPS0 * ref, rel=1e-9, abs=0)
 
 
 @pytest.mark.parametrize("side", ["above", "below"])
@@ -95,7 +95,7 @@ def test_tilted_plate_against_reference(shape, frac, side):
         EPS0, shape.r_in, shape.r_out, shape.theta_start, shape.theta_end, shape.slot, G, ref_tilt, radius=R
     )
     ex = ParallelPlateExtractor(fringe=None).prepare([Electrode(shape, side, G)], PLATE, tilt_x)
-    assert ex.capacitance(np.array([tilt]))[0] == pytest.approx(ref, rel=1e-6)
+    assert ex.capacitance(np.array([tilt]))[0] == pytest.approx(ref, rel=1e-6, abs=0)
 
 
 def test_min_gap_of_tilted_quadrant_is_at_its_corner():
@@ -104,7 +104,9 @@ def test_min_gap_of_tilted_quadrant_is_at_its_corner():
     ex = ParallelPlateExtractor().prepare(
         [Electrode(AnnularSector("q", 0, r1, 0, math.pi / 2, SLOT), "above", G)], PLATE, tilt_x
     )
-    assert ex.min_gap(np.array([tilt]))[0] == pytest.approx(G - tilt * math.sqrt(r1**2 - (SLOT / 2) ** 2), rel=1e-12)
+    assert ex.min_gap(np.array([tilt]))[0] == pytest.approx(
+        G - tilt * math.sqrt(r1**2 - (SLOT / 2) ** 2), rel=1e-12, abs=0
+    )
 
 
 def test_touching_sample_is_nan_only_for_that_electrode():
@@ -191,7 +193,7 @@ def test_two_squares_against_palmer(g):
     palmer = palmer_rectangle(EPS0, MM, MM, g)
     eps1 = g / (math.pi * MM) * (1 + math.log(2 * math.pi * MM / g))  # Palmer = eps A/g (1 + eps1)^2
     corner = EPS0 * MM**2 / g * eps1**2  # the cross term an edge-only model omits
-    assert c == pytest.approx(palmer - corner, rel=1e-9)
+    assert c == pytest.approx(palmer - corner, rel=1e-9, abs=0)
     assert abs(c / palmer - 1) < (0.01 if g > 25 * UM else 0.005)  # 0.72 / 0.17 / 0.01 %
 
 
@@ -199,7 +201,7 @@ def test_two_squares_against_palmer(g):
 def test_two_squares_against_bem(g):
     """Against the converged BEM: within 1.5 % (model is +1.35 / +1.02 / +0.09 % at 50 / 20 / 5 um)."""
     bem = BEM_SQUARES[g] * EPS0 * MM
-    assert two_squares(g, EdgeFringe.palmer(MM)) == pytest.approx(bem, rel=0.015)
+    assert two_squares(g, EdgeFringe.palmer(MM)) == pytest.approx(bem, rel=0.015, abs=0)
     assert palmer_rectangle(EPS0, MM, MM, g) > bem  # docs/bem.md: Palmer lies above BEM
     assert two_squares(g, None) < 0.98 * bem  # without fringe, eps A / g is 2.4-14.5 % low
 
@@ -208,7 +210,7 @@ def test_disk_with_kirchhoff_fringe():
     """Full disk electrode over a disk plate with Kirchhoff's per-edge fringe gives Kirchhoff's formula."""
     disk = Electrode(AnnularSector("disk", 0.0, R, 0.0, 2 * math.pi), "below", G)
     ex = ParallelPlateExtractor(fringe=EdgeFringe.kirchhoff(R)).prepare([disk], PLATE, z_only)
-    assert ex.capacitance(np.zeros(1))[0] == pytest.approx(kirchhoff_disk(EPS0, R, G), rel=1e-9)
+    assert ex.capacitance(np.zeros(1))[0] == pytest.approx(kirchhoff_disk(EPS0, R, G), rel=1e-9, abs=0)
 
 
 def test_default_fringe_represents_bem_calibration():
@@ -244,7 +246,7 @@ def test_fringe_off_and_on_at_reference_geometry():
     disk = [Electrode(AnnularSector("disk", 0.0, R, 0.0, 2 * math.pi), "above", G)]
     off = ParallelPlateExtractor(fringe=None).prepare(disk, PLATE, z_only).capacitance(np.zeros(1))[0]
     on = ParallelPlateExtractor().prepare(disk, PLATE, z_only).capacitance(np.zeros(1))[0]
-    assert off == pytest.approx(EPS0 * math.pi * R**2 / G, rel=1e-12)
+    assert off == pytest.approx(EPS0 * math.pi * R**2 / G, rel=1e-12, abs=0)
     assert on / off - 1 == pytest.approx((0.42 + 0.06 * math.log(200)) * 2 * G / R, rel=1e-9)
 
 
@@ -260,10 +262,10 @@ def test_coupling_is_per_length_of_shared_slot_edges():
     assert not ParallelPlateExtractor().coupling(els, PLATE).any()
     c = ParallelPlateExtractor(coupling_per_length=1.0).coupling(els, PLATE)  # -> lengths in m
     assert np.allclose(c, c.T) and not np.diag(c).any()
-    assert c[0, 1] == pytest.approx(math.sqrt(r1**2 - h**2) - h, rel=1e-12)  # from the slot corner
+    assert c[0, 1] == pytest.approx(math.sqrt(r1**2 - h**2) - h, rel=1e-12, abs=0)  # from the slot corner
     assert c[0, 2] == 0.0  # opposite quadrants
     outer_side = math.sqrt(R**2 - h**2) - math.sqrt((r1 + SLOT) ** 2 - h**2)
-    assert c[4, 5] == pytest.approx(outer_side, rel=1e-12)
+    assert c[4, 5] == pytest.approx(outer_side, rel=1e-12, abs=0)
     span = math.pi / 2 - 2 * math.asin(h / r1)  # the narrower (inner) of the two facing arcs
-    assert c[0, 4] == pytest.approx(span * (r1 + r1 + SLOT) / 2, rel=1e-12)
+    assert c[0, 4] == pytest.approx(span * (r1 + r1 + SLOT) / 2, rel=1e-12, abs=0)
     assert c[0, 5] == 0.0 and not c[8].any()  # diagonal neighbour; other side of the plate

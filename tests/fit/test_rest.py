@@ -12,6 +12,7 @@ import pytest
 from netgen.build import build
 from netgen.core.constants import EPS0
 from netgen.electrostatics.sampling import rest_of
+from netgen.fit.capacitance import REST_WEIGHT
 from netgen.structure import parse_structure
 from tests.fit.test_adaptive import GAP, PISTON, SIDE
 
@@ -25,8 +26,8 @@ def test_rest_gradient_is_the_parallel_plate_slope(adaptive_build):
     b = adaptive_build
     rest = rest_of(b.prepared, b.scales)
     slope = EPS0 * SIDE**2 / GAP**2 * b.scales[0]  # per unit of the scaled z
-    assert rest.c[0] == pytest.approx(EPS0 * SIDE**2 / GAP, rel=1e-9)
-    assert abs(rest.grad[0, 0]) == pytest.approx(slope, rel=1e-9)
+    assert rest.c[0] == pytest.approx(EPS0 * SIDE**2 / GAP, rel=1e-9, abs=0)
+    assert abs(rest.grad[0, 0]) == pytest.approx(slope, rel=1e-9, abs=0)
     assert np.all(np.abs(rest.grad[0, 1:]) < 1e-9 * slope)
 
 
@@ -35,8 +36,11 @@ def test_the_fit_matches_the_rest_slopes(adaptive_build):
     f = b.fits[0]
     slope = EPS0 * SIDE**2 / GAP**2 * b.scales[0]
     g = f.gradient(np.zeros((1, 3)))[0]
-    assert f.value(np.zeros((1, 3)))[0] == pytest.approx(EPS0 * SIDE**2 / GAP, rel=1e-6)
-    assert abs(g[0]) == pytest.approx(slope, rel=1e-6)
+    # the rest is a soft constraint (fit_plates: its residuals weigh REST_WEIGHT^2 times all the
+    # samples together), so it holds to the samples' misfit over REST_WEIGHT^2, not exactly
+    bound = f.grid_max_rel_error / REST_WEIGHT**2
+    assert f.value(np.zeros((1, 3)))[0] == pytest.approx(EPS0 * SIDE**2 / GAP, rel=bound, abs=0)
+    assert abs(g[0]) == pytest.approx(slope, rel=bound, abs=0)
     assert np.all(np.abs(g[1:]) < 1e-5 * slope)
 
 

@@ -282,9 +282,9 @@ def test_modal_and_rayleigh_damping_in_model():
     model = small_model("damping_ratio = 0.01\nrayleigh = {alpha = 100.0, beta = 1e-9}\n")
     z, mode = model.coordinates
     w0 = 2 * math.pi * mode.frequency_hz
-    assert z.damping == pytest.approx(100.0 * z.mass, rel=1e-12)
+    assert z.damping == pytest.approx(100.0 * z.mass, rel=1e-12, abs=0)
     assert mode.damping == pytest.approx(
-        2 * 0.01 * mode.mass * w0 + 100.0 * mode.mass + 1e-9 * mode.stiffness, rel=1e-12
+        2 * 0.01 * mode.mass * w0 + 100.0 * mode.mass + 1e-9 * mode.stiffness, rel=1e-12, abs=0
     )
     assert MacroModel.from_dict(model.to_dict()).coordinates[1].damping == mode.damping
 
@@ -342,14 +342,15 @@ def test_thermal_noise_equipartition(tmp_path):
     t, q = plot["time"], plot["v(x1.xs_m2_0c)"] * mode.scale
     settled = np.arange(20 * 2 * mode.mass / mode.damping, t[-1], dt)  # past 20 decay times
     variance = np.var(np.interp(settled, t, q))
-    assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10)
+    assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10, abs=0)
 
 
 def test_compressible_film_noise_equipartition(film_model, tmp_path):
     """Fluctuation-dissipation per Maxwell branch: noise on, no drive, air at 1 atm. The gas springs
     act only above their corners (damper in series), so the static stiffness is the plate's and
-    the variance of mode 2,0c is k_B T / k, within 10 %, although at its frequency the film more
-    than doubles the stiffness; a noise model that left out the branches' dampers would miss it."""
+    the variance of mode 2,0c is k_B T / k, within 25 % (three standard deviations over seeds),
+    although at its frequency the film more than doubles the stiffness; a noise model that left out
+    the branches' dampers would miss it."""
     mode = film_model.coordinates[1]
     lib = tmp_path / "film_noise.lib"
     lib.write_text(subcircuit(film_model, noise=True))
@@ -359,7 +360,9 @@ def test_compressible_film_noise_equipartition(film_model, tmp_path):
     t, q = plot["time"], plot["v(x1.xs_m2_0c)"] * mode.scale
     settled = np.arange(50e-6, t[-1], 2 * dt)
     variance = np.var(np.interp(settled, t, q))
-    assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.10)
+    # over seeds 1..7 this 2 ms record gives variance / (k_B T / k) = 1.004 mean, 8.2 % standard
+    # deviation (seed 3: +14 %): three of that, 25 %, not the 10 % first stated (under 2 sigma)
+    assert variance == pytest.approx(K_B * 300 / mode.stiffness, rel=0.25, abs=0)
 
 
 def noise_dt(lib_text: str) -> str:

@@ -125,7 +125,7 @@ def test_proof_mass_deflects_m_a_over_k_per_axis_in_ngspice(proof_mass, ngspice_
     plot = run_ngspice(bench.netlist(".op"), tmp_path)[0]
     got = {c.name: float(np.ravel(plot[f"v(x1.xs_{c.name})"])[0]) * c.scale for c in proof_mass.coordinates}
     for name, want in expected_static(proof_mass).items():
-        assert got[name] == pytest.approx(want, rel=1e-6), name
+        assert got[name] == pytest.approx(want, rel=1e-6, abs=0), name
 
 
 def test_proof_mass_deflects_m_a_over_k_per_axis_in_vacask(proof_mass, tmp_path):
@@ -142,7 +142,7 @@ def test_proof_mass_deflects_m_a_over_k_per_axis_in_vacask(proof_mass, tmp_path)
     plot = run_vacask(bench.netlist(f'analysis tran1 tran step={stop / 4000!r} stop={stop!r} icmode="uic"'), tmp_path)
     for name, want in expected_static(proof_mass).items():
         c = next(c for c in proof_mass.coordinates if c.name == name)
-        assert plot[f"x1:xs_{name}"][-1] * c.scale == pytest.approx(want, rel=1e-3), name
+        assert plot[f"x1:xs_{name}"][-1] * c.scale == pytest.approx(want, rel=1e-3, abs=0), name
 
 
 def sine_amplitude(t: np.ndarray, y: np.ndarray, w: float) -> float:
@@ -176,7 +176,7 @@ def test_coriolis_amplitude_in_ngspice(proof_mass, ngspice_version, tmp_path):
     amp_x = sine_amplitude(t[last], np.asarray(plot["v(x1.xs_x)"])[last] * cx.scale, w)
     amp_y = sine_amplitude(t[last], np.asarray(plot["v(x1.xs_y)"])[last] * cy.scale, w)
     want = 2 * mass * omega * amp_x * w / abs(cy.stiffness - mass * omega**2 - mass * w**2 + 1j * w * cy.damping)
-    assert amp_y == pytest.approx(want, rel=0.01)
+    assert amp_y == pytest.approx(want, rel=0.01, abs=0)
 
 
 def undamped(model: MacroModel) -> MacroModel:
@@ -330,7 +330,7 @@ def test_gyroscopic_matrices_are_antisymmetric_and_proof_mass_values(proof_mass)
     mass = MASS
     names = [c.name for c in proof_mass.coordinates]
     g = np.array(proof_mass.inertial.gyroscopic["z"])
-    assert g[names.index("x"), names.index("y")] == pytest.approx(-2 * mass, rel=1e-12)
+    assert g[names.index("x"), names.index("y")] == pytest.approx(-2 * mass, rel=1e-12, abs=0)
     for gk in proof_mass.inertial.gyroscopic.values():
         assert np.array_equal(np.array(gk), -np.array(gk).T)
-    assert proof_mass.inertial.participation["a_x"][names.index("x")] == pytest.approx(mass, rel=1e-12)
+    assert proof_mass.inertial.participation["a_x"][names.index("x")] == pytest.approx(mass, rel=1e-12, abs=0)

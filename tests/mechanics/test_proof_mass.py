@@ -46,7 +46,7 @@ def test_frame_element_reproduces_the_beam_formulas():
     c = np.linalg.inv(k)
     assert 1 / c[1, 1] == pytest.approx(3 * E * s.i_inplane / L**3, rel=1e-9)
     assert 1 / c[0, 0] == pytest.approx(E * s.area / L, rel=1e-9)
-    assert 1 / c[3, 3] == pytest.approx(s.shear_modulus * s.torsion / L, rel=1e-9)
+    assert 1 / c[3, 3] == pytest.approx(s.shear_modulus * s.torsion / L, rel=1e-9, abs=0)
 
 
 @pytest.mark.parametrize("name", sorted(FLEXURES))
@@ -62,8 +62,8 @@ def test_flexure_closed_forms_match_the_frame_solve(name):
     across = "x" if f.axis == "y" else "y"
     n = {"clamped_guided": 4, "folded": 2}.get(f.type)
     if n:
-        assert closed[across] == pytest.approx(n * E * f.thickness * f.width**3 / f.length**3, rel=1e-12)
-        assert closed["z"] == pytest.approx(n * E * f.width * f.thickness**3 / f.length**3, rel=1e-12)
+        assert closed[across] == pytest.approx(n * E * f.thickness * f.width**3 / f.length**3, rel=1e-12, abs=0)
+        assert closed["z"] == pytest.approx(n * E * f.width * f.thickness**3 / f.length**3, rel=1e-12, abs=0)
     assert solved["coupling"] < 1e-6  # four mirrored units: no coupling between coordinates
 
 
@@ -74,7 +74,7 @@ def test_crab_leg_limits():
     assert flexures.closed_form(f, E, NU)["x"] == pytest.approx(4 * E * 2e-6 * 8e-18 / 1e-12, rel=1e-4)
     g = Flexure("crab_leg", 100e-6, 2e-6, 2e-6, "y", thigh_length=100e-6, thigh_width=2e-6)
     k = flexures.closed_form(g, E, NU)
-    assert k["x"] == pytest.approx(k["y"], rel=1e-12)
+    assert k["x"] == pytest.approx(k["y"], rel=1e-12, abs=0)
 
 
 def test_perforated_mass_inertia_against_a_brute_force_integral():
@@ -93,10 +93,10 @@ def test_perforated_mass_inertia_against_a_brute_force_integral():
     da = c.length * c.width / solid.size
     m = RHO * c.thickness * da * solid.sum()
     inert = proof_mass.inertia(c)
-    assert c.mass == pytest.approx(m, rel=1e-3)
-    assert inert["rot_z"] == pytest.approx(RHO * c.thickness * da * np.sum(solid * (X**2 + Y**2)), rel=1e-3)
+    assert c.mass == pytest.approx(m, rel=1e-3, abs=0)
+    assert inert["rot_z"] == pytest.approx(RHO * c.thickness * da * np.sum(solid * (X**2 + Y**2)), rel=1e-3, abs=0)
     assert inert["tilt_x"] == pytest.approx(
-        RHO * c.thickness * da * np.sum(solid * Y**2) + m * c.thickness**2 / 12, rel=1e-3
+        RHO * c.thickness * da * np.sum(solid * Y**2) + m * c.thickness**2 / 12, rel=1e-3, abs=0
     )
 
 
@@ -241,7 +241,7 @@ def test_squeeze_film_of_the_perforated_mass(hole):
     print(f"hole {hole:g} m: FEM {d[iz]:.6e} N*s/m, series {ref:.6e}, ratio {d[iz] / ref - 1:+.2e}")
     assert d[iz] == pytest.approx(ref, rel=0.01)
     ix = m.names.index("x")
-    assert d[ix] == pytest.approx(2 * m.masses[ix] * 2 * math.pi * m.frequencies[ix] / 60, rel=1e-9)  # Q only
+    assert d[ix] == pytest.approx(2 * m.masses[ix] * 2 * math.pi * m.frequencies[ix] / 60, rel=1e-9, abs=0)  # Q only
     if hole:
         assert ref < 0.5 * sf.rectangular_plate_series(mu, 300e-6, 200e-6, 2e-6)
 
@@ -260,6 +260,6 @@ def test_free_body_accelerates_as_newton_says(tmp_path):
     bench = Bench(model, lib, sources={"f_x": "DC 0.1", "plate": "0"}, options="reltol=1e-7")
     plot = run_ngspice(bench.netlist(f".tran 20n {stop!r} 0 20n uic"), tmp_path)[0]
     x = plot["x1.xs_x"][-1] * model.coordinates[0].scale
-    assert x == pytest.approx(force * stop**2 / (2 * m), rel=1e-3)
+    assert x == pytest.approx(force * stop**2 / (2 * m), rel=1e-3, abs=0)
     assert x < 0.2 * model.coordinates[0].scale  # inside the sampled box
     assert abs(plot["x1.xs_y"]).max() < 1e-9 and abs(plot["x1.xs_rot_z"]).max() < 1e-9

@@ -53,7 +53,8 @@ def test_round_trip_of_the_core_example_gives_the_same_netlist_numbers(reference
 def test_csv_formats_on_a_beam(tmp_path):
     """Cantilever mechanics and capacitances written as CSV and read back: modal masses, stiffnesses
     and frequencies exact, touching amplitudes and mode shapes (cubic spline through the exported
-    nodes) within 1e-6, capacitances within 1e-4 on the held-out points."""
+    nodes) within 1e-6, capacitances those of the native fit (1e-12) and within the fit tolerance
+    on the held-out points."""
     text = (ROOT / "examples" / "cantilever.toml").read_text()
     native = build(parse_structure(text, "cantilever.toml"))
     importers.export(native, tmp_path, csv_too=True)
@@ -64,12 +65,18 @@ def test_csv_formats_on_a_beam(tmp_path):
     b = build(parse_structure(text + imp, str(tmp_path / "cantilever.toml")))
     for p, q in zip(b.model.coordinates, native.model.coordinates):
         assert (p.name, p.kind, p.unit) == (q.name, q.kind, q.unit)
-        assert p.mass == pytest.approx(q.mass, rel=1e-15) and p.stiffness == pytest.approx(q.stiffness, rel=1e-15)
+        assert p.mass == pytest.approx(q.mass, rel=1e-15, abs=0) and p.stiffness == pytest.approx(
+            q.stiffness, rel=1e-15, abs=0
+        )
         assert p.frequency_hz == pytest.approx(q.frequency_hz, rel=1e-14)
-        assert p.scale == pytest.approx(q.scale, rel=1e-6)
+        assert p.scale == pytest.approx(q.scale, rel=1e-6, abs=0)
     x = np.linspace(0, 150e-6, 777)
     assert b.mechanics.basis(x, 0 * x) == pytest.approx(native.mechanics.basis(x, 0 * x), abs=1e-6)
-    assert b.model.capacitance(native.holdout.x) == pytest.approx(native.holdout.c, rel=1e-4)
+    # the imported fit is the native one (4e-15 apart); both miss the held-out solves by the fit's own
+    # held-out error (1.09e-4 here, over the 1e-4 first stated), bounded by the fit tolerance
+    got = b.model.capacitance(native.holdout.x)
+    assert got == pytest.approx(native.model.capacitance(native.holdout.x), rel=1e-12, abs=0)
+    assert got == pytest.approx(native.holdout.c, rel=native.structure.fit.tolerance, abs=0)
     assert b.model.report["electrostatics"]["extractor"] == "imported table capacitance.csv"
 
 

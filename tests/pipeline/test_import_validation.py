@@ -650,7 +650,11 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     imported = build(parse_structure(toml.read_text(), str(toml)))
     for p, q in zip(imported.model.coordinates, b.native.model.coordinates):
         assert (p.name, p.mass, p.stiffness) == (q.name, q.mass, q.stiffness)
-    assert imported.model.capacitance(b.native.holdout.x) == pytest.approx(b.native.holdout.c, rel=1e-4)
+    # the imported fit is the native one; both miss the held-out solves by the fit's own held-out
+    # error (1.09e-4 on the cantilever, over a flat 1e-4), bounded by the fit tolerance
+    got, native = imported.model.capacitance(b.native.holdout.x), b.native.model.capacitance(b.native.holdout.x)
+    assert got == pytest.approx(native, rel=1e-12, abs=0)
+    assert got == pytest.approx(b.native.holdout.c, rel=b.native.structure.fit.tolerance, abs=0)
 
 
 def test_full_matrices_build_the_native_piston(bases, tmp_path):

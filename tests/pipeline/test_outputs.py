@@ -230,7 +230,7 @@ def test_json_has_coordinates_modes_capacitances_ports(committed):
     assert [c["kind"] for c in coords] == ["translation", "rotation", "rotation"] + ["mode"] * 4
     gap, radius = 3e-6, 473e-6  # examples/levitated_disk.toml
     scale = {c["name"]: c["scale"] for c in coords}
-    assert scale["z"] == pytest.approx(gap, rel=1e-9)  # a rigid lift touches at z = g
+    assert scale["z"] == pytest.approx(gap, rel=1e-9, abs=0)  # a rigid lift touches at z = g
     for tilt in ("tilt_x", "tilt_y"):  # the rim touches at R * angle = g
         assert scale[tilt] == pytest.approx(gap / radius, rel=1e-6)
     for m in ("m2_0c", "m2_0s", "m3_0c", "m3_0s"):  # peak deflection 1: touches at >= g

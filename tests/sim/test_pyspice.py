@@ -157,17 +157,17 @@ def test_piston_statics_and_ac_against_parallel_plate(version, piston):
     force = EPS0 * area * volts**2 / (2 * (gap - travel) ** 2)
     f1, f2 = c.stiffness - 2 * force / (gap - travel), -6 * force / (gap - travel) ** 2  # f', f'' of k z - F(z)
     newton = abs(f2 / (2 * f1)) * (1e-3 * travel + 1e-6 * b.model.coordinates[0].scale) ** 2 / travel
-    assert -got["z"] == pytest.approx(travel, rel=newton + 1e-10)
+    assert -got["z"] == pytest.approx(travel, rel=newton + 1e-10, abs=0)
     assert travel > 0.1 * gap  # a real deflection, not a linear one
     assert abs(got["i_dc"]) < 1e-15  # no DC through a capacitor
 
     w = 2 * np.pi * np.array(got["f"])
     mass = c.length * c.width * c.thickness * c.density
     x = np.array(got["x_re"]) + 1j * np.array(got["x_im"])
-    assert x == pytest.approx(1e-6 / (c.stiffness - mass * w**2), rel=1e-8)
+    assert x == pytest.approx(1e-6 / (c.stiffness - mass * w**2), rel=1e-8, abs=0)
     assert math.sqrt(c.stiffness / mass) / (2 * np.pi) < got["f"][-1]  # the sweep crosses resonance
     i = np.array(got["i_re"]) + 1j * np.array(got["i_im"])
-    assert i == pytest.approx(1j * w * EPS0 * area / gap, rel=1e-8)
+    assert i == pytest.approx(1j * w * EPS0 * area / gap, rel=1e-8, abs=0)
 
 
 # ----------------------------------------------------------------------------- failures and their messages
@@ -250,10 +250,10 @@ def test_runner_reports_failures_and_keeps_its_files(version, disk, tmp_path):
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     word, ctl, blow, bad, slow, again = proc.stdout.splitlines()
     assert word.startswith("w ok op1 ") and json.loads(word.split(" ", 3)[3]) == pytest.approx(
-        {"v(in)": 1.0, "v(error_node)": 0.75, "i(v1)": -1 / 4000}, rel=1e-12
+        {"v(in)": 1.0, "v(error_node)": 0.75, "i(v1)": -1 / 4000}, rel=1e-12, abs=0
     )
     assert ctl.startswith("ctl ok op1 ") and json.loads(ctl.split(" ", 3)[3]) == pytest.approx(
-        {"v(a)": 2.0, "i(v1)": -2 / 1000}, rel=1e-12
+        {"v(a)": 2.0, "i(v1)": -2 / 1000}, rel=1e-12, abs=0
     )
     assert "timestep too small" in blow and "node n" in blow
     assert 0.99 < float(blow.split("at t = ")[1].split()[0]) < 1.0

@@ -40,15 +40,17 @@ def test_design_follows_the_parallel_plate(built):
     the gap reads 1 V with the sense voltage on both plates (dC/dz = eps A / g^2 each)."""
     model, _, loop = built
     d = sd.design(model, TS, spec=loop)
-    assert d.names == ["z"] and model.coordinates[0].mass == pytest.approx(MASS, rel=1e-12)
+    assert d.names == ["z"] and model.coordinates[0].mass == pytest.approx(MASS, rel=1e-12, abs=0)
     assert {e["name"]: (e["w"], e["sel"]) for e in d.electrodes} == {"top": ([1], [1]), "bottom": ([-1], [-1])}
     per_v2 = EPS0 * SIDE**2 / (2 * GAP**2)
     rows = {r["bits"]: r["f"]["z"] * 1e-6 for r in d.table}
-    assert rows["+"] == pytest.approx(per_v2 * d.vfb**2, rel=1e-6) and rows["-"] == pytest.approx(-rows["+"], rel=1e-6)
+    assert rows["+"] == pytest.approx(per_v2 * d.vfb**2, rel=1e-6, abs=0) and rows["-"] == pytest.approx(
+        -rows["+"], rel=1e-6, abs=0
+    )
     assert d.vfb == pytest.approx(np.sqrt(MASS * G / (0.5 * d.duty * per_v2)), abs=6e-4)
-    assert d.inputs == {"a_in": 9.81} and d.balance["dc_force_n"] == pytest.approx(-MASS * G, rel=1e-9)
+    assert d.inputs == {"a_in": 9.81} and d.balance["dc_force_n"] == pytest.approx(-MASS * G, rel=1e-9, abs=0)
     touch = model.coordinates[0].scale
-    assert d.channels[0]["cf"] == pytest.approx(d.vs * 2 * EPS0 * SIDE**2 / GAP**2 * touch * 0.01, rel=1e-3)
+    assert d.channels[0]["cf"] == pytest.approx(d.vs * 2 * EPS0 * SIDE**2 / GAP**2 * touch * 0.01, rel=1e-3, abs=0)
 
 
 def test_explicit_electrodes_give_the_derived_design(built):

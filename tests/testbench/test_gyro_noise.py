@@ -114,7 +114,7 @@ def test_brownian_rate_noise_floor(tmp_path):
     thermal = 4 * reference.K_B * TEMPERATURE * b_y  # N^2/Hz
     for text in (lib.read_text(), xspice.subcircuit(model)):  # both ngspice paths: rms sqrt(2 k_B T b_y / dt)
         rms = re.search(r"^Vn_y .*TRNOISE\(\{noise\*([0-9.eE+-]+)/sqrt\(noise_dt\)\}", text, re.M)
-        assert rms and float(rms.group(1)) * cy.port_units[3] == pytest.approx(math.sqrt(thermal / 2), rel=1e-12)
+        assert rms and float(rms.group(1)) * cy.port_units[3] == pytest.approx(math.sqrt(thermal / 2), rel=1e-12, abs=0)
     s = run(model, lib, tmp_path / "run", spec, GyroRequest(cycles=BROWNIAN_CYCLES, progress=False, plots=False))
     z = np.load(tmp_path / "run" / "bitstreams.npz")
     keep = slice(BROWNIAN_CYCLES // 8, None)

@@ -68,10 +68,12 @@ def test_sampled_mechanics_is_the_free_mass_kinematics():
     acc = DISK_Z.force / DISK_Z.mass
     pieces = [((a - 0.34) * TS, (b - 0.34) * TS, w * acc) for a, b, w in DISK_Z.pulse]
     assert np.allclose(phi, [[1, TS], [0, 1]])
-    assert gamma[1] == pytest.approx(sum(a * (t1 - t0) for t0, t1, a in pieces), rel=1e-12)
-    assert gamma[0] == pytest.approx(sum(a * ((TS - t0) ** 2 - (TS - t1) ** 2) / 2 for t0, t1, a in pieces), rel=1e-9)
+    assert gamma[1] == pytest.approx(sum(a * (t1 - t0) for t0, t1, a in pieces), rel=1e-12, abs=0)
+    assert gamma[0] == pytest.approx(
+        sum(a * ((TS - t0) ** 2 - (TS - t1) ** 2) / 2 for t0, t1, a in pieces), rel=1e-9, abs=0
+    )
     # the squared 2 % ramps: the pulse's impulse is (0.44 - 0.02) + 2 x 0.02 / 3 periods (loop.duty)
-    assert sum(w * (b - a) for a, b, w in DISK_Z.pulse) == pytest.approx(0.42 + 0.04 / 3, rel=1e-12)
+    assert sum(w * (b - a) for a, b, w in DISK_Z.pulse) == pytest.approx(0.42 + 0.04 / 3, rel=1e-12, abs=0)
 
 
 @pytest.mark.parametrize("order", [3, 4, 5])
