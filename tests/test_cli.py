@@ -173,10 +173,14 @@ def test_a_keyboard_interrupt_inside_a_command_is_exit_130(exc, line, tmp_path, 
     assert capsys.readouterr().err == line + "\n"
 
 
-def catches(pid: int, sig: signal.Signals) -> bool:
-    """Has process `pid` installed a handler for `sig` (its SigCgt mask in /proc)?"""
+def catches(pid: int, sig: signal.Signals, argument: str = "") -> bool:
+    """Has process `pid` installed a handler for `sig` (its SigCgt mask in /proc)? With `argument`:
+    only once the process has exec'd a command line holding it (between fork and exec the child
+    still has its parent's handlers, and a signal sent then is lost in the parent's copy)."""
     try:
         status = Path(f"/proc/{pid}/status").read_text()
+        if argument and argument.encode() not in Path(f"/proc/{pid}/cmdline").read_bytes():
+            return False
     except OSError:
         return False
     mask = int(next(ln.split()[1] for ln in status.splitlines() if ln.startswith("SigCgt:")), 16)
@@ -193,7 +197,7 @@ def test_a_signal_while_the_command_starts_is_one_line_and_exit_130(sig, tmp_pat
             [NETGEN, "build", PISTON, "-o", str(tmp_path / "out")], stderr=subprocess.PIPE, text=True
         )
         deadline = time.monotonic() + 60
-        while not catches(proc.pid, signal.SIGTERM) and time.monotonic() < deadline:
+        while not catches(proc.pid, signal.SIGTERM, str(PISTON)) and time.monotonic() < deadline:
             time.sleep(0.002)
         time.sleep(delay)
         proc.send_signal(sig)
