@@ -193,8 +193,11 @@ def test_a_signal_while_the_command_starts_is_one_line_and_exit_130(sig, tmp_pat
     handlers, before the command runs): exit 130 and one line. (Before that line the interpreter
     itself is starting: Python's own reaction, measured by bench/interrupts.py.)"""
     for delay in (0.0, 0.2):
-        proc = subprocess.Popen(
-            [NETGEN, "build", PISTON, "-o", str(tmp_path / "out")], stderr=subprocess.PIPE, text=True
+        proc = subprocess.Popen(  # a terminal's Ctrl-C: SIGINT at its default even where the suite runs with it ignored
+            [NETGEN, "build", PISTON, "-o", str(tmp_path / "out")],
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         deadline = time.monotonic() + 60
         while not catches(proc.pid, signal.SIGTERM, str(PISTON)) and time.monotonic() < deadline:
