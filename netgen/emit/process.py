@@ -5,6 +5,8 @@ No physics here: every number comes from the model."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..model import MacroModel
@@ -423,7 +425,7 @@ def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None
     if not law:
         return ""
 
-    def entry(table: dict) -> object:
+    def entry(table: dict) -> Any:
         x = table[kind][key][v]
         return x if w is None else x[w]
 

@@ -33,6 +33,7 @@ IDENTITY = [1.0, 0.0, 0.0, 0.0]
 def etched_runs(s: Structure, m: Mechanics, run) -> list[tuple[float, Structure, Mechanics]]:
     """(etch, etched structure, its mechanics) at the etch points (the nominal m reused at 0)."""
     out = []
+    assert s.process is not None  # only a structure declaring etch has etch laws
     for e in etch_points(s.process):
         se = etched(s, e)
         out.append((e, se, m if e == 0.0 else run(se)))
