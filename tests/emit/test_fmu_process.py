@@ -43,6 +43,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.model.process import capacitance_at
 from netgen.sim import fmu
@@ -308,6 +309,44 @@ def test_inertial_loads_follow_the_etched_body(combs, etch):
             got.append(float(inst.get([f"qdd_{q}"])[0]))
             inst.close()
         assert got[0] == pytest.approx(got[1], rel=tol, abs=0), (port, got)
+
+
+@pytest.fixture(scope="module")
+def rotating():
+    """accelerometer_xyz with etch declared and the rate w_z (tests/model/test_process_loads), its FMU."""
+    from tests.model.test_process_loads import xyz_structure
+
+    model = build_model(xyz_structure())
+    return model, fmu.built(model)
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_coriolis_load_follows_the_etched_body(rotating, etch):
+    """accelerometer_xyz's FMU at rest but moving along x at 1 mm/s under w_z = 100 rad/s (model
+    exchange): y's acceleration equals the one under f_y loaded instead with the Coriolis force of the
+    etched moving mass's hand sum, 2 M(etch) w_z v (its sign the model's), M the plate, holes and 80
+    fingers (tests/model/test_process_loads.xyz_mass; the same mass divides both). With q = 0 the
+    centrifugal terms on y vanish by symmetry. Tolerance as test_inertial_loads_follow_the_etched_body."""
+    from tests.model.test_process_loads import xyz_mass
+
+    model, path = rotating
+    names = [c.name for c in model.coordinates]
+    ix, iy = names.index("x"), names.index("y")
+    sign = np.sign(model.inertial.gyroscopic["z"][iy][ix])
+    w, v = 100.0, 1e-3
+    state = np.zeros(2 * model.ncoords + sum(len(c.film) for c in model.coordinates))
+    state[model.ncoords + ix] = v
+    got = []
+    for inputs in ({"w_z": w}, {"f_y": -w * sign * 2 * xyz_mass(etch) * v}):
+        inst = fmu.Instance(path, cosim=False)
+        inst.set({"etch": etch} | inputs)
+        inst.start()
+        inst.set_states(state)
+        got.append(float(inst.get(["qdd_y"])[0]))
+        inst.close()
+    tol = 1e-11 + model.process["inertial"]["etch"]["max_rel_error"] + 1e-12
+    assert got[0] != 0.0
+    assert got[0] == pytest.approx(got[1], rel=tol, abs=0), got
 
 
 @pytest.mark.parametrize("etch", fp.ETCH_CAPS)
