@@ -26,7 +26,8 @@ once so that emitters only render them.
 - etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
-  product's misfit at the (tscale, etch) box's corners is part of the stated error).
+  product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
+  follow the etched body (netgen.model.process_loads).
 """
 
 from __future__ import annotations
