@@ -11,7 +11,13 @@ References:
   keep their length beyond the receding edge, tests/mechanics/test_mass_count.py), and the
   translations' in-plane participation P_x[x] = P_y[y] = M(e), Coriolis G_z[x, y] = -G_z[y, x] =
   2 M(e) in magnitude (2 int rho e_x . (e_z x e_y)) and centrifugal S_zz[x, x] = -M(e) (-int rho
-  |e_x|^2);
+  |e_x|^2); every entry at an etch between the fit points against the terms on the structure etched
+  there;
+- the crab-leg mass with tilts and rates (tests/oracles/process_inertial) with tscale and etch: at the
+  (tscale, etch) corners the tilts' Coriolis coupling, the plate's rotary inertia, against
+  -2 rho t^3 (200 um - 2e)^2 / 12, the a_in load against rho t (200 um - 2e)^2, and every entry
+  against the terms on the structure scaled and etched there (the mid-plane and rotary parts each
+  with its own etch ratio);
 - ngspice 39's .op of the emitted .lib at etch e: the deflection under a_in = 9.81 m/s^2 against the
   same circuit loaded instead through its force port with the hand load -G(e) 9.81 N: the spring,
   whatever its etch law, is the same on both sides, so only the load is compared.
@@ -31,10 +37,11 @@ import pytest
 from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import inertial, mechanics
-from netgen.model.process import etched, law_value, ratio_value
+from netgen.model.process import etched, law_value, ratio_value, scaled
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated, xyz_text
+from tests.oracles.process_inertial import STRUCTURE, T_UM
 from tests.oracles.testbench import Bench, states, using_ngspice
 
 RHO, T, G = 2330.0, 2e-6, 9.81
@@ -72,6 +79,13 @@ def xyz_structure():
 def xyz():
     """accelerometer_xyz with etch declared and the rate w_z, built."""
     return build_model(xyz_structure())
+
+
+@pytest.fixture(scope="module")
+def tilted():
+    """The crab-leg mass with tilts and rates (tests/oracles/process_inertial) with tscale and etch."""
+    s = parse_structure(STRUCTURE.format(t=T_UM) + '[process]\nparameters = ["tscale", "etch"]\n', "gyp.toml")
+    return build_model(s), s
 
 
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
@@ -150,3 +164,36 @@ def test_every_inertial_entry_between_the_fit_points(xyz):
             got = x * (r @ np.array([1.0, etch * 1e6, (etch * 1e6) ** 2, (etch * 1e6) ** 3]))
             want = np.asarray(ref[kind][key], dtype=float)
             assert np.max(np.abs(got - want)) <= ROUND * np.max(np.abs(want)), (kind, key)
+
+
+@pytest.mark.parametrize("tscale", (0.9, 1.1))
+@pytest.mark.parametrize("etch", (-1e-7, 1e-7))
+def test_rotary_and_mid_plane_parts_at_the_corners(tilted, tscale, etch):
+    """With tscale and etch declared (the crab-leg mass of tests/oracles/process_inertial with tilts and
+    rates), each entry is X ((1 - f) tscale R1(etch) + f tscale^3 R3(etch)), the two parts' own ratios:
+    the tilts' Coriolis coupling under w_z, the plate's rotary inertia, against the closed form
+    -2 rho t^3 (200 um - 2 etch)^2 / 12, and every entry against the terms on the structure scaled and
+    etched at the corner, and the a_in load against rho t (200 um - 2 etch)^2; tolerance ROUND relative to the largest entry of its table (the t, t^3 laws
+    are exact and the etched area quadratic)."""
+    model, structure = tilted
+    names = [c.name for c in model.coordinates]
+    law = model.process["inertial"]
+    u = np.array([1.0, etch * 1e6, (etch * 1e6) ** 2, (etch * 1e6) ** 3])
+
+    def at(kind: str, key: str) -> np.ndarray:
+        x, f = np.asarray(getattr(model.inertial, kind)[key]), np.asarray(law["t3_fraction"][kind][key])
+        r1, r3 = (np.asarray(law["etch"][p][kind][key]) @ u for p in ("t", "t3"))
+        return x * ((1 - f) * tscale * r1 + f * tscale**3 * r3)
+
+    t = 5e-6 * tscale
+    g = at("gyroscopic", "z")[names.index("tilt_x"), names.index("tilt_y")]
+    assert abs(g) == pytest.approx(2 * RHO * t**3 * (200e-6 - 2 * etch) ** 2 / 12, rel=ROUND, abs=0)
+    iz = names.index("z")  # and the a_in load, G tscale R(etch): rho t (200 um - 2 etch)^2
+    load = model.acceleration[iz] * tscale * ratio_value(model.process["etch"]["acceleration"]["ratio"][iz], etch)
+    assert load == pytest.approx(RHO * t * (200e-6 - 2 * etch) ** 2, rel=ROUND, abs=0)
+    s = etched(scaled(structure, tscale), etch)
+    ref = inertial.terms(s, mechanics(s), ("w_x", "w_y", "w_z"))
+    for kind in ("gyroscopic", "centrifugal", "centrifugal_force"):
+        for key in getattr(model.inertial, kind):
+            want = np.asarray(ref[kind][key], dtype=float)
+            assert np.max(np.abs(at(kind, key) - want)) <= ROUND * np.max(np.abs(want)), (kind, key)
