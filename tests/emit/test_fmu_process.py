@@ -292,10 +292,10 @@ def test_inertial_loads_follow_the_etched_body(combs, etch):
     """accelerometer_xyz's FMU at rest (model exchange) under a_x, a_y and a_in at the lateral etch: each
     translation's acceleration q'' equals the one under its force input loaded instead with the etched
     moving mass's hand sum -M(etch) a (the plate with its holes and the 80 fingers,
-    tests/model/test_process_loads.xyz_mass; the same mass divides both, so only the load is compared):
+    tests/oracles/process_cases.xyz_mass; the same mass divides both, so only the load is compared):
     the etch ratios' round-off (1e-11, tests/model/test_process_loads) plus the laws' stated residuals
     plus the forces' round-off 1e-12."""
-    from tests.model.test_process_loads import xyz_mass
+    from tests.oracles.process_cases import xyz_mass
 
     model, _, path = combs
     law = model.process
@@ -313,8 +313,8 @@ def test_inertial_loads_follow_the_etched_body(combs, etch):
 
 @pytest.fixture(scope="module")
 def rotating():
-    """accelerometer_xyz with etch declared and the rate w_z (tests/model/test_process_loads), its FMU."""
-    from tests.model.test_process_loads import xyz_structure
+    """accelerometer_xyz with etch declared and the rate w_z (tests/oracles/process_cases.xyz_structure), its FMU."""
+    from tests.oracles.process_cases import xyz_structure
 
     model = build_model(xyz_structure())
     return model, fmu.built(model)
@@ -325,9 +325,9 @@ def test_coriolis_load_follows_the_etched_body(rotating, etch):
     """accelerometer_xyz's FMU at rest but moving along x at 1 mm/s under w_z = 100 rad/s (model
     exchange): y's acceleration equals the one under f_y loaded instead with the Coriolis force of the
     etched moving mass's hand sum, 2 M(etch) w_z v (its sign the model's), M the plate, holes and 80
-    fingers (tests/model/test_process_loads.xyz_mass; the same mass divides both). With q = 0 the
+    fingers (tests/oracles/process_cases.xyz_mass; the same mass divides both). With q = 0 the
     centrifugal terms on y vanish by symmetry. Tolerance as test_inertial_loads_follow_the_etched_body."""
-    from tests.model.test_process_loads import xyz_mass
+    from tests.oracles.process_cases import xyz_mass
 
     model, path = rotating
     names = [c.name for c in model.coordinates]

@@ -40,7 +40,7 @@ from netgen.mechanics import inertial, mechanics
 from netgen.model.process import etched, law_value, ratio_value, scaled
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
-from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated, xyz_text
+from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated, xyz_mass, xyz_structure
 from tests.oracles.process_inertial import STRUCTURE, T_UM
 from tests.oracles.testbench import Bench, states, using_ngspice
 
@@ -54,11 +54,6 @@ def perforated_g(etch: float) -> float:
     return RHO * T * ((405e-6 - 2 * etch) ** 2 - 1600 * (4e-6 + 2 * etch) ** 2)
 
 
-def xyz_mass(etch: float) -> float:
-    """The hand moving mass of accelerometer_xyz at etch: plate, holes and 80 fingers 40 um beyond the edge."""
-    return RHO * T * ((400e-6 - 2 * etch) ** 2 - 1600 * (4e-6 + 2 * etch) ** 2 + 80 * (2e-6 - 2 * etch) * 40e-6)
-
-
 @pytest.fixture(scope="module")
 def plate():
     """The perforated mass with etch declared and the a_in port."""
@@ -66,13 +61,6 @@ def plate():
         'rigid = ["z", "tilt_x", "tilt_y"]', 'rigid = ["z", "tilt_x", "tilt_y"]\nacceleration_port = true'
     )
     return build_model(parse_structure(text, "px.toml"))
-
-
-def xyz_structure():
-    """accelerometer_xyz (process_cases.xyz_text) with etch declared and the rate w_z."""
-    text = xyz_text(process='\n[process]\nparameters = ["etch"]\n')
-    text = text.replace('inertial = ["a_x", "a_y", "a_z"]', 'inertial = ["a_x", "a_y", "a_z", "w_z"]')
-    return parse_structure(text, "xyz.toml")
 
 
 @pytest.fixture(scope="module")
