@@ -44,9 +44,10 @@ rigid = ["x", "y", "z", "rot_z", "tilt_x", "tilt_y"]
 comb_model = "textbook"
 """
 
-COMBS = """
+# the differential transverse pair: the same fingers, faced on side + (tp) and side - (tn)
+TRANSVERSE = """
 [[electrodes]]
-name = "tp"
+name = "{name}"
 kind = "transverse_comb"
 orientation = "y"
 fingers = 5
@@ -54,19 +55,12 @@ width = "2 um"
 gap = "1.5 um"
 length = "40 um"
 overlap = "30 um"
-side = "+"
-center = ["30 um", "225 um"]
-[[electrodes]]
-name = "tn"
-kind = "transverse_comb"
-orientation = "y"
-fingers = 5
-width = "2 um"
-gap = "1.5 um"
-length = "40 um"
-overlap = "30 um"
-side = "-"
-center = ["30 um", "225 um"]
+side = "{side}"
+center = ["30 um", "225 um"]"""
+COMBS = (
+    TRANSVERSE.format(name="tp", side="+")
+    + TRANSVERSE.format(name="tn", side="-")
+    + """
 [[electrodes]]
 name = "lr"
 kind = "lateral_comb"
@@ -80,6 +74,7 @@ side = "+"
 pitch = "10 um"
 center = ["230 um", "-40 um"]
 """
+)
 
 
 def structure(extra: str = ""):
