@@ -135,7 +135,7 @@ def body_mass(s: Structure) -> float:
 
 def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
     """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and the moving
-    fingers, which an internal mode moves as the plate's edge at their roots, RectPlateModes.shape;
+    fingers, which an internal mode turns with the plate's edge at their roots, RectPlateModes.shape;
     Gauss quadrature): the generalized force per unit frame acceleration. Values below 1e-6 of
     sqrt(M_v m) (free-plate modes and tilts about the centre, zero by symmetry up to round-off) are
     set to exactly 0."""

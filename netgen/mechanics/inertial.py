@@ -66,7 +66,7 @@ def fields(names: list[str], basis: np.ndarray, x: np.ndarray, y: np.ndarray) ->
 def moments(s: Structure, m: Mechanics, order: int = 96) -> tuple[np.ndarray, np.ndarray, float]:
     """W[a, b, i, j] = int rho Phi_a,i Phi_b,j dV and P[a, i] = int rho Phi_a,i dV over the body
     (a, b: the coordinates and r0 last; the plate and the moving fingers, netgen.mechanics.base.mass_rule:
-    an internal mode moves a finger as the plate's edge at its root, as in its modal mass), and the
+    an internal mode turns a finger with the plate's edge at its root, as in its modal mass), and the
     body's mass."""
     n = len(m.names)
     big_w, p, total = np.zeros((n + 1, n + 1, 3, 3)), np.zeros((n + 1, 3)), 0.0

@@ -8,7 +8,7 @@ Small-angle kinematics (netgen.mechanics.base.KINEMATICS). With [coordinates] mo
 N internal modes of the plate (free edges, netgen.mechanics.plates) join them as m1, m2, ...:
 vertical mode shapes that deform the plate electrodes' gaps (and move the comb fingers on the
 edges vertically), M-orthogonal to the rigid motions over the plate; the moving comb fingers add
-to each mode's mass (finger_modes: they move with the edge at their roots), the flexures' vertical
+to each mode's mass (finger_modes: rigid, they turn with the edge at their roots), the flexures' vertical
 springs at their attachment points to each mode's stiffness (first order: the Rayleigh quotient),
 and the couplings both bring to the other modes, z and the tilts are dropped (their sizes are in
 the report)."""
@@ -167,9 +167,9 @@ def flexure_springs(c, modes, rigid: list[str]) -> tuple[np.ndarray, float] | No
 def finger_modes(
     c, modes, fingers: Sequence[Finger], rigid: list[str], inert: dict[str, float]
 ) -> tuple[np.ndarray, float]:
-    """The moving fingers on the internal modes: a finger moves as the plate's edge at its root
-    (RectPlateModes.shape, the basis the electrostatics use; the edge's slope over the finger's
-    length is left out with it), so mode v gains M_f,v = int rho t phi_v^2 dA over the fingers; and
+    """The moving fingers on the internal modes: a finger is a rigid box clamped to the plate's edge,
+    so a point s beyond its root moves phi + s dphi/dn (RectPlateModes.shape, the basis the
+    electrostatics use too), and mode v gains M_f,v = int rho t phi_v^2 dA over the fingers; and
     the largest mass coupling the fingers bring, int rho t phi_v phi_u over them to the other modes
     and to z and the tilts, relative to sqrt(M_v M_u), which the diagonal model drops (the modes are
     M-orthogonal over the plate alone)."""
@@ -222,8 +222,8 @@ def modes_report(
         out["comb_fingers"] = {
             "mass_added_rel": [float(v) for v in fingers[0] / modes.modal_mass],
             "coupling_to_modes_z_and_tilts_max": fingers[1],
-            "model": "each moving finger moves as the plate's edge at its root: int rho t phi^2 dA over the "
-            "fingers added to each mode's mass; couplings dropped",
+            "model": "each moving finger turns with the plate's edge at its root (phi + s dphi/dn): int rho t "
+            "phi^2 dA over the fingers added to each mode's mass; couplings dropped",
         }
     return out
 

@@ -157,15 +157,20 @@ def test_etched_fingers_narrow_and_follow_the_edge():
 
 
 def test_fingers_on_the_internal_modes_by_root_integrals():
-    """With modes = 3 the fingers move with the plate's edge at their roots (RectPlateModes.shape),
-    so mode v's mass gains rho t L int phi_v^2 ds across each root and its a_in participation is
-    rho t L int phi_v ds (the plate's own share is zero: free-plate modes are M-orthogonal to 1):
-    both against composite Simpson over 400 panels across each root, written out here. The mass
-    gain to 1e-8: Simpson's error on the C1 piecewise-cubic shape (h = w / 400, a kink in phi'' at an
-    element edge) and the code's 4-point Gauss rule across the root (the kink inside one finger:
-    (w / 2)^2 times the relative jump of phi'', ~ h_el^2 k^2 <= (16.7 um)^2 (2 pi / 200 um)^2 ~ 3 %,
-    times (w / 2)^2 k^2 ~ 2e-4: 6e-6 of that one finger's term at most, 1e-8 seen; stated bound 1e-5 of
-    the gain). The participation within the plate's share that
+    """With modes = 3 each finger is a rigid box turning with the plate's edge at its root: a point s
+    beyond the root moves phi + s dphi/dn (RectPlateModes.shape), so mode v's mass gains
+    rho t int int (phi + s theta)^2 ds du = rho t L int (phi^2 + phi theta L + theta^2 L^2 / 3) du and its
+    a_in participation rho t L int (phi + theta L / 2) du (the plate's own share is zero: free-plate
+    modes are M-orthogonal to 1): phi and theta = dphi/dn at the root by the plate's shape inside it
+    (theta a 0.1 nm one-sided difference: off by 0.1 nm |phi''| / 2, <= 0.1 nm k / 2 ~ 2e-6 of theta for
+    wavelengths 2 pi / k >= 200 um, its rounding 1e-15 / 0.1 nm ~ 1e-9 of theta),
+    across the root by composite Simpson over 400 panels, written out here. The mass gain to 1e-5:
+    twice theta's errors (the reference's 2e-6; the code's second-order difference over 1e-4 of
+    the plate, (40 nm)^2 |phi'''| / 3 ~ 6e-7 of theta; 2e-6 seen in all), plus the code's
+    4-point Gauss rule across the root (exact along the finger: a quadratic in s) at a kink of
+    phi'' where an element edge crosses a root, (w / 2)^2 times its relative jump, ~ h_el^2 k^2
+    <= (16.7 um)^2 (2 pi / 200 um)^2 ~ 3 %, times (w / 2)^2 k^2 ~ 2e-4: 6e-6 of that finger's
+    term at most. The participation within the plate's share that
     netgen.mechanics.base.participation itself sets to 0 as round-off, 1e-6 sqrt(M_v m) (5e-7 seen:
     the quadrature of phi over the plate against its FE mass matrix), plus the same 1e-5 of the
     fingers' share."""
@@ -177,9 +182,12 @@ def test_fingers_on_the_internal_modes_by_root_integrals():
     for cx, cy, w, length, along in ROOTS:
         u = np.linspace(-w / 2, w / 2, 401)
         x, y = (cx + u, np.full_like(u, cy)) if along == "x" else (np.full_like(u, cx), cy + u)
+        inside = (x, y - 1e-10) if along == "x" else (x - 1e-10, y)  # both edges here face +y or +x
         phi = modes.shape(x, y)
-        gain += RHO * T * length * simpson(phi**2, x=u, axis=0)
-        load += RHO * T * length * simpson(phi, x=u, axis=0)
+        theta = (phi - modes.shape(*inside)) / 1e-10
+        per_length = phi**2 + phi * theta * length + theta**2 * length**2 / 3
+        gain += RHO * T * length * simpson(per_length, x=u, axis=0)
+        load += RHO * T * length * simpson(phi + theta * length / 2, x=u, axis=0)
         scale += RHO * T * length * w
     idx = [m1.names.index(f"m{k}") for k in (1, 2, 3)]
     assert m1.masses[idx] - m0.masses[idx] == pytest.approx(gain, rel=1e-5, abs=0)
