@@ -60,6 +60,20 @@ def test_simply_supported_rectangle_exact():
     assert m.lambda2 == pytest.approx(exact, rel=1e-4)
 
 
+def test_shape_beyond_the_edge_turns_with_the_edge():
+    """A point s beyond an edge (a rigid comb finger clamped there) moves w + s dw/dn: on the S-S-S-S
+    plate (a = 2, b = 1) the first mode is cos(pi x / a) cos(pi y / b) (peak 1 at the centre), so
+    beyond x = a/2 it is -(pi / a) s cos(pi y / b) and beyond y = b/2 -(pi / b) s cos(pi x / a), exact.
+    Within 1e-5 of the slope's peak: the BFS slope converges as h^3 (3.2e-5 at 16 elements along a,
+    so 4e-6 at the 32 here; 3.3e-6 seen)."""
+    m = rect_plate_modes(PlateSpec(2.0, 1.0, 0.01, 12 * 0.91 / 1e-6, 0.3, 100.0), 1, 32, "simply_supported")
+    u, s = np.linspace(-0.45, 0.45, 7), 0.1
+    beyond_x = m.shape(np.full_like(u, 1.0 + s), u)[:, 0]
+    beyond_y = m.shape(u, np.full_like(u, 0.5 + s))[:, 0]
+    assert beyond_x == pytest.approx(-math.pi / 2 * s * np.cos(math.pi * u), abs=1e-5 * math.pi / 2 * s)
+    assert beyond_y == pytest.approx(-math.pi * s * np.cos(math.pi * u / 2), abs=1e-5 * math.pi * s)
+
+
 def test_degenerate_pair_has_definite_parity_and_peak_one():
     """The square's (2,1)/(1,2) pair comes out as one mode even and one odd under x -> -x (the same
     on every machine), each with peak deflection 1."""
