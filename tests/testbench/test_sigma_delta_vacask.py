@@ -19,6 +19,7 @@ import pytest
 
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import loop as sd_loop
 from netgen.testbench.sigma_delta import vacask as sdv
 from tests.fixtures import ROOT
 from tests.oracles.sigma_delta_vacask import CHANNELS, CYCLES, REPLAY, SKIP, TS, replay, run
@@ -39,6 +40,12 @@ def vacask(model, tmp_path_factory) -> dict:
     sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")  # compile outside the timing
     sdv.compile_blocks(out / "osdi")
     return run(model, out, "vacask", CYCLES, SKIP)
+
+
+@pytest.fixture(scope="module")
+def replayed(vacask, model) -> np.ndarray:
+    """The independent integration of the VACASK run's first REPLAY clocks (~10 s)."""
+    return replay(model, sd.design(model, TS), vacask["clock"], REPLAY)
 
 
 @pytest.fixture(scope="module")
@@ -82,10 +89,70 @@ def test_plate_stays_levitated(vacask, model):
     assert abs(coords["z"]["mean"]) < 1e-3 * model.coordinates[0].scale / 1e-6
 
 
-def test_bitstream_balances_gravity(vacask):
+def z_forces(d: sd.Design, clock: dict, n: int) -> np.ndarray:
+    """The centre z force (N) of the first n clocks' bit patterns (Design.table, full feedback)."""
+    unit = d.channels[d.balance["index"]]["force_unit_si"]
+    lookup = {tuple(r["pattern"]): r["f"][d.balance["channel"]] * unit for r in d.table}
+    return np.array([lookup[tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)] for k in range(n)])
+
+
+def feedback_gain(d: sd.Design, clock: dict, ref: np.ndarray) -> tuple[float, float]:
+    """The simulator's feedback impulse gain error g and what it leaves of z's error: z_sim - z_ref
+    fitted (least squares) by g times z's response to the feedback impulses, sum over the pulses
+    before each sample of F_k duty T_s (t_n - t_k) / m (z is a free mass); returns (g, the largest
+    error left, of z's peak)."""
+    n = len(ref)
+    mid = (np.arange(n) + (d.t.fb_on + d.t.fb_off) / 2) * d.ts
+    lag = np.clip(clock["time"][:n, None] - mid[None, :], 0, None)
+    shape = lag @ (z_forces(d, clock, n) * d.duty * d.ts) / d.mass
+    err = (clock["x_z"][:n] - ref[:, 0]) * d.balance["x_unit_si"]
+    g = float(np.dot(err, shape) / np.dot(shape, shape))
+    return g, float(np.abs(err - g * shape).max() / np.abs(ref[:, 0] * d.balance["x_unit_si"]).max())
+
+
+def balance_bound(model: MacroModel, d: sd.Design, clock: dict, skip: int, gain: float) -> dict:
+    """The terms that separate netgen.testbench.sigma_delta.gravity_balance's ratio from 1, each a
+    fraction of the force it balances (the balance is momentum conservation over the window, so
+    the bit density's quantization error is in its inertial term):
+    - gain: the simulator's feedback impulse gain error (feedback_gain): the bits carry a force
+      the simulator applied (1 + g) times;
+    - position: the table's forces are the centre's; the plate sits within max |x| (+ one clock's
+      travel) of it, so each bit's force is off by at most max_p |dF_p/dz| that (central
+      differences of the model's force at 1e-3 of the scale; second order (x/g)^2 ~ 1e-8);
+    - ends: the velocities at the window's ends are central differences over two clocks around a
+      sample mid-feedback, where the pulse of the sample's own clock cancels; the neighbours'
+      halves do not (F_{n+1} - F_{n-1}, weight (T - s) over the last half-width w of the window):
+      m |dv| <= |F_{n+1} - F_{n-1}| w^2 T / 4 at each end, over the window's N T. The sense
+      force's z share (~1e-4 of the feedback's) is below these."""
+    bal = sd.gravity_balance(clock, d, skip)
+    a, b = bal["window"]
+    need = abs(bal["weight_n"] + bal["inertial_n"] + bal["damping_n"])
+    x = np.asarray(clock["x_z"]) * d.balance["x_unit_si"]
+    coord, eps = d.balance["coord"], 1e-3
+    step = np.zeros((1, model.ncoords))
+    step[0, coord] = eps
+    slope = max(
+        abs(model.electrostatic_force(step, v)[0][coord] - model.electrostatic_force(-step, v)[0][coord])
+        / (2 * eps * model.coordinates[coord].scale)
+        for v in (d.vfb * sd_loop.selected(d.electrodes, tuple(r["pattern"])) for r in d.table)
+    )
+    reach = np.abs(x[a : b + 1]).max() + np.abs(np.diff(x[a - 1 : b + 2])).max()
+    fz = z_forces(d, clock, len(x))
+    half = (d.t.fb_off - d.t.fb_on + d.t.edge) / 2
+    ends = sum(abs(fz[k + 1] - fz[k - 1]) for k in (a, b)) * half**2 / (4 * (b - a))
+    return {"gain": abs(gain), "position": d.duty * slope * reach / need, "ends": ends / need}
+
+
+def test_bitstream_balances_gravity(vacask, replayed, model):
     """Momentum conservation on z: the mean feedback force implied by the bits (the Python model's
-    force of each bit pattern x duty) = m g + m dv/dt over the window, within 1 %."""
-    assert vacask["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    force of each bit pattern x duty) = m g + m dv/dt over the window, within the sum of the
+    terms of balance_bound (about 1.3e-3 here, measured 3.5e-4; the bound was 1 %, stated)."""
+    d = sd.design(model, TS)
+    gain, _ = feedback_gain(d, vacask["clock"], replayed)
+    terms = balance_bound(model, d, vacask["clock"], SKIP, gain)
+    ratio = vacask["gravity_balance"]["ratio"]
+    print(f"F / m g - 1 = {ratio - 1:.2e}; bound " + ", ".join(f"{k} {v:.2e}" for k, v in terms.items()))
+    assert abs(ratio - 1) < sum(terms.values())
     assert 0.3 < vacask["channels"]["z"]["bit_mean"] < 0.7
 
 
@@ -127,22 +194,33 @@ def bit_means_and_bound(model: MacroModel, clocks: list[dict], skip: int, cycles
     return means, bound
 
 
-def test_mechanics_match_an_independent_integration(vacask, model):
-    """The first 48 clocks: tilts and modes within 1.5 % of their peak (measured <= 1.05 %, the (3,0)
-    cosine mode), z within 6 % (measured 2.5 %). z is the small residual of a nearly balanced force
-    (the plate hovers within ~0.3 nm), so the impulse error VACASK still makes at the pulse corners
-    (netgen.testbench.sigma_delta.vacask.OPTIONS) integrates to a few % of its excursion, growing as t^2.
-    The ngspice benches are off by the same amount (B-source loop 3.9 % on z, 0.6 % on the (3,0)
-    modes; compiled loop 3.0 % and 1.3 %; test_xspice_mechanics_match_an_independent_integration).
-    With VACASK's default corner steps (tran_fbr=0.25) z was 15 % off here (6.9 % in a later run, tran_lteratio=10);
-    the options before (tran_fbr=0.1 tran_lteratio=10, 50 % more time points) gave 1.1 % and 0.7 %."""
-    clock = vacask["clock"]
-    ref = replay(model, sd.design(model, TS), clock, REPLAY)
-    for i, c in enumerate(model.coordinates):
-        got = clock[f"x_{c.name}"][:REPLAY]
-        err = np.abs(got - ref[:, i]).max() / np.abs(ref[:, i]).max()
+def test_mechanics_match_an_independent_integration(vacask, replayed, model):
+    """The first 48 clocks against the independent integration of the run's own bits.
+
+    z is a free mass held by a nearly balanced force (it hovers within ~0.3 nm), so a small gain
+    error g of the feedback impulses integrates to a few % of its excursion, growing as t^2: 2.9 %
+    here, all of it that gain (feedback_gain: g = -8.0e-4, 1e-4 of the peak left; with the ramp
+    step bound RAMP_STEPS halved g = -2.4e-4, so it is second order in the step h on the ramps,
+    as the rule's error per ramp, ~ (h / tau)^2 tau / (duty T_s) = 6.6e-4 for h = 0.12 of the ramp
+    tau; the constant, 1.2 here and 1.5 at the halved bound, is not derived: VACASK's default rule is the trapezoidal one,
+    whose curvature and straddled-corner terms give 1/3 and -1/2). Asserted: |g| within 3 of
+    that scale, 2.0e-3, and z, with g taken out, within 1.5 % of its peak like every other
+    coordinate (tilts and modes: measured <= 1.05 %, the (3,0) cosine mode, whose error the sense
+    ramps' step bound sets; not derived). The ngspice benches still check z raw within 6 %
+    (B-source loop 3.9 %, compiled loop 3.0 %); the options before (tran_fbr=0.1
+    tran_lteratio=10) gave 1.1 % raw."""
+    clock, ref = vacask["clock"], replayed
+    d = sd.design(model, TS)
+    gain, left = feedback_gain(d, clock, ref)
+    tau = d.t.edge * d.ts
+    scale = (sdv.RAMP_STEPS[0] * tau) ** 2 / (tau * d.duty * d.ts)
+    print(f"feedback impulse gain error {gain:.2e} (scale {scale:.2e}); z error left {left:.2e} of its peak")
+    assert abs(gain) < 3 * scale
+    assert left < 0.015
+    for i, c in enumerate(model.coordinates[1:], start=1):
+        err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |VACASK - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.06 if c.name == "z" else 0.015), c.name
+        assert err < 0.015, c.name
 
 
 def test_agrees_with_ngspice(vacask, ngspice, model):
@@ -157,7 +235,7 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
     first clocks, and from there the two bitstreams are different samples of the same chaotic
     loop. So:
     - both benches' mechanics equal the independent integration of their own bits (48 clocks;
-      tilts and modes within 1.5 % of their peak, z within 6 %, as for VACASK above);
+      tilts and modes within 1.5 % of their peak, z within 6 % with the feedback gain left in);
     - after settling: the same z bit density within what the two momentum balances allow
       (bit_means_and_bound: 0.013, 0.8 bit flips in 126 clocks; measured 0), the same
       mean height (the set point where the readout offset of the asymmetric electrode fits is
