@@ -18,7 +18,7 @@ from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
 from tests.testbench.test_sigma_delta_latch import check_latches
-from tests.testbench.test_sigma_delta_vacask import bit_means_and_bound, replay
+from tests.testbench.test_sigma_delta_vacask import bit_means_and_bound, feedback_gain, replay
 
 CHANNELS = ("z", "tilt_x", "tilt_y")  # the levitated disk's default channels (loop.channel_names)
 
@@ -90,17 +90,24 @@ def test_spectra_are_noise_shaped_and_latches_clean(osdi_run):
 
 def test_mechanics_match_an_independent_integration(osdi_run, model):
     """The first 32 clocks: solve_ivp of the mechanics driven by the electrode voltages of the
-    run's own bits; tilts and modes within 1.5 % of their peak, z within 3 % (the VACASK test's
-    bounds are 1.5 % and 6 %). Measured on ngspice 46 at the bench's reltol 1e-3: z 1.6 %, tilts
-    0.07 %, modes <= 0.43 % (the B-source .lib in the same loop: z 1.3 %). Before the module's
-    nonlinear forces were nodes (netgen.emit.veriloga, fn_<q>) z was 7.2 % off: ngspice's Newton
-    test of an OSDI device looks at node changes only, and accepted the force one update early."""
+    run's own bits. z with its feedback impulse gain error g taken out (feedback_gain of
+    tests/testbench/test_sigma_delta_vacask.py: on a free mass held by a nearly balanced force a
+    gain error grows as t^2 to a few % of z's excursion), with |g| within ngspice's LTE limit on
+    each feedback impulse, trtol x reltol = 7e-3 (as test_plate_levitates_and_balances_gravity
+    states); z's remainder, tilts and modes within 1.5 % of their peak (not derived). Measured on
+    ngspice 46 at the bench's reltol 1e-3: z 1.6 % raw, tilts 0.07 %, modes <= 0.43 % (the B-source
+    .lib in the same loop: z 1.3 %). Before the module's nonlinear forces were nodes
+    (netgen.emit.veriloga, fn_<q>) z was 7.2 % off: ngspice's Newton test of an OSDI device looks
+    at node changes only, and accepted the force one update early."""
     clock = osdi_run["clock"]
     ref = replay(model, sd.design(model, TS), clock, REPLAY)
-    for i, c in enumerate(model.coordinates):
+    gain, left = feedback_gain(sd.design(model, TS), clock, ref)
+    print(f"z: feedback impulse gain error {gain:.2e}, error left {left:.2e} of its peak")
+    assert abs(gain) < 7e-3 and left < 0.015
+    for i, c in enumerate(model.coordinates[1:], start=1):
         err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |ngspice-osdi - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.03 if c.name == "z" else 0.015), c.name
+        assert err < 0.015, c.name
 
 
 def test_agrees_with_vacask(osdi_run, vacask_run, model):
