@@ -202,11 +202,13 @@ def test_mechanics_match_an_independent_integration(vacask, replayed, model):
     here, all of it that gain (feedback_gain: g = -8.0e-4, 1e-4 of the peak left; with the ramp
     step bound RAMP_STEPS halved g = -2.4e-4, so it is second order in the step h on the ramps,
     as the rule's error per ramp, ~ (h / tau)^2 tau / (duty T_s) = 6.6e-4 for h = 0.12 of the ramp
-    tau; the constant, 1.2 here and 1.5 at the halved bound, is not derived: VACASK's default rule is the trapezoidal one,
-    whose curvature and straddled-corner terms give 1/3 and -1/2). Asserted: |g| within 3 of
+    tau; its constant is -1.2 here and -1.5 at the halved bound, against -2/3 from the rules:
+    VACASK's default, trapezoidal, over-integrates each ramp's V^2 by 1/6, and its backward-Euler
+    step after a corner (docs/sigma-delta-validation.md) under-integrates the falling ramp's
+    first step by 1, so the rest is not derived). Asserted: |g| within 3 of
     that scale, 2.0e-3, and z, with g taken out, within 1.5 % of its peak like every other
-    coordinate (tilts and modes: measured <= 1.05 %, the (3,0) cosine mode, whose error the sense
-    ramps' step bound sets; not derived). The ngspice benches: ngspice_mechanics (z raw: B-source
+    coordinate (tilts: 1.0e-3, the same gain; modes: <= 1.02 %, the (3,0) cosine mode, of which
+    the feedback gain explains less than half; not derived). The ngspice benches: ngspice_mechanics (z raw: B-source
     loop 3.9 %, compiled loop 3.0 %); the options before (tran_fbr=0.1
     tran_lteratio=10) gave 1.1 % raw."""
     clock, ref = vacask["clock"], replayed
