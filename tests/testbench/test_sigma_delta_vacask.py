@@ -93,7 +93,7 @@ def z_forces(d: sd.Design, clock: dict, n: int) -> np.ndarray:
     """The centre z force (N) of the first n clocks' bit patterns (Design.table, full feedback)."""
     unit = d.channels[d.balance["index"]]["force_unit_si"]
     lookup = {tuple(r["pattern"]): r["f"][d.balance["channel"]] * unit for r in d.table}
-    return np.array([lookup[tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)] for k in range(n)])
+    return np.array([lookup[tuple(int(clock[f"bits_{c}"][k]) for c in d.names)] for k in range(n)])
 
 
 # ngspice's LTE limit on each feedback impulse: trtol x reltol of the velocity change it integrates
