@@ -167,8 +167,8 @@ def balance_bound(model: MacroModel, d: sd.Design, clock: dict, skip: int, gain:
 def test_bitstream_balances_gravity(vacask, model):
     """Momentum conservation on z: the mean feedback force implied by the bits (the Python model's
     force of each bit pattern x duty) = m g + m dv/dt over the window, within the sum of the
-    terms of balance_bound (2.6e-3 here, measured 3.5e-4, of which the feedback gain -8.0e-4 and
-    the plate's offset the rest; the bound was 1 %, stated)."""
+    terms of balance_bound (2.6e-3 here; measured 3.5e-4: +8.0e-4 from the feedback gain error
+    -8.0e-4, the rest from the plate's offset; the bound was 1 %, stated)."""
     d = sd.design(model, TS)
     terms = balance_bound(model, d, vacask["clock"], SKIP, vacask_gain(d))
     ratio = vacask["gravity_balance"]["ratio"]
