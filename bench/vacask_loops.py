@@ -1,0 +1,172 @@
+"""VACASK's step control on the loops beyond the lead filter: the gyroscope (its drive loop, the Verilog-A
+Device drive.va, on x; the sense loop on y) and the levitated disk's z in a fourth-order CIFB loop
+(blocks.va's sd_statefilter), with the current options and with the previous ones.
+
+    .venv/bin/python bench/vacask_loops.py [--loops gyro,order4] [--variants now,previous]
+                                           [--gyro-cycles 1024] [--order4-cycles 512] [--repeat 3]
+
+  now       netgen.testbench.sigma_delta.vacask.OPTIONS, RAMP_STEPS and WINDOW_STEP (the state filter's
+            own step bound in its sample-and-hold windows)
+  previous  what these loops ran with before: tran_fbr=0.15 tran_lteratio=30 abstol=1e-12, no ramp
+            bounds, no window bound
+
+Per loop and variant, the medians over --repeat runs (variant order rotates per repeat; the OSDI
+files compiled before, by a 16-period run) of the CPU time (user + system) of the VACASK process per
+period, the time points per period and the Newton iterations per point (VACASK's stats), and the
+loop's own checks:
+
+  gyro    the drive amplitude's deficit 1 - A / X_d (the AGC law: Delta / G, Delta the loop's
+          numerical loss, tests/testbench/test_gyro_drive.py), the drive frequency off sqrt(k_x / m),
+          the rate read off the applied 0.4 of full scale and the quadrature force off k_xy A
+  order4  the first period whose bit differs from the numpy reference loop's
+          (tests/oracles/sigma_delta_reference.py; the test's bound 10), and the filter's update on the
+          circuit's own held inputs: the largest error of each new state over the state's peak
+          (tests/testbench/test_sd_orders_loop.py::test_vacask_state_filter_holds_its_update)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import resource
+import statistics
+import sys
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from support import ROOT
+from support import sigma_delta_reference as reference
+
+from netgen.build import build_model
+from netgen.emit.ngspice import subcircuit
+from netgen.model import MacroModel
+from netgen.sim.vacask import stats
+from netgen.structure import load_structure
+from netgen.testbench.gyro.run import GyroRequest, run, sense_design
+from netgen.testbench.sigma_delta import design, filters, per_clock
+from netgen.testbench.sigma_delta import vacask as sdv
+from netgen.testbench.sigma_delta.loopfile import read_structure_loop
+
+GYRO = ROOT / "examples" / "gyroscope_z.toml"
+K_XY = 5e-3  # N/m, the gyroscope file's k_xy
+TS = 1e-6
+# variant -> (extra VACASK options, RAMP_STEPS, WINDOW_STEP)
+VARIANTS = {
+    "now": ("", sdv.RAMP_STEPS, sdv.WINDOW_STEP),
+    "previous": ("tran_fbr=0.15 tran_lteratio=30 abstol=1e-12", None, None),
+}
+
+
+def child_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def use(variant: str) -> None:
+    sdv.EXTRA_OPTIONS, sdv.RAMP_STEPS, sdv.WINDOW_STEP = VARIANTS[variant]
+
+
+class Gyro:
+    """The gyroscope at 0.4 of full scale (the drive test's second run)."""
+
+    def __init__(self, work: Path):
+        self.model = build_model(load_structure(GYRO))
+        self.spec = read_structure_loop(GYRO)
+        self.req = GyroRequest(simulator="vacask", progress=False, plots=False)
+        self.cx = next(c for c in self.model.coordinates if c.name == "x")
+        self.w = math.sqrt(self.cx.stiffness / self.cx.mass)
+        fs = sense_design(self.model, self.spec, self.req).channels[0]["full_scale_force_si"]
+        self.rate = 0.4 * fs / (2 * self.cx.mass * 4e-6 * self.w)
+        self.lib = work / "g.lib"
+        self.lib.write_text(subcircuit(self.model))
+
+    def run(self, out: Path, cycles: int) -> tuple[dict, str]:
+        req = replace(self.req, cycles=cycles, rate_deg_s=math.degrees(self.rate))
+        r = run(self.model, self.lib, out, self.spec, req)["runs"][0]
+        return stats(out / sdv.LOG), (
+            f"deficit {1 - r['drive_amplitude_m'] / 4e-6:.3e} drive f {r['drive_hz'] / (self.w / 2 / math.pi) - 1:+.1e} "
+            f"rate {r['rate_rad_s'] / self.rate - 1:+.4f} quad {r['quadrature_force_n'] / (K_XY * r['drive_amplitude_m']) - 1:+.4f}"
+        )
+
+
+class Order4:
+    """The disk's z in the fourth-order CIFB loop of tests/testbench/test_sd_orders_loop.py."""
+
+    def __init__(self, work: Path):
+        self.model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
+
+    def run(self, out: Path, cycles: int) -> tuple[dict, str]:
+        d = design(self.model, TS)
+        mech = filters.mechanics_of(self.model, d, "z")
+        f = filters.design(mech, 4, 64, 1.4, "cifb")
+        d.channels[0]["filter"], d.channels[0]["dither_v"] = f.as_dict(), 0.0
+        states = tuple(f'v("xf_z:{a}{i}")' for a in "mu" for i in range(1, f.states + 1))
+        how = sdv.BenchOptions(va=ROOT / "netlists" / "levitated_disk.va", saves=("v(cur_z)",) + states)
+        plot = sdv.run_bench(self.model, d, out, cycles, None, False, how)
+        dc = filters.dc_acceleration(self.model, d, "z")
+        got = per_clock(plot, d, cycles, self.model)["bits_z"]
+        ref = reference.simulate(mech, f, cycles, reference.Input(dc))["v"]
+        first = int(np.argmax(got != ref)) if np.any(got != ref) else cycles
+        return stats(out / sdv.LOG), f"first diff {first:4d} filter update err {update_error(plot, f, d, cycles)}"
+
+
+def update_error(plot, f, d, cycles: int) -> str:
+    """The largest error of each new filter state against the settled update on the circuit's own
+    held inputs, over the state's peak (the test's check, without its bound)."""
+    t, n = np.asarray(plot["time"]), np.arange(cycles)
+    at = (n + d.t.clk + d.t.sample) * d.ts
+
+    def held(name):
+        return np.interp(at, t, plot[name])
+
+    u = np.array([held(f"xf_z:u{i}") for i in range(1, f.states + 1)]).T
+    m = np.array([held(f"xf_z:m{i}") for i in range(1, f.states + 1)]).T
+    vbit = np.tanh(40 * (held("v(b_z)") - 0.5))
+    new = u[:-1] @ f.a.T + np.outer(held("v(cur_z)")[:-1] - f.x0, f.bx) + np.outer(vbit[:-1], f.bv)
+    e = math.exp(-d.g_switch * d.t.sample * d.ts / d.cs)
+    m_new = new + (m[:-1] - new) * e
+    u_new = m_new + (u[:-1] - m_new) * e
+    return "/".join(f"{x:.1e}" for x in np.abs(u[1:] - u_new).max(axis=0) / np.abs(u).max(axis=0))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--loops", default="gyro,order4")
+    ap.add_argument("--variants", default="now,previous")
+    ap.add_argument("--gyro-cycles", type=int, default=1024)
+    ap.add_argument("--order4-cycles", type=int, default=512)
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args()
+    loops, variants = a.loops.split(","), a.variants.split(",")
+    cycles = {"gyro": a.gyro_cycles, "order4": a.order4_cycles}
+    with tempfile.TemporaryDirectory(prefix="bench_vacask_loops_") as tmp:
+        work = Path(tmp)
+        benches = {name: {"gyro": Gyro, "order4": Order4}[name](work) for name in loops}
+        rows: dict[tuple[str, str], list] = {}
+        for name, b in benches.items():
+            b.run(work / name, 16)  # compiles the OSDI files into work/name/osdi
+        for k in range(a.repeat):
+            for v in variants[k % len(variants) :] + variants[: k % len(variants)]:
+                use(v)
+                for name, b in benches.items():
+                    cpu = child_cpu()
+                    st, checks = b.run(work / name, cycles[name])
+                    cpu = child_cpu() - cpu
+                    rows.setdefault((name, v), []).append((cpu, st, checks))
+                    print(f"  {name} {v}: {1e3 * cpu / cycles[name]:.2f} ms/period  {checks}", file=sys.stderr)
+        print(f"{'loop':7s} {'variant':9s} {'periods':>7s} {'cpu ms':>7s} {'pts':>6s} {'it/pt':>5s}  checks (last run)")
+        for (name, v), runs in rows.items():
+            cpu = statistics.median(r[0] for r in runs) / cycles[name]
+            st = runs[-1][1]
+            print(
+                f"{name:7s} {v:9s} {cycles[name]:7d} {1e3 * cpu:7.2f} {st['accepted'] / cycles[name]:6.1f} "
+                f"{st['nr_iterations'] / st['accepted']:5.2f}  {runs[-1][2]}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
