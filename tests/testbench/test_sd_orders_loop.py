@@ -159,7 +159,7 @@ def test_vacask_state_filter_holds_its_update(vacask_run):
     switch's time constant) leaves a residual between 0 and the exact one; plus the Newton tolerance
     2 (reltol |u| + vntol) on each state. With the LTE check alone (no bound in the windows) steps
     jumped into the windows: the states 2.4 % and 6.2 % of their peaks off (7.7 % and 15 % with the
-    previous tran_fbr=0.15 tran_lteratio=30); measured here (bound 0.01 T_s) 0.07 % and 0.17 %, at
+    previous tran_fbr=0.15 tran_lteratio=30); measured here (bound 0.01 T_s) 0.06 % and 0.16 %, at
     most 0.18 of the bound (bench/vacask_loops.py)."""
     plot, f, d = vacask_run["plot"], vacask_run["f"], vacask_run["d"]
     t, n = np.asarray(plot["time"]), np.arange(CYCLES)
