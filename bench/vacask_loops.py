@@ -2,13 +2,16 @@
 Device drive.va, on x; the sense loop on y) and the levitated disk's z in a fourth-order CIFB loop
 (blocks.va's sd_statefilter), with the current options and with the previous ones.
 
-    .venv/bin/python bench/vacask_loops.py [--loops gyro,order4] [--variants now,previous]
+    .venv/bin/python bench/vacask_loops.py [--loops gyro,order4,loss] [--variants now,previous]
                                            [--gyro-cycles 1024] [--order4-cycles 512] [--repeat 3]
+                                           [--extra "ramp_steps=0.12,0.12 tran_fbr=0.15"]
 
   now       netgen.testbench.sigma_delta.vacask.OPTIONS, RAMP_STEPS and WINDOW_STEP (the state filter's
             own step bound in its sample-and-hold windows)
   previous  what these loops ran with before: tran_fbr=0.15 tran_lteratio=30 abstol=1e-12, no ramp
             bounds, no window bound
+  extra     the current ones with --extra's VACASK options appended (a ramp_steps=F,S or
+            ramp_steps=none item sets RAMP_STEPS)
 
 Per loop and variant, the medians over --repeat runs (variant order rotates per repeat; the OSDI
 files compiled before, by a 16-period run) of the CPU time (user + system) of the VACASK process per
@@ -18,6 +21,10 @@ loop's own checks:
   gyro    the drive amplitude's deficit 1 - A / X_d (the AGC law: Delta / G, Delta the loop's
           numerical loss, tests/testbench/test_gyro_drive.py), the drive frequency off sqrt(k_x / m),
           the rate read off the applied 0.4 of full scale and the quadrature force off k_xy A
+  loss    the gyroscope's drive loop without amplitude control (G = 1e-9, zero rate, the drive
+          test's loss run, 2048 periods by default): Delta, the numerical loss the loop replaces
+          beyond b_x (the amplitude's decay rate over the last 7/8, windowed sinusoid fits, over
+          b_x / (2 m))
   order4  the first period whose bit differs from the numpy reference loop's
           (tests/oracles/sigma_delta_reference.py; the test's bound 10), and the filter's update on the
           circuit's own held inputs: the largest error of each new state over the state's peak
@@ -44,6 +51,7 @@ from netgen.emit.ngspice import subcircuit
 from netgen.model import MacroModel
 from netgen.sim.vacask import stats
 from netgen.structure import load_structure
+from netgen.testbench.gyro import analysis
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
 from netgen.testbench.sigma_delta import design, filters, per_clock
 from netgen.testbench.sigma_delta import vacask as sdv
@@ -92,6 +100,24 @@ class Gyro:
         )
 
 
+class Loss(Gyro):
+    """The drive test's loss run: G = 1e-9, zero rate."""
+
+    def warm(self, out: Path) -> None:
+        """Compile the OSDI files (a short gyroscope run; too short for the loss's fits)."""
+        Gyro.run(self, out, 16)
+
+    def run(self, out: Path, cycles: int) -> tuple[dict, str]:
+        run(self.model, self.lib, out, self.spec, replace(self.req, cycles=cycles, agc_gain=1e-9))
+        clock = np.load(out / "bitstreams.npz")
+        t, x = clock["time_0"], clock["x_x_0"] * 1e-6  # x_x port: 1 V = 1 um
+        edges = np.linspace(len(t) // 8, len(t), 9).astype(int)
+        mid = [float(np.mean(t[a:b])) for a, b in zip(edges[:-1], edges[1:])]
+        amp = [analysis.sinusoid(t[a:b], x[a:b])["amplitude"] for a, b in zip(edges[:-1], edges[1:])]
+        delta = -np.polyfit(mid, amp, 1)[0] / float(np.mean(amp)) / (self.cx.damping / (2 * self.cx.mass))
+        return stats(out / sdv.LOG), f"Delta {delta:.4f}"
+
+
 class Order4:
     """The disk's z in the fourth-order CIFB loop of tests/testbench/test_sd_orders_loop.py."""
 
@@ -138,16 +164,26 @@ def main() -> int:
     ap.add_argument("--variants", default="now,previous")
     ap.add_argument("--gyro-cycles", type=int, default=1024)
     ap.add_argument("--order4-cycles", type=int, default=512)
+    ap.add_argument("--loss-cycles", type=int, default=2048)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--extra", help="VACASK options of the variant 'extra' (ramp_steps=F,S sets RAMP_STEPS)")
     a = ap.parse_args()
     loops, variants = a.loops.split(","), a.variants.split(",")
-    cycles = {"gyro": a.gyro_cycles, "order4": a.order4_cycles}
+    if a.extra:
+        items = a.extra.split()
+        ramps = [i.partition("=")[2] for i in items if i.startswith("ramp_steps=")]
+        steps = sdv.RAMP_STEPS
+        if ramps:
+            steps = None if ramps[-1] == "none" else tuple(float(x) for x in ramps[-1].split(","))  # type: ignore[assignment]
+        VARIANTS["extra"] = (" ".join(i for i in items if not i.startswith("ramp_steps=")), steps, sdv.WINDOW_STEP)
+        variants = variants if "extra" in variants else variants + ["extra"]
+    cycles = {"gyro": a.gyro_cycles, "order4": a.order4_cycles, "loss": a.loss_cycles}
     with tempfile.TemporaryDirectory(prefix="bench_vacask_loops_") as tmp:
         work = Path(tmp)
-        benches = {name: {"gyro": Gyro, "order4": Order4}[name](work) for name in loops}
+        benches = {name: {"gyro": Gyro, "order4": Order4, "loss": Loss}[name](work) for name in loops}
         rows: dict[tuple[str, str], list] = {}
         for name, b in benches.items():
-            b.run(work / name, 16)  # compiles the OSDI files into work/name/osdi
+            getattr(b, "warm", lambda out: b.run(out, 16))(work / name)  # compiles the OSDI files into work/name/osdi
         for k in range(a.repeat):
             for v in variants[k % len(variants) :] + variants[: k % len(variants)]:
                 use(v)
