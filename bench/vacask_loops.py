@@ -4,7 +4,7 @@ Device drive.va, on x; the sense loop on y) and the levitated disk's z in a four
 
     .venv/bin/python bench/vacask_loops.py [--loops gyro,order4,loss] [--variants now,previous]
                                            [--gyro-cycles 1024] [--order4-cycles 512] [--repeat 3]
-                                           [--extra "ramp_steps=0.12,0.12 tran_fbr=0.15"]
+                                           [--extra "ramp_steps=0.12,0.12 tran_fbr=0.15"] [--order 5]
 
   now       netgen.testbench.sigma_delta.vacask.OPTIONS, RAMP_STEPS and WINDOW_STEP (the state filter's
             own step bound in its sample-and-hold windows)
@@ -119,7 +119,9 @@ class Loss(Gyro):
 
 
 class Order4:
-    """The disk's z in the fourth-order CIFB loop of tests/testbench/test_sd_orders_loop.py."""
+    """The disk's z in the fourth-order CIFB loop of tests/testbench/test_sd_orders_loop.py (ORDER)."""
+
+    ORDER = 4  # --order: 3..5 (a filter of ORDER - 2 states)
 
     def __init__(self, work: Path):
         self.model = MacroModel.load_json(ROOT / "netlists" / "levitated_disk.json")
@@ -127,7 +129,7 @@ class Order4:
     def run(self, out: Path, cycles: int) -> tuple[dict, str]:
         d = design(self.model, TS)
         mech = filters.mechanics_of(self.model, d, "z")
-        f = filters.design(mech, 4, 64, 1.4, "cifb")
+        f = filters.design(mech, self.ORDER, 64, 1.4, "cifb")
         d.channels[0]["filter"], d.channels[0]["dither_v"] = f.as_dict(), 0.0
         states = tuple(f'v("xf_z:{a}{i}")' for a in "mu" for i in range(1, f.states + 1))
         how = sdv.BenchOptions(va=ROOT / "netlists" / "levitated_disk.va", saves=("v(cur_z)",) + states)
@@ -165,6 +167,7 @@ def main() -> int:
     ap.add_argument("--gyro-cycles", type=int, default=1024)
     ap.add_argument("--order4-cycles", type=int, default=512)
     ap.add_argument("--loss-cycles", type=int, default=2048)
+    ap.add_argument("--order", type=int, default=4, help="the order4 loop's order (3..5)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--extra", help="VACASK options of the variant 'extra' (ramp_steps=F,S sets RAMP_STEPS)")
     a = ap.parse_args()
@@ -177,6 +180,7 @@ def main() -> int:
             steps = None if ramps[-1] == "none" else tuple(float(x) for x in ramps[-1].split(","))  # type: ignore[assignment]
         VARIANTS["extra"] = (" ".join(i for i in items if not i.startswith("ramp_steps=")), steps, sdv.WINDOW_STEP)
         variants = variants if "extra" in variants else variants + ["extra"]
+    Order4.ORDER = a.order
     cycles = {"gyro": a.gyro_cycles, "order4": a.order4_cycles, "loss": a.loss_cycles}
     with tempfile.TemporaryDirectory(prefix="bench_vacask_loops_") as tmp:
         work = Path(tmp)
