@@ -24,7 +24,8 @@ loop's own checks:
   loss    the gyroscope's drive loop without amplitude control (G = 1e-9, zero rate, the drive
           test's loss run, 2048 periods by default): Delta, the numerical loss the loop replaces
           beyond b_x (the amplitude's decay rate over the last 7/8, windowed sinusoid fits, over
-          b_x / (2 m))
+          b_x / (2 m)); --sense-scale F runs it with the sense loop's V_s times F (the sense loop then
+          misreads y, which this loop does not use)
   order4  the first period whose bit differs from the numpy reference loop's
           (tests/oracles/sigma_delta_reference.py; the test's bound 10), and the filter's update on the
           circuit's own held inputs: the largest error of each new state over the state's peak
@@ -52,6 +53,7 @@ from netgen.model import MacroModel
 from netgen.sim.vacask import stats
 from netgen.structure import load_structure
 from netgen.testbench.gyro import analysis
+from netgen.testbench.gyro import run as gyro_run
 from netgen.testbench.gyro.run import GyroRequest, run, sense_design
 from netgen.testbench.sigma_delta import design, filters, per_clock
 from netgen.testbench.sigma_delta import vacask as sdv
@@ -107,8 +109,22 @@ class Loss(Gyro):
         """Compile the OSDI files (a short gyroscope run; too short for the loss's fits)."""
         Gyro.run(self, out, 16)
 
+    SENSE_SCALE = 1.0  # --sense-scale: the sense loop's V_s times this (the loss run reads x alone)
+
     def run(self, out: Path, cycles: int) -> tuple[dict, str]:
-        run(self.model, self.lib, out, self.spec, replace(self.req, cycles=cycles, agc_gain=1e-9))
+        design = gyro_run.backend_design
+        scale = self.SENSE_SCALE
+
+        def scaled(*args, **kwargs):
+            d = design(*args, **kwargs)
+            d.vs *= scale
+            return d
+
+        gyro_run.backend_design = scaled
+        try:
+            run(self.model, self.lib, out, self.spec, replace(self.req, cycles=cycles, agc_gain=1e-9))
+        finally:
+            gyro_run.backend_design = design
         clock = np.load(out / "bitstreams.npz")
         t, x = clock["time_0"], clock["x_x_0"] * 1e-6  # x_x port: 1 V = 1 um
         edges = np.linspace(len(t) // 8, len(t), 9).astype(int)
@@ -168,6 +184,7 @@ def main() -> int:
     ap.add_argument("--order4-cycles", type=int, default=512)
     ap.add_argument("--loss-cycles", type=int, default=2048)
     ap.add_argument("--order", type=int, default=4, help="the order4 loop's order (3..5)")
+    ap.add_argument("--sense-scale", type=float, default=1.0, help="the loss loop's sense voltage V_s times this")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--extra", help="VACASK options of the variant 'extra' (ramp_steps=F,S sets RAMP_STEPS)")
     a = ap.parse_args()
@@ -180,7 +197,7 @@ def main() -> int:
             steps = None if ramps[-1] == "none" else tuple(float(x) for x in ramps[-1].split(","))  # type: ignore[assignment]
         VARIANTS["extra"] = (" ".join(i for i in items if not i.startswith("ramp_steps=")), steps, sdv.WINDOW_STEP)
         variants = variants if "extra" in variants else variants + ["extra"]
-    Order4.ORDER = a.order
+    Order4.ORDER, Loss.SENSE_SCALE = a.order, a.sense_scale
     cycles = {"gyro": a.gyro_cycles, "order4": a.order4_cycles, "loss": a.loss_cycles}
     with tempfile.TemporaryDirectory(prefix="bench_vacask_loops_") as tmp:
         work = Path(tmp)
