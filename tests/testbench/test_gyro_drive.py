@@ -19,7 +19,7 @@ the ngspice path (the same loop equations, so the same figures):
   (w h_max)^2 / 12 = 1.4e-6 (h_max = 0.05 T_s, the bench's maxstep). Measured:
   VACASK Delta 3.76 %, deficit 3.561e-4 against 3.573e-4 (its step options,
   netgen.testbench.sigma_delta.vacask.OPTIONS; 1.55 % with the previous tran_fbr=0.15
-  tran_lteratio=30: the backward-Euler step after each pulse corner, Q w T_s sum (h_i / T_s)^2,
+  tran_lteratio=30: the integrator across the pulse corners, docs/performance.md,
   bench/vacask_loops.py --loops loss); ngspice-osdi Delta 0.169 %, 1.28e-5 against 1.61e-5.
 - The frequency is the model's x resonance sqrt(k_x / m): the loop cancels the damping, so the
   damped frequency's shift 1 / (8 Q^2) = 3e-8 does not apply and is inside the bound; the
