@@ -41,7 +41,8 @@ from netgen.model.process import etched, law_value, ratio_value, scaled
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated, xyz_mass, xyz_structure
-from tests.oracles.process_inertial import STRUCTURE, T_UM
+from tests.oracles.process_inertial import T_UM
+from tests.oracles.process_inertial import structure as rate_structure
 from tests.oracles.testbench import Bench, states, using_ngspice
 
 RHO, T, G = 2330.0, 2e-6, 9.81
@@ -72,7 +73,7 @@ def xyz():
 @pytest.fixture(scope="module")
 def tilted():
     """The crab-leg mass with tilts and rates (tests/oracles/process_inertial) with tscale and etch."""
-    s = parse_structure(STRUCTURE.format(t=T_UM) + '[process]\nparameters = ["tscale", "etch"]\n', "gyp.toml")
+    s = parse_structure(rate_structure(T_UM) + '[process]\nparameters = ["tscale", "etch"]\n', "gyp.toml")
     return build_model(s), s
 
 
