@@ -30,7 +30,7 @@ balance's mean force by eps_C. After a flipped decision the two loops end the wi
 points of their limit cycles, and the balance's inertial term m (v_b - v_a) / ((b - a) T_s) (v_a the
 same: both start at rest) can differ by up to m (max |v| + max |v'|) / ((b - a) T_s) (each run's
 central differences of x_z), relative to the balance's denominator: that, not eps_C F_fs / weight,
-is what parts the two ratios at the etch point (1.3e-2 with the inertial terms -5.97e-9 / -4.60e-9 N
+is what parts the two ratios at the etch point (1.3e-2 with the inertial terms -5.96e-9 / -4.61e-9 N
 against 1.08e-7 N; the mean forces within 1.1e-4, eps_C). The weight each design loads the loop with
 (the parameters path's a_in law G tscale R(etch) against the rebuilt body's participation: G ~ t
 exactly) agrees within the etch ratio's stated residual plus round-off (1e-12); it sizes the loop's
