@@ -43,7 +43,7 @@ from .mechanics import Mechanics, body_mass, inertial, mechanics, participation
 from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
-from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots
+from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots, process_loads
 from .model.process import inertial_law, process_laws
 from .structure import Structure
 from .structure.schema import Sampling
@@ -323,7 +323,20 @@ def assemble(
     model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), capacitance_sampler(s, m, scales))
     if model.process and model.inertial:  # the inertial terms' tscale law (netgen.model.process.inertial_law)
         model.process["inertial"] = inertial_law(s, data, lambda t: inertial.terms(t, m, s.coordinates.inertial))
+    if "etch" in model.process and (model.acceleration or model.process.get("inertial")):
+        etch_loads(s, m, model)
     return model
+
+
+def etch_loads(s: Structure, m: Mechanics, model: MacroModel) -> None:
+    """The inertial loads' etch laws (netgen.model.process_loads: a_in and the inertial entries follow
+    the etched body), into the model's process record; the mechanics re-run once per etch point."""
+    runs = process_loads.etched_runs(s, m, mechanics)
+    if model.acceleration:
+        model.process["etch"]["acceleration"] = process_loads.acceleration_law(s, m, mechanics, runs)
+    if model.process.get("inertial"):
+        law = process_loads.inertial_etch_law(s, m, mechanics, s.coordinates.inertial, runs)
+        model.process["inertial"]["etch"] = law
 
 
 def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):

@@ -55,7 +55,7 @@ from .common import check_names, num, stop_constants, time_scale
 DEFAULT_TOL = 1e-8  # relative tolerance of the co-simulation integrator when the importer sets none
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-contract=off", "-Wall"]
 ARCH = {"generic": ["-march=x86-64", "-mtune=generic"], "native": ["-march=native"]}
-PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the runtime's order of the centrifugal products
+PAIRS = fmu_process.PAIRS  # the runtime's order of the centrifugal products
 # FMI unit name -> SI base-unit exponents
 UNITS: dict[str, dict[str, float]] = {
     "m": {"m": 1},

@@ -15,11 +15,23 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import numpy as np
+
 from ..model import MacroModel
 from ..model.process import ETCH_UNIT, LAW_KEYS
 from . import process
 from .common import num, stop_constants
 
+PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the runtime's order of the centrifugal products
+# the runtime's inertial tables: (C name, kind, keys in order)
+TABLES = (
+    ("PAX", "participation", ("a_x",)),
+    ("PAY", "participation", ("a_y",)),
+    ("GYRO", "gyroscopic", tuple("xyz")),
+    ("CENT", "centrifugal", PAIRS),
+    ("CENTF", "centrifugal_force", PAIRS),
+)
+IDENTITY = [1.0, 0.0, 0.0, 0.0]
 UNITLESS = ""  # FMI: a Real without a unit attribute (a ratio)
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -101,6 +113,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "ELEC_ETCH", etch_shifts(model)),
         array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
     ]
+    data += load_arrays(model, array)
 
     def ref(name: str) -> int:
         return vr[name] if name in names else -1
@@ -140,3 +153,26 @@ def energy_law(model: MacroModel) -> list[float]:
     pe a(tscale) + b(tscale)); without one a = 0, b = 1 (the factor exactly 1)."""
     u = model.process.get("strain_energy") if process.energy_moved(model) else None
     return list(u["a"]) + list(u["b"]) if u else [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+
+
+def load_arrays(model: MacroModel, array) -> list[dict]:
+    """The inertial loads' etch ratios (netgen.model.process_loads), cubics in etch / 1 um, 1 where none:
+    AIN_ETCH per coordinate (the a_in load), and per inertial table (TABLES, the runtime's order) <T>_E1
+    and <T>_E3 per entry, its t and t^3 parts' ratios (with tscale undeclared both the entry's own:
+    the parts then sum to X R(etch))."""
+    n = model.ncoords
+    ratio = (
+        (model.process.get("etch") or {}).get("acceleration", {}).get("ratio")
+        if process.declared(model, "etch")
+        else None
+    )
+    out = [array("double", "AIN_ETCH", ratio if ratio and model.acceleration else [IDENTITY] * n)]
+    law = (model.process.get("inertial") or {}).get("etch") if process.declared(model, "etch") else None
+    parts = ("t", "t3") if process.declared(model, "tscale") else ("total", "total")
+    for name, kind, keys in TABLES:
+        for suffix, part in zip(("E1", "E3"), parts):
+            table = (law or {}).get(part, {}).get(kind, {})
+            shape = (n, n) if kind in ("gyroscopic", "centrifugal") else (n,)
+            rows = [np.asarray(table[k], dtype=float) if k in table else np.tile(IDENTITY, shape + (1,)) for k in keys]
+            out.append(array("double", f"{name}_{suffix}", rows))
+    return out

@@ -86,7 +86,18 @@ def header_lines(model: MacroModel) -> list[str]:
             "varying (no Euler term); each coordinate feels the Coriolis force -sum_k w_k G_k dq/dt and the "
             "centrifugal force -sum_kl w_k w_l (S_kl q + c_kl) (the model JSON's inertial_inputs)."
         )
-    if lines and process.enabled(model) and model.process.get("inertial"):
+    if lines and process.declared(model, "etch") and model.process.get("inertial"):
+        law = (
+            "X ((1 - f) tscale R1(etch) + f tscale^3 R3(etch)), f its rotary (rho t^3 / 12) share, R1 and R3 "
+            "the etched body's ratios of its two parts"
+            if process.declared(model, "tscale")
+            else "X R(etch), R the etched body's ratio"
+        )
+        lines.append(
+            f"Every P, G, S and c entry above is {law} (cubics in etch / 1 um, the model JSON's "
+            "process.inertial: integrals of rho over the etched outline, holes and fingers); escale leaves them."
+        )
+    elif lines and process.enabled(model) and model.process.get("inertial"):
         lines.append(
             "Under tscale every P, G, S and c entry above is X ((1 - f) tscale + f tscale^3), f its rotary "
             "(rho t^3 / 12) share (the model JSON's process.inertial; exact: integrals of rho over the plate's "

@@ -385,13 +385,14 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
 
 def inertial_loads(model: MacroModel, ws: float) -> list[dict]:
     """Per coordinate with a non-zero participation G_v: the gain from the a_in port (m/s^2) into
-    its velocity node, G_v / (M L w_s^2) (the inertial force -G_v a_in, like F_ext)."""
+    its velocity node, G_v / (M L w_s^2) (the inertial force -G_v a_in, like F_ext), times its process
+    law (netgen.emit.process.load_factor)."""
     return [
         {
             "coord": c.name,
-            "gain": process.factor(model, "tscale", c.name, num(g / (c.mass * c.scale * ws * ws))),
+            "gain": process.load_factor(model, v, num(g / (c.mass * c.scale * ws * ws))),
             "participation": f"{g:.6g}",
         }
-        for c, g in zip(model.coordinates, model.acceleration)
+        for v, (c, g) in enumerate(zip(model.coordinates, model.acceleration))
         if g != 0.0
     ]

@@ -5,6 +5,8 @@ No physics here: every number comes from the model."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..model import MacroModel
@@ -325,6 +327,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
             + etch_neglect(e)
+            + ("; the a_in load times the etched body's ratio (a cubic in etch)" if e.get("acceleration") else "")
         )
     if energy_moved(model):
         err = p["strain_energy"]["max_rel_error"]
@@ -414,19 +417,60 @@ def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
 
 
 def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None = None) -> str:
-    """The text of the tscale law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
-    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share); "" where
-    the model has no such law (no tscale: the entry is a constant)."""
+    """The text of the process law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
+    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share; with etch
+    each part times its etch ratio R1, R3, netgen.model.process_loads); "" where the model has no
+    such law (the entry is a constant)."""
     law = model.process.get("inertial") if enabled(model) else None
     if not law:
         return ""
-    f = law["t3_fraction"][kind][key][v]
-    f = f if w is None else f[w]
+
+    def entry(table: dict) -> Any:
+        x = table[kind][key][v]
+        return x if w is None else x[w]
+
+    f = entry(law["t3_fraction"])
+    etch = law.get("etch") if declared(model, "etch") else None
+    tscale = declared(model, "tscale")
+    if not tscale:  # thickness 1: the entry times its own etch ratio (netgen.model.process_loads)
+        return product_text([], entry(etch["total"]) if etch else None)
+    t1 = product_text(["tscale"], entry(etch["t"]) if etch else None)
+    t3 = product_text(["tscale", "tscale", "tscale"], entry(etch["t3"]) if etch else None)
     if f == 0.0:
-        return "tscale"
+        return t1
     if f == 1.0:
-        return "tscale*tscale*tscale"
-    return f"({num(1.0 - f)}*tscale + {num(f)}*tscale*tscale*tscale)"
+        return t3
+    return f"({num(1.0 - f)}*{t1} + {num(f)}*{t3})"
+
+
+def product_text(factors: list[str], ratio) -> str:
+    """The factors' product times the etch ratio cubic `ratio` (left out where None or 1), "" for 1."""
+    if ratio is not None and list(ratio) != IDENTITY:
+        factors = factors + [poly(ratio, "(1e6*etch)")]
+    return "*".join(factors)
+
+
+IDENTITY = [1.0, 0.0, 0.0, 0.0]
+
+
+def acceleration_ratio(model: MacroModel, v: int) -> list[float] | None:
+    """Coordinate v's a_in load etch ratio (netgen.model.process_loads.acceleration_law) where etch is
+    declared and the ratio is not identically 1; else None."""
+    if not declared(model, "etch"):
+        return None
+    law = (model.process["etch"].get("acceleration") or {}).get("ratio")
+    return law[v] if law and list(law[v]) != IDENTITY else None
+
+
+def load_factor(model: MacroModel, v: int, value: str, braces: bool = True) -> str:
+    """The a_in gain `value` of coordinate v times its process law: tscale (factor, va_factor) and,
+    under etch, the etched body's ratio (acceleration_ratio); ngspice text in braces, else Verilog-A."""
+    c = model.coordinates[v]
+    ratio = acceleration_ratio(model, v)
+    if ratio is None:
+        return factor(model, "tscale", c.name, value) if braces else va_factor(model, "tscale", c.name, value)
+    law = product_text(["tscale"] if declared(model, "tscale") else [], ratio)
+    return f"{{{law}*{value}}}" if braces else f"{law} * {value}"
 
 
 def scaled_number(value: str, scale: str, braces: bool) -> str:

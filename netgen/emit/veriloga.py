@@ -180,9 +180,9 @@ def module(model: MacroModel, noise: bool | None = None) -> str:
     _fit_rows(model, ctx)
     ctx["film"] = film_rows(model, ws)
     ctx["accel_port"] = "a_in" if model.acceleration else ""
-    for row, c, g in zip(ctx["coords"], model.coordinates, model.acceleration):
+    for v, (row, c, g) in enumerate(zip(ctx["coords"], model.coordinates, model.acceleration)):
         if g != 0.0:  # inertial load -G a_in (netgen.mechanics.participation)
-            gain = process.va_factor(model, "tscale", c.name, num(g / (c.mass * c.scale * ws * ws)))
+            gain = process.load_factor(model, v, num(g / (c.mass * c.scale * ws * ws)), braces=False)
             row["rhs"] = f"{row['rhs']} - {gain} * V(a_in)"
     inertial_rows(model, ctx, ws)
     process_rows(model, ctx)

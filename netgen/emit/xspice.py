@@ -75,7 +75,7 @@ def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, dict[int, int]]
     n, sets = model.ncoords, [g["set"] for g in model.process["gaps"]]
     names = [c.name for c in model.coordinates]
     extra = [f"xg_{s}" for s in sets] + [c[0] for c in process.etch_columns(model)]
-    coords = [names.index("z")] * len(sets) + [names.index(c[1]) for c in process.etch_columns(model)]
+    coords = [names.index("z") for _ in sets] + [names.index(c[1]) for c in process.etch_columns(model)]
     column: dict[str, dict[int, int]] = {
         e: {names.index("z"): n + sets.index(g)} for e, (g, _) in process.gap_shifts(model).items()
     }

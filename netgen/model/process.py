@@ -26,7 +26,8 @@ once so that emitters only render them.
 - etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
-  product's misfit at the (tscale, etch) box's corners is part of the stated error).
+  product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
+  follow the etched body (netgen.model.process_loads).
 """
 
 from __future__ import annotations
@@ -519,8 +520,10 @@ def inertial_law(s: Structure, data: dict, terms) -> dict:
     thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
     (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
     the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
-    Etch and escale leave them (the plate outline is not etched; no modulus). {} without tscale."""
-    if s.process is None or not s.process.wants("tscale") or not any(data.get(k) for k in INERTIAL_KINDS):
+    escale leaves them (no modulus); etch moves each part by its own ratio (netgen.model.process_loads,
+    stored under "etch" by the build). {} without tscale and etch."""
+    wanted = s.process is not None and (s.process.wants("tscale") or s.process.wants("etch"))
+    if not wanted or not any(data.get(k) for k in INERTIAL_KINDS):
         return {}
     probe = terms(scaled(s, PROBE_T))
     fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}

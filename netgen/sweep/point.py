@@ -19,6 +19,7 @@ from ..core.errors import SweepError
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, etched, ratio_value, scaled
+from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
 from ..structure.schema import Process
 from .tomltext import to_toml
@@ -53,9 +54,10 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     """A MacroModel's copy at a process point, for the loop design and analysis of a run whose netlist
     takes the point as instance parameters: each coordinate's mass, stiffness and damping from the
     laws (netgen.model.process.coordinate_values, the arithmetic the emitters render) and its
-    frequency from them; the a_in participation times tscale (as the emitters scale the port); the
-    thermal noise at the point's temperature; each gap set's capacitance terms reading
-    xs_z - sign dg / L_z (shifted: the polynomials re-expanded, exact)."""
+    frequency from them; the a_in participation times tscale and its etch ratio (as the emitters scale
+    the port: netgen.model.process_loads.acceleration_at); the thermal noise at the point's
+    temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
+    polynomials re-expanded, exact)."""
     law = model.process
     tscale, escale = point.get("tscale", 1.0), point.get("escale", 1.0)
     temp, etch = point.get("temp"), point.get("etch", 0.0)
@@ -67,7 +69,7 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     out = dataclasses.replace(
         model,
         coordinates=coords,
-        acceleration=[g * tscale for g in model.acceleration],
+        acceleration=acceleration_at(model, tscale, etch),
         capacitances=shifted_fits(model, point),
     )
     if temp is not None and "damping" in model.report:

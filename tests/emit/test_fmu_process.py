@@ -12,7 +12,7 @@ References:
   deflection F / k); under a
   voltage V on the plate below, the equilibrium k z = -eps0 A V^2 / (2 (g + dg + z)^2) and the
   charge eps0 A V / (g + dg + z) (fringe "none": the 1/P fit is exact); a step on a_in loads the
-  plate with -m a_in (the a_in gain times tscale);
+  plate with -m a_in (the a_in gain times tscale and, under etch, the etched mass's ratio);
 - the same mass damped by its squeeze film alone, at -40, 25 and 125 C: the damping's ratio to the
   nominal against the film's viscosity law (Sutherland, Veijola's rarefaction) computed in
   tests/oracles/fmu_process.viscosity_ratio;
@@ -43,6 +43,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.model.process import capacitance_at
 from netgen.sim import fmu
@@ -66,7 +67,8 @@ def built(tmp_path_factory):
 def law_error(model) -> float:
     """The largest stated relative error of the model's process laws."""
     p = model.process
-    return max(p["tscale"]["max_rel_error"], p["escale"]["max_rel_error"], p["etch"]["max_rel_error"])
+    laws = (p["tscale"], p["escale"], p["etch"], p["etch"]["acceleration"])
+    return max(law["max_rel_error"] for law in laws)
 
 
 @pytest.mark.parametrize("name,value", CASES, ids=[f"{n}={v:g}" for n, v in CASES])
@@ -90,6 +92,19 @@ def test_acceleration_step_scales_with_the_thickness(built, tmp_path, tscale):
     tscale), the static deflection -m a / k as t^-2; against the closed form and ngspice as above."""
     model, lib, path = built
     got = fp.step_case(model, lib, path, "tscale", tscale, tmp_path, load="a_in")
+    bound = 10 * law_error(model) + 2 * got["integ"] + 1e-12
+    assert got["err"] <= bound and got["static"] <= bound + got["tail"], got
+    assert got["ngspice"] <= 1e-5, got
+    assert got["op"] <= fp.RELTOL + bound + got["tail"], got
+
+
+@pytest.mark.parametrize("etch", fp.VALUES["etch"])
+def test_acceleration_step_follows_the_etched_mass(built, tmp_path, etch):
+    """A step acceleration on a_in at an etch bias: the load -m a_in of the etched plate, m = rho
+    (200 um - 2 etch)^2 t (the a_in gain times the etched body's ratio, netgen.model.process_loads; it
+    stayed at the drawn plate's, -6e-3 at 0.3 um), against the closed form and ngspice as above."""
+    model, lib, path = built
+    got = fp.step_case(model, lib, path, "etch", etch, tmp_path, load="a_in")
     bound = 10 * law_error(model) + 2 * got["integ"] + 1e-12
     assert got["err"] <= bound and got["static"] <= bound + got["tail"], got
     assert got["ngspice"] <= 1e-5, got
@@ -270,6 +285,68 @@ def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etc
     k = [f.electrode for f in model.capacitances].index(fp.COMB)
     ref = capacitance_at(model, (q / scale)[None, :], etch)[0, k] * fp.COMB_VOLTS
     assert charge == pytest.approx(ref, rel=1e-12, abs=0)
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_inertial_loads_follow_the_etched_body(combs, etch):
+    """accelerometer_xyz's FMU at rest (model exchange) under a_x, a_y and a_in at the lateral etch: each
+    translation's acceleration q'' equals the one under its force input loaded instead with the etched
+    moving mass's hand sum -M(etch) a (the plate with its holes and the 80 fingers,
+    tests/oracles/process_cases.xyz_mass; the same mass divides both, so only the load is compared):
+    the etch ratios' round-off (1e-11, tests/model/test_process_loads) plus the laws' stated residuals
+    plus the forces' round-off 1e-12."""
+    from tests.oracles.process_cases import xyz_mass
+
+    model, _, path = combs
+    law = model.process
+    tol = 1e-11 + law["etch"]["acceleration"]["max_rel_error"] + law["inertial"]["etch"]["max_rel_error"] + 1e-12
+    for port, q in (("a_x", "x"), ("a_y", "y"), ("a_in", "z")):
+        got = []
+        for inputs in ({port: 9.81}, {f"f_{q}": -xyz_mass(etch) * 9.81}):
+            inst = fmu.Instance(path, cosim=False)
+            inst.set({"etch": etch} | inputs)
+            inst.start()
+            got.append(float(inst.get([f"qdd_{q}"])[0]))
+            inst.close()
+        assert got[0] == pytest.approx(got[1], rel=tol, abs=0), (port, got)
+
+
+@pytest.fixture(scope="module")
+def rotating():
+    """accelerometer_xyz with etch declared and the rate w_z (tests/oracles/process_cases.xyz_structure), its FMU."""
+    from tests.oracles.process_cases import xyz_structure
+
+    model = build_model(xyz_structure())
+    return model, fmu.built(model)
+
+
+@pytest.mark.parametrize("etch", fp.ETCH_CAPS)
+def test_coriolis_load_follows_the_etched_body(rotating, etch):
+    """accelerometer_xyz's FMU at rest but moving along x at 1 mm/s under w_z = 100 rad/s (model
+    exchange): y's acceleration equals the one under f_y loaded instead with the Coriolis force of the
+    etched moving mass's hand sum, 2 M(etch) w_z v (its sign the model's), M the plate, holes and 80
+    fingers (tests/oracles/process_cases.xyz_mass; the same mass divides both). With q = 0 the
+    centrifugal terms on y vanish by symmetry. Tolerance as test_inertial_loads_follow_the_etched_body."""
+    from tests.oracles.process_cases import xyz_mass
+
+    model, path = rotating
+    names = [c.name for c in model.coordinates]
+    ix, iy = names.index("x"), names.index("y")
+    sign = np.sign(model.inertial.gyroscopic["z"][iy][ix])
+    w, v = 100.0, 1e-3
+    state = np.zeros(2 * model.ncoords + sum(len(c.film) for c in model.coordinates))
+    state[model.ncoords + ix] = v
+    got = []
+    for inputs in ({"w_z": w}, {"f_y": -w * sign * 2 * xyz_mass(etch) * v}):
+        inst = fmu.Instance(path, cosim=False)
+        inst.set({"etch": etch} | inputs)
+        inst.start()
+        inst.set_states(state)
+        got.append(float(inst.get(["qdd_y"])[0]))
+        inst.close()
+    tol = 1e-11 + model.process["inertial"]["etch"]["max_rel_error"] + 1e-12
+    assert got[0] != 0.0
+    assert got[0] == pytest.approx(got[1], rel=tol, abs=0), got
 
 
 @pytest.mark.parametrize("etch", fp.ETCH_CAPS)

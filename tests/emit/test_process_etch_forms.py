@@ -15,6 +15,9 @@ Tolerances:
   axial and vertical stiffness ~ w, the law exact: tests/model/test_process_etch.py): the model's
   force is exact as above, so the error is Newton's last step at reltol 1e-12 and vntol 1e-15 V (an
   x_z of ~0.1 um read in um): 1e-7 covers the quadratic convergence's last correction by decades.
+- the static deflection under a_in = 1 g (the guided mass with the port a_in) in the .lib, the
+  _xspice.lib, OSDI and VACASK against -m(etch) g / k(etch), the load of the etched mass
+  (netgen.model.process_loads; the derivation next to the tests).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
 from netgen.sim.ngspice import run_ngspice
+from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, using_ngspice
@@ -245,3 +249,84 @@ def test_comb_stop_osdi(xyz, tmp_path, monkeypatch, etch, pushed_lib):
     pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
     deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
     assert rest_x(run_ngspice(deck, tmp_path / "run")[0]) == pytest.approx(pushed_lib["46", etch], rel=1e-9, abs=0)
+
+
+# the a_in load under etch (netgen.model.process_loads) in every form: the guided mass with the port a_in
+# under 1 g, its static deflection -m(etch) g / k(etch) against the closed form m = rho (200 um - 2 etch)^2 t,
+# k = 4 E (w - 2 etch) t^3 / L^3 (tests/oracles/fmu_process.closed_form); the .op is one linear solve
+# (no voltage), exact to round-off, and its Newton test at reltol 1e-12 / vntol 1e-15 V against an x_z of
+# ~1e-4 V: 1e-7 as above. Before, the load stayed at the drawn mass's: off by 4 etch / 200 um (2e-3 at 0.1 um).
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    text = guided(process='[process]\nparameters = ["etch"]' + RANGE).replace(
+        'rigid = ["z"]', 'rigid = ["z"]\ninertial = ["a_z"]'
+    )
+    return build_model(parse_structure(text, "cg.toml"))
+
+
+def gravity_deck(include: str, etch: float, control: str = "") -> str:
+    return f"""* 1 g
+.include {include}
+Va a 0 DC {G!r}
+X1 0 0 0 xz a cg etch={etch!r}
+{OPTIONS}
+.op
+{control}
+.end
+"""
+
+
+def check_gravity(plot, etch: float) -> None:
+    m = 2330.0 * (SIDE - 2 * etch) ** 2 * 5e-6
+    k = 4 * 160e9 * (2e-6 - 2 * etch) * 5e-6**3 / 150e-6**3
+    z = float(np.real(plot["v(xz)"])[0]) * 1e-6  # x_z in um
+    assert z == pytest.approx(-m * G / k, rel=1e-7, abs=0)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_gravity_lib(loaded, tmp_path, ngspice_version, etch):
+    (tmp_path / "cg.lib").write_text(emit_ngspice.subcircuit(loaded))
+    check_gravity(run_ngspice(gravity_deck(str(tmp_path / "cg.lib"), etch), tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_gravity_xspice(loaded, tmp_path, etch):
+    xlib, control = sdn.xspice_library(loaded, tmp_path, sdn.code_models(False))
+    deck = gravity_deck(str(xlib.resolve()), etch, control_block(control, "op.raw"))
+    check_gravity(run_ngspice(deck, tmp_path)[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_gravity_osdi(loaded, tmp_path, monkeypatch, etch):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(loaded, tmp_path, "osdi")
+    deck = gravity_deck(
+        str(tmp_path / "cg_osdi.lib"), etch, control_block([f"pre_osdi {tmp_path / 'cg.osdi'}"], "op.raw")
+    )
+    check_gravity(run_ngspice(deck, tmp_path / "run")[0], etch)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_gravity_vacask(loaded, tmp_path, etch):
+    """The same module in VACASK, etch on its model card (its op at VACASK's default tolerances,
+    reltol 1e-3 of a linear solve: one Newton step, exact to round-off)."""
+    emit.write_outputs(loaded, tmp_path, "osdi")
+    net = f"""cg gravity
+ground 0
+load "{tmp_path / "cg.osdi"}"
+model mems cg etch={etch!r}
+model vsource vsource
+x1 (bot plate fz xz a) mems
+v_bot (bot 0) vsource dc=0
+v_plate (plate 0) vsource dc=0
+v_fz (fz 0) vsource dc=0
+v_a (a 0) vsource dc={G!r}
+control
+  analysis op1 op
+endc
+"""
+    plot = run_vacask(net, tmp_path / "run", analysis="op1")
+    check_gravity({"v(xz)": np.atleast_1d(plot["xz"])}, etch)

@@ -166,3 +166,17 @@ def xyz_text(etch: float = 0.0, process: str = "") -> str:
     ):
         text = text.replace(old, new)
     return text + process
+
+
+def xyz_structure():
+    """accelerometer_xyz (xyz_text) with etch declared and the rate w_z (tests/model/test_process_loads.py,
+    tests/emit/test_fmu_process.py)."""
+    text = xyz_text(process='\n[process]\nparameters = ["etch"]\n')
+    text = text.replace('inertial = ["a_x", "a_y", "a_z"]', 'inertial = ["a_x", "a_y", "a_z", "w_z"]')
+    return parse_structure(text, "xyz.toml")
+
+
+def xyz_mass(etch: float) -> float:
+    """The hand moving mass of accelerometer_xyz (xyz_text) at etch: the plate 400 um - 2 etch, 40 x 40 holes
+    4 um + 2 etch, 80 fingers 2 um - 2 etch wide 40 um beyond the edge, all 2 um thick (rho 2330 kg/m^3)."""
+    return 2330.0 * 2e-6 * ((400e-6 - 2 * etch) ** 2 - 1600 * (4e-6 + 2 * etch) ** 2 + 80 * (2e-6 - 2 * etch) * 40e-6)
