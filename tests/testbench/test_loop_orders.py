@@ -142,9 +142,9 @@ def test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop(model, tmp_
     z samples within 5 % of their peak (not derived; measured 0.6 %, all but 2.7e-5 of the peak a
     feedback gain error of -5.6e-6: z's response to the feedback alone peaks at 1100 times z's own
     peak, so ngspice's LTE limit 7e-3 as a bound on that gain, as for the disk's loops, would allow
-    several times z's peak; the circuit's electrostatic spring 2 F / g acting during the pulse on
-    the pulse's own displacement gives (2 F / g) tau^2 / 6 m = 1.4e-6 of it, the rest is not
-    accounted for). The circuit is a perturbed copy of
+    several times z's peak; the electrostatic spring as it acts, piecewise in the period, instead of
+    the reference's period mean explains -2.6e-6 of that gain (0.29 % of the peak), the other
+    -3.0e-6 is not accounted for: bench/loop_orders_spring.py). The circuit is a perturbed copy of
     the reference at that percent level (and another CPU's rounding moves ngspice's steps), so the
     bit-for-bit span is the low quantile of a perturbed ensemble (MATCH_PERIODS). Beyond the first
     tie the two bitstreams decorrelate in detail (the loop is chaotic), not in their statistics
