@@ -104,7 +104,8 @@ def test_bitstream_balances_gravity(loop, model):
     """Momentum conservation on z: the mean feedback force implied by the bits (the Python
     model's force of each bit pattern x duty) = m g + m dv/dt over the window, within the sum of
     the terms of tests/testbench/test_sigma_delta_vacask.balance_bound with ngspice's LTE limit
-    on each feedback impulse (NGSPICE_GAIN, 7e-3) as the gain term: about 7.6e-3 (was 1 %)."""
+    on each feedback impulse (NGSPICE_GAIN, 7e-3) as the gain term: 8.1e-3 to 9.1e-3 with the
+    tilts' and modes' offsets (was 1 %)."""
     terms = balance_bound(model, sd.design(model, TS), loop["clock"], SKIP, NGSPICE_GAIN)
     ratio = loop["gravity_balance"]["ratio"]
     print(f"F / m g - 1 = {ratio - 1:.2e}; bound " + ", ".join(f"{k} {v:.2e}" for k, v in terms.items()))
@@ -281,7 +282,15 @@ def test_a_segment_is_cut_at_a_missed_corner_and_the_run_continues_from_there(mo
     """Where ngspice missed a corner, the segment is cut at the start of that period and the next
     one restarts there (fresh breakpoint chains). Forced here: the first segment reports a miss in
     period 20 (ngspice misses them rarely and not on demand). The run still covers every period
-    once and keeps its momentum balance (1 %)."""
+    once and keeps its momentum balance within the sum of the terms of
+    tests/testbench/test_sigma_delta_vacask.balance_bound with ngspice's LTE gain limit, as the run
+    that is not cut (test_bitstream_balances_gravity; was 1 %): a restart adds no impulse of its
+    own, since each segment starts from the state interpolated at its first period's start
+    (netgen.testbench.sigma_delta.ngspice.run_segments, written in full precision into the .ic):
+    a breakpoint (the sense ramp's first corner) after a twentieth of a period with no electrode
+    driven, so z's velocity is linear in time there (gravity alone) and its interpolation exact
+    either way; what the restart's first steps integrate is within the same LTE limit as every
+    other step."""
     real, calls = sdn.missed_corners, []
 
     def first_segment_misses_period_20(t, d, cycles):
@@ -298,4 +307,7 @@ def test_a_segment_is_cut_at_a_missed_corner_and_the_run_continues_from_there(mo
     assert s["breakpoints"]["segments_cut_at_a_missed_corner"] == [{"start": 0, "missed_at": 20}]
     assert calls[:2] == [64, 64] and s["segments"]["ngspice_runs"] == 4  # 0-19, 20-83, 84-147, 148-159
     assert np.allclose(np.diff(s["clock"]["time"]), TS) and s["cycles"] == 160
-    assert s["levitation"]["held"] and s["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    terms = balance_bound(model, sd.design(model, TS), s["clock"], SKIP, NGSPICE_GAIN)
+    ratio = s["gravity_balance"]["ratio"]
+    print(f"F / m g - 1 = {ratio - 1:.2e}; bound " + ", ".join(f"{k} {v:.2e}" for k, v in terms.items()))
+    assert s["levitation"]["held"] and abs(ratio - 1) < sum(terms.values())

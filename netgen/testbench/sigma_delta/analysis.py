@@ -309,7 +309,9 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     the DC input force, -m g for gravity), with
     v from central differences of x_z, + the damping impulse B(0) (x_b - x_a) / (t_b - t_a) (exact
     for a dashpot; a film branch adds its force change / corner, negligible for corners far above
-    the loop's motion). Samples sit mid-feedback, so the end periods count half. An applied tone
+    the loop's motion) + the suspension's spring impulse K mean(x) (the samples' trapezoid mean; 0
+    for a free mass such as the levitated disk, up to 1.8 % of m g on accelerometer_xyz's 64-period
+    run). Samples sit mid-feedback, so the end periods count half. An applied tone
     force and the thermal noise force are not included (the first averages out only over whole
     tone periods; the second's impulse is ~1e-3 of m g T at 100 Pa over 128 periods)."""
     name, unit = d.balance["channel"], d.channels[d.balance["index"]]["force_unit_si"]
@@ -327,8 +329,9 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
     v = lambda n: (x[n + 1] - x[n - 1]) / (2 * d.ts)  # noqa: E731
     inertia = d.mass * (v(b) - v(a)) / ((b - a) * d.ts)
     damping = d.damping * (x[b] - x[a]) / ((b - a) * d.ts)
+    spring = d.balance["stiffness"] * float(np.dot(weights, x[a : b + 1]) / (b - a))
     weight = -d.balance["dc_force_n"]
-    need = weight + inertia + damping
+    need = weight + inertia + damping + spring
     # no DC input: the ratio of two near-zero forces says nothing; the residual force does
     full = d.channels[d.balance["index"]]["full_scale_force_si"]
     ratio = float(mean / need) if abs(weight) > 1e-3 * full else None
@@ -338,6 +341,7 @@ def gravity_balance(clock: dict, d: Design, skip: int = 0) -> dict:
         "weight_n": weight,
         "inertial_n": float(inertia),
         "damping_n": float(damping),
+        "spring_n": spring,
         "ratio": ratio,
         "residual_n": float(mean - need),
         "window": [a, b],

@@ -562,6 +562,7 @@ def balance_of(p: Plant, jb: int) -> dict:
         "mass": c.mass,
         "dc_force_n": float(p.dc_si[p.idx[jb]]),
         "damping": float(c.admittance(0.0).real),
+        "stiffness": float(c.stiffness),
         "x_unit_si": c.port_units[1],
     }
 
