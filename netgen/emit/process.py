@@ -275,7 +275,9 @@ def etch_offsets(model: MacroModel) -> dict[int, float]:
     where not zero (a finger's vertical stop over the substrate has none)."""
     scale = {c.name: c.scale for c in model.coordinates}
     names = [c.name for c in model.coordinates]
-    shifts = {r["electrode"]: r.get("shift", {}) for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    laws = (model.process.get("etch") or {}).get("capacitance", [])
+    # a plate's fill shift (netgen.model.etch_fill) is an effective gap: its stops stay at the drawn gap
+    shifts = {r["electrode"]: r.get("shift", {}) for r in laws if not r.get("fill")}
     if not declared(model, "etch"):
         return {}
     out = {}
@@ -377,12 +379,18 @@ def etch_neglect(e: dict) -> str:
     if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
     err = e["capacitance_max_rel_error"]
-    combs = any(r.get("shift") for r in e.get("capacitance", []))
+    combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
+    fill = any(r.get("fill") for r in e.get("capacitance", []))
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
         + (
             " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs
+            else ""
+        )
+        + (
+            ", the perforated plates' fits read at z shifted by the fill factor's effective gap change (nodes xe_z_*; their stops stay)"
+            if fill
             else ""
         )
         + ", "

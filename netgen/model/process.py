@@ -43,6 +43,7 @@ from ..mechanics import squeeze_film as sf
 from ..mechanics.damping import damping as damping_of
 from ..structure import Structure
 from ..structure.schema import Process
+from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
@@ -238,7 +239,9 @@ def process_laws(
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names))
+        # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too
+        fill = ([e.name for e in electrodes if e.side in GAP_SIDES and not sets], sampling_range * scale_z / 2)
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names), fill)
     if m.strain_energy is not None:
         out["strain_energy"] = energy_law(s, m, run, p)
     if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
@@ -369,9 +372,7 @@ def law_value(c: dict, key: str, tscale: float, etch: float, knots: tuple[float,
     if "etch" not in c:
         return t
     u = etch / ETCH_UNIT
-    if knots:
-        return t * knot_value(c["etch"][key], u, knots)
-    return t * float(np.dot(c["etch"][key], [1.0, u, u**2, u**3]))
+    return t * (knot_value(c["etch"][key], u, knots) if knots else float(np.dot(c["etch"][key], [1.0, u, u**2, u**3])))
 
 
 def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str], p: Process, per: list[dict]) -> float:
@@ -392,13 +393,19 @@ CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios a
 
 
 def etch_record(
-    s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None, coords: list[str] | None = None
+    s: Structure,
+    p: Process,
+    err: float,
+    extract=None,
+    names: list[str] | None = None,
+    coords: list[str] | None = None,
+    fill: tuple[list[str], float] = ([], 0.0),
 ) -> dict:
     """The etch entry of the process record: range, law error, the polynomial variable, the etched
     mass outline's relative area change at the range's ends (holes included: the mass and inertia
     laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
     and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
-    laws (capacitance_laws)."""
+    laws (capacitance_laws; `fill`: the plate electrodes offered a fill shift and the half box dz)."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
@@ -415,11 +422,13 @@ def etch_record(
     if knots:  # the mechanics laws' torsion knots (etch / 1 um; netgen.model.etch_knots)
         out["knots"] = list(knots)
     if extract is not None:
-        out |= capacitance_laws(s, p, extract, names or [], coords or [])
+        out |= capacitance_laws(s, p, extract, names or [], coords or [], fill)
     return out
 
 
-def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
+def capacitance_laws(
+    s: Structure, p: Process, extract, names: list[str], coords: list[str], fill: tuple[list[str], float] = ([], 0.0)
+) -> dict:
     """Each electrode's capacitance under etch as C(q; etch) = ratio(etch) C(q + shift etch; 0): the
     combs' shift (comb_shifts: exact for the parallel-plate part of a transverse comb's gap and every
     comb's overlap) and a ratio, a cubic in etch / 1 um (1 at 0), from the extractor at rest at
@@ -427,8 +436,12 @@ def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords
     (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
     lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
     |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
-    fit box at the range's ends, and the cubic's residual at the etch points."""
+    fit box at the range's ends, and the cubic's residual at the etch points. The plates of `fill`
+    (names, half box dz) get a z shift too (netgen.model.etch_fill: their fill factor's etch change
+    depends on the gap; such a law is marked "fill": the contact stops do not follow it)."""
     shifts = comb_shifts(s, coords)
+    plates = fill_shifts(s, extract, etched, coords, [names.index(n) for n in fill[0]], p.etch_range, fill[1])
+    shifts |= {names[i]: {"z": k} for i, k in plates.items()}
     vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
     memo: dict[tuple, np.ndarray] = {}
 
@@ -451,10 +464,11 @@ def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords
             ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
             ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
             err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
-    laws = []
+    laws: list[dict[str, Any]] = []
     for n, r in zip(names, ratios):
         if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
             laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
+            laws[-1] |= {"fill": True} if n in fill[0] and shifts.get(n) else {}
     return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
 
 

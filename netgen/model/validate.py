@@ -284,8 +284,11 @@ def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords
         shift = law.get("shift", {})
         if not isinstance(shift, dict):
             c.fail(f"{where}.shift", "must be an object {coordinate: shift per metre of etch}")
+        fill = law.get("fill", False)  # a plate's fill shift along z (netgen.model.etch_fill)
+        if not isinstance(fill, bool):
+            c.fail(f"{where}.fill", "must be true or false")
         for q, x in shift.items():
-            c.choice(f"{where}.shift", q, tuple(n for n in coords if n in ("x", "y")))
+            c.choice(f"{where}.shift", q, tuple(n for n in coords if n in (("z",) if fill else ("x", "y"))))
             c.number(f"{where}.shift.{q}", x)
 
 
