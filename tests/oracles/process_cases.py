@@ -123,7 +123,8 @@ def rerun(t: float, etch: float) -> list[tuple[float, float]]:
 # refuses comb fingers): side {side} um (405 um: the fitted hole count, 40 on the 10 um pitch, is the
 # same at every etched side, as the drawn grid the etch keeps), hole {hole} um, beams {w} um (3 um, not
 # the example's 2 um: at w = t the frame's torsion constant (netgen.mechanics.frame.torsion_constant,
-# Roark's fit with A = max(w, t)) has a kink, which a cubic in etch misses by 1.7e-3 in k)
+# Roark's fit with A = max(w, t)) has a kink, which the knotted law follows (netgen.model.etch_knots,
+# tests/model/test_process_etch_knots.py); at 3 um the knot lies outside the range: the plain cubic)
 PERFORATED = """
 name = "px"
 description = "perforated proof mass on crab legs between plates"
