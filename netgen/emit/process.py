@@ -350,6 +350,12 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
             "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
+            + (
+                f", piecewise at etch {', '.join(f'{k:g}' for k in knots(model))} um where a flexure width meets "
+                "the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
+                if knots(model)
+                else ""
+            )
             + etch_neglect(e)
         )
     if energy_moved(model):
