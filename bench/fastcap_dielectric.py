@@ -19,12 +19,10 @@ the closed form eps0 A / g_eff (no fringe). Wall and process time per Maxwell ma
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from fastcap_common import add_size_arguments, report, settings
 from support import fastcap_guarded
 
 from netgen.core.constants import EPS0
@@ -100,17 +98,12 @@ def main() -> None:
     ap.add_argument("case", choices=["guarded", "piston"])
     ap.add_argument("--eps-r", type=float, default=7.5)
     ap.add_argument("--side", type=float, default=100.0, help="piston side in um")
-    ap.add_argument("--edge-to-gap", type=float, default=0.25)
-    ap.add_argument("--element-to-gap", type=float, default=2.0)
-    ap.add_argument("--json")
+    add_size_arguments(ap, 0.25, 2.0)
     a = ap.parse_args()
-    st = replace(fastcap.FastcapSettings(), edge_to_gap=a.edge_to_gap, element_to_gap=a.element_to_gap)
+    st = settings(a)
     res = guarded(a.eps_r, st) if a.case == "guarded" else piston(a.side * UM, a.eps_r, st)
     res["settings"] = {"edge_to_gap": st.edge_to_gap, "element_to_gap": st.element_to_gap}
-    text = json.dumps(res, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(res, a.json)
 
 
 if __name__ == "__main__":

@@ -19,19 +19,16 @@ fill factor of the hole grid. The plate is a sheet (thickness 0) or a slab with 
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from fastcap_common import add_size_arguments, guarded_levels, report, settings
 
 from netgen.core.constants import EPS0
 from netgen.electrostatics import fastcap
 from netgen.electrostatics.bem_mesh import Sizes
-from netgen.electrostatics.fastcap_mesh import Layered, Panels, layered_panels, rect_panels, walls
+from netgen.electrostatics.fastcap_mesh import Panels, rect_panels, walls
 from netgen.electrostatics.perforation import Perforation
-from netgen.geometry.shapes import Electrode, Rectangle
 
 UM = 1e-6
 
@@ -80,26 +77,6 @@ def plate(cells: int, pitch: float, hole: float, thickness: float, gap: float, s
     return Panels(np.concatenate([lower, upper, *rims]))
 
 
-def levels(cells: int, sense: int, pitch: float, hole: float, thickness: float, gap: float, st) -> list[list]:
-    """Both mesh levels: plate, sense face, guard (the box electrode's ring face, back and walls)."""
-    out = []
-    for k in range(2):
-        sz = st.sizes(gap, k)
-        c, a = cells * pitch / 2, sense * pitch / 2
-        box = layered_panels(Electrode(Rectangle("g", -c, c, -c, c), "below", gap, "g", 0.1 * gap, 1.0), sz, 0.0, 1.0)
-        pieces = [(-c, c, -c, -a), (-c, c, a, c), (-c, -a, -a, a), (a, c, -a, a)]
-        ring = Panels(np.concatenate([rect_panels(*p, sz, 0.0).corners for p in pieces]))
-        empty = Panels(np.zeros((0, 4, 3)))
-        out.append(
-            [
-                plate(cells, pitch, hole, thickness, gap, sz),
-                Layered(rect_panels(-a, a, -a, a, sz, 0.0), empty, empty, np.zeros((0, 3)), 1.0),
-                Layered(ring, box.rest, empty, np.zeros((0, 3)), 1.0),
-            ]
-        )
-    return out
-
-
 def main() -> None:
     """Solve one hole grid and print the effective fill factor beside the analytic ones."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -109,15 +86,16 @@ def main() -> None:
     ap.add_argument("--thickness", type=float, default=0.0, help="plate thickness in um (0: a sheet)")
     ap.add_argument("--cells", type=int, default=6)
     ap.add_argument("--sense", type=int, default=2)
-    ap.add_argument("--edge-to-gap", type=float, default=0.25)
-    ap.add_argument("--element-to-gap", type=float, default=2.0)
-    ap.add_argument("--json")
+    add_size_arguments(ap, 0.25, 2.0)
     a = ap.parse_args()
     pitch, gap = a.pitch * UM, a.gap * UM
     hole = a.hole_over_pitch * pitch
-    st = replace(fastcap.FastcapSettings(), edge_to_gap=a.edge_to_gap, element_to_gap=a.element_to_gap)
+    st = settings(a)
     w, p = time.perf_counter(), time.process_time()
-    m = fastcap.converged(levels(a.cells, a.sense, pitch, hole, a.thickness * UM, gap, st), 1.0, st, ("p", "s", "g"))
+    lv = guarded_levels(
+        a.cells, a.sense, pitch, gap, st, lambda sz: plate(a.cells, pitch, hole, a.thickness * UM, gap, sz)
+    )
+    m = fastcap.converged(lv, 1.0, st, ("p", "s", "g"))
     area = (a.sense * pitch) ** 2
     f = -m.matrix[0, 1] * gap / (EPS0 * area)
     fill = 1.0 - a.hole_over_pitch**2
@@ -139,10 +117,7 @@ def main() -> None:
         "wall_s": time.perf_counter() - w,
         "cpu_s": time.process_time() - p,
     }
-    text = json.dumps(res, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(res, a.json)
 
 
 if __name__ == "__main__":

@@ -18,12 +18,10 @@ Default sizes here are the fine ones (edge_to_gap 0.125, element_to_gap 1: docs/
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from fastcap_common import add_size_arguments, report, settings
 
 from netgen.electrostatics import fastcap
 from netgen.electrostatics.parallel_plate import ParallelPlateExtractor
@@ -70,11 +68,9 @@ def main() -> None:
     ap.add_argument("--hole-over-pitch", type=float, default=0.5)
     ap.add_argument("--gaps", default="2,3", help="um, comma-separated (panels sized for the first)")
     ap.add_argument("--thickness", type=float, default=0.0, help="um (0: a sheet)")
-    ap.add_argument("--edge-to-gap", type=float, default=0.125)
-    ap.add_argument("--element-to-gap", type=float, default=1.0)
-    ap.add_argument("--json")
+    add_size_arguments(ap, 0.125, 1.0)
     a = ap.parse_args()
-    st = replace(fastcap.FastcapSettings(), edge_to_gap=a.edge_to_gap, element_to_gap=a.element_to_gap)
+    st = settings(a)
     gaps = [float(g) * UM for g in a.gaps.split(",")]
     perf = Perforation(a.hole_over_pitch * a.pitch * UM, a.pitch * UM)
     res: dict = {
@@ -93,10 +89,7 @@ def main() -> None:
     res["ratio_analytic_minus_fastcap"] = (ratio_pp / ratio_fc - 1.0).tolist()
     res["form_F"] = perf.fill(np.array(gaps)).tolist()
     res["plain_fill"] = 1.0 - a.hole_over_pitch**2
-    text = json.dumps(res, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(res, a.json)
 
 
 if __name__ == "__main__":

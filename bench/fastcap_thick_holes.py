@@ -16,18 +16,16 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
+from fastcap_common import add_size_arguments, guarded_levels, report, settings
 from fastcap_perforated import UM, frame
 
 from netgen.core.constants import EPS0
 from netgen.electrostatics import fastcap
 from netgen.electrostatics.bem_mesh import Sizes, graded
-from netgen.electrostatics.fastcap_mesh import Layered, Panels, layered_panels, rect_panels
+from netgen.electrostatics.fastcap_mesh import Panels
 from netgen.electrostatics.perforation import Perforation
-from netgen.geometry.shapes import Electrode, Rectangle
 
 ASPECT = 4.0  # wall panels at most this long along the rim over their height at the rim
 
@@ -76,26 +74,6 @@ def thick_plate(cells: int, pitch: float, hole: float, thickness: float, gap: fl
     return Panels(np.concatenate(parts))
 
 
-def levels(cells: int, sense: int, pitch: float, hole: float, thickness: float, gap: float, st) -> list[list]:
-    """Both mesh levels: plate, sense face, guard (the box electrode's ring face, back and walls)."""
-    out = []
-    for k in range(2):
-        sz = st.sizes(gap, k)
-        c, a = cells * pitch / 2, sense * pitch / 2
-        box = layered_panels(Electrode(Rectangle("g", -c, c, -c, c), "below", gap, "g", 0.1 * gap, 1.0), sz, 0.0, 1.0)
-        pieces = [(-c, c, -c, -a), (-c, c, a, c), (-c, -a, -a, a), (a, c, -a, a)]
-        ring = Panels(np.concatenate([rect_panels(*p, sz, 0.0).corners for p in pieces]))
-        empty = Panels(np.zeros((0, 4, 3)))
-        out.append(
-            [
-                thick_plate(cells, pitch, hole, thickness, gap, sz),
-                Layered(rect_panels(-a, a, -a, a, sz, 0.0), empty, empty, np.zeros((0, 3)), 1.0),
-                Layered(ring, box.rest, empty, np.zeros((0, 3)), 1.0),
-            ]
-        )
-    return out
-
-
 def main() -> None:
     """Solve one thick hole grid and print its effective fill factor beside the form's."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -105,17 +83,15 @@ def main() -> None:
     ap.add_argument("--thickness", type=float, default=2.0, help="plate thickness in um (> 0)")
     ap.add_argument("--cells", type=int, default=6)
     ap.add_argument("--sense", type=int, default=2)
-    ap.add_argument("--edge-to-gap", type=float, default=0.125)
-    ap.add_argument("--element-to-gap", type=float, default=1.0)
+    add_size_arguments(ap, 0.125, 1.0)
     ap.add_argument("--count", action="store_true", help="count panels only")
-    ap.add_argument("--json")
     a = ap.parse_args()
     if a.thickness <= 0.0:
         ap.error("--thickness must be > 0 (a sheet: bench/fastcap_perforated.py)")
     pitch, gap, t = a.pitch * UM, a.gap * UM, a.thickness * UM
     hole = a.hole_over_pitch * pitch
-    st = replace(fastcap.FastcapSettings(), edge_to_gap=a.edge_to_gap, element_to_gap=a.element_to_gap)
-    lv = levels(a.cells, a.sense, pitch, hole, t, gap, st)
+    st = settings(a)
+    lv = guarded_levels(a.cells, a.sense, pitch, gap, st, lambda sz: thick_plate(a.cells, pitch, hole, t, gap, sz))
     panels = [sum(len(p) for p in x) for x in lv]
     if a.count:
         print(json.dumps({"panels": panels}))
@@ -140,10 +116,7 @@ def main() -> None:
         "wall_s": time.perf_counter() - w,
         "cpu_s": time.process_time() - p,
     }
-    text = json.dumps(res, indent=2)
-    print(text)
-    if a.json:
-        Path(a.json).write_text(text)
+    report(res, a.json)
 
 
 if __name__ == "__main__":

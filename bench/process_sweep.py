@@ -44,24 +44,8 @@ simulator = "{simulator}"
 name = "process.{name}"
 values = [{values}]
 """
-CRAB_LEGS = """[conductor]
-kind = "proof_mass"
-length = "500 um"
-width = "500 um"
-thickness = "20 um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "800 um"
-width = "2 um"
-thigh_length = "800 um"
-thigh_width = "2 um"
-
-"""
+# the crab legs of tests/sweep/test_sweep_process.py
+CRAB_LEGS = support.crab_legs.crab_legs(500.0, 20.0, 800.0)
 
 
 def cpu_s() -> float:

@@ -60,8 +60,8 @@ Vf f1 0 DC {te.FORCE * 1e6!r}
 
 
 def main() -> None:
-    gyp = build_model(parse_structure(ti.STRUCTURE.format(t=ti.T_UM) + ti.PROCESS, "gyp.toml"))
-    refs = {t: build_model(parse_structure(ti.STRUCTURE.format(t=ti.T_UM * t), "gyp.toml")) for t in ti.TSCALES}
+    gyp = build_model(parse_structure(ti.structure(ti.T_UM) + ti.PROCESS, "gyp.toml"))
+    refs = {t: build_model(parse_structure(ti.structure(ti.T_UM * t), "gyp.toml")) for t in ti.TSCALES}
     print("stated tscale error", gyp.process["tscale"]["max_rel_error"])
     dropped = copy.deepcopy(gyp)
     dropped.process.pop("inertial")

@@ -23,6 +23,7 @@ PACKAGE = "netgen_test_oracles"  # the name the oracles package gets here (tests
 MODULES = (
     "bem_reduced",
     "closed_forms",
+    "crab_legs",
     "fastcap_guarded",
     "fmu_process",
     "gyro_reference",

@@ -39,7 +39,7 @@ from .fit.energy import energy_entry, fit_energy
 from .geometry.layout import drawing, electrode_outlines, electrodes, overlap_area, plate_outline
 from .geometry.shapes import Electrode as ShapeElectrode
 from .geometry.shapes import Plate
-from .mechanics import Mechanics, inertial, mechanics, participation
+from .mechanics import Mechanics, body_mass, inertial, mechanics, participation
 from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
@@ -380,7 +380,7 @@ def stops(
     owner = [shapes[i].name for i in probe.electrode]
     freqs = m.frequencies[m.frequencies > 0]
     ws = 2 * math.pi * (math.exp(float(np.mean(np.log(freqs)))) if len(freqs) else 1e6 / (2 * math.pi))
-    return contact.contact_model(probe.gap, probe.phi, owner, scales, s.conductor.mass, ws)
+    return contact.contact_model(probe.gap, probe.phi, owner, scales, body_mass(s), ws)
 
 
 def say(progress: bool, text: str) -> None:

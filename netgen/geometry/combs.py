@@ -99,7 +99,8 @@ class CombShape(CombElectrode):
 @dataclass(frozen=True)
 class Finger:
     """One moving finger as a box hanging on the proof mass: its rectangle [x0, x1] x [y0, y1] at
-    rest (m) and its thickness (m), the mid-plane the mass's."""
+    rest (m) and its thickness (m), the mid-plane the mass's (exact for a finger of the full layer
+    thickness, the comb's default: netgen.mechanics.proof_mass.finger_inertia)."""
 
     x0: float
     x1: float

@@ -13,7 +13,7 @@ from typing import Protocol, runtime_checkable
 from ..core.errors import StructureError
 from ..structure import Structure
 from . import beam, free_disk, piston, proof_mass
-from .base import Mechanics, StrainEnergy, participation, rigid_basis
+from .base import Mechanics, StrainEnergy, body_mass, participation, rigid_basis
 
 
 @runtime_checkable
@@ -45,4 +45,13 @@ def mechanics(s: Structure) -> Mechanics:
     return KINDS[kind].mechanics(s)
 
 
-__all__ = ["KINDS", "Mechanics", "MechanicsKind", "StrainEnergy", "mechanics", "participation", "rigid_basis"]
+__all__ = [
+    "KINDS",
+    "Mechanics",
+    "MechanicsKind",
+    "StrainEnergy",
+    "body_mass",
+    "mechanics",
+    "participation",
+    "rigid_basis",
+]

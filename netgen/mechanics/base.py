@@ -5,13 +5,13 @@ optionally a nonlinear strain energy; plus the rigid-body fields and the inertia
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..geometry.combs import moving_fingers
+from ..geometry.combs import Finger, moving_fingers
 from ..geometry.layout import plate_outline
 from ..geometry.shapes import RectPlate
 from ..structure import Structure
@@ -108,32 +108,40 @@ BodyPart = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
 def mass_rule(s: Structure, order: int = 96) -> list[BodyPart]:
     """The body as parts (x, y, Gauss weights, areal density kg/m^2, thickness): the plate first (a
     perforated proof mass's areal density carries its solid fraction, `fill_factor`), then each
-    moving comb finger hanging on it (netgen.geometry.combs.moving_fingers: 4 x 8 Gauss points)."""
+    moving comb finger hanging on it (finger_rule)."""
     c: Any = s.conductor
     x, y, w = plate_outline(s).area_rule(order)
     parts = [(x, y, w, c.density * c.thickness * getattr(c, "fill_factor", 1.0), c.thickness)]
     fingers = moving_fingers(s.electrode_sets, c.outline()) if c.kind == "proof_mass" else []
+    return parts + finger_rule(c.density, fingers)
+
+
+def finger_rule(density: float, fingers: Sequence[Finger]) -> list[BodyPart]:
+    """Each moving comb finger (netgen.geometry.combs.moving_fingers) as a body part: 4 x 8 Gauss
+    points over its rectangle, areal density rho t, its thickness."""
+    out = []
     for f in fingers:
         fx, fy, fw = RectPlate(f.x0, f.x1, f.y0, f.y1).area_rule(4)
-        parts.append((fx, fy, fw, c.density * f.thickness, f.thickness))
-    return parts
+        out.append((fx, fy, fw, density * f.thickness, f.thickness))
+    return out
 
 
-def off_plate(names: list[str]) -> np.ndarray:
-    """Per coordinate 1 for a rigid one, 0 for an internal mode: the modes' masses are the plate's
-    (netgen.mechanics.rect_plate), so the fingers enter only the rigid coordinates' inertial terms."""
-    return np.array([1.0 if n in RIGID else 0.0 for n in names])
+def body_mass(s: Structure) -> float:
+    """The moving mass (kg): the conductor's, plus a proof mass's moving comb fingers (rho t w L each)."""
+    c: Any = s.conductor
+    fingers = moving_fingers(s.electrode_sets, c.outline()) if c.kind == "proof_mass" else []
+    return float(c.mass + sum(c.density * f.thickness * f.area for f in fingers))
 
 
 def participation(s: Structure, m: Mechanics, order: int = 96) -> list[float]:
-    """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and, for the
-    rigid coordinates, the moving fingers; Gauss quadrature): the generalized force per unit frame
-    acceleration. Values below 1e-6 of sqrt(M_v m) (free-plate modes and tilts about the centre,
-    zero by symmetry up to round-off) are set to exactly 0."""
+    """Inertial participation G_v = int phi_v dm over the body (mass_rule: the plate and the moving
+    fingers, which an internal mode turns with the plate's edge at their roots, RectPlateModes.shape;
+    Gauss quadrature): the generalized force per unit frame acceleration. Values below 1e-6 of
+    sqrt(M_v m) (free-plate modes and tilts about the centre, zero by symmetry up to round-off) are
+    set to exactly 0."""
     parts = mass_rule(s, order)
     gam, total = np.zeros(len(m.names)), 0.0
-    for k, (x, y, w, rho_h, _) in enumerate(parts):
-        phi = m.basis(x, y) * (1.0 if k == 0 else off_plate(m.names))  # (points, ncoords)
-        gam = gam + rho_h * (w @ phi)
+    for x, y, w, rho_h, _ in parts:
+        gam = gam + rho_h * (w @ m.basis(x, y))  # basis: (points, ncoords)
         total += rho_h * float(np.sum(w))
     return [0.0 if abs(v) < 1e-6 * math.sqrt(mv * total) else float(v) for v, mv in zip(gam, m.masses)]

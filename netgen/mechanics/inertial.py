@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from ..structure import Structure
-from .base import RIGID, Mechanics, mass_rule, off_plate
+from .base import RIGID, Mechanics, mass_rule
 
 AXES = "xyz"
 RATE_PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the centrifugal products Omega_k Omega_l, k <= l
@@ -66,14 +66,12 @@ def fields(names: list[str], basis: np.ndarray, x: np.ndarray, y: np.ndarray) ->
 def moments(s: Structure, m: Mechanics, order: int = 96) -> tuple[np.ndarray, np.ndarray, float]:
     """W[a, b, i, j] = int rho Phi_a,i Phi_b,j dV and P[a, i] = int rho Phi_a,i dV over the body
     (a, b: the coordinates and r0 last; the plate and the moving fingers, netgen.mechanics.base.mass_rule:
-    the internal modes over the plate only, as their modal masses), and the body's mass."""
+    an internal mode turns a finger with the plate's edge at its root, as in its modal mass), and the
+    body's mass."""
     n = len(m.names)
     big_w, p, total = np.zeros((n + 1, n + 1, 3, 3)), np.zeros((n + 1, 3)), 0.0
-    for k, (x, y, w, rho_h, h) in enumerate(mass_rule(s, order)):
+    for x, y, w, rho_h, h in mass_rule(s, order):
         a, b = fields(m.names, m.basis(x, y), x, y)
-        if k:  # a finger: no internal-mode field on it
-            keep = np.append(off_plate(m.names), 1.0)[None, :, None]
-            a, b = a * keep, b * keep
         wt = rho_h * w
         big_w = big_w + np.einsum("p,pai,pbj->abij", wt, a, a) + h * h / 12.0 * np.einsum("p,pai,pbj->abij", wt, b, b)
         p, total = p + np.einsum("p,pai->ai", wt, a), total + float(np.sum(wt))

@@ -1,14 +1,17 @@
 """A rigid rectangular proof mass on flexures (kind "proof_mass"): any of the six rigid-body
 coordinates x, y, z, rot_z, tilt_x, tilt_y with the mass and the inertia tensor of the
-perforated rectangle, and the flexure stiffness per coordinate (netgen.mechanics.flexures:
-a 3-D frame solve of the named suspension, closed forms beside it in the report; or given
-numbers; or none: a free body). The flexures' own mass is not added (reported as a fraction).
+perforated rectangle and its moving comb fingers, and the flexure stiffness per coordinate
+(netgen.mechanics.flexures: a 3-D frame solve of the named suspension, closed forms beside it in
+the report; or given numbers; or none: a free body). The flexures' own mass is not added (reported
+as a fraction of the moving mass).
 Small-angle kinematics (netgen.mechanics.base.KINEMATICS). With [coordinates] modes = N the first
 N internal modes of the plate (free edges, netgen.mechanics.plates) join them as m1, m2, ...:
 vertical mode shapes that deform the plate electrodes' gaps (and move the comb fingers on the
-edges vertically), M-orthogonal to the rigid motions; the flexures' vertical springs at their
-attachment points add to each mode's stiffness (first order: the Rayleigh quotient), their
-coupling of the modes to z and the tilts is dropped (its size is in the report)."""
+edges vertically), M-orthogonal to the rigid motions over the plate; the moving comb fingers add
+to each mode's mass (finger_modes: rigid, they turn with the edge at their roots), the flexures' vertical
+springs at their attachment points to each mode's stiffness (first order: the Rayleigh quotient),
+and the couplings both bring to the other modes, z and the tilts are dropped (their sizes are in
+the report)."""
 
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ from ..core.errors import StructureError
 from ..geometry.combs import Finger, moving_fingers
 from ..structure import Structure, mode_name
 from . import flexures
-from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, StrainEnergy, rigid_field
+from .base import KINEMATICS, RIGID, Mechanics, RigidBasis, StrainEnergy, finger_rule, rigid_field
 from .plates import PLATE_MODES
 from .rect_plate import ELEMENTS, conductor_plate
 
@@ -61,7 +64,12 @@ def inertia(c, fingers: Sequence[Finger] = ()) -> dict[str, float]:
 
 def finger_inertia(density: float, fingers: Sequence[Finger]) -> dict[str, float]:
     """The moving fingers' mass rho t w L each and their inertias about the mass centre (each box's
-    own (a^2 + b^2) / 12 plus the parallel-axis term of its centre; the tilts with t^2 / 12)."""
+    own (a^2 + b^2) / 12 plus the parallel-axis term of its centre; the tilts with t^2 / 12). Each
+    finger is centred on the mass's mid-plane: exact for fingers of the full layer thickness (the
+    default comb thickness: etched from the same layer, they span the same -t/2..t/2, so their first
+    moment in z is 0 and their second rho w L t^3 / 12, as here); a thinner finger given its own
+    `thickness` is taken as centred too (if it sits at the layer's bottom or top instead, the tilts
+    miss its m (t - t_f)^2 / 4 and an x-z or y-z product of inertia)."""
     out = dict.fromkeys(RIGID, 0.0)
     for f in fingers:
         m = density * f.thickness * f.area
@@ -76,8 +84,9 @@ def finger_inertia(density: float, fingers: Sequence[Finger]) -> dict[str, float
     return out
 
 
-def stiffness(c) -> tuple[dict[str, float], dict]:
-    """Spring per rigid-body coordinate and the report of its source."""
+def stiffness(c, moving: float) -> tuple[dict[str, float], dict]:
+    """Spring per rigid-body coordinate and the report of its source, with the flexures' mass as a
+    fraction of the `moving` mass (kg: the plate and its fingers, what the model's coordinates carry)."""
     f = c.flexure
     if f.type == "none":
         return {k: 0.0 for k in RIGID}, {"type": "none", "note": "a free body: no springs"}
@@ -97,7 +106,7 @@ def stiffness(c) -> tuple[dict[str, float], dict]:
         "closed_form_N_per_m": closed,
         "closed_form_source": flexures.SOURCES[f.type],
         "frame_rigid_truss_over_closed_form": {k: rigid[k] / closed[k] for k in closed},
-        "flexure_mass_fraction": flexure_mass(c) / c.mass,
+        "flexure_mass_fraction": flexure_mass(c) / moving,
     }
     return {k: solved[k] for k in flexures.AXES}, report
 
@@ -155,7 +164,34 @@ def flexure_springs(c, modes, rigid: list[str]) -> tuple[np.ndarray, float] | No
     return gain, float(np.max(np.abs(cross) / np.sqrt(np.outer(k_rr, modes.modal_stiffness + gain))))
 
 
-def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
+def finger_modes(
+    c, modes, fingers: Sequence[Finger], rigid: list[str], inert: dict[str, float]
+) -> tuple[np.ndarray, float]:
+    """The moving fingers on the internal modes: a finger is a rigid box clamped to the plate's edge,
+    so a point s beyond its root moves phi + s dphi/dn (RectPlateModes.shape, the basis the
+    electrostatics use too), and mode v gains M_f,v = int rho t phi_v^2 dA over the fingers; and
+    the largest mass coupling the fingers bring, int rho t phi_v phi_u over them to the other modes
+    and to z and the tilts, relative to sqrt(M_v M_u), which the diagonal model drops (the modes are
+    M-orthogonal over the plate alone)."""
+    n = len(modes.labels)
+    out_of_plane = [r for r in rigid if r in ("z", "tilt_x", "tilt_y")]
+    mm, mr = np.zeros((n, n)), np.zeros((n, len(out_of_plane)))
+    for x, y, w, rho_h, _ in finger_rule(c.density, fingers):
+        phi = modes.shape(x, y)
+        mm += rho_h * phi.T @ (w[:, None] * phi)
+        if out_of_plane:
+            mr += rho_h * phi.T @ (w[:, None] * np.stack([rigid_field(k, x, y) for k in out_of_plane], axis=-1))
+    gain = np.diag(mm).copy()
+    total = modes.modal_mass + gain
+    rel = [np.abs(mm - np.diag(gain)) / np.sqrt(np.outer(total, total))]
+    if out_of_plane:
+        rel.append(np.abs(mr) / np.sqrt(np.outer(total, [inert[k] for k in out_of_plane])))
+    return gain, float(max(np.max(r) for r in rel))
+
+
+def modes_report(
+    c, modes, springs: tuple[np.ndarray, float] | None, fingers: tuple[np.ndarray, float] | None = None
+) -> dict:
     """What the internal modes are and how far to trust them."""
     eff = conductor_plate(c)
     flex = (
@@ -167,7 +203,7 @@ def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
             "model": "k_z / (attachment points) at each, added to each mode's stiffness; couplings dropped",
         }
     )
-    return {
+    out = {
         "source": "Kirchhoff plate, free edges, scikit-fem Bogner-Fox-Schmit elements (netgen.mechanics.rect_plate)",
         "elements_along_length": ELEMENTS,
         "labels": list(modes.labels),
@@ -182,6 +218,14 @@ def modes_report(c, modes, springs: tuple[np.ndarray, float] | None) -> dict:
         "normalisation": "peak deflection 1 over the mesh nodes",
         "flexure_springs": flex,
     }
+    if fingers is not None:
+        out["comb_fingers"] = {
+            "mass_added_rel": [float(v) for v in fingers[0] / modes.modal_mass],
+            "coupling_to_modes_z_and_tilts_max": fingers[1],
+            "model": "each moving finger turns with the plate's edge at its root (phi + s dphi/dn): int rho t "
+            "phi^2 dA over the fingers added to each mode's mass; couplings dropped",
+        }
+    return out
 
 
 def mechanics(s: Structure) -> Mechanics:
@@ -190,12 +234,15 @@ def mechanics(s: Structure) -> Mechanics:
     c: Any = s.conductor
     rigid = list(s.coordinates.rigid)
     fingers = moving_fingers(s.electrode_sets, c.outline())
-    inert, (springs, spring_report) = inertia(c, fingers), stiffness(c)
+    inert = inertia(c, fingers)
+    springs, spring_report = stiffness(c, inert["x"])
     count = s.coordinates.modes
     modes = PLATE_MODES[c.outline_shape](c, count) if count else None
     attached = flexure_springs(c, modes, rigid) if modes else None
+    on_fingers = finger_modes(c, modes, fingers, rigid, inert) if modes and fingers else None
     modal = (modes.modal_stiffness + (attached[0] if attached else 0.0)) if modes else []
-    masses = np.array([inert[n] for n in rigid] + (list(modes.modal_mass) if modes else []))
+    modal_mass = (modes.modal_mass + (on_fingers[0] if on_fingers else 0.0)) if modes else []
+    masses = np.array([inert[n] for n in rigid] + list(modal_mass))
     stiff = np.array([springs[n] for n in rigid] + list(modal))
     freqs = np.sqrt(stiff / masses) / (2 * math.pi)
     labels = list(modes.labels) if modes else []
@@ -210,7 +257,7 @@ def mechanics(s: Structure) -> Mechanics:
         "kinematics": KINEMATICS,
     }
     if modes:
-        report["internal_modes"] = modes_report(c, modes, attached)
+        report["internal_modes"] = modes_report(c, modes, attached, on_fingers)
     names = rigid + [mode_name(lab) for lab in labels]
     k_xy = flexure_coupling(c)
     energy = coupling_energy(s.source, k_xy, names, springs)

@@ -74,20 +74,33 @@ class RectPlateModes:
 
     def shape(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Vertical displacement per unit modal amplitude, (npts, nmodes), at points (m; centre at
-        the origin); points beyond the rectangle (comb fingers on its edges) take the value at the
-        nearest edge point."""
+        the origin); a point beyond the rectangle (on a comb finger: a rigid box clamped to the edge)
+        takes the value at the nearest edge point plus the edge's outward slope times its distance
+        beyond it (small angles: the finger turns with the edge)."""
         x = np.ravel(np.asarray(x, dtype=float))
         y = np.ravel(np.asarray(y, dtype=float))
         if x.size == 0:
             return np.zeros((0, len(self.labels)))
-        inner = 0.5 * (1.0 - 1e-12)
-        pts = np.stack(
-            [
-                np.clip(x / self.length, -inner, inner),
-                np.clip(y / self.length, -inner * self.width / self.length, inner * self.width / self.length),
-            ]
-        )
-        return np.asarray(self.basis.probes(pts) @ self.vectors)
+        inner = np.array([[0.5], [0.5 * self.width / self.length]]) * (1.0 - 1e-12)
+        asked = np.stack([x, y]) / self.length
+        edge = np.clip(asked, -inner, inner)
+        out = self.basis.probes(edge) @ self.vectors
+        beyond = asked - edge
+        for k in (0, 1):
+            far = np.flatnonzero(np.abs(beyond[k]) > 1e-9)
+            if far.size:
+                out[far] += self.outward_slope(edge[:, far], k, np.sign(beyond[k, far])) * np.abs(beyond[k, far, None])
+        return np.asarray(out)
+
+    def outward_slope(self, edge: np.ndarray, axis: int, sign: np.ndarray) -> np.ndarray:
+        """d phi / d(axis) per unit `length` at edge points (in units of `length`), outward along
+        sign: the one-sided second-order difference (3 f0 - 4 f1 + f2) / 2h inside the last element
+        (a cubic along the axis there: off by h^2 / 3 of the third derivative, h = 1e-4)."""
+        h = 1e-4
+        step = np.zeros_like(edge)
+        step[axis] = -sign * h
+        f = [self.basis.probes(edge + i * step) @ self.vectors for i in range(3)]
+        return (3 * f[0] - 4 * f[1] + f[2]) / (2 * h)
 
 
 def plate_basis(length: float, width: float, elements: int, holes: tuple[float, float] = (0.0, 0.0)) -> CellBasis:

@@ -25,8 +25,9 @@ Two parts, both stored in the MacroModel's `contact` dict and emitted by every d
        F_j = k gap_j pen(p_j) + c gap_j w(p_j) dp_j/dt,
        pen(p) = min(max(p, 0), delta)^2 / (2 delta) + max(p - delta, 0),  w(p) = min(max(p, 0), delta) / delta,
    a C1 ramp over delta = SMOOTH of the gap, with generalized forces -F_j gap_j a_jv / L_v.
-   k = m (RATIO w_s)^2 and c = 2 m RATIO w_s (critically damped against the plate mass m
-   with a contact frequency RATIO times the model time scale).
+   k = m (RATIO w_s)^2 and c = 2 m RATIO w_s (critically damped against the moving mass m, the
+   conductor's and a proof mass's comb fingers' (netgen.mechanics.base.body_mass), which a
+   translation's stop decelerates, with a contact frequency RATIO times the model time scale).
 
 A dielectric layer on an electrode (netgen.structure.electrodes.read_dielectric) moves the stop
 to the layer's surface: the probe points' gap_j is the air gap g - t_d (Electrode.stop_gap), so a

@@ -7,7 +7,6 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from ..core.units import parse_quantity
 from ..structure import Structure, parse_structure
 from .point import problem, rebuild_doc
 from .spec import TESTBENCH, Sweep, timeout_for
+from .tomltext import to_toml
 
 
 @dataclass
@@ -213,40 +213,3 @@ def _line(path: str, text: str) -> int | None:
     except OSError:
         pass
     return None
-
-
-def to_toml(doc: dict) -> str:
-    """A TOML document (tables, arrays of tables, scalars and arrays) as text."""
-
-    def scalar(v: Any) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, int):
-            return str(v)
-        if isinstance(v, float):
-            return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
-        if isinstance(v, str):
-            return json.dumps(v, ensure_ascii=False)
-        if isinstance(v, list):
-            return "[" + ", ".join(scalar(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{" + ", ".join(f"{json.dumps(k)} = {scalar(x)}" for k, x in v.items()) + "}"
-        raise TypeError(f"cannot write {type(v).__name__} as TOML")
-
-    def table(d: dict, name: str) -> list[str]:
-        lines = [f"{json.dumps(k)} = {scalar(v)}" for k, v in d.items() if not _is_table(v)]
-        out = [f"[{name}]", *lines, ""] if name else [*lines, ""]
-        for k, v in d.items():
-            sub = f"{name}.{json.dumps(k)}" if name else json.dumps(k)
-            if isinstance(v, dict):
-                out += table(v, sub)
-            elif _is_table(v):
-                for item in v:
-                    out += [f"[[{sub}]]"] + table(item, sub)[1:]
-        return out
-
-    return "\n".join(table(doc, "")) + "\n"
-
-
-def _is_table(v: Any) -> bool:
-    return isinstance(v, dict) or (isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v))

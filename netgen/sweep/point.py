@@ -21,6 +21,7 @@ from ..model import MacroModel
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, etched, ratio_value, scaled
 from ..structure import Structure, parse_structure
 from ..structure.schema import Process
+from .tomltext import to_toml
 
 # the process parameters a sweep moves (process.<name>), each with its unit: dg_<set> per plate set
 RATIOS = ("tscale", "escale")
@@ -156,7 +157,7 @@ def rebuild_doc(doc: dict, s: Structure, point: dict[str, float], where: tuple[s
     out = {k: v for k, v in doc.items() if k != "process"}
     out["conductor"] = dict(out["conductor"])
     for _ in range(2):  # a second pass writes what a parsed default derived from the first (spacing ~ width)
-        now = parse_structure(toml_text(out), s.source).conductor
+        now = parse_structure(to_toml(out), s.source).conductor
         write_changes(out["conductor"], now, target.conductor)
     if "temp" in point and target.damping is not None:
         out["damping"] = dict(out["damping"], temperature=target.damping.temperature)
@@ -172,7 +173,7 @@ def rebuild_doc(doc: dict, s: Structure, point: dict[str, float], where: tuple[s
                 e.setdefault("y", [keep.y0, keep.y1])
     if electrodes:
         out["electrodes"] = electrodes
-    back = parse_structure(toml_text(out), s.source)
+    back = parse_structure(to_toml(out), s.source)
     same = back.conductor == target.conductor and back.electrode_sets == target.electrode_sets
     if not same or back.damping != (target.damping if "temp" in point else s.damping):
         raise SweepError(
@@ -197,13 +198,6 @@ def write_changes(table: dict, now: Any, target: Any) -> None:
             table[f.name] = sub
         elif isinstance(b, float):
             table[f.name] = b
-
-
-def toml_text(doc: dict) -> str:
-    """The document as TOML text (netgen.sweep.plan.to_toml, imported late: plan imports this module)."""
-    from .plan import to_toml
-
-    return to_toml(doc)
 
 
 # ----------------------------------------------------------------------------- checks

@@ -32,7 +32,7 @@ from netgen.emit import osdi
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
-from tests.oracles.process_inertial import FREQ, OMEGA, PROCESS, SI, STRUCTURE, T_UM, TSCALES, V0, netlist, reference_ac
+from tests.oracles.process_inertial import FREQ, OMEGA, PROCESS, SI, T_UM, TSCALES, V0, netlist, reference_ac, structure
 from tests.oracles.testbench import using_ngspice
 
 
@@ -40,11 +40,11 @@ from tests.oracles.testbench import using_ngspice
 def built(tmp_path_factory):
     """The model with tscale, its .lib, _osdi.lib and .osdi, and the rebuilt references."""
     folder = tmp_path_factory.mktemp("inertial")
-    model = build_model(parse_structure(STRUCTURE.format(t=T_UM) + PROCESS, "gyp.toml"))
+    model = build_model(parse_structure(structure(T_UM) + PROCESS, "gyp.toml"))
     (folder / "gyp.lib").write_text(emit_ngspice.subcircuit(model))
     (folder / "gyp_osdi.lib").write_text(osdi.subcircuit(model))
     (folder / "gyp.osdi").write_bytes(osdi.outputs(model)[".osdi"])
-    refs = {t: build_model(parse_structure(STRUCTURE.format(t=T_UM * t), "gyp.toml")) for t in TSCALES}
+    refs = {t: build_model(parse_structure(structure(T_UM * t), "gyp.toml")) for t in TSCALES}
     return model, folder, refs
 
 

@@ -31,6 +31,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import VacaskBench, compile_va, run_vacask
 from netgen.structure import StructureError, parse_structure
 from tests.fixtures import ROOT, Bench
+from tests.oracles.crab_legs import crab_legs, plate
 
 RHO, T, SIDE = 2330.0, 2e-6, 200e-6  # the proof mass below: density, thickness, side
 # its rigid mass by hand: the plate and the 20 moving fingers of its two combs (2 x 40 um each, from
@@ -53,34 +54,10 @@ root = "+"
 center = {center}
 """
 PROOF_MASS = (
-    """name = "pm"
-description = "A 200 um square proof mass on crab legs with one comb per in-plane axis and a plate below"
-
-[conductor]
-kind = "proof_mass"
-length = "200 um"
-width = "200 um"
-thickness = "2 um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "100 um"
-width = "2 um"
-thigh_length = "100 um"
-thigh_width = "2 um"
-
-[[electrodes]]
-name = "zs"
-kind = "plate"
-side = "below"
-gap = "2 um"
-x = ["-50 um", "50 um"]
-y = ["-50 um", "50 um"]
-"""
+    'name = "pm"\n'
+    'description = "A 200 um square proof mass on crab legs with one comb per in-plane axis and a plate below"\n'
+    + crab_legs(200.0, 2.0, 100.0)
+    + plate("zs", "below")
     + COMB.format(name="xp", orientation="y", center='["0 um", "125 um"]')
     + COMB.format(name="yp", orientation="x", center='["125 um", "0 um"]')
     + """

@@ -1,6 +1,6 @@
 """The lateral etch bias on the proof mass's outline and etch holes (netgen.model.process.etched): the
 perforated mass of examples/accelerometer_xyz on crab legs between its z plates
-(tests/oracles/process_cases.PERFORATED) against the full rebuild of the file rewritten at three etch
+(tests/oracles/process_cases.perforated) against the full rebuild of the file rewritten at three etch
 values across the default range (side 405 - 2 etch, hole 4 + 2 etch, beams 3 - 2 etch, in um), and
 against closed forms of the etched mass and inertia.
 

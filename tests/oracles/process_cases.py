@@ -10,6 +10,8 @@ from __future__ import annotations
 from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
 
+from .crab_legs import crab_legs, plate
+
 PROOF = """
 name = "pm"
 description = "proof mass on folded flexures between plates"
@@ -119,63 +121,28 @@ def rerun(t: float, etch: float) -> list[tuple[float, float]]:
     return list(zip(m.masses, m.stiffnesses))
 
 
-# accelerometer_xyz's perforated mass on crab legs between its z plates, without the combs (the etch
-# refuses comb fingers): side {side} um (405 um: the fitted hole count, 40 on the 10 um pitch, is the
-# same at every etched side, as the drawn grid the etch keeps), hole {hole} um, beams {w} um (3 um, not
-# the example's 2 um: at w = t the frame's torsion constant (netgen.mechanics.frame.torsion_constant,
-# Roark's fit with A = max(w, t)) has a kink, which the knotted law follows (netgen.model.etch_knots,
-# tests/model/test_process_etch_knots.py); at 3 um the knot lies outside the range: the plain cubic)
-PERFORATED = """
-name = "px"
-description = "perforated proof mass on crab legs between plates"
-[conductor]
-kind = "proof_mass"
-length = "{side} um"
-width = "{side} um"
-thickness = "2 um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-hole = "{hole} um"
-hole_pitch = "10 um"
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "100 um"
-width = "{w} um"
-thigh_length = "100 um"
-thigh_width = "{w} um"
-[[electrodes]]
-name = "zs"
-kind = "plate"
-side = "below"
-gap = "2 um"
-x = ["-50 um", "50 um"]
-y = ["-50 um", "50 um"]
-[[electrodes]]
-name = "zt"
-kind = "plate"
-side = "above"
-gap = "2 um"
-x = ["-50 um", "50 um"]
-y = ["-50 um", "50 um"]
-[coordinates]
-rigid = ["z", "tilt_x", "tilt_y"]
-[sampling]
-levels = 3
-range = 0.2
-[fit]
-degree = 2
-"""
 PERFORATED_ETCHES = (-0.1e-6, 0.04e-6, 0.1e-6)  # m: three values across the default etch_range
 PERFORATED_RANGE = '[process]\nparameters = ["etch"]\n'  # etch_range: the default +-0.1 um
 
 
 def perforated(etch: float = 0.0, process: str = "") -> str:
-    """PERFORATED drawn at etch 0 (with `process`) or rewritten at the etched sizes: side 405 - 2 etch,
-    hole 4 + 2 etch, beam and thigh widths 3 - 2 etch (um)."""
+    """accelerometer_xyz's perforated mass on crab legs between its z plates, without the combs (the
+    etch refuses comb fingers), drawn at etch 0 (with `process`) or rewritten at the etched sizes: side
+    405 - 2 etch, hole 4 + 2 etch, beam and thigh widths 3 - 2 etch (um). 405 um: the fitted hole count,
+    40 on the 10 um pitch, is the same at every etched side, as the drawn grid the etch keeps; beams
+    3 um, not the example's 2 um: at w = t the frame's torsion constant
+    (netgen.mechanics.frame.torsion_constant, Roark's fit with A = max(w, t)) has a kink, which the
+    knotted law follows (netgen.model.etch_knots, tests/model/test_process_etch_knots.py); at 3 um the
+    knot lies outside the range: the plain cubic."""
     e = 2 * etch * 1e6
-    return PERFORATED.format(side=repr(405.0 - e), hole=repr(4.0 + e), w=repr(3.0 - e)) + process
+    return (
+        'name = "px"\ndescription = "perforated proof mass on crab legs between plates"\n'
+        + crab_legs(405.0 - e, 2.0, 100.0, width=3.0 - e, hole=4.0 + e)
+        + plate("zs", "below")
+        + plate("zt", "above")
+        + '[coordinates]\nrigid = ["z", "tilt_x", "tilt_y"]\n[sampling]\nlevels = 3\nrange = 0.2\n[fit]\ndegree = 2\n'
+        + process
+    )
 
 
 def xyz_text(etch: float = 0.0, process: str = "") -> str:

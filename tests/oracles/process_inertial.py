@@ -5,25 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-STRUCTURE = """
-name = "gyp"
-description = "proof mass on crab legs over one plate, rate inputs"
-[conductor]
-kind = "proof_mass"
-length = "200 um"
-width = "200 um"
-thickness = "{t!r} um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "150 um"
-width = "2 um"
-thigh_length = "140 um"
-thigh_width = "2 um"
-[[electrodes]]
+from .crab_legs import crab_legs
+
+
+def structure(t: float) -> str:
+    """The proof mass 200 um square and `t` um thick on crab legs (150 um legs, 140 um thighs) over one
+    plate, with its tilts and the rate inputs."""
+    return (
+        'name = "gyp"\ndescription = "proof mass on crab legs over one plate, rate inputs"\n'
+        + crab_legs(200.0, t, 150.0, 140.0)
+        + """[[electrodes]]
 name = "bot"
 side = "below"
 gap = "2 um"
@@ -36,8 +27,11 @@ range = 0.3
 [electrostatics]
 fringe = "none"
 [damping]
-rayleigh = {{ alpha = 2000 }}
+rayleigh = { alpha = 2000 }
 """
+    )
+
+
 PROCESS = '[process]\nparameters = ["tscale"]\n'
 T_UM, OMEGA, FREQ, V0 = 5.0, 1e3, 2e3, 1.0  # um, rad/s (w_z), Hz (the .ac point), rad/s (tilt_y rate)
 TSCALES = (0.9, 1.1)

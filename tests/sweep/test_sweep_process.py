@@ -30,6 +30,7 @@ from netgen.build import build_model
 from netgen.cli import commands as cli
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.oracles.crab_legs import crab_legs
 
 RELTOL = 1e-3  # the sweep's default reltol (netgen.testbench.sigma_delta.options)
 PROCESS = '\n[process]\nparameters = ["tscale", "escale"]\n'
@@ -51,24 +52,7 @@ values = [0.8]
 """
 
 
-CONDUCTOR = """[conductor]
-kind = "proof_mass"
-length = "500 um"
-width = "500 um"
-thickness = "20 um"
-density = "2330 kg/m^3"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-
-[conductor.flexure]
-type = "crab_leg"
-axis = "y"
-length = "800 um"
-width = "2 um"
-thigh_length = "800 um"
-thigh_width = "2 um"
-
-"""
+CONDUCTOR = crab_legs(500.0, 20.0, 800.0)
 VNTOL = 1e-6  # ngspice's default absolute voltage tolerance, on the scaled state node xs_z
 
 

@@ -19,6 +19,7 @@ import pytest
 
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import loop as sd_loop
 from netgen.testbench.sigma_delta import vacask as sdv
 from tests.fixtures import ROOT
 from tests.oracles.sigma_delta_vacask import CHANNELS, CYCLES, REPLAY, SKIP, TS, replay, run
@@ -39,6 +40,12 @@ def vacask(model, tmp_path_factory) -> dict:
     sdv.compile_model(model, out / "osdi", ROOT / "netlists" / "levitated_disk.va")  # compile outside the timing
     sdv.compile_blocks(out / "osdi")
     return run(model, out, "vacask", CYCLES, SKIP)
+
+
+@pytest.fixture(scope="module")
+def replayed(vacask, model) -> np.ndarray:
+    """The independent integration of the VACASK run's first REPLAY clocks (~10 s)."""
+    return replay(model, sd.design(model, TS), vacask["clock"], REPLAY)
 
 
 @pytest.fixture(scope="module")
@@ -82,10 +89,91 @@ def test_plate_stays_levitated(vacask, model):
     assert abs(coords["z"]["mean"]) < 1e-3 * model.coordinates[0].scale / 1e-6
 
 
-def test_bitstream_balances_gravity(vacask):
+def z_forces(d: sd.Design, clock: dict, n: int) -> np.ndarray:
+    """The centre z force (N) of the first n clocks' bit patterns (Design.table, full feedback)."""
+    unit = d.channels[d.balance["index"]]["force_unit_si"]
+    lookup = {tuple(r["pattern"]): r["f"][d.balance["channel"]] * unit for r in d.table}
+    return np.array([lookup[tuple(int(clock[f"bits_{c}"][k]) for c in d.names)] for k in range(n)])
+
+
+# ngspice's LTE limit on each feedback impulse: trtol x reltol of the velocity change it integrates
+# (trtol 7, the benches' reltol 1e-3; tests/testbench/test_sigma_delta_osdi.py)
+NGSPICE_GAIN = 7 * 1e-3
+
+
+def vacask_gain(d: sd.Design) -> float:
+    """The bound on VACASK's feedback impulse gain error: 3 (h / tau)^2 tau / (duty T_s), h the step
+    bound on the feedback ramps (RAMP_STEPS) and tau the ramp (test_mechanics_match_an_independent_integration)."""
+    tau = d.t.edge * d.ts
+    return 3 * (sdv.RAMP_STEPS[0] * tau) ** 2 / (tau * d.duty * d.ts)
+
+
+def feedback_gain(d: sd.Design, clock: dict, ref: np.ndarray) -> tuple[float, float]:
+    """The simulator's feedback impulse gain error g and what it leaves of z's error: z_sim - z_ref
+    fitted (least squares) by g times z's response to the feedback impulses, sum over the pulses
+    before each sample of F_k duty T_s (t_n - t_k) / m (z is a free mass); returns (g, the largest
+    error left, of z's peak)."""
+    n = len(ref)
+    mid = (np.arange(n) + (d.t.fb_on + d.t.fb_off) / 2) * d.ts
+    lag = np.clip(clock["time"][:n, None] - mid[None, :], 0, None)
+    shape = lag @ (z_forces(d, clock, n) * d.duty * d.ts) / d.mass
+    err = (clock["x_z"][:n] - ref[:, 0]) * d.balance["x_unit_si"]
+    g = float(np.dot(err, shape) / np.dot(shape, shape))
+    return g, float(np.abs(err - g * shape).max() / np.abs(ref[:, 0] * d.balance["x_unit_si"]).max())
+
+
+def balance_bound(model: MacroModel, d: sd.Design, clock: dict, skip: int, gain: float) -> dict:
+    """The terms that separate netgen.testbench.sigma_delta.gravity_balance's ratio from 1, each a
+    fraction of the force it balances (the balance is momentum conservation over the window, so
+    the bit density's quantization error is in its inertial term):
+    - gain: the bound on the simulator's feedback impulse gain error (vacask_gain, NGSPICE_GAIN;
+      feedback_gain measures it): the bits carry a force the simulator applied (1 + g) times;
+    - position: the table's forces are the centre's; the plate sits within max |x| (+ one clock's
+      travel) of it, so each bit's force is off by at most max_p |dF_p/dz| that (central
+      differences of the model's force at 1e-3 of the scale; second order (x/g)^2 ~ 1e-8);
+    - sense: the balance takes the sense phase's force at the centre too (Design.sense_force, the
+      near-cancelling pull of every electrode at V_s), so its electrostatic spring at the plate's
+      offset is left: sense duty x |dF_s/dz| x the same reach;
+    - ends: the velocities at the window's ends are central differences over two clocks around a
+      sample mid-feedback, where the pulse of the sample's own clock cancels; the neighbours'
+      halves do not (F_{n+1} - F_{n-1}, weight (T - s) over the last half-width w of the window):
+      m |dv| <= |F_{n+1} - F_{n-1}| w^2 T / 4 at each end, over the window's N T."""
+    bal = sd.gravity_balance(clock, d, skip)
+    a, b = bal["window"]
+    need = abs(bal["weight_n"] + bal["inertial_n"] + bal["damping_n"])
+    x = np.asarray(clock["x_z"]) * d.balance["x_unit_si"]
+    coord, eps = d.balance["coord"], 1e-3
+    step = np.zeros((1, model.ncoords))
+    step[0, coord] = eps
+
+    def slope(v: np.ndarray) -> float:
+        f = model.electrostatic_force(np.concatenate([step, -step]), v)[:, coord]
+        return abs(f[0] - f[1]) / (2 * eps * model.coordinates[coord].scale)
+
+    fb = max(slope(d.vfb * sd_loop.selected(d.electrodes, tuple(r["pattern"]))) for r in d.table)
+    sense = slope(d.vs * np.ones(len(d.electrodes))) * sd.duty(d.t, d.t.sense_on, d.t.sense_off)
+    reach = np.abs(x[a : b + 1]).max() + np.abs(np.diff(x[a - 1 : b + 2])).max()
+    fz = z_forces(d, clock, len(x))
+    half = (d.t.fb_off - d.t.fb_on + d.t.edge) / 2
+    ends = sum(abs(fz[k + 1] - fz[k - 1]) for k in (a, b)) * half**2 / (4 * (b - a))
+    return {
+        "gain": gain,
+        "position": d.duty * fb * reach / need,
+        "sense": sense * reach / need,
+        "ends": ends / need,
+    }
+
+
+def test_bitstream_balances_gravity(vacask, model):
     """Momentum conservation on z: the mean feedback force implied by the bits (the Python model's
-    force of each bit pattern x duty) = m g + m dv/dt over the window, within 1 %."""
-    assert vacask["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    force of each bit pattern x duty) = m g + m dv/dt over the window, within the sum of the
+    terms of balance_bound (2.6e-3 here; measured 3.5e-4: +8.0e-4 from the feedback gain error
+    -8.0e-4, the rest from the plate's offset; the bound was 1 %, stated)."""
+    d = sd.design(model, TS)
+    terms = balance_bound(model, d, vacask["clock"], SKIP, vacask_gain(d))
+    ratio = vacask["gravity_balance"]["ratio"]
+    print(f"F / m g - 1 = {ratio - 1:.2e}; bound " + ", ".join(f"{k} {v:.2e}" for k, v in terms.items()))
+    assert abs(ratio - 1) < sum(terms.values())
     assert 0.3 < vacask["channels"]["z"]["bit_mean"] < 0.7
 
 
@@ -97,52 +185,83 @@ def test_spectra_are_noise_shaped(vacask):
         assert 10 * np.log10(p[f >= fs / 4].mean() / p[(f > 0) & (f <= fs / 32)].mean()) > 15, channel
 
 
-def bit_means_and_bound(model: MacroModel, clocks: list[dict], skip: int, cycles: int) -> tuple[list[float], float]:
+def bit_means_and_bound(
+    model: MacroModel, clocks: list[dict], skip: int, cycles: int, gains: list[float] | None = None
+) -> tuple[list[float], float]:
     """The z bit means (bits +-1) of several runs of one loop over the clocks skip..cycles - 2 with
     netgen.testbench.sigma_delta.gravity_balance's weights (the end samples count half), and the
-    largest difference between them that two momentum balances within 1 % allow.
+    largest difference between them that two momentum balances allow: each within the sum of its
+    balance_bound terms given the bound on the run's feedback gain error (gains), else within 1 %.
 
     Per run the balance is mean force = ratio (m g + I), with I = m (v_b - v_a) / (t_b - t_a) the
     run's own inertial term over the window, and mean force = F_fs * bit mean + sense force +
     duty * (the z force's dependence on the tilt bits, <= max_p |f_p - F_fs / duty| per sample).
-    With |ratio - 1| <= 0.01 (asserted here, on this window) two runs' bit means differ by at most
-    (0.01 (2 m g + |I_1| + |I_2|) + |I_1 - I_2| + 2 duty max_p |f_p - F_fs / duty|) / F_fs: 0.010
-    from the balances (m g / F_fs = 0.50), ~1e-3 from the inertial terms, 1.7e-3 from the tilt bits."""
+    With |ratio_i - 1| <= e_i (asserted here, on this window) two runs' bit means differ by at most
+    (e_1 (m g + |I_1|) + e_2 (m g + |I_2|) + |I_1 - I_2| + 2 duty max_p |f_p - F_fs / duty|) / F_fs:
+    with 1 %, 0.010 from the balances (m g / F_fs = 0.50); ~1e-3 from the inertial terms, 1.7e-3
+    from the tilt bits."""
     d = sd.design(model, TS)
     ch = d.channels[d.balance["index"]]
     full, mg, unit = ch["full_scale_force_si"], -d.balance["dc_force_n"], ch["force_unit_si"]
     spread = max(abs(abs(r["f"][d.balance["channel"]] * unit) - full / d.duty) for r in d.table)
-    means, inertia = [], []
-    for clock in clocks:
+    means, inertia, errors = [], [], []
+    for i, clock in enumerate(clocks):
         cut = {k: np.asarray(v)[:cycles] for k, v in clock.items()}
         balance = sd.gravity_balance(cut, d, skip)
-        assert balance["ratio"] == pytest.approx(1.0, abs=0.01)
+        errors.append(sum(balance_bound(model, d, cut, skip, gains[i]).values()) if gains else 0.01)
+        assert abs(balance["ratio"] - 1) < errors[-1]
         a, b = balance["window"]
         w = np.ones(b - a + 1)
         w[[0, -1]] = 0.5
         means.append(float(np.dot(w, cut["bits_z"][a : b + 1]) / (b - a)))
         inertia.append(balance["inertial_n"])
     i1, i2 = inertia[0], inertia[1]
-    bound = (0.01 * (2 * mg + abs(i1) + abs(i2)) + abs(i1 - i2) + 2 * d.duty * spread) / full
+    bound = (errors[0] * (mg + abs(i1)) + errors[1] * (mg + abs(i2)) + abs(i1 - i2) + 2 * d.duty * spread) / full
     return means, bound
 
 
-def test_mechanics_match_an_independent_integration(vacask, model):
-    """The first 48 clocks: tilts and modes within 1.5 % of their peak (measured <= 1.05 %, the (3,0)
-    cosine mode), z within 6 % (measured 2.5 %). z is the small residual of a nearly balanced force
-    (the plate hovers within ~0.3 nm), so the impulse error VACASK still makes at the pulse corners
-    (netgen.testbench.sigma_delta.vacask.OPTIONS) integrates to a few % of its excursion, growing as t^2.
-    The ngspice benches are off by the same amount (B-source loop 3.9 % on z, 0.6 % on the (3,0)
-    modes; compiled loop 3.0 % and 1.3 %; test_xspice_mechanics_match_an_independent_integration).
-    With VACASK's default corner steps (tran_fbr=0.25) z was 15 % off here (6.9 % in a later run, tran_lteratio=10);
-    the options before (tran_fbr=0.1 tran_lteratio=10, 50 % more time points) gave 1.1 % and 0.7 %."""
-    clock = vacask["clock"]
-    ref = replay(model, sd.design(model, TS), clock, REPLAY)
-    for i, c in enumerate(model.coordinates):
-        got = clock[f"x_{c.name}"][:REPLAY]
-        err = np.abs(got - ref[:, i]).max() / np.abs(ref[:, i]).max()
+def test_mechanics_match_an_independent_integration(vacask, replayed, model):
+    """The first 48 clocks against the independent integration of the run's own bits.
+
+    z is a free mass held by a nearly balanced force (it hovers within ~0.3 nm), so a small gain
+    error g of the feedback impulses integrates to a few % of its excursion, growing as t^2: 2.9 %
+    here, all of it that gain (feedback_gain: g = -8.0e-4, 1e-4 of the peak left; with the ramp
+    step bound RAMP_STEPS halved g = -2.4e-4, so it is second order in the step h on the ramps,
+    as the rule's error per ramp, ~ (h / tau)^2 tau / (duty T_s) = 6.6e-4 for h = 0.12 of the ramp
+    tau; its constant is -1.2 here and -1.5 at the halved bound, against -2/3 from the rules:
+    VACASK's default, trapezoidal, over-integrates each ramp's V^2 by 1/6, and its backward-Euler
+    step after a corner (docs/sigma-delta-validation.md) under-integrates the falling ramp's
+    first step by 1, so the rest is not derived). Asserted: |g| within 3 of
+    that scale, 2.0e-3, and z, with g taken out, within 1.5 % of its peak like every other
+    coordinate (tilts: 1.0e-3, the same gain; modes: <= 1.02 %, the (3,0) cosine mode, of which
+    the feedback gain explains less than half; not derived). The ngspice benches: ngspice_mechanics (z raw: B-source
+    loop 3.9 %, compiled loop 3.0 %); the options before (tran_fbr=0.1
+    tran_lteratio=10) gave 1.1 % raw."""
+    clock, ref = vacask["clock"], replayed
+    d = sd.design(model, TS)
+    gain, left = feedback_gain(d, clock, ref)
+    print(f"feedback impulse gain error {gain:.2e} (bound {vacask_gain(d):.2e}); z error left {left:.2e} of its peak")
+    assert abs(gain) < vacask_gain(d)
+    assert left < 0.015
+    for i, c in enumerate(model.coordinates[1:], start=1):
+        err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |VACASK - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.06 if c.name == "z" else 0.015), c.name
+        assert err < 0.015, c.name
+
+
+def ngspice_mechanics(model: MacroModel, clock: dict, name: str) -> None:
+    """An ngspice run's first REPLAY clocks against the independent integration of its bits, as
+    for VACASK (test_mechanics_match_an_independent_integration): z's feedback impulse gain error
+    within ngspice's LTE limit on each impulse (NGSPICE_GAIN), z's remainder and the other coordinates within
+    1.5 % of their peak."""
+    ref = replay(model, sd.design(model, TS), clock, REPLAY)
+    gain, left = feedback_gain(sd.design(model, TS), clock, ref)
+    print(f"z: {name} feedback impulse gain error {gain:.2e}, error left {left:.2e} of its peak")
+    assert abs(gain) < NGSPICE_GAIN and left < 0.015
+    for i, c in enumerate(model.coordinates[1:], start=1):
+        err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
+        print(f"{c.name}: max |{name} - solve_ivp| = {err:.2e} of its peak")
+        assert err < 0.015, c.name
 
 
 def test_agrees_with_ngspice(vacask, ngspice, model):
@@ -157,29 +276,24 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
     first clocks, and from there the two bitstreams are different samples of the same chaotic
     loop. So:
     - both benches' mechanics equal the independent integration of their own bits (48 clocks;
-      tilts and modes within 1.5 % of their peak, z within 6 %, as for VACASK above);
+      ngspice_mechanics);
     - after settling: the same z bit density within what the two momentum balances allow
-      (bit_means_and_bound: 0.013, 0.8 bit flips in 126 clocks; measured 0), the same
+      (bit_means_and_bound with each run's balance_bound terms), the same
       mean height (the set point where the readout offset of the asymmetric electrode fits is
-      nulled) within 10 %, both balancing gravity within 1 %, tilt excursions of the same size
+      nulled) within 10 %, both balancing gravity (within those terms), tilt excursions of the same size
       (ratio 1/3..3; measured 0.7..1.8 over runs: the excursion of a chaotic loop over 126 clocks,
       which includes the (3,0) modes' share of the tilt readout). Mode amplitudes are not
       compared: the (3,0) modes are undamped in this model, and their amplitude random-walks with
       the bit sequence."""
     a, b = vacask["clock"], ngspice["clock"]
-    ref = replay(model, sd.design(model, TS), b, REPLAY)
-    for i, c in enumerate(model.coordinates):
-        err = np.abs(b[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
-        print(f"{c.name}: max |ngspice - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.06 if c.name == "z" else 0.015), c.name
+    ngspice_mechanics(model, b, "ngspice")
+    gains = [vacask_gain(sd.design(model, TS)), NGSPICE_GAIN]
     same = np.all([a[f"bits_{c}"][:NG_CYCLES] == b[f"bits_{c}"] for c in CHANNELS], axis=0)
     print(f"bits identical for the first {int(np.argmin(same)) if not same.all() else NG_CYCLES} clocks")
     window = slice(NG_SKIP, NG_CYCLES - 2)
-    (za, zb), bound = bit_means_and_bound(model, [a, b], NG_SKIP, NG_CYCLES)
+    (za, zb), bound = bit_means_and_bound(model, [a, b], NG_SKIP, NG_CYCLES, gains)
     print(f"z bit mean: VACASK {za:.4f}, ngspice {zb:.4f} (bound {bound:.4f})")
     assert abs(za - zb) < bound
-    assert vacask["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
-    assert ngspice["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
     ma, mb = a["x_z"][window].mean(), b["x_z"][window].mean()
     print(f"mean z: VACASK {ma * 1e3:.4f} nm, ngspice {mb * 1e3:.4f} nm")
     assert ma == pytest.approx(mb, rel=0.10)
@@ -192,16 +306,14 @@ def test_agrees_with_ngspice(vacask, ngspice, model):
 def test_xspice_mechanics_match_an_independent_integration(xspice, ngspice, model):
     """The compiled run (`--simulator ngspice-xspice`: the code-model emission in the compiled
     loop netgen_sdloop): its mechanics equal the independent integration of its own bits as
-    closely as the B-source bench's (48 clocks; tilts and modes within 1.5 % of their peak, z
-    within 6 %) and it balances gravity within 1 %. Its speed is measured in
+    closely as the B-source bench's (48 clocks, ngspice_mechanics) and it balances gravity within
+    the sum of its balance_bound terms. Its speed is measured in
     bench/sigma_delta.py (variant xspice, loop xspice), not asserted here; the run prints it."""
-    clock = xspice["clock"]
-    ref = replay(model, sd.design(model, TS), clock, REPLAY)
-    for i, c in enumerate(model.coordinates):
-        err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
-        print(f"{c.name}: max |ngspice-xspice - solve_ivp| = {err:.2e} of its peak")
-        assert err < (0.06 if c.name == "z" else 0.015), c.name
-    assert xspice["gravity_balance"]["ratio"] == pytest.approx(1.0, abs=0.01)
+    ngspice_mechanics(model, xspice["clock"], "ngspice-xspice")
+    terms = balance_bound(model, sd.design(model, TS), xspice["clock"], NG_SKIP, NGSPICE_GAIN)
+    ratio = xspice["gravity_balance"]["ratio"]
+    print(f"F / m g - 1 = {ratio - 1:.2e}; bound " + ", ".join(f"{k} {v:.2e}" for k, v in terms.items()))
+    assert abs(ratio - 1) < sum(terms.values())
     fast, cm = ngspice["wall"] / NG_CYCLES, xspice["wall"] / NG_CYCLES
     print(f"wall per clock: B-sources {fast * 1e3:.1f} ms, code model {cm * 1e3:.1f} ms ({fast / cm:.1f}x)")
 

@@ -48,6 +48,22 @@ def damping_accepted(value: object, context: dict) -> str | None:
     return check(value) if check else None
 
 
+def design_ratio(name: str, text: str, high: float, default: float) -> Option:
+    """A design option in (0, high], set as the [loop] key and the sweep parameter of its own name."""
+    return Option(
+        name,
+        text,
+        role="design",
+        low=0.0,
+        high=high,
+        open_low=True,
+        default=default,
+        example=repr(default),
+        loop_key=name,
+        sweep=name,
+    )
+
+
 _options = [
     Option(
         "ts",
@@ -106,30 +122,8 @@ _options = [
         loop_key="density",
         sweep="density",
     ),
-    Option(
-        "sense_ratio",
-        "the sense voltage over the feedback voltage, V_s / V_fb",
-        role="design",
-        low=0.0,
-        high=10.0,
-        open_low=True,
-        default=0.25,
-        example="0.25",
-        loop_key="sense_ratio",
-        sweep="sense_ratio",
-    ),
-    Option(
-        "full_scale",
-        "the readout's full scale, a fraction of the touch amplitude that reads 1 V",
-        role="design",
-        low=0.0,
-        high=1.0,
-        open_low=True,
-        default=0.01,
-        example="0.01",
-        loop_key="full_scale",
-        sweep="full_scale",
-    ),
+    design_ratio("sense_ratio", "the sense voltage over the feedback voltage, V_s / V_fb", 10.0, 0.25),
+    design_ratio("full_scale", "the readout's full scale, a fraction of the touch amplitude that reads 1 V", 1.0, 0.01),
     Option(
         "dither",
         "the comparator dither, a fraction of the one-period feedback displacement a_fb*T_s^2 (0: none)",
