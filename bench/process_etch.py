@@ -50,6 +50,22 @@ def against_rebuilds(label: str, nominal, rebuild) -> None:
     )
 
 
+def kink(xyz) -> None:
+    """accelerometer_xyz's stiffness and modal frequencies from the law against the mechanics re-run at
+    etches straddling its torsion knot at 0 (2 um legs on its 2 um layer, netgen.model.etch_knots)."""
+    worst_k = worst_f = 0.0
+    for etch in (-0.1e-6, -0.02e-6, -0.005e-6, -0.001e-6, 0.001e-6, 0.005e-6, 0.02e-6, 0.04e-6, 0.1e-6):
+        ref = mechanics(parse_structure(process_cases.xyz_text(etch), "xyz.toml"))
+        for v in range(xyz.ncoords):
+            m, k, _ = coordinate_values(xyz.process, v, etch=etch)
+            worst_k = max(worst_k, abs(k / ref.stiffnesses[v] - 1))
+            worst_f = max(worst_f, abs(math.sqrt(k / m * ref.masses[v] / ref.stiffnesses[v]) - 1))
+    print(
+        f"  knots {xyz.process['etch'].get('knots', [])} um; law against re-runs at etch -0.1 .. 0.1 um straddling "
+        f"the knot (down to +-1 nm): stiffness {worst_k:.2e}, frequencies {worst_f:.2e}"
+    )
+
+
 def outline_and_combs(field2d: bool) -> None:
     """The perforated crab-leg mass (3 um legs) and accelerometer_xyz (textbook combs; with `field2d`
     its own 2-D finger cell) against rebuilds, and the textbook comb against its closed form."""
@@ -65,6 +81,7 @@ def outline_and_combs(field2d: bool) -> None:
         xyz,
         lambda e: build_model(parse_structure(process_cases.xyz_text(e), "xyz.toml")),
     )
+    kink(xyz)
     k = [f.electrode for f in xyz.capacitances].index("xp_t")
     worst = max(
         abs(

@@ -4,7 +4,8 @@ states) and the C data by which the runtime applies them: the law coefficients o
 netgen.model.process, read from MacroModel.process exactly as netgen.emit.process renders them
 into the .lib and the .va (mass, stiffness and damping ratios pm, pk, pd per coordinate, the a_in
 gain times tscale, each capacitance term's z shifted by -sign dg / L_z, each stop's penetration
-by -dg / gap; with etch declared each electrode's capacitance ratio pc (a cubic in etch / 1 um,
+by -dg / gap; with etch declared the laws' etch ratios with their torsion knots (KNOTS,
+netgen.model.etch_knots), each electrode's capacitance ratio pc (a cubic in etch / 1 um,
 netgen.emit.process.capacitance_ratios) scaling its C, a comb's terms read at the state shifted by
 shift / L per metre of etch (etch_columns) and its stops' penetrations by a . shift / L etch
 (etch_offsets)). No physics here: every number comes from the model; the runtime
@@ -81,12 +82,13 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     names = [r["name"] for r in rows(model)]
     law = model.process.get("coordinates", []) if process.enabled(model) else []
     ident = [1.0, 0.0, 0.0, 0.0]
+    knots = process.knots(model) if law else []
     coeffs, etch, nominal = [], [], []
     for v, c in enumerate(model.coordinates):
         cl: dict[str, Any] = law[v] if law else {k: [0.0] * 4 for k in LAW_KEYS}
         coeffs += [cl[k] for k in LAW_KEYS]
         ratio = cl.get("etch", {}) if process.declared(model, "etch") else {}
-        etch += [ratio.get(k, ident) for k in LAW_KEYS]
+        etch += [ratio.get(k, ident + [0.0] * 3 * len(knots)) for k in LAW_KEYS]
         nominal += [c.mass, c.stiffness, c.damping]
     p = model.process if law else {}
     visc = ((p.get("temp") or {}).get("viscosity") or {}).get("coeffs", [])
@@ -114,6 +116,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
     ]
     data += load_arrays(model, array)
+    data += [array("double", "KNOTS", knots)] if knots else []  # the etch laws' torsion knots (etch / 1 um)
 
     def ref(name: str) -> int:
         return vr[name] if name in names else -1
@@ -133,6 +136,8 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "MODULUS_TC": f"({num(p.get('modulus_tc_per_K', 0.0))})",
         "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
     }
+    if knots:  # only then: the runtime's text without knots is unchanged
+        defines["NKNOT"] = len(knots)
     return data, defines, names
 
 

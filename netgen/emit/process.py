@@ -81,6 +81,7 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
         out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
     t0 = p["temperature_C"] + KELVIN
     out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
+    out += knot_params(model)
     for c, law in zip(model.coordinates, p["coordinates"]):
         if active(model, "pm"):
             out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
@@ -153,9 +154,32 @@ def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
     netgen.model.process.etch_laws) where etch is declared and the ratio is not identically 1."""
     text = poly(law[key], tscale)
     ratio = law.get("etch", {}).get(key, [1.0, 0.0, 0.0, 0.0])
-    if not declared(model, "etch") or list(ratio) == [1.0, 0.0, 0.0, 0.0]:
+    if not declared(model, "etch") or (ratio[0] == 1.0 and not any(ratio[1:])):
         return text
-    return f"{text}*{poly(ratio, '(1e6*etch)')}"
+    return f"{text}*{etch_ratio(model, ratio)}"
+
+
+def knots(model: MacroModel) -> list[float]:
+    """The mechanics laws' torsion knots (etch / 1 um, netgen.model.etch_knots) where etch is declared."""
+    return list((model.process.get("etch") or {}).get("knots", [])) if declared(model, "etch") else []
+
+
+def knot_params(model: MacroModel) -> list[tuple[str, str]]:
+    """(name, expression) of ek_<j> = (1e6 etch - k_j)+ per knot, written (x + abs(x)) / 2: no branch,
+    the same text in ngspice's .param and Verilog-A (netgen.model.etch_knots.basis)."""
+    out = []
+    for j, k in enumerate(knots(model)):
+        x = "1e6*etch" if k == 0.0 else f"(1e6*etch - {num(k)})" if k > 0 else f"(1e6*etch + {num(-k)})"
+        out.append((f"ek_{j + 1}", f"0.5*({x} + abs({x}))"))
+    return out
+
+
+def etch_ratio(model: MacroModel, ratio: list[float]) -> str:
+    """An etch ratio's text: its cubic in 1e6 etch, plus per knot j its truncated powers in ek_<j>."""
+    text = poly(ratio[:4], "(1e6*etch)")
+    extra = [poly([0.0, *ratio[4 + 3 * j : 7 + 3 * j]], f"ek_{j + 1}") for j in range(len(knots(model)))]
+    extra = [e for e in extra if e != "(0)"]
+    return f"({' + '.join([text, *extra])})" if extra else text
 
 
 def join(parts: list[str], coeffs: list[list[float]]) -> str:
@@ -253,7 +277,9 @@ def etch_offsets(model: MacroModel) -> dict[int, float]:
     where not zero (a finger's vertical stop over the substrate has none)."""
     scale = {c.name: c.scale for c in model.coordinates}
     names = [c.name for c in model.coordinates]
-    shifts = {r["electrode"]: r.get("shift", {}) for r in (model.process.get("etch") or {}).get("capacitance", [])}
+    laws = (model.process.get("etch") or {}).get("capacitance", [])
+    # a plate's fill shift (netgen.model.etch_fill) is an effective gap: its stops stay at the drawn gap
+    shifts = {r["electrode"]: r.get("shift", {}) for r in laws if not r.get("fill")}
     if not declared(model, "etch"):
         return {}
     out = {}
@@ -326,6 +352,12 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
             "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
+            + (
+                f", piecewise at etch {', '.join(f'{k:g}' for k in knots(model))} um where a flexure width meets "
+                "the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
+                if knots(model)
+                else ""
+            )
             + etch_neglect(e)
             + ("; the a_in load times the etched body's ratio (a cubic in etch)" if e.get("acceleration") else "")
         )
@@ -356,12 +388,18 @@ def etch_neglect(e: dict) -> str:
     if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
     err = e["capacitance_max_rel_error"]
-    combs = any(r.get("shift") for r in e.get("capacitance", []))
+    combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
+    fill = any(r.get("fill") for r in e.get("capacitance", []))
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
         + (
             " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs
+            else ""
+        )
+        + (
+            ", the perforated plates' fits read at z shifted by the fill factor's effective gap change (nodes xe_z_*; their stops stay)"
+            if fill
             else ""
         )
         + ", "

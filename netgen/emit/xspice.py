@@ -100,6 +100,7 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     extra, column, owner = gap_columns(model)
     n = model.ncoords + len(extra)
     clamps = model.term_clamps()
+    fill = {r["electrode"] for r in (model.process.get("etch") or {}).get("capacitance", []) if r.get("fill")}
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
     }
@@ -127,8 +128,9 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
         for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
-            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's etch
-            cols = column.get(pt["electrode"], {})
+            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's etch,
+            # not a plate's fill shift (netgen.model.etch_fill: an effective gap, the stop stays)
+            cols = {} if pt["electrode"] in fill else column.get(pt["electrode"], {})
             sa[j] = moved(a, cols, n)
             sg[j] = np.asarray(moved(g, cols, n)) * np.asarray(gains)
     sr = sa * ws

@@ -44,6 +44,8 @@ from ..mechanics import squeeze_film as sf
 from ..mechanics.damping import damping as damping_of
 from ..structure import Structure
 from ..structure.schema import Process
+from .etch_fill import fill_shifts
+from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
 KELVIN = 273.15
@@ -89,17 +91,18 @@ def fit_points(p: Process) -> tuple[float, ...]:
 
 
 def power_fit(
-    x: tuple[float, ...], values: np.ndarray, scale: np.ndarray, nominal: float = 1.0
+    x: tuple[float, ...], values: np.ndarray, scale: np.ndarray, nominal: float = 1.0, knots: tuple[float, ...] = ()
 ) -> tuple[np.ndarray, float]:
     """Cubic polynomials c0 + c1 x + c2 x^2 + c3 x^3 per column of `values` (least squares over the
     points: one more than the coefficients; c0 then set so the fit is exact at x = 1), and the
     largest residual at the points relative to `scale` (per point and column: the quantity it is a
     part of, there; relative to the largest value over the range it understated the error at the
     thin end by the cube of the range).
-    One point (no tscale): the constant."""
+    One point (no tscale): the constant. With `knots` (etch only) the cubic plus truncated powers
+    (netgen.model.etch_knots.basis)."""
     if len(x) == 1:
         return np.column_stack([values[0]] + [np.zeros_like(values[0])] * 3), 0.0
-    v = np.vander(np.array(x), 4, increasing=True)
+    v = basis(x, knots) if knots else np.vander(np.array(x), 4, increasing=True)
     coef, *_ = np.linalg.lstsq(v, values, rcond=None)
     # the least-squares round-off of exact laws (the Vandermonde matrix over 0.9..1.1 has a condition
     # number near 1e6: 1e-16 x 1e6 = 1e-10 relative), then the nominal point exactly (default
@@ -237,7 +240,9 @@ def process_laws(
         "gaps": [dict(r, max_m=dg_max) for r in sets],
     }
     if p.wants("etch"):
-        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names))
+        # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too
+        fill = ([e.name for e in electrodes if e.side in GAP_SIDES and not sets], sampling_range * scale_z / 2)
+        out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names), fill)
     if m.strain_energy is not None:
         out["strain_energy"] = energy_law(s, m, run, p)
     if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
@@ -245,7 +250,6 @@ def process_laws(
     return out
 
 
-ETCH_UNIT = 1e-6  # m: the etch laws are polynomials in etch / 1 um
 LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
@@ -319,25 +323,28 @@ def point_values(s: Structure, run, film: bool, modulus: bool, names: list[str],
 
 
 def etch_laws(s: Structure, m: Mechanics, run, film: bool, p: Process, per: list[dict]) -> float:
-    """Per coordinate the etch ratios (cubics in etch / ETCH_UNIT, 1 at 0) of mass, a, b and the damping
-    parts, from re-runs at etch_points (thickness nominal), stored as per[v]["etch"]; the value at
-    (tscale, etch) is the tscale law times the ratio. Returns the error: the largest of the fits'
-    residuals and, with tscale, the product's misfit at the four corners of the (tscale, etch) box
-    against re-runs there (0 for laws separable in t and w: k ~ t w^3 in plane, w t^3 out of plane;
-    torsion is not), relative to the total mass, stiffness or damping there."""
+    """Per coordinate the etch ratios (cubics in etch / ETCH_UNIT, 1 at 0; with the cubic's truncated
+    powers at each torsion knot in the range, netgen.model.etch_knots) of mass, a, b and the damping
+    parts, from re-runs at etch_points (thickness nominal; knot_points with knots), stored as
+    per[v]["etch"]; the value at (tscale, etch) is the tscale law times the ratio. Returns the error:
+    the largest of the fits' residuals and, with tscale, the product's misfit at the four corners of
+    the (tscale, etch) box against re-runs there (0 for laws separable in t and w: k ~ t w^3 in
+    plane, w t^3 out of plane; torsion is not, and its knot moves with t), relative to the total
+    mass, stiffness or damping there."""
     names, modulus = list(m.names), p.wants("escale") or p.wants("temp")
-    points = etch_points(p)
+    knots = etch_knots(s, *p.etch_range)
+    points = knot_points(*p.etch_range, knots) if knots else etch_points(p)
     rows = [point_values(etched(s, e), run, film, modulus, names, m if e == 0.0 else None) for e in points]
     u = tuple(e / ETCH_UNIT for e in points)
     errors = []
     for key in LAW_KEYS:
         vals = np.array([r[key] for r in rows])
-        coef, err = power_fit(u, vals, totals(rows, key), nominal=0.0)
+        coef, err = power_fit(u, vals, totals(rows, key), nominal=0.0, knots=knots)
         nominal, scale = vals[points.index(0.0)], totals(rows, key)
         for v, c in enumerate(per):
             # a part at the re-runs' round-off of its total (b of pure beams: K - a) carries no ratio
             ok = abs(nominal[v]) > 1e-9 * scale[points.index(0.0), v]
-            c.setdefault("etch", {})[key] = [float(x / nominal[v]) for x in coef[v]] if ok else [1.0, 0.0, 0.0, 0.0]
+            c.setdefault("etch", {})[key] = [float(x / nominal[v]) for x in coef[v]] if ok else identity(knots)
             if not ok:  # a part that is zero at the nominal etch must stay zero (no ratio can carry it)
                 err = max(err, float(np.max(np.abs(vals[:, v] - nominal[v]) / np.maximum(scale[:, v], 1e-300))))
         errors.append(err)
@@ -359,18 +366,19 @@ def totals(rows: list[dict], key: str) -> np.ndarray:
     return np.abs(np.array([sum(r[k] for k in group[key]) for r in rows]))
 
 
-def law_value(c: dict, key: str, tscale: float, etch: float) -> float:
-    """Law part `key` of one coordinate's law at (tscale, etch): the tscale cubic times the etch ratio."""
+def law_value(c: dict, key: str, tscale: float, etch: float, knots: tuple[float, ...] = ()) -> float:
+    """Law part `key` of one coordinate's law at (tscale, etch): the tscale cubic times the etch ratio
+    (with the etch record's `knots`, netgen.model.etch_knots)."""
     t = float(np.dot(c[key], [1.0, tscale, tscale**2, tscale**3]))
     if "etch" not in c:
         return t
     u = etch / ETCH_UNIT
-    return t * float(np.dot(c["etch"][key], [1.0, u, u**2, u**3]))
+    return t * (knot_value(c["etch"][key], u, knots) if knots else float(np.dot(c["etch"][key], [1.0, u, u**2, u**3])))
 
 
 def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str], p: Process, per: list[dict]) -> float:
     """The largest misfit of the product laws at the corners of the (tscale, etch) box against re-runs."""
-    worst = 0.0
+    worst, knots = 0.0, etch_knots(s, *p.etch_range)
     for tau in p.tscale_range:
         for e in p.etch_range:
             ref = point_values(etched(scaled(s, tau), e), run, film, modulus, names)
@@ -378,7 +386,7 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
                 scale = totals([ref], key)[0]
                 for v, c in enumerate(per):
                     if scale[v] > 0:
-                        worst = max(worst, abs(law_value(c, key, tau, e) - ref[key][v]) / scale[v])
+                        worst = max(worst, abs(law_value(c, key, tau, e, knots) - ref[key][v]) / scale[v])
     return worst
 
 
@@ -386,13 +394,19 @@ CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios a
 
 
 def etch_record(
-    s: Structure, p: Process, err: float, extract=None, names: list[str] | None = None, coords: list[str] | None = None
+    s: Structure,
+    p: Process,
+    err: float,
+    extract=None,
+    names: list[str] | None = None,
+    coords: list[str] | None = None,
+    fill: tuple[list[str], float] = ([], 0.0),
 ) -> dict:
     """The etch entry of the process record: range, law error, the polynomial variable, the etched
     mass outline's relative area change at the range's ends (holes included: the mass and inertia
     laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
     and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
-    laws (capacitance_laws)."""
+    laws (capacitance_laws; `fill`: the plate electrodes offered a fill shift and the half box dz)."""
     c: Any = s.conductor
     nx, ny = c.holes()
 
@@ -405,12 +419,17 @@ def etch_record(
         "variable": "etch / 1 um",
         "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
     }
+    knots = etch_knots(s, *p.etch_range)
+    if knots:  # the mechanics laws' torsion knots (etch / 1 um; netgen.model.etch_knots)
+        out["knots"] = list(knots)
     if extract is not None:
-        out |= capacitance_laws(s, p, extract, names or [], coords or [])
+        out |= capacitance_laws(s, p, extract, names or [], coords or [], fill)
     return out
 
 
-def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
+def capacitance_laws(
+    s: Structure, p: Process, extract, names: list[str], coords: list[str], fill: tuple[list[str], float] = ([], 0.0)
+) -> dict:
     """Each electrode's capacitance under etch as C(q; etch) = ratio(etch) C(q + shift etch; 0): the
     combs' shift (comb_shifts: exact for the parallel-plate part of a transverse comb's gap and every
     comb's overlap) and a ratio, a cubic in etch / 1 um (1 at 0), from the extractor at rest at
@@ -418,8 +437,12 @@ def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords
     (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
     lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
     |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
-    fit box at the range's ends, and the cubic's residual at the etch points."""
+    fit box at the range's ends, and the cubic's residual at the etch points. The plates of `fill`
+    (names, half box dz) get a z shift too (netgen.model.etch_fill: their fill factor's etch change
+    depends on the gap; such a law is marked "fill": the contact stops do not follow it)."""
     shifts = comb_shifts(s, coords)
+    plates = fill_shifts(s, extract, etched, coords, [names.index(n) for n in fill[0]], p.etch_range, fill[1])
+    shifts |= {names[i]: {"z": k} for i, k in plates.items()}
     vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
     memo: dict[tuple, np.ndarray] = {}
 
@@ -442,10 +465,11 @@ def capacitance_laws(s: Structure, p: Process, extract, names: list[str], coords
             ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
             ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
             err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
-    laws = []
+    laws: list[dict[str, Any]] = []
     for n, r in zip(names, ratios):
         if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
             laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
+            laws[-1] |= {"fill": True} if n in fill[0] and shifts.get(n) else {}
     return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
 
 
@@ -492,7 +516,8 @@ def coordinate_values(
     arithmetic the emitters render)."""
     temp_c = law["temperature_C"] if temp_c is None else temp_c
     c = law["coordinates"][v]
-    mass, a, b, d_rest, d_film = (law_value(c, k, tscale, etch) for k in LAW_KEYS)
+    knots = tuple((law.get("etch") or {}).get("knots", ()))
+    mass, a, b, d_rest, d_film = (law_value(c, k, tscale, etch, knots) for k in LAW_KEYS)
     visc = law["temp"]["viscosity"]
     ratio = (
         float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))

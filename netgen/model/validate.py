@@ -252,17 +252,18 @@ def check_inertial(c: Checker, block: Any, n: int) -> None:
                     c.number(f"{where}[{r}][{k}]" if rank == 2 else f"{where}[{k}]", x)
 
 
-def check_etch_law(c: Checker, law: Any, where: str, declared: bool) -> None:
-    """A coordinate's etch ratios (netgen.model.process.etch_laws): four numbers per law part where
-    etch is declared (the emitters write them), absent otherwise."""
+def check_etch_law(c: Checker, law: Any, where: str, declared: bool, size: int = 4) -> None:
+    """A coordinate's etch ratios (netgen.model.process.etch_laws): `size` numbers per law part (4 +
+    3 per torsion knot, netgen.model.etch_knots) where etch is declared (the emitters write them),
+    absent otherwise."""
     if law is None and not declared:
         return
     if not isinstance(law, dict) or not declared:
         c.fail(where, "must be an object of the etch ratios, present only when etch is a parameter")
     for key in ("mass", "a", "b", "d_rest", "d_film"):
         row = law.get(key)
-        if not isinstance(row, list) or len(row) != 4:
-            c.fail(f"{where}.{key}", "must be a list of 4 numbers")
+        if not isinstance(row, list) or len(row) != size:
+            c.fail(f"{where}.{key}", f"must be a list of {size} numbers")
         for k, x in enumerate(row):
             c.number(f"{where}.{key}[{k}]", x)
 
@@ -283,8 +284,11 @@ def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords
         shift = law.get("shift", {})
         if not isinstance(shift, dict):
             c.fail(f"{where}.shift", "must be an object {coordinate: shift per metre of etch}")
+        fill = law.get("fill", False)  # a plate's fill shift along z (netgen.model.etch_fill)
+        if not isinstance(fill, bool):
+            c.fail(f"{where}.fill", "must be true or false")
         for q, x in shift.items():
-            c.choice(f"{where}.shift", q, tuple(n for n in coords if n in ("x", "y")))
+            c.choice(f"{where}.shift", q, tuple(n for n in coords if n in (("z",) if fill else ("x", "y"))))
             c.number(f"{where}.shift.{q}", x)
 
 
@@ -306,6 +310,11 @@ def check_process(
         c.choice(f"process.parameters[{i}]", p, ("dg", "tscale", "escale", "temp", "etch"))
     c.number("process.temperature_C", process.get("temperature_C"))
     c.number("process.modulus_tc_per_K", process.get("modulus_tc_per_K"))
+    knots = (process.get("etch") or {}).get("knots", []) if "etch" in params else []
+    if not isinstance(knots, list):
+        c.fail("process.etch.knots", "must be a list of numbers (the torsion knots, etch / 1 um)")
+    for k, x in enumerate(knots):
+        c.number(f"process.etch.knots[{k}]", x)
     laws = process.get("coordinates")
     if not isinstance(laws, list) or len(laws) != ncoords:
         c.fail("process.coordinates", f"must list one law per coordinate ({ncoords})")
@@ -316,7 +325,8 @@ def check_process(
                 c.fail(f"process.coordinates[{v}].{key}", "must be a list of 4 numbers")
             for k, x in enumerate(row):
                 c.number(f"process.coordinates[{v}].{key}[{k}]", x)
-            check_etch_law(c, law.get("etch"), f"process.coordinates[{v}].etch", "etch" in params)
+            size = 4 + 3 * len(knots)
+            check_etch_law(c, law.get("etch"), f"process.coordinates[{v}].etch", "etch" in params, size)
     for where in ("tscale.range", "escale.range", "temp.range_C"):
         outer, inner = where.split(".")
         rng = (process.get(outer) or {}).get(inner)

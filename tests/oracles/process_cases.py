@@ -131,8 +131,9 @@ def perforated(etch: float = 0.0, process: str = "") -> str:
     405 - 2 etch, hole 4 + 2 etch, beam and thigh widths 3 - 2 etch (um). 405 um: the fitted hole count,
     40 on the 10 um pitch, is the same at every etched side, as the drawn grid the etch keeps; beams
     3 um, not the example's 2 um: at w = t the frame's torsion constant
-    (netgen.mechanics.frame.torsion_constant, Roark's fit with A = max(w, t)) has a kink, which a cubic
-    in etch misses by 1.7e-3 in k."""
+    (netgen.mechanics.frame.torsion_constant, Roark's fit with A = max(w, t)) has a kink, which the
+    knotted law follows (netgen.model.etch_knots, tests/model/test_process_etch_knots.py); at 3 um the
+    knot lies outside the range: the plain cubic."""
     e = 2 * etch * 1e6
     return (
         'name = "px"\ndescription = "perforated proof mass on crab legs between plates"\n'
