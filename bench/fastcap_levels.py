@@ -231,7 +231,14 @@ def run(
         plate_p, phi, sheets = levels[level]
         q = dq if what == "step" else np.zeros(pf.ncoords)
         dz = (phi @ q).reshape(len(plate_p), 4)
-        key = {**base, "level": level, "what": what, "order": order, "q": q.tolist()}
+        key = {
+            **base,
+            "level": level,
+            "what": what,
+            "order": order,
+            "q": q.tolist(),
+            "panels": npanels[level - min(first, 0)],
+        }
         return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol, stored_only)
 
     if one is not None:
