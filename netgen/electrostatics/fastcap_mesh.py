@@ -145,7 +145,8 @@ def disk_face(radius: float, shapes, sizes: Sizes, aspect: float = ASPECT) -> Pa
         )
         if not active:  # a full band: equal arcs, triangles at the centre
             n = max(8, math.ceil(2.0 * math.pi * rm / min(sizes.h_max, aspect * (r1 - r0))))
-            pieces = [(np.linspace(0.0, 2.0 * math.pi, n + 1),) * 2]
+            t = np.linspace(0.0, 2.0 * math.pi, n + 1)
+            pieces = [(t, t)]
         else:
             pieces = []
             for a, b in zip(active, active[1:] + active[:1]):
@@ -153,11 +154,15 @@ def disk_face(radius: float, shapes, sizes: Sizes, aspect: float = ASPECT) -> Pa
                 if len(active) == 1:
                     width = 2.0 * math.pi
                 u = _band_nodes(max(rm * width, 1e-30), sizes, r1 - r0, aspect, graded_ends=True)
-                ends = []
-                for r in (r0, r1):
-                    w = width + (_side_angle(b, r) - _side_angle(a, r)) - (_side_angle(b, rm) - _side_angle(a, rm))
-                    ends.append(_side_angle(a, r) + u * max(w, 0.0))
-                pieces.append(tuple(ends))
+                ends = [
+                    _side_angle(a, r)
+                    + u
+                    * max(
+                        width + (_side_angle(b, r) - _side_angle(a, r)) - (_side_angle(b, rm) - _side_angle(a, rm)), 0.0
+                    )
+                    for r in (r0, r1)
+                ]
+                pieces.append((ends[0], ends[1]))
         for t0, t1 in pieces:
             p0 = np.stack([r0 * np.cos(t0), r0 * np.sin(t0)], axis=1)
             p1 = np.stack([r1 * np.cos(t1), r1 * np.sin(t1)], axis=1)
