@@ -7,7 +7,8 @@ stops at g/R = 0.0115 (12.9 GB); FastCap's memory and time grow about linearly w
 so the reference disk at its own gap (g/R = 0.0063) fits (docs/fastcap.md, 'Costs').
 
 Panels (netgen.electrostatics.fastcap_mesh): quads, graded from edge_to_gap gaps at free edges
-to element_to_gap gaps inside (panel size tied to the smallest gap). Every solve runs on `levels`
+(and, on the plate, at the electrodes' outlines in projection) to element_to_gap gaps inside
+(panel size tied to the smallest gap). Every solve runs on `levels`
 mesh levels (2 or more; sizes in the ratio `refinement`) at `expansion_order`, Richardson-
 extrapolates (with three levels or more at the order observed from the last three, bem.extrapolate;
 the correction is the discretisation error estimate), and solves the coarse level again at

@@ -6,6 +6,9 @@ of at most `aspect` to one. Sizes follow bem_mesh.Sizes (in metres, set from the
 h_edge at every free edge (where the charge density is singular), growing by `growth` up to
 h_max inside, so the panels facing a gap are a fixed number of gaps wide and those at its edges a
 fraction of a gap. A band whose inner radius is 0 is closed by triangles (one corner repeated).
+The plate's face is graded the same way towards the facing electrodes' outlines in projection
+(disk_face: ring radii and slot sides), where its charge changes within a gap, and the electrodes
+towards the plate's rim.
 """
 
 from __future__ import annotations
