@@ -23,8 +23,8 @@ pytest.importorskip("fastcap2")
 from netgen.core.constants import EPS0  # noqa: E402
 from netgen.electrostatics import fastcap  # noqa: E402
 from netgen.electrostatics.bem_mesh import icosphere  # noqa: E402
-from netgen.electrostatics.fastcap_mesh import Panels, disk_face, polar_panels  # noqa: E402
-from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
+from netgen.electrostatics.fastcap_mesh import Panels, disk_face, plate_panels, polar_panels  # noqa: E402
+from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate  # noqa: E402
 from tests.oracles.closed_forms import love_disks  # noqa: E402
 
 UM = 1e-6
@@ -171,6 +171,25 @@ def test_plate_face_graded_towards_the_electrode_outlines():
     allowed = 2.0 * np.sum(share * alpha**2 / 6.0)  # each band's outer and inner chords
     assert allowed < 5e-3  # not vacuous
     assert abs(share.sum() - 1.0) <= allowed
+
+
+def test_rectangular_plate_graded_towards_the_electrode_edges():
+    """A rectangular plate over two plates split by a 10 um slot (the accelerometer's z plates): the
+    face's x nodes include the slot's sides, the columns beside them at most h_edge * growth wide,
+    and the face's area is the plate's (a tensor grid: exact to round-off)."""
+    plate = RectPlate(-150 * UM, 150 * UM, -150 * UM, 150 * UM)
+    facing = (
+        Rectangle("zl", -150 * UM, -5 * UM, -150 * UM, 150 * UM),
+        Rectangle("zr", 5 * UM, 150 * UM, -150 * UM, 150 * UM),
+    )
+    sizes = ST.sizes(2 * UM, 0, 300 * UM)
+    face = plate_panels(plate, 0.0, sizes, facing=facing)
+    x = np.unique(np.round(face.corners[:, :, 0].ravel() / (1e-9 * UM)) * 1e-9 * UM)
+    for side in (-5 * UM, 5 * UM):
+        k = np.argmin(np.abs(x - side))
+        assert abs(x[k] - side) < 1e-9 * UM
+        assert max(x[k] - x[k - 1], x[k + 1] - x[k]) <= sizes.h_edge * sizes.growth
+    assert face.areas().sum() == pytest.approx(300 * UM * 300 * UM, rel=1e-12, abs=0)
 
 
 def test_budget_refused_before_the_work():
