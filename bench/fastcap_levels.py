@@ -28,14 +28,16 @@ sides (a forward step closes the gaps on one side and opens them on the other, s
 one-sided differences differ by about 2 % and their mean is a central difference); the spread
 over the sectors of one side is reported beside it (the iteration and panel-placement noise).
 Every solve is stored as it
-finishes (--store, default ~/.cache/netgen/fastcap_levels): an interrupted run recomputes only the
-missing solves. Peak RSS and the process CPU time of every solve are printed on stderr; --one
+finishes (--store, default ~/.cache/netgen/fastcap_levels; keyed by g/R, settings, level, solve,
+order, q and the level's panel count, so a changed mesh is a new solve): an interrupted run
+recomputes only the missing solves. Peak RSS and the process CPU time of every solve are printed on stderr; --one
 LEVEL WHAT ORDER runs a single solve into the store, so that /usr/bin/time -v measures each solve
 in a process of its own, and a later run without --one assembles them.
 
 g/R = 0.002 (docs/fastcap.md): the reference's element_to_gap 4 gives 868k panels on level 2
 (21.7 GB); element_to_gap 12.5 keeps the largest panel at the reference's absolute size (4 x its
-gap, 0.025 R) and the edge panels at half a gap: 66.8k / 109k / 183k panels.
+gap, 0.025 R) and the edge panels at half a gap: 60.7k / 91.5k / 146k / 238k panels on levels
+-1 / 0 / 1 / 2 (the plate's face graded towards the electrodes' outlines, fastcap_mesh.disk_face).
 """
 
 from __future__ import annotations
@@ -231,7 +233,14 @@ def run(
         plate_p, phi, sheets = levels[level]
         q = dq if what == "step" else np.zeros(pf.ncoords)
         dz = (phi @ q).reshape(len(plate_p), 4)
-        key = {**base, "level": level, "what": what, "order": order, "q": q.tolist()}
+        key = {
+            **base,
+            "level": level,
+            "what": what,
+            "order": order,
+            "q": q.tolist(),
+            "panels": npanels[level - min(first, 0)],
+        }
         return stored_solve(store, key, [plate_p.moved(dz), *sheets], pf.eps_r, order, st.iter_tol, stored_only)
 
     if one is not None:

@@ -10,7 +10,8 @@ over its own solid piston, at several gaps; the memory and time estimate beside 
 The piston: a square plate of `side` (a centred grid of floor(side / pitch) holes per side, as a
 proof mass counts them) over an electrode of its own size at `gap` (the plate moved rigidly from
 the first gap, on the panels of the first gap), a sheet or `thickness` thick (the holes walled).
-The ratio perforated / solid cancels the analytic outer-edge fringe, which is the same in both.
+The ratio perforated / solid cancels the analytic outer-edge fringe, which is the same in both; the
+analytic side's F(g) carries the plate's thickness (the hole walls' term), as from_structure builds it.
 Default sizes here are the fine ones (edge_to_gap 0.125, element_to_gap 1: docs/fastcap.md,
 'Perforated plates', says why).
 """
@@ -72,7 +73,7 @@ def main() -> None:
     a = ap.parse_args()
     st = settings(a)
     gaps = [float(g) * UM for g in a.gaps.split(",")]
-    perf = Perforation(a.hole_over_pitch * a.pitch * UM, a.pitch * UM)
+    perf = Perforation(a.hole_over_pitch * a.pitch * UM, a.pitch * UM, thickness=a.thickness * UM)
     res: dict = {
         "side_um": a.side,
         "hole_over_pitch": a.hole_over_pitch,

@@ -7,7 +7,8 @@ stops at g/R = 0.0115 (12.9 GB); FastCap's memory and time grow about linearly w
 so the reference disk at its own gap (g/R = 0.0063) fits (docs/fastcap.md, 'Costs').
 
 Panels (netgen.electrostatics.fastcap_mesh): quads, graded from edge_to_gap gaps at free edges
-to element_to_gap gaps inside (panel size tied to the smallest gap). Every solve runs on `levels`
+(and, on the plate, at the electrodes' outlines in projection) to element_to_gap gaps inside
+(panel size tied to the smallest gap). Every solve runs on `levels`
 mesh levels (2 or more; sizes in the ratio `refinement`) at `expansion_order`, Richardson-
 extrapolates (with three levels or more at the order observed from the last three, bem.extrapolate;
 the correction is the discretisation error estimate), and solves the coarse level again at
@@ -235,18 +236,20 @@ class PreparedFastcap:
         """Level k: the undeformed plate, its basis at every panel corner (n*4, ncoords), the
         electrodes (Layered under a dielectric layer)."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
-        p = plate_panels(plate, self.thickness, sizes, holes=self.holes)
+        facing = tuple(e.shape for e in self.electrodes)
+        p = plate_panels(plate, self.thickness, sizes, holes=self.holes, facing=facing)
         xy = p.corners.reshape(-1, 3)
         phi = np.asarray(basis(xy[:, 0], xy[:, 1]), dtype=float).reshape(len(xy), -1)
         half = self.thickness / 2.0
-        return p, phi, tuple(self._electrode(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+        return p, phi, tuple(self._electrode(e, sizes, e.sign * (half + e.gap), plate) for e in self.electrodes)
 
     @staticmethod
-    def _electrode(e: Electrode, sizes, z: float) -> Panels | Layered:
-        """An electrode's panels at height z: a sheet, or a box under its dielectric layer."""
+    def _electrode(e: Electrode, sizes, z: float, plate: Plate) -> Panels | Layered:
+        """An electrode's panels at height z (graded towards the plate's rim over it): a sheet, or a
+        box under its dielectric layer."""
         if e.dielectric_thickness > 0.0:
-            return layered_panels(e, sizes, z, -e.sign)
-        return electrode_panels(e, sizes, z)
+            return layered_panels(e, sizes, z, -e.sign, plate=plate)
+        return electrode_panels(e, sizes, z, plate=plate)
 
     def panels(self, q: ArrayLike, level: int) -> list[Panels | Layered]:
         """The conductors at q on mesh level `level`: the moved plate, then the electrodes."""
@@ -340,6 +343,7 @@ class FastcapExtractor:
                 ""
                 if self.perforation is None
                 else f"; etch holes {self.perforation.hole:g} m on a {self.perforation.pitch:g} m pitch meshed"
+                + (f" through {self.thickness:g} m" if self.thickness > 0.0 else "")
             )
         )
 
@@ -366,7 +370,8 @@ def settings_of(s) -> FastcapSettings:
 
 def from_structure(s, plate: Plate) -> FastcapExtractor:
     """The extractor for a structure (s: netgen.structure.Structure): permittivity, thickness, settings,
-    and a proof mass's etch holes (conductor.hole, hole_pitch), meshed."""
+    and a proof mass's etch holes (conductor.hole, hole_pitch), meshed through the plate's thickness
+    (its Perforation carries the thickness, as the parallel-plate extractor's does: one grid, one form)."""
     thickness = float(getattr(s.conductor, "thickness", 0.0))
     hole, pitch = float(getattr(s.conductor, "hole", 0.0)), float(getattr(s.conductor, "hole_pitch", 0.0))
     return FastcapExtractor(
@@ -374,5 +379,5 @@ def from_structure(s, plate: Plate) -> FastcapExtractor:
         thickness=thickness,
         settings=settings_of(s),
         source=str(s.source),
-        perforation=Perforation(hole, pitch) if hole else None,
+        perforation=Perforation(hole, pitch, thickness=thickness) if hole else None,
     )

@@ -6,6 +6,9 @@ of at most `aspect` to one. Sizes follow bem_mesh.Sizes (in metres, set from the
 h_edge at every free edge (where the charge density is singular), growing by `growth` up to
 h_max inside, so the panels facing a gap are a fixed number of gaps wide and those at its edges a
 fraction of a gap. A band whose inner radius is 0 is closed by triangles (one corner repeated).
+The plate's face is graded the same way towards the facing electrodes' outlines in projection
+(disk_face: ring radii and slot sides), where its charge changes within a gap, and the electrodes
+towards the plate's rim.
 """
 
 from __future__ import annotations
@@ -57,13 +60,35 @@ def _band_nodes(length: float, sizes: Sizes, dr: float, aspect: float, graded_en
     return (graded(0.0, length, s) - 0.0) / length
 
 
+def graded_through(lo: float, hi: float, cuts, sizes: Sizes, ends: tuple[bool, bool] = (True, True)) -> Array:
+    """Nodes from lo to hi graded towards both ends (as `ends` says) and towards every cut strictly
+    inside (the projection of another conductor's edge): graded pieces between consecutive cuts."""
+    tol = 1e-9 * (hi - lo)
+    inner = sorted({float(c) for c in cuts if lo + tol < c < hi - tol})
+    breaks = [lo, *inner, hi]
+    parts = [
+        graded(a, b, sizes, ends=(ends[0] if k == 0 else True, ends[1] if k == len(breaks) - 2 else True))
+        for k, (a, b) in enumerate(zip(breaks[:-1], breaks[1:]))
+    ]
+    return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
+
+
 def polar_panels(
-    r_lo: float, r_hi: float, theta0: float, span: float, slot: float, sizes: Sizes, z: float, aspect: float = ASPECT
+    r_lo: float,
+    r_hi: float,
+    theta0: float,
+    span: float,
+    slot: float,
+    sizes: Sizes,
+    z: float,
+    aspect: float = ASPECT,
+    cuts: tuple[float, ...] = (),
 ) -> Panels:
     """An annulus, disk or slotted annular sector at height z: radial bands graded towards every
-    free radius, each band's arc divided on its own (graded towards the slot sides, if any)."""
+    free radius (and every radius in `cuts`: the plate's rim above an electrode), each band's arc
+    divided on its own (graded towards the slot sides, if any)."""
     full = slot == 0.0 and span >= 2.0 * math.pi - 1e-12
-    radii = graded(r_lo, r_hi, sizes, ends=(r_lo > 0.0, True))
+    radii = graded_through(r_lo, r_hi, cuts, sizes, ends=(r_lo > 0.0, True))
     quads = []
     for r0, r1 in zip(radii[:-1], radii[1:]):
         rm = 0.5 * (r0 + r1)
@@ -83,9 +108,81 @@ def polar_panels(
     return Panels(np.concatenate([xy, np.full(xy.shape[:2] + (1,), z)], axis=2))
 
 
-def rect_panels(x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z: float) -> Panels:
-    """A rectangle at height z: a tensor grid graded towards all four edges."""
-    x, y = graded(x0, x1, sizes), graded(y0, y1, sizes)
+def _sector_edges(shapes) -> tuple[list[float], list[tuple[float, float, float, float]]]:
+    """The annular-sector electrodes' outlines in projection: their radii, and their straight sides
+    as (theta, offset, r_lo, r_hi): the side at angle theta + asin(offset / r) for r_lo <= r <= r_hi."""
+    radii: set[float] = set()
+    lines: dict[tuple[float, float], tuple[float, float, float, float]] = {}
+    for s in shapes:
+        if not isinstance(s, AnnularSector):
+            continue
+        lo = max(s.r_in, corner_radius(s.slot, s.span))
+        radii.update({lo, s.r_out})
+        if s.full_ring:
+            continue
+        for theta, offset in ((s.theta_start, s.slot / 2.0), (s.theta_end, -s.slot / 2.0)):
+            key = (round(theta % (2.0 * math.pi), 12), round(offset * 1e9, 3))
+            old = lines.get(key)
+            r0, r1 = (lo, s.r_out) if old is None else (min(lo, old[2]), max(s.r_out, old[3]))
+            lines[key] = (theta, offset, r0, r1)
+    return sorted(radii), list(lines.values())
+
+
+def _side_angle(line: tuple[float, float, float, float], r: float) -> float:
+    """Angle of a straight sector side (_sector_edges) at radius r."""
+    return line[0] + math.asin(max(-1.0, min(1.0, line[1] / r)))
+
+
+def disk_face(radius: float, shapes, sizes: Sizes, aspect: float = ASPECT) -> Panels:
+    """A disk plate's face at z = 0, graded towards its rim and towards the outlines of the annular-
+    sector electrodes facing it (their radii and slot sides, in projection): the panels facing a
+    slot between rings or sectors are a fraction of a gap wide, as the electrodes' own are."""
+    cuts, lines = _sector_edges(shapes)
+    radii = graded_through(0.0, radius, cuts, sizes, ends=(False, True))
+    quads = []
+    for r0, r1 in zip(radii[:-1], radii[1:]):
+        rm = 0.5 * (r0 + r1)
+        active = sorted(
+            (ln for ln in lines if ln[2] <= rm <= ln[3] and abs(ln[1]) < r0),
+            key=lambda ln: _side_angle(ln, rm) % (2.0 * math.pi),
+        )
+        if not active:  # a full band: equal arcs, triangles at the centre
+            n = max(8, math.ceil(2.0 * math.pi * rm / min(sizes.h_max, aspect * (r1 - r0))))
+            t = np.linspace(0.0, 2.0 * math.pi, n + 1)
+            pieces = [(t, t)]
+        else:
+            pieces = []
+            for a, b in zip(active, active[1:] + active[:1]):
+                width = (_side_angle(b, rm) - _side_angle(a, rm)) % (2.0 * math.pi)
+                if len(active) == 1:
+                    width = 2.0 * math.pi
+                u = _band_nodes(max(rm * width, 1e-30), sizes, r1 - r0, aspect, graded_ends=True)
+                ends = [
+                    _side_angle(a, r)
+                    + u
+                    * max(
+                        width + (_side_angle(b, r) - _side_angle(a, r)) - (_side_angle(b, rm) - _side_angle(a, rm)), 0.0
+                    )
+                    for r in (r0, r1)
+                ]
+                pieces.append((ends[0], ends[1]))
+        for t0, t1 in pieces:
+            p0 = np.stack([r0 * np.cos(t0), r0 * np.sin(t0)], axis=1)
+            p1 = np.stack([r1 * np.cos(t1), r1 * np.sin(t1)], axis=1)
+            if r0 == 0.0:
+                quads.append(np.stack([p1[:-1], p1[1:], p0[:-1], p0[:-1]], axis=1))
+            else:
+                quads.append(np.stack([p0[:-1], p1[:-1], p1[1:], p0[1:]], axis=1))
+    xy = np.concatenate(quads)
+    return Panels(np.concatenate([xy, np.zeros(xy.shape[:2] + (1,))], axis=2))
+
+
+def rect_panels(
+    x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z: float, cuts: tuple[tuple, tuple] = ((), ())
+) -> Panels:
+    """A rectangle at height z: a tensor grid graded towards all four edges (and towards the x and
+    y positions in `cuts`: other conductors' edges in projection)."""
+    x, y = graded_through(x0, x1, cuts[0], sizes), graded_through(y0, y1, cuts[1], sizes)
     X, Y = np.meshgrid(x, y, indexing="ij")
     P = np.stack([X, Y, np.full(X.shape, z)], axis=-1)
     c = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2).reshape(-1, 4, 3)
@@ -163,10 +260,12 @@ def plate_panels(
     sizes: Sizes,
     aspect: float = ASPECT,
     holes: tuple[float, float] | None = None,
+    facing: tuple = (),
 ) -> Panels:
     """The plate: one sheet at z = 0 (thickness 0), or top and bottom faces at +-thickness/2 and
     the rim wall (a closed surface); holes = (side, pitch): a rectangular plate's square etch-hole
-    grid cut out of the faces, each hole walled through the thickness."""
+    grid cut out of the faces, each hole walled through the thickness; facing: the electrodes'
+    shapes, whose outlines the faces are graded towards (disk_face; a rectangle's x and y edges)."""
     rings: list[Array] = []
     if holes is not None:
         if not isinstance(plate, RectPlate):
@@ -174,12 +273,14 @@ def plate_panels(
         face, x, y, rings = perforated_face(plate, holes[0], holes[1], sizes)
         outline = _rectangle_outline(x, y)
     elif isinstance(plate, DiskPlate):
-        face = polar_panels(0.0, plate.radius, 0.0, 2.0 * math.pi, 0.0, sizes, 0.0, aspect)
+        face = disk_face(plate.radius, facing, sizes, aspect)
         n = max(8, math.ceil(2.0 * math.pi * plate.radius / min(sizes.h_max, aspect * sizes.h_edge)))
         t = np.arange(n) * (2.0 * math.pi / n)
         outline = plate.radius * np.column_stack([np.cos(t), np.sin(t)])
     elif isinstance(plate, RectPlate):
-        face = rect_panels(plate.x0, plate.x1, plate.y0, plate.y1, sizes, 0.0)
+        rects = [f for f in facing if isinstance(f, Rectangle)]
+        cuts = (tuple(v for f in rects for v in (f.x0, f.x1)), tuple(v for f in rects for v in (f.y0, f.y1)))
+        face = rect_panels(plate.x0, plate.x1, plate.y0, plate.y1, sizes, 0.0, cuts)
         outline = _rectangle_outline(graded(plate.x0, plate.x1, sizes), graded(plate.y0, plate.y1, sizes))
     else:
         raise NotImplementedError(f"no panels for plate {type(plate).__name__}")
@@ -193,14 +294,19 @@ def plate_panels(
     return Panels(np.concatenate([top.corners, bottom.corners, *wall]))
 
 
-def electrode_panels(e: Electrode, sizes: Sizes, z: float, aspect: float = ASPECT) -> Panels:
-    """A fixed electrode's outline as a flat panel sheet at height z."""
+def electrode_panels(
+    e: Electrode, sizes: Sizes, z: float, aspect: float = ASPECT, plate: Plate | None = None
+) -> Panels:
+    """A fixed electrode's outline as a flat panel sheet at height z, graded towards its own edges
+    and towards the plate's rim where that lies over it (plate: the moving plate's outline)."""
     s = e.shape
     if isinstance(s, AnnularSector):
         lo = max(s.r_in, corner_radius(s.slot, s.span))
-        return polar_panels(lo, s.r_out, s.theta_start, s.span, s.slot, sizes, z, aspect)
+        cuts = (plate.radius,) if isinstance(plate, DiskPlate) else ()
+        return polar_panels(lo, s.r_out, s.theta_start, s.span, s.slot, sizes, z, aspect, cuts)
     if isinstance(s, Rectangle):
-        return rect_panels(s.x0, s.x1, s.y0, s.y1, sizes, z)
+        edges = ((plate.x0, plate.x1), (plate.y0, plate.y1)) if isinstance(plate, RectPlate) else ((), ())
+        return rect_panels(s.x0, s.x1, s.y0, s.y1, sizes, z, edges)
     raise NotImplementedError(f"no panels for electrode shape {type(s).__name__}")
 
 
@@ -299,12 +405,14 @@ def walls(outline: Array, z0: float, z1: float, h: float) -> tuple[Panels, Array
     return Panels(np.concatenate(quads)), np.concatenate(refs)
 
 
-def layered_panels(e: Electrode, sizes: Sizes, z: float, toward: float, aspect: float = ASPECT) -> Layered:
+def layered_panels(
+    e: Electrode, sizes: Sizes, z: float, toward: float, aspect: float = ASPECT, plate: Plate | None = None
+) -> Layered:
     """An electrode with its face at height z under a layer (dielectric_thickness) towards the
     plate (toward = +1: the plate is above, -1: below); the box below the face is as thick as the
     layer. The layer's panels are the face's, moved to its surface."""
     t = e.dielectric_thickness
-    face = electrode_panels(e, sizes, z, aspect)
+    face = electrode_panels(e, sizes, z, aspect, plate)
     back = face.moved(np.full(face.corners.shape[:2], -toward * t))
     top = face.moved(np.full(face.corners.shape[:2], toward * t))
     h = min(sizes.h_edge, t)

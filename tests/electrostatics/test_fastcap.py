@@ -23,8 +23,8 @@ pytest.importorskip("fastcap2")
 from netgen.core.constants import EPS0  # noqa: E402
 from netgen.electrostatics import fastcap  # noqa: E402
 from netgen.electrostatics.bem_mesh import icosphere  # noqa: E402
-from netgen.electrostatics.fastcap_mesh import Panels, polar_panels  # noqa: E402
-from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode  # noqa: E402
+from netgen.electrostatics.fastcap_mesh import Panels, disk_face, plate_panels, polar_panels  # noqa: E402
+from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate  # noqa: E402
 from tests.oracles.closed_forms import love_disks  # noqa: E402
 
 UM = 1e-6
@@ -125,6 +125,71 @@ def test_against_dense_bem(reference_fastcap):
     mf = reference_fastcap
     dev = np.abs(mf.plate_electrode / mb.plate_electrode - 1.0)
     assert dev.max() <= 2.0 * (mf.error + mb.error)
+
+
+def test_plate_face_graded_towards_the_electrode_outlines():
+    """The disk plate's face (fastcap_mesh.disk_face) under the reference layout: no panel straddles
+    an electrode's edge in projection (a ring's radius or a slot's side: every panel lies on one
+    side of each), the panels along every such edge are at most h_edge * growth wide across it
+    (so a slot of a few gaps is resolved, not spanned), the face is four-fold symmetric as the
+    layout is (a panel rotated by 90 degrees is a panel), and its area is the disk's within the
+    chords' deficit (a band loses at most alpha^2 / 6 of its area to chords of angle alpha, at its
+    outer and its inner radius: 2 sum(share alpha^2 / 6) over the panels). Geometry: the other
+    tolerances are round-off (1e-9 of the radius)."""
+    gap = 2 * UM
+    plate, els = reference_layout(gap)
+    sizes = ST.sizes(gap, 0, plate.radius)
+    face = disk_face(plate.radius, [e.shape for e in els], sizes)
+    c = face.corners[:, :, :2]
+    r = np.hypot(c[..., 0], c[..., 1])
+    tol = 1e-9 * plate.radius
+    edges = sorted({v for e in els for v in (e.shape.r_in, e.shape.r_out)} - {plate.radius})
+    for radius in edges:
+        assert not ((r.min(axis=1) < radius - tol) & (r.max(axis=1) > radius + tol)).any()
+        touching = np.isclose(r, radius, atol=tol).any(axis=1)
+        assert np.abs(r[touching] - radius).max() <= sizes.h_edge * sizes.growth
+    for e in els:  # the slot sides: lines slot/2 from the sector's radial edges, inside its radii
+        s = e.shape
+        for theta, offset in ((s.theta_start, s.slot / 2), (s.theta_end, -s.slot / 2)):
+            n = np.array([-math.sin(theta), math.cos(theta)])
+            d = c @ n - offset  # signed distance to the side line
+            along = r.min(axis=1) >= s.r_in - tol
+            along &= r.max(axis=1) <= s.r_out + tol
+            along &= (c @ np.array([math.cos(theta), math.sin(theta)])).min(axis=1) > 0
+            assert not ((d[along].min(axis=1) < -tol) & (d[along].max(axis=1) > tol)).any()
+            touching = along & np.isclose(d, 0.0, atol=tol).any(axis=1)
+            assert touching.sum() > 0 and np.abs(d[touching]).max() <= sizes.h_edge * sizes.growth
+    rot = np.stack([-c[..., 1], c[..., 0]], axis=-1)
+    key = np.round(np.sort(c.reshape(len(c), -1), axis=1) / tol)
+    key_rot = np.round(np.sort(rot.reshape(len(c), -1), axis=1) / tol)
+    assert {tuple(k) for k in key} == {tuple(k) for k in key_rot}
+    # chords for arcs: a band loses at most alpha^2 / 6 of its area to chords of angle alpha
+    b, rb = np.roll(c, -1, axis=1), np.roll(r, -1, axis=1)
+    cos = np.sum(c * b, axis=-1) / np.maximum(r * rb, 1e-300)
+    alpha = np.where((r > tol) & (rb > tol), np.arccos(np.clip(cos, -1.0, 1.0)), 0.0).max(axis=1)
+    share = face.areas() / (math.pi * plate.radius**2)
+    allowed = 2.0 * np.sum(share * alpha**2 / 6.0)  # each band's outer and inner chords
+    assert allowed < 5e-3  # not vacuous
+    assert abs(share.sum() - 1.0) <= allowed
+
+
+def test_rectangular_plate_graded_towards_the_electrode_edges():
+    """A rectangular plate over two plates split by a 10 um slot (the accelerometer's z plates): the
+    face's x nodes include the slot's sides, the columns beside them at most h_edge * growth wide,
+    and the face's area is the plate's (a tensor grid: exact to round-off)."""
+    plate = RectPlate(-150 * UM, 150 * UM, -150 * UM, 150 * UM)
+    facing = (
+        Rectangle("zl", -150 * UM, -5 * UM, -150 * UM, 150 * UM),
+        Rectangle("zr", 5 * UM, 150 * UM, -150 * UM, 150 * UM),
+    )
+    sizes = ST.sizes(2 * UM, 0, 300 * UM)
+    face = plate_panels(plate, 0.0, sizes, facing=facing)
+    x = np.unique(np.round(face.corners[:, :, 0].ravel() / (1e-9 * UM)) * 1e-9 * UM)
+    for side in (-5 * UM, 5 * UM):
+        k = np.argmin(np.abs(x - side))
+        assert abs(x[k] - side) < 1e-9 * UM
+        assert max(x[k] - x[k - 1], x[k + 1] - x[k]) <= sizes.h_edge * sizes.growth
+    assert face.areas().sum() == pytest.approx(300 * UM * 300 * UM, rel=1e-12, abs=0)
 
 
 def test_budget_refused_before_the_work():
