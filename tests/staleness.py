@@ -6,7 +6,9 @@ Most numbers follow their inputs to within rounding; the plate fits' COEFFICIENT
 1/P_k terms has near-null directions (more plates trade area for gap without changing C, cond(J)
 1.7e4-1.1e5 at the fit, bench/fit_conditioning.py) and the capped Levenberg-Marquardt run
 (netgen.fit.capacitance.MAX_NFEV) takes a rounding-dependent path, so a 1e-9 change of the samples
-moves the coefficients by up to 7e-3 (bench/fit_function_change.py). What the netlist COMPUTES
+moves the coefficients by up to 7e-3 (bench/fit_function_change.py). Where a fit is small enough to
+converge (netgen.fit.capacitance.settled) it does: the clamped-clamped beam's single capped run
+stopped where its C still moved by twice its error between two 1e-12 changes of the samples. What the netlist COMPUTES
 (C, dC/dq, the strain energy) is what must stay. So a rebuilt model matches a committed one when:
 
 1. the texts with every number masked are identical (structure, names, comments' words);

@@ -133,3 +133,15 @@ def test_refits_of_the_cantilever_pass_and_real_changes_fail():
     heavier = dataclasses.replace(c, mass=c.mass * (1 + 1e-6))
     changed = dataclasses.replace(model, coordinates=[model.coordinates[0], heavier, *model.coordinates[2:]])
     assert model_problems(changed, committed, x, "t")
+
+
+def test_refits_of_the_beam_converge_to_one_function():
+    """The clamped-clamped beam's fit, which one capped Levenberg-Marquardt run left where rounding
+    put it (C moved by twice its own error between 1e-12 changes of the samples), now settles
+    (netgen.fit.capacitance.settled): re-fits from samples perturbed by 1e-12 relative (another
+    CPU's rounding, with a thousandfold margin) are the same model by the staleness comparison."""
+    b = built("cc_beam")
+    model, x = b.model, np.vstack([b.grid.x, b.holdout.x])
+    for seed in range(3):
+        moved = with_fit(model, 0, refit(b, 0, 1e-12, seed=seed))
+        assert not model_problems(moved, model.json_text(), x, f"seed {seed}")

@@ -18,7 +18,7 @@ from ..core.errors import StructureError
 from ..electrostatics.sampling import box_factors, design_points
 from ..structure import Structure
 from ..structure.schema import smolyak_count
-from .capacitance import MAX_NFEV, PATCH_GRIDS
+from .capacitance import MAX_NFEV, PATCH_GRIDS, SETTLE_WORK
 
 EXPECTED_TRIALS = 5  # patch grids an electrode that meets fit.tolerance tries (1, 2, 4, 6, 9 plates)
 CALIBRATION_POINTS = 32  # extractor points timed (fewer when one point takes over 0.5 s)
@@ -93,12 +93,13 @@ def fit_time(
     s: Structure, samples: int, ncoords: int, electrodes: int, step: float, trials: int = EXPECTED_TRIALS
 ) -> float:
     """Expected plate-fit seconds: per electrode `trials` patch grids (as many as the samples
-    determine and max_terms allows), MAX_NFEV steps of samples x coefficients^2 each."""
+    determine and max_terms allows), MAX_NFEV steps of samples x coefficients^2 each, or up to
+    SETTLE_WORK where that is more (netgen.fit.capacitance.settled: small fits converge)."""
     nterm = math.comb(ncoords + s.fit.degree, s.fit.degree)
     if s.fit.target != "plates":
         return electrodes * samples * nterm**2 * step
     plates = [a * b for a, b in PATCH_GRIDS if a * b <= s.fit.max_terms and a * b * nterm <= samples]
-    per = sum(samples * (k * nterm) ** 2 * MAX_NFEV * step for k in plates[:trials])
+    per = sum(max(samples * (k * nterm) ** 2 * MAX_NFEV, SETTLE_WORK) * step for k in plates[:trials])
     if s.sampling.design == "adaptive":
         rounds = max(1, (samples - 18 * (ncoords + 1)) // (3 * (ncoords + 1)))
         per *= 1 + 2 * rounds / EXPECTED_TRIALS / 2  # about two trials per round at the mean size
