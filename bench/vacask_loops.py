@@ -160,19 +160,8 @@ class Order4:
 def update_error(plot, f, d, cycles: int) -> str:
     """The largest error of each new filter state against the settled update on the circuit's own
     held inputs, over the state's peak (the test's check, without its bound)."""
-    t, n = np.asarray(plot["time"]), np.arange(cycles)
-    at = (n + d.t.clk + d.t.sample) * d.ts
-
-    def held(name):
-        return np.interp(at, t, plot[name])
-
-    u = np.array([held(f"xf_z:u{i}") for i in range(1, f.states + 1)]).T
-    m = np.array([held(f"xf_z:m{i}") for i in range(1, f.states + 1)]).T
-    vbit = np.tanh(40 * (held("v(b_z)") - 0.5))
-    new = u[:-1] @ f.a.T + np.outer(held("v(cur_z)")[:-1] - f.x0, f.bx) + np.outer(vbit[:-1], f.bv)
-    e = math.exp(-d.g_switch * d.t.sample * d.ts / d.cs)
-    m_new = new + (m[:-1] - new) * e
-    u_new = m_new + (u[:-1] - m_new) * e
+    r = reference.filter_updates(plot, f, d, cycles)
+    u, u_new = r.u, r.u_new
     return "/".join(f"{x:.1e}" for x in np.abs(u[1:] - u_new).max(axis=0) / np.abs(u).max(axis=0))
 
 

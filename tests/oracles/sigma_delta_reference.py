@@ -101,3 +101,36 @@ def positions(mech: Mechanics, v: np.ndarray, inp: Input | None = None, phase: f
             if hi == phase:
                 out[n] = s[0]
     return out
+
+
+@dataclass(frozen=True)
+class FilterUpdates:
+    """A state-space loop filter's states u (after each update) and masters m, held at each clock's
+    latch-window end, and the settled sample-and-hold's update from the same held inputs: `new` the
+    discrete map's target, m_new and u_new the two windows' RC settling towards it (factor e)."""
+
+    u: np.ndarray
+    m: np.ndarray
+    new: np.ndarray
+    m_new: np.ndarray
+    u_new: np.ndarray
+    e: float
+
+
+def filter_updates(plot, f, d, cycles: int) -> FilterUpdates:
+    """The settled update of blocks.va's sd_statefilter on the circuit's own held inputs (the filter f,
+    the design d's switch g, hold capacitor and window lengths): what each window would reach from
+    where it started if it settled as an RC with time constant C_s / g."""
+    t, n = np.asarray(plot["time"]), np.arange(cycles)
+    at = (n + d.t.clk + d.t.sample) * d.ts  # the latch window's end, before the master window
+
+    def held(name):
+        return np.interp(at, t, plot[name])
+
+    u = np.array([held(f"xf_z:u{i}") for i in range(1, f.states + 1)]).T
+    m = np.array([held(f"xf_z:m{i}") for i in range(1, f.states + 1)]).T
+    vbit = np.tanh(40 * (held("v(b_z)") - 0.5))
+    new = u[:-1] @ f.a.T + np.outer(held("v(cur_z)")[:-1] - f.x0, f.bx) + np.outer(vbit[:-1], f.bv)
+    e = float(np.exp(-d.g_switch * d.t.sample * d.ts / d.cs))
+    m_new = new + (m[:-1] - new) * e
+    return FilterUpdates(u, m, new, m_new, m_new + (u[:-1] - m_new) * e, e)

@@ -162,19 +162,8 @@ def test_vacask_state_filter_holds_its_update(vacask_run):
     previous tran_fbr=0.15 tran_lteratio=30); measured here (bound 0.01 T_s) 0.06 % and 0.16 %, at
     most 0.18 of the bound (bench/vacask_loops.py)."""
     plot, f, d = vacask_run["plot"], vacask_run["f"], vacask_run["d"]
-    t, n = np.asarray(plot["time"]), np.arange(CYCLES)
-    at = (n + d.t.clk + d.t.sample) * d.ts  # the latch window's end, before the master window
-
-    def held(name):
-        return np.interp(at, t, plot[name])
-
-    u = np.array([held(f"xf_z:u{i}") for i in range(1, f.states + 1)]).T
-    m = np.array([held(f"xf_z:m{i}") for i in range(1, f.states + 1)]).T
-    vbit = np.tanh(40 * (held("v(b_z)") - 0.5))
-    new = u[:-1] @ f.a.T + np.outer(held("v(cur_z)")[:-1] - f.x0, f.bx) + np.outer(vbit[:-1], f.bv)
-    e = np.exp(-d.g_switch * d.t.sample * d.ts / d.cs)
-    m_new = new + (m[:-1] - new) * e
-    u_new = m_new + (u[:-1] - m_new) * e
+    r = reference.filter_updates(plot, f, d, CYCLES)
+    u, m, new, m_new, u_new, e = r.u, r.m, r.new, r.m_new, r.u_new, r.e
     bound = e * (np.abs(m[:-1] - new) + np.abs(u[:-1] - m_new)) + 2 * (d.reltol * np.abs(u[1:]) + 1e-6)
     err = np.abs(u[1:] - u_new)
     print(
