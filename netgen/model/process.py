@@ -155,8 +155,8 @@ def damping_parts(s: Structure, m: Mechanics, film: bool) -> tuple[np.ndarray, n
 
 
 def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
-    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K (and its misfit);
-    {} without a squeeze film. T0 = the structure's damping temperature."""
+    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K, exactly 1 at T0 (and
+    its misfit); {} without a squeeze film. T0 = the structure's damping temperature."""
     d = s.damping
     t0 = d.temperature if d else 300.0
     if not (d and d.squeeze_film):
@@ -172,7 +172,10 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     t = np.linspace(lo, hi, 67)
     u = (t - t0) / 100.0
     ratio = viscosity_ratio(d.gas, d.pressure, gap, t0, t)
-    coef = np.polynomial.polynomial.polyfit(u, ratio, VISCOSITY_DEGREE)
+    # 1 at T0 exactly (the default temp gives the model's own damping, as every law at its nominal
+    # point): least squares of ratio - 1 on u .. u^4; a free constant put 1 + 8e-7 there
+    powers = np.vander(u, VISCOSITY_DEGREE + 1, increasing=True)[:, 1:]
+    coef = np.concatenate([[1.0], np.linalg.lstsq(powers, ratio - 1.0, rcond=None)[0]])
     fine = np.linspace(lo, hi, 661)
     misfit = np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / viscosity_ratio(
         d.gas, d.pressure, gap, t0, fine

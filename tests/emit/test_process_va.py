@@ -24,7 +24,10 @@ plate on a given 2 N/m spring, 2 um above one electrode, fringe "none": C = eps 
 - an out-of-range value (from [lo:hi] of the declared range) is refused by the simulator.
 - the parameters the piston lacks (escale, the squeeze film's temperature law, two gap sets on
   degree-2 fits, three coordinates): tests/model/test_process.py's proof mass through OSDI against
-  its .lib in ngspice 46 (deflection, .ac response, .noise).
+  its .lib in ngspice 46 (deflection, .ac response, .noise), and its three coordinates' stiffness and
+  damping at (escale, temp) across both ranges against the closed-form scalings K ~ E (1 + tc dT) and
+  b ~ mu_eff(T) (test_proof_mass_modulus_and_viscosity_laws_against_closed_forms). escale, temp and
+  dg against absolute closed forms (a mass on clamped-guided beams): tests/emit/test_process_osdi_closed.py.
 """
 
 from __future__ import annotations
@@ -283,3 +286,60 @@ def test_proof_mass_with_all_four_parameters_matches_the_lib(proof_mass, ngspice
     assert abs(x_osdi - x_lib) <= 2 * (RELTOL * abs(x_lib) + VNTOL)
     assert h_err <= 2 * RELTOL
     assert n_err <= 2 * RELTOL
+
+
+PM_POINTS = [(1.0, 26.85), (0.5, 26.85), (1.5, 26.85), (1.0, -40.0), (1.0, 125.0), (1.3, 125.0), (0.7, -40.0)]
+
+
+def test_proof_mass_modulus_and_viscosity_laws_against_closed_forms(proof_mass, ngspice46, tmp_path):
+    """The proof mass's three coordinates through OSDI at (escale, temp) across both ranges, unbiased
+    (the coordinates decouple: diagonal K and D, no electrostatic coupling at 0 V), a unit AC force on
+    each port of every instance in one ngspice 46 run. Closed forms, not the laws' own numbers: the
+    frame is linear elastic without residual stress, so K ~ E exactly and k / k(nominal instance) =
+    escale (1 + tc (temp - T0)) (tc = -60 ppm/K, T0 = 300 K); the mass stays; the only damping is the
+    squeeze film, so b / b(nominal) = mu_eff(T) / mu_eff(T0) (Sutherland, Veijola: viscosity_ratio of
+    tests/oracles/fmu_process.py at the 2 um gaps). Bounds: 1e-9 per AC fit (a linear solve to
+    round-off; two fits per ratio) plus the law's stated error: escale's (the A/B split's residual,
+    round-off here) for k, the viscosity polynomial's misfit for b (1 at T0 exactly)."""
+    from tests.oracles.fmu_process import viscosity_ratio
+
+    model, folder = proof_mass
+    law = model.process
+    assert law["modulus_tc_per_K"] == -60e-6 and law["temperature_C"] == pytest.approx(26.85, abs=1e-9)
+    f0 = [c.frequency_hz for c in model.coordinates]
+    ports = [("fz", "xz"), ("ftx", "xtx"), ("fty", "xty")]
+    lines = []
+    for i, (escale, temp) in enumerate(PM_POINTS):
+        nodes = " ".join(f"{f}{i} {x}{i}" for f, x in ports)
+        lines.append(f"X{i} 0 0 0 {nodes} pm escale={escale!r} temp={temp!r}")
+        lines += [f"V{f}{i} {f}{i} 0 DC 0 AC 1" for f, _ in ports]
+    body = "\n".join(lines)
+    net = f"""* proof mass escale, temp through OSDI
+.include {folder / "pm_osdi.lib"}
+{body}
+.ac lin 3 {0.5 * min(f0)!r} {1.5 * max(f0)!r}
+.control
+pre_osdi {folder / "pm.osdi"}
+set num_threads=1
+run
+write circuit.raw
+.endc
+.end
+"""
+    plot = run_ngspice(net, tmp_path)[0]
+    f = np.real(plot["frequency"])
+    kmb = {
+        (i, x): ac_fit({"frequency": f, "v(xz)": plot[f"v({x}{i})"]}) for i in range(len(PM_POINTS)) for _, x in ports
+    }
+    k_tol = 2e-9 + law["escale"]["max_rel_error"]
+    b_tol = 2e-9 + law["temp"]["viscosity"]["max_rel_error"]
+    for i, (escale, temp) in enumerate(PM_POINTS):
+        for _, x in ports:
+            (k, m, b), (k0, m0, b0) = kmb[i, x], kmb[0, x]
+            e, v = escale * (1 - 60e-6 * (temp - 26.85)), viscosity_ratio(temp, 300.0, 2e-6)
+            print(
+                f"escale={escale} temp={temp} {x}: k {k / k0 / e - 1:.1e}, m {m / m0 - 1:.1e}, b {b / b0 / v - 1:.1e}"
+            )
+            assert k / k0 == pytest.approx(e, rel=k_tol), x
+            assert m / m0 == pytest.approx(1.0, rel=2e-9), x
+            assert b / b0 == pytest.approx(v, rel=b_tol), x
