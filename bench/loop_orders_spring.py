@@ -20,18 +20,23 @@ from pathlib import Path
 
 import numpy as np
 from scipy import linalg
+from support import loop_orders
+from support import sigma_delta_reference as reference
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from netgen.build import build_model
+from netgen.cli import commands as cli
+from netgen.core.constants import EPS0
+from netgen.structure import load_structure
+from netgen.testbench import sigma_delta as sd
+from netgen.testbench.sigma_delta import filters, loopfile
 
-from netgen.build import build_model  # noqa: E402
-from netgen.cli import commands as cli  # noqa: E402
-from netgen.core.constants import EPS0  # noqa: E402
-from netgen.structure import load_structure  # noqa: E402
-from netgen.testbench import sigma_delta as sd  # noqa: E402
-from netgen.testbench.sigma_delta import filters, loopfile  # noqa: E402
-from tests.oracles import sigma_delta_reference as reference  # noqa: E402
-from tests.testbench.test_loop_orders import CIFB4, EXAMPLE, GAP, SIDE, TS  # noqa: E402
+CIFB4, EXAMPLE, GAP, SIDE, TS = (
+    loop_orders.CIFB4,
+    loop_orders.EXAMPLE,
+    loop_orders.GAP,
+    loop_orders.SIDE,
+    loop_orders.TS,
+)
 
 
 def piecewise(model, d, mech, inp, bits: np.ndarray, phase: float = 0.72) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The figures of tests/emit/test_process_inertial.py and tests/emit/test_process_energy.py: the
 Coriolis coupling of the tilts (.lib, FMU) and the stretching beam's static deflection (.lib, FMU
 force residual) at tscale/escale against rebuilds, with the law and with it dropped (the model
-before netgen.model.process.inertial_law / energy_law). Run: .venv/bin/python bench/process_terms.py"""
+before netgen.model.process_loads.inertial_law / energy_law). Run: .venv/bin/python bench/process_terms.py"""
 
 from __future__ import annotations
 

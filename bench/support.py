@@ -28,6 +28,7 @@ MODULES = (
     "fmu_process",
     "gyro_reference",
     "lateral_comb",
+    "loop_orders",
     "process_balance",
     "process_cases",
     "process_energy",

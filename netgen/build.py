@@ -44,7 +44,8 @@ from .mechanics import imported as imported_mechanics
 from .mechanics.damping import damping
 from .mechanics.kinematics import small_angle_report
 from .model import Coordinate, Electrode, Inertial, MacroModel, contact, plots, process_loads
-from .model.process import inertial_law, process_laws
+from .model.process import process_laws
+from .model.process_loads import inertial_law
 from .structure import Structure
 from .structure.schema import Sampling
 
@@ -321,7 +322,7 @@ def assemble(
     scale_z = float(scales[m.names.index("z")]) if "z" in m.names else 0.0
     range_z = s.sampling.range * (box_factors(s.sampling, len(m.names))[m.names.index("z")] if "z" in m.names else 1.0)
     model.process = process_laws(s, m, mechanics, described, scale_z, float(range_z), capacitance_sampler(s, m, scales))
-    if model.process and model.inertial:  # the inertial terms' tscale law (netgen.model.process.inertial_law)
+    if model.process and model.inertial:  # the inertial terms' tscale law (netgen.model.process_loads.inertial_law)
         model.process["inertial"] = inertial_law(s, data, lambda t: inertial.terms(t, m, s.coordinates.inertial))
     if "etch" in model.process and (model.acceleration or model.process.get("inertial")):
         etch_loads(s, m, model)

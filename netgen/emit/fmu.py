@@ -263,7 +263,7 @@ def term_arrays(model: MacroModel) -> list[dict]:
 
 
 def rotary_shares(model: MacroModel) -> dict[str, list]:
-    """Per inertial kind the tables' rotary shares f (netgen.model.process.inertial_law) in the
+    """Per inertial kind the tables' rotary shares f (netgen.model.process_loads.inertial_law) in the
     runtime's order (rates x, y, z; PAIRS; a_x, a_y), None where an entry has no law (a constant)."""
     law = (model.process.get("inertial") or {}).get("t3_fraction", {})
     keys = {"gyroscopic": "xyz", "centrifugal": PAIRS, "centrifugal_force": PAIRS, "participation": ("a_x", "a_y")}

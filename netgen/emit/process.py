@@ -456,7 +456,7 @@ def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
 
 def inertial_scale(model: MacroModel, kind: str, key: str, v: int, w: int | None = None) -> str:
     """The text of the process law of one inertial entry (MacroModel.inertial's `kind`[key][v][w],
-    netgen.model.process.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share; with etch
+    netgen.model.process_loads.inertial_law: (1 - f) tscale + f tscale^3, f its rotary share; with etch
     each part times its etch ratio R1, R3, netgen.model.process_loads); "" where the model has no
     such law (the entry is a constant)."""
     law = model.process.get("inertial") if enabled(model) else None

@@ -538,38 +538,6 @@ def finite_law(law: dict) -> bool:
     return all(math.isfinite(x) for x in parts)
 
 
-INERTIAL_KINDS = ("participation", "gyroscopic", "centrifugal", "centrifugal_force")
-PROBE_T = 2.0  # the thickness factor of the second evaluation separating the t and t^3 parts
-
-
-def inertial_law(s: Structure, data: dict, terms) -> dict:
-    """The tscale law of the inertial terms (MacroModel.inertial, netgen.mechanics.inertial): every
-    entry is an integral over the plate of rho (A A + z^2 B B) (fields affine in z through the
-    thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
-    (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
-    the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
-    escale leaves them (no modulus); etch moves each part by its own ratio (netgen.model.process_loads,
-    stored under "etch" by the build). {} without tscale and etch."""
-    wanted = s.process is not None and (s.process.wants("tscale") or s.process.wants("etch"))
-    if not wanted or not any(data.get(k) for k in INERTIAL_KINDS):
-        return {}
-    probe = terms(scaled(s, PROBE_T))
-    fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}
-    return {
-        "law": "X(tscale) = X ((1 - f) tscale + f tscale^3), f the entry's rotary share (exact)",
-        "t3_fraction": fractions,
-    }
-
-
-def rotary_share(nominal, probe) -> list:
-    """f = (X(2) - 2 X) / (6 X) per entry (0 where X = 0), snapped to 0 or 1 within ROUND_OFF."""
-    x, x2 = np.asarray(nominal, dtype=float), np.asarray(probe, dtype=float)
-    f = np.divide(x2 - PROBE_T * x, (PROBE_T**3 - PROBE_T) * x, out=np.zeros_like(x), where=x != 0.0)
-    f[np.abs(f) < ROUND_OFF] = 0.0
-    f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
-    return f.tolist()
-
-
 def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
     """The fitted strain energy's law (MacroModel.nonlinear, netgen.mechanics StrainEnergy): U(q; t, E)
     = (e A(t) + B(t)) U(q) with e the modulus factor (modulus_factor), A the part proportional to the

@@ -1,4 +1,5 @@
-"""The etch laws of the inertial loads (netgen.model.process, the etch parameter): the a_in load G_v and
+"""The process laws of the inertial loads: under tscale (inertial_law: each entry's mid-plane rho t and
+rotary rho t^3 / 12 parts) and under etch (netgen.model.process, the etch parameter): the a_in load G_v and
 the inertial terms P, G, S, c (netgen.mechanics.inertial) are integrals of rho over the moving body,
 as the mass is, so under an etch bias they follow the etched body (outline - 2 etch, holes + 2 etch,
 comb fingers w - 2 etch), not the drawn one. Each is re-evaluated on the etched structure
@@ -9,7 +10,7 @@ comb fingers w - 2 etch), not the drawn one. Each is re-evaluated on the etched 
   G(etch) / G (for a rigid z translation G is the body's mass and R the mass's own ratio: the etched
   area (L - 2e)(W - 2e) - N (h + 2e)^2 is quadratic in e, the cubic exact).
 - the inertial entries: X(t, etch) = X ((1 - f) t R1(etch) + f t^3 R3(etch)), the mid-plane (rho t)
-  and the rotary (rho t^3 / 12) parts of the entry (netgen.model.process.inertial_law) each with its
+  and the rotary (rho t^3 / 12) parts of the entry (inertial_law) each with its
   own ratio: the two are integrals of different moments of the etched body (its first and second
   area moments against its area), so one ratio could not carry both. A second area moment of an
   etched rectangle is quartic in the etch; the cubic's residual at the etch points is the stated
@@ -25,7 +26,39 @@ import numpy as np
 from ..mechanics import Mechanics, participation
 from ..mechanics import inertial as inertial_terms
 from ..structure import Structure
-from .process import ETCH_UNIT, INERTIAL_KINDS, PROBE_T, etch_points, etched, power_fit, ratio_value, scaled
+from .process import ETCH_UNIT, ROUND_OFF, etch_points, etched, power_fit, ratio_value, scaled
+
+INERTIAL_KINDS = ("participation", "gyroscopic", "centrifugal", "centrifugal_force")
+PROBE_T = 2.0  # the thickness factor of the second evaluation separating the t and t^3 parts
+
+
+def inertial_law(s: Structure, data: dict, terms) -> dict:
+    """The tscale law of the inertial terms (MacroModel.inertial, netgen.mechanics.inertial): every
+    entry is an integral over the plate of rho (A A + z^2 B B) (fields affine in z through the
+    thickness, independent of it), so X(t) = X (1 - f) t + X f t^3 exactly, f the rotary
+    (through-thickness, rho t^3 / 12) share; f per entry from `terms(structure)` -> inertial data at
+    the nominal fields and the thickness PROBE_T times the nominal: X(2) = X (2 - 2 f + 8 f).
+    escale leaves them (no modulus); etch moves each part by its own ratio (netgen.model.process_loads,
+    stored under "etch" by the build). {} without tscale and etch."""
+    wanted = s.process is not None and (s.process.wants("tscale") or s.process.wants("etch"))
+    if not wanted or not any(data.get(k) for k in INERTIAL_KINDS):
+        return {}
+    probe = terms(scaled(s, PROBE_T))
+    fractions = {k: {n: rotary_share(v, probe[k][n]) for n, v in data[k].items()} for k in INERTIAL_KINDS}
+    return {
+        "law": "X(tscale) = X ((1 - f) tscale + f tscale^3), f the entry's rotary share (exact)",
+        "t3_fraction": fractions,
+    }
+
+
+def rotary_share(nominal, probe) -> list:
+    """f = (X(2) - 2 X) / (6 X) per entry (0 where X = 0), snapped to 0 or 1 within ROUND_OFF."""
+    x, x2 = np.asarray(nominal, dtype=float), np.asarray(probe, dtype=float)
+    f = np.divide(x2 - PROBE_T * x, (PROBE_T**3 - PROBE_T) * x, out=np.zeros_like(x), where=x != 0.0)
+    f[np.abs(f) < ROUND_OFF] = 0.0
+    f[np.abs(f - 1.0) < ROUND_OFF] = 1.0
+    return f.tolist()
+
 
 IDENTITY = [1.0, 0.0, 0.0, 0.0]
 

@@ -1,4 +1,4 @@
-"""The rotating-frame terms under the thickness scale tscale (netgen.model.process.inertial_law,
+"""The rotating-frame terms under the thickness scale tscale (netgen.model.process_loads.inertial_law,
 netgen.emit.process.inertial_scale), in the .lib (ngspice 39), the .va through OSDI (ngspice 46) and the FMU: a
 proof mass on crab legs over one plate, coordinates z, tilt_x, tilt_y, rate ports w_x, w_y, w_z.
 Its Coriolis coupling of the tilts under w_z is the plate's rotary inertia, G_z[tilt_x, tilt_y] =

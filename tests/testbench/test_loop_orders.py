@@ -18,16 +18,8 @@ from netgen.structure import load_structure
 from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import filters, loopfile
 from netgen.testbench.sigma_delta.loop import duty
-from tests.fixtures import ROOT
 from tests.oracles import sigma_delta_reference as reference
-
-TS = 1e-6
-SIDE, GAP, RHO, THICK, K_SPRING = 500e-6, 2e-6, 2330.0, 20e-6, 0.3
-MASS = SIDE * SIDE * THICK * RHO
-EXAMPLE = ROOT / "examples" / "accelerometer_z.toml"
-CIFB4 = (
-    '[loop]\nchannels = ["z"]\n[loop.filter]\nkind = "cifb"\norder = 4\nosr = 64\n[loop.input]\nacceleration = 9.81\n'
-)
+from tests.oracles.loop_orders import CIFB4, EXAMPLE, GAP, K_SPRING, MASS, SIDE, TS
 
 
 @pytest.fixture(scope="module")
