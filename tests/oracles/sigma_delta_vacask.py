@@ -40,10 +40,11 @@ def _phase(t: float, on: float, off: float, edge: float, ts: float) -> float:
     return float(np.clip((p - on + edge / 2) / edge, 0, 1) - np.clip((p - off + edge / 2) / edge, 0, 1))
 
 
-def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndarray:
+def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int, velocities: bool = False):
     """Coordinates (port units) at the per-clock sample times from solve_ivp of the mechanics driven
     by the electrode voltages the bench applies for the recorded bits: V_s in the sense phase, V_fb
-    on the electrodes netgen.testbench.sigma_delta.loop.selected() picks in the feedback phase, gravity on z."""
+    on the electrodes netgen.testbench.sigma_delta.loop.selected() picks in the feedback phase, gravity on z.
+    With velocities, (coordinates, their velocities in port units per second)."""
     t = d.t
     n = model.ncoords
     sel = [sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in CHANNELS)) for k in range(cycles)]
@@ -80,11 +81,50 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int) -> np.ndar
     ]
     corners = np.unique(np.clip([0.0, *corners, cycles * d.ts], 0.0, cycles * d.ts))
     at = clock["time"][:cycles]
-    y, out = np.zeros(2 * n), np.zeros((cycles, n))
+    y, out = np.zeros(2 * n), np.zeros((cycles, 2 * n))
     for a, b in zip(corners[:-1], corners[1:]):
         inside = np.nonzero((at > a) & (at <= b))[0]
         sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-9, atol=1e-30, dense_output=True)
         for i in inside:
-            out[i] = sol.sol(at[i])[:n]
+            out[i] = sol.sol(at[i])
         y = sol.y[:, -1]
-    return out / np.array([c.port_units[1] for c in model.coordinates])
+    units = np.array([c.port_units[1] for c in model.coordinates])
+    return (out[:, :n] / units, out[:, n:] / units) if velocities else out[:, :n] / units
+
+
+def mechanics_bound(
+    model: MacroModel, d: sd.Design, clock: dict, ref: np.ndarray, vel: np.ndarray, gain: float
+) -> dict[str, dict[str, float]]:
+    """The largest |simulated - replayed| a trapezoidal simulator may leave on each coordinate after
+    z, a fraction of the coordinate's peak over the replayed clocks, as three terms:
+    - gain: each electrostatic impulse integrated within `gain` of itself (the simulator's bound,
+      NGSPICE_GAIN or vacask_gain of tests/testbench/test_sigma_delta_vacask.py); the tilts and
+      modes start at rest and only the electrostatic forces drive them, so their response to those
+      impulses is the coordinate itself: gain x 1;
+    - drift: the trapezoidal rule turns an undamped mode at omega with steps h into one at
+      (2 / h) atan(omega h / 2), slow by eps = (omega h)^2 / 12 (amplitude kept), with h at most
+      the bench's maxstep tmax T_s; the oscillation present at s has lost eps omega ds of phase by
+      t, so |dx(t)| <= eps omega int_0^t A(s) ds, A = sqrt(x^2 + (v / omega)^2) the mode's
+      amplitude, taken per period as the larger of the two samples around it (0 for the tilts);
+    - interp: the sample mid-feedback is interpolated linearly between time points at most
+      tmax T_s apart, off by at most h^2 / 8 |x''|, x'' = (F_el - K x - D v) / m at the sample
+      (the feedback plateau's force, constant over h: the ramps are 0.2 T_s away)."""
+    h = d.tmax * d.ts
+    units = np.array([c.port_units[1] for c in model.coordinates])
+    q, v = ref * units, vel * units
+    pattern = [tuple(int(clock[f"bits_{c}"][k]) for c in d.names) for k in range(len(ref))]
+    volts = [d.vfb * sd_loop.selected(d.electrodes, p) for p in pattern]
+    force = model.electrostatic_force(q / model.scales, np.array(volts))
+    out = {}
+    for i, c in enumerate(model.coordinates[1:], start=1):
+        peak = np.abs(q[:, i]).max()
+        drift = 0.0
+        if c.stiffness:
+            w = np.sqrt(c.stiffness / c.mass)
+            amp = np.hypot(q[:, i], v[:, i] / w)
+            held = np.maximum(amp[:-1], amp[1:])  # each period between two samples
+            reach = amp[0] * (d.t.fb_on + d.t.fb_off) / 2 * d.ts + d.ts * np.concatenate([[0.0], np.cumsum(held)])
+            drift = (w * h) ** 2 / 12 * w * reach.max() / peak
+        accel = (force[:, i] - c.stiffness * q[:, i] - c.damping * v[:, i]) / c.mass
+        out[c.name] = {"gain": gain, "drift": float(drift), "interp": float(h**2 / 8 * np.abs(accel).max() / peak)}
+    return out
