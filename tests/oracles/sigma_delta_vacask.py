@@ -93,7 +93,7 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int, velocities
 
 
 def mechanics_bound(
-    model: MacroModel, d: sd.Design, clock: dict, ref: np.ndarray, vel: np.ndarray, gain: float
+    model: MacroModel, d: sd.Design, clock: dict, ref: np.ndarray, vel: np.ndarray, gain: float, first: float
 ) -> dict[str, dict[str, float]]:
     """The largest |simulated - replayed| a trapezoidal simulator may leave on each coordinate after
     z, a fraction of the coordinate's peak over the replayed clocks, as three terms:
@@ -106,6 +106,11 @@ def mechanics_bound(
       the bench's maxstep tmax T_s; the oscillation present at s has lost eps omega ds of phase by
       t, so |dx(t)| <= eps omega int_0^t A(s) ds, A = sqrt(x^2 + (v / omega)^2) the mode's
       amplitude, taken per period as the larger of the two samples around it (0 for the tilts);
+    - corners: the first step after each breakpoint (Design.corners, every period) is backward
+      Euler, which shrinks the oscillation by (omega h_b)^2 / 2; h_b is at most `first` of a ramp
+      (ngspice: 0.1 of the gap to the next breakpoint and of the step before, the ramp on either
+      side of a corner; VACASK: RAMP_STEPS's bound on the ramps), so |dx(t)| <= n_corners / T_s
+      (omega h_b)^2 / 2 int_0^t A(s) ds;
     - interp: the sample mid-feedback is interpolated linearly between time points at most
       tmax T_s apart, off by at most h^2 / 8 |x''|, x'' = (F_el - K x - D v) / m at the sample
       (the feedback plateau's force, constant over h: the ramps are 0.2 T_s away)."""
@@ -118,13 +123,16 @@ def mechanics_bound(
     out = {}
     for i, c in enumerate(model.coordinates[1:], start=1):
         peak = np.abs(q[:, i]).max()
-        drift = 0.0
+        drift = corners = 0.0
         if c.stiffness:
             w = np.sqrt(c.stiffness / c.mass)
             amp = np.hypot(q[:, i], v[:, i] / w)
             held = np.maximum(amp[:-1], amp[1:])  # each period between two samples
             reach = amp[0] * (d.t.fb_on + d.t.fb_off) / 2 * d.ts + d.ts * np.concatenate([[0.0], np.cumsum(held)])
             drift = (w * h) ** 2 / 12 * w * reach.max() / peak
+            h_b = first * max(d.t.edge, d.t.fb_ramp) * d.ts
+            corners = len(d.corners()) / d.ts * (w * h_b) ** 2 / 2 * reach.max() / peak
         accel = (force[:, i] - c.stiffness * q[:, i] - c.damping * v[:, i]) / c.mass
-        out[c.name] = {"gain": gain, "drift": float(drift), "interp": float(h**2 / 8 * np.abs(accel).max() / peak)}
+        interp = h**2 / 8 * np.abs(accel).max() / peak
+        out[c.name] = {"gain": gain, "drift": float(drift), "corners": float(corners), "interp": float(interp)}
     return out

@@ -99,6 +99,9 @@ def z_forces(d: sd.Design, clock: dict, n: int) -> np.ndarray:
 # ngspice's LTE limit on each feedback impulse: trtol x reltol of the velocity change it integrates
 # (trtol 7, the benches' reltol 1e-3; tests/testbench/test_sigma_delta_osdi.py)
 NGSPICE_GAIN = 7 * 1e-3
+# ngspice's first step after a breakpoint: backward Euler, at most 0.1 of the gap to the next
+# breakpoint and of the step before (dctran.c), i.e. 0.1 of the ramp beside the corner
+NGSPICE_FIRST = 0.1
 
 
 def vacask_gain(d: sd.Design) -> float:
@@ -256,26 +259,27 @@ def test_mechanics_match_an_independent_integration(vacask, replayed, model):
     tau; its constant is -1.2 here and -1.5 at the halved bound, against -2/3 from the rules:
     VACASK's default, trapezoidal, over-integrates each ramp's V^2 by 1/6, and its backward-Euler
     step after a corner (docs/sigma-delta-validation.md) under-integrates the falling ramp's
-    first step by 1, so the rest is not derived). Asserted: |g| within 3 of that scale, 2.0e-3
-    (not derived), and z, with g taken out, within 1.5 % of its peak (not derived: 7.5e-5 here);
-    the tilts and modes within mechanics_bound (tests/oracles/sigma_delta_vacask.py) with that gain:
-    the gain, the trapezoidal rule's frequency error at maxstep 0.05 T_s on the modes' amplitude
-    and the sample's interpolation, 0.20 % (tilts), 0.33-0.38 % ((2,0)), 2.0-3.3 % ((3,0));
-    measured tilts 0.10 %, (2,0) 0.19-0.25 %, (3,0) 0.48-1.02 % (the cosine mode's 1.02 %, which
-    the feedback gain explained less than half of, is that frequency error: 3.0 % allowed). The
-    ngspice benches: ngspice_mechanics (z raw: B-source loop 3.9 %, compiled loop 3.0 %); the
-    options before (tran_fbr=0.1 tran_lteratio=10) gave 1.1 % raw."""
-    clock, (ref, vel) = vacask["clock"], replayed
+    first step by 1, so the rest is not derived). Asserted: |g| within 3 of that scale, 2.0e-3,
+    and z, with g taken out, within 1.5 % of its peak like every other coordinate (tilts: 1.0e-3,
+    the same gain; modes: <= 1.02 %, the (3,0) cosine mode; not derived). The ngspice benches'
+    derived bound on the tilts and modes (mechanics_bound) does not carry over: VACASK's sense
+    ramps have their own step bound (RAMP_STEPS[1], 0.25 of the ramp: 8.5e-3 by the same rule,
+    whose 3 is not derived), and its backward-Euler step after a ramp's end is bounded only by
+    tran_fbr of the gap to the next corner and by maxstep, which allows a (3,0) mode's amplitude
+    (omega h)^2 / 2 = 2.5e-3 per corner. Of the measured 1.02 %, the trapezoidal rule's frequency
+    error at maxstep alone would allow 3.0 % (mechanics_bound's drift). The ngspice benches:
+    ngspice_mechanics (z raw: B-source loop 3.9 %, compiled loop 3.0 %); the options before
+    (tran_fbr=0.1 tran_lteratio=10) gave 1.1 % raw."""
+    clock, (ref, _) = vacask["clock"], replayed
     d = sd.design(model, TS)
     gain, left = feedback_gain(d, clock, ref)
     print(f"feedback impulse gain error {gain:.2e} (bound {vacask_gain(d):.2e}); z error left {left:.2e} of its peak")
     assert abs(gain) < vacask_gain(d)
     assert left < 0.015
-    bounds = mechanics_bound(model, d, clock, ref, vel, vacask_gain(d))
     for i, c in enumerate(model.coordinates[1:], start=1):
         err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
-        print(f"{c.name}: max |VACASK - solve_ivp| = {err:.2e} of its peak; bound", bounds[c.name])
-        assert err < sum(bounds[c.name].values()), c.name
+        print(f"{c.name}: max |VACASK - solve_ivp| = {err:.2e} of its peak")
+        assert err < 0.015, c.name
 
 
 def ngspice_mechanics(model: MacroModel, clock: dict, name: str) -> None:
@@ -283,15 +287,15 @@ def ngspice_mechanics(model: MacroModel, clock: dict, name: str) -> None:
     for VACASK (test_mechanics_match_an_independent_integration): z's feedback impulse gain error
     within ngspice's LTE limit on each impulse (NGSPICE_GAIN), z's remainder within 1.5 % of its
     peak (not derived: tests/testbench/test_sigma_delta_osdi.py says why), the other coordinates
-    within mechanics_bound with NGSPICE_GAIN: 0.70 % (tilts), 0.84-0.87 % ((2,0)), 2.4-2.8 % ((3,0));
-    measured B-source 0.12-0.14 %, 0.11-0.15 %, 0.50-0.64 %; compiled 0.12-0.15 %, 0.13-0.17 %,
-    0.69-1.30 %."""
+    within mechanics_bound with NGSPICE_GAIN and NGSPICE_FIRST: 0.70 % (tilts), 0.86-0.88 %
+    ((2,0)), 2.5-2.9 % ((3,0)) on the runs measured; measured B-source 0.12-0.14 %, 0.11-0.15 %,
+    0.50-0.64 %, compiled 0.12-0.15 %, 0.13-0.17 %, 0.69-1.30 %."""
     d = sd.design(model, TS)
     ref, vel = replay(model, d, clock, REPLAY, velocities=True)
     gain, left = feedback_gain(d, clock, ref)
     print(f"z: {name} feedback impulse gain error {gain:.2e}, error left {left:.2e} of its peak")
     assert abs(gain) < NGSPICE_GAIN and left < 0.015
-    bounds = mechanics_bound(model, d, clock, ref, vel, NGSPICE_GAIN)
+    bounds = mechanics_bound(model, d, clock, ref, vel, NGSPICE_GAIN, NGSPICE_FIRST)
     for i, c in enumerate(model.coordinates[1:], start=1):
         err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
         print(f"{c.name}: max |{name} - solve_ivp| = {err:.2e} of its peak; bound", bounds[c.name])
