@@ -104,16 +104,19 @@ def mechanics_bound(
       of reltol |dq/dt| h and reltol |q|; NGSPICE_GAIN takes the first, while on a step shorter
       than the pulse the velocity exceeds its change and the second allows more: the gain term is
       NGSPICE_GAIN's premise, which the fitted gains on z, 8e-4 to 1.1e-3, stay well within);
-    - drift: the trapezoidal rule turns an undamped mode at omega with steps h into one at
-      (2 / h) atan(omega h / 2), slow by eps = (omega h)^2 / 12 (amplitude kept), with h at most
-      the bench's maxstep tmax T_s; the oscillation present at s has lost eps omega ds of phase by
-      t, so |dx(t)| <= eps omega int_0^t A(s) ds, A = sqrt(x^2 + (v / omega)^2) the mode's
-      amplitude, taken per period as the larger of the two samples around it (0 for the tilts);
+    - drift: a trapezoidal step h maps an undamped mode at omega under a force F constant over
+      the step as the exact map does, but for its rotation about the equilibrium F / K, slow by
+      (omega h)^3 / 12 (amplitude kept): eps = (omega h)^2 / 12 of omega h, with h at most the
+      bench's maxstep tmax T_s. So |dx(t)| <= eps omega int_0^t A_F(s) ds, A_F the amplitude about
+      the equilibrium, <= A + |F| / K, A = sqrt(x^2 + (v / omega)^2) (0 for the tilts); between
+      the samples t_k and t_k+1, A <= A(t_k) + J_k / (m omega), J_k = int |F| <= T_s (duty
+      max(|F_k|, |F_k+1|) + sense duty |F_s|) (F_k the feedback plateau's force of the period's
+      pattern, F_s the sense phase's), and int |F| / K <= J_k / K;
     - corners: the first step after each breakpoint (Design.corners, every period) is backward
-      Euler, which shrinks the oscillation by (omega h_b)^2 / 2; h_b is at most `first` of a ramp
-      (ngspice: 0.1 of the gap to the next breakpoint and of the step before, the ramp on either
-      side of a corner; VACASK: RAMP_STEPS's bound on the ramps), so |dx(t)| <= n_corners / T_s
-      (omega h_b)^2 / 2 int_0^t A(s) ds;
+      Euler, which shrinks the oscillation about the equilibrium by (omega h_b)^2 / 2; h_b is at
+      most `first` of a ramp (ngspice: 0.1 of the gap to the next breakpoint and of the step
+      before, the ramp on either side of a corner), so |dx(t)| <= n_corners / T_s
+      (omega h_b)^2 / 2 int_0^t A_F(s) ds;
     - interp: the sample mid-feedback is interpolated linearly between time points at most
       tmax T_s apart, off by at most h^2 / 8 |x''|, x'' = (F_el - K x - D v) / m at the sample
       (the feedback plateau's force, constant over h: the ramps are 0.2 T_s away)."""
@@ -123,6 +126,8 @@ def mechanics_bound(
     pattern = [tuple(int(clock[f"bits_{c}"][k]) for c in d.names) for k in range(len(ref))]
     volts = [d.vfb * sd_loop.selected(d.electrodes, p) for p in pattern]
     force = model.electrostatic_force(q / model.scales, np.array(volts))
+    sense = np.abs(model.electrostatic_force(q / model.scales, np.full((len(ref), len(d.electrodes)), d.vs)))
+    sense_duty = sd.duty(d.t, d.t.sense_on, d.t.sense_off)
     out = {}
     for i, c in enumerate(model.coordinates[1:], start=1):
         peak = np.abs(q[:, i]).max()
@@ -130,8 +135,12 @@ def mechanics_bound(
         if c.stiffness:
             w = np.sqrt(c.stiffness / c.mass)
             amp = np.hypot(q[:, i], v[:, i] / w)
-            held = np.maximum(amp[:-1], amp[1:])  # each period between two samples
-            reach = amp[0] * (d.t.fb_on + d.t.fb_off) / 2 * d.ts + d.ts * np.concatenate([[0.0], np.cumsum(held)])
+            f = np.abs(force[:, i])
+            first_j = d.ts * (d.duty * f[0] + sense_duty * sense[0, i])  # from rest to the first sample
+            j = d.ts * (d.duty * np.maximum(f[:-1], f[1:]) + sense_duty * sense[:-1, i])
+            piece = d.ts * (amp[:-1] + j / (c.mass * w)) + j / c.stiffness  # int A_F over each period
+            start = (d.t.fb_on + d.t.fb_off) / 2 * d.ts * first_j / (c.mass * w) + first_j / c.stiffness
+            reach = start + np.concatenate([[0.0], np.cumsum(piece)])
             drift = (w * h) ** 2 / 12 * w * reach.max() / peak
             h_b = first * max(d.t.edge, d.t.fb_ramp) * d.ts
             corners = len(d.corners()) / d.ts * (w * h_b) ** 2 / 2 * reach.max() / peak
