@@ -105,20 +105,21 @@ def test_mechanics_match_an_independent_integration(osdi_run, model):
     states). z's remainder within 1.5 % of its peak, not derived: it is the impulses' gains varying
     from period to period (2.6e-4 of the peak here), and that LTE limit, applied to each impulse on
     its own, allows 7e-3 of z's response to every impulse's magnitude, 32 times z's peak over these
-    clocks: 22 % (docs/sigma-delta-validation.md: the compiled loop's impulses varied by 8.6e-5 rms). The tilts and modes within mechanics_bound
-    (tests/oracles/sigma_delta_vacask.py), four derived terms: every electrostatic impulse within
-    NGSPICE_GAIN (0.70 % of a coordinate that only those impulses drive), the trapezoidal rule's
-    frequency error at the bench's maxstep 0.05 T_s acting on the modes' amplitude about their
-    equilibrium (0.21 % for the (2,0) pair, 1.4-2.1 % for the (3,0) pair at 225 kHz), the
-    backward-Euler step after each breakpoint (at most NGSPICE_FIRST of a ramp: <= 0.12 %) and the
-    linear interpolation of the sample between time points (<= 0.1 %): 0.70 % (tilts), 0.96 %
-    ((2,0)), 2.3-3.0 % ((3,0)).
-    Measured on ngspice 46 at reltol 1e-3: z 1.6 % raw, g = 9.6e-4; tilts 0.07 %, (2,0)
-    0.12-0.14 %, (3,0) 0.28-0.36 % (the B-source .lib in the same loop: z 1.3 %). A reference whose feedback impulses are 2 x 7e-3 strong fails
-    z's gain, the tilts and the (2,0) pair (1.3-1.7 % off), not the (3,0) pair (1.3-1.4 % of
-    2.3-3.0 %). Before the module's nonlinear forces were nodes (netgen.emit.veriloga, fn_<q>) z was
-    7.2 % off: ngspice's Newton test of an OSDI device looks at node changes only, and accepted the
-    force one update early."""
+    clocks: 22 % (docs/sigma-delta-validation.md: the compiled loop's impulses varied by 8.6e-5
+    rms). The tilts and modes within mechanics_bound (tests/oracles/sigma_delta_vacask.py), four
+    derived terms: every electrostatic impulse within NGSPICE_GAIN (0.70 % of a coordinate that
+    only those impulses drive), the trapezoidal rule's frequency error at the bench's maxstep
+    0.05 T_s acting on the modes' amplitude about their equilibrium (0.21 % for the (2,0) pair,
+    1.4-2.1 % for the (3,0) pair at 225 kHz), the backward-Euler step after each breakpoint (at
+    most NGSPICE_FIRST of a ramp: <= 0.12 %) and the linear interpolation of the sample between
+    time points (<= 0.1 %): 0.70 % (tilts), 0.96 % ((2,0)), 2.3-3.0 % ((3,0)). Measured on
+    ngspice 46 at reltol 1e-3: z 1.6 % raw, g = 9.6e-4; tilts 0.07 %, (2,0) 0.12-0.14 %, (3,0)
+    0.28-0.36 % (the B-source .lib in the same loop: z 1.3 %). A reference whose feedback impulses
+    are 2 x 7e-3 strong fails z's gain, the tilts and the (2,0) pair (1.3-1.7 % off), not the
+    (3,0) pair (1.3-1.4 % of 2.3-3.0 %: bench/sigma_delta_mechanics_bound.py). Before the
+    module's nonlinear forces were nodes (netgen.emit.veriloga, fn_<q>) z was 7.2 % off: ngspice's
+    Newton test of an OSDI device looks at node changes only, and accepted the force one update
+    early."""
     clock = osdi_run["clock"]
     d = sd.design(model, TS)
     ref, vel = replay(model, d, clock, REPLAY, velocities=True)
