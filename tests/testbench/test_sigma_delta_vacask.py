@@ -22,7 +22,7 @@ from netgen.testbench import sigma_delta as sd
 from netgen.testbench.sigma_delta import loop as sd_loop
 from netgen.testbench.sigma_delta import vacask as sdv
 from tests.fixtures import ROOT
-from tests.oracles.sigma_delta_vacask import CHANNELS, CYCLES, REPLAY, SKIP, TS, replay, run
+from tests.oracles.sigma_delta_vacask import CHANNELS, CYCLES, REPLAY, SKIP, TS, mechanics_bound, replay, run
 from tests.testbench.test_sigma_delta_latch import check_latches
 
 NG_CYCLES, NG_SKIP = 160, 32  # the ngspice comparison run (as tests/testbench/test_sigma_delta.py): ~1 min
@@ -43,9 +43,9 @@ def vacask(model, tmp_path_factory) -> dict:
 
 
 @pytest.fixture(scope="module")
-def replayed(vacask, model) -> np.ndarray:
-    """The independent integration of the VACASK run's first REPLAY clocks (~10 s)."""
-    return replay(model, sd.design(model, TS), vacask["clock"], REPLAY)
+def replayed(vacask, model) -> tuple[np.ndarray, np.ndarray]:
+    """The independent integration of the VACASK run's first REPLAY clocks (~10 s): coordinates, velocities."""
+    return replay(model, sd.design(model, TS), vacask["clock"], REPLAY, velocities=True)
 
 
 @pytest.fixture(scope="module")
@@ -99,6 +99,9 @@ def z_forces(d: sd.Design, clock: dict, n: int) -> np.ndarray:
 # ngspice's LTE limit on each feedback impulse: trtol x reltol of the velocity change it integrates
 # (trtol 7, the benches' reltol 1e-3; tests/testbench/test_sigma_delta_osdi.py)
 NGSPICE_GAIN = 7 * 1e-3
+# ngspice's first step after a breakpoint: backward Euler, at most 0.1 of the gap to the next
+# breakpoint and of the step before (dctran.c), i.e. 0.1 of the ramp beside the corner
+NGSPICE_FIRST = 0.1
 
 
 def vacask_gain(d: sd.Design) -> float:
@@ -256,13 +259,18 @@ def test_mechanics_match_an_independent_integration(vacask, replayed, model):
     tau; its constant is -1.2 here and -1.5 at the halved bound, against -2/3 from the rules:
     VACASK's default, trapezoidal, over-integrates each ramp's V^2 by 1/6, and its backward-Euler
     step after a corner (docs/sigma-delta-validation.md) under-integrates the falling ramp's
-    first step by 1, so the rest is not derived). Asserted: |g| within 3 of
-    that scale, 2.0e-3, and z, with g taken out, within 1.5 % of its peak like every other
-    coordinate (tilts: 1.0e-3, the same gain; modes: <= 1.02 %, the (3,0) cosine mode, of which
-    the feedback gain explains less than half; not derived). The ngspice benches: ngspice_mechanics (z raw: B-source
-    loop 3.9 %, compiled loop 3.0 %); the options before (tran_fbr=0.1
-    tran_lteratio=10) gave 1.1 % raw."""
-    clock, ref = vacask["clock"], replayed
+    first step by 1, so the rest is not derived). Asserted: |g| within 3 of that scale, 2.0e-3,
+    and z, with g taken out, within 1.5 % of its peak like every other coordinate (tilts: 1.0e-3,
+    the same gain; modes: <= 1.02 %, the (3,0) cosine mode; not derived). The ngspice benches'
+    derived bound on the tilts and modes (mechanics_bound) does not carry over: VACASK's sense
+    ramps have their own step bound (RAMP_STEPS[1], 0.25 of the ramp: 8.5e-3 by the same rule,
+    whose 3 is not derived), and its backward-Euler step after a ramp's end is bounded only by
+    tran_fbr of the gap to the next corner and by maxstep, which allows a (3,0) mode's amplitude
+    (omega h)^2 / 2 = 2.5e-3 per corner. The measured 1.02 % is well within what the trapezoidal
+    rule's frequency error at maxstep alone allows, 4.3 % (mechanics_bound's drift). The ngspice benches:
+    ngspice_mechanics (z raw: B-source loop 3.9 %, compiled loop 3.0 %); the options before
+    (tran_fbr=0.1 tran_lteratio=10) gave 1.1 % raw."""
+    clock, (ref, _) = vacask["clock"], replayed
     d = sd.design(model, TS)
     gain, left = feedback_gain(d, clock, ref)
     print(f"feedback impulse gain error {gain:.2e} (bound {vacask_gain(d):.2e}); z error left {left:.2e} of its peak")
@@ -277,16 +285,21 @@ def test_mechanics_match_an_independent_integration(vacask, replayed, model):
 def ngspice_mechanics(model: MacroModel, clock: dict, name: str) -> None:
     """An ngspice run's first REPLAY clocks against the independent integration of its bits, as
     for VACASK (test_mechanics_match_an_independent_integration): z's feedback impulse gain error
-    within ngspice's LTE limit on each impulse (NGSPICE_GAIN), z's remainder and the other coordinates within
-    1.5 % of their peak."""
-    ref = replay(model, sd.design(model, TS), clock, REPLAY)
-    gain, left = feedback_gain(sd.design(model, TS), clock, ref)
+    within ngspice's LTE limit on each impulse (NGSPICE_GAIN), z's remainder within 1.5 % of its
+    peak (not derived: tests/testbench/test_sigma_delta_osdi.py says why), the other coordinates
+    within mechanics_bound with NGSPICE_GAIN and NGSPICE_FIRST: 0.70 % (tilts), 0.92-0.98 %
+    ((2,0)), 3.6-4.4 % ((3,0)) on the runs measured; measured B-source 0.12-0.14 %, 0.11-0.15 %,
+    0.50-0.64 %, compiled 0.12-0.15 %, 0.13-0.17 %, 0.69-1.30 %."""
+    d = sd.design(model, TS)
+    ref, vel = replay(model, d, clock, REPLAY, velocities=True)
+    gain, left = feedback_gain(d, clock, ref)
     print(f"z: {name} feedback impulse gain error {gain:.2e}, error left {left:.2e} of its peak")
     assert abs(gain) < NGSPICE_GAIN and left < 0.015
+    bounds = mechanics_bound(model, d, clock, ref, vel, NGSPICE_GAIN, NGSPICE_FIRST)
     for i, c in enumerate(model.coordinates[1:], start=1):
         err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
-        print(f"{c.name}: max |{name} - solve_ivp| = {err:.2e} of its peak")
-        assert err < 0.015, c.name
+        print(f"{c.name}: max |{name} - solve_ivp| = {err:.2e} of its peak; bound", bounds[c.name])
+        assert err < sum(bounds[c.name].values()), c.name
 
 
 def test_agrees_with_ngspice(vacask, ngspice, model):
