@@ -48,6 +48,13 @@ def results(built, tmp_path_factory):
     return pv.run(built[1], tmp_path_factory.mktemp("vacask_run"), RUNS)
 
 
+def test_the_documented_deck_is_the_generated_one():
+    """docs/process.md shows the deck with 3 draws as the generator writes it (no drift)."""
+    page = (ROOT / "docs/process.md").read_text()
+    text = pv.netlist("accelerometer_z.osdi", pv.draws(3))
+    assert f"```text\n{text}```\n" in page
+
+
 def test_corners_are_the_declared_ranges_ends(built):
     """The deck's corners are the model's own valid ranges (the `.va`'s `from [lo:hi]`)."""
     process = built[0].process

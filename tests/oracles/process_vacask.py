@@ -46,16 +46,19 @@ def vector(values: list[float]) -> str:
     return "[" + ", ".join(repr(float(v)) for v in values) + "]"
 
 
-def netlist(osdi: str | Path, points: list[tuple[float, float]], name: str = "accelerometer_z") -> str:
+def netlist(
+    osdi: str | Path, points: list[tuple[float, float]], folder: Path | None = None, name: str = "accelerometer_z"
+) -> str:
     """The VACASK netlist: the die subcircuit, the bias and gravity, the corner sweep (op and a
-    three-point ac) and the Monte Carlo sweep over `points` (op and ac)."""
+    three-point ac) and the Monte Carlo sweep over `points` (op and ac); `osdi` relative to the
+    netlist's `folder` when inside it (the folder reruns wherever it is moved)."""
     ts, dg = vector([t for t, _ in points]), vector([d for _, d in points])
     runs = "[" + ", ".join(str(k) for k in range(len(points))) + "]"  # integer indices
     ac = f'ac from={FREQS[0]:g} to={FREQS[1]:g} mode="lin" points=2'  # 100, 200, 300 Hz
     corners_t, corners_g = vector(list(TSCALE)), vector(list(DG))
     return f"""process corners and Monte Carlo of {name} (tests/oracles/process_vacask.py)
 ground 0
-load {vacask_string(osdi)}
+load {vacask_string(osdi, folder)}
 model vsource vsource
 
 // one die: its process point, or run `run` of the drawn vectors ts and dg
@@ -114,7 +117,7 @@ def run(osdi: Path, folder: Path, runs: int, seed: int = 7) -> dict[str, list[tu
     """Write the netlist into `folder`, run VACASK there; (tscale, dg, Point) of each corner and run."""
     mc = draws(runs, seed)
     sim = folder / NAME
-    sim.write_text(netlist(osdi, mc))
+    sim.write_text(netlist(osdi, mc, folder))
     run_file(sim, folder, "corner_op")
     out = {}
     for key, where in (("corner", corners()), ("mc", mc)):
