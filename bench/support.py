@@ -35,6 +35,7 @@ MODULES = (
     "process_forms",
     "process_inertial",
     "process_mc",
+    "process_vacask",
     "sc_readout",
     "sigma_delta_reference",
     "sigma_delta_vacask",

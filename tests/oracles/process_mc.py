@@ -46,16 +46,17 @@ class Point:
         return math.sqrt(self.k_eff / self.mass) / (2 * math.pi)
 
 
-def closed_form(t: float = 1.0, dg: float = 0.0) -> Point:
-    """The equilibrium and resonance of the closed form at tscale t and bottom gap offset dg."""
-    c, g, m = EPS0 * AREA * BIAS**2 / 2, GAP + dg, M0 * t
+def closed_form(t: float = 1.0, dg: float = 0.0, bias: float = BIAS) -> Point:
+    """The equilibrium and resonance of the closed form at tscale t, bottom gap offset dg and
+    `bias` volts on the bottom electrode."""
+    c, g, m = EPS0 * AREA * bias**2 / 2, GAP + dg, M0 * t
     z = brentq(lambda z: K * z + m * GRAVITY + c / (g + z) ** 2, -g / 3, 0.0, xtol=1e-22, rtol=1e-15)
     return Point(z, K - 2 * c / (g + z) ** 3, m)
 
 
-def sensitivities() -> dict[str, float]:
+def sensitivities(bias: float = BIAS) -> dict[str, float]:
     """d ln|z| / d t, d ln|z| / d g (1/m), d ln f / d t, d ln f / d g (1/m) at the nominal point."""
-    p, c = closed_form(), EPS0 * AREA * BIAS**2 / 2
+    p, c = closed_form(bias=bias), EPS0 * AREA * bias**2 / 2
     s = GAP + p.z
     dz = {"t": -M0 * GRAVITY / p.k_eff, "g": 2 * c / (s**3 * p.k_eff)}
     dk = {"t": 6 * c / s**4 * dz["t"], "g": 6 * c / s**4 * (1.0 + dz["g"])}
