@@ -71,6 +71,11 @@ RUNS = {
         ],
         ["disk_m0_r2s4       3    16", "instructions per iteration ~", "vacask: instructions per period ~", "wrote "],
     ),
+    "fastcap_love": (["bench/fastcap_love.py", "--kappa", "0.05"], [" 0.050 ", "inside"]),
+    "fastcap_dask": (
+        ["bench/fastcap_dask.py", "--points", "2"],
+        ["serial: ", "2 Dask workers: ", "equal bit for bit: True"],
+    ),
     "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
     "sigma_delta_accelerometer": (
         [

@@ -195,6 +195,10 @@ class PreparedFastcap:
     """FastcapExtractor bound to electrodes, plate and basis: panels and basis values once per
     level (numpy only, so it pickles to executor workers); every q is a converged solve."""
 
+    # sampling.sample_chunks' task size: a point is seconds of solving, so each is its own task
+    # (in chunks of 256 a design of a few dozen points would be one task on one worker)
+    points_per_task = 1
+
     def __init__(
         self,
         electrodes: Sequence[Electrode],

@@ -315,8 +315,10 @@ def sample_chunks(
     executor: Executor | None = None,
     store: ChunkStore | str | Path | None = None,
 ) -> np.ndarray:
-    """sample() through an executor (None: in this process), chunks streamed to `store`."""
+    """sample() through an executor (None: in this process), chunks streamed to `store`; an
+    extractor whose points are expensive (a field solver) sets `points_per_task` to cap the chunk."""
     q = np.ascontiguousarray(q, dtype=float)
+    chunk = min(chunk, int(getattr(prepared, "points_per_task", chunk)))
     starts = list(range(0, len(q), chunk))
     if store is not None and not isinstance(store, ChunkStore):
         store = ChunkStore(Path(store))
