@@ -28,6 +28,7 @@ import pytest
 
 from netgen import emit
 from netgen.build import build_model
+from netgen.core.constants import EPS0
 from netgen.core.errors import StructureError
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
@@ -90,6 +91,64 @@ def test_full_rebuild_at_the_etched_widths(guided_model, etch):
     errs = [f.max_rel_error for f in guided_model.capacitances + model.capacitances]
     assert ref.scale == c.scale  # the same touching amplitude: the same scaled points
     np.testing.assert_allclose(capacitance_at(guided_model, q, etch), model.capacitance(q), rtol=max(errs) + 1e-12)
+
+
+def guided_reach(w: float = 2.0, side: float = 200.0, process: bool = True):
+    """The clamped-guided mass (GUIDED) at beam width w and side (um), sampled to 0.6 of the gap on
+    5 levels (its pull-in travel is g/3); with the etch parameter, or without (the full rebuild)."""
+    text = guided(w=w, side=side, process=('[process]\nparameters = ["etch"]' + RANGE) if process else "")
+    text = text.replace("levels = 3", "levels = 5").replace("range = 0.3", "range = 0.6")
+    assert "levels = 5" in text and "range = 0.6" in text
+    return build_model(parse_structure(text, "cg.toml"))
+
+
+def pull_in_etched(model, k: float, etch: float) -> float:
+    """max over the travel q < 0 of sqrt(2 k q / C'(q)), C at the etch bias as the emitters render it
+    (capacitance_at), on a 20001-point grid refined by a parabola through the best three."""
+    scale = model.coordinates[0].scale
+    q = -np.linspace(1e-4, 0.55, 20001) * scale
+    h = 1e-6 * scale
+
+    def cap(x: np.ndarray) -> np.ndarray:
+        return capacitance_at(model, x[:, None] / scale, etch)[:, 0]
+
+    v2 = 2 * k * q / ((cap(q + h) - cap(q - h)) / (2 * h))
+    j = int(np.argmax(v2))
+    a, b, c = v2[j - 1 : j + 2]
+    return math.sqrt(b + (c - a) ** 2 / (8 * (2 * b - a - c)))
+
+
+@pytest.fixture(scope="module")
+def guided_pull_in_model():
+    return guided_reach()
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_pull_in_under_etch(guided_pull_in_model, etch):
+    """The clamped-guided mass's pull-in at the etch bias (three values across etch_range) against
+    sqrt(8 k g^3 / (27 eps A)) with four clamped-guided Euler-Bernoulli beams out of plane,
+    k = 4 E (w - 2 etch) t^3 / L^3, and the etched outline A = (200 um - 2 etch)^2 (the plate is wider
+    than the mass), and against a full rebuild at those widths. Bound: half the etch law's stated
+    stiffness error (V ~ sqrt(k); under 1e-9, see test_clamped_guided_against_closed_form) plus the
+    capacitance ratio's stated error (0: a quadratic), the grid's quadratic error (~1e-9) and, against
+    the rebuild, the two plate fits' slope errors by Markov's inequality (4 e / R each; e round-off)."""
+    nominal = guided_pull_in_model
+    law = nominal.process["etch"]
+    k = coordinate_values(nominal.process, 0, etch=etch)[1]
+    v_model = pull_in_etched(nominal, k, etch)
+    w, side = 2e-6 - 2 * etch, 200e-6 - 2 * etch
+    k_closed = 4 * 160e9 * w * 5e-6**3 / 150e-6**3
+    v_closed = math.sqrt(8 * k_closed * 2e-6**3 / (27 * EPS0 * side**2))
+    rebuilt = guided_reach(w * 1e6, side * 1e6, process=False)
+    v_rebuilt = pull_in_etched(rebuilt, rebuilt.coordinates[0].stiffness, 0.0)
+    print(
+        f"etch={etch:.1e}: {v_model:.10g} V, closed form {v_model / v_closed - 1:.1e}, rebuilt {v_model / v_rebuilt - 1:.1e}"
+    )
+    bound = 0.5 * max(law["max_rel_error"], 1e-9) + law["capacitance_max_rel_error"] + 1e-9
+    assert v_model == pytest.approx(v_closed, rel=bound)
+    errors = [f.max_rel_error for f in nominal.capacitances + rebuilt.capacitances]
+    markov = 4 * max(errors) / nominal.sampling["range"]
+    assert v_model == pytest.approx(v_rebuilt, rel=bound + 1e-9 + 2 * markov)
 
 
 @pytest.fixture(scope="module")
