@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -26,7 +27,7 @@ from netgen.build import build_model
 from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
-from netgen.structure import load_structure
+from netgen.structure import load_structure, parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import ROOT
 from tests.oracles.process_forms import ac_fit
@@ -152,3 +153,87 @@ write ac.raw
     assert k == pytest.approx(2.0, rel=1e-9)
     assert m == pytest.approx(c.mass * tscale, rel=1e-9, abs=0)
     assert b == pytest.approx(ALPHA * c.mass * tscale, rel=1e-9, abs=0)
+
+
+ALPHA_Q1 = 1.0e5  # 1/s: the piston's Rayleigh alpha made Q ~ 1 (zeta = alpha / 2 w0 = 0.48) for a short record
+
+
+@pytest.fixture(scope="module")
+def lib_q1(tmp_path_factory) -> tuple[str, object]:
+    """examples/piston_process.toml with alpha = ALPHA_Q1: the decay time 2 / alpha = 20 us, so an
+    80 ms record holds 4000 of them (the example's Q = 5, alpha 3000, would need 33 times that)."""
+    text = (ROOT / "examples/piston_process.toml").read_text()
+    assert "rayleigh = { alpha = 3000 }" in text
+    structure = parse_structure(text.replace("alpha = 3000", f"alpha = {ALPHA_Q1:g}"), "piston_process.toml")
+    model = build_model(structure)
+    folder = tmp_path_factory.mktemp("process_q1")
+    (folder / "piston_process.lib").write_text(emit_ngspice.subcircuit(model))
+    return str(folder / "piston_process.lib"), model
+
+
+def correlation_integral(m: float, k: float, b: float) -> float:
+    """int_-inf^inf rho(tau)^2 dtau of a damped oscillator's displacement, rho = e^(-g t) (cos w t +
+    g / w sin w t) (g = b / 2m, w the damped frequency; under-damped), by the trapezoid on 2e5 points
+    over 40 decay times (the tail e^-80)."""
+    g = b / (2 * m)
+    w = math.sqrt(k / m - g * g)
+    t = np.linspace(0.0, 40.0 / g, 200001)
+    rho = np.exp(-g * t) * (np.cos(w * t) + g / w * np.sin(w * t))
+    return 2 * float(np.trapezoid(rho * rho, t))
+
+
+def sampled_variance(m: float, k: float, b: float, temp_k: float, dt: float) -> float:
+    """int_0^inf 4 k_B T b sinc^4(f dt) / |k - m w^2 + i w b|^2 df: the displacement variance under the
+    trnoise force (white samples every dt, linearly interpolated: sinc^4, tests/mechanics/test_damping.py
+    fdt_psd); without the sinc^4 it is k_B T / k exactly (equipartition). Trapezoid on 2e6 points
+    up to 200 f0 (steps of 1e-4 f0 across a resonance 0.5 f0 wide); beyond, the integrand falls as
+    f^-4: the tail is below (1/200)^3 = 1.3e-7 of the whole."""
+    f0 = math.sqrt(k / m) / (2 * math.pi)
+    f = np.linspace(0.0, 200 * f0, 2000001)
+    w = 2 * math.pi * f
+    psd = 4 * K_B * temp_k * b * np.sinc(f * dt) ** 4 / np.abs(k - m * w**2 + 1j * w * b) ** 2
+    return float(np.trapezoid(psd, f))
+
+
+@pytest.mark.parametrize("temp", [-40.0, 125.0])
+def test_transient_noise_equipartition(lib_q1, tmp_path, ngspice_version, temp):
+    """Transient thermal noise of the `[process]` .lib (the trnoise force at sqrt(pt_z), in series with
+    the noise resistor Rn_z that only .noise sees) at the die temperature: the displacement variance
+    over the record against k_B T / k, T = temp + 273.15 (the spring is given: k = 2 N/m at any temp),
+    times the trnoise samples' sinc^4 shaping (sampled_variance: 1 - 2.5e-3 here).
+    Statistical bound: the sample variance of a Gaussian process over T_rec has relative standard
+    deviation sqrt(2 int rho^2 dtau / T_rec) (rho the normalised autocorrelation; correlation_integral);
+    with zeta = 0.48 (near the minimum of int rho^2 over zeta) and T_rec = 80 ms that is 2.2e-2 (about
+    4000 independent samples), asserted within 4 of it (8.8 %). The rest is below it: the mean's bias
+    int rho / T_rec = 2 b / (k T_rec) = 2.3e-4, the trapezoid's error on a 16.5 kHz mode at steps
+    <= noise_dt, (w0 h)^2 / 12 = 1.3e-3, and the 20 decay times skipped at the start (e^-40). A source
+    left at the nominal 300 K would be +29 % (-40 C) and -25 % (125 C) off: over 11 sigma. ngspice
+    leaves TRNOISE unseeded (docs/damping-noise.md): each run is a new record."""
+    path, model = lib_q1
+    c = model.coordinates[0]
+    with open(path) as handle:
+        text = handle.read()
+    dt = float(re.search(r"noise_dt=([0-9.eE+-]+)", text).group(1))
+    b, t_rec = ALPHA_Q1 * c.mass, 80e-3
+    start = 20 * 2 * c.mass / b
+    net = f"""* transient noise
+.include {path}
+.options vntol=1e-15 abstol=1e-20
+X1 0 0 0 xz piston_process temp={temp}
+.tran {dt} {start + t_rec} 0 {dt} uic
+.end
+"""
+    plot = run_ngspice(net, tmp_path)[0]
+    t, x = np.real(plot["time"]), np.real(plot["v(xz)"]) * 1e-6  # x_z: 1 V = 1 um
+    grid = np.arange(start, t[-1], dt)
+    variance = float(np.var(np.interp(grid, t, x)))
+    temp_k = temp + 273.15
+    expected = sampled_variance(c.mass, c.stiffness, b, temp_k, dt)
+    sigma = math.sqrt(2 * correlation_integral(c.mass, c.stiffness, b) / t_rec)
+    print(
+        f"temp={temp}: variance / (k_B T / k) = {variance * c.stiffness / (K_B * temp_k):.4f}, "
+        f"/ expected - 1 = {variance / expected - 1:+.2e} (sigma {sigma:.2e}, shaping {expected * c.stiffness / (K_B * temp_k):.5f})"
+    )
+    assert c.stiffness == pytest.approx(2.0, rel=1e-12)
+    assert sigma < 0.025
+    assert variance == pytest.approx(expected, rel=4 * sigma, abs=0)
