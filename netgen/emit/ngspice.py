@@ -218,11 +218,10 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
 
 def stop_damping(model: MacroModel, stops: list[dict], per_coord: list[list[tuple[str, float]]]) -> dict[str, str]:
     """coordinate -> the current its stops' dampers feed into u_<coordinate>: sum_j gain_j (v(sg_j) > 0 ?
-    (c/k) w dp_j/dt / delta : 0). A current, not a term of the node sf_j: at .op the velocities are zero
-    up to the solve's round-off, which the damper's gain (2 / (RATIO delta), 200 on a velocity node of
-    scale 1/ws) lifts above a tight reltol on sf_j (accelerometer_xyz pushed onto a finger stop at etch
-    0.1 um, reltol 1e-12 / vntol 1e-15: Newton never converged and ngspice's transient op stopped with the mass
-    still moving); as a current into the velocity node it converges in 6 iterations, the equations unchanged."""
+    (c/k) w dp_j/dt / delta : 0). A current, not a term of the node sf_j, for a tight .op: with the damper
+    in sf_j, accelerometer_xyz pushed onto a finger stop at etch 0.1 um (reltol 1e-12, vntol 1e-15) failed
+    Newton, gmin and source stepping, and ngspice's transient op left the mass moving (1.5e-6 off the rest);
+    10 of 17 round-off-level variants of that deck failed so, 1 of 17 in this form (CHANGELOG)."""
     ws = time_scale(model)
     parts = {pt["f"]: (pt["g"], pt["damping"]) for pt in stops}
     out = {}
