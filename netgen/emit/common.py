@@ -357,7 +357,8 @@ def contact_terms(
 ) -> tuple[list[dict], list[list[tuple[str, float]]]]:
     """Stop points as (penetration, penalty) expressions, and per coordinate the (variable, SI force
     per unit) pairs: F_v = sum_j gain_jv * sf_j, sf_j = (pen + (c/k) w dp/dt) / delta. `offsets`: per
-    stop point a text appended to its penetration (a gap offset's - dg / gap_j, netgen.emit.process)."""
+    stop point a text appended to its penetration (a gap offset's - dg / gap_j, netgen.emit.process).
+    Each point also carries the two parts of f_expr apart (spring, damping: netgen.emit.ngspice.context)."""
     points: list[dict] = []
     per_coord: list[list[tuple[str, float]]] = [[] for _ in model.coordinates]
     k = stop_constants(model)
@@ -373,11 +374,19 @@ def contact_terms(
         gap_expr += offsets[j] if offsets else ""
         r = f"min(max({var.format(g)}, 0), {num(delta)})"
         rate = " + ".join(f"{num(a * ws)}*{us[v]}" for v, a in used).replace("+ -", "- ")
-        pen = (
-            f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
-            f" + {num(k['damp'])}*{r}*({rate})"
+        spring = f"({r}*{r}*{num(0.5 / delta)} + max({var.format(g)} - {num(delta)}, 0))*{num(1 / delta)}"
+        damping = f"{num(k['damp'])}*{r}*({rate})"
+        points.append(
+            {
+                "g": g,
+                "g_expr": gap_expr,
+                "f": f,
+                "f_expr": f"{spring} + {damping}",
+                "spring": spring,
+                "damping": damping,
+                "electrode": pt["electrode"],
+            }
         )
-        points.append({"g": g, "g_expr": gap_expr, "f": f, "f_expr": pen, "electrode": pt["electrode"]})
         for v, _ in used:
             per_coord[v].append((f, gain_j[v]))
     return points, per_coord

@@ -189,6 +189,7 @@ def add_stops(ctx: dict, model: MacroModel, stops: list[dict], per_coord: list[l
     for row, c, terms in zip(ctx["coords"], model.coordinates, per_coord):
         a = force_gain(c, ws)
         row["stops"] = [(name, num(a * gain)) for name, gain in terms]
+        row["stop_damping"] = ""  # the B form's dampers: context (stop_damping)
     ctx["stops"] = stops
 
 
@@ -207,9 +208,29 @@ def context(model: MacroModel, noise: bool | None = None) -> dict:
         row.update(fast_fit(model, f, clamps[i] if clamps else [None] * len(f.polys), fstate))
     stops, per_coord = contact_terms(model, offsets=process.stop_offsets(model, braces=True))
     for pt in stops:  # no penetration, no force: the ternary skips the penalty's derivative trees
-        pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['f_expr']} : 0"
+        pt["f_expr"] = f"v({pt['g']}) > 0 ? {pt['spring']} : 0"
     add_stops(ctx, model, stops, per_coord)
+    damping = stop_damping(model, stops, per_coord)
+    for row, c in zip(ctx["coords"], model.coordinates):
+        row["stop_damping"] = damping.get(c.name, "")
     return ctx
+
+
+def stop_damping(model: MacroModel, stops: list[dict], per_coord: list[list[tuple[str, float]]]) -> dict[str, str]:
+    """coordinate -> the current its stops' dampers feed into u_<coordinate>: sum_j gain_j (v(sg_j) > 0 ?
+    (c/k) w dp_j/dt / delta : 0). A current, not a term of the node sf_j, for a tight .op: with the damper
+    in sf_j, accelerometer_xyz pushed onto a finger stop at etch 0.1 um (reltol 1e-12, vntol 1e-15) failed
+    Newton, gmin and source stepping, and ngspice's transient op left the mass moving (1.5e-6 off the rest);
+    10 of 17 round-off-level variants of that deck failed so, 1 of 17 in this form (CHANGELOG)."""
+    ws = time_scale(model)
+    parts = {pt["f"]: (pt["g"], pt["damping"]) for pt in stops}
+    out = {}
+    for c, terms in zip(model.coordinates, per_coord):
+        a = force_gain(c, ws)
+        items = [f"(v({parts[f][0]}) > 0 ? {num(a * gain)}*{parts[f][1]} : 0)" for f, gain in terms]
+        if items:
+            out[c.name] = " + ".join(items)
+    return out
 
 
 def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
