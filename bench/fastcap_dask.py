@@ -20,6 +20,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from support import small_disk
 
 from netgen.electrostatics import fastcap
 from netgen.electrostatics.bem_sampling import sample_maxwell
@@ -28,31 +29,9 @@ from netgen.mechanics import mechanics
 from netgen.runtime.executor import DaskExecutor
 from netgen.structure import parse_structure
 
-DISK = """name = "small_fc"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z"]
-[electrostatics]
-extractor = "fastcap"
-"""
+DISK = small_disk.SMALL_BEM_DISK.replace('name = "small_bem"', 'name = "small_fc"').format(
+    extractor="fastcap", extra=""
+)
 GAP = 20e-6
 
 

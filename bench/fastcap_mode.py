@@ -14,6 +14,7 @@ import argparse
 import time
 
 import numpy as np
+from support import small_disk
 
 from netgen.core.constants import EPS0
 from netgen.electrostatics import bem, fastcap
@@ -22,27 +23,8 @@ from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
 
-GAP = 10e-6
-DISK = """name = "disk_mode"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "10 um"
-rings = [["0 um", "100 um"]]
-sectors = 4
-sector_start = "-45 deg"
-[coordinates]
-modes = ["2,0c"]
-[electrostatics]
-extractor = "fastcap"
-"""
+GAP = small_disk.MODE_GAP
+DISK = small_disk.MODE_DISK
 
 
 def solve(prepared, q: np.ndarray) -> tuple[np.ndarray, float, float]:

@@ -39,6 +39,7 @@ MODULES = (
     "sc_readout",
     "sigma_delta_reference",
     "sigma_delta_vacask",
+    "small_disk",
     "testbench",
     "va_scan",
 )

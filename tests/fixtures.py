@@ -14,6 +14,7 @@ import pytest
 from netgen.emit import xspice
 from netgen.model import MacroModel
 from netgen.sim import codemodel, ngspice
+from tests.oracles.small_disk import SMALL_BEM_DISK  # noqa: F401  (re-exported for the test modules)
 from tests.oracles.testbench import (  # noqa: F401  (re-exported for the test modules)
     NGSPICE,
     Bench,
@@ -102,33 +103,3 @@ def va_volts(model: MacroModel, x, v_el, v_plate, force: float = 0.0) -> dict[st
     for c, xv in zip(model.coordinates, x):
         volts |= {f"xs_{c.name}": float(xv), f"f_{c.name}": force}
     return volts
-
-
-# a 100 um disk between two full-disk electrodes at 20 um, a few hundred BEM elements per level
-# (format with extractor= and extra=)
-SMALL_BEM_DISK = """name = "small_bem"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[coordinates]
-rigid = ["z"]
-[electrostatics]
-extractor = "{extractor}"
-{extra}
-"""

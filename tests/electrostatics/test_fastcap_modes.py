@@ -23,28 +23,10 @@ from netgen.electrostatics import bem, fastcap  # noqa: E402
 from netgen.geometry.layout import electrodes, plate_outline  # noqa: E402
 from netgen.mechanics import mechanics  # noqa: E402
 from netgen.structure import parse_structure  # noqa: E402
+from tests.oracles.small_disk import MODE_DISK, MODE_GAP  # noqa: E402
 
-GAP = 10e-6
-DISK = """name = "disk_mode"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "top"
-side = "above"
-gap = "10 um"
-rings = [["0 um", "100 um"]]
-sectors = 4
-sector_start = "-45 deg"
-[coordinates]
-modes = ["2,0c"]
-[electrostatics]
-extractor = "fastcap"
-"""
+GAP = MODE_GAP
+DISK = MODE_DISK
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,57 @@
+"""Small free disks the extractor tests and their benches share (tests/fixtures.py re-exports
+SMALL_BEM_DISK; bench scripts load this module through bench/support.py)."""
+
+from __future__ import annotations
+
+# a 100 um disk between two full-disk electrodes at 20 um, a few hundred BEM elements per level
+# (format with extractor= and extra=)
+SMALL_BEM_DISK = """name = "small_bem"
+[conductor]
+kind = "free_disk"
+radius = "100 um"
+thickness = "2 um"
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.22
+density = "2330 kg/m^3"
+[[electrodes]]
+name = "top"
+side = "above"
+gap = "20 um"
+rings = [["0 um", "100 um"]]
+sectors = 1
+[[electrodes]]
+name = "bot"
+side = "below"
+gap = "20 um"
+rings = [["0 um", "100 um"]]
+sectors = 1
+[coordinates]
+rigid = ["z"]
+[electrostatics]
+extractor = "{extractor}"
+{extra}
+"""
+
+# a 100 um disk 10 um under four quadrant electrodes, with its (2,0) cosine mode: a field solve at a
+# non-zero mode-shape amplitude (tests/electrostatics/test_fastcap_modes.py, bench/fastcap_mode.py)
+MODE_GAP = 10e-6
+MODE_DISK = """name = "disk_mode"
+[conductor]
+kind = "free_disk"
+radius = "100 um"
+thickness = "2 um"
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.22
+density = "2330 kg/m^3"
+[[electrodes]]
+name = "top"
+side = "above"
+gap = "10 um"
+rings = [["0 um", "100 um"]]
+sectors = 4
+sector_start = "-45 deg"
+[coordinates]
+modes = ["2,0c"]
+[electrostatics]
+extractor = "fastcap"
+"""
