@@ -3,17 +3,22 @@ SMALL_BEM_DISK; bench scripts load this module through bench/support.py)."""
 
 from __future__ import annotations
 
-# a 100 um disk between two full-disk electrodes at 20 um, a few hundred BEM elements per level
-# (format with extractor= and extra=)
-SMALL_BEM_DISK = """name = "small_bem"
-[conductor]
+# the 100 um, 2 um polysilicon free disk both structures move
+CONDUCTOR = """[conductor]
 kind = "free_disk"
 radius = "100 um"
 thickness = "2 um"
 youngs_modulus = "160 GPa"
 poisson_ratio = 0.22
 density = "2330 kg/m^3"
-[[electrodes]]
+"""
+
+# a 100 um disk between two full-disk electrodes at 20 um, a few hundred BEM elements per level
+# (format with extractor= and extra=)
+SMALL_BEM_DISK = (
+    'name = "small_bem"\n'
+    + CONDUCTOR
+    + """[[electrodes]]
 name = "top"
 side = "above"
 gap = "20 um"
@@ -31,19 +36,15 @@ rigid = ["z"]
 extractor = "{extractor}"
 {extra}
 """
+)
 
 # a 100 um disk 10 um under four quadrant electrodes, with its (2,0) cosine mode: a field solve at a
 # non-zero mode-shape amplitude (tests/electrostatics/test_fastcap_modes.py, bench/fastcap_mode.py)
 MODE_GAP = 10e-6
-MODE_DISK = """name = "disk_mode"
-[conductor]
-kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
+MODE_DISK = (
+    'name = "disk_mode"\n'
+    + CONDUCTOR
+    + """[[electrodes]]
 name = "top"
 side = "above"
 gap = "10 um"
@@ -55,3 +56,4 @@ modes = ["2,0c"]
 [electrostatics]
 extractor = "fastcap"
 """
+)
