@@ -17,11 +17,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from support import ROOT, process_mc, process_vacask
+from support import process_mc, process_vacask
 
 from netgen import emit
-from netgen.build import build_model
-from netgen.structure import parse_structure
 
 
 def report(rows: dict, runs: int, seed: int) -> None:
@@ -65,8 +63,7 @@ def main() -> None:
         folder = (a.output or Path(tmp)).resolve()
         folder.mkdir(parents=True, exist_ok=True)
         start = time.perf_counter()
-        text = (ROOT / "examples/accelerometer_z.toml").read_text() + process_mc.PROCESS
-        model = build_model(parse_structure(text, "accelerometer_z.toml"))
+        model = process_mc.model()
         emit.write_outputs(model, folder, "osdi")
         t_build = time.perf_counter() - start
         start = time.perf_counter()

@@ -25,10 +25,7 @@ from __future__ import annotations
 
 import pytest
 
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
-from netgen.structure import parse_structure
-from tests.fixtures import ROOT
 from tests.oracles import process_mc as mc
 
 RUNS = 20
@@ -36,8 +33,7 @@ RUNS = 20
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory):
-    text = (ROOT / "examples/accelerometer_z.toml").read_text() + mc.PROCESS
-    model = build_model(parse_structure(text, "accelerometer_z.toml"))
+    model = mc.model()
     folder = tmp_path_factory.mktemp("mc")
     (folder / "accelerometer_z.lib").write_text(emit_ngspice.subcircuit(model))
     return folder / "accelerometer_z.lib"

@@ -24,8 +24,6 @@ from __future__ import annotations
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
-from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.oracles import process_mc as mc
 from tests.oracles import process_vacask as pv
@@ -36,8 +34,7 @@ RUNS = 20
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The accelerometer with [process] dg and tscale, its `.va` compiled to `.osdi`."""
-    text = (ROOT / "examples/accelerometer_z.toml").read_text() + mc.PROCESS
-    model = build_model(parse_structure(text, "accelerometer_z.toml"))
+    model = mc.model()
     folder = tmp_path_factory.mktemp("vacask_mc")
     emit.write_outputs(model, folder, "osdi")
     return model, folder / "accelerometer_z.osdi"

@@ -22,14 +22,25 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import brentq
 
+from netgen.build import build_model
 from netgen.core.constants import EPS0
+from netgen.model import MacroModel
 from netgen.sim.ngspice import ngspice_path
+from netgen.structure import parse_structure
 
 PROCESS = '\n[process]\nparameters = ["dg", "tscale"]\n'  # appended to examples/accelerometer_z.toml
 K, GAP, SIDE, THICK, RHO = 0.3, 2e-6, 500e-6, 20e-6, 2330.0
 AREA, M0 = SIDE * SIDE, 2330.0 * 500e-6 * 500e-6 * 20e-6
 GRAVITY, BIAS = 9.81, 0.3  # m/s^2 on a_in; V on the bottom electrode
 SIGMA_T, SIGMA_G = 0.01, 10e-9  # the spread drawn: 1 % of the thickness, 10 nm of the bottom gap
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "accelerometer_z.toml"
+
+
+def model() -> MacroModel:
+    """examples/accelerometer_z with PROCESS: the model the ngspice and the VACASK Monte Carlo sample."""
+    return build_model(parse_structure(EXAMPLE.read_text() + PROCESS, "accelerometer_z.toml"))
+
+
 FREQS = (100.0, 300.0)  # Hz: the two .ac points that give k_eff and m (1/H = k_eff - m w^2, no damping)
 
 
