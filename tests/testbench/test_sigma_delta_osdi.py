@@ -17,14 +17,11 @@ from netgen.cli import commands as cli
 from netgen.model import MacroModel
 from netgen.testbench import sigma_delta as sd
 from tests.fixtures import NGSPICE, ROOT
-from tests.oracles.sigma_delta_vacask import mechanics_bound
 from tests.testbench.test_sigma_delta_latch import check_latches
 from tests.testbench.test_sigma_delta_vacask import (
-    NGSPICE_FIRST,
     NGSPICE_GAIN,
     bit_means_and_bound,
-    feedback_gain,
-    replay,
+    ngspice_mechanics,
     vacask_gain,
 )
 
@@ -120,18 +117,7 @@ def test_mechanics_match_an_independent_integration(osdi_run, model):
     module's nonlinear forces were nodes (netgen.emit.veriloga, fn_<q>) z was 7.2 % off: ngspice's
     Newton test of an OSDI device looks at node changes only, and accepted the force one update
     early."""
-    clock = osdi_run["clock"]
-    d = sd.design(model, TS)
-    ref, vel = replay(model, d, clock, REPLAY, velocities=True)
-    gain, left = feedback_gain(d, clock, ref)
-    print(f"z: feedback impulse gain error {gain:.2e}, error left {left:.2e} of its peak")
-    assert abs(gain) < NGSPICE_GAIN and left < 0.015
-    bounds = mechanics_bound(model, d, clock, ref, vel, NGSPICE_GAIN, NGSPICE_FIRST)
-    for i, c in enumerate(model.coordinates[1:], start=1):
-        err = np.abs(clock[f"x_{c.name}"][:REPLAY] - ref[:, i]).max() / np.abs(ref[:, i]).max()
-        terms = bounds[c.name]
-        print(f"{c.name}: max |ngspice-osdi - solve_ivp| = {err:.2e} of its peak; bound", terms)
-        assert err < sum(terms.values()), c.name
+    ngspice_mechanics(model, osdi_run["clock"], "ngspice-osdi", REPLAY)
 
 
 def test_agrees_with_vacask(osdi_run, vacask_run, model):
