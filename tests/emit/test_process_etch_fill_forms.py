@@ -37,7 +37,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
+from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
 
 PROCESS = '[process]\nparameters = ["etch"]\n'
 
@@ -87,10 +87,6 @@ X1 {pins} accelerometer_xyz etch={etch!r}
 """
 
 
-def control_block(lines: list[str]) -> str:
-    return "\n".join([".control", *lines, "set num_threads=1", "run", "write ac.raw", ".endc"])
-
-
 def check(xyz, plot, etch: float) -> None:
     cap = abs(float(np.imag(plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
     k = [f.electrode for f in xyz.capacitances].index("zs")
@@ -106,7 +102,7 @@ def test_lib(xyz, tmp_path, ngspice_version, etch):
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
 def test_xspice(xyz, tmp_path, etch):
     xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
-    check(xyz, run_ngspice(zs_deck(str(xlib.resolve()), etch, control_block(control)), tmp_path)[0], etch)
+    check(xyz, run_ngspice(zs_deck(str(xlib.resolve()), etch, control_block(control, "ac.raw")), tmp_path)[0], etch)
 
 
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
@@ -114,7 +110,7 @@ def test_osdi(xyz, tmp_path, monkeypatch, etch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
     emit.write_outputs(xyz, tmp_path, "osdi")
     pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    deck = zs_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre))
+    deck = zs_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "ac.raw"))
     check(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)
 
 

@@ -38,7 +38,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, using_ngspice
-from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, guided, xyz_text
+from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, control_block, guided, xyz_text
 
 GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
 OPTIONS = ".options reltol=1e-12 vntol=1e-15 abstol=1e-20"
@@ -89,10 +89,6 @@ def check(model, ac_plot, op_plot, etch: float) -> None:
     assert cap == pytest.approx(EPS0 * area(etch) / GAP, rel=1e-9, abs=0)
     z = float(np.real(op_plot["v(xz)"])[0]) * 1e-6  # x_z in um
     assert z == pytest.approx(deflection(model, etch), rel=1e-7, abs=0)
-
-
-def control_block(lines: list[str], raw: str) -> str:
-    return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
 
 
 @pytest.mark.parametrize("etch", ETCHES)

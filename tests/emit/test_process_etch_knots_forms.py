@@ -35,7 +35,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.process_cases import xyz_text
+from tests.oracles.process_cases import control_block, xyz_text
 
 ETCHES = (-0.02e-6, -0.002e-6, 0.002e-6, 0.02e-6)  # m: both sides of the kink at 0
 FORCE = 1.0  # uN on f_z (1 V = 1 uN): x_z ~ 0.54 um at 1.85 N/m
@@ -74,10 +74,6 @@ X1 {pins} accelerometer_xyz etch={etch!r}
 """
 
 
-def control_block(lines: list[str]) -> str:
-    return "\n".join([".control", *lines, "set num_threads=1", "run", "write op.raw", ".endc"])
-
-
 def check(xyz, reruns, plot, etch: float) -> None:
     """x_z of the .op against F / k_z of the law and of the re-run (module docstring)."""
     x = float(np.real(plot["v(x3)"])[0]) * 1e-6
@@ -96,7 +92,9 @@ def test_lib(xyz, reruns, tmp_path, ngspice_version, etch):
 @pytest.mark.parametrize("etch", ETCHES)
 def test_xspice(xyz, reruns, tmp_path, etch):
     xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
-    check(xyz, reruns, run_ngspice(deck(str(xlib.resolve()), etch, control_block(control)), tmp_path)[0], etch)
+    check(
+        xyz, reruns, run_ngspice(deck(str(xlib.resolve()), etch, control_block(control, "op.raw")), tmp_path)[0], etch
+    )
 
 
 @pytest.mark.parametrize("etch", ETCHES)
@@ -104,7 +102,7 @@ def test_osdi(xyz, reruns, tmp_path, monkeypatch, etch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
     emit.write_outputs(xyz, tmp_path, "osdi")
     pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    net = deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre))
+    net = deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
     check(xyz, reruns, run_ngspice(net, tmp_path / "run")[0], etch)
 
 

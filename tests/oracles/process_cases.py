@@ -181,3 +181,9 @@ def xyz_mass(etch: float) -> float:
     """The hand moving mass of accelerometer_xyz (xyz_text) at etch: the plate 400 um - 2 etch, 40 x 40 holes
     4 um + 2 etch, 80 fingers 2 um - 2 etch wide 40 um beyond the edge, all 2 um thick (rho 2330 kg/m^3)."""
     return 2330.0 * 2e-6 * ((400e-6 - 2 * etch) ** 2 - 1600 * (4e-6 + 2 * etch) ** 2 + 80 * (2e-6 - 2 * etch) * 40e-6)
+
+
+def control_block(lines: list[str], raw: str) -> str:
+    """An ngspice .control block: `lines` (the code model's or the OSDI module's loading), one thread,
+    run, and the results written to `raw`."""
+    return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
