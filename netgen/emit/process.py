@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..model import MacroModel
+from ..model.process_loads import IDENTITY
 from .common import num
 
 KELVIN = 273.15
@@ -154,7 +155,7 @@ def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
     netgen.model.process.etch_laws) where etch is declared and the ratio is not identically 1."""
     text = poly(law[key], tscale)
     ratio = law.get("etch", {}).get(key, [1.0, 0.0, 0.0, 0.0])
-    if not declared(model, "etch") or (ratio[0] == 1.0 and not any(ratio[1:])):
+    if not declared(model, "etch") or (list(ratio[:4]) == IDENTITY and not any(ratio[4:])):
         return text
     return f"{text}*{etch_ratio(model, ratio)}"
 
@@ -486,9 +487,6 @@ def product_text(factors: list[str], ratio) -> str:
     if ratio is not None and list(ratio) != IDENTITY:
         factors = factors + [poly(ratio, "(1e6*etch)")]
     return "*".join(factors)
-
-
-IDENTITY = [1.0, 0.0, 0.0, 0.0]
 
 
 def acceleration_ratio(model: MacroModel, v: int) -> list[float] | None:
