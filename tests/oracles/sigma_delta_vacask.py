@@ -93,7 +93,14 @@ def replay(model: MacroModel, d: sd.Design, clock: dict, cycles: int, velocities
 
 
 def mechanics_bound(
-    model: MacroModel, d: sd.Design, clock: dict, ref: np.ndarray, vel: np.ndarray, gain: float, first: float
+    model: MacroModel,
+    d: sd.Design,
+    clock: dict,
+    ref: np.ndarray,
+    vel: np.ndarray,
+    gain: float,
+    first: float,
+    orders1: int = 1,
 ) -> dict[str, dict[str, float]]:
     """The largest |simulated - replayed| a trapezoidal simulator may leave on each coordinate after
     z, a fraction of the coordinate's peak over the replayed clocks, as three terms:
@@ -112,11 +119,11 @@ def mechanics_bound(
       the samples t_k and t_k+1, A <= A(t_k) + J_k / (m omega), J_k = int |F| <= T_s (duty
       max(|F_k|, |F_k+1|) + sense duty |F_s|) (F_k the feedback plateau's force of the period's
       pattern, F_s the sense phase's), and int |F| / K <= J_k / K;
-    - corners: the first step after each breakpoint (Design.corners, every period) is backward
-      Euler, which shrinks the oscillation about the equilibrium by (omega h_b)^2 / 2; h_b is at
-      most `first` of a ramp (ngspice: 0.1 of the gap to the next breakpoint and of the step
-      before, the ramp on either side of a corner), so |dx(t)| <= n_corners / T_s
-      (omega h_b)^2 / 2 int_0^t A_F(s) ds;
+    - corners: the first `orders1` steps after each breakpoint (Design.corners, every period; ngspice
+      one, VACASK two) are backward Euler, each shrinking the oscillation about the equilibrium by
+      (omega h_b)^2 / 2; h_b is at most `first` of a ramp (ngspice: 0.1 of the gap to the next
+      breakpoint and of the step before, the ramp on either side of a corner; VACASK: its ramp step
+      bound), so |dx(t)| <= orders1 n_corners / T_s (omega h_b)^2 / 2 int_0^t A_F(s) ds;
     - interp: the sample mid-feedback is interpolated linearly between time points at most
       tmax T_s apart, off by at most h^2 / 8 |x''|, x'' = (F_el - K x - D v) / m at the sample
       (the feedback plateau's force, constant over h: the ramps are 0.2 T_s away)."""
@@ -143,8 +150,98 @@ def mechanics_bound(
             reach = start + np.concatenate([[0.0], np.cumsum(piece)])
             drift = (w * h) ** 2 / 12 * w * reach.max() / peak
             h_b = first * max(d.t.edge, d.t.fb_ramp) * d.ts
-            corners = len(d.corners()) / d.ts * (w * h_b) ** 2 / 2 * reach.max() / peak
+            corners = orders1 * len(d.corners()) / d.ts * (w * h_b) ** 2 / 2 * reach.max() / peak
         accel = (force[:, i] - c.stiffness * q[:, i] - c.damping * v[:, i]) / c.mass
         interp = h**2 / 8 * np.abs(accel).max() / peak
         out[c.name] = {"gain": gain, "drift": float(drift), "corners": float(corners), "interp": float(interp)}
+    return out
+
+
+def impulse_bound(
+    model: MacroModel,
+    d: sd.Design,
+    clock: dict,
+    ref: np.ndarray,
+    gain: float,
+    sense_gain: float | None = None,
+    first: float = 0.1,
+    orders1: int = 1,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """z's error per period, as the second difference of |simulated - replayed| at the samples
+    t_n (mid-feedback), and the terms of its derived bound (arrays over n = 1 .. len(ref) - 2, m).
+
+    For x'' = a(t) the second difference is exact: x_n+1 - 2 x_n + x_n-1 = int a(t) L_n(t) dt, L_n
+    the hat (T_s - |t - t_n|)+, so an impulse error dJ inside a pulse moves it by at most
+    |dJ| / m max L_n over the pulse, and nothing outside (t_n-1, t_n+1) counts: the error is not
+    amplified by the free mass's double integration, as the samples themselves are. Terms:
+    - gain: each feedback and sense impulse of the electrostatic force on z (the plateau force of the
+      period's pattern, resp. the net pull of every electrode at V_s, at the replayed position)
+      integrated within `gain` (`sense_gain`, default `gain`) of itself; max L_n is T_s over the
+      sample's own feedback pulse, the
+      half-width w over its neighbours', T_s minus the gap to the sample over the sense phases of
+      periods n and n + 1;
+    - position: the trapezoidal rule on x' = v over a ramp of tau (steps <= tau between its corner
+      breakpoints) leaves sum h^3 / 12 |F'| / m <= |F| tau^2 / (6 m) (V^2 quadratic, |F'| <= 2 |F| / tau),
+      and each backward-Euler step after either corner (`orders1` of them, each <= `first` tau:
+      ngspice one, NGSPICE_FIRST; VACASK two, its ramp step bound) h^2 |F| / (2 m) more; a position
+      offset made inside (t_n-1, t_n+1) enters the second difference once: four feedback and four
+      sense ramps;
+    - interp: each sample is interpolated linearly between time points <= tmax T_s apart, off by
+      h^2 / 8 |x''| (x'' the plateau's acceleration, gravity included): 1 + 2 + 1 of that;
+    - coupling: the error's own force, sum_c max |dF_z / dq_c| max |e_c| over the window times
+      int L_n = T_s^2 (slopes by central differences at 1e-3 of each scale over the feedback
+      patterns and the sense voltages; e_c the run's largest error on c at the samples, which for
+      the modes, swinging several times a period, stands for the error's amplitude: the term is
+      about 1e-3 of the bound on the runs measured)."""
+    n, ts = len(ref), d.ts
+    units = np.array([c.port_units[1] for c in model.coordinates])
+    q = ref * units
+    sim = np.stack([np.asarray(clock[f"x_{c.name}"][:n]) for c in model.coordinates], axis=1) * units
+    e = sim - q
+    second = np.abs(e[2:, 0] - 2 * e[1:-1, 0] + e[:-2, 0])
+    volts = np.array(
+        [d.vfb * sd_loop.selected(d.electrodes, tuple(int(clock[f"bits_{c}"][k]) for c in d.names)) for k in range(n)]
+    )
+    f_fb = np.abs(model.electrostatic_force(q / model.scales, volts)[:, 0])
+    f_s = np.abs(model.electrostatic_force(q / model.scales, np.full((n, len(d.electrodes)), d.vs))[:, 0])
+    t, mass = d.t, model.coordinates[0].mass
+    sample = (t.fb_on + t.fb_off) / 2
+    w = (t.fb_off - t.fb_on + t.fb_ramp) / 2
+    j_fb = f_fb * d.duty * ts
+    j_s = f_s * sd.duty(t, t.sense_on, t.sense_off) * ts
+    own_sense = 1 - (sample - t.sense_off - t.edge / 2)  # max L_n / T_s over period n's sense phase
+    next_sense = 1 - (1 + t.sense_on - t.edge / 2 - sample)  # over period n + 1's
+    mid = slice(1, n - 1)
+    sense_gain = gain if sense_gain is None else sense_gain
+    gain_term = (
+        ts
+        / mass
+        * (
+            gain * (j_fb[mid] + w * (j_fb[:-2] + j_fb[2:]))
+            + sense_gain * (max(own_sense, 0.0) * j_s[mid] + max(next_sense, 0.0) * j_s[2:])
+        )
+    )
+    near_fb = np.maximum(np.maximum(f_fb[:-2], f_fb[1:-1]), f_fb[2:])
+    near_s = np.maximum(np.maximum(f_s[:-2], f_s[1:-1]), f_s[2:])
+    tau, tau_fb = t.edge * ts, max(t.fb_ramp, t.edge) * ts
+    ramp = (1 / 6 + 2 * orders1 * first**2 / 2) / mass  # the trapezoidal ramp, the steps after its corners
+    position = 4 * near_fb * tau_fb**2 * ramp + 4 * near_s * tau**2 * ramp
+    accel = np.abs(model.electrostatic_force(q / model.scales, volts)[:, 0] - d.mass * 9.81) / mass
+    interp = 4 * (d.tmax * ts) ** 2 / 8 * np.maximum(np.maximum(accel[:-2], accel[1:-1]), accel[2:])
+    slopes = _slopes(model, volts, d.vs)
+    reach = np.abs(e).max(axis=0)
+    coupling = np.full(n - 2, float(slopes @ reach) * ts**2 / mass)
+    return second, {"gain": gain_term, "position": position, "interp": interp, "coupling": coupling}
+
+
+def _slopes(model: MacroModel, volts: np.ndarray, vs: float) -> np.ndarray:
+    """max |dF_z / dq_c| (SI) over the feedback patterns in `volts` and the sense voltages, per c."""
+    patterns = np.unique(np.vstack([volts, np.full((1, volts.shape[1]), vs)]), axis=0)
+    out = np.zeros(model.ncoords)
+    for i, c in enumerate(model.coordinates):
+        step = np.zeros((1, model.ncoords))
+        step[0, i] = 1e-3
+        for v in patterns:
+            f = model.electrostatic_force(np.concatenate([step, -step]), np.array([v, v]))[:, 0]
+            out[i] = max(out[i], abs(f[0] - f[1]) / (2e-3 * c.scale))
     return out
