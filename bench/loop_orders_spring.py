@@ -1,5 +1,6 @@
-"""What separates the compiled 4th-order loop's z from the numpy reference's in
-tests/testbench/test_loop_orders.py (test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop):
+"""What separates the compiled 4th-order loop's z from the numpy reference's (the comparison
+tests/testbench/test_loop_orders.py's test_a_4th_order_loop_in_the_compiled_loop_tracks_the_numpy_loop
+made before it checked each period's momentum balance, tests/oracles/loop_orders.momentum_defect):
 the circuit's bits replayed through three mechanics, each sampled mid-feedback as the circuit is:
 - the reference (tests/oracles/sigma_delta_reference.positions: the period's mean electrostatic spring);
 - the same with the spring as it acts, piecewise in the period: K + the feedback plate's -2 F / g
