@@ -1,6 +1,7 @@
 """The squeeze film under a gap offset dg_<set> and a sealed cavity under temp (netgen.model.process.film_law,
 netgen.emit.process.film_factors), in every form, against the Reynolds/Veijola closed form (not the code's
-numbers): the .lib in ngspice 39 and 46, the .va through OSDI in ngspice 46 and in VACASK, the FMU.
+numbers): the .lib in ngspice 39 and 46, the _xspice.lib in ngspice 39, the .va through OSDI in ngspice 46
+and in VACASK, the FMU.
 
 The structure is tests/oracles/process_cases.py's GUIDED mass (200 um square, 5 um thick, on four
 clamped-guided beams) 2 um above one plate wider than it, damped by the incompressible squeeze film
@@ -25,6 +26,7 @@ The FMU's damping is read from its derivative (q'' at q = 0, q' = 1 m/s is -b / 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,6 +37,7 @@ from netgen.sim import fmu
 from netgen.sim.ngspice import run_control
 from netgen.sim.vacask import run_vacask
 from netgen.structure import StructureError, parse_structure
+from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
 from tests.oracles.fmu_process import MEAN_FREE_PATH, SUTHERLAND_AIR
 from tests.oracles.process_cases import guided
@@ -79,16 +82,16 @@ def bound(model, temp_c: float) -> float:
     return FIT + (model.process["temp"]["viscosity"]["max_rel_error"] if temp_c != T0_C else 0.0)
 
 
-def spice_deck(folder, lib: str, osdi: bool) -> str:
-    """One .ac of an instance per point (no bias: the film's damping alone), written to ac.raw."""
+def spice_deck(lib, pre: list[str]) -> str:
+    """One .ac of an instance per point (no bias: the film's damping alone), written to ac.raw; `pre`:
+    the .control lines loading a compiled form."""
     body = [
         line
         for i, (dg, t) in enumerate(POINTS)
         for line in (f"X{i} 0 0 f{i} x{i} cg dg_bot={dg!r} temp={t!r}", f"Vf{i} f{i} 0 DC 0 AC 1")
     ]
-    pre = [f"pre_osdi {folder / 'cg.osdi'}"] if osdi else []
     control = [".control", *pre, "set num_threads=1", f"ac lin 3 {FREQS[0]} {FREQS[-1]}", "write ac.raw", ".endc"]
-    return "\n".join(["* film under dg and temp", f".include {folder / lib}", *body, *control, ".end", ""])
+    return "\n".join(["* film under dg and temp", f".include {lib}", *body, *control, ".end", ""])
 
 
 def damping(f: np.ndarray, h: np.ndarray) -> float:
@@ -97,12 +100,18 @@ def damping(f: np.ndarray, h: np.ndarray) -> float:
     return float(np.mean((1.0 / h).imag / w))
 
 
-def spice_b(built, tmp_path, version: str, osdi: bool) -> list[float]:
-    """b per point from ngspice `version` (the .lib, or the _osdi.lib with the compiled module)."""
-    _, _, folder = built
+def spice_b(built, tmp_path, version: str, form: str) -> list[float]:
+    """b per point from ngspice `version` in `form`: the .lib, the _osdi.lib with the compiled module or
+    the _xspice.lib with the netgen_es code model (ngspice 39, where it is built)."""
+    _, model, folder = built
+    lib, pre = folder / "cg.lib", []
+    if form == "osdi":
+        lib, pre = folder / "cg_osdi.lib", [f"pre_osdi {folder / 'cg.osdi'}"]
+    if form == "xspice":
+        lib, pre = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("NETGEN_NGSPICE", NGSPICE[version])
-        ac = run_control(spice_deck(folder, "cg_osdi.lib" if osdi else "cg.lib", osdi), tmp_path, "circuit", "ac.raw")
+        ac = run_control(spice_deck(Path(lib).resolve(), list(pre)), tmp_path, "circuit", "ac.raw")
     f = np.real(ac["frequency"])
     return [damping(f, np.asarray(ac[f"v(x{i})"])) for i in range(len(POINTS))]
 
@@ -137,12 +146,17 @@ def check(built, got: list[float], label: str) -> None:
 @pytest.mark.parametrize("version", sorted(NGSPICE))
 def test_lib_film_follows_gap_and_cavity(built, tmp_path, version):
     """The .lib in ngspice 39 and 46."""
-    check(built, spice_b(built, tmp_path, version, osdi=False), f"ngspice {version} .lib")
+    check(built, spice_b(built, tmp_path, version, "lib"), f"ngspice {version} .lib")
+
+
+def test_xspice_film_follows_gap_and_cavity(built, tmp_path):
+    """The _xspice.lib (the netgen_es code model) in ngspice 39: the same .param lines as the .lib."""
+    check(built, spice_b(built, tmp_path, "39", "xspice"), "ngspice 39 _xspice.lib")
 
 
 def test_osdi_film_follows_gap_and_cavity(built, tmp_path):
     """The .va compiled by openvaf-r, through OSDI in ngspice 46."""
-    check(built, spice_b(built, tmp_path, "46", osdi=True), "ngspice 46 OSDI")
+    check(built, spice_b(built, tmp_path, "46", "osdi"), "ngspice 46 OSDI")
 
 
 def test_vacask_film_follows_gap_and_cavity(built, tmp_path):
