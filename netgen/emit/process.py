@@ -45,7 +45,7 @@ def active(model: MacroModel, kind: str) -> bool:
 
 
 def film_sets(model: MacroModel) -> list[dict]:
-    """The gap sets whose side's squeeze film follows their dg (netgen.model.process.film_law)."""
+    """The gap sets whose side's squeeze film follows their dg (netgen.model.process_film.film_law)."""
     return [g for g in model.process.get("gaps", []) if g.get("film")] if enabled(model) else []
 
 
@@ -56,7 +56,7 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     """(name, expression) of each film gap set's damping ratio pg_<set> = r^3 (1 + A pl^1.159) / (1 + A
     (pl r)^1.159), r = g / (g + dg_<set>), A = 9.638 Kn^1.159 at T0 (Reynolds' 12 mu_eff / g^3 with
     Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
-    process.path_ratio, rational in T) where temp is declared; [] without film sets."""
+    process_film.path_ratio, rational in T) where temp is declared; [] without film sets."""
     sets = film_sets(model)
     if not sets:
         return []
@@ -432,7 +432,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 
 
 def film_text(g: dict) -> str:
-    """The header's statement of what a gap offset does to the damping (netgen.model.process.film_law)."""
+    """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
     if not g.get("film"):
         return (
             "damping unchanged (no squeeze film of this set's own: given damping, a compressible or "

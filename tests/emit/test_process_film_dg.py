@@ -1,4 +1,4 @@
-"""The squeeze film under a gap offset dg_<set> and a sealed cavity under temp (netgen.model.process.film_law,
+"""The squeeze film under a gap offset dg_<set> and a sealed cavity under temp (netgen.model.process_film.film_law,
 netgen.emit.process.film_factors), in every form, against the Reynolds/Veijola closed form (not the code's
 numbers): the .lib in ngspice 39 and 46, the _xspice.lib in ngspice 39, the .va through OSDI in ngspice 46
 and in VACASK, the FMU.
@@ -25,7 +25,6 @@ The FMU's damping is read from its derivative (q'' at q = 0, q' = 1 m/s is -b / 
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +38,9 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import StructureError, parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.fmu_process import MEAN_FREE_PATH, SUTHERLAND_AIR
 from tests.oracles.process_cases import guided
+from tests.oracles.squeeze_film import GAP, T0, closed_form
 
-GAP, T0 = 2e-6, 300.0  # m, K (the [damping] default temperature)
 DG = 0.3 * GAP / 4  # the declared range's end: a quarter of the fit box (sampling range 0.3 of L = g)
 FREQS = (10e3, 30e3, 90e3)  # Hz around f0 = 50.8 kHz
 T0_C = T0 - 273.15
@@ -55,16 +53,6 @@ FIT = 2e-9  # two AC fits' round-off
 def process(cavity: str) -> str:
     """The [process] table: dg and temp, the cavity open (default) or sealed."""
     return '[process]\nparameters = ["dg", "temp"]\n' + (f'cavity = "{cavity}"\n' if cavity != "open" else "")
-
-
-def closed_form(dg: float, temp_c: float, sealed: bool) -> float:
-    """b(g0 + dg, T) / b(g0, T0) of the Reynolds film with Veijola's effective viscosity (module docstring)."""
-    t, g = temp_c + 273.15, GAP + dg
-    mu = (t / T0) ** 1.5 * (T0 + SUTHERLAND_AIR) / (t + SUTHERLAND_AIR)  # mu(T) / mu(T0)
-    pressure = t / T0 if sealed else 1.0  # p(T) / p0
-    path = MEAN_FREE_PATH * mu / pressure * math.sqrt(t / T0)  # lambda = (mu / p) sqrt(pi k T / 2 m)
-    kn, kn0 = path / g, MEAN_FREE_PATH / GAP
-    return mu * (GAP / g) ** 3 * (1.0 + 9.638 * kn0**1.159) / (1.0 + 9.638 * kn**1.159)
 
 
 @pytest.fixture(scope="module", params=["open", "sealed"])

@@ -35,8 +35,8 @@ VACASK: the same references at its op's default Newton tolerances with reltol 1e
 set in its options (the same bound).
 
 - b(dg) / b(0) = (g / (g + dg))^3 (1 + 9.638 Kn0^1.159) / (1 + 9.638 (Kn0 g / (g + dg))^1.159), the
-  Reynolds film's 12 mu_eff / g^3 at the moved gap (tests/emit/test_process_film_dg.closed_form, which
-  also checks the sealed cavity): rendered exactly, so within the two AC fits' 2e-9 (the film held at
+  Reynolds film's 12 mu_eff / g^3 at the moved gap (tests/oracles/squeeze_film.closed_form;
+  tests/emit/test_process_film_dg.py checks the sealed cavity too): rendered exactly, so within the two AC fits' 2e-9 (the film held at
   the drawn gap, 1.245 / 0.815 at these points, had missed by 24 % / 18 %).
 """
 
@@ -58,8 +58,8 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE
 from tests.oracles.fmu_process import viscosity_ratio
-from tests.emit.test_process_film_dg import closed_form as film_ratio
 from tests.oracles.process_cases import guided
+from tests.oracles.squeeze_film import closed_form as film_ratio
 
 E, W, T, L, RHO, SIDE, GAP = 160e9, 2e-6, 5e-6, 150e-6, 2330.0, 200e-6, 2e-6  # GUIDED (SI)
 TC, T0 = -60e-6, 300.0  # 1/K, K
