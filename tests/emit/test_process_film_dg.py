@@ -192,3 +192,14 @@ def test_bad_cavity_is_refused(extra, message):
     with pytest.raises(StructureError, match=message) as err:
         parse_structure(text, "cg.toml")
     assert "process.cavity" in str(err.value)
+
+
+def test_sealed_compressible_film_is_refused():
+    """cavity = "sealed" with the compressible film (the free disk of tests/mechanics/test_damping.py) is
+    refused: its branches' gas springs ~ p would follow T, which they do not model."""
+    from tests.mechanics.test_damping import COMPRESSIBLE, SMALL
+
+    text = SMALL + "[damping]\n" + COMPRESSIBLE + '[process]\nparameters = ["temp"]\ncavity = "sealed"\n'
+    with pytest.raises(StructureError, match="compressible film") as err:
+        parse_structure(text, "disk.toml")
+    assert "process.cavity" in str(err.value)
