@@ -203,3 +203,19 @@ def test_sealed_compressible_film_is_refused():
     with pytest.raises(StructureError, match="compressible film") as err:
         parse_structure(text, "disk.toml")
     assert "process.cavity" in str(err.value)
+
+
+def test_model_json_film_record_is_validated(built):
+    """The film record round-trips through the model JSON, and a non-number in it (it is written into
+    the netlists) is refused naming the key."""
+    import json
+
+    from netgen.core.errors import ModelError
+    from netgen.model import MacroModel
+
+    _, model, _ = built
+    d = json.loads(model.json_text())
+    assert MacroModel.from_dict(d).process["gaps"][0]["film"] == model.process["gaps"][0]["film"]
+    d["process"]["gaps"][0]["film"]["rarefaction"] = "0.19)*v(x"
+    with pytest.raises(ModelError, match=r"process.gaps\[0\].film.rarefaction"):
+        MacroModel.from_dict(d)
