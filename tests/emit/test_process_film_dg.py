@@ -32,6 +32,7 @@ import pytest
 
 from netgen import emit
 from netgen.build import build_model
+from netgen.emit import process as emit_process
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_control
 from netgen.sim.vacask import run_vacask
@@ -219,3 +220,25 @@ def test_model_json_film_record_is_validated(built):
     d["process"]["gaps"][0]["film"]["rarefaction"] = "0.19)*v(x"
     with pytest.raises(ModelError, match=r"process.gaps\[0\].film.rarefaction"):
         MacroModel.from_dict(d)
+
+
+def test_lib_film_without_temp(tmp_path):
+    """dg alone (no temp: the mean free path's ratio pl is left out of pg_<set>): the .lib in ngspice 46
+    at dg = -DG, 0, DG against the closed form at T0 within the two AC fits' 2e-9."""
+    text = guided(process='[process]\nparameters = ["dg"]\n').replace(
+        "rayleigh = { alpha = 2000 }", "squeeze_film = true"
+    )
+    model = build_model(parse_structure(text, "cg.toml"))
+    emit.write_outputs(model, tmp_path, "ngspice")
+    assert "pl" not in [n for n, _ in emit_process.factors(model)]
+    gaps = (-DG, 0.0, DG)
+    body = [f"X{i} 0 0 f{i} x{i} cg dg_bot={dg!r}\nVf{i} f{i} 0 DC 0 AC 1" for i, dg in enumerate(gaps)]
+    control = [".control", "set num_threads=1", f"ac lin 3 {FREQS[0]} {FREQS[-1]}", "write ac.raw", ".endc"]
+    deck = "\n".join(["* film under dg", f".include {tmp_path / 'cg.lib'}", *body, *control, ".end", ""])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+        ac = run_control(deck, tmp_path, "circuit", "ac.raw")
+    f = np.real(ac["frequency"])
+    b = [damping(f, np.asarray(ac[f"v(x{i})"])) for i in range(len(gaps))]
+    for dg, got in zip(gaps, b):
+        assert got / b[1] == pytest.approx(closed_form(dg, T0_C, False), rel=FIT)
