@@ -144,9 +144,9 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
 
 def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
     """The gap sets' squeeze-film laws (netgen.emit.process.film_factors): per film set its dg's value
-    reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A and per coordinate its share
-    FILM_SHARE; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none)."""
-    sets = process.film_sets(model)
+    reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A, per coordinate its share
+    FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none)."""
+    sets, n = process.film_sets(model), model.ncoords
     visc = (model.process.get("temp") or {}).get("viscosity") or {} if sets and process.declared(model, "temp") else {}
     path = [float(visc.get("cavity") == "sealed"), visc["sutherland_K"], visc["t0_K"]] if visc else [0.0, 0.0, 1.0]
     return [
@@ -154,6 +154,8 @@ def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
         array("double", "FILM_GAP", [g["film"]["gap_m"] for g in sets]),
         array("double", "FILM_A", [g["film"]["rarefaction"] for g in sets]),
         array("double", "FILM_SHARE", [g["film"]["share"] for g in sets]),
+        array("int", "FILM_FIT", [int("fit" in g["film"]) for g in sets]),  # 1: a perforated film's cubics
+        array("double", "FILM_POLY", [(g["film"].get("fit") or {}).get("coeffs", [IDENTITY] * n) for g in sets]),
         array("double", "PATH_LAW", path),
     ]
 

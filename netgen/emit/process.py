@@ -69,7 +69,7 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
             ("pl", f"{r}{'' if visc['cavity'] == 'sealed' else '*' + r}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})")
         )
         pl = "pl*"
-    for g in sets:
+    for g in (g for g in sets if "fit" not in g["film"]):  # a perforated film's cubic is inline (film_share)
         f, rg = g["film"], f"rg_{g['set']}"
         a = num(f["rarefaction"])
         out.append((rg, f"{num(f['gap_m'])}/({num(f['gap_m'])} + dg_{g['set']})"))
@@ -81,12 +81,19 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
 def film_share(model: MacroModel, v: int) -> str:
     """The text multiplying coordinate v's squeeze-film damping for the gap sets' films: 1 + sum of
     share (pg_<set> - 1) (pg_<set> alone for a share of 1); "" where no film set moves it."""
-    terms = [(g["set"], g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
+    terms = [(film_pg(g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
     if not terms:
         return ""
     if len(terms) == 1 and terms[0][1] == 1.0:
-        return f"*pg_{terms[0][0]}"
-    return "*(1 + " + " + ".join(f"{num(w)}*(pg_{n} - 1)" for n, w in terms) + ")"
+        return f"*{terms[0][0]}"
+    return "*(1 + " + " + ".join(f"{num(w)}*({pg} - 1)" for pg, w in terms) + ")"
+
+
+def film_pg(g: dict, v: int) -> str:
+    """The text of gap set g's film ratio for coordinate v: pg_<set> (film_factors), or a perforated
+    film's cubic in 1e6 dg_<set> (netgen.model.process_film.perforated_fit)."""
+    fit = g["film"].get("fit")
+    return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") if fit else f"pg_{g['set']}"
 
 
 def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
@@ -435,10 +442,16 @@ def film_text(g: dict) -> str:
     """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
     if not g.get("film"):
         return (
-            "damping unchanged (no squeeze film of this set's own: given damping, a compressible or "
-            "perforated film, or a side several sets share)"
+            "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, "
+            "or a side several sets share)"
         )
     f = g["film"]
+    if f.get("fit"):
+        return (
+            "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
+            f"per coordinate from the film re-run at the moved gap, within {f['fit']['max_rel_error']:.1e} "
+            "(at the nominal thickness and etch, the mean free path at T0)"
+        )
     return (
         f"its side's squeeze-film damping times pg_{g['set']} = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), "
         f"g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} at T0 (exact)"

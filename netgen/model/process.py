@@ -190,7 +190,7 @@ def process_laws(
             "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
         },
         "coordinates": per,
-        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r) for r in sets],
+        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max) for r in sets],
     }
     if p.wants("etch"):
         # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too

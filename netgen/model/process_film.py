@@ -5,6 +5,8 @@ emitters (netgen.emit.process) only render them."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..core.constants import GASES
@@ -84,16 +86,17 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     }
 
 
-def film_law(s: Structure, m: Mechanics, gap_set: dict) -> dict:
+def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0) -> dict:
     """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
     dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
     of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
     (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
-    solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). {} where
-    that does not hold: no film, the compressible film (its poles merge the sides), a perforated mass
-    (its holes' leak ~ 1 / g^3 is not a factor), or more sets on the side (the film has one gap)."""
-    d, holes = s.damping, float(getattr(s.conductor, "hole", 0.0))
-    if not (d and d.squeeze_film) or d.film_model == "compressible" or holes > 0.0:
+    solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
+    perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
+    coordinate (perforated_fit). {} where no law holds: no film, the compressible film (its poles
+    merge the sides) or more sets on the side (the film has one gap)."""
+    d = s.damping
+    if not (d and d.squeeze_film) or d.film_model == "compressible":
         return {}
     side = next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
     facing = {e.name for e in s.electrode_sets if getattr(e, "side", None) == side}
@@ -102,7 +105,40 @@ def film_law(s: Structure, m: Mechanics, gap_set: dict) -> dict:
     film = squeeze_film_damping(s, m)
     row, total = film["sides"][side], film["diagonal"]
     share = [float(b / t) if t > 0 else 0.0 for b, t in zip(row["diagonal"], total)]
-    return {"film": {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}}
+    out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}
+    if float(getattr(s.conductor, "hole", 0.0)) > 0.0 and dg_max > 0.0:
+        out["fit"] = perforated_fit(s, m, side, dg_max, np.asarray(row["diagonal"]))
+    return {"film": out}
+
+
+FIT_SPAN = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the dg points (of dg_max) the perforated film's cubic is fitted at
+CHECK_SPAN = (-0.75, -0.25, 0.25, 0.75)  # and checked at, between them
+
+
+def perforated_fit(s: Structure, m: Mechanics, side: str, dg_max: float, nominal: np.ndarray) -> dict:
+    """The side's film damping ratio b(g + dg) / b(g) per coordinate of a perforated mass (the Reynolds
+    solve with its holes' leak, netgen.mechanics.squeeze_film.perforation_leak, re-run with the side's
+    electrodes moved by dg) as cubics in dg / 1 um, 1 at 0; the stated error the largest misfit at
+    FIT_SPAN and CHECK_SPAN. At the nominal thickness and etch, the mean free path at T0."""
+
+    def ratio(dg: float) -> np.ndarray:
+        sets = tuple(
+            dataclasses.replace(e, gap=e.gap + dg) if getattr(e, "side", None) == side else e for e in s.electrode_sets
+        )
+        moved = squeeze_film_damping(dataclasses.replace(s, electrode_sets=sets), m)["sides"][side]
+        return np.asarray(moved["diagonal"]) / np.where(nominal > 0, nominal, 1.0)
+
+    u = np.array([f * dg_max * 1e6 for f in FIT_SPAN])
+    values = np.array([ratio(f * dg_max) if f else np.ones_like(nominal) for f in FIT_SPAN])
+    powers = np.vander(u, 4, increasing=True)[:, 1:]
+    coef = np.linalg.lstsq(powers, values - 1.0, rcond=None)[0]
+    coeffs = np.vstack([np.ones((1, len(nominal))), coef]).T  # per coordinate c0 = 1, c1..c3
+    err = 0.0
+    for f in FIT_SPAN + CHECK_SPAN:
+        x = f * dg_max * 1e6
+        law = coeffs @ np.array([1.0, x, x * x, x**3])
+        err = max(err, float(np.max(np.abs(law / ratio(f * dg_max) - 1.0)))) if f else err
+    return {"variable": "dg / 1 um", "coeffs": [[float(c) for c in row] for row in coeffs], "max_rel_error": err}
 
 
 def kelvin(temp_c: float) -> float:
@@ -121,7 +157,10 @@ def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
     out = 1.0
     for g in law["gaps"]:
         f = g.get("film")
-        if f:
+        if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit)
+            x = dg.get(g["set"], 0.0) * 1e6
+            out += f["share"][v] * (float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3])) - 1.0)
+        elif f:
             r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
             pg = r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159)
             out += f["share"][v] * (pg - 1.0)

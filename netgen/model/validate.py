@@ -156,6 +156,19 @@ def check_film(c: Checker, film: Any, where: str, ncoords: int, visc: dict) -> N
         c.fail(f"{where}.share", f"must list one number per coordinate ({ncoords})")
     for k, x in enumerate(share):
         c.number(f"{where}.share[{k}]", x)
+    fit = film.get("fit")
+    if fit is not None:  # a perforated film's cubics (netgen.model.process_film.perforated_fit)
+        rows = fit.get("coeffs") if isinstance(fit, dict) else None
+        if (
+            not isinstance(rows, list)
+            or len(rows) != ncoords
+            or any(not isinstance(r, list) or len(r) != 4 for r in rows)
+        ):
+            c.fail(f"{where}.fit.coeffs", f"must list 4 numbers per coordinate ({ncoords})")
+        for v, r in enumerate(rows):
+            for k, x in enumerate(r):
+                c.number(f"{where}.fit.coeffs[{v}][{k}]", x)
+        c.number(f"{where}.fit.max_rel_error", fit.get("max_rel_error"))
     if visc:
         c.choice("process.temp.viscosity.cavity", visc.get("cavity"), ("open", "sealed"))
         c.number("process.temp.viscosity.sutherland_K", visc.get("sutherland_K"))
