@@ -122,3 +122,38 @@ def test_perforated_law_in_the_fmu(perforated_built):
         inst.close()
         rerun, _ = damping(moved(s, dg), m)
         assert got == pytest.approx(rerun[0], rel=errs + 1e-12)
+
+
+def test_perforated_law_in_the_lib(perforated_built, tmp_path):
+    """The .lib (its inline cubics in 1e6 dg_<set>) in ngspice 46: b of z from one .ac (1/H = k - m w^2 + i w b,
+    a unit force on f_z, the other ports grounded) at the same points over b at dg 0 against the re-runs'
+    ratio, within the stated error plus the two AC fits' 2e-9."""
+    from netgen.emit import ngspice as emit_ngspice
+    from netgen.sim.ngspice import run_control
+    from tests.fixtures import NGSPICE
+
+    s, model, m = perforated_built
+    lib = tmp_path / "px.lib"
+    lib.write_text(emit_ngspice.subcircuit(model))
+    head = lib.read_text().split(".subckt ")[1].split("params:")[0].replace("\n+", " ").split()
+    points = [{}, {"zs": 0.075e-6, "zt": -0.025e-6}, {"zs": -0.075e-6, "zt": 0.025e-6}]
+    lines = []
+    for i, dg in enumerate(points):
+        nodes = [
+            f"fz{i}" if p == "f_z" else f"xz{i}" if p == "x_z" else f"n{i}_{p}" if p.startswith("x_") else "0"
+            for p in head[1:]
+        ]
+        args = " ".join(f"dg_{k}={v!r}" for k, v in dg.items())
+        lines += [f"X{i} {' '.join(nodes)} {head[0]} {args}", f"Vf{i} fz{i} 0 DC 0 AC 1"]
+    control = [".control", "set num_threads=1", "ac lin 3 1k 3k", "write ac.raw", ".endc"]
+    deck = "\n".join(["* perforated film under dg", f".include {lib}", *lines, *control, ".end", ""])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+        ac = run_control(deck, tmp_path, "circuit", "ac.raw")
+    w = 2 * np.pi * np.real(ac["frequency"])
+    b = [float(np.mean((1.0 / np.asarray(ac[f"v(xz{i})"])).imag / w)) for i in range(len(points))]
+    errs = max(g["film"]["fit"]["max_rel_error"] for g in model.process["gaps"])
+    for dg, got in zip(points[1:], b[1:]):
+        want = damping(moved(s, dg), m)[0][0] / damping(s, m)[0][0]
+        print(f"z: .lib b / b0 {got / b[0]:.9f}, re-runs {want:.9f}")
+        assert got / b[0] == pytest.approx(want, rel=errs + 2e-9)
