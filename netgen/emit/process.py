@@ -63,11 +63,9 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     out, pl = [], ""
     visc = model.process["temp"].get("viscosity") or {}
     if declared(model, "temp") and visc:
-        t0, s_k = visc["t0_K"], visc["sutherland_K"]
-        r = f"(({temp} + {num(KELVIN)})/{num(t0)})"
-        out.append(
-            ("pl", f"{r}{'' if visc['cavity'] == 'sealed' else '*' + r}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})")
-        )
+        r, t0, s_k = f"(({temp} + {num(KELVIN)})/{num(visc['t0_K'])})", visc["t0_K"], visc["sutherland_K"]
+        sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
+        out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
         pl = "pl*"
     for g in (g for g in sets if "fit" not in g["film"]):  # a perforated film's cubic is inline (film_share)
         f, rg = g["film"], f"rg_{g['set']}"
@@ -90,8 +88,7 @@ def film_share(model: MacroModel, v: int) -> str:
 
 
 def film_pg(g: dict, v: int) -> str:
-    """The text of gap set g's film ratio for coordinate v: pg_<set> (film_factors), or a perforated
-    film's cubic in 1e6 dg_<set> (netgen.model.process_film.perforated_fit)."""
+    """Gap set g's film ratio for coordinate v: pg_<set>, or a perforated film's cubic in 1e6 dg_<set>."""
     fit = g["film"].get("fit")
     return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") if fit else f"pg_{g['set']}"
 
@@ -440,12 +437,8 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 
 def film_text(g: dict) -> str:
     """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
-    if not g.get("film"):
-        return (
-            "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, "
-            "or a side several sets share)"
-        )
-    f = g["film"]
+    if not (f := g.get("film")):
+        return "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, or a side several sets share)"
     if f.get("fit"):
         return (
             "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
