@@ -57,7 +57,7 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     (pl r)^1.159), r = g / (g + dg_<set>), A = 9.638 Kn^1.159 at T0 (Reynolds' 12 mu_eff / g^3 with
     Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
     process_film.path_ratio, rational in T) where temp is declared; [] without film sets."""
-    sets = film_sets(model)
+    sets = [g for g in film_sets(model) if "fit" not in g["film"]]  # a perforated film's cubic: film_pg
     if not sets:
         return []
     out, pl = [], ""
@@ -67,7 +67,7 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
         sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
         out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
         pl = "pl*"
-    for g in (g for g in sets if "fit" not in g["film"]):  # a perforated film's cubic is inline (film_share)
+    for g in sets:
         f, rg = g["film"], f"rg_{g['set']}"
         a = num(f["rarefaction"])
         out.append((rg, f"{num(f['gap_m'])}/({num(f['gap_m'])} + dg_{g['set']})"))
