@@ -115,7 +115,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "ELEC_ETCH", etch_shifts(model)),
         array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
     ]
-    data += load_arrays(model, array)
+    data += load_arrays(model, array) + film_arrays(model, vr, array)
     data += [array("double", "KNOTS", knots)] if knots else []  # the etch laws' torsion knots (etch / 1 um)
 
     def ref(name: str) -> int:
@@ -135,10 +135,29 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "T0_C": f"({num(p.get('temperature_C', 0.0))})",  # parenthesized: a negative value in any expression
         "MODULUS_TC": f"({num(p.get('modulus_tc_per_K', 0.0))})",
         "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
+        "NFILM": len(process.film_sets(model)),
     }
     if knots:  # only then: the runtime's text without knots is unchanged
         defines["NKNOT"] = len(knots)
     return data, defines, names
+
+
+def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
+    """The gap sets' squeeze-film laws (netgen.emit.process.film_factors): per film set its dg's value
+    reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A, per coordinate its share
+    FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none)."""
+    sets, n = process.film_sets(model), model.ncoords
+    visc = (model.process.get("temp") or {}).get("viscosity") or {} if sets and process.declared(model, "temp") else {}
+    path = [float(visc.get("cavity") == "sealed"), visc["sutherland_K"], visc["t0_K"]] if visc else [0.0, 0.0, 1.0]
+    return [
+        array("int", "FILM_VR", [vr[f"dg_{g['set']}"] for g in sets]),
+        array("double", "FILM_GAP", [g["film"]["gap_m"] for g in sets]),
+        array("double", "FILM_A", [g["film"]["rarefaction"] for g in sets]),
+        array("double", "FILM_SHARE", [g["film"]["share"] for g in sets]),
+        array("int", "FILM_FIT", [int("fit" in g["film"]) for g in sets]),  # 1: a perforated film's cubics
+        array("double", "FILM_POLY", [(g["film"].get("fit") or {}).get("coeffs", [IDENTITY] * n) for g in sets]),
+        array("double", "PATH_LAW", path),
+    ]
 
 
 def etch_shifts(model: MacroModel) -> list[float]:

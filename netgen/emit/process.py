@@ -38,8 +38,59 @@ MOVES = {
 
 
 def active(model: MacroModel, kind: str) -> bool:
-    """Some declared parameter moves the ratio `kind` (MOVES; tscale itself for the inertial gain)."""
-    return any(declared(model, n) for n in MOVES.get(kind, (kind,)))
+    """Some declared parameter moves the ratio `kind` (MOVES; tscale itself for the inertial gain; a
+    gap set's squeeze film the damping, film_sets)."""
+    film = kind in ("pd", "pt") and bool(film_sets(model))
+    return film or any(declared(model, n) for n in MOVES.get(kind, (kind,)))
+
+
+def film_sets(model: MacroModel) -> list[dict]:
+    """The gap sets whose side's squeeze film follows their dg (netgen.model.process_film.film_law)."""
+    return [g for g in model.process.get("gaps", []) if g.get("film")] if enabled(model) else []
+
+
+VEIJOLA_POWER = 1.159  # mu_eff = mu / (1 + 9.638 Kn^1.159) (netgen.mechanics.squeeze_film)
+
+
+def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
+    """(name, expression) of each film gap set's damping ratio pg_<set> = r^3 (1 + A pl^1.159) / (1 + A
+    (pl r)^1.159), r = g / (g + dg_<set>), A = 9.638 Kn^1.159 at T0 (Reynolds' 12 mu_eff / g^3 with
+    Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
+    process_film.path_ratio, rational in T) where temp is declared; [] without film sets."""
+    sets = [g for g in film_sets(model) if "fit" not in g["film"]]  # a perforated film's cubic: film_pg
+    if not sets:
+        return []
+    out, pl = [], ""
+    visc = model.process["temp"].get("viscosity") or {}
+    if declared(model, "temp") and visc:
+        r, t0, s_k = f"(({temp} + {num(KELVIN)})/{num(visc['t0_K'])})", visc["t0_K"], visc["sutherland_K"]
+        sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
+        out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
+        pl = "pl*"
+    for g in sets:
+        f, rg = g["film"], f"rg_{g['set']}"
+        a = num(f["rarefaction"])
+        out.append((rg, f"{num(f['gap_m'])}/({num(f['gap_m'])} + dg_{g['set']})"))
+        top = f"(1 + {a}*pow(pl, {VEIJOLA_POWER}))" if pl else num(1.0 + f["rarefaction"])
+        out.append((f"pg_{g['set']}", f"{rg}*{rg}*{rg}*{top}/(1 + {a}*pow({pl}{rg}, {VEIJOLA_POWER}))"))
+    return out
+
+
+def film_share(model: MacroModel, v: int) -> str:
+    """The text multiplying coordinate v's squeeze-film damping for the gap sets' films: 1 + sum of
+    share (pg_<set> - 1) (pg_<set> alone for a share of 1); "" where no film set moves it."""
+    terms = [(film_pg(g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
+    if not terms:
+        return ""
+    if len(terms) == 1 and terms[0][1] == 1.0:
+        return f"*{terms[0][0]}"
+    return "*(1 + " + " + ".join(f"{num(w)}*({pg} - 1)" for pg, w in terms) + ")"
+
+
+def film_pg(g: dict, v: int) -> str:
+    """Gap set g's film ratio for coordinate v: pg_<set>, or a perforated film's cubic in 1e6 dg_<set>."""
+    fit = g["film"].get("fit")
+    return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") if fit else f"pg_{g['set']}"
 
 
 def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
@@ -77,13 +128,14 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     visc = p["temp"].get("viscosity") or {}
     if active(model, "pd"):
         out.append(("pv", poly(visc["coeffs"], f"(({temp} - {num(p['temperature_C'])})/100)") if visc else "1"))
+    out += film_factors(model, temp)
     if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
         u = p["strain_energy"]
         out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
     t0 = p["temperature_C"] + KELVIN
     out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
     out += knot_params(model)
-    for c, law in zip(model.coordinates, p["coordinates"]):
+    for v, (c, law) in enumerate(zip(model.coordinates, p["coordinates"])):
         if active(model, "pm"):
             out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
         if c.stiffness and active(model, "pk"):
@@ -91,7 +143,7 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
             out.append((f"pk_{c.name}", f"{stiff}/{num(c.stiffness)}"))
         if c.damping and active(model, "pd"):
             damp = join(
-                [part(model, law, "d_rest", tscale), f"pv*{part(model, law, 'd_film', tscale)}"],
+                [part(model, law, "d_rest", tscale), f"pv*{part(model, law, 'd_film', tscale)}{film_share(model, v)}"],
                 [law["d_rest"], law["d_film"]],
             )
             out.append((f"pd_{c.name}", f"{damp}/{num(c.damping)}"))
@@ -340,6 +392,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         visc = p["temp"].get("viscosity")
         text += (
             f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
+            + (", sealed cavity (p ~ T)" if visc.get("cavity") == "sealed" else ", fixed pressure")
             if visc
             else ""
         )
@@ -373,12 +426,28 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
     for g in p["gaps"] if gaps else []:
         parts.append(
             f"dg_{g['set']} (m) = gap increase of electrode set {g['set']}, exact as a shift of z, "
-            f"valid |dg| <= {g['max_m']:.3g} (the fit's box moves by dg)"
+            f"valid |dg| <= {g['max_m']:.3g} (the fit's box moves by dg); " + film_text(g)
         )
     return (
         "Process parameters (netgen/model/process.py, declared in [process]): "
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
+    )
+
+
+def film_text(g: dict) -> str:
+    """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
+    if not (f := g.get("film")):
+        return "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, or a side several sets share)"
+    if f.get("fit"):
+        return (
+            "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
+            f"per coordinate from the film re-run at the moved gap, within {f['fit']['max_rel_error']:.1e} "
+            "(at the nominal thickness and etch, the mean free path at T0)"
+        )
+    return (
+        f"its side's squeeze-film damping times pg_{g['set']} = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), "
+        f"g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} at T0 (exact)"
     )
 
 

@@ -78,12 +78,14 @@ def squeeze_film_damping(s: Structure, m: Mechanics) -> dict:
     total, sides = np.zeros((len(m.names), len(m.names))), {}
     for side, gap in sorted(gaps.items()):
         mu = sf.effective_viscosity(gas, d.pressure, gap)
-        total += 12.0 * mu / gap**3 * reynolds[gap]
+        side_b = 12.0 * mu / gap**3 * reynolds[gap]
+        total += side_b
         sigma = [sf.squeeze_number(mu, 2 * np.pi * f, radius, d.pressure, gap) for f in m.frequencies]
         sides[side] = {
             "gap_m": gap,
             "knudsen": sf.knudsen(gas, d.pressure, gap),
             "mu_eff_Pa_s": mu,
+            "diagonal": [float(v) for v in np.diag(side_b)],  # this side's part (incompressible)
             "squeeze_number_at_f0": [float(v) for v in sigma],
             "compressible_at_f0": _compressible_at_f0(mesh, m, gap, mu, d.pressure)
             if c.outline_shape == "disk"

@@ -17,12 +17,14 @@ once so that emitters only render them.
 - temp in the damping: the squeeze-film part of the damping times mu_eff(T) / mu_eff(T0), with
   Sutherland's law mu ~ T^1.5 / (T + S) and the mean free path ~ mu sqrt(T) / p in Veijola's
   rarefaction mu / (1 + 9.638 Kn^1.159) (netgen.mechanics.squeeze_film), as a polynomial in
-  (T - T0) / 100 K fitted on the declared temp_range; and k_B T in the thermal noise.
+  (T - T0) / 100 K fitted on the declared temp_range, the gas in an open or a sealed cavity; and k_B T
+  in the thermal noise (netgen.model.process_film).
 - dg_<set>: moving a plate electrode set (side above or below) away by dg is, exactly, moving the
   conductor by -dg along z towards the other side (for any tilt and any plate mode: both add to the
   rigid translation), so each of the set's capacitance terms reads xs_z - sign dg / L_z, whatever its
   fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
-  |xs_z - sign dg / L_z| <= range).
+  |xs_z - sign dg / L_z| <= range). The squeeze film of the side a set alone faces follows it exactly,
+  times mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) (netgen.model.process_film.film_law).
 - etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
@@ -38,22 +40,16 @@ from typing import Any
 
 import numpy as np
 
-from ..core.constants import GASES
 from ..mechanics import Mechanics
-from ..mechanics import squeeze_film as sf
 from ..mechanics.damping import damping as damping_of
 from ..structure import Structure
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
+from .process_film import GAP_SIDES, KELVIN, film_law, film_ratio, temperature_law
+from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
-KELVIN = 273.15
-VISCOSITY_DEGREE = 4
-# Sutherland constants S (K): White, Viscous Fluid Flow (3rd ed.), table 1-2 (air 111, N2 107,
-# Ar 144); helium 79.4 K (Sutherland-law fits of Chapman and Cowling's data)
-SUTHERLAND = {"air": 111.0, "nitrogen": 107.0, "argon": 144.0, "helium": 79.4}
-GAP_SIDES = {"above": 1.0, "below": -1.0}  # +z towards the electrode
 ROUND_OFF = 1e-12  # a law's residual below this is the re-runs' round-off: stated as 0 (exact)
 
 
@@ -68,17 +64,6 @@ def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
     if flex is not None and flex.thickness:
         changes["flexure"] = dataclasses.replace(flex, thickness=flex.thickness * tscale)
     return dataclasses.replace(s, conductor=dataclasses.replace(c, **changes))
-
-
-def viscosity_ratio(gas: str, pressure: float, gap: float, t0: float, t: np.ndarray) -> np.ndarray:
-    """mu_eff(T) / mu_eff(T0) of the rarefied gas film (T, T0 in K): Sutherland's mu(T), the mean
-    free path scaling as mu sqrt(T) at fixed pressure, Veijola's effective viscosity."""
-    g, s_k = GASES[gas], SUTHERLAND[gas]
-    t = np.asarray(t, dtype=float)
-    mu = (t / t0) ** 1.5 * (t0 + s_k) / (t + s_k)
-    kn0 = sf.knudsen(g, pressure, gap)
-    kn = kn0 * mu * np.sqrt(t / t0)
-    return mu * (1.0 + 9.638 * kn0**1.159) / (1.0 + 9.638 * kn**1.159)
 
 
 def fit_points(p: Process) -> tuple[float, ...]:
@@ -154,41 +139,6 @@ def damping_parts(s: Structure, m: Mechanics, film: bool) -> tuple[np.ndarray, n
     return rest, total
 
 
-def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
-    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K, exactly 1 at T0 (and
-    its misfit); {} without a squeeze film. T0 = the structure's damping temperature."""
-    d = s.damping
-    t0 = d.temperature if d else 300.0
-    if not (d and d.squeeze_film):
-        return {}
-    # the film's gap: to a dielectric layer's surface (netgen.mechanics.damping.squeeze_film_damping)
-    gaps = [
-        e.gap - getattr(e, "dielectric_thickness", 0.0)
-        for e in s.electrode_sets
-        if getattr(e, "side", None) in GAP_SIDES
-    ]
-    gap = min(gaps)
-    lo, hi = (v + KELVIN for v in temp_range_c)
-    t = np.linspace(lo, hi, 67)
-    u = (t - t0) / 100.0
-    ratio = viscosity_ratio(d.gas, d.pressure, gap, t0, t)
-    # 1 at T0 exactly (the default temp gives the model's own damping, as every law at its nominal
-    # point): least squares of ratio - 1 on u .. u^4; a free constant put 1 + 8e-7 there
-    powers = np.vander(u, VISCOSITY_DEGREE + 1, increasing=True)[:, 1:]
-    coef = np.concatenate([[1.0], np.linalg.lstsq(powers, ratio - 1.0, rcond=None)[0]])
-    fine = np.linspace(lo, hi, 661)
-    misfit = np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / viscosity_ratio(
-        d.gas, d.pressure, gap, t0, fine
-    )
-    return {
-        "law": f"Sutherland (S = {SUTHERLAND[d.gas]:g} K) with Veijola's rarefaction at gap {gap:.4g} m",
-        "gas": d.gas,
-        "coeffs": [float(c) for c in coef],
-        "variable": "(T - T0) / 100 K",
-        "max_rel_error": float(np.max(np.abs(misfit - 1.0))),
-    }
-
-
 def gap_sets(s: Structure, names: list[str], electrodes) -> tuple[list[dict], str]:
     """The electrode sets a gap offset applies to exactly (plates above/below with coordinate z),
     each {"set", "electrodes", "sign"}; and the reason when there are none."""
@@ -240,7 +190,7 @@ def process_laws(
             "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
         },
         "coordinates": per,
-        "gaps": [dict(r, max_m=dg_max) for r in sets],
+        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max) for r in sets],
     }
     if p.wants("etch"):
         # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too
@@ -502,21 +452,22 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
     return out
 
 
-def kelvin(temp_c: float) -> float:
-    """degC -> K."""
-    return temp_c + KELVIN
-
-
 def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
     """e = escale (1 + tc (T - T0)): the factor on the modulus part of the stiffness."""
     return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
 
 
 def coordinate_values(
-    law: dict, v: int, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None, etch: float = 0.0
+    law: dict,
+    v: int,
+    tscale: float = 1.0,
+    escale: float = 1.0,
+    temp_c: float | None = None,
+    etch: float = 0.0,
+    dg: dict[str, float] | None = None,
 ):
-    """(mass, stiffness, damping) of coordinate v at the process point, from the laws (the same
-    arithmetic the emitters render)."""
+    """(mass, stiffness, damping) of coordinate v at the process point (`dg`: set -> gap offset, m),
+    from the laws (the same arithmetic the emitters render)."""
     temp_c = law["temperature_C"] if temp_c is None else temp_c
     c = law["coordinates"][v]
     knots = tuple((law.get("etch") or {}).get("knots", ()))
@@ -527,7 +478,7 @@ def coordinate_values(
         if visc
         else 1.0
     )
-    damp = d_rest + ratio * d_film
+    damp = d_rest + ratio * d_film * film_ratio(law, v, temp_c, dg or {})
     return mass, modulus_factor(law, escale, temp_c) * a + b, damp
 
 

@@ -143,6 +143,38 @@ def check_names(c: Checker, d: dict) -> None:
         c.fail("contact", "must be an object")
 
 
+def check_film(c: Checker, film: Any, where: str, ncoords: int, visc: dict) -> None:
+    """A gap set's squeeze-film law (netgen.model.process_film.film_law), whose numbers the emitters
+    write: gap and rarefaction finite numbers, one share per coordinate; with temp's viscosity law its
+    cavity and the mean free path's constants (netgen.emit.process.film_factors)."""
+    if not isinstance(film, dict):
+        c.fail(where, "must be an object")
+    c.number(f"{where}.gap_m", film.get("gap_m"))
+    c.number(f"{where}.rarefaction", film.get("rarefaction"))
+    share = film.get("share")
+    if not isinstance(share, list) or len(share) != ncoords:
+        c.fail(f"{where}.share", f"must list one number per coordinate ({ncoords})")
+    for k, x in enumerate(share):
+        c.number(f"{where}.share[{k}]", x)
+    fit = film.get("fit")
+    if fit is not None:  # a perforated film's cubics (netgen.model.process_film.perforated_fit)
+        rows = fit.get("coeffs") if isinstance(fit, dict) else None
+        if (
+            not isinstance(rows, list)
+            or len(rows) != ncoords
+            or any(not isinstance(r, list) or len(r) != 4 for r in rows)
+        ):
+            c.fail(f"{where}.fit.coeffs", f"must list 4 numbers per coordinate ({ncoords})")
+        for v, r in enumerate(rows):
+            for k, x in enumerate(r):
+                c.number(f"{where}.fit.coeffs[{v}][{k}]", x)
+        c.number(f"{where}.fit.max_rel_error", fit.get("max_rel_error"))
+    if visc:
+        c.choice("process.temp.viscosity.cavity", visc.get("cavity"), ("open", "sealed"))
+        c.number("process.temp.viscosity.sutherland_K", visc.get("sutherland_K"))
+        c.number("process.temp.viscosity.t0_K", visc.get("t0_K"))
+
+
 def check_policy(c: Checker, model: str, plate: str, electrodes: list[str]) -> None:
     """The name policy (netgen.core.names): a model name no dialect or run file reserves, a plate
     that is not ground, electrode names no dialect reserves, all distinct case-insensitively."""
@@ -358,6 +390,8 @@ def check_process(
         if g.get("sign") not in (1.0, -1.0):
             c.fail(f"process.gaps[{i}].sign", "must be 1 or -1")
         c.number(f"process.gaps[{i}].max_m", g.get("max_m"))
+        if "film" in g:
+            check_film(c, g["film"], f"process.gaps[{i}].film", ncoords, visc if "temp" in params else {})
         for e in g.get("electrodes", []):
             if e not in names:
                 c.fail(f"process.gaps[{i}].electrodes", f"{e!r} is not an electrode of the model")

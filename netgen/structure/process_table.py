@@ -10,7 +10,8 @@ from ..core.reader import Reader, check_keys, quantity, table
 from ..core.units import UnitError, parse_quantity
 from .schema import ALL_PROCESS_PARAMETERS, PROCESS_PARAMETERS, Process
 
-KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc", "etch_range"]
+KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc", "etch_range", "cavity"]
+CAVITIES = ("open", "sealed")  # the film's gas under temp: fixed pressure, or a fixed amount (p ~ T)
 ETCH_LIMIT = 5e-6  # m: the widest lateral etch bias per edge read (the flexure widths bound it further)
 ETCH_TYPES = ("folded", "crab_leg", "clamped_guided")  # flexures with beam widths the etch narrows
 # the widest ranges the laws are offered for: thickness and modulus factors around 1, the die
@@ -37,7 +38,22 @@ def read_process(rd: Reader, doc: dict) -> Process | None:
         lambda v: None if abs(v) < 1e-3 else "is not a modulus temperature coefficient (|tc| < 1e-3 per K)",
         "d ln E / dT in 1/K (silicon -60e-6)",
     )
-    return Process(params, ranges["tscale"], ranges["escale"], ranges["temp"], tc, read_etch_range(rd, t, params))
+    etch = read_etch_range(rd, t, params)
+    return Process(params, ranges["tscale"], ranges["escale"], ranges["temp"], tc, etch, read_cavity(rd, t, params))
+
+
+def read_cavity(rd: Reader, t: dict, params: tuple[str, ...]) -> str:
+    """process.cavity: "open" (the film's gas at a fixed pressure as temp moves, the default) or
+    "sealed" (a fixed amount of gas: p = p0 T / T0); only with temp declared."""
+    where, fix = "process.cavity", 'write cavity = "open" (fixed pressure) or "sealed" (fixed gas amount, p ~ T)'
+    if "cavity" not in t:
+        return Process.cavity
+    if "temp" not in params:
+        raise rd.fail(where, "cavity is given but 'temp' is not in process.parameters", "add 'temp' or drop cavity")
+    value = t["cavity"]
+    if value not in CAVITIES:
+        raise rd.fail(where, f"cavity must be one of {list(CAVITIES)}, got {value!r}", fix)
+    return value
 
 
 def read_parameters(rd: Reader, t: dict) -> tuple[str, ...]:
@@ -135,12 +151,20 @@ def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
 
 
 def check_process(
-    rd: Reader, p: Process | None, names: list[str], sets: tuple, imported: bool, t0_c: float, conductor: Any = None
+    rd: Reader,
+    p: Process | None,
+    names: list[str],
+    sets: tuple,
+    imported: bool,
+    t0_c: float,
+    conductor: Any = None,
+    film_model: str = "incompressible",
 ) -> None:
     """The declared parameters against the structure: dg needs a coordinate z and a plate set
     above/below (the offset is a shift of z); tscale refuses comb fingers (their capacitance grows
     with the thickness, not modelled); tscale, escale and temp need mechanics netgen can re-run;
-    temp's range contains the structure's own temperature (the laws' nominal point)."""
+    temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
+    has the incompressible film (the compressible film's gas spring ~ p would follow T too)."""
     if p is None:
         return
     where = "process.parameters"
@@ -165,6 +189,12 @@ def check_process(
         )
     if p.wants("etch"):
         check_etch(rd, p, conductor, sets)
+    if p.cavity == "sealed" and film_model == "compressible":
+        raise rd.fail(
+            "process.cavity",
+            "a sealed cavity with the compressible film: its branches' gas springs (~ p) would follow T, not modelled",
+            'drop cavity (an open cavity) or use [damping] film_model = "incompressible"',
+        )
     if p.wants("temp") and not p.temp_range[0] <= t0_c <= p.temp_range[1]:
         raise rd.fail(
             "process.temp_range",

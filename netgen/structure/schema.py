@@ -214,6 +214,7 @@ class Process:
     temp_range: tuple[float, float] = (-40.0, 125.0)  # die temperature, degC
     modulus_tc: float = -60e-6  # 1/K, d ln E / dT of the device layer (silicon about -60 ppm/K)
     etch_range: tuple[float, float] = (-1e-7, 1e-7)  # m, lateral over-etch per edge (flexure widths w - 2 etch)
+    cavity: str = "open"  # the squeeze film's gas under temp: "open" (fixed pressure) or "sealed" (fixed amount, p ~ T)
 
     def wants(self, name: str) -> bool:
         """The parameter `name` is declared."""

@@ -1,0 +1,167 @@
+"""The squeeze film's laws of the process parameters (netgen.model.process): its viscosity ratio under
+temp (Sutherland, the mean free path in an open or a sealed cavity, Veijola's rarefaction) and its gap
+law under dg_<set> (Reynolds' 12 mu_eff / g^3 at the moved gap), derived here once so that the
+emitters (netgen.emit.process) only render them."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..core.constants import GASES
+from ..mechanics import Mechanics
+from ..mechanics import squeeze_film as sf
+from ..mechanics.damping import squeeze_film_damping
+from ..structure import Structure
+
+KELVIN = 273.15
+VISCOSITY_DEGREE = 4
+# Sutherland constants S (K): White, Viscous Fluid Flow (3rd ed.), table 1-2 (air 111, N2 107,
+# Ar 144); helium 79.4 K (Sutherland-law fits of Chapman and Cowling's data)
+SUTHERLAND = {"air": 111.0, "nitrogen": 107.0, "argon": 144.0, "helium": 79.4}
+GAP_SIDES = {"above": 1.0, "below": -1.0}  # +z towards the electrode
+
+
+def viscosity_ratio(
+    gas: str, pressure: float, gap: float, t0: float, t: np.ndarray, sealed: bool = False
+) -> np.ndarray:
+    """mu_eff(T) / mu_eff(T0) of the rarefied gas film (T, T0 in K): Sutherland's mu(T), the mean
+    free path mu sqrt(T) / p (path_ratio: p fixed, or p ~ T in a sealed cavity), Veijola's effective
+    viscosity."""
+    s_k = SUTHERLAND[gas]
+    t = np.asarray(t, dtype=float)
+    mu = (t / t0) ** 1.5 * (t0 + s_k) / (t + s_k)
+    kn0 = sf.knudsen(GASES[gas], pressure, gap)
+    kn = kn0 * path_ratio(s_k, t0, t, sealed)
+    return mu * (1.0 + 9.638 * kn0**1.159) / (1.0 + 9.638 * kn**1.159)
+
+
+def path_ratio(s_k: float, t0: float, t: np.ndarray | float, sealed: bool = False) -> np.ndarray:
+    """lambda(T) / lambda(T0) of the mean free path lambda = (mu / p) sqrt(pi k T / 2 m) with
+    Sutherland's mu: (T / T0)^2 (T0 + S) / (T + S) at fixed pressure; in a sealed cavity (p = p0 T /
+    T0, a fixed number density) (T / T0) (T0 + S) / (T + S), the collision cross-section's growth
+    (1 + S / T) that Sutherland's law stands for (a hard-sphere gas, S = 0, would keep it constant)."""
+    r = np.asarray(t, dtype=float) / t0
+    return (r if sealed else r * r) * (t0 + s_k) / (r * t0 + s_k)
+
+
+def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
+    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K, exactly 1 at T0 (and
+    its misfit); {} without a squeeze film. T0 = the structure's damping temperature."""
+    d = s.damping
+    t0 = d.temperature if d else 300.0
+    if not (d and d.squeeze_film):
+        return {}
+    # the film's gap: to a dielectric layer's surface (netgen.mechanics.damping.squeeze_film_damping)
+    gaps = [
+        e.gap - getattr(e, "dielectric_thickness", 0.0)
+        for e in s.electrode_sets
+        if getattr(e, "side", None) in GAP_SIDES
+    ]
+    gap = min(gaps)
+    lo, hi = (v + KELVIN for v in temp_range_c)
+    t = np.linspace(lo, hi, 67)
+    u = (t - t0) / 100.0
+    sealed = s.process is not None and s.process.cavity == "sealed"
+    ratio = viscosity_ratio(d.gas, d.pressure, gap, t0, t, sealed)
+    # 1 at T0 exactly (the default temp gives the model's own damping, as every law at its nominal
+    # point): least squares of ratio - 1 on u .. u^4; a free constant put 1 + 8e-7 there
+    powers = np.vander(u, VISCOSITY_DEGREE + 1, increasing=True)[:, 1:]
+    coef = np.concatenate([[1.0], np.linalg.lstsq(powers, ratio - 1.0, rcond=None)[0]])
+    fine = np.linspace(lo, hi, 661)
+    misfit = np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / viscosity_ratio(
+        d.gas, d.pressure, gap, t0, fine, sealed
+    )
+    cavity = "sealed cavity, p ~ T" if sealed else "fixed pressure"
+    return {
+        "law": f"Sutherland (S = {SUTHERLAND[d.gas]:g} K) with Veijola's rarefaction at gap {gap:.4g} m, {cavity}",
+        "gas": d.gas,
+        "cavity": "sealed" if sealed else "open",
+        "sutherland_K": SUTHERLAND[d.gas],
+        "t0_K": t0,
+        "coeffs": [float(c) for c in coef],
+        "variable": "(T - T0) / 100 K",
+        "max_rel_error": float(np.max(np.abs(misfit - 1.0))),
+    }
+
+
+def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0) -> dict:
+    """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
+    dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
+    of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
+    (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
+    solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
+    perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
+    coordinate (perforated_fit). {} where no law holds: no film, the compressible film (its poles
+    merge the sides) or more sets on the side (the film has one gap)."""
+    d = s.damping
+    if not (d and d.squeeze_film) or d.film_model == "compressible":
+        return {}
+    side = next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
+    facing = {e.name for e in s.electrode_sets if getattr(e, "side", None) == side}
+    if facing != {gap_set["set"]}:
+        return {}
+    film = squeeze_film_damping(s, m)
+    row, total = film["sides"][side], film["diagonal"]
+    share = [float(b / t) if t > 0 else 0.0 for b, t in zip(row["diagonal"], total)]
+    out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}
+    if float(getattr(s.conductor, "hole", 0.0)) > 0.0 and dg_max > 0.0:
+        out["fit"] = perforated_fit(s, m, side, dg_max, np.asarray(row["diagonal"]))
+    return {"film": out}
+
+
+FIT_SPAN = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the dg points (of dg_max) the perforated film's cubic is fitted at
+CHECK_SPAN = (-0.75, -0.25, 0.25, 0.75)  # and checked at, between them
+
+
+def perforated_fit(s: Structure, m: Mechanics, side: str, dg_max: float, nominal: np.ndarray) -> dict:
+    """The side's film damping ratio b(g + dg) / b(g) per coordinate of a perforated mass (the Reynolds
+    solve with its holes' leak, netgen.mechanics.squeeze_film.perforation_leak, re-run with the side's
+    electrodes moved by dg) as cubics in dg / 1 um, 1 at 0; the stated error the largest misfit at
+    FIT_SPAN and CHECK_SPAN. At the nominal thickness and etch, the mean free path at T0."""
+
+    def ratio(dg: float) -> np.ndarray:
+        sets = tuple(
+            dataclasses.replace(e, gap=e.gap + dg) if getattr(e, "side", None) == side else e for e in s.electrode_sets
+        )
+        moved = squeeze_film_damping(dataclasses.replace(s, electrode_sets=sets), m)["sides"][side]
+        return np.asarray(moved["diagonal"]) / np.where(nominal > 0, nominal, 1.0)
+
+    u = np.array([f * dg_max * 1e6 for f in FIT_SPAN])
+    values = np.array([ratio(f * dg_max) if f else np.ones_like(nominal) for f in FIT_SPAN])
+    powers = np.vander(u, 4, increasing=True)[:, 1:]
+    coef = np.linalg.lstsq(powers, values - 1.0, rcond=None)[0]
+    coeffs = np.vstack([np.ones((1, len(nominal))), coef]).T  # per coordinate c0 = 1, c1..c3
+    err = 0.0
+    for f in FIT_SPAN + CHECK_SPAN:
+        x = f * dg_max * 1e6
+        law = coeffs @ np.array([1.0, x, x * x, x**3])
+        err = max(err, float(np.max(np.abs(law / ratio(f * dg_max) - 1.0)))) if f else err
+    return {"variable": "dg / 1 um", "coeffs": [[float(c) for c in row] for row in coeffs], "max_rel_error": err}
+
+
+def kelvin(temp_c: float) -> float:
+    """degC -> K."""
+    return temp_c + KELVIN
+
+
+def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
+    """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m):
+    1 + sum share (pg - 1), pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) with the mean free path
+    at temp (film_law; netgen.emit.process.film_factors renders the same)."""
+    visc = law["temp"].get("viscosity") or {}
+    pl = 1.0
+    if visc and "temp" in law["parameters"]:
+        pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
+    out = 1.0
+    for g in law["gaps"]:
+        f = g.get("film")
+        if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit)
+            x = dg.get(g["set"], 0.0) * 1e6
+            out += f["share"][v] * (float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3])) - 1.0)
+        elif f:
+            r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
+            pg = r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159)
+            out += f["share"][v] * (pg - 1.0)
+    return out
