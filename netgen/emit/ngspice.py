@@ -27,6 +27,7 @@ from .common import (
     poly_expr,
     rest_capacitance,
     time_scale,
+    unit_load,
     y_node,
 )
 
@@ -254,7 +255,7 @@ def affine(poly: Polynomial) -> bool:
 def linear_network(name: str, poly: Polynomial, state: list[str]) -> list[str]:
     """Node `name` = affine P(xs) from linear elements: 1 ohm to ground fed by a constant current and
     one VCCS per coordinate (no parse trees to evaluate)."""
-    lines = [f"R{name} {name} 0 1"]
+    lines = [unit_load(name)]
     for e, c in zip(poly.exponents, poly.coeffs):
         if c == 0.0:
             continue
@@ -330,7 +331,7 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
     c0 = rest_capacitance(f, len(state))
     cs = c_node(e)
-    sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + [
+    sums = [unit_load(cs), f"I{cs} {cs} 0 {num(c0)}"] + [
         f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))
     ]
     return {

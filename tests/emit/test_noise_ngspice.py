@@ -11,20 +11,25 @@ checked, not only the default temperature.
   (exact SI k_B): a linear model, so ngspice's .noise is a linear solve of a few O(1) nodes per
   frequency (round-off ~1e-15) and the raw file's doubles; 1e-9 also sees the 3.5e-7 by which
   ngspice's own CODATA-2014 Boltzmann constant would put it low (netgen.emit.ngspice.noise_resistance);
-- noise=0 gives exactly zero output noise;
+- biased (3 V, 82 % of the pull-in voltage), the input-referred noise at the force port f_z (1 V =
+  1 force unit) against the flat 4 k_B T b / unit^2: ngspice divides the output PSD by the gain of
+  the same solve, so the operating point cancels and the bound is that round-off again, 1e-9; the
+  capacitance networks' 1 ohm resistors (netgen.emit.common.unit_load) were noisy and added 2.7e-6;
+- noise=0 gives exactly zero output noise, biased or not (nothing else in the .lib is noisy);
 - in .tran the resistor carries no current: its two nodes stay equal (a node with one resistor and
   a VCCS's control input: KCL makes the current zero, Newton's linear solve leaves round-off).
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.core.constants import K_B
+from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
@@ -78,9 +83,23 @@ def test_noise_psd_against_closed_form(lib, tmp_path, ngspice_version):
     np.testing.assert_allclose(got, ref, rtol=ROUND_OFF, atol=0)
 
 
-@pytest.mark.parametrize("volts", [0.0])
+def test_input_referred_noise_under_bias(lib, tmp_path, ngspice_version):
+    """At 3 V the force noise referred to f_z is 4 k_B T b / unit^2 at every frequency (docstring),
+    although the electrostatic spring has moved the resonance."""
+    path, model, kelvin = lib
+    c = model.coordinates[0]
+    pull_in = math.sqrt(8 * c.stiffness * 2e-6**3 / (27 * EPS0 * model.electrodes[0].area))
+    assert 3.0 < 0.9 * pull_in  # a stable operating point
+    spec = noise_run(path, tmp_path, 3.0, 1)
+    got = spec["inoise_spectrum"] ** 2 * c.port_units[3] ** 2  # V^2/Hz at f_z -> N^2/Hz
+    dev = np.max(np.abs(got / (4 * K_B * kelvin * ALPHA * c.mass) - 1))
+    print(f"{kelvin:g} K, 3 V: input-referred PSD / 4 k_B T b - 1 at most {dev:.2g}")
+    np.testing.assert_allclose(got, 4 * K_B * kelvin * ALPHA * c.mass, rtol=ROUND_OFF, atol=0)
+
+
+@pytest.mark.parametrize("volts", [0.0, 3.0])
 def test_noise_off_is_silent(lib, tmp_path, ngspice_version, volts):
-    """noise=0 on the instance: no output noise at all (Rn_z noisy={noise})."""
+    """noise=0 on the instance: no output noise at all (Rn_z noisy={noise}, every other resistor noisy=0)."""
     path, _, _ = lib
     spec = noise_run(path, tmp_path, volts, 0)
     assert np.all(spec["onoise_spectrum"] == 0.0)
