@@ -71,6 +71,12 @@ def c_node(electrode: str) -> str:
     return f"c_{electrode}"
 
 
+def unit_load(n: str) -> str:
+    """The 1 ohm to ground that makes node n the sum of the currents fed into it, noiseless (noisy=0): its
+    thermal noise is no physics of the device, and .noise would report it (through the forces under bias)."""
+    return f"R{n} {n} 0 1 noisy=0"
+
+
 def rest_capacitance(f, ncoords: int) -> float:
     """C_i(0) / c_ref = sum_k 1/P_k(0) of a plate fit (at rest no term is clamped)."""
     zero = np.zeros((1, ncoords))

@@ -27,6 +27,7 @@ from .common import (
     poly_expr,
     rest_capacitance,
     time_scale,
+    unit_load,
     y_node,
 )
 
@@ -94,7 +95,8 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float | str) -> 
 
 
 def noise_context(model: MacroModel, ws: float) -> dict:
-    """Template fields of the thermal force noise sources (damped coordinates only)."""
+    """Template fields of the thermal force noise sources (damped coordinates only): a TRNOISE source
+    for .tran and, in series, the resistor Rn_<q> whose thermal noise .noise sees (noise_resistance)."""
     temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
     f_max = max(
         [c.frequency_hz for c in model.coordinates]
@@ -108,12 +110,8 @@ def noise_context(model: MacroModel, ws: float) -> dict:
             "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3])
             + (f"*sqrt(pt_{c.name})" if process.active(model, "pt") else ""),
             "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws)),
+            "rn": process.factor(model, "pd", c.name, num(noise_resistance(c.damping, c.port_units[3]))),
         }
-        | (
-            {"rn": process.factor(model, "pd", c.name, num(noise_resistance(c.damping, c.port_units[3])))}
-            if process.enabled(model)
-            else {}
-        )
         for c in model.coordinates
         if c.damping > 0
     ]
@@ -126,8 +124,8 @@ def noise_context(model: MacroModel, ws: float) -> dict:
     }
 
 
-# ngspice's default circuit temperature (degC): a .noise resistor's (with [process]) noise temperature
-# is it plus dtemp; the resistor form of 4 k_B T D assumes that .temp (ngspice 39 ignores a resistor's temp=)
+# ngspice's default circuit temperature (degC): a .noise resistor's noise temperature is it plus dtemp;
+# the resistor form of 4 k_B T D assumes that .temp (ngspice 39 ignores a resistor's temp=)
 NGSPICE_TEMP_C = 27.0
 # ngspice's Boltzmann constant (CONSTboltz in its const.h: CODATA 2014, 1.38064852e-23 J/K, in 39 and
 # 46 alike): a resistor's noise PSD is 4 CONSTboltz T R, 3.5e-7 below 4 K_B T R with the exact SI K_B
@@ -257,7 +255,7 @@ def affine(poly: Polynomial) -> bool:
 def linear_network(name: str, poly: Polynomial, state: list[str]) -> list[str]:
     """Node `name` = affine P(xs) from linear elements: 1 ohm to ground fed by a constant current and
     one VCCS per coordinate (no parse trees to evaluate)."""
-    lines = [f"R{name} {name} 0 1"]
+    lines = [unit_load(name)]
     for e, c in zip(poly.exponents, poly.coeffs):
         if c == 0.0:
             continue
@@ -333,7 +331,7 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     # node c_i = sum_k g_k - C_i(0)/c_ref as a linear network, so the charge expression has 3 variables
     c0 = rest_capacitance(f, len(state))
     cs = c_node(e)
-    sums = [f"R{cs} {cs} 0 1", f"I{cs} {cs} 0 {num(c0)}"] + [
+    sums = [unit_load(cs), f"I{cs} {cs} 0 {num(c0)}"] + [
         f"G{cs}_{k + 1} 0 {cs} {g_node(e, k)} 0 1" for k in range(len(f.polys))
     ]
     return {
@@ -390,15 +388,9 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                     {
                         "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
                         "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
+                        "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
+                        "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                     }
-                    | (
-                        {
-                            "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
-                            "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
-                        }
-                        if process.enabled(model)
-                        else {}
-                    )
                 )
             rows.append(row)
     return rows

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..model import MacroModel
 from ..model.process_loads import IDENTITY
-from .common import num
+from .common import num, unit_load
 
 KELVIN = 273.15
 
@@ -192,7 +192,7 @@ def etch_networks(model: MacroModel) -> list[str]:
     VCCS and a parameter current source, linear."""
     lines = []
     for n, q, k in etch_columns(model):
-        lines += [f"R{n} {n} 0 1", f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
+        lines += [unit_load(n), f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
     return lines
 
 
@@ -356,7 +356,7 @@ def gap_networks(model: MacroModel, every: bool = False) -> list[str]:
             continue
         n = f"xg_{g['set']}"
         lines += [
-            f"R{n} {n} 0 1",
+            unit_load(n),
             f"G{n} 0 {n} xs_z 0 1",
             f"I{n} 0 {n} {{{num(-g['sign'] / scale)}*dg_{g['set']}}}",
         ]

@@ -11,7 +11,7 @@ import numpy as np
 from ..core.templating import render
 from ..model import MacroModel
 from . import ngspice, process
-from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale
+from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale, unit_load
 
 # ------------------------------------------------------------------ the XSPICE code model form
 #
@@ -45,7 +45,7 @@ def fit_rows(model: MacroModel, f) -> dict:
     c0 = rest_capacitance(f, model.ncoords)
     cs, e = c_node(f.electrode), f.electrode
     return {
-        "sums": [f"R{cs} {cs} 0 1"],
+        "sums": [unit_load(cs)],
         "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
         "charge": ngspice.charge_node(e, f"v({cs})", model.plate, process.charge_scale(model, e, num(f.c_ref))),
     }

@@ -408,6 +408,31 @@ def test_compressible_film_noise_equipartition(film_model, tmp_path):
     assert abs(ratio.mean() - 1) < 4 * sigma
 
 
+def test_compressible_film_noise_psd(film_model, tmp_path, ngspice_version):
+    """The film's thermal noise in .noise (each branch's resistor Rn_w_<q>_<j> in series with its
+    TRNOISE source, without a [process] table): the displacement PSD of mode 2,0c from 10 kHz to 1 MHz
+    against the fluctuation-dissipation PSD 4 k_B T Re B / |k - m w^2 + i w B|^2 of the model's own
+    B(w) (fdt_psd, no sampling: .noise is white), within 1e-9: a linear solve of a few O(1) nodes per
+    frequency and the raw file's doubles (round-off ~1e-15); the resistors' CODATA-2014 k_B would be
+    3.5e-7 off, a missing branch damper 0.4 at 1 MHz, a noisy integrator resistor Rw_ 2.7e-2. With
+    noise=0 on the instance the output noise is exactly zero."""
+    mode = film_model.coordinates[1]
+    lib = tmp_path / "film_noise.lib"
+    lib.write_text(subcircuit(film_model, noise=True))
+    bench = Bench(film_model, lib, sources={"plate": "0", "f_m2_0c": "DC 0 AC 1"})
+    spectra = []
+    for noise in (1, 0):
+        net = bench.netlist(".noise v(x_m2_0c) Vf_m2_0c dec 20 10k 1meg")
+        net = net.replace(f" {film_model.name}\nV", f" {film_model.name} noise={noise}\nV", 1)
+        plots = run_ngspice(net, tmp_path)
+        spectra.append(next(p for p in plots if "onoise_spectrum" in p.vectors))
+    f = np.real(spectra[0]["frequency"])
+    got = np.real(spectra[0]["onoise_spectrum"]) ** 2 * mode.port_units[1] ** 2  # V^2/Hz -> m^2/Hz
+    print(f"film .noise PSD / FDT - 1 at most {np.max(np.abs(got / fdt_psd(mode, f, 0.0) - 1)):.2g}")
+    np.testing.assert_allclose(got, fdt_psd(mode, f, 0.0), rtol=1e-9, atol=0)
+    assert np.all(np.real(spectra[1]["onoise_spectrum"]) == 0.0)
+
+
 def noise_dt(lib_text: str) -> str:
     """The noise sample interval the emitter chose (subcircuit parameter noise_dt)."""
     import re
