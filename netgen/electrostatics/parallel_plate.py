@@ -19,8 +19,8 @@ is D [(g_loc - t_d) / eps_m + t_d / eps_r] / eps0 and both terms use the effecti
 g_eff - s w, g_eff = g - t_d + t_d eps_m / eps_r (eps_m: the gap medium's relative permittivity,
 Electrode.field_gap).  The fringe term takes the same effective gap (an approximation: the layer
 is thin against the plate) and adds the layer's edge step (layer_step): to first order in t_d a
-coat on a conductor is the conductor's surface moved out by D = t_d (1 - eps_m / eps_r) (the
-field at a conductor is normal to it), so a layered electrode's edge is a step of height D, whose
+coat on a conductor is the conductor's surface moved out by h_s = t_d (1 - eps_m / eps_r) (the
+field at a conductor is normal to it), so a layered electrode's edge is a step of height h_s, whose
 extra fringe is Wheeler's thickness correction on the antisymmetric half-problem (layer_step).
 min_gap() and the probe points measure the AIR gap g - t_d - s w
 (Electrode.stop_gap): the plate touches the layer's surface, not the electrode.
@@ -93,20 +93,20 @@ class EdgeFringe:
 
 def layer_step(step: Array, g: Array) -> Array:
     """Extra fringe per unit edge length (in units of eps) of an electrode edge raised by `step`
-    (a layer's D = t_d (1 - eps_m / eps_r)) at the effective gap g: (D / (4 pi g)) (1 + ln(g / D)).
+    (a layer's h_s = t_d (1 - eps_m / eps_r)) at the effective gap g: (h_s / (4 pi g)) (1 + ln(g / h_s)).
 
     Two aligned sheets at +-V/2 have the mid-plane as an equipotential, so each edge is a strip
     edge at g / 2 over a ground plane; Wheeler's thickness correction (Wheeler 1977, IEEE
     Trans. MTT-25, 631: a wide strip of thickness t at height h widens by (t / pi)(1 + ln(2 h / t)),
-    half per edge) with h = g / 2 raises that half's capacitance per edge by eps (D / (pi g))
-    (1 + ln(g / D)), and the series pair's by a quarter of it (dC = dC_half (C / C_half)^2, C_half = 2 C).
+    half per edge) with h = g / 2 raises that half's capacitance per edge by eps (h_s / (pi g))
+    (1 + ln(g / h_s)), and the series pair's by a quarter of it (dC = dC_half (C / C_half)^2, C_half = 2 C).
     """
     safe = np.where(step > 0.0, step, 1.0)
     return np.where(step > 0.0, step / (4.0 * math.pi * g) * (1.0 + np.log(g / safe)), 0.0)
 
 
 def layer_step_slope(step: Array, g: Array) -> Array:
-    """d/dg of layer_step: -D ln(g / D) / (4 pi g^2), for the force term."""
+    """d/dg of layer_step: -h_s ln(g / h_s) / (4 pi g^2), for the force term."""
     safe = np.where(step > 0.0, step, 1.0)
     return np.where(step > 0.0, -step * np.log(g / safe) / (4.0 * math.pi * g**2), 0.0)
 
@@ -213,7 +213,7 @@ class PreparedParallelPlate:
         self.eps = eps
         self.fringe = fringe if edge.gap.size else None
         self.perforation = perforation
-        # each edge point's layer step D = g - g_eff (layer_step; None: no layer, or off)
+        # each edge point's layer step h_s = g - g_eff (layer_step; None: no layer, or off)
         steps = [e.gap - e.field_gap(eps / EPS0) for e in self.electrodes]
         sizes = [sl.stop - sl.start for sl in edge.slices]
         self.step = np.repeat(steps, sizes) if step and any(steps) and edge.gap.size else None
