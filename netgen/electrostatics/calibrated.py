@@ -133,6 +133,7 @@ class CalibratedExtractor:
             order=self.base.order,
             edge_order=self.base.edge_order,
             perforation=self.base.perforation,
+            layer_step=self.base.layer_step,
         ).prepare(electrodes, plate, basis)
 
     def coupling(self, electrodes: Sequence[Electrode], plate: Plate) -> Array:

@@ -120,17 +120,24 @@ def terms(
 ) -> tuple[Array, Array, Array]:
     """The three parts of the analytic capacitance at the points q, each (npts, nel) in F:
     eps int F dA/g (no fringe; F: a perforated plate's fill factor, 1 when solid), eps int ds (a = 1,
-    b = 0 minus that), eps int ln(L/g) ds (a = 0, b = 1)."""
+    b = 0 minus that), eps int ln(L/g) ds (a = 0, b = 1). A layered electrode's edge step
+    (parallel_plate.layer_step) is known, not fitted: it goes with the first part."""
     length = (base.fringe.length if base.fringe is not None else None) or plate.size
 
-    def part(fringe):
+    def part(fringe, step=False):
         ext = ParallelPlateExtractor(
-            eps=base.eps, fringe=fringe, order=base.order, edge_order=base.edge_order, perforation=base.perforation
+            eps=base.eps,
+            fringe=fringe,
+            order=base.order,
+            edge_order=base.edge_order,
+            perforation=base.perforation,
+            layer_step=step,
         )
         return ext.prepare(electrodes, plate, basis).capacitance(q)
 
     area = part(None)
-    return area, part(EdgeFringe(1.0, 0.0, length)) - area, part(EdgeFringe(0.0, 1.0, length)) - area
+    stepped = part(EdgeFringe(0.0, 0.0, length), base.layer_step)
+    return stepped, part(EdgeFringe(1.0, 0.0, length)) - area, part(EdgeFringe(0.0, 1.0, length)) - area
 
 
 def fit_fringe(area: Array, edge: Array, log: Array, c: Array, diffs: list, b_default: float) -> tuple[float, float]:
@@ -186,7 +193,12 @@ def calibrate(
     cc = electrode_couplings(m)
     mean, spread = cc.mean(axis=0), cc.std(axis=0)
     calibrated = ParallelPlateExtractor(
-        eps=base.eps, fringes=fringes, order=base.order, edge_order=base.edge_order, perforation=base.perforation
+        eps=base.eps,
+        fringes=fringes,
+        order=base.order,
+        edge_order=base.edge_order,
+        perforation=base.perforation,
+        layer_step=base.layer_step,
     )
     prepared = [e.prepare(electrodes, plate, basis) for e in (base, calibrated)]
     report = comparison([p.capacitance(q) for p in prepared], c, diffs, [e.name for e in electrodes], mean)

@@ -18,7 +18,11 @@ capacitor in series with the air gap: D is continuous across the layer, so the p
 is D [(g_loc - t_d) / eps_m + t_d / eps_r] / eps0 and both terms use the effective gap
 g_eff - s w, g_eff = g - t_d + t_d eps_m / eps_r (eps_m: the gap medium's relative permittivity,
 Electrode.field_gap).  The fringe term takes the same effective gap (an approximation: the layer
-is thin against the plate).  min_gap() and the probe points measure the AIR gap g - t_d - s w
+is thin against the plate) and adds the layer's edge step (layer_step): to first order in t_d a
+coat on a conductor is the conductor's surface moved out by h_s = t_d (1 - eps_m / eps_r) (the
+field at a conductor is normal to it), so a layered electrode's edge is a step of height h_s, whose
+extra fringe is Wheeler's thickness correction on the antisymmetric half-problem (layer_step).
+min_gap() and the probe points measure the AIR gap g - t_d - s w
 (Electrode.stop_gap): the plate touches the layer's surface, not the electrode.
 A perforated plate (a proof mass's etch-hole grid) scales the plate term by its effective fill
 factor at the local gap, eps F(g_loc) / g_loc (netgen.electrostatics.perforation: hole, pitch and the
@@ -85,6 +89,26 @@ class EdgeFringe:
     def derivative(self, g: ArrayLike) -> Array:
         """df/dg = -b/g, for the analytic force term."""
         return -self.b / np.asarray(g, dtype=float)
+
+
+def layer_step(step: Array, g: Array) -> Array:
+    """Extra fringe per unit edge length (in units of eps) of an electrode edge raised by `step`
+    (a layer's h_s = t_d (1 - eps_m / eps_r)) at the effective gap g: (h_s / (4 pi g)) (1 + ln(g / h_s)).
+
+    Two aligned sheets at +-V/2 have the mid-plane as an equipotential, so each edge is a strip
+    edge at g / 2 over a ground plane; Wheeler's thickness correction (Wheeler 1977, IEEE
+    Trans. MTT-25, 631: a wide strip of thickness t at height h widens by (t / pi)(1 + ln(2 h / t)),
+    half per edge) with h = g / 2 raises that half's capacitance per edge by eps (h_s / (pi g))
+    (1 + ln(g / h_s)), and the series pair's by a quarter of it (dC = dC_half (C / C_half)^2, C_half = 2 C).
+    """
+    safe = np.where(step > 0.0, step, 1.0)
+    return np.where(step > 0.0, step / (4.0 * math.pi * g) * (1.0 + np.log(g / safe)), 0.0)
+
+
+def layer_step_slope(step: Array, g: Array) -> Array:
+    """d/dg of layer_step: -h_s ln(g / h_s) / (4 pi g^2), for the force term."""
+    safe = np.where(step > 0.0, step, 1.0)
+    return np.where(step > 0.0, -step * np.log(g / safe) / (4.0 * math.pi * g**2), 0.0)
 
 
 @dataclass(frozen=True)
@@ -180,6 +204,7 @@ class PreparedParallelPlate:
         fringe: EdgeFringe | PointFringe | None,
         chunk_elements: int,
         perforation: Perforation | None = None,
+        step: bool = False,
     ) -> None:
         """Store the precomputed point sets; use ParallelPlateExtractor.prepare to build one."""
         self.electrodes = tuple(electrodes)
@@ -188,6 +213,10 @@ class PreparedParallelPlate:
         self.eps = eps
         self.fringe = fringe if edge.gap.size else None
         self.perforation = perforation
+        # each edge point's layer step h_s = g - g_eff (layer_step; None: no layer, or off)
+        steps = [e.gap - e.field_gap(eps / EPS0) for e in self.electrodes]
+        sizes = [sl.stop - sl.start for sl in edge.slices]
+        self.step = np.repeat(steps, sizes) if step and any(steps) and edge.gap.size else None
         self.chunk = max(1, chunk_elements // max(1, area.gap.size + edge.gap.size))
         # the effective gap left when the plate touches a layer (None: no layer, the gap's own 0)
         layers = [e.field_gap(eps / EPS0) - e.stop_gap for e in self.electrodes]
@@ -221,6 +250,8 @@ class PreparedParallelPlate:
             c = (self.areal(ga) / ga) @ self.area.weights
             if self.fringe is not None:
                 c += self.fringe.per_length(ge) @ self.edge.weights
+            if self.step is not None:
+                c += layer_step(self.step, ge) @ self.edge.weights
             c *= self.eps
             if touch is not None:
                 c[touch] = np.nan
@@ -238,6 +269,9 @@ class PreparedParallelPlate:
         for sl, _, ga, ge, touch in self._blocks(q):
             ha = self.area.point_weight * self.areal_slope(ga)
             he = -self.fringe.derivative(ge) * self.edge.point_weight if self.fringe is not None else None
+            if self.step is not None:
+                hs = -layer_step_slope(self.step, ge) * self.edge.point_weight
+                he = hs if he is None else he + hs
             for i in range(len(self.electrodes)):
                 a = self.area.slices[i]
                 d = ha[:, a] @ self.area.phi[a]
@@ -293,6 +327,7 @@ class ParallelPlateExtractor:
     (None: the larger slot of the two shapes).  order / edge_order: Gauss points per panel.
     chunk_elements: samples are processed in chunks of about this many (sample, point) pairs.
     perforation: the plate's etch-hole grid (None: solid), its fill factor F(g) on the plate term.
+    layer_step: add a layered electrode's edge step (layer_step) while an edge fringe is on.
     """
 
     description: ClassVar[str] = "parallel-plate over the local gap + edge fringe"
@@ -306,6 +341,7 @@ class ParallelPlateExtractor:
     edge_order: int = DEFAULT_EDGE_ORDER
     chunk_elements: int = 2**21
     perforation: Perforation | None = None
+    layer_step: bool = True
 
     def prepare(self, electrodes: Sequence[Electrode], plate: Plate, basis: Basis) -> PreparedParallelPlate:
         """Build quadrature for all electrodes and evaluate the basis once at all points."""
@@ -339,7 +375,10 @@ class ParallelPlateExtractor:
         if self.fringes is not None:
             fringe = self.point_fringe(edge, plate)
         at, ed, pr = sets
-        return PreparedParallelPlate(electrodes, at, ed, pr, self.eps, fringe, self.chunk_elements, self.perforation)
+        step = self.layer_step and fringe is not None
+        return PreparedParallelPlate(
+            electrodes, at, ed, pr, self.eps, fringe, self.chunk_elements, self.perforation, step
+        )
 
     def point_fringe(self, edge: list, plate: Plate) -> PointFringe:
         """The per-electrode fringes as per-point coefficients over the electrodes' edge points."""

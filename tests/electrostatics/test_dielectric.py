@@ -160,3 +160,16 @@ def test_squeeze_film_sees_the_air_gap():
     for a, b in zip(*(m.coordinates for m in damped)):
         assert a.damping == pytest.approx(b.damping, rel=1e-12, abs=0)
         assert a.damping > 0
+
+
+def test_layer_step_force_is_the_derivative():
+    """With the edge fringe on, dC/dx (the force term, with parallel_plate.layer_step_slope) against
+    the central difference of C at a step of 1e-4 g_eff: truncation (h / g)^2 C''' / 6 C' ~ 1e-8 and
+    rounding 1e-16 C / (h C') ~ 1e-12 of C', held to 1e-6."""
+    h = SIDE / 2
+    e = Electrode(Rectangle("d", -h, h, -h, h), "below", G, "d", T_D, EPS_R)
+    p = ParallelPlateExtractor().prepare([e], RectPlate(-h, h, -h, h), lambda x, y: np.ones_like(x))
+    dx = 1e-4 * G_EFF
+    x = np.array([[0.3 * G_EFF]])
+    fd = (p.capacitance(x + dx)[0, 0] - p.capacitance(x - dx)[0, 0]) / (2 * dx)
+    assert p.gradient(x)[0, 0, 0] == pytest.approx(fd, rel=1e-6)
