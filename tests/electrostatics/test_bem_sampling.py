@@ -1,7 +1,7 @@
 """BEM sampling at scale (netgen.electrostatics.bem_sampling): an 81-point grid of a reduced
 problem (a 100 um disk between two electrodes, coordinates z and tilt_x, coarse meshes) through
-a 2-worker Dask LocalCluster equals the serial result; a worker killed mid-run loses no point;
-a rerun reuses every stored point.
+a 2-worker Dask LocalCluster (every third point) equals the serial result; a worker killed mid-run
+loses no point; a rerun reuses every stored point.
 """
 
 from __future__ import annotations
@@ -45,9 +45,12 @@ def test_serial_grid_is_physical(problem):
 
 
 def test_dask_equals_serial_and_survives_a_killed_worker(problem, tmp_path):
-    """Through a 2-worker LocalCluster: equal to the serial matrices; one worker SIGKILLed after
-    ten points are stored loses none (all 81 present and equal); a rerun computes nothing."""
+    """Through a 2-worker LocalCluster, on every third point of the grid (27: each point is solved
+    alone, so a subset's matrices are the serial run's rows): equal to the serial matrices; one
+    worker SIGKILLed after five points are stored loses none (all 27 present and equal); a rerun
+    computes nothing."""
     p, q, serial = problem
+    q, serial_matrix, serial_coarse = q[::3], serial.matrix[::3], serial.coarse[::3]
     store = ChunkStore(tmp_path)
     ex = DaskExecutor(None, 2)
     try:
@@ -55,11 +58,11 @@ def test_dask_equals_serial_and_survives_a_killed_worker(problem, tmp_path):
         killed = []
 
         def killer():
-            """SIGKILL one worker once ten points are on disk."""
+            """SIGKILL one worker once five points are on disk."""
             deadline = time.monotonic() + 600
             while time.monotonic() < deadline:
                 done = sum(len(list(d.glob("chunk_*.npy"))) for d in tmp_path.glob("bem-maxwell-*"))
-                if done >= 10:
+                if done >= 5:
                     os.kill(pids[0], signal.SIGKILL)
                     killed.append(done)
                     return
@@ -71,9 +74,9 @@ def test_dask_equals_serial_and_survives_a_killed_worker(problem, tmp_path):
         t.join()
     finally:
         ex.close()
-    assert killed and killed[0] < 81, "the worker was killed mid-run"
-    assert np.array_equal(parallel.matrix, serial.matrix)
-    assert np.array_equal(parallel.coarse, serial.coarse)
+    assert killed and killed[0] < len(q), "the worker was killed mid-run"
+    assert np.array_equal(parallel.matrix, serial_matrix)
+    assert np.array_equal(parallel.coarse, serial_coarse)
     again = sample_maxwell(p, q, store=store)
-    assert again.computed == [] and len(again.reused) == 81
-    assert np.array_equal(again.matrix, serial.matrix)
+    assert again.computed == [] and len(again.reused) == len(q) == 27
+    assert np.array_equal(again.matrix, serial_matrix)
