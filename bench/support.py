@@ -40,6 +40,7 @@ MODULES = (
     "sigma_delta_reference",
     "sigma_delta_vacask",
     "small_disk",
+    "squeeze_film",
     "testbench",
     "va_scan",
 )
