@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import resource
 import subprocess
 import sys
 import time
@@ -179,17 +178,25 @@ def fastcap_solve(conductors: list[Panels], order: int, iter_tol: float) -> tupl
     return cmat / EPS0, record
 
 
+def peak_rss_mb() -> float:
+    """This process's peak resident set (VmHWM, MB): unlike ru_maxrss it starts afresh at exec,
+    so the parent's peak (Love's dense Nystrom matrix) does not show in a child's figure."""
+    with open("/proc/self/status") as f:
+        line = next(x for x in f if x.startswith("VmHWM:"))
+    return float(line.split()[1]) / 1e3
+
+
 def child(a: argparse.Namespace) -> None:
     """One solver on one level (a process of its own, so its peak RSS is its own): JSON on stdout."""
     conductors = disk_levels(a.kappa)[a.level]
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+    base = peak_rss_mb()
     if a.solver == "fmm":
         _fmm()
         cmat, record = fmm_solve(conductors, a.points, a.near, a.fmm_eps, a.rtol)
     else:
         cmat, record = fastcap_solve(conductors, a.order, a.iter_tol)
     record["c"] = float(cmat[0, 0] - cmat[0, 1])
-    record["rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+    record["rss_mb"] = peak_rss_mb()
     record["rss_before_mb"] = base
     print(json.dumps(record))
 
@@ -224,7 +231,7 @@ def main() -> None:
     if "fmm" in a.solvers:
         _fmm()
     print(
-        f"{'d/a':>5} {'solver':>8} {'panels':>13} {'level 0':>9} {'level 1':>9} {'Richardson':>10} {'CPU s':>12}"
+        f"{'d/a':>5} {'solver':>8} {'panels':>13} {'level 0':>9} {'level 1':>9} {'Richardson':>10} {'CPU s':>20}"
         f" {'peak RSS MB':>16} {'matvecs':>10}"
     )
     for kappa in a.kappa:
@@ -235,10 +242,12 @@ def main() -> None:
             best = c1 + (c1 - c0) / (fastcap.FastcapSettings().refinement ** 2 - 1.0)
             devs = " ".join(f"{100 * (v / ref - 1):+8.3f}%" for v in (c0, c1, best))
             cpu = "/".join(f"{r['seconds']:.1f}" for r in recs)
+            if solver == "fmm":  # of which the near-field integrals
+                cpu += " (" + "/".join(f"{r['near_seconds']:.1f}" for r in recs) + ")"
             rss = "/".join(f"{r['rss_mb']:.0f}({r['rss_before_mb']:.0f})" for r in recs)
             mv = "/".join("+".join(str(m) for m in r.get("matvecs", [])) or "-" for r in recs)
             panels = "/".join(str(r["panels"]) for r in recs)
-            print(f"{kappa:5.3f} {solver:>8} {panels:>13} {devs} {cpu:>12} {rss:>16} {mv:>10}", flush=True)
+            print(f"{kappa:5.3f} {solver:>8} {panels:>13} {devs} {cpu:>20} {rss:>16} {mv:>10}", flush=True)
 
 
 if __name__ == "__main__":
