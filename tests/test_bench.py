@@ -72,6 +72,10 @@ RUNS = {
         ["disk_m0_r2s4       3    16", "instructions per iteration ~", "vacask: instructions per period ~", "wrote "],
     ),
     "fastcap_love": (["bench/fastcap_love.py", "--kappa", "0.05"], [" 0.050 ", "inside"]),
+    "import_ulp_sensitivity": (
+        ["bench/import_ulp_sensitivity.py", "--trials", "2"],
+        ["rows twice", "1 BLAS thread", "of the test's 1e-09 bound"],
+    ),
     "fastcap_dask": (
         ["bench/fastcap_dask.py", "--points", "2"],
         ["serial: ", "2 Dask workers: ", "equal bit for bit: True"],

@@ -28,6 +28,7 @@ import scipy.sparse
 from netgen import export
 from netgen.build import build
 from netgen.cli.commands import main
+from netgen.electrostatics.sampling import blas_threads
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
 from tests.structures import disk, ring_electrode
@@ -620,6 +621,21 @@ def lib_numbers(folder: Path, name: str) -> np.ndarray:
     return np.array([float(v) for v in NUMBER.findall("\n".join(lines))])
 
 
+def differences(got: np.ndarray, want: np.ndarray, rel: float) -> str:
+    """Which .lib numbers differ by more than `rel` relative, the largest difference and the BLAS
+    thread counts (netgen.electrostatics.sampling.blas_threads): what a failure must say to tell a
+    rounding-level change (one ulp in one sample moves the disk's numbers by up to 1.3e-10,
+    bench/import_ulp_sensitivity.py) from a wrong merge or fit."""
+    if got.shape != want.shape:
+        return f"{len(got)} numbers against {len(want)}"
+    off = np.flatnonzero(np.abs(got - want) > rel * np.abs(want))
+    worst = np.max(np.abs(got - want) / np.where(want != 0, np.abs(want), 1.0)) if len(got) else 0.0
+    return (
+        f"{len(off)} of {len(got)} numbers differ (indices {off[:10].tolist()}), largest relative "
+        f"difference {worst:.3e}, BLAS threads {blas_threads()}"
+    )
+
+
 @pytest.mark.parametrize("name", ["beam", "piston", "disk"])
 def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     """The good NPZ set builds with exit 0 and the native model: rigid fields (piston, disk) are
@@ -641,11 +657,13 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
         toml.write_text(structure_text(b, {}, cap=cap))
         assert main(["build", str(toml), "-o", str(tmp_path / cap), "-q", "--no-plots"]) == 0
         libs.append(lib_numbers(tmp_path / cap, b.native.model.name))
-    assert np.array_equal(libs[0], libs[1])
+    assert np.array_equal(libs[0], libs[1]), "rows twice against once: " + differences(libs[1], libs[0], 0.0)
     want = lib_numbers(tmp_path / "native", b.native.model.name)
     if name != "beam":
         assert len(libs[0]) == len(want) > 50
-        assert np.all(np.abs(libs[0] - want) <= 1e-9 * np.abs(want))
+        assert np.all(np.abs(libs[0] - want) <= 1e-9 * np.abs(want)), "imported against native: " + differences(
+            libs[0], want, 1e-9
+        )
         return
     imported = build(parse_structure(toml.read_text(), str(toml)))
     for p, q in zip(imported.model.coordinates, b.native.model.coordinates):
