@@ -1,9 +1,9 @@
 """The multipole extractor (netgen.electrostatics.fastcap) sampled through a 2-worker Dask
 LocalCluster (netgen.runtime.executor.DaskExecutor): the prepared extractor is pickled to the
 workers, each point is a task, and the fastcap2 problems are built and solved in the worker
-processes. The reference is the serial path in this process, on the small disk (100 um radius,
-20 um gaps above and below, rigid z; the extractor's default sizes: 630 / 1072 panels, about 2 s a
-point).
+processes; a worker killed mid-run loses no point. The reference is the serial path in this
+process, on the small disk (100 um radius, 20 um gaps above and below, rigid z; the extractor's
+default sizes: 630 / 1072 panels, about 2 s a point).
 
 Tolerance: none, equality bit for bit. A solve is a deterministic function of the panel corners,
 the expansion order and the GMRES tolerance: fastcap2_core is single-threaded C++ linking neither
@@ -14,6 +14,11 @@ could round the multipole sums differently; the bound there would be the GMRES t
 """
 
 from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -79,3 +84,38 @@ def test_build_sampling_on_dask_is_one_point_per_task(prepared, serial, dask, tm
     assert store.log[-1]["computed"] == list(range(len(Q)))
     folder = store.log[-1]["folder"]
     assert all(np.load(ChunkStore.path(folder, k)).shape == (1, 2) for k in range(len(Q)))
+
+
+def test_a_killed_worker_loses_no_point(prepared, serial, tmp_path):
+    """bem_sampling.sample_maxwell with a store on its own 2-worker LocalCluster: one worker
+    SIGKILLed once the first point is stored (its nanny starts a new one; the executor submits its
+    lost tasks again) loses none: all four present and equal to the serial matrices bit for bit;
+    a rerun computes nothing."""
+    store = ChunkStore(tmp_path)
+    ex = DaskExecutor(None, 2)
+    killed: list[int] = []
+
+    def killer(pid: int) -> None:
+        """SIGKILL the worker once a point is on disk (each point takes seconds: the rest are queued)."""
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            done = len(list(tmp_path.glob("*/chunk_*.npy")))
+            if done >= 1:
+                os.kill(pid, signal.SIGKILL)
+                killed.append(done)
+                return
+            time.sleep(0.02)
+
+    try:
+        t = threading.Thread(target=killer, args=(list(ex.client.run(os.getpid).values())[0],), daemon=True)
+        t.start()
+        parallel = sample_maxwell(prepared, Q, executor=ex, store=store)
+        t.join(timeout=300)
+    finally:
+        ex.close()
+    assert killed and killed[0] < len(Q), "the worker was killed mid-run"
+    assert np.array_equal(parallel.matrix, serial.matrix)
+    assert np.array_equal(parallel.coarse, serial.coarse)
+    again = sample_maxwell(prepared, Q, store=store)
+    assert again.computed == [] and len(again.reused) == len(Q)
+    assert np.array_equal(again.matrix, serial.matrix)
