@@ -17,6 +17,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import support
 from threadpoolctl import threadpool_limits
 
 from netgen import export
@@ -24,35 +25,7 @@ from netgen.build import build
 from netgen.cli.commands import main
 from netgen.structure import parse_structure
 
-DISK = """name = "disk"
-description = "free disk, rigid coordinates only"
-[conductor]
-kind = "free_disk"
-radius = "200 um"
-thickness = "5 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["0 um", "200 um"]]
-sectors = 2
-sector_start = "0 deg"
-slot = "10 um"
-[coordinates]
-rigid = ["z", "tilt_x"]
-[sampling]
-levels = 3
-range = 0.3
-[fit]
-holdout = 50
-[electrostatics]
-fringe = "none"
-[fem]
-refine = 3
-"""
+DISK = support.oracle("small_disk").IMPORT_DISK  # tests/pipeline/test_import_validation.py's disk
 BOUND = 1e-9  # the test's relative bound between imported and native .lib numbers
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 

@@ -57,3 +57,35 @@ modes = ["2,0c"]
 extractor = "fastcap"
 """
 )
+
+# the 200 um free disk over two mirror-image sectors of tests/pipeline/test_import_validation.py and
+# bench/import_ulp_sensitivity.py (rigid z and tilt_x, no fringe)
+IMPORT_DISK = """name = "disk"
+description = "free disk, rigid coordinates only"
+[conductor]
+kind = "free_disk"
+radius = "200 um"
+thickness = "5 um"
+youngs_modulus = "160 GPa"
+poisson_ratio = 0.22
+density = "2330 kg/m^3"
+[[electrodes]]
+name = "bot"
+side = "below"
+gap = "3 um"
+rings = [["0 um", "200 um"]]
+sectors = 2
+sector_start = "0 deg"
+slot = "10 um"
+[coordinates]
+rigid = ["z", "tilt_x"]
+[sampling]
+levels = 3
+range = 0.3
+[fit]
+holdout = 50
+[electrostatics]
+fringe = "none"
+[fem]
+refine = 3
+"""

@@ -31,24 +31,10 @@ from netgen.cli.commands import main
 from netgen.electrostatics.sampling import blas_threads
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
-from tests.structures import disk, ring_electrode
+from tests.oracles.small_disk import IMPORT_DISK
 
-DISK = (
-    disk("disk", "free disk, rigid coordinates only", "200 um")
-    + ring_electrode("bot", "below", "3 um", [("0 um", "200 um")], sectors=2, sector_start="0 deg", slot="10 um")
-    + """[coordinates]
-rigid = ["z", "tilt_x"]
-[sampling]
-levels = 3
-range = 0.3
-[fit]
-holdout = 50
-[electrostatics]
-fringe = "none"
-[fem]
-refine = 3
-"""
-)
+DISK = IMPORT_DISK
+
 KEYS = ("mass_matrix", "stiffness_matrix", "modes", "capacitance")
 NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
