@@ -3,34 +3,41 @@ SMALL_BEM_DISK; bench scripts load this module through bench/support.py)."""
 
 from __future__ import annotations
 
-# the 100 um, 2 um polysilicon free disk both structures move
-CONDUCTOR = """[conductor]
+
+def conductor(radius: str, thickness: str) -> str:
+    """The [conductor] table of a polysilicon free disk."""
+    return f"""[conductor]
 kind = "free_disk"
-radius = "100 um"
-thickness = "2 um"
+radius = "{radius}"
+thickness = "{thickness}"
 youngs_modulus = "160 GPa"
 poisson_ratio = 0.22
 density = "2330 kg/m^3"
 """
+
+
+def electrode(name: str, side: str, gap: str, radius: str, sectors: int, more: str = "") -> str:
+    """One [[electrodes]] entry: a full ring out to `radius` in `sectors` sectors (plus `more` lines)."""
+    return f"""[[electrodes]]
+name = "{name}"
+side = "{side}"
+gap = "{gap}"
+rings = [["0 um", "{radius}"]]
+sectors = {sectors}
+{more}"""
+
+
+# the 100 um, 2 um polysilicon free disk both structures move
+CONDUCTOR = conductor("100 um", "2 um")
 
 # a 100 um disk between two full-disk electrodes at 20 um, a few hundred BEM elements per level
 # (format with extractor= and extra=)
 SMALL_BEM_DISK = (
     'name = "small_bem"\n'
     + CONDUCTOR
-    + """[[electrodes]]
-name = "top"
-side = "above"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "20 um"
-rings = [["0 um", "100 um"]]
-sectors = 1
-[coordinates]
+    + electrode("top", "above", "20 um", "100 um", 1)
+    + electrode("bot", "below", "20 um", "100 um", 1)
+    + """[coordinates]
 rigid = ["z"]
 [electrostatics]
 extractor = "{extractor}"
@@ -44,14 +51,8 @@ MODE_GAP = 10e-6
 MODE_DISK = (
     'name = "disk_mode"\n'
     + CONDUCTOR
-    + """[[electrodes]]
-name = "top"
-side = "above"
-gap = "10 um"
-rings = [["0 um", "100 um"]]
-sectors = 4
-sector_start = "-45 deg"
-[coordinates]
+    + electrode("top", "above", "10 um", "100 um", 4, 'sector_start = "-45 deg"\n')
+    + """[coordinates]
 modes = ["2,0c"]
 [electrostatics]
 extractor = "fastcap"
@@ -60,24 +61,11 @@ extractor = "fastcap"
 
 # the 200 um free disk over two mirror-image sectors of tests/pipeline/test_import_validation.py and
 # bench/import_ulp_sensitivity.py (rigid z and tilt_x, no fringe)
-IMPORT_DISK = """name = "disk"
-description = "free disk, rigid coordinates only"
-[conductor]
-kind = "free_disk"
-radius = "200 um"
-thickness = "5 um"
-youngs_modulus = "160 GPa"
-poisson_ratio = 0.22
-density = "2330 kg/m^3"
-[[electrodes]]
-name = "bot"
-side = "below"
-gap = "3 um"
-rings = [["0 um", "200 um"]]
-sectors = 2
-sector_start = "0 deg"
-slot = "10 um"
-[coordinates]
+IMPORT_DISK = (
+    'name = "disk"\ndescription = "free disk, rigid coordinates only"\n'
+    + conductor("200 um", "5 um")
+    + electrode("bot", "below", "3 um", "200 um", 2, 'sector_start = "0 deg"\nslot = "10 um"\n')
+    + """[coordinates]
 rigid = ["z", "tilt_x"]
 [sampling]
 levels = 3
@@ -89,3 +77,4 @@ fringe = "none"
 [fem]
 refine = 3
 """
+)
