@@ -42,9 +42,9 @@ def test_serial_grid_is_physical(problem):
 def test_dask_equals_serial_and_a_rerun_computes_nothing(problem, tmp_path):
     """Through a 1-worker LocalCluster, on every tenth point of the grid (9: its diagonal, both
     coordinates moving; each point is solved alone, so a subset's matrices are the serial run's
-    rows): the worker process's matrices equal the serial ones bit for bit; a rerun computes nothing. One worker, because a fresh worker's first
-    point is mostly bempp-cl's numba compiles (about 25 s each, uncached); a killed worker losing no
-    point is tested on the multipole extractor, whose solves compile nothing
+    rows): the worker process's matrices equal the serial ones bit for bit; a rerun computes
+    nothing. One worker, because a fresh worker's first point is mostly bempp-cl's numba compiles
+    (about 25 s each, uncached); a killed worker losing no point is tested on the multipole extractor, whose solves compile nothing
     (tests/electrostatics/test_fastcap_dask.py::test_a_killed_worker_loses_no_point)."""
     p, q, serial = problem
     q, serial_matrix, serial_coarse = q[::10], serial.matrix[::10], serial.coarse[::10]

@@ -208,7 +208,9 @@ def test_jacobi_integral_is_conserved(proof_mass):
     h = 0.5 * np.sum(mass * qd * qd, axis=1) + 0.5 * np.sum(k * q * q, axis=1)
     h -= 0.5 * MASS * np.sum(np.cross(omega, q + CENTRE) ** 2, axis=1)
     bound = 2 * steps * 16 * np.finfo(float).eps * kappa
-    print(f"Jacobi integral: drift {np.max(np.abs(h - h[0])) / abs(h[0]):.2e} of h over {steps} steps, bound {bound:.2e}")
+    print(
+        f"Jacobi integral: drift {np.max(np.abs(h - h[0])) / abs(h[0]):.2e} of h over {steps} steps, bound {bound:.2e}"
+    )
     assert np.max(np.abs(h - h[0])) <= bound * abs(h[0])
 
 
