@@ -37,6 +37,7 @@ def two_disks(kappa: float) -> bem.MaxwellMatrix:
     return bem.converged(meshes, ["a", "b"], 1.0, kappa, COARSE, h_max=COARSE.sizes(kappa, 0, 1.0).h_max)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kappa", [0.05, 0.1, 0.2])
 def test_two_disks_against_love(kappa):
     """C11 - C12 (disks at +1/-1) and C11 + C12 (both at +1) within 0.5 % of Love's equation."""

@@ -39,6 +39,7 @@ def test_serial_grid_is_physical(problem):
     assert (serial.order == serial.order[0]).all() or serial.order.max() <= 12
 
 
+@pytest.mark.slow
 def test_dask_equals_serial_and_a_rerun_computes_nothing(problem, tmp_path):
     """Through a 1-worker LocalCluster, on every tenth point of the grid (9: its diagonal, both
     coordinates moving; each point is solved alone, so a subset's matrices are the serial run's

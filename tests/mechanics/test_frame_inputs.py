@@ -162,7 +162,6 @@ def undamped(model: MacroModel) -> MacroModel:
     return dataclasses.replace(model, coordinates=[dataclasses.replace(c, damping=0.0) for c in model.coordinates])
 
 
-@pytest.mark.slow
 def test_jacobi_integral_is_conserved(proof_mass):
     """MacroModel.accelerations with Omega = (3, -2, 5) krad/s, no damping, electrodes at 0 V: the
     model is affine in (x, x') there, so its matrix is read from accelerations() (and checked at

@@ -166,6 +166,7 @@ def _interrupt(sweep: Path, out: Path, sig: int, group: bool) -> tuple[int, str,
     return p.returncode, err, _alive(seen)
 
 
+@pytest.mark.slow
 def test_sigterm_and_ctrl_c_leave_no_process_and_a_folder_that_resumes(tmp_path, serial_runs, capsys):
     sweep = _write(tmp_path / "s.toml", TS[:2])
     out = tmp_path / "out"

@@ -80,6 +80,7 @@ def loss(folder, damping_rate: float) -> float:
     return -slope / float(np.mean(amp)) / damping_rate
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("simulator", ["vacask", "ngspice-osdi"])
 def test_drive_block_holds_amplitude_and_resonance(model, tmp_path, simulator):
     """A loss run (G = 1e-9, zero rate, 2048 periods) and a run at G = 100, 0.4 of full scale,

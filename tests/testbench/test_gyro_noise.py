@@ -43,6 +43,7 @@ BROWNIAN_CYCLES, BROWNIAN_BAND_HZ, BROWNIAN_BIAS = 8192, 4000.0, 0.10
 TEMPERATURE = 300.0  # K, the structure's [damping] temperature (its default)
 
 
+@pytest.mark.slow
 def test_rate_noise_floor_matches_the_reference_loop(tmp_path):
     """The in-band bit PSD near the drive of a 6144-period ngspice run over that of the reference
     loop (two runs of 65536 periods, drive phases 0 and pi/2): inside the F(nu_c, nu_r) 1e-3
@@ -77,6 +78,7 @@ def test_rate_noise_floor_matches_the_reference_loop(tmp_path):
     assert low <= ratio <= high
 
 
+@pytest.mark.slow
 def test_brownian_rate_noise_floor(tmp_path):
     """With the thermal force on, the rate noise floor is the sense damping's Brownian limit.
 
