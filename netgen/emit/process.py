@@ -131,7 +131,9 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     out += film_factors(model, temp)
     if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
         u = p["strain_energy"]
-        out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
+        pu = join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])
+        etch = u.get("etch") if declared(model, "etch") else None
+        out.append(("pu", f"{pu}*{poly(etch, '(1e6*etch)')}" if etch and etch != IDENTITY else pu))
     t0 = p["temperature_C"] + KELVIN
     out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
     out += knot_params(model)
@@ -401,9 +403,15 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
     if declared(model, "etch"):
         e = p["etch"]
         lo, hi = (x * 1e6 for x in e["range_m"])
+        body = (
+            "the flexure beams (widths w - 2 etch), the proof mass's outline (sides - 2 etch) and etch holes "
+            "(side + 2 etch)"
+            if "beam" not in e
+            else "the beam (width w - 2 etch"
+            + (", its free tip back by etch: length L - etch)" if e["beam"] == "cantilever" else ", length fixed)")
+        )
         parts.append(
-            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), the proof mass's "
-            f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
+            f"etch (m) = lateral over-etch per edge of {body}, valid {lo:g}..{hi:g} um, mass, stiffness "
             "and damping "
             + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
             + (
@@ -418,7 +426,9 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
     if energy_moved(model):
         err = p["strain_energy"]["max_rel_error"]
         parts.append(
-            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part), "
+            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part)"
+            + (" times its etch ratio" if declared(model, "etch") and p["strain_energy"].get("etch") else "")
+            + ", "
             + (f"within {err:.1e}" if err else "exact")
         )
     if p["gaps"] and not gaps:
@@ -461,7 +471,8 @@ def etch_neglect(e: dict) -> str:
     combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
     fill = any(r.get("fill") for r in e.get("capacitance", []))
     return (
-        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
+        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched "
+        + ("beam" if "beam" in e else "outline, holes")
         + (
             " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs

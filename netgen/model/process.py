@@ -214,6 +214,8 @@ def etched(s: Structure, etch: float) -> Structure:
     mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
     capacitances would change)."""
     c: Any = s.conductor
+    if c.kind in BEAM_KINDS:
+        return dataclasses.replace(s, conductor=etched_beam(c, etch))
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
     outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
@@ -221,6 +223,18 @@ def etched(s: Structure, etch: float) -> Structure:
     changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
     sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
     return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+BEAM_KINDS = ("cantilever", "clamped_clamped_beam")  # beam conductors (netgen.structure.conductors.Beam)
+
+
+def etched_beam(c: Any, etch: float) -> Any:
+    """A beam conductor etched by `etch` per edge: width w - 2 etch; a cantilever's free tip recedes by
+    etch (length L - etch), its clamp stays (the anchor's edge, set by the anchor opening under the
+    layer, not by this etch); a clamped-clamped beam's length stays (both ends on anchors). The
+    x axis keeps its origin at the clamp, so the electrodes stay where they are drawn."""
+    length = c.length - etch if c.kind == "cantilever" else c.length
+    return dataclasses.replace(c, width=c.width - 2 * etch, length=length)
 
 
 def is_comb(e: Any) -> bool:
@@ -360,18 +374,15 @@ def etch_record(
     laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
     and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
     laws (capacitance_laws; `fill`: the plate electrodes offered a fill shift and the half box dz)."""
-    c: Any = s.conductor
-    nx, ny = c.holes()
-
-    def area(e: float) -> float:
-        return (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
-
+    mass = s.conductor.mass  # the etched body's area times rho t: outline, holes, a beam's width and tip
     out = {
         "range_m": list(p.etch_range),
         "max_rel_error": float(err),
         "variable": "etch / 1 um",
-        "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
+        "area_rel": max(abs(etched(s, e).conductor.mass / mass - 1.0) for e in p.etch_range),
     }
+    if s.conductor.kind in BEAM_KINDS:  # the header says what recedes (netgen.emit.process.header)
+        out["beam"] = s.conductor.kind
     knots = etch_knots(s, *p.etch_range)
     if knots:  # the mechanics laws' torsion knots (etch / 1 um; netgen.model.etch_knots)
         out["knots"] = list(knots)
@@ -497,10 +508,11 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
     re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
     the error includes the spread of that ratio over the points (a shape change with t). {} without
     a strain energy or a parameter that moves it (tscale, escale, temp)."""
-    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp")):
+    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp", "etch")):
         return {}
     q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)
     u0 = np.asarray(m.strain_energy.energy(q), dtype=float)
+    etch = energy_etch(s, m, run, p, q, u0) if p.wants("etch") else {}
     ratios, spread = [], 0.0
     modulus = p.wants("escale") or p.wants("temp")
     for tau in fit_points(p):
@@ -517,9 +529,31 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
         ratios.append([a, row[0] - a])
     coef, err = power_fit(fit_points(p), np.array(ratios), np.abs(np.array(ratios)).sum(axis=1, keepdims=True))
     worst = max(err, spread)
+    worst = max(worst, etch.get("max_rel_error", 0.0))
     return {
-        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest",
+        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest"
+        + (" x R(etch)" if etch else ""),
         "a": [float(c) for c in coef[0]],
         "b": [float(c) for c in coef[1]],
         "max_rel_error": worst if worst > ROUND_OFF else 0.0,
-    }
+    } | ({"etch": etch["ratio"]} if etch else {})
+
+
+def energy_etch(s: Structure, m: Mechanics, run, p: Process, q: np.ndarray, u0: np.ndarray) -> dict:
+    """The strain energy's etch ratio R(etch) = U(q; etch) / U(q) (a cubic in etch / 1 um, 1 at 0; the
+    least-squares ratio over the sample points `q` at etch_points, the mechanics re-run on the etched
+    structure) and its error: the cubic's residual and the spread of the ratio over the points (a mode
+    shape that changes with the etch). A clamped-clamped beam's stretching E (w - 2 etch) t (int w'^2 /
+    2)^2 / 2L: R = (w - 2 etch) / w, its modes (L fixed) unchanged: exact."""
+    points, values, spread = etch_points(p), [], 0.0
+    for e in points:
+        me = m if e == 0.0 else run(etched(s, e))
+        if me.strain_energy is None:
+            raise ValueError("the strain energy vanishes with the etch bias")
+        u = np.asarray(me.strain_energy.energy(q), dtype=float)
+        r = float(u0 @ u / (u0 @ u0))
+        spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
+        values.append([r])
+    coef, err = power_fit(tuple(e / ETCH_UNIT for e in points), np.array(values), np.array(values), nominal=0.0)
+    worst = max(err, spread)
+    return {"ratio": [float(c) for c in coef[0]], "max_rel_error": worst if worst > ROUND_OFF else 0.0}

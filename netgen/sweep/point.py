@@ -243,7 +243,8 @@ def problem(s: Structure, name: str, value: float, rebuild: bool) -> tuple[str, 
                 f"process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
                 f"keep the values inside {name}_range, widen it in [process], {other}".rstrip(", "),
             )
-    if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None:
+    beam = getattr(s.conductor, "kind", "") in ("cantilever", "clamped_clamped_beam")
+    if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None and not beam:
         return ("process.etch: the structure has no flexure beams to etch", "sweep the widths as structure.<key>")
     t0 = s.damping.temperature - KELVIN if s.damping else 26.85
     if rebuild and name == "temp" and s.damping and s.damping.squeeze_film and value != t0:
