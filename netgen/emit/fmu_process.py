@@ -47,7 +47,11 @@ def rows(model: MacroModel) -> list[dict]:
         "tscale": (p["tscale"]["range"], UNITLESS, "device-layer thickness / nominal"),
         "escale": (p["escale"]["range"], UNITLESS, "Young's modulus / nominal"),
         "temp": (p["temp"]["range_C"], "degC", "die temperature in degC (modulus temperature coefficient)"),
-        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "m", "flexure over-etch per edge in m (w - 2 etch)"),
+        "etch": (
+            (p.get("etch") or {}).get("range_m", [0.0, 0.0]),
+            "m",
+            "lateral over-etch per edge in m (beam widths w - 2 etch)",
+        ),
     }
     for name, default in process.params(model, gaps=False):
         (lo, hi), unit, what = text[name]

@@ -504,7 +504,10 @@ def va_params(model: MacroModel) -> list[dict]:
         "tscale": (p["tscale"]["range"], "device-layer thickness / nominal, valid {:g}..{:g}"),
         "escale": (p["escale"]["range"], "Young's modulus / nominal, valid {:g}..{:g}"),
         "temp": (p["temp"]["range_C"], "die temperature, degC, valid {:g}..{:g} (thermal noise at temp + 273.15 K)"),
-        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "flexure over-etch per edge, m, valid {:g}..{:g}"),
+        "etch": (
+            (p.get("etch") or {}).get("range_m", [0.0, 0.0]),
+            "lateral over-etch per edge (beam widths w - 2 etch), m, valid {:g}..{:g}",
+        ),
     }
     for name, default in params(model, gaps=False):
         (lo, hi), text = ranges[name]

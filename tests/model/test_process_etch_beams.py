@@ -63,7 +63,9 @@ def models():
 
 @pytest.fixture(scope="module")
 def rebuilds():
-    return {(n, e): build_model(parse_structure(beam_text(n, e, process=""), f"{n}.toml")) for n in NAMES for e in ETCHES}
+    return {
+        (n, e): build_model(parse_structure(beam_text(n, e, process=""), f"{n}.toml")) for n in NAMES for e in ETCHES
+    }
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -102,7 +104,9 @@ def test_against_rebuild(models, rebuilds, name, etch):
     pc = ratio_value(cap["ratio"], etch)
     assert pc == pytest.approx(width_ratio(name, etch) * length_ratio(name, etch), rel=stated + 1e-12)
     assert np.allclose(model.scales, ref.scales, rtol=1e-12)  # the same touching amplitudes: the same points
-    box = np.array([model.sampling.get("coordinate_range", {}).get(c.name, model.sampling["range"]) for c in model.coordinates])
+    box = np.array(
+        [model.sampling.get("coordinate_range", {}).get(c.name, model.sampling["range"]) for c in model.coordinates]
+    )
     x = np.random.default_rng(3).uniform(-1.0, 1.0, (100, model.ncoords)) * box
     errs = model.capacitances[0].max_rel_error + ref.capacitances[0].max_rel_error
     np.testing.assert_allclose(pc * model.capacitance(x), ref.capacitance(x), rtol=errs + stated + 1e-12)
@@ -121,7 +125,9 @@ def test_cantilever_pull_in_against_rebuild(models, rebuilds, etch):
     r = model.sampling.get("coordinate_range", {}).get("m1", model.sampling["range"])
     fits = model.capacitances[0].max_rel_error + ref.capacitances[0].max_rel_error
     bound = 0.5 * law["max_rel_error"] + 2 * (fits + law["capacitance_max_rel_error"]) / r + 1e-9
-    print(f"etch {etch:+.1e}: pull-in {v_law:.6f} V, rebuilt {v_ref:.6f} V ({v_law / v_ref - 1:+.1e}, bound {bound:.1e})")
+    print(
+        f"etch {etch:+.1e}: pull-in {v_law:.6f} V, rebuilt {v_ref:.6f} V ({v_law / v_ref - 1:+.1e}, bound {bound:.1e})"
+    )
     assert bound < 2e-3
     assert v_law == pytest.approx(v_ref, rel=bound)
 
@@ -131,7 +137,9 @@ def test_stretching_energy_ratio(models):
     u = models["cc_beam"].process["strain_energy"]
     assert u["a"] == [0.0, 0.0, 0.0, 0.0] and u["b"] == [1.0, 0.0, 0.0, 0.0]  # etch alone: no modulus law
     for etch in ETCHES:
-        assert ratio_value(u["etch"], etch) == pytest.approx(width_ratio("cc_beam", etch), rel=u["max_rel_error"] + 1e-9)
+        assert ratio_value(u["etch"], etch) == pytest.approx(
+            width_ratio("cc_beam", etch), rel=u["max_rel_error"] + 1e-9
+        )
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -151,7 +159,9 @@ def test_acceleration_load(models, name):
 def test_laws_without_a_build():
     """The model stage alone (process_laws, no extractor) on the clamped-clamped beam with etch and
     tscale: the product law at the box's corners is exact (k ~ w t^3, m ~ w t): stated error below 1e-8."""
-    text = beam_text("cc_beam", process='[process]\nparameters = ["etch", "tscale"]\netch_range = ["-0.2 um", "0.3 um"]\n')
+    text = beam_text(
+        "cc_beam", process='[process]\nparameters = ["etch", "tscale"]\netch_range = ["-0.2 um", "0.3 um"]\n'
+    )
     s = parse_structure(text, "cc.toml")
     m = mechanics(s)
     law = process_laws(s, m, mechanics, [], 0.0, 0.3)

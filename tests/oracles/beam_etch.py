@@ -33,7 +33,10 @@ def beam_text(name: str, etch: float = 0.0, process: str = PROCESS, electrode_x:
     if etch:
         width = (WIDTH[name] - 2 * etch) * 1e6
         length = (LENGTH[name] - (etch if name == "cantilever" else 0.0)) * 1e6
-        edits += [('width = "50 um"', f'width = "{width!r} um"'), (f'length = "{length_um:g} um"', f'length = "{length!r} um"')]
+        edits += [
+            ('width = "50 um"', f'width = "{width!r} um"'),
+            (f'length = "{length_um:g} um"', f'length = "{length!r} um"'),
+        ]
     for old, new in edits:
         assert old in text, old
         text = text.replace(old, new, 1)
