@@ -468,6 +468,20 @@ def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
     return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
 
 
+def energy_factor(
+    law: dict, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None, etch: float = 0.0
+) -> float:
+    """pu, the fitted strain energy's factor at the process point (energy_law: (e A(tscale) + B(tscale))
+    R(etch), the arithmetic the emitters render); 1 without a strain-energy law."""
+    u = law.get("strain_energy") or {}
+    if not u:
+        return 1.0
+    temp_c = law["temperature_C"] if temp_c is None else temp_c
+    powers = [1.0, tscale, tscale**2, tscale**3]
+    pu = modulus_factor(law, escale, temp_c) * float(np.dot(u["a"], powers)) + float(np.dot(u["b"], powers))
+    return pu * (ratio_value(u["etch"], etch) if "etch" in u and "etch" in law["parameters"] else 1.0)
+
+
 def coordinate_values(
     law: dict,
     v: int,

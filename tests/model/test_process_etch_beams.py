@@ -49,6 +49,7 @@ from netgen.core.errors import StructureError
 from netgen.mechanics import mechanics
 from netgen.model.process import coordinate_values, process_laws, ratio_value
 from netgen.structure import parse_structure
+from netgen.sweep.point import at_point
 from tests.oracles.beam_etch import ETCHES, beam_text, length_ratio, modal_ratios, width_ratio
 from tests.oracles.process_balance import pull_in
 
@@ -178,3 +179,15 @@ def test_narrow_beam_refused():
     with pytest.raises(StructureError) as exc:
         parse_structure(text, "cantilever.toml")
     assert "process.etch_range" in str(exc.value) and "beam" in str(exc.value)
+
+
+def test_sweep_point_scales_the_energy(models):
+    """A sweep's model at a process point (netgen.sweep.point.at_point, the loop design's numbers)
+    carries the stretching energy times (w - 2 etch) / w, as the emitted pu does (it was left at the
+    drawn beam's, under tscale, escale and temp too): within the energy law's stated error + 1e-9."""
+    model = models["cc_beam"]
+    u = model.process["strain_energy"]
+    nominal = np.array(model.nonlinear["energy_J"]["coeffs"])
+    for etch in ETCHES:
+        moved = np.array(at_point(model, {"etch": etch}).nonlinear["energy_J"]["coeffs"])
+        np.testing.assert_allclose(moved, nominal * width_ratio("cc_beam", etch), rtol=u["max_rel_error"] + 1e-9)
