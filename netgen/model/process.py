@@ -25,7 +25,8 @@ once so that emitters only render them.
   fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
   |xs_z - sign dg / L_z| <= range). The squeeze film of the side a set alone faces follows it exactly,
   times mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) (netgen.model.process_film.film_law).
-- etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
+- etch: a proof mass's flexure beams w - 2 etch, or a beam conductor's width (a cantilever's tip back
+  by etch: etched_beam); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
   product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
@@ -43,6 +44,7 @@ import numpy as np
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
 from ..structure import Structure
+from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
@@ -207,12 +209,12 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def etched(s: Structure, etch: float) -> Structure:
-    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch): flexure
-    beam, truss and thigh widths w - 2 etch, the proof mass's outline (length, width) - 2 etch and its
-    etch holes' side + 2 etch on the drawn grid (pitch and count stay: lithography places them). Beam
-    lengths and the beams' spacing (centre to centre) stay: they are set by the anchors' and the
-    mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
-    capacitances would change)."""
+    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch); a beam
+    conductor as etched_beam. A proof mass: flexure beam, truss and thigh widths w - 2 etch, the proof
+    mass's outline (length, width) - 2 etch and its etch holes' side + 2 etch on the drawn grid (pitch
+    and count stay: lithography places them). Beam lengths and the beams' spacing (centre to centre)
+    stay: they are set by the anchors' and the mass's edges, which recede together. The electrodes are
+    not moved (etch_record states how much the capacitances would change)."""
     c: Any = s.conductor
     if c.kind in BEAM_KINDS:
         return dataclasses.replace(s, conductor=etched_beam(c, etch))
@@ -223,9 +225,6 @@ def etched(s: Structure, etch: float) -> Structure:
     changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
     sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
     return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
-
-
-BEAM_KINDS = ("cantilever", "clamped_clamped_beam")  # beam conductors (netgen.structure.conductors.Beam)
 
 
 def etched_beam(c: Any, etch: float) -> Any:
@@ -521,7 +520,8 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
     t) and B the rest (a given spring such as k_xy x y: B = 1), cubics in tscale from the energies
     re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
     the error includes the spread of that ratio over the points (a shape change with t). {} without
-    a strain energy or a parameter that moves it (tscale, escale, temp)."""
+    a strain energy or a parameter that moves it (tscale, escale, temp, etch: times its etch ratio,
+    energy_etch)."""
     if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp", "etch")):
         return {}
     q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)

@@ -116,9 +116,10 @@ def read_etch_range(rd: Reader, t: dict, params: tuple[str, ...]) -> tuple[float
 
 
 def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
-    """etch narrows a proof mass's flexure beams (w - 2 etch) and comb fingers and widens its etch holes:
-    it needs such flexures, every beam and finger keeping more than half its width at the range's top
-    and holes that neither close nor merge over the range."""
+    """etch narrows a beam conductor (check_beam_etch) or a proof mass's flexure beams (w - 2 etch) and
+    comb fingers and widens its etch holes: it needs such flexures, every beam and finger keeping more
+    than half its width at the range's top and holes that neither close nor merge over the range;
+    plates (piston, free disk) are refused."""
     where = "process.parameters"
     kind = getattr(conductor, "kind", "")
     if kind in BEAM_KINDS:

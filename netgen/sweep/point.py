@@ -21,6 +21,7 @@ from ..model import MacroModel
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
+from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .tomltext import to_toml
 
@@ -248,7 +249,7 @@ def problem(s: Structure, name: str, value: float, rebuild: bool) -> tuple[str, 
                 f"process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
                 f"keep the values inside {name}_range, widen it in [process], {other}".rstrip(", "),
             )
-    beam = getattr(s.conductor, "kind", "") in ("cantilever", "clamped_clamped_beam")
+    beam = getattr(s.conductor, "kind", "") in BEAM_KINDS
     if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None and not beam:
         return ("process.etch: the structure has no flexure beams to etch", "sweep the widths as structure.<key>")
     t0 = s.damping.temperature - KELVIN if s.damping else 26.85
