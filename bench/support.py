@@ -21,6 +21,7 @@ PACKAGE = "netgen_test_oracles"  # the name the oracles package gets here (tests
 # the oracle modules this file hands out, and the testbench names it re-exports (tests/fixtures.py
 # re-exports the same ones to the tests)
 MODULES = (
+    "beam_etch",
     "bem_reduced",
     "closed_forms",
     "crab_legs",

@@ -344,12 +344,15 @@ def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
     """(structure, n, offset) -> its electrodes' capacitances from a fresh extractor at rest and at n
     random points of s0's fit box (fixed seed: the same points for every structure), all moved by the
     displacement `offset` (SI per coordinate; None: none), for the process laws' re-runs of an etched
-    structure (netgen.model.process.etch_record)."""
+    structure (netgen.model.process.etch_record). A beam's modes are its own structure's (an etched
+    cantilever's are those of its shorter length, peak 1 at its tip: the coordinates a rebuild has);
+    a proof mass's rigid coordinates do not depend on its outline (the nominal basis)."""
     half = s0.sampling.range * box_factors(s0.sampling, len(m.names)) * scales
 
     def extract(s: Structure, n: int, offset: np.ndarray | None = None) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
-        prepared = extractor(s, plate).prepare(shapes, plate, m.basis)
+        own = getattr(s.conductor, "one_dimensional", False) and s.conductor != s0.conductor
+        prepared = extractor(s, plate).prepare(shapes, plate, mechanics(s).basis if own else m.basis)
         q = np.vstack([np.zeros(len(m.names)), np.random.default_rng(0).uniform(-1.0, 1.0, (n, len(m.names))) * half])
         return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
 

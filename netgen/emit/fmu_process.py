@@ -47,7 +47,11 @@ def rows(model: MacroModel) -> list[dict]:
         "tscale": (p["tscale"]["range"], UNITLESS, "device-layer thickness / nominal"),
         "escale": (p["escale"]["range"], UNITLESS, "Young's modulus / nominal"),
         "temp": (p["temp"]["range_C"], "degC", "die temperature in degC (modulus temperature coefficient)"),
-        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "m", "flexure over-etch per edge in m (w - 2 etch)"),
+        "etch": (
+            (p.get("etch") or {}).get("range_m", [0.0, 0.0]),
+            "m",
+            "lateral over-etch per edge in m (beam widths w - 2 etch)",
+        ),
     }
     for name, default in process.params(model, gaps=False):
         (lo, hi), unit, what = text[name]
@@ -173,10 +177,13 @@ def etch_shifts(model: MacroModel) -> list[float]:
 
 
 def energy_law(model: MacroModel) -> list[float]:
-    """The strain energy's law cubics a then b (netgen.model.process.energy_law: its forces times
-    pe a(tscale) + b(tscale)); without one a = 0, b = 1 (the factor exactly 1)."""
+    """The strain energy's law cubics a, b and its etch ratio (netgen.model.process.energy_law: its
+    forces times (pe a(tscale) + b(tscale)) R(etch / 1 um)); without one a = 0, b = 1, R = 1."""
     u = model.process.get("strain_energy") if process.energy_moved(model) else None
-    return list(u["a"]) + list(u["b"]) if u else [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    if not u:
+        return [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    etch = u.get("etch") if process.declared(model, "etch") else None
+    return list(u["a"]) + list(u["b"]) + list(etch or [1.0, 0.0, 0.0, 0.0])
 
 
 def load_arrays(model: MacroModel, array) -> list[dict]:

@@ -12,6 +12,7 @@ import numpy as np
 from ..model import MacroModel
 from ..model.process_loads import IDENTITY
 from .common import num, unit_load
+from .process_etch import etch_header
 
 KELVIN = 273.15
 
@@ -131,7 +132,9 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
     out += film_factors(model, temp)
     if energy_moved(model):  # the strain energy's law (netgen.model.process.energy_law)
         u = p["strain_energy"]
-        out.append(("pu", join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])))
+        pu = join([f"pe*{poly(u['a'], tscale)}", poly(u["b"], tscale)], [u["a"], u["b"]])
+        etch = u.get("etch") if declared(model, "etch") else None
+        out.append(("pu", f"{pu}*{poly(etch, '(1e6*etch)')}" if etch and etch != IDENTITY else pu))
     t0 = p["temperature_C"] + KELVIN
     out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
     out += knot_params(model)
@@ -399,26 +402,13 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if declared(model, "etch"):
-        e = p["etch"]
-        lo, hi = (x * 1e6 for x in e["range_m"])
-        parts.append(
-            f"etch (m) = lateral over-etch per edge of the flexure beams (widths w - 2 etch), the proof mass's "
-            f"outline (sides - 2 etch) and etch holes (side + 2 etch), valid {lo:g}..{hi:g} um, mass, stiffness "
-            "and damping "
-            + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
-            + (
-                f", piecewise at etch {', '.join(f'{k:g}' for k in knots(model))} um where a flexure width meets "
-                "the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
-                if knots(model)
-                else ""
-            )
-            + etch_neglect(e)
-            + ("; the a_in load times the etched body's ratio (a cubic in etch)" if e.get("acceleration") else "")
-        )
+        parts.append(etch_header(p["etch"], knots(model)))
     if energy_moved(model):
         err = p["strain_energy"]["max_rel_error"]
         parts.append(
-            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part), "
+            "the fitted strain energy's forces times pu = pe A(tscale) + B(tscale) (A its modulus part)"
+            + (" times its etch ratio" if declared(model, "etch") and p["strain_energy"].get("etch") else "")
+            + ", "
             + (f"within {err:.1e}" if err else "exact")
         )
     if p["gaps"] and not gaps:
@@ -451,32 +441,6 @@ def film_text(g: dict) -> str:
     )
 
 
-def etch_neglect(e: dict) -> str:
-    """The header's statement of the capacitances under etch: each electrode's C times its ratio
-    pc_<electrode> (netgen.model.process.capacitance_laws), a comb's fit read at its etch-shifted state
-    xe (gap g + 2 etch, overlap - 2 etch), and that law's error over the fit box."""
-    if "capacitance_max_rel_error" not in e:
-        return " (capacitances not etched)"
-    err = e["capacitance_max_rel_error"]
-    combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
-    fill = any(r.get("fill") for r in e.get("capacitance", []))
-    return (
-        "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched outline, holes"
-        + (
-            " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
-            if combs
-            else ""
-        )
-        + (
-            ", the perforated plates' fits read at z shifted by the fill factor's effective gap change (nodes xe_z_*; their stops stay)"
-            if fill
-            else ""
-        )
-        + ", "
-        + (f"within {err:.1e} over the fit box" if err else "exact")
-    )
-
-
 # relative widening of the Verilog-A `from [lo:hi]` bounds: ngspice's numparam turns a corner value
 # passed through the _osdi.lib's .subckt params into a double one ulp off (dg_drive=3e-7 was refused by
 # from [-3e-07:3e-07]); 1e-9 is far below any law's stated error
@@ -493,7 +457,7 @@ def va_params(model: MacroModel) -> list[dict]:
         "tscale": (p["tscale"]["range"], "device-layer thickness / nominal, valid {:g}..{:g}"),
         "escale": (p["escale"]["range"], "Young's modulus / nominal, valid {:g}..{:g}"),
         "temp": (p["temp"]["range_C"], "die temperature, degC, valid {:g}..{:g} (thermal noise at temp + 273.15 K)"),
-        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "flexure over-etch per edge, m, valid {:g}..{:g}"),
+        "etch": ((p.get("etch") or {}).get("range_m", [0.0, 0.0]), "lateral over-etch per edge, m, valid {:g}..{:g}"),
     }
     for name, default in params(model, gaps=False):
         (lo, hi), text = ranges[name]

@@ -25,7 +25,8 @@ once so that emitters only render them.
   fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
   |xs_z - sign dg / L_z| <= range). The squeeze film of the side a set alone faces follows it exactly,
   times mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) (netgen.model.process_film.film_law).
-- etch: a proof mass's flexure beams w - 2 etch (etched); per coordinate the ratio of each law part to
+- etch: a proof mass's flexure beams w - 2 etch, or a beam conductor's width (a cantilever's tip back
+  by etch: etched_beam); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
   product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
@@ -43,6 +44,7 @@ import numpy as np
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
 from ..structure import Structure
+from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
@@ -207,13 +209,15 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def etched(s: Structure, etch: float) -> Structure:
-    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch): flexure
-    beam, truss and thigh widths w - 2 etch, the proof mass's outline (length, width) - 2 etch and its
-    etch holes' side + 2 etch on the drawn grid (pitch and count stay: lithography places them). Beam
-    lengths and the beams' spacing (centre to centre) stay: they are set by the anchors' and the
-    mass's edges, which recede together. The electrodes are not moved (etch_record states how much the
-    capacitances would change)."""
+    """The structure with its device layer etched by `etch` per edge (m; negative: under-etch); a beam
+    conductor as etched_beam. A proof mass: flexure beam, truss and thigh widths w - 2 etch, the proof
+    mass's outline (length, width) - 2 etch and its etch holes' side + 2 etch on the drawn grid (pitch
+    and count stay: lithography places them). Beam lengths and the beams' spacing (centre to centre)
+    stay: they are set by the anchors' and the mass's edges, which recede together. The electrodes are
+    not moved (etch_record states how much the capacitances would change)."""
     c: Any = s.conductor
+    if c.kind in BEAM_KINDS:
+        return dataclasses.replace(s, conductor=etched_beam(c, etch))
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
     outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
@@ -221,6 +225,15 @@ def etched(s: Structure, etch: float) -> Structure:
     changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
     sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
     return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+def etched_beam(c: Any, etch: float) -> Any:
+    """A beam conductor etched by `etch` per edge: width w - 2 etch; a cantilever's free tip recedes by
+    etch (length L - etch), its clamp stays (the anchor's edge, set by the anchor opening under the
+    layer, not by this etch); a clamped-clamped beam's length stays (both ends on anchors). The
+    x axis keeps its origin at the clamp, so the electrodes stay where they are drawn."""
+    length = c.length - etch if c.kind == "cantilever" else c.length
+    return dataclasses.replace(c, width=c.width - 2 * etch, length=length)
 
 
 def is_comb(e: Any) -> bool:
@@ -360,18 +373,15 @@ def etch_record(
     laws carry it exactly) and, with `extract` (structure, n -> the extractor's capacitances at rest
     and at n fixed random points of the fit box: netgen.build.capacitance_sampler), the capacitance
     laws (capacitance_laws; `fill`: the plate electrodes offered a fill shift and the half box dz)."""
-    c: Any = s.conductor
-    nx, ny = c.holes()
-
-    def area(e: float) -> float:
-        return (c.length - 2 * e) * (c.width - 2 * e) - nx * ny * (c.hole + 2 * e) ** 2
-
+    mass = s.conductor.mass  # the etched body's area times rho t: outline, holes, a beam's width and tip
     out = {
         "range_m": list(p.etch_range),
         "max_rel_error": float(err),
         "variable": "etch / 1 um",
-        "area_rel": max(abs(area(e) / area(0.0) - 1.0) for e in p.etch_range),
+        "area_rel": max(abs(etched(s, e).conductor.mass / mass - 1.0) for e in p.etch_range),
     }
+    if s.conductor.kind in BEAM_KINDS:  # the header says what recedes (netgen.emit.process.header)
+        out["beam"] = s.conductor.kind
     knots = etch_knots(s, *p.etch_range)
     if knots:  # the mechanics laws' torsion knots (etch / 1 um; netgen.model.etch_knots)
         out["knots"] = list(knots)
@@ -457,6 +467,20 @@ def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
     return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
 
 
+def energy_factor(
+    law: dict, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None, etch: float = 0.0
+) -> float:
+    """pu, the fitted strain energy's factor at the process point (energy_law: (e A(tscale) + B(tscale))
+    R(etch), the arithmetic the emitters render); 1 without a strain-energy law."""
+    u = law.get("strain_energy") or {}
+    if not u:
+        return 1.0
+    temp_c = law["temperature_C"] if temp_c is None else temp_c
+    powers = [1.0, tscale, tscale**2, tscale**3]
+    pu = modulus_factor(law, escale, temp_c) * float(np.dot(u["a"], powers)) + float(np.dot(u["b"], powers))
+    return pu * (ratio_value(u["etch"], etch) if "etch" in u and "etch" in law["parameters"] else 1.0)
+
+
 def coordinate_values(
     law: dict,
     v: int,
@@ -496,11 +520,13 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
     t) and B the rest (a given spring such as k_xy x y: B = 1), cubics in tscale from the energies
     re-run at fit_points and E_PROBE, each the least-squares ratio to the nominal over sample points;
     the error includes the spread of that ratio over the points (a shape change with t). {} without
-    a strain energy or a parameter that moves it (tscale, escale, temp)."""
-    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp")):
+    a strain energy or a parameter that moves it (tscale, escale, temp, etch: times its etch ratio,
+    energy_etch)."""
+    if m.strain_energy is None or not any(p.wants(n) for n in ("tscale", "escale", "temp", "etch")):
         return {}
     q = np.random.default_rng(0).uniform(-1e-6, 1e-6, (16, len(m.names)))  # ~ um amplitudes (any scale)
     u0 = np.asarray(m.strain_energy.energy(q), dtype=float)
+    etch = energy_etch(s, m, run, p, q, u0) if p.wants("etch") else {}
     ratios, spread = [], 0.0
     modulus = p.wants("escale") or p.wants("temp")
     for tau in fit_points(p):
@@ -517,9 +543,31 @@ def energy_law(s: Structure, m: Mechanics, run, p: Process) -> dict:
         ratios.append([a, row[0] - a])
     coef, err = power_fit(fit_points(p), np.array(ratios), np.abs(np.array(ratios)).sum(axis=1, keepdims=True))
     worst = max(err, spread)
+    worst = max(worst, etch.get("max_rel_error", 0.0))
     return {
-        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest",
+        "law": "U x (pe A(tscale) + B(tscale)), A the modulus-proportional part, B the rest"
+        + (" x R(etch)" if etch else ""),
         "a": [float(c) for c in coef[0]],
         "b": [float(c) for c in coef[1]],
         "max_rel_error": worst if worst > ROUND_OFF else 0.0,
-    }
+    } | ({"etch": etch["ratio"]} if etch else {})
+
+
+def energy_etch(s: Structure, m: Mechanics, run, p: Process, q: np.ndarray, u0: np.ndarray) -> dict:
+    """The strain energy's etch ratio R(etch) = U(q; etch) / U(q) (a cubic in etch / 1 um, 1 at 0; the
+    least-squares ratio over the sample points `q` at etch_points, the mechanics re-run on the etched
+    structure) and its error: the cubic's residual and the spread of the ratio over the points (a mode
+    shape that changes with the etch). A clamped-clamped beam's stretching E (w - 2 etch) t (int w'^2 /
+    2)^2 / 2L: R = (w - 2 etch) / w, its modes (L fixed) unchanged: exact."""
+    points, values, spread = etch_points(p), [], 0.0
+    for e in points:
+        me = m if e == 0.0 else run(etched(s, e))
+        if me.strain_energy is None:
+            raise ValueError("the strain energy vanishes with the etch bias")
+        u = np.asarray(me.strain_energy.energy(q), dtype=float)
+        r = float(u0 @ u / (u0 @ u0))
+        spread = max(spread, float(np.max(np.abs(u - r * u0)) / np.max(np.abs(u))))
+        values.append([r])
+    coef, err = power_fit(tuple(e / ETCH_UNIT for e in points), np.array(values), np.array(values), nominal=0.0)
+    worst = max(err, spread)
+    return {"ratio": [float(c) for c in coef[0]], "max_rel_error": worst if worst > ROUND_OFF else 0.0}

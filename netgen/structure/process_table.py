@@ -14,6 +14,7 @@ KEYS = ["parameters", "tscale_range", "escale_range", "temp_range", "modulus_tc"
 CAVITIES = ("open", "sealed")  # the film's gas under temp: fixed pressure, or a fixed amount (p ~ T)
 ETCH_LIMIT = 5e-6  # m: the widest lateral etch bias per edge read (the flexure widths bound it further)
 ETCH_TYPES = ("folded", "crab_leg", "clamped_guided")  # flexures with beam widths the etch narrows
+BEAM_KINDS = ("cantilever", "clamped_clamped_beam")  # beam conductors: the etch narrows the beam itself
 # the widest ranges the laws are offered for: thickness and modulus factors around 1, the die
 # temperature between liquid nitrogen and a solder reflow (the gas laws' and the modulus' validity)
 LIMITS = {"tscale": (0.5, 1.5), "escale": (0.2, 3.0), "temp": (-200.0, 300.0)}
@@ -115,15 +116,21 @@ def read_etch_range(rd: Reader, t: dict, params: tuple[str, ...]) -> tuple[float
 
 
 def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
-    """etch narrows a proof mass's flexure beams (w - 2 etch) and comb fingers and widens its etch holes:
-    it needs such flexures, every beam and finger keeping more than half its width at the range's top
-    and holes that neither close nor merge over the range."""
+    """etch narrows a beam conductor (check_beam_etch) or a proof mass's flexure beams (w - 2 etch) and
+    comb fingers and widens its etch holes: it needs such flexures, every beam and finger keeping more
+    than half its width at the range's top and holes that neither close nor merge over the range;
+    plates (piston, free disk) are refused."""
     where = "process.parameters"
+    kind = getattr(conductor, "kind", "")
+    if kind in BEAM_KINDS:
+        check_beam_etch(rd, p, conductor)
+        return
     flex = getattr(conductor, "flexure", None)
-    if getattr(conductor, "kind", "") != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
+    if kind != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
         raise rd.fail(
             where,
-            f"etch narrows flexure beams: it needs a proof mass with a flexure of type {', '.join(ETCH_TYPES)}",
+            f"etch narrows beams: it needs a {' or '.join(BEAM_KINDS)} conductor or a proof mass with a "
+            f"flexure of type {', '.join(ETCH_TYPES)} (a plate's etch is not modelled)",
             "remove 'etch' from process.parameters",
         )
     for e in sets:
@@ -147,6 +154,17 @@ def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
             "process.etch_range",
             f"an over-etch of {p.etch_range[1]:g} m per edge removes half or more of the narrowest beam ({min(widths):g} m)",
             "narrow etch_range (its top below a quarter of the narrowest flexure width)",
+        )
+
+
+def check_beam_etch(rd: Reader, p: Process, beam: Any) -> None:
+    """A beam conductor's etch (netgen.model.process.etched_beam: width w - 2 etch, a cantilever's tip
+    back by etch) keeps more than half its width at the range's top."""
+    if 2 * p.etch_range[1] >= 0.5 * beam.width:
+        raise rd.fail(
+            "process.etch_range",
+            f"an over-etch of {p.etch_range[1]:g} m per edge removes half or more of the beam ({beam.width:g} m wide)",
+            "narrow etch_range (its top below a quarter of the beam's width)",
         )
 
 

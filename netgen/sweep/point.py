@@ -18,9 +18,10 @@ import numpy as np
 from ..core.errors import SweepError
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..model.process import GAP_SIDES, KELVIN, coordinate_values, etched, ratio_value, scaled
+from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
+from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .tomltext import to_toml
 
@@ -55,8 +56,9 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     takes the point as instance parameters: each coordinate's mass, stiffness and damping from the
     laws (netgen.model.process.coordinate_values, the arithmetic the emitters render) and its
     frequency from them; the a_in participation times tscale and its etch ratio (as the emitters scale
-    the port: netgen.model.process_loads.acceleration_at); the thermal noise at the point's
-    temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
+    the port: netgen.model.process_loads.acceleration_at); the fitted strain energy times its law pu
+    (netgen.model.process.energy_factor, as the emitters scale its forces); the thermal noise at the
+    point's temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
     polynomials re-expanded, exact)."""
     law = model.process
     tscale, escale = point.get("tscale", 1.0), point.get("escale", 1.0)
@@ -72,6 +74,10 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
         acceleration=acceleration_at(model, tscale, etch),
         capacitances=shifted_fits(model, point),
     )
+    if model.nonlinear and law.get("strain_energy"):
+        pu = energy_factor(law, tscale, escale, temp, etch)
+        energy = model.nonlinear["energy_J"]
+        out.nonlinear = {**model.nonlinear, "energy_J": {**energy, "coeffs": [pu * c for c in energy["coeffs"]]}}
     if temp is not None and "damping" in model.report:
         out.report = {**model.report, "damping": {**model.report["damping"], "temperature_K": temp + KELVIN}}
     return out
@@ -243,7 +249,8 @@ def problem(s: Structure, name: str, value: float, rebuild: bool) -> tuple[str, 
                 f"process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
                 f"keep the values inside {name}_range, widen it in [process], {other}".rstrip(", "),
             )
-    if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None:
+    beam = getattr(s.conductor, "kind", "") in BEAM_KINDS
+    if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None and not beam:
         return ("process.etch: the structure has no flexure beams to etch", "sweep the widths as structure.<key>")
     t0 = s.damping.temperature - KELVIN if s.damping else 26.85
     if rebuild and name == "temp" and s.damping and s.damping.squeeze_film and value != t0:

@@ -1,0 +1,91 @@
+"""The etch on beam conductors (netgen.model.process.etched_beam): the figures quoted in docs/process.md
+and CHANGELOG.md. The cantilever and clamped-clamped beam of tests/oracles/beam_etch (the electrode
+past the beam) against Euler-Bernoulli and full rebuilds, and examples/cantilever.toml as drawn (its
+electrode is the beam's own outline, so an under-etched beam overhangs it: a kink at etch 0 that the
+cubic ratio misses). Run from the repository root:
+    .venv/bin/python bench/process_etch_beams.py
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from support import ROOT, beam_etch, process_balance
+
+from netgen.build import build_model
+from netgen.model.process import coordinate_values, ratio_value
+from netgen.structure import parse_structure
+
+ETCHES, PROCESS = beam_etch.ETCHES, beam_etch.PROCESS
+
+
+def drawn_text(etch: float = 0.0, process: str = PROCESS) -> str:
+    """examples/cantilever.toml as drawn (electrode x 0..150 um, y the drawn width), [process] etch; at
+    `etch` the file rewritten at the etched width and length with the electrode where it was drawn."""
+    text = (ROOT / "examples" / "cantilever.toml").read_text()
+    text = text.replace('x = ["0 um", "150 um"]', 'x = ["0 um", "150 um"]\ny = ["-25 um", "25 um"]')
+    if etch:
+        text = text.replace('width = "50 um"', f'width = "{50 - 2e6 * etch!r} um"')
+        text = text.replace('length = "150 um"', f'length = "{150 - 1e6 * etch!r} um"')
+    return text + ("\n" + process if process else "")
+
+
+def report(label: str, model, rebuild, name: str | None) -> None:
+    """Frequencies, modal mass and stiffness against Euler-Bernoulli (name: a beam_etch case), the
+    capacitances at 100 points and the cantilever's pull-in against the rebuilds."""
+    law = model.process["etch"]
+    print(
+        f"{label}: stated mechanics {law['max_rel_error']:.1e}, capacitance {law['capacitance_max_rel_error']:.1e}, "
+        f"fits {model.capacitances[0].max_rel_error:.1e}"
+    )
+    box = np.array(
+        [model.sampling.get("coordinate_range", {}).get(c.name, model.sampling["range"]) for c in model.coordinates]
+    )
+    x = np.random.default_rng(3).uniform(-1.0, 1.0, (100, model.ncoords)) * box
+    for e in ETCHES:
+        ref = rebuild(e)
+        laws = [coordinate_values(model.process, v, etch=e) for v in range(model.ncoords)]
+        f = [math.sqrt(k / m) / (2 * math.pi) for m, k, _ in laws]
+        line = f"  etch {e * 1e6:+.1f} um: f vs rebuild {max(abs(a / c.frequency_hz - 1) for a, c in zip(f, ref.coordinates)):.1e}"
+        if name:
+            rm, rk, rf = beam_etch.modal_ratios(name, e)
+            dm = max(abs(m / c.mass / rm - 1) for (m, _, _), c in zip(laws, model.coordinates))
+            dk = max(abs(k / c.stiffness / rk - 1) for (_, k, _), c in zip(laws, model.coordinates))
+            df = max(abs(a / c.frequency_hz / rf - 1) for a, c in zip(f, model.coordinates))
+            line += f", vs Euler-Bernoulli m {dm:.1e} k {dk:.1e} f {df:.1e} (f ratio {rf:.6f})"
+        pc = ratio_value(law["capacitance"][0]["ratio"], e)
+        dc = np.max(np.abs(pc * model.capacitance(x) / ref.capacitance(x) - 1))
+        line += f"; C at 100 points vs rebuild {dc:.1e}"
+        if model.name == "cantilever":
+            k = [m[1] for m in laws]
+            v_law = process_balance.pull_in(model, k) / math.sqrt(pc)
+            v_ref = process_balance.pull_in(ref, [c.stiffness for c in ref.coordinates])
+            line += f"; pull-in {v_law:.5f} V vs {v_ref:.5f} V ({v_law / v_ref - 1:+.1e})"
+        print(line)
+
+
+def built(text: str, name: str):
+    """The MacroModel of a structure text."""
+    return build_model(parse_structure(text, f"{name}.toml"))
+
+
+def main() -> None:
+    t0 = time.time()
+    for name in ("cantilever", "cc_beam"):
+        model = built(beam_etch.beam_text(name), name)
+        report(
+            f"{name} (electrode past the beam)",
+            model,
+            lambda e, n=name: built(beam_etch.beam_text(n, e, process=""), n),
+            name,
+        )
+    model = built(drawn_text(), "cantilever")
+    label = "examples/cantilever.toml as drawn (electrode = the beam's outline)"
+    report(label, model, lambda e: built(drawn_text(e, process=""), "cantilever"), None)
+    print(f"{time.time() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
