@@ -22,6 +22,7 @@ from .common import (
     header_context,
     node,
     noise_enabled,
+    noise_kelvin,
     nonlinear_forces,
     num,
     poly_expr,
@@ -97,7 +98,7 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float | str) -> 
 def noise_context(model: MacroModel, ws: float) -> dict:
     """Template fields of the thermal force noise sources (damped coordinates only): a TRNOISE source
     for .tran and, in series, the resistor Rn_<q> whose thermal noise .noise sees (noise_resistance)."""
-    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    temp = noise_kelvin(model)
     f_max = max(
         [c.frequency_hz for c in model.coordinates]
         + [ws / (2 * math.pi)]
@@ -117,7 +118,7 @@ def noise_context(model: MacroModel, ws: float) -> dict:
     ]
     return {
         "noise_sources": sources,
-        "noise_temperature": f"{temp:g}",
+        "noise_temperature": "the instance's temp + 273.15" if process.declared(model, "temp") else f"{temp:g}",
         "noise_dt": f"{dt:g}",
         "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else "",
         "noise_dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
@@ -365,7 +366,7 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     w = F_j / (r_j L w_s) in the units of u obeying (1/w_s) w' = (corner/w_s)(u - w [+ noise]),
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
-    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    temp = noise_kelvin(model)
     # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
     # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
     pv = process.film_scaled(model)

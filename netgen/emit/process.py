@@ -11,7 +11,7 @@ import numpy as np
 
 from ..model import MacroModel
 from ..model.process_loads import IDENTITY
-from .common import num, unit_load
+from .common import noise_kelvin, num, unit_load
 
 KELVIN = 273.15
 
@@ -513,8 +513,8 @@ def bound(x: float, side: int) -> str:
 
 def noise_temperature(model: MacroModel) -> str:
     """Verilog-A text of the thermal noise's temperature (K): the instance's temp where declared, else
-    the simulator's $temperature (as without [process])."""
-    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else "$temperature"
+    the model's own (netgen.emit.common.noise_kelvin), never the simulator's $temperature."""
+    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else num(noise_kelvin(model))
 
 
 def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
