@@ -367,34 +367,53 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
     temp = noise_kelvin(model)
-    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
-    # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
-    pv = process.film_scaled(model)
-    f = (lambda x, e: f"{{{x}{e}}}") if pv else (lambda x, e: x)
+    # each branch's damper r_j times its factor d (netgen.emit.process.branch_law: pv under temp, pg_<set>
+    # at a moved gap) and its corner times rg_<set> / d; the noise force sqrt(2 k_B T r) at the instance's
+    # temp, its gain into w ~ corner / r
     rows = []
-    for c in model.coordinates:
+    for v, c in enumerate(model.coordinates):
         for j, (r, corner) in enumerate(c.film):
+            law = process.branch_law(model, v, j)
+            f = branch_texts(law)
             row = {
                 "coord": c.name,
                 "node": f"w_{c.name}_{j + 1}",
                 "corner_hz": f"{corner / (2 * math.pi):.6g}",
                 "damping": f"{r:.6g}",
-                "g_in": f(num(corner / ws), "/pv"),
-                "r_out": f(num(ws / corner), "*pv"),
-                "g_force": f(num(r / (c.mass * ws)), "*pv"),
+                "g_in": f(num(corner / ws), "corner"),
+                "r_out": f(num(ws / corner), "inverse"),
+                "g_force": f(num(r / (c.mass * ws)), "damper"),
             }
             if noise:
                 rms = num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3])
+                t_ratio = f"*(temp + {num(process.KELVIN)})/{num(temp)}" if process.film_scaled(model) else ""
                 row.update(
                     {
-                        "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
-                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
-                        "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
+                        "rms": f"{rms}*sqrt({law[0]}{t_ratio})" if law else rms,
+                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "gain"),
+                        "rn": f(num(noise_resistance(r, c.port_units[3])), "damper"),
                         "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                     }
                 )
             rows.append(row)
     return rows
+
+
+def branch_texts(law: tuple[str, str] | None):
+    """(value, kind) -> ngspice text of a film branch's value times its process factor (netgen.emit.
+    process.branch_law): kind damper (d), corner (rg / d), inverse (d / rg) or gain (rg / d^2)."""
+    if law is None:
+        return lambda x, kind: x
+    d, gset = law
+    dd = f"({d})" if "*" in d else d
+    rg = f"rg_{gset}" if gset else ""
+    texts = {
+        "damper": f"*{dd}",
+        "corner": f"*{rg}/{dd}" if rg else f"/{dd}",
+        "inverse": f"*{dd}/{rg}" if rg else f"*{dd}",
+        "gain": f"*{rg}/({dd}*{dd})" if rg else f"/({dd}*{dd})",
+    }
+    return lambda x, kind: f"{{{x}{texts[kind]}}}"
 
 
 def inertial_loads(model: MacroModel, ws: float) -> list[dict]:

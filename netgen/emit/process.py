@@ -438,7 +438,14 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 def film_text(g: dict) -> str:
     """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
     if not (f := g.get("film")):
-        return "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, or a side several sets share)"
+        return "damping unchanged (no squeeze film of this set's own: given damping, or a side several sets share)"
+    if "branches" in f:  # the compressible film (netgen.model.process_film.compressible_law)
+        return (
+            f"its side's compressible-film branches: dampers and the remainder damper's share times pg_{g['set']} "
+            f"= mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), gas springs times rg_{g['set']} = g / (g + dg) "
+            f"(corners times rg / pg), g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} "
+            "at T0 (exact)"
+        )
     if f.get("fit"):
         return (
             "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
@@ -589,6 +596,16 @@ def energy_moved(model: MacroModel) -> bool:
     """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
     times pu."""
     return enabled(model) and bool(model.process.get("strain_energy"))
+
+
+def branch_law(model: MacroModel, v: int, j: int) -> tuple[str, str] | None:
+    """(damper factor, moved-gap set) of coordinate v's compressible-film branch j: the damper r_j times
+    pv under temp and pg_<set> where its side's set has a gap offset (netgen.model.process_film.
+    compressible_law), its corner times rg_<set> over that factor (the gas spring ~ p_a / g); None
+    where nothing moves it. The set is "" without one."""
+    moved = [g["set"] for g in film_sets(model) if j in g["film"].get("branches", [[]] * (v + 1))[v]]
+    factor = (["pv"] if film_scaled(model) else []) + [f"pg_{n}" for n in moved]
+    return ("*".join(factor), moved[0] if moved else "") if factor else None
 
 
 def film_scaled(model: MacroModel) -> bool:

@@ -42,6 +42,7 @@ import numpy as np
 
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
+from ..mechanics.damping import squeeze_film_damping
 from ..structure import Structure
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
@@ -174,6 +175,7 @@ def process_laws(
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
     dg_max = sampling_range * scale_z / 4 if scale_z else 0.0
     etch_err = etch_laws(s, m, run, film, p, per) if p.wants("etch") else 0.0
+    solved = squeeze_film_damping(s, m) if film and sets else None  # one film solve for every gap set
     out: dict[str, Any] = {
         "parameters": list(p.parameters),
         "temperature_C": t0 - KELVIN,
@@ -190,7 +192,7 @@ def process_laws(
             "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
         },
         "coordinates": per,
-        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max) for r in sets],
+        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max, solved) for r in sets],
     }
     if p.wants("etch"):
         # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too

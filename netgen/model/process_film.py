@@ -86,29 +86,50 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     }
 
 
-def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0) -> dict:
+def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0, solved: dict | None = None) -> dict:
     """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
     dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
     of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
     (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
     solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
     perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
-    coordinate (perforated_fit). {} where no law holds: no film, the compressible film (its poles
-    merge the sides) or more sets on the side (the film has one gap)."""
+    coordinate (perforated_fit). The compressible film: compressible_law. {} where no law holds: no
+    film or more sets on the side (the film has one gap). `solved`: squeeze_film_damping(s, m) if done."""
     d = s.damping
-    if not (d and d.squeeze_film) or d.film_model == "compressible":
+    if not (d and d.squeeze_film):
         return {}
     side = next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
     facing = {e.name for e in s.electrode_sets if getattr(e, "side", None) == side}
     if facing != {gap_set["set"]}:
         return {}
-    film = squeeze_film_damping(s, m)
+    film = solved or squeeze_film_damping(s, m)
     row, total = film["sides"][side], film["diagonal"]
+    if d.film_model == "compressible":
+        return {"film": compressible_law(film, side)}
     share = [float(b / t) if t > 0 else 0.0 for b, t in zip(row["diagonal"], total)]
     out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}
     if float(getattr(s.conductor, "hole", 0.0)) > 0.0 and dg_max > 0.0:
         out["fit"] = perforated_fit(s, m, side, dg_max, np.asarray(row["diagonal"]))
     return {"film": out}
+
+
+def compressible_law(film: dict, side: str) -> dict:
+    """The compressible film's law for the side's gap set (netgen.mechanics.damping.compressible_film,
+    its branches one side's each): Veijola's 9.638 Kn^1.159 at the side's gap, per coordinate the
+    indices of the side's branches and its share of the remainder damper. Exact in g: a branch's
+    damper r_j = c (phi, psi_j)^2 / lambda_j and the remainder ~ c = 12 mu_eff / g^3, its gas spring
+    r_j w_j = (phi, psi_j)^2 p_a / g (the Dirichlet eigenpairs of the gap region do not depend on g),
+    so at g + dg the dampers are times pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) and the
+    corners times g / ((g + dg) pg) (netgen.emit.process.branch_law)."""
+    row, owners = film["sides"][side], film["owners"]
+    share = [float(o["remainder"].get(side, 0.0) / t) if t > 0 else 0.0 for o, t in zip(owners, film["diagonal"])]
+    branches = [[j for j, s in enumerate(o["branch"]) if s == side] for o in owners]
+    return {
+        "gap_m": row["gap_m"],
+        "rarefaction": 9.638 * row["knudsen"] ** 1.159,
+        "share": share,
+        "branches": branches,
+    }
 
 
 FIT_SPAN = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the dg points (of dg_max) the perforated film's cubic is fitted at
