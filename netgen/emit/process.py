@@ -392,6 +392,11 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         visc = p["temp"].get("viscosity")
         text += (
             f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
+            + (
+                f" (fitted at the smaller gap; the other side's film differs by up to {visc['sides_spread']:.1e})"
+                if visc.get("sides_spread")
+                else ""
+            )
             + (", sealed cavity (p ~ T)" if visc.get("cavity") == "sealed" else ", fixed pressure")
             if visc
             else ""
