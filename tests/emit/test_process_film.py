@@ -48,6 +48,7 @@ from netgen.model.process import coordinate_values
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
+from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.mechanics.test_damping import COMPRESSIBLE, SMALL
 from tests.oracles.fmu_process import viscosity_ratio
 from tests.oracles.testbench import using_ngspice
@@ -200,11 +201,13 @@ def network_compliance(branches, remainder: float, mass: float, w: np.ndarray, k
     return 1.0 / imp, np.abs(1j * w * b / imp)
 
 
-@pytest.mark.parametrize("form", ("lib", "osdi"))
-@pytest.mark.parametrize(("dg", "temp"), DG_POINTS)
+@pytest.mark.parametrize(
+    ("form", "dg", "temp"), [(f, dg, t) for f in ("lib", "osdi") for dg, t in DG_POINTS] + [("xspice", 1.5e-7, None)]
+)
 def test_film_branches_follow_the_gap(built, solver, tmp_path, form, dg, temp):
     """The .ac compliance of z at dg_top (and temp) against the re-run network (module docstring): the
-    .lib in ngspice 39 and OSDI in ngspice 46."""
+    .lib in ngspice 39, OSDI in ngspice 46 and, at one point, the _xspice.lib in ngspice 39 (unbiased:
+    its code model adds nothing to the small-signal matrix there)."""
     model, folder = built
     z = model.coordinates[0]
     k = z.mass * (2 * math.pi * 1e3) ** 2
@@ -214,6 +217,10 @@ def test_film_branches_follow_the_gap(built, solver, tmp_path, form, dg, temp):
         if form == "osdi"
         else ""
     )
+    if form == "xspice":
+        lib, lines = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
+        lib = lib.resolve()
+        ctl = "\n".join([".control", *lines, "run", "write out.raw all", ".endc"])
     params = f"dg_top={dg!r}" + (f" temp={temp!r}" if temp is not None else "")
     net = f"""* film at dg_top {dg}
 .include {lib}
@@ -224,7 +231,7 @@ Bsp fsp 0 V={-k!r}*v(xz)
 {ctl}
 .end
 """
-    with using_ngspice("39" if form == "lib" else "46"):
+    with using_ngspice("46" if form == "osdi" else "39"):
         plot = run_ngspice(net, tmp_path)[0]
     got = np.asarray(plot["v(xz)"])
     w = 2 * math.pi * np.real(plot["frequency"])
