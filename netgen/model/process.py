@@ -47,7 +47,7 @@ from ..structure import Structure
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
-from .process_film import GAP_SIDES, KELVIN, film_law, film_ratio, temperature_law
+from .process_film import GAP_SIDES, KELVIN, branches_at, film_law, film_ratio, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
@@ -482,6 +482,19 @@ def coordinate_values(
     )
     damp = d_rest + ratio * d_film * film_ratio(law, v, temp_c, dg or {})
     return mass, modulus_factor(law, escale, temp_c) * a + b, damp
+
+
+def film_at(law: dict, v: int, film: tuple, temp_c: float | None = None, dg: dict[str, float] | None = None) -> tuple:
+    """Coordinate v's compressible-film branches (Coordinate.film) at the process point: dampers times
+    the viscosity ratio and a moved side's pg, corners times rg over that (process_film.branches_at)."""
+    temp_c = law["temperature_C"] if temp_c is None else temp_c
+    visc = law["temp"]["viscosity"]
+    pv = (
+        float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
+        if visc
+        else 1.0
+    )
+    return branches_at(law, v, film, pv, temp_c, dg or {})
 
 
 def finite_law(law: dict) -> bool:

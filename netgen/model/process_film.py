@@ -183,18 +183,43 @@ def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
     """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m):
     1 + sum share (pg - 1), pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) with the mean free path
     at temp (film_law; netgen.emit.process.film_factors renders the same)."""
-    visc = law["temp"].get("viscosity") or {}
-    pl = 1.0
-    if visc and "temp" in law["parameters"]:
-        pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
     out = 1.0
+    factors = gap_factors(law, temp_c, dg)
     for g in law["gaps"]:
         f = g.get("film")
         if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit)
             x = dg.get(g["set"], 0.0) * 1e6
             out += f["share"][v] * (float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3])) - 1.0)
         elif f:
-            r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
-            pg = r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159)
-            out += f["share"][v] * (pg - 1.0)
+            out += f["share"][v] * (factors[g["set"]][1] - 1.0)
     return out
+
+
+def gap_factors(law: dict, temp_c: float, dg: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """set -> (rg, pg) of each gap set with a film law: rg = g / (g + dg), pg = rg^3 (1 + A pl^1.159) /
+    (1 + A (pl rg)^1.159) with the mean free path's ratio pl at temp (film_law)."""
+    visc = law["temp"].get("viscosity") or {}
+    pl = 1.0
+    if visc and "temp" in law["parameters"]:
+        pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
+    out = {}
+    for g in law["gaps"]:
+        if f := g.get("film"):
+            r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
+            out[g["set"]] = (r, r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159))
+    return out
+
+
+def branches_at(
+    law: dict, v: int, film: tuple, pv: float, temp_c: float, dg: dict[str, float]
+) -> tuple[tuple[float, float], ...]:
+    """Coordinate v's compressible-film branches (r_j, w_j) at the process point: r_j times pv (the
+    viscosity ratio, under temp) and its moved side's pg, w_j times rg over that (compressible_law; the
+    emitters' netgen.emit.process.branch_law)."""
+    factors = gap_factors(law, temp_c, dg)
+    owner = {j: g["set"] for g in law["gaps"] if g.get("film") for j in g["film"].get("branches", [[]] * (v + 1))[v]}
+    out = []
+    for j, (r, w) in enumerate(film):
+        rg, pg = factors.get(owner.get(j, ""), (1.0, 1.0))
+        out.append((r * pv * pg, w * rg / (pv * pg)))
+    return tuple(out)

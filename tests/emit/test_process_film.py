@@ -274,3 +274,19 @@ def test_fmu_film_branches_follow_the_gap(built, solver, dg, temp):
     print(f"FMU dg_top {dg * 1e9:+.0f} nm, temp {temp}: branches / re-run - 1 at most {dev:.1e}")
     for (r, p), (r_ref, p_ref) in zip(got, want, strict=True):
         assert r == pytest.approx(r_ref, rel=2 * eps + 1e-12) and p == pytest.approx(p_ref, rel=2 * eps + 1e-12)
+
+
+@pytest.mark.parametrize(("dg", "temp"), DG_POINTS)
+def test_sweep_point_moves_the_branches(built, solver, dg, temp):
+    """netgen sweep's model at the process point (netgen.sweep.point.at_point, which designs and
+    analyses a run) carries the same film: every branch and the remainder against the re-run's, 1e-12
+    without temp and the law's 2 eps with it (module docstring)."""
+    from netgen.sweep.point import at_point
+
+    model, _ = built
+    z = at_point(model, {"dg_top": dg} | ({"temp": temp} if temp is not None else {})).coordinates[0]
+    eps = model.process["temp"]["viscosity"]["max_rel_error"] if temp is not None else 0.0
+    want, remainder = expected(solver, dg, temp)
+    assert z.damping == pytest.approx(remainder, rel=eps + 1e-12)
+    for (r, p), (r_ref, p_ref) in zip(sorted(z.film, key=lambda b: b[1]), want, strict=True):
+        assert r == pytest.approx(r_ref, rel=2 * eps + 1e-12) and p == pytest.approx(p_ref, rel=2 * eps + 1e-12)
