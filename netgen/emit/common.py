@@ -298,6 +298,12 @@ def coupling_text(model: MacroModel) -> str:
     return f"Calibration: {cal.get('source', 'given')}{fringe} (the model JSON's calibration entry)."
 
 
+def noise_kelvin(model: MacroModel) -> float:
+    """The model's own temperature (K), the [damping] temperature its damping was computed at: the
+    thermal noise's T in every form (fluctuation-dissipation), not the simulator's circuit temperature."""
+    return float(model.report.get("damping", {}).get("temperature_K", 300.0))
+
+
 def noise_enabled(model: MacroModel, noise: bool | None) -> bool:
     """Emit thermal noise sources: the explicit option, else the structure's [damping] noise."""
     return model.report.get("damping", {}).get("noise", False) if noise is None else noise

@@ -149,7 +149,8 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
 def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
     """The gap sets' squeeze-film laws (netgen.emit.process.film_factors): per film set its dg's value
     reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A, per coordinate its share
-    FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none)."""
+    FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none);
+    per compressible-film branch the film set whose gap moves it FILM_SET (-1: none)."""
     sets, n = process.film_sets(model), model.ncoords
     visc = (model.process.get("temp") or {}).get("viscosity") or {} if sets and process.declared(model, "temp") else {}
     path = [float(visc.get("cavity") == "sealed"), visc["sutherland_K"], visc["t0_K"]] if visc else [0.0, 0.0, 1.0]
@@ -161,7 +162,18 @@ def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
         array("int", "FILM_FIT", [int("fit" in g["film"]) for g in sets]),  # 1: a perforated film's cubics
         array("double", "FILM_POLY", [(g["film"].get("fit") or {}).get("coeffs", [IDENTITY] * n) for g in sets]),
         array("double", "PATH_LAW", path),
+        array(
+            "int",
+            "FILM_SET",
+            [branch_set(sets, v, j) for v, c in enumerate(model.coordinates) for j in range(len(c.film))],
+        ),
     ]
+
+
+def branch_set(sets: list[dict], v: int, j: int) -> int:
+    """The index in `sets` of the gap set whose side's compressible film makes coordinate v's branch j
+    (netgen.model.process_film.compressible_law), else -1."""
+    return next((k for k, g in enumerate(sets) if j in g["film"].get("branches", [[]] * (v + 1))[v]), -1)
 
 
 def etch_shifts(model: MacroModel) -> list[float]:

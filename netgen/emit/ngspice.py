@@ -22,6 +22,7 @@ from .common import (
     header_context,
     node,
     noise_enabled,
+    noise_kelvin,
     nonlinear_forces,
     num,
     poly_expr,
@@ -97,7 +98,7 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float | str) -> 
 def noise_context(model: MacroModel, ws: float) -> dict:
     """Template fields of the thermal force noise sources (damped coordinates only): a TRNOISE source
     for .tran and, in series, the resistor Rn_<q> whose thermal noise .noise sees (noise_resistance)."""
-    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
+    temp = noise_kelvin(model)
     f_max = max(
         [c.frequency_hz for c in model.coordinates]
         + [ws / (2 * math.pi)]
@@ -117,7 +118,7 @@ def noise_context(model: MacroModel, ws: float) -> dict:
     ]
     return {
         "noise_sources": sources,
-        "noise_temperature": f"{temp:g}",
+        "noise_temperature": "the instance's temp + 273.15" if process.declared(model, "temp") else f"{temp:g}",
         "noise_dt": f"{dt:g}",
         "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else "",
         "noise_dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
@@ -365,35 +366,54 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     w = F_j / (r_j L w_s) in the units of u obeying (1/w_s) w' = (corner/w_s)(u - w [+ noise]),
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
-    temp = float(model.report.get("damping", {}).get("temperature_K", 300.0))
-    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled); the noise force
-    # sqrt(2 k_B T r) at the instance's temp, its gain into w ~ corner / r
-    pv = process.film_scaled(model)
-    f = (lambda x, e: f"{{{x}{e}}}") if pv else (lambda x, e: x)
+    temp = noise_kelvin(model)
+    # each branch's damper r_j times its factor d (netgen.emit.process.branch_law: pv under temp, pg_<set>
+    # at a moved gap) and its corner times rg_<set> / d; the noise force sqrt(2 k_B T r) at the instance's
+    # temp, its gain into w ~ corner / r
     rows = []
-    for c in model.coordinates:
+    for v, c in enumerate(model.coordinates):
         for j, (r, corner) in enumerate(c.film):
+            law = process.branch_law(model, v, j)
+            f = branch_texts(law)
             row = {
                 "coord": c.name,
                 "node": f"w_{c.name}_{j + 1}",
                 "corner_hz": f"{corner / (2 * math.pi):.6g}",
                 "damping": f"{r:.6g}",
-                "g_in": f(num(corner / ws), "/pv"),
-                "r_out": f(num(ws / corner), "*pv"),
-                "g_force": f(num(r / (c.mass * ws)), "*pv"),
+                "g_in": f(num(corner / ws), "corner"),
+                "r_out": f(num(ws / corner), "inverse"),
+                "g_force": f(num(r / (c.mass * ws)), "damper"),
             }
             if noise:
                 rms = num(math.sqrt(2.0 * K_B * temp * r) / c.port_units[3])
+                t_ratio = f"*(temp + {num(process.KELVIN)})/{num(temp)}" if process.film_scaled(model) else ""
                 row.update(
                     {
-                        "rms": f"{rms}*sqrt(pv*(temp + {num(process.KELVIN)})/{num(temp)})" if pv else rms,
-                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "/(pv*pv)"),
-                        "rn": f(num(noise_resistance(r, c.port_units[3])), "*pv"),
+                        "rms": f"{rms}*sqrt({law[0]}{t_ratio})" if law else rms,
+                        "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "gain"),
+                        "rn": f(num(noise_resistance(r, c.port_units[3])), "damper"),
                         "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
                     }
                 )
             rows.append(row)
     return rows
+
+
+def branch_texts(law: tuple[str, str] | None):
+    """(value, kind) -> ngspice text of a film branch's value times its process factor (netgen.emit.
+    process.branch_law): kind damper (d), corner (rg / d), inverse (d / rg) or gain (rg / d^2)."""
+    if law is None:
+        return lambda x, kind: x
+    d, gset = law
+    dd = f"({d})" if "*" in d else d
+    rg = f"rg_{gset}" if gset else ""
+    texts = {
+        "damper": f"*{dd}",
+        "corner": f"*{rg}/{dd}" if rg else f"/{dd}",
+        "inverse": f"*{dd}/{rg}" if rg else f"*{dd}",
+        "gain": f"*{rg}/({dd}*{dd})" if rg else f"/({dd}*{dd})",
+    }
+    return lambda x, kind: f"{{{x}{texts[kind]}}}"
 
 
 def inertial_loads(model: MacroModel, ws: float) -> list[dict]:

@@ -21,7 +21,7 @@ from ..core.files import write_atomic
 from ..core.templating import render
 from ..model import MacroModel
 from . import process, veriloga
-from .common import header_context, noise_enabled, time_scale
+from .common import header_context, noise_enabled, noise_kelvin, time_scale
 from .ngspice import inertial_loads
 
 TEMPLATE = "ngspice/osdi.lib.j2"
@@ -161,6 +161,7 @@ def subcircuit(model: MacroModel) -> str:
         needs="45" if n > NODE_LIMIT_44 else "44",
         node_limit=NODE_LIMIT_44,
         noise=noise_enabled(model, None),
+        noise_temp="the instance's temp + 273.15" if process.declared(model, "temp") else f"{noise_kelvin(model):g}",
     )
 
 

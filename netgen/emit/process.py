@@ -11,7 +11,7 @@ import numpy as np
 
 from ..model import MacroModel
 from ..model.process_loads import IDENTITY
-from .common import num, unit_load
+from .common import noise_kelvin, num, unit_load
 from .process_etch import etch_header
 
 KELVIN = 273.15
@@ -395,6 +395,11 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         visc = p["temp"].get("viscosity")
         text += (
             f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
+            + (
+                f" (fitted at the smaller gap; the other side's film differs by up to {visc['sides_spread']:.1e})"
+                if visc.get("sides_spread")
+                else ""
+            )
             + (", sealed cavity (p ~ T)" if visc.get("cavity") == "sealed" else ", fixed pressure")
             if visc
             else ""
@@ -428,7 +433,14 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
 def film_text(g: dict) -> str:
     """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
     if not (f := g.get("film")):
-        return "damping unchanged (no squeeze film of this set's own: given damping, a compressible film, or a side several sets share)"
+        return "damping unchanged (no squeeze film of this set's own: given damping, or a side several sets share)"
+    if "branches" in f:  # the compressible film (netgen.model.process_film.compressible_law)
+        return (
+            f"its side's compressible-film branches: dampers and the remainder damper's share times pg_{g['set']} "
+            f"= mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), gas springs times rg_{g['set']} = g / (g + dg) "
+            f"(corners times rg / pg), g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} "
+            "at T0 (exact)"
+        )
     if f.get("fit"):
         return (
             "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
@@ -477,8 +489,8 @@ def bound(x: float, side: int) -> str:
 
 def noise_temperature(model: MacroModel) -> str:
     """Verilog-A text of the thermal noise's temperature (K): the instance's temp where declared, else
-    the simulator's $temperature (as without [process])."""
-    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else "$temperature"
+    the model's own (netgen.emit.common.noise_kelvin), never the simulator's $temperature."""
+    return f"(temp + {num(KELVIN)})" if declared(model, "temp") else num(noise_kelvin(model))
 
 
 def va_factor(model: MacroModel, kind: str, name: str, value: str) -> str:
@@ -553,6 +565,16 @@ def energy_moved(model: MacroModel) -> bool:
     """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
     times pu."""
     return enabled(model) and bool(model.process.get("strain_energy"))
+
+
+def branch_law(model: MacroModel, v: int, j: int) -> tuple[str, str] | None:
+    """(damper factor, moved-gap set) of coordinate v's compressible-film branch j: the damper r_j times
+    pv under temp and pg_<set> where its side's set has a gap offset (netgen.model.process_film.
+    compressible_law), its corner times rg_<set> over that factor (the gas spring ~ p_a / g); None
+    where nothing moves it. The set is "" without one."""
+    moved = [g["set"] for g in film_sets(model) if j in g["film"].get("branches", [[]] * (v + 1))[v]]
+    factor = (["pv"] if film_scaled(model) else []) + [f"pg_{n}" for n in moved]
+    return ("*".join(factor), moved[0] if moved else "") if factor else None
 
 
 def film_scaled(model: MacroModel) -> bool:

@@ -254,10 +254,9 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
     (1/w_s) w' = (corner/w_s)(u - w); force on q -r L w_s w; the branch damper's thermal force
     enters w with PSD noise_gain * T (S_F = 4 k_B T r)."""
     rows = []
-    # under temp r_j times pv and the corner over it (netgen.emit.process.film_scaled): noise_gain ~ r (corner / r)^2
-    pv = (" / pv", " * pv", " / (pv * pv * pv)") if process.film_scaled(model) else ("", "", "")
-    for c in model.coordinates:
+    for v, c in enumerate(model.coordinates):
         for j, (r, corner) in enumerate(c.film):
+            pv = branch_factors(process.branch_law(model, v, j))
             rows.append(
                 {
                     "coord": c.name,
@@ -272,6 +271,20 @@ def film_rows(model: MacroModel, ws: float) -> list[dict]:
                 }
             )
     return rows
+
+
+def branch_factors(law: tuple[str, str] | None) -> tuple[str, str, str]:
+    """Verilog-A texts multiplying a film branch's corner (rg / d), damper (d) and noise gain (rg^2 / d^3,
+    noise_gain ~ r (corner / r)^2) by its process factor d at a moved gap rg_<set> (netgen.emit.process.
+    branch_law: d = pv under temp, times pg_<set> at a gap offset)."""
+    if law is None:
+        return ("", "", "")
+    d, gset = law
+    dd = f"({d.replace('*', ' * ')})" if "*" in d else d
+    if not gset:
+        return (f" / {dd}", f" * {dd}", f" / ({dd} * {dd} * {dd})")
+    rg = f"rg_{gset}"
+    return (f" * {rg} / {dd}", f" * {dd}", f" * {rg} * {rg} / ({dd} * {dd} * {dd})")
 
 
 def inertial_rows(model: MacroModel, ctx: dict, ws: float) -> None:

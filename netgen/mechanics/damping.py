@@ -130,12 +130,18 @@ def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.nd
     }  # equal gaps: one solve
     per_side = [solved[gap] for _, gap in sorted(gaps.items())]
     omega_max = 2 * np.pi * film_max_frequency(s, m)
-    remainders, branches, errors = [], [], []
+    # with gap offsets declared each branch stays one side's (a merged pole split, netgen.model.process_film)
+    split = s.process is not None and s.process.wants("dg")
+    remainders, branches, errors, owners = [], [], [], []
     for k in range(len(m.names)):
         full = sf.combine([side[k] for side in per_side])
         reduced, err = sf.maxwell_network(full, omega_max)
         remainders.append(reduced.remainder)
-        branches.append(tuple((float(r), float(w)) for r, w in zip(reduced.residues, reduced.poles)))
+        rows = side_branches(reduced, sorted(gaps), split)
+        branches.append(tuple((r, w) for r, w, _ in rows))
+        owners.append(
+            {"branch": [o for _, _, o in rows], "remainder": dict(zip(sorted(gaps), reduced.remainder_parts))}
+        )
         errors.append(err)
     note = (
         f"compressible film: Maxwell branches (damper r in series with a gas spring r*omega_p) per "
@@ -148,6 +154,7 @@ def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.nd
         "sides": sides,
         "validity": note,
         "branches": branches,
+        "owners": owners,  # per coordinate each branch's side and each side's remainder (not reported)
         "network": {
             "max_frequency_hz": omega_max / (2 * np.pi),
             "poles_solved": FILM_POLES,
@@ -155,6 +162,21 @@ def compressible_film(s: Structure, m: Mechanics, mesh, gaps: dict, total: np.nd
             "branches": [[{"damping": r, "corner_hz": w / (2 * np.pi)} for r, w in b] for b in branches],
         },
     }
+
+
+def side_branches(reduced: sf.PoleResidue, sides: list[str], split: bool) -> list[tuple[float, float, str | None]]:
+    """(residue, pole, side) per Maxwell branch: the side whose film alone makes it, else None; with
+    `split` a pole both sides share (equal gaps) becomes one branch per side, the same pole, each its
+    side's residue (the same admittance)."""
+    rows: list[tuple[float, float, str | None]] = []
+    for i, (r, w) in enumerate(zip(reduced.residues, reduced.poles)):
+        parts = reduced.parts[i] if reduced.parts is not None else np.array([r])
+        own = [(sides[t], float(p)) for t, p in enumerate(parts) if p != 0.0]
+        if split and len(own) > 1:
+            rows += [(p, float(w), side) for side, p in own]
+        else:
+            rows.append((float(r), float(w), own[0][0] if len(own) == 1 else None))
+    return rows
 
 
 def _compressible_at_f0(mesh, m: Mechanics, gap: float, mu: float, pressure: float) -> dict:

@@ -24,6 +24,7 @@ Discretisation: scikit-fem P2 triangles; the load phi_v is evaluated at the quad
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -164,6 +165,10 @@ class PoleResidue:
     residues: np.ndarray
     poles: np.ndarray
     remainder: float = 0.0
+    # per branch its residue from each parallel film (combine; rows sum to residues), and each
+    # film's part of the remainder: which side of the plate a branch belongs to (None: one film)
+    parts: np.ndarray | None = None
+    remainder_parts: tuple[float, ...] = ()
 
     def admittance(self, omega: float | np.ndarray) -> np.ndarray:
         """Complex B(omega); Re = damping, -omega Im = gas-spring stiffness."""
@@ -236,15 +241,25 @@ def combine(models: list[PoleResidue], rel: float = 1e-6) -> PoleResidue:
     degenerate cos/sin eigenpairs) within `rel` merge into one branch with the summed residue."""
     poles = np.concatenate([m.poles for m in models])
     residues = np.concatenate([m.residues for m in models])
+    source = np.concatenate([np.full(len(m.poles), i) for i, m in enumerate(models)])
     order = np.argsort(poles, kind="stable")
-    merged_p, merged_r = [], []
-    for w, r in zip(poles[order], residues[order]):
-        if merged_p and abs(w - merged_p[-1]) <= rel * merged_p[-1]:
-            merged_r[-1] += r
-        else:
+    merged_p: list[float] = []
+    merged_r: list[float] = []
+    parts: list[np.ndarray] = []
+    for w, r, i in zip(poles[order], residues[order], source[order]):
+        if not (merged_p and abs(w - merged_p[-1]) <= rel * merged_p[-1]):
             merged_p.append(float(w))
-            merged_r.append(float(r))
-    return PoleResidue(np.array(merged_r), np.array(merged_p), float(sum(m.remainder for m in models)))
+            merged_r.append(0.0)
+            parts.append(np.zeros(len(models)))
+        merged_r[-1] += float(r)
+        parts[-1][i] += float(r)
+    return PoleResidue(
+        np.array(merged_r),
+        np.array(merged_p),
+        float(sum(m.remainder for m in models)),
+        np.array(parts).reshape(len(merged_p), len(models)),
+        tuple(float(m.remainder) for m in models),
+    )
 
 
 def max_relative_error(model: PoleResidue, reference: PoleResidue, omega_max: float, points: int = 200) -> float:
@@ -268,6 +283,9 @@ def maxwell_network(
         keep = np.sort(order[:n])
         drop = np.setdiff1d(np.arange(len(order)), keep)
         reduced = PoleResidue(full.residues[keep], full.poles[keep], full.remainder + float(full.residues[drop].sum()))
+        if full.parts is not None:  # each film's kept residues and its remainder with its dropped poles
+            rest = tuple(float(r) for r in np.asarray(full.remainder_parts) + full.parts[drop].sum(axis=0))
+            reduced = dataclasses.replace(reduced, parts=full.parts[keep], remainder_parts=rest)
         err = max_relative_error(reduced, full, omega_max)
         best = (reduced, err)
         if err <= tol or total <= 0:

@@ -43,12 +43,13 @@ import numpy as np
 
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
+from ..mechanics.damping import squeeze_film_damping
 from ..structure import Structure
 from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
-from .process_film import GAP_SIDES, KELVIN, film_law, film_ratio, temperature_law
+from .process_film import GAP_SIDES, KELVIN, branches_at, film_law, film_ratio, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
@@ -176,6 +177,7 @@ def process_laws(
     sets, _ = gap_sets(s, list(m.names), electrodes) if p.wants("dg") else ([], "")
     dg_max = sampling_range * scale_z / 4 if scale_z else 0.0
     etch_err = etch_laws(s, m, run, film, p, per) if p.wants("etch") else 0.0
+    solved = squeeze_film_damping(s, m) if film and sets else None  # one film solve for every gap set
     out: dict[str, Any] = {
         "parameters": list(p.parameters),
         "temperature_C": t0 - KELVIN,
@@ -192,7 +194,7 @@ def process_laws(
             "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
         },
         "coordinates": per,
-        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max) for r in sets],
+        "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max, solved) for r in sets],
     }
     if p.wants("etch"):
         # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too
@@ -504,6 +506,19 @@ def coordinate_values(
     )
     damp = d_rest + ratio * d_film * film_ratio(law, v, temp_c, dg or {})
     return mass, modulus_factor(law, escale, temp_c) * a + b, damp
+
+
+def film_at(law: dict, v: int, film: tuple, temp_c: float | None = None, dg: dict[str, float] | None = None) -> tuple:
+    """Coordinate v's compressible-film branches (Coordinate.film) at the process point: dampers times
+    the viscosity ratio and a moved side's pg, corners times rg over that (process_film.branches_at)."""
+    temp_c = law["temperature_C"] if temp_c is None else temp_c
+    visc = law["temp"]["viscosity"]
+    pv = (
+        float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
+        if visc
+        else 1.0
+    )
+    return branches_at(law, v, film, pv, temp_c, dg or {})
 
 
 def finite_law(law: dict) -> bool:

@@ -53,13 +53,13 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     t0 = d.temperature if d else 300.0
     if not (d and d.squeeze_film):
         return {}
-    # the film's gap: to a dielectric layer's surface (netgen.mechanics.damping.squeeze_film_damping)
-    gaps = [
-        e.gap - getattr(e, "dielectric_thickness", 0.0)
-        for e in s.electrode_sets
-        if getattr(e, "side", None) in GAP_SIDES
-    ]
-    gap = min(gaps)
+    # each side's film gap: to a dielectric layer's surface, the nearest set's (netgen.mechanics.damping.
+    # squeeze_film_damping); the law is fitted at the smallest
+    sides: dict[str, float] = {}
+    for e in s.electrode_sets:
+        if getattr(e, "side", None) in GAP_SIDES:
+            sides[e.side] = min(sides.get(e.side, np.inf), e.gap - getattr(e, "dielectric_thickness", 0.0))
+    gap = min(sides.values())
     lo, hi = (v + KELVIN for v in temp_range_c)
     t = np.linspace(lo, hi, 67)
     u = (t - t0) / 100.0
@@ -70,8 +70,16 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     powers = np.vander(u, VISCOSITY_DEGREE + 1, increasing=True)[:, 1:]
     coef = np.concatenate([[1.0], np.linalg.lstsq(powers, ratio - 1.0, rcond=None)[0]])
     fine = np.linspace(lo, hi, 661)
-    misfit = np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / viscosity_ratio(
-        d.gas, d.pressure, gap, t0, fine, sealed
+    at_gap = viscosity_ratio(d.gas, d.pressure, gap, t0, fine, sealed)
+    misfit = float(np.max(np.abs(np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / at_gap - 1.0)))
+    # a film at a larger gap on the other side is less rarefied: its ratio differs from the fitted one;
+    # a coordinate's film ratio is a share-weighted mean of its sides', within the largest such spread
+    spread = max(
+        (
+            float(np.max(np.abs(viscosity_ratio(d.gas, d.pressure, g, t0, fine, sealed) / at_gap - 1.0)))
+            for g in sides.values()
+        ),
+        default=0.0,
     )
     cavity = "sealed cavity, p ~ T" if sealed else "fixed pressure"
     return {
@@ -82,33 +90,58 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
         "t0_K": t0,
         "coeffs": [float(c) for c in coef],
         "variable": "(T - T0) / 100 K",
-        "max_rel_error": float(np.max(np.abs(misfit - 1.0))),
+        # pv = r (1 + e1), the sides' mean r (1 + e2), |e1| <= misfit, |e2| <= spread: |pv / mean - 1| =
+        # |e1 - e2| / (1 + e2) <= (misfit + spread) / (1 - spread) (= misfit with one gap)
+        "max_rel_error": (misfit + spread) / (1.0 - spread),
+        "polynomial_misfit": misfit,
+        "sides_spread": spread,
     }
 
 
-def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0) -> dict:
+def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0, solved: dict | None = None) -> dict:
     """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
     dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
     of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
     (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
     solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
     perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
-    coordinate (perforated_fit). {} where no law holds: no film, the compressible film (its poles
-    merge the sides) or more sets on the side (the film has one gap)."""
+    coordinate (perforated_fit). The compressible film: compressible_law. {} where no law holds: no
+    film or more sets on the side (the film has one gap). `solved`: squeeze_film_damping(s, m) if done."""
     d = s.damping
-    if not (d and d.squeeze_film) or d.film_model == "compressible":
+    if not (d and d.squeeze_film):
         return {}
     side = next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
     facing = {e.name for e in s.electrode_sets if getattr(e, "side", None) == side}
     if facing != {gap_set["set"]}:
         return {}
-    film = squeeze_film_damping(s, m)
+    film = solved or squeeze_film_damping(s, m)
     row, total = film["sides"][side], film["diagonal"]
+    if d.film_model == "compressible":
+        return {"film": compressible_law(film, side)}
     share = [float(b / t) if t > 0 else 0.0 for b, t in zip(row["diagonal"], total)]
     out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}
     if float(getattr(s.conductor, "hole", 0.0)) > 0.0 and dg_max > 0.0:
         out["fit"] = perforated_fit(s, m, side, dg_max, np.asarray(row["diagonal"]))
     return {"film": out}
+
+
+def compressible_law(film: dict, side: str) -> dict:
+    """The compressible film's law for the side's gap set (netgen.mechanics.damping.compressible_film,
+    its branches one side's each): Veijola's 9.638 Kn^1.159 at the side's gap, per coordinate the
+    indices of the side's branches and its share of the remainder damper. Exact in g: a branch's
+    damper r_j = c (phi, psi_j)^2 / lambda_j and the remainder ~ c = 12 mu_eff / g^3, its gas spring
+    r_j w_j = (phi, psi_j)^2 p_a / g (the Dirichlet eigenpairs of the gap region do not depend on g),
+    so at g + dg the dampers are times pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) and the
+    corners times g / ((g + dg) pg) (netgen.emit.process.branch_law)."""
+    row, owners = film["sides"][side], film["owners"]
+    share = [float(o["remainder"].get(side, 0.0) / t) if t > 0 else 0.0 for o, t in zip(owners, film["diagonal"])]
+    branches = [[j for j, s in enumerate(o["branch"]) if s == side] for o in owners]
+    return {
+        "gap_m": row["gap_m"],
+        "rarefaction": 9.638 * row["knudsen"] ** 1.159,
+        "share": share,
+        "branches": branches,
+    }
 
 
 FIT_SPAN = (-1.0, -0.5, 0.0, 0.5, 1.0)  # the dg points (of dg_max) the perforated film's cubic is fitted at
@@ -150,18 +183,43 @@ def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
     """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m):
     1 + sum share (pg - 1), pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) with the mean free path
     at temp (film_law; netgen.emit.process.film_factors renders the same)."""
-    visc = law["temp"].get("viscosity") or {}
-    pl = 1.0
-    if visc and "temp" in law["parameters"]:
-        pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
     out = 1.0
+    factors = gap_factors(law, temp_c, dg)
     for g in law["gaps"]:
         f = g.get("film")
         if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit)
             x = dg.get(g["set"], 0.0) * 1e6
             out += f["share"][v] * (float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3])) - 1.0)
         elif f:
-            r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
-            pg = r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159)
-            out += f["share"][v] * (pg - 1.0)
+            out += f["share"][v] * (factors[g["set"]][1] - 1.0)
     return out
+
+
+def gap_factors(law: dict, temp_c: float, dg: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """set -> (rg, pg) of each gap set with a film law: rg = g / (g + dg), pg = rg^3 (1 + A pl^1.159) /
+    (1 + A (pl rg)^1.159) with the mean free path's ratio pl at temp (film_law)."""
+    visc = law["temp"].get("viscosity") or {}
+    pl = 1.0
+    if visc and "temp" in law["parameters"]:
+        pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
+    out = {}
+    for g in law["gaps"]:
+        if f := g.get("film"):
+            r, a = f["gap_m"] / (f["gap_m"] + dg.get(g["set"], 0.0)), f["rarefaction"]
+            out[g["set"]] = (r, r**3 * (1.0 + a * pl**1.159) / (1.0 + a * (pl * r) ** 1.159))
+    return out
+
+
+def branches_at(
+    law: dict, v: int, film: tuple, pv: float, temp_c: float, dg: dict[str, float]
+) -> tuple[tuple[float, float], ...]:
+    """Coordinate v's compressible-film branches (r_j, w_j) at the process point: r_j times pv (the
+    viscosity ratio, under temp) and its moved side's pg, w_j times rg over that (compressible_law; the
+    emitters' netgen.emit.process.branch_law)."""
+    factors = gap_factors(law, temp_c, dg)
+    owner = {j: g["set"] for g in law["gaps"] if g.get("film") for j in g["film"].get("branches", [[]] * (v + 1))[v]}
+    out = []
+    for j, (r, w) in enumerate(film):
+        rg, pg = factors.get(owner.get(j, ""), (1.0, 1.0))
+        out.append((r * pv * pg, w * rg / (pv * pg)))
+    return tuple(out)

@@ -156,6 +156,13 @@ def check_film(c: Checker, film: Any, where: str, ncoords: int, visc: dict) -> N
         c.fail(f"{where}.share", f"must list one number per coordinate ({ncoords})")
     for k, x in enumerate(share):
         c.number(f"{where}.share[{k}]", x)
+    rows = film.get("branches")
+    if rows is not None and (  # the compressible film's branches of this side (process_film.compressible_law)
+        not isinstance(rows, list)
+        or len(rows) != ncoords
+        or any(not isinstance(r, list) or any(not isinstance(j, int) or j < 0 for j in r) for r in rows)
+    ):
+        c.fail(f"{where}.branches", f"must list the branch indices (integers >= 0) per coordinate ({ncoords})")
     fit = film.get("fit")
     if fit is not None:  # a perforated film's cubics (netgen.model.process_film.perforated_fit)
         rows = fit.get("coeffs") if isinstance(fit, dict) else None

@@ -18,7 +18,7 @@ import numpy as np
 from ..core.errors import SweepError
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, ratio_value, scaled
+from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, film_at, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
 from ..structure.process_table import BEAM_KINDS
@@ -54,20 +54,25 @@ def gap_set(name: str) -> str | None:
 def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     """A MacroModel's copy at a process point, for the loop design and analysis of a run whose netlist
     takes the point as instance parameters: each coordinate's mass, stiffness and damping from the
-    laws (netgen.model.process.coordinate_values, the arithmetic the emitters render) and its
-    frequency from them; the a_in participation times tscale and its etch ratio (as the emitters scale
-    the port: netgen.model.process_loads.acceleration_at); the fitted strain energy times its law pu
-    (netgen.model.process.energy_factor, as the emitters scale its forces); the thermal noise at the
-    point's temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
+    laws (netgen.model.process.coordinate_values, the arithmetic the emitters render, the squeeze film
+    at the gap sets' offsets too) and its frequency from them; a compressible film's branches
+    likewise (netgen.model.process.film_at); the a_in participation times tscale and its etch ratio
+    (as the emitters scale the port: netgen.model.process_loads.acceleration_at); the fitted strain
+    energy times its law pu (netgen.model.process.energy_factor, as the emitters scale its forces);
+    the thermal noise at the point's temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
     polynomials re-expanded, exact)."""
     law = model.process
     tscale, escale = point.get("tscale", 1.0), point.get("escale", 1.0)
     temp, etch = point.get("temp"), point.get("etch", 0.0)
+    dg = {s: x for n, x in point.items() if (s := gap_set(n))}  # the squeeze film follows its gap too
     coords = []
     for v, c in enumerate(model.coordinates):
-        mass, stiffness, damping = coordinate_values(law, v, tscale, escale, temp, etch)
+        mass, stiffness, damping = coordinate_values(law, v, tscale, escale, temp, etch, dg)
         freq = math.sqrt(stiffness / mass) / (2 * math.pi) if stiffness > 0 else 0.0
-        coords.append(dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq))
+        film = film_at(law, v, c.film, temp, dg)
+        coords.append(
+            dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq, film=film)
+        )
     out = dataclasses.replace(
         model,
         coordinates=coords,

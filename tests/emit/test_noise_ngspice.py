@@ -18,6 +18,12 @@ checked, not only the default temperature.
 - noise=0 gives exactly zero output noise, biased or not (nothing else in the .lib is noisy);
 - in .tran the resistor carries no current: its two nodes stay equal (a node with one resistor and
   a VCCS's control input: KCL makes the current zero, Newton's linear solve leaves round-off);
+- the _osdi.lib (the .va's white_noise sources through OSDI in ngspice 46) and the same module in
+  VACASK: the unbiased PSD against the same closed form at the model's own temperature within the same
+  1e-9 (their noise factor 4 k_B T d gain^2 is a product of three doubles); they used the simulator's
+  $temperature (300.15 K by default) and sat 5e-4 high at 300 K, 0.14 low at 350 K. The circuit
+  temperature does not move them: at `.temp 85` the same PSD within 1e-9 (the .lib's resistors do
+  follow .temp, docs/damping-noise.md);
 - the _xspice.lib (netgen_es code model, ngspice 39) carries the same resistors: unbiased (where the
   code model adds nothing to the small-signal matrix) the same PSD within the same 1e-9. Under bias its
   .noise is wrong: ngspice's noise analysis does not load code models as its .ac does
@@ -33,14 +39,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from netgen import emit
 from netgen.build import build_model
 from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
+from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.fixtures import ROOT, using_ngspice
+from tests.fixtures import NGSPICE, ROOT, using_ngspice
 
 ALPHA = 3000.0  # 1/s: D = alpha M (Q = 5 with the 2 N/m spring), as examples/piston_process.toml
 DAMPING = '\n[damping]\nrayleigh = {{ alpha = {alpha} }}\nnoise = true\ntemperature = "{kelvin} K"\n'
@@ -62,18 +70,36 @@ def lib(request, tmp_path_factory) -> tuple[Path, MacroModel, float]:
     return path, model, request.param
 
 
+@pytest.fixture(scope="module")
+def osdi_lib(lib, tmp_path_factory) -> tuple[Path, MacroModel, float]:
+    """The same model's `--format osdi` (its .va compiled by openvaf-r): the folder, model, kelvin."""
+    _, model, kelvin = lib
+    folder = tmp_path_factory.mktemp("plainosdi")
+    emit.write_outputs(model, folder, "osdi")
+    return folder, model, kelvin
+
+
 def noise_run(
-    path: Path, tmp_path: Path, volts: float, noise: int, control: list[str] | None = None
+    path: Path,
+    tmp_path: Path,
+    volts: float,
+    noise: int,
+    control: list[str] | None = None,
+    params: str | None = None,
+    circuit_c: float | None = None,
 ) -> dict[str, np.ndarray]:
     """frequency, onoise and inoise spectra (V/sqrt(Hz)) of x_z from the force input f_z, drive at
-    `volts` (`control`: the .control lines loading an _xspice.lib's code model)."""
+    `volts` (`control`: the .control lines loading an _xspice.lib's code model or an .osdi;
+    `params`: X1's parameters in place of noise=, "" for the _osdi.lib; `circuit_c`: a .temp line)."""
     run = "\n".join([".control", *control, "run", "write circuit.raw all", ".endc"]) if control else ""
+    temp = f".temp {circuit_c:g}" if circuit_c is not None else ""
     net = f"""* noise
 .include {path}
 Vf fz 0 DC 0 AC 1
 Vd d 0 DC {volts}
-X1 d 0 fz xz piston noise={noise}
+X1 d 0 fz xz piston {f"noise={noise}" if params is None else params}
 .noise v(xz) Vf lin 41 5k 25k
+{temp}
 {run}
 .end
 """
@@ -105,6 +131,40 @@ def test_xspice_noise_psd_unbiased(lib, tmp_path):
         xlib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
         check_unbiased_psd(noise_run(xlib.resolve(), tmp_path, 0.0, 1, control), model, kelvin, "_xspice.lib")
         assert np.all(noise_run(xlib.resolve(), tmp_path, 0.0, 0, control)["onoise_spectrum"] == 0.0)
+
+
+@pytest.mark.parametrize("circuit_c", [None, 85.0])
+def test_osdi_noise_psd_at_model_temperature(osdi_lib, tmp_path, monkeypatch, circuit_c):
+    """The _osdi.lib in ngspice 46: the unbiased PSD at the model's own temperature, whatever the
+    circuit's (.temp 85 as well) (module docstring)."""
+    folder, model, kelvin = osdi_lib
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    control = [f"pre_osdi {folder / 'piston.osdi'}", "set num_threads=1"]
+    path = folder / "piston_osdi.lib"
+    spec = noise_run(path, tmp_path, 0.0, 1, control, params="", circuit_c=circuit_c)
+    check_unbiased_psd(spec, model, kelvin, f"_osdi.lib at .temp {circuit_c or 27:g}")
+
+
+def test_vacask_noise_psd_at_model_temperature(osdi_lib, tmp_path):
+    """The same module in VACASK's noise analysis (onoise is the PSD itself, V^2/Hz): the unbiased
+    PSD at the model's own temperature (module docstring)."""
+    folder, model, kelvin = osdi_lib
+    net = f"""piston noise
+ground 0
+load "{folder / "piston.osdi"}"
+model mems piston
+model vsource vsource
+x1 (d plate fz xz) mems
+v_d (d 0) vsource dc=0
+v_plate (plate 0) vsource dc=0
+v_fz (fz 0) vsource dc=0 mag=1
+control
+  analysis n1 noise out="xz" in="v_fz" from=5k to=25k mode="lin" points=40
+endc
+"""
+    plot = run_vacask(net, tmp_path, analysis="n1")
+    spec = {"frequency": np.real(plot["frequency"]), "onoise_spectrum": np.sqrt(np.real(plot["onoise"]))}
+    check_unbiased_psd(spec, model, kelvin, "VACASK")
 
 
 def test_input_referred_noise_under_bias(lib, tmp_path, ngspice_version):
