@@ -46,7 +46,8 @@ def gap_shifts(
     (geometric shift vector per metre of etch, unit vector n of the across coordinate)) of `s`, from
     `extract(structure, n, offset)` (netgen.build.capacitance_sampler: rest and n fixed points; the
     rows after `skip` + 1 are used with rest) at `etched(s, etch)` for the nonzero `etches`; combs
-    whose law is exact (log-ratio spread below SPREAD) or whose d is below FLOOR are left out."""
+    whose law is exact (log-ratio spread below SPREAD) or whose d is below FLOOR are left out; points
+    where a gap closes (nan) are left out of the fit."""
     if not combs:
         return {}
     rows = np.r_[0, np.arange(skip + 1, skip + 1 + FIT_POINTS)]
@@ -58,12 +59,14 @@ def gap_shifts(
         def log_c(offset: np.ndarray) -> np.ndarray:
             return np.log(extract(s, skip + FIT_POINTS, offset)[rows, k])
 
-        lr = np.array([np.log(moved[e][:, k]) - log_c(v * e) for e in points])
-        if not np.all(np.isfinite(lr)) or np.max(np.ptp(lr, axis=1)) < SPREAD:
-            continue
-        de = np.array([e * (log_c(v * e + STEP * n) - log_c(v * e - STEP * n)) / (2 * STEP) for e in points])
-        if not np.all(np.isfinite(de)):
-            continue
+        with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out below
+            lr = np.array([np.log(moved[e][:, k]) - log_c(v * e) for e in points])
+            ok = np.all(np.isfinite(lr), axis=0)
+            if not ok[0] or np.max(np.ptp(lr[:, ok], axis=1)) < SPREAD:
+                continue
+            de = np.array([e * (log_c(v * e + STEP * n) - log_c(v * e - STEP * n)) / (2 * STEP) for e in points])
+        ok &= np.all(np.isfinite(de), axis=0)
+        lr, de = lr[:, ok], de[:, ok]
         fit = minimize_scalar(
             lambda x: spread(lr - x * de), bounds=(-2.0, 2.0), method="bounded", options={"xatol": 1e-6}
         )
