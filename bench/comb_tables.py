@@ -1,8 +1,10 @@
 """Re-solve the examples' comb cross-section tables and ship them (netgen.electrostatics.comb_section.SHIPPED):
 build each example with combs in an empty private cache (NETGEN_CACHE), so every table it needs is
 solved at the package's GRID and SETTINGS, copy the new tables into netgen/electrostatics/comb_tables/,
-and print the CPU time the solves took. Run it after a change of the cell, the grid, the ranges or the
-solver settings (each renames every table); run it under `nice -n 10` (minutes of CPU).
+and print the CPU time the solves took; by default also accelerometer_xyz's combs at the etched finger
+widths (the etch law's points and the suite's rebuilds, netgen.model.etch_combs). Run it after a
+change of the cell, the grid, the ranges or the solver settings (each renames every table); run it
+under `nice -n 10` (minutes of CPU).
 
     nice -n 10 .venv/bin/python bench/comb_tables.py [examples/accelerometer_xyz.toml ...]
 """
@@ -17,6 +19,24 @@ import time
 from pathlib import Path
 
 from support import ROOT
+
+
+def etched_cells() -> None:
+    """accelerometer_xyz with its field2d combs and etch declared, and rebuilt at the suite's etches
+    (tests/model/test_process_etch_field2d.py): the etched finger cells' tables (netgen.model.etch_combs)."""
+    from support import process_cases
+
+    from netgen.build import build_model
+    from netgen.structure import parse_structure
+
+    def field2d(text: str) -> str:
+        return text.replace('comb_model = "textbook"', 'comb_model = "field2d"')
+
+    build_model(
+        parse_structure(field2d(process_cases.xyz_text(process='[process]\nparameters = ["etch"]\n')), "x.toml")
+    )
+    for etch in process_cases.PERFORATED_ETCHES:
+        build_model(parse_structure(field2d(process_cases.xyz_text(etch)), "x.toml"))
 
 
 def main() -> None:
@@ -37,6 +57,10 @@ def main() -> None:
             build(load_structure(path))
             used = time.process_time() - t0
             print(f"{path.name}: built in {used:.1f} s CPU (the comb tables' solves and the fit)")
+        if not a.examples:
+            t0 = time.process_time()
+            etched_cells()
+            print(f"accelerometer_xyz's etched cells: {time.process_time() - t0:.1f} s CPU")
         target = ROOT / "netgen" / "electrostatics" / "comb_tables"
         target.mkdir(exist_ok=True)
         for table in sorted((Path(cache) / "comb_sections").glob("*.npz")):

@@ -163,38 +163,52 @@ def capacitance_ratios(model: MacroModel) -> dict[str, list[float]]:
     return {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
 
 
-def etch_columns(model: MacroModel) -> list[tuple[str, str, float]]:
+def etch_columns(model: MacroModel, stops: bool = False) -> list[tuple[str, str, float]]:
     """The distinct etch shifts of the combs' capacitance terms (netgen.model.process.capacitance_laws):
-    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order."""
+    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order; with
+    `stops` also the geometric shifts the contact stops read where a comb's shift has an effective part
+    (stop_shift, netgen.model.etch_combs; the code model's stops read state columns)."""
     if not declared(model, "etch"):
         return []
     scale = {c.name: c.scale for c in model.coordinates}
     out: list[tuple[str, str, float]] = []
-    for r in model.process["etch"].get("capacitance", []):
-        for q, k in r.get("shift", {}).items():
-            if not any(c[1] == q and c[2] == k / scale[q] for c in out):
-                out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
+    laws = model.process["etch"].get("capacitance", [])
+    for key in ("shift", "stop_shift") if stops else ("shift",):  # the stops' columns after the terms'
+        for r in laws:
+            for q, k in r.get(key, {}).items():
+                if not any(c[1] == q and c[2] == k / scale[q] for c in out):
+                    out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
     return out
 
 
-def etch_states(model: MacroModel) -> dict[str, dict[str, str]]:
-    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns)."""
+def etch_states(model: MacroModel, stops: bool = False) -> dict[str, dict[str, str]]:
+    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns);
+    with `stops` the nodes its contact stops read instead: the geometric stop_shift where there is one,
+    none for a plate's fill shift (netgen.model.etch_fill: an effective gap, the stops stay)."""
     scale = {c.name: c.scale for c in model.coordinates}
-    cols = {(q, k): n for n, q, k in etch_columns(model)}
+    cols = {(q, k): n for n, q, k in etch_columns(model, stops)}
     out: dict[str, dict[str, str]] = {}
     if not cols:
         return out
     for r in model.process["etch"].get("capacitance", []):
-        if r.get("shift"):
-            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in r["shift"].items()}
+        shift = stop_shift(r) if stops else r.get("shift", {})
+        if shift:
+            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in shift.items()}
     return out
 
 
-def etch_networks(model: MacroModel) -> list[str]:
-    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns): 1 ohm, a
-    VCCS and a parameter current source, linear."""
+def stop_shift(law: dict) -> dict[str, float]:
+    """The shift per metre of etch an electrode's contact stops follow: a comb's geometric one (its
+    stop_shift where the capacitance's shift has an effective part, netgen.model.etch_combs), none for
+    a plate's fill shift (netgen.model.etch_fill)."""
+    return {} if law.get("fill") else law.get("stop_shift", law.get("shift", {}))
+
+
+def etch_networks(model: MacroModel, stops: bool = False) -> list[str]:
+    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns; `stops`: the
+    stops' columns too): 1 ohm, a VCCS and a parameter current source, linear."""
     lines = []
-    for n, q, k in etch_columns(model):
+    for n, q, k in etch_columns(model, stops):
         lines += [unit_load(n), f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
     return lines
 
@@ -329,13 +343,14 @@ def stop_offsets(model: MacroModel, braces: bool) -> list[str] | None:
 
 
 def etch_offsets(model: MacroModel) -> dict[int, float]:
-    """Stop point index -> d p_j / d etch = a_j . (shift / L) of a comb's etch shift (etch_states),
+    """Stop point index -> d p_j / d etch = a_j . (shift / L) of a comb's geometric etch shift (stop_shift),
     where not zero (a finger's vertical stop over the substrate has none)."""
     scale = {c.name: c.scale for c in model.coordinates}
     names = [c.name for c in model.coordinates]
     laws = (model.process.get("etch") or {}).get("capacitance", [])
-    # a plate's fill shift (netgen.model.etch_fill) is an effective gap: its stops stay at the drawn gap
-    shifts = {r["electrode"]: r.get("shift", {}) for r in laws if not r.get("fill")}
+    # a plate's fill shift (netgen.model.etch_fill) is an effective gap: its stops stay at the drawn gap;
+    # a comb's fitted effective shift (netgen.model.etch_combs) likewise: its stops follow the geometric one
+    shifts = {r["electrode"]: stop_shift(r) for r in laws}
     if not declared(model, "etch"):
         return {}
     out = {}

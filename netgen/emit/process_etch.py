@@ -38,12 +38,18 @@ def etch_neglect(e: dict) -> str:
     err = e["capacitance_max_rel_error"]
     combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
     fill = any(r.get("fill") for r in e.get("capacitance", []))
+    fitted = any(r.get("stop_shift") for r in e.get("capacitance", []))
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched "
         + ("beam" if "beam" in e else "outline, holes")
         + (
             " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs
+            else ""
+        )
+        + (
+            " plus a fitted part across the fingers for the far gap and the fringe (netgen.model.etch_combs; the stops follow the geometric shift)"
+            if fitted
             else ""
         )
         + (

@@ -74,14 +74,31 @@ def gap_columns(model: MacroModel) -> tuple[list[str], dict[str, dict[int, int]]
         return [], {}, []
     n, sets = model.ncoords, [g["set"] for g in model.process["gaps"]]
     names = [c.name for c in model.coordinates]
-    extra = [f"xg_{s}" for s in sets] + [c[0] for c in process.etch_columns(model)]
-    coords = [names.index("z") for _ in sets] + [names.index(c[1]) for c in process.etch_columns(model)]
+    etch = process.etch_columns(model, stops=True)
+    extra = [f"xg_{s}" for s in sets] + [c[0] for c in etch]
+    coords = [names.index("z") for _ in sets] + [names.index(c[1]) for c in etch]
     column: dict[str, dict[int, int]] = {
         e: {names.index("z"): n + sets.index(g)} for e, (g, _) in process.gap_shifts(model).items()
     }
     for e, moves in process.etch_states(model).items():
         column.setdefault(e, {}).update({names.index(q): n + extra.index(node) for q, node in moves.items()})
     return extra, column, coords
+
+
+def stop_columns(model: MacroModel, column: dict[str, dict[int, int]]) -> dict[str, dict[int, int]]:
+    """electrode -> {coordinate index: the column its contact stops read}: the gap offset's column as
+    the terms', and a comb's geometric etch shift (netgen.emit.process.etch_states with stops: not a
+    plate's fill shift nor a comb's effective part, netgen.model.etch_combs)."""
+    names = [c.name for c in model.coordinates]
+    extra, _, _ = gap_columns(model)
+    n, terms = model.ncoords, process.etch_states(model)
+    out = {}
+    for e, cols in column.items():  # the terms' etch columns dropped, the gap offset's kept
+        moved = {names.index(q) for q in terms.get(e, {})}
+        out[e] = {v: c for v, c in cols.items() if v not in moved}
+    for e, moves in process.etch_states(model, stops=True).items():
+        out.setdefault(e, {}).update({names.index(q): n + extra.index(node) for q, node in moves.items()})
+    return out
 
 
 def moved(row, moves: dict[int, int], width: int) -> list:
@@ -100,7 +117,7 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     extra, column, owner = gap_columns(model)
     n = model.ncoords + len(extra)
     clamps = model.term_clamps()
-    fill = {r["electrode"] for r in (model.process.get("etch") or {}).get("capacitance", []) if r.get("fill")}
+    stops_at = stop_columns(model, column)
     p: dict[str, Any] = {
         k: [] for k in ("term_elec", "mono_term", "mono_coef", "mono_exp", "knee", "floor", "cref", "c0")
     }
@@ -128,9 +145,9 @@ def code_model_context(model: MacroModel, ws: float) -> dict:
     delta, damp = (stops["delta"], stops["damp"]) if stops else (1e-3, 0.0)
     if stops:
         for j, (a, g, pt) in enumerate(zip(stops["a"], stops["gain"], model.contact["points"])):
-            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's etch,
-            # not a plate's fill shift (netgen.model.etch_fill: an effective gap, the stop stays)
-            cols = {} if pt["electrode"] in fill else column.get(pt["electrode"], {})
+            # a stop reads its electrode's shifted columns: it follows the gap offset and the comb's
+            # geometric etch shift, not a plate's fill shift nor a comb's effective part (stop_columns)
+            cols = stops_at.get(pt["electrode"], {})
             sa[j] = moved(a, cols, n)
             sg[j] = np.asarray(moved(g, cols, n)) * np.asarray(gains)
     sr = sa * ws
@@ -159,7 +176,7 @@ def subcircuit(model: MacroModel, noise: bool | None = None) -> str:
     ctx = ngspice.mechanics_context(model, noise)
     # the code model's extra columns
     ctx["gap_shift"] = process.gap_networks(model, every=True)
-    ctx["etch_shift"] = process.etch_networks(model)
+    ctx["etch_shift"] = process.etch_networks(model, stops=True)
     ctx["etch_voltages"] = etch_voltages(model)[0]
     ws = time_scale(model)
     for v, row in enumerate(ctx["coords"]):  # every mechanical term is linear here: VCCS, no parse trees

@@ -47,6 +47,7 @@ from ..mechanics.damping import squeeze_film_damping
 from ..structure import Structure
 from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
+from .etch_combs import gap_shifts
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
 from .process_film import GAP_SIDES, KELVIN, branches_at, film_law, film_ratio, temperature_law
@@ -271,6 +272,17 @@ def comb_shifts(s: Structure, names: list[str]) -> dict[str, dict[str, float]]:
     return out
 
 
+def comb_across(s: Structure, names: list[str]) -> dict[str, str]:
+    """electrode -> the coordinate across its fingers (the one closing its gaps) of each transverse
+    comb whose coordinate the model has (netgen.model.etch_combs fits an effective shift along it)."""
+    out = {}
+    for e in s.electrode_sets:
+        across = "y" if getattr(e, "orientation", "") == "x" else "x"
+        if getattr(e, "kind", "") == "transverse_comb" and across in names:
+            out[e.name] = across
+    return out
+
+
 def etch_points(p: Process) -> tuple[float, ...]:
     """The etch biases (m) the mechanics are re-run at: five across etch_range, the nominal 0 among them."""
     lo, hi = p.etch_range
@@ -404,8 +416,12 @@ def capacitance_laws(
     |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
     fit box at the range's ends, and the cubic's residual at the etch points. The plates of `fill`
     (names, half box dz) get a z shift too (netgen.model.etch_fill: their fill factor's etch change
-    depends on the gap; such a law is marked "fill": the contact stops do not follow it)."""
+    depends on the gap; such a law is marked "fill": the contact stops do not follow it). A
+    transverse comb's shift across the fingers gets an effective part where the form is not a shift
+    (netgen.model.etch_combs: the far gap and the fringe of the narrower finger, which a constant ratio
+    cannot carry); its geometric shift, which the stops follow, is then stated apart (stop_shift)."""
     shifts = comb_shifts(s, coords)
+    geometric = comb_fit(s, p, extract, names, coords, shifts)
     plates = fill_shifts(s, extract, etched, coords, [names.index(n) for n in fill[0]], p.etch_range, fill[1])
     shifts |= {names[i]: {"z": k} for i, k in plates.items()}
     vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
@@ -435,7 +451,27 @@ def capacitance_laws(
         if r != [1.0, 0.0, 0.0, 0.0] or shifts.get(n):
             laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
             laws[-1] |= {"fill": True} if n in fill[0] and shifts.get(n) else {}
+            laws[-1] |= {"stop_shift": geometric[n]} if n in geometric else {}
     return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+
+
+def comb_fit(
+    s: Structure, p: Process, extract, names: list[str], coords: list[str], shifts: dict[str, dict[str, float]]
+) -> dict[str, dict[str, float]]:
+    """Add to each transverse comb's geometric shift (comb_shifts, updated in place) its fitted
+    effective part across the fingers (netgen.model.etch_combs: the far gap and the fringe of the
+    narrower finger); returns electrode -> the geometric shift of the combs changed (the contact
+    stops follow it, not the effective one)."""
+    across = {e: q for e, q in comb_across(s, coords).items() if e in names and shifts.get(e)}
+    unit = {q: np.eye(len(coords))[coords.index(q)] for q in set(across.values())}
+    combs = {names.index(e): (np.array([shifts[e].get(c, 0.0) for c in coords]), unit[q]) for e, q in across.items()}
+    fitted = gap_shifts(s, extract, etched, combs, etch_points(p), CAPACITANCE_POINTS)
+    geometric = {}
+    for k, d in fitted.items():
+        e = names[k]
+        geometric[e] = dict(shifts[e])
+        shifts[e][across[e]] = shifts[e].get(across[e], 0.0) + d
+    return geometric
 
 
 def ratio_value(coeffs: list[float], etch: float) -> float:

@@ -309,8 +309,9 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool, size: int =
 
 def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...]) -> None:
     """The etch's capacitance laws (netgen.model.process.capacitance_laws): per electrode one of the
-    model's electrode names (the emitters name the parameter pc_<electrode>), four numbers and an
-    optional shift {coordinate: number} over the model's x and y."""
+    model's electrode names (the emitters name the parameter pc_<electrode>), four numbers, an
+    optional shift {coordinate: number} over the model's x and y (z with fill) and a comb's optional
+    stop_shift over the same coordinates."""
     if not isinstance(laws, list):
         c.fail("process.etch.capacitance", "must be a list of {electrode, ratio} objects")
     for i, law in enumerate(laws):
@@ -329,6 +330,11 @@ def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords
         for q, x in shift.items():
             c.choice(f"{where}.shift", q, tuple(n for n in coords if n in (("z",) if fill else ("x", "y"))))
             c.number(f"{where}.shift.{q}", x)
+        stops = law.get("stop_shift", {})  # a comb's geometric shift beside a fitted one (netgen.model.etch_combs)
+        if not isinstance(stops, dict) or (stops and (fill or set(stops) != set(shift))):
+            c.fail(f"{where}.stop_shift", "must be an object over the shift's coordinates (not with fill)")
+        for q, x in stops.items():
+            c.number(f"{where}.stop_shift.{q}", x)
 
 
 def check_process(

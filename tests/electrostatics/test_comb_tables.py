@@ -1,6 +1,6 @@
 """The comb cross-section tables the package ships (netgen.electrostatics.comb_section.SHIPPED):
 the three-axis example builds from them on a clean clone without one 2-D solve, exactly the
-tables its combs need are shipped, and a shipped value equals a fresh converged solve of the cell
+tables its combs need (and its combs' at the etched widths of its etch law and the suite's rebuilds) are shipped, and a shipped value equals a fresh converged solve of the cell
 (so a table left over from other settings or another cell cannot pass for this one)."""
 
 from __future__ import annotations
@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from netgen.build import build
+from netgen.core.constants import EPS0
 from netgen.electrostatics import comb_section
-from netgen.structure import load_structure
+from netgen.electrostatics.comb import CombCell
+from netgen.geometry.layout import electrodes
+from netgen.model.process import etch_points, etched
+from netgen.structure import load_structure, parse_structure
 from tests.fixtures import ROOT
+from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
 
 
 @pytest.fixture(scope="module")
@@ -32,9 +37,27 @@ def cells(b) -> set:
     return {comb_section.Geometry.of(g.cell) for g in combs.geoms}
 
 
+def etched_cells() -> set:
+    """The cells of accelerometer_xyz's combs at the etched finger widths its etch law and the suite's
+    rebuilds read (tests/model/test_process_etch_field2d.py, netgen.model.etch_combs)."""
+    text = xyz_text(process='[process]\nparameters = ["etch"]\n').replace('"textbook"', '"field2d"')
+    s = parse_structure(text, "xyz.toml")
+    structures = [etched(s, e) for e in etch_points(s.process) if e] + [
+        parse_structure(xyz_text(e).replace('"textbook"', '"field2d"'), "xyz.toml") for e in PERFORATED_ETCHES
+    ]
+    eps = EPS0 * s.electrostatics.relative_permittivity
+    out = set()
+    for st in structures:
+        for e in electrodes(st):
+            c = e.shape
+            if hasattr(c, "pitch"):  # a comb (netgen.electrostatics.comb.geometry's cell)
+                out.add(comb_section.Geometry.of(CombCell(c.width, c.thickness, c.pitch / 2, c.substrate_gap, eps)))
+    return out
+
+
 def test_the_example_builds_from_the_shipped_tables_alone(example):
-    """Every table of the example is shipped, and nothing else is."""
-    want = {f"{kind}-{g.key(kind)}.npz" for g in cells(example) for kind in ("section", "end")}
+    """Every table of the example and of its etched combs is shipped, and nothing else is."""
+    want = {f"{kind}-{g.key(kind)}.npz" for g in cells(example) | etched_cells() for kind in ("section", "end")}
     assert {p.name for p in comb_section.SHIPPED.glob("*.npz")} == want
 
 

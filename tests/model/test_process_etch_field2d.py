@@ -1,0 +1,71 @@
+"""The lateral etch bias on accelerometer_xyz's own combs, the 2-D finger cell
+(netgen.electrostatics.comb_section: fringe, far gap, out-of-plane offset), against the full
+rebuild of the file rewritten at three etch values across the default range
+(tests/oracles/process_cases.xyz_text with comb_model "field2d"). The cell's tables at the etched
+finger widths ship with the package (netgen/electrostatics/comb_tables), so nothing is solved here.
+
+The law (netgen.model.process.capacitance_laws) reads each comb's fit at the state shifted across
+its fingers by the geometric 2 etch plus a fitted effective part (netgen.model.etch_combs: the far
+gap and the fringe of the narrower finger), times the ratio pc(etch).
+
+Tolerances:
+- capacitances at 100 points: the nominal fits read at the shifted state times the ratio against
+  the rebuild's fits at the same physical displacement; each fit is within its max_rel_error of its
+  extractor, the law within its stated capacitance_max_rel_error of the etched extractor: twice the
+  larger fit error plus the stated law error (as tests/model/test_process_etch_combs.py).
+- the effective shift: the geometric one is the near gap's exact shift; the fitted part is what the
+  cell's far gap and fringe add, a fraction of it: between 0 and the geometric 2 etch (the fitted
+  part is 0 to round-off for the textbook form, tests/model/test_process_etch_combs.py).
+- the contact stops follow the geometric shift (stop_shift: exactly -+2 per metre of etch).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from netgen.build import build_model
+from netgen.model.process import capacitance_at, comb_shifts
+from netgen.structure import parse_structure
+from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
+
+PROCESS = '[process]\nparameters = ["etch"]\n'
+
+
+def field2d(text: str) -> str:
+    """The structure text with accelerometer_xyz's own comb form (the 2-D cell)."""
+    return text.replace('comb_model = "textbook"', 'comb_model = "field2d"')
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return build_model(parse_structure(field2d(xyz_text(process=PROCESS)), "xyz.toml"))
+
+
+@pytest.fixture(scope="module", params=PERFORATED_ETCHES)
+def rebuilt(request):
+    return request.param, build_model(parse_structure(field2d(xyz_text(request.param)), "xyz.toml"))
+
+
+def test_capacitances_against_rebuild(nominal, rebuilt):
+    etch, model = rebuilt
+    stated = nominal.process["etch"]["capacitance_max_rel_error"]
+    errs = [f.max_rel_error for f in nominal.capacitances + model.capacitances]
+    x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, len(nominal.coordinates)))
+    got, ref = capacitance_at(nominal, x, etch), model.capacitance(x * nominal.scales / model.scales)
+    np.testing.assert_allclose(got, ref, rtol=2 * max(errs) + stated)
+
+
+def test_effective_shift_and_stops(nominal):
+    """Each comb's fitted shift across its fingers lies between 0 and the geometric one, on its side;
+    its stops follow the geometric shift exactly."""
+    from netgen.structure import parse_structure as parse
+
+    names = [c.name for c in nominal.coordinates]
+    geometric = comb_shifts(parse(field2d(xyz_text(process=PROCESS)), "xyz.toml"), names)
+    laws = {r["electrode"]: r for r in nominal.process["etch"]["capacitance"]}
+    for e, shift in geometric.items():
+        assert laws[e]["stop_shift"] == shift
+        across = "x" if e.startswith("x") else "y"
+        assert 0.0 < laws[e]["shift"][across] / shift[across] < 1.0
+        assert laws[e]["shift"][("y" if across == "x" else "x")] == shift[("y" if across == "x" else "x")]
