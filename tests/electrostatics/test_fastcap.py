@@ -26,6 +26,7 @@ from netgen.electrostatics.bem_mesh import icosphere  # noqa: E402
 from netgen.electrostatics.fastcap_mesh import Panels, disk_face, plate_panels, polar_panels  # noqa: E402
 from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode, Rectangle, RectPlate  # noqa: E402
 from tests.oracles.closed_forms import love_disks  # noqa: E402
+from tests.oracles.small_disk import reference_layout  # noqa: E402
 
 UM = 1e-6
 ST = fastcap.FastcapSettings()
@@ -67,25 +68,6 @@ def test_sphere_against_4_pi_eps_r():
     dev = abs(m.matrix[0, 0] / (4 * math.pi * EPS0) - 1.0)
     assert dev <= 2.0 * m.error + 1e-4
     assert dev <= 1e-3
-
-
-def reference_layout(gap: float, radius: float = 100 * UM):
-    """The reference disk's electrode layout (examples/levitated_disk.toml) scaled to `radius`:
-    two rings of four slotted quadrants above, a thin plate; rigid z."""
-    f = radius / (473 * UM)
-    rings = [(20 * UM * f, 230 * UM * f), (240 * UM * f, radius)]
-    els = [
-        Electrode(
-            AnnularSector(
-                f"r{i}s{k}", lo, hi, -math.pi / 4 + k * math.pi / 2, math.pi / 4 + k * math.pi / 2, 10 * UM * f
-            ),
-            "above",
-            gap,
-        )
-        for i, (lo, hi) in enumerate(rings)
-        for k in range(4)
-    ]
-    return DiskPlate(radius), els
 
 
 def rigid_z(x, y):
