@@ -113,6 +113,20 @@ def stored(store: Path, key: dict, make) -> tuple[np.ndarray, dict]:
     return C, rec
 
 
+def sector_area(shape, n: int = 200001) -> float:
+    """Area of an annular sector trimmed by its slot (two lines slot / 2 from its radial edges), by quadrature."""
+    r = np.linspace(shape.r_in, shape.r_out, n)
+    w = r * (shape.theta_end - shape.theta_start) - 2.0 * r * np.arcsin(np.minimum(1.0, 0.5 * shape.slot / r))
+    return float(np.trapezoid(np.maximum(w, 0.0), r))
+
+
+def mesh_areas(p, solver: str, level: int) -> np.ndarray:
+    """Each electrode's meshed area on one level (flat chords and panels lose area at the arcs)."""
+    if solver.startswith("bem"):
+        return np.array([s.areas().sum() for s in p.surfaces(np.zeros(2), level)[1:]])
+    return np.array([c.areas().sum() for c in p.panels(np.zeros(2), level)[1:]])
+
+
 def quantities(cs: dict, mirror: list[int], steps: dict) -> dict:
     """C, dC/dz, dC/dtilt_x per electrode from the Maxwell matrices at 0, +d, -d."""
     c = {k: -v[0, 1:] for k, v in cs.items()}
@@ -157,6 +171,8 @@ def run(a) -> dict:
     for level, order in runs:
         cs = {}
         for name, q in qs.items():
+            if a.only and f"{level}{name}" not in a.only:
+                continue
             key = {**base, "level": level, "order": order if a.solver == "fastcap" else None, "q": q.tolist()}
             t0 = time.perf_counter()
             cs[name], rec = stored(
@@ -172,8 +188,18 @@ def run(a) -> dict:
                 file=sys.stderr,
                 flush=True,
             )
+        if a.only:
+            continue
         per_level.append(quantities(cs, mirror, steps))
+    if a.only:
+        return {}
     ratio = math.sqrt(2.0)
+    exact = np.array([sector_area(e.shape) for e in els])
+    for k, lv in enumerate(per_level[: a.levels]):
+        lv["area_deficit"] = mesh_areas(p, a.solver, k) / exact - 1.0
+        # the parallel-plate charge of the area the chords lose: a diagnostic of how much of a
+        # level's change is the electrodes' outline, not the field
+        lv["C_area"] = lv["C"] - EPS0 * exact * lv["area_deficit"] / gap
     out = {
         "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(a).items()},
         "names": [e.name for e in els],
@@ -181,9 +207,9 @@ def run(a) -> dict:
     out["records"] = records
     mesh = per_level[: a.levels]
     out["centre"] = not a.no_centre
-    for qn in ("C", "C_pm", "dz", "dtilt"):
+    for qn in ("C", "C_pm", "dz", "dtilt", "area_deficit", "C_area"):
         r = richardson([lv[qn] for lv in mesh], ratio)
-        if a.solver == "fastcap":
+        if a.solver == "fastcap" and qn not in ("area_deficit", "C_area"):
             r["order_change"] = np.abs(per_level[-1][qn] - mesh[0][qn])
             r["bar"] = r["bar"] + r["order_change"]
         r["levels"] = [lv[qn] for lv in mesh]
@@ -194,32 +220,48 @@ def run(a) -> dict:
 def table(x: dict) -> str:
     """One run's quantities per electrode: value, bar, fine level, observed order."""
     lines = []
-    for qn, unit in (("C", 1e15), ("dz", 1e9), ("dtilt", 1e12)):
+    for qn, unit in (("C", 1e15), ("dz", 1e9), ("dtilt", 1e12), ("C_area", 1e15)):
         q = x[qn]
-        lines.append(f"{qn} ({'fF' if qn == 'C' else 'fF/um' if qn == 'dz' else 'fF/mrad'})")
+        lines.append(
+            {"C": "C (fF)", "dz": "dC/dz (fF/um)", "dtilt": "dC/dtilt_x (fF/mrad)"}.get(
+                qn, "C + eps0 (sector area - meshed area) / g (fF), a diagnostic"
+            )
+        )
         for i, n in enumerate(x["names"]):
             b = q["best"][i]
             rel = q["bar"][i] / abs(b) if b else math.nan
             obs = q.get("observed_order", [math.nan] * len(x["names"]))[i]
             lvl = " ".join(f"{v[i] * unit:.5g}" for v in q["levels"])
             lines.append(f"  {n}: {b * unit:.6g} +- {100 * rel:.3f} %  levels {lvl}  observed order {obs:.2f}")
+    q = x["area_deficit"]
+    lines.append("meshed area / sector area - 1 (%): levels, order-2 extrapolation")
+    for i, n in enumerate(x["names"]):
+        lines.append(f"  {n}: {' '.join(f'{100 * v[i]:+.3f}' for v in q['levels'])} -> {100 * q['best'][i]:+.3f}")
     return "\n".join(lines)
 
 
 def compare(fc: dict, bm: dict) -> str:
-    """FastCap / BEM - 1 per electrode and quantity, with the sum of both bars."""
-    lines = [f"{'electrode':9s}" + "".join(f" {q + ' dev %':>12s} {'bar %':>7s}" for q in ("C", "dz", "dtilt"))]
+    """A markdown table: per electrode and quantity FastCap, BEM (each +- its bar in %), FastCap / BEM - 1
+    and the sum of both bars (C from the mean of the +-d solves when either run skipped q = 0)."""
     c = "C" if fc.get("centre", True) and bm.get("centre", True) else "C_pm"
+    units = {c: (1e15, "fF"), "dz": (1e9, "fF/um"), "dtilt": (1e12, "fF/mrad")}
+    head = "| electrode |" + "".join(
+        f" {q} FastCap ({u}) | {q} BEM | dev | bars |"
+        for q, (_, u) in zip(("C", "dC/dz", "dC/dtilt_x"), units.values())
+    )
+    lines = [head, "|" + " --- |" * 13]
     for i, n in enumerate(fc["names"]):
-        row = f"{n:9s}"
-        for qn in (c, "dz", "dtilt"):
+        row = f"| {n} |"
+        for qn, (unit, _) in units.items():
             f, b = fc[qn]["best"][i], bm[qn]["best"][i]
-            scale = max(abs(v) for v in bm[qn]["best"])
-            if abs(b) < 1e-6 * scale:
-                row += f" {'n/a':>12s} {'':>7s}"
+            if abs(b) < 1e-6 * max(abs(v) for v in bm[qn]["best"]):
+                row += " 0 | 0 | (symmetry) | |"
                 continue
-            bar = (fc[qn]["bar"][i] + bm[qn]["bar"][i]) / abs(b)
-            row += f" {100 * (f / b - 1):+12.3f} {100 * bar:7.3f}"
+            ef, eb = fc[qn]["bar"][i] / abs(f), bm[qn]["bar"][i] / abs(b)
+            row += (
+                f" {f * unit:.5g} ({100 * ef:.2f} %) | {b * unit:.5g} ({100 * eb:.2f} %) |"
+                f" {100 * (f / b - 1):+.3f} % | {100 * (ef + eb):.2f} % |"
+            )
         lines.append(row)
     return "\n".join(lines)
 
@@ -242,6 +284,9 @@ def main() -> None:
     ap.add_argument(
         "--aspect", type=float, default=4.0, help="bem-graded: the plate's panel aspect (fastcap_mesh.ASPECT)"
     )
+    ap.add_argument(
+        "--only", nargs="+", help="solve and store only these, as level and q (0+ 1- 10 ...): one run per process"
+    )
     ap.add_argument("--store", type=Path, default=STORE)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("FASTCAP_JSON", "BEM_JSON"))
@@ -253,6 +298,8 @@ def main() -> None:
     global ASPECT
     ASPECT = a.aspect
     out = run(a)
+    if a.only:
+        return
     print(table(out))
     if a.json:
         a.json.write_text(json.dumps(out, indent=1))
