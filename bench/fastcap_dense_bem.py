@@ -1,11 +1,18 @@
 """The multipole extractor (netgen.electrostatics.fastcap) against the dense BEM
 (netgen.electrostatics.bem) on the reference disk's layout scaled to R = 100 um
 (tests/oracles/small_disk.reference_layout: 2 rings x 4 quadrants above a thin disk), per
-electrode: C, dC/dz and dC/dtilt_x, each solver with its own error bar.
+electrode: C, dC/dz and dC/dtilt_x, each solver with its own error bar (docs/fastcap.md,
+'Against the dense BEM, per electrode').
 
-    .venv/bin/python bench/fastcap_dense_bem.py --gap-over-r 0.05 --solver fastcap --edge-to-gap 0.25 --levels 3
-    .venv/bin/python bench/fastcap_dense_bem.py --gap-over-r 0.05 --solver bem --edge-to-gap 0.5 --levels 3
-    .venv/bin/python bench/fastcap_dense_bem.py --compare a.json b.json   # the table of two runs
+    .venv/bin/python bench/fastcap_dense_bem.py --gap-over-r 0.05 --solver fastcap --element-to-gap 2 --levels 3 --json fc.json
+    .venv/bin/python bench/fastcap_dense_bem.py --gap-over-r 0.05 --solver bem --edge-to-gap 0.5 --element-to-gap 2 --levels 2 --no-centre --json bem.json
+    .venv/bin/python bench/fastcap_dense_bem.py --compare fc.json bem.json   # the markdown table of two runs
+    ... --only 1+ 1-        # solve and store only these (level, q); one process each, then rerun without
+
+--solver bem-graded triangulates the BEM's plate face through the corners of FastCap's face
+(graded towards the electrode outlines; bem_mesh.plate_face grades a disk towards its rim only).
+Diagnostics printed beside the values: each electrode's meshed area against the slot-trimmed
+sector's, and C with the lost area's parallel-plate charge added back.
 
 Every mesh level is solved on its own at q = 0 and at +-(dz, dtilt_x) (central differences, one
 step along both, split by the y-mirror: bem_reference_disk.separate), and stored as it finishes
