@@ -78,3 +78,28 @@ fringe = "none"
 refine = 3
 """
 )
+
+
+def reference_layout(gap: float, radius: float = 100e-6):
+    """The reference disk's electrode layout (examples/levitated_disk.toml: rings 20-230 and
+    240-473 um, four quadrants each, 10 um slots) scaled to `radius`, every electrode above at
+    `gap`, under a thin disk plate: (DiskPlate, electrodes). The multipole extractor's tests and
+    bench/fastcap_dense_bem.py compare it with the dense BEM."""
+    import math
+
+    from netgen.geometry.shapes import AnnularSector, DiskPlate, Electrode
+
+    f = radius / 473e-6
+    rings = [(20e-6 * f, 230e-6 * f), (240e-6 * f, radius)]
+    els = [
+        Electrode(
+            AnnularSector(
+                f"r{i}s{k}", lo, hi, -math.pi / 4 + k * math.pi / 2, math.pi / 4 + k * math.pi / 2, 10e-6 * f
+            ),
+            "above",
+            gap,
+        )
+        for i, (lo, hi) in enumerate(rings)
+        for k in range(4)
+    ]
+    return DiskPlate(radius), els
