@@ -57,22 +57,28 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     """(name, expression) of each film gap set's damping ratio pg_<set> = r^3 (1 + A pl^1.159) / (1 + A
     (pl r)^1.159), r = g / (g + dg_<set>), A = 9.638 Kn^1.159 at T0 (Reynolds' 12 mu_eff / g^3 with
     Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
-    process_film.path_ratio, rational in T) where temp is declared; [] without film sets."""
-    sets = [g for g in film_sets(model) if "fit" not in g["film"]]  # a perforated film's cubic: film_pg
+    process_film.path_ratio, rational in T) where temp is declared; a perforated film's (its cubic:
+    film_pg) pq_<set> = pg_<set> at pl over pg_<set> at 1 there (netgen.model.process_film.
+    rarefaction_shift). [] without film sets."""
+    visc = model.process["temp"].get("viscosity") or {}
+    pl = "pl*" if declared(model, "temp") and visc else ""
+    sets = [g for g in film_sets(model) if pl or "fit" not in g["film"]]
     if not sets:
         return []
-    out, pl = [], ""
-    visc = model.process["temp"].get("viscosity") or {}
-    if declared(model, "temp") and visc:
+    out = []
+    if pl:
         r, t0, s_k = f"(({temp} + {num(KELVIN)})/{num(visc['t0_K'])})", visc["t0_K"], visc["sutherland_K"]
         sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
         out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
-        pl = "pl*"
     for g in sets:
         f, rg = g["film"], f"rg_{g['set']}"
         a = num(f["rarefaction"])
         out.append((rg, f"{num(f['gap_m'])}/({num(f['gap_m'])} + dg_{g['set']})"))
         top = f"(1 + {a}*pow(pl, {VEIJOLA_POWER}))" if pl else num(1.0 + f["rarefaction"])
+        if "fit" in f:  # rg^3 cancels: (1 + A pl^e) (1 + A r^e) / ((1 + A) (1 + A (pl r)^e))
+            shift = f"{top}*(1 + {a}*pow({rg}, {VEIJOLA_POWER}))/({num(1.0 + f['rarefaction'])}*(1 + {a}*pow(pl*{rg}, {VEIJOLA_POWER})))"
+            out.append((f"pq_{g['set']}", shift))
+            continue
         out.append((f"pg_{g['set']}", f"{rg}*{rg}*{rg}*{top}/(1 + {a}*pow({pl}{rg}, {VEIJOLA_POWER}))"))
     return out
 
@@ -80,7 +86,7 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
 def film_share(model: MacroModel, v: int) -> str:
     """The text multiplying coordinate v's squeeze-film damping for the gap sets' films: 1 + sum of
     share (pg_<set> - 1) (pg_<set> alone for a share of 1); "" where no film set moves it."""
-    terms = [(film_pg(g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
+    terms = [(film_pg(model, g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
     if not terms:
         return ""
     if len(terms) == 1 and terms[0][1] == 1.0:
@@ -88,10 +94,14 @@ def film_share(model: MacroModel, v: int) -> str:
     return "*(1 + " + " + ".join(f"{num(w)}*({pg} - 1)" for pg, w in terms) + ")"
 
 
-def film_pg(g: dict, v: int) -> str:
-    """Gap set g's film ratio for coordinate v: pg_<set>, or a perforated film's cubic in 1e6 dg_<set>."""
+def film_pg(model: MacroModel, g: dict, v: int) -> str:
+    """Gap set g's film ratio for coordinate v: pg_<set>, or a perforated film's cubic in 1e6 dg_<set>
+    (times pq_<set> under temp, film_factors)."""
     fit = g["film"].get("fit")
-    return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") if fit else f"pg_{g['set']}"
+    if not fit:
+        return f"pg_{g['set']}"
+    shift = f"*pq_{g['set']}" if declared(model, "temp") and (model.process["temp"].get("viscosity") or {}) else ""
+    return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") + shift
 
 
 def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
@@ -436,7 +446,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
     for g in p["gaps"] if gaps else []:
         parts.append(
             f"dg_{g['set']} (m) = gap increase of electrode set {g['set']}, exact as a shift of z, "
-            f"valid |dg| <= {g['max_m']:.3g} (the fit's box moves by dg); " + film_text(g)
+            f"valid |dg| <= {g['max_m']:.3g} (the fit's box moves by dg); " + film_text(g, joint_error(model, g))
         )
     return (
         "Process parameters (netgen/model/process.py, declared in [process]): "
@@ -445,8 +455,20 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
     )
 
 
-def film_text(g: dict) -> str:
-    """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law)."""
+def joint_error(model: MacroModel, g: dict) -> float | None:
+    """A perforated film's law under dg and temp (its cubic, pv, pq_<set>: film_factors) against the re-run:
+    within e_v + e_c + e_v e_c, the viscosity polynomial's and the cubic's stated errors; None without
+    temp or a cubic."""
+    fit, visc = (g.get("film") or {}).get("fit"), model.process["temp"].get("viscosity") or {}
+    if not (fit and visc and declared(model, "temp")):
+        return None
+    e_v, e_c = visc["max_rel_error"], fit["max_rel_error"]
+    return e_v + e_c + e_v * e_c
+
+
+def film_text(g: dict, joint: float | None = None) -> str:
+    """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law);
+    `joint`: a perforated film's error under dg and temp (joint_error)."""
     if not (f := g.get("film")):
         return "damping unchanged (no squeeze film of this set's own: given damping, or a side several sets share)"
     if "branches" in f:  # the compressible film (netgen.model.process_film.compressible_law)
@@ -461,6 +483,13 @@ def film_text(g: dict) -> str:
             "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
             f"per coordinate from the film re-run at the moved gap, within {f['fit']['max_rel_error']:.1e} "
             "(at the nominal thickness and etch, the mean free path at T0)"
+            + (
+                f"; under temp also times pq_{g['set']} = mu_eff(g + dg, T) mu_eff(g, T0) / (mu_eff(g, T) "
+                f"mu_eff(g + dg, T0)), Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} at g = {f['gap_m']:.4g} m "
+                f"and T0 (exact: the holes' leak does not depend on T); with pv within {joint:.1e}"
+                if joint is not None
+                else ""
+            )
         )
     return (
         f"its side's squeeze-film damping times pg_{g['set']} = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), "

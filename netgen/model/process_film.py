@@ -17,6 +17,7 @@ from ..structure import Structure
 
 KELVIN = 273.15
 VISCOSITY_DEGREE = 4
+VEIJOLA_POWER = 1.159  # mu_eff = mu / (1 + 9.638 Kn^1.159) (netgen.mechanics.squeeze_film)
 # Sutherland constants S (K): White, Viscous Fluid Flow (3rd ed.), table 1-2 (air 111, N2 107,
 # Ar 144); helium 79.4 K (Sutherland-law fits of Chapman and Cowling's data)
 SUTHERLAND = {"air": 111.0, "nitrogen": 107.0, "argon": 144.0, "helium": 79.4}
@@ -182,17 +183,29 @@ def kelvin(temp_c: float) -> float:
 def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
     """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m):
     1 + sum share (pg - 1), pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) with the mean free path
-    at temp (film_law; netgen.emit.process.film_factors renders the same)."""
+    at temp, a perforated film's cubic times rarefaction_shift in its place (film_law; netgen.emit.
+    process.film_factors renders the same)."""
     out = 1.0
     factors = gap_factors(law, temp_c, dg)
     for g in law["gaps"]:
         f = g.get("film")
-        if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit)
+        if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit) at T0, times its shift at temp
             x = dg.get(g["set"], 0.0) * 1e6
-            out += f["share"][v] * (float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3])) - 1.0)
+            cubic = float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3]))
+            out += f["share"][v] * (cubic * rarefaction_shift(f, *factors[g["set"]]) - 1.0)
         elif f:
             out += f["share"][v] * (factors[g["set"]][1] - 1.0)
     return out
+
+
+def rarefaction_shift(film: dict, rg: float, pg: float) -> float:
+    """pg over its value at T0 (the mean free path's ratio pl = 1): mu_eff(g + dg, T) mu_eff(g, T0) /
+    (mu_eff(g, T) mu_eff(g + dg, T0)), what a perforated film's cubic in dg (fitted at T0) and the
+    viscosity ratio pv (at the drawn gap) leave out. Exact for the Reynolds film with holes: their leak
+    12 h^4 / (28.45 g^3 t p^2) is a ratio of two conductances with one viscosity (netgen.mechanics.
+    squeeze_film.perforation_leak), so b(g, T) = 12 mu_eff(g, T) / g^3 R(g), R free of T."""
+    a = film["rarefaction"]
+    return pg * (1.0 + a * rg**VEIJOLA_POWER) / (rg**3 * (1.0 + a))
 
 
 def gap_factors(law: dict, temp_c: float, dg: dict[str, float]) -> dict[str, tuple[float, float]]:
