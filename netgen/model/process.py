@@ -8,9 +8,9 @@ once so that emitters only render them.
   the mechanics (netgen.mechanics) and damping (netgen.mechanics.damping) re-run with the conductor's
   and the flexures' thickness scaled at fit_points (five points, four coefficients: the largest
   relative residual is the parameter's stated error; 0 to round-off for the power laws t, t^3 of rigid masses,
-  beams in bending and Kirchhoff plates; torsion is not a power law). The capacitances of plate
-  electrodes above/below do not depend on thickness (offered only without comb fingers, whose
-  overlap does).
+  beams in bending and Kirchhoff plates; torsion is not a power law). Without comb fingers the
+  capacitances are left unchanged; with textbook ones (thickness_capacitance) every electrode's is
+  times a cubic in tscale fitted to the extractor (a comb's eps t / g: tscale, exact).
 - escale and temp: K(tscale, E) = e * A(tscale) + B(tscale), with A the part proportional to the
   modulus (beams, frames, plates) and B the rest (residual stress, given springs), separated by a
   re-run at the modulus scaled by E_PROBE; e = escale * (1 + modulus_tc * (temp - T0)).
