@@ -29,6 +29,7 @@ from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
+from netgen.sweep.point import at_point
 from tests.oracles.process_cases import TSCALES, xyz_thick
 
 PROCESS = '\n[process]\nparameters = ["tscale"]\n'
@@ -71,3 +72,12 @@ def test_frequencies(nominal, rebuilt):
         m, k, _ = coordinate_values(nominal.process, v, tscale=tscale)
         bound = 1e-4 if ref.name in IN_PLANE else max(1e-4, err / 2)
         assert math.sqrt(k / m) / math.sqrt(ref.stiffness / ref.mass) == pytest.approx(1.0, abs=bound), ref.name
+
+
+@pytest.mark.parametrize("tscale", (0.9, 1.1))
+def test_sweep_point_model(nominal, tscale):
+    """A sweep's model at the process point (netgen.sweep.point.at_point: the fits' c_ref times the
+    ratio) reads the capacitances capacitance_at renders: the same products in another order, 1e-12."""
+    x = np.random.default_rng(6).uniform(-0.15, 0.15, (20, len(nominal.coordinates)))
+    got = at_point(nominal, {"tscale": tscale}).capacitance(x)
+    np.testing.assert_allclose(got, capacitance_at(nominal, x, tscale=tscale), rtol=1e-12, atol=0)
