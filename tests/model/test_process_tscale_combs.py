@@ -30,7 +30,7 @@ from netgen.core.constants import EPS0
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
-from tests.oracles.process_cases import TSCALES, xyz_thick
+from tests.oracles.process_cases import TSCALES, xyz_mass, xyz_thick
 
 PROCESS = '\n[process]\nparameters = ["tscale"]\n'
 IN_PLANE = ("x", "y", "rot_z")
@@ -81,3 +81,18 @@ def test_sweep_point_model(nominal, tscale):
     x = np.random.default_rng(6).uniform(-0.15, 0.15, (20, len(nominal.coordinates)))
     got = at_point(nominal, {"tscale": tscale}).capacitance(x)
     np.testing.assert_allclose(got, capacitance_at(nominal, x, tscale=tscale), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_in_plane_participation_is_the_moving_mass(nominal, tscale):
+    """The a_x / a_y participation under tscale (netgen.model.process_loads.inertial_law: X ((1 - f)
+    tscale + f tscale^3)) against the hand moving mass at the scaled layer, rho (2 um tscale) ((400 um)^2
+    - 1600 (4 um)^2 + 80 x 2 um x 40 um) (the plate, its holes and the 80 fingers beyond its edge: the
+    fingers scale with the layer): an in-plane translation's participation is that mass, exact but for
+    the sums' round-off, 1e-12."""
+    f = nominal.process["inertial"]["t3_fraction"]["participation"]
+    mass = xyz_mass(0.0) * tscale
+    for kind, v in (("a_x", 0), ("a_y", 1)):
+        p = nominal.inertial.participation[kind][v]
+        got = p * ((1 - f[kind][v]) * tscale + f[kind][v] * tscale**3)
+        assert got == pytest.approx(mass, rel=1e-12, abs=0)
