@@ -8,9 +8,9 @@ once so that emitters only render them.
   the mechanics (netgen.mechanics) and damping (netgen.mechanics.damping) re-run with the conductor's
   and the flexures' thickness scaled at fit_points (five points, four coefficients: the largest
   relative residual is the parameter's stated error; 0 to round-off for the power laws t, t^3 of rigid masses,
-  beams in bending and Kirchhoff plates; torsion is not a power law). Without comb fingers the
-  capacitances are left unchanged; with textbook ones (thickness_capacitance) every electrode's is
-  times a cubic in tscale fitted to the extractor (a comb's eps t / g: tscale, exact).
+  beams in bending and Kirchhoff plates; torsion is not a power law). Without comb fingers or etch
+  holes the capacitances are left unchanged; with textbook combs or holes (thickness_capacitance)
+  every electrode's is times a cubic in tscale fitted to the extractor (a comb's eps t / g: tscale).
 - escale and temp: K(tscale, E) = e * A(tscale) + B(tscale), with A the part proportional to the
   modulus (beams, frames, plates) and B the rest (residual stress, given springs), separated by a
   re-run at the modulus scaled by E_PROBE; e = escale * (1 + modulus_tc * (temp - T0)).
@@ -214,9 +214,11 @@ LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def tscale_combs(s: Structure, p: Process, extract) -> bool:
-    """tscale is declared on a structure with comb fingers (textbook ones: netgen.structure.process_table
-    refuses the others) and an extractor to fit their thickness ratio with."""
-    return p.wants("tscale") and extract is not None and any(is_comb(e) for e in s.electrode_sets)
+    """tscale is declared on a structure whose capacitances move with the thickness, comb fingers
+    (textbook ones: netgen.structure.process_table refuses the others) or a perforated mass (its hole
+    walls' fringe, netgen.electrostatics.perforation), and an extractor to fit the ratio with."""
+    moved = any(is_comb(e) for e in s.electrode_sets) or bool(getattr(s.conductor, "hole", 0.0))
+    return p.wants("tscale") and extract is not None and moved
 
 
 def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -> dict:
