@@ -102,6 +102,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     stop_sets = [shifts.get(pt["electrode"]) for pt in stops]
     rngs = {r["name"]: r for r in rows(model)}
     ratios, etch_stops = process.capacitance_ratios(model), process.etch_offsets(model)
+    thick = process.thickness_ratios(model)
     data = [
         array("int", "PROC_VR", [vr[n] for n in names]),
         array("double", "PROC_MIN", [float(rngs[n]["min"]) for n in names]),
@@ -116,6 +117,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("int", "STOP_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in stop_sets]),
         array("double", "STOP_INV_GAP", [1.0 / pt["gap"] for pt in stops]),
         array("double", "PC_LAW", [ratios.get(e.name, ident) for e in model.electrodes]),
+        array("double", "PC_TLAW", [thick.get(e.name, ident) for e in model.electrodes]),
         array("double", "ELEC_ETCH", etch_shifts(model)),
         array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
     ]

@@ -146,7 +146,7 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
         etch = u.get("etch") if declared(model, "etch") else None
         out.append(("pu", f"{pu}*{poly(etch, '(1e6*etch)')}" if etch and etch != IDENTITY else pu))
     t0 = p["temperature_C"] + KELVIN
-    out += [(f"pc_{e}", poly(r, "(1e6*etch)")) for e, r in capacitance_ratios(model).items()]
+    out += [(f"pc_{e}", pc_text(model, e)) for e in capacitance_ratios(model)]
     out += knot_params(model)
     for v, (c, law) in enumerate(zip(model.coordinates, p["coordinates"])):
         if active(model, "pm"):
@@ -166,11 +166,30 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
 
 def capacitance_ratios(model: MacroModel) -> dict[str, list[float]]:
     """electrode -> its capacitance's etch ratio (a cubic in etch / 1 um, netgen.model.process.
-    capacitance_laws) where etch is declared; the emitters scale the electrode's charge and forces by
-    pc_<electrode>. {} otherwise."""
-    if not declared(model, "etch"):
+    capacitance_laws; 1 where it has a tscale ratio alone) where etch or tscale moves it; the emitters
+    scale the electrode's charge and forces by pc_<electrode> (pc_text). {} otherwise."""
+    out = {e: [1.0, 0.0, 0.0, 0.0] for e in thickness_ratios(model)}
+    if declared(model, "etch"):
+        out |= {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
+    return out
+
+
+def thickness_ratios(model: MacroModel) -> dict[str, list[float]]:
+    """electrode -> its capacitance's tscale ratio (a cubic in tscale, netgen.model.process.
+    thickness_capacitance: comb fingers ~ t) where tscale is declared; {} otherwise."""
+    if not declared(model, "tscale"):
         return {}
-    return {r["electrode"]: r["ratio"] for r in model.process["etch"].get("capacitance", [])}
+    return {r["electrode"]: r["ratio"] for r in model.process["tscale"].get("capacitance_laws", [])}
+
+
+def pc_text(model: MacroModel, electrode: str) -> str:
+    """pc_<electrode>'s expression: its etch cubic in 1e6 etch times its tscale cubic (either left
+    out where the electrode has none)."""
+    etch = capacitance_ratios(model)[electrode]
+    thick = thickness_ratios(model).get(electrode)
+    parts = [poly(etch, "(1e6*etch)")] if declared(model, "etch") else []
+    parts += [poly(thick, "tscale")] if thick else []
+    return "*".join(parts) or "1"
 
 
 def etch_columns(model: MacroModel, stops: bool = False) -> list[tuple[str, str, float]]:
@@ -391,6 +410,20 @@ def gap_networks(model: MacroModel, every: bool = False) -> list[str]:
     return lines
 
 
+def thickness_header(t: dict) -> str:
+    """The tscale header's capacitance clause: unchanged (plate electrodes), or the electrodes' ratio
+    pc_<electrode> in tscale (netgen.model.process.thickness_capacitance) and its stated error."""
+    laws = t.get("capacitance_laws")
+    if laws is None:
+        return " (capacitance: unchanged, plate electrodes)"
+    err = t["capacitance_max_rel_error"]
+    return (
+        f"; capacitances of {', '.join(r['electrode'] for r in laws)} times pc_<electrode>, a cubic in tscale"
+        + (f" within {err:.1e}" if err else " (exact: eps t / g)")
+        + " against the extractor at the range's ends, rest and 32 fit-box points"
+    )
+
+
 def header_text(model: MacroModel, gaps: bool = True) -> str:
     """The header's statement of each declared process parameter: meaning, valid range and error
     (without `gaps`, why this form has no dg_<set>); "" without [process]."""
@@ -404,7 +437,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
             f"tscale = device-layer thickness / nominal, valid {t['range'][0]:g}..{t['range'][1]:g}, mass, "
             f"stiffness and damping laws "
             + (f"within {t['max_rel_error']:.1e}" if t["max_rel_error"] else "exact (power laws of t)")
-            + " (capacitance: unchanged, plate electrodes)"
+            + thickness_header(t)
         )
     if declared(model, "escale"):
         e = p["escale"]["range"]

@@ -8,9 +8,9 @@ once so that emitters only render them.
   the mechanics (netgen.mechanics) and damping (netgen.mechanics.damping) re-run with the conductor's
   and the flexures' thickness scaled at fit_points (five points, four coefficients: the largest
   relative residual is the parameter's stated error; 0 to round-off for the power laws t, t^3 of rigid masses,
-  beams in bending and Kirchhoff plates; torsion is not a power law). The capacitances of plate
-  electrodes above/below do not depend on thickness (offered only without comb fingers, whose
-  overlap does).
+  beams in bending and Kirchhoff plates; torsion is not a power law). Without comb fingers or etch
+  holes the capacitances are left unchanged; with textbook combs or holes (thickness_capacitance)
+  every electrode's is times a cubic in tscale fitted to the extractor (a comb's eps t / g: tscale).
 - escale and temp: K(tscale, E) = e * A(tscale) + B(tscale), with A the part proportional to the
   modulus (beams, frames, plates) and B the rest (residual stress, given springs), separated by a
   re-run at the modulus scaled by E_PROBE; e = escale * (1 + modulus_tc * (temp - T0)).
@@ -58,8 +58,8 @@ ROUND_OFF = 1e-12  # a law's residual below this is the re-runs' round-off: stat
 
 
 def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
-    """The structure with the device layer (conductor and flexures) tscale times as thick and
-    Young's modulus escale times as large (kinds without a modulus keep their given springs)."""
+    """The structure with the device layer (conductor, flexures and comb fingers) tscale times as
+    thick and Young's modulus escale times as large (kinds without a modulus keep their given springs)."""
     c: Any = s.conductor  # every conductor kind is a dataclass with a thickness
     changes: dict = {"thickness": c.thickness * tscale}
     if hasattr(c, "youngs_modulus"):
@@ -67,7 +67,8 @@ def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
     flex = getattr(c, "flexure", None)
     if flex is not None and flex.thickness:
         changes["flexure"] = dataclasses.replace(flex, thickness=flex.thickness * tscale)
-    return dataclasses.replace(s, conductor=dataclasses.replace(c, **changes))
+    sets = tuple(dataclasses.replace(e, thickness=e.thickness * tscale) if is_comb(e) else e for e in s.electrode_sets)
+    return dataclasses.replace(s, conductor=dataclasses.replace(c, **changes), electrode_sets=sets)
 
 
 def fit_points(p: Process) -> tuple[float, ...]:
@@ -188,7 +189,8 @@ def process_laws(
             "max_rel_error": max(errors),
             "fit_points": list(fit_points(p)),
             "capacitance": "unchanged (plate electrodes)",
-        },
+        }
+        | (thickness_capacitance(s, p, extract, [e.name for e in electrodes]) if tscale_combs(s, p, extract) else {}),
         "escale": {"range": list(p.escale_range), "max_rel_error": max(errors[1:3])},
         "temp": {
             "range_C": list(p.temp_range),
@@ -209,6 +211,39 @@ def process_laws(
 
 
 LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
+
+
+def tscale_combs(s: Structure, p: Process, extract) -> bool:
+    """tscale is declared on a structure whose capacitances move with the thickness, comb fingers
+    (textbook ones: netgen.structure.process_table refuses the others) or a perforated mass (its hole
+    walls' fringe, netgen.electrostatics.perforation), and an extractor to fit the ratio with."""
+    moved = any(is_comb(e) for e in s.electrode_sets) or bool(getattr(s.conductor, "hole", 0.0))
+    return p.wants("tscale") and extract is not None and moved
+
+
+def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -> dict:
+    """Each electrode's capacitance under tscale as C(q; tscale) = ratio(tscale) C(q; 1), the ratio a
+    cubic in tscale (1 at 1) fitted to the extractor at rest at fit_points on the scaled structure
+    (fingers, conductor and flexures tscale times as thick). A textbook comb's eps t L / g is linear
+    in t at every state: the ratio is tscale, exact. What is not linear in t (a perforated plate's hole
+    walls, netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the
+    state: the stated error is the largest |ratio C(q; 1) / C(q; tscale) - 1| over rest and
+    CAPACITANCE_POINTS random points of the fit box at the range's ends, and the cubic's residual."""
+    points = fit_points(p)
+    rest = np.array([extract(scaled(s, t), 0)[0] for t in points])
+    coef, err = power_fit(points, rest / rest[points.index(1.0)], np.ones_like(rest))
+    drawn = extract(s, CAPACITANCE_POINTS)
+    for t in p.tscale_range:
+        moved = extract(scaled(s, t), CAPACITANCE_POINTS)
+        ref = drawn * np.array([float(np.dot(c, [1.0, t, t**2, t**3])) for c in coef])
+        ok = np.isfinite(moved) & np.isfinite(ref)
+        err = max(err, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
+    laws = [{"electrode": n, "ratio": [float(x) for x in c]} for n, c in zip(names, coef)]
+    return {
+        "capacitance": "times pc_<electrode>, a cubic in tscale (comb fingers ~ t)",
+        "capacitance_laws": [r for r in laws if r["ratio"] != [1.0, 0.0, 0.0, 0.0]],
+        "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0,
+    }
 
 
 def etched(s: Structure, etch: float) -> Structure:
@@ -480,14 +515,15 @@ def ratio_value(coeffs: list[float], etch: float) -> float:
     return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
 
 
-def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
-    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x and the etch bias:
-    each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws; the
-    arithmetic the emitters render)."""
+def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float = 1.0) -> np.ndarray:
+    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x, the etch bias and
+    tscale: each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws)
+    and its tscale ratio (thickness_capacitance; the arithmetic the emitters render)."""
     x = np.atleast_2d(x)
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     names = [c.name for c in model.coordinates]
     out = model.capacitance(x)
+    thick = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
     for k, f in enumerate(model.capacitances):
         law = laws.get(f.electrode)
         if law is None:
@@ -497,6 +533,9 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0) -> np.ndarray:
             v = names.index(q)
             moved[:, v] += shift * etch / model.coordinates[v].scale
         out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
+    for k, f in enumerate(model.capacitances):
+        if f.electrode in thick:
+            out[:, k] *= float(np.dot(thick[f.electrode], [1.0, tscale, tscale**2, tscale**3]))
     return out
 
 

@@ -307,6 +307,24 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool, size: int =
             c.number(f"{where}.{key}[{k}]", x)
 
 
+def check_thickness_laws(c: Checker, tscale: dict, names: tuple[str, ...]) -> None:
+    """The tscale capacitance laws (netgen.model.process.thickness_capacitance), where there are:
+    per electrode one of the model's electrode names and four numbers, and their stated error."""
+    laws = tscale.get("capacitance_laws")
+    if laws is None:
+        return
+    if not isinstance(laws, list):
+        c.fail("process.tscale.capacitance_laws", "must be a list of {electrode, ratio} objects")
+    for i, law in enumerate(laws):
+        where = f"process.tscale.capacitance_laws[{i}]"
+        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
+            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
+        c.choice(f"{where}.electrode", law.get("electrode"), names)
+        for k, x in enumerate(law["ratio"]):
+            c.number(f"{where}.ratio[{k}]", x)
+    c.number("process.tscale.capacitance_max_rel_error", tscale.get("capacitance_max_rel_error"))
+
+
 def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...]) -> None:
     """The etch's capacitance laws (netgen.model.process.capacitance_laws): per electrode one of the
     model's electrode names (the emitters name the parameter pc_<electrode>), four numbers, an
@@ -380,6 +398,7 @@ def check_process(
         for k, x in enumerate(rng):
             c.number(f"process.{where}[{k}]", x)
     c.number("process.tscale.max_rel_error", process["tscale"].get("max_rel_error"))
+    check_thickness_laws(c, process["tscale"], names)
     if "etch" in params:
         etch = process.get("etch")
         if not isinstance(etch, dict) or not isinstance(etch.get("range_m"), list) or len(etch["range_m"]) != 2:

@@ -177,10 +177,12 @@ def check_process(
     t0_c: float,
     conductor: Any = None,
     film_model: str = "incompressible",
+    comb_model: str = "field2d",
 ) -> None:
     """The declared parameters against the structure: dg needs a coordinate z and a plate set
-    above/below (the offset is a shift of z); tscale refuses comb fingers (their capacitance grows
-    with the thickness, not modelled); tscale, escale and temp need mechanics netgen can re-run;
+    above/below (the offset is a shift of z); tscale refuses comb fingers of the 2-D field model
+    (its section tables are solved per finger thickness: netgen.electrostatics.comb_section), not
+    the textbook form's (eps t / g: a ratio in tscale, netgen.model.process.thickness_capacitance); tscale, escale and temp need mechanics netgen can re-run;
     temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
     has the incompressible film (the compressible film's gas spring ~ p would follow T too)."""
     if p is None:
@@ -192,11 +194,13 @@ def check_process(
             "dg needs the coordinate z and an electrode set above or below the conductor (a gap offset is a shift of z)",
             "remove 'dg' from process.parameters, or add z to [coordinates] rigid",
         )
-    if p.wants("tscale") and any(getattr(s, "side", None) not in GAP_SIDES for s in sets):
+    if p.wants("tscale") and comb_model != "textbook" and any(getattr(s, "side", None) not in GAP_SIDES for s in sets):
         raise rd.fail(
             where,
-            "tscale with comb fingers: their capacitance grows with the thickness, which the laws do not model",
-            "remove 'tscale' from process.parameters (escale, temp and dg stay exact)",
+            "tscale with field2d comb fingers: their 2-D section tables hold one finger thickness (a table "
+            "per thickness in the range would be 13 x 9 cell and 6 x 9 end field solves each, not shipped)",
+            "remove 'tscale' from process.parameters, or set [electrostatics] comb_model = \"textbook\" "
+            "(eps t / g: a ratio in tscale)",
         )
     moved = [n for n in ("tscale", "escale", "temp", "etch") if p.wants(n)]
     if imported and moved:

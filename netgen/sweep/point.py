@@ -103,7 +103,21 @@ def shifted_fits(model: MacroModel, point: dict[str, float]) -> list:
             if f.electrode in g["electrodes"]:
                 polys = tuple(shift(p, z, delta) for p in f.polys)
                 fits[i] = dataclasses.replace(f, polys=polys)
-    return etched_fits(model, fits, point.get("etch", 0.0))
+    return thickness_fits(model, etched_fits(model, fits, point.get("etch", 0.0)), point.get("tscale", 1.0))
+
+
+def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:
+    """The fits at tscale: each electrode with a tscale law (comb fingers ~ t, netgen.model.process.
+    thickness_capacitance) times its ratio, as the emitters render pc_<electrode>."""
+    laws = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
+    if tscale == 1.0 or not laws:
+        return fits
+    for i, f in enumerate(fits):
+        if f.electrode in laws:
+            fits[i] = dataclasses.replace(
+                f, c_ref=f.c_ref * float(np.dot(laws[f.electrode], [1, tscale, tscale**2, tscale**3]))
+            )
+    return fits
 
 
 def etched_fits(model: MacroModel, fits: list, etch: float) -> list:

@@ -285,16 +285,17 @@ def comb_build(folder):
     return model, lib, fmu.built(model)
 
 
-def comb_balance(model, path, etch: float) -> tuple[np.ndarray, float, float]:
+def comb_balance(model, path, etch: float, name: str = "etch") -> tuple[np.ndarray, float, float]:
     """(q (SI) where the FMU's accelerations vanish at rest, its charge of COMB, the condition number
-    of the scaled balance's Jacobian there) with COMB_VOLTS on COMB at `etch`: model exchange, a
+    of the scaled balance's Jacobian there) with COMB_VOLTS on COMB at `etch` (or the parameter `name`
+    at that value): model exchange, a
     Newton solve of q''(q) = 0 by scipy's hybrid method in scaled coordinates to 1e-15; the Jacobian
     by central differences of 1e-6 (scaled)."""
     from scipy.optimize import root
 
     scale = np.array([c.scale for c in model.coordinates])
     inst = fmu.Instance(path, cosim=False)
-    inst.set({"etch": etch, f"V_{COMB}": COMB_VOLTS})
+    inst.set({name: etch, f"V_{COMB}": COMB_VOLTS})
     inst.start()
     names = [f"qdd_{c.name}" for c in model.coordinates]
     norm = np.array([c.mass / (c.stiffness * c.scale) for c in model.coordinates])  # q'' to scaled x
@@ -314,13 +315,14 @@ def comb_balance(model, path, etch: float) -> tuple[np.ndarray, float, float]:
     return sol.x * scale, float(q), float(np.linalg.cond(jac))
 
 
-def comb_op(model, lib, etch: float, folder) -> np.ndarray:
-    """q (SI) of ngspice 39's .op of the .lib at `etch` with COMB_VOLTS on COMB (Newton at reltol
+def comb_op(model, lib, etch: float, folder, name: str = "etch") -> np.ndarray:
+    """q (SI) of ngspice 39's .op of the .lib at `etch` (or the parameter `name` at that value) with
+    COMB_VOLTS on COMB (Newton at reltol
     RELTOL, vntol 1e-15 V)."""
     bench = Bench(model, lib, sources={COMB: f"DC {COMB_VOLTS!r}", model.plate: "DC 0"},
                   options=f"reltol={RELTOL!r} vntol=1e-15 abstol=1e-20")  # fmt: skip
     lines = bench.netlist(".op").split("\n")
-    net = "\n".join(f"{ln} etch={etch!r}" if ln.startswith("X1 ") else ln for ln in lines)
+    net = "\n".join(f"{ln} {name}={etch!r}" if ln.startswith("X1 ") else ln for ln in lines)
     with using_ngspice("39"):
         plot = run_ngspice(net, folder / "op")[0]
     x = np.real(states(plot, model)[0]).reshape(-1, model.ncoords)[0]

@@ -169,6 +169,17 @@ def xyz_text(etch: float = 0.0, process: str = "") -> str:
     return text + process
 
 
+TSCALES = (0.9, 1.0, 1.1)  # thickness / nominal: the default tscale_range's ends and the nominal
+
+
+def xyz_thick(tscale: float = 1.0, process: str = "") -> str:
+    """xyz_text (textbook combs) drawn (with `process`) or rewritten at tscale times the 2 um device
+    layer: conductor, flexures and comb fingers (both default to the conductor's thickness)."""
+    text = xyz_text(process=process)
+    assert text.count('thickness = "2 um"') == 1
+    return text.replace('thickness = "2 um"', f'thickness = "{2.0 * tscale!r} um"')
+
+
 def xyz_structure():
     """accelerometer_xyz (xyz_text) with etch declared and the rate w_z (tests/model/test_process_loads.py,
     tests/emit/test_fmu_process.py)."""

@@ -229,11 +229,11 @@ def test_bad_process_table_names_file_key_and_fix(old, new, where, words):
     "example,where,words",
     [
         ("cantilever.toml", "process.parameters", ["dg needs the coordinate z"]),
-        ("accelerometer_xyz.toml", "process.parameters", ["tscale with comb fingers"]),
+        ("accelerometer_xyz.toml", "process.parameters", ["tscale with field2d comb fingers", "comb_model"]),
     ],
 )
 def test_process_parameters_the_structure_cannot_carry_are_refused(example, where, words):
-    """dg without a coordinate z (a beam's modes), tscale with comb fingers: refused with the reason
+    """dg without a coordinate z (a beam's modes), tscale with field2d comb fingers: refused with the reason
     and the parameters that stay exact, never a silently wrong law."""
     text = (ROOT / "examples" / example).read_text() + '\n[process]\nparameters = ["dg", "tscale"]\n'
     with pytest.raises(StructureError) as info:

@@ -1,0 +1,98 @@
+"""tscale on a proof mass with textbook comb fingers (netgen.model.process.thickness_capacitance: each
+electrode's capacitance times a cubic in tscale) with the perforated mass, crab legs and z plates of
+examples/accelerometer_xyz (textbook comb form: tests/oracles/process_cases.xyz_thick), against full
+rebuilds of the file rewritten at 0.9, 1.0 and 1.1 times the 2 um layer, and against the closed form.
+
+Tolerances:
+- capacitances at 100 points: the nominal fits times the ratio (capacitance_at) against the
+  rebuild's fits at the same physical displacement: each fit is within its max_rel_error of its
+  extractor and the law within its stated capacitance_max_rel_error of the extractor at the range's
+  ends (over the fit box; the ratio exact at 1), so the two differ by at most twice the larger fit
+  error plus the stated law error.
+- a comb's capacitance at rest against the textbook form 20 eps (2 um tscale) 30 um / 1.5 um (one face
+  per finger): the model's fit at rest is within its max_rel_error of the extractor, which is that
+  form; the ratio's error adds the stated law error (0 for combs: eps t / g is linear in t).
+- the in-plane (comb) modes x, y, rot_z against the rebuild within the brief's 1e-4: in-plane
+  bending and stretching of the legs ~ t, the rigid mass and inertia about z ~ t, so their laws are
+  power laws (the cubic's round-off). The out-of-plane modes (z, tilts: the legs' torsion, w = t at
+  the kink of netgen.mechanics.frame.torsion_constant) within half the stated tscale error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from netgen.build import build_model
+from netgen.core.constants import EPS0
+from netgen.model.process import capacitance_at, coordinate_values
+from netgen.structure import parse_structure
+from netgen.sweep.point import at_point
+from tests.oracles.process_cases import TSCALES, xyz_mass, xyz_thick
+
+PROCESS = '\n[process]\nparameters = ["tscale"]\n'
+IN_PLANE = ("x", "y", "rot_z")
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return build_model(parse_structure(xyz_thick(process=PROCESS), "xyz.toml"))
+
+
+@pytest.fixture(scope="module", params=TSCALES)
+def rebuilt(request):
+    return request.param, build_model(parse_structure(xyz_thick(request.param), "xyz.toml"))
+
+
+def test_capacitances_against_rebuild(nominal, rebuilt):
+    tscale, model = rebuilt
+    stated = nominal.process["tscale"]["capacitance_max_rel_error"]
+    errs = [f.max_rel_error for f in nominal.capacitances + model.capacitances]
+    x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, len(nominal.coordinates)))
+    got, ref = capacitance_at(nominal, x, tscale=tscale), model.capacitance(x * nominal.scales / model.scales)
+    np.testing.assert_allclose(got, ref, rtol=2 * max(errs) + stated)
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_comb_closed_form(nominal, tscale):
+    """xp_t at rest: 20 fingers, one face each, eps (2 um tscale) 30 um / 1.5 um."""
+    k = [f.electrode for f in nominal.capacitances].index("xp_t")
+    got = capacitance_at(nominal, np.zeros((1, len(nominal.coordinates))), tscale=tscale)[0, k]
+    ref = 20 * EPS0 * 2e-6 * tscale * 30e-6 / 1.5e-6
+    tol = nominal.capacitances[k].max_rel_error + nominal.process["tscale"]["capacitance_max_rel_error"]
+    assert got == pytest.approx(ref, rel=tol, abs=0)
+
+
+def test_frequencies(nominal, rebuilt):
+    tscale, model = rebuilt
+    err = nominal.process["tscale"]["max_rel_error"]
+    for v, ref in enumerate(model.coordinates):
+        m, k, _ = coordinate_values(nominal.process, v, tscale=tscale)
+        bound = 1e-4 if ref.name in IN_PLANE else max(1e-4, err / 2)
+        assert math.sqrt(k / m) / math.sqrt(ref.stiffness / ref.mass) == pytest.approx(1.0, abs=bound), ref.name
+
+
+@pytest.mark.parametrize("tscale", (0.9, 1.1))
+def test_sweep_point_model(nominal, tscale):
+    """A sweep's model at the process point (netgen.sweep.point.at_point: the fits' c_ref times the
+    ratio) reads the capacitances capacitance_at renders: the same products in another order, 1e-12."""
+    x = np.random.default_rng(6).uniform(-0.15, 0.15, (20, len(nominal.coordinates)))
+    got = at_point(nominal, {"tscale": tscale}).capacitance(x)
+    np.testing.assert_allclose(got, capacitance_at(nominal, x, tscale=tscale), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_in_plane_participation_is_the_moving_mass(nominal, tscale):
+    """The a_x / a_y participation under tscale (netgen.model.process_loads.inertial_law: X ((1 - f)
+    tscale + f tscale^3)) against the hand moving mass at the scaled layer, rho (2 um tscale) ((400 um)^2
+    - 1600 (4 um)^2 + 80 x 2 um x 40 um) (the plate, its holes and the 80 fingers beyond its edge: the
+    fingers scale with the layer): an in-plane translation's participation is that mass, exact but for
+    the sums' round-off, 1e-12."""
+    f = nominal.process["inertial"]["t3_fraction"]["participation"]
+    mass = xyz_mass(0.0) * tscale
+    for kind, v in (("a_x", 0), ("a_y", 1)):
+        p = nominal.inertial.participation[kind][v]
+        got = p * ((1 - f[kind][v]) * tscale + f[kind][v] * tscale**3)
+        assert got == pytest.approx(mass, rel=1e-12, abs=0)
