@@ -12,20 +12,19 @@ import numpy as np
 from ..model import MacroModel
 from ..model.process_loads import IDENTITY
 from .common import noise_kelvin, num, unit_load
+from .process_base import declared as declared  # re-exported: the emitters ask netgen.emit.process
+from .process_base import enabled as enabled
+from .process_base import poly as poly
+from .process_etch import etch_columns as etch_columns
 from .process_etch import etch_header
+from .process_etch import etch_networks as etch_networks
+from .process_etch import etch_ratio as etch_ratio
+from .process_etch import etch_states as etch_states
+from .process_etch import knot_params as knot_params
+from .process_etch import knots as knots
+from .process_etch import stop_shift as stop_shift
 
 KELVIN = 273.15
-
-
-def enabled(model: MacroModel) -> bool:
-    """The model carries process laws (its structure has [process]): without them every emitted
-    text is the one of a model without process parameters."""
-    return bool(model.process.get("coordinates"))
-
-
-def declared(model: MacroModel, name: str) -> bool:
-    """The structure's [process] declares parameter `name` (dg, tscale, escale, temp)."""
-    return enabled(model) and name in model.process.get("parameters", [])
 
 
 # the derived ratios each parameter moves (netgen.emit.process.factors): pm mass, pk stiffness,
@@ -116,12 +115,6 @@ def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
     return out + ([(f"dg_{g['set']}", "0") for g in p["gaps"]] if gaps else [])
 
 
-def poly(coeffs: list[float], x: str) -> str:
-    """c0 + c1 x + c2 x^2 + c3 x^3 as products (no power operator: the dialects differ)."""
-    terms = [f"{num(c)}" + "".join(f"*{x}" for _ in range(k)) for k, c in enumerate(coeffs) if c != 0.0]
-    return "(" + (" + ".join(terms) if terms else "0") + ")"
-
-
 def factors(model: MacroModel) -> list[tuple[str, str]]:
     """(name, expression) of the derived parameters: per coordinate q the ratios pm_q, pk_q, pd_q of
     its mass, stiffness and damping to the model's values, and pt_q = pd_q T / T0 (the thermal noise
@@ -192,56 +185,6 @@ def pc_text(model: MacroModel, electrode: str) -> str:
     return "*".join(parts) or "1"
 
 
-def etch_columns(model: MacroModel, stops: bool = False) -> list[tuple[str, str, float]]:
-    """The distinct etch shifts of the combs' capacitance terms (netgen.model.process.capacitance_laws):
-    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order; with
-    `stops` also the geometric shifts the contact stops read where a comb's shift has an effective part
-    (stop_shift, netgen.model.etch_combs; the code model's stops read state columns)."""
-    if not declared(model, "etch"):
-        return []
-    scale = {c.name: c.scale for c in model.coordinates}
-    out: list[tuple[str, str, float]] = []
-    laws = model.process["etch"].get("capacitance", [])
-    for key in ("shift", "stop_shift") if stops else ("shift",):  # the stops' columns after the terms'
-        for r in laws:
-            for q, k in r.get(key, {}).items():
-                if not any(c[1] == q and c[2] == k / scale[q] for c in out):
-                    out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
-    return out
-
-
-def etch_states(model: MacroModel, stops: bool = False) -> dict[str, dict[str, str]]:
-    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns);
-    with `stops` the nodes its contact stops read instead: the geometric stop_shift where there is one,
-    none for a plate's fill shift (netgen.model.etch_fill: an effective gap, the stops stay)."""
-    scale = {c.name: c.scale for c in model.coordinates}
-    cols = {(q, k): n for n, q, k in etch_columns(model, stops)}
-    out: dict[str, dict[str, str]] = {}
-    if not cols:
-        return out
-    for r in model.process["etch"].get("capacitance", []):
-        shift = stop_shift(r) if stops else r.get("shift", {})
-        if shift:
-            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in shift.items()}
-    return out
-
-
-def stop_shift(law: dict) -> dict[str, float]:
-    """The shift per metre of etch an electrode's contact stops follow: a comb's geometric one (its
-    stop_shift where the capacitance's shift has an effective part, netgen.model.etch_combs), none for
-    a plate's fill shift (netgen.model.etch_fill)."""
-    return {} if law.get("fill") else law.get("stop_shift", law.get("shift", {}))
-
-
-def etch_networks(model: MacroModel, stops: bool = False) -> list[str]:
-    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns; `stops`: the
-    stops' columns too): 1 ohm, a VCCS and a parameter current source, linear."""
-    lines = []
-    for n, q, k in etch_columns(model, stops):
-        lines += [unit_load(n), f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
-    return lines
-
-
 def charge_scale(model: MacroModel, electrode: str, value: str) -> str:
     """ngspice text of `value` times the electrode's capacitance ratio pc_<electrode>, in braces;
     `value` unchanged without one."""
@@ -256,29 +199,6 @@ def part(model: MacroModel, law: dict, key: str, tscale: str) -> str:
     if not declared(model, "etch") or (list(ratio[:4]) == IDENTITY and not any(ratio[4:])):
         return text
     return f"{text}*{etch_ratio(model, ratio)}"
-
-
-def knots(model: MacroModel) -> list[float]:
-    """The mechanics laws' torsion knots (etch / 1 um, netgen.model.etch_knots) where etch is declared."""
-    return list((model.process.get("etch") or {}).get("knots", [])) if declared(model, "etch") else []
-
-
-def knot_params(model: MacroModel) -> list[tuple[str, str]]:
-    """(name, expression) of ek_<j> = (1e6 etch - k_j)+ per knot, written (x + abs(x)) / 2: no branch,
-    the same text in ngspice's .param and Verilog-A (netgen.model.etch_knots.basis)."""
-    out = []
-    for j, k in enumerate(knots(model)):
-        x = "1e6*etch" if k == 0.0 else f"(1e6*etch - {num(k)})" if k > 0 else f"(1e6*etch + {num(-k)})"
-        out.append((f"ek_{j + 1}", f"0.5*({x} + abs({x}))"))
-    return out
-
-
-def etch_ratio(model: MacroModel, ratio: list[float]) -> str:
-    """An etch ratio's text: its cubic in 1e6 etch, plus per knot j its truncated powers in ek_<j>."""
-    text = poly(ratio[:4], "(1e6*etch)")
-    extra = [poly([0.0, *ratio[4 + 3 * j : 7 + 3 * j]], f"ek_{j + 1}") for j in range(len(knots(model)))]
-    extra = [e for e in extra if e != "(0)"]
-    return f"({' + '.join([text, *extra])})" if extra else text
 
 
 def join(parts: list[str], coeffs: list[list[float]]) -> str:

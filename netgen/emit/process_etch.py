@@ -3,6 +3,10 @@ errors, the capacitances' ratios and shifts), kept apart from netgen.emit.proces
 
 from __future__ import annotations
 
+from ..model import MacroModel
+from .common import num, unit_load
+from .process_base import declared, poly
+
 
 def etch_header(e: dict, knots: list[float]) -> str:
     """The header's etch sentence from the model's etch record `e` and the torsion knots (etch / 1 um)."""
@@ -60,3 +64,76 @@ def etch_neglect(e: dict) -> str:
         + ", "
         + (f"within {err:.1e} over the fit box" if err else "exact")
     )
+
+
+def etch_columns(model: MacroModel, stops: bool = False) -> list[tuple[str, str, float]]:
+    """The distinct etch shifts of the combs' capacitance terms (netgen.model.process.capacitance_laws):
+    (node name xe_<q>_<i>, coordinate q, xs_q offset per metre of etch = shift / L_q), in order; with
+    `stops` also the geometric shifts the contact stops read where a comb's shift has an effective part
+    (stop_shift, netgen.model.etch_combs; the code model's stops read state columns)."""
+    if not declared(model, "etch"):
+        return []
+    scale = {c.name: c.scale for c in model.coordinates}
+    out: list[tuple[str, str, float]] = []
+    laws = model.process["etch"].get("capacitance", [])
+    for key in ("shift", "stop_shift") if stops else ("shift",):  # the stops' columns after the terms'
+        for r in laws:
+            for q, k in r.get(key, {}).items():
+                if not any(c[1] == q and c[2] == k / scale[q] for c in out):
+                    out.append((f"xe_{q}_{len(out) + 1}", q, k / scale[q]))
+    return out
+
+
+def etch_states(model: MacroModel, stops: bool = False) -> dict[str, dict[str, str]]:
+    """electrode -> {coordinate: the etch-shifted node its capacitance terms read for it} (etch_columns);
+    with `stops` the nodes its contact stops read instead: the geometric stop_shift where there is one,
+    none for a plate's fill shift (netgen.model.etch_fill: an effective gap, the stops stay)."""
+    scale = {c.name: c.scale for c in model.coordinates}
+    cols = {(q, k): n for n, q, k in etch_columns(model, stops)}
+    out: dict[str, dict[str, str]] = {}
+    if not cols:
+        return out
+    for r in model.process["etch"].get("capacitance", []):
+        shift = stop_shift(r) if stops else r.get("shift", {})
+        if shift:
+            out[r["electrode"]] = {q: cols[(q, k / scale[q])] for q, k in shift.items()}
+    return out
+
+
+def stop_shift(law: dict) -> dict[str, float]:
+    """The shift per metre of etch an electrode's contact stops follow: a comb's geometric one (its
+    stop_shift where the capacitance's shift has an effective part, netgen.model.etch_combs), none for
+    a plate's fill shift (netgen.model.etch_fill)."""
+    return {} if law.get("fill") else law.get("stop_shift", law.get("shift", {}))
+
+
+def etch_networks(model: MacroModel, stops: bool = False) -> list[str]:
+    """ngspice lines of the etch-shifted nodes xe = xs_q + (shift / L_q) etch (etch_columns; `stops`: the
+    stops' columns too): 1 ohm, a VCCS and a parameter current source, linear."""
+    lines = []
+    for n, q, k in etch_columns(model, stops):
+        lines += [unit_load(n), f"G{n} 0 {n} xs_{q} 0 1", f"I{n} 0 {n} {{{num(k)}*etch}}"]
+    return lines
+
+
+def knots(model: MacroModel) -> list[float]:
+    """The mechanics laws' torsion knots (etch / 1 um, netgen.model.etch_knots) where etch is declared."""
+    return list((model.process.get("etch") or {}).get("knots", [])) if declared(model, "etch") else []
+
+
+def knot_params(model: MacroModel) -> list[tuple[str, str]]:
+    """(name, expression) of ek_<j> = (1e6 etch - k_j)+ per knot, written (x + abs(x)) / 2: no branch,
+    the same text in ngspice's .param and Verilog-A (netgen.model.etch_knots.basis)."""
+    out = []
+    for j, k in enumerate(knots(model)):
+        x = "1e6*etch" if k == 0.0 else f"(1e6*etch - {num(k)})" if k > 0 else f"(1e6*etch + {num(-k)})"
+        out.append((f"ek_{j + 1}", f"0.5*({x} + abs({x}))"))
+    return out
+
+
+def etch_ratio(model: MacroModel, ratio: list[float]) -> str:
+    """An etch ratio's text: its cubic in 1e6 etch, plus per knot j its truncated powers in ek_<j>."""
+    text = poly(ratio[:4], "(1e6*etch)")
+    extra = [poly([0.0, *ratio[4 + 3 * j : 7 + 3 * j]], f"ek_{j + 1}") for j in range(len(knots(model)))]
+    extra = [e for e in extra if e != "(0)"]
+    return f"({' + '.join([text, *extra])})" if extra else text

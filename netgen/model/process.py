@@ -49,9 +49,17 @@ from ..structure.process_table import BEAM_KINDS
 from ..structure.schema import Process
 from .etch_combs import gap_shifts
 from .etch_fill import fill_shifts
-from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points, knot_value
-from .process_film import GAP_SIDES, KELVIN, branches_at, film_law, film_ratio, temperature_law
+from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points
+from .process_film import GAP_SIDES, KELVIN, film_law, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
+from .process_values import LAW_KEYS as LAW_KEYS  # re-exported: the laws' evaluation at a point
+from .process_values import capacitance_at as capacitance_at
+from .process_values import coordinate_values as coordinate_values
+from .process_values import energy_factor as energy_factor
+from .process_values import film_at as film_at
+from .process_values import law_value as law_value
+from .process_values import modulus_factor as modulus_factor
+from .process_values import ratio_value as ratio_value
 
 E_PROBE = 1.1  # modulus factor of the re-run separating K into e A + B
 ROUND_OFF = 1e-12  # a law's residual below this is the re-runs' round-off: stated as 0 (exact)
@@ -208,9 +216,6 @@ def process_laws(
     if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
         out["temp"]["film_branches"] = "the compressible film's branch dampers times the ratio, corners over it"
     return out
-
-
-LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
 
 
 def tscale_combs(s: Structure, p: Process, extract) -> bool:
@@ -381,16 +386,6 @@ def totals(rows: list[dict], key: str) -> np.ndarray:
     return np.abs(np.array([sum(r[k] for k in group[key]) for r in rows]))
 
 
-def law_value(c: dict, key: str, tscale: float, etch: float, knots: tuple[float, ...] = ()) -> float:
-    """Law part `key` of one coordinate's law at (tscale, etch): the tscale cubic times the etch ratio
-    (with the etch record's `knots`, netgen.model.etch_knots)."""
-    t = float(np.dot(c[key], [1.0, tscale, tscale**2, tscale**3]))
-    if "etch" not in c:
-        return t
-    u = etch / ETCH_UNIT
-    return t * (knot_value(c["etch"][key], u, knots) if knots else float(np.dot(c["etch"][key], [1.0, u, u**2, u**3])))
-
-
 def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str], p: Process, per: list[dict]) -> float:
     """The largest misfit of the product laws at the corners of the (tscale, etch) box against re-runs."""
     worst, knots = 0.0, etch_knots(s, *p.etch_range)
@@ -507,93 +502,6 @@ def comb_fit(
         geometric[e] = dict(shifts[e])
         shifts[e][across[e]] = shifts[e].get(across[e], 0.0) + d
     return geometric
-
-
-def ratio_value(coeffs: list[float], etch: float) -> float:
-    """An etch ratio (cubic in etch / ETCH_UNIT) at `etch` (m)."""
-    u = etch / ETCH_UNIT
-    return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
-
-
-def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float = 1.0) -> np.ndarray:
-    """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x, the etch bias and
-    tscale: each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws)
-    and its tscale ratio (thickness_capacitance; the arithmetic the emitters render)."""
-    x = np.atleast_2d(x)
-    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
-    names = [c.name for c in model.coordinates]
-    out = model.capacitance(x)
-    thick = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
-    for k, f in enumerate(model.capacitances):
-        law = laws.get(f.electrode)
-        if law is None:
-            continue
-        moved = x.copy()
-        for q, shift in law.get("shift", {}).items():
-            v = names.index(q)
-            moved[:, v] += shift * etch / model.coordinates[v].scale
-        out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
-    for k, f in enumerate(model.capacitances):
-        if f.electrode in thick:
-            out[:, k] *= float(np.dot(thick[f.electrode], [1.0, tscale, tscale**2, tscale**3]))
-    return out
-
-
-def modulus_factor(law: dict, escale: float, temp_c: float) -> float:
-    """e = escale (1 + tc (T - T0)): the factor on the modulus part of the stiffness."""
-    return escale * (1.0 + law["modulus_tc_per_K"] * (temp_c - law["temperature_C"]))
-
-
-def energy_factor(
-    law: dict, tscale: float = 1.0, escale: float = 1.0, temp_c: float | None = None, etch: float = 0.0
-) -> float:
-    """pu, the fitted strain energy's factor at the process point (energy_law: (e A(tscale) + B(tscale))
-    R(etch), the arithmetic the emitters render); 1 without a strain-energy law."""
-    u = law.get("strain_energy") or {}
-    if not u:
-        return 1.0
-    temp_c = law["temperature_C"] if temp_c is None else temp_c
-    powers = [1.0, tscale, tscale**2, tscale**3]
-    pu = modulus_factor(law, escale, temp_c) * float(np.dot(u["a"], powers)) + float(np.dot(u["b"], powers))
-    return pu * (ratio_value(u["etch"], etch) if "etch" in u and "etch" in law["parameters"] else 1.0)
-
-
-def coordinate_values(
-    law: dict,
-    v: int,
-    tscale: float = 1.0,
-    escale: float = 1.0,
-    temp_c: float | None = None,
-    etch: float = 0.0,
-    dg: dict[str, float] | None = None,
-):
-    """(mass, stiffness, damping) of coordinate v at the process point (`dg`: set -> gap offset, m),
-    from the laws (the same arithmetic the emitters render)."""
-    temp_c = law["temperature_C"] if temp_c is None else temp_c
-    c = law["coordinates"][v]
-    knots = tuple((law.get("etch") or {}).get("knots", ()))
-    mass, a, b, d_rest, d_film = (law_value(c, k, tscale, etch, knots) for k in LAW_KEYS)
-    visc = law["temp"]["viscosity"]
-    ratio = (
-        float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
-        if visc
-        else 1.0
-    )
-    damp = d_rest + ratio * d_film * film_ratio(law, v, temp_c, dg or {})
-    return mass, modulus_factor(law, escale, temp_c) * a + b, damp
-
-
-def film_at(law: dict, v: int, film: tuple, temp_c: float | None = None, dg: dict[str, float] | None = None) -> tuple:
-    """Coordinate v's compressible-film branches (Coordinate.film) at the process point: dampers times
-    the viscosity ratio and a moved side's pg, corners times rg over that (process_film.branches_at)."""
-    temp_c = law["temperature_C"] if temp_c is None else temp_c
-    visc = law["temp"]["viscosity"]
-    pv = (
-        float(np.polynomial.polynomial.polyval((temp_c - law["temperature_C"]) / 100.0, visc["coeffs"]))
-        if visc
-        else 1.0
-    )
-    return branches_at(law, v, film, pv, temp_c, dg or {})
 
 
 def finite_law(law: dict) -> bool:
