@@ -307,21 +307,27 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool, size: int =
             c.number(f"{where}.{key}[{k}]", x)
 
 
+def check_ratio_laws(c: Checker, laws: Any, path: str, names: tuple[str, ...]) -> None:
+    """A list of per-electrode capacitance ratios at `path`: each one of the model's electrode names
+    and a cubic's four numbers (the etch's and the tscale's laws share this form)."""
+    if not isinstance(laws, list):
+        c.fail(path, "must be a list of {electrode, ratio} objects")
+    for i, law in enumerate(laws):
+        where = f"{path}[{i}]"
+        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
+            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
+        c.choice(f"{where}.electrode", law.get("electrode"), names)
+        for k, x in enumerate(law["ratio"]):
+            c.number(f"{where}.ratio[{k}]", x)
+
+
 def check_thickness_laws(c: Checker, tscale: dict, names: tuple[str, ...]) -> None:
     """The tscale capacitance laws (netgen.model.process.thickness_capacitance), where there are:
     per electrode one of the model's electrode names and four numbers, and their stated error."""
     laws = tscale.get("capacitance_laws")
     if laws is None:
         return
-    if not isinstance(laws, list):
-        c.fail("process.tscale.capacitance_laws", "must be a list of {electrode, ratio} objects")
-    for i, law in enumerate(laws):
-        where = f"process.tscale.capacitance_laws[{i}]"
-        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
-            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
-        c.choice(f"{where}.electrode", law.get("electrode"), names)
-        for k, x in enumerate(law["ratio"]):
-            c.number(f"{where}.ratio[{k}]", x)
+    check_ratio_laws(c, laws, "process.tscale.capacitance_laws", names)
     c.number("process.tscale.capacitance_max_rel_error", tscale.get("capacitance_max_rel_error"))
 
 
@@ -330,15 +336,9 @@ def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords
     model's electrode names (the emitters name the parameter pc_<electrode>), four numbers, an
     optional shift {coordinate: number} over the model's x and y (z with fill) and a comb's optional
     stop_shift over the same coordinates."""
-    if not isinstance(laws, list):
-        c.fail("process.etch.capacitance", "must be a list of {electrode, ratio} objects")
+    check_ratio_laws(c, laws, "process.etch.capacitance", names)
     for i, law in enumerate(laws):
         where = f"process.etch.capacitance[{i}]"
-        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
-            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
-        c.choice(f"{where}.electrode", law.get("electrode"), names)
-        for k, x in enumerate(law["ratio"]):
-            c.number(f"{where}.ratio[{k}]", x)
         shift = law.get("shift", {})
         if not isinstance(shift, dict):
             c.fail(f"{where}.shift", "must be an object {coordinate: shift per metre of etch}")
