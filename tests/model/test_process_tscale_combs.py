@@ -16,6 +16,12 @@ Tolerances:
   bending and stretching of the legs ~ t, the rigid mass and inertia about z ~ t, so their laws are
   power laws (the cubic's round-off). The out-of-plane modes (z, tilts: the legs' torsion, w = t at
   the kink of netgen.mechanics.frame.torsion_constant) within half the stated tscale error.
+
+The same example with its own field2d combs (the `field2d` tests; the 2-D section tables at the five
+thicknesses ship): the 100 points within the same bound (the stated error is then the ratio's spread
+over the fit box, the fringe's share moving with the gap and the out-of-plane offset), the modes as
+above. And the perforated plates' law against the fill factor's closed form at rest (fringe none), a
+bound far under the plates' change (test_plate_law_is_the_hole_walls).
 """
 
 from __future__ import annotations
@@ -97,6 +103,34 @@ def test_in_plane_participation_is_the_moving_mass(nominal, tscale):
         p = nominal.inertial.participation[kind][v]
         got = p * ((1 - f[kind][v]) * tscale + f[kind][v] * tscale**3)
         assert got == pytest.approx(mass, rel=1e-12, abs=0)
+
+
+def field2d(tscale: float = 1.0, process: str = "") -> str:
+    """xyz_thick with accelerometer_xyz's own field2d combs (the 2-D section tables at the tscale law's
+    five thicknesses ship: netgen/electrostatics/comb_tables; the rebuilds at 0.9 and 1.1 are two)."""
+    return xyz_thick(tscale, process).replace('comb_model = "textbook"', 'comb_model = "field2d"')
+
+
+@pytest.fixture(scope="module")
+def nominal2d():
+    return build_model(parse_structure(field2d(process=PROCESS), "xyz.toml"))
+
+
+@pytest.fixture(scope="module", params=TSCALES)
+def rebuilt2d(request):
+    return request.param, build_model(parse_structure(field2d(request.param), "xyz.toml"))
+
+
+def test_field2d_capacitances_against_rebuild(nominal2d, rebuilt2d):
+    """The field2d combs' law against rebuilds at 100 points: the bound of test_capacitances_against_rebuild
+    (2 x the larger fit error + the stated law error; the stated error is the ratio's state dependence,
+    the fringe's and the substrate's share varying with the gap and the out-of-plane offset)."""
+    test_capacitances_against_rebuild(nominal2d, rebuilt2d)
+
+
+def test_field2d_frequencies(nominal2d, rebuilt2d):
+    """The modes with field2d combs: as test_frequencies (the combs' form does not enter the mechanics)."""
+    test_frequencies(nominal2d, rebuilt2d)
 
 
 @pytest.fixture(scope="module")
