@@ -248,7 +248,7 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -
         err = max(err, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
     laws = [{"electrode": n, "ratio": [float(x) for x in c]} for n, c in zip(names, coef)]
     return {
-        "capacitance": "times pc_<electrode>, a cubic in tscale (comb fingers ~ t)",
+        "capacitance": "times pc_<electrode>, a cubic in tscale (textbook comb fingers ~ t; field2d fingers and hole walls fitted)",
         "capacitance_laws": [r for r in laws if r["ratio"] != [1.0, 0.0, 0.0, 0.0]],
         "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0,
     }
