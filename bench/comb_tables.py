@@ -2,7 +2,8 @@
 build each example with combs in an empty private cache (NETGEN_CACHE), so every table it needs is
 solved at the package's GRID and SETTINGS, copy the new tables into netgen/electrostatics/comb_tables/,
 and print the CPU time the solves took; by default also accelerometer_xyz's combs at the etched finger
-widths (the etch law's points and the suite's rebuilds, netgen.model.etch_combs). Run it after a
+widths (the etch law's points and the suite's rebuilds, netgen.model.etch_combs) and at the tscale
+law's finger thicknesses (netgen.model.process.thickness_capacitance). Run it after a
 change of the cell, the grid, the ranges or the solver settings (each renames every table); run it
 under `nice -n 10` (minutes of CPU).
 
@@ -39,6 +40,19 @@ def etched_cells() -> None:
         build_model(parse_structure(field2d(process_cases.xyz_text(etch)), "x.toml"))
 
 
+def thick_cells() -> None:
+    """accelerometer_xyz with its field2d combs and tscale declared (the fingers at the law's five
+    thicknesses, netgen.model.process.thickness_capacitance; the suite's rebuilds at 0.9 and 1.1 are
+    two of them): the thicker and thinner finger cells' tables."""
+    from support import process_cases
+
+    from netgen.build import build_model
+    from netgen.structure import parse_structure
+
+    text = process_cases.xyz_thick(process='[process]\nparameters = ["tscale"]\n')
+    build_model(parse_structure(text.replace('comb_model = "textbook"', 'comb_model = "field2d"'), "x.toml"))
+
+
 def main() -> None:
     """Solve, copy and time the tables of the named examples (default: every example with a comb)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -61,6 +75,9 @@ def main() -> None:
             t0 = time.process_time()
             etched_cells()
             print(f"accelerometer_xyz's etched cells: {time.process_time() - t0:.1f} s CPU")
+            t0 = time.process_time()
+            thick_cells()
+            print(f"accelerometer_xyz's cells at the tscale law's thicknesses: {time.process_time() - t0:.1f} s CPU")
         target = ROOT / "netgen" / "electrostatics" / "comb_tables"
         target.mkdir(exist_ok=True)
         for table in sorted((Path(cache) / "comb_sections").glob("*.npz")):

@@ -9,8 +9,9 @@ once so that emitters only render them.
   and the flexures' thickness scaled at fit_points (five points, four coefficients: the largest
   relative residual is the parameter's stated error; 0 to round-off for the power laws t, t^3 of rigid masses,
   beams in bending and Kirchhoff plates; torsion is not a power law). Without comb fingers or etch
-  holes the capacitances are left unchanged; with textbook combs or holes (thickness_capacitance)
-  every electrode's is times a cubic in tscale fitted to the extractor (a comb's eps t / g: tscale).
+  holes the capacitances are left unchanged; with combs or holes (thickness_capacitance) every
+  electrode's is times a cubic in tscale fitted to the extractor (a textbook comb's eps t / g: tscale;
+  a field2d comb's fringe does not grow with t, and its share varies over the fit box: stated).
 - escale and temp: K(tscale, E) = e * A(tscale) + B(tscale), with A the part proportional to the
   modulus (beams, frames, plates) and B the rest (residual stress, given springs), separated by a
   re-run at the modulus scaled by E_PROBE; e = escale * (1 + modulus_tc * (temp - T0)).
@@ -220,8 +221,9 @@ def process_laws(
 
 def tscale_combs(s: Structure, p: Process, extract) -> bool:
     """tscale is declared on a structure whose capacitances move with the thickness, comb fingers
-    (textbook ones: netgen.structure.process_table refuses the others) or a perforated mass (its hole
-    walls' fringe, netgen.electrostatics.perforation), and an extractor to fit the ratio with."""
+    (textbook or field2d: the 2-D section tables per finger thickness, netgen.electrostatics.comb_section)
+    or a perforated mass (its hole walls' fringe, netgen.electrostatics.perforation), and an extractor
+    to fit the ratio with."""
     moved = any(is_comb(e) for e in s.electrode_sets) or bool(getattr(s.conductor, "hole", 0.0))
     return p.wants("tscale") and extract is not None and moved
 
@@ -230,9 +232,10 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -
     """Each electrode's capacitance under tscale as C(q; tscale) = ratio(tscale) C(q; 1), the ratio a
     cubic in tscale (1 at 1) fitted to the extractor at rest at fit_points on the scaled structure
     (fingers, conductor and flexures tscale times as thick). A textbook comb's eps t L / g is linear
-    in t at every state: the ratio is tscale, exact. What is not linear in t (a perforated plate's hole
-    walls, netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the
-    state: the stated error is the largest |ratio C(q; 1) / C(q; tscale) - 1| over rest and
+    in t at every state: the ratio is tscale, exact. What is not linear in t (a field2d comb's fringe
+    above and below the fingers and the substrate's share, netgen.electrostatics.comb_section, which
+    vary with the gap and the out-of-plane offset; a perforated plate's hole walls,
+    netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the state: the stated error is the largest |ratio C(q; 1) / C(q; tscale) - 1| over rest and
     CAPACITANCE_POINTS random points of the fit box at the range's ends, and the cubic's residual."""
     points = fit_points(p)
     rest = np.array([extract(scaled(s, t), 0)[0] for t in points])
@@ -245,7 +248,7 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -
         err = max(err, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
     laws = [{"electrode": n, "ratio": [float(x) for x in c]} for n, c in zip(names, coef)]
     return {
-        "capacitance": "times pc_<electrode>, a cubic in tscale (comb fingers ~ t)",
+        "capacitance": "times pc_<electrode>, a cubic in tscale (textbook comb fingers ~ t; field2d fingers and hole walls fitted)",
         "capacitance_laws": [r for r in laws if r["ratio"] != [1.0, 0.0, 0.0, 0.0]],
         "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0,
     }

@@ -1,6 +1,7 @@
 """The comb cross-section tables the package ships (netgen.electrostatics.comb_section.SHIPPED):
 the three-axis example builds from them on a clean clone without one 2-D solve, exactly the
-tables its combs need (and its combs' at the etched widths of its etch law and the suite's rebuilds) are shipped, and a shipped value equals a fresh converged solve of the cell
+tables its combs need (and its combs' at the etched widths of its etch law, at the thicknesses of its
+tscale law and at the suite's rebuilds) are shipped, and a shipped value equals a fresh converged solve of the cell
 (so a table left over from other settings or another cell cannot pass for this one)."""
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ from netgen.core.constants import EPS0
 from netgen.electrostatics import comb_section
 from netgen.electrostatics.comb import CombCell
 from netgen.geometry.layout import electrodes
-from netgen.model.process import etch_points, etched
+from netgen.model.process import etch_points, etched, fit_points, scaled
 from netgen.structure import load_structure, parse_structure
+from netgen.structure.schema import Process
 from tests.fixtures import ROOT
 from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
 
@@ -39,12 +41,15 @@ def cells(b) -> set:
 
 def etched_cells() -> set:
     """The cells of accelerometer_xyz's combs at the etched finger widths its etch law and the suite's
-    rebuilds read (tests/model/test_process_etch_field2d.py, netgen.model.etch_combs)."""
+    rebuilds read (tests/model/test_process_etch_field2d.py, netgen.model.etch_combs) and at the finger
+    thicknesses of its tscale law over the default tscale_range (netgen.model.process.thickness_capacitance;
+    the rebuilds at 0.9 and 1.1 of tests/model/test_process_tscale_combs.py are two of them)."""
     text = xyz_text(process='[process]\nparameters = ["etch"]\n').replace('"textbook"', '"field2d"')
     s = parse_structure(text, "xyz.toml")
     structures = [etched(s, e) for e in etch_points(s.process) if e] + [
         parse_structure(xyz_text(e).replace('"textbook"', '"field2d"'), "xyz.toml") for e in PERFORATED_ETCHES
     ]
+    structures += [scaled(s, t) for t in fit_points(Process(("tscale",))) if t != 1.0]  # the tscale law's
     eps = EPS0 * s.electrostatics.relative_permittivity
     out = set()
     for st in structures:

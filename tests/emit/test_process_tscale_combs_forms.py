@@ -20,6 +20,12 @@ Tolerances:
   model's law at its state times the voltage: 1e-12. VACASK's op of the OSDI module at reltol RELTOL
   and vntol 1e-15 V: its x against the FMU's at the same tscale, the same Newton bound. Without the law the force were tscale times too
   small: the deflection 10 % off at 0.9 and 1.1.
+
+The same example with its own field2d combs (the `field2d` tests; pc_xp_t 0.933 at 0.9, not tscale:
+the fringe does not grow with t): xp_t's C at rest against the Python law alone (its departure from
+the rebuild is the model test's), 1e-9; under COMB_VOLTS the fingers also lift the mass (levitation),
+so the state moves with tscale: the FMU's charge at its balance against the law there, 1e-12, and the
+.lib's .op (ngspice 39) and VACASK's op against the FMU's balance, Newton's bound as above.
 """
 
 from __future__ import annotations
@@ -134,6 +140,14 @@ def test_forces_vacask(xyz, built, tmp_path, tscale):
     x_x) against the FMU's balance at the same tscale (module docstring)."""
     _, path, _ = built
     q, _, cond = fp.comb_balance(xyz, path, tscale, "tscale")
+    scale = np.array([c.scale for c in xyz.coordinates])
+    x = vacask_x(xyz, tmp_path, tscale)
+    assert abs(x - q[0]) / scale[0] <= cond * (fp.RELTOL + 1e-12) * np.max(np.abs(q) / scale)
+
+
+def vacask_x(xyz, tmp_path, tscale: float) -> float:
+    """x (m) of VACASK's op of the OSDI module, tscale on its model card, COMB_VOLTS on xp_t (reltol
+    RELTOL, vntol 1e-15 V)."""
     emit.write_outputs(xyz, tmp_path, "osdi")
     outs = " ".join(f"0 x_{c.name}" for c in xyz.coordinates)
     net = f"""xyz comb
@@ -149,6 +163,73 @@ control
 endc
 """
     plot = run_vacask(net, tmp_path / "run", analysis="op1")
-    scale = np.array([c.scale for c in xyz.coordinates])
-    x = float(np.atleast_1d(plot["x_x"])[0]) * 1e-6  # x_x in um
-    assert abs(x - q[0]) / scale[0] <= cond * (fp.RELTOL + 1e-12) * np.max(np.abs(q) / scale)
+    return float(np.atleast_1d(plot["x_x"])[0]) * 1e-6  # x_x in um
+
+
+@pytest.fixture(scope="module")
+def xyz2d():
+    """accelerometer_xyz with its own field2d combs and tscale declared (the 2-D section tables at the
+    law's five thicknesses ship: netgen/electrostatics/comb_tables)."""
+    text = xyz_thick(process='\n[process]\nparameters = ["tscale"]\n')
+    return build_model(parse_structure(text.replace('comb_model = "textbook"', 'comb_model = "field2d"'), "xyz.toml"))
+
+
+def check_law(model, plot, tscale: float) -> None:
+    """xp_t's C at rest against the Python law (capacitance_at; the forms render the same product, round-off 1e-9)."""
+    cap = abs(float(np.imag(plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
+    k = [f.electrode for f in model.capacitances].index("xp_t")
+    assert cap == pytest.approx(
+        capacitance_at(model, np.zeros((1, model.ncoords)), tscale=tscale)[0, k], rel=1e-9, abs=0
+    )
+
+
+def test_field2d_law_is_not_tscale(xyz2d):
+    """The case exercises what the textbook one cannot: the field2d comb's ratio departs from tscale (the
+    fringe and the substrate's share do not grow with t), by more than a form's 1e-9 round-off could hide."""
+    ratio = {r["electrode"]: r["ratio"] for r in xyz2d.process["tscale"]["capacitance_laws"]}["xp_t"]
+    assert abs(float(np.dot(ratio, [1.0, 0.9, 0.81, 0.729])) / 0.9 - 1) > 1e-3
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_field2d_lib(xyz2d, tmp_path, ngspice_version, tscale):
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz2d))
+    check_law(xyz2d, run_ngspice(deck(str(tmp_path / "xyz.lib"), tscale), tmp_path)[0], tscale)
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_field2d_xspice(xyz2d, tmp_path, tscale):
+    xlib, control = sdn.xspice_library(xyz2d, tmp_path, sdn.code_models(False))
+    net = deck(str(xlib.resolve()), tscale, control_block(control, "ac.raw"))
+    check_law(xyz2d, run_ngspice(net, tmp_path)[0], tscale)
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_field2d_osdi(xyz2d, tmp_path, monkeypatch, tscale):
+    monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
+    emit.write_outputs(xyz2d, tmp_path, "osdi")
+    control = control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw")
+    check_law(
+        xyz2d,
+        run_ngspice(deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), tscale, control), tmp_path / "run")[0],
+        tscale,
+    )
+
+
+@pytest.mark.parametrize("tscale", TSCALES)
+def test_field2d_forces(xyz2d, tmp_path, tscale):
+    """COMB_VOLTS on xp_t at tscale (the field2d comb also lifts the mass: levitation): the FMU's charge
+    at its balance against the law there (1e-12), the .lib's .op in ngspice 39 and the OSDI module's op
+    in VACASK against the FMU's balance, Newton's bound cond(J) (RELTOL + 1e-12) (module docstring)."""
+    lib = tmp_path / "xyz.lib"
+    lib.write_text(emit_ngspice.subcircuit(xyz2d))
+    q, charge, cond = fp.comb_balance(xyz2d, fmu.built(xyz2d), tscale, "tscale")
+    scale = np.array([c.scale for c in xyz2d.coordinates])
+    big = np.max(np.abs(q) / scale)
+    k = [f.electrode for f in xyz2d.capacitances].index(fp.COMB)
+    assert charge == pytest.approx(
+        capacitance_at(xyz2d, (q / scale)[None, :], tscale=tscale)[0, k] * fp.COMB_VOLTS, rel=1e-12, abs=0
+    )
+    op = fp.comb_op(xyz2d, lib, tscale, tmp_path, "tscale")
+    assert float(np.max(np.abs(q - op) / scale) / big) <= cond * (fp.RELTOL + 1e-12)
+    x = vacask_x(xyz2d, tmp_path, tscale)
+    assert abs(x - q[0]) / scale[0] <= cond * (fp.RELTOL + 1e-12) * big

@@ -16,6 +16,12 @@ Tolerances:
   bending and stretching of the legs ~ t, the rigid mass and inertia about z ~ t, so their laws are
   power laws (the cubic's round-off). The out-of-plane modes (z, tilts: the legs' torsion, w = t at
   the kink of netgen.mechanics.frame.torsion_constant) within half the stated tscale error.
+
+The same example with its own field2d combs (the `field2d` tests; the 2-D section tables at the five
+thicknesses ship): the 100 points within the same bound (the stated error is then the ratio's spread
+over the fit box, the fringe's share moving with the gap and the out-of-plane offset), the modes as
+above. And the perforated plates' law against the fill factor's closed form at rest (fringe none), a
+bound far under the plates' change (test_plate_law_is_the_hole_walls).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import pytest
 
 from netgen.build import build_model
 from netgen.core.constants import EPS0
+from netgen.electrostatics.perforation import PERFORATION_LN_A, PERFORATION_STRENGTH, PERFORATION_WALL_SHARE
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
@@ -96,3 +103,65 @@ def test_in_plane_participation_is_the_moving_mass(nominal, tscale):
         p = nominal.inertial.participation[kind][v]
         got = p * ((1 - f[kind][v]) * tscale + f[kind][v] * tscale**3)
         assert got == pytest.approx(mass, rel=1e-12, abs=0)
+
+
+def field2d(tscale: float = 1.0, process: str = "") -> str:
+    """xyz_thick with accelerometer_xyz's own field2d combs (the 2-D section tables at the tscale law's
+    five thicknesses ship: netgen/electrostatics/comb_tables; the rebuilds at 0.9 and 1.1 are two)."""
+    return xyz_thick(tscale, process).replace('comb_model = "textbook"', 'comb_model = "field2d"')
+
+
+@pytest.fixture(scope="module")
+def nominal2d():
+    return build_model(parse_structure(field2d(process=PROCESS), "xyz.toml"))
+
+
+@pytest.fixture(scope="module", params=TSCALES)
+def rebuilt2d(request):
+    return request.param, build_model(parse_structure(field2d(request.param), "xyz.toml"))
+
+
+def test_field2d_capacitances_against_rebuild(nominal2d, rebuilt2d):
+    """The field2d combs' law against rebuilds at 100 points: the bound of test_capacitances_against_rebuild
+    (2 x the larger fit error + the stated law error; the stated error is the ratio's state dependence,
+    the fringe's and the substrate's share varying with the gap and the out-of-plane offset)."""
+    test_capacitances_against_rebuild(nominal2d, rebuilt2d)
+
+
+def test_field2d_frequencies(nominal2d, rebuilt2d):
+    """The modes with field2d combs: as test_frequencies (the combs' form does not enter the mechanics)."""
+    test_frequencies(nominal2d, rebuilt2d)
+
+
+@pytest.fixture(scope="module")
+def sheer():
+    """xyz_thick with [electrostatics] fringe = "none": a z plate's capacitance at rest is then eps F A / g
+    alone (the electrode lies under the mass's perforated middle), its tscale ratio the fill factor's."""
+    text = xyz_thick(process=PROCESS).replace("[electrostatics]", '[electrostatics]\nfringe = "none"')
+    return build_model(parse_structure(text, "xyz.toml"))
+
+
+@pytest.mark.parametrize("tscale", (0.9, 0.95, 1.05, 1.1))
+def test_plate_law_is_the_hole_walls(sheer, tscale):
+    """pc_zs against the closed form F(g; tscale t) / F(g; t) of the perforated plate
+    (netgen.electrostatics.perforation, written out here: F = 1 - (1 - phi) ((h - 2 d) / p)^2, the walls'
+    share phi = beta (1 - exp(-k t)), k = sqrt(2) pi / h, d = (B g / pi) ln(1 + A h / g)) at rest: no fit
+    error enters (the law is fitted at rest). The law changes by 3.6e-4 at 0.9, so the bound must be far
+    below that to catch a missing plate law (the 100-point test's 2 x fit error + stated cannot). Bound:
+    the cubic's truncation, the Taylor remainder max|f''''| (0.1)^4 / 4! of f(tscale) = F / F(1) over the
+    range (f'''' = beta s^2 (k t)^4 exp(-k t tscale) / F, largest at 0.9), times 3 for the five-point
+    least-squares fit's points against its maximum and the rescale to 1 at 1: 5.4e-7, under a
+    three-hundredth of the change at 0.95."""
+    h, p, g, t = 4e-6, 9.98e-6, 2e-6, 2e-6
+    k = math.sqrt(2) * math.pi / h
+    s2 = ((h - 2 * PERFORATION_STRENGTH * g / math.pi * math.log1p(math.exp(PERFORATION_LN_A) * h / g)) / p) ** 2
+
+    def fill(tau: float) -> float:
+        return 1 - (1 - PERFORATION_WALL_SHARE * -math.expm1(-k * t * tau)) * s2
+
+    ratio = {r["electrode"]: r["ratio"] for r in sheer.process["tscale"]["capacitance_laws"]}["zs"]
+    got = float(np.dot(ratio, [1.0, tscale, tscale**2, tscale**3]))
+    fourth = PERFORATION_WALL_SHARE * s2 * (k * t) ** 4 * math.exp(-0.9 * k * t) / fill(1.0)
+    bound = 3 * fourth * 0.1**4 / 24
+    assert abs(fill(tscale) / fill(1.0) - 1) > 100 * bound  # the change a missing law would leave
+    assert got == pytest.approx(fill(tscale) / fill(1.0), rel=bound, abs=0)

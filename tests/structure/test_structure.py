@@ -226,16 +226,22 @@ def test_bad_process_table_names_file_key_and_fix(old, new, where, words):
 
 
 @pytest.mark.parametrize(
-    "example,where,words",
+    "example,params,where,words",
     [
-        ("cantilever.toml", "process.parameters", ["dg needs the coordinate z"]),
-        ("accelerometer_xyz.toml", "process.parameters", ["tscale with field2d comb fingers", "comb_model"]),
+        ("cantilever.toml", '"dg", "tscale"', "process.parameters", ["dg needs the coordinate z"]),
+        (
+            "accelerometer_xyz.toml",
+            '"tscale", "etch"',
+            "process.parameters",
+            ["tscale with etch on field2d", "comb_model"],
+        ),
     ],
 )
-def test_process_parameters_the_structure_cannot_carry_are_refused(example, where, words):
-    """dg without a coordinate z (a beam's modes), tscale with field2d comb fingers: refused with the reason
-    and the parameters that stay exact, never a silently wrong law."""
-    text = (ROOT / "examples" / example).read_text() + '\n[process]\nparameters = ["dg", "tscale"]\n'
+def test_process_parameters_the_structure_cannot_carry_are_refused(example, params, where, words):
+    """dg without a coordinate z (a beam's modes), tscale and etch together on field2d comb fingers (their
+    ratios' product unchecked at the corners): refused with the reason and the way out, never a silently
+    wrong law."""
+    text = (ROOT / "examples" / example).read_text() + f"\n[process]\nparameters = [{params}]\n"
     with pytest.raises(StructureError) as info:
         parse_structure(text, "bad.toml")
     assert info.value.where == where and info.value.fix
