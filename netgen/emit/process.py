@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..model import MacroModel
+from ..model.process_film import set_side
 from ..model.process_loads import IDENTITY
 from .common import noise_kelvin, num, unit_load
 from .process_base import declared as declared  # re-exported: the emitters ask netgen.emit.process
@@ -58,17 +59,19 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
     process_film.path_ratio, rational in T) where temp is declared; a perforated film's (its cubic:
     film_pg) pq_<set> = pg_<set> at pl over pg_<set> at 1 there (netgen.model.process_film.
-    rarefaction_shift). [] without film sets."""
+    rarefaction_shift); each side's own viscosity law pw_<side> (side_factors). [] without either."""
     visc = model.process["temp"].get("viscosity") or {}
     pl = "pl*" if declared(model, "temp") and visc else ""
     sets = [g for g in film_sets(model) if pl or "fit" not in g["film"]]
-    if not sets:
+    sides = pw_sides(model)
+    if not (sets or sides):
         return []
     out = []
     if pl:
         r, t0, s_k = f"(({temp} + {num(KELVIN)})/{num(visc['t0_K'])})", visc["t0_K"], visc["sutherland_K"]
         sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
         out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
+    out += side_factors(model)
     for g in sets:
         f, rg = g["film"], f"rg_{g['set']}"
         a = num(f["rarefaction"])
@@ -82,10 +85,40 @@ def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
     return out
 
 
+def pw_sides(model: MacroModel) -> list[dict]:
+    """The sides with their own viscosity law (netgen.model.process_film.side_laws: a film gap other
+    than the fitted one) where temp is declared; [] otherwise."""
+    visc = model.process["temp"].get("viscosity") or {} if enabled(model) else {}
+    return list(visc.get("sides") or []) if declared(model, "temp") else []
+
+
+def side_factors(model: MacroModel) -> list[tuple[str, str]]:
+    """(name, expression) of pw_<side> = (1 + A_s) (1 + A pl^1.159) / ((1 + A) (1 + A_s pl^1.159)): the
+    side's film viscosity ratio over the fitted gap's, exact (netgen.model.process_film.side_factors)."""
+    visc, e = model.process["temp"].get("viscosity") or {}, VEIJOLA_POWER
+    a = visc.get("rarefaction", 0.0)
+    return [
+        (
+            f"pw_{r['side']}",
+            f"{num(1.0 + r['rarefaction'])}*(1 + {num(a)}*pow(pl, {e}))/"
+            f"({num(1.0 + a)}*(1 + {num(r['rarefaction'])}*pow(pl, {e})))",
+        )
+        for r in pw_sides(model)
+    ]
+
+
 def film_share(model: MacroModel, v: int) -> str:
-    """The text multiplying coordinate v's squeeze-film damping for the gap sets' films: 1 + sum of
-    share (pg_<set> - 1) (pg_<set> alone for a share of 1); "" where no film set moves it."""
-    terms = [(film_pg(model, g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
+    """The text multiplying coordinate v's squeeze-film damping for the gap sets' films and the sides'
+    own viscosity laws: 1 + sum of share (pw_<side> pg_<set> - 1) (the factor alone for a share of 1);
+    "" where nothing moves it."""
+    pws = {r["side"]: r for r in pw_sides(model)}
+    terms, moved = [], set()
+    for g in film_sets(model):
+        side = set_side(g)
+        moved.add(side)
+        if g["film"]["share"][v] > 0:
+            terms.append(("*".join([f"pw_{side}"] * (side in pws) + [film_pg(model, g, v)]), g["film"]["share"][v]))
+    terms += [(f"pw_{k}", r["share"][v]) for k, r in pws.items() if k not in moved and r["share"][v] > 0]
     if not terms:
         return ""
     if len(terms) == 1 and terms[0][1] == 1.0:
@@ -373,11 +406,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         visc = p["temp"].get("viscosity")
         text += (
             f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
-            + (
-                f" (fitted at the smaller gap; the other side's film differs by up to {visc['sides_spread']:.1e})"
-                if visc.get("sides_spread")
-                else ""
-            )
+            + sides_text(visc)
             + (", sealed cavity (p ~ T)" if visc.get("cavity") == "sealed" else ", fixed pressure")
             if visc
             else ""
@@ -406,6 +435,17 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
     )
+
+
+def sides_text(visc: dict) -> str:
+    """The header's note on a film at another gap (netgen.model.process_film.temperature_law): its own
+    law pw_<side>, or the spread a branch of both sides leaves in the error; "" with one gap."""
+    own = ", ".join(f"pw_{r['side']} at {r['gap_m']:.4g} m" for r in visc.get("sides") or [])
+    if own and visc["max_rel_error"] == visc["polynomial_misfit"]:
+        return f" (fitted at gap {visc['gap_m']:.4g} m; the other side's film times its own exact ratio {own})"
+    if visc.get("sides_spread"):
+        return f" (fitted at the smaller gap; the other side's film differs by up to {visc['sides_spread']:.1e})"
+    return ""
 
 
 def joint_error(model: MacroModel, g: dict) -> float | None:
@@ -566,11 +606,12 @@ def energy_moved(model: MacroModel) -> bool:
 
 def branch_law(model: MacroModel, v: int, j: int) -> tuple[str, str] | None:
     """(damper factor, moved-gap set) of coordinate v's compressible-film branch j: the damper r_j times
-    pv under temp and pg_<set> where its side's set has a gap offset (netgen.model.process_film.
+    pv under temp (and its side's pw_<side>, film_factors) and pg_<set> where its side's set has a gap offset (netgen.model.process_film.
     compressible_law), its corner times rg_<set> over that factor (the gas spring ~ p_a / g); None
     where nothing moves it. The set is "" without one."""
     moved = [g["set"] for g in film_sets(model) if j in g["film"].get("branches", [[]] * (v + 1))[v]]
-    factor = (["pv"] if film_scaled(model) else []) + [f"pg_{n}" for n in moved]
+    own = [f"pw_{r['side']}" for r in pw_sides(model) if j in (r.get("branches") or [[]] * (v + 1))[v]]
+    factor = (["pv"] if film_scaled(model) else []) + own + [f"pg_{n}" for n in moved]
     return ("*".join(factor), moved[0] if moved else "") if factor else None
 
 
