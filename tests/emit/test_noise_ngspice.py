@@ -236,3 +236,28 @@ write circuit.raw all
     got = spec["onoise_spectrum"] ** 2
     print(f"_xspice.lib, 3 V: .noise PSD / (4 k_B T b |H_ac|^2) at most {np.max(got / ref):.3g}")
     np.testing.assert_allclose(got, ref, rtol=ROUND_OFF, atol=0)
+
+
+@pytest.mark.xfail(
+    strict=True, raises=AssertionError, reason="ngspice's resistor noise does not use its temp= (docs/damping-noise.md)"
+)
+def test_resistor_temp_sets_its_noise_temperature(tmp_path, ngspice_version):
+    """What the .lib would need to put its noise at the model's temperature under any .temp: a 1 MOhm
+    resistor with temp=85 at .temp 27 and temp=27 at .temp 85 (the ngspice manual: the instance
+    temperature, which sets its thermal noise), its .noise voltage PSD against 4 k_B T R at T = temp +
+    273.15 K with ngspice's CODATA-2014 k_B (round-off, 1e-9). Measured: ngspice 39 uses the circuit
+    temperature (the .temp), 46 temp + TNOM (27 degC: 385.15 / 327.15 K), neither the instance's."""
+    for circuit_c, temp_c in ((27.0, 85.0), (85.0, 27.0)):
+        net = f"""* resistor temp=
+V1 in 0 DC 0 AC 1
+R1 in out 1e6 temp={temp_c:g}
+R2 out 0 1e12 noisy=0
+.temp {circuit_c:g}
+.noise v(out) V1 lin 3 1k 3k
+.end
+"""
+        spec = next(p for p in run_ngspice(net, tmp_path) if "onoise_spectrum" in p.vectors)
+        got = np.real(spec["onoise_spectrum"]) ** 2
+        want = 4 * 1.38064852e-23 * (temp_c + 273.15) * 1e6 * (1e12 / (1e12 + 1e6)) ** 2
+        print(f".temp {circuit_c:g}, temp={temp_c:g}: noise temperature {got[0] / want * (temp_c + 273.15):.2f} K")
+        np.testing.assert_allclose(got, want, rtol=ROUND_OFF, atol=0)
