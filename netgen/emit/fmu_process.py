@@ -151,7 +151,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
 
 
 def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
-    """The gap sets' squeeze-film laws (netgen.emit.process.film_factors): per film set its dg's value
+    """The gap sets' squeeze-film laws (netgen.emit.process_film.film_factors): per film set its dg's value
     reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A, per coordinate its share
     FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none);
     per compressible-film branch the film set whose gap moves it FILM_SET (-1: none)."""
@@ -178,7 +178,7 @@ def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
 
 
 def side_arrays(model: MacroModel, sets: list[dict], sides: list[dict], array) -> list[dict]:
-    """The sides' own viscosity laws (netgen.emit.process.side_factors): PW_A each side's rarefaction and
+    """The sides' own viscosity laws (netgen.emit.process_film.side_factors): PW_A each side's rarefaction and
     PW_LAW the fitted gap's, PW_SHARE per coordinate its share, PW_FILM the film set on that side (-1:
     none, then the side's term is its own), BRANCH_PW per compressible-film branch its side (-1: none)."""
     on = {set_side(g): k for k, g in enumerate(sets)}

@@ -149,7 +149,7 @@ def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0, sol
     """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
     dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
     of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
-    (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
+    (netgen.emit.process_film.film_factors). The share is exact for any tscale and etch: both sides' films
     solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
     perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
     coordinate (perforated_fit). The compressible film: compressible_law. {} where no law holds: no
@@ -178,7 +178,7 @@ def compressible_law(film: dict, side: str) -> dict:
     damper r_j = c (phi, psi_j)^2 / lambda_j and the remainder ~ c = 12 mu_eff / g^3, its gas spring
     r_j w_j = (phi, psi_j)^2 p_a / g (the Dirichlet eigenpairs of the gap region do not depend on g),
     so at g + dg the dampers are times pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) and the
-    corners times g / ((g + dg) pg) (netgen.emit.process.branch_law)."""
+    corners times g / ((g + dg) pg) (netgen.emit.process_film.branch_law)."""
     row, owners = film["sides"][side], film["owners"]
     share = side_share(film, side)
     branches = [[j for j, s in enumerate(o["branch"]) if s == side] for o in owners]
@@ -230,7 +230,7 @@ def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
     the sides' own viscosity laws: 1 + sum over sides of share (pw pg - 1), pg = mu_eff(g + dg) g^3 /
     (mu_eff(g) (g + dg)^3) with the mean free path at temp, a perforated film's cubic times
     rarefaction_shift in its place (film_law), pw the side's ratio to the fitted gap's (side_factors;
-    netgen.emit.process.film_share renders the same)."""
+    netgen.emit.process_film.film_share renders the same)."""
     out = 1.0
     factors = gap_factors(law, temp_c, dg)
     pw = side_factors(law, temp_c)
@@ -299,7 +299,7 @@ def branches_at(
 ) -> tuple[tuple[float, float], ...]:
     """Coordinate v's compressible-film branches (r_j, w_j) at the process point: r_j times pv (the
     viscosity ratio, under temp), its side's pw (side_factors) and its moved side's pg, w_j times rg over that (compressible_law; the
-    emitters' netgen.emit.process.branch_law)."""
+    emitters' netgen.emit.process_film.branch_law)."""
     factors = gap_factors(law, temp_c, dg)
     owner = {j: g["set"] for g in law["gaps"] if g.get("film") for j in g["film"].get("branches", [[]] * (v + 1))[v]}
     pw = {j: w for w, row in side_factors(law, temp_c).values() for j in (row.get("branches") or [[]] * (v + 1))[v]}

@@ -146,7 +146,7 @@ def check_names(c: Checker, d: dict) -> None:
 def check_film(c: Checker, film: Any, where: str, ncoords: int, visc: dict) -> None:
     """A gap set's squeeze-film law (netgen.model.process_film.film_law), whose numbers the emitters
     write: gap and rarefaction finite numbers, one share per coordinate; with temp's viscosity law its
-    cavity and the mean free path's constants (netgen.emit.process.film_factors)."""
+    cavity and the mean free path's constants (netgen.emit.process_film.film_factors)."""
     if not isinstance(film, dict):
         c.fail(where, "must be an object")
     c.number(f"{where}.gap_m", film.get("gap_m"))

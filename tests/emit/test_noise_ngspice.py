@@ -45,10 +45,10 @@ from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model import MacroModel
 from netgen.sim.ngspice import run_ngspice
-from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, ROOT, using_ngspice
+from tests.oracles.spice_decks import vacask_piston_noise
 
 ALPHA = 3000.0  # 1/s: D = alpha M (Q = 5 with the 2 N/m spring), as examples/piston_process.toml
 DAMPING = '\n[damping]\nrayleigh = {{ alpha = {alpha} }}\nnoise = true\ntemperature = "{kelvin} K"\n'
@@ -149,21 +149,8 @@ def test_vacask_noise_psd_at_model_temperature(osdi_lib, tmp_path):
     """The same module in VACASK's noise analysis (onoise is the PSD itself, V^2/Hz): the unbiased
     PSD at the model's own temperature (module docstring)."""
     folder, model, kelvin = osdi_lib
-    net = f"""piston noise
-ground 0
-load "{folder / "piston.osdi"}"
-model mems piston
-model vsource vsource
-x1 (d plate fz xz) mems
-v_d (d 0) vsource dc=0
-v_plate (plate 0) vsource dc=0
-v_fz (fz 0) vsource dc=0 mag=1
-control
-  analysis n1 noise out="xz" in="v_fz" from=5k to=25k mode="lin" points=40
-endc
-"""
-    plot = run_vacask(net, tmp_path, analysis="n1")
-    spec = {"frequency": np.real(plot["frequency"]), "onoise_spectrum": np.sqrt(np.real(plot["onoise"]))}
+    f, psd = vacask_piston_noise(folder / "piston.osdi", "piston", tmp_path)
+    spec = {"frequency": f, "onoise_spectrum": np.sqrt(psd)}
     check_unbiased_psd(spec, model, kelvin, "VACASK")
 
 

@@ -17,26 +17,20 @@ least squares). With one law for both sides (pw_<side> left out) the corners are
 from __future__ import annotations
 
 import copy
-import dataclasses
-import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from netgen import emit
 from netgen.build import build_model
-from netgen.core import constants
 from netgen.mechanics import mechanics
-from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values
-from netgen.sim.ngspice import run_control
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.oracles import film_rerun
 from tests.oracles.process_cases import PROOF
 
-SUTHERLAND_AIR, MEAN_FREE_PATH, VISCOSITY = 111.0, 68e-9, 1.85e-5  # K; m and Pa s at 1 atm, 300 K
 FIT = 2e-9  # two AC fits' round-off
 TEXT = (
     PROOF.format(t=10.0, e=160.0)
@@ -68,14 +62,7 @@ def rerun(built, dg_top: float, dg_bot: float, temp_c: float) -> np.ndarray:
     """The damping of each coordinate re-run at the moved gaps with air at temp_c (module docstring)."""
     s, model, m, _ = built
     t0 = model.process["temp"]["viscosity"]["t0_K"]
-    t = temp_c + 273.15
-    mu = (t / t0) ** 1.5 * (t0 + SUTHERLAND_AIR) / (t + SUTHERLAND_AIR)
-    gas = constants.Gas("air", VISCOSITY * mu, MEAN_FREE_PATH * mu * math.sqrt(t / t0))
-    moved = {"top": dg_top, "bot": dg_bot}
-    sets = tuple(dataclasses.replace(e, gap=e.gap + moved[e.name]) for e in s.electrode_sets)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setitem(constants.GASES, "air", gas)
-        return np.asarray(damping(dataclasses.replace(s, electrode_sets=sets), m)[0])
+    return film_rerun.rerun(s, m, t0, {"top": dg_top, "bot": dg_bot}, temp_c)
 
 
 def misfit(model) -> float:
@@ -113,7 +100,7 @@ def test_law_against_reruns(built):
 
 def spice_b(built, tmp_path, version: str, form: str) -> list[float]:
     """b of z per point from an .ac of the .lib, the _osdi.lib with the compiled module or the
-    _xspice.lib (temp alone) in ngspice `version`: a unit AC force on f_z, the other ports grounded."""
+    _xspice.lib (temp alone) in ngspice `version` (tests/oracles/film_rerun.spice_z_damping)."""
     _, model, _, folder = built
     pre: list[str] = []
     lib = folder / "pm.lib"
@@ -122,20 +109,11 @@ def spice_b(built, tmp_path, version: str, form: str) -> list[float]:
     elif form == "xspice":
         lib, pre = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
         lib = lib.resolve()
-    head = Path(lib).read_text().split(".subckt ")[1].split("params:")[0].replace("\n+", " ").split()
-    lines = []
-    for i, (top, bot, t) in enumerate(points(model, form != "xspice")):
-        nodes = [f"fz{i}" if p == "f_z" else f"xz{i}" if p == "x_z" else f"n{i}_{p}" if p.startswith("x_") else "0"
-                 for p in head[1:]]  # fmt: skip
-        dg = "" if form == "xspice" else f" dg_top={top!r} dg_bot={bot!r}"
-        lines += [f"X{i} {' '.join(nodes)} {head[0]}{dg} temp={t!r}", f"Vf{i} fz{i} 0 DC 0 AC 1"]
-    control = [".control", *pre, "set num_threads=1", "ac lin 3 1k 3k", "write ac.raw all", ".endc"]
-    deck = "\n".join(["* two-gap film under dg and temp", f".include {lib}", *lines, *control, ".end", ""])
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("NETGEN_NGSPICE", NGSPICE[version])
-        ac = run_control(deck, tmp_path, "circuit", "ac.raw")
-    w = 2 * np.pi * np.real(ac["frequency"])
-    return [float(np.mean((1.0 / np.asarray(ac[f"v(xz{i})"])).imag / w)) for i in range(len(lines) // 2)]
+    gaps = form != "xspice"
+    params = [
+        (f"dg_top={top!r} dg_bot={bot!r} " if gaps else "") + f"temp={t!r}" for top, bot, t in points(model, gaps)
+    ]
+    return film_rerun.spice_z_damping(lib, pre, params, version, tmp_path)
 
 
 def check(built, b: list[float], label: str, gaps: bool = True) -> None:
@@ -167,20 +145,9 @@ def test_xspice_against_reruns(built, tmp_path):
 
 def test_fmu_against_reruns(built):
     """The FMU (model exchange, its runtime's pw): b = -m q'' of z at q = 0, q'_z = 1 m/s."""
-    from netgen.sim import fmu
-
     _, model, _, _ = built
-    c, n = model.coordinates[0], model.ncoords
-    path = fmu.built(model)
-    got = []
-    for top, bot, t in points(model):
-        inst = fmu.Instance(path, cosim=False)
-        inst.set({"dg_top": top, "dg_bot": bot, "temp": t})
-        inst.start()
-        inst.set_states(np.array([0.0] * n + [1.0] + [0.0] * (n - 1)))
-        got.append(-c.mass * float(inst.get(["qdd_z"])[0]))
-        inst.close()
-    assert got[0] == pytest.approx(c.damping, rel=1e-12)
+    got = film_rerun.fmu_z_damping(model, [{"dg_top": top, "dg_bot": bot, "temp": t} for top, bot, t in points(model)])
+    assert got[0] == pytest.approx(model.coordinates[0].damping, rel=1e-12)
     check(built, got, "FMU")
 
 

@@ -67,3 +67,35 @@ def test_spread_is_the_larger_gaps_ratio_deviation(model):
     t = np.arange(lo, hi + 0.5, 1.0)
     want = max(abs(viscosity_ratio(x, visc["t0_K"], 3e-6) / viscosity_ratio(x, visc["t0_K"], 2e-6) - 1) for x in t)
     assert visc["sides_spread"] == pytest.approx(want, rel=1e-4)
+
+
+@pytest.fixture(scope="module")
+def disk():
+    """The small free disk of tests/mechanics/test_damping.py with the compressible film, its top ring
+    3 um above and its bottom ring 4 um below, temp declared."""
+    from tests.mechanics.test_damping import COMPRESSIBLE, SMALL
+
+    text = SMALL.replace('modes = ["2,0c"]\n', "") + "[damping]\n" + COMPRESSIBLE
+    i = text.index('gap = "3 um"', text.index('name = "bot"'))
+    text = text[:i] + 'gap = "4 um"' + text[i + len('gap = "3 um"') :]
+    return build_model(parse_structure(text + '[process]\nparameters = ["temp"]\n', "damped_disk.toml"))
+
+
+@pytest.mark.parametrize("temp", [-40.0, 125.0])
+def test_compressible_branches_follow_their_sides_law(disk, temp):
+    """Each Maxwell branch is one side's film (r_j ~ mu_eff of its gap, its corner ~ 1 / mu_eff:
+    netgen.model.process_film.compressible_law), so at temp its damper is times its own gap's ratio
+    (the oracle's, 3 or 4 um) and its corner over it: the law's branches (netgen.model.process.film_at)
+    within the polynomial's misfit, now the stated error, plus 1e-12; both sides carry branches."""
+    from netgen.model.process import film_at
+
+    visc = disk.process["temp"]["viscosity"]
+    z = disk.coordinates[0]
+    below = set(visc["sides"][0]["branches"][0])
+    assert visc["sides"][0]["side"] == "below" and 0 < len(below) < len(z.film)
+    assert visc["max_rel_error"] == visc["polynomial_misfit"]
+    eps = visc["polynomial_misfit"] + 1e-12
+    for j, ((r, w), (r0, w0)) in enumerate(zip(film_at(disk.process, 0, z.film, temp_c=temp), z.film)):
+        ratio = viscosity_ratio(temp, visc["t0_K"], 4e-6 if j in below else 3e-6)
+        print(f"branch {j} ({'below' if j in below else 'above'}) at {temp} degC: {r / r0 / ratio - 1:+.1e}")
+        assert r / r0 == pytest.approx(ratio, rel=eps) and w / w0 == pytest.approx(1 / ratio, rel=eps)
