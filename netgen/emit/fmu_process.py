@@ -20,6 +20,7 @@ import numpy as np
 
 from ..model import MacroModel
 from ..model.process import ETCH_UNIT, LAW_KEYS
+from ..model.process_film import set_side
 from . import process
 from .common import num, stop_constants
 
@@ -142,6 +143,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         "MODULUS_TC": f"({num(p.get('modulus_tc_per_K', 0.0))})",
         "INV_ETCH_UNIT": f"({num(1.0 / ETCH_UNIT)})",
         "NFILM": len(process.film_sets(model)),
+        "NPW": len(process.pw_sides(model)),
     }
     if knots:  # only then: the runtime's text without knots is unchanged
         defines["NKNOT"] = len(knots)
@@ -149,14 +151,17 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
 
 
 def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
-    """The gap sets' squeeze-film laws (netgen.emit.process.film_factors): per film set its dg's value
+    """The gap sets' squeeze-film laws (netgen.emit.process_film.film_factors): per film set its dg's value
     reference FILM_VR, gap FILM_GAP, Veijola's 9.638 Kn^1.159 FILM_A, per coordinate its share
     FILM_SHARE and, for a perforated film (FILM_FIT 1), its cubics in dg / 1 um FILM_POLY; PATH_LAW = (sealed, S, T0 K) of the mean free path's temperature ratio (S = 0: none);
     per compressible-film branch the film set whose gap moves it FILM_SET (-1: none)."""
-    sets, n = process.film_sets(model), model.ncoords
-    visc = (model.process.get("temp") or {}).get("viscosity") or {} if sets and process.declared(model, "temp") else {}
+    sets, n, sides = process.film_sets(model), model.ncoords, process.pw_sides(model)
+    wanted = (sets or sides) and process.declared(model, "temp")
+    visc = (model.process.get("temp") or {}).get("viscosity") or {} if wanted else {}
     path = [float(visc.get("cavity") == "sealed"), visc["sutherland_K"], visc["t0_K"]] if visc else [0.0, 0.0, 1.0]
-    return [
+    index = {r["side"]: k for k, r in enumerate(sides)}
+    return side_arrays(model, sets, sides, array) + [
+        array("int", "FILM_PW", [index.get(set_side(g), -1) for g in sets]),
         array("int", "FILM_VR", [vr[f"dg_{g['set']}"] for g in sets]),
         array("double", "FILM_GAP", [g["film"]["gap_m"] for g in sets]),
         array("double", "FILM_A", [g["film"]["rarefaction"] for g in sets]),
@@ -169,6 +174,25 @@ def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:
             "FILM_SET",
             [branch_set(sets, v, j) for v, c in enumerate(model.coordinates) for j in range(len(c.film))],
         ),
+    ]
+
+
+def side_arrays(model: MacroModel, sets: list[dict], sides: list[dict], array) -> list[dict]:
+    """The sides' own viscosity laws (netgen.emit.process_film.side_factors): PW_A each side's rarefaction and
+    PW_LAW the fitted gap's, PW_SHARE per coordinate its share, PW_FILM the film set on that side (-1:
+    none, then the side's term is its own), BRANCH_PW per compressible-film branch its side (-1: none)."""
+    on = {set_side(g): k for k, g in enumerate(sets)}
+    rows = [(v, j) for v, c in enumerate(model.coordinates) for j in range(len(c.film))]
+    owner = [
+        next((k for k, r in enumerate(sides) if j in (r.get("branches") or [[]] * (v + 1))[v]), -1) for v, j in rows
+    ]
+    visc = (model.process.get("temp") or {}).get("viscosity") or {} if sides else {}
+    return [
+        array("double", "PW_LAW", [visc.get("rarefaction", 0.0)]),
+        array("double", "PW_A", [r["rarefaction"] for r in sides]),
+        array("double", "PW_SHARE", [r["share"] for r in sides]),
+        array("int", "PW_FILM", [on.get(r["side"], -1) for r in sides]),
+        array("int", "BRANCH_PW", owner),
     ]
 
 

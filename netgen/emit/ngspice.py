@@ -367,7 +367,7 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
     and the force -r_j L w_s w on q. With noise each branch's damper carries its own thermal force
     S_F = 4 k_B T r_j (fluctuation-dissipation per branch: the sum has S_F = 4 k_B T Re B(omega))."""
     temp = noise_kelvin(model)
-    # each branch's damper r_j times its factor d (netgen.emit.process.branch_law: pv under temp, pg_<set>
+    # each branch's damper r_j times its factor d (netgen.emit.process_film.branch_law: pv under temp, pg_<set>
     # at a moved gap) and its corner times rg_<set> / d; the noise force sqrt(2 k_B T r) at the instance's
     # temp, its gain into w ~ corner / r
     rows = []

@@ -23,6 +23,14 @@ from .process_etch import etch_states as etch_states
 from .process_etch import knot_params as knot_params
 from .process_etch import knots as knots
 from .process_etch import stop_shift as stop_shift
+from .process_film import VEIJOLA_POWER as VEIJOLA_POWER
+from .process_film import branch_law as branch_law
+from .process_film import film_factors, film_share, film_text, joint_error, sides_text
+from .process_film import film_pg as film_pg
+from .process_film import film_scaled as film_scaled
+from .process_film import film_sets as film_sets
+from .process_film import pw_sides as pw_sides
+from .process_film import side_factors as side_factors
 
 KELVIN = 273.15
 
@@ -42,65 +50,6 @@ def active(model: MacroModel, kind: str) -> bool:
     gap set's squeeze film the damping, film_sets)."""
     film = kind in ("pd", "pt") and bool(film_sets(model))
     return film or any(declared(model, n) for n in MOVES.get(kind, (kind,)))
-
-
-def film_sets(model: MacroModel) -> list[dict]:
-    """The gap sets whose side's squeeze film follows their dg (netgen.model.process_film.film_law)."""
-    return [g for g in model.process.get("gaps", []) if g.get("film")] if enabled(model) else []
-
-
-VEIJOLA_POWER = 1.159  # mu_eff = mu / (1 + 9.638 Kn^1.159) (netgen.mechanics.squeeze_film)
-
-
-def film_factors(model: MacroModel, temp: str) -> list[tuple[str, str]]:
-    """(name, expression) of each film gap set's damping ratio pg_<set> = r^3 (1 + A pl^1.159) / (1 + A
-    (pl r)^1.159), r = g / (g + dg_<set>), A = 9.638 Kn^1.159 at T0 (Reynolds' 12 mu_eff / g^3 with
-    Veijola's rarefaction at the moved gap; exact), and pl = lambda(T) / lambda(T0) (netgen.model.
-    process_film.path_ratio, rational in T) where temp is declared; a perforated film's (its cubic:
-    film_pg) pq_<set> = pg_<set> at pl over pg_<set> at 1 there (netgen.model.process_film.
-    rarefaction_shift). [] without film sets."""
-    visc = model.process["temp"].get("viscosity") or {}
-    pl = "pl*" if declared(model, "temp") and visc else ""
-    sets = [g for g in film_sets(model) if pl or "fit" not in g["film"]]
-    if not sets:
-        return []
-    out = []
-    if pl:
-        r, t0, s_k = f"(({temp} + {num(KELVIN)})/{num(visc['t0_K'])})", visc["t0_K"], visc["sutherland_K"]
-        sq = r if visc["cavity"] == "sealed" else f"{r}*{r}"  # lambda ~ T / (T + S) sealed, T^2 / (T + S) open
-        out.append(("pl", f"{sq}*{num(t0 + s_k)}/({temp} + {num(KELVIN + s_k)})"))
-    for g in sets:
-        f, rg = g["film"], f"rg_{g['set']}"
-        a = num(f["rarefaction"])
-        out.append((rg, f"{num(f['gap_m'])}/({num(f['gap_m'])} + dg_{g['set']})"))
-        top = f"(1 + {a}*pow(pl, {VEIJOLA_POWER}))" if pl else num(1.0 + f["rarefaction"])
-        if "fit" in f:  # rg^3 cancels: (1 + A pl^e) (1 + A r^e) / ((1 + A) (1 + A (pl r)^e))
-            shift = f"{top}*(1 + {a}*pow({rg}, {VEIJOLA_POWER}))/({num(1.0 + f['rarefaction'])}*(1 + {a}*pow(pl*{rg}, {VEIJOLA_POWER})))"
-            out.append((f"pq_{g['set']}", shift))
-            continue
-        out.append((f"pg_{g['set']}", f"{rg}*{rg}*{rg}*{top}/(1 + {a}*pow({pl}{rg}, {VEIJOLA_POWER}))"))
-    return out
-
-
-def film_share(model: MacroModel, v: int) -> str:
-    """The text multiplying coordinate v's squeeze-film damping for the gap sets' films: 1 + sum of
-    share (pg_<set> - 1) (pg_<set> alone for a share of 1); "" where no film set moves it."""
-    terms = [(film_pg(model, g, v), g["film"]["share"][v]) for g in film_sets(model) if g["film"]["share"][v] > 0]
-    if not terms:
-        return ""
-    if len(terms) == 1 and terms[0][1] == 1.0:
-        return f"*{terms[0][0]}"
-    return "*(1 + " + " + ".join(f"{num(w)}*({pg} - 1)" for pg, w in terms) + ")"
-
-
-def film_pg(model: MacroModel, g: dict, v: int) -> str:
-    """Gap set g's film ratio for coordinate v: pg_<set>, or a perforated film's cubic in 1e6 dg_<set>
-    (times pq_<set> under temp, film_factors)."""
-    fit = g["film"].get("fit")
-    if not fit:
-        return f"pg_{g['set']}"
-    shift = f"*pq_{g['set']}" if declared(model, "temp") and (model.process["temp"].get("viscosity") or {}) else ""
-    return poly(fit["coeffs"][v], f"(1e6*dg_{g['set']})") + shift
 
 
 def params(model: MacroModel, gaps: bool = True) -> list[tuple[str, str]]:
@@ -373,11 +322,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         visc = p["temp"].get("viscosity")
         text += (
             f", squeeze film by Sutherland's law with Veijola's rarefaction within {visc['max_rel_error']:.1e}"
-            + (
-                f" (fitted at the smaller gap; the other side's film differs by up to {visc['sides_spread']:.1e})"
-                if visc.get("sides_spread")
-                else ""
-            )
+            + sides_text(visc)
             + (", sealed cavity (p ~ T)" if visc.get("cavity") == "sealed" else ", fixed pressure")
             if visc
             else ""
@@ -405,48 +350,6 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         "Process parameters (netgen/model/process.py, declared in [process]): "
         + "; ".join(parts)
         + ". Damping given as Q, zeta or Rayleigh keeps its N*s/m under escale and temp."
-    )
-
-
-def joint_error(model: MacroModel, g: dict) -> float | None:
-    """A perforated film's law under dg and temp (its cubic, pv, pq_<set>: film_factors) against the re-run:
-    within e_v + e_c + e_v e_c, the viscosity polynomial's and the cubic's stated errors; None without
-    temp or a cubic."""
-    fit, visc = (g.get("film") or {}).get("fit"), model.process["temp"].get("viscosity") or {}
-    if not (fit and visc and declared(model, "temp")):
-        return None
-    e_v, e_c = visc["max_rel_error"], fit["max_rel_error"]
-    return e_v + e_c + e_v * e_c
-
-
-def film_text(g: dict, joint: float | None = None) -> str:
-    """The header's statement of what a gap offset does to the damping (netgen.model.process_film.film_law);
-    `joint`: a perforated film's error under dg and temp (joint_error)."""
-    if not (f := g.get("film")):
-        return "damping unchanged (no squeeze film of this set's own: given damping, or a side several sets share)"
-    if "branches" in f:  # the compressible film (netgen.model.process_film.compressible_law)
-        return (
-            f"its side's compressible-film branches: dampers and the remainder damper's share times pg_{g['set']} "
-            f"= mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), gas springs times rg_{g['set']} = g / (g + dg) "
-            f"(corners times rg / pg), g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} "
-            "at T0 (exact)"
-        )
-    if f.get("fit"):
-        return (
-            "its side's squeeze-film damping (a perforated mass's, with its holes' leak) times a cubic in dg "
-            f"per coordinate from the film re-run at the moved gap, within {f['fit']['max_rel_error']:.1e} "
-            "(at the nominal thickness and etch, the mean free path at T0)"
-            + (
-                f"; under temp also times pq_{g['set']} = mu_eff(g + dg, T) mu_eff(g, T0) / (mu_eff(g, T) "
-                f"mu_eff(g + dg, T0)), Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} at g = {f['gap_m']:.4g} m "
-                f"and T0 (exact: the holes' leak does not depend on T); with pv within {joint:.1e}"
-                if joint is not None
-                else ""
-            )
-        )
-    return (
-        f"its side's squeeze-film damping times pg_{g['set']} = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3), "
-        f"g = {f['gap_m']:.4g} m, Veijola's 9.638 Kn^1.159 = {f['rarefaction']:.4g} at T0 (exact)"
     )
 
 
@@ -562,19 +465,3 @@ def energy_moved(model: MacroModel) -> bool:
     """The model's strain energy has a process law (netgen.model.process.energy_law): its forces are
     times pu."""
     return enabled(model) and bool(model.process.get("strain_energy"))
-
-
-def branch_law(model: MacroModel, v: int, j: int) -> tuple[str, str] | None:
-    """(damper factor, moved-gap set) of coordinate v's compressible-film branch j: the damper r_j times
-    pv under temp and pg_<set> where its side's set has a gap offset (netgen.model.process_film.
-    compressible_law), its corner times rg_<set> over that factor (the gas spring ~ p_a / g); None
-    where nothing moves it. The set is "" without one."""
-    moved = [g["set"] for g in film_sets(model) if j in g["film"].get("branches", [[]] * (v + 1))[v]]
-    factor = (["pv"] if film_scaled(model) else []) + [f"pg_{n}" for n in moved]
-    return ("*".join(factor), moved[0] if moved else "") if factor else None
-
-
-def film_scaled(model: MacroModel) -> bool:
-    """The compressible film's branches follow the viscosity ratio pv (temp declared; damper r_j times
-    pv, corner over pv: netgen.model.process, r_j ~ mu_eff, the gas spring ~ the pressure)."""
-    return declared(model, "temp") and bool(model.process["temp"].get("viscosity"))

@@ -203,7 +203,7 @@ def process_laws(
         "escale": {"range": list(p.escale_range), "max_rel_error": max(errors[1:3])},
         "temp": {
             "range_C": list(p.temp_range),
-            "viscosity": temperature_law(s, p.temp_range) if film and p.wants("temp") else {},
+            "viscosity": temperature_law(s, p.temp_range, m) if film and p.wants("temp") else {},
         },
         "coordinates": per,
         "gaps": [dict(r, max_m=dg_max) | film_law(s, m, r, dg_max, solved) for r in sets],

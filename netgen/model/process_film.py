@@ -47,19 +47,26 @@ def path_ratio(s_k: float, t0: float, t: np.ndarray | float, sealed: bool = Fals
     return (r if sealed else r * r) * (t0 + s_k) / (r * t0 + s_k)
 
 
-def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
-    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K, exactly 1 at T0 (and
-    its misfit); {} without a squeeze film. T0 = the structure's damping temperature."""
-    d = s.damping
-    t0 = d.temperature if d else 300.0
-    if not (d and d.squeeze_film):
-        return {}
-    # each side's film gap: to a dielectric layer's surface, the nearest set's (netgen.mechanics.damping.
-    # squeeze_film_damping); the law is fitted at the smallest
+def film_gaps(s: Structure) -> dict[str, float]:
+    """side -> its squeeze film's gap: to a dielectric layer's surface, the nearest set's (netgen.mechanics.
+    damping.squeeze_film_damping)."""
     sides: dict[str, float] = {}
     for e in s.electrode_sets:
         if getattr(e, "side", None) in GAP_SIDES:
             sides[e.side] = min(sides.get(e.side, np.inf), e.gap - getattr(e, "dielectric_thickness", 0.0))
+    return sides
+
+
+def temperature_law(s: Structure, temp_range_c: tuple[float, float], m: Mechanics | None = None) -> dict:
+    """The squeeze film's viscosity ratio as a polynomial in u = (T - T0) / 100 K, exactly 1 at T0 (and
+    its misfit), fitted at the smallest film gap; per other side its rarefaction and shares
+    (side_laws: the exact factor pw_<side> from the fitted gap's ratio to its own); {} without a
+    squeeze film. T0 = the structure's damping temperature; `m` for the sides' shares."""
+    d = s.damping
+    t0 = d.temperature if d else 300.0
+    if not (d and d.squeeze_film):
+        return {}
+    sides = film_gaps(s)
     gap = min(sides.values())
     lo, hi = (v + KELVIN for v in temp_range_c)
     t = np.linspace(lo, hi, 67)
@@ -73,8 +80,8 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
     fine = np.linspace(lo, hi, 661)
     at_gap = viscosity_ratio(d.gas, d.pressure, gap, t0, fine, sealed)
     misfit = float(np.max(np.abs(np.polynomial.polynomial.polyval((fine - t0) / 100.0, coef) / at_gap - 1.0)))
-    # a film at a larger gap on the other side is less rarefied: its ratio differs from the fitted one;
-    # a coordinate's film ratio is a share-weighted mean of its sides', within the largest such spread
+    # a film at a larger gap on the other side is less rarefied: its ratio differs from the fitted one by
+    # up to the spread (reported); side_laws gives it its own exactly
     spread = max(
         (
             float(np.max(np.abs(viscosity_ratio(d.gas, d.pressure, g, t0, fine, sealed) / at_gap - 1.0)))
@@ -82,6 +89,11 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
         ),
         default=0.0,
     )
+    others = {k: g for k, g in sides.items() if g != gap}
+    laws, whole = side_laws(s, m, others) if others else ([], True)
+    # pv = r (1 + e1), each side's pv pw_<side> = r_side (1 + e1) (pw exact); a compressible branch
+    # of both sides gets pv alone: then |e1 - e2| / (1 + e2) <= (misfit + spread) / (1 - spread)
+    error = misfit if whole else (misfit + spread) / (1.0 - spread)
     cavity = "sealed cavity, p ~ T" if sealed else "fixed pressure"
     return {
         "law": f"Sutherland (S = {SUTHERLAND[d.gas]:g} K) with Veijola's rarefaction at gap {gap:.4g} m, {cavity}",
@@ -91,19 +103,53 @@ def temperature_law(s: Structure, temp_range_c: tuple[float, float]) -> dict:
         "t0_K": t0,
         "coeffs": [float(c) for c in coef],
         "variable": "(T - T0) / 100 K",
-        # pv = r (1 + e1), the sides' mean r (1 + e2), |e1| <= misfit, |e2| <= spread: |pv / mean - 1| =
-        # |e1 - e2| / (1 + e2) <= (misfit + spread) / (1 - spread) (= misfit with one gap)
-        "max_rel_error": (misfit + spread) / (1.0 - spread),
+        "gap_m": gap,
+        "rarefaction": rarefaction(d, gap),
+        "sides": laws,
+        "max_rel_error": error,
         "polynomial_misfit": misfit,
         "sides_spread": spread,
     }
+
+
+def rarefaction(d, gap: float) -> float:
+    """Veijola's 9.638 Kn^1.159 of the damping's gas at `gap` and T0 (mu_eff = mu / (1 + that))."""
+    return 9.638 * sf.knudsen(GASES[d.gas], d.pressure, gap) ** VEIJOLA_POWER
+
+
+def side_laws(s: Structure, m: Mechanics | None, others: dict[str, float]) -> tuple[list[dict], bool]:
+    """Per side whose film gap is not the fitted one: its gap, rarefaction, per coordinate its share of
+    the film damping and (compressible) its branches, for pw_<side> = (1 + A_s) (1 + A pl^1.159) /
+    ((1 + A) (1 + A_s pl^1.159)) = its ratio mu_eff(T) / mu_eff(T0) over the fitted gap's (exact: both
+    Sutherland's mu(T), Kn ~ lambda(T) / g). Also False where a compressible branch is both sides'."""
+    if m is None:
+        return [], False
+    film = squeeze_film_damping(s, m)
+    whole = all(o is not None for own in film.get("owners", []) for o in own["branch"])
+    out = []
+    for side, gap in sorted(others.items()):
+        row = {"side": side, "gap_m": gap, "rarefaction": rarefaction(s.damping, gap), "share": side_share(film, side)}
+        if "owners" in film:
+            row["branches"] = [[j for j, o in enumerate(own["branch"]) if o == side] for own in film["owners"]]
+        out.append(row)
+    return out, whole
+
+
+def side_share(film: dict, side: str) -> list[float]:
+    """Per coordinate the side's part of the film damping the law scales (d_film): its Reynolds part of
+    the film's, or (compressible, netgen.mechanics.damping.compressible_film) of the remainder damper."""
+    if "owners" in film:
+        parts = [o["remainder"].get(side, 0.0) for o in film["owners"]]
+    else:
+        parts = film["sides"][side]["diagonal"]
+    return [float(b / t) if t > 0 else 0.0 for b, t in zip(parts, film["diagonal"])]
 
 
 def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0, solved: dict | None = None) -> dict:
     """{"film": ...} for a gap set whose side's squeeze film it alone faces: the film's gap g (to a
     dielectric's surface), Veijola's 9.638 Kn^1.159 there at T0 and per coordinate the side's share
     of the film damping; the emitters scale that share by mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3)
-    (netgen.emit.process.film_factors). The share is exact for any tscale and etch: both sides' films
+    (netgen.emit.process_film.film_factors). The share is exact for any tscale and etch: both sides' films
     solve one Reynolds problem on one plate, b_side = 12 mu_eff(g_side) / g_side^3 R(shapes). A
     perforated mass's holes leak ~ 1 / g^3, which is no factor: there the ratio is fitted per
     coordinate (perforated_fit). The compressible film: compressible_law. {} where no law holds: no
@@ -111,16 +157,15 @@ def film_law(s: Structure, m: Mechanics, gap_set: dict, dg_max: float = 0.0, sol
     d = s.damping
     if not (d and d.squeeze_film):
         return {}
-    side = next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
+    side = set_side(gap_set)
     facing = {e.name for e in s.electrode_sets if getattr(e, "side", None) == side}
     if facing != {gap_set["set"]}:
         return {}
     film = solved or squeeze_film_damping(s, m)
-    row, total = film["sides"][side], film["diagonal"]
+    row = film["sides"][side]
     if d.film_model == "compressible":
         return {"film": compressible_law(film, side)}
-    share = [float(b / t) if t > 0 else 0.0 for b, t in zip(row["diagonal"], total)]
-    out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": share}
+    out = {"gap_m": row["gap_m"], "rarefaction": 9.638 * row["knudsen"] ** 1.159, "share": side_share(film, side)}
     if float(getattr(s.conductor, "hole", 0.0)) > 0.0 and dg_max > 0.0:
         out["fit"] = perforated_fit(s, m, side, dg_max, np.asarray(row["diagonal"]))
     return {"film": out}
@@ -133,9 +178,9 @@ def compressible_law(film: dict, side: str) -> dict:
     damper r_j = c (phi, psi_j)^2 / lambda_j and the remainder ~ c = 12 mu_eff / g^3, its gas spring
     r_j w_j = (phi, psi_j)^2 p_a / g (the Dirichlet eigenpairs of the gap region do not depend on g),
     so at g + dg the dampers are times pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) and the
-    corners times g / ((g + dg) pg) (netgen.emit.process.branch_law)."""
+    corners times g / ((g + dg) pg) (netgen.emit.process_film.branch_law)."""
     row, owners = film["sides"][side], film["owners"]
-    share = [float(o["remainder"].get(side, 0.0) / t) if t > 0 else 0.0 for o, t in zip(owners, film["diagonal"])]
+    share = side_share(film, side)
     branches = [[j for j, s in enumerate(o["branch"]) if s == side] for o in owners]
     return {
         "gap_m": row["gap_m"],
@@ -181,21 +226,47 @@ def kelvin(temp_c: float) -> float:
 
 
 def film_ratio(law: dict, v: int, temp_c: float, dg: dict[str, float]) -> float:
-    """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m):
-    1 + sum share (pg - 1), pg = mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) with the mean free path
-    at temp, a perforated film's cubic times rarefaction_shift in its place (film_law; netgen.emit.
-    process.film_factors renders the same)."""
+    """The factor on coordinate v's squeeze-film damping from the gap sets' offsets `dg` (set -> m) and
+    the sides' own viscosity laws: 1 + sum over sides of share (pw pg - 1), pg = mu_eff(g + dg) g^3 /
+    (mu_eff(g) (g + dg)^3) with the mean free path at temp, a perforated film's cubic times
+    rarefaction_shift in its place (film_law), pw the side's ratio to the fitted gap's (side_factors;
+    netgen.emit.process_film.film_share renders the same)."""
     out = 1.0
     factors = gap_factors(law, temp_c, dg)
+    pw = side_factors(law, temp_c)
     for g in law["gaps"]:
         f = g.get("film")
+        w = pw.get(set_side(g), (1.0, 0.0))[0]
         if f and "fit" in f:  # a perforated mass's fitted ratio (perforated_fit) at T0, times its shift at temp
             x = dg.get(g["set"], 0.0) * 1e6
             cubic = float(np.dot(f["fit"]["coeffs"][v], [1.0, x, x * x, x**3]))
-            out += f["share"][v] * (cubic * rarefaction_shift(f, *factors[g["set"]]) - 1.0)
+            out += f["share"][v] * (w * cubic * rarefaction_shift(f, *factors[g["set"]]) - 1.0)
         elif f:
-            out += f["share"][v] * (factors[g["set"]][1] - 1.0)
+            out += f["share"][v] * (w * factors[g["set"]][1] - 1.0)
+    moved = {set_side(g) for g in law["gaps"] if g.get("film")}
+    for side, (w, row) in pw.items():
+        out += row["share"][v] * (w - 1.0) if side not in moved else 0.0
     return out
+
+
+def set_side(gap_set: dict) -> str:
+    """The side ("above", "below") a gap set's electrodes face."""
+    return next(k for k, v in GAP_SIDES.items() if v == gap_set["sign"])
+
+
+def side_factors(law: dict, temp_c: float) -> dict[str, tuple[float, dict]]:
+    """side -> (pw, its record) of each side with its own viscosity law (temperature_law's sides) where
+    temp is declared: pw = (1 + A_s) (1 + A pl^1.159) / ((1 + A) (1 + A_s pl^1.159)), A the fitted gap's
+    rarefaction, A_s the side's, pl the mean free path's ratio at temp."""
+    visc = law["temp"].get("viscosity") or {}
+    if not (visc.get("sides") and "temp" in law["parameters"]):
+        return {}
+    pl = float(path_ratio(visc["sutherland_K"], visc["t0_K"], kelvin(temp_c), visc["cavity"] == "sealed"))
+    a, e = visc["rarefaction"], VEIJOLA_POWER
+    return {
+        r["side"]: ((1.0 + r["rarefaction"]) * (1.0 + a * pl**e) / ((1.0 + a) * (1.0 + r["rarefaction"] * pl**e)), r)
+        for r in visc["sides"]
+    }
 
 
 def rarefaction_shift(film: dict, rg: float, pg: float) -> float:
@@ -227,12 +298,14 @@ def branches_at(
     law: dict, v: int, film: tuple, pv: float, temp_c: float, dg: dict[str, float]
 ) -> tuple[tuple[float, float], ...]:
     """Coordinate v's compressible-film branches (r_j, w_j) at the process point: r_j times pv (the
-    viscosity ratio, under temp) and its moved side's pg, w_j times rg over that (compressible_law; the
-    emitters' netgen.emit.process.branch_law)."""
+    viscosity ratio, under temp), its side's pw (side_factors) and its moved side's pg, w_j times rg over that (compressible_law; the
+    emitters' netgen.emit.process_film.branch_law)."""
     factors = gap_factors(law, temp_c, dg)
     owner = {j: g["set"] for g in law["gaps"] if g.get("film") for j in g["film"].get("branches", [[]] * (v + 1))[v]}
+    pw = {j: w for w, row in side_factors(law, temp_c).values() for j in (row.get("branches") or [[]] * (v + 1))[v]}
     out = []
     for j, (r, w) in enumerate(film):
         rg, pg = factors.get(owner.get(j, ""), (1.0, 1.0))
-        out.append((r * pv * pg, w * rg / (pv * pg)))
+        d = pv * pg * pw.get(j, 1.0)
+        out.append((r * d, w * rg / d))
     return tuple(out)

@@ -146,7 +146,7 @@ def check_names(c: Checker, d: dict) -> None:
 def check_film(c: Checker, film: Any, where: str, ncoords: int, visc: dict) -> None:
     """A gap set's squeeze-film law (netgen.model.process_film.film_law), whose numbers the emitters
     write: gap and rarefaction finite numbers, one share per coordinate; with temp's viscosity law its
-    cavity and the mean free path's constants (netgen.emit.process.film_factors)."""
+    cavity and the mean free path's constants (netgen.emit.process_film.film_factors)."""
     if not isinstance(film, dict):
         c.fail(where, "must be an object")
     c.number(f"{where}.gap_m", film.get("gap_m"))
@@ -415,6 +415,12 @@ def check_process(
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))
     for k, x in enumerate(visc.get("coeffs", []) if isinstance(visc, dict) else [None]):
         c.number(f"process.temp.viscosity.coeffs[{k}]", x)
+    for i, row in enumerate(visc.get("sides") or [] if isinstance(visc, dict) else []):
+        # a side's own viscosity law (netgen.model.process_film.side_laws): the emitters' pw_<side>
+        where = f"process.temp.viscosity.sides[{i}]"
+        c.choice(f"{where}.side", row.get("side") if isinstance(row, dict) else None, ("above", "below"))
+        c.number("process.temp.viscosity.rarefaction", visc.get("rarefaction"))
+        check_film(c, row, where, ncoords, visc)
     for i, g in enumerate(process.get("gaps", [])):
         if not isinstance(g, dict):
             c.fail(f"process.gaps[{i}]", "must be an object")

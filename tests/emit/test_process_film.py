@@ -1,5 +1,5 @@
 """The compressible squeeze film's Maxwell branches under the die temperature temp (netgen.model.process:
-the branches follow the viscosity ratio pv; netgen.emit.process.film_scaled), in the .lib (ngspice 39),
+the branches follow the viscosity ratio pv; netgen.emit.process_film.film_scaled), in the .lib (ngspice 39),
 the .va through OSDI (ngspice 46) and the FMU: the small free disk of tests/mechanics/test_damping.py (rigid z,
 two 3 um gaps, air at 1 atm) with the compressible film and [process] temp.
 
@@ -38,7 +38,7 @@ import numpy as np
 import pytest
 
 from netgen.build import build_model
-from netgen.core.constants import GASES
+from netgen.core.constants import GASES, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
 from netgen.mechanics import mechanics
@@ -51,20 +51,25 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.mechanics.test_damping import COMPRESSIBLE, SMALL
 from tests.oracles.fmu_process import viscosity_ratio
+from tests.oracles.spice_decks import disk_deck, disk_library
 from tests.oracles.testbench import using_ngspice
 
 GAP, T0_K = 3e-6, 300.0
 TEMPS = (-40.0, 125.0)
-PORTS = "0 0 0 0 0 0 0 0 0 fz xz"  # the eight ring sectors and the plate grounded, then f_z, x_z
 
 
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     """The disk with the compressible film and temp: its .lib, _osdi.lib and .osdi."""
-    folder = tmp_path_factory.mktemp("film")
-    text = SMALL.replace('modes = ["2,0c"]\n', "") + "[damping]\n" + COMPRESSIBLE
+    return disk(tmp_path_factory.mktemp("film"), noise=False)
+
+
+def disk(folder, noise: bool):
+    """(model, folder) of the disk with the compressible film, temp and dg, thermal noise per `noise`,
+    its d.lib, d_osdi.lib and d.osdi written into `folder`."""
+    text = SMALL.replace('modes = ["2,0c"]\n', "") + "[damping]\n" + ("noise = true\n" if noise else "") + COMPRESSIBLE
     model = build_model(parse_structure(text + '[process]\nparameters = ["temp", "dg"]\n', "damped_disk.toml"))
-    (folder / "d.lib").write_text(emit_ngspice.subcircuit(model, noise=False))
+    (folder / "d.lib").write_text(emit_ngspice.subcircuit(model, noise=noise))
     (folder / "d_osdi.lib").write_text(osdi.subcircuit(model))
     (folder / "d.osdi").write_bytes(osdi.outputs(model)[".osdi"])
     return model, folder
@@ -85,21 +90,7 @@ def test_film_branches_follow_the_viscosity_law(built, tmp_path, temp, form):
     model, folder = built
     z = model.coordinates[0]
     k = z.mass * (2 * math.pi * 1e3) ** 2
-    lib = folder / ("d.lib" if form == "lib" else "d_osdi.lib")
-    ctl = (
-        f".control\npre_osdi {folder / 'd.osdi'}\nset num_threads=1\nrun\nwrite out.raw\n.endc"
-        if form == "osdi"
-        else ""
-    )
-    net = f"""* film at {temp} C
-.include {lib}
-X1 {PORTS} damped_disk temp={temp!r}
-Vac fz fsp DC 0 AC 1
-Bsp fsp 0 V={-k!r}*v(xz)
-.ac dec 5 5e3 3e5
-{ctl}
-.end
-"""
+    net = disk_deck(*disk_library(folder, form), f"temp={temp!r}", k, ".ac dec 5 5e3 3e5")
     with using_ngspice("39" if form == "lib" else "46"):
         plot = run_ngspice(net, tmp_path)[0]
     got = np.asarray(plot["v(xz)"])  # um per uN = m/N
@@ -211,26 +202,12 @@ def test_film_branches_follow_the_gap(built, solver, tmp_path, form, dg, temp):
     model, folder = built
     z = model.coordinates[0]
     k = z.mass * (2 * math.pi * 1e3) ** 2
-    lib = folder / ("d.lib" if form == "lib" else "d_osdi.lib")
-    ctl = (
-        f".control\npre_osdi {folder / 'd.osdi'}\nset num_threads=1\nrun\nwrite out.raw\n.endc"
-        if form == "osdi"
-        else ""
-    )
+    lib, control = disk_library(folder, form)
     if form == "xspice":
-        lib, lines = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
+        lib, control = sdn.xspice_library(model, tmp_path, sdn.code_models(False))
         lib = lib.resolve()
-        ctl = "\n".join([".control", *lines, "run", "write out.raw all", ".endc"])
     params = f"dg_top={dg!r}" + (f" temp={temp!r}" if temp is not None else "")
-    net = f"""* film at dg_top {dg}
-.include {lib}
-X1 {PORTS} damped_disk {params}
-Vac fz fsp DC 0 AC 1
-Bsp fsp 0 V={-k!r}*v(xz)
-.ac dec 5 5e3 3e5
-{ctl}
-.end
-"""
+    net = disk_deck(lib, control, params, k, ".ac dec 5 5e3 3e5")
     with using_ngspice("46" if form == "osdi" else "39"):
         plot = run_ngspice(net, tmp_path)[0]
     got = np.asarray(plot["v(xz)"])
@@ -290,3 +267,43 @@ def test_sweep_point_moves_the_branches(built, solver, dg, temp):
     assert z.damping == pytest.approx(remainder, rel=eps + 1e-12)
     for (r, p), (r_ref, p_ref) in zip(sorted(z.film, key=lambda b: b[1]), want, strict=True):
         assert r == pytest.approx(r_ref, rel=2 * eps + 1e-12) and p == pytest.approx(p_ref, rel=2 * eps + 1e-12)
+
+
+@pytest.fixture(scope="module")
+def noisy(tmp_path_factory):
+    """The same disk with thermal noise on ([damping] noise): its .lib, _osdi.lib and .osdi."""
+    return disk(tmp_path_factory.mktemp("film_noise"), noise=True)
+
+
+@pytest.mark.parametrize(("form", "dg"), [(f, dg) for f in ("lib39", "lib46", "osdi") for dg in (-1.5e-7, 1.5e-7)])
+def test_branch_noise_follows_the_gap(noisy, solver, tmp_path, form, dg):
+    """.noise of x_z at dg_top against fluctuation-dissipation with the re-run film (module docstring):
+    S_x = 4 k_B T Re{B(w)} |H|^2, B = remainder + sum r_j / (1 + i w / w_j) the re-run network at 3 um
+    + dg_top above and 3 um below, H = 1 / (k - M w^2 + i w B), T the model's 300 K (temp's default).
+    Each branch's damper carries its own thermal force, filtered by its gas spring into 4 k_B T Re of its
+    admittance, so the sum is exact; the law's network is the re-run's within 1e-12 per branch
+    (test_fmu_film_branches_follow_the_gap), ngspice's .noise a linear solve per frequency: 1e-9. The
+    .lib in ngspice 39 and 46 (its noise resistors at the model's temperature through dtemp against the
+    default .temp 27, netgen.emit.ngspice.noise_resistance), the .va's white_noise through OSDI in 46. The
+    drawn network's noise is off by more than 1 % there."""
+    model, folder = noisy
+    z = model.coordinates[0]
+    kelvin = model.process["temperature_C"] + 273.15
+    k = z.mass * (2 * math.pi * 1e3) ** 2
+    lib, control = disk_library(folder, "osdi" if form == "osdi" else "lib")
+    net = disk_deck(lib, control, f"dg_top={dg!r}", k, ".noise v(xz) Vac dec 5 5e3 3e5")
+    with using_ngspice("39" if form == "lib39" else "46"):
+        spec = next(p for p in run_ngspice(net, tmp_path) if "onoise_spectrum" in p.vectors)
+    w = 2 * math.pi * np.real(spec["frequency"])
+    got = np.real(spec["onoise_spectrum"]) ** 2 * z.port_units[1] ** 2  # V^2/Hz at x_z -> m^2/Hz
+
+    def psd(branches, remainder: float) -> np.ndarray:
+        b = remainder + sum(r / (1.0 + 1j * w / p) for r, p in branches)
+        return 4 * K_B * kelvin * b.real / np.abs(k - z.mass * w**2 + 1j * w * b) ** 2
+
+    want = psd(*expected(solver, dg, None))
+    dev = np.max(np.abs(got / want - 1.0))
+    drawn = np.max(np.abs(psd(z.film, z.damping) / want - 1.0))
+    print(f"{form} dg_top {dg * 1e9:+.0f} nm: .noise / 4 k_B T Re B |H|^2 - 1 at most {dev:.1e} (drawn {drawn:.1e})")
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=0)
+    assert drawn > 0.01

@@ -1,5 +1,5 @@
 """The squeeze film under a gap offset dg_<set> and a sealed cavity under temp (netgen.model.process_film.film_law,
-netgen.emit.process.film_factors), in every form, against the Reynolds/Veijola closed form (not the code's
+netgen.emit.process_film.film_factors), in every form, against the Reynolds/Veijola closed form (not the code's
 numbers): the .lib in ngspice 39 and 46, the _xspice.lib in ngspice 39, the .va through OSDI in ngspice 46
 and in VACASK, the FMU.
 

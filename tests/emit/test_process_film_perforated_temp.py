@@ -1,5 +1,5 @@
 """A perforated mass's squeeze film under dg_<set> and temp together (netgen.model.process_film.
-rarefaction_shift, netgen.emit.process.film_factors' pq_<set>) against the Reynolds solve re-run at the
+rarefaction_shift, netgen.emit.process_film.film_factors' pq_<set>) against the Reynolds solve re-run at the
 moved gaps with the gas at temp: tests/oracles/process_cases.perforated (accelerometer_xyz's mass, 2 um
 between its plates zs below and zt above, 4 um holes on a 10 um pitch), dg and temp declared, at the four
 (dg, temp) corners of the valid box (both sets moved by -/+ the range, -40 / 125 degC) and its centre
@@ -17,26 +17,19 @@ least squares). Without pq (the product pv cubic alone) the corners are off by 2
 
 from __future__ import annotations
 
-import dataclasses
-import math
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from netgen import emit
 from netgen.build import build_model
-from netgen.core import constants
 from netgen.mechanics import mechanics
-from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values
-from netgen.sim.ngspice import run_control
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE
+from tests.oracles import film_rerun
 from tests.oracles.process_cases import perforated
 
 PROCESS = '[damping]\nsqueeze_film = true\n[process]\nparameters = ["dg", "temp"]\n'
-SUTHERLAND_AIR, MEAN_FREE_PATH, VISCOSITY = 111.0, 68e-9, 1.85e-5  # K; m and Pa s at 1 atm, 300 K
 FIT = 2e-9  # two AC fits' round-off
 
 
@@ -60,16 +53,10 @@ def points(model) -> list[tuple[float, float]]:
 
 def rerun(built, dg: float, temp_c: float) -> np.ndarray:
     """The damping of each coordinate re-run with both sets' gaps + dg and air at temp_c (module
-    docstring)."""
+    docstring; tests/oracles/film_rerun.rerun)."""
     s, model, m, _ = built
     t0 = model.process["temp"]["viscosity"]["t0_K"]
-    t = temp_c + 273.15
-    mu = (t / t0) ** 1.5 * (t0 + SUTHERLAND_AIR) / (t + SUTHERLAND_AIR)
-    gas = constants.Gas("air", VISCOSITY * mu, MEAN_FREE_PATH * mu * math.sqrt(t / t0))
-    sets = tuple(dataclasses.replace(e, gap=e.gap + dg) for e in s.electrode_sets)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setitem(constants.GASES, "air", gas)
-        return np.asarray(damping(dataclasses.replace(s, electrode_sets=sets), m)[0])
+    return film_rerun.rerun(s, m, t0, {e.name: dg for e in s.electrode_sets}, temp_c)
 
 
 def stated(model) -> float:
@@ -102,24 +89,13 @@ def test_law_against_reruns(built):
 
 def spice_b(built, tmp_path, version: str, form: str) -> list[float]:
     """b of z per point from an .ac of the .lib (or the _osdi.lib with the compiled module) in ngspice
-    `version`: a unit AC force on f_z, the other ports grounded."""
+    `version` (tests/oracles/film_rerun.spice_z_damping)."""
     _, model, _, folder = built
     lib, pre = (
         (folder / "px.lib", []) if form == "lib" else (folder / "px_osdi.lib", [f"pre_osdi {folder / 'px.osdi'}"])
     )
-    head = Path(lib).read_text().split(".subckt ")[1].split("params:")[0].replace("\n+", " ").split()
-    lines = []
-    for i, (dg, t) in enumerate(points(model)):
-        nodes = [f"fz{i}" if p == "f_z" else f"xz{i}" if p == "x_z" else f"n{i}_{p}" if p.startswith("x_") else "0"
-                 for p in head[1:]]  # fmt: skip
-        lines += [f"X{i} {' '.join(nodes)} {head[0]} dg_zs={dg!r} dg_zt={dg!r} temp={t!r}", f"Vf{i} fz{i} 0 DC 0 AC 1"]
-    control = [".control", *pre, "set num_threads=1", "ac lin 3 1k 3k", "write ac.raw", ".endc"]
-    deck = "\n".join(["* perforated film under dg and temp", f".include {lib}", *lines, *control, ".end", ""])
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("NETGEN_NGSPICE", NGSPICE[version])
-        ac = run_control(deck, tmp_path, "circuit", "ac.raw")
-    w = 2 * np.pi * np.real(ac["frequency"])
-    return [float(np.mean((1.0 / np.asarray(ac[f"v(xz{i})"])).imag / w)) for i in range(len(points(model)))]
+    params = [f"dg_zs={dg!r} dg_zt={dg!r} temp={t!r}" for dg, t in points(model)]
+    return film_rerun.spice_z_damping(lib, pre, params, version, tmp_path)
 
 
 def check(built, b: list[float], label: str) -> None:
@@ -145,20 +121,9 @@ def test_osdi_against_reruns(built, tmp_path):
 
 def test_fmu_against_reruns(built):
     """The FMU (model exchange, its runtime's pq): b = -m q'' of z at q = 0, q'_z = 1 m/s."""
-    from netgen.sim import fmu
-
     _, model, _, _ = built
-    c, n = model.coordinates[0], model.ncoords
-    path = fmu.built(model)
-    got = []
-    for dg, t in points(model):
-        inst = fmu.Instance(path, cosim=False)
-        inst.set({"dg_zs": dg, "dg_zt": dg, "temp": t})
-        inst.start()
-        inst.set_states(np.array([0.0] * n + [1.0] + [0.0] * (n - 1)))
-        got.append(-c.mass * float(inst.get(["qdd_z"])[0]))
-        inst.close()
-    assert got[0] == pytest.approx(c.damping, rel=1e-12)
+    got = film_rerun.fmu_z_damping(model, [{"dg_zs": dg, "dg_zt": dg, "temp": t} for dg, t in points(model)])
+    assert got[0] == pytest.approx(model.coordinates[0].damping, rel=1e-12)
     check(built, got, "FMU")
 
 

@@ -47,11 +47,11 @@ from netgen.core.errors import SimulationError
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
 from netgen.sim.ngspice import run_ngspice
-from netgen.sim.vacask import run_vacask
 from netgen.structure import load_structure, parse_structure
 from tests.fixtures import NGSPICE, ROOT
 from tests.oracles.process_cases import PROOF
 from tests.oracles.process_forms import ac_fit
+from tests.oracles.spice_decks import vacask_piston_noise
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml
 SPRING = 2.0  # N/m, the given spring
@@ -170,22 +170,9 @@ def test_noise_in_vacask(built, tmp_path, temp, tscale):
     """VACASK's noise analysis of the same module, the parameters on its model card; onoise is the
     output PSD itself (V^2/Hz)."""
     model, folder = built
-    net = f"""piston_process noise
-ground 0
-load "{folder / "piston_process.osdi"}"
-model mems piston_process temp={temp} tscale={tscale}
-model vsource vsource
-x1 (drive plate fz xz) mems
-v_drive (drive 0) vsource dc=0
-v_plate (plate 0) vsource dc=0
-v_fz (fz 0) vsource dc=0 mag=1
-control
-  analysis n1 noise out="xz" in="v_fz" from=5k to=25k mode="lin" points=40
-endc
-"""
-    plot = run_vacask(net, tmp_path, analysis="n1")
-    f = np.real(plot["frequency"])
-    got = np.real(plot["onoise"]) * 1e-12  # um^2/Hz -> m^2/Hz
+    card = f"temp={temp} tscale={tscale}"
+    f, psd = vacask_piston_noise(folder / "piston_process.osdi", "piston_process", tmp_path, card)
+    got = psd * 1e-12  # um^2/Hz -> m^2/Hz
     ref = reference_psd(model, f, temp, tscale)
     print(f"VACASK temp={temp} tscale={tscale}: max |PSD / 4 k_B T b |H|^2 - 1| = {np.max(np.abs(got / ref - 1)):.1e}")
     np.testing.assert_allclose(got, ref, rtol=1e-6)
