@@ -145,7 +145,7 @@ def process_rows(model: MacroModel, ctx: dict) -> None:
     ctx["process_params"] = process.va_params(model)
     # pt_<q> (the .lib's noise factor) is not needed: the white_noise reads pd_<q> and temp itself
     ctx["process_vars"] = [{"name": n, "expr": e} for n, e in process.factors(model) if not n.startswith("pt_")]
-    ctx["process_text"] = process.header_text(model)
+    ctx["process_text"] = process.header_text(model, state=False)
 
 
 def check_identifiers(names: list[str]) -> None:
