@@ -1,7 +1,8 @@
 """The combs' state factor under etch (netgen.model.etch_state: C = pc (1 + u P1(xs) + u^2 P2(xs))
 C0(xe), u = etch / 1 um) in the ngspice forms (.lib and _xspice.lib): a node pr_<e> holding the factor,
 the charge and dv2 times it, and the product rule's second force term pc dV^2/2 C0 dpr/dq into the
-velocity nodes. No physics here: the polynomials are the model's."""
+velocity nodes; the texts of the factor and its gradient for the .va (netgen.emit.va_terms: VA_U,
+live states whose derivatives the compiler takes). No physics here: the polynomials are the model's."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from .common import c_node, force_gain, node, num, poly_expr, rest_capacitance
 from .process_base import declared
 
 U1, U2 = "{1e6*etch}", "{1e12*etch*etch}"  # u and u^2 as ngspice parameter expressions
+VA_U = ("(1e6 * etch)", "(1e12 * etch * etch)")  # the same in Verilog-A
 
 
 def state_laws(model: MacroModel) -> dict[str, dict]:
@@ -28,18 +30,20 @@ def polys(law: dict) -> tuple[Polynomial, Polynomial]:
     return Polynomial(exps, np.array(law["coeffs"][0])), Polynomial(exps, np.array(law["coeffs"][1]))
 
 
-def factor_text(law: dict, state: list[str]) -> str:
-    """1 + u P1 + u^2 P2 over the nodes `state` (xs_<q>)."""
+def factor_text(law: dict, state: list[str], access: str = "v({})", u: tuple[str, str] = (U1, U2)) -> str:
+    """1 + u P1 + u^2 P2 over the states `state` (`access` formats each; `u`: u and u^2's texts)."""
     p1, p2 = polys(law)
-    return f"1 + {U1}*({poly_expr(p1, state)}) + {U2}*({poly_expr(p2, state)})"
+    return f"1 + {u[0]}*({poly_expr(p1, state, access=access)}) + {u[1]}*({poly_expr(p2, state, access=access)})"
 
 
-def gradient_text(law: dict, v: int, state: list[str]) -> str | None:
-    """d(1 + u P1 + u^2 P2)/dxs_v over `state`, None where identically 0."""
+def gradient_text(
+    law: dict, v: int, state: list[str], access: str = "v({})", u: tuple[str, str] = (U1, U2)
+) -> str | None:
+    """d(1 + u P1 + u^2 P2)/dxs_v over `state` (as factor_text), None where identically 0."""
     d1, d2 = (p.derivative(v) for p in polys(law))
     if not (np.any(d1.coeffs) or np.any(d2.coeffs)):
         return None
-    return f"{U1}*({poly_expr(d1, state)}) + {U2}*({poly_expr(d2, state)})"
+    return f"{u[0]}*({poly_expr(d1, state, access=access)}) + {u[1]}*({poly_expr(d2, state, access=access)})"
 
 
 def factor_lines(model: MacroModel) -> list[str]:

@@ -151,7 +151,7 @@ def subcircuit(model: MacroModel) -> str:
     if names:  # the .subckt's params reach the module through a .model card per instance
         ctx["subckt_params"] = "\n+ params: " + " ".join(f"{n}={v}" for n, v in process.params(model))
         ctx["model_params"] = " " + " ".join(f"{n}={{{n}}}" for n in names)
-        ctx["process_text"] = process.header_text(model, state=False)
+        ctx["process_text"] = process.header_text(model)
     n = nodes(model)
     return render(
         TEMPLATE,
