@@ -41,17 +41,20 @@ def state_laws(
     laws: dict[int, tuple[np.ndarray, list[float]]],
     etches: tuple[float, ...],
     skip: int,
+    degree: int = DEGREE,
+    powers: int = 2,
 ) -> dict[int, dict]:
     """electrode index -> {"exponents", "coeffs": [P1's, P2's]} for the electrodes of `laws` (index ->
     (shift per metre of etch in SI per coordinate, etch ratio cubic)) of `s`, from `extract(structure,
     n, offset)` (netgen.build.capacitance_sampler) at `etched(s, etch)` for the nonzero `etches`, on
-    the rows after `skip` + 1 (and rest)."""
+    the rows after `skip` + 1 (and rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for
+    bench/etch_state.py's comparison of the alternatives."""
     if not laws:
         return {}
     n = skip + FIT_POINTS
     rows = np.r_[0, np.arange(skip + 1, n + 1)]
     xs = check_points(s.sampling, n, len(next(iter(laws.values()))[0]))[rows]
-    exps = monomial_exponents(xs.shape[1], DEGREE)
+    exps = monomial_exponents(xs.shape[1], degree)
     exps = exps[exps.sum(axis=1) > 0]
     basis = monomials(xs, exps)
     points = [e for e in etches if e != 0.0]
@@ -64,10 +67,11 @@ def state_laws(
         if np.max(np.abs(r[:, ok])) < FLOOR:
             continue
         u = np.array(points) / ETCH_UNIT
-        design = np.concatenate([np.hstack([ui * basis[ok], ui * ui * basis[ok]]) for ui in u])
+        design = np.concatenate([np.hstack([ui**j * basis[ok] for j in range(1, powers + 1)]) for ui in u])
         coef, *_ = np.linalg.lstsq(design, r[:, ok].ravel(), rcond=None)
         m = len(exps)
-        out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), coef[m:].tolist()]}
+        second = coef[m:] if powers == 2 else np.zeros(m)
+        out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), second.tolist()]}
     return out
 
 
