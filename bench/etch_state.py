@@ -43,7 +43,9 @@ def main() -> None:
     xs = check_points(s.sampling, n, len(coords))[held]
     moved = {e: extract(etched(s, e), n)[held] for e in points}
     residual = {
-        (k, e): moved[e][:, k] / (ratio_at(r, e) * extract(s, n, v * e)[held, k]) for k, (v, r) in laws.items() for e in points
+        (k, e): moved[e][:, k] / (ratio_at(r, e) * extract(s, n, v * e)[held, k])
+        for k, (v, r) in laws.items()
+        for e in points
     }
     print(f"accelerometer_xyz field2d: {len(laws)} combs, build and extraction {time.process_time() - t0:.1f} s CPU")
     none = max(float(np.nanmax(np.abs(x - 1.0))) for x in residual.values())
