@@ -14,7 +14,7 @@ Tolerances:
   convergence at reltol 1e-12: 1e-9 (as tests/emit/test_process_etch_forms.py).
 
 The combs' state factor 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state) is 1 at rest, so it is
-checked at a displaced state (z, tilt_x, tilt_y moved by force inputs, x, y, rot_z left free):
+checked at a displaced state (in the forms above, the FMU, and the forces in VACASK) (z, tilt_x, tilt_y moved by force inputs, x, y, rot_z left free):
 - C of xp_t there from .ac without bias against the Python law at the .op's state: round-off, 1e-9
   (as at rest).
 - the electrostatic forces on x, y, rot_z with 5 V on xp_t: the form's K(etch) q (the .op balances
@@ -304,3 +304,40 @@ def test_state_fmu(xyz):
     mass = np.array([coordinate_values(xyz.process, v, etch=STATE_ETCH)[0] for v in range(6)])
     got, ref = mass * (pulled - free) * xyz.scales, 0.5 * VOLTS**2 * law_slopes(xyz, xs, STATE_ETCH)
     assert np.max(np.abs(got - ref)) <= (F2D_TOL + 1e-12) * np.max(np.abs(ref)), (got, ref)
+
+
+def test_state_vacask(xyz, tmp_path):
+    """The same .va module in VACASK (its op at reltol 1e-12, vntol 1e-15 as the ngspice decks): the
+    forces with VOLTS on xp_t at the displaced state against the law's slopes (F2D_TOL)."""
+    from netgen.core.paths import vacask_string
+    from netgen.sim.vacask import run_vacask
+
+    emit.write_outputs(xyz, tmp_path, "osdi")
+    ports = " ".join(["d", *["0"] * 9, "p"] + [f"f{k} x{k}" for k in range(6)] + ["0", "0", "0"])
+    srcs = [f"v_d (d 0) vsource dc={VOLTS!r}", "v_p (p 0) vsource dc=0"]
+    for k, c in enumerate(xyz.coordinates):
+        stiff = coordinate_values(xyz.process, k, etch=STATE_ETCH)[1]
+        force = stiff * c.scale * OUT_OF_PLANE.get(c.name, 0.0) / c.port_units[3]
+        srcs.append(f"v_f{k} (f{k} 0) vsource dc={float(force)!r}")
+    net = "\n".join(
+        [
+            "xyz state",
+            "ground 0",
+            f"load {vacask_string(tmp_path / 'accelerometer_xyz.osdi', tmp_path / 'run')}",
+            f"model mems accelerometer_xyz etch={STATE_ETCH!r}",
+            "model vsource vsource",
+            f"x1 ({ports}) mems",
+            *srcs,
+            "control",
+            "  options reltol=1e-12 vntol=1e-15",
+            "  analysis op1 op",
+            "endc",
+            "",
+        ]
+    )
+    plot = run_vacask(net, tmp_path / "run", analysis="op1")
+    xs = np.array(
+        [float(np.atleast_1d(plot[f"x{k}"])[0]) * c.port_units[1] / c.scale for k, c in enumerate(xyz.coordinates)]
+    )
+    got, ref = form_slopes(xyz, xs, STATE_ETCH), 0.5 * VOLTS**2 * law_slopes(xyz, xs, STATE_ETCH)[:3]
+    assert np.max(np.abs(got - ref)) <= F2D_TOL * np.max(np.abs(ref)), (got, ref)
