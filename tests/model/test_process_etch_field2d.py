@@ -6,7 +6,8 @@ finger widths ship with the package (netgen/electrostatics/comb_tables), so noth
 
 The law (netgen.model.process.capacitance_laws) reads each comb's fit at the state shifted across
 its fingers by the geometric 2 etch plus a fitted effective part (netgen.model.etch_combs: the far
-gap and the fringe of the narrower finger), times the ratio pc(etch).
+gap and the fringe of the narrower finger), times the ratio pc(etch) and the comb's state factor
+1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state: what depends on the state beyond the shift).
 
 Tolerances:
 - capacitances at 100 points: the nominal fits read at the shifted state times the ratio against
@@ -21,10 +22,14 @@ Tolerances:
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
 from netgen.build import build_model
+from netgen.core.errors import ModelError
+from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, comb_shifts
 from netgen.structure import parse_structure
 from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
@@ -69,3 +74,23 @@ def test_effective_shift_and_stops(nominal):
         across = "x" if e.startswith("x") else "y"
         assert 0.0 < laws[e]["shift"][across] / shift[across] < 1.0
         assert laws[e]["shift"][("y" if across == "x" else "x")] == shift[("y" if across == "x" else "x")]
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (lambda s: s["exponents"][0].__setitem__(0, -1), "exponents"),  # not a monomial
+        (lambda s: s["exponents"].__setitem__(0, [0] * len(s["exponents"][0])), "exponents"),  # pc's constant
+        (lambda s: s["coeffs"].pop(), "coeffs"),  # P2 missing
+        (lambda s: s["coeffs"][1].__setitem__(0, "1e-3"), "coeffs[1][0]"),  # text in a netlist's number
+    ],
+)
+def test_state_law_validated_on_load(nominal, edit, key):
+    """A comb's state factor (netgen.model.etch_state), which every form writes as monomials, is checked
+    on load: a ModelError naming the key, never a netlist with it."""
+    d = copy.deepcopy(nominal.to_dict())
+    law = next(r for r in d["process"]["etch"]["capacitance"] if "state" in r)
+    edit(law["state"])
+    with pytest.raises(ModelError) as exc:
+        MacroModel.from_dict(d, "xyz.json")
+    assert f"state.{key}" in str(exc.value)
