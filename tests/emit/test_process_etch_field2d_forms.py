@@ -13,7 +13,8 @@ Tolerances:
   (1e-11: the offset read to 11 digits); the mass pushed onto it in the _xspice.lib and OSDI at the
   .lib's rest within REST_REL (2.5e-10: the .lib's B-source coefficients read to 11 digits; the
   mechanics and stops are the textbook case's, so are the derivations in
-  tests/emit/test_process_etch_forms.py, next to the constants).
+  tests/emit/test_process_etch_forms.py, next to the constants); VACASK at its default tolerances
+  the same (the rest is where every element is linear).
 """
 
 from __future__ import annotations
@@ -30,7 +31,15 @@ from netgen.model.process import capacitance_at
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.emit.test_process_etch_forms import REST_REL, STOP_REL, comb_deck, push_deck, rest_x, sidewall_stop
+from tests.emit.test_process_etch_forms import (
+    REST_REL,
+    STOP_REL,
+    comb_deck,
+    push_deck,
+    rest_x,
+    sidewall_stop,
+    vacask_rest,
+)
 from tests.fixtures import NGSPICE, using_ngspice
 from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
 
@@ -120,3 +129,10 @@ def test_stop_osdi(xyz, tmp_path, monkeypatch, etch, pushed_lib):
     deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
     got = rest_x(run_ngspice(deck, tmp_path / "run")[0])
     assert got == pytest.approx(pushed_lib["46", etch], rel=REST_REL, abs=0)
+
+
+@pytest.mark.parametrize("etch", PERFORATED_ETCHES)
+def test_stop_vacask(xyz, tmp_path, etch, pushed_lib):
+    """The same module in VACASK (its default tolerances: the rest is where every element is linear,
+    tests/emit/test_process_etch_forms.test_comb_stop_vacask) pushed as the .lib (REST_REL)."""
+    assert vacask_rest(xyz, tmp_path, etch) == pytest.approx(pushed_lib["46", etch], rel=REST_REL, abs=0)
