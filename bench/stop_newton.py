@@ -5,6 +5,11 @@ round-off-level variants of the push (20 uN + j 1e-14, j = 0..VARIANTS-1), at th
 ngspice's defaults, reltol 1e-12 / vntol 1e-12 V, and the tests' former reltol 1e-12 / vntol 1e-15 V.
 
     .venv/bin/python bench/stop_newton.py [--variants 9] [--etches -1e-7,4e-8,1e-7] [--timeout 20]
+    .venv/bin/python bench/stop_newton.py --sensitivity
+
+--sensitivity prints instead the rest's relative sensitivities d ln q / d ln c to the parts of the
+model's rest (tests/oracles/process_cases.pushed_rest), whose sums bound how far the .lib's 11-digit
+B-source numbers move it (tests/emit/test_process_etch_forms.py, REST_REL and FULL_REL).
 
 Prints, per form, option set and etch, the iteration counts (`timeout` where ngspice ran past
 --timeout seconds) and the spread of the rest x over the variants. Run it under
@@ -35,6 +40,7 @@ OPTIONS = {
     "vntol 1e-12": ".options reltol=1e-12 vntol=1e-12 abstol=1e-20",
     "vntol 1e-15": ".options reltol=1e-12 vntol=1e-15 abstol=1e-20",
 }
+PUSH = 20e-6  # N along x, the tests' push (tests/emit/test_process_etch_forms.PUSH, in uN there)
 PINS = "0 0 0 0 0 0 0 0 0 0 0 fx x0 0 x1 0 x2 0 x3 0 x4 0 x5 0 0 0"
 
 
@@ -102,9 +108,14 @@ def main() -> None:
     ap.add_argument("--variants", type=int, default=9)
     ap.add_argument("--etches", default="-1e-7,4e-8,1e-7")
     ap.add_argument("--timeout", type=float, default=20.0)
+    ap.add_argument("--sensitivity", action="store_true", help="print the rest's sensitivities, no simulation")
     args = ap.parse_args()
     text = process_cases.xyz_text(process='[process]\nparameters = ["etch"]\n')
     model = build_model(parse_structure(text, "xyz.toml"))
+    if args.sensitivity:
+        for etch in (float(e) for e in args.etches.split(",")):
+            sensitivity(model, etch)
+        return
     work = Path(tempfile.mkdtemp(prefix="stop-newton-"))
     (work / "xyz.lib").write_text(emit_ngspice.subcircuit(model))
     xlib, xcontrol = sdn.xspice_library(model, work, sdn.code_models(False))
@@ -119,7 +130,7 @@ def main() -> None:
             [f"pre_osdi {work / 'accelerometer_xyz.osdi'}"],
         ),
     }
-    pushes = [f"{20 + j * 1e-14:.17g}" for j in range(args.variants)]
+    pushes = [f"{PUSH * 1e6 + j * 1e-14:.17g}" for j in range(args.variants)]
     for etch in (float(e) for e in args.etches.split(",")):
         for name, (exe, lib, control) in forms.items():
             for tag, options in OPTIONS.items():
@@ -130,6 +141,22 @@ def main() -> None:
                     runs.append(ngspice_run(exe, cir, args.timeout))
                 report(f"{name}, {tag}", etch, runs)
         report("vacask, default", etch, [vacask_run(work, etch, push) for push in pushes])
+
+
+def sensitivity(model, etch: float, h: float = 1e-7) -> None:
+    """d ln q / d ln c of the pushed rest (x, rot_z) per part, and the sums over the .lib's B-source
+    parts (push gain, springs, stop offset) and over all."""
+    rest = np.array(process_cases.pushed_rest(model, etch, PUSH))
+    rows = {}
+    for part in process_cases.PUSH_PARTS:
+        moved = np.array(process_cases.pushed_rest(model, etch, PUSH, {part: 1 + h}))
+        rows[part] = (moved / rest - 1) / h
+    b_source = sum(abs(rows[k]) for k in ("push", "k_x", "k_rot_z", "offset"))
+    every = sum(abs(r) for r in rows.values())
+    parts = "  ".join(f"{k} {r[0]:+.3f} {r[1]:+.3f}" for k, r in rows.items())
+    print(
+        f"etch {etch:+.0e}  (x, rot_z): {parts}  B-source sum {b_source[0]:.3f} {b_source[1]:.3f}  all {every[0]:.3f} {every[1]:.3f}"
+    )
 
 
 def report(label: str, etch: float, runs: list[tuple[int | None, float | None]]) -> None:

@@ -35,13 +35,20 @@ from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
-from netgen.model.process_values import coordinate_values
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.process_cases import ETCHES, PERFORATED_ETCHES, RANGE, control_block, guided, xyz_text
+from tests.oracles.process_cases import (
+    ETCHES,
+    PERFORATED_ETCHES,
+    RANGE,
+    control_block,
+    guided,
+    pushed_rest,
+    xyz_text,
+)
 
 GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
 OPTIONS = ".options reltol=1e-12 vntol=1e-15 abstol=1e-20"
@@ -191,15 +198,16 @@ PUSH_OPTIONS = ".options reltol=1e-12 vntol=1e-12 abstol=1e-20"
 # significant digits (0.1276231078066803 reads 0.12762310781; a G element's value keeps all 17): each
 # such coefficient of the .lib is within 5e-11 relative of the model's. The rest's B-source
 # coefficients are the push's gain, the two springs (pk x K) and the stop's offset 2 etch / L; the sum
-# of |d ln q / d ln c| over them is at most 1.51 for x and 4.68 for rot_z over the three etches (the
-# system's exact solution in rationals, perturbed per coefficient; 5.62 over all its coefficients):
-# 4.68 x 5e-11 = 2.3e-10, plus FULL_REL.
+# of |d ln q / d ln c| over them is at most 1.52 for x and 4.69 for rot_z over the three etches (4.69
+# with the stop's gain; `.venv/bin/python bench/stop_newton.py --sensitivity`): 4.69 x 5e-11 = 2.3e-10,
+# plus FULL_REL.
 REST_REL = 2.5e-10
 # The _xspice.lib (mechanics in G elements, stops in the code model), OSDI and VACASK keep all digits.
 # Newton's last step lands on the rest to round-off (every element is linear there), and the solve's
 # backward error is at most 3 n eps per coefficient for n equations (211 in the .lib, 111 in the
-# _xspice.lib, 33 through OSDI; growth 1 assumed), so with the summed sensitivity 5.62:
-# 3 x 211 x 1.1e-16 x 5.62 = 3.9e-13; 1e-12 covers the model's own arithmetic (a few eps per gain).
+# _xspice.lib, 33 through OSDI; growth 1 assumed), so with a summed sensitivity below 6 (4.69 over the
+# rest's parts; 5.62 with the stop's x and rot_z gains perturbed apart): 3 x 211 x 1.1e-16 x 6 = 4.2e-13;
+# 1e-12 also covers the model's own arithmetic (a few eps per gain).
 FULL_REL = 1e-12
 # The .lib's stop node at rest (push 0): sg = -1 - {2 etch / L_x}, the offset read to 11 digits (5e-11 of
 # 0.133 over 1.13: 5.9e-12) with L_x = 1.5 um (1 + 6.6e-14) (8e-15); the .op of a linear circuit is
@@ -233,20 +241,9 @@ def rest_x(plot) -> float:
     return float(np.real(plot["v(x0)"])[0]), float(np.real(plot["v(x2)"])[0])
 
 
-def rest_exact(model, etch: float, push: float = PUSH * 1e-6) -> tuple[float, float]:
-    """x (um) and rot_z (mrad) of the mass pushed by `push` (N) along x onto xp_t's sidewall stop, from
-    the model: K(etch) q = F - k gap^2 (p - delta/2) a / L (netgen.model.contact past the ramp), p =
-    a . q / L - 1 - 2 etch / gap (the stop at the widened gap), the springs from the etch's laws."""
-    names = [c.name for c in model.coordinates]
-    vx, vr = names.index("x"), names.index("rot_z")
-    pt = model.contact["points"][sidewall_stop(model)]
-    scale = np.array([model.coordinates[v].scale for v in (vx, vr)])
-    a = np.array([pt["a"][vx], pt["a"][vr]]) / scale
-    spring = np.diag([coordinate_values(model.process, v, etch=etch)[1] for v in (vx, vr)])
-    gain = model.contact["stiffness"] * pt["gap"] ** 2 * a
-    shift = 1 + 2 * etch / pt["gap"] + model.contact["smoothing"] / 2
-    q = np.linalg.solve(spring + np.outer(gain, a), np.array([push, 0.0]) + gain * shift)
-    return float(q[0] * 1e6), float(q[1] * 1e3)
+def rest_exact(model, etch: float) -> tuple[float, float]:
+    """The model's rest under PUSH (tests/oracles/process_cases.pushed_rest: a 2 x 2 solve)."""
+    return pushed_rest(model, etch, PUSH * 1e-6)
 
 
 @pytest.mark.parametrize("etch", ETCHES_COMB)
