@@ -81,6 +81,14 @@ RUNS = {
         ["serial: ", "2 Dask workers: ", "equal bit for bit: True"],
     ),
     "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
+    "stop_newton": (
+        ["bench/stop_newton.py", "--variants", "1", "--etches", "1e-7", "--timeout", "5"],
+        ["osdi ngspice 46, vntol 1e-12", "vacask, default", "iterations"],
+    ),
+    "stop_newton_sensitivity": (
+        ["bench/stop_newton.py", "--sensitivity", "--etches", "1e-7"],
+        ["B-source sum", "etch +1e-07"],
+    ),
     "sigma_delta_accelerometer": (
         [
             "bench/sigma_delta_accelerometer.py",

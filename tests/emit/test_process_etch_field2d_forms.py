@@ -9,9 +9,12 @@ Tolerances:
   law (netgen.model.process.capacitance_at, the arithmetic the emitters render): the forms evaluate
   the same polynomial at the same shifted state, round-off: 1e-9.
 - xp_t's sidewall stop at rest in the .lib: its penetration node reads -(1.5 um + 2 etch) / 1.5 um
-  (the geometric shift, not the effective one, which would put it 0.14 etch nearer), .op
-  round-off: 1e-9; the mass pushed onto it in the _xspice.lib and OSDI at the .lib's rest, Newton's
-  convergence at reltol 1e-12: 1e-9 (as tests/emit/test_process_etch_forms.py).
+  (the geometric shift, not the effective one, which would put it 0.14 etch nearer), within STOP_REL
+  (1e-11: the offset read to 11 digits); the mass pushed onto it at the model's rest (rest_exact),
+  the .lib within REST_REL (2.5e-10: its B-source coefficients read to 11 digits), the _xspice.lib,
+  OSDI and VACASK (at its default tolerances: the rest is where every element is linear) within
+  FULL_REL (1e-12); the mechanics and stops are the textbook case's, so are the derivations in
+  tests/emit/test_process_etch_forms.py, next to the constants.
 
 The combs' state factor 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state) is 1 at rest, so it is
 checked at a displaced state (in the forms above, the FMU, and the forces in VACASK) (z, tilt_x, tilt_y moved by force inputs, x, y, rot_z left free):
@@ -47,8 +50,18 @@ from netgen.model.process import capacitance_at, coordinate_values
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.emit.test_process_etch_forms import comb_deck, push_deck, rest_x, sidewall_stop
-from tests.fixtures import NGSPICE, using_ngspice
+from tests.emit.test_process_etch_forms import (
+    FULL_REL,
+    REST_REL,
+    STOP_REL,
+    comb_deck,
+    push_deck,
+    rest_exact,
+    rest_x,
+    sidewall_stop,
+    vacask_rest,
+)
+from tests.fixtures import NGSPICE
 from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
 
 
@@ -99,43 +112,45 @@ def test_rest_osdi(xyz, tmp_path, monkeypatch, etch):
 
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
 def test_stop_lib(xyz, tmp_path, ngspice_version, etch):
-    """xp_t's sidewall stop at rest at the geometric widened gap (1e-9)."""
+    """xp_t's sidewall stop at rest at the geometric widened gap (STOP_REL)."""
     (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
     plot = run_ngspice(push_deck(str(tmp_path / "xyz.lib"), etch, push=0.0), tmp_path)[0]
     sg = float(np.real(plot[f"v(x1.sg_{sidewall_stop(xyz) + 1})"])[0])
-    assert sg == pytest.approx(-(1.5e-6 + 2 * etch) / 1.5e-6, rel=1e-9, abs=0)
-
-
-@pytest.fixture(scope="module")
-def pushed_lib(xyz, tmp_path_factory):
-    """The pushed rest of the .lib in ngspice 39 and 46 per etch: the reference of the other forms."""
-    folder = tmp_path_factory.mktemp("push")
-    (folder / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
-    out = {}
-    for release in ("39", "46"):
-        for etch in PERFORATED_ETCHES:
-            with using_ngspice(release):
-                deck = push_deck(str(folder / "xyz.lib"), etch)
-                out[release, etch] = rest_x(run_ngspice(deck, folder / f"{release}{etch}")[0])
-    return out
+    assert sg == pytest.approx(-(1.5e-6 + 2 * etch) / 1.5e-6, rel=STOP_REL, abs=0)
 
 
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
-def test_stop_xspice(xyz, tmp_path, etch, pushed_lib):
-    """The code model's stops read their own geometric-shift columns: the .lib's rest in ngspice 39 (1e-9)."""
+def test_stop_pushed_lib(xyz, tmp_path, ngspice_version, etch):
+    """The .lib pushed onto the stop rests at rest_exact (REST_REL: its 11-digit coefficients)."""
+    (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz))
+    got = rest_x(run_ngspice(push_deck(str(tmp_path / "xyz.lib"), etch), tmp_path)[0])
+    assert got == pytest.approx(rest_exact(xyz, etch), rel=REST_REL, abs=0)
+
+
+@pytest.mark.parametrize("etch", PERFORATED_ETCHES)
+def test_stop_xspice(xyz, tmp_path, etch):
+    """The code model's stops read their own geometric-shift columns: rest_exact in ngspice 39 (FULL_REL)."""
     xlib, control = sdn.xspice_library(xyz, tmp_path, sdn.code_models(False))
     got = rest_x(run_ngspice(push_deck(str(xlib.resolve()), etch, control_block(control, "op.raw")), tmp_path)[0])
-    assert got == pytest.approx(pushed_lib["39", etch], rel=1e-9, abs=0)
+    assert got == pytest.approx(rest_exact(xyz, etch), rel=FULL_REL, abs=0)
 
 
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
-def test_stop_osdi(xyz, tmp_path, monkeypatch, etch, pushed_lib):
-    """The .va through OSDI (ngspice 46) pushed as the .lib in ngspice 46: the same rest (1e-9)."""
+def test_stop_osdi(xyz, tmp_path, monkeypatch, etch):
+    """The .va through OSDI (ngspice 46) pushed rests at rest_exact (FULL_REL)."""
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
     emit.write_outputs(xyz, tmp_path, "osdi")
     pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
     deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
-    assert rest_x(run_ngspice(deck, tmp_path / "run")[0]) == pytest.approx(pushed_lib["46", etch], rel=1e-9, abs=0)
+    got = rest_x(run_ngspice(deck, tmp_path / "run")[0])
+    assert got == pytest.approx(rest_exact(xyz, etch), rel=FULL_REL, abs=0)
+
+
+@pytest.mark.parametrize("etch", PERFORATED_ETCHES)
+def test_stop_vacask(xyz, tmp_path, etch):
+    """The same module in VACASK (its default tolerances: the rest is where every element is linear,
+    tests/emit/test_process_etch_forms.test_comb_stop_vacask) rests at rest_exact (FULL_REL)."""
+    assert vacask_rest(xyz, tmp_path, etch) == pytest.approx(rest_exact(xyz, etch), rel=FULL_REL, abs=0)
 
 
 # ------------------------------------------------------------------ the state factor at a displaced state

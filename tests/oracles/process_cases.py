@@ -7,6 +7,8 @@ mechanics re-run there (rerun)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
 
@@ -198,3 +200,27 @@ def control_block(lines: list[str], raw: str) -> str:
     """An ngspice .control block: `lines` (the code model's or the OSDI module's loading), one thread,
     run, and the results written to `raw`."""
     return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
+
+
+PUSH_PARTS = ("push", "k_x", "k_rot_z", "offset", "stop")  # what pushed_rest's `scale` may perturb
+
+
+def pushed_rest(model, etch: float, push: float, scale: dict[str, float] | None = None) -> tuple[float, float]:
+    """x (um) and rot_z (mrad) of accelerometer_xyz (xyz_text) pushed by `push` (N) along x onto comb
+    xp_t's sidewall stop, from the model: K(etch) q = F - k gap^2 (p - delta/2) a / L (netgen.model.contact
+    past its ramp), p = a . q / L - 1 - 2 etch / gap (the stop at the widened gap), K from the etch's laws
+    (netgen.model.process_values). `scale`: relative factors on PUSH_PARTS (the rest's sensitivities)."""
+    from netgen.model.process_values import coordinate_values
+
+    f = {k: 1.0 for k in PUSH_PARTS} | (scale or {})
+    names = [c.name for c in model.coordinates]
+    vx, vr = names.index("x"), names.index("rot_z")
+    pt = next(p for p in model.contact["points"] if p["electrode"] == "xp_t" and p["a"][vx] != 0.0)
+    a = np.array([pt["a"][vx] / model.coordinates[vx].scale, pt["a"][vr] / model.coordinates[vr].scale])
+    spring = np.diag(
+        [coordinate_values(model.process, v, etch=etch)[1] * f[k] for v, k in ((vx, "k_x"), (vr, "k_rot_z"))]
+    )
+    gain = f["stop"] * model.contact["stiffness"] * pt["gap"] ** 2 * a
+    shift = 1 + f["offset"] * 2 * etch / pt["gap"] + model.contact["smoothing"] / 2
+    q = np.linalg.solve(spring + np.outer(gain, a), np.array([f["push"] * push, 0.0]) + gain * shift)
+    return float(q[0] * 1e6), float(q[1] * 1e3)
