@@ -35,6 +35,11 @@ def against_rebuilds(label: str, nominal, rebuild) -> None:
     print(
         f"{label}: stated etch errors: mechanics {law['max_rel_error']:.2e}, capacitance "
         f"{law['capacitance_max_rel_error']:.2e}; fit errors up to {max(f.max_rel_error for f in nominal.capacitances):.2e}"
+        + (
+            f"; capacitance without the combs' state factors {law['capacitance_stateless_max_rel_error']:.2e}"
+            if "capacitance_stateless_max_rel_error" in law
+            else ""
+        )
     )
     x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, nominal.ncoords))
     worst_f = worst_c = 0.0

@@ -26,6 +26,7 @@ from .electrostatics.sampling import (
     Samples,
     box_factors,
     box_range,
+    check_points,
     coordinate_ranges,
     coordinate_scales,
     sample_grid,
@@ -347,13 +348,12 @@ def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
     structure (netgen.model.process.etch_record). A beam's modes are its own structure's (an etched
     cantilever's are those of its shorter length, peak 1 at its tip: the coordinates a rebuild has);
     a proof mass's rigid coordinates do not depend on its outline (the nominal basis)."""
-    half = s0.sampling.range * box_factors(s0.sampling, len(m.names)) * scales
 
     def extract(s: Structure, n: int, offset: np.ndarray | None = None) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
         own = getattr(s.conductor, "one_dimensional", False) and s.conductor != s0.conductor
         prepared = extractor(s, plate).prepare(shapes, plate, mechanics(s).basis if own else m.basis)
-        q = np.vstack([np.zeros(len(m.names)), np.random.default_rng(0).uniform(-1.0, 1.0, (n, len(m.names))) * half])
+        q = check_points(s0.sampling, n, len(m.names)) * scales
         return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
 
     return extract

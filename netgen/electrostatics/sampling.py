@@ -75,6 +75,14 @@ def box_factors(sampling, ncoords: int) -> np.ndarray:
     return np.array(sampling.factors, dtype=float) if sampling.factors else np.ones(ncoords)
 
 
+def check_points(sampling, n: int, ncoords: int) -> np.ndarray:
+    """Rest and n random points of the fit box in scaled coordinates (q / L; fixed seed: the same
+    points for every structure), where the process laws compare re-runs (netgen.build.capacitance_sampler
+    extracts there, netgen.model.etch_state fits there)."""
+    half = sampling.range * box_factors(sampling, ncoords)
+    return np.vstack([np.zeros(ncoords), np.random.default_rng(0).uniform(-1.0, 1.0, (n, ncoords)) * half])
+
+
 def coordinate_ranges(sampling, names: list[str]) -> np.ndarray:
     """The half-width of each named coordinate's box from [sampling] range (a number, or a table
     whose "*" or the default 0.2 covers the coordinates it does not name)."""

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..model import MacroModel
 from ..model.process import ETCH_UNIT, LAW_KEYS
-from . import process
+from . import etch_state, process
 from .common import num, stop_constants
 
 PAIRS = ("xx", "yy", "zz", "xy", "xz", "yz")  # the runtime's order of the centrifugal products
@@ -145,7 +145,32 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     }
     if knots:  # only then: the runtime's text without knots is unchanged
         defines["NKNOT"] = len(knots)
+    state = state_arrays(model, array)
+    if state:  # likewise: the combs' etch state factors (netgen.emit.etch_state)
+        data += state
+        defines["NSTATE"] = len(state[0]["data"].split(", "))
     return data, defines, names
+
+
+def state_arrays(model: MacroModel, array) -> list[dict]:
+    """The combs' etch state factors 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state) as monomials:
+    owner (index in model.capacitances) STATE_ELEC, exponents STATE_EXP, P1's and P2's coefficients
+    STATE_C1, STATE_C2; [] without any."""
+    laws = etch_state.state_laws(model)
+    rows = [
+        (i, e, a, b)
+        for i, f in enumerate(model.capacitances)
+        if f.electrode in laws
+        for e, a, b in zip(laws[f.electrode]["exponents"], *laws[f.electrode]["coeffs"])
+    ]
+    if not rows:
+        return []
+    return [
+        array("int", "STATE_ELEC", [r[0] for r in rows]),
+        array("int", "STATE_EXP", [x for r in rows for x in r[1]]),
+        array("double", "STATE_C1", [r[2] for r in rows]),
+        array("double", "STATE_C2", [r[3] for r in rows]),
+    ]
 
 
 def film_arrays(model: MacroModel, vr: dict[str, int], array) -> list[dict]:

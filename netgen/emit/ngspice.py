@@ -12,7 +12,7 @@ from ..core.constants import K_B
 from ..core.templating import render
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from . import inertial, process
+from . import etch_state, inertial, process
 from .common import (
     c_node,
     contact_terms,
@@ -179,6 +179,8 @@ def add_process(ctx: dict, model: MacroModel, gaps: bool = True) -> None:
     ctx["process_params"] = [f".param {n} = {{{e}}}" for n, e in process.factors(model)]
     ctx["gap_shift"] = process.gap_networks(model) if gaps else []
     ctx["etch_shift"] = process.etch_networks(model)
+    ctx["etch_state"] = etch_state.factor_lines(model)
+    ctx["state_forces"] = etch_state.force_rows(model, time_scale(model))
     ctx["process_text"] = process.header_text(model, gaps)
 
 
@@ -304,14 +306,16 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
     # the etch's capacitance ratio (netgen.emit.process.capacitance_ratios) scales C, so the charge and,
     # through dv2 (every force of the electrode is linear in it), the forces
     ratio = f"pc_{e}" if e in process.capacitance_ratios(model) else ""
-    dv2 = {"name": dv2_node(e), "expr": (f"{{{ratio}}}*" if ratio else "") + f"v({e},{plate})*v({e},{plate})"}
+    # a comb's state factor (netgen.emit.etch_state) scales C too: pr_<e> on dv2 and the charge
+    pr = f"v(pr_{e})*" if e in etch_state.state_laws(model) else ""
+    dv2 = {"name": dv2_node(e), "expr": (f"{{{ratio}}}*" if ratio else "") + f"{pr}v({e},{plate})*v({e},{plate})"}
     if f.target == "direct":
         return {
             "nodes": [{"name": node(e, 0), "expr": poly_expr(f.polys[0], state)}],
             "dv2": dv2,
             "ys": [],
             "gs": [],
-            "charge_expr": charge_expr(f, plate, ratio),
+            "charge_expr": pr + charge_expr(f, plate, ratio),
         }
     nodes, gs, ys = [], [], []
     zero = np.zeros((1, len(state)))
@@ -342,7 +346,9 @@ def fast_fit(model: MacroModel, f, clamp: list, state: list[str]) -> dict:
         "dv2": dv2,
         "sums": sums,
         "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
-        "charge": charge_node(e, f"v({cs})", plate, process.charge_scale(model, e, num(f.c_ref))),
+        "charge": charge_node(
+            e, etch_state.charge_factor(model, f, f"v({cs})"), plate, process.charge_scale(model, e, num(f.c_ref))
+        ),
     }
 
 

@@ -344,9 +344,10 @@ def thickness_header(t: dict) -> str:
     )
 
 
-def header_text(model: MacroModel, gaps: bool = True) -> str:
+def header_text(model: MacroModel, gaps: bool = True, state: bool = True) -> str:
     """The header's statement of each declared process parameter: meaning, valid range and error
-    (without `gaps`, why this form has no dg_<set>); "" without [process]."""
+    (without `gaps`, why this form has no dg_<set>; without `state`, that it leaves the combs' etch
+    state factor out, netgen.model.etch_state); "" without [process]."""
     if not enabled(model):
         return ""
     p = model.process
@@ -385,7 +386,7 @@ def header_text(model: MacroModel, gaps: bool = True) -> str:
         text += f" ({p['temp']['film_branches']})" if p["temp"].get("film_branches") else ""
         parts.append(text)
     if declared(model, "etch"):
-        parts.append(etch_header(p["etch"], knots(model)))
+        parts.append(etch_header(p["etch"], knots(model), state))
     if energy_moved(model):
         err = p["strain_energy"]["max_rel_error"]
         parts.append(

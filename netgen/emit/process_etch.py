@@ -8,8 +8,9 @@ from .common import num, unit_load
 from .process_base import declared, poly
 
 
-def etch_header(e: dict, knots: list[float]) -> str:
-    """The header's etch sentence from the model's etch record `e` and the torsion knots (etch / 1 um)."""
+def etch_header(e: dict, knots: list[float], state: bool = True) -> str:
+    """The header's etch sentence from the model's etch record `e` and the torsion knots (etch / 1 um);
+    `state`: the form renders the combs' state factors (etch_neglect)."""
     lo, hi = (x * 1e6 for x in e["range_m"])
     body = (
         "the flexure beams (widths w - 2 etch), the proof mass's outline (sides - 2 etch) and etch holes "
@@ -28,18 +29,20 @@ def etch_header(e: dict, knots: list[float]) -> str:
             if knots
             else ""
         )
-        + etch_neglect(e)
+        + etch_neglect(e, state)
         + ("; the a_in load times the etched body's ratio (a cubic in etch)" if e.get("acceleration") else "")
     )
 
 
-def etch_neglect(e: dict) -> str:
+def etch_neglect(e: dict, state: bool = True) -> str:
     """The header's statement of the capacitances under etch: each electrode's C times its ratio
     pc_<electrode> (netgen.model.process.capacitance_laws), a comb's fit read at its etch-shifted state
-    xe (gap g + 2 etch, overlap - 2 etch), and that law's error over the fit box."""
+    xe (gap g + 2 etch, overlap - 2 etch), its state factor where it has one and the form renders it
+    (`state`; netgen.model.etch_state), and that law's error over the fit box."""
     if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
-    err = e["capacitance_max_rel_error"]
+    has = "capacitance_stateless_max_rel_error" in e
+    err = e["capacitance_max_rel_error"] if state or not has else e["capacitance_stateless_max_rel_error"]
     combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
     fill = any(r.get("fill") for r in e.get("capacitance", []))
     fitted = any(r.get("stop_shift") for r in e.get("capacitance", []))
@@ -54,6 +57,15 @@ def etch_neglect(e: dict) -> str:
         + (
             " plus a fitted part across the fingers for the far gap and the fringe (netgen.model.etch_combs; the stops follow the geometric shift)"
             if fitted
+            else ""
+        )
+        + (
+            (
+                ", the combs' C times a state factor 1 + u P1(xs) + u^2 P2(xs), u = etch / 1 um (netgen.model.etch_state; nodes pr_*)"
+                if state
+                else ", the combs' state factor (netgen.model.etch_state) left out in this form"
+            )
+            if has
             else ""
         )
         + (

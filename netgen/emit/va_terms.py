@@ -30,7 +30,7 @@ import numpy as np
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from . import process
+from . import etch_state, process
 from .common import clamp_expr, dv2_node, node, num, poly_expr
 
 ROUND = num(2.0**40)  # the copies' grid: 2^-40 ~ 9e-13 of a state (O(1)) or a volt
@@ -120,8 +120,36 @@ def _sum(terms: Sequence[str | None], sep: str = "\n            + ", per_line: i
 
 def ratio(model: MacroModel, electrode: str) -> str:
     """ "pc_<electrode> * " where the electrode's capacitance has an etch ratio (netgen.emit.process.
-    capacitance_ratios: it scales C, so the charge, the forces and their Jacobian), else ""."""
-    return f"pc_{electrode} * " if electrode in process.capacitance_ratios(model) else ""
+    capacitance_ratios: it scales C, so the charge, the forces and their Jacobian), else ""; times
+    "pr_<electrode> * ", a comb's state factor (netgen.emit.etch_state), a variable of the live states:
+    the compiler's derivatives of it complete the Jacobian (pr' C0 and pr' dC0/dq)."""
+    pc = f"pc_{electrode} * " if electrode in process.capacitance_ratios(model) else ""
+    return pc + (f"pr_{electrode} * " if electrode in etch_state.state_laws(model) else "")
+
+
+def live_capacitance(f: CapacitanceFit, model: MacroModel, m_rows: list[dict], fold: Fold) -> str:
+    """C0 of one fit with its xs-derivative written out, c_ref sum_k r_k + sum_w m_w dx_w (as the
+    charge): the factor of the product rule's second force term (state_force)."""
+    e = f.electrode
+    if f.target == "direct":
+        value = node(e, 0) if fold(f.c_ref, f.polys[0]) else f"{num(f.c_ref)} * {node(e, 0)}"
+    else:
+        value = f"{num(f.c_ref)} * (" + " + ".join(r_var(e, k) for k in range(len(f.polys))) + ")"
+    parts = [f"{dx(model.coordinates[m['coord']].name)} * {m['name']}" for m in m_rows]
+    return f"({value}" + (f" + {_sum(parts, ' + ')})" if parts else ")")
+
+
+def state_force(model: MacroModel, v: int, live: dict[str, str]) -> list[str]:
+    """The product rule's second terms of F_v times 2 L_v: pc dV^2 C0 dpr/dxs_v per electrode with a
+    state factor (netgen.emit.etch_state; `live`: electrode -> live_capacitance), on the live states."""
+    out = []
+    states = [f"xs_{c.name}" for c in model.coordinates]
+    for e, law in etch_state.state_laws(model).items():
+        grad = etch_state.gradient_text(law, v, states, "V({})", etch_state.VA_U)
+        if grad is not None:
+            pc = f"pc_{e} * " if e in process.capacitance_ratios(model) else ""
+            out.append(f"{pc}V({e}, {model.plate}) * V({e}, {model.plate}) * {live[e]} * ({grad})")
+    return out
 
 
 def dv2_value(model: MacroModel, electrode: str) -> str:
@@ -193,10 +221,12 @@ def charge(f: CapacitanceFit, model: MacroModel, m_rows: list[dict], fold: Fold)
     return value + (f" + {vf(e)} * ({_sum(parts)})" if parts else "")
 
 
-def force(model: MacroModel, v: int, m_rows: dict[str, list[dict]]) -> str:
+def force(model: MacroModel, v: int, m_rows: dict[str, list[dict]], live: dict[str, str] | None = None) -> str:
     """F_v (SI): 1/(2 L_v) (sum_i dv2_i m_iv - sum_w S_vw dx_w): the plate terms' share at xf through
-    the slopes m (`slopes`, per electrode), and the explicit xs-derivative through S."""
+    the slopes m (`slopes`, per electrode), and the explicit xs-derivative through S; plus the combs'
+    state factors' product-rule terms (state_force, `live`)."""
     terms = [f"{dv2_node(e)} * {m['name']}" for e, rows in m_rows.items() for m in rows if m["coord"] == v]
+    terms += state_force(model, v, live or {})
     jac = [f"{s_var(model, v, w)} * {dx(c.name)}" for w, c in enumerate(model.coordinates)]
     value = _sum(terms) if terms else "0.0"
     return f"{num(0.5 / model.coordinates[v].scale)} * ({value}\n            - ({' + '.join(jac)}))"
@@ -234,11 +264,12 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
     the state names its plate terms read (the gap offsets of netgen.emit.process), else the copies."""
     names = [xf(c.name) for c in model.coordinates]
     clamps = model.term_clamps()
-    m_rows = {}
+    m_rows, live = {}, {}
     for i, (row, f) in enumerate(zip(fits, model.capacitances)):
         own = (shifted or {}).get(f.electrode, names)
         row["plate_terms"] = _term_rows(f, clamps[i] if clamps else None, own, fold, dv2_value(model, f.electrode))
         row["slopes"] = m_rows[f.electrode] = slopes(f, model, own, fold)
+        live[f.electrode] = live_capacitance(f, model, row["slopes"], fold)
         scale, value = ratio(model, f.electrode), charge(f, model, row["slopes"], fold)
         row["charge"] = f"{scale}({value})" if scale else value
         row["dv2_scale"] = scale
@@ -250,5 +281,5 @@ def rows(model: MacroModel, fits: list[dict], fold: Fold, shifted: dict | None =
         ],
         "vf_expr": {f.electrode: frozen(f"V({f.electrode}, {model.plate})") for f in model.capacitances},
         "stiffness": stiffness(model, names, shifted),
-        "forces": [force(model, v, m_rows) for v in range(model.ncoords)],
+        "forces": [force(model, v, m_rows, live) for v in range(model.ncoords)],
     }

@@ -17,7 +17,7 @@ from ..core.names import VERILOG_A as KEYWORDS
 from ..core.templating import render
 from ..fit.polynomial import Polynomial
 from ..model import Coordinate, MacroModel
-from . import inertial, process, va_terms
+from . import etch_state, inertial, process, va_terms
 from .common import (
     INPUT_KINDS,
     contact_terms,
@@ -145,6 +145,12 @@ def process_rows(model: MacroModel, ctx: dict) -> None:
     ctx["process_params"] = process.va_params(model)
     # pt_<q> (the .lib's noise factor) is not needed: the white_noise reads pd_<q> and temp itself
     ctx["process_vars"] = [{"name": n, "expr": e} for n, e in process.factors(model) if not n.startswith("pt_")]
+    # the combs' etch state factors pr_<e> on the live states (netgen.emit.va_terms renders their use)
+    live = [f"xs_{c.name}" for c in model.coordinates]
+    ctx["process_vars"] += [
+        {"name": f"pr_{e}", "expr": etch_state.factor_text(law, live, "V({})", etch_state.VA_U)}
+        for e, law in etch_state.state_laws(model).items()
+    ]
     ctx["process_text"] = process.header_text(model)
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.templating import render
 from ..model import MacroModel
-from . import ngspice, process
+from . import etch_state, ngspice, process
 from .common import c_node, force_gain, num, rest_capacitance, stop_constants, time_scale, unit_load
 
 # ------------------------------------------------------------------ the XSPICE code model form
@@ -47,18 +47,24 @@ def fit_rows(model: MacroModel, f) -> dict:
     return {
         "sums": [unit_load(cs)],
         "c0": process.charge_scale(model, e, num(f.c_ref * c0)),
-        "charge": ngspice.charge_node(e, f"v({cs})", model.plate, process.charge_scale(model, e, num(f.c_ref))),
+        "charge": ngspice.charge_node(
+            e, etch_state.charge_factor(model, f, f"v({cs})"), model.plate, process.charge_scale(model, e, num(f.c_ref))
+        ),
     }
 
 
 def etch_voltages(model: MacroModel) -> tuple[list[str], dict[str, str]]:
     """The code model's voltage inputs of the electrodes with an etch capacitance ratio pc_<e>
-    (netgen.emit.process.capacitance_ratios): a VCVS node pv_<e> = sqrt(pc_<e>) (V_e - V_plate), so
-    the compiled forces (quadratic in the voltage) carry pc_<e>; the charges scale on their capacitors
+    (netgen.emit.process.capacitance_ratios): a VCVS node pv_<e> = sqrt(pc_<e>) (V_e - V_plate) (times
+    sqrt(pr_<e>), a comb's state factor: netgen.emit.etch_state), so the compiled forces (quadratic in
+    the voltage) carry pc_<e>; the charges scale on their capacitors
     (fit_rows). Lines and electrode -> its input."""
-    lines, inputs = [], {}
+    lines, inputs, states = [], {}, etch_state.state_laws(model)
     for e in process.capacitance_ratios(model):
-        lines.append(f"Epv_{e} pv_{e} 0 {e} {model.plate} {{sqrt(pc_{e})}}")
+        if e in states:  # the comb's state factor pr_<e> too (netgen.emit.etch_state)
+            lines.append(f"Bpv_{e} pv_{e} 0 V=sqrt({{pc_{e}}}*v(pr_{e}))*v({e},{model.plate})")
+        else:
+            lines.append(f"Epv_{e} pv_{e} 0 {e} {model.plate} {{sqrt(pc_{e})}}")
         inputs[e] = f"%vd(pv_{e} 0)"
     return lines, inputs
 

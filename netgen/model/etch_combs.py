@@ -17,7 +17,7 @@ checked at), the largest departure of the log-ratio from its value at rest (the 
 rest), linearised in d (one central difference of ln C along n at the geometric shift: d etch is
 15 nm at 0.1 um, the linearisation's own error ~1e-5). What it leaves is even in the out-of-plane
 offset (z and the tilts: the narrower finger's fringe), 5e-4 .. 7e-4 at the box's ends along each,
-which no shift carries.
+which no shift carries (netgen.model.etch_state's factor does).
 """
 
 from __future__ import annotations

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from ..electrostatics.sampling import check_points
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
 from ..mechanics.damping import squeeze_film_damping
@@ -51,6 +52,7 @@ from ..structure.schema import Process
 from .etch_combs import gap_shifts
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points
+from .etch_state import state_factor, state_laws
 from .process_film import GAP_SIDES, KELVIN, film_law, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 from .process_values import LAW_KEYS as LAW_KEYS  # re-exported: the laws' evaluation at a point
@@ -452,7 +454,9 @@ def capacitance_laws(
     depends on the gap; such a law is marked "fill": the contact stops do not follow it). A
     transverse comb's shift across the fingers gets an effective part where the form is not a shift
     (netgen.model.etch_combs: the far gap and the fringe of the narrower finger, which a constant ratio
-    cannot carry); its geometric shift, which the stops follow, is then stated apart (stop_shift)."""
+    cannot carry); its geometric shift, which the stops follow, is then stated apart (stop_shift).
+    A comb whose law still depends on the state gets the factor 1 + u P1(xs) + u^2 P2(xs) ("state",
+    netgen.model.etch_state)."""
     shifts = comb_shifts(s, coords)
     geometric = comb_fit(s, p, extract, names, coords, shifts)
     plates = fill_shifts(s, extract, etched, coords, [names.index(n) for n in fill[0]], p.etch_range, fill[1])
@@ -473,11 +477,17 @@ def capacitance_laws(
     u = tuple(e / ETCH_UNIT for e in points)
     coef, err = power_fit(u, rest / drawn, np.ones_like(rest), nominal=0.0)
     ratios = [[float(x) for x in coef[k]] for k in range(len(names))]
+    combs = {k: (vectors[k], ratios[k]) for k, n in enumerate(names) if n in comb_shifts(s, coords)}
+    states = state_laws(s, extract, etched, combs, points, CAPACITANCE_POINTS)
+    xs = check_points(s.sampling, CAPACITANCE_POINTS, len(coords))
+    bare = err  # the law without the combs' state factors (the forms that leave it out state this)
     for e in p.etch_range:
         moved = extract(etched(s, e), CAPACITANCE_POINTS)
         for k, v in enumerate(vectors):
             ref = ratio_value(ratios[k], e) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
             ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
+            bare = max(bare, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
+            ref = ref * state_factor(states[k], xs, e) if k in states else ref
             err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
     laws: list[dict[str, Any]] = []
     for n, r in zip(names, ratios):
@@ -485,7 +495,9 @@ def capacitance_laws(
             laws.append({"electrode": n, "ratio": r} | ({"shift": shifts[n]} if shifts.get(n) else {}))
             laws[-1] |= {"fill": True} if n in fill[0] and shifts.get(n) else {}
             laws[-1] |= {"stop_shift": geometric[n]} if n in geometric else {}
-    return {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+            laws[-1] |= {"state": states[names.index(n)]} if names.index(n) in states else {}
+    out = {"capacitance": laws, "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0}
+    return out | ({"capacitance_stateless_max_rel_error": bare} if states else {})
 
 
 def comb_fit(

@@ -353,6 +353,31 @@ def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords
             c.fail(f"{where}.stop_shift", "must be an object over the shift's coordinates (not with fill)")
         for q, x in stops.items():
             c.number(f"{where}.stop_shift.{q}", x)
+        if "state" in law:
+            check_state_law(c, law["state"], f"{where}.state", len(coords))
+
+
+def check_state_law(c: Checker, law: Any, where: str, ncoords: int) -> None:
+    """A comb's state factor 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state), which every form
+    renders as monomials: exponents a list of rows of ncoords integers >= 0, none all zero (the ratio
+    pc holds the constant), and coeffs two lists of numbers, one per row."""
+    exps: Any = law.get("exponents") if isinstance(law, dict) else None
+    ok = isinstance(exps, list) and all(
+        isinstance(r, list) and len(r) == ncoords and all(isinstance(k, int) and k >= 0 for k in r) and sum(r) > 0
+        for r in exps
+    )
+    if not ok:
+        c.fail(f"{where}.exponents", f"must be a list of rows of {ncoords} integers >= 0, none all zero")
+    coeffs: Any = law.get("coeffs")
+    if (
+        not isinstance(coeffs, list)
+        or len(coeffs) != 2
+        or any(not isinstance(r, list) or len(r) != len(exps) for r in coeffs)
+    ):
+        c.fail(f"{where}.coeffs", f"must be two lists of {len(exps)} numbers (P1's and P2's)")
+    for j, row in enumerate(coeffs):
+        for k, x in enumerate(row):
+            c.number(f"{where}.coeffs[{j}][{k}]", x)
 
 
 def check_process(
@@ -406,7 +431,11 @@ def check_process(
         for k, x in enumerate(etch["range_m"]):
             c.number(f"process.etch.range_m[{k}]", x)
         c.number("process.etch.max_rel_error", etch.get("max_rel_error"))
-        for key in ("area_rel", "capacitance_max_rel_error"):  # stated in the header (netgen.emit.process)
+        for key in (
+            "area_rel",
+            "capacitance_max_rel_error",
+            "capacitance_stateless_max_rel_error",
+        ):  # stated in the header (netgen.emit.process)
             if key in etch:
                 c.number(f"process.etch.{key}", etch[key])
         check_capacitance_laws(c, etch.get("capacitance", []), names, coords)

@@ -122,7 +122,8 @@ def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:
 
 def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
     """The fits at the etch bias (netgen.model.process.capacitance_at's arithmetic, as the emitters
-    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio."""
+    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio; a
+    comb's state factor (netgen.model.etch_state) is no form of these fits and is left out here."""
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     if not etch or not laws:
         return fits

@@ -6,7 +6,8 @@ finger widths ship with the package (netgen/electrostatics/comb_tables), so noth
 
 The law (netgen.model.process.capacitance_laws) reads each comb's fit at the state shifted across
 its fingers by the geometric 2 etch plus a fitted effective part (netgen.model.etch_combs: the far
-gap and the fringe of the narrower finger), times the ratio pc(etch).
+gap and the fringe of the narrower finger), times the ratio pc(etch) and the comb's state factor
+1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state: what depends on the state beyond the shift).
 
 Tolerances:
 - capacitances at 100 points: the nominal fits read at the shifted state times the ratio against

@@ -1,0 +1,103 @@
+"""The state-dependent part of a comb's capacitance ratio under etch (netgen.model.process.
+capacitance_laws): C(q; etch) = pc(etch) (1 + u P1(xs) + u^2 P2(xs)) C(q + shift etch; 0), u = etch /
+1 um, xs = q / L the model's scaled state (unshifted: every form has it), P1 and P2 polynomials of
+total degree DEGREE without a constant term (the ratio pc is fitted at rest).
+
+What it carries: after the shifts (the geometric one and netgen.model.etch_combs' effective part
+across the fingers) a field2d comb's ratio C(q; etch) / (pc C(q + shift etch; 0)) still depends on
+the state, even in the fingers' out-of-plane offset (z and the tilts: the narrower finger's fringe)
+and more where that meets a closed gap (accelerometer_xyz: 3.1e-3 over the fit box at -+0.1 um). A
+ratio in etch alone cannot carry it; a polynomial in the state can, and its derivative enters the
+forces by the product rule, which the emitters render. Why u and u^2: the residual is not linear in
+etch (the best shift at each etch apart runs from 0.135 to 0.24 per m of etch across the range), and
+a term linear in u alone left 2.0e-3 on accelerometer_xyz where the two leave 8e-4 (degree 2).
+
+P1, P2 are one least-squares fit over the nonzero etch points of the mechanics' re-runs and
+FIT_POINTS points of the fit box other than the points the law's stated error is checked at (held
+out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
+none (the textbook combs: 9.3e-5, their law is a shift to that).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..electrostatics.sampling import check_points
+from ..fit.polynomial import monomial_exponents, monomials
+from .etch_knots import ETCH_UNIT
+
+DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
+FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the law is checked at
+FLOOR = 2e-4  # largest |residual| of an electrode's shift-and-ratio law below which it gets no P
+
+
+def state_laws(
+    s: Any,
+    extract: Callable,
+    etched: Callable,
+    laws: dict[int, tuple[np.ndarray, list[float]]],
+    etches: tuple[float, ...],
+    skip: int,
+    degree: int = DEGREE,
+    powers: int = 2,
+) -> dict[int, dict]:
+    """electrode index -> {"exponents", "coeffs": [P1's, P2's]} for the electrodes of `laws` (index ->
+    (shift per metre of etch in SI per coordinate, etch ratio cubic)) of `s`, from `extract(structure,
+    n, offset)` (netgen.build.capacitance_sampler) at `etched(s, etch)` for the nonzero `etches`, on
+    the rows after `skip` + 1 (and rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for
+    bench/etch_state.py's comparison of the alternatives."""
+    if not laws:
+        return {}
+    n = skip + FIT_POINTS
+    rows = np.r_[0, np.arange(skip + 1, n + 1)]
+    xs = check_points(s.sampling, n, len(next(iter(laws.values()))[0]))[rows]
+    exps = monomial_exponents(xs.shape[1], degree)
+    exps = exps[exps.sum(axis=1) > 0]
+    basis = monomials(xs, exps)
+    points = [e for e in etches if e != 0.0]
+    moved = {e: extract(etched(s, e), n)[rows] for e in points}
+    out: dict[int, dict] = {}
+    for k, (v, ratio) in laws.items():
+        with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out
+            r = np.array([moved[e][:, k] / (ratio_at(ratio, e) * extract(s, n, v * e)[rows, k]) - 1.0 for e in points])
+        ok = np.all(np.isfinite(r), axis=0)
+        if np.max(np.abs(r[:, ok])) < FLOOR:
+            continue
+        u = np.array(points) / ETCH_UNIT
+        design = np.concatenate([np.hstack([ui**j * basis[ok] for j in range(1, powers + 1)]) for ui in u])
+        coef, *_ = np.linalg.lstsq(design, r[:, ok].ravel(), rcond=None)
+        m = len(exps)
+        second = coef[m:] if powers == 2 else np.zeros(m)
+        out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), second.tolist()]}
+    return out
+
+
+def ratio_at(ratio: list[float], etch: float) -> float:
+    """An etch ratio cubic in etch / 1 um at `etch` (m)."""
+    u = etch / ETCH_UNIT
+    return float(np.dot(ratio[:4], [1.0, u, u * u, u**3]))
+
+
+def state_factor(law: dict, xs: np.ndarray, etch: float) -> np.ndarray:
+    """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords): the factor the emitters render."""
+    u = etch / ETCH_UNIT
+    m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
+    return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
+
+
+def state_gradient(law: dict, xs: np.ndarray, etch: float) -> np.ndarray:
+    """d(state_factor)/dxs, (npoints, ncoords): the product rule's second factor in the forces."""
+    u = etch / ETCH_UNIT
+    xs = np.atleast_2d(xs)
+    exps = np.array(law["exponents"], dtype=int)
+    c = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
+    out = np.zeros_like(xs, dtype=float)
+    for v in range(xs.shape[1]):
+        d = exps.copy()
+        keep = d[:, v] > 0
+        d[keep, v] -= 1
+        out[:, v] = monomials(xs, d[keep]) @ (c[keep] * exps[keep, v])
+    return out
