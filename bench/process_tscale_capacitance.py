@@ -51,6 +51,10 @@ def report(label: str, text, modes: bool = False) -> None:
     nominal = build_model(parse_structure(text(1.0, PROCESS), "case.toml"))
     law = nominal.process["tscale"]
     names = [r["electrode"] for r in law.get("capacitance_laws", [])]
+    bare = law.get("capacitance_stateless_max_rel_error")
+    states = [r["electrode"] for r in law.get("capacitance_laws", []) if "state" in r]
+    if states:  # the combs' state factors (netgen.model.etch_state with u = tscale - 1)
+        print(f"{label}: state factors on {states}; stated without them {bare:.2g}")
     print(f"{label}: laws on {names}, stated {law.get('capacitance_max_rel_error', 0.0):.2g}, "
           f"fits {max(f.max_rel_error for f in nominal.capacitances):.2g}, build {time.perf_counter() - t0:.1f} s")  # fmt: skip
     x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, nominal.ncoords))
