@@ -16,7 +16,9 @@ from .process_base import declared
 
 U1, U2 = "{1e6*etch}", "{1e12*etch*etch}"  # u and u^2 as ngspice parameter expressions
 VA_U = ("(1e6 * etch)", "(1e12 * etch * etch)")  # the same in Verilog-A
-T_U = ("{tscale-1}", "{(tscale-1)*(tscale-1)}")  # under tscale: u = tscale - 1
+# under tscale: u = tscale - 1, parenthesized inside the braces (ngspice 39 and 46 read a B source's
+# V=1 + {tscale-1}*(2) at tscale 0.9 as -0.1, with {(tscale-1)} as 0.8)
+T_U = ("{(tscale-1)}", "{(tscale-1)*(tscale-1)}")
 T_VA_U = ("(tscale - 1)", "((tscale - 1) * (tscale - 1))")
 RECORDS = {"etch": "capacitance", "tscale": "capacitance_laws"}  # where each parameter's laws are
 
