@@ -43,6 +43,7 @@ import pytest
 from netgen import emit
 from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
+from netgen.emit.etch_state import RECORDS
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
@@ -203,9 +204,6 @@ def form_slopes(model, xs: np.ndarray, etch: float, param: str = "etch") -> np.n
             for v in range(3)
         ]
     )
-
-
-RECORDS = {"etch": "capacitance", "tscale": "capacitance_laws"}  # where each parameter's laws are
 
 
 def stateless(model, param: str = "etch"):
