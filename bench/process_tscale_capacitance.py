@@ -19,6 +19,7 @@ import numpy as np
 from support import process_cases
 
 from netgen.build import build_model
+from netgen.electrostatics.sampling import check_points
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 
@@ -37,6 +38,11 @@ def field2d(tscale: float = 1.0, process: str = "") -> str:
     return process_cases.xyz_thick(tscale, process).replace('comb_model = "textbook"', 'comb_model = "field2d"')
 
 
+def nominal_structure(text):
+    """The [sampling] of the nominal structure (its fit box)."""
+    return parse_structure(text(1.0), "case.toml").sampling
+
+
 def frequencies(nominal, model, tscale: float) -> None:
     """The law's modal frequencies against the rebuild's, per coordinate."""
     rel = []
@@ -51,12 +57,19 @@ def report(label: str, text, modes: bool = False) -> None:
     nominal = build_model(parse_structure(text(1.0, PROCESS), "case.toml"))
     law = nominal.process["tscale"]
     names = [r["electrode"] for r in law.get("capacitance_laws", [])]
+    bare = law.get("capacitance_stateless_max_rel_error")
+    states = [r["electrode"] for r in law.get("capacitance_laws", []) if "state" in r]
+    if states:  # the combs' state factors (netgen.model.etch_state with u = tscale - 1)
+        print(f"{label}: state factors on {states}; stated without them {bare:.2g}")
     print(f"{label}: laws on {names}, stated {law.get('capacitance_max_rel_error', 0.0):.2g}, "
           f"fits {max(f.max_rel_error for f in nominal.capacitances):.2g}, build {time.perf_counter() - t0:.1f} s")  # fmt: skip
     x = np.random.default_rng(5).uniform(-0.15, 0.15, (100, nominal.ncoords))
+    half = np.abs(check_points(nominal_structure(text), 32, nominal.ncoords)).max(axis=0)  # the box's corners
+    whole = np.random.default_rng(1).uniform(-1.0, 1.0, (2000, nominal.ncoords)) * half
     for tscale in (0.9, 1.1):
         model = build_model(parse_structure(text(tscale), "case.toml"))
-        ref = model.capacitance(x * nominal.scales / model.scales)
+        ratio = nominal.scales / model.scales
+        ref = model.capacitance(x * ratio)
         for group, keep in (("combs", "xy"), ("plates", "z")):
             cols = [k for k, f in enumerate(nominal.capacitances) if f.electrode[0] in keep]
             if not cols:
@@ -64,6 +77,8 @@ def report(label: str, text, modes: bool = False) -> None:
             got = np.abs(capacitance_at(nominal, x, tscale=tscale)[:, cols] / ref[:, cols] - 1).max()
             dropped = np.abs(capacitance_at(nominal, x)[:, cols] / ref[:, cols] - 1).max()
             print(f"  tscale {tscale}: {group} against the rebuild {got:.2g} (without the law {dropped:.2g})")
+            box = capacitance_at(nominal, whole, tscale=tscale)[:, cols] / model.capacitance(whole * ratio)[:, cols]
+            print(f"  tscale {tscale}: {group} over the whole fit box (2000 points) {np.abs(box - 1).max():.2g}")
         print(f"  tscale {tscale}: rebuild's fits {max(f.max_rel_error for f in model.capacitances):.2g}")
         if modes:
             frequencies(nominal, model, tscale)

@@ -1,5 +1,6 @@
-"""The combs' state factor under etch (netgen.model.etch_state: C = pc (1 + u P1(xs) + u^2 P2(xs))
-C0(xe), u = etch / 1 um) in the ngspice forms (.lib and _xspice.lib): a node pr_<e> holding the factor,
+"""The combs' state factor under etch or tscale (netgen.model.etch_state: C = pc (1 + u P1(xs) + u^2
+P2(xs)) C0(xe), u = etch / 1 um, or u = tscale - 1 from the tscale record; one parameter a model:
+tscale with etch on field2d combs is refused) in the ngspice forms (.lib and _xspice.lib): a node pr_<e> holding the factor,
 the charge and dv2 times it, and the product rule's second force term pc dV^2/2 C0 dpr/dq into the
 velocity nodes; the texts of the factor and its gradient for the .va (netgen.emit.va_terms: VA_U,
 live states whose derivatives the compiler takes). No physics here: the polynomials are the model's."""
@@ -15,13 +16,35 @@ from .process_base import declared
 
 U1, U2 = "{1e6*etch}", "{1e12*etch*etch}"  # u and u^2 as ngspice parameter expressions
 VA_U = ("(1e6 * etch)", "(1e12 * etch * etch)")  # the same in Verilog-A
+# under tscale: u = tscale - 1, parenthesized inside the braces (ngspice 39 and 46 read a B source's
+# V=1 + {tscale-1}*(2) at tscale 0.9 as -0.1, with {(tscale-1)} as 0.8)
+T_U = ("{(tscale-1)}", "{(tscale-1)*(tscale-1)}")
+T_VA_U = ("(tscale - 1)", "((tscale - 1) * (tscale - 1))")
+RECORDS = {"etch": "capacitance", "tscale": "capacitance_laws"}  # where each parameter's laws are
 
 
 def state_laws(model: MacroModel) -> dict[str, dict]:
-    """electrode -> its state factor's law where etch is declared and the comb has one, else {}."""
-    if not declared(model, "etch"):
-        return {}
-    return {r["electrode"]: r["state"] for r in model.process["etch"].get("capacitance", []) if "state" in r}
+    """electrode -> its state factor's law where its parameter is declared and the comb has one, else {}."""
+    return {
+        r["electrode"]: r["state"]
+        for name, key in RECORDS.items()
+        if declared(model, name)
+        for r in model.process[name].get(key, [])
+        if "state" in r
+    }
+
+
+def parameter(model: MacroModel) -> str:
+    """The parameter the model's state factors are in: tscale where its record has them, else etch."""
+    laws = model.process.get("tscale", {}).get("capacitance_laws", []) if declared(model, "tscale") else []
+    return "tscale" if any("state" in r for r in laws) else "etch"
+
+
+def u_texts(model: MacroModel, va: bool = False) -> tuple[str, str]:
+    """u and u^2 of the model's state factors as ngspice (or, `va`, Verilog-A) text."""
+    if parameter(model) == "tscale":
+        return T_VA_U if va else T_U
+    return VA_U if va else (U1, U2)
 
 
 def polys(law: dict) -> tuple[Polynomial, Polynomial]:
@@ -49,7 +72,8 @@ def gradient_text(
 def factor_lines(model: MacroModel) -> list[str]:
     """ngspice lines of the nodes pr_<e> = the electrode's state factor (a B voltage source)."""
     state = [f"xs_{c.name}" for c in model.coordinates]
-    return [f"Bpr_{e} pr_{e} 0 V={factor_text(law, state)}" for e, law in state_laws(model).items()]
+    u = u_texts(model)
+    return [f"Bpr_{e} pr_{e} 0 V={factor_text(law, state, u=u)}" for e, law in state_laws(model).items()]
 
 
 def charge_factor(model: MacroModel, f, c_text: str) -> str:
@@ -70,7 +94,7 @@ def force_rows(model: MacroModel, ws: float) -> list[dict]:
     for v, c in enumerate(model.coordinates):
         parts = []
         for f in model.capacitances:
-            grad = gradient_text(laws[f.electrode], v, state) if f.electrode in laws else None
+            grad = gradient_text(laws[f.electrode], v, state, u=u_texts(model)) if f.electrode in laws else None
             if grad is None:
                 continue
             e, plate = f.electrode, model.plate

@@ -151,6 +151,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     if state:  # likewise: the combs' etch state factors (netgen.emit.etch_state)
         data += state
         defines["NSTATE"] = len(state[0]["data"].split(", "))
+        defines["STATE_U"] = "(t - 1.0)" if etch_state.parameter(model) == "tscale" else "u"  # the factors' u
     return data, defines, names
 
 

@@ -281,13 +281,19 @@ def gap_networks(model: MacroModel, every: bool = False) -> list[str]:
 
 def thickness_header(t: dict) -> str:
     """The tscale header's capacitance clause: unchanged (plate electrodes), or the electrodes' ratio
-    pc_<electrode> in tscale (netgen.model.process.thickness_capacitance) and its stated error."""
+    pc_<electrode> in tscale (netgen.model.process.thickness_capacitance), a comb's state factor where
+    it has one, and its stated error."""
     laws = t.get("capacitance_laws")
     if laws is None:
         return " (capacitance: unchanged, plate electrodes)"
     err = t["capacitance_max_rel_error"]
     return (
         f"; capacitances of {', '.join(r['electrode'] for r in laws)} times pc_<electrode>, a cubic in tscale"
+        + (
+            ", the combs' C times a state factor 1 + u P1(xs) + u^2 P2(xs), u = tscale - 1 (netgen.model.etch_state; nodes pr_*)"
+            if any("state" in r for r in laws)
+            else ""
+        )
         + (f" within {err:.1e}" if err else " (exact: eps t / g)")
         + " against the extractor at the range's ends, rest and 32 fit-box points"
     )

@@ -1,7 +1,8 @@
-"""The state-dependent part of a comb's capacitance ratio under etch (netgen.model.process.
-capacitance_laws): C(q; etch) = pc(etch) (1 + u P1(xs) + u^2 P2(xs)) C(q + shift etch; 0), u = etch /
-1 um, xs = q / L the model's scaled state (unshifted: every form has it), P1 and P2 polynomials of
-total degree DEGREE without a constant term (the ratio pc is fitted at rest).
+"""The state-dependent part of a comb's capacitance ratio under a process parameter (an Axis: etch,
+netgen.model.process.capacitance_laws, or tscale, thickness_capacitance): C(q; etch) = pc(etch)
+(1 + u P1(xs) + u^2 P2(xs)) C(q + shift etch; 0), u = etch / 1 um (tscale: C(q; t) = pc(t) (1 + u P1
++ u^2 P2) C(q; 1), u = t - 1), xs = q / L the model's scaled state (unshifted: every form has it), P1
+and P2 polynomials of total degree DEGREE without a constant term (the ratio pc is fitted at rest).
 
 What it carries: after the shifts (the geometric one and netgen.model.etch_combs' effective part
 across the fingers) a field2d comb's ratio C(q; etch) / (pc C(q + shift etch; 0)) still depends on
@@ -11,8 +12,10 @@ ratio in etch alone cannot carry it; a polynomial in the state can, and its deri
 forces by the product rule, which the emitters render. Why u and u^2: the residual is not linear in
 etch (the best shift at each etch apart runs from 0.135 to 0.24 per m of etch across the range), and
 a term linear in u alone left 2.0e-3 on accelerometer_xyz where the two leave 8e-4 (degree 2).
+Under tscale the fringe above and below the fingers does not grow with t while the faces do, so
+the ratio falls with the gap and the out-of-plane offset (accelerometer_xyz: 9.4e-3 at 0.9 / 1.1).
 
-P1, P2 are one least-squares fit over the nonzero etch points of the mechanics' re-runs and
+P1, P2 are one least-squares fit over the parameter's points other than the nominal of the mechanics' re-runs and
 FIT_POINTS points of the fit box other than the points the law's stated error is checked at (held
 out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
 none (the textbook combs: 9.3e-5, their law is a shift to that).
@@ -21,6 +24,7 @@ none (the textbook combs: 9.3e-5, their law is a shift to that).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,6 +38,24 @@ FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the la
 FLOOR = 2e-4  # largest |residual| of an electrode's shift-and-ratio law below which it gets no P
 
 
+@dataclass(frozen=True)
+class Axis:
+    """The process parameter a state factor is fitted over: u = (value - nominal) / unit, and its
+    ratio cubic's variable value / unit (etch: etch / 1 um, nominal 0; tscale: tscale, nominal 1)."""
+
+    name: str
+    nominal: float
+    unit: float
+
+    def u(self, value: float) -> float:
+        """The factor's u at the parameter's value."""
+        return (value - self.nominal) / self.unit
+
+
+ETCH = Axis("etch", 0.0, ETCH_UNIT)
+TSCALE = Axis("tscale", 1.0, 1.0)
+
+
 def state_laws(
     s: Any,
     extract: Callable,
@@ -43,12 +65,13 @@ def state_laws(
     skip: int,
     degree: int = DEGREE,
     powers: int = 2,
+    axis: Axis = ETCH,
 ) -> dict[int, dict]:
     """electrode index -> {"exponents", "coeffs": [P1's, P2's]} for the electrodes of `laws` (index ->
-    (shift per metre of etch in SI per coordinate, etch ratio cubic)) of `s`, from `extract(structure,
-    n, offset)` (netgen.build.capacitance_sampler) at `etched(s, etch)` for the nonzero `etches`, on
-    the rows after `skip` + 1 (and rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for
-    bench/etch_state.py's comparison of the alternatives."""
+    (shift per unit of the parameter in SI per coordinate, ratio cubic)) of `s`, from
+    `extract(structure, n, offset)` (netgen.build.capacitance_sampler) at `etched(s, value)` for the
+    `etches` (the `axis` parameter's values) other than the nominal, on the rows after `skip` + 1 (and
+    rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for bench/etch_state.py's comparison."""
     if not laws:
         return {}
     n = skip + FIT_POINTS
@@ -57,16 +80,30 @@ def state_laws(
     exps = monomial_exponents(xs.shape[1], degree)
     exps = exps[exps.sum(axis=1) > 0]
     basis = monomials(xs, exps)
-    points = [e for e in etches if e != 0.0]
+    points = [e for e in etches if e != axis.nominal]
     moved = {e: extract(etched(s, e), n)[rows] for e in points}
+    memo: dict[tuple, np.ndarray] = {}
+
+    def drawn(offset: np.ndarray) -> np.ndarray:
+        """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
+        key = tuple(offset.tolist())
+        if key not in memo:
+            memo[key] = extract(s, n, offset)[rows]
+        return memo[key]
+
     out: dict[int, dict] = {}
     for k, (v, ratio) in laws.items():
         with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out
-            r = np.array([moved[e][:, k] / (ratio_at(ratio, e) * extract(s, n, v * e)[rows, k]) - 1.0 for e in points])
+            r = np.array(
+                [
+                    moved[e][:, k] / (ratio_at(ratio, e, axis) * drawn(v * (e - axis.nominal))[:, k]) - 1.0
+                    for e in points
+                ]
+            )
         ok = np.all(np.isfinite(r), axis=0)
         if np.max(np.abs(r[:, ok])) < FLOOR:
             continue
-        u = np.array(points) / ETCH_UNIT
+        u = np.array([axis.u(e) for e in points])
         design = np.concatenate([np.hstack([ui**j * basis[ok] for j in range(1, powers + 1)]) for ui in u])
         coef, *_ = np.linalg.lstsq(design, r[:, ok].ravel(), rcond=None)
         m = len(exps)
@@ -75,22 +112,23 @@ def state_laws(
     return out
 
 
-def ratio_at(ratio: list[float], etch: float) -> float:
-    """An etch ratio cubic in etch / 1 um at `etch` (m)."""
-    u = etch / ETCH_UNIT
+def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH) -> float:
+    """A ratio cubic in the value / unit at the `axis` parameter's value `etch` (etch: m)."""
+    u = etch / axis.unit
     return float(np.dot(ratio[:4], [1.0, u, u * u, u**3]))
 
 
-def state_factor(law: dict, xs: np.ndarray, etch: float) -> np.ndarray:
-    """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords): the factor the emitters render."""
-    u = etch / ETCH_UNIT
+def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
+    """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords) and the `axis` parameter's value:
+    the factor the emitters render."""
+    u = axis.u(etch)
     m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
     return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
 
 
-def state_gradient(law: dict, xs: np.ndarray, etch: float) -> np.ndarray:
+def state_gradient(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
     """d(state_factor)/dxs, (npoints, ncoords): the product rule's second factor in the forces."""
-    u = etch / ETCH_UNIT
+    u = axis.u(etch)
     xs = np.atleast_2d(xs)
     exps = np.array(law["exponents"], dtype=int)
     c = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])

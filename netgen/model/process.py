@@ -52,7 +52,7 @@ from ..structure.schema import Process
 from .etch_combs import gap_shifts
 from .etch_fill import fill_shifts
 from .etch_knots import ETCH_UNIT, basis, etch_knots, identity, knot_points
-from .etch_state import state_factor, state_laws
+from .etch_state import TSCALE, state_factor, state_laws
 from .process_film import GAP_SIDES, KELVIN, film_law, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 from .process_values import LAW_KEYS as LAW_KEYS  # re-exported: the laws' evaluation at a point
@@ -201,7 +201,11 @@ def process_laws(
             "fit_points": list(fit_points(p)),
             "capacitance": "unchanged (plate electrodes)",
         }
-        | (thickness_capacitance(s, p, extract, [e.name for e in electrodes]) if tscale_combs(s, p, extract) else {}),
+        | (
+            thickness_capacitance(s, p, extract, [e.name for e in electrodes], list(m.names))
+            if tscale_combs(s, p, extract)
+            else {}
+        ),
         "escale": {"range": list(p.escale_range), "max_rel_error": max(errors[1:3])},
         "temp": {
             "range_C": list(p.temp_range),
@@ -230,30 +234,46 @@ def tscale_combs(s: Structure, p: Process, extract) -> bool:
     return p.wants("tscale") and extract is not None and moved
 
 
-def thickness_capacitance(s: Structure, p: Process, extract, names: list[str]) -> dict:
+def thickness_capacitance(s: Structure, p: Process, extract, names: list[str], coords: list[str]) -> dict:
     """Each electrode's capacitance under tscale as C(q; tscale) = ratio(tscale) C(q; 1), the ratio a
     cubic in tscale (1 at 1) fitted to the extractor at rest at fit_points on the scaled structure
     (fingers, conductor and flexures tscale times as thick). A textbook comb's eps t L / g is linear
     in t at every state: the ratio is tscale, exact. What is not linear in t (a field2d comb's fringe
     above and below the fingers and the substrate's share, netgen.electrostatics.comb_section, which
     vary with the gap and the out-of-plane offset; a perforated plate's hole walls,
-    netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the state: the stated error is the largest |ratio C(q; 1) / C(q; tscale) - 1| over rest and
-    CAPACITANCE_POINTS random points of the fit box at the range's ends, and the cubic's residual."""
+    netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the state: a
+    comb's gets the state factor 1 + u P1(xs) + u^2 P2(xs), u = tscale - 1 ("state",
+    netgen.model.etch_state, fitted at the same thicknesses). The stated error is the largest
+    |ratio C(q; 1) / C(q; tscale) - 1| over rest and CAPACITANCE_POINTS random points of the fit box
+    at the range's ends (held out of the state fit), and the cubic's residual."""
     points = fit_points(p)
     rest = np.array([extract(scaled(s, t), 0)[0] for t in points])
     coef, err = power_fit(points, rest / rest[points.index(1.0)], np.ones_like(rest))
-    drawn = extract(s, CAPACITANCE_POINTS)
+    combs = {
+        k: (np.zeros(len(coords)), [float(x) for x in coef[k]])
+        for k, n in enumerate(names)
+        if n in comb_shifts(s, coords)
+    }
+    states = state_laws(s, extract, scaled, combs, points, CAPACITANCE_POINTS, axis=TSCALE)
+    xs = check_points(s.sampling, CAPACITANCE_POINTS, len(coords))
+    drawn, bare = extract(s, CAPACITANCE_POINTS), err
     for t in p.tscale_range:
         moved = extract(scaled(s, t), CAPACITANCE_POINTS)
         ref = drawn * np.array([float(np.dot(c, [1.0, t, t**2, t**3])) for c in coef])
         ok = np.isfinite(moved) & np.isfinite(ref)
+        bare = max(bare, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
+        for k, law in states.items():
+            ref[:, k] *= state_factor(law, xs, t, TSCALE)
         err = max(err, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
-    laws = [{"electrode": n, "ratio": [float(x) for x in c]} for n, c in zip(names, coef)]
+    laws = [
+        {"electrode": n, "ratio": [float(x) for x in c]} | ({"state": states[k]} if k in states else {})
+        for k, (n, c) in enumerate(zip(names, coef))
+    ]
     return {
         "capacitance": "times pc_<electrode>, a cubic in tscale (textbook comb fingers ~ t; field2d fingers and hole walls fitted)",
         "capacitance_laws": [r for r in laws if r["ratio"] != [1.0, 0.0, 0.0, 0.0]],
         "capacitance_max_rel_error": err if err > ROUND_OFF else 0.0,
-    }
+    } | ({"capacitance_stateless_max_rel_error": bare} if states else {})
 
 
 def etched(s: Structure, etch: float) -> Structure:

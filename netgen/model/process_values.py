@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .etch_knots import ETCH_UNIT, knot_value
-from .etch_state import state_factor
+from .etch_state import TSCALE, state_factor
 from .process_film import branches_at, film_ratio
 
 LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
@@ -35,12 +35,12 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float =
     """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x, the etch bias and
     tscale: each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws)
     and a comb's state factor (netgen.model.etch_state)
-    and its tscale ratio (thickness_capacitance; the arithmetic the emitters render)."""
+    and its tscale ratio and state factor (thickness_capacitance; the arithmetic the emitters render)."""
     x = np.atleast_2d(x)
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     names = [c.name for c in model.coordinates]
     out = model.capacitance(x)
-    thick = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
+    thick = {r["electrode"]: r for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
     for k, f in enumerate(model.capacitances):
         law = laws.get(f.electrode)
         if law is None:
@@ -54,7 +54,9 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float =
             out[:, k] *= state_factor(law["state"], x, etch)
     for k, f in enumerate(model.capacitances):
         if f.electrode in thick:
-            out[:, k] *= float(np.dot(thick[f.electrode], [1.0, tscale, tscale**2, tscale**3]))
+            out[:, k] *= float(np.dot(thick[f.electrode]["ratio"], [1.0, tscale, tscale**2, tscale**3]))
+            if "state" in thick[f.electrode]:  # a comb's state factor, u = tscale - 1
+                out[:, k] *= state_factor(thick[f.electrode]["state"], x, tscale, TSCALE)
     return out
 
 

@@ -321,14 +321,20 @@ def check_ratio_laws(c: Checker, laws: Any, path: str, names: tuple[str, ...]) -
             c.number(f"{where}.ratio[{k}]", x)
 
 
-def check_thickness_laws(c: Checker, tscale: dict, names: tuple[str, ...]) -> None:
+def check_thickness_laws(c: Checker, tscale: dict, names: tuple[str, ...], ncoords: int) -> None:
     """The tscale capacitance laws (netgen.model.process.thickness_capacitance), where there are:
-    per electrode one of the model's electrode names and four numbers, and their stated error."""
+    per electrode one of the model's electrode names and four numbers, a comb's optional state
+    factor, and their stated errors."""
     laws = tscale.get("capacitance_laws")
     if laws is None:
         return
     check_ratio_laws(c, laws, "process.tscale.capacitance_laws", names)
     c.number("process.tscale.capacitance_max_rel_error", tscale.get("capacitance_max_rel_error"))
+    if "capacitance_stateless_max_rel_error" in tscale:  # stated in the header (netgen.emit.process)
+        c.number("process.tscale.capacitance_stateless_max_rel_error", tscale["capacitance_stateless_max_rel_error"])
+    for i, law in enumerate(laws):
+        if "state" in law:
+            check_state_law(c, law["state"], f"process.tscale.capacitance_laws[{i}].state", ncoords)
 
 
 def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...]) -> None:
@@ -423,7 +429,7 @@ def check_process(
         for k, x in enumerate(rng):
             c.number(f"process.{where}[{k}]", x)
     c.number("process.tscale.max_rel_error", process["tscale"].get("max_rel_error"))
-    check_thickness_laws(c, process["tscale"], names)
+    check_thickness_laws(c, process["tscale"], names, ncoords)
     if "etch" in params:
         etch = process.get("etch")
         if not isinstance(etch, dict) or not isinstance(etch.get("range_m"), list) or len(etch["range_m"]) != 2:

@@ -108,7 +108,8 @@ def shifted_fits(model: MacroModel, point: dict[str, float]) -> list:
 
 def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:
     """The fits at tscale: each electrode with a tscale law (comb fingers ~ t, netgen.model.process.
-    thickness_capacitance) times its ratio, as the emitters render pc_<electrode>."""
+    thickness_capacitance) times its ratio, as the emitters render pc_<electrode>; a comb's state
+    factor (netgen.model.etch_state) is no form of these fits and is left out here."""
     laws = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
     if tscale == 1.0 or not laws:
         return fits

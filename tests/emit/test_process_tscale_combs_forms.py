@@ -22,8 +22,12 @@ Tolerances:
   small: the deflection 10 % off at 0.9 and 1.1.
 
 The same example with its own field2d combs (the `field2d` tests; pc_xp_t 0.933 at 0.9, not tscale:
-the fringe does not grow with t): xp_t's C at rest against the Python law alone (its departure from
-the rebuild is the model test's), 1e-9; under COMB_VOLTS the fingers also lift the mass (levitation),
+the fringe does not grow with t), whose combs carry the state factor 1 + u P1(xs) + u^2 P2(xs), u =
+tscale - 1 (netgen.model.etch_state; 1 at rest, so checked at a displaced state, with the helpers and
+bounds of tests/emit/test_process_etch_field2d_forms.py at tscale 0.9: xp_t's C there against the
+Python law, 1e-9; the forces on x, y, rot_z against a five-point difference of the law's C,
+F2D_TOL 4.2e-11, derived there for the same comb cells and fits' degree; the FMU's charge 1e-12 and
+forces; the law without the factor is seen); under COMB_VOLTS the fingers also lift the mass (levitation),
 so the state moves with tscale: the FMU's charge at its balance against the law there, 1e-12, and the
 .lib's .op (ngspice 39) and VACASK's op against the FMU's balance, Newton's bound as above.
 """
@@ -45,11 +49,13 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
+from tests.emit.test_process_etch_field2d_forms import check_state, check_state_fmu, state_deck
 from tests.fixtures import NGSPICE
 from tests.oracles import fmu_process as fp
 from tests.oracles.process_cases import control_block, xyz_thick
 
 TSCALES = (0.9, 1.1)  # the default tscale_range's ends
+STATE_TSCALE = 0.9  # the field2d combs' state factor's check: a range end (|u| largest)
 
 
 @pytest.fixture(scope="module")
@@ -174,15 +180,6 @@ def xyz2d():
     return build_model(parse_structure(text.replace('comb_model = "textbook"', 'comb_model = "field2d"'), "xyz.toml"))
 
 
-def check_law(model, plot, tscale: float) -> None:
-    """xp_t's C at rest against the Python law (capacitance_at; the forms render the same product, round-off 1e-9)."""
-    cap = abs(float(np.imag(plot["i(vp)"])[0])) / (2 * math.pi * 1e3)
-    k = [f.electrode for f in model.capacitances].index("xp_t")
-    assert cap == pytest.approx(
-        capacitance_at(model, np.zeros((1, model.ncoords)), tscale=tscale)[0, k], rel=1e-9, abs=0
-    )
-
-
 def test_field2d_law_is_not_tscale(xyz2d):
     """The case exercises what the textbook one cannot: the field2d comb's ratio departs from tscale (the
     fringe and the substrate's share do not grow with t), by more than a form's 1e-9 round-off could hide."""
@@ -190,29 +187,59 @@ def test_field2d_law_is_not_tscale(xyz2d):
     assert abs(float(np.dot(ratio, [1.0, 0.9, 0.81, 0.729])) / 0.9 - 1) > 1e-3
 
 
-@pytest.mark.parametrize("tscale", TSCALES)
-def test_field2d_lib(xyz2d, tmp_path, ngspice_version, tscale):
+def test_field2d_has_state_factors(xyz2d):
+    """Every comb of the field2d case carries a state factor (u = tscale - 1), and the stated error
+    with it is below the one without (the law's own check points, held out of the fit)."""
+    t = xyz2d.process["tscale"]
+    assert all("state" in r for r in t["capacitance_laws"] if r["electrode"][0] in "xy")
+    assert t["capacitance_max_rel_error"] < t["capacitance_stateless_max_rel_error"]
+
+
+def test_field2d_state_lib(xyz2d, tmp_path, ngspice_version):
     (tmp_path / "xyz.lib").write_text(emit_ngspice.subcircuit(xyz2d))
-    check_law(xyz2d, run_ngspice(deck(str(tmp_path / "xyz.lib"), tscale), tmp_path)[0], tscale)
+
+    def run(xs, bias):
+        deck = state_deck(str(tmp_path / "xyz.lib"), xyz2d, STATE_TSCALE, xs, bias, param="tscale")
+        return run_ngspice(deck, tmp_path / f"r{bias}")
+
+    check_state(xyz2d, run, STATE_TSCALE, "tscale")
 
 
-@pytest.mark.parametrize("tscale", TSCALES)
-def test_field2d_xspice(xyz2d, tmp_path, tscale):
+def test_field2d_state_xspice(xyz2d, tmp_path):
     xlib, control = sdn.xspice_library(xyz2d, tmp_path, sdn.code_models(False))
-    net = deck(str(xlib.resolve()), tscale, control_block(control, "ac.raw"))
-    check_law(xyz2d, run_ngspice(net, tmp_path)[0], tscale)
+
+    def run(xs, bias):
+        deck = state_deck(
+            str(xlib.resolve()), xyz2d, STATE_TSCALE, xs, bias, control_block(control, "s.raw"), param="tscale"
+        )
+        return run_ngspice(deck, tmp_path / f"r{bias}")
+
+    check_state(xyz2d, run, STATE_TSCALE, "tscale")
 
 
-@pytest.mark.parametrize("tscale", TSCALES)
-def test_field2d_osdi(xyz2d, tmp_path, monkeypatch, tscale):
+def test_field2d_state_osdi(xyz2d, tmp_path, monkeypatch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
     emit.write_outputs(xyz2d, tmp_path, "osdi")
-    control = control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw")
-    check_law(
-        xyz2d,
-        run_ngspice(deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), tscale, control), tmp_path / "run")[0],
-        tscale,
-    )
+    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+
+    def run(xs, bias):
+        deck = state_deck(
+            str(tmp_path / "accelerometer_xyz_osdi.lib"),
+            xyz2d,
+            STATE_TSCALE,
+            xs,
+            bias,
+            control_block(pre, "s.raw"),
+            param="tscale",
+        )
+        return run_ngspice(deck, tmp_path / f"r{bias}")
+
+    check_state(xyz2d, run, STATE_TSCALE, "tscale")
+
+
+def test_field2d_state_fmu(xyz2d):
+    """The FMU at the displaced state: charge and forces against the law (check_state_fmu's bounds)."""
+    check_state_fmu(xyz2d, STATE_TSCALE, "tscale")
 
 
 @pytest.mark.parametrize("tscale", TSCALES)

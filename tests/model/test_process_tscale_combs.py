@@ -19,8 +19,8 @@ Tolerances:
 
 The same example with its own field2d combs (the `field2d` tests; the 2-D section tables at the five
 thicknesses ship): the 100 points within the same bound (the stated error is then the ratio's spread
-over the fit box, the fringe's share moving with the gap and the out-of-plane offset), the modes as
-above. And the perforated plates' law against the fill factor's closed form at rest (fringe none), a
+over the fit box, the fringe's share moving with the gap and the out-of-plane offset, that the combs'
+state factor carries), the modes as above. And the perforated plates' law against the fill factor's closed form at rest (fringe none), a
 bound far under the plates' change (test_plate_law_is_the_hole_walls).
 """
 
@@ -123,8 +123,9 @@ def rebuilt2d(request):
 
 def test_field2d_capacitances_against_rebuild(nominal2d, rebuilt2d):
     """The field2d combs' law against rebuilds at 100 points: the bound of test_capacitances_against_rebuild
-    (2 x the larger fit error + the stated law error; the stated error is the ratio's state dependence,
-    the fringe's and the substrate's share varying with the gap and the out-of-plane offset)."""
+    (2 x the larger fit error + the stated law error: the ratio times the combs' state factor, u = tscale
+    - 1, netgen.model.etch_state, for the fringe's and the substrate's share varying with the gap and the
+    out-of-plane offset)."""
     test_capacitances_against_rebuild(nominal2d, rebuilt2d)
 
 
