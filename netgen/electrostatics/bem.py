@@ -429,10 +429,11 @@ class PreparedBem:
     def _level(self, plate: Plate, basis: Basis, k: int) -> _Level:
         """Meshes of level k: the plate (closed if thick) and each electrode at its height."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
-        p = thick_plate(plate, self.thickness, sizes, dihedral_order(self.electrodes))
+        m = dihedral_order(self.electrodes)
+        p = thick_plate(plate, self.thickness, sizes, m)
         phi = np.asarray(basis(p.vertices[:, 0], p.vertices[:, 1]), dtype=float).reshape(len(p.vertices), -1)
         half = self.thickness / 2.0
-        sheets = tuple(electrode_sheet(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+        sheets = tuple(electrode_sheet(e, sizes, e.sign * (half + e.gap), m) for e in self.electrodes)
         return _Level(p, phi, sheets)
 
     def surfaces(self, q: ArrayLike, level: int) -> list[Surface]:

@@ -87,14 +87,15 @@ def _delaunay(points: Array) -> np.ndarray:
     return tri[area > 1e-12 * area.max()]
 
 
-def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float) -> Surface:
+def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float, wedges: int = 4) -> Surface:
     """An annular sector (with its slot trims) as a flat graded sheet at height z, symmetric about
     its bisector: one half is triangulated and reflected (sector_half), so that sectors equal by
-    symmetry get congruent meshes and a mirror-symmetric layout a mirror-symmetric mesh."""
+    symmetry get congruent meshes and a mirror-symmetric layout a mirror-symmetric mesh (a full
+    ring: dihedral of order 2 `wedges`, _ring_sheet)."""
     lo = max(shape.r_in, corner_radius(shape.slot, shape.span))
     radii = graded(lo, shape.r_out, sizes, ends=(lo > 0.0, True))
     if shape.full_ring:
-        return _ring_sheet(radii, sizes, z)
+        return _ring_sheet(radii, sizes, z, wedges)
     r, d, tri = sector_half(shape, radii, sizes)
     mid = d == 0.0  # nodes on the bisector: their own mirror images
     image = np.full(len(d), -1)
@@ -250,7 +251,7 @@ def thick_plate(plate: Plate, thickness: float, sizes: Sizes, wedges: int = 4) -
     return Surface(v, tri)
 
 
-def dihedral_order(electrodes: tuple[Electrode, ...], largest: int = 12) -> int:
+def dihedral_order(electrodes: tuple[Electrode, ...], largest: int = 8) -> int:
     """The largest m <= `largest` whose dihedral group (rotations by 2 pi / m, the mirror y -> -y)
     maps the electrode layout onto itself (1 if none): a disk plate's mesh gets that symmetry
     (disk_sheet's wedges), so electrodes equal by symmetry see congruent plate meshes."""
@@ -283,11 +284,12 @@ def _footprint(e: Electrode, angle: float, mirror: bool) -> tuple | None:
     return None
 
 
-def electrode_sheet(e: Electrode, sizes: Sizes, z: float) -> Surface:
-    """A fixed electrode's full outline as a flat sheet at height z."""
+def electrode_sheet(e: Electrode, sizes: Sizes, z: float, wedges: int = 4) -> Surface:
+    """A fixed electrode's full outline as a flat sheet at height z (a full ring: dihedral of
+    order 2 `wedges`, the layout's dihedral_order)."""
     s = e.shape
     if isinstance(s, AnnularSector):
-        return sector_sheet(s, sizes, z)
+        return sector_sheet(s, sizes, z, wedges)
     if isinstance(s, Rectangle):
         return rectangle_sheet(s.x0, s.x1, s.y0, s.y1, sizes, z)
     raise NotImplementedError(f"no BEM mesh for electrode shape {type(s).__name__}")
