@@ -170,6 +170,8 @@ def run(a) -> dict:
         "element": a.element_to_gap,
         "tol": a.iter_tol if a.solver == "fastcap" else None,
         **({"aspect": a.aspect} if a.aspect != 4.0 else {}),
+        # the BEM's meshes since bem_mesh made them dihedral (a new key: the stored asymmetric solves stay apart)
+        **({"mesh": "dihedral"} if a.solver.startswith("bem") else {}),
     }
     per_level, records = [], []
     runs = [(k, a.order) for k in range(a.levels)]

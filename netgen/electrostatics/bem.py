@@ -30,7 +30,7 @@ from ..core.constants import EPS0
 from ..core.errors import SimulationError, SimulatorNotFound, StructureError
 from ..geometry.shapes import Array, Basis, Electrode, Plate
 from .base import ProbePoints
-from .bem_mesh import Sizes, Surface, electrode_sheet, estimate_elements, thick_plate
+from .bem_mesh import Sizes, Surface, dihedral_order, electrode_sheet, estimate_elements, thick_plate
 from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 
 BEM_INSTALL = "pip install 'netgen[bem]'  (or: pip install bempp-cl==0.4.2)"
@@ -157,17 +157,12 @@ def check_budget(unknowns: int, budget: float, what: str = "") -> None:
         )
 
 
-def solve_surfaces(
-    surfaces: Sequence[Surface], eps: float, order: int, singular_order: int = 4, budget: float = 4e9
-) -> tuple[Array, dict]:
-    """Maxwell matrix (n, n) in F of conductors given as triangulated surfaces, with bempp's
-    dense single layer at quadrature `order`; and what the solve cost (elements, seconds)."""
+def single_layer(surfaces: Sequence[Surface], order: int, singular_order: int = 4) -> tuple[Array, Array]:
+    """bempp's dense Galerkin P0 single-layer matrix (N, N) of the triangulated conductors at
+    regular quadrature `order` (symmetrised), and B (N, n): element areas in their conductor's column."""
     bempp = _bempp()
     from bempp_cl.api.utils.parameters import DefaultParameters
 
-    n_el = sum(len(s.triangles) for s in surfaces)
-    check_budget(n_el, budget)
-    t0 = time.perf_counter()
     offsets = np.cumsum([0] + [len(s.vertices) for s in surfaces])
     verts = np.concatenate([s.vertices for s in surfaces]).T
     tris = np.concatenate([s.triangles + o for s, o in zip(surfaces, offsets)]).T.astype(np.uint32)
@@ -180,11 +175,23 @@ def solve_surfaces(
         space, space, space, parameters=params, assembler="dense", device_interface="numba", precision="double"
     )
     A = symmetrised(np.asarray(op.weak_form().to_dense()))
-    t1 = time.perf_counter()
     # element i of the grid is element i of the concatenation (bempp keeps the given order)
     areas, owner = np.asarray(grid.volumes), np.asarray(grid.domain_indices)
-    B = np.zeros((n_el, len(surfaces)))
-    B[np.arange(n_el), owner] = areas
+    B = np.zeros((len(areas), len(surfaces)))
+    B[np.arange(len(areas)), owner] = areas
+    return A, B
+
+
+def solve_surfaces(
+    surfaces: Sequence[Surface], eps: float, order: int, singular_order: int = 4, budget: float = 4e9
+) -> tuple[Array, dict]:
+    """Maxwell matrix (n, n) in F of conductors given as triangulated surfaces, with bempp's
+    dense single layer at quadrature `order`; and what the solve cost (elements, seconds)."""
+    n_el = sum(len(s.triangles) for s in surfaces)
+    check_budget(n_el, budget)
+    t0 = time.perf_counter()
+    A, B = single_layer(surfaces, order, singular_order)
+    t1 = time.perf_counter()
     X = dense_solve(A, B)
     C = eps * (B.T @ X)
     t2 = time.perf_counter()
@@ -422,10 +429,11 @@ class PreparedBem:
     def _level(self, plate: Plate, basis: Basis, k: int) -> _Level:
         """Meshes of level k: the plate (closed if thick) and each electrode at its height."""
         sizes = self.settings.sizes(self.gap, k, plate.size)
-        p = thick_plate(plate, self.thickness, sizes)
+        m = dihedral_order(self.electrodes)
+        p = thick_plate(plate, self.thickness, sizes, m)
         phi = np.asarray(basis(p.vertices[:, 0], p.vertices[:, 1]), dtype=float).reshape(len(p.vertices), -1)
         half = self.thickness / 2.0
-        sheets = tuple(electrode_sheet(e, sizes, e.sign * (half + e.gap)) for e in self.electrodes)
+        sheets = tuple(electrode_sheet(e, sizes, e.sign * (half + e.gap), m) for e in self.electrodes)
         return _Level(p, phi, sheets)
 
     def surfaces(self, q: ArrayLike, level: int) -> list[Surface]:

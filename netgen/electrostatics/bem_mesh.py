@@ -87,60 +87,100 @@ def _delaunay(points: Array) -> np.ndarray:
     return tri[area > 1e-12 * area.max()]
 
 
-def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float) -> Surface:
-    """An annular sector (with its slot trims) as a flat graded sheet at height z.
-
-    Rings at graded radii; on each ring the arc length u from the first slot side is graded
-    towards both sides. In (r, u) the region is convex, so its Delaunay triangulation is.
-    """
+def sector_sheet(shape: AnnularSector, sizes: Sizes, z: float, wedges: int = 4) -> Surface:
+    """An annular sector (with its slot trims) as a flat graded sheet at height z, symmetric about
+    its bisector: one half is triangulated and reflected (sector_half), so that sectors equal by
+    symmetry get congruent meshes and a mirror-symmetric layout a mirror-symmetric mesh (a full
+    ring: dihedral of order 2 `wedges`, _ring_sheet)."""
     lo = max(shape.r_in, corner_radius(shape.slot, shape.span))
     radii = graded(lo, shape.r_out, sizes, ends=(lo > 0.0, True))
     if shape.full_ring:
-        return _ring_sheet(radii, sizes, z)
+        return _ring_sheet(radii, sizes, z, wedges)
+    r, d, tri = sector_half(shape, radii, sizes)
+    mid = d == 0.0  # nodes on the bisector: their own mirror images
+    image = np.full(len(d), -1)
+    image[mid] = np.flatnonzero(mid)
+    image[~mid] = len(d) + np.arange(int((~mid).sum()))
+    centre = 0.5 * (shape.theta_start + shape.theta_end)
+    rr = np.concatenate([r, r[~mid]])
+    theta = np.concatenate([centre - d, centre + d[~mid]])
+    v = np.column_stack([rr * np.cos(theta), rr * np.sin(theta), np.full(len(rr), z)])
+    return Surface(v, np.concatenate([tri, image[tri][:, ::-1]]))
+
+
+def sector_half(shape: AnnularSector, radii: Array, sizes: Sizes) -> tuple[Array, Array, np.ndarray]:
+    """The half of a slotted sector on the theta_start side of its bisector: node radii r, angular
+    distances d from the bisector (0 on it) and triangles. Rings at graded radii; on each ring the
+    arc length u from the slot side is graded towards both sides (graded() puts a node on the
+    middle), and the half u <= w/2 is triangulated in (r, u), where it is convex."""
     h = shape.slot / 2.0
-    pts, ring = [], []
+    pts, dist = [], []
     for r in radii:
         trim = math.asin(min(1.0, h / r)) if (shape.slot > 0.0 and r > 0.0) else 0.0
         width = max(shape.span - 2.0 * trim, 0.0)
         if r == 0.0 or width == 0.0:
             pts.append((r, 0.0))
-            ring.append((r, 0.0, shape.theta_start + trim))
+            dist.append(0.0)
             continue
-        for uk in graded(0.0, r * width, sizes):
-            pts.append((r, uk))
-            ring.append((r, uk, shape.theta_start + trim))
+        u = graded(0.0, r * width, sizes)
+        u = u[: len(u) // 2 + 1]
+        u[-1] = 0.5 * r * width
+        pts.extend((r, uk) for uk in u)
+        dist.extend(0.5 * width - u / r)
+        dist[-1] = 0.0
     uv = np.array(pts)
-    tri = _delaunay(uv)
-    meta = np.array(ring)
-    theta = meta[:, 2] + np.where(meta[:, 0] > 0, meta[:, 1] / np.maximum(meta[:, 0], 1e-300), 0.0)
-    v = np.column_stack([meta[:, 0] * np.cos(theta), meta[:, 0] * np.sin(theta), np.full(len(meta), z)])
-    return Surface(v, tri)
+    return uv[:, 0], np.array(dist), _delaunay(uv)
 
 
-def _ring_sheet(radii: Array, sizes: Sizes, z: float, aspect: float = 10.0) -> Surface:
-    """A full ring or disk (no slots) as rings of points, triangulated in the plane. Along a
-    ring the spacing is h_max, or `aspect` times the local ring spacing where that is finer:
-    near the rim the elements are long and thin, resolving the radial edge singularity."""
-    pts, dr = [], np.diff(radii)
+def _ring_sheet(radii: Array, sizes: Sizes, z: float, wedges: int = 4, aspect: float = 10.0) -> Surface:
+    """A full ring or disk (no slots) as rings of points, symmetric under the dihedral group of
+    order 2 `wedges`: the wedge 0 <= theta <= pi / wedges is triangulated in the plane (convex) and
+    reflected and rotated onto the rest, its seams sharing the nodes on the rays theta = k pi /
+    wedges. Along a ring the spacing is h_max, or `aspect` times the local ring spacing where that
+    is finer: near the rim the elements are long and thin, resolving the radial edge singularity."""
+    wedge, dr = math.pi / wedges, np.diff(radii)
+    counts, xy = [], []
     for k, r in enumerate(radii):
         if r == 0.0:
-            pts.append((0.0, 0.0))
+            counts.append(0)
+            xy.append((0.0, 0.0))
             continue
         local = dr[min(k, len(dr) - 1)] if k == 0 else min(dr[k - 1], dr[min(k, len(dr) - 1)])
-        n = max(8, math.ceil(2.0 * math.pi * r / min(sizes.h_max, aspect * local)))
-        t = (np.arange(n) + 0.5 * (k % 2)) * (2.0 * math.pi / n)
-        pts.extend(zip(r * np.cos(t), r * np.sin(t)))
-    xy = np.array(pts)
-    tri = _delaunay(xy)
+        n = max(math.ceil(4 / wedges), math.ceil(wedge * r / min(sizes.h_max, aspect * local)))
+        counts.append(n)
+        t = np.arange(n + 1) * (wedge / n)
+        xy.extend(zip(r * np.cos(t), r * np.sin(t)))
+    pts = np.array(xy)
+    tri = _delaunay(pts)
     if radii[0] > 0.0:  # an annulus: drop the triangles over the hole
-        c = xy[tri].mean(axis=1)
+        c = pts[tri].mean(axis=1)
         tri = tri[np.hypot(c[:, 0], c[:, 1]) > radii[0]]
-    return Surface(np.column_stack([xy, np.full(len(xy), z)]), tri)
+    return _dihedral_images(np.asarray(radii, dtype=float), counts, tri, wedges, z)
 
 
-def disk_sheet(radius: float, sizes: Sizes, z: float = 0.0) -> Surface:
-    """A flat disk graded towards its rim (rings of points, Delaunay)."""
-    return _ring_sheet(graded(0.0, radius, sizes, ends=(False, True)), sizes, z)
+def _dihedral_images(radii: Array, counts: list[int], tri: np.ndarray, wedges: int, z: float) -> Surface:
+    """The wedge's triangles (over nodes j = 0..n_k of ring k) mapped by the 2 `wedges` rotations
+    and reflections onto full rings of 2 wedges n_k equally spaced nodes (a centre: one node)."""
+    ring = np.repeat(np.arange(len(counts)), [n + 1 if n else 1 for n in counts])
+    j = np.concatenate([np.arange(n + 1) if n else [0] for n in counts])
+    full = np.array([2 * wedges * n if n else 1 for n in counts])
+    offset = np.concatenate([[0], np.cumsum(full)[:-1]])
+    n_k = np.array(counts)[ring]
+    images = []
+    for i in range(wedges):
+        for sign in (1, -1):
+            jj = np.mod(sign * j + 2 * i * n_k, full[ring])
+            t = (offset[ring] + jj)[tri]
+            images.append(t if sign > 0 else t[:, ::-1])
+    theta = np.concatenate([np.arange(m) * (2.0 * math.pi / m) for m in full])
+    r = np.repeat(radii, full)
+    v = np.column_stack([r * np.cos(theta), r * np.sin(theta), np.full(len(r), z)])
+    return Surface(v, np.concatenate(images))
+
+
+def disk_sheet(radius: float, sizes: Sizes, z: float = 0.0, wedges: int = 4) -> Surface:
+    """A flat disk graded towards its rim (rings of points, dihedral of order 2 `wedges`)."""
+    return _ring_sheet(graded(0.0, radius, sizes, ends=(False, True)), sizes, z, wedges)
 
 
 def rectangle_sheet(x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z: float = 0.0) -> Surface:
@@ -154,10 +194,10 @@ def rectangle_sheet(x0: float, x1: float, y0: float, y1: float, sizes: Sizes, z:
     return Surface(np.column_stack([X.ravel(), Y.ravel(), np.full(nx * ny, z)]), tri)
 
 
-def plate_face(plate: Plate, sizes: Sizes) -> Surface:
-    """The plate outline as a flat sheet at z = 0."""
+def plate_face(plate: Plate, sizes: Sizes, wedges: int = 4) -> Surface:
+    """The plate outline as a flat sheet at z = 0 (a disk: dihedral of order 2 `wedges`)."""
     if isinstance(plate, DiskPlate):
-        return disk_sheet(plate.radius, sizes)
+        return disk_sheet(plate.radius, sizes, wedges=wedges)
     if isinstance(plate, RectPlate):
         return rectangle_sheet(plate.x0, plate.x1, plate.y0, plate.y1, sizes)
     raise NotImplementedError(f"no BEM mesh for plate {type(plate).__name__}")
@@ -185,10 +225,10 @@ def _rim(face: Surface) -> np.ndarray:
     return np.array(loop)
 
 
-def thick_plate(plate: Plate, thickness: float, sizes: Sizes) -> Surface:
+def thick_plate(plate: Plate, thickness: float, sizes: Sizes, wedges: int = 4) -> Surface:
     """A closed plate surface: top face at +thickness/2, bottom at -thickness/2, and a rim band
-    of about thickness/h_edge layers joining their boundary loops."""
-    face = plate_face(plate, sizes)
+    of about thickness/h_edge layers joining their boundary loops (a disk's face: plate_face)."""
+    face = plate_face(plate, sizes, wedges)
     if thickness <= 0.0:
         return face
     nv = len(face.vertices)
@@ -211,11 +251,45 @@ def thick_plate(plate: Plate, thickness: float, sizes: Sizes) -> Surface:
     return Surface(v, tri)
 
 
-def electrode_sheet(e: Electrode, sizes: Sizes, z: float) -> Surface:
-    """A fixed electrode's full outline as a flat sheet at height z."""
+def dihedral_order(electrodes: tuple[Electrode, ...], largest: int = 8) -> int:
+    """The largest m <= `largest` whose dihedral group (rotations by 2 pi / m, the mirror y -> -y)
+    maps the electrode layout onto itself (1 if none): a disk plate's mesh gets that symmetry
+    (disk_sheet's wedges), so electrodes equal by symmetry see congruent plate meshes."""
+
+    def layout(angle: float, mirror: bool) -> set | None:
+        """Every electrode's footprint after the mirror (if asked) and the rotation by angle."""
+        keys = [_footprint(e, angle, mirror) for e in electrodes]
+        return None if any(k is None for k in keys) else set(keys)
+
+    base = layout(0.0, False)
+    if base is None or base != layout(0.0, True):
+        return 1
+    return next((m for m in range(largest, 1, -1) if layout(2.0 * math.pi / m, False) == base), 1)
+
+
+def _footprint(e: Electrode, angle: float, mirror: bool) -> tuple | None:
+    """A hashable description of electrode e mirrored (y -> -y, if asked) then rotated by angle,
+    lengths in pm and angles in nrad (None: a shape without a polar or rectangular description)."""
+    pm = lambda x: round(x * 1e12)  # noqa: E731
+    s, common = e.shape, (e.side, pm(e.gap), pm(e.dielectric_thickness), e.dielectric_permittivity)
+    if isinstance(s, AnnularSector):
+        a = -s.theta_end if mirror else s.theta_start
+        a = 0.0 if s.full_ring else math.remainder(a + angle, 2.0 * math.pi) % (2.0 * math.pi)
+        a = 0.0 if abs(a - 2.0 * math.pi) < 1e-9 else a
+        return ("sector", *common, pm(s.r_in), pm(s.r_out), pm(s.slot), round(a * 1e9), round(s.span * 1e9))
+    if isinstance(s, Rectangle):
+        c, sn, f = math.cos(angle), math.sin(angle), -1.0 if mirror else 1.0
+        pts = [(x, f * y) for x in (s.x0, s.x1) for y in (s.y0, s.y1)]
+        return ("rect", *common, frozenset((pm(c * x - sn * y), pm(sn * x + c * y)) for x, y in pts))
+    return None
+
+
+def electrode_sheet(e: Electrode, sizes: Sizes, z: float, wedges: int = 4) -> Surface:
+    """A fixed electrode's full outline as a flat sheet at height z (a full ring: dihedral of
+    order 2 `wedges`, the layout's dihedral_order)."""
     s = e.shape
     if isinstance(s, AnnularSector):
-        return sector_sheet(s, sizes, z)
+        return sector_sheet(s, sizes, z, wedges)
     if isinstance(s, Rectangle):
         return rectangle_sheet(s.x0, s.x1, s.y0, s.y1, sizes, z)
     raise NotImplementedError(f"no BEM mesh for electrode shape {type(s).__name__}")
