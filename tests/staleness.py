@@ -22,13 +22,18 @@ stopped where its C still moved by twice its error between two 1e-12 changes of 
    the strain energy and its force within RTOL. The fits' error figures (max/rms/grid relative
    error) move by at most the function change and are held to the same bound.
 
-RTOL = 1e-9: the non-fit numbers pass through sums, linear solves and symmetric eigen-solves whose
+RTOL = 1e-7: the non-fit numbers pass through sums, linear solves and symmetric eigen-solves whose
 relative rounding is eps (2.2e-16) times an amplification: a dot product of n terms n eps (n <=
 1e4 samples or quadrature points: 2e-12), a least-squares fit cond * eps (cond <= 8.4 for the
-scaled design matrices, bench/fit_conditioning.py), an eigenvalue lambda_1 eps lambda_max / lambda_1
-with lambda_max / lambda_1 ~ (elements / 1.875)^4 ~ 1e6 for the 60-element beams and the plate
-meshes, so ~2e-10; RTOL keeps a factor ~5 over that largest one. The planted changes in the tests
-(a mass by 1e-6) are 1000 RTOL.
+scaled design matrices, bench/fit_conditioning.py); the largest is a beam's mode shape: its
+eigenvector takes a rounding component along mode j of eps lambda_max / (lambda_j - lambda_1), and
+the peak normalisation (netgen.mechanics.beam.beam_modes) passes it to the modal mass and stiffness
+to first order. On the cantilever's 60-element Hermite pencil eps lambda_max / (lambda_2 -
+lambda_1) = 2.2e-8 (lambda_max / lambda_1 = 3.8e9; test_netlists.test_rtol_covers_the_beams
+computes it for every beam example): times 2 for a mode's value at the first mode's peak and 2 for
+two builds rounding apart, 8.7e-8. (The cantilever's modal masses moved by 1.6e-9 under OpenBLAS's
+Sandybridge kernels against the Haswell ones, over the 1e-9 this constant once held, measured.) The
+planted changes in the tests (a mass by 1e-6) are 10 RTOL.
 
 FIT_SHARE = 0.01: the fit's held-out max relative error e is the accuracy the model states (in
 every netlist header and the JSON). A rebuilt fit whose C differs by delta <= e / 100 states the
@@ -58,7 +63,7 @@ import numpy as np
 
 from netgen.model import MacroModel
 
-RTOL = 1e-9
+RTOL = 1e-7
 FIT_SHARE = 0.01
 
 # Standalone numbers (not digits inside names such as top_r1s1 or p_top_r1s1_2).

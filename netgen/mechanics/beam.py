@@ -128,7 +128,7 @@ def beam_modes(c, count: int) -> BeamModes:
     xs = np.linspace(0.0, length, 40 * elements + 1)
     shapes = probe.shape(xs)
     peak = np.empty(count)
-    for k, i in enumerate(np.argmax(np.abs(shapes), axis=0)):  # refine the grid maximum
+    for k, i in enumerate(first_peaks(shapes)):  # refine the grid maximum
         lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
         best = minimize_scalar(
             lambda x: -abs(probe.shape(np.array([x]))[0, k]),
@@ -144,6 +144,14 @@ def beam_modes(c, count: int) -> BeamModes:
     # frequencies from the modal stiffness and mass (the Rayleigh quotients the model integrates;
     # eigh's eigenvalues of this ill-conditioned pencil agree within ~1e-7)
     return BeamModes(kind, length, np.sqrt(stiff / mass) / (2 * math.pi), mass, stiff, vectors, elements)
+
+
+def first_peaks(shapes: np.ndarray, share: float = 1e-6) -> np.ndarray:
+    """Per column, the first grid point whose |value| is within `share` of the column's largest, so the
+    sign comes from a fixed place: an antisymmetric mode's two equal lobes were ordered by rounding,
+    and the clamped-clamped beam's second mode flipped its sign under another CPU's BLAS kernels."""
+    big = np.abs(shapes) >= (1.0 - share) * np.max(np.abs(shapes), axis=0)
+    return np.argmax(big, axis=0)
 
 
 def euler_bernoulli_frequency(
