@@ -269,8 +269,9 @@ def test_etch_shifts_the_combs_static_deflection_and_charge(combs, tmp_path, etc
     """fp.COMB_VOLTS on comb xp_t of accelerometer_xyz at the lateral etch: its fingers' terms read the
     state shifted by shift / L etch (netgen.model.process.capacitance_laws: the gap 1.5 um + 2 etch).
     The FMU's static balance (model exchange, q'' = 0 at rest) against ngspice's .op of the .lib at the
-    same etch instance parameter (the same law rendered): Newton's test at reltol fp.RELTOL bounds the
-    .op's relative state error, and the FMU's root is solved to 1e-15; a force error maps to the state
+    same etch instance parameter (the same law rendered): Newton's test at reltol fp.RELTOL (vntol
+    1e-12 V: 9.4e-11 of x_x's 0.01 um, under it) bounds the .op's relative state error, and the FMU's
+    root is solved to 1e-15; a force error maps to the state
     through the scaled balance's Jacobian, so the bound is cond(J) (RELTOL + 1e-12), 1e-12 the forces'
     round-off (tests/emit/test_fmu.py), relative to the largest scaled deflection. The charge against
     the MacroModel's own law at the FMU's state (netgen.model.process.capacitance_at, times the

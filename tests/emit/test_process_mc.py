@@ -6,7 +6,8 @@ and 46, against the closed form of a plate on a given spring between parallel pl
 Tolerances, derived:
 - per run, the deflection and the resonance against the closed form at the run's own draws: the
   model is exact here (fringe "none": the 1/P fit is exact to round-off; mass linear in tscale;
-  dg an exact shift of z), .op converges to reltol 1e-9, so what is left is the echo's 6 printed
+  dg an exact shift of z), .op converges to reltol 1e-9 (vntol 1e-12 V, above the rounding floor of
+  nodes at 0, docs/contact.md: 2e-12 of |z| ~ 0.5 um), so what is left is the echo's 6 printed
   digits: 5e-6 relative on z; the mass from the difference of two 1/H values (0.231 and 0.195
   N/m) carries 5e-6 x 0.43 / 0.036 = 6e-5, f0 half of that plus k_eff's: 1e-4 bounds both
   (1e-5 on z). Measured on one machine: 8e-7 and 5e-6.

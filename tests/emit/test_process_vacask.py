@@ -7,7 +7,8 @@ closed form of tests/oracles/process_mc.py at 0.2 V on the bottom electrode.
 Tolerances, derived:
 - each point (corners and runs) against the closed form at its own parameters: VACASK writes
   doubles, the 1/P fit is exact to round-off (fringe "none"), so what is left is Newton's: the
-  deflection within reltol |x| + vntol (1e-9 relative here, plus 1e-12 for the fit), f0 within
+  deflection within reltol |x| + vntol (1e-9 relative here and vntol 1e-12 V, 2e-12 of |z| ~ 0.5 um,
+  plus 1e-12 for the fit), f0 within
   half of 6 c dz / (s^4 k_eff) plus 1e-9 for the linear ac's round-off
   (process_vacask.newton_bounds); the mass m0 tscale (the mass law) within 1e-9, the ac round-off.
 - the slopes of ln|z| and ln f over the draws against the same regression of the closed form at

@@ -85,7 +85,7 @@ def netlist(lib: Path, runs: int, seed: int) -> str:
     return f"""* process Monte Carlo of the accelerometer (tests/oracles/process_mc.py)
 .include {lib}
 .param tsc=1 dgb=0
-.options reltol=1e-9 vntol=1e-15 abstol=1e-20
+.options reltol=1e-9 vntol=1e-12 abstol=1e-20
 Vb bottom 0 DC {BIAS}
 Vt top 0 0
 Vp plate 0 0
