@@ -49,7 +49,7 @@ def stretching(model, refs, label: str) -> None:
 .include {d / "cc_beam.lib"}
 X1 0 0 f1 x1 0 x2 0 x3 cc_beam tscale={case[0]!r} escale={case[1]!r}
 Vf f1 0 DC {te.FORCE * 1e6!r}
-.options reltol=1e-10 vntol=1e-16
+.options reltol=1e-10 vntol=1e-12
 .op
 .end
 """
