@@ -18,7 +18,8 @@ import pytest
 from netgen.core import constants
 from netgen.mechanics.damping import damping
 from netgen.sim.ngspice import run_control
-from tests.fixtures import NGSPICE
+
+from .testbench import NGSPICE
 
 SUTHERLAND_AIR, MEAN_FREE_PATH, VISCOSITY = 111.0, 68e-9, 1.85e-5  # K; m and Pa s at 1 atm, 300 K
 
