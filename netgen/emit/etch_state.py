@@ -89,12 +89,12 @@ def force_rows(model: MacroModel, ws: float) -> list[dict]:
     """Per coordinate the product rule's second term into its velocity node: sum over the electrodes
     with a state law of gain c_ref/(2 L) pc dV^2 (C0/c_ref) dpr/dxs (the first term, pr dC0/dq, is the
     forms' own force with dv2 times pr)."""
-    laws, state = state_laws(model), [f"xs_{c.name}" for c in model.coordinates]
+    laws, state, u = state_laws(model), [f"xs_{c.name}" for c in model.coordinates], u_texts(model)
     out = []
     for v, c in enumerate(model.coordinates):
         parts = []
         for f in model.capacitances:
-            grad = gradient_text(laws[f.electrode], v, state, u=u_texts(model)) if f.electrode in laws else None
+            grad = gradient_text(laws[f.electrode], v, state, u=u) if f.electrode in laws else None
             if grad is None:
                 continue
             e, plate = f.electrode, model.plate

@@ -124,18 +124,3 @@ def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> n
     u = axis.u(etch)
     m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
     return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
-
-
-def state_gradient(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
-    """d(state_factor)/dxs, (npoints, ncoords): the product rule's second factor in the forces."""
-    u = axis.u(etch)
-    xs = np.atleast_2d(xs)
-    exps = np.array(law["exponents"], dtype=int)
-    c = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
-    out = np.zeros_like(xs, dtype=float)
-    for v in range(xs.shape[1]):
-        d = exps.copy()
-        keep = d[:, v] > 0
-        d[keep, v] -= 1
-        out[:, v] = monomials(xs, d[keep]) @ (c[keep] * exps[keep, v])
-    return out
