@@ -29,6 +29,12 @@ MAX_NFEV = 60  # Levenberg-Marquardt evaluations per plate fit (netgen.fit.cost 
 # beams' and the calibrated disk's fits (2e5..2e6 per run of MAX_NFEV) converge within it, the
 # reference disk's (1.3e8..6.8e8 per run) keep their single capped run.
 SETTLE_WORK = 5e7
+# Levenberg-Marquardt's ftol, xtol and gtol in settled: scipy's 1e-8 stops a fit whose cost still
+# falls along its ill-determined directions (cond(J) 2.7e4 on the clamped-clamped beam), where the
+# stopping point is the rounding's: its dC/dxs moved 5.9e-17 F between two BLAS kernels, five times
+# what tests/staleness.py allows. At 1e-14, near eps times the conditioning's reach, both kernels
+# stop within 1.5e-19 F and C within 4.4e-9 relative (the gradient falls from 3e-7 to 4e-12).
+SETTLE_TOL = 1e-14
 REST_WEIGHT = 3.0  # the rest residuals weigh as REST_WEIGHT^2 times all the samples together
 
 
@@ -170,10 +176,11 @@ def settled(residual, jacobian, start: np.ndarray, samples: int, max_nfev: int):
     A fit too large to converge within the budget keeps its one capped run, whose rounding
     stability bench/fit_function_change.py measures."""
     per_run = max_nfev * samples * start.size**2
-    sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=max_nfev)
+    tols = {"ftol": SETTLE_TOL, "xtol": SETTLE_TOL, "gtol": SETTLE_TOL}
+    sol = least_squares(residual, start, jac=jacobian, method="lm", max_nfev=max_nfev, **tols)
     work = per_run
     while sol.status == 0 and work + per_run <= SETTLE_WORK:  # status 0: stopped at max_nfev
-        sol = least_squares(residual, sol.x, jac=jacobian, method="lm", max_nfev=max_nfev)
+        sol = least_squares(residual, sol.x, jac=jacobian, method="lm", max_nfev=max_nfev, **tols)
         work += per_run
     return sol
 
