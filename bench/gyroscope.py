@@ -24,12 +24,20 @@ B-source in ngspice and ngspice-xspice, the Verilog-A block drive.va in vacask a
 (ngspice 45 or later: NETGEN_NGSPICE=~/.cache/netgen/ngspice-46/bin/ngspice).
     .venv/bin/python bench/gyroscope.py --noise-reference --cycles 32768
     .venv/bin/python bench/gyroscope.py --brownian --cycles 16384 [--simulator ngspice] [-o DIR]
+
+With --dof: no circuit; the reference loop of the Brownian variant over --runs runs of 9 x --cycles
+periods, each cut into pieces of the test's record (7/8 of --cycles): the band reading's mean over
+the closed form, the reading without the thermal force, their difference (the loop's band
+transfer), and the readings' spread as chi-square degrees of freedom against the Hann bin count,
+which is why tests/testbench/test_gyro_noise.py bounds a reading by the reference's own spread.
+    .venv/bin/python bench/gyroscope.py --dof --cycles 8192 --runs 16
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import tempfile
 from pathlib import Path
 
@@ -41,6 +49,7 @@ import numpy as np
 from scipy import signal, stats
 from support import ROOT
 from support import gyro_reference as reference
+from tqdm import tqdm
 
 from netgen.build import build_model
 from netgen.emit.ngspice import subcircuit
@@ -129,6 +138,39 @@ def brownian(out: Path, cycles: int, simulator: str) -> None:
     print(f"results in {out}")
 
 
+def dof(out: Path, cycles: int, runs: int) -> None:
+    """The Brownian variant's band reading over `cycles`-period records of the reference loop: the
+    mean against 4 k_B T b_y / F_fb^2, the reading without the thermal force, and the spread as
+    chi-square degrees of freedom (2 mean^2 / variance) against the Hann bin count's."""
+    path = out / "brownian.toml"
+    path.write_text(reference.brownian_variant(EXAMPLE.read_text()))
+    model = build_model(load_structure(path), progress=False)
+    spec = read_structure_loop(path)
+    cy = next(c for c in model.coordinates if c.name == "y")
+    thermal = 4 * reference.K_B * TEMPERATURE * math.sqrt(cy.stiffness * cy.mass) / reference.BROWNIAN_Q_Y
+    d = sense_design(model, spec, GyroRequest())
+    piece, skip = cycles - cycles // 8, cycles  # the first --cycles periods of each run are its start
+    band = BROWNIAN_BANDS_HZ[-1]
+    reads, quiet = [], []
+    for seed in tqdm(range(runs), desc="reference runs", file=sys.stderr, leave=False):
+        r = reference.simulate_design(model, d, 9 * cycles, force_noise=thermal, seed=100 + seed)
+        reads.append(reference.segment_readings(r, skip, piece, reference.band_density, d.ts, band))
+    q = reference.simulate_design(model, d, 9 * cycles)
+    quiet = reference.segment_readings(q, skip, piece, reference.band_density, d.ts, band)
+    x, closed = np.ravel(reads), thermal / r["full_scale_force"] ** 2
+    nu_hann = reference.band_density(
+        r["t"][skip : skip + piece], r["v"][skip : skip + piece], d.ts, r["drive_w"], band
+    )[1]
+    lo, hi = reference.prediction_interval(reads, 1e-3)
+    m = float(np.exp(np.mean(np.log(x))))
+    print(
+        f"{len(x)} pieces of {piece} periods, drive +-{band:g} Hz: mean / S_B {x.mean() / closed:.4f} "
+        f"(+-{x.std(ddof=1) / math.sqrt(len(x)) / closed:.4f}), without the thermal force {np.mean(quiet) / closed:.4f}, "
+        f"band transfer {(x.mean() - np.mean(quiet)) / closed:.4f}; degrees of freedom {2 * x.mean() ** 2 / x.var(ddof=1):.1f} "
+        f"(Hann count {nu_hann:.1f}); 1e-3 prediction interval {10 * math.log10(lo / m):+.2f} / {10 * math.log10(hi / m):+.2f} dB"
+    )
+
+
 def plot_brownian(runs: list[tuple], ts: float, closed: float, path: Path) -> None:
     """Welch PSDs near the drive of each (t, bits, drive_w, label), its drive tones taken out, and
     the closed form's level."""
@@ -158,7 +200,13 @@ def main() -> None:
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--noise-reference", action="store_true", help="the noise floor against the reference loop")
     ap.add_argument("--brownian", action="store_true", help="the Brownian variant's floor against 4 k_B T b_y")
+    ap.add_argument("--dof", action="store_true", help="the reference's Brownian readings: spread and band transfer")
+    ap.add_argument("--runs", type=int, default=16, help="--dof: reference runs of 9 x --cycles periods")
     a = ap.parse_args()
+    if a.dof:
+        out = Path(a.output or tempfile.mkdtemp(prefix="gyroscope-dof-"))
+        out.mkdir(parents=True, exist_ok=True)
+        return dof(out, a.cycles, a.runs)
     if a.brownian:
         out = Path(a.output or tempfile.mkdtemp(prefix="gyroscope-brownian-"))
         out.mkdir(parents=True, exist_ok=True)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import linalg, signal, stats
 
 from netgen.testbench.sigma_delta import filters
 from netgen.testbench.sigma_delta.filters import Filter, Mechanics, step_map
@@ -178,3 +178,34 @@ def band_density(t: np.ndarray, bits: np.ndarray, ts: float, drive_w: float, ban
     near = np.abs(f - drive_w / (2 * math.pi)) <= band_hz
     k = int(np.count_nonzero(near))
     return float(np.mean(p[near])), 2 * k / (1 + 2 * sum(HANN_CORRELATION))
+
+
+def segment_readings(run: dict, skip: int, length: int, read, ts: float, band_hz: float) -> list[float]:
+    """`read` (inband_density or band_density) on each whole `length`-period piece of a reference run
+    after its first `skip` periods: readings of the circuit's record length, so the spread among them
+    is the spread of the circuit's one reading, whatever the noise's distribution."""
+    n = (len(run["v"]) - skip) // length
+    pieces = (slice(skip + i * length, skip + (i + 1) * length) for i in range(n))
+    return [read(run["t"][k], run["v"][k], ts, run["drive_w"], band_hz)[0] for k in pieces]
+
+
+def prediction_interval(runs: list[list[float]], quantile: float) -> tuple[float, float]:
+    """(low, high): the two-sided `quantile` prediction interval of one more reading drawn like the
+    readings of `runs` (each run's pieces, segment_readings), their logarithms taken as normal:
+    exp(m +- t_{n_e - 1} s sqrt(1 + deff / n)), m and s the logs' mean and standard deviation over all
+    n pieces. Pieces of one run are not quite independent (the loop's slow states span them), so the
+    mean counts as n_e = n / deff pieces, deff = 1 + (k - 1) rho the design effect of k pieces per
+    run with the intraclass correlation rho of a one-way analysis of variance (0 if negative). Why not
+    chi-square: the loop's bits are not Gaussian noise and their band power fluctuates together
+    across bins (the Brownian variant's readings over 7168 periods spread as chi2 with 29 degrees
+    of freedom, not the 60 a Hann bin count gives: bench/gyroscope.py --dof)."""
+    x = np.log(np.asarray(runs, dtype=float))  # (runs, pieces)
+    g, k = x.shape
+    n = g * k
+    within = float(np.mean(np.var(x, axis=1, ddof=1)))
+    between = float(np.var(np.mean(x, axis=1), ddof=1)) if g > 1 else 0.0
+    rho = max(0.0, (between - within / k) / (between - within / k + within)) if within > 0 else 0.0
+    deff = 1 + (k - 1) * rho
+    s = float(np.std(x, ddof=1))
+    half = stats.t.ppf(1 - quantile / 2, n / deff - 1) * s * math.sqrt(1 + deff / n)
+    return math.exp(float(np.mean(x)) - half), math.exp(float(np.mean(x)) + half)
