@@ -120,9 +120,22 @@ def check_names(model: MacroModel) -> None:
         )
 
 
+def check_fits(model: MacroModel) -> None:
+    """The forms render each fit's c_ref and polynomials and the process laws from the instance
+    parameters: a fit carrying a factor (a process point's copy, netgen.sweep.point.at_point) is
+    refused, its factor would be dropped and the point applied twice."""
+    bad = [f.electrode for f in model.capacitances if f.factor is not None]
+    if bad:
+        raise ValueError(
+            f"the capacitance fits of {', '.join(bad)} carry a process point's factor (a sweep's model at a "
+            "point): emit the nominal model and give the point as instance parameters"
+        )
+
+
 def header_context(model: MacroModel) -> dict:
     """Template context shared by the dialects: header tables, time scale, fit form, ports, couplings."""
     check_names(model)
+    check_fits(model)
     coords = []
     for c in model.coordinates:
         xu, _, fu, _ = c.port_units

@@ -50,7 +50,7 @@ from ..core.text import escape
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
 from . import fmu_process
-from .common import check_names, num, stop_constants, time_scale
+from .common import check_fits, check_names, num, stop_constants, time_scale
 
 DEFAULT_TOL = 1e-8  # relative tolerance of the co-simulation integrator when the importer sets none
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-contract=off", "-Wall"]
@@ -344,6 +344,7 @@ def fastest_rate(model: MacroModel) -> float:
 def context(model: MacroModel) -> dict:
     """Everything the C and the modelDescription templates need, the GUID last (a hash of the rest)."""
     check_names(model)
+    check_fits(model)
     vs = variables(model)
     arrays = term_arrays(model) + mechanics_arrays(model)[0]
     scalars = mechanics_arrays(model)[1]

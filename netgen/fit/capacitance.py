@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -43,7 +43,9 @@ class CapacitanceFit:
     """One fitted capacitance between the moving conductor and an electrode.
 
     target "plates": C = c_ref * sum_k 1 / P_k(x) (K effective parallel plates; K = 1 is the
-    plain fit of 1/C); "inverse": the same with K = 1; "direct": C = c_ref * P_0(x).
+    plain fit of 1/C); "inverse": the same with K = 1; "direct": C = c_ref * P_0(x). An optional
+    `factor` F multiplies either form, C = F(x) c_ref ...: a process point's state factor
+    (netgen.sweep.point, netgen.model.etch_state); the fits a build makes have none.
     """
 
     electrode: str
@@ -53,22 +55,34 @@ class CapacitanceFit:
     max_rel_error: float  # on held-out random points inside the sampled box
     rms_rel_error: float
     grid_max_rel_error: float  # on the sampling grid itself
+    factor: Polynomial | None = None  # C = factor(x) * the form above (None: 1)
 
     def value(self, x: np.ndarray) -> np.ndarray:
         """C(x) in farad."""
         if self.target == "direct":
-            return self.c_ref * self.polys[0](x)
-        return self.c_ref * sum((1.0 / p(x) for p in self.polys), np.zeros(len(x)))
+            return self.factored(x, self.c_ref * self.polys[0](x))
+        return self.factored(x, self.c_ref * sum((1.0 / p(x) for p in self.polys), np.zeros(len(x))))
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dC/dx in farad per unit of scaled coordinate, shape (npoints, ncoords)."""
         if self.target == "direct":
-            return self.c_ref * self.polys[0].gradient(x)
+            return self.factored_gradient(x, self.c_ref * self.polys[0](x), self.c_ref * self.polys[0].gradient(x))
         out = np.zeros(x.shape)
         for p in self.polys:
             v = p(x)
             out = out - p.gradient(x) / (v * v)[:, None]
-        return self.c_ref * out
+        c = self.c_ref * sum((1.0 / p(x) for p in self.polys), np.zeros(len(x)))
+        return self.factored_gradient(x, c, self.c_ref * out)
+
+    def factored(self, x: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """The form's value c (npoints,) at x times the factor."""
+        return c if self.factor is None else self.factor(x) * c
+
+    def factored_gradient(self, x: np.ndarray, c: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """d(F C)/dx = F dC/dx + C dF/dx from the form's value c (npoints,) and gradient g (npoints, ncoords)."""
+        if self.factor is None:
+            return g
+        return self.factor(x)[:, None] * g + c[:, None] * self.factor.gradient(x)
 
     @property
     def degree(self) -> int:
@@ -86,14 +100,11 @@ def with_errors(
     """The same fit with its held-out and grid errors filled in."""
     held = np.abs(fit.value(x_check) / c_check - 1.0)
     grid = np.abs(fit.value(x) / c - 1.0)
-    return CapacitanceFit(
-        fit.electrode,
-        fit.c_ref,
-        fit.target,
-        fit.polys,
-        float(held.max()),
-        float(np.sqrt(np.mean(held**2))),
-        float(grid.max()),
+    return replace(
+        fit,
+        max_rel_error=float(held.max()),
+        rms_rel_error=float(np.sqrt(np.mean(held**2))),
+        grid_max_rel_error=float(grid.max()),
     )
 
 

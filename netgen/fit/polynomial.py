@@ -54,6 +54,18 @@ class Polynomial:
         """dP/dx at points x, shape (npoints, ncoords)."""
         return np.stack([self.derivative(v)(x) for v in range(self.exponents.shape[1])], axis=-1)
 
+    def times(self, other: Polynomial) -> Polynomial:
+        """The product P Q as a polynomial (every pair of monomials; like powers summed)."""
+        terms: dict[tuple[int, ...], float] = {}
+        for ea, ca in zip(self.exponents, self.coeffs):
+            for eb, cb in zip(other.exponents, other.coeffs):
+                key = tuple(int(v) for v in ea + eb)
+                terms[key] = terms.get(key, 0.0) + float(ca) * float(cb)
+        keys = sorted(terms)
+        return Polynomial(
+            np.array(keys, dtype=int).reshape(-1, self.exponents.shape[1]), np.array([terms[k] for k in keys])
+        )
+
 
 def fit_polynomial(x: np.ndarray, y: np.ndarray, degree: int) -> Polynomial:
     """Least-squares polynomial of total degree `degree`, solved in well-scaled variables."""

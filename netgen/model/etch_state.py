@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..electrostatics.sampling import check_points
-from ..fit.polynomial import monomial_exponents, monomials
+from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from .etch_knots import ETCH_UNIT
 
 DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
@@ -124,3 +124,12 @@ def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> n
     u = axis.u(etch)
     m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
     return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
+
+
+def state_polynomial(law: dict, value: float, axis: Axis = ETCH) -> Polynomial:
+    """The factor state_factor evaluates, 1 + u P1(xs) + u^2 P2(xs) at the `axis` parameter's value, as
+    one polynomial in xs (netgen.sweep.point puts it on a process point's capacitance fit)."""
+    u = axis.u(value)
+    exps = np.array(law["exponents"], dtype=int)
+    coeffs = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
+    return Polynomial(np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps]), np.r_[1.0, coeffs])

@@ -136,10 +136,12 @@ class MacroModel:
             return np.stack([f.value(x) for f in self.capacitances], axis=-1)
         exps, coef, _, owner = self._stacked()
         p, _ = self._clamped(monomials(x, exps) @ coef.T)
-        return (1.0 / p) @ owner.T
+        c = (1.0 / p) @ owner.T
+        return np.stack([f.factored(x, c[:, e]) for e, f in enumerate(self.capacitances)], axis=-1)
 
     def capacitance_gradient(self, x: np.ndarray) -> np.ndarray:
-        """dC_i/dq_v in F per SI unit of q, shape (npoints, nelectrodes, ncoords)."""
+        """dC_i/dq_v in F per SI unit of q, shape (npoints, nelectrodes, ncoords); a fit's factor
+        (CapacitanceFit.factor) by the product rule."""
         x = np.atleast_2d(x)
         if self._stacked() is None:
             g = np.stack([f.gradient(x) for f in self.capacitances], axis=1)
@@ -149,6 +151,8 @@ class MacroModel:
             p, slope = self._clamped(mono @ coef.T)  # (npts, nterms)
             dp = np.einsum("pm,vtm->ptv", mono, dcoef) * slope[:, :, None]  # (npts, nterms, ncoords)
             g = np.einsum("et,ptv->pev", owner, -dp / (p * p)[:, :, None])
+            c = (1.0 / p) @ owner.T
+            g = np.stack([f.factored_gradient(x, c[:, e], g[:, e]) for e, f in enumerate(self.capacitances)], axis=1)
         return g / self.scales[None, None, :]
 
     def term_clamps(self) -> list[list[tuple[float, float]]]:
@@ -421,15 +425,11 @@ class MacroModel:
                 f["electrode"],
                 f["c_ref"],
                 f["target"],
-                tuple(
-                    Polynomial(
-                        np.array(t["exponents"], dtype=int).reshape(-1, len(coords)), np.array(t["coeffs"], dtype=float)
-                    )
-                    for t in f["terms"]
-                ),
+                tuple(_polynomial(t, len(coords)) for t in f["terms"]),
                 f["max_rel_error"],
                 f["rms_rel_error"],
                 f["grid_max_rel_error"],
+                _polynomial(f["factor"], len(coords)) if "factor" in f else None,
             )
             for f in d["capacitances"]
         ]
@@ -485,7 +485,14 @@ def _port_dict(c: Coordinate) -> dict:
     return {"displacement": xu, "displacement_si_per_volt": xf, "force": fu, "force_si_per_volt": ff}
 
 
+def _polynomial(d: dict, ncoords: int) -> Polynomial:
+    """A polynomial from its JSON entry {"exponents", "coeffs"}."""
+    return Polynomial(np.array(d["exponents"], dtype=int).reshape(-1, ncoords), np.array(d["coeffs"], dtype=float))
+
+
 def _fit_dict(f: CapacitanceFit, plate: str) -> dict:
+    """A fit's JSON entry; its factor (a process point's, CapacitanceFit.factor) only when it has one."""
+    factor = {} if f.factor is None else {"factor": _poly_dict(f.factor)}
     return {
         "pair": [plate, f.electrode],
         "electrode": f.electrode,
@@ -494,8 +501,12 @@ def _fit_dict(f: CapacitanceFit, plate: str) -> dict:
         "max_rel_error": f.max_rel_error,
         "rms_rel_error": f.rms_rel_error,
         "grid_max_rel_error": f.grid_max_rel_error,
-        "terms": [{"exponents": p.exponents.tolist(), "coeffs": [float(c) for c in p.coeffs]} for p in f.polys],
-    }
+        "terms": [_poly_dict(p) for p in f.polys],
+    } | factor
+
+
+def _poly_dict(p: Polynomial) -> dict:
+    return {"exponents": p.exponents.tolist(), "coeffs": [float(c) for c in p.coeffs]}
 
 
 def finite(value: float) -> float:

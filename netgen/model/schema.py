@@ -62,6 +62,8 @@ def check(c: Checker, d: dict) -> None:
             polynomial(c, f"capacitances[{e}].terms[{t}]", term, ncoords)
             if fit.get("target") == "plates":
                 plate_at_rest(c, f"capacitances[{e}].terms[{t}]", term)
+        if "factor" in fit:  # a process point's state factor (netgen.sweep.point)
+            polynomial(c, f"capacitances[{e}].factor", fit["factor"], ncoords)
     contact = d.get("contact") or {}
     if not isinstance(contact, dict):
         c.fail("contact", "must be an object (empty: no contact model)", FIX)

@@ -16,8 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import SweepError
+from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
+from ..model.etch_state import ETCH, TSCALE, Axis, state_polynomial
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, film_at, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
@@ -60,7 +62,7 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     (as the emitters scale the port: netgen.model.process_loads.acceleration_at); the fitted strain
     energy times its law pu (netgen.model.process.energy_factor, as the emitters scale its forces);
     the thermal noise at the point's temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
-    polynomials re-expanded, exact)."""
+    polynomials re-expanded, exact); a comb's state factor as its fit's factor (etched_fits, thickness_fits)."""
     law = model.process
     tscale, escale = point.get("tscale", 1.0), point.get("escale", 1.0)
     temp, etch = point.get("temp"), point.get("etch", 0.0)
@@ -108,23 +110,33 @@ def shifted_fits(model: MacroModel, point: dict[str, float]) -> list:
 
 def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:
     """The fits at tscale: each electrode with a tscale law (comb fingers ~ t, netgen.model.process.
-    thickness_capacitance) times its ratio, as the emitters render pc_<electrode>; a comb's state
-    factor (netgen.model.etch_state) is no form of these fits and is left out here."""
-    laws = {r["electrode"]: r["ratio"] for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
+    thickness_capacitance) times its ratio, as the emitters render pc_<electrode>, and a comb's state
+    factor 1 + u P1(xs) + u^2 P2(xs), u = tscale - 1 (netgen.model.etch_state) as its fit's factor."""
+    laws = {r["electrode"]: r for r in (model.process.get("tscale") or {}).get("capacitance_laws", [])}
     if tscale == 1.0 or not laws:
         return fits
     for i, f in enumerate(fits):
-        if f.electrode in laws:
-            fits[i] = dataclasses.replace(
-                f, c_ref=f.c_ref * float(np.dot(laws[f.electrode], [1, tscale, tscale**2, tscale**3]))
-            )
+        law = laws.get(f.electrode)
+        if law is not None:
+            f = dataclasses.replace(f, c_ref=f.c_ref * float(np.dot(law["ratio"], [1, tscale, tscale**2, tscale**3])))
+            fits[i] = with_state(f, law, tscale, TSCALE)
     return fits
+
+
+def with_state(f: CapacitanceFit, law: dict, value: float, axis: Axis) -> CapacitanceFit:
+    """The fit times its law's state factor at the `axis` parameter's value (netgen.model.etch_state.
+    state_polynomial, read at the unshifted state as every form reads it); as it was without one."""
+    if "state" not in law:
+        return f
+    factor = state_polynomial(law["state"], value, axis)
+    return dataclasses.replace(f, factor=factor if f.factor is None else f.factor.times(factor))
 
 
 def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
     """The fits at the etch bias (netgen.model.process.capacitance_at's arithmetic, as the emitters
-    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio; a
-    comb's state factor (netgen.model.etch_state) is no form of these fits and is left out here."""
+    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio, and a
+    comb's state factor 1 + u P1(xs) + u^2 P2(xs), u = etch / 1 um (netgen.model.etch_state) as its
+    fit's factor."""
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     if not etch or not laws:
         return fits
@@ -137,7 +149,8 @@ def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
         for q, k in law.get("shift", {}).items():
             v = names.index(q)
             polys = tuple(shift(p, v, k * etch / model.coordinates[v].scale) for p in polys)
-        fits[i] = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch))
+        moved = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch))
+        fits[i] = with_state(moved, law, etch, ETCH)
     return fits
 
 
