@@ -156,14 +156,19 @@ class MacroModel:
         return g / self.scales[None, None, :]
 
     def term_clamps(self) -> list[list[tuple[float, float]]]:
-        """(knee, floor) of every 1/P term, per electrode (netgen.model.contact); [] without a contact model."""
+        """(knee, floor) of every 1/P term, per electrode (netgen.model.contact): fractions of the term at
+        rest, P(0), or of contact["term_rest"] where a process point's copy keeps its nominal model's
+        (netgen.sweep.point.at_point: a shifted fit's P(0) is another number, the forms clamp at the
+        nominal one); [] without a contact model."""
         if not self.contact or any(f.target == "direct" for f in self.capacitances):
             return []
+        knee, floor = self.contact["knee"], self.contact["floor"]
+        return [[(knee * r, floor * r) for r in row] for row in self.term_rest()]
+
+    def term_rest(self) -> list[list[float]]:
+        """Every 1/P term's value at rest per electrode, the clamps' reference (term_clamps)."""
         zero = np.zeros((1, self.ncoords))
-        return [
-            [(self.contact["knee"] * float(p(zero)[0]), self.contact["floor"] * float(p(zero)[0])) for p in f.polys]
-            for f in self.capacitances
-        ]
+        return self.contact.get("term_rest") or [[float(p(zero)[0]) for p in f.polys] for f in self.capacitances]
 
     def _clamped(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clamped plate terms and dP_eff/dP (netgen.model.contact); unchanged without a contact model."""

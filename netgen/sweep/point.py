@@ -62,7 +62,8 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
     (as the emitters scale the port: netgen.model.process_loads.acceleration_at); the fitted strain
     energy times its law pu (netgen.model.process.energy_factor, as the emitters scale its forces);
     the thermal noise at the point's temperature; each gap set's capacitance terms reading xs_z - sign dg / L_z (shifted: the
-    polynomials re-expanded, exact); a comb's state factor as its fit's factor (etched_fits, thickness_fits)."""
+    polynomials re-expanded, exact); a comb's state factor as its fit's factor (etched_fits, thickness_fits);
+    the plate terms' clamps at the nominal model's rest terms, as the forms clamp (MacroModel.term_rest)."""
     law = model.process
     tscale, escale = point.get("tscale", 1.0), point.get("escale", 1.0)
     temp, etch = point.get("temp"), point.get("etch", 0.0)
@@ -75,11 +76,13 @@ def at_point(model: MacroModel, point: dict[str, float]) -> MacroModel:
         coords.append(
             dataclasses.replace(c, mass=mass, stiffness=stiffness, damping=damping, frequency_hz=freq, film=film)
         )
+    keep = {"term_rest": model.term_rest()} if model.contact else {}  # the forms clamp at the nominal P(0)
     out = dataclasses.replace(
         model,
         coordinates=coords,
         acceleration=acceleration_at(model, tscale, etch),
         capacitances=shifted_fits(model, point),
+        contact=model.contact | keep,
     )
     if model.nonlinear and law.get("strain_energy"):
         pu = energy_factor(law, tscale, escale, temp, etch)
