@@ -31,7 +31,7 @@ import numpy as np
 
 from ..electrostatics.sampling import check_points
 from ..fit.polynomial import monomial_exponents, monomials
-from .etch_knots import ETCH_UNIT
+from .etch_knots import ETCH_UNIT, knot_value
 
 DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
 FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the law is checked at
@@ -66,12 +66,17 @@ def state_laws(
     degree: int = DEGREE,
     powers: int = 2,
     axis: Axis = ETCH,
+    knots: tuple[float, ...] = (),
+    below: dict[int, float] | None = None,
 ) -> dict[int, dict]:
     """electrode index -> {"exponents", "coeffs": [P1's, P2's]} for the electrodes of `laws` (index ->
     (shift per unit of the parameter in SI per coordinate, ratio cubic)) of `s`, from
     `extract(structure, n, offset)` (netgen.build.capacitance_sampler) at `etched(s, value)` for the
     `etches` (the `axis` parameter's values) other than the nominal, on the rows after `skip` + 1 (and
-    rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for bench/etch_state.py's comparison."""
+    rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for bench/etch_state.py's comparison; `knots`
+    the ratios' (netgen.model.etch_knots); `below` (index -> knot k, etch / 1 um): that electrode's
+    factor is in (k - u)+ instead of u (a cantilever's tip overhanging the electrode: the state
+    dependence exists on that side of k only), marked "below" in its law."""
     if not laws:
         return {}
     n = skip + FIT_POINTS
@@ -96,31 +101,36 @@ def state_laws(
         with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out
             r = np.array(
                 [
-                    moved[e][:, k] / (ratio_at(ratio, e, axis) * drawn(v * (e - axis.nominal))[:, k]) - 1.0
+                    moved[e][:, k] / (ratio_at(ratio, e, axis, knots) * drawn(v * (e - axis.nominal))[:, k]) - 1.0
                     for e in points
                 ]
             )
         ok = np.all(np.isfinite(r), axis=0)
         if np.max(np.abs(r[:, ok])) < FLOOR:
             continue
-        u = np.array([axis.u(e) for e in points])
+        k_below = (below or {}).get(k)
+        u = np.array([axis.u(e) if k_below is None else max(k_below - axis.u(e), 0.0) for e in points])
         design = np.concatenate([np.hstack([ui**j * basis[ok] for j in range(1, powers + 1)]) for ui in u])
         coef, *_ = np.linalg.lstsq(design, r[:, ok].ravel(), rcond=None)
         m = len(exps)
         second = coef[m:] if powers == 2 else np.zeros(m)
         out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), second.tolist()]}
+        out[k] |= {"below": k_below} if k_below is not None else {}
     return out
 
 
-def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH) -> float:
-    """A ratio cubic in the value / unit at the `axis` parameter's value `etch` (etch: m)."""
+def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH, knots: tuple[float, ...] = ()) -> float:
+    """A ratio cubic in the value / unit (with the truncated powers of `knots` where it has them,
+    netgen.model.etch_knots) at the `axis` parameter's value `etch` (etch: m)."""
     u = etch / axis.unit
+    if len(ratio) > 4:
+        return knot_value(ratio, u, knots)
     return float(np.dot(ratio[:4], [1.0, u, u * u, u**3]))
 
 
 def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
     """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords) and the `axis` parameter's value:
-    the factor the emitters render."""
-    u = axis.u(etch)
+    the factor the emitters render; a law marked "below" k is in (k - u)+ (state_laws)."""
+    u = axis.u(etch) if "below" not in law else max(law["below"] - axis.u(etch), 0.0)
     m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
     return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
