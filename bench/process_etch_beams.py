@@ -18,18 +18,7 @@ from netgen.build import build_model
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 
-ETCHES, PROCESS = beam_etch.ETCHES, beam_etch.PROCESS
-
-
-def drawn_text(etch: float = 0.0, process: str = PROCESS) -> str:
-    """examples/cantilever.toml as drawn (electrode x 0..150 um, y the drawn width), [process] etch; at
-    `etch` the file rewritten at the etched width and length with the electrode where it was drawn."""
-    text = (ROOT / "examples" / "cantilever.toml").read_text()
-    text = text.replace('x = ["0 um", "150 um"]', 'x = ["0 um", "150 um"]\ny = ["-25 um", "25 um"]')
-    if etch:
-        text = text.replace('width = "50 um"', f'width = "{50 - 2e6 * etch!r} um"')
-        text = text.replace('length = "150 um"', f'length = "{150 - 1e6 * etch!r} um"')
-    return text + ("\n" + process if process else "")
+ETCHES, PROCESS, drawn_text = beam_etch.ETCHES, beam_etch.PROCESS, beam_etch.drawn_text
 
 
 def report(label: str, model, rebuild, name: str | None) -> None:
