@@ -12,7 +12,7 @@ import math
 import time
 
 import numpy as np
-from support import ROOT, beam_etch, process_balance
+from support import beam_etch, process_balance
 
 from netgen.build import build_model
 from netgen.model.process import capacitance_at, coordinate_values
@@ -50,31 +50,10 @@ def report(label: str, model, rebuild, name: str | None) -> None:
         line += f"; C at 100 points vs rebuild {dc:.1e} (at rest {rest - 1:+.1e}: the ratio)"
         if model.name == "cantilever":
             k = [m[1] for m in laws]
-            v_law = process_balance.pull_in(LawAt(model, e), k)
+            v_law = process_balance.pull_in(process_balance.LawAt(model, e), k)
             v_ref = process_balance.pull_in(ref, [c.stiffness for c in ref.coordinates])
             line += f"; pull-in {v_law:.5f} V vs {v_ref:.5f} V ({v_law / v_ref - 1:+.1e})"
         print(line)
-
-
-class LawAt:
-    """The etch law's capacitances at one etch (netgen.model.process.capacitance_at: ratio, shifts,
-    state factor) with the MacroModel interface process_balance.pull_in reads; the gradient by a
-    central difference in the scaled state (h = 1e-5: truncation ~ h^2 d3C/C ~ 1e-10 relative)."""
-
-    def __init__(self, model, etch: float) -> None:
-        self.model, self.etch = model, etch
-        self.scales, self.ncoords = model.scales, model.ncoords
-
-    def capacitance_gradient(self, xs: np.ndarray) -> np.ndarray:
-        """dC/dq (points, electrodes, coordinates) in F/m."""
-        h, out = 1e-5, []
-        for v in range(self.ncoords):
-            step = np.zeros(self.ncoords)
-            step[v] = h
-            hi = capacitance_at(self.model, xs + step, self.etch)
-            lo = capacitance_at(self.model, xs - step, self.etch)
-            out.append((hi - lo) / (2 * h * self.scales[v]))
-        return np.stack(out, axis=-1)
 
 
 def built(text: str, name: str):

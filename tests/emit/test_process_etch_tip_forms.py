@@ -151,24 +151,6 @@ def check(model, plots, lib: bool = False) -> None:
         check_forces(model, xs, e, pulled, lib_rounding(model, xs, e) if lib else 0.0)
 
 
-def test_law_has_knot_and_tip_factor(beam):
-    """The drawn cantilever's law: a knot at etch 0, the ratio piecewise there, a state factor in
-    (0 - u)+; over-etched (the beam inside the electrode) the ratio is the facing area's (w - 2 etch)
-    (L - etch) / (w L) exactly, under-etched the drawn area (the electrode's) at rest: 1."""
-    e = beam.process["etch"]
-    assert e["knots"] == [0.0]
-    law = e["capacitance"][0]
-    assert law["state"]["below"] == 0.0
-    for etch in (-0.2e-6, -0.1e-6):
-        assert capacitance_at(beam, np.zeros((1, 3)), etch)[0, 0] == pytest.approx(
-            beam.capacitance(np.zeros((1, 3)))[0, 0], rel=1e-12
-        )
-    for etch in (0.1e-6, 0.3e-6):
-        area = (50e-6 - 2 * etch) * (150e-6 - etch) / (50e-6 * 150e-6)
-        got = capacitance_at(beam, np.zeros((1, 3)), etch)[0, 0] / beam.capacitance(np.zeros((1, 3)))[0, 0]
-        assert got == pytest.approx(area, rel=1e-12)
-
-
 def test_lib(beam, tmp_path, ngspice_version):
     (tmp_path / "c.lib").write_text(emit_ngspice.subcircuit(beam))
     check(beam, run_ngspice(deck(str(tmp_path / "c.lib"), beam), tmp_path / "r"), lib=True)
