@@ -124,7 +124,8 @@ def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:
 def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
     """The fits at the etch bias (netgen.model.process.capacitance_at's arithmetic, as the emitters
     render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio; a
-    comb's state factor (netgen.model.etch_state) is no form of these fits and is left out here."""
+    comb's or an overhanging tip's state factor (netgen.model.etch_state) is no form of these fits and is
+    left out here."""
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     if not etch or not laws:
         return fits
@@ -137,7 +138,8 @@ def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
         for q, k in law.get("shift", {}).items():
             v = names.index(q)
             polys = tuple(shift(p, v, k * etch / model.coordinates[v].scale) for p in polys)
-        fits[i] = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch))
+        knots = tuple(model.process["etch"].get("knots", []))  # a beam's edge knots (netgen.model.etch_knots)
+        fits[i] = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch, knots))
     return fits
 
 

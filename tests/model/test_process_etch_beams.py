@@ -255,3 +255,14 @@ def test_drawn_pull_in(drawn, etch):
     )
     assert bound < 2e-3
     assert v_law == pytest.approx(v_ref, rel=bound)
+
+
+def test_drawn_sweep_point(drawn):
+    """A sweep's model at an etch (netgen.sweep.point.at_point) reads the knotted ratio: at rest (the
+    tip's state factor 1 there) the facing area's ratio, as test_drawn_ratio_at_rest."""
+    rest = np.zeros((1, drawn.ncoords))
+    c0 = drawn.capacitance(rest)[0, 0]
+    for etch in ETCHES:
+        area = 1.0 if etch < 0 else width_ratio("cantilever", etch) * length_ratio("cantilever", etch)
+        got = at_point(drawn, {"etch": etch}).capacitance(rest)[0, 0] / c0
+        assert got == pytest.approx(area, rel=drawn.process["etch"]["capacitance_max_rel_error"] + 1e-12)
