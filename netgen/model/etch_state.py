@@ -19,6 +19,10 @@ P1, P2 are one least-squares fit over the parameter's points other than the nomi
 FIT_POINTS points of the fit box other than the points the law's stated error is checked at (held
 out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
 none (the textbook combs: 9.3e-5, their law is a shift to that).
+
+A cantilever's tip overhanging its electrode (netgen.model.etch_knots.tip_knots) gets the same factor
+in v = (k - u)+ instead of u (the law marked "below": k), so that it is 1 where the beam ends inside
+the electrode and the law is exact there (netgen.model.process.capacitance_laws, TIP_DEGREE).
 """
 
 from __future__ import annotations
