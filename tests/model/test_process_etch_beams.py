@@ -60,6 +60,7 @@ from netgen.build import build_model, electrodes, extractor, plate_outline
 from netgen.build import mechanics as run_mechanics
 from netgen.core.errors import StructureError
 from netgen.mechanics import mechanics
+from netgen.model.etch_knots import edge_knots, tip_knots
 from netgen.model.process import capacitance_at, coordinate_values, etched, process_laws, ratio_value
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
@@ -266,3 +267,15 @@ def test_drawn_sweep_point(drawn):
         area = 1.0 if etch < 0 else width_ratio("cantilever", etch) * length_ratio("cantilever", etch)
         got = at_point(drawn, {"etch": etch}).capacitance(rest)[0, 0] / c0
         assert got == pytest.approx(area, rel=drawn.process["etch"]["capacitance_max_rel_error"] + 1e-12)
+
+
+def test_edge_knots():
+    """Where the etched beam's edges (sides +-(w - 2 etch) / 2, the tip L - etch) meet the electrode's:
+    the drawn cantilever's at etch 0 (sides and tip), an electrode narrower by 0.1 um a side at 0.1 um
+    (the sides), none with the electrode past the beam (tests/oracles/beam_etch)."""
+    lo, hi = -0.2e-6, 0.3e-6
+    s = parse_structure(drawn_text(), "cantilever.toml")
+    assert edge_knots(s, lo, hi) == (0.0,) and tip_knots(s, lo, hi) == {"drive": 0.0}
+    narrow = parse_structure(drawn_text().replace('y = ["-25 um", "25 um"]', 'y = ["-24.9 um", "24.9 um"]'), "c.toml")
+    assert edge_knots(narrow, lo, hi) == pytest.approx((0.0, 0.1))
+    assert edge_knots(parse_structure(beam_text("cantilever"), "c.toml"), lo, hi) == ()
