@@ -24,6 +24,7 @@ from .electrostatics import CapacitanceExtractor, PreparedExtractor, calibration
 from .electrostatics import imported as imported_capacitance
 from .electrostatics.sampling import (
     Samples,
+    box_corners,
     box_factors,
     box_range,
     check_points,
@@ -344,16 +345,16 @@ def etch_loads(s: Structure, m: Mechanics, model: MacroModel) -> None:
 def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
     """(structure, n, offset) -> its electrodes' capacitances from a fresh extractor at rest and at n
     random points of s0's fit box (fixed seed: the same points for every structure), all moved by the
-    displacement `offset` (SI per coordinate; None: none), for the process laws' re-runs of an etched
+    displacement `offset` (SI per coordinate; None: none; `corners`: at the box's corners instead), for the process laws' re-runs of an etched
     structure (netgen.model.process.etch_record). A beam's modes are its own structure's (an etched
     cantilever's are those of its shorter length, peak 1 at its tip: the coordinates a rebuild has);
     a proof mass's rigid coordinates do not depend on its outline (the nominal basis)."""
 
-    def extract(s: Structure, n: int, offset: np.ndarray | None = None) -> np.ndarray:
+    def extract(s: Structure, n: int, offset: np.ndarray | None = None, corners: bool = False) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
         own = getattr(s.conductor, "one_dimensional", False) and s.conductor != s0.conductor
         prepared = extractor(s, plate).prepare(shapes, plate, mechanics(s).basis if own else m.basis)
-        q = check_points(s0.sampling, n, len(m.names)) * scales
+        q = (box_corners(s0.sampling, len(m.names)) if corners else check_points(s0.sampling, n, len(m.names))) * scales
         return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
 
     return extract

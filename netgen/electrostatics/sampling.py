@@ -83,6 +83,14 @@ def check_points(sampling, n: int, ncoords: int) -> np.ndarray:
     return np.vstack([np.zeros(ncoords), np.random.default_rng(0).uniform(-1.0, 1.0, (n, ncoords)) * half])
 
 
+def box_corners(sampling, ncoords: int) -> np.ndarray:
+    """The 2^ncoords corners of the fit box in scaled coordinates (q / L), where a state polynomial's
+    misfit peaks (netgen.model.process.capacitance_laws checks a beam's overhanging tip there)."""
+    half = sampling.range * box_factors(sampling, ncoords)
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * ncoords, indexing="ij")).reshape(ncoords, -1).T
+    return signs * half
+
+
 def coordinate_ranges(sampling, names: list[str]) -> np.ndarray:
     """The half-width of each named coordinate's box from [sampling] range (a number, or a table
     whose "*" or the default 0.2 covers the coordinates it does not name)."""

@@ -40,10 +40,16 @@ def parameter(model: MacroModel) -> str:
     return "tscale" if any("state" in r for r in laws) else "etch"
 
 
-def u_texts(model: MacroModel, va: bool = False) -> tuple[str, str]:
-    """u and u^2 of the model's state factors as ngspice (or, `va`, Verilog-A) text."""
+def u_texts(model: MacroModel, va: bool = False, law: dict | None = None) -> tuple[str, str]:
+    """u and u^2 of the model's state factors as ngspice (or, `va`, Verilog-A) text; a `law` marked
+    "below" k (a cantilever's overhanging tip, netgen.model.etch_state) in (k - u)+, written branch-free
+    as (x + abs(x)) / 2 like the knots' ek_<j> (netgen.emit.process_etch.knot_params)."""
     if parameter(model) == "tscale":
         return T_VA_U if va else T_U
+    if law is not None and "below" in law:
+        x = f"({num(law['below'])} - 1e6*etch)"
+        p = f"0.5*({x} + abs({x}))"
+        return (f"({p})", f"(({p})*({p}))") if va else (f"{{{p}}}", f"{{({p})*({p})}}")
     return VA_U if va else (U1, U2)
 
 
@@ -72,8 +78,8 @@ def gradient_text(
 def factor_lines(model: MacroModel) -> list[str]:
     """ngspice lines of the nodes pr_<e> = the electrode's state factor (a B voltage source)."""
     state = [f"xs_{c.name}" for c in model.coordinates]
-    u = u_texts(model)
-    return [f"Bpr_{e} pr_{e} 0 V={factor_text(law, state, u=u)}" for e, law in state_laws(model).items()]
+    laws = state_laws(model)
+    return [f"Bpr_{e} pr_{e} 0 V={factor_text(law, state, u=u_texts(model, law=law))}" for e, law in laws.items()]
 
 
 def charge_factor(model: MacroModel, f, c_text: str) -> str:
@@ -89,12 +95,13 @@ def force_rows(model: MacroModel, ws: float) -> list[dict]:
     """Per coordinate the product rule's second term into its velocity node: sum over the electrodes
     with a state law of gain c_ref/(2 L) pc dV^2 (C0/c_ref) dpr/dxs (the first term, pr dC0/dq, is the
     forms' own force with dv2 times pr)."""
-    laws, state, u = state_laws(model), [f"xs_{c.name}" for c in model.coordinates], u_texts(model)
+    laws, state = state_laws(model), [f"xs_{c.name}" for c in model.coordinates]
     out = []
     for v, c in enumerate(model.coordinates):
         parts = []
         for f in model.capacitances:
-            grad = gradient_text(laws[f.electrode], v, state, u=u) if f.electrode in laws else None
+            law = laws.get(f.electrode)
+            grad = gradient_text(law, v, state, u=u_texts(model, law=law)) if law else None
             if grad is None:
                 continue
             e, plate = f.electrode, model.plate

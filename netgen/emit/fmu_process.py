@@ -117,7 +117,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
         array("double", "ELEC_SHIFT", [s[1] if s else 0.0 for s in elec]),
         array("int", "STOP_DG", [vr[f"dg_{s[0]}"] if s else -1 for s in stop_sets]),
         array("double", "STOP_INV_GAP", [1.0 / pt["gap"] for pt in stops]),
-        array("double", "PC_LAW", [ratios.get(e.name, ident) for e in model.electrodes]),
+        array("double", "PC_LAW", [padded(ratios.get(e.name, ident), knots) for e in model.electrodes]),
         array("double", "PC_TLAW", [thick.get(e.name, ident) for e in model.electrodes]),
         array("double", "ELEC_ETCH", etch_shifts(model)),
         array("double", "STOP_ETCH", [etch_stops.get(j, 0.0) for j in range(len(stops))]),
@@ -151,8 +151,24 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     if state:  # likewise: the combs' etch state factors (netgen.emit.etch_state)
         data += state
         defines["NSTATE"] = len(state[0]["data"].split(", "))
-        defines["STATE_U"] = "(t - 1.0)" if etch_state.parameter(model) == "tscale" else "u"  # the factors' u
+        defines["STATE_U"] = "(t - 1.0)" if etch_state.parameter(model) == "tscale" else state_u(model)
     return data, defines, names
+
+
+def padded(ratio: list[float], knots: list[float]) -> list[float]:
+    """An etch ratio in the knotted law's length 4 + 3 per knot (the runtime's etch_ratio reads PC_LAW
+    with that stride where there are knots; a plain cubic's knot columns are 0)."""
+    return list(ratio) + [0.0] * (4 + 3 * len(knots) - len(ratio)) if knots else list(ratio)
+
+
+def state_u(model: MacroModel) -> str:
+    """The C text of the etch state factors' u: etch / 1 um, or (k - u)+ for a cantilever's overhanging
+    tip (a law marked "below" k, netgen.model.etch_state); the runtime has one u for all the factors."""
+    below = {law.get("below") for law in etch_state.state_laws(model).values()}
+    if len(below) > 1:
+        raise ValueError("the FMU renders one state-factor variable; these laws differ in it")
+    k = below.pop()
+    return "u" if k is None else f"(u < {num(k)} ? {num(k)} - u : 0.0)"
 
 
 def state_arrays(model: MacroModel, array) -> list[dict]:

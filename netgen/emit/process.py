@@ -88,8 +88,8 @@ def factors(model: MacroModel) -> list[tuple[str, str]]:
         etch = u.get("etch") if declared(model, "etch") else None
         out.append(("pu", f"{pu}*{poly(etch, '(1e6*etch)')}" if etch and etch != IDENTITY else pu))
     t0 = p["temperature_C"] + KELVIN
+    out += knot_params(model)  # before pc_<electrode>: a beam's ratio reads its edge knots' ek_<j>
     out += [(f"pc_{e}", pc_text(model, e)) for e in capacitance_ratios(model)]
-    out += knot_params(model)
     for v, (c, law) in enumerate(zip(model.coordinates, p["coordinates"])):
         if active(model, "pm"):
             out.append((f"pm_{c.name}", f"{part(model, law, 'mass', tscale)}/{num(c.mass)}"))
@@ -125,11 +125,11 @@ def thickness_ratios(model: MacroModel) -> dict[str, list[float]]:
 
 
 def pc_text(model: MacroModel, electrode: str) -> str:
-    """pc_<electrode>'s expression: its etch cubic in 1e6 etch times its tscale cubic (either left
-    out where the electrode has none)."""
+    """pc_<electrode>'s expression: its etch cubic in 1e6 etch (with a beam's edge knots' truncated
+    powers, etch_ratio) times its tscale cubic (either left out where the electrode has none)."""
     etch = capacitance_ratios(model)[electrode]
     thick = thickness_ratios(model).get(electrode)
-    parts = [poly(etch, "(1e6*etch)")] if declared(model, "etch") else []
+    parts = [etch_ratio(model, etch)] if declared(model, "etch") else []
     parts += [poly(thick, "tscale")] if thick else []
     return "*".join(parts) or "1"
 

@@ -24,8 +24,12 @@ def etch_header(e: dict, knots: list[float], state: bool = True) -> str:
         "and damping "
         + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
         + (
-            f", piecewise at etch {', '.join(f'{k:g}' for k in knots)} um where a flexure width meets "
-            "the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
+            f", piecewise at etch {', '.join(f'{k:g}' for k in knots)} um where "
+            + (
+                "an electrode's edge meets the beam's (ek_<j> = (1e6 etch - knot)+)"
+                if "beam" in e
+                else "a flexure width meets the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
+            )
             if knots
             else ""
         )
@@ -42,6 +46,7 @@ def etch_neglect(e: dict, state: bool = True) -> str:
     if "capacitance_max_rel_error" not in e:
         return " (capacitances not etched)"
     has = "capacitance_stateless_max_rel_error" in e
+    tip = [r["state"]["below"] for r in e.get("capacitance", []) if "below" in r.get("state", {})]
     err = e["capacitance_max_rel_error"] if state or not has else e["capacitance_stateless_max_rel_error"]
     combs = any(r.get("shift") and not r.get("fill") for r in e.get("capacitance", []))
     fill = any(r.get("fill") for r in e.get("capacitance", []))
@@ -49,6 +54,11 @@ def etch_neglect(e: dict, state: bool = True) -> str:
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched "
         + ("beam" if "beam" in e else "outline, holes")
+        + (
+            " (piecewise at the knots)"
+            if "beam" in e and any(len(r["ratio"]) > 4 for r in e.get("capacitance", []))
+            else ""
+        )
         + (
             " and fingers, the combs' fits read at x, y shifted by their gap and overlap change (nodes xe_*; the fit's box and the stops move with etch)"
             if combs
@@ -62,6 +72,9 @@ def etch_neglect(e: dict, state: bool = True) -> str:
         + (
             (
                 ", the combs' C times a state factor 1 + u P1(xs) + u^2 P2(xs), u = etch / 1 um (netgen.model.etch_state; nodes pr_*)"
+                if state and not tip
+                else ", the overhanging tip's C times a state factor 1 + v P1(xs) + v^2 P2(xs), "
+                f"v = ({tip[0]:g} - etch / 1 um)+ (netgen.model.etch_state; nodes pr_*)"
                 if state
                 else ", the combs' state factor (netgen.model.etch_state) left out in this form"
             )

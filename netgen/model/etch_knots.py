@@ -9,7 +9,15 @@ k by 1.7e-3 (2 um legs on a 2 um layer: the kink at the nominal).
 The law is then a cubic plus, per knot k inside the etch range, truncated powers c1 (u - k)+ + c2
 (u - k)+^2 + c3 (u - k)+^3 of u = etch / 1 um ((x)+ = max(x, 0)): two cubics that join at the knot
 in value, each free in slope (the space of continuous piecewise cubics with that knot). Without a
-knot in the range the law is the cubic, as before (its text unchanged)."""
+knot in the range the law is the cubic, as before (its text unchanged).
+
+A beam conductor has no torsion knot but may have edge knots (edge_knots): where an electrode's edge
+is drawn on the beam's own (examples/cantilever.toml: x 0..150 um, y the drawn width), the etched
+beam's edge passes the electrode's there, and the facing area's slope in etch jumps (an under-etched
+beam overhangs the electrode, an over-etched one does not). The capacitance ratio takes those knots;
+where the cantilever's receded tip passes an electrode's far end (tip_knots) the overhanging tip,
+where the mode deflects most, makes the ratio depend on the state on the longer side only, which
+netgen.model.etch_state's factor carries in (k - u)+."""
 
 from __future__ import annotations
 
@@ -33,6 +41,39 @@ def etch_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
     return tuple(sorted({(w - t) / 2 / ETCH_UNIT for w in widths if lo < (w - t) / 2 < hi}))
 
 
+def edge_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
+    """The etches (etch / ETCH_UNIT, sorted) strictly inside (lo, hi) m where a beam conductor's etched
+    edge (netgen.model.etch_geometry.etched_beam: sides at +-(w - 2 etch) / 2, a cantilever's tip at
+    L - etch) meets one of its electrodes' edges; () for other conductors."""
+    c = s.conductor
+    if getattr(c, "kind", "") not in ("cantilever", "clamped_clamped_beam"):
+        return ()
+    at: set[float] = set()
+    for e in s.electrode_sets:
+        y0, y1 = getattr(e, "y0", None), getattr(e, "y1", None)
+        if y0 is None or y1 is None:
+            continue
+        at.update({c.width / 2 - y1, c.width / 2 + y0})
+    at.update(tip_knots(s, lo, hi).values())
+    return tuple(sorted({round(e / ETCH_UNIT, 12) + 0.0 for e in at if lo < e < hi}))
+
+
+def tip_knots(s: Any, lo: float, hi: float) -> dict[str, float]:
+    """electrode -> the etch (m) strictly inside (lo, hi) where a cantilever's receded tip L - etch
+    meets the electrode's far end x1 (below it, the tip overhangs the electrode); {} otherwise."""
+    c = s.conductor
+    if getattr(c, "kind", "") != "cantilever":
+        return {}
+    ends = {e.name: c.length - e.x1 for e in s.electrode_sets if getattr(e, "x1", None) is not None}
+    return {n: k for n, k in ends.items() if lo < k < hi}
+
+
+def record_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
+    """The etch record's knots (etch / ETCH_UNIT, sorted): the flexures' torsion knots and a beam's edge
+    knots (a beam has no flexure, a proof mass no edge knots: one list, the laws share its basis)."""
+    return tuple(sorted(set(etch_knots(s, lo, hi)) | set(edge_knots(s, lo, hi))))
+
+
 def knot_points(lo: float, hi: float, knots: tuple[float, ...]) -> tuple[float, ...]:
     """The etches (m) the mechanics are re-run at with knots: PER_PIECE evenly over each piece between
     lo, the knots and hi (shared ends once), and the nominal 0."""
@@ -54,8 +95,11 @@ def basis(u: Any, knots: tuple[float, ...]) -> np.ndarray:
 
 
 def knot_value(coeffs: list[float], u: float, knots: tuple[float, ...]) -> float:
-    """A knotted etch ratio at u = etch / 1 um (the arithmetic the emitters render)."""
-    return float(basis(u, knots)[0] @ np.asarray(coeffs, dtype=float))
+    """A knotted etch ratio at u = etch / 1 um (the arithmetic the emitters render); a plain cubic's
+    four numbers read as that cubic (its knot columns 0)."""
+    c = np.zeros(4 + 3 * len(knots))
+    c[: len(coeffs)] = coeffs
+    return float(basis(u, knots)[0] @ c)
 
 
 def identity(knots: tuple[float, ...]) -> list[float]:

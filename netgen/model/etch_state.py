@@ -19,6 +19,10 @@ P1, P2 are one least-squares fit over the parameter's points other than the nomi
 FIT_POINTS points of the fit box other than the points the law's stated error is checked at (held
 out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
 none (the textbook combs: 9.3e-5, their law is a shift to that).
+
+A cantilever's tip overhanging its electrode (netgen.model.etch_knots.tip_knots) gets the same factor
+in v = (k - u)+ instead of u (the law marked "below": k), so that it is 1 where the beam ends inside
+the electrode and the law is exact there (netgen.model.process.capacitance_laws, TIP_DEGREE).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 
 from ..electrostatics.sampling import check_points
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
-from .etch_knots import ETCH_UNIT
+from .etch_knots import ETCH_UNIT, knot_value
 
 DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
 FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the law is checked at
@@ -66,12 +70,17 @@ def state_laws(
     degree: int = DEGREE,
     powers: int = 2,
     axis: Axis = ETCH,
+    knots: tuple[float, ...] = (),
+    below: dict[int, float] | None = None,
 ) -> dict[int, dict]:
     """electrode index -> {"exponents", "coeffs": [P1's, P2's]} for the electrodes of `laws` (index ->
     (shift per unit of the parameter in SI per coordinate, ratio cubic)) of `s`, from
     `extract(structure, n, offset)` (netgen.build.capacitance_sampler) at `etched(s, value)` for the
     `etches` (the `axis` parameter's values) other than the nominal, on the rows after `skip` + 1 (and
-    rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for bench/etch_state.py's comparison."""
+    rest); `degree` and `powers` (1: u P1 alone, P2 = 0) for bench/etch_state.py's comparison; `knots`
+    the ratios' (netgen.model.etch_knots); `below` (index -> knot k, etch / 1 um): that electrode's
+    factor is in (k - u)+ instead of u (a cantilever's tip overhanging the electrode: the state
+    dependence exists on that side of k only), marked "below" in its law."""
     if not laws:
         return {}
     n = skip + FIT_POINTS
@@ -96,32 +105,37 @@ def state_laws(
         with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out
             r = np.array(
                 [
-                    moved[e][:, k] / (ratio_at(ratio, e, axis) * drawn(v * (e - axis.nominal))[:, k]) - 1.0
+                    moved[e][:, k] / (ratio_at(ratio, e, axis, knots) * drawn(v * (e - axis.nominal))[:, k]) - 1.0
                     for e in points
                 ]
             )
         ok = np.all(np.isfinite(r), axis=0)
         if np.max(np.abs(r[:, ok])) < FLOOR:
             continue
-        u = np.array([axis.u(e) for e in points])
+        k_below = (below or {}).get(k)
+        u = np.array([axis.u(e) if k_below is None else max(k_below - axis.u(e), 0.0) for e in points])
         design = np.concatenate([np.hstack([ui**j * basis[ok] for j in range(1, powers + 1)]) for ui in u])
         coef, *_ = np.linalg.lstsq(design, r[:, ok].ravel(), rcond=None)
         m = len(exps)
         second = coef[m:] if powers == 2 else np.zeros(m)
         out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), second.tolist()]}
+        out[k] |= {"below": k_below} if k_below is not None else {}
     return out
 
 
-def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH) -> float:
-    """A ratio cubic in the value / unit at the `axis` parameter's value `etch` (etch: m)."""
+def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH, knots: tuple[float, ...] = ()) -> float:
+    """A ratio cubic in the value / unit (with the truncated powers of `knots` where it has them,
+    netgen.model.etch_knots) at the `axis` parameter's value `etch` (etch: m)."""
     u = etch / axis.unit
+    if len(ratio) > 4:
+        return knot_value(ratio, u, knots)
     return float(np.dot(ratio[:4], [1.0, u, u * u, u**3]))
 
 
 def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
     """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords) and the `axis` parameter's value:
-    the factor the emitters render."""
-    u = axis.u(etch)
+    the factor the emitters render; a law marked "below" k is in (k - u)+ (state_laws)."""
+    u = law_u(law, etch, axis)
     m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
     return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
 
@@ -129,7 +143,13 @@ def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> n
 def state_polynomial(law: dict, value: float, axis: Axis = ETCH) -> Polynomial:
     """The factor state_factor evaluates, 1 + u P1(xs) + u^2 P2(xs) at the `axis` parameter's value, as
     one polynomial in xs (netgen.sweep.point puts it on a process point's capacitance fit)."""
-    u = axis.u(value)
+    u = law_u(law, value, axis)
     exps = np.array(law["exponents"], dtype=int)
     coeffs = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
     return Polynomial(np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps]), np.r_[1.0, coeffs])
+
+
+def law_u(law: dict, value: float, axis: Axis = ETCH) -> float:
+    """The variable a state law is in at the `axis` parameter's value: u, or (k - u)+ for a law marked
+    "below" k (an overhanging tip's, state_laws)."""
+    return axis.u(value) if "below" not in law else max(law["below"] - axis.u(value), 0.0)

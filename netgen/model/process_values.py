@@ -25,9 +25,12 @@ def law_value(c: dict, key: str, tscale: float, etch: float, knots: tuple[float,
     return t * (knot_value(c["etch"][key], u, knots) if knots else float(np.dot(c["etch"][key], [1.0, u, u**2, u**3])))
 
 
-def ratio_value(coeffs: list[float], etch: float) -> float:
-    """An etch ratio (cubic in etch / ETCH_UNIT) at `etch` (m)."""
+def ratio_value(coeffs: list[float], etch: float, knots: tuple[float, ...] = ()) -> float:
+    """An etch ratio (cubic in etch / ETCH_UNIT, with the truncated powers of the etch record's `knots`
+    where it has them: netgen.model.etch_knots) at `etch` (m)."""
     u = etch / ETCH_UNIT
+    if len(coeffs) > 4:
+        return knot_value(coeffs, u, knots)
     return float(np.dot(coeffs, [1.0, u, u**2, u**3]))
 
 
@@ -49,7 +52,8 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float =
         for q, shift in law.get("shift", {}).items():
             v = names.index(q)
             moved[:, v] += shift * etch / model.coordinates[v].scale
-        out[:, k] = ratio_value(law["ratio"], etch) * model.capacitance(moved)[:, k]
+        knots = tuple(model.process["etch"].get("knots", []))
+        out[:, k] = ratio_value(law["ratio"], etch, knots) * model.capacitance(moved)[:, k]
         if "state" in law:  # the state-dependent factor 1 + u P1(x) + u^2 P2(x) (netgen.model.etch_state)
             out[:, k] *= state_factor(law["state"], x, etch)
     for k, f in enumerate(model.capacitances):

@@ -307,15 +307,18 @@ def check_etch_law(c: Checker, law: Any, where: str, declared: bool, size: int =
             c.number(f"{where}.{key}[{k}]", x)
 
 
-def check_ratio_laws(c: Checker, laws: Any, path: str, names: tuple[str, ...]) -> None:
+def check_ratio_laws(c: Checker, laws: Any, path: str, names: tuple[str, ...], sizes: tuple[int, ...] = (4,)) -> None:
     """A list of per-electrode capacitance ratios at `path`: each one of the model's electrode names
-    and a cubic's four numbers (the etch's and the tscale's laws share this form)."""
+    and a cubic's four numbers (the etch's and the tscale's laws share this form), or `sizes` (a
+    beam's etch ratio with its edge knots: 4 + 3 per knot, netgen.model.etch_knots)."""
     if not isinstance(laws, list):
         c.fail(path, "must be a list of {electrode, ratio} objects")
     for i, law in enumerate(laws):
         where = f"{path}[{i}]"
-        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) != 4:
-            c.fail(where, "must be an object with an electrode name and a ratio of 4 numbers")
+        if not isinstance(law, dict) or not isinstance(law.get("ratio"), list) or len(law["ratio"]) not in sizes:
+            c.fail(
+                where, f"must be an object with an electrode name and a ratio of {' or '.join(map(str, sizes))} numbers"
+            )
         c.choice(f"{where}.electrode", law.get("electrode"), names)
         for k, x in enumerate(law["ratio"]):
             c.number(f"{where}.ratio[{k}]", x)
@@ -337,12 +340,14 @@ def check_thickness_laws(c: Checker, tscale: dict, names: tuple[str, ...], ncoor
             check_state_law(c, law["state"], f"process.tscale.capacitance_laws[{i}].state", ncoords)
 
 
-def check_capacitance_laws(c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...]) -> None:
+def check_capacitance_laws(
+    c: Checker, laws: Any, names: tuple[str, ...], coords: tuple[str, ...], nknots: int = 0
+) -> None:
     """The etch's capacitance laws (netgen.model.process.capacitance_laws): per electrode one of the
     model's electrode names (the emitters name the parameter pc_<electrode>), four numbers, an
     optional shift {coordinate: number} over the model's x and y (z with fill) and a comb's optional
-    stop_shift over the same coordinates."""
-    check_ratio_laws(c, laws, "process.etch.capacitance", names)
+    stop_shift over the same coordinates; with `nknots` knots a ratio may have 4 + 3 nknots numbers."""
+    check_ratio_laws(c, laws, "process.etch.capacitance", names, (4, 4 + 3 * nknots))
     for i, law in enumerate(laws):
         where = f"process.etch.capacitance[{i}]"
         shift = law.get("shift", {})
@@ -384,6 +389,8 @@ def check_state_law(c: Checker, law: Any, where: str, ncoords: int) -> None:
     for j, row in enumerate(coeffs):
         for k, x in enumerate(row):
             c.number(f"{where}.coeffs[{j}][{k}]", x)
+    if "below" in law:  # a cantilever's overhanging tip: the factor in (k - u)+ (netgen.model.etch_state)
+        c.number(f"{where}.below", law["below"])
 
 
 def check_process(
@@ -444,7 +451,7 @@ def check_process(
         ):  # stated in the header (netgen.emit.process)
             if key in etch:
                 c.number(f"process.etch.{key}", etch[key])
-        check_capacitance_laws(c, etch.get("capacitance", []), names, coords)
+        check_capacitance_laws(c, etch.get("capacitance", []), names, coords, len(knots))
     visc = (process.get("temp") or {}).get("viscosity") or {}
     if visc:
         c.number("process.temp.viscosity.max_rel_error", visc.get("max_rel_error"))

@@ -137,9 +137,9 @@ def with_state(f: CapacitanceFit, law: dict, value: float, axis: Axis) -> Capaci
 
 def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
     """The fits at the etch bias (netgen.model.process.capacitance_at's arithmetic, as the emitters
-    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio, and a
-    comb's state factor 1 + u P1(xs) + u^2 P2(xs), u = etch / 1 um (netgen.model.etch_state) as its
-    fit's factor."""
+    render it): each electrode with an etch law read at x + shift etch / L_q and times its ratio (a
+    beam's knotted one too), and a comb's or an overhanging tip's state factor, 1 + u P1(xs) + u^2
+    P2(xs) in u = etch / 1 um or (k - u)+ (netgen.model.etch_state), as its fit's factor."""
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
     if not etch or not laws:
         return fits
@@ -152,7 +152,8 @@ def etched_fits(model: MacroModel, fits: list, etch: float) -> list:
         for q, k in law.get("shift", {}).items():
             v = names.index(q)
             polys = tuple(shift(p, v, k * etch / model.coordinates[v].scale) for p in polys)
-        moved = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch))
+        knots = tuple(model.process["etch"].get("knots", []))  # a beam's edge knots (netgen.model.etch_knots)
+        moved = dataclasses.replace(f, polys=polys, c_ref=f.c_ref * ratio_value(law["ratio"], etch, knots))
         fits[i] = with_state(moved, law, etch, ETCH)
     return fits
 

@@ -3,7 +3,8 @@ tests/model/test_process_etch_beams.py, tests/emit/test_process_etch_beams_forms
 bench/process_etch_beams.py: examples/cantilever.toml and examples/cc_beam.toml with the electrode
 drawn past the beam (x to 160 um on the 150 um cantilever, y +-30 um on the 50 um width), so that
 with fringe "none" the facing area is the etched beam's whole area at every etch of the range, and
-the a_in port; the same text rewritten at an etch (a rebuild) and the Euler-Bernoulli closed forms."""
+the a_in port; the same text rewritten at an etch (a rebuild) and the Euler-Bernoulli closed forms;
+and examples/cantilever.toml as drawn (drawn_text: the electrode's edges on the beam's)."""
 
 from __future__ import annotations
 
@@ -60,3 +61,15 @@ def modal_ratios(name: str, etch: float) -> tuple[float, float, float]:
     m ~ w L, k ~ w / L^3, f ~ 1 / L^2 (independent of the width)."""
     w, ell = width_ratio(name, etch), length_ratio(name, etch)
     return w * ell, w / ell**3, 1.0 / ell**2
+
+
+def drawn_text(etch: float = 0.0, process: str = PROCESS) -> str:
+    """examples/cantilever.toml as drawn (electrode x 0..150 um, y the drawn width: its edges on the
+    beam's, so an under-etched beam overhangs it), [process] `process` ("" for a rebuild); at `etch`
+    (m) the file rewritten at the etched width and length with the electrode where it was drawn."""
+    text = (ROOT / "examples" / "cantilever.toml").read_text()
+    text = text.replace('x = ["0 um", "150 um"]', 'x = ["0 um", "150 um"]\ny = ["-25 um", "25 um"]')
+    if etch:
+        text = text.replace('width = "50 um"', f'width = "{50 - 2e6 * etch!r} um"')
+        text = text.replace('length = "150 um"', f'length = "{150 - 1e6 * etch!r} um"')
+    return text + ("\n" + process if process else "")

@@ -1,6 +1,7 @@
 """Static readings of process-parameter tests and benches (tests/model/test_process_pull_in.py,
 bench/process_pull_in.py): the pull-in of a modal MacroModel by displacement iteration, and the
-levitated disk's gravity balance voltage from a build's fit or its field solution."""
+levitated disk's gravity balance voltage from a build's fit or its field solution; LawAt, an etch
+law at one etch read as a model (tests/model/test_process_etch_beams.py, bench/process_etch_beams.py)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import math
 import numpy as np
 
 from netgen.core.constants import G
+from netgen.model.process import capacitance_at
 
 
 def pull_in(model, stiffness: list[float], points: int = 4001) -> float:
@@ -65,3 +67,24 @@ CASES = [
     ("temp", -40.0),
     ("temp", 125.0),
 ]
+
+
+class LawAt:
+    """The etch law's capacitances at one etch (netgen.model.process.capacitance_at: ratio, shifts,
+    state factor) with the MacroModel interface process_balance.pull_in reads; the gradient by a
+    central difference in the scaled state (h = 1e-5: truncation ~ h^2 d3C/C ~ 1e-10 relative)."""
+
+    def __init__(self, model, etch: float) -> None:
+        self.model, self.etch = model, etch
+        self.scales, self.ncoords = model.scales, model.ncoords
+
+    def capacitance_gradient(self, xs: np.ndarray) -> np.ndarray:
+        """dC/dq (points, electrodes, coordinates) in F/m."""
+        h, out = 1e-5, []
+        for v in range(self.ncoords):
+            step = np.zeros(self.ncoords)
+            step[v] = h
+            hi = capacitance_at(self.model, xs + step, self.etch)
+            lo = capacitance_at(self.model, xs - step, self.etch)
+            out.append((hi - lo) / (2 * h * self.scales[v]))
+        return np.stack(out, axis=-1)
