@@ -1,8 +1,10 @@
-"""`netgen gyro`'s rate noise floor against the numpy reference of the same loop equations
+"""`netgen gyro`'s Brownian rate noise floor against the numpy reference of the same loop equations
 (tests/oracles/gyro_reference.py: the sense mode a resonator discretised exactly at the loop's
 clock, the loop filter and quantiser as netgen.testbench.sigma_delta.loop.design made them, the
-drive an ideal sinusoid at its amplitude): both bitstreams demodulated and read the same way
-(gyro_reference.inband_density), at zero rate, with the quadrature k_xy X_d on.
+drive an ideal sinusoid at its amplitude, the same thermal force), both bitstreams read the same
+way (gyro_reference.band_density), at zero rate, with the quadrature k_xy X_d on. The
+quantisation-only floor's comparison is bench/gyroscope.py --noise-reference: at the 6144 periods
+a test can afford, the drive phase moves that floor so much that its interval is +-6.7 dB.
 
 Tolerance (derived): the circuit's one reading against the readings of the reference over pieces
 of the same length (gyro_reference.segment_readings): it must lie in their two-sided 1e-3
@@ -12,7 +14,7 @@ fluctuates together across bins, so a Hann bin count overstates the degrees of f
 twofold (the Brownian variant: 29 measured, 60 counted; bench/gyroscope.py --dof), and an F or
 chi-square bound from that count fails on some draws. ngspice seeds TRNOISE from its process id
 and the loop is chaotic under another CPU's rounding, so every run is a new draw; the interval is
-what makes the check hold on any machine. About 40 s of CPU (100 s on the loaded 2-core machine)."""
+what makes the check hold on any machine."""
 
 from __future__ import annotations
 
@@ -32,52 +34,14 @@ from tests.fixtures import ROOT
 from tests.oracles import gyro_reference as reference
 
 EXAMPLE = ROOT / "examples" / "gyroscope_z.toml"
-CYCLES, REFERENCE_CYCLES, BAND_HZ = 6144, 65536, 4000.0
-REFERENCE_RUNS = 4  # seeds or drive phases of the reference, each cut into pieces of the circuit's length
+REFERENCE_CYCLES = 65536
+REFERENCE_RUNS = 4  # seeds of the reference, each run cut into pieces of the circuit's length
 QUANTILE = 1e-3
 # the Brownian check (test_brownian_rate_noise_floor): periods, the band either side of the drive
 BROWNIAN_CYCLES, BROWNIAN_BAND_HZ = 8192, 4000.0
 # the span of the loop's |STF|^2 across the drive +-4 kHz (test_brownian_rate_noise_floor's docstring)
 TRANSFER_RANGE = (0.8, 1.43)
 TEMPERATURE = 300.0  # K, the structure's [damping] temperature (its default)
-
-
-@pytest.mark.slow
-def test_rate_noise_floor_matches_the_reference_loop(tmp_path):
-    """The in-band bit PSD near the drive of a 6144-period ngspice run (its last 5376 periods) within
-    the 1e-3 prediction interval of the reference loop's readings over 5376-period pieces of four
-    65536-period runs at drive phases 0, pi/2, pi and 3 pi/2 (module docstring). The phase moves the
-    quantiser's pattern, so the pieces of one run correlate (design effect) and the interval is wide:
-    measured -2.72 dB from the pieces' geometric mean, in [-6.74, +6.74] dB."""
-    model = build_model(load_structure(EXAMPLE))
-    spec = read_structure_loop(EXAMPLE)
-    lib = tmp_path / "g.lib"
-    lib.write_text(subcircuit(model))
-    s = run(model, lib, tmp_path / "run", spec, GyroRequest(cycles=CYCLES, progress=False, plots=False))
-    z = np.load(tmp_path / "run" / "bitstreams.npz")
-    keep = slice(CYCLES // 8, None)  # run.SKIP: the loop's start
-    drive_w = 2 * math.pi * s["runs"][0]["drive_hz"]
-    got, nu_c = reference.inband_density(z["time_0"][keep], z["bits_y_0"][keep], s["ts"], drive_w, BAND_HZ)
-
-    d = sense_design(model, spec, GyroRequest())
-    reads: list[list[float]] = []
-    for phase in np.arange(REFERENCE_RUNS) * math.pi / 2:  # the drive's phase moves the quantiser's pattern
-        r = reference.simulate_design(model, d, REFERENCE_CYCLES, phase)
-        reads.append(
-            reference.segment_readings(
-                r, REFERENCE_CYCLES // 8, CYCLES - keep.start, reference.inband_density, d.ts, BAND_HZ
-            )
-        )
-    low, high = reference.prediction_interval(reads, QUANTILE)
-    want, per_rate = float(np.exp(np.mean(np.log(reads)))), r["per_rate"]  # the pieces' geometric mean
-    db = lambda x: 10 * math.log10(x)  # noqa: E731
-    print(
-        f"rate noise: circuit {math.degrees(math.sqrt(2 * got) / per_rate):.4g}, reference "
-        f"{math.degrees(math.sqrt(2 * want) / per_rate):.4g} deg/s/rtHz over +-{BAND_HZ:g} Hz; "
-        f"ratio {db(got / want):+.2f} dB, interval [{db(low / want):+.2f}, {db(high / want):+.2f}] dB "
-        f"({np.size(reads)} reference pieces; Hann count nu {nu_c:.1f})"
-    )
-    assert low <= got <= high
 
 
 @pytest.mark.slow
