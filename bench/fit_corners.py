@@ -88,8 +88,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("structures", nargs="*", help="structure files (default: the cheap examples)")
     args = p.parse_args(argv)
     paths = [Path(a) for a in args.structures] or [ROOT / "examples" / f"{e}.toml" for e in CHEAP]
-    print(f"{'example':16s} {'electrode':10s} {'n':>2s} {'build s':>8s} {'stated':>9s} {'random':>9s} {'corners':>9s} "
-          f"{'faces':>9s} {'ratio':>6s} {'touch':>5s}")
+    print(
+        f"{'example':16s} {'electrode':10s} {'n':>2s} {'build s':>8s} {'stated':>9s} {'random':>9s} {'corners':>9s} "
+        f"{'faces':>9s} {'ratio':>6s} {'touch':>5s}"
+    )
     for path in paths:
         for r in measure(path):
             print(
