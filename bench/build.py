@@ -21,9 +21,9 @@ from support import ROOT
 
 from netgen.build import Sampled, assemble
 from netgen.electrostatics import extractor
-from netgen.electrostatics.sampling import coordinate_scales, sample_grid, sample_holdout
+from netgen.electrostatics.sampling import coordinate_scales, sample_corners, sample_grid, sample_holdout
 from netgen.emit.ngspice import subcircuit
-from netgen.fit.capacitance import fit_all
+from netgen.fit.capacitance import at_corners, fit_all
 from netgen.geometry.layout import electrodes, plate_outline
 from netgen.mechanics import mechanics
 from netgen.structure import load_structure
@@ -55,9 +55,20 @@ def run_once(path: Path) -> dict[str, float]:
     scales = timed("touching amplitudes", coordinate_scales, prepared, m.names, [e.gap for e in shapes])
     grid = timed(f"grid samples ({s.sampling.levels}^{len(scales)})", sample_grid, s, prepared, scales)
     held = timed(f"held-out samples ({s.fit.holdout})", sample_holdout, s, prepared, scales)
+    corners = timed(f"corner checks (2^{len(scales)}, up to 2^6)", sample_corners, s, prepared, scales)
     fits = timed(f"fits ({len(shapes)} electrodes, {s.fit.target})", fit_all, s, shapes, m.basis, scales, grid, held)
+    fits = timed("fit errors at the corners", at_corners, fits, corners)
     model = timed(
-        "assemble MacroModel", assemble, s, m, plate, shapes, ext, prepared, scales, Sampled(grid, held, fits)
+        "assemble MacroModel",
+        assemble,
+        s,
+        m,
+        plate,
+        shapes,
+        ext,
+        prepared,
+        scales,
+        Sampled(grid, held, fits, None, corners),
     )
     timed("emit ngspice .lib", subcircuit, model)
     timed("JSON text", model.json_text)

@@ -30,13 +30,14 @@ from .electrostatics.sampling import (
     check_points,
     coordinate_ranges,
     coordinate_scales,
+    sample_corners,
     sample_grid,
     sample_holdout,
     sample_points,
 )
 from .fit import cost
 from .fit.adaptive import adaptive_fits
-from .fit.capacitance import CapacitanceFit, fit_all
+from .fit.capacitance import CapacitanceFit, at_corners, fit_all
 from .fit.energy import energy_entry, fit_energy
 from .geometry.layout import drawing, electrode_outlines, electrodes, overlap_area, plate_outline
 from .geometry.shapes import Electrode as ShapeElectrode
@@ -66,17 +67,19 @@ class Build:
     fits: list[CapacitanceFit]
     model: MacroModel
     extractor: CapacitanceExtractor | None = None
+    corners: Samples | None = None  # the box's corners, where the fits' stated error is checked too
 
 
 @dataclass(frozen=True)
 class Sampled:
     """The capacitance samples and their fits (assemble's input): the grid, the held-out set, the
-    fits and the sample design's extra report."""
+    fits, the sample design's extra report and the box's corner samples the fits' stated error covers."""
 
     grid: Samples
     holdout: Samples
     fits: list[CapacitanceFit]
     design_extra: dict | None = None
+    corners: Samples | None = None
 
 
 def build(s: Structure, progress: bool = False, max_minutes: float | None = None, **parallel) -> Build:
@@ -99,16 +102,17 @@ def build(s: Structure, progress: bool = False, max_minutes: float | None = None
     if table is not None:
         grid, holdout = imported_capacitance.samples(table, scales, plate_estimates(s, shapes, plate), s.fit.degree)
         say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
-        fits, extra = fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
+        sampled = Sampled(grid, holdout, fit_all(s, shapes, m.basis, scales, grid, holdout, progress))
     else:
         s = default_range(s, prepared, scales, progress)
-        grid, holdout, fits, extra = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
-    model = assemble(s, m, plate, shapes, ext, prepared, scales, Sampled(grid, holdout, fits, extra))
+        sampled = sample_and_fit(s, prepared, m, shapes, scales, progress, max_minutes, **parallel)
+    grid, holdout, fits = sampled.grid, sampled.holdout, sampled.fits
+    model = assemble(s, m, plate, shapes, ext, prepared, scales, sampled)
     if imp:
         model.report["import"] = {k: Path(v).name for k, v in vars(imp).items() if v}
         if imp.capacitance:
             model.report["electrostatics"] = {"extractor": f"imported table {Path(imp.capacitance).name}"}
-    return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model, ext)
+    return Build(s, m, shapes, prepared, scales, grid, holdout, fits, model, ext, sampled.corners)
 
 
 def sample_and_fit(
@@ -120,19 +124,22 @@ def sample_and_fit(
     progress: bool,
     max_minutes: float | None,
     **parallel,
-) -> tuple[Samples, Samples, list[CapacitanceFit], dict]:
+) -> Sampled:
     """The structure's sample design (after the cost estimate, with `max_minutes`) and one fit per
     electrode; the adaptive design grows its samples while fitting (netgen.fit.adaptive). Returns
-    the training and held-out samples, the fits and the design's report entries."""
+    the training and held-out samples, the fits (their stated error over the box's corners too:
+    netgen.fit.capacitance.at_corners) and the design's report entries."""
     if max_minutes is not None:
         estimate = cost.estimate(s, prepared, scales, len(shapes))
         say(progress, f"{s.name}: {estimate.text()}")
         cost.check(s, estimate, max_minutes)
     grid = sample_grid(s, prepared, scales, progress, **parallel)
     holdout = sample_holdout(s, prepared, scales, progress, **parallel)
+    corners = sample_corners(s, prepared, scales, progress, **parallel)
     if s.sampling.design != "adaptive":
         say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
-        return grid, holdout, fit_all(s, shapes, m.basis, scales, grid, holdout, progress), {}
+        fits = fit_all(s, shapes, m.basis, scales, grid, holdout, progress)
+        return Sampled(grid, holdout, at_corners(fits, corners), None, corners)
     say(progress, f"{s.name}: adaptive design from {len(grid.x)} samples, budget {s.sampling.points}")
     result = adaptive_fits(
         s,
@@ -145,12 +152,13 @@ def sample_and_fit(
         progress,
     )
     checked = [r["validation_max_rel_error"] for r in result.rounds if "validation_max_rel_error" in r]
-    return (
+    return Sampled(
         result.samples,
         holdout,
-        result.fits,
+        at_corners(result.fits, corners),
         {"probes": result.probes, "rounds": len(result.rounds), "converged": result.converged}
         | ({"validation_max_rel_error": checked[-1]} if checked else {}),
+        corners,
     )
 
 
@@ -274,6 +282,9 @@ def assemble(
     }
     if s.sampling.design != "grid":  # the grid's JSON as before
         sampling = {k: v for k, v in sampling.items() if k != "levels"} | cost.design_report(s, design_extra or {})
+    # the fits' max_rel_error covers the box's corners (netgen.fit.capacitance.at_corners)
+    if sampled.corners is not None:
+        sampling["corner_checks"] = int(len(sampled.corners.x))
     if s.sampling.factors:  # a range table (netgen.build.resolve_ranges): each coordinate's half-width
         sampling["coordinate_range"] = {n: s.sampling.range * f for n, f in zip(m.names, s.sampling.factors)}
     if not s.sampling.range_given and s.sampling.range < Sampling.range:  # netgen.build.default_range

@@ -283,7 +283,7 @@ def text_problems(new: str, old: str, hybrid: str, file: str) -> list[str]:
 
 def refit(b, i: int, noise: float, seed: int = 0, grid: int | None = None):
     """Electrode i's plate fit redone as the build does it (netgen.fit.capacitance.fit_plates, the
-    build's patch grid or PATCH_GRIDS[grid]) from its samples times (1 + noise * N(0, 1)), all but
+    build's patch grid or PATCH_GRIDS[grid], its stated error over the box's corners too) from its samples times (1 + noise * N(0, 1)), all but
     the one at the origin that sets c_ref (a measured sample, not a fit result)."""
     from netgen.fit import capacitance as cap
 
@@ -293,9 +293,10 @@ def refit(b, i: int, noise: float, seed: int = 0, grid: int | None = None):
     wobble[np.argmin(np.sum(x * x, axis=1))] = 0.0
     c = b.grid.c[:, i] * (1.0 + wobble)
     init = cap.patch_guess(b.structure, e, b.mechanics.basis, b.scales, cap.PATCH_GRIDS[k], cap.reference(x, c))
-    return cap.fit_plates(
+    fit = cap.fit_plates(
         e.name, cap.FitData(x, c, b.holdout.x, b.holdout.c[:, i], cap.rest_of(b.grid, i)), init, f.degree
     )
+    return fit if b.corners is None else cap.with_corners(fit, b.corners.x, b.corners.c[:, i])
 
 
 def with_fit(model: MacroModel, i: int, fit) -> MacroModel:

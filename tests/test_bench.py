@@ -34,6 +34,7 @@ RUNS = {
         ["bench/build.py", "--repeat", "1"],
         ["median of 1 build(s)", "fits (16 electrodes, plates)", "budget 60 s"],
     ),
+    "fit_corners": (["bench/fit_corners.py", "examples/cc_beam.toml"], ["cc_beam          drive       3"]),
     "sigma_delta": (
         [
             "bench/sigma_delta.py",

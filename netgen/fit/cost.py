@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..core.errors import StructureError
-from ..electrostatics.sampling import box_factors, design_points
+from ..electrostatics.sampling import CORNER_CHECKS, box_factors, design_points
 from ..structure import Structure
 from ..structure.schema import smolyak_count
 from .capacitance import MAX_NFEV, PATCH_GRIDS, SETTLE_WORK
@@ -111,6 +111,7 @@ def estimate(s: Structure, prepared, scales: np.ndarray, electrodes: int) -> Est
     n = len(scales)
     samples = sample_count(s, n)
     checks = s.fit.holdout + (samples + 3 * max(s.fit.holdout, 6 * (n + 1)) if s.sampling.design == "adaptive" else 0)
+    checks += 1 << n if n <= CORNER_CHECKS else 0  # the box's corners (netgen.electrostatics.sampling.sample_corners)
     per_point, step = extractor_time(prepared, s, scales), lm_step_time()
     return Estimate(
         s.sampling.design,

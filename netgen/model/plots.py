@@ -44,13 +44,14 @@ def fit_errors(path: Path, model: MacroModel) -> Path:
     names = [f.electrode for f in model.capacitances]
     idx = np.arange(len(names))
     fig, ax = plt.subplots(figsize=(max(6, 0.45 * len(names)), 3.6))
+    corners = model.sampling.get("corner_checks", 0)  # the max covers the box's corners too (netgen.build)
     ax.bar(idx - 0.2, [100 * f.max_rel_error for f in model.capacitances], 0.4, label="max (held-out)")
     ax.bar(idx + 0.2, [100 * f.rms_rel_error for f in model.capacitances], 0.4, label="rms (held-out)")
     ax.set_xticks(idx, names, rotation=60, fontsize=8)
     ax.set_ylabel("relative error (%)")
     ax.set_title(
         f"{model.name}: capacitance fit error on {model.sampling['holdout']} random points "
-        f"in +-{model.sampling['range']:g} L",
+        f"in +-{model.sampling['range']:g} L" + (f"\n(max: and at the box's {corners} corners)" if corners else ""),
         fontsize=10,
     )
     ax.legend(fontsize=8)

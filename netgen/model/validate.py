@@ -102,7 +102,8 @@ def check(d: Any, path: str = "<model>", units: tuple[str, ...] = ("m", "rad")) 
         if isinstance(value, float) and not math.isfinite(value):
             c.fail(where, f"{value} is not a finite number")
     check_names(c, d)
-    for key in ("samples", "levels", "excluded_touching", "holdout"):  # printed in the headers as they are
+    printed = ("samples", "levels", "excluded_touching", "holdout", "corner_checks")  # in the headers as they are
+    for key in printed:
         if key in d["sampling"]:
             c.number(f"sampling.{key}", d["sampling"][key], integer=True)
     if "range" in d["sampling"]:

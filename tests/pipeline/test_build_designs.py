@@ -62,7 +62,8 @@ def test_the_estimate_is_printed_and_the_design_recorded(tmp_path):
         cwd=ROOT,
     )
     assert run.returncode == 0, run.stderr
-    assert "lhs design: 64 samples + 500 check points; estimated extractor" in run.stderr
+    # check points: the 500 held-out ones and the 2^3 corners of the 3-coordinate box
+    assert "lhs design: 64 samples + 508 check points; estimated extractor" in run.stderr
     sampling = json.loads((tmp_path / "o" / "piston.json").read_text())["sampling"]
     assert sampling["design"] == "lhs" and sampling["points"] == 64 and sampling["design_seed"] == 5
     assert sampling["samples"] + sampling["excluded_touching"] == 64 and "levels" not in sampling
