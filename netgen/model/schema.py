@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .validate import FIX, Checker
+from .validate import FIX, Checker, shown
 
 MAX_EXPONENT = 24  # a fit's degree is at most 8 per coordinate ([fit] degree); 24 leaves room
 MAX_TERMS = 100_000  # monomials in one polynomial
@@ -18,7 +18,8 @@ SIDES = ("above", "below", "in_plane")
 
 # (list, field, low, low allowed, high, meaning and fix); list "" = the document itself
 FIELDS: tuple[tuple[str, str, float, bool, float, str], ...] = (
-    ("coordinates", "scale", 0.0, False, 10.0, "the touching amplitude (m or rad), > 0"),
+    # 1e-12: a femtometre-scale stop; the forms divide by scale^2 and scale^3 (netgen.emit.common.force_gain)
+    ("coordinates", "scale", 1e-12, True, 10.0, "the touching amplitude (m or rad), 1e-12 .. 10"),
     ("coordinates", "mass", 0.0, False, 1e6, "the (modal) mass in kg or kg*m^2, > 0"),
     ("coordinates", "stiffness", 0.0, True, 1e15, "the stiffness in N/m or N*m/rad, >= 0"),
     ("coordinates", "damping", 0.0, True, 1e9, "the damping in N*s/m or N*m*s/rad, >= 0"),
@@ -37,13 +38,49 @@ FIELDS: tuple[tuple[str, str, float, bool, float, str], ...] = (
 )
 
 
+# the document's entries that are objects where present (MacroModel.from_dict reads them with .get)
+OBJECTS = (
+    "sampling",
+    "report",
+    "contact",
+    "nonlinear_stiffness",
+    "acceleration_port",
+    "calibration",
+    "layout",
+    "inertial_inputs",
+    "process",
+)
+
+
 def check(c: Checker, d: dict) -> None:
     """Ranges (FIELDS), choices and shapes of a model document validate.check has passed."""
+    for key in OBJECTS:
+        if key in d and not isinstance(d[key], dict):
+            c.fail(key, f"{shown(d[key])} is not an object", FIX)
     ncoords = len(d["coordinates"])
     sampling = d["sampling"]
     c.number("sampling.samples", sampling.get("samples"), integer=True)
     if not isinstance(sampling.get("design"), str):  # the headers print the design, else the grid's levels
         c.number("sampling.levels", sampling.get("levels"), integer=True)
+    for key in ("excluded_touching", "holdout"):  # the headers print them
+        c.number(f"sampling.{key}", sampling.get(key), integer=True)
+    if "corner_checks" in sampling:
+        c.number("sampling.corner_checks", sampling["corner_checks"], integer=True)
+    ranged(c, "sampling.range", sampling.get("range"), 0.0, False, 10.0, "the sampled half-width in units of L, > 0")
+    per = sampling.get("coordinate_range")
+    if per is not None:
+        if not isinstance(per, dict):
+            c.fail("sampling.coordinate_range", f"{shown(per)} is not an object of coordinate half-widths", FIX)
+        for name, value in per.items():
+            ranged(c, f"sampling.coordinate_range.{name}", value, 0.0, False, 10.0, "a half-width in units of L, > 0")
+    if "tolerance" in sampling:  # the fit tolerance the headers compare each fit's error with
+        ranged(c, "sampling.tolerance", sampling["tolerance"], 0.0, False, 1e9, "the fit tolerance (relative), > 0")
+    report = d.get("report", {})
+    if not isinstance(report, dict):
+        c.fail("report", "must be an object of per-stage objects", FIX)
+    for key, value in report.items():  # the emitters read each stage's entries (netgen.emit.common)
+        if not isinstance(value, dict):
+            c.fail(f"report.{key}", f"{shown(value)} is not an object", FIX)
     if ncoords == 0:
         c.fail("coordinates", "no coordinates", FIX)
     for e, row in enumerate(d["electrodes"]):
