@@ -135,9 +135,7 @@ def ratio_at(ratio: list[float], etch: float, axis: Axis = ETCH, knots: tuple[fl
 def state_factor(law: dict, xs: np.ndarray, etch: float, axis: Axis = ETCH) -> np.ndarray:
     """1 + u P1(xs) + u^2 P2(xs) at scaled states xs (npoints, ncoords) and the `axis` parameter's value:
     the factor the emitters render; a law marked "below" k is in (k - u)+ (state_laws)."""
-    u = law_u(law, etch, axis)
-    m = monomials(np.atleast_2d(xs), np.array(law["exponents"], dtype=int))
-    return 1.0 + u * (m @ np.array(law["coeffs"][0])) + u * u * (m @ np.array(law["coeffs"][1]))
+    return state_polynomial(law, etch, axis)(np.atleast_2d(xs))
 
 
 def state_polynomial(law: dict, value: float, axis: Axis = ETCH) -> Polynomial:
