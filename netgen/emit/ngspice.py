@@ -97,7 +97,8 @@ def charge_node(electrode: str, factor: str, plate: str, c_ref: float | str) -> 
 
 def noise_context(model: MacroModel, ws: float) -> dict:
     """Template fields of the thermal force noise sources (damped coordinates only): a TRNOISE source
-    for .tran and, in series, the resistor Rn_<q> whose thermal noise .noise sees (noise_resistance)."""
+    for .tran and, in series, the CCVS Hn_<q> reading the resistor Rn_<q> whose thermal noise .noise sees
+    (noise_resistance, noise_resistor)."""
     temp = noise_kelvin(model)
     f_max = max(
         [c.frequency_hz for c in model.coordinates]
@@ -111,7 +112,9 @@ def noise_context(model: MacroModel, ws: float) -> dict:
             "rms": num(math.sqrt(2.0 * K_B * temp * c.damping) / c.port_units[3])
             + (f"*sqrt(pt_{c.name})" if process.active(model, "pt") else ""),
             "gain": num(c.port_units[3] / (c.mass * c.scale * ws * ws)),
-            "rn": process.factor(model, "pd", c.name, num(noise_resistance(c.damping, c.port_units[3]))),
+            **noise_resistor(
+                model, process.factor(model, "pd", c.name, num(noise_resistance(c.damping, c.port_units[3])))
+            ),
         }
         for c in model.coordinates
         if c.damping > 0
@@ -121,13 +124,12 @@ def noise_context(model: MacroModel, ws: float) -> dict:
         "noise_temperature": "the instance's temp + 273.15" if process.declared(model, "temp") else f"{temp:g}",
         "noise_dt": f"{dt:g}",
         "subckt_params": f"\n+ params: noise=1 noise_dt={dt:g}" if sources else "",
-        "noise_dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
     }
 
 
-# ngspice's default circuit temperature (degC): a .noise resistor's noise temperature is it plus dtemp;
-# the resistor form of 4 k_B T D assumes that .temp (ngspice 39 ignores a resistor's temp=)
-NGSPICE_TEMP_C = 27.0
+# ngspice's default nominal temperature TNOM (27 degC, in K): a resistor's value is R (1 + tc1 (T - TNOM))
+# at the circuit temperature T, so tc1 = 1 / TNOM makes it R T / TNOM (noise_resistor)
+NGSPICE_TNOM_K = 300.15
 # ngspice's Boltzmann constant (CONSTboltz in its const.h: CODATA 2014, 1.38064852e-23 J/K, in 39 and
 # 46 alike): a resistor's noise PSD is 4 CONSTboltz T R, 3.5e-7 below 4 K_B T R with the exact SI K_B
 K_B_NGSPICE = 1.38064852e-23
@@ -137,6 +139,21 @@ def noise_resistance(damping: float, force_unit: float) -> float:
     """The .noise resistor whose ngspice noise PSD 4 CONSTboltz T R is 4 K_B T D in force-port units
     (D / unit^2 scaled by K_B / K_B_NGSPICE); it carries no current, so only its noise sees R."""
     return damping / force_unit**2 * (K_B / K_B_NGSPICE)
+
+
+def noise_resistor(model: MacroModel, rn: str) -> dict[str, str]:
+    """The .noise source of a resistance rn (ngspice text) at the model's noise temperature T_d under any
+    .temp: the resistor Rn = rn TNOM / T_d with tc1 = 1 / TNOM is rn T / T_d at the circuit temperature T,
+    so its short-circuit noise current 4 k T / (rn T / T_d) = 4 k T_d / rn does not depend on T; a CCVS of
+    gain rn reads it as the voltage noise 4 k T_d rn. (ngspice's resistor temp= and dtemp cannot do it:
+    39 ignores temp=, 46 adds TNOM to it, and numparam cannot read the circuit temperature.)"""
+    inner = rn[1:-1] if rn.startswith("{") else rn
+    t_d = process.noise_temperature(model)
+    if inner == rn and not process.declared(model, "temp"):
+        ohms = num(float(rn) * NGSPICE_TNOM_K / float(t_d))
+    else:
+        ohms = f"{{{inner}*{num(NGSPICE_TNOM_K)}/{t_d}}}"
+    return {"rn": rn, "rn_ohms": ohms, "tc1": num(1.0 / NGSPICE_TNOM_K)}
 
 
 TEMPLATE = "ngspice/subckt.lib.j2"
@@ -399,8 +416,7 @@ def film_branches(model: MacroModel, ws: float, noise: bool) -> list[dict]:
                     {
                         "rms": f"{rms}*sqrt({law[0]}{t_ratio})" if law else rms,
                         "gain": f(num(corner * c.port_units[3] / (ws * r * c.scale * ws)), "gain"),
-                        "rn": f(num(noise_resistance(r, c.port_units[3])), "damper"),
-                        "dtemp": process.noise_dtemp(model, temp, NGSPICE_TEMP_C),
+                        **noise_resistor(model, f(num(noise_resistance(r, c.port_units[3])), "damper")),
                     }
                 )
             rows.append(row)

@@ -164,14 +164,6 @@ def factor(model: MacroModel, kind: str, name: str, value: str) -> str:
     return "{" + (f"tscale*{value}" if kind == "tscale" else f"{kind}_{name}*{value}") + "}"
 
 
-def noise_dtemp(model: MacroModel, temp_k: float, circuit_c: float) -> str:
-    """dtemp of the .noise resistors: the die temperature (the instance's temp where declared, else
-    the model's, temp_k) over ngspice's circuit temperature circuit_c."""
-    if declared(model, "temp"):
-        return f"{{temp - {circuit_c:g}}}"
-    return f"{temp_k - KELVIN - circuit_c:.6g}"
-
-
 def gap_shifts(model: MacroModel) -> dict[str, tuple[str, float]]:
     """electrode -> (its set, xs_z offset per metre of dg): the set's capacitance terms read
     xs_z - sign dg / L_z (netgen.model.process)."""

@@ -1,11 +1,12 @@
 """The mechanical thermal noise in ngspice's small-signal .noise analysis from a .lib without a
-[process] table (netgen.emit.ngspice.noise_context: the resistor Rn_<q> in series with the TRNOISE
-source), run in ngspice 39 and 46 (tests/fixtures.NGSPICE).
+[process] table (netgen.emit.ngspice.noise_context: in series with the TRNOISE source a CCVS reading
+the noise current of the resistor Rn_<q>, netgen.emit.ngspice.noise_resistor), run in ngspice 39 and
+46 (tests/fixtures.NGSPICE).
 
 The structure: examples/piston.toml (a rigid plate on a given 2 N/m spring over one electrode, pure
 parallel plate) with a Rayleigh damping b = alpha M and noise on, at two damping temperatures (300 K,
-ngspice's circuit temperature 300.15 K less 0.15 K, and 350 K) so that the resistors' dtemp is
-checked, not only the default temperature.
+ngspice's circuit temperature 300.15 K less 0.15 K, and 350 K) and three circuit temperatures
+(.temp 27, -40, 125), so that the noise temperature is checked to be the model's, not ngspice's.
 
 - unbiased, the displacement PSD at x_z against 4 k_B T b |H(f)|^2, H = 1 / (k - m w^2 + i w b)
   (exact SI k_B): a linear model, so ngspice's .noise is a linear solve of a few O(1) nodes per
@@ -22,8 +23,7 @@ checked, not only the default temperature.
   VACASK: the unbiased PSD against the same closed form at the model's own temperature within the same
   1e-9 (their noise factor 4 k_B T d gain^2 is a product of three doubles); they used the simulator's
   $temperature (300.15 K by default) and sat 5e-4 high at 300 K, 0.14 low at 350 K. The circuit
-  temperature does not move them: at `.temp 85` the same PSD within 1e-9 (the .lib's resistors do
-  follow .temp, docs/damping-noise.md);
+  temperature does not move them: at `.temp 85` the same PSD within 1e-9;
 - the _xspice.lib (netgen_es code model, ngspice 39) carries the same resistors: unbiased (where the
   code model adds nothing to the small-signal matrix) the same PSD within the same 1e-9. Under bias its
   .noise is wrong: ngspice's noise analysis does not load code models as its .ac does
@@ -118,10 +118,14 @@ def check_unbiased_psd(spec: dict[str, np.ndarray], model: MacroModel, kelvin: f
     np.testing.assert_allclose(got, ref, rtol=ROUND_OFF, atol=0)
 
 
-def test_noise_psd_against_closed_form(lib, tmp_path, ngspice_version):
-    """Unbiased: S_x = 4 k_B T b |H|^2 over the resonance (16.5 kHz) within round-off (docstring)."""
+@pytest.mark.parametrize("circuit_c", [None, -40.0, 125.0])
+def test_noise_psd_against_closed_form(lib, tmp_path, ngspice_version, circuit_c):
+    """Unbiased: S_x = 4 k_B T b |H|^2 over the resonance (16.5 kHz) within round-off (docstring), at
+    the model's temperature whatever the circuit's (.temp -40 and 125 too: Rn_z's tc1 makes its noise
+    current independent of it, netgen.emit.ngspice.noise_resistor)."""
     path, model, kelvin = lib
-    check_unbiased_psd(noise_run(path, tmp_path, 0.0, 1), model, kelvin, ".lib")
+    spec = noise_run(path, tmp_path, 0.0, 1, circuit_c=circuit_c)
+    check_unbiased_psd(spec, model, kelvin, f".lib at .temp {27 if circuit_c is None else circuit_c:g}")
 
 
 def test_xspice_noise_psd_unbiased(lib, tmp_path):
@@ -177,9 +181,10 @@ def test_noise_off_is_silent(lib, tmp_path, ngspice_version, volts):
 
 
 def test_noise_resistor_carries_no_current_in_tran(lib, tmp_path, ngspice_version):
-    """.tran with noise on: v(n_z) = v(nv_z) (the TRNOISE source's node) to round-off of its rms. The
-    deck is linear: each step's first Newton solve is exact to round-off, and vntol (1e-12 V, above the
-    rounding floor of nodes at 0, docs/contact.md) only decides when Newton stops, not the answer."""
+    """.tran with noise on: v(n_z) = v(nv_z) (the TRNOISE source's node) to round-off of its rms: Rn_z
+    has both nodes at ground (Vr_z shorts it), so the CCVS Hn_z adds nothing. The deck is linear: each
+    step's first Newton solve is exact to round-off, and vntol (1e-12 V, above the rounding floor of
+    nodes at 0, docs/contact.md) only decides when Newton stops, not the answer."""
     path, model, _ = lib
     net = f"""* tran
 .include {path}
@@ -225,28 +230,3 @@ write circuit.raw all
     got = spec["onoise_spectrum"] ** 2
     print(f"_xspice.lib, 3 V: .noise PSD / (4 k_B T b |H_ac|^2) at most {np.max(got / ref):.3g}")
     np.testing.assert_allclose(got, ref, rtol=ROUND_OFF, atol=0)
-
-
-@pytest.mark.xfail(
-    strict=True, raises=AssertionError, reason="ngspice's resistor noise does not use its temp= (docs/damping-noise.md)"
-)
-def test_resistor_temp_sets_its_noise_temperature(tmp_path, ngspice_version):
-    """What the .lib would need to put its noise at the model's temperature under any .temp: a 1 MOhm
-    resistor with temp=85 at .temp 27 and temp=27 at .temp 85 (the ngspice manual: the instance
-    temperature, which sets its thermal noise), its .noise voltage PSD against 4 k_B T R at T = temp +
-    273.15 K with ngspice's CODATA-2014 k_B (round-off, 1e-9). Measured: ngspice 39 uses the circuit
-    temperature (the .temp), 46 temp + TNOM (27 degC: 385.15 / 327.15 K), neither the instance's."""
-    for circuit_c, temp_c in ((27.0, 85.0), (85.0, 27.0)):
-        net = f"""* resistor temp=
-V1 in 0 DC 0 AC 1
-R1 in out 1e6 temp={temp_c:g}
-R2 out 0 1e12 noisy=0
-.temp {circuit_c:g}
-.noise v(out) V1 lin 3 1k 3k
-.end
-"""
-        spec = next(p for p in run_ngspice(net, tmp_path) if "onoise_spectrum" in p.vectors)
-        got = np.real(spec["onoise_spectrum"]) ** 2
-        want = 4 * 1.38064852e-23 * (temp_c + 273.15) * 1e6 * (1e12 / (1e12 + 1e6)) ** 2
-        print(f".temp {circuit_c:g}, temp={temp_c:g}: noise temperature {got[0] / want * (temp_c + 273.15):.2f} K")
-        np.testing.assert_allclose(got, want, rtol=ROUND_OFF, atol=0)

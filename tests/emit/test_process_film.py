@@ -283,8 +283,8 @@ def test_branch_noise_follows_the_gap(noisy, solver, tmp_path, form, dg):
     Each branch's damper carries its own thermal force, filtered by its gas spring into 4 k_B T Re of its
     admittance, so the sum is exact; the law's network is the re-run's within 1e-12 per branch
     (test_fmu_film_branches_follow_the_gap), ngspice's .noise a linear solve per frequency: 1e-9. The
-    .lib in ngspice 39 and 46 (its noise resistors at the model's temperature through dtemp against the
-    default .temp 27, netgen.emit.ngspice.noise_resistance), the .va's white_noise through OSDI in 46. The
+    .lib in ngspice 39 and 46 (its noise resistors at the model's temperature under any .temp,
+    netgen.emit.ngspice.noise_resistor), the .va's white_noise through OSDI in 46. The
     drawn network's noise is off by more than 1 % there."""
     model, folder = noisy
     z = model.coordinates[0]

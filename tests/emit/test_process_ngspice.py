@@ -6,7 +6,8 @@ run in ngspice 39 and 46 (tests/fixtures.NGSPICE).
   mass), k of a given spring unchanged, b ~ tscale (Rayleigh alpha M). ngspice solves the linear
   AC system to round-off: 1e-9.
 - .noise of the same piston: the displacement PSD against 4 k_B T b |H(f)|^2 over the resonance
-  (T = the instance's temp, k_B the exact SI 1.380649e-23): the resistor's 4 k T R is exact in the
+  (T = the instance's temp, with the circuit's .temp at the same value as a designer's corner sets
+  both, k_B the exact SI 1.380649e-23): the resistor's 4 k T R is exact in the
   small-signal analysis (a linear solve of a 4-node network: round-off ~1e-15, the raw file's
   doubles), so 1e-9 sees the 3.5e-7 by which ngspice's own CODATA-2014 constant (CONSTboltz,
   1.38064852e-23, in 39 and 46) would put it low; the brief's bound is 2 %.
@@ -69,6 +70,7 @@ def test_noise_psd(lib, tmp_path, ngspice_version, temp):
 Vf fz 0 DC 0 AC 1
 X1 0 0 fz xz piston_process temp={temp}
 .noise v(xz) Vf lin 41 5k 25k
+.temp {temp}
 .end
 """
     plots = run_ngspice(net, tmp_path)
