@@ -8,16 +8,54 @@ work by the thread count, so one thread also keeps a machine with more cores fro
 differently; the tolerances do not rely on it (tests/emit passes with either count, bench/stop_newton.py)."""
 
 import os
+import shutil
+import tempfile
+from collections import Counter
+
+import pytest
 
 for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
-from tests.fixtures import ngspice_version, reference_build, reference_model  # noqa: E402, F401  (registers the fixtures)
+from tests.fixtures import (  # noqa: E402, F401  (registers the fixtures)
+    MODEL_CACHE_ENV,  # noqa: E402
+    ngspice_version,
+    reference_build,
+    reference_model,
+)
+
+
+def pytest_configure(config):
+    """The controller makes the folder tests.fixtures.shared_model keeps built models in; the xdist
+    workers it starts inherit its environment, so they share it."""
+    if not hasattr(config, "workerinput") and MODEL_CACHE_ENV not in os.environ:
+        os.environ[MODEL_CACHE_ENV] = tempfile.mkdtemp(prefix="netgen-test-models-")
+        config.netgen_model_cache = os.environ[MODEL_CACHE_ENV]
+
+
+def pytest_unconfigure(config):
+    """The controller removes the folder it made."""
+    folder = getattr(config, "netgen_model_cache", None)
+    if folder:
+        shutil.rmtree(folder, ignore_errors=True)
+        os.environ.pop(MODEL_CACHE_ENV, None)
 
 
 def pytest_collection_modifyitems(config, items):
-    """The modules holding a test marked slow run first, each kept whole: pytest-xdist hands tests
-    out in collection order, so a minute-long test collected last runs alone while the other worker
-    idles; a module kept whole builds its module-scoped fixtures once per worker, as before."""
+    """Modules in the order pytest-xdist hands them out (pytest_xdist_make_scheduler): those holding a
+    test marked slow first, then the rest, each group's larger modules first. A module collected
+    last runs while the other worker idles, so the long ones must start early."""
     slow = {item.nodeid.split("::")[0] for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.nodeid.split("::")[0] not in slow)
+    count = Counter(item.nodeid.split("::")[0] for item in items)
+    items.sort(key=lambda item: (item.nodeid.split("::")[0] not in slow, -count[item.nodeid.split("::")[0]]))
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Each module whole to one worker (xdist's loadfile), in the collection order above: under plain
+    load scheduling both workers ran tests of one module, so each built its module-scoped fixtures
+    (a model build, a re-run of the process laws) once more."""
+    from xdist.scheduler import LoadFileScheduling
+
+    config.option.loadscopereorder = False  # keep the order above, not xdist's by test count
+    return LoadFileScheduling(config, log)

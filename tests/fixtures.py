@@ -7,6 +7,10 @@ the helpers from here; conftest.py registers the fixtures."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import os
+import pickle
+import time
 from pathlib import Path
 
 import pytest
@@ -34,6 +38,61 @@ NETLISTS = ROOT / "netlists"
 EMISSIONS = [("39", "fast"), ("39", "xspice"), ("46", "fast")]
 
 
+# the folder shared by the session's processes (xdist workers) where shared_model keeps built models
+# (set by conftest.pytest_configure; unset, shared_model builds every time)
+MODEL_CACHE_ENV = "NETGEN_TEST_MODEL_CACHE"
+MODEL_WAIT_S = 900.0  # how long a worker waits for another's build of the same structure
+
+
+def shared_model(structure) -> MacroModel:
+    """build_model(structure), built once per test session across modules and xdist workers: several
+    modules build the same structure (the etch forms and laws tests each the process accelerometer,
+    about 15 s each), and a model is a deterministic function of its structure (tests/pipeline/
+    test_outputs.py holds builds in separate processes byte-identical), so each module gets an
+    unpickled copy of one build."""
+    from netgen.build import build_model
+
+    return shared("model", structure, build_model)
+
+
+def shared(kind: str, structure, make):
+    """make(structure), once per session (shared_model): the first process to ask builds and pickles
+    it into MODEL_CACHE_ENV's folder, the others wait for the file. The key is a hash of the pickled
+    structure (every field, its source path too; a set pickled in another order costs a second build,
+    never a wrong result)."""
+    folder = os.environ.get(MODEL_CACHE_ENV)
+    if not folder:
+        return make(structure)
+    key = kind + "-" + hashlib.sha256(pickle.dumps(structure)).hexdigest()[:32]
+    done, lock = Path(folder) / f"{key}.pkl", Path(folder) / f"{key}.lock"
+    try:
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL))
+    except FileExistsError:
+        return waited(done, lock, structure, make)
+    try:
+        result = make(structure)
+        part = done.with_suffix(f".{os.getpid()}.part")
+        part.write_bytes(pickle.dumps(result))
+        os.replace(part, done)
+        return result
+    finally:
+        if not done.exists():
+            lock.unlink(missing_ok=True)  # a failed build: a waiter builds (and fails) itself
+
+
+def waited(done: Path, lock: Path, structure, make):
+    """What another process is building (shared), once it is written; made here if that build failed
+    or takes longer than MODEL_WAIT_S."""
+    deadline = time.monotonic() + MODEL_WAIT_S
+    while time.monotonic() < deadline:
+        if done.exists():
+            return pickle.loads(done.read_bytes())
+        if not lock.exists():
+            break
+        time.sleep(0.2)
+    return make(structure)
+
+
 def emission_id(param: tuple[str, str]) -> str:
     """Test ids such as 39-fast, 46-fast."""
     return "-".join(param)
@@ -50,7 +109,8 @@ def ngspice_version(request, monkeypatch) -> ngspice.Version:
 def reference_build():
     """Every stage output of the reference example (netgen.build.build; its .model is what
     build_model returns). Loaded from ROOT with the relative path, as the committed netlists
-    were, so the model's `source` matches theirs. About 10-14 s; once per worker."""
+    were, so the model's `source` matches theirs. About 10-14 s; once per worker (its mechanics
+    stage holds a closure, so it does not pickle for shared)."""
     from netgen.build import build
     from netgen.structure import load_structure
 

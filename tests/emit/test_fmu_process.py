@@ -43,11 +43,11 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from netgen.build import build_model
 from netgen.model import MacroModel
 from netgen.model.process import capacitance_at
 from netgen.sim import fmu
 from tests.fixtures import NETLISTS
+from tests.fixtures import shared_model as build_model
 from tests.oracles import fmu_process as fp
 from tests.oracles import process_forms as pf
 
@@ -261,7 +261,7 @@ def test_etch_capacitance_ratio_static_deflection_and_charge(built, tmp_path, et
 @pytest.fixture(scope="module")
 def combs(tmp_path_factory):
     """examples/accelerometer_xyz with textbook combs and etch declared, its .lib and its FMU."""
-    return fp.comb_build(tmp_path_factory.mktemp("fmu_combs"))
+    return fp.comb_build(tmp_path_factory.mktemp("fmu_combs"), build_model)
 
 
 @pytest.mark.parametrize("etch", fp.ETCH_CAPS)

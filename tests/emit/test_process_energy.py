@@ -24,12 +24,12 @@ import numpy as np
 import pytest
 from scipy.optimize import fsolve
 
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_energy import CASES, FORCE, PROCESS, bound, rest, text
 from tests.oracles.testbench import using_ngspice
 

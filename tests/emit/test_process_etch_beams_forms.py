@@ -36,7 +36,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim import fmu
@@ -45,6 +44,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.beam_etch import ETCHES, beam_text, width_ratio
 from tests.oracles.process_cases import control_block
 

@@ -47,7 +47,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit.etch_state import RECORDS
 from netgen.model.process import capacitance_at, coordinate_values
@@ -66,6 +65,7 @@ from tests.emit.test_process_etch_forms import (
     vacask_rest,
 )
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
 
 

@@ -29,7 +29,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
 from netgen.sim import fmu
@@ -37,6 +36,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
 
 PROCESS = '[process]\nparameters = ["etch"]\n'

@@ -32,7 +32,6 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
@@ -41,6 +40,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import (
     ETCHES,
     PERFORATED_ETCHES,

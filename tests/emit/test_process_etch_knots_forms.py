@@ -27,7 +27,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
 from netgen.model.process import coordinate_values
@@ -36,6 +35,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import control_block, xyz_text
 
 ETCHES = (-0.02e-6, -0.002e-6, 0.002e-6, 0.02e-6)  # m: both sides of the kink at 0

@@ -36,7 +36,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.fit.polynomial import monomials
 from netgen.model.process import capacitance_at, coordinate_values
@@ -44,6 +43,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.beam_etch import ETCHES, drawn_text
 from tests.oracles.process_cases import control_block
 

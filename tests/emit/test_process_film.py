@@ -37,7 +37,6 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import GASES, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
@@ -49,6 +48,7 @@ from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
+from tests.fixtures import shared_model as build_model
 from tests.mechanics.test_damping import COMPRESSIBLE, SMALL
 from tests.oracles.fmu_process import viscosity_ratio
 from tests.oracles.spice_decks import disk_deck, disk_library

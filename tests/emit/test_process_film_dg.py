@@ -31,7 +31,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import process as emit_process
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_control
@@ -39,6 +38,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import StructureError, parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import guided
 from tests.oracles.squeeze_film import GAP, T0, closed_form
 

@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.mechanics import mechanics
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles import film_rerun
 from tests.oracles.process_cases import PROOF
 

@@ -26,12 +26,12 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.emit import osdi
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_inertial import FREQ, OMEGA, PROCESS, SI, T_UM, TSCALES, V0, netlist, reference_ac, structure
 from tests.oracles.testbench import using_ngspice
 

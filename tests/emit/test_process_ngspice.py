@@ -24,13 +24,13 @@ import re
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import EPS0, K_B
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure, parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_forms import ac_fit
 
 ALPHA = 3000.0  # 1/s: the Rayleigh alpha M of examples/piston_process.toml (Q = 5 with its 2 N/m spring)

@@ -49,7 +49,6 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import osdi
 from netgen.sim.ngspice import run_control
@@ -57,6 +56,7 @@ from netgen.sim.rawfile import read_raw
 from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.fmu_process import viscosity_ratio
 from tests.oracles.process_cases import guided
 from tests.oracles.squeeze_film import closed_form as film_ratio

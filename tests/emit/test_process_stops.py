@@ -19,10 +19,10 @@ from __future__ import annotations
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.structure import load_structure
 from tests.fixtures import NGSPICE, ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_forms import GAP, op, resting
 
 DGS = (-2e-7, 0.0, 3e-7)

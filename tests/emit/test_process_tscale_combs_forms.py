@@ -43,7 +43,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at, coordinate_values
@@ -54,6 +53,7 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.emit.test_process_etch_field2d_forms import check_state, check_state_fmu, state_deck
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles import fmu_process as fp
 from tests.oracles.process_cases import control_block, xyz_thick
 

@@ -41,7 +41,6 @@ import pytest
 from scipy.optimize import brentq
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0, K_B
 from netgen.core.errors import SimulationError
 from netgen.emit import ngspice as emit_ngspice
@@ -49,6 +48,7 @@ from netgen.emit import osdi
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import load_structure, parse_structure
 from tests.fixtures import NGSPICE, ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PROOF
 from tests.oracles.process_forms import ac_fit
 from tests.oracles.spice_decks import vacask_piston_noise

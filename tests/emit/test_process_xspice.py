@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.structure import load_structure
 from tests.fixtures import ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_forms import libs, run
 
 DGS = (-2e-7, 0.0, 3e-7)

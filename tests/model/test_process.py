@@ -18,13 +18,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.mechanics import mechanics
 from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values, viscosity_ratio
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PROOF
 
 PISTON = (ROOT / "examples/piston_process.toml").read_text()

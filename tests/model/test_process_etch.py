@@ -27,7 +27,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.core.errors import StructureError
 from netgen.emit import ngspice as emit_ngspice
@@ -37,6 +36,7 @@ from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE, ROOT
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun, xyz_text
 
 

@@ -30,12 +30,12 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.core.errors import ModelError
 from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
 
 PROCESS = '[process]\nparameters = ["etch"]\n'

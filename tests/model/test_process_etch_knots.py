@@ -26,12 +26,12 @@ import math
 
 import pytest
 
-from netgen.build import build_model
 from netgen.mechanics import mechanics
 from netgen.mechanics.frame import torsion_constant
 from netgen.model.etch_knots import etch_knots, knot_points
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import perforated, xyz_text
 
 STRADDLE = (-0.1e-6, -0.02e-6, -0.005e-6, -0.001e-6, 0.001e-6, 0.005e-6, 0.02e-6, 0.04e-6, 0.1e-6)  # m

@@ -27,9 +27,9 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated
 
 RHO, T = 2330.0, 2e-6

@@ -14,11 +14,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.mechanics import mechanics
 from netgen.mechanics.damping import damping
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PROOF
 
 TEXT = PROOF.format(t=10.0, e=160.0).replace('parameters = ["dg", "tscale", "escale", "temp"]', 'parameters = ["dg"]')

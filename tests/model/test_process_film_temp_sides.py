@@ -20,9 +20,9 @@ import copy
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.fmu_process import viscosity_ratio
 from tests.oracles.process_cases import PROOF
 

@@ -34,12 +34,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import inertial, mechanics
 from netgen.model.process import etched, law_value, ratio_value, scaled
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import PERFORATED_ETCHES, PERFORATED_RANGE, perforated, xyz_mass, xyz_structure
 from tests.oracles.process_inertial import T_UM
 from tests.oracles.process_inertial import structure as rate_structure

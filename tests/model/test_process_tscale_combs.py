@@ -31,12 +31,12 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.electrostatics.perforation import PERFORATION_LN_A, PERFORATION_STRENGTH, PERFORATION_WALL_SHARE
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
+from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import TSCALES, xyz_mass, xyz_thick
 
 PROCESS = '\n[process]\nparameters = ["tscale"]\n'

@@ -274,12 +274,13 @@ X1 0 0 fz xz {model.name} temp={temp_c!r}
 COMB, COMB_VOLTS = "xp_t", 5.0  # examples/accelerometer_xyz's comb pulling +x, and its voltage
 
 
-def comb_build(folder):
+def comb_build(folder, build=build_model):
     """(model, its .lib in `folder`, its FMU) of examples/accelerometer_xyz with the textbook combs and
-    etch declared (process_cases.xyz_text)."""
+    etch declared (process_cases.xyz_text); `build` the structure -> MacroModel step (the suite passes
+    its session-wide one, tests.fixtures.shared_model)."""
     from .process_cases import xyz_text
 
-    model = build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    model = build(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
     lib = folder / "xyz.lib"
     lib.write_text(emit_ngspice.subcircuit(model))
     return model, lib, fmu.built(model)
