@@ -174,17 +174,17 @@ def check_beam_etch(rd: Reader, p: Process, beam: Any) -> None:
 
 def check_plate_etch(rd: Reader, p: Process, plate: Any, sets: tuple) -> None:
     """A plate's etch (netgen.model.etch_geometry.etched_plate: a piston's sides - 2 etch, a free disk's
-    radius - etch) keeps more than half its narrower side or radius at the range's top, and every
+    radius - etch) keeps more than half its narrower side or diameter at the range's top, and every
     electrode keeps an overlap with the etched plate over the range (an edge drawn on the plate's moves
     with it; the plate's edge must not pass an electrode's far edge)."""
     hi, where = p.etch_range[1], "process.etch_range"
-    size = min(plate.length, plate.width) / 2 if plate.kind == "piston" else plate.radius
-    if hi >= 0.5 * size:
-        what = "half-side" if plate.kind == "piston" else "radius"
+    size = min(plate.length, plate.width) if plate.kind == "piston" else 2 * plate.radius
+    if 2 * hi >= 0.5 * size:
+        what = "narrower side" if plate.kind == "piston" else "diameter"
         raise rd.fail(
             where,
             f"an over-etch of {hi:g} m per edge removes half or more of the plate's {what} ({size:g} m)",
-            f"narrow etch_range (its top below half the plate's {what})",
+            f"narrow etch_range (its top below a quarter of the plate's {what})",
         )
     for e in sets:
         if plate.kind == "piston":
