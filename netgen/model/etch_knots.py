@@ -64,7 +64,8 @@ def plate_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
     """The etches (etch / ETCH_UNIT, sorted) strictly inside (lo, hi) m where a plate's etched edge
     (netgen.model.etch_geometry.etched_plate: a piston's sides at +-(L - 2 etch) / 2, a disk's rim at
     R - etch) meets an electrode's edge drawn off the plate's (an edge drawn on it moves with it)."""
-    c, at = s.conductor, set()
+    c = s.conductor
+    at: set[float] = set()
     for e in s.electrode_sets:
         if c.kind == "piston":
             x0, x1, y0, y1 = c.outline()

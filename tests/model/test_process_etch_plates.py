@@ -164,7 +164,9 @@ def test_plate_knots():
     plate's: x1 0.2 um inside (at etch 0.2 um), y1 0.3 um past (at -0.3 um); none where drawn on it."""
     lo, hi = -0.5e-6, 1e-6
     assert edge_knots(parse_structure(piston_text(), "p.toml"), lo, hi) == ()
-    text = piston_text().replace('gap = "2 um"\n', 'gap = "2 um"\nx = ["-100 um", "99.8 um"]\ny = ["-100 um", "100.3 um"]\n', 1)
+    text = piston_text().replace(
+        'gap = "2 um"\n', 'gap = "2 um"\nx = ["-100 um", "99.8 um"]\ny = ["-100 um", "100.3 um"]\n', 1
+    )
     assert edge_knots(parse_structure(text, "p.toml"), lo, hi) == pytest.approx((-0.3, 0.2))
 
 
@@ -187,7 +189,9 @@ def test_piston_refused(edit, message):
         text = text.replace(old, new, 1)
     with pytest.raises(StructureError) as exc:
         parse_structure(text, "piston.toml")
-    assert "process.etch_range" in str(exc.value) and message in str(exc.value) and "narrow etch_range" in str(exc.value)
+    assert (
+        "process.etch_range" in str(exc.value) and message in str(exc.value) and "narrow etch_range" in str(exc.value)
+    )
 
 
 def test_disk_refused():
