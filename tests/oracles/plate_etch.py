@@ -53,8 +53,19 @@ def disk_text(etch: float = 0.0, process: str = PROCESS) -> str:
         disk("etched_disk", "rigid disk under etch", rim)
         + sets
         + table("[coordinates]", {"rigid": ["z", "tilt_x", "tilt_y"]})
-        + table("[sampling]", {"levels": 3, "range": 0.3})
+        + table("[sampling]", {"levels": 5, "range": 0.3})
+        + table("[fit]", {"tolerance": 2e-4})
         + table("[electrostatics]", {"fringe": "plate_between"})
         + "[damping]\nsqueeze_film = true\nfem_refine = 3\n"
         + ("\n" + process if process else "")
     )
+
+
+def modal_disk_text(etch: float = 0.0, process: str = PROCESS) -> str:
+    """disk_text with the rigid z and the (2,0) eigenmode (Morley plate, [fem] refine 4), no squeeze
+    film (Q = 50: the compressible solve at each mode's frequency would dominate the cost)."""
+    text = disk_text(etch, process="").replace('rigid = ["z", "tilt_x", "tilt_y"]', 'rigid = ["z"]\nmodes = ["2,0c"]')
+    old = "squeeze_film = true\nfem_refine = 3\n"
+    assert old in text
+    text = text.replace(old, 'q_factor = { "*" = 50 }\n') + "[fem]\nrefine = 4\n"
+    return text + ("\n" + process if process else "")
