@@ -54,6 +54,7 @@ from tests.oracles.plate_etch import (
     disk_text,
     modal_disk_text,
     piston_text,
+    tilted_piston_text,
 )
 from tests.oracles.process_balance import LawAt, balance_voltage, pull_in
 
@@ -178,6 +179,26 @@ def test_disk_gravity_balance(disk, disk_rebuilds, etch):
         f"etch {etch:+.1e}: balance {v_law:.6f} V, rebuilt {v_ref:.6f} V ({v_law / v_ref - 1:+.1e}, bound {bound:.1e})"
     )
     assert v_law == pytest.approx(v_ref, rel=bound)
+
+
+@pytest.mark.parametrize("etch", ETCHES)
+def test_tilted_piston_against_rebuild(etch):
+    """The piston with its tilts (one 0.4 s build and a 0.3 s rebuild): the tilts' frequencies sqrt(k_t /
+    I), I = m' (L - 2 etch)^2 / 12 (netgen.mechanics.piston; degree 4 in etch) with the spring kept, against the rebuild's within the stated
+    error + 1e-12; the capacitances (a state factor: the rim strip under the tilts) at 100 points
+    inside 0.99 of the box at the same physical state (the rebuild's tilt scale g / (L' / 2)) within the
+    two fits' held-out errors plus the law's stated error + 1e-12."""
+    model = build_model(parse_structure(tilted_piston_text(), "piston.toml"))
+    ref = build_model(parse_structure(tilted_piston_text(etch, ""), "piston.toml"))
+    law = model.process["etch"]
+    for v, c in enumerate(ref.coordinates):
+        mass, k, _ = coordinate_values(model.process, v, etch=etch)
+        assert math.sqrt(k / mass) / (2 * math.pi) == pytest.approx(c.frequency_hz, rel=law["max_rel_error"] + 1e-12)
+    x = np.random.default_rng(3).uniform(-0.99, 0.99, (100, model.ncoords)) * box(model)
+    fits = max(f.max_rel_error for f in model.capacitances) + max(f.max_rel_error for f in ref.capacitances)
+    tol = fits + law["capacitance_max_rel_error"] + 1e-12
+    got = capacitance_at(model, x, etch)
+    np.testing.assert_allclose(got, ref.capacitance(x * model.scales / ref.scales), rtol=tol)
 
 
 @pytest.fixture(scope="module")
