@@ -216,7 +216,8 @@ def check_process(
     field model (the product of their ratios is unchecked at the box's corners), not the textbook
     form's (eps t / g: exact); tscale, escale and temp need mechanics netgen can re-run;
     temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
-    has the incompressible film (the compressible film's gas spring ~ p would follow T too)."""
+    has the incompressible film (the compressible film's gas spring ~ p would follow T too), and so
+    does a plate under etch (the compressible branches would keep the drawn outline)."""
     if p is None:
         return
     where = "process.parameters"
@@ -244,6 +245,13 @@ def check_process(
         )
     if p.wants("etch"):
         check_etch(rd, p, conductor, sets)
+    if p.wants("etch") and getattr(conductor, "kind", "") in PLATE_KINDS and film_model == "compressible":
+        raise rd.fail(
+            where,
+            "etch on a plate with the compressible film: its branches (dampers ~ R^4, corner frequencies "
+            "~ 1 / R^2 on a disk) would stay the drawn plate's, not modelled",
+            'use [damping] film_model = "incompressible" (its damping follows the etched plate) or drop etch',
+        )
     if p.cavity == "sealed" and film_model == "compressible":
         raise rd.fail(
             "process.cavity",

@@ -273,3 +273,12 @@ def test_disk_refused():
     with pytest.raises(StructureError) as exc:
         parse_structure(text, "disk.toml")
     assert "process.etch_range" in str(exc.value) and "'top'" in str(exc.value)
+
+
+def test_disk_compressible_film_refused():
+    """The compressible film's branches would keep the drawn disk's outline: exit 2 at
+    process.parameters, naming the incompressible film as the fix."""
+    text = disk_text().replace("squeeze_film = true\n", 'squeeze_film = true\nfilm_model = "compressible"\n')
+    with pytest.raises(StructureError) as exc:
+        parse_structure(text, "disk.toml")
+    assert "process.parameters" in str(exc.value) and 'film_model = "incompressible"' in str(exc.value)
