@@ -21,6 +21,10 @@ Tolerances:
 - the FMU (model exchange) at one state (z = -0.1 g) with 1 V / sqrt(r) on the electrode: r qdd_z
   equals the etch-0 instance's at 1 V (the same force over the mass r m) within the static bound,
   the charge at 1 V over r within the capacitance bound.
+- the rigid disk of tests/oracles/plate_etch (its electrodes' state factor: tilts move the rim strip's
+  weight) in the FMU at a displaced state (z, tilt_x, tilt_y at -0.2, 0.25, -0.15 of the touching
+  amplitudes): the charges at 1 V against the Python law (netgen.model.process.capacitance_at: ratio,
+  z shift, state factor) at the three etches, the same arithmetic in the runtime's order: 1e-12.
 """
 
 from __future__ import annotations
@@ -34,13 +38,14 @@ from netgen import emit
 from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
+from netgen.model.process import capacitance_at
 from netgen.sim import fmu
 from netgen.sim.ngspice import run_ngspice
 from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
-from tests.oracles.plate_etch import ETCHES, GAP, SIDE, STIFFNESS, area_ratio, piston_text
+from tests.oracles.plate_etch import ETCHES, GAP, SIDE, STIFFNESS, area_ratio, disk_text, piston_text
 from tests.oracles.process_cases import control_block
 
 VOLTS = 2.4  # V on the etch-0 instance (pull-in 3.66 V)
@@ -167,3 +172,23 @@ def test_fmu(model):
     for qdd, q in out[1:]:
         assert qdd == pytest.approx(out[0][0], rel=static)
         assert q == pytest.approx(out[0][1], rel=cap)
+
+
+def test_disk_fmu_state_factor():
+    """The disk's charges at a displaced state against the Python law (module docstring)."""
+    model = build_model(parse_structure(disk_text(), "disk.toml"))
+    laws = model.process["etch"]["capacitance"]
+    assert laws and all("state" in r for r in laws)  # every sector's rim strip moves with the tilts
+    path = fmu.built(model)
+    xs = np.array([[-0.2, 0.25, -0.15]])
+    names = [f.electrode for f in model.capacitances]
+    for e in ETCHES:
+        inst = fmu.Instance(path, cosim=False)
+        inst.set({"etch": e} | {f"V_{n}": 1.0 for n in names})
+        inst.start()
+        x = np.zeros(inst.md.numberOfContinuousStates)
+        x[: model.ncoords] = xs[0] * model.scales
+        inst.set_states(x)
+        q = np.array(inst.get([f"Q_{n}" for n in names]))
+        inst.close()
+        np.testing.assert_allclose(q, capacitance_at(model, xs, e)[0], rtol=1e-12)
