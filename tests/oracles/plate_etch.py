@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tests.structures import disk, ring_electrode, table
-
 ROOT = Path(__file__).resolve().parents[2]
 ETCHES = (-0.5e-6, 0.4e-6, 1.0e-6)  # the range's ends and a point between (m)
 PROCESS = '[process]\nparameters = ["etch"]\netch_range = ["-0.5 um", "1 um"]\n'
@@ -46,19 +44,21 @@ def disk_text(etch: float = 0.0, process: str = PROCESS) -> str:
     against rebuilds on the same mesh, scaled), [process] `process` ("" for a rebuild)."""
     rim = f"{(RADIUS - etch) * 1e6!r} um"
     sets = "".join(
-        ring_electrode(n, side, "3 um", [("20 um", rim)], sectors=4, slot="10 um")
+        f'[[electrodes]]\nname = "{n}"\nside = "{side}"\ngap = "3 um"\nrings = [["20 um", "{rim}"]]\n'
+        'sectors = 4\nslot = "10 um"\n'
         for n, side in (("top", "above"), ("bot", "below"))
     )
-    return (
-        disk("etched_disk", "rigid disk under etch", rim)
-        + sets
-        + table("[coordinates]", {"rigid": ["z", "tilt_x", "tilt_y"]})
-        + table("[sampling]", {"levels": 5, "range": 0.3})
-        + table("[fit]", {"tolerance": 2e-4})
-        + table("[electrostatics]", {"fringe": "plate_between"})
-        + "[damping]\nsqueeze_film = true\nfem_refine = 3\n"
-        + ("\n" + process if process else "")
+    head = (
+        'name = "etched_disk"\ndescription = "rigid disk under etch"\n[conductor]\nkind = "free_disk"\n'
+        f'radius = "{rim}"\nthickness = "5 um"\nyoungs_modulus = "160 GPa"\npoisson_ratio = 0.22\n'
+        'density = "2330 kg/m^3"\n'
     )
+    tail = (
+        '[coordinates]\nrigid = ["z", "tilt_x", "tilt_y"]\n[sampling]\nlevels = 5\nrange = 0.3\n[fit]\n'
+        'tolerance = 0.0002\n[electrostatics]\nfringe = "plate_between"\n'
+        "[damping]\nsqueeze_film = true\nfem_refine = 3\n"
+    )
+    return head + sets + tail + ("\n" + process if process else "")
 
 
 def modal_disk_text(etch: float = 0.0, process: str = PROCESS) -> str:
