@@ -44,6 +44,7 @@ from netgen.core.errors import StructureError
 from netgen.model.etch_knots import edge_knots
 from netgen.model.process import capacitance_at, coordinate_values, ratio_value
 from netgen.structure import parse_structure
+from netgen.sweep.point import at_point
 from tests.oracles.plate_etch import (
     ETCHES,
     GAP,
@@ -241,6 +242,26 @@ def test_plate_knots():
         'gap = "2 um"\n', 'gap = "2 um"\nx = ["-100 um", "99.8 um"]\ny = ["-100 um", "100.3 um"]\n', 1
     )
     assert edge_knots(parse_structure(text, "p.toml"), lo, hi) == pytest.approx((-0.3, 0.2))
+
+
+def test_knotted_piston_area():
+    """The electrode's x1 drawn 0.2 um inside the plate's edge (its other edges on the plate's): the
+    facing area is (min(x1, L / 2 - etch) + L / 2 - etch)(W - 2 etch), a kink at etch 0.2 um. With
+    fringe "none" C ~ that area, and the knotted ratio (a cubic on each side, joined there) carries it
+    at rest within the stated capacitance error + 1e-12, in the law and in a sweep's model at the point
+    (netgen.sweep.point.at_point)."""
+    text = piston_text().replace('gap = "2 um"\n', 'gap = "2 um"\nx = ["-100 um", "99.8 um"]\n', 1)
+    model = build_model(parse_structure(text, "piston.toml"))
+    law = model.process["etch"]
+    assert law["knots"] == pytest.approx([0.2])
+    rest = np.zeros((1, 1))
+    c0 = model.capacitance(rest)[0, 0]
+    half, x1 = SIDE / 2, 99.8e-6
+    for etch in np.linspace(-0.5e-6, 1e-6, 7):
+        area = (min(x1, half - etch) + half - etch) * (SIDE - 2 * etch) / ((x1 + half) * SIDE)
+        tol = law["capacitance_max_rel_error"] + 1e-12
+        assert capacitance_at(model, rest, etch)[0, 0] / c0 == pytest.approx(area, rel=tol)
+        assert at_point(model, {"etch": etch}).capacitance(rest)[0, 0] / c0 == pytest.approx(area, rel=tol)
 
 
 @pytest.mark.parametrize(
