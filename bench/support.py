@@ -31,6 +31,7 @@ MODULES = (
     "gyro_reference",
     "lateral_comb",
     "loop_orders",
+    "plate_etch",
     "process_balance",
     "process_cases",
     "process_energy",

@@ -358,17 +358,27 @@ def capacitance_sampler(s0: Structure, m: Mechanics, scales: np.ndarray):
     random points of s0's fit box (fixed seed: the same points for every structure), all moved by the
     displacement `offset` (SI per coordinate; None: none; `corners`: at the box's corners instead), for the process laws' re-runs of an etched
     structure (netgen.model.process.etch_record). A beam's modes are its own structure's (an etched
-    cantilever's are those of its shorter length, peak 1 at its tip: the coordinates a rebuild has);
-    a proof mass's rigid coordinates do not depend on its outline (the nominal basis)."""
+    cantilever's are those of its shorter length, peak 1 at its tip: the coordinates a rebuild has), so
+    are a free disk's eigenmodes (an etched disk's reach its own rim); a proof mass's and a piston's rigid
+    coordinates do not depend on the outline (the nominal basis)."""
+
+    runs: dict = {}  # conductor -> its own mechanics' basis (one eigen-solve per etched conductor)
 
     def extract(s: Structure, n: int, offset: np.ndarray | None = None, corners: bool = False) -> np.ndarray:
         plate, shapes = plate_outline(s), electrodes(s)
-        own = getattr(s.conductor, "one_dimensional", False) and s.conductor != s0.conductor
-        prepared = extractor(s, plate).prepare(shapes, plate, mechanics(s).basis if own else m.basis)
+        own = (getattr(s.conductor, "one_dimensional", False) or modal_disk(s)) and s.conductor != s0.conductor
+        if own and s.conductor not in runs:
+            runs[s.conductor] = mechanics(s).basis
+        prepared = extractor(s, plate).prepare(shapes, plate, runs[s.conductor] if own else m.basis)
         q = (box_corners(s0.sampling, len(m.names)) if corners else check_points(s0.sampling, n, len(m.names))) * scales
         return np.asarray(prepared.capacitance(q + (0.0 if offset is None else offset)), dtype=float)
 
     return extract
+
+
+def modal_disk(s: Structure) -> bool:
+    """A free disk with eigenmodes among its coordinates (their shapes scale with its radius)."""
+    return getattr(s.conductor, "kind", "") == "free_disk" and bool(s.coordinates.modes)
 
 
 def dielectric_layers(s: Structure) -> list[dict]:

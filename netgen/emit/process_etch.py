@@ -19,15 +19,23 @@ def etch_header(e: dict, knots: list[float], state: bool = True) -> str:
         else "the beam (width w - 2 etch"
         + (", its free tip back by etch: length L - etch)" if e["beam"] == "cantilever" else ", length fixed)")
     )
+    if "plate" in e:  # a plate's outline (netgen.model.etch_geometry.etched_plate)
+        body = (
+            "the plate (length and width - 2 etch" if e["plate"] == "piston" else "the disk (radius - etch"
+        ) + "; an electrode edge drawn on the plate's recedes with it; given springs stay)"
     return (
         f"etch (m) = lateral over-etch per edge of {body}, valid {lo:g}..{hi:g} um, mass, stiffness "
         "and damping "
-        + (f"laws within {e['max_rel_error']:.1e}" if e["max_rel_error"] else "laws exact (power laws of w)")
+        + (
+            f"laws within {e['max_rel_error']:.1e}"
+            if e["max_rel_error"]
+            else "laws exact (power laws of " + ("the sides)" if "plate" in e else "w)")
+        )
         + (
             f", piecewise at etch {', '.join(f'{k:g}' for k in knots)} um where "
             + (
-                "an electrode's edge meets the beam's (ek_<j> = (1e6 etch - knot)+)"
-                if "beam" in e
+                "an electrode's edge meets the beam's or plate's (ek_<j> = (1e6 etch - knot)+)"
+                if "beam" in e or "plate" in e
                 else "a flexure width meets the thickness (the torsion constant's kink; ek_<j> = (1e6 etch - knot)+)"
             )
             if knots
@@ -53,10 +61,10 @@ def etch_neglect(e: dict, state: bool = True) -> str:
     fitted = any(r.get("stop_shift") for r in e.get("capacitance", []))
     return (
         "; capacitances times pc_<electrode>, a cubic in etch from the extractor at the etched "
-        + ("beam" if "beam" in e else "outline, holes")
+        + ("beam" if "beam" in e else "plate" if "plate" in e else "outline, holes")
         + (
             " (piecewise at the knots)"
-            if "beam" in e and any(len(r["ratio"]) > 4 for r in e.get("capacitance", []))
+            if ("beam" in e or "plate" in e) and any(len(r["ratio"]) > 4 for r in e.get("capacitance", []))
             else ""
         )
         + (
@@ -82,7 +90,11 @@ def etch_neglect(e: dict, state: bool = True) -> str:
             else ""
         )
         + (
-            ", the perforated plates' fits read at z shifted by the fill factor's effective gap change (nodes xe_z_*; their stops stay)"
+            (
+                ", the plates' fits read at z shifted by the edge fringe's effective gap change (nodes xe_z_*; their stops stay)"
+                if "plate" in e
+                else ", the perforated plates' fits read at z shifted by the fill factor's effective gap change (nodes xe_z_*; their stops stay)"
+            )
             if fill
             else ""
         )

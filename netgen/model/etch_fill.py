@@ -11,7 +11,9 @@ s(etch) = (D_e - D_0) / D_0' (D the log-slope, D_0' its derivative, central diff
 half box dz), k the least-squares slope of s(etch) over the range's two ends. The remaining error
 is of second order in z (2e-5 there). The shift is an effective one (the gap does not move): the
 contact stops do not follow it (the law is marked "fill"). Not offered with dg declared: a gap offset
-reads the same state xs_z."""
+reads the same state xs_z. A plate conductor (piston, free disk: netgen.model.etch_geometry.etched_plate)
+with an edge fringe gets the same shift: the fringe's share of C changes with the etched outline, and
+with the gap; with fringe "none" its log-slope does not change and it gets none."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ import dataclasses
 from typing import Any
 
 from ..structure import Structure
-from ..structure.process_table import BEAM_KINDS
+from ..structure.process_table import BEAM_KINDS, PLATE_KINDS
 
 
 def etched(s: Structure, etch: float) -> Structure:
@@ -21,6 +21,8 @@ def etched(s: Structure, etch: float) -> Structure:
     c: Any = s.conductor
     if c.kind in BEAM_KINDS:
         return dataclasses.replace(s, conductor=etched_beam(c, etch))
+    if c.kind in PLATE_KINDS:
+        return etched_plate(s, etch)
     f = c.flexure
     w = {k: getattr(f, k) - 2 * etch for k in ("width", "truss_width", "thigh_width") if getattr(f, k)}
     outline = {"length": c.length - 2 * etch, "width": c.width - 2 * etch}
@@ -28,6 +30,35 @@ def etched(s: Structure, etch: float) -> Structure:
     changed = dataclasses.replace(c, flexure=dataclasses.replace(f, **w), **outline, **holes)
     sets = tuple(etched_comb(e, etch) if is_comb(e) else e for e in s.electrode_sets)
     return dataclasses.replace(s, conductor=changed, electrode_sets=sets)
+
+
+def etched_plate(s: Structure, etch: float) -> Structure:
+    """A plate etched by `etch` per edge: a piston's length and width - 2 etch (centred: every side
+    recedes by etch), a free disk's radius - etch; its springs given as numbers stay. An electrode edge
+    drawn on the plate's edge (the default "under the whole plate", a ring reaching the rim) moves with
+    it: the designer drew the electrode as the plate, so its overlap is the etched plate's; an edge drawn
+    elsewhere stays (one past the plate does not limit the overlap, netgen.model.etch_knots.plate_knots
+    marks where the plate's edge passes one inside the range)."""
+    c: Any = s.conductor
+    if c.kind == "piston":
+        x0, x1, y0, y1 = c.outline()
+        new = dataclasses.replace(c, length=c.length - 2 * etch, width=c.width - 2 * etch)
+
+        def edge(v: float, drawn: float, inward: float) -> float:
+            return v + inward * etch if v == drawn else v
+
+        sets = tuple(
+            dataclasses.replace(
+                e, x0=edge(e.x0, x0, 1.0), x1=edge(e.x1, x1, -1.0), y0=edge(e.y0, y0, 1.0), y1=edge(e.y1, y1, -1.0)
+            )
+            for e in s.electrode_sets
+        )
+        return dataclasses.replace(s, conductor=new, electrode_sets=sets)
+    rings = [
+        dataclasses.replace(e, rings=tuple((a, b - etch if b == c.radius else b) for a, b in e.rings))
+        for e in s.electrode_sets
+    ]
+    return dataclasses.replace(s, conductor=dataclasses.replace(c, radius=c.radius - etch), electrode_sets=tuple(rings))
 
 
 def etched_beam(c: Any, etch: float) -> Any:

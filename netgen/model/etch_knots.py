@@ -46,6 +46,8 @@ def edge_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
     edge (netgen.model.etch_geometry.etched_beam: sides at +-(w - 2 etch) / 2, a cantilever's tip at
     L - etch) meets one of its electrodes' edges; () for other conductors."""
     c = s.conductor
+    if getattr(c, "kind", "") in ("piston", "free_disk"):
+        return plate_knots(s, lo, hi)
     if getattr(c, "kind", "") not in ("cantilever", "clamped_clamped_beam"):
         return ()
     at: set[float] = set()
@@ -55,6 +57,22 @@ def edge_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
             continue
         at.update({c.width / 2 - y1, c.width / 2 + y0})
     at.update(tip_knots(s, lo, hi).values())
+    return tuple(sorted({round(e / ETCH_UNIT, 12) + 0.0 for e in at if lo < e < hi}))
+
+
+def plate_knots(s: Any, lo: float, hi: float) -> tuple[float, ...]:
+    """The etches (etch / ETCH_UNIT, sorted) strictly inside (lo, hi) m where a plate's etched edge
+    (netgen.model.etch_geometry.etched_plate: a piston's sides at +-(L - 2 etch) / 2, a disk's rim at
+    R - etch) meets an electrode's edge drawn off the plate's (an edge drawn on it moves with it)."""
+    c = s.conductor
+    at: set[float] = set()
+    for e in s.electrode_sets:
+        if c.kind == "piston":
+            x0, x1, y0, y1 = c.outline()
+            edges = ((e.x0, x0, 1.0), (e.x1, x1, -1.0), (e.y0, y0, 1.0), (e.y1, y1, -1.0))
+            at.update(inward * (v - drawn) for v, drawn, inward in edges if v != drawn)
+        else:
+            at.update(c.radius - b for _, b in e.rings if b != c.radius)
     return tuple(sorted({round(e / ETCH_UNIT, 12) + 0.0 for e in at if lo < e < hi}))
 
 

@@ -26,8 +26,9 @@ once so that emitters only render them.
   fit form. Needs the coordinate z; the fit's box moves with it (quoted accuracy while
   |xs_z - sign dg / L_z| <= range). The squeeze film of the side a set alone faces follows it exactly,
   times mu_eff(g + dg) g^3 / (mu_eff(g) (g + dg)^3) (netgen.model.process_film.film_law).
-- etch: a proof mass's flexure beams w - 2 etch, or a beam conductor's width (a cantilever's tip back
-  by etch: etched_beam); per coordinate the ratio of each law part to
+- etch: a proof mass's flexure beams w - 2 etch, a beam conductor's width (a cantilever's tip back
+  by etch: etched_beam), or a plate's outline (a piston's sides - 2 etch, a free disk's radius - etch,
+  an electrode drawn on the plate's edge receding with it: etched_plate); per coordinate the ratio of each law part to
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
   product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
@@ -47,7 +48,7 @@ from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
 from ..mechanics.damping import squeeze_film_damping
 from ..structure import Structure
-from ..structure.process_table import BEAM_KINDS
+from ..structure.process_table import BEAM_KINDS, PLATE_KINDS
 from ..structure.schema import Process
 from .etch_combs import gap_shifts
 from .etch_fill import fill_shifts
@@ -382,6 +383,8 @@ def etch_record(
     }
     if s.conductor.kind in BEAM_KINDS:  # the header says what recedes (netgen.emit.process.header)
         out["beam"] = s.conductor.kind
+    if s.conductor.kind in PLATE_KINDS:
+        out["plate"] = s.conductor.kind
     knots = record_knots(s, *p.etch_range)
     if knots:  # the laws' torsion or edge knots (etch / 1 um; netgen.model.etch_knots)
         out["knots"] = list(knots)
@@ -407,7 +410,11 @@ def capacitance_laws(
     (netgen.model.etch_combs: the far gap and the fringe of the narrower finger, which a constant ratio
     cannot carry); its geometric shift, which the stops follow, is then stated apart (stop_shift).
     A comb whose law still depends on the state gets the factor 1 + u P1(xs) + u^2 P2(xs) ("state",
-    netgen.model.etch_state)."""
+    netgen.model.etch_state); so does a plate's electrode (piston, free disk) whose ratio leaves more
+    than that module's FLOOR: the rim strip the etch removes or adds weighs by its local gap, which
+    the tilts and modes move away from the mean (a rigid disk 300 um, 3 um gaps, tilts to 0.3 of the
+    touching angle, etch -0.5..1 um: 1.3e-3 with the ratio alone, 2.9e-4 with the factor). A piston's
+    z alone moves every point alike: its ratio is the exact area ratio and it gets none."""
     shifts = comb_shifts(s, coords)
     geometric = comb_fit(s, p, extract, names, coords, shifts)
     plates = fill_shifts(s, extract, etched, coords, [names.index(n) for n in fill[0]], p.etch_range, fill[1])
@@ -434,6 +441,9 @@ def capacitance_laws(
     states = state_laws(s, extract, etched, combs, points, CAPACITANCE_POINTS, knots=knots)
     tips = {k: (vectors[k], ratios[k]) for k in below}  # an overhanging tip: the factor in (k - u)+
     states |= state_laws(s, extract, etched, tips, points, CAPACITANCE_POINTS, TIP_DEGREE, knots=knots, below=below)
+    if s.conductor.kind in PLATE_KINDS:  # the receded rim's weight follows the state (docstring)
+        rims = {k: (vectors[k], ratios[k]) for k in range(len(names)) if k not in states}
+        states |= state_laws(s, extract, etched, rims, points, CAPACITANCE_POINTS, knots=knots)
     xs = check_points(s.sampling, CAPACITANCE_POINTS, len(coords))
     bare = err  # the law without the combs' state factors (the forms that leave it out state this)
     for e in p.etch_range:

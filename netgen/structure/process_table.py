@@ -15,6 +15,7 @@ CAVITIES = ("open", "sealed")  # the film's gas under temp: fixed pressure, or a
 ETCH_LIMIT = 5e-6  # m: the widest lateral etch bias per edge read (the flexure widths bound it further)
 ETCH_TYPES = ("folded", "crab_leg", "clamped_guided")  # flexures with beam widths the etch narrows
 BEAM_KINDS = ("cantilever", "clamped_clamped_beam")  # beam conductors: the etch narrows the beam itself
+PLATE_KINDS = ("piston", "free_disk")  # plates: the etch recedes the outline (sides - 2 etch, radius - etch)
 # the widest ranges the laws are offered for: thickness and modulus factors around 1, the die
 # temperature between liquid nitrogen and a solder reflow (the gas laws' and the modulus' validity)
 LIMITS = {"tscale": (0.5, 1.5), "escale": (0.2, 3.0), "temp": (-200.0, 300.0)}
@@ -119,18 +120,21 @@ def check_etch(rd: Reader, p: Process, conductor: Any, sets: tuple) -> None:
     """etch narrows a beam conductor (check_beam_etch) or a proof mass's flexure beams (w - 2 etch) and
     comb fingers and widens its etch holes: it needs such flexures, every beam and finger keeping more
     than half its width at the range's top and holes that neither close nor merge over the range;
-    plates (piston, free disk) are refused."""
+    a plate (piston, free disk) as check_plate_etch."""
     where = "process.parameters"
     kind = getattr(conductor, "kind", "")
     if kind in BEAM_KINDS:
         check_beam_etch(rd, p, conductor)
         return
+    if kind in PLATE_KINDS:
+        check_plate_etch(rd, p, conductor, sets)
+        return
     flex = getattr(conductor, "flexure", None)
     if kind != "proof_mass" or flex is None or flex.type not in ETCH_TYPES:
         raise rd.fail(
             where,
-            f"etch narrows beams: it needs a {' or '.join(BEAM_KINDS)} conductor or a proof mass with a "
-            f"flexure of type {', '.join(ETCH_TYPES)} (a plate's etch is not modelled)",
+            f"etch narrows beams and recedes outlines: it needs a {', '.join(BEAM_KINDS + PLATE_KINDS)} "
+            f"conductor or a proof mass with a flexure of type {', '.join(ETCH_TYPES)}",
             "remove 'etch' from process.parameters",
         )
     for e in sets:
@@ -168,6 +172,34 @@ def check_beam_etch(rd: Reader, p: Process, beam: Any) -> None:
         )
 
 
+def check_plate_etch(rd: Reader, p: Process, plate: Any, sets: tuple) -> None:
+    """A plate's etch (netgen.model.etch_geometry.etched_plate: a piston's sides - 2 etch, a free disk's
+    radius - etch) keeps more than half its narrower side or diameter at the range's top, and every
+    electrode keeps an overlap with the etched plate over the range (an edge drawn on the plate's moves
+    with it; the plate's edge must not pass an electrode's far edge)."""
+    hi, where = p.etch_range[1], "process.etch_range"
+    size = min(plate.length, plate.width) if plate.kind == "piston" else 2 * plate.radius
+    if 2 * hi >= 0.5 * size:
+        what = "narrower side" if plate.kind == "piston" else "diameter"
+        raise rd.fail(
+            where,
+            f"an over-etch of {hi:g} m per edge removes half or more of the plate's {what} ({size:g} m)",
+            f"narrow etch_range (its top below a quarter of the plate's {what})",
+        )
+    for e in sets:
+        if plate.kind == "piston":
+            reach = min(plate.length / 2 - hi - max(e.x0, -e.x1), plate.width / 2 - hi - max(e.y0, -e.y1))
+        else:
+            reach = plate.radius - hi - e.rings[-1][0]  # each ring is its own electrodes
+        if reach <= 0.0:
+            raise rd.fail(
+                where,
+                f"at an over-etch of {hi:g} m per edge the plate's edge passes electrode {e.name!r}'s far edge: "
+                "its overlap with the plate vanishes",
+                f"narrow etch_range (its top below {hi + reach:g} m) or draw {e.name!r} farther inside the plate",
+            )
+
+
 def check_process(
     rd: Reader,
     p: Process | None,
@@ -184,7 +216,8 @@ def check_process(
     field model (the product of their ratios is unchecked at the box's corners), not the textbook
     form's (eps t / g: exact); tscale, escale and temp need mechanics netgen can re-run;
     temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
-    has the incompressible film (the compressible film's gas spring ~ p would follow T too)."""
+    has the incompressible film (the compressible film's gas spring ~ p would follow T too), and so
+    does a plate under etch (the compressible branches would keep the drawn outline)."""
     if p is None:
         return
     where = "process.parameters"
@@ -212,6 +245,13 @@ def check_process(
         )
     if p.wants("etch"):
         check_etch(rd, p, conductor, sets)
+    if p.wants("etch") and getattr(conductor, "kind", "") in PLATE_KINDS and film_model == "compressible":
+        raise rd.fail(
+            where,
+            "etch on a plate with the compressible film: its branches (dampers ~ R^4, corner frequencies "
+            "~ 1 / R^2 on a disk) would stay the drawn plate's, not modelled",
+            'use [damping] film_model = "incompressible" (its damping follows the etched plate) or drop etch',
+        )
     if p.cavity == "sealed" and film_model == "compressible":
         raise rd.fail(
             "process.cavity",

@@ -23,7 +23,7 @@ from ..model.etch_state import ETCH, TSCALE, Axis, state_polynomial
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, film_at, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
-from ..structure.process_table import BEAM_KINDS
+from ..structure.process_table import BEAM_KINDS, PLATE_KINDS
 from ..structure.schema import Process
 from .tomltext import to_toml
 
@@ -287,7 +287,7 @@ def problem(s: Structure, name: str, value: float, rebuild: bool) -> tuple[str, 
                 f"process.{name} = {value:g} is outside the structure's {name}_range [{lo:g}, {hi:g}]",
                 f"keep the values inside {name}_range, widen it in [process], {other}".rstrip(", "),
             )
-    beam = getattr(s.conductor, "kind", "") in BEAM_KINDS
+    beam = getattr(s.conductor, "kind", "") in BEAM_KINDS + PLATE_KINDS  # no flexure: the body itself etches
     if rebuild and name == "etch" and getattr(s.conductor, "flexure", None) is None and not beam:
         return ("process.etch: the structure has no flexure beams to etch", "sweep the widths as structure.<key>")
     t0 = s.damping.temperature - KELVIN if s.damping else 26.85

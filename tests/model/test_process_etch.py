@@ -35,7 +35,7 @@ from netgen.model.process import capacitance_at, coordinate_values, process_laws
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
-from tests.fixtures import NGSPICE, ROOT
+from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
 from tests.oracles.process_cases import ETCHES, RANGE, guided, proof_text, rerun, xyz_text
 
@@ -266,11 +266,14 @@ def test_bad_etch_tables(process, key):
 
 
 def test_etch_refused_without_beams():
-    """A piston (no flexure beams): exit 2 at process.parameters."""
-    text = (ROOT / "examples" / "piston_process.toml").read_text()
-    text = text.split("[process]")[0] + '[process]\nparameters = ["etch"]\n'
+    """A proof mass on given springs (no flexure beams; a piston's outline etches since plates have
+    their law, tests/model/test_process_etch_plates.py): exit 2 at process.parameters."""
+    text = guided(process='[process]\nparameters = ["etch"]\n')
+    old = 'type = "clamped_guided"\naxis = "y"\nlength = "150 um"\nwidth = "2.0 um"'
+    assert old in text
+    text = text.replace(old, 'type = "given"\nk_z = 2.0')
     with pytest.raises(StructureError) as exc:
-        parse_structure(text, "piston_process.toml")
+        parse_structure(text, "given.toml")
     assert "process.parameters" in str(exc.value) and "or a proof mass with a flexure" in str(exc.value)
 
 

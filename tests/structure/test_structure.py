@@ -211,7 +211,7 @@ def process_case(old: str, new: str) -> str:
 
 @pytest.mark.parametrize(
     "old,new,where,words",
-    [('parameters = ["dg", "tscale", "temp"]', *case) for case in PROCESS_BAD] + PROCESS_RANGES,
+    [('parameters = ["dg", "tscale", "temp", "etch"]', *case) for case in PROCESS_BAD] + PROCESS_RANGES,
 )
 def test_bad_process_table_names_file_key_and_fix(old, new, where, words):
     """A bad [process] table (netgen.structure.process_table): exit-2 StructureError naming the
@@ -253,4 +253,4 @@ def test_without_process_table_no_process_parameters():
     """No [process]: Structure.process is None (the model stage derives nothing, netgen.model.process)."""
     assert load_structure(EXAMPLE).process is None
     p = load_structure(PROCESS_EXAMPLE).process
-    assert p is not None and p.parameters == ("dg", "tscale", "temp") and p.modulus_tc == -60e-6
+    assert p is not None and p.parameters == ("dg", "tscale", "temp", "etch") and p.modulus_tc == -60e-6

@@ -205,15 +205,16 @@ def test_bad_process_entries_exit_2(tmp_path, capsys, declared, path, name, valu
     assert not (tmp_path / "out").exists()
 
 
-def test_etch_rebuild_needs_flexures(tmp_path, capsys):
-    """A rebuild at an etch bias of a structure with a given spring (nothing to etch): exit 2."""
+def test_etch_rebuild_of_a_plate(tmp_path, capsys):
+    """A rebuild at an etch bias of a piston on a given spring: its outline etches (netgen.model.
+    etch_geometry.etched_plate; it was refused as having no flexure beams), so the dry run plans it."""
     acc = tmp_path / "acc.toml"
     acc.write_text((ROOT / "examples/accelerometer_z.toml").read_text())
-    s = tmp_path / "bad.toml"
+    s = tmp_path / "plate.toml"
     s.write_text(SWEEP.format(path="rebuild", name="etch", value="5e-8", fixed=""))
     rc = cli.main(["sweep", str(acc), str(s), "-o", str(tmp_path / "out"), "--dry-run"])
     err = capsys.readouterr().err
-    assert rc == 2 and str(s) in err and "parameters[0].values" in err and "no flexure beams" in err, err
+    assert rc == 0 and "no flexure beams" not in err, err
 
 
 BACKEND_POINT = '"process.temp" = 85\n"process.escale" = 0.9\nsimulator = "{simulator}"\n'
