@@ -35,7 +35,6 @@ import numpy as np
 import pytest
 
 from netgen import emit
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
@@ -45,6 +44,7 @@ from netgen.sim.vacask import run_vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
+from tests.fixtures import shared_model as build_model
 from tests.oracles.plate_etch import ETCHES, GAP, SIDE, STIFFNESS, area_ratio, disk_text, piston_text
 from tests.oracles.process_cases import control_block
 

@@ -38,13 +38,13 @@ import math
 import numpy as np
 import pytest
 
-from netgen.build import build_model
 from netgen.core.constants import EPS0
 from netgen.core.errors import StructureError
 from netgen.model.etch_knots import edge_knots
 from netgen.model.process import capacitance_at, coordinate_values, ratio_value
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
+from tests.fixtures import shared_model as build_model
 from tests.oracles.plate_etch import (
     ETCHES,
     GAP,
