@@ -41,7 +41,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kappa", type=float, nargs="+", default=[0.05, 0.1, 0.2])
     args = ap.parse_args()
-    print(f"{'d/a':>6} {'C11-C12':>10} {'Love':>10} {'dev':>8} {'C11+C12':>10} {'Love':>10} {'dev':>8} {'order':>5} {'s':>6}")
+    print(
+        f"{'d/a':>6} {'C11-C12':>10} {'Love':>10} {'dev':>8} {'C11+C12':>10} {'Love':>10} {'dev':>8} {'order':>5} {'s':>6}"
+    )
     for kappa in args.kappa:
         t0 = time.perf_counter()
         m = two_disks(kappa)
