@@ -285,6 +285,9 @@ def test_lost_shared_input_is_scattered_again(cluster):
     workers: a nanny asked to restart can close instead (dask/distributed #7312, seen in CI after
     600 s); the recovery needs only one worker back, and the tasks' values do not depend on how many."""
     _, client = cluster
+    client.wait_for_workers(
+        2, timeout=300
+    )  # the nanny restarts the worker dask_sweep killed; on a loaded machine later
     shared = {"v": np.arange(1000.0)}
     items = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
     ex = DaskExecutor(client=client)
