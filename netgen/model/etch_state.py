@@ -142,9 +142,54 @@ def state_polynomial(law: dict, value: float, axis: Axis = ETCH) -> Polynomial:
     """The factor state_factor evaluates, 1 + u P1(xs) + u^2 P2(xs) at the `axis` parameter's value, as
     one polynomial in xs (netgen.sweep.point puts it on a process point's capacitance fit)."""
     u = law_u(law, value, axis)
+    return weighted_polynomial(law, u, u * u)
+
+
+def weighted_polynomial(law: dict, w1: float, w2: float) -> Polynomial:
+    """1 + w1 P1(xs) + w2 P2(xs) as one polynomial in xs (a cross law's constant row folded into the 1)."""
     exps = np.array(law["exponents"], dtype=int)
-    coeffs = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
-    return Polynomial(np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps]), np.r_[1.0, coeffs])
+    coeffs = w1 * np.array(law["coeffs"][0]) + w2 * np.array(law["coeffs"][1])
+    constant = exps.sum(axis=1) == 0
+    return Polynomial(
+        np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps[~constant]]),
+        np.r_[1.0 + float(np.sum(coeffs[constant])), coeffs[~constant]],
+    )
+
+
+def cross_weights(tscale: float, etch: float) -> tuple[float, float]:
+    """The cross factor's weights (tscale - 1) u and (tscale - 1) u^2, u = etch / 1 um (cross_laws)."""
+    u = ETCH.u(etch)
+    return (tscale - 1.0) * u, (tscale - 1.0) * u * u
+
+
+def cross_factor(law: dict, xs: np.ndarray, tscale: float, etch: float) -> np.ndarray:
+    """1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)) at scaled states xs (npoints, ncoords) (cross_laws)."""
+    return weighted_polynomial(law, *cross_weights(tscale, etch))(np.atleast_2d(xs))
+
+
+def cross_laws(
+    xs: np.ndarray, residuals: dict[tuple[float, float], np.ndarray], degree: int = DEGREE
+) -> dict[int, dict]:
+    """electrode index -> {"exponents", "coeffs": [Q1, Q2]} of the cross factor 1 + (tscale - 1) (u
+    Q1(xs) + u^2 Q2(xs)) from the product laws' residuals C / (pc_t S_t pc_e S_e C0(xe)) - 1 at the
+    (tscale, etch) points (npoints, nelectrodes each) over the scaled states xs: least squares, touching
+    points (nan) left out; electrodes whose residual stays below FLOOR get none. Q1, Q2 keep their
+    constant (the two ratios pc are fitted apart at rest, so their product is not exact there)."""
+    exps = monomial_exponents(xs.shape[1], degree)
+    basis = monomials(xs, exps)
+    points = list(residuals)
+    r = np.array([residuals[p] for p in points])  # (points, npoints, nelectrodes)
+    out: dict[int, dict] = {}
+    for k in range(r.shape[2]):
+        rk = r[:, :, k]
+        ok = np.all(np.isfinite(rk), axis=0)
+        if np.max(np.abs(rk[:, ok]), initial=0.0) < FLOOR:
+            continue
+        design = np.concatenate([np.hstack([w * basis[ok] for w in cross_weights(*p)]) for p in points])
+        coef, *_ = np.linalg.lstsq(design, rk[:, ok].ravel(), rcond=None)
+        m = len(exps)
+        out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), coef[m:].tolist()]}
+    return out
 
 
 def law_u(law: dict, value: float, axis: Axis = ETCH) -> float:
