@@ -20,6 +20,18 @@ FIT_POINTS points of the fit box other than the points the law's stated error is
 out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
 none (the textbook combs: 9.3e-5, their law is a shift to that).
 
+Why degree 3 (83 monomials, 166 coefficients a factor, against 27 and 54 at degree 2): on
+accelerometer_xyz at 400 fresh points of the fit box (bench/process_cross.py) the tscale law is 2.5e-3
+off at degree 2, 7.8e-4 at 3 (its stated figure, with the box's corners, 3.3e-3 -> 1.4e-3), the etch
+law 9.8e-4 -> 3.2e-4, and with both parameters the product's cross factor (cross_laws, below) leaves
+3.9e-3 at degree 2, 1.1e-3 at 3.
+
+With tscale and etch both declared the product of the two laws, each fitted with the other parameter
+nominal, misses what moves with both (the finger's fringe share depends on its width and thickness
+together; the plain product is 3.5e-3 off at the (tscale, etch) box's corners at degree 3, 4.6e-3 at
+2, mostly odd in tscale - 1: at degree 2 the residuals at 0.9 and 1.1 correlate at -0.85). cross_laws fits the factor 1 +
+(tscale - 1) (u Q1(xs) + u^2 Q2(xs)) to it at the corners (netgen.model.process.cross_capacitance).
+
 A cantilever's tip overhanging its electrode (netgen.model.etch_knots.tip_knots) gets the same factor
 in v = (k - u)+ instead of u (the law marked "below": k), so that it is 1 where the beam ends inside
 the electrode and the law is exact there (netgen.model.process.capacitance_laws, TIP_DEGREE).
@@ -37,7 +49,7 @@ from ..electrostatics.sampling import check_points
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from .etch_knots import ETCH_UNIT, knot_value
 
-DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
+DEGREE = 3  # total degree of P1, P2 in the scaled state (why 3: the module docstring)
 FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the law is checked at
 FLOOR = 2e-4  # largest |residual| of an electrode's shift-and-ratio law below which it gets no P
 
