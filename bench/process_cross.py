@@ -101,8 +101,8 @@ def main() -> None:
         for label, m in (("plain", crossless(model)), ("cross", model)):
             got = capacitance_at(m, x, etch=p[1], tscale=p[0])
             print(
-                f"  rebuild at {p}: {label} {float(np.max(np.abs(got / want - 1))):.2e} "
-                f"(bound 2 x fits {errs:.2e} + stated {2 * errs + e['capacitance_max_rel_error']:.2e}; "
+                f"  rebuild at {p}: {label} {float(np.max(np.abs(got / want - 1))):.2e} (the fits' "
+                f"{errs:.2e}; bound 2 x fits + stated {2 * errs + e['capacitance_max_rel_error']:.2e}; "
                 f"{time.process_time() - t0:.0f} s CPU)"
             )
 
