@@ -23,10 +23,14 @@ Tolerances:
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
 from netgen.build import build_model
+from netgen.core.errors import ModelError
+from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, etched, scaled
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
@@ -106,3 +110,17 @@ def test_sweep_point_model(nominal):
     point = {"tscale": 0.9, "etch": -1e-7}
     got = at_point(nominal, point).capacitance(x)
     np.testing.assert_allclose(got, capacitance_at(nominal, x, **point), rtol=1e-12, atol=0)
+
+
+def test_cross_law_validated_on_load(nominal):
+    """A comb's cross factor, which every form writes as monomials, is checked on load like a state
+    factor (netgen.model.validate.check_state_law), its constant row allowed: a ModelError naming the
+    key for a bad entry, never a netlist with it."""
+    d = copy.deepcopy(nominal.to_dict())
+    law = next(r for r in d["process"]["etch"]["capacitance"] if "cross" in r)
+    assert sum(law["cross"]["exponents"][0]) == 0  # Q1, Q2 keep their constant
+    MacroModel.from_dict(copy.deepcopy(d), "xyz.json")
+    law["cross"]["coeffs"][1][0] = "1e-3"
+    with pytest.raises(ModelError) as exc:
+        MacroModel.from_dict(d, "xyz.json")
+    assert "cross.coeffs[1][0]" in str(exc.value)
