@@ -4,7 +4,7 @@ factor 1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)) (netgen.model.etch_state.cross_l
 and their product pr_<e> in the .lib and the _xspice.lib, variables in the .va, STATE_KIND rows in the
 FMU), at the corner (0.9, -0.1 um) where the cross factor is largest, at a displaced state (the factors
 are 1 at rest): the .lib in ngspice 39 and 46, the _xspice.lib (ngspice 39), the .va through OSDI
-(ngspice 46) and the FMU.
+(ngspice 46) and in VACASK, and the FMU.
 
 Tolerances (tests/emit/test_process_etch_field2d_forms.py's helpers and bounds, derived there):
 - xp_t's C at the displaced state from .ac without bias against the Python law
@@ -36,6 +36,7 @@ from tests.emit.test_process_etch_field2d_forms import (
     VOLTS,
     check_state,
     check_state_fmu,
+    check_state_vacask,
     law_slopes,
     state_deck,
 )
@@ -101,3 +102,8 @@ def test_state_osdi(xyz, tmp_path, monkeypatch):
 def test_state_fmu(xyz):
     """The FMU at the displaced state: charge (1e-12) and forces (F2D_TOL) against the law."""
     check_state_fmu(xyz, 0.0, POINT)
+
+
+def test_state_vacask(xyz, tmp_path):
+    """The .va module in VACASK at the point: the forces with 5 V on xp_t against the law's slopes (F2D_TOL)."""
+    check_state_vacask(xyz, tmp_path, 0.0, POINT)

@@ -350,14 +350,20 @@ def check_state_fmu(xyz, etch: float, param: str | dict = "etch") -> None:
 def test_state_vacask(xyz, tmp_path):
     """The same .va module in VACASK (its op at reltol 1e-12, vntol 1e-12 as the ngspice decks): the
     forces with VOLTS on xp_t at the displaced state against the law's slopes (F2D_TOL)."""
+    check_state_vacask(xyz, tmp_path, STATE_ETCH)
+
+
+def check_state_vacask(xyz, tmp_path, etch: float, param: str | dict = "etch") -> None:
+    """test_state_vacask at a process point (`param`, point)."""
     from netgen.core.paths import vacask_string
     from netgen.sim.vacask import run_vacask
 
+    at = point(param, etch)
     emit.write_outputs(xyz, tmp_path, "osdi")
     ports = " ".join(["d", *["0"] * 9, "p"] + [f"f{k} x{k}" for k in range(6)] + ["0", "0", "0"])
     srcs = [f"v_d (d 0) vsource dc={VOLTS!r}", "v_p (p 0) vsource dc=0"]
     for k, c in enumerate(xyz.coordinates):
-        stiff = coordinate_values(xyz.process, k, etch=STATE_ETCH)[1]
+        stiff = coordinate_values(xyz.process, k, **at)[1]
         force = stiff * c.scale * OUT_OF_PLANE.get(c.name, 0.0) / c.port_units[3]
         srcs.append(f"v_f{k} (f{k} 0) vsource dc={float(force)!r}")
     net = "\n".join(
@@ -365,7 +371,7 @@ def test_state_vacask(xyz, tmp_path):
             "xyz state",
             "ground 0",
             f"load {vacask_string(tmp_path / 'accelerometer_xyz.osdi', tmp_path / 'run')}",
-            f"model mems accelerometer_xyz etch={STATE_ETCH!r}",
+            "model mems accelerometer_xyz " + " ".join(f"{k}={v!r}" for k, v in at.items()),
             "model vsource vsource",
             f"x1 ({ports}) mems",
             *srcs,
@@ -380,5 +386,5 @@ def test_state_vacask(xyz, tmp_path):
     xs = np.array(
         [float(np.atleast_1d(plot[f"x{k}"])[0]) * c.port_units[1] / c.scale for k, c in enumerate(xyz.coordinates)]
     )
-    got, ref = form_slopes(xyz, xs, STATE_ETCH), 0.5 * VOLTS**2 * law_slopes(xyz, xs, STATE_ETCH)[:3]
+    got, ref = form_slopes(xyz, xs, etch, param), 0.5 * VOLTS**2 * law_slopes(xyz, xs, etch, param=param)[:3]
     assert np.max(np.abs(got - ref)) <= F2D_TOL * np.max(np.abs(ref)), (got, ref)
