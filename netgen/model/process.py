@@ -31,7 +31,8 @@ once so that emitters only render them.
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
   product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
-  follow the etched body (netgen.model.process_loads).
+  follow the etched body (netgen.model.process_loads); with tscale the capacitance laws' product gets
+  a cross factor where it misfits at those corners (cross_capacitance).
 """
 
 from __future__ import annotations
@@ -252,8 +253,8 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str], c
     netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the state: a
     comb's gets the state factor 1 + u P1(xs) + u^2 P2(xs), u = tscale - 1 ("state",
     netgen.model.etch_state, fitted at the same thicknesses). The stated error is the largest
-    |ratio C(q; 1) / C(q; tscale) - 1| over rest and CAPACITANCE_POINTS random points of the fit box
-    at the range's ends (held out of the state fit), and the cubic's residual."""
+    |ratio C(q; 1) / C(q; tscale) - 1| over check_sets (rest, CAPACITANCE_POINTS random points and the
+    box's corners, held out of the state fit) at the re-run thicknesses, and the cubic's residual."""
     points = fit_points(p)
     rest = np.array([extract(scaled(s, t), 0)[0] for t in points])
     coef, err = power_fit(points, rest / rest[points.index(1.0)], np.ones_like(rest))
@@ -414,8 +415,8 @@ def capacitance_laws(
     etch_points: C(0; etch) / C(shift etch; 0). It carries what no shift is: the area a plate faces
     (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
     lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
-    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
-    fit box at the range's ends, and the cubic's residual at the etch points. The plates of `fill`
+    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over check_sets (rest, CAPACITANCE_POINTS random
+    points and the box's corners) at the etch points, and the cubic's residual there. The plates of `fill`
     (names, half box dz) get a z shift too (netgen.model.etch_fill: their fill factor's etch change
     depends on the gap; such a law is marked "fill": the contact stops do not follow it). A
     transverse comb's shift across the fingers gets an effective part where the form is not a shift
