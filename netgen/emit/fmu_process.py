@@ -151,7 +151,7 @@ def arrays(model: MacroModel, vr: dict[str, int], array) -> tuple[list[dict], di
     if state:  # likewise: the combs' etch state factors (netgen.emit.etch_state)
         data += state
         defines["NSTATE"] = len(state[0]["data"].split(", "))
-        defines["STATE_U"] = "(t - 1.0)" if etch_state.parameter(model) == "tscale" else state_u(model)
+        defines["STATE_U"] = state_u(model)
     return data, defines, names
 
 
@@ -164,7 +164,8 @@ def padded(ratio: list[float], knots: list[float]) -> list[float]:
 def state_u(model: MacroModel) -> str:
     """The C text of the etch state factors' u: etch / 1 um, or (k - u)+ for a cantilever's overhanging
     tip (a law marked "below" k, netgen.model.etch_state); the runtime has one u for all the factors."""
-    below = {law.get("below") for law in etch_state.state_laws(model).values()}
+    below = {law.get("below") for fs in etch_state.state_laws(model).values() for k, law in fs if k == "etch"}
+    below = below or {None}  # no etch factor: STATE_U unread (the tscale and cross factors' weights are t's)
     if len(below) > 1:
         raise ValueError("the FMU renders one state-factor variable; these laws differ in it")
     k = below.pop()
@@ -172,23 +173,26 @@ def state_u(model: MacroModel) -> str:
 
 
 def state_arrays(model: MacroModel, array) -> list[dict]:
-    """The combs' etch state factors 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state) as monomials:
-    owner (index in model.capacitances) STATE_ELEC, exponents STATE_EXP, P1's and P2's coefficients
-    STATE_C1, STATE_C2; [] without any."""
+    """The combs' state factors (netgen.model.etch_state: 1 + w1 P1(xs) + w2 P2(xs) of each kind,
+    netgen.emit.etch_state.KINDS) as monomials: owner (index in model.capacitances) STATE_ELEC, kind
+    STATE_KIND (0 etch: u, u^2; 1 tscale: tscale - 1 and its square; 2 their cross factor: (tscale - 1)
+    u, (tscale - 1) u^2), exponents STATE_EXP, P1's and P2's coefficients STATE_C1, STATE_C2; [] without
+    any. The runtime multiplies an electrode's factors."""
     laws = etch_state.state_laws(model)
     rows = [
-        (i, e, a, b)
+        (i, etch_state.KINDS.index(k), e, a, b)
         for i, f in enumerate(model.capacitances)
-        if f.electrode in laws
-        for e, a, b in zip(laws[f.electrode]["exponents"], *laws[f.electrode]["coeffs"])
+        for k, law in laws.get(f.electrode, [])
+        for e, a, b in zip(law["exponents"], *law["coeffs"])
     ]
     if not rows:
         return []
     return [
         array("int", "STATE_ELEC", [r[0] for r in rows]),
-        array("int", "STATE_EXP", [x for r in rows for x in r[1]]),
-        array("double", "STATE_C1", [r[2] for r in rows]),
-        array("double", "STATE_C2", [r[3] for r in rows]),
+        array("int", "STATE_KIND", [r[1] for r in rows]),
+        array("int", "STATE_EXP", [x for r in rows for x in r[2]]),
+        array("double", "STATE_C1", [r[3] for r in rows]),
+        array("double", "STATE_C2", [r[4] for r in rows]),
     ]
 
 

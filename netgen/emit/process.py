@@ -287,7 +287,7 @@ def thickness_header(t: dict) -> str:
             else ""
         )
         + (f" within {err:.1e}" if err else " (exact: eps t / g)")
-        + " against the extractor at the range's ends, rest and 32 fit-box points"
+        + " against the extractor at the re-run thicknesses, rest, 32 fit-box points and the box's corners"
     )
 
 

@@ -98,6 +98,14 @@ def etch_neglect(e: dict, state: bool = True) -> str:
             if fill
             else ""
         )
+        + (
+            ", with tscale the product of the two laws times a cross factor 1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs))"
+            " (netgen.model.etch_state; the plain product "
+            f"{e['capacitance_product_max_rel_error']:.1e}, with it {e['capacitance_cross_max_rel_error']:.1e} "
+            "at the (tscale, etch) box's corners)"
+            if state and "capacitance_cross_max_rel_error" in e
+            else ""
+        )
         + ", "
         + (f"within {err:.1e} over the fit box" if err else "exact")
     )

@@ -144,8 +144,8 @@ def state_force(model: MacroModel, v: int, live: dict[str, str]) -> list[str]:
     state factor (netgen.emit.etch_state; `live`: electrode -> live_capacitance), on the live states."""
     out = []
     states = [f"xs_{c.name}" for c in model.coordinates]
-    for e, law in etch_state.state_laws(model).items():
-        grad = etch_state.gradient_text(law, v, states, "V({})", etch_state.u_texts(model, True, law))
+    for e in etch_state.state_laws(model):
+        grad = etch_state.gradient(model, e, v, states, "V({})", "{}", va=True)
         if grad is not None:
             pc = f"pc_{e} * " if e in process.capacitance_ratios(model) else ""
             out.append(f"{pc}V({e}, {model.plate}) * V({e}, {model.plate}) * {live[e]} * ({grad})")

@@ -148,8 +148,7 @@ def process_rows(model: MacroModel, ctx: dict) -> None:
     # the combs' etch state factors pr_<e> on the live states (netgen.emit.va_terms renders their use)
     live = [f"xs_{c.name}" for c in model.coordinates]
     ctx["process_vars"] += [
-        {"name": f"pr_{e}", "expr": etch_state.factor_text(law, live, "V({})", etch_state.u_texts(model, True, law))}
-        for e, law in etch_state.state_laws(model).items()
+        {"name": n, "expr": x} for n, x in etch_state.factor_defs(model, live, "V({})", "{}", va=True)
     ]
     ctx["process_text"] = process.header_text(model)
 

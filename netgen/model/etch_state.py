@@ -20,6 +20,18 @@ FIT_POINTS points of the fit box other than the points the law's stated error is
 out); points where a gap closes (nan) are left out. Electrodes whose residual stays below FLOOR get
 none (the textbook combs: 9.3e-5, their law is a shift to that).
 
+Why degree 3 (83 monomials, 166 coefficients a factor, against 27 and 54 at degree 2): on
+accelerometer_xyz at 400 fresh points of the fit box (bench/process_cross.py) the tscale law is 2.5e-3
+off at degree 2, 7.8e-4 at 3 (its stated figure, with the box's corners, 3.3e-3 -> 1.4e-3), the etch
+law 9.8e-4 -> 3.2e-4, and with both parameters the product's cross factor (cross_laws, below) leaves
+3.9e-3 at degree 2, 1.1e-3 at 3.
+
+With tscale and etch both declared the product of the two laws, each fitted with the other parameter
+nominal, misses what moves with both (the finger's fringe share depends on its width and thickness
+together; the plain product is 3.5e-3 off at the (tscale, etch) box's corners at degree 3, 4.6e-3 at
+2, mostly odd in tscale - 1: at degree 2 the residuals at 0.9 and 1.1 correlate at -0.85). cross_laws fits the factor 1 +
+(tscale - 1) (u Q1(xs) + u^2 Q2(xs)) to it at the corners (netgen.model.process.cross_capacitance).
+
 A cantilever's tip overhanging its electrode (netgen.model.etch_knots.tip_knots) gets the same factor
 in v = (k - u)+ instead of u (the law marked "below": k), so that it is 1 where the beam ends inside
 the electrode and the law is exact there (netgen.model.process.capacitance_laws, TIP_DEGREE).
@@ -37,7 +49,7 @@ from ..electrostatics.sampling import check_points
 from ..fit.polynomial import Polynomial, monomial_exponents, monomials
 from .etch_knots import ETCH_UNIT, knot_value
 
-DEGREE = 2  # total degree of P1, P2 in the scaled state (degree 3: 166 coefficients an electrode)
+DEGREE = 3  # total degree of P1, P2 in the scaled state (why 3: the module docstring)
 FIT_POINTS = 256  # fit-box points P is fitted at, drawn after the points the law is checked at
 FLOOR = 2e-4  # largest |residual| of an electrode's shift-and-ratio law below which it gets no P
 
@@ -142,9 +154,54 @@ def state_polynomial(law: dict, value: float, axis: Axis = ETCH) -> Polynomial:
     """The factor state_factor evaluates, 1 + u P1(xs) + u^2 P2(xs) at the `axis` parameter's value, as
     one polynomial in xs (netgen.sweep.point puts it on a process point's capacitance fit)."""
     u = law_u(law, value, axis)
+    return weighted_polynomial(law, u, u * u)
+
+
+def weighted_polynomial(law: dict, w1: float, w2: float) -> Polynomial:
+    """1 + w1 P1(xs) + w2 P2(xs) as one polynomial in xs (a cross law's constant row folded into the 1)."""
     exps = np.array(law["exponents"], dtype=int)
-    coeffs = u * np.array(law["coeffs"][0]) + u * u * np.array(law["coeffs"][1])
-    return Polynomial(np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps]), np.r_[1.0, coeffs])
+    coeffs = w1 * np.array(law["coeffs"][0]) + w2 * np.array(law["coeffs"][1])
+    constant = exps.sum(axis=1) == 0
+    return Polynomial(
+        np.vstack([np.zeros((1, exps.shape[1]), dtype=int), exps[~constant]]),
+        np.r_[1.0 + float(np.sum(coeffs[constant])), coeffs[~constant]],
+    )
+
+
+def cross_weights(tscale: float, etch: float) -> tuple[float, float]:
+    """The cross factor's weights (tscale - 1) u and (tscale - 1) u^2, u = etch / 1 um (cross_laws)."""
+    u = ETCH.u(etch)
+    return (tscale - 1.0) * u, (tscale - 1.0) * u * u
+
+
+def cross_factor(law: dict, xs: np.ndarray, tscale: float, etch: float) -> np.ndarray:
+    """1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)) at scaled states xs (npoints, ncoords) (cross_laws)."""
+    return weighted_polynomial(law, *cross_weights(tscale, etch))(np.atleast_2d(xs))
+
+
+def cross_laws(
+    xs: np.ndarray, residuals: dict[tuple[float, float], np.ndarray], degree: int = DEGREE
+) -> dict[int, dict]:
+    """electrode index -> {"exponents", "coeffs": [Q1, Q2]} of the cross factor 1 + (tscale - 1) (u
+    Q1(xs) + u^2 Q2(xs)) from the product laws' residuals C / (pc_t S_t pc_e S_e C0(xe)) - 1 at the
+    (tscale, etch) points (npoints, nelectrodes each) over the scaled states xs: least squares, touching
+    points (nan) left out; electrodes whose residual stays below FLOOR get none. Q1, Q2 keep their
+    constant (the two ratios pc are fitted apart at rest, so their product is not exact there)."""
+    exps = monomial_exponents(xs.shape[1], degree)
+    basis = monomials(xs, exps)
+    points = list(residuals)
+    r = np.array([residuals[p] for p in points])  # (points, npoints, nelectrodes)
+    out: dict[int, dict] = {}
+    for k in range(r.shape[2]):
+        rk = r[:, :, k]
+        ok = np.all(np.isfinite(rk), axis=0)
+        if np.max(np.abs(rk[:, ok]), initial=0.0) < FLOOR:
+            continue
+        design = np.concatenate([np.hstack([w * basis[ok] for w in cross_weights(*p)]) for p in points])
+        coef, *_ = np.linalg.lstsq(design, rk[:, ok].ravel(), rcond=None)
+        m = len(exps)
+        out[k] = {"exponents": exps.tolist(), "coeffs": [coef[:m].tolist(), coef[m:].tolist()]}
+    return out
 
 
 def law_u(law: dict, value: float, axis: Axis = ETCH) -> float:

@@ -32,7 +32,8 @@ once so that emitters only render them.
   its nominal value as a cubic in etch / 1 um from re-runs at thickness 1, multiplied onto the tscale
   law (etch_laws: exact for the beams' w^3 and w laws and products of power laws in t and w; the
   product's misfit at the (tscale, etch) box's corners is part of the stated error); the inertial loads
-  follow the etched body (netgen.model.process_loads).
+  follow the etched body (netgen.model.process_loads); with tscale the capacitance laws' product gets
+  a cross factor where it misfits at those corners (cross_capacitance).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from ..electrostatics.sampling import box_corners, check_points
+from ..electrostatics.sampling import CORNER_CHECKS, box_corners, check_points
 from ..mechanics import Mechanics
 from ..mechanics.damping import damping as damping_of
 from ..mechanics.damping import squeeze_film_damping
@@ -56,7 +57,8 @@ from .etch_geometry import comb_across, comb_shifts, etched, is_comb
 from .etch_geometry import etched_beam as etched_beam  # re-exported: the beams' etch
 from .etch_geometry import etched_comb as etched_comb  # re-exported: the combs' etch
 from .etch_knots import ETCH_UNIT, basis, edge_knots, identity, knot_points, record_knots, tip_knots
-from .etch_state import TSCALE, state_factor, state_laws
+from .etch_state import FIT_POINTS as STATE_FIT_POINTS
+from .etch_state import TSCALE, cross_factor, cross_laws, state_factor, state_laws
 from .process_film import GAP_SIDES, KELVIN, film_law, temperature_law
 from .process_film import viscosity_ratio as viscosity_ratio  # re-exported: tests/model/test_process.py
 from .process_values import LAW_KEYS as LAW_KEYS  # re-exported: the laws' evaluation at a point
@@ -222,6 +224,10 @@ def process_laws(
         # the plates' fill shift (netgen.model.etch_fill): along z, not where a gap offset reads xs_z too
         fill = ([e.name for e in electrodes if e.side in GAP_SIDES and not sets], sampling_range * scale_z / 2)
         out["etch"] = etch_record(s, p, etch_err, extract, [e.name for e in electrodes], list(m.names), fill)
+        if "capacitance_laws" in out["tscale"] and "capacitance" in out["etch"]:
+            out["etch"] |= cross_capacitance(
+                s, p, extract, [e.name for e in electrodes], list(m.names), out["tscale"], out["etch"]
+            )
     if m.strain_energy is not None:
         out["strain_energy"] = energy_law(s, m, run, p)
     if d and d.squeeze_film and d.film_model == "compressible":  # r_j ~ mu_eff, the gas spring r_j w_j ~ p_a
@@ -248,8 +254,8 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str], c
     netgen.electrostatics.perforation; a thick plate's edge) makes the ratio depend on the state: a
     comb's gets the state factor 1 + u P1(xs) + u^2 P2(xs), u = tscale - 1 ("state",
     netgen.model.etch_state, fitted at the same thicknesses). The stated error is the largest
-    |ratio C(q; 1) / C(q; tscale) - 1| over rest and CAPACITANCE_POINTS random points of the fit box
-    at the range's ends (held out of the state fit), and the cubic's residual."""
+    |ratio C(q; 1) / C(q; tscale) - 1| over check_sets (rest, CAPACITANCE_POINTS random points and the
+    box's corners, held out of the state fit) at the re-run thicknesses, and the cubic's residual."""
     points = fit_points(p)
     rest = np.array([extract(scaled(s, t), 0)[0] for t in points])
     coef, err = power_fit(points, rest / rest[points.index(1.0)], np.ones_like(rest))
@@ -259,16 +265,16 @@ def thickness_capacitance(s: Structure, p: Process, extract, names: list[str], c
         if n in comb_shifts(s, coords)
     }
     states = state_laws(s, extract, scaled, combs, points, CAPACITANCE_POINTS, axis=TSCALE)
-    xs = check_points(s.sampling, CAPACITANCE_POINTS, len(coords))
-    drawn, bare = extract(s, CAPACITANCE_POINTS), err
-    for t in p.tscale_range:
-        moved = extract(scaled(s, t), CAPACITANCE_POINTS)
-        ref = drawn * np.array([float(np.dot(c, [1.0, t, t**2, t**3])) for c in coef])
-        ok = np.isfinite(moved) & np.isfinite(ref)
-        bare = max(bare, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
-        for k, law in states.items():
-            ref[:, k] *= state_factor(law, xs, t, TSCALE)
-        err = max(err, float(np.max(np.abs(ref[ok] / moved[ok] - 1.0), initial=0.0)))
+    bare = err
+    for t in (x for x in points if x != 1.0):
+        for xs, corners in check_sets(s, len(coords)):
+            n = 0 if corners else CAPACITANCE_POINTS
+            moved = extract(scaled(s, t), n, corners=corners)
+            ref = extract(s, n, corners=corners) * np.array([float(np.dot(c, [1.0, t, t**2, t**3])) for c in coef])
+            bare = max(bare, misfit(ref, moved))
+            for k, law in states.items():
+                ref[:, k] *= state_factor(law, xs, t, TSCALE)
+            err = max(err, misfit(ref, moved))
     laws = [
         {"electrode": n, "ratio": [float(x) for x in c]} | ({"state": states[k]} if k in states else {})
         for k, (n, c) in enumerate(zip(names, coef))
@@ -360,6 +366,16 @@ def corner_misfit(s: Structure, run, film: bool, modulus: bool, names: list[str]
 CAPACITANCE_POINTS = 32  # random points of the fit box the capacitance ratios are checked at (and rest)
 
 
+def check_sets(s: Structure, ncoords: int) -> list[tuple[np.ndarray, bool]]:
+    """The scaled states a capacitance law is checked at, each with whether they are the box's corners
+    (netgen.build.capacitance_sampler's `corners`): rest and CAPACITANCE_POINTS random points of the
+    fit box, and the box's 2^n corners up to CORNER_CHECKS coordinates (as the fits' own check,
+    netgen.electrostatics.sampling.sample_corners): a state polynomial's misfit peaks there (held-out
+    random points found 9.6e-4 against 8.1e-4 on the random checks alone, accelerometer_xyz's etch)."""
+    out = [(check_points(s.sampling, CAPACITANCE_POINTS, ncoords), False)]
+    return out + ([(box_corners(s.sampling, ncoords), True)] if ncoords <= CORNER_CHECKS else [])
+
+
 def etch_record(
     s: Structure,
     p: Process,
@@ -402,8 +418,8 @@ def capacitance_laws(
     etch_points: C(0; etch) / C(shift etch; 0). It carries what no shift is: the area a plate faces
     (the etched outline and the perforated mass's fill factor, netgen.electrostatics.perforation), a
     lateral comb's gap, the fingers' width in the fringe and the tips. The stated error is the largest
-    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over rest and CAPACITANCE_POINTS random points of the
-    fit box at the range's ends, and the cubic's residual at the etch points. The plates of `fill`
+    |ratio C(q + shift etch; 0) / C(q; etch) - 1| over check_sets (rest, CAPACITANCE_POINTS random
+    points and the box's corners) at the etch points, and the cubic's residual there. The plates of `fill`
     (names, half box dz) get a z shift too (netgen.model.etch_fill: their fill factor's etch change
     depends on the gap; such a law is marked "fill": the contact stops do not follow it). A
     transverse comb's shift across the fingers gets an effective part where the form is not a shift
@@ -422,11 +438,11 @@ def capacitance_laws(
     vectors = [np.array([shifts.get(n, {}).get(q, 0.0) for q in coords]) for n in names]
     memo: dict[tuple, np.ndarray] = {}
 
-    def drawn_at(n: int, offset: np.ndarray) -> np.ndarray:
+    def drawn_at(n: int, offset: np.ndarray, corners: bool = False) -> np.ndarray:
         """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
-        key = (n, *offset.tolist())
+        key = (n, corners, *offset.tolist())
         if key not in memo:
-            memo[key] = extract(s, n, offset)
+            memo[key] = extract(s, n, offset, corners=corners)
         return memo[key]
 
     knots = edge_knots(s, *p.etch_range)  # a beam's electrode edges met (netgen.model.etch_knots)
@@ -444,17 +460,16 @@ def capacitance_laws(
     if s.conductor.kind in PLATE_KINDS:  # the receded rim's weight follows the state (docstring)
         rims = {k: (vectors[k], ratios[k]) for k in range(len(names)) if k not in states}
         states |= state_laws(s, extract, etched, rims, points, CAPACITANCE_POINTS, knots=knots)
-    xs = check_points(s.sampling, CAPACITANCE_POINTS, len(coords))
     bare = err  # the law without the combs' state factors (the forms that leave it out state this)
-    for e in p.etch_range:
-        moved = extract(etched(s, e), CAPACITANCE_POINTS)
-        for k, v in enumerate(vectors):
-            ref = ratio_value(ratios[k], e, knots) * drawn_at(CAPACITANCE_POINTS, v * e)[:, k]
-            ok = np.isfinite(moved[:, k]) & np.isfinite(ref)
-            bare = max(bare, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
-            ref = ref * state_factor(states[k], xs, e) if k in states else ref
-            err = max(err, float(np.max(np.abs(ref[ok] / moved[ok, k] - 1.0), initial=0.0)))
-    err = max(err, tip_corners(s, p, extract, states, below, ratios, knots, len(coords)))
+    for e in (x for x in points if x != 0.0):
+        for xs, corners in check_sets(s, len(coords)):
+            count = 0 if corners else CAPACITANCE_POINTS
+            moved = extract(etched(s, e), count, corners=corners)
+            for k, v in enumerate(vectors):
+                ref = ratio_value(ratios[k], e, knots) * drawn_at(count, v * e, corners)[:, k]
+                bare = max(bare, misfit(ref, moved[:, k]))
+                ref = ref * state_factor(states[k], xs, e) if k in states else ref
+                err = max(err, misfit(ref, moved[:, k]))
     laws: list[dict[str, Any]] = []
     for n, r in zip(names, ratios):
         if r[0] != 1.0 or any(r[1:]) or shifts.get(n):
@@ -466,27 +481,99 @@ def capacitance_laws(
     return out | ({"capacitance_stateless_max_rel_error": bare} if states else {})
 
 
+def cross_capacitance(
+    s: Structure, p: Process, extract, names: list[str], coords: list[str], thick: dict, etch: dict
+) -> dict:
+    """With tscale and etch both moving the capacitances (combs, etch holes): the product of the two
+    laws, C(q; t, e) = pc_t(t) S_t(xs; t) pc_e(e) S_e(xs; e) C(q + shift e; 1, 0), each fitted with the
+    other parameter nominal, misses what moves with both (a field2d finger's fringe share depends on
+    its width and thickness together; the etch factor was fitted at t = 1). Each electrode whose
+    product misfits by FLOOR or more at the four corners of the (tscale, etch) box gets the cross factor
+    1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)) ("cross" on its etch law, netgen.model.etch_state.cross_laws),
+    fitted at the corners on the state fit's points. Stated (updating the etch record): the largest
+    |law / extractor - 1| at the corners over rest, the CAPACITANCE_POINTS check points and the box's
+    corners (held out of the fit) folded into capacitance_max_rel_error, and apart
+    (capacitance_cross_max_rel_error; the plain product's capacitance_product_max_rel_error)."""
+    elaws = {r["electrode"]: r for r in etch["capacitance"]}
+    tlaws = {r["electrode"]: r for r in thick["capacitance_laws"]}
+    knots, n = tuple(etch.get("knots", ())), CAPACITANCE_POINTS + STATE_FIT_POINTS
+    fit = np.arange(CAPACITANCE_POINTS + 1, n + 1)  # the state laws' fit points (netgen.model.etch_state)
+    every = check_points(s.sampling, n, len(coords))
+    corners = [(t, e) for t in p.tscale_range for e in p.etch_range]
+    memo: dict[tuple, np.ndarray] = {}
+
+    def drawn(offset: np.ndarray, count: int, at_corners: bool) -> np.ndarray:
+        """The drawn structure's capacitances moved by `offset` (one extraction per distinct offset)."""
+        key = (count, at_corners, *offset.tolist())
+        if key not in memo:
+            memo[key] = extract(s, count, offset, corners=at_corners)
+        return memo[key]
+
+    def law(t: float, e: float, x: np.ndarray, count: int, at_corners: bool) -> np.ndarray:
+        """The product law at (t, e) at the states x (rows of extract(., count, corners=at_corners))."""
+        return product_law(lambda v: drawn(v, count, at_corners), names, coords, elaws, tlaws, knots, t, e, x)
+
+    with np.errstate(divide="ignore", invalid="ignore"):  # touching points: nan, left out
+        residuals = {
+            c: extract(etched(scaled(s, c[0]), c[1]), n)[fit] / law(*c, every, n, False)[fit] - 1.0 for c in corners
+        }
+    fitted = cross_laws(every[fit], residuals)
+    plain = worst = 0.0
+    for t, e in corners:
+        for x, at in check_sets(s, len(coords)):
+            count = 0 if at else CAPACITANCE_POINTS
+            ref, got = extract(etched(scaled(s, t), e), count, corners=at), law(t, e, x, count, at)
+            plain = max(plain, misfit(got, ref))
+            for k, f in fitted.items():
+                got[:, k] *= cross_factor(f, x, t, e)
+            worst = max(worst, misfit(got, ref))
+    for k, f in fitted.items():
+        if names[k] in elaws:
+            elaws[names[k]]["cross"] = f
+    worst = worst if worst > ROUND_OFF else 0.0
+    return {
+        "capacitance_max_rel_error": max(etch["capacitance_max_rel_error"], worst),
+        "capacitance_cross_max_rel_error": worst,
+        "capacitance_product_max_rel_error": plain if plain > ROUND_OFF else 0.0,
+    }
+
+
+def product_law(
+    drawn,
+    names: list[str],
+    coords: list[str],
+    elaws: dict,
+    tlaws: dict,
+    knots: tuple[float, ...],
+    t: float,
+    e: float,
+    xs,
+) -> np.ndarray:
+    """The electrodes' capacitances at the scaled states `xs` by the product of the etch and the tscale
+    laws at (t, e), `drawn(offset)` the drawn structure's extractor there moved by each etch shift."""
+    out = np.empty((len(xs), len(names)))
+    for k, name in enumerate(names):
+        le, lt = elaws.get(name, {}), tlaws.get(name)
+        v = np.array([le.get("shift", {}).get(q, 0.0) for q in coords])
+        c = drawn(v * e)[:, k]
+        if le:
+            c = c * ratio_value(le["ratio"], e, knots) * (state_factor(le["state"], xs, e) if "state" in le else 1.0)
+        if lt:
+            c = c * float(np.dot(lt["ratio"], [1.0, t, t * t, t**3]))
+            c = c * (state_factor(lt["state"], xs, t, TSCALE) if "state" in lt else 1.0)
+        out[:, k] = c
+    return out
+
+
+def misfit(got: np.ndarray, ref: np.ndarray) -> float:
+    """The largest |got / ref - 1| where both are finite (a touching point is nan)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = got / ref - 1.0
+    return float(np.max(np.abs(r[np.isfinite(r)]), initial=0.0))
+
+
 TIP_DEGREE = 4  # an overhanging tip's state factor (examples/cantilever.toml at -0.2 um over 3000
 # points of the box: degree 2 leaves 5.2e-4, 3 2.8e-4, 4 1.1e-4, the fit's own error)
-
-
-def tip_corners(
-    s: Structure, p: Process, extract, states: dict, below: dict, ratios: list, knots: tuple[float, ...], ncoords: int
-) -> float:
-    """The largest |law / extractor - 1| of the electrodes with an overhanging tip's state factor
-    (`below`) at the fit box's corners at the range's under-etched end, where the 1 / (g - q phi)
-    nonlinearity and so the polynomial's misfit peak (the random check points miss them: 1.1e-4
-    stated against 5.2e-4 over 3000 points with degree 2); 0 without such electrodes."""
-    if not below:
-        return 0.0
-    corners = box_corners(s.sampling, ncoords)
-    e, worst = p.etch_range[0], 0.0
-    moved, drawn = extract(etched(s, e), 0, corners=True), extract(s, 0, corners=True)
-    for k in below:
-        ref = ratio_value(ratios[k], e, knots) * drawn[:, k]
-        ref = ref * state_factor(states[k], corners, e) if k in states else ref
-        worst = max(worst, float(np.max(np.abs(ref / moved[:, k] - 1.0))))
-    return worst
 
 
 def comb_fit(

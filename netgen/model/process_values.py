@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .etch_knots import ETCH_UNIT, knot_value
-from .etch_state import TSCALE, state_factor
+from .etch_state import TSCALE, cross_factor, state_factor
 from .process_film import branches_at, film_ratio
 
 LAW_KEYS = ("mass", "a", "b", "d_rest", "d_film")
@@ -37,7 +37,7 @@ def ratio_value(coeffs: list[float], etch: float, knots: tuple[float, ...] = ())
 def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float = 1.0) -> np.ndarray:
     """A MacroModel's capacitances (npoints, nelectrodes) at scaled coordinates x, the etch bias and
     tscale: each electrode's fit at x + its shift etch / L_q, times its etch ratio (capacitance_laws)
-    and a comb's state factor (netgen.model.etch_state)
+    and a comb's state factor (netgen.model.etch_state) and, under both, its cross factor
     and its tscale ratio and state factor (thickness_capacitance; the arithmetic the emitters render)."""
     x = np.atleast_2d(x)
     laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", [])}
@@ -56,6 +56,8 @@ def capacitance_at(model: Any, x: np.ndarray, etch: float = 0.0, tscale: float =
         out[:, k] = ratio_value(law["ratio"], etch, knots) * model.capacitance(moved)[:, k]
         if "state" in law:  # the state-dependent factor 1 + u P1(x) + u^2 P2(x) (netgen.model.etch_state)
             out[:, k] *= state_factor(law["state"], x, etch)
+        if "cross" in law:  # with tscale too: 1 + (tscale - 1) (u Q1(x) + u^2 Q2(x)) (netgen.model.etch_state)
+            out[:, k] *= cross_factor(law["cross"], x, tscale, etch)
     for k, f in enumerate(model.capacitances):
         if f.electrode in thick:
             out[:, k] *= float(np.dot(thick[f.electrode]["ratio"], [1.0, tscale, tscale**2, tscale**3]))

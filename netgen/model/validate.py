@@ -367,19 +367,26 @@ def check_capacitance_laws(
             c.number(f"{where}.stop_shift.{q}", x)
         if "state" in law:
             check_state_law(c, law["state"], f"{where}.state", len(coords))
+        if "cross" in law:  # tscale with etch: 1 + (tscale - 1) (u Q1 + u^2 Q2), Q1, Q2 with their constants
+            check_state_law(c, law["cross"], f"{where}.cross", len(coords), constant=True)
 
 
-def check_state_law(c: Checker, law: Any, where: str, ncoords: int) -> None:
+def check_state_law(c: Checker, law: Any, where: str, ncoords: int, constant: bool = False) -> None:
     """A comb's state factor 1 + u P1(xs) + u^2 P2(xs) (netgen.model.etch_state), which every form
     renders as monomials: exponents a list of rows of ncoords integers >= 0, none all zero (the ratio
-    pc holds the constant), and coeffs two lists of numbers, one per row."""
+    pc holds the constant; a cross factor's, `constant`, may have one), and coeffs two lists of
+    numbers, one per row."""
     exps: Any = law.get("exponents") if isinstance(law, dict) else None
     ok = isinstance(exps, list) and all(
-        isinstance(r, list) and len(r) == ncoords and all(isinstance(k, int) and k >= 0 for k in r) and sum(r) > 0
+        isinstance(r, list)
+        and len(r) == ncoords
+        and all(isinstance(k, int) and k >= 0 for k in r)
+        and (constant or sum(r) > 0)
         for r in exps
     )
     if not ok:
-        c.fail(f"{where}.exponents", f"must be a list of rows of {ncoords} integers >= 0, none all zero")
+        none = "" if constant else ", none all zero"
+        c.fail(f"{where}.exponents", f"must be a list of rows of {ncoords} integers >= 0{none}")
     coeffs: Any = law.get("coeffs")
     if (
         not isinstance(coeffs, list)
@@ -449,6 +456,8 @@ def check_process(
             "area_rel",
             "capacitance_max_rel_error",
             "capacitance_stateless_max_rel_error",
+            "capacitance_cross_max_rel_error",
+            "capacitance_product_max_rel_error",
         ):  # stated in the header (netgen.emit.process)
             if key in etch:
                 c.number(f"process.etch.{key}", etch[key])

@@ -152,8 +152,7 @@ def parse_structure(text: str, path: str = "<string>") -> Structure:
     t0_c = (structure.damping.temperature if structure.damping else 300.0) - 273.15
     names = conductor.coordinate_names(coords) or list(coords.rigid)
     film = structure.damping.film_model if structure.damping else "incompressible"
-    comb_model = structure.electrostatics.comb_model
-    check_process(rd, structure.process, names, sets, imported, t0_c, conductor, film, comb_model)
+    check_process(rd, structure.process, names, sets, imported, t0_c, conductor, film)
     return structure
 
 

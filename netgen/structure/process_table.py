@@ -209,12 +209,10 @@ def check_process(
     t0_c: float,
     conductor: Any = None,
     film_model: str = "incompressible",
-    comb_model: str = "field2d",
 ) -> None:
     """The declared parameters against the structure: dg needs a coordinate z and a plate set
-    above/below (the offset is a shift of z); tscale and etch together refuse comb fingers of the 2-D
-    field model (the product of their ratios is unchecked at the box's corners), not the textbook
-    form's (eps t / g: exact); tscale, escale and temp need mechanics netgen can re-run;
+    above/below (the offset is a shift of z); tscale, escale and temp need mechanics netgen can re-run
+    (tscale and etch together: netgen.model.process.cross_capacitance checks and corrects their product);
     temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
     has the incompressible film (the compressible film's gas spring ~ p would follow T too), and so
     does a plate under etch (the compressible branches would keep the drawn outline)."""
@@ -226,15 +224,6 @@ def check_process(
             where,
             "dg needs the coordinate z and an electrode set above or below the conductor (a gap offset is a shift of z)",
             "remove 'dg' from process.parameters, or add z to [coordinates] rigid",
-        )
-    combs = comb_model != "textbook" and any(getattr(s, "side", None) not in GAP_SIDES for s in sets)
-    if p.wants("tscale") and p.wants("etch") and combs:
-        raise rd.fail(
-            where,
-            "tscale with etch on field2d comb fingers: the product of the two capacitance ratios is not "
-            "checked at the (tscale, etch) box's corners (the fringe share moves with both the finger's "
-            "thickness and width; each corner is its own 2-D section table, about 2 min of solves)",
-            'declare one of them, or set [electrostatics] comb_model = "textbook" (eps t / g: the product exact)',
         )
     moved = [n for n in ("tscale", "escale", "temp", "etch") if p.wants(n)]
     if imported and moved:

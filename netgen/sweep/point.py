@@ -19,7 +19,7 @@ from ..core.errors import SweepError
 from ..fit.capacitance import CapacitanceFit
 from ..fit.polynomial import Polynomial
 from ..model import MacroModel
-from ..model.etch_state import ETCH, TSCALE, Axis, state_polynomial
+from ..model.etch_state import ETCH, TSCALE, Axis, cross_weights, state_polynomial, weighted_polynomial
 from ..model.process import GAP_SIDES, KELVIN, coordinate_values, energy_factor, etched, film_at, ratio_value, scaled
 from ..model.process_loads import acceleration_at
 from ..structure import Structure, parse_structure
@@ -108,7 +108,21 @@ def shifted_fits(model: MacroModel, point: dict[str, float]) -> list:
             if f.electrode in g["electrodes"]:
                 polys = tuple(shift(p, z, delta) for p in f.polys)
                 fits[i] = dataclasses.replace(f, polys=polys)
-    return thickness_fits(model, etched_fits(model, fits, point.get("etch", 0.0)), point.get("tscale", 1.0))
+    etch, tscale = point.get("etch", 0.0), point.get("tscale", 1.0)
+    return cross_fits(model, thickness_fits(model, etched_fits(model, fits, etch), tscale), tscale, etch)
+
+
+def cross_fits(model: MacroModel, fits: list, tscale: float, etch: float) -> list:
+    """The fits times their etch law's cross factor 1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)) where the
+    model has one (netgen.model.etch_state.cross_laws: tscale and etch together), as their fit's factor."""
+    laws = {r["electrode"]: r for r in (model.process.get("etch") or {}).get("capacitance", []) if "cross" in r}
+    if tscale == 1.0 or not etch or not laws:
+        return fits
+    for i, f in enumerate(fits):
+        if f.electrode in laws:
+            factor = weighted_polynomial(laws[f.electrode]["cross"], *cross_weights(tscale, etch))
+            fits[i] = dataclasses.replace(f, factor=factor if f.factor is None else f.factor.times(factor))
+    return fits
 
 
 def thickness_fits(model: MacroModel, fits: list, tscale: float) -> list:

@@ -164,15 +164,22 @@ OUT_OF_PLANE = {"z": 0.1, "tilt_x": -0.08, "tilt_y": 0.09}  # scaled states set 
 F2D_TOL, ENERGY_TOL = 4.2e-11, 4.6e-7
 
 
+def point(param: str | dict, value: float) -> dict[str, float]:
+    """The process point of the helpers below: {param: value}, or `param` itself where it is a point
+    (tscale and etch together: tests/emit/test_process_cross_field2d_forms.py; `value` unread)."""
+    return dict(param) if isinstance(param, dict) else {param: value}
+
+
 def state_deck(
-    include: str, model, etch: float, xs: dict[str, float], bias: float, control: str = "", param: str = "etch"
+    include: str, model, etch: float, xs: dict[str, float], bias: float, control: str = "", param: str | dict = "etch"
 ) -> str:
     """.op (and .ac with no bias) of accelerometer_xyz with force inputs holding the coordinates of
     `xs` (scaled) at K(etch) L xs and `bias` V on xp_t (the other electrodes and the plate at 0 V);
-    `param`: the process parameter `etch` is the value of (tscale: tests/emit/test_process_tscale_combs_forms)."""
+    `param`: the process parameter `etch` is the value of (tscale: tests/emit/test_process_tscale_combs_forms;
+    a point: point)."""
     srcs = []
     for k, c in enumerate(model.coordinates):
-        stiff = coordinate_values(model.process, k, **{param: etch})[1]
+        stiff = coordinate_values(model.process, k, **point(param, etch))[1]
         srcs.append(f"Vf{k} f{k} 0 DC {float(stiff * c.scale * xs.get(c.name, 0.0) / c.port_units[3])!r}")
     pins = "d 0 0 0 0 0 0 0 0 0 p " + " ".join(f"f{k} x{k}" for k in range(6)) + " 0 0 0"
     return "\n".join(
@@ -182,7 +189,7 @@ def state_deck(
             f"Vd d 0 DC {bias!r} AC 1",
             "Vp p 0 0",
             *srcs,
-            f"X1 {pins} accelerometer_xyz {param}={etch!r}",
+            f"X1 {pins} accelerometer_xyz " + " ".join(f"{k}={v!r}" for k, v in point(param, etch).items()),
             ".options reltol=1e-12 vntol=1e-12 abstol=1e-20",
             ".op",
             ".ac lin 1 1k 1k" if bias == 0.0 else "",
@@ -203,43 +210,46 @@ def state_of(model, plot) -> np.ndarray:
     )
 
 
-def law_slopes(model, xs: np.ndarray, etch: float, h: float = 1e-3, param: str = "etch") -> np.ndarray:
+def law_slopes(model, xs: np.ndarray, etch: float, h: float = 1e-3, param: str | dict = "etch") -> np.ndarray:
     """dC_xp_t/dxs (F) of the Python law at xs (`param` = etch) by a five-point central difference of step h."""
     k = [f.electrode for f in model.capacitances].index("xp_t")
     out = np.zeros(len(xs))
     for v in range(len(xs)):
         e = np.eye(len(xs))[v] * h
-        c = [capacitance_at(model, (xs + j * e)[None], **{param: etch})[0, k] for j in (-2, -1, 1, 2)]
+        c = [capacitance_at(model, (xs + j * e)[None], **point(param, etch))[0, k] for j in (-2, -1, 1, 2)]
         out[v] = (c[0] - 8 * c[1] + 8 * c[2] - c[3]) / (12 * h)
     return out
 
 
-def form_slopes(model, xs: np.ndarray, etch: float, param: str = "etch") -> np.ndarray:
+def form_slopes(model, xs: np.ndarray, etch: float, param: str | dict = "etch") -> np.ndarray:
     """The form's electrostatic dW/dxs = F L on x, y, rot_z at the .op: K(etch) L^2 xs (no force input)."""
     return np.array(
         [
-            coordinate_values(model.process, v, **{param: etch})[1] * model.coordinates[v].scale ** 2 * xs[v]
+            coordinate_values(model.process, v, **point(param, etch))[1] * model.coordinates[v].scale ** 2 * xs[v]
             for v in range(3)
         ]
     )
 
 
-def stateless(model, param: str = "etch"):
-    """The model without its combs' state factors (what the law was before netgen.model.etch_state)."""
+def stateless(model, param: str | dict = "etch"):
+    """The model without its combs' state factors (what the law was before netgen.model.etch_state; a
+    point's parameters' factors, and the cross factors, all)."""
     other = copy.deepcopy(model)
-    for r in other.process[param][RECORDS[param]]:
-        r.pop("state", None)
+    for name in point(param, 0.0):
+        for r in other.process[name][RECORDS[name]]:
+            r.pop("state", None)
+            r.pop("cross", None)
     return other
 
 
-def check_state(model, run, etch: float = STATE_ETCH, param: str = "etch") -> None:
+def check_state(model, run, etch: float = STATE_ETCH, param: str | dict = "etch") -> None:
     """C at the displaced state without bias, and the forces with VOLTS on xp_t, against the Python law
     (`param` = etch: the process parameter's value)."""
     plots = run(OUT_OF_PLANE, 0.0)
     xs = state_of(model, plot_of(plots, "Operating"))
     cap = abs(float(np.imag(plot_of(plots, "AC")["i(vp)"])[0])) / (2 * math.pi * 1e3)
     k = [f.electrode for f in model.capacitances].index("xp_t")
-    assert cap == pytest.approx(capacitance_at(model, xs[None], **{param: etch})[0, k], rel=1e-9, abs=0)
+    assert cap == pytest.approx(capacitance_at(model, xs[None], **point(param, etch))[0, k], rel=1e-9, abs=0)
     xs = state_of(model, plot_of(run(OUT_OF_PLANE, VOLTS), "Operating"))
     got, ref = form_slopes(model, xs, etch, param), 0.5 * VOLTS**2 * law_slopes(model, xs, etch, param=param)[:3]
     scale = np.max(np.abs(ref))
@@ -313,13 +323,13 @@ def test_state_fmu(xyz):
     check_state_fmu(xyz, STATE_ETCH)
 
 
-def check_state_fmu(xyz, etch: float, param: str = "etch") -> None:
+def check_state_fmu(xyz, etch: float, param: str | dict = "etch") -> None:
     """The FMU's charge and forces at the displaced state against the law (test_state_fmu; `param` = etch)."""
     pytest.importorskip("fmpy")
     from netgen.sim import fmu
 
     inst = fmu.Instance(fmu.built(xyz), cosim=False)
-    inst.set({param: etch})
+    inst.set(point(param, etch))
     inst.start()
     xs = np.array([0.03, -0.02, 0.04] + list(OUT_OF_PLANE.values()))
     x = np.zeros(inst.md.numberOfContinuousStates)
@@ -331,8 +341,8 @@ def check_state_fmu(xyz, etch: float, param: str = "etch") -> None:
     inst.set_states(x)
     pulled, charge = inst.get(names), inst.get(["Q_xp_t"])[0]
     k = [f.electrode for f in xyz.capacitances].index("xp_t")
-    assert charge == pytest.approx(capacitance_at(xyz, xs[None], **{param: etch})[0, k] * VOLTS, rel=1e-12, abs=0)
-    mass = np.array([coordinate_values(xyz.process, v, **{param: etch})[0] for v in range(6)])
+    assert charge == pytest.approx(capacitance_at(xyz, xs[None], **point(param, etch))[0, k] * VOLTS, rel=1e-12, abs=0)
+    mass = np.array([coordinate_values(xyz.process, v, **point(param, etch))[0] for v in range(6)])
     got, ref = mass * (pulled - free) * xyz.scales, 0.5 * VOLTS**2 * law_slopes(xyz, xs, etch, param=param)
     assert np.max(np.abs(got - ref)) <= (F2D_TOL + 1e-12) * np.max(np.abs(ref)), (got, ref)
 
@@ -340,14 +350,20 @@ def check_state_fmu(xyz, etch: float, param: str = "etch") -> None:
 def test_state_vacask(xyz, tmp_path):
     """The same .va module in VACASK (its op at reltol 1e-12, vntol 1e-12 as the ngspice decks): the
     forces with VOLTS on xp_t at the displaced state against the law's slopes (F2D_TOL)."""
+    check_state_vacask(xyz, tmp_path, STATE_ETCH)
+
+
+def check_state_vacask(xyz, tmp_path, etch: float, param: str | dict = "etch") -> None:
+    """test_state_vacask at a process point (`param`, point)."""
     from netgen.core.paths import vacask_string
     from netgen.sim.vacask import run_vacask
 
+    at = point(param, etch)
     emit.write_outputs(xyz, tmp_path, "osdi")
     ports = " ".join(["d", *["0"] * 9, "p"] + [f"f{k} x{k}" for k in range(6)] + ["0", "0", "0"])
     srcs = [f"v_d (d 0) vsource dc={VOLTS!r}", "v_p (p 0) vsource dc=0"]
     for k, c in enumerate(xyz.coordinates):
-        stiff = coordinate_values(xyz.process, k, etch=STATE_ETCH)[1]
+        stiff = coordinate_values(xyz.process, k, **at)[1]
         force = stiff * c.scale * OUT_OF_PLANE.get(c.name, 0.0) / c.port_units[3]
         srcs.append(f"v_f{k} (f{k} 0) vsource dc={float(force)!r}")
     net = "\n".join(
@@ -355,7 +371,7 @@ def test_state_vacask(xyz, tmp_path):
             "xyz state",
             "ground 0",
             f"load {vacask_string(tmp_path / 'accelerometer_xyz.osdi', tmp_path / 'run')}",
-            f"model mems accelerometer_xyz etch={STATE_ETCH!r}",
+            "model mems accelerometer_xyz " + " ".join(f"{k}={v!r}" for k, v in at.items()),
             "model vsource vsource",
             f"x1 ({ports}) mems",
             *srcs,
@@ -370,5 +386,5 @@ def test_state_vacask(xyz, tmp_path):
     xs = np.array(
         [float(np.atleast_1d(plot[f"x{k}"])[0]) * c.port_units[1] / c.scale for k, c in enumerate(xyz.coordinates)]
     )
-    got, ref = form_slopes(xyz, xs, STATE_ETCH), 0.5 * VOLTS**2 * law_slopes(xyz, xs, STATE_ETCH)[:3]
+    got, ref = form_slopes(xyz, xs, etch, param), 0.5 * VOLTS**2 * law_slopes(xyz, xs, etch, param=param)[:3]
     assert np.max(np.abs(got - ref)) <= F2D_TOL * np.max(np.abs(ref)), (got, ref)

@@ -33,11 +33,11 @@ import pytest
 
 from netgen.core.constants import EPS0
 from netgen.electrostatics.perforation import PERFORATION_LN_A, PERFORATION_STRENGTH, PERFORATION_WALL_SHARE
-from netgen.model.process import capacitance_at, coordinate_values
+from netgen.model.process import capacitance_at, coordinate_values, scaled
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import TSCALES, xyz_mass, xyz_thick
+from tests.oracles.process_cases import TSCALES, Drawn, fresh_extractor, fresh_points, xyz_mass, xyz_thick
 
 PROCESS = '\n[process]\nparameters = ["tscale"]\n'
 IN_PLANE = ("x", "y", "rot_z")
@@ -127,6 +127,20 @@ def test_field2d_capacitances_against_rebuild(nominal2d, rebuilt2d):
     - 1, netgen.model.etch_state, for the fringe's and the substrate's share varying with the gap and the
     out-of-plane offset)."""
     test_capacitances_against_rebuild(nominal2d, rebuilt2d)
+
+
+@pytest.mark.parametrize("tscale", (0.9, 0.95, 1.1))
+def test_field2d_stated_error_bounds_fresh_points(nominal2d, tscale):
+    """The stated capacitance_max_rel_error (rest, 32 random points and the box's 64 corners at the law's
+    thicknesses: netgen.model.process.check_sets) bounds the law's error against a fresh field solution
+    (the scaled structure's extractor; the law over the drawn one, process_cases.Drawn: no fit error) at
+    300 fresh points of the fit box (seed 11, not the laws' check points): the claim under test."""
+    s = parse_structure(field2d(process=PROCESS), "xyz.toml")
+    extract = fresh_extractor(s, nominal2d.scales)
+    xs = fresh_points(s.sampling, 300, len(nominal2d.coordinates), 11)
+    got, ref = capacitance_at(Drawn(nominal2d, s, extract), xs, tscale=tscale), extract(scaled(s, tscale), xs)
+    ok = np.isfinite(got) & np.isfinite(ref)
+    assert np.max(np.abs(got[ok] / ref[ok] - 1.0)) <= nominal2d.process["tscale"]["capacitance_max_rel_error"]
 
 
 def test_field2d_frequencies(nominal2d, rebuilt2d):

@@ -224,3 +224,41 @@ def pushed_rest(model, etch: float, push: float, scale: dict[str, float] | None 
     shift = 1 + f["offset"] * 2 * etch / pt["gap"] + model.contact["smoothing"] / 2
     q = np.linalg.solve(spring + np.outer(gain, a), np.array([f["push"] * push, 0.0]) + gain * shift)
     return float(q[0] * 1e6), float(q[1] * 1e3)
+
+
+def fresh_extractor(s0, scales: np.ndarray):
+    """(structure, xs) -> a fresh extractor's capacitances of `structure` at the scaled states xs (rows)
+    on the drawn structure s0's mechanics basis (as netgen.build.capacitance_sampler, whose points are
+    the laws' own fixed-seed check points): the field solution at points of the caller's choosing."""
+    from netgen.electrostatics import extractor
+    from netgen.geometry.layout import electrodes, plate_outline
+
+    basis, prepared = mechanics(s0).basis, {}
+
+    def extract(s, xs: np.ndarray) -> np.ndarray:
+        if id(s) not in prepared:
+            plate = plate_outline(s)
+            prepared[id(s)] = (s, extractor(s, plate).prepare(electrodes(s), plate, basis))
+        return np.asarray(prepared[id(s)][1].capacitance(np.atleast_2d(xs) * scales), dtype=float)
+
+    return extract
+
+
+class Drawn:
+    """A MacroModel with its capacitance fits replaced by the drawn structure's extractor: its process
+    laws (netgen.model.process.capacitance_at) then read the field solution itself, so a comparison
+    with the extractor of the etched or scaled structure is the laws' error alone (no fit error)."""
+
+    def __init__(self, model, s0, extract):
+        self.process, self.coordinates, self.capacitances = model.process, model.coordinates, model.capacitances
+        self.s0, self.extract = s0, extract
+
+    def capacitance(self, x: np.ndarray) -> np.ndarray:
+        return self.extract(self.s0, x)
+
+
+def fresh_points(sampling, n: int, ncoords: int, seed: int) -> np.ndarray:
+    """n uniform random scaled states of the fit box from `seed` (not the laws' seed-0 check points,
+    netgen.electrostatics.sampling.check_points)."""
+    half = sampling.range * (np.array(sampling.factors, dtype=float) if sampling.factors else np.ones(ncoords))
+    return np.random.default_rng(seed).uniform(-1.0, 1.0, (n, ncoords)) * half

@@ -229,24 +229,25 @@ def test_bad_process_table_names_file_key_and_fix(old, new, where, words):
     "example,params,where,words",
     [
         ("cantilever.toml", '"dg", "tscale"', "process.parameters", ["dg needs the coordinate z"]),
-        (
-            "accelerometer_xyz.toml",
-            '"tscale", "etch"',
-            "process.parameters",
-            ["tscale with etch on field2d", "comb_model"],
-        ),
     ],
 )
 def test_process_parameters_the_structure_cannot_carry_are_refused(example, params, where, words):
-    """dg without a coordinate z (a beam's modes), tscale and etch together on field2d comb fingers (their
-    ratios' product unchecked at the corners): refused with the reason and the way out, never a silently
-    wrong law."""
+    """dg without a coordinate z (a beam's modes): refused with the reason and the way out, never a
+    silently wrong law."""
     text = (ROOT / "examples" / example).read_text() + f"\n[process]\nparameters = [{params}]\n"
     with pytest.raises(StructureError) as info:
         parse_structure(text, "bad.toml")
     assert info.value.where == where and info.value.fix
     for w in words:
         assert w in str(info.value), str(info.value)
+
+
+def test_tscale_with_etch_on_field2d_combs_is_read():
+    """tscale and etch together on field2d comb fingers parse (the model stage fits and states the cross
+    factor their product needs, netgen.model.process.cross_capacitance)."""
+    text = (ROOT / "examples" / "accelerometer_xyz.toml").read_text() + '\n[process]\nparameters = ["tscale", "etch"]\n'
+    p = parse_structure(text, "xyz.toml").process
+    assert p is not None and p.parameters == ("tscale", "etch")
 
 
 def test_without_process_table_no_process_parameters():

@@ -18,7 +18,8 @@ Tolerances:
 - dC/dq against a central difference of the point model's own C, step h = 1e-5 in xs: truncation h^2/6
   max |C'''| over +-h, bounded from the point fit's own polynomials (a term 1/P with P quadratic
   along x_v: |(1/P)'''| <= 6 |P'| |P''| / P^3 + 6 |P'|^3 / P^4, with P's least value and |P'|'s
-  largest over the step; the factor F quadratic: C''' = r c (F f''' + 3 F' f'' + 3 F'' f')), rounding
+  largest over the step; the factor F a polynomial: C''' = r c (F f''' + 3 F' f'' + 3 F'' f' + F''' f),
+  each derivative of F bounded over the step by its Taylor series, exact to F's degree), rounding
   the two C's bound over 2h, the step's own rounding u (|x| + h) / h times |dC/dx|, and the point
   model's gradient's bound.
 - end to end: the .lib (ngspice 39 and 46) at etch -0.1 um, z and the tilts held by force inputs,
@@ -172,16 +173,11 @@ def test_point_model_is_the_law(case):
 
 
 def third_derivative(f, x: np.ndarray, v: int, h: float) -> np.ndarray:
-    """A bound on |d^3 C / dx_v^3| over x +- h e_v for the point fit f (C = F c_ref sum 1/P, P and F
-    quadratic along x_v: module doc; the ratio r is in its c_ref)."""
-    assert f.degree <= 2 and (f.factor is None or int(f.factor.exponents.sum(axis=1).max()) <= 2)
+    """A bound on |d^3 C / dx_v^3| over x +- h e_v for the point fit f (C = F c_ref sum 1/P, P quadratic
+    and F a polynomial along x_v: module doc; the ratio r is in its c_ref)."""
+    assert f.degree <= 2
     out = np.zeros(len(x))
-    if f.factor is not None:
-        fp, fpp = f.factor.derivative(v), f.factor.derivative(v).derivative(v)
-        f1, f2 = np.abs(fp(x)) + np.abs(fpp(x)) * h, np.abs(fpp(x))
-        f0 = np.abs(f.factor(x)) + np.abs(fp(x)) * h + f2 * h * h / 2
-    else:
-        f0, f1, f2 = np.ones(len(x)), np.zeros(len(x)), np.zeros(len(x))
+    fb = factor_bounds(f.factor, x, v, h) if f.factor is not None else [np.ones(len(x))] + [np.zeros(len(x))] * 3
     for p in f.polys:
         p1, p2 = p.derivative(v), p.derivative(v).derivative(v)
         b2 = np.abs(p2(x))
@@ -191,8 +187,18 @@ def third_derivative(f, x: np.ndarray, v: int, h: float) -> np.ndarray:
         t3 = 6 * d1 * b2 / lo**3 + 6 * d1**3 / lo**4
         t2 = b2 / lo**2 + 2 * d1**2 / lo**3
         t1 = d1 / lo**2
-        out += abs(f.c_ref) * (f0 * t3 + 3 * f1 * t2 + 3 * f2 * t1)
+        out += abs(f.c_ref) * (fb[0] * t3 + 3 * fb[1] * t2 + 3 * fb[2] * t1 + fb[3] / lo)
     return out
+
+
+def factor_bounds(factor, x: np.ndarray, v: int, h: float) -> list[np.ndarray]:
+    """Bounds on the factor F's |F|, |F'|, |F''|, |F'''| along x_v over x +- h e_v: each derivative's
+    Taylor series about x, exact to F's degree along x_v (sum_j |F^(m+j)(x)| h^j / j!)."""
+    derivs = [factor]
+    for _ in range(max(int(factor.exponents[:, v].max()), 3)):
+        derivs.append(derivs[-1].derivative(v))
+    at = [np.abs(d(x)) for d in derivs]
+    return [sum(at[m + j] * h**j / math.factorial(j) for j in range(len(at) - m)) for m in range(4)]
 
 
 def test_gradient_is_the_slope_of_c(case):
