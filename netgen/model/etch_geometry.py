@@ -112,3 +112,17 @@ def comb_across(s: Structure, names: list[str]) -> dict[str, str]:
         if getattr(e, "kind", "") == "transverse_comb" and across in names:
             out[e.name] = across
     return out
+
+
+def scaled(s: Structure, tscale: float = 1.0, escale: float = 1.0) -> Structure:
+    """The structure with the device layer (conductor, flexures and comb fingers) tscale times as
+    thick and Young's modulus escale times as large (kinds without a modulus keep their given springs)."""
+    c: Any = s.conductor  # every conductor kind is a dataclass with a thickness
+    changes: dict = {"thickness": c.thickness * tscale}
+    if hasattr(c, "youngs_modulus"):
+        changes["youngs_modulus"] = c.youngs_modulus * escale
+    flex = getattr(c, "flexure", None)
+    if flex is not None and flex.thickness:
+        changes["flexure"] = dataclasses.replace(flex, thickness=flex.thickness * tscale)
+    sets = tuple(dataclasses.replace(e, thickness=e.thickness * tscale) if is_comb(e) else e for e in s.electrode_sets)
+    return dataclasses.replace(s, conductor=dataclasses.replace(c, **changes), electrode_sets=sets)

@@ -30,7 +30,7 @@ With tscale and etch both declared the product of the two laws, each fitted with
 nominal, misses what moves with both (the finger's fringe share depends on its width and thickness
 together; the plain product is 3.5e-3 off at the (tscale, etch) box's corners at degree 3, 4.6e-3 at
 2, mostly odd in tscale - 1: at degree 2 the residuals at 0.9 and 1.1 correlate at -0.85). cross_laws fits the factor 1 +
-(tscale - 1) (u Q1(xs) + u^2 Q2(xs)) to it at the corners (netgen.model.process.cross_capacitance).
+(tscale - 1) (u Q1(xs) + u^2 Q2(xs)) to it at the corners (netgen.model.etch_cross.cross_capacitance).
 
 A cantilever's tip overhanging its electrode (netgen.model.etch_knots.tip_knots) gets the same factor
 in v = (k - u)+ instead of u (the law marked "below": k), so that it is 1 where the beam ends inside

@@ -212,7 +212,7 @@ def check_process(
 ) -> None:
     """The declared parameters against the structure: dg needs a coordinate z and a plate set
     above/below (the offset is a shift of z); tscale, escale and temp need mechanics netgen can re-run
-    (tscale and etch together: netgen.model.process.cross_capacitance checks and corrects their product);
+    (tscale and etch together: netgen.model.etch_cross.cross_capacitance checks and corrects their product);
     temp's range contains the structure's own temperature (the laws' nominal point); a sealed cavity
     has the incompressible film (the compressible film's gas spring ~ p would follow T too), and so
     does a plate under etch (the compressible branches would keep the drawn outline)."""

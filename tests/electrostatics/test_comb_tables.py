@@ -18,7 +18,15 @@ from netgen.model.process import etch_points, etched, fit_points, scaled
 from netgen.structure import load_structure, parse_structure
 from netgen.structure.schema import Process
 from tests.fixtures import ROOT
-from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
+from tests.oracles.process_cases import (
+    CROSS_CORNERS,
+    CROSS_INSIDE,
+    CROSS_PROCESS,
+    CROSS_REBUILDS,
+    PERFORATED_ETCHES,
+    field2d_text,
+    xyz_text,
+)
 
 
 @pytest.fixture(scope="module")
@@ -43,13 +51,17 @@ def etched_cells() -> set:
     """The cells of accelerometer_xyz's combs at the etched finger widths its etch law and the suite's
     rebuilds read (tests/model/test_process_etch_field2d.py, netgen.model.etch_combs) and at the finger
     thicknesses of its tscale law over the default tscale_range (netgen.model.process.thickness_capacitance;
-    the rebuilds at 0.9 and 1.1 of tests/model/test_process_tscale_combs.py are two of them)."""
+    the rebuilds at 0.9 and 1.1 of tests/model/test_process_tscale_combs.py are two of them), and those
+    of the (tscale, etch) cross factor (tests/model/test_process_cross_field2d.py)."""
     text = xyz_text(process='[process]\nparameters = ["etch"]\n').replace('"textbook"', '"field2d"')
     s = parse_structure(text, "xyz.toml")
     structures = [etched(s, e) for e in etch_points(s.process) if e] + [
         parse_structure(xyz_text(e).replace('"textbook"', '"field2d"'), "xyz.toml") for e in PERFORATED_ETCHES
     ]
     structures += [scaled(s, t) for t in fit_points(Process(("tscale",))) if t != 1.0]  # the tscale law's
+    cross = parse_structure(field2d_text(process=CROSS_PROCESS), "xyz.toml")  # the cross factor's corners and
+    structures += [etched(scaled(cross, t), e) for t, e in CROSS_CORNERS + CROSS_INSIDE]  # held-out points,
+    structures += [parse_structure(field2d_text(t, e), "xyz.toml") for t, e in CROSS_REBUILDS]  # its rebuilds
     eps = EPS0 * s.electrostatics.relative_permittivity
     out = set()
     for st in structures:

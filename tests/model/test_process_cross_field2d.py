@@ -1,4 +1,4 @@
-"""tscale and etch together on accelerometer_xyz's own field2d combs (netgen.model.process.cross_capacitance):
+"""tscale and etch together on accelerometer_xyz's own field2d combs (netgen.model.etch_cross.cross_capacitance):
 each comb's C is the etch law (its fit read at the etch-shifted state, times pc_e(etch) and the etch state
 factor) times the tscale law (pc_t(tscale) and the tscale state factor), each fitted with the other
 parameter nominal, times the cross factor 1 + (tscale - 1) (u Q1(xs) + u^2 Q2(xs)), u = etch / 1 um
@@ -34,21 +34,19 @@ from netgen.model.process import capacitance_at, etched, scaled
 from netgen.structure import parse_structure
 from netgen.sweep.point import at_point
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import Drawn, fresh_extractor, fresh_points, xyz_text
+from tests.oracles.process_cases import (
+    CROSS_CORNERS,
+    CROSS_INSIDE,
+    CROSS_PROCESS,
+    CROSS_REBUILDS,
+    Drawn,
+    field2d_text,
+    fresh_extractor,
+    fresh_points,
+)
 
-CORNERS = ((0.9, -1e-7), (0.9, 1e-7), (1.1, -1e-7), (1.1, 1e-7))  # the default ranges' corners
-INSIDE = ((0.95, 0.04e-6), (1.05, -0.05e-6))  # inside the box, held out of the cross fit
-
-
-def text(tscale: float = 1.0, etch: float = 0.0, process: str = "") -> str:
-    """accelerometer_xyz (tests/oracles/process_cases.xyz_text) with its field2d combs, drawn (with
-    `process`) or rewritten at the device layer tscale times 2 um and the etched sizes."""
-    body = xyz_text(etch, process).replace('comb_model = "textbook"', 'comb_model = "field2d"')
-    assert body.count('thickness = "2 um"') == 1
-    return body.replace('thickness = "2 um"', f'thickness = "{2.0 * tscale!r} um"')
-
-
-PROCESS = '[process]\nparameters = ["tscale", "etch"]\n'
+CORNERS, INSIDE, PROCESS = CROSS_CORNERS, CROSS_INSIDE, CROSS_PROCESS
+text = field2d_text
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +86,7 @@ def test_law_against_field_solution(drawn, nominal, field, tscale, etch):
     assert np.max(np.abs(got[ok] / ref[ok] - 1.0)) <= nominal.process["etch"]["capacitance_max_rel_error"]
 
 
-@pytest.fixture(scope="module", params=((0.9, -1e-7), (1.05, -0.05e-6)))
+@pytest.fixture(scope="module", params=CROSS_REBUILDS)
 def rebuilt(request):
     tscale, etch = request.param
     return request.param, build_model(parse_structure(text(tscale, etch), "xyz.toml"))

@@ -90,7 +90,7 @@ def field(nominal):
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
 def test_stated_error_bounds_fresh_points(nominal, field, etch):
     """The stated capacitance_max_rel_error (rest, 32 random points and the box's 64 corners at the law's
-    etch points: netgen.model.process.check_sets) bounds the law's error against a fresh field solution
+    etch points: netgen.model.etch_cross.check_sets) bounds the law's error against a fresh field solution
     (the etched structure's extractor) at 300 fresh points (the claim under test; on the 32 random points
     alone it was 8.1e-4 against 9.6e-4 held out)."""
     s, extract, xs, law = field

@@ -132,7 +132,7 @@ def test_field2d_capacitances_against_rebuild(nominal2d, rebuilt2d):
 @pytest.mark.parametrize("tscale", (0.9, 0.95, 1.1))
 def test_field2d_stated_error_bounds_fresh_points(nominal2d, tscale):
     """The stated capacitance_max_rel_error (rest, 32 random points and the box's 64 corners at the law's
-    thicknesses: netgen.model.process.check_sets) bounds the law's error against a fresh field solution
+    thicknesses: netgen.model.etch_cross.check_sets) bounds the law's error against a fresh field solution
     (the scaled structure's extractor; the law over the drawn one, process_cases.Drawn: no fit error) at
     300 fresh points of the fit box (seed 11, not the laws' check points): the claim under test."""
     s = parse_structure(field2d(process=PROCESS), "xyz.toml")

@@ -262,3 +262,19 @@ def fresh_points(sampling, n: int, ncoords: int, seed: int) -> np.ndarray:
     netgen.electrostatics.sampling.check_points)."""
     half = sampling.range * (np.array(sampling.factors, dtype=float) if sampling.factors else np.ones(ncoords))
     return np.random.default_rng(seed).uniform(-1.0, 1.0, (n, ncoords)) * half
+
+
+# the (tscale, etch) cross factor's cases (tests/model/test_process_cross_field2d.py, the shipped comb
+# tables' list in tests/electrostatics/test_comb_tables.py, bench/comb_tables.py cross_cells)
+CROSS_PROCESS = '[process]\nparameters = ["tscale", "etch"]\n'
+CROSS_CORNERS = ((0.9, -1e-7), (0.9, 1e-7), (1.1, -1e-7), (1.1, 1e-7))  # the default ranges' corners
+CROSS_INSIDE = ((0.95, 0.04e-6), (1.05, -0.05e-6))  # inside the box, held out of the cross fit
+CROSS_REBUILDS = ((0.9, -1e-7), (1.05, -0.05e-6))  # the points rebuilt whole
+
+
+def field2d_text(tscale: float = 1.0, etch: float = 0.0, process: str = "") -> str:
+    """accelerometer_xyz (xyz_text) with its field2d combs, drawn (with `process`) or rewritten at the
+    device layer tscale times 2 um and the etched sizes."""
+    body = xyz_text(etch, process).replace('comb_model = "textbook"', 'comb_model = "field2d"')
+    assert body.count('thickness = "2 um"') == 1
+    return body.replace('thickness = "2 um"', f'thickness = "{2.0 * tscale!r} um"')
