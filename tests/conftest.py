@@ -1,8 +1,8 @@
 """The suite's fixtures live in tests/fixtures.py (with the helpers the test modules import).
 
 One BLAS and OpenMP thread per process, set before numpy loads (pytest-xdist's workers and every
-subprocess a test starts inherit it; an explicit setting in the environment wins): the suite runs two
-workers on two cores, and more OpenBLAS threads per worker spin against each other (tests/emit took
+subprocess a test starts inherit it; an explicit setting in the environment wins): the suite runs three
+workers on two cores (.ci/run), and more OpenBLAS threads per worker spin against each other (tests/emit took
 21 min with the default count against 15 min with one, on the shared machine). OpenBLAS splits its
 work by the thread count, so one thread also keeps a machine with more cores from rounding the fits
 differently; the tolerances do not rely on it (tests/emit passes with either count, bench/stop_newton.py)."""
