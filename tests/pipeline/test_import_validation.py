@@ -610,7 +610,7 @@ def lib_numbers(folder: Path, name: str) -> np.ndarray:
 def differences(got: np.ndarray, want: np.ndarray, rel: float) -> str:
     """Which .lib numbers differ by more than `rel` relative, the largest difference and the BLAS
     thread counts (netgen.electrostatics.sampling.blas_threads): what a failure must say to tell a
-    rounding-level change (one ulp in one sample moves the disk's numbers by up to 1.3e-10,
+    rounding-level change (one ulp in one sample moves the disk's numbers by up to 4.1e-8,
     bench/import_ulp_sensitivity.py) from a wrong merge or fit."""
     if got.shape != want.shape:
         return f"{len(got)} numbers against {len(want)}"
@@ -622,10 +622,18 @@ def differences(got: np.ndarray, want: np.ndarray, rel: float) -> str:
     )
 
 
+# imported against native .lib numbers: the same samples give the same bits, but a process's numpy
+# reductions can round a few samples an ulp apart (their SIMD paths follow the arrays' alignment), and
+# one ulp in one sample moves the disk's numbers by up to 4.1e-8 (bench/import_ulp_sensitivity.py: the
+# fits settled to 1e-14, netgen.fit.capacitance.settled, follow the data along ill-determined
+# directions); 1e-6 is 25 such ulps, far below what a wrong merge or fit moves (the fits' own 1e-4)
+ULP_BOUND = 1e-6
+
+
 @pytest.mark.parametrize("name", ["beam", "piston", "disk"])
 def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     """The good NPZ set builds with exit 0 and the native model: rigid fields (piston, disk) are
-    exact, so every .lib number within 1e-9 relative of the native build's; the beam's modes are
+    exact, so every .lib number within ULP_BOUND relative of the native build's; the beam's modes are
     a cubic spline through the exported nodes, so its masses and stiffnesses exact and its
     capacitance on the native held-out points within 1e-4. The same table with every row given
     twice (equal repeats are merged) writes the identical .lib."""
@@ -647,8 +655,8 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     want = lib_numbers(tmp_path / "native", b.native.model.name)
     if name != "beam":
         assert len(libs[0]) == len(want) > 50
-        assert np.all(np.abs(libs[0] - want) <= 1e-9 * np.abs(want)), "imported against native: " + differences(
-            libs[0], want, 1e-9
+        assert np.all(np.abs(libs[0] - want) <= ULP_BOUND * np.abs(want)), "imported against native: " + differences(
+            libs[0], want, ULP_BOUND
         )
         return
     imported = build(parse_structure(toml.read_text(), str(toml)))
