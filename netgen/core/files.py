@@ -61,6 +61,15 @@ def write_files_atomic(files: dict[str | Path, str | bytes]) -> None:
         raise
 
 
+def cache_root() -> Path:
+    """netgen's cache folder: NETGEN_CACHE, else $XDG_CACHE_HOME/netgen (~/.cache/netgen). Each
+    kind of derived file (code models, OSDI modules, comb tables) keeps a subfolder keyed by content."""
+    base = os.environ.get("NETGEN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen"
+    )
+    return Path(base)
+
+
 def umask() -> int:
     """This process's umask (read without changing it for longer than the call)."""
     mask = os.umask(0)

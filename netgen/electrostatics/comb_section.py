@@ -31,7 +31,6 @@ import hashlib
 import io
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.interpolate import RectBivariateSpline
 
-from ..core.files import write_bytes_atomic
+from ..core.files import cache_root, write_bytes_atomic
 from .field2d import Conductor, Problem, solve
 from .mesh2d import Rect
 
@@ -101,10 +100,7 @@ class Geometry:
 
 def cache_dir() -> Path:
     """Where the tables live: NETGEN_CACHE, else $XDG_CACHE_HOME/netgen (~/.cache/netgen), comb_sections/."""
-    base = os.environ.get("NETGEN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen"
-    )
-    return Path(base) / "comb_sections"
+    return cache_root() / "comb_sections"
 
 
 def sides(g: Geometry) -> dict[str, str]:

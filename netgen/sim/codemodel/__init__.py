@@ -39,6 +39,7 @@ from pathlib import Path
 from ... import __version__
 from ...core import process
 from ...core.errors import CodeModelError, SimulationError
+from ...core.files import cache_root
 from ...core.paths import spice_command
 from ..ngspice import build_record, identity
 from . import source
@@ -79,10 +80,7 @@ CFLAGS = [
 
 def cache_dir() -> Path:
     """Where built code models and the ngspice source live (NETGEN_CACHE, else XDG cache)."""
-    base = os.environ.get("NETGEN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "netgen"
-    )
-    return Path(base) / "codemodel"
+    return cache_root() / "codemodel"
 
 
 def target() -> dict:
