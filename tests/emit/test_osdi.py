@@ -234,6 +234,24 @@ def test_without_openvaf_the_build_says_how_to_install_it(model, tmp_path, monke
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
+def test_a_rebuild_reuses_the_compiled_module(model, tmp_path, monkeypatch):
+    """The .osdi is compiled once per distinct module text, target and compiler, in the cache
+    (netgen.emit.osdi.compiled under NETGEN_CACHE): a second emit of the same model serves the
+    same bytes without running openvaf-r, while another compiler identity compiles again."""
+    monkeypatch.setenv("NETGEN_CACHE", str(tmp_path / "cache"))
+    first = osdi.outputs(model)[".osdi"]
+    assert len(list((tmp_path / "cache" / "osdi").glob("*.osdi"))) == 1
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("openvaf-r ran again")
+
+    monkeypatch.setattr(osdi, "compile_va", refuse)
+    assert osdi.outputs(model)[".osdi"] == first
+    monkeypatch.setattr(osdi, "compiler_identity", lambda: "another openvaf-r")
+    with pytest.raises(AssertionError, match="ran again"):
+        osdi.outputs(model)
+
+
 def _transient_runs(model: MacroModel, osdi_file: Path, tmp_path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The 105 us transient of test_transient_matches_scipy_and_the_b_source_lib with one .osdi, in
     ngspice 46 and in VACASK: per simulator (time, scaled coordinates)."""
