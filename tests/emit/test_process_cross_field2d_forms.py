@@ -24,7 +24,6 @@ import copy
 import numpy as np
 import pytest
 
-from netgen import emit
 from netgen.emit import ngspice as emit_ngspice
 from netgen.sim.ngspice import run_ngspice
 from netgen.structure import parse_structure
@@ -41,7 +40,7 @@ from tests.emit.test_process_etch_field2d_forms import (
 )
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import control_block, xyz_text
+from tests.oracles.process_cases import control_block, osdi_form, xyz_text
 
 POINT = {"tscale": 0.9, "etch": -1e-7}  # the corner where the plain product is 4.3e-3 off
 
@@ -87,13 +86,10 @@ def test_state_xspice(xyz, tmp_path):
 
 def test_state_osdi(xyz, tmp_path, monkeypatch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+    inc, pre = osdi_form(xyz, tmp_path)
 
     def run(xs, bias):
-        deck = state_deck(
-            str(tmp_path / "accelerometer_xyz_osdi.lib"), xyz, 0.0, xs, bias, control_block(pre, "s.raw"), param=POINT
-        )
+        deck = state_deck(inc, xyz, 0.0, xs, bias, control_block(pre, "s.raw"), param=POINT)
         return run_ngspice(deck, tmp_path / f"r{bias}")
 
     check_state(xyz, run, 0.0, POINT)

@@ -66,7 +66,7 @@ from tests.emit.test_process_etch_forms import (
 )
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
+from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, osdi_form, xyz_text
 
 
 @pytest.fixture(scope="module")
@@ -108,9 +108,8 @@ def test_rest_xspice(xyz, tmp_path, etch):
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
 def test_rest_osdi(xyz, tmp_path, monkeypatch, etch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    deck = comb_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "ac.raw"))
+    inc, pre = osdi_form(xyz, tmp_path)
+    deck = comb_deck(inc, etch, control_block(pre, "ac.raw"))
     check_rest(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)
 
 
@@ -143,9 +142,8 @@ def test_stop_xspice(xyz, tmp_path, etch):
 def test_stop_osdi(xyz, tmp_path, monkeypatch, etch):
     """The .va through OSDI (ngspice 46) pushed rests at rest_exact (FULL_REL)."""
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    deck = push_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
+    inc, pre = osdi_form(xyz, tmp_path)
+    deck = push_deck(inc, etch, control_block(pre, "op.raw"))
     got = rest_x(run_ngspice(deck, tmp_path / "run")[0])
     assert got == pytest.approx(rest_exact(xyz, etch), rel=FULL_REL, abs=0)
 
@@ -287,13 +285,10 @@ def test_state_xspice(xyz, tmp_path):
 
 def test_state_osdi(xyz, tmp_path, monkeypatch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+    inc, pre = osdi_form(xyz, tmp_path)
 
     def run(xs, bias):
-        deck = state_deck(
-            str(tmp_path / "accelerometer_xyz_osdi.lib"), xyz, STATE_ETCH, xs, bias, control_block(pre, "s.raw")
-        )
+        deck = state_deck(inc, xyz, STATE_ETCH, xs, bias, control_block(pre, "s.raw"))
         return run_ngspice(deck, tmp_path / f"r{bias}")
 
     check_state(xyz, run)

@@ -28,7 +28,6 @@ import math
 import numpy as np
 import pytest
 
-from netgen import emit
 from netgen.emit import ngspice as emit_ngspice
 from netgen.model.process import capacitance_at
 from netgen.sim import fmu
@@ -37,7 +36,7 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, xyz_text
+from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, osdi_form, xyz_text
 
 PROCESS = '[process]\nparameters = ["etch"]\n'
 
@@ -108,9 +107,8 @@ def test_xspice(xyz, tmp_path, etch):
 @pytest.mark.parametrize("etch", PERFORATED_ETCHES)
 def test_osdi(xyz, tmp_path, monkeypatch, etch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    deck = zs_deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "ac.raw"))
+    inc, pre = osdi_form(xyz, tmp_path)
+    deck = zs_deck(inc, etch, control_block(pre, "ac.raw"))
     check(xyz, run_ngspice(deck, tmp_path / "run")[0], etch)
 
 

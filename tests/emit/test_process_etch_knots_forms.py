@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from netgen import emit
 from netgen.emit import ngspice as emit_ngspice
 from netgen.mechanics import mechanics
 from netgen.model.process import coordinate_values
@@ -36,7 +35,7 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import control_block, xyz_text
+from tests.oracles.process_cases import control_block, osdi_form, xyz_text
 
 ETCHES = (-0.02e-6, -0.002e-6, 0.002e-6, 0.02e-6)  # m: both sides of the kink at 0
 FORCE = 1.0  # uN on f_z (1 V = 1 uN): x_z ~ 0.54 um at 1.85 N/m
@@ -101,9 +100,8 @@ def test_xspice(xyz, reruns, tmp_path, etch):
 @pytest.mark.parametrize("etch", ETCHES)
 def test_osdi(xyz, reruns, tmp_path, monkeypatch, etch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
-    net = deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), etch, control_block(pre, "op.raw"))
+    inc, pre = osdi_form(xyz, tmp_path)
+    net = deck(inc, etch, control_block(pre, "op.raw"))
     check(xyz, reruns, run_ngspice(net, tmp_path / "run")[0], etch)
 
 

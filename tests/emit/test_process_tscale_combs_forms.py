@@ -55,7 +55,7 @@ from tests.emit.test_process_etch_field2d_forms import check_state, check_state_
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
 from tests.oracles import fmu_process as fp
-from tests.oracles.process_cases import control_block, xyz_thick
+from tests.oracles.process_cases import control_block, osdi_form, xyz_thick
 
 TSCALES = (0.9, 1.1)  # the default tscale_range's ends
 STATE_TSCALE = 0.9  # the field2d combs' state factor's check: a range end (|u| largest)
@@ -105,9 +105,8 @@ def test_xspice(xyz, tmp_path, tscale):
 @pytest.mark.parametrize("tscale", TSCALES)
 def test_osdi(xyz, tmp_path, monkeypatch, tscale):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz, tmp_path, "osdi")
-    control = control_block([f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"], "ac.raw")
-    net = deck(str(tmp_path / "accelerometer_xyz_osdi.lib"), tscale, control)
+    inc, pre = osdi_form(xyz, tmp_path)
+    net = deck(inc, tscale, control_block(pre, "ac.raw"))
     check(xyz, run_ngspice(net, tmp_path / "run")[0], tscale)
 
 
@@ -222,12 +221,11 @@ def test_field2d_state_xspice(xyz2d, tmp_path):
 
 def test_field2d_state_osdi(xyz2d, tmp_path, monkeypatch):
     monkeypatch.setenv("NETGEN_NGSPICE", NGSPICE["46"])
-    emit.write_outputs(xyz2d, tmp_path, "osdi")
-    pre = [f"pre_osdi {tmp_path / 'accelerometer_xyz.osdi'}"]
+    inc, pre = osdi_form(xyz2d, tmp_path)
 
     def run(xs, bias):
         deck = state_deck(
-            str(tmp_path / "accelerometer_xyz_osdi.lib"),
+            inc,
             xyz2d,
             STATE_TSCALE,
             xs,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from netgen import emit
 from netgen.mechanics import mechanics
 from netgen.structure import parse_structure
 
@@ -200,6 +201,13 @@ def control_block(lines: list[str], raw: str) -> str:
     """An ngspice .control block: `lines` (the code model's or the OSDI module's loading), one thread,
     run, and the results written to `raw`."""
     return "\n".join([".control", *lines, "set num_threads=1", "run", f"write {raw}", ".endc"])
+
+
+def osdi_form(model, folder) -> tuple[str, list[str]]:
+    """The model's OSDI form written into `folder` (netgen.emit.write_outputs, openvaf-r): the
+    _osdi.lib to include and the control lines that load its module."""
+    emit.write_outputs(model, folder, "osdi")
+    return str(folder / f"{model.name}_osdi.lib"), [f"pre_osdi {folder / (model.name + '.osdi')}"]
 
 
 PUSH_PARTS = ("push", "k_x", "k_rot_z", "offset", "stop")  # what pushed_rest's `scale` may perturb
