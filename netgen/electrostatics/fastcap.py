@@ -36,10 +36,10 @@ from .parallel_plate import ParallelPlateExtractor, PreparedParallelPlate
 from .perforation import Perforation
 
 FASTCAP_INSTALL = "pip install 'netgen[fastcap]'  (or: pip install fastcap2==2.1)"
-# peak memory per panel of one solve (bytes): bench/fastcap_reference.py measured 1.21 GB peak RSS
-# (Python and numpy included) for 55.6k panels at expansion order 4 and 30.5k at order 6, about
-# 20 kB a panel; 25 kB keeps a margin for order 6 on the fine level
-BYTES_PER_PANEL = 25e3
+# peak memory per panel of one solve (bytes, Python and numpy included): it grows with the panels
+# (bench/fastcap_levels.py on the reference disk: 24-25 kB at 38k-68k panels, 28.7 kB at 124k, all
+# at expansion order 4; 32.0 kB at order 6 on 38k), so 32 kB covers both orders up to ~124k panels
+BYTES_PER_PANEL = 32e3
 # CPU seconds per panel of one solve (order 4 and 6 mixed) on this project's 2-core AMD EPYC:
 # 0.19-0.64 ms for sheets (2k-46k panels, docs/fastcap.md), 1.1 ms for a 2 um thick perforated
 # plate (its hole walls); 1 ms, so the estimate is within about 5x either way
