@@ -50,12 +50,33 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: (item.nodeid.split("::")[0] not in slow, -count[item.nodeid.split("::")[0]]))
 
 
+# the modules that solve with bempp-cl in the test process: its numba kernels compile on first use
+# in every process (about 55 s of CPU, and numba's on-disk cache misses them: they take kernels as
+# arguments), so these run on one worker and pay it once
+BEMPP_MODULES = frozenset(
+    f"tests/electrostatics/{name}.py"
+    for name in (
+        "test_bem",
+        "test_bem_sampling",
+        "test_bem_settings",
+        "test_bem_symmetry",
+        "test_fastcap",
+        "test_fastcap_modes",
+    )
+)
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """Each module whole to one worker (xdist's loadfile), in the collection order above: under plain
     load scheduling both workers ran tests of one module, so each built its module-scoped fixtures
-    (a model build, a re-run of the process laws) once more."""
+    (a model build, a re-run of the process laws) once more. The BEMPP_MODULES go together."""
     from xdist.scheduler import LoadFileScheduling
 
+    class ModuleScheduling(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:  # xdist's documented point of extension
+            module = super()._split_scope(nodeid)
+            return "bempp-cl" if module in BEMPP_MODULES else module
+
     config.option.loadscopereorder = False  # keep the order above, not xdist's by test count
-    return LoadFileScheduling(config, log)
+    return ModuleScheduling(config, log)
