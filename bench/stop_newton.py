@@ -6,6 +6,7 @@ ngspice's defaults, reltol 1e-12 / vntol 1e-12 V, and the tests' former reltol 1
 
     .venv/bin/python bench/stop_newton.py [--variants 9] [--etches -1e-7,4e-8,1e-7] [--timeout 20]
     .venv/bin/python bench/stop_newton.py --sensitivity
+    .venv/bin/python bench/stop_newton.py --model xyz.json   # a build of that structure (netgen build's JSON)
 
 --sensitivity prints instead the rest's relative sensitivities d ln q / d ln c to the parts of the
 model's rest (tests/oracles/process_cases.pushed_rest), whose sums bound how far the .lib's 11-digit
@@ -31,10 +32,12 @@ from support import NGSPICE, process_cases
 from netgen import emit
 from netgen.build import build_model
 from netgen.emit import ngspice as emit_ngspice
+from netgen.model import MacroModel
 from netgen.sim import vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 
+STRUCTURE = process_cases.xyz_text(process='[process]\nparameters = ["etch"]\n')
 OPTIONS = {
     "default": "",
     "vntol 1e-12": ".options reltol=1e-12 vntol=1e-12 abstol=1e-20",
@@ -109,9 +112,9 @@ def main() -> None:
     ap.add_argument("--etches", default="-1e-7,4e-8,1e-7")
     ap.add_argument("--timeout", type=float, default=20.0)
     ap.add_argument("--sensitivity", action="store_true", help="print the rest's sensitivities, no simulation")
+    ap.add_argument("--model", type=Path, help="the model JSON of that structure, built already (default: build it)")
     args = ap.parse_args()
-    text = process_cases.xyz_text(process='[process]\nparameters = ["etch"]\n')
-    model = build_model(parse_structure(text, "xyz.toml"))
+    model = MacroModel.load_json(args.model) if args.model else build_model(parse_structure(STRUCTURE, "xyz.toml"))
     if args.sensitivity:
         for etch in (float(e) for e in args.etches.split(",")):
             sensitivity(model, etch)

@@ -10,7 +10,9 @@ import sys
 
 import pytest
 
-from tests.fixtures import ROOT
+from netgen.structure import parse_structure
+from tests.fixtures import ROOT, shared_model
+from tests.oracles.process_cases import xyz_text
 
 RUNS = {
     "build_scaling": (
@@ -83,11 +85,11 @@ RUNS = {
     ),
     "ideal_loop": (["bench/sigma_delta_ideal_loop.py", "--cycles", "2048"], ["dB/decade"]),
     "stop_newton": (
-        ["bench/stop_newton.py", "--variants", "1", "--etches", "1e-7", "--timeout", "5"],
+        ["bench/stop_newton.py", "--variants", "1", "--etches", "1e-7", "--timeout", "5", "--model", "{xyz_etch}"],
         ["osdi ngspice 46, vntol 1e-12", "vacask, default", "iterations"],
     ),
     "stop_newton_sensitivity": (
-        ["bench/stop_newton.py", "--sensitivity", "--etches", "1e-7"],
+        ["bench/stop_newton.py", "--sensitivity", "--etches", "1e-7", "--model", "{xyz_etch}"],
         ["B-source sum", "etch +1e-07"],
     ),
     "sigma_delta_accelerometer": (
@@ -111,10 +113,23 @@ RUNS = {
 }
 
 
+@pytest.fixture(scope="module")
+def xyz_etch(tmp_path_factory) -> str:
+    """The JSON of bench/stop_newton.py's structure, built once in the session (tests.fixtures.
+    shared_model: tests/emit/test_process_etch_forms.py builds the same), for its two runs."""
+    text = xyz_text(process='[process]\nparameters = ["etch"]\n')
+    model = shared_model(parse_structure(text, "xyz.toml"))
+    path = tmp_path_factory.mktemp("xyz_etch") / "xyz.json"
+    path.write_text(model.json_text())
+    return str(path)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(RUNS))
-def test_bench_script_runs(name, tmp_path):
+def test_bench_script_runs(name, tmp_path, request):
     argv, expect = RUNS[name]
+    if "{xyz_etch}" in argv:
+        argv = [request.getfixturevalue("xyz_etch") if a == "{xyz_etch}" else a for a in argv]
     proc = subprocess.run(
         [sys.executable, *[a.replace("{tmp}", str(tmp_path)) for a in argv]],
         cwd=ROOT,
