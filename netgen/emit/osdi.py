@@ -13,6 +13,7 @@ import hashlib
 import os
 import re
 import subprocess
+import tempfile
 from importlib import metadata
 from pathlib import Path
 
@@ -183,4 +184,10 @@ def outputs(model: MacroModel, cpu: str = GENERIC) -> dict[str, str | bytes]:
     (core.files.cache_root()/osdi, see compiled): a rebuild or a process corner whose module
     text is unchanged reuses the binary."""
     text = veriloga.module(model)
-    return {".va": text, ".osdi": compiled(text, model.name, cache_root() / "osdi", cpu).read_bytes()}
+    try:
+        return {".va": text, ".osdi": compiled(text, model.name, cache_root() / "osdi", cpu).read_bytes()}
+    except OSError:  # no writable cache (a read-only home): compile in a folder of this call's own
+        with tempfile.TemporaryDirectory(prefix="netgen-osdi-") as tmp:
+            va = Path(tmp) / f"{model.name}.va"
+            va.write_text(text, encoding="utf-8")
+            return {".va": text, ".osdi": compile_va(va, cpu=cpu)[0].read_bytes()}

@@ -252,6 +252,17 @@ def test_a_rebuild_reuses_the_compiled_module(model, tmp_path, monkeypatch):
         osdi.outputs(model)
 
 
+def test_without_a_writable_cache_the_module_is_still_compiled(model, tmp_path, monkeypatch):
+    """NETGEN_CACHE naming a file (as a read-only home would refuse the folder): the build compiles in
+    a temporary folder instead (openvaf-r writes the source's path into the object, so its bytes are
+    not the cached module's: the check is that it is a shared object of this model's module)."""
+    blocked = tmp_path / "a file"
+    blocked.write_text("")
+    monkeypatch.setenv("NETGEN_CACHE", str(blocked))
+    built = osdi.outputs(model)[".osdi"]
+    assert built[:4] == b"\x7fELF" and model.name.encode() in built
+
+
 def _transient_runs(model: MacroModel, osdi_file: Path, tmp_path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The 105 us transient of test_transient_matches_scipy_and_the_b_source_lib with one .osdi, in
     ngspice 46 and in VACASK: per simulator (time, scaled coordinates)."""
