@@ -377,8 +377,51 @@ def test_sampling_grid_size_and_contact_range_are_checked():
 # ----------------------------------------------------------------------------- valid structures
 
 
+# a valid file whose 3 x 3 grid leaves the 2-term plate fit a pole inside the box (a random run found
+# it): the build refuses it with the fix (netgen.fit.capacitance.refuse_unphysical), never a wrong model
+POLE_IN_THE_BOX = {
+    "name": "disk",
+    "conductor": {
+        "radius": "481.500 um",
+        "thickness": "2.000 um",
+        "youngs_modulus": "50.00 GPa",
+        "poisson_ratio": 0.0,
+        "density": 1000.0,
+    },
+    "electrodes": [
+        {
+            "name": "sa",
+            "side": "above",
+            "gap": "0.500 um",
+            "rings": [["0.000 um", "60.188 um"], ["120.375 um", "240.750 um"]],
+            "sectors": 3,
+            "slot": "1.881 um",
+        }
+    ],
+    "coordinates": {"rigid": ["z", "tilt_x"], "modes": 0},
+    "sampling": {"levels": 3, "range": 0.375},
+    "fit": {"max_terms": 2, "holdout": 20},
+}
+
+
+def test_a_fit_with_a_pole_in_the_box_is_refused_with_the_fix():
+    """The case above: StructureError naming the file, sampling.range and the fix (narrow the range or
+    use fewer coordinates), where a fitted 1/P_k turns negative between the samples."""
+    with pytest.raises(StructureError) as info:
+        build_model(parse_structure(toml_text(POLE_IN_THE_BOX), "prop.toml"))
+    text = str(info.value)
+    assert "prop.toml" in text and "sampling.range" in text and "a pole between the samples" in text
+    assert "narrow [sampling] range" in text
+
+
+# derandomized: every run tries the same structures (a random draw per run made the suite's verdict a
+# draw too: the case above failed one of this session's runs); database=None keeps a local failure out
 @settings(
-    max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+    max_examples=8,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
 @given(doc=valid_docs())
 def test_valid_rigid_structures_build_and_run_in_ngspice(doc, tmp_path_factory):
