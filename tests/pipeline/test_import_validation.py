@@ -28,6 +28,7 @@ import scipy.sparse
 from netgen import export
 from netgen.build import build
 from netgen.cli.commands import main
+from netgen.electrostatics.imported import merge_duplicates, read_capacitance
 from netgen.electrostatics.sampling import blas_threads
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT
@@ -636,7 +637,7 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
     exact, so every .lib number within ULP_BOUND relative of the native build's; the beam's modes are
     a cubic spline through the exported nodes, so its masses and stiffnesses exact and its
     capacitance on the native held-out points within 1e-4. The same table with every row given
-    twice (equal repeats are merged) writes the identical .lib."""
+    twice merges to the original rows bit for bit and writes the same .lib within ULP_BOUND."""
     b = bases[name]
     (tmp_path / "native.toml").write_text(b.text)
     assert main(["build", str(tmp_path / "native.toml"), "-o", str(tmp_path / "native"), "-q", "--no-plots"]) == 0
@@ -651,7 +652,14 @@ def test_good_exports_still_build_the_native_model(bases, name, tmp_path):
         toml.write_text(structure_text(b, {}, cap=cap))
         assert main(["build", str(toml), "-o", str(tmp_path / cap), "-q", "--no-plots"]) == 0
         libs.append(lib_numbers(tmp_path / cap, b.native.model.name))
-    assert np.array_equal(libs[0], libs[1]), "rows twice against once: " + differences(libs[1], libs[0], 0.0)
+    once, twice = (read_capacitance(b.folder / cap) for cap in ("capacitance.npz", "repeated.npz"))
+    kept = merge_duplicates(twice)
+    assert np.array_equal(twice.q[kept], once.q) and np.array_equal(twice.c[kept], once.c, equal_nan=True)
+    # the merged table is the original to the bit; the fit of it is the same fit in other memory, so
+    # the two .lib files agree to the rounding room of an alignment-dependent reduction (ULP_BOUND)
+    assert np.all(np.abs(libs[1] - libs[0]) <= ULP_BOUND * np.abs(libs[0])), "rows twice against once: " + differences(
+        libs[1], libs[0], ULP_BOUND
+    )
     want = lib_numbers(tmp_path / "native", b.native.model.name)
     if name != "beam":
         assert len(libs[0]) == len(want) > 50
