@@ -37,7 +37,7 @@ from netgen.sim import vacask
 from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 
-STRUCTURE = process_cases.xyz_text(process='[process]\nparameters = ["etch"]\n')
+STRUCTURE = process_cases.xyz_etch_text()
 OPTIONS = {
     "default": "",
     "vntol 1e-12": ".options reltol=1e-12 vntol=1e-12 abstol=1e-20",

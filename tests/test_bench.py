@@ -12,7 +12,7 @@ import pytest
 
 from netgen.structure import parse_structure
 from tests.fixtures import ROOT, shared_model
-from tests.oracles.process_cases import xyz_text
+from tests.oracles.process_cases import xyz_etch_text
 
 RUNS = {
     "build_scaling": (
@@ -117,7 +117,7 @@ RUNS = {
 def xyz_etch(tmp_path_factory) -> str:
     """The JSON of bench/stop_newton.py's structure, built once in the session (tests.fixtures.
     shared_model: tests/emit/test_process_etch_forms.py builds the same), for its two runs."""
-    text = xyz_text(process='[process]\nparameters = ["etch"]\n')
+    text = xyz_etch_text()
     model = shared_model(parse_structure(text, "xyz.toml"))
     path = tmp_path_factory.mktemp("xyz_etch") / "xyz.json"
     path.write_text(model.json_text())

@@ -66,15 +66,13 @@ from tests.emit.test_process_etch_forms import (
 )
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, osdi_form, xyz_text
+from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, osdi_form, xyz_etch_text
 
 
 @pytest.fixture(scope="module")
 def xyz():
     """accelerometer_xyz with its field2d combs and etch declared (the etched cells' tables ship)."""
-    text = xyz_text(process='[process]\nparameters = ["etch"]\n').replace(
-        'comb_model = "textbook"', 'comb_model = "field2d"'
-    )
+    text = xyz_etch_text().replace('comb_model = "textbook"', 'comb_model = "field2d"')
     return build_model(parse_structure(text, "xyz.toml"))
 
 

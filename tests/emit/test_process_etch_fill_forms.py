@@ -36,9 +36,9 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, control_block, osdi_form, xyz_text
+from tests.oracles.process_cases import ETCH_PROCESS, PERFORATED_ETCHES, control_block, osdi_form, xyz_text
 
-PROCESS = '[process]\nparameters = ["etch"]\n'
+PROCESS = ETCH_PROCESS
 
 
 @pytest.fixture(scope="module")

@@ -48,7 +48,7 @@ from tests.oracles.process_cases import (
     control_block,
     guided,
     pushed_rest,
-    xyz_text,
+    xyz_etch_text,
 )
 
 GAP, SIDE, VOLTS = 2e-6, 200e-6, 10.0
@@ -130,7 +130,7 @@ def test_osdi(model, tmp_path, monkeypatch, etch):
 @pytest.fixture(scope="module")
 def xyz():
     """examples/accelerometer_xyz with the textbook combs and etch declared (tests/oracles/process_cases.xyz_text)."""
-    return build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    return build_model(parse_structure(xyz_etch_text(), "xyz.toml"))
 
 
 def comb_deck(include: str, etch: float, control: str = "") -> str:

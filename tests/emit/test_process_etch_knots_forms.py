@@ -35,7 +35,7 @@ from netgen.structure import parse_structure
 from netgen.testbench.sigma_delta import ngspice as sdn
 from tests.fixtures import NGSPICE
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import control_block, osdi_form, xyz_text
+from tests.oracles.process_cases import control_block, osdi_form, xyz_etch_text, xyz_text
 
 ETCHES = (-0.02e-6, -0.002e-6, 0.002e-6, 0.02e-6)  # m: both sides of the kink at 0
 FORCE = 1.0  # uN on f_z (1 V = 1 uN): x_z ~ 0.54 um at 1.85 N/m
@@ -44,7 +44,7 @@ Z = 3  # z's index (x, y, rot_z, z, tilt_x, tilt_y)
 
 @pytest.fixture(scope="module")
 def xyz():
-    model = build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    model = build_model(parse_structure(xyz_etch_text(), "xyz.toml"))
     assert [c.name for c in model.coordinates][Z] == "z" and model.nonlinear_energy_polynomial() is None
     assert model.process["etch"]["knots"] == [0.0]
     return model

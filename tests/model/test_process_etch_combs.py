@@ -36,9 +36,9 @@ from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, coordinate_values
 from netgen.structure import parse_structure
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, xyz_text
+from tests.oracles.process_cases import ETCH_PROCESS, PERFORATED_ETCHES, xyz_text
 
-PROCESS = '[process]\nparameters = ["etch"]\n'
+PROCESS = ETCH_PROCESS
 
 
 @pytest.fixture(scope="module")

@@ -34,9 +34,9 @@ from netgen.model import MacroModel
 from netgen.model.process import capacitance_at, comb_shifts, etched
 from netgen.structure import parse_structure
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import PERFORATED_ETCHES, Drawn, fresh_extractor, fresh_points, xyz_text
+from tests.oracles.process_cases import ETCH_PROCESS, PERFORATED_ETCHES, Drawn, fresh_extractor, fresh_points, xyz_text
 
-PROCESS = '[process]\nparameters = ["etch"]\n'
+PROCESS = ETCH_PROCESS
 
 
 def field2d(text: str) -> str:

@@ -32,7 +32,7 @@ from netgen.model.etch_knots import etch_knots, knot_points
 from netgen.model.process import coordinate_values
 from netgen.structure import parse_structure
 from tests.fixtures import shared_model as build_model
-from tests.oracles.process_cases import perforated, xyz_text
+from tests.oracles.process_cases import perforated, xyz_etch_text, xyz_text
 
 STRADDLE = (-0.1e-6, -0.02e-6, -0.005e-6, -0.001e-6, 0.001e-6, 0.005e-6, 0.02e-6, 0.04e-6, 0.1e-6)  # m
 
@@ -50,7 +50,7 @@ def test_torsion_constant_has_a_kink_at_w_equal_t():
 def test_knots_where_the_etched_widths_meet_the_thickness():
     """accelerometer_xyz (2 um legs, 2 um layer): one knot at etch 0, the re-runs five per piece; the
     perforated mass with 3 um legs: its knot at 0.5 um lies outside +-0.1 um (the plain cubic)."""
-    s = parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml")
+    s = parse_structure(xyz_etch_text(), "xyz.toml")
     assert etch_knots(s, -1e-7, 1e-7) == (0.0,)
     assert len(knot_points(-1e-7, 1e-7, (0.0,))) == 9
     px = parse_structure(perforated(process='[process]\nparameters = ["etch"]\n'), "px.toml")
@@ -62,7 +62,7 @@ def test_knots_where_the_etched_widths_meet_the_thickness():
 
 @pytest.fixture(scope="module")
 def xyz():
-    return build_model(parse_structure(xyz_text(process='[process]\nparameters = ["etch"]\n'), "xyz.toml"))
+    return build_model(parse_structure(xyz_etch_text(), "xyz.toml"))
 
 
 @pytest.mark.parametrize("etch", STRADDLE)

@@ -148,6 +148,16 @@ def perforated(etch: float = 0.0, process: str = "") -> str:
     )
 
 
+# the [process] table that declares the etch a model parameter (its default range)
+ETCH_PROCESS = '[process]\nparameters = ["etch"]\n'
+
+
+def xyz_etch_text() -> str:
+    """The drawn xyz accelerometer with the etch as a parameter: one text, so the session's shared
+    build (tests.fixtures.shared_model) serves every module and bench/stop_newton.py."""
+    return xyz_text(process=ETCH_PROCESS)
+
+
 def xyz_text(etch: float = 0.0, process: str = "") -> str:
     """examples/accelerometer_xyz.toml with the textbook comb form (eps t / g per face: the etch's gap
     and overlap shifts are exact for it) and hole_pitch 9.98 um (40 holes at every etched side: the
