@@ -150,7 +150,13 @@ def richardson(values: list[np.ndarray], ratio: float) -> dict:
     if len(values) >= 3:
         with np.errstate(divide="ignore", invalid="ignore"):
             r = (values[-2] - values[-3]) / (fine - coarse)
-            out["observed_order"] = np.where(r > 1.0, np.log(np.abs(r)) / math.log(ratio), np.nan)
+            observed = np.where(r > 1.0, np.log(np.abs(r)) / math.log(ratio), np.nan)
+            # the observed order where bem.extrapolate would trust it (0.5 .. 4), else 2
+            p = np.where((observed >= 0.5) & (observed <= 4.0), observed, 2.0)
+            out["observed_order"] = observed
+            out["best_observed"] = fine + (fine - coarse) / (ratio**p - 1.0)
+            # its bar: its own correction, and at least the distance to the order-2 estimate
+            out["bar_observed"] = np.maximum(np.abs(out["best_observed"] - fine), np.abs(out["best_observed"] - best))
     return out
 
 
@@ -221,6 +227,8 @@ def run(a) -> dict:
         if a.solver == "fastcap" and qn not in ("area_deficit", "C_area"):
             r["order_change"] = np.abs(per_level[-1][qn] - mesh[0][qn])
             r["bar"] = r["bar"] + r["order_change"]
+            if "bar_observed" in r:
+                r["bar_observed"] = r["bar_observed"] + r["order_change"]
         r["levels"] = [lv[qn] for lv in mesh]
         out[qn] = {k: np.asarray(v).tolist() for k, v in r.items()}
     return out
@@ -249,10 +257,18 @@ def table(x: dict) -> str:
     return "\n".join(lines)
 
 
-def compare(fc: dict, bm: dict) -> str:
+def compare(fc: dict, bm: dict, observed: bool = False) -> str:
     """A markdown table: per electrode and quantity FastCap, BEM (each +- its bar in %), FastCap / BEM - 1
-    and the sum of both bars (C from the mean of the +-d solves when either run skipped q = 0)."""
+    and the sum of both bars (C from the mean of the +-d solves when either run skipped q = 0).
+    observed: each run's estimate at its observed order where it has three levels (best_observed)."""
     c = "C" if fc.get("centre", True) and bm.get("centre", True) else "C_pm"
+
+    def est(x: dict, qn: str, i: int) -> tuple[float, float]:
+        q = x[qn]
+        if observed and "best_observed" in q:
+            return q["best_observed"][i], q["bar_observed"][i]
+        return q["best"][i], q["bar"][i]
+
     units = {c: (1e15, "fF"), "dz": (1e9, "fF/um"), "dtilt": (1e12, "fF/mrad")}
     head = "| electrode |" + "".join(
         f" {q} FastCap ({u}) | {q} BEM | dev | bars |"
@@ -262,11 +278,11 @@ def compare(fc: dict, bm: dict) -> str:
     for i, n in enumerate(fc["names"]):
         row = f"| {n} |"
         for qn, (unit, _) in units.items():
-            f, b = fc[qn]["best"][i], bm[qn]["best"][i]
+            (f, bf), (b, bb) = est(fc, qn, i), est(bm, qn, i)
             if abs(b) < 1e-6 * max(abs(v) for v in bm[qn]["best"]):
                 row += " 0 | 0 | (symmetry) | |"
                 continue
-            ef, eb = fc[qn]["bar"][i] / abs(f), bm[qn]["bar"][i] / abs(b)
+            ef, eb = bf / abs(f), bb / abs(b)
             row += (
                 f" {f * unit:.5g} ({100 * ef:.2f} %) | {b * unit:.5g} ({100 * eb:.2f} %) |"
                 f" {100 * (f / b - 1):+.3f} % | {100 * (ef + eb):.2f} % |"
@@ -296,13 +312,16 @@ def main() -> None:
     ap.add_argument(
         "--only", nargs="+", help="solve and store only these, as level and q (0+ 1- 10 ...): one run per process"
     )
+    ap.add_argument(
+        "--observed", action="store_true", help="--compare: each run at its observed order where it has three levels"
+    )
     ap.add_argument("--store", type=Path, default=STORE)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("FASTCAP_JSON", "BEM_JSON"))
     a = ap.parse_args()
     if a.compare:
         fc, bm = (json.loads(f.read_text()) for f in a.compare)
-        print(compare(fc, bm))
+        print(compare(fc, bm, a.observed))
         return
     global ASPECT
     ASPECT = a.aspect
