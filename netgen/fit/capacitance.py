@@ -245,7 +245,9 @@ class FitData:
     def scored(self, fit: CapacitanceFit) -> CapacitanceFit:
         """The fit with its max_rel_error over the corners too (with_corners): what the
         refinement must bring under the tolerance, since the stated error includes them."""
-        return fit if self.x_corner is None else with_corners(fit, self.x_corner, self.c_corner)
+        if self.x_corner is None or self.c_corner is None:
+            return fit
+        return with_corners(fit, self.x_corner, self.c_corner)
 
 
 def fit_electrode(
