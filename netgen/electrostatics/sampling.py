@@ -244,12 +244,11 @@ def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress:
     return sample_points(prepared, x, scales, progress, "held-out samples", **parallel)
 
 
-# Corner checks up to this many coordinates (2^7 = 128 extractor points). A polynomial's misfit peaks at
+# Corner checks up to this many coordinates (2^6 = 64 extractor points). A polynomial's misfit peaks at
 # the box's corners, which random held-out points miss as n grows (bench/fit_corners.py: the cantilever's
-# corners 1.4x, the 6-coordinate accelerometer's 2.1x, the 7-coordinate reference disk's up to 8.8x the
-# random points' maximum); face centres stay below it. The plate fits refine until the corners meet
-# fit.tolerance too (netgen.fit.capacitance.fit_electrode).
-CORNER_CHECKS = 7
+# corners 1.4x, the 6-coordinate accelerometer's 2.1x the random points' maximum); face centres stay below
+# it. The plate fits refine until the corners meet fit.tolerance too (netgen.fit.capacitance.fit_electrode).
+CORNER_CHECKS = 6
 
 
 def sample_corners(
