@@ -138,7 +138,7 @@ def sample_and_fit(
     corners = sample_corners(s, prepared, scales, progress, **parallel)
     if s.sampling.design != "adaptive":
         say(progress, f"{s.name}: fitting {grid.c.shape[1]} capacitances to {len(grid.x)} samples ({s.fit.target})")
-        fits = fit_all(s, shapes, m.basis, scales, grid, holdout, progress, corners)
+        fits = fit_all(s, shapes, m.basis, scales, grid, holdout, progress)
         return Sampled(grid, holdout, at_corners(fits, corners), None, corners)
     say(progress, f"{s.name}: adaptive design from {len(grid.x)} samples, budget {s.sampling.points}")
     result = adaptive_fits(

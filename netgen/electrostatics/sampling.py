@@ -246,8 +246,7 @@ def sample_holdout(s, prepared: PreparedExtractor, scales: np.ndarray, progress:
 
 # Corner checks up to this many coordinates (2^6 = 64 extractor points). A polynomial's misfit peaks at
 # the box's corners, which random held-out points miss as n grows (bench/fit_corners.py: the cantilever's
-# corners 1.4x, the 6-coordinate accelerometer's 2.1x the random points' maximum); face centres stay below
-# it. The plate fits refine until the corners meet fit.tolerance too (netgen.fit.capacitance.fit_electrode).
+# corners 1.4x, the 6-coordinate accelerometer's 2.1x the random points' maximum); face centres stay below it.
 CORNER_CHECKS = 6
 
 

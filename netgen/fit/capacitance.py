@@ -233,21 +233,11 @@ class FitData:
     x_check: np.ndarray
     c_check: np.ndarray
     rest: tuple[float, np.ndarray] | None = None
-    x_corner: np.ndarray | None = None  # the box's corners (netgen.electrostatics.sampling.sample_corners)
-    c_corner: np.ndarray | None = None
 
     @classmethod
-    def of(cls, train: Samples, check: Samples, i: int, corners: Samples | None = None) -> FitData:
-        """Electrode i's columns of the training, held-out and corner samples."""
-        xc, cc = (corners.x, corners.c[:, i]) if corners is not None else (None, None)
-        return cls(train.x, train.c[:, i], check.x, check.c[:, i], rest_of(train, i), xc, cc)
-
-    def scored(self, fit: CapacitanceFit) -> CapacitanceFit:
-        """The fit with its max_rel_error over the corners too (with_corners): what the
-        refinement must bring under the tolerance, since the stated error includes them."""
-        if self.x_corner is None or self.c_corner is None:
-            return fit
-        return with_corners(fit, self.x_corner, self.c_corner)
+    def of(cls, train: Samples, check: Samples, i: int) -> FitData:
+        """Electrode i's columns of the training and held-out samples."""
+        return cls(train.x, train.c[:, i], check.x, check.c[:, i], rest_of(train, i))
 
 
 def fit_electrode(
@@ -269,8 +259,8 @@ def fit_electrode(
         ) * oversample > len(x):
             break  # more plate terms than the samples determine
         init = patch_guess(s, e, basis, scales, grid, float(c[np.argmin(np.sum(x * x, axis=1))]))
-        fit = data.scored(fit_plates(name, data, init, o.degree))
-        ok = physical(fit, x, x_check if data.x_corner is None else np.concatenate([x_check, data.x_corner]))
+        fit = fit_plates(name, data, init, o.degree)
+        ok = physical(fit, x, x_check)
         if best is None or (ok, -fit.max_rel_error) > (best_ok, -best.max_rel_error):
             best, used, best_ok = fit, k, ok
         if ok and fit.max_rel_error <= o.tolerance:
@@ -371,17 +361,15 @@ def fit_all(
     grid: Samples,
     holdout: Samples,
     progress: bool = False,
-    corners: Samples | None = None,
 ) -> list[CapacitanceFit]:
     """One capacitance fit per electrode, in port order (refused when the samples cannot
-    determine the fit's terms); a plate fit refines its patches until its error at the held-out
-    points and the box's `corners` meets the tolerance."""
+    determine the fit's terms)."""
     check_determined(s, grid.x)
     fits: list[CapacitanceFit] = []
     start: dict[str, int] = {}
     for i, e in enumerate(tqdm(electrodes, desc="fits", unit="el", disable=not progress, file=sys.stderr, leave=False)):
         ring = e.name.rsplit("s", 1)[0]  # electrodes of one ring share a patch grid
-        fit, start[ring] = fit_electrode(s, e, basis, scales, FitData.of(grid, holdout, i, corners), start.get(ring, 0))
+        fit, start[ring] = fit_electrode(s, e, basis, scales, FitData.of(grid, holdout, i), start.get(ring, 0))
         fits.append(fit)
     refuse_unphysical(s, fits, grid.x, holdout.x)
     return fits
